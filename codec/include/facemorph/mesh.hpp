@@ -1,0 +1,36 @@
+// The triangle mesh that flows through facemorph: a captured frame, a filled frame, a decoded frame.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+namespace facemorph {
+
+using Vec2 = Eigen::Vector2d;
+using Vec3 = Eigen::Vector3d;
+// Three vertex indices, counter-clockwise seen from the side the normal points to.
+using Face = std::array<int32_t, 3>;
+
+struct TriangleMesh {
+  std::vector<Vec3> positions;  // capture units (see Capture::units)
+  std::vector<Face> faces;
+
+  // Optional texture coordinates, per corner: uv_faces[f][k] indexes uvs for corner k of faces[f].
+  // Either empty or exactly faces.size() long. (u, v) with v pointing up, as in OBJ.
+  std::vector<Vec2> uvs;
+  std::vector<Face> uv_faces;
+
+  // Texture image (OBJ map_Kd, PLY "comment TextureFile"); empty when there is none. Resolved
+  // against the mesh file's folder by the readers.
+  std::filesystem::path texture;
+
+  bool has_uvs() const { return !uv_faces.empty() && uv_faces.size() == faces.size(); }
+  int vertex_count() const { return static_cast<int>(positions.size()); }
+  int face_count() const { return static_cast<int>(faces.size()); }
+};
+
+}  // namespace facemorph

@@ -1,0 +1,268 @@
+// Wavefront OBJ + MTL reading and writing.
+#include "facemorph/error.hpp"
+#include "facemorph/mesh_io.hpp"
+
+#include "codec/mesh/text_scan.hpp"
+#include "format/file_io.hpp"
+
+#include <charconv>
+#include <string>
+
+namespace facemorph {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Corner {
+  int32_t vertex = -1;
+  int32_t uv = -1;  // -1: none
+};
+
+[[noreturn]] void fail(ErrorCode code, const std::string& source, size_t line, const std::string& why) {
+  throw Error(code, source + ":" + std::to_string(line) + ": " + why);
+}
+
+// Resolves an OBJ index (1-based, or negative = relative to the end) against `count` elements.
+int32_t resolve_index(std::string_view token, size_t count, const char* kind,
+                      const std::string& source, size_t line) {
+  const auto value = text::parse_int(token);
+  if (!value) fail(ErrorCode::kParse, source, line, std::string("malformed ") + kind + " index '" + std::string(token) + "'");
+  int64_t index = *value;
+  if (index < 0) index += static_cast<int64_t>(count);
+  else index -= 1;
+  if (*value == 0 || index < 0 || index >= static_cast<int64_t>(count)) {
+    fail(ErrorCode::kInvalidMesh, source, line,
+         std::string(kind) + " index " + std::string(token) + " out of range (" +
+             std::to_string(count) + " defined so far)");
+  }
+  return static_cast<int32_t>(index);
+}
+
+// Parses "v", "v/vt", "v/vt/vn" or "v//vn".
+Corner parse_corner(std::string_view token, size_t vertex_count, size_t uv_count,
+                    size_t normal_count, const std::string& source, size_t line) {
+  Corner corner;
+  const size_t slash1 = token.find('/');
+  corner.vertex = resolve_index(token.substr(0, slash1), vertex_count, "vertex", source, line);
+  if (slash1 == std::string_view::npos) return corner;
+  std::string_view rest = token.substr(slash1 + 1);
+  const size_t slash2 = rest.find('/');
+  const std::string_view uv_token = rest.substr(0, slash2);
+  if (!uv_token.empty()) corner.uv = resolve_index(uv_token, uv_count, "texture-coordinate", source, line);
+  if (slash2 != std::string_view::npos) {
+    const std::string_view normal_token = rest.substr(slash2 + 1);
+    if (!normal_token.empty()) (void)resolve_index(normal_token, normal_count, "normal", source, line);
+  }
+  return corner;
+}
+
+// OBJ/MTL file names may contain options before them ("map_Kd -s 1 1 1 skin.png"): the image is the
+// last token. Names with spaces are not supported (documented in spec/capture.md).
+std::string_view last_token(std::string_view rest) {
+  std::string_view last;
+  for (std::string_view token = text::next_token(rest); !token.empty(); token = text::next_token(rest)) {
+    last = token;
+  }
+  return last;
+}
+
+// Finds map_Kd of `material` (or of the first material with a map_Kd when `material` is empty).
+std::string find_diffuse_map(std::string_view mtl_text, const std::string& material) {
+  text::LineScanner lines(mtl_text);
+  std::string_view line;
+  std::string current;
+  std::string first_map;
+  while (lines.next(line)) {
+    std::string_view rest = line;
+    const std::string_view keyword = text::next_token(rest);
+    if (keyword == "newmtl") {
+      current = std::string(text::trim(rest));
+    } else if (keyword == "map_Kd") {
+      const std::string name(last_token(rest));
+      if (name.empty()) continue;
+      if (!material.empty() && current == material) return name;
+      if (first_map.empty()) first_map = name;
+    }
+  }
+  return material.empty() ? first_map : std::string();
+}
+
+void append_number(std::string& out, double value) {
+  char buffer[32];
+  auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+  out.append(buffer, result.ptr);
+}
+
+void append_int(std::string& out, int64_t value) {
+  char buffer[24];
+  auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+  out.append(buffer, result.ptr);
+}
+
+}  // namespace
+
+TriangleMesh parse_obj(std::string_view text_data, const std::string& source, const fs::path& base_dir,
+                       const MeshReadOptions& options, Warnings* warnings) {
+  TriangleMesh mesh;
+  size_t normal_count = 0;
+  size_t polygons = 0;
+  size_t faces_with_uv = 0;
+  size_t faces_without_uv = 0;
+  std::vector<std::string> libraries;
+  std::string material;
+  std::vector<Face> uv_faces;
+  std::vector<Corner> corners;
+
+  text::LineScanner lines(text_data);
+  std::string_view line;
+  while (lines.next(line)) {
+    std::string_view rest = line;
+    const std::string_view keyword = text::next_token(rest);
+    if (keyword.empty() || keyword.front() == '#') continue;
+    if (keyword == "v" || keyword == "vt") {
+      const int needed = keyword == "v" ? 3 : 2;
+      double values[3] = {0, 0, 0};
+      for (int k = 0; k < needed; ++k) {
+        const std::string_view token = text::next_token(rest);
+        const auto value = text::parse_double(token);
+        if (!value) {
+          fail(ErrorCode::kParse, source, lines.line_number(),
+               std::string("malformed ") + std::string(keyword) + " line: expected " +
+                   std::to_string(needed) + " numbers");
+        }
+        values[k] = *value;
+      }
+      if (keyword == "v") mesh.positions.emplace_back(values[0], values[1], values[2]);
+      else mesh.uvs.emplace_back(values[0], values[1]);
+    } else if (keyword == "vn") {
+      ++normal_count;
+    } else if (keyword == "f") {
+      corners.clear();
+      for (std::string_view token = text::next_token(rest); !token.empty(); token = text::next_token(rest)) {
+        corners.push_back(parse_corner(token, mesh.positions.size(), mesh.uvs.size(), normal_count,
+                                       source, lines.line_number()));
+      }
+      if (corners.size() < 3) {
+        fail(ErrorCode::kParse, source, lines.line_number(),
+             "face with " + std::to_string(corners.size()) + " corners (at least 3 needed)");
+      }
+      bool has_uv = true;
+      for (const Corner& c : corners) has_uv = has_uv && c.uv >= 0;
+      if (corners.size() > 3) ++polygons;
+      for (size_t k = 1; k + 1 < corners.size(); ++k) {
+        mesh.faces.push_back({corners[0].vertex, corners[k].vertex, corners[k + 1].vertex});
+        if (has_uv) {
+          uv_faces.push_back({corners[0].uv, corners[k].uv, corners[k + 1].uv});
+          ++faces_with_uv;
+        } else {
+          uv_faces.push_back({-1, -1, -1});
+          ++faces_without_uv;
+        }
+      }
+    } else if (keyword == "mtllib") {
+      for (std::string_view token = text::next_token(rest); !token.empty(); token = text::next_token(rest)) {
+        libraries.emplace_back(token);
+      }
+    } else if (keyword == "usemtl") {
+      if (material.empty()) material = std::string(text::trim(rest));
+    }
+    // o, g, s, l, p, and vendor keywords carry nothing facemorph uses.
+  }
+
+  if (polygons > 0 && warnings) {
+    warnings->push_back(source + ": " + std::to_string(polygons) + " polygon faces fan-triangulated");
+  }
+  if (faces_with_uv > 0 && faces_without_uv == 0) {
+    mesh.uv_faces = std::move(uv_faces);
+  } else {
+    if (faces_with_uv > 0 && warnings) {
+      warnings->push_back(source + ": " + std::to_string(faces_without_uv) +
+                          " faces lack texture coordinates; texture coordinates dropped");
+    }
+    mesh.uvs.clear();
+  }
+
+  auto missing = [&](const std::string& why) {
+    if (!options.allow_missing_texture) throw Error(ErrorCode::kMissingTexture, source + ": " + why);
+    if (warnings) warnings->push_back(source + ": " + why + "; reading without texture");
+  };
+  for (const std::string& library : libraries) {
+    const fs::path library_path = base_dir / library;
+    std::vector<uint8_t> bytes;
+    try {
+      bytes = format::read_file(library_path, uint64_t{1} << 26);
+    } catch (const Error&) {
+      missing("material library " + library + " not found");
+      continue;
+    }
+    const std::string map = find_diffuse_map(
+        std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), material);
+    if (map.empty()) continue;
+    const fs::path texture = base_dir / map;
+    std::error_code ec;
+    if (!fs::is_regular_file(texture, ec)) {
+      missing("texture image " + map + " (map_Kd in " + library + ") not found");
+    } else {
+      mesh.texture = texture;
+    }
+    break;
+  }
+  return mesh;
+}
+
+std::string format_obj(const TriangleMesh& mesh, const std::string& material_library) {
+  std::string out;
+  out.reserve(mesh.positions.size() * 40 + mesh.faces.size() * 30 + mesh.uvs.size() * 28);
+  out += "# facemorph\n";
+  if (!material_library.empty()) out += "mtllib " + material_library + "\nusemtl face\n";
+  for (const Vec3& p : mesh.positions) {
+    out += "v ";
+    append_number(out, p.x());
+    out += ' ';
+    append_number(out, p.y());
+    out += ' ';
+    append_number(out, p.z());
+    out += '\n';
+  }
+  const bool uv = mesh.has_uvs();
+  if (uv) {
+    for (const Vec2& t : mesh.uvs) {
+      out += "vt ";
+      append_number(out, t.x());
+      out += ' ';
+      append_number(out, t.y());
+      out += '\n';
+    }
+  }
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    out += 'f';
+    for (int k = 0; k < 3; ++k) {
+      out += ' ';
+      append_int(out, int64_t{mesh.faces[f][k]} + 1);
+      if (uv) {
+        out += '/';
+        append_int(out, int64_t{mesh.uv_faces[f][k]} + 1);
+      }
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+void write_obj_files(const fs::path& path, const TriangleMesh& mesh, const MeshWriteOptions& options) {
+  std::string library;
+  if (options.write_material && !mesh.texture.empty()) {
+    fs::path mtl_path = path;
+    mtl_path.replace_extension(".mtl");
+    library = mtl_path.filename().string();
+    std::error_code ec;
+    fs::path texture = fs::relative(mesh.texture, path.parent_path().empty() ? "." : path.parent_path(), ec);
+    if (ec || texture.empty()) texture = fs::absolute(mesh.texture, ec);
+    const std::string mtl = "# facemorph\nnewmtl face\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd " +
+                            texture.generic_string() + "\n";
+    format::write_file_atomically(mtl_path, std::string_view(mtl));
+  }
+  format::write_file_atomically(path, std::string_view(format_obj(mesh, library)));
+}
+
+}  // namespace facemorph

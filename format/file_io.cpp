@@ -1,0 +1,81 @@
+#include "format/file_io.hpp"
+
+#include "facemorph/error.hpp"
+
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <system_error>
+#include <unistd.h>
+
+namespace facemorph::format {
+namespace fs = std::filesystem;
+
+std::vector<uint8_t> read_file(const fs::path& path, uint64_t max_bytes) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    throw Error(ErrorCode::kIo, path.string() + ": is a directory, not a file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw Error(ErrorCode::kIo, path.string() + ": cannot open: " + std::strerror(errno));
+  }
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  if (size < 0) throw Error(ErrorCode::kIo, path.string() + ": cannot determine the file size");
+  if (static_cast<uint64_t>(size) > max_bytes) {
+    throw Error(ErrorCode::kInvalidArgument,
+                path.string() + ": " + std::to_string(size) + " bytes exceeds the limit of " +
+                    std::to_string(max_bytes));
+  }
+  in.seekg(0, std::ios::beg);
+  std::vector<uint8_t> data(static_cast<size_t>(size));
+  if (size > 0 && !in.read(reinterpret_cast<char*>(data.data()), size)) {
+    throw Error(ErrorCode::kIo, path.string() + ": read failed");
+  }
+  return data;
+}
+
+fs::path temporary_sibling(const fs::path& path) {
+  static std::atomic<unsigned> counter{0};
+  fs::path tmp = path;
+  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  return tmp;
+}
+
+void commit_temporary(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::rename(from, to, ec);
+  if (ec) {
+    fs::remove(from, ec);
+    throw Error(ErrorCode::kIo, to.string() + ": cannot replace the file: " + ec.message());
+  }
+}
+
+void write_file_atomically(const fs::path& path, std::span<const uint8_t> data) {
+  const fs::path tmp = temporary_sibling(path);
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) {
+      throw Error(ErrorCode::kIo, path.string() + ": cannot create: " + std::strerror(errno));
+    }
+    out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+    out.flush();
+    if (!out) {
+      out.close();
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(ErrorCode::kIo, path.string() + ": write failed (disk full?)");
+    }
+  }
+  commit_temporary(tmp, path);
+}
+
+void write_file_atomically(const fs::path& path, std::string_view text) {
+  write_file_atomically(path, std::span<const uint8_t>(
+                                  reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+}
+
+}  // namespace facemorph::format

@@ -1,0 +1,28 @@
+// Whole-file reads with a size bound, and writes that never leave a half file behind: data goes to
+// a temporary name in the destination folder and is renamed over the destination only when complete.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace facemorph::format {
+
+// Reads the whole file. Throws kIo naming the file if it cannot be opened or read, and
+// kInvalidArgument if it is larger than `max_bytes`.
+std::vector<uint8_t> read_file(const std::filesystem::path& path,
+                               uint64_t max_bytes = uint64_t{1} << 34);
+
+// Writes `data` to `path` atomically (temporary file + rename). Throws kIo naming the file.
+void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> data);
+void write_file_atomically(const std::filesystem::path& path, std::string_view text);
+
+// A temporary sibling name for `path` (same folder, so rename is atomic), unique per process+call.
+std::filesystem::path temporary_sibling(const std::filesystem::path& path);
+
+// Renames `from` over `to`; on failure removes `from` and throws kIo naming `to`.
+void commit_temporary(const std::filesystem::path& from, const std::filesystem::path& to);
+
+}  // namespace facemorph::format

@@ -1,0 +1,90 @@
+// Shared helpers for the facemorph tests: temporary folders, shared-data lookup, shape builders.
+#pragma once
+
+#include "facemorph/error.hpp"
+#include "facemorph/mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+namespace facemorph::testing {
+
+// A fresh folder under the system temp directory, removed with its contents at scope exit.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = std::filesystem::temp_directory_path() /
+            ("facemorph-test-" + std::to_string(rd()) + "-" + std::to_string(rd()));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+inline void write_text(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+// ../shared/data when the checkout sits beside it; empty when absent (tests then skip).
+inline std::filesystem::path shared_data() {
+  const std::filesystem::path path = FACEMORPH_SHARED_DATA;
+  std::error_code ec;
+  return std::filesystem::is_directory(path, ec) ? path : std::filesystem::path();
+}
+
+// Runs `body` and checks that it throws facemorph::Error with `code` and a message containing
+// `fragment` (so errors name the file / defect).
+template <typename Body>
+void expect_error(ErrorCode code, const std::string& fragment, Body&& body) {
+  try {
+    body();
+    ADD_FAILURE() << "expected facemorph::Error(" << error_code_name(code) << ")";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), code) << e.what();
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
+        << "message '" << e.what() << "' lacks '" << fragment << "'";
+  }
+}
+
+// Regular grid triangulation of [0,1]² mapped through `surface(u, v)`; (n+1)² vertices.
+template <typename Surface>
+TriangleMesh grid_mesh(int n, Surface&& surface) {
+  TriangleMesh mesh;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) mesh.positions.push_back(surface(double(i) / n, double(j) / n));
+  }
+  auto id = [n](int i, int j) { return static_cast<int32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      // Alternate diagonals so the mesh has no directional bias.
+      if ((i + j) % 2 == 0) {
+        mesh.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+        mesh.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+      } else {
+        mesh.faces.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
+        mesh.faces.push_back({id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)});
+      }
+    }
+  }
+  return mesh;
+}
+
+// Icosphere of radius r with `subdivisions` loop-style midpoint splits, outward-facing.
+TriangleMesh icosphere(double radius, int subdivisions);
+
+}  // namespace facemorph::testing
