@@ -198,23 +198,36 @@ Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const 
   Eigen::VectorXd H(n);
   for (Eigen::Index i = 0; i < n; ++i) H[i] = 0.5 * laplacian[static_cast<size_t>(i)].dot(normals[static_cast<size_t>(i)]);
 
-  // Boundary vertices: mean over interior neighbours.
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n);
-  Eigen::VectorXi count = Eigen::VectorXi::Zero(n);
-  for (const Face& f : faces) {
-    for (int k = 0; k < 3; ++k) {
-      const int32_t i = f[k];
-      if (!is_boundary[static_cast<size_t>(i)]) continue;
-      for (int m = 1; m < 3; ++m) {
-        const int32_t j = f[(k + m) % 3];
-        if (is_boundary[static_cast<size_t>(j)]) continue;
-        sum[i] += H[j];  // counted once per incident face: a weighting by incidence, not a bug
-        count[i] += 1;
+  // Boundary vertices: mean over interior neighbours. A boundary vertex whose faces touch no
+  // interior vertex (an "ear") then takes the mean of its neighbours resolved in the first pass.
+  auto neighbour_mean = [&](const std::vector<uint8_t>& usable) {
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(n);
+    Eigen::VectorXi count = Eigen::VectorXi::Zero(n);
+    for (const Face& f : faces) {
+      for (int k = 0; k < 3; ++k) {
+        const int32_t i = f[k];
+        if (!is_boundary[static_cast<size_t>(i)]) continue;
+        for (int m = 1; m < 3; ++m) {
+          const int32_t j = f[(k + m) % 3];
+          if (!usable[static_cast<size_t>(j)]) continue;
+          sum[i] += H[j];  // counted once per incident face: weighted by incidence
+          count[i] += 1;
+        }
       }
     }
-  }
+    return std::make_pair(sum, count);
+  };
+  std::vector<uint8_t> resolved(static_cast<size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) resolved[static_cast<size_t>(i)] = !is_boundary[static_cast<size_t>(i)];
+  const auto [interior_sum, interior_count] = neighbour_mean(resolved);
   for (Eigen::Index i = 0; i < n; ++i) {
-    if (is_boundary[static_cast<size_t>(i)]) H[i] = count[i] > 0 ? sum[i] / count[i] : 0.0;
+    if (!is_boundary[static_cast<size_t>(i)]) continue;
+    H[i] = interior_count[i] > 0 ? interior_sum[i] / interior_count[i] : 0.0;
+    resolved[static_cast<size_t>(i)] = interior_count[i] > 0;
+  }
+  const auto [ear_sum, ear_count] = neighbour_mean(resolved);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (is_boundary[static_cast<size_t>(i)] && interior_count[i] == 0 && ear_count[i] > 0) H[i] = ear_sum[i] / ear_count[i];
   }
   return H;
 }
