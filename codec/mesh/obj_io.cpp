@@ -87,9 +87,11 @@ std::string find_diffuse_map(std::string_view mtl_text, const std::string& mater
   return material.empty() ? first_map : std::string();
 }
 
-void append_number(std::string& out, double value) {
-  char buffer[32];
-  auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+void append_number(std::string& out, double value, int significant_digits) {
+  char buffer[48];
+  auto result = significant_digits > 0
+                    ? std::to_chars(buffer, buffer + sizeof buffer, value, std::chars_format::general, significant_digits)
+                    : std::to_chars(buffer, buffer + sizeof buffer, value);
   out.append(buffer, result.ptr);
 }
 
@@ -210,27 +212,27 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
   return mesh;
 }
 
-std::string format_obj(const TriangleMesh& mesh, const std::string& material_library) {
+std::string format_obj(const TriangleMesh& mesh, const std::string& material_library, int significant_digits) {
   std::string out;
   out.reserve(mesh.positions.size() * 40 + mesh.faces.size() * 30 + mesh.uvs.size() * 28);
   out += "# facemorph\n";
   if (!material_library.empty()) out += "mtllib " + material_library + "\nusemtl face\n";
   for (const Vec3& p : mesh.positions) {
     out += "v ";
-    append_number(out, p.x());
+    append_number(out, p.x(), significant_digits);
     out += ' ';
-    append_number(out, p.y());
+    append_number(out, p.y(), significant_digits);
     out += ' ';
-    append_number(out, p.z());
+    append_number(out, p.z(), significant_digits);
     out += '\n';
   }
   const bool uv = mesh.has_uvs();
   if (uv) {
     for (const Vec2& t : mesh.uvs) {
       out += "vt ";
-      append_number(out, t.x());
+      append_number(out, t.x(), significant_digits);
       out += ' ';
-      append_number(out, t.y());
+      append_number(out, t.y(), significant_digits);
       out += '\n';
     }
   }
@@ -262,7 +264,7 @@ void write_obj_files(const fs::path& path, const TriangleMesh& mesh, const MeshW
                             texture.generic_string() + "\n";
     format::write_file_atomically(mtl_path, std::string_view(mtl));
   }
-  format::write_file_atomically(path, std::string_view(format_obj(mesh, library)));
+  format::write_file_atomically(path, std::string_view(format_obj(mesh, library, options.significant_digits)));
 }
 
 }  // namespace facemorph

@@ -42,6 +42,9 @@ struct MeshWriteOptions {
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
   // OBJ only: write NAME.mtl beside NAME.obj referencing mesh.texture (when the mesh has one).
   bool write_material = true;
+  // Text formats: significant digits of coordinates; 0 writes the shortest text that reads back
+  // bit-exact (up to 17 digits). 7 is float precision: 0.1 µm on a face in metres.
+  int significant_digits = 0;
 };
 
 // Writes .obj (+ .mtl) or .ply by extension, each file atomically (temporary name, then rename),
@@ -50,7 +53,7 @@ void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh,
                 const MeshWriteOptions& options = {});
 
 // The OBJ text of `mesh`; `material_library` (may be empty) is referenced with mtllib/usemtl.
-std::string format_obj(const TriangleMesh& mesh, const std::string& material_library);
+std::string format_obj(const TriangleMesh& mesh, const std::string& material_library, int significant_digits = 0);
 
 // The PLY bytes of `mesh`. Per-corner UVs go in a face property `texcoord` (MeshLab's layout),
 // the texture in a `comment TextureFile NAME` header line.

@@ -1,0 +1,36 @@
+// A small software rasterizer for previews and diagnostic pictures (orthographic, z-buffered,
+// headlight Lambert shading). Deliberately dependency-free so the decoder can embed it.
+#pragma once
+
+#include "facemorph/image.hpp"
+#include "facemorph/mesh.hpp"
+
+#include <functional>
+
+namespace facemorph {
+
+// Surface colour at a point of face `face` with barycentric coordinates `bary` (RGB 0..255).
+using SurfaceShader = std::function<std::array<double, 3>(int face, const Vec3& bary)>;
+
+struct RenderOptions {
+  int width = 800;
+  int height = 800;
+  double yaw_degrees = 0;    // rotation about the vertical axis, applied first
+  double pitch_degrees = 0;  // then about the horizontal axis
+  double margin = 0.05;      // fraction of the image left around the mesh
+  bool shading = true;       // multiply by a headlight Lambert term
+  std::array<uint8_t, 3> background = {255, 255, 255};
+};
+
+// Renders `mesh` looking down -z (after the yaw/pitch rotation), fitting its bounding box.
+Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options = {});
+
+// Shaders.
+SurfaceShader constant_shader(std::array<double, 3> rgb);
+// Looks the mesh's per-corner UVs up in `texture` (falls back to grey without UVs).
+SurfaceShader texture_shader(const TriangleMesh& mesh, const Image& texture);
+// A checkerboard of `squares` per unit of the per-corner UVs: pulled back through a
+// parametrization it shows how angles and areas are distorted (the paper's Figure 3).
+SurfaceShader checkerboard_shader(const TriangleMesh& mesh, double squares);
+
+}  // namespace facemorph

@@ -1,0 +1,114 @@
+// Synthetic face captures: facemorph's own test and demo data (spec/capture.md §"fmsynth").
+//
+// The face is an analytic open surface with disk topology: a point m = (s, t) of the material
+// ellipse (s/a)² + (t/b)² <= 1 (metres) is carried to
+//     P(m, τ) = (m + D(m, e(τ)), h(m, e(τ)))        (x right, y up, z towards the viewer)
+// where e(τ) are the expression weights at time τ (blink, jaw, smile, brow, pucker), D a small
+// in-plane displacement (a diffeomorphism of the plane) and h a height: an ellipsoidal cap with
+// brow, eye sockets, nose, lips, cheeks and chin built from Gaussian bumps. Texture and landmarks
+// are attached to material points, so they move with the skin. The exact surface is available at
+// any τ (SyntheticFace::position), which is the ground truth tests and benchmarks compare against.
+#pragma once
+
+#include "facemorph/mesh.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+enum class Expression { kBlink, kMouth, kSmile, kTalk, kMixed };
+
+// "blink" etc.; throws kInvalidArgument for an unknown name.
+Expression parse_expression(const std::string& name);
+const char* expression_name(Expression expression);
+
+// Expression weights, each in [0, 1].
+struct ExpressionWeights {
+  double blink = 0;   // eyelids closed
+  double jaw = 0;     // mouth open
+  double smile = 0;   // corners out and up, cheeks raised
+  double brow = 0;    // brows raised
+  double pucker = 0;  // corners drawn in
+};
+
+struct SynthOptions {
+  int frames = 60;
+  double fps = 30;
+  Expression expression = Expression::kMixed;
+  int vertices = 20000;     // target per frame (±10 % per frame with remesh)
+  bool remesh = false;      // every frame its own sampling and connectivity
+  double noise = 0.0005;    // metres, Gaussian, along the normal
+  uint64_t seed = 1;        // face identity, texture detail, noise, remeshing
+  int texture_size = 1024;  // pixels per side of each frame's texture
+  double head_motion_degrees = 0;  // amplitude of a slow rigid head rotation (0: none)
+};
+
+struct NamedPoint {
+  std::string name;
+  Vec2 material;  // where it sits on the material ellipse
+};
+
+class SyntheticFace {
+ public:
+  SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees = 0);
+
+  static constexpr double kHalfWidth = 0.08;    // a: material ellipse semi-axis along x (m)
+  static constexpr double kHalfHeight = 0.10;   // b: along y (m)
+
+  ExpressionWeights weights(double time) const;
+  // The exact surface point of material point m at time τ (metres).
+  Vec3 position(const Vec2& material, double time) const;
+  // Unit normal of the exact surface (pointing towards the viewer, +z at rest).
+  Vec3 normal(const Vec2& material, double time) const;
+  // Texture colour (sRGB, 0..255) of material point m at time τ.
+  std::array<uint8_t, 3> color(const Vec2& material, double time) const;
+
+  // Named landmarks (>= 20, including rim_0..rim_7 on the boundary), as material points.
+  const std::vector<NamedPoint>& landmarks() const { return landmarks_; }
+  // Boundary of the material ellipse at angle θ (radians, 0 = +x, counter-clockwise).
+  static Vec2 rim_point(double theta);
+  // Texture coordinate of a material point: the ellipse's bounding box mapped to [0,1]².
+  static Vec2 texture_coordinate(const Vec2& material);
+
+  // Exact, noise-free surface at τ on a fixed dense lattice of about `vertices` vertices.
+  TriangleMesh truth_mesh(double time, int vertices) const;
+
+  Expression expression() const { return expression_; }
+  uint64_t seed() const { return seed_; }
+  double head_motion_degrees() const { return head_motion_degrees_; }
+
+ private:
+  double height(const Vec2& m, const ExpressionWeights& w) const;
+  Vec2 displacement(const Vec2& m, const ExpressionWeights& w) const;
+  Vec3 head_pose(const Vec3& p, double time) const;
+
+  Expression expression_;
+  uint64_t seed_;
+  double head_motion_degrees_;
+  double identity_[6];  // per-seed feature scale factors
+  std::vector<NamedPoint> landmarks_;
+  std::vector<std::array<double, 4>> freckles_;  // (s, t, radius, darkness)
+};
+
+// Material sample points of one frame: boundary samples (first, in counter-clockwise order) then
+// interior points, and their Delaunay triangulation. `frame_seed` varies the sampling when remeshing.
+struct MaterialSampling {
+  std::vector<Vec2> points;
+  std::vector<Face> faces;
+  int boundary_count = 0;
+};
+MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, uint64_t frame_seed);
+
+// Progress callback: (frames done, frames total).
+using ProgressCallback = std::function<void(int, int)>;
+
+// Writes a capture (capture.json, frame_NNNN.obj/.mtl/.jpg, landmarks.csv) into `directory`,
+// creating it. Throws facemorph::Error on failure (kIo naming the file, kInvalidArgument).
+void write_synthetic_capture(const std::filesystem::path& directory, const SynthOptions& options,
+                             const ProgressCallback& progress = {});
+
+}  // namespace facemorph

@@ -1,0 +1,128 @@
+#include "facemorph/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace facemorph {
+
+std::array<double, 3> sample_bilinear(const Image& image, double u, double v) {
+  if (image.empty()) return {128, 128, 128};
+  const double x = std::clamp(u, 0.0, 1.0) * image.width - 0.5;
+  const double y = (1.0 - std::clamp(v, 0.0, 1.0)) * image.height - 0.5;
+  const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, image.width - 1);
+  const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, image.height - 1);
+  const int x1 = std::min(x0 + 1, image.width - 1), y1 = std::min(y0 + 1, image.height - 1);
+  const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
+  std::array<double, 3> out{};
+  for (int c = 0; c < 3; ++c) {
+    const int cc = std::min(c, image.channels - 1);
+    const double top = image.at(x0, y0)[cc] * (1 - fx) + image.at(x1, y0)[cc] * fx;
+    const double bottom = image.at(x0, y1)[cc] * (1 - fx) + image.at(x1, y1)[cc] * fx;
+    out[static_cast<size_t>(c)] = top * (1 - fy) + bottom * fy;
+  }
+  return out;
+}
+
+SurfaceShader constant_shader(std::array<double, 3> rgb) {
+  return [rgb](int, const Vec3&) { return rgb; };
+}
+
+namespace {
+
+Vec2 corner_uv(const TriangleMesh& mesh, int face, const Vec3& bary) {
+  const Face& t = mesh.uv_faces[static_cast<size_t>(face)];
+  return bary[0] * mesh.uvs[static_cast<size_t>(t[0])] + bary[1] * mesh.uvs[static_cast<size_t>(t[1])] +
+         bary[2] * mesh.uvs[static_cast<size_t>(t[2])];
+}
+
+}  // namespace
+
+SurfaceShader texture_shader(const TriangleMesh& mesh, const Image& texture) {
+  if (!mesh.has_uvs() || texture.empty()) return constant_shader({180, 180, 180});
+  return [&mesh, &texture](int face, const Vec3& bary) {
+    const Vec2 uv = corner_uv(mesh, face, bary);
+    return sample_bilinear(texture, uv.x(), uv.y());
+  };
+}
+
+SurfaceShader checkerboard_shader(const TriangleMesh& mesh, double squares) {
+  if (!mesh.has_uvs()) return constant_shader({180, 180, 180});
+  return [&mesh, squares](int face, const Vec3& bary) {
+    const Vec2 uv = corner_uv(mesh, face, bary) * squares;
+    const bool dark = (static_cast<int64_t>(std::floor(uv.x())) + static_cast<int64_t>(std::floor(uv.y()))) & 1;
+    return dark ? std::array<double, 3>{40, 60, 120} : std::array<double, 3>{235, 235, 225};
+  };
+}
+
+Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options) {
+  Image image(options.width, options.height, 3);
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) std::copy(options.background.begin(), options.background.end(), image.at(x, y));
+  }
+  if (mesh.positions.empty() || mesh.faces.empty()) return image;
+
+  const double yaw = options.yaw_degrees * std::numbers::pi / 180;
+  const double pitch = options.pitch_degrees * std::numbers::pi / 180;
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(yaw, Vec3::UnitY())).toRotationMatrix();
+  std::vector<Vec3> p(mesh.positions.size());
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (size_t i = 0; i < p.size(); ++i) {
+    p[i] = R * mesh.positions[i];
+    if (!p[i].allFinite()) continue;
+    lo = lo.cwiseMin(p[i]);
+    hi = hi.cwiseMax(p[i]);
+  }
+  const double extent = std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  if (!(extent > 0)) return image;
+  const double usable = (1 - 2 * options.margin) * std::min(options.width, options.height);
+  const double scale = usable / extent;
+  const Vec2 center(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()));
+  auto to_screen = [&](const Vec3& q) {
+    return Vec3(options.width / 2.0 + (q.x() - center.x()) * scale, options.height / 2.0 - (q.y() - center.y()) * scale,
+                q.z());
+  };
+
+  std::vector<double> depth(static_cast<size_t>(options.width) * options.height,
+                            -std::numeric_limits<double>::infinity());
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    const Face& face = mesh.faces[f];
+    const Vec3& pa = p[static_cast<size_t>(face[0])];
+    const Vec3& pb = p[static_cast<size_t>(face[1])];
+    const Vec3& pc = p[static_cast<size_t>(face[2])];
+    const Vec3 a = to_screen(pa), b = to_screen(pb), c = to_screen(pc);
+    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;
+    const Vec3 n = (pb - pa).cross(pc - pa);
+    const double light = options.shading ? 0.25 + 0.75 * std::abs(n.z()) / std::max(n.norm(), 1e-300) : 1.0;
+    // Screen y points down, so orientation flips; both sides of a face are drawn.
+    const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+    if (std::abs(area) < 1e-12) continue;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()}))));
+    const int x1 = std::min(options.width - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()}))));
+    const int y1 = std::min(options.height - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) / area;
+        const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) / area;
+        const double w2 = 1 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const double z = w0 * a.z() + w1 * b.z() + w2 * c.z();
+        double& stored = depth[static_cast<size_t>(y) * options.width + x];
+        if (z <= stored) continue;
+        stored = z;
+        const auto rgb = shader(static_cast<int>(f), Vec3(w0, w1, w2));
+        uint8_t* out = image.at(x, y);
+        for (int k = 0; k < 3; ++k) {
+          out[k] = static_cast<uint8_t>(std::clamp(rgb[static_cast<size_t>(k)] * light, 0.0, 255.0));
+        }
+      }
+    }
+  }
+  return image;
+}
+
+}  // namespace facemorph
