@@ -69,11 +69,15 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
       (Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(yaw, Vec3::UnitY())).toRotationMatrix();
   std::vector<Vec3> p(mesh.positions.size());
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (size_t i = 0; i < p.size(); ++i) {
-    p[i] = R * mesh.positions[i];
-    if (!p[i].allFinite()) continue;
-    lo = lo.cwiseMin(p[i]);
-    hi = hi.cwiseMax(p[i]);
+  for (size_t i = 0; i < p.size(); ++i) p[i] = R * mesh.positions[i];
+  // Fit what is drawn: vertices referenced by faces.
+  for (const Face& face : mesh.faces) {
+    for (int32_t v : face) {
+      const Vec3& q = p[static_cast<size_t>(v)];
+      if (!q.allFinite()) continue;
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
   }
   const double extent = std::max(hi.x() - lo.x(), hi.y() - lo.y());
   if (!(extent > 0)) return image;

@@ -1,0 +1,240 @@
+#include "facemorph/frame.hpp"
+#include "facemorph/geometry.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/topology.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace facemorph {
+namespace {
+
+using testing::expect_error;
+
+// A dome z = 1 - r² over the unit disk, sampled on a polar grid (rings x sectors), optionally
+// with circular holes (centre, radius) cut out by dropping faces inside them.
+TriangleMesh dome(int rings, int sectors, std::vector<std::pair<Vec2, double>> holes = {}) {
+  TriangleMesh m;
+  m.positions.emplace_back(0, 0, 1);
+  for (int r = 1; r <= rings; ++r) {
+    for (int s = 0; s < sectors; ++s) {
+      const double radius = static_cast<double>(r) / rings, angle = 2 * std::numbers::pi * (s + 0.5 * (r % 2)) / sectors;
+      m.positions.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 1 - radius * radius);
+    }
+  }
+  auto id = [sectors](int r, int s) { return r == 0 ? 0 : 1 + (r - 1) * sectors + ((s % sectors) + sectors) % sectors; };
+  for (int s = 0; s < sectors; ++s) m.faces.push_back({id(0, 0), id(1, s), id(1, s + 1)});
+  for (int r = 1; r < rings; ++r) {
+    for (int s = 0; s < sectors; ++s) {
+      // Odd rings are rotated half a sector: pair each vertex with the nearest of the next ring.
+      const int shift = r % 2 == 1 ? 1 : 0;
+      m.faces.push_back({id(r, s), id(r + 1, s + shift), id(r, s + 1)});
+      m.faces.push_back({id(r, s), id(r + 1, s - 1 + shift), id(r + 1, s + shift)});
+    }
+  }
+  if (!holes.empty()) {
+    std::vector<Face> kept;
+    for (const Face& f : m.faces) {
+      bool inside = false;
+      for (int32_t v : f) {
+        const Vec2 p = m.positions[static_cast<size_t>(v)].head<2>();
+        for (const auto& [c, radius] : holes) inside = inside || (p - c).norm() < radius;
+      }
+      if (!inside) kept.push_back(f);
+    }
+    m.faces = kept;
+  }
+  return m;
+}
+
+bool is_disk(const TriangleMesh& m) {
+  const MeshTopology t(m.faces, m.vertex_count());
+  return t.is_manifold() && t.component_count() == 1 && t.boundary_loops().size() == 1 && t.euler_characteristic() == 1;
+}
+
+TEST(PrepareFrame, AValidDiskPassesUnchangedAndFacesOutward) {
+  TriangleMesh m = dome(12, 40);
+  for (Face& f : m.faces) std::swap(f[1], f[2]);  // inward: must be flipped to the convex side
+  const PreparedFrame p = prepare_frame(m, "dome.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  EXPECT_EQ(p.mesh.vertex_count(), m.vertex_count());
+  EXPECT_EQ(p.report.reoriented_faces, m.face_count());
+  const auto normals = vertex_normals(p.mesh.positions, p.mesh.faces);
+  EXPECT_GT(normals[0].z(), 0.99);  // apex normal points out of the dome
+  EXPECT_EQ(p.rim.size(), 40u);
+}
+
+TEST(PrepareFrame, FillsEyeAndMouthHolesFairlyAndRecordsThem) {
+  const TriangleMesh m = dome(30, 120, {{{-0.3, 0.3}, 0.12}, {{0.3, 0.3}, 0.12}, {{0.0, -0.35}, 0.2}});
+  ASSERT_EQ(MeshTopology(m.faces, m.vertex_count()).boundary_loops().size(), 4u);
+  const PreparedFrame p = prepare_frame(m, "holes.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  ASSERT_EQ(p.report.holes.size(), 3u);
+  for (const FilledHole& h : p.report.holes) {
+    EXPECT_EQ(h.folded_faces, 0);
+    EXPECT_GT(h.min_angle_degrees, 12.0);  // no slivers
+    EXPECT_GT(h.vertex_count, 0);          // refined to the surrounding density, not a bare fan
+    // A membrane over a loop of radius R on z = 1 - r² solves Δu = Δ(dome) = -4 with u = 0 on the
+    // loop: it lies below the dome by R² - ρ² at distance ρ from the centre, never above it.
+    Vec2 centre = Vec2::Zero();
+    for (int v : h.loop) centre += p.mesh.positions[static_cast<size_t>(v)].head<2>() / static_cast<double>(h.loop.size());
+    double radius = 0;
+    for (int v : h.loop) radius = std::max(radius, (p.mesh.positions[static_cast<size_t>(v)].head<2>() - centre).norm());
+    for (int v = h.first_vertex; v < h.first_vertex + h.vertex_count; ++v) {
+      const Vec3& q = p.mesh.positions[static_cast<size_t>(v)];
+      const double below = (1 - q.head<2>().squaredNorm()) - q.z();
+      EXPECT_GT(below, -0.003);
+      EXPECT_LT(below, radius * radius - (q.head<2>() - centre).squaredNorm() + 0.006);
+    }
+    for (int f = h.first_face; f < h.first_face + h.face_count; ++f) EXPECT_LT(f, p.mesh.face_count());
+  }
+  // The original vertices keep their identity; fill vertices have none.
+  EXPECT_EQ(p.source_vertex[0], 0);
+  EXPECT_EQ(p.source_vertex.back(), -1);
+  EXPECT_NE(p.report.summary().find("filled 3 holes"), std::string::npos);
+}
+
+TEST(PrepareFrame, RimMarkersChooseTheOuterLoopEvenWhenAHoleIsLonger) {
+  // A big hole with more boundary length than the rim: markers decide.
+  const TriangleMesh m = dome(24, 60, {{{0.0, 0.0}, 0.75}});
+  std::vector<Vec3> markers;
+  for (int k = 0; k < 6; ++k) {
+    const double a = 2 * std::numbers::pi * k / 6;
+    markers.emplace_back(std::cos(a), std::sin(a), 0);
+  }
+  const PreparedFrame p = prepare_frame(m, "ring.obj", {.fill_holes = true, .rim_markers = markers});
+  EXPECT_TRUE(is_disk(p.mesh));
+  for (int v : p.rim) EXPECT_NEAR(p.mesh.positions[static_cast<size_t>(v)].head<2>().norm(), 1.0, 1e-9);
+}
+
+TEST(PrepareFrame, RepairsDuplicatesDegenerateFacesAndUnreferencedVertices) {
+  TriangleMesh m = dome(6, 16);
+  const int original = m.vertex_count();
+  // A duplicate of vertex 5 used by one face, an unreferenced vertex, a repeated-index face and
+  // a duplicate face.
+  m.positions.push_back(m.positions[5]);
+  m.positions.emplace_back(9, 9, 9);
+  for (Face& f : m.faces) {
+    if (f[0] == 5) {
+      f[0] = original;
+      break;
+    }
+  }
+  m.faces.push_back({1, 1, 2});
+  m.faces.push_back(m.faces[3]);
+  const PreparedFrame p = prepare_frame(m, "messy.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  EXPECT_EQ(p.report.merged_vertices, 1);
+  EXPECT_EQ(p.report.dropped_degenerate_faces, 1);
+  EXPECT_EQ(p.report.dropped_duplicate_faces, 1);
+  EXPECT_EQ(p.report.dropped_unreferenced_vertices, 1);
+  EXPECT_EQ(p.mesh.vertex_count(), original);
+  EXPECT_TRUE(p.report.changed());
+}
+
+TEST(PrepareFrame, ZeroAreaFaceAtATJunctionSplitsItsNeighbour) {
+  // Square (0,1,2,3) as two triangles plus vertex 4 on edge 0-1 with a zero-area face (0,4,1)
+  // stitched into the lower triangle's edge: a T-junction.
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {2, 0, 0}, {2, 2, 0}, {0, 2, 0}, {1, 0, 0}, {1, -1, 0}};
+  m.faces = {{0, 1, 2}, {0, 2, 3}, {1, 0, 4}, {0, 5, 4}, {4, 5, 1}};
+  const PreparedFrame p = prepare_frame(m, "tjunction.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  EXPECT_EQ(p.report.dropped_degenerate_faces, 1);
+  EXPECT_EQ(p.report.split_faces, 1);
+  EXPECT_NEAR(total_area(p.mesh.positions, p.mesh.faces), 5.0, 1e-12);
+}
+
+TEST(PrepareFrame, InconsistentOrientationIsRepaired) {
+  TriangleMesh m = dome(8, 24);
+  for (size_t f = 0; f < m.faces.size(); f += 7) std::swap(m.faces[f][1], m.faces[f][2]);
+  const PreparedFrame p = prepare_frame(m, "flipped.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  EXPECT_TRUE(MeshTopology(p.mesh.faces, p.mesh.vertex_count()).inconsistently_oriented_edges().empty());
+  EXPECT_GT(p.report.reoriented_faces, 0);
+}
+
+TEST(PrepareFrame, BadFramesAreNamedErrors) {
+  const TriangleMesh disk = dome(6, 16);
+
+  TriangleMesh two = disk;
+  for (const Vec3& q : disk.positions) two.positions.push_back(q + Vec3(5, 0, 0));
+  for (const Face& f : disk.faces) two.faces.push_back({f[0] + disk.vertex_count(), f[1] + disk.vertex_count(), f[2] + disk.vertex_count()});
+  expect_error(ErrorCode::kNotADisk, "frame_0012.obj: 2 components; a face capture must be one open surface",
+               [&] { prepare_frame(two, "frame_0012.obj"); });
+
+  const TriangleMesh sphere = testing::icosphere(1, 2);
+  expect_error(ErrorCode::kNotADisk, "closed.obj: a closed surface", [&] { prepare_frame(sphere, "closed.obj"); });
+
+  TriangleMesh nan = disk;
+  nan.positions[3].y() = std::numeric_limits<double>::quiet_NaN();
+  expect_error(ErrorCode::kInvalidMesh, "nan.obj: vertex 3 has a non-finite", [&] { prepare_frame(nan, "nan.obj"); });
+
+  TriangleMesh inf = disk;
+  inf.positions[2].x() = std::numeric_limits<double>::infinity();
+  expect_error(ErrorCode::kInvalidMesh, "non-finite", [&] { prepare_frame(inf, "inf.obj"); });
+
+  TriangleMesh range = disk;
+  range.faces[0][1] = 1000;
+  expect_error(ErrorCode::kInvalidMesh, "refers to vertex 1000", [&] { prepare_frame(range, "range.obj"); });
+
+  TriangleMesh fin = disk;  // a third face on an interior edge
+  fin.positions.emplace_back(0, 0, 3);
+  fin.faces.push_back({fin.faces[0][0], fin.faces[0][1], fin.vertex_count() - 1});
+  expect_error(ErrorCode::kInvalidMesh, "fin.obj: 1 non-manifold edges", [&] { prepare_frame(fin, "fin.obj"); });
+
+  TriangleMesh bow = disk;  // a second disk touching the first at one vertex
+  const int32_t apex = 0, base = bow.vertex_count();
+  bow.positions.emplace_back(0.1, 0.1, 2);
+  bow.positions.emplace_back(-0.1, 0.1, 2);
+  bow.faces.push_back({apex, base, base + 1});
+  expect_error(ErrorCode::kInvalidMesh, "non-manifold vertices", [&] { prepare_frame(bow, "bow.obj"); });
+
+  const TriangleMesh holes = dome(20, 60, {{{0.0, 0.0}, 0.3}});
+  expect_error(ErrorCode::kNotADisk, "1 holes besides the outer rim", [&] { prepare_frame(holes, "h.obj", {.fill_holes = false, .rim_markers = {}}); });
+
+  expect_error(ErrorCode::kInvalidMesh, "empty.obj: the mesh has no faces", [&] { prepare_frame(TriangleMesh{}, "empty.obj"); });
+}
+
+TEST(PrepareFrame, TorusWithABoundaryIsRejectedForItsHandle) {
+  // A torus grid with one face removed: one boundary, Euler characteristic -1, genus 1.
+  TriangleMesh t = testing::grid_mesh(12, [](double u, double v) {
+    const double a = 2 * std::numbers::pi * u, b = 2 * std::numbers::pi * v;
+    return Vec3((2 + std::cos(b)) * std::cos(a), (2 + std::cos(b)) * std::sin(a), std::sin(b));
+  });
+  // Weld the seams u = 0 ~ 1 and v = 0 ~ 1 by index.
+  auto id = [](int i, int j) { return static_cast<int32_t>((j % 12) * 13 + (i % 12)); };
+  for (Face& f : t.faces) {
+    for (int32_t& v : f) v = id(v % 13, v / 13);
+  }
+  t.faces.erase(t.faces.begin());
+  expect_error(ErrorCode::kNotADisk, "handle", [&] { prepare_frame(t, "torus.obj"); });
+}
+
+TEST(PrepareFrame, RealCapturesBecomeDisks) {
+  const auto data = testing::shared_data();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  for (int frame : {0, 115, 231}) {
+    char name[64];
+    std::snprintf(name, sizeof name, "medusa-mediapipe-4d/capture/frame_%04d.obj", frame);
+    const TriangleMesh m = read_mesh(data / name);
+    const PreparedFrame p = prepare_frame(m, name);
+    EXPECT_TRUE(is_disk(p.mesh)) << name;
+    EXPECT_TRUE(p.report.holes.empty()) << name;
+  }
+  // The ICT neutral face area: rim, mouth and two eyes.
+  const TriangleMesh ict = read_mesh(data / "ict-facekit/derived/face_area_neutral.obj", {.allow_missing_texture = true});
+  ASSERT_EQ(MeshTopology(ict.faces, ict.vertex_count()).boundary_loops().size(), 4u);
+  const PreparedFrame p = prepare_frame(ict, "face_area_neutral.obj");
+  EXPECT_TRUE(is_disk(p.mesh));
+  EXPECT_EQ(p.report.holes.size(), 3u);
+  for (const FilledHole& h : p.report.holes) EXPECT_EQ(h.folded_faces, 0);
+}
+
+}  // namespace
+}  // namespace facemorph
