@@ -142,7 +142,8 @@ TEST(PlyIo, TruncatedAndCorruptFilesAreNamedErrors) {
   expect_error(ErrorCode::kParse, "not a PLY", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(not_ply.data()), not_ply.size()}, "x.ply", ".");
   });
-  std::string ascii = std::string(reinterpret_cast<const char*>(format_ply(m, PlyEncoding::kAscii, "").data()));
+  const std::vector<uint8_t> ascii_bytes = format_ply(m, PlyEncoding::kAscii, "");
+  std::string ascii(ascii_bytes.begin(), ascii_bytes.end());
   ascii.resize(ascii.size() - 8);
   expect_error(ErrorCode::kTruncated, "truncated", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(ascii.data()), ascii.size()}, "t.ply", ".");

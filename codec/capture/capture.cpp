@@ -147,6 +147,9 @@ void parse_landmarks_csv(std::string_view text_data, const std::string& source, 
 
 Capture read_capture(const fs::path& path) {
   std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    throw Error(ErrorCode::kIo, path.string() + ": not found (expected a capture folder with capture.json, or the capture.json file)");
+  }
   const fs::path manifest = fs::is_directory(path, ec) ? path / "capture.json" : path;
   const std::string source = manifest.string();
   const auto bytes = format::read_file(manifest, kMaxManifestBytes);

@@ -1,0 +1,156 @@
+#include "facemorph/capture.hpp"
+#include "facemorph/frame.hpp"
+#include "facemorph/mesh_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+namespace facemorph {
+namespace {
+
+using testing::TempDir;
+using testing::expect_error;
+using testing::write_text;
+
+void write_triangle(const std::filesystem::path& path) { write_text(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"); }
+
+TEST(Capture, ManifestAndLandmarksRoundTrip) {
+  TempDir dir;
+  Capture c;
+  c.root = dir.path();
+  c.description = "three triangles";
+  c.fps = 24;
+  c.units = "cm";
+  for (int i = 0; i < 3; ++i) {
+    const std::string name = "f" + std::to_string(i) + ".obj";
+    write_triangle(dir / name);
+    c.frames.push_back({name, i / 24.0});
+  }
+  c.landmark_names = {"nose_tip", "rim_0"};
+  c.landmarks = {{{0, 0, 1}, {1, 0, 0}}, {{0, 0, 1.5}, Vec3::Constant(std::nan(""))}, {{0, 0, 2}, {1, 2, 3}}};
+  c.generator = {{"name", "test"}};
+  write_capture_manifest(c);
+  const Capture back = read_capture(dir.path());
+  EXPECT_EQ(back.description, c.description);
+  EXPECT_EQ(back.units, "cm");
+  EXPECT_DOUBLE_EQ(back.fps, 24);
+  ASSERT_EQ(back.frames.size(), 3u);
+  EXPECT_DOUBLE_EQ(back.frames[2].time, 2 / 24.0);
+  EXPECT_EQ(back.landmark_names, c.landmark_names);
+  EXPECT_EQ(back.landmarks[2][1], Vec3(1, 2, 3));
+  EXPECT_FALSE(back.landmarks[1][1].allFinite());  // absent in that frame
+  EXPECT_EQ(back.generator_value("name"), "test");
+  EXPECT_EQ(back.landmark_index("rim_0"), 1);
+  EXPECT_DOUBLE_EQ(metres_per_unit(back.units), 0.01);
+}
+
+TEST(Capture, BadManifestsAreNamedErrors) {
+  TempDir dir;
+  write_triangle(dir / "a.obj");
+  write_triangle(dir / "b.obj");
+  auto manifest = [&](const std::string& text) { write_text(dir / "capture.json", text); };
+  manifest("{ not json");
+  expect_error(ErrorCode::kParse, "capture.json: not valid JSON", [&] { read_capture(dir.path()); });
+  manifest(R"({"frames": [{"mesh": "a.obj"}]})");
+  expect_error(ErrorCode::kParse, "missing number 'fps'", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": -3, "frames": [{"mesh": "a.obj"}]})");
+  expect_error(ErrorCode::kParse, "fps must be a positive number", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "frames": [{"mesh": "a.obj", "time": 1}, {"mesh": "b.obj", "time": 0.5}]})");
+  expect_error(ErrorCode::kParse, "frame 1 (b.obj) has time 0.5", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "frames": [{"mesh": "a.obj"}, {"mesh": "gone.obj"}]})");
+  expect_error(ErrorCode::kIo, "gone.obj", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "units": "furlong", "frames": [{"mesh": "a.obj"}]})");
+  expect_error(ErrorCode::kInvalidArgument, "furlong", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "frames": []})");
+  expect_error(ErrorCode::kParse, "no frames", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "frames": [{"mesh": 7}]})");
+  expect_error(ErrorCode::kParse, "frame 0 lacks a 'mesh'", [&] { read_capture(dir.path()); });
+  expect_error(ErrorCode::kIo, "nowhere: not found", [&] { read_capture(dir / "nowhere"); });
+  std::filesystem::create_directory(dir / "empty");
+  expect_error(ErrorCode::kIo, "empty/capture.json", [&] { read_capture(dir / "empty"); });
+}
+
+TEST(Capture, BadLandmarkRowsAreNamedErrors) {
+  Capture c;
+  c.frames = {{"a.obj", 0}, {"b.obj", 0.1}};
+  auto parse = [&](const std::string& text) {
+    Capture copy = c;
+    parse_landmarks_csv(text, "lm.csv", copy);
+    return copy;
+  };
+  expect_error(ErrorCode::kParse, "header", [&] { parse("f,n,x,y,z\n"); });
+  expect_error(ErrorCode::kParse, "lm.csv:2: frame '5'", [&] { parse("frame,name,x,y,z\n5,nose,0,0,0\n"); });
+  expect_error(ErrorCode::kParse, "lm.csv:2: coordinate 'nan'", [&] { parse("frame,name,x,y,z\n0,nose,nan,0,0\n"); });
+  expect_error(ErrorCode::kParse, "lm.csv:2: expected 5 fields", [&] { parse("frame,name,x,y,z\n0,nose,1,2\n"); });
+  expect_error(ErrorCode::kParse, "more than 5", [&] { parse("frame,name,x,y,z\n0,nose,1,2,3,4\n"); });
+  expect_error(ErrorCode::kParse, "given twice", [&] { parse("frame,name,x,y,z\n0,nose,1,2,3\n0,nose,1,2,3\n"); });
+  const Capture ok = parse("frame,name,x,y,z\n1,chin,1,2,3\n\n0,nose,4,5,6\n");
+  EXPECT_EQ(ok.landmark_names, (std::vector<std::string>{"chin", "nose"}));
+  EXPECT_EQ(ok.landmarks[0][1], Vec3(4, 5, 6));
+  EXPECT_FALSE(ok.landmarks[0][0].allFinite());
+}
+
+TEST(Capture, PlainFolderIsReadInNaturalOrder) {
+  TempDir dir;
+  write_triangle(dir / "scan_10.obj");
+  write_triangle(dir / "scan_1.obj");
+  write_mesh(dir / "scan_2.ply", read_mesh(dir / "scan_1.obj"));
+  write_text(dir / "notes.txt", "x");
+  write_text(dir / "lm.csv", "frame,name,x,y,z\n2,nose_tip,0,0,1\n");
+  const Capture c = scan_capture_folder(dir.path(), 10, dir / "lm.csv");
+  ASSERT_EQ(c.frames.size(), 3u);
+  EXPECT_EQ(c.frames[0].mesh, "scan_1.obj");
+  EXPECT_EQ(c.frames[1].mesh, "scan_2.ply");
+  EXPECT_EQ(c.frames[2].mesh, "scan_10.obj");
+  EXPECT_DOUBLE_EQ(c.frames[2].time, 0.2);
+  EXPECT_EQ(c.landmarks[2][0], Vec3(0, 0, 1));
+  expect_error(ErrorCode::kInvalidArgument, "--fps", [&] { scan_capture_folder(dir.path(), 0, {}); });
+}
+
+// Every frame of the real Medusa capture loads and validates as a disk.
+TEST(RealCaptures, MedusaAllFramesAreDisks) {
+  const auto data = testing::shared_data();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  const Capture c = read_capture(data / "medusa-mediapipe-4d/capture");
+  ASSERT_EQ(c.frames.size(), 232u);
+  EXPECT_EQ(c.units, "cm");
+  EXPECT_GE(c.landmark_names.size(), 20u);
+  for (size_t i = 0; i < c.frames.size(); ++i) {
+    const TriangleMesh m = read_mesh(c.mesh_path(i));
+    ASSERT_FALSE(m.texture.empty()) << c.frames[i].mesh;
+    const PreparedFrame p = prepare_frame(m, c.frames[i].mesh.string());
+    EXPECT_EQ(p.mesh.vertex_count(), 468) << c.frames[i].mesh;
+    EXPECT_TRUE(p.report.holes.empty()) << c.frames[i].mesh;
+  }
+}
+
+// An ICT capture made with the data's own script: four boundary loops per frame, three filled.
+TEST(RealCaptures, IctFramesBecomeDisksByHoleFilling) {
+  const auto data = testing::shared_data();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  const auto script = data / "ict-facekit/tools/make_capture.py";
+  if (std::system("python3 --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "python3 absent";
+  TempDir dir;
+  const std::string command = "python3 '" + script.string() + "' '" + (dir / "ict").string() +
+                              "' --start-seconds 59.2 --seconds 0.2 --fps 15 > /dev/null 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  const Capture c = read_capture(dir / "ict");
+  ASSERT_EQ(c.frames.size(), 3u);
+  for (size_t i = 0; i < c.frames.size(); ++i) {
+    const TriangleMesh m = read_mesh(c.mesh_path(i), {.allow_missing_texture = true});
+    PrepareOptions options;
+    for (size_t l = 0; l < c.landmark_names.size(); ++l) {
+      if (c.landmark_names[l].starts_with("rim_")) options.rim_markers.push_back(c.landmarks[i][l]);
+    }
+    const PreparedFrame p = prepare_frame(m, c.frames[i].mesh.string(), options);
+    EXPECT_EQ(p.report.holes.size(), 3u);
+    EXPECT_EQ(p.rim.size(), 204u);  // the outer rim of the face area is kept
+    for (const FilledHole& h : p.report.holes) EXPECT_GT(h.min_angle_degrees, 10.0);
+  }
+}
+
+}  // namespace
+}  // namespace facemorph

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs what facemorph needs to build and test, from Debian's packages only, and nothing that is
+# already there. Idempotent: a second run changes nothing and does not touch the network.
+set -euo pipefail
+
+packages=(
+  g++ cmake ninja-build pkgconf        # toolchain
+  libeigen3-dev                        # sparse linear algebra
+  libopenexr-dev                       # H and λ fields as EXR images
+  libzstd-dev                          # container payloads
+  libopencv-dev                        # texture images (encoder and tools only)
+  libcli11-dev                         # command lines
+  nlohmann-json3-dev                   # capture.json
+  libgtest-dev                         # tests
+  python3                              # optional real-data tests (ICT capture script)
+)
+
+missing=()
+for package in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$package")
+  fi
+done
+if ((${#missing[@]} == 0)); then
+  exit 0
+fi
+
+sudo=""
+if [[ "$(id -u)" -ne 0 ]]; then
+  sudo="sudo"
+fi
+echo "install-deps: installing ${missing[*]}" >&2
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
