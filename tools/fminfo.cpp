@@ -4,16 +4,14 @@
 #include "facemorph/capture.hpp"
 #include "facemorph/frame.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
 
 #include "tools/tool_support.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdio>
-#include <mutex>
-#include <thread>
 
 namespace {
 
@@ -41,20 +39,16 @@ std::vector<Vec3> rim_markers(const Capture& capture, size_t frame) {
 int describe_capture(const Capture& capture, bool json_out, bool quiet, const std::string& prepared_dir) {
   const size_t count = capture.frames.size();
   std::vector<FrameSummary> frames(count);
-  std::atomic<size_t> next{0};
-  std::atomic<int> done{0};
-  std::exception_ptr failure;
-  std::mutex mutex;
   tools::Progress progress("fminfo", quiet || json_out);
-  auto work = [&] {
-    for (size_t i = next++; i < count; i = next++) {
-      try {
-        const fs::path path = capture.mesh_path(i);
+  parallel_for(
+      static_cast<int>(count), 0,
+      [&](int i) {
+        const fs::path path = capture.mesh_path(static_cast<size_t>(i));
         const TriangleMesh mesh = read_mesh(path);
         PrepareOptions options;
-        options.rim_markers = rim_markers(capture, i);
-        PreparedFrame prepared = prepare_frame(mesh, path.filename().string(), options);
-        FrameSummary& s = frames[i];
+        options.rim_markers = rim_markers(capture, static_cast<size_t>(i));
+        const PreparedFrame prepared = prepare_frame(mesh, path.filename().string(), options);
+        FrameSummary& s = frames[static_cast<size_t>(i)];
         s.vertices = mesh.vertex_count();
         s.faces = mesh.face_count();
         s.prepared_vertices = prepared.mesh.vertex_count();
@@ -64,27 +58,9 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
         s.has_uvs = mesh.has_uvs();
         s.has_texture = !mesh.texture.empty();
         if (!prepared_dir.empty()) write_mesh(fs::path(prepared_dir) / path.filename().replace_extension(".obj"), prepared.mesh);
-      } catch (...) {
-        std::lock_guard lock(mutex);
-        if (!failure) failure = std::current_exception();
-        next = count;
-      }
-      ++done;
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < std::max(1u, std::thread::hardware_concurrency()); ++t) pool.emplace_back(work);
-  std::thread reporter([&] {
-    while (done.load() < static_cast<int>(count) && !failure) {
-      progress.update(done.load(), static_cast<int>(count));
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-  });
-  work();
-  for (auto& t : pool) t.join();
-  reporter.join();
+      },
+      [&](int done, int total) { progress.update(done, total); });
   progress.finish();
-  if (failure) std::rethrow_exception(failure);
 
   auto [vmin, vmax] = std::minmax_element(frames.begin(), frames.end(), [](auto& a, auto& b) { return a.vertices < b.vertices; });
   size_t repaired = 0, holes = 0;

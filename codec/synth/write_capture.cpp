@@ -2,19 +2,16 @@
 #include "facemorph/capture.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
 #include "facemorph/synth.hpp"
 
 #include "format/file_io.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
-#include <atomic>
 #include <cmath>
-#include <exception>
-#include <mutex>
 #include <optional>
 #include <random>
-#include <thread>
 
 namespace facemorph {
 namespace fs = std::filesystem;
@@ -124,34 +121,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   std::optional<MaterialSampling> fixed;
   if (!options.remesh) fixed = sample_material_ellipse(options.vertices, false, 0);
 
-  // Frames are independent: workers take the next index until none is left; the calling thread
-  // works too and reports progress between its frames. The first failure stops the hand-out.
-  std::atomic<int> next{0}, done{0};
-  std::exception_ptr failure;
-  std::mutex failure_mutex;
-  auto run_one = [&](int i) {
-    try {
-      write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, i);
-    } catch (...) {
-      std::lock_guard lock(failure_mutex);
-      if (!failure) failure = std::current_exception();
-      next = options.frames;
-    }
-    ++done;
-  };
-  auto worker = [&] {
-    for (int i = next++; i < options.frames; i = next++) run_one(i);
-  };
-  const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  for (int i = next++; i < options.frames; i = next++) {
-    run_one(i);
-    if (progress) progress(std::min(done.load(), options.frames), options.frames);
-  }
-  for (auto& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
-  if (progress) progress(options.frames, options.frames);
+  parallel_for(options.frames, 0, [&](int i) { write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, i); },
+               progress);
 
   Capture capture;
   capture.root = directory;
