@@ -9,6 +9,8 @@ packages=(
   libopenexr-dev                       # H and λ fields as EXR images
   libzstd-dev                          # container payloads
   libopencv-dev                        # texture images (encoder and tools only)
+  libsuitesparse-dev                   # CHOLMOD: the conformal map's sparse Cholesky
+  libopenblas0-pthread                 # the BLAS CHOLMOD runs on (4x faster than reference BLAS)
   libcli11-dev                         # command lines
   nlohmann-json3-dev                   # capture.json
   libgtest-dev                         # tests
