@@ -554,18 +554,25 @@ SurfacePoint closest_surface_point(const TriangleMesh& surface, const Vec3& poin
 }
 
 void normalize(DiskMap& map, const Vec3& centre, const Vec3& direction) {
-  auto disk_point = [&](const Vec3& p) {
-    const SurfacePoint s = closest_surface_point(map.surface, p);
+  const SurfacePoint c = closest_surface_point(map.surface, centre), d = closest_surface_point(map.surface, direction);
+  auto disk_point = [&](const SurfacePoint& s) {
     const Face& f = map.surface.faces[static_cast<size_t>(s.face)];
     return to_complex(s.bary[0] * map.disk[static_cast<size_t>(f[0])] + s.bary[1] * map.disk[static_cast<size_t>(f[1])] +
                       s.bary[2] * map.disk[static_cast<size_t>(f[2])]);
   };
-  const Complex c = disk_point(centre), d = disk_point(direction);
-  if (std::abs(c) >= 1) throw Error(ErrorCode::kInvalidArgument, "the centre landmark lies on the boundary of the face");
-  const DiskMoebius m = DiskMoebius::normalizing(c, d);
-  for (Vec2& w : map.disk) w = m(w);
-  for (int v : map.rim) map.disk[static_cast<size_t>(v)].normalize();
-  map.normalization = m.after(map.normalization);
+  // Möbius maps are not affine, so a landmark's interpolated disk point moves slightly when the
+  // map is transformed. Iterating to the fixed point (centre interpolates to 0, direction onto the
+  // positive imaginary axis, in the final coordinates) makes the result independent of whatever
+  // Möbius map the disk came with.
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    const Complex cw = disk_point(c);
+    if (std::abs(cw) >= 1) throw Error(ErrorCode::kInvalidArgument, "the centre landmark lies on the boundary of the face");
+    const DiskMoebius m = DiskMoebius::normalizing(cw, disk_point(d));
+    for (Vec2& w : map.disk) w = m(w);
+    for (int v : map.rim) map.disk[static_cast<size_t>(v)].normalize();
+    map.normalization = m.after(map.normalization);
+    if (std::abs(m.a) < 1e-15 && std::abs(std::remainder(m.theta, 2 * kPi)) < 1e-15) break;
+  }
 }
 
 Eigen::VectorXd conformal_factor(const DiskMap& map) {

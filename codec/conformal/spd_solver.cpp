@@ -20,7 +20,14 @@ struct SpdSolver::Impl {
 const char* SpdSolver::backend() { return "eigen-simplicial-ldlt"; }
 #endif
 
-SpdSolver::SpdSolver() : impl_(std::make_unique<Impl>()) {}
+SpdSolver::SpdSolver() : impl_(std::make_unique<Impl>()) {
+#ifdef FACEMORPH_HAVE_CHOLMOD
+  // A failed factorisation is an expected outcome (the caller shortens the step); CHOLMOD must not
+  // print about it on the user's terminal.
+  impl_->solver.cholmod().print = 0;
+  impl_->solver.cholmod().error_handler = nullptr;
+#endif
+}
 SpdSolver::~SpdSolver() = default;
 
 void SpdSolver::analyze(const SparseMatrix& A) { impl_->solver.analyzePattern(A); }
