@@ -1,5 +1,7 @@
 #include "tools/tool_support.hpp"
 
+#include "format/file_io.hpp"
+
 #include <unistd.h>
 
 namespace facemorph::tools {
@@ -23,6 +25,15 @@ void Progress::update(int done, int total) {
   std::fprintf(stderr, "\r%s %d/%d frames  %.1f frames/s  %.0f s left   ", label_.c_str(), done, total, rate, left);
   std::fflush(stderr);
   drawn_ = true;
+}
+
+void write_json(const std::string& path, const nlohmann::json& doc) {
+  const std::string text = doc.dump(1) + "\n";
+  if (path == "-") {
+    std::fwrite(text.data(), 1, text.size(), stdout);
+  } else {
+    format::write_file_atomically(path, std::string_view(text));
+  }
 }
 
 void Progress::finish() {

@@ -5,6 +5,7 @@
 #include "facemorph/error.hpp"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -48,5 +49,8 @@ class Progress {
 };
 
 double seconds_since(std::chrono::steady_clock::time_point start);
+
+// Writes `doc` (indented) to `path` atomically, or to stdout when `path` is "-".
+void write_json(const std::string& path, const nlohmann::json& doc);
 
 }  // namespace facemorph::tools

@@ -126,6 +126,22 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
       }
     }
   }
+  if (options.wireframe) {
+    // Edges drawn last and without depth test: meant for flat embeddings and close-ups.
+    for (const Face& face : mesh.faces) {
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 a = to_screen(p[static_cast<size_t>(face[k])]), b = to_screen(p[static_cast<size_t>(face[(k + 1) % 3])]);
+        const int steps = static_cast<int>(std::ceil(std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y())))) + 1;
+        if (!(steps > 0) || steps > 4 * (options.width + options.height)) continue;
+        for (int i = 0; i <= steps; ++i) {
+          const double t = static_cast<double>(i) / steps;
+          const int x = static_cast<int>(a.x() + t * (b.x() - a.x())), y = static_cast<int>(a.y() + t * (b.y() - a.y()));
+          if (x < 0 || y < 0 || x >= options.width || y >= options.height) continue;
+          std::copy(options.wire_color.begin(), options.wire_color.end(), image.at(x, y));
+        }
+      }
+    }
+  }
   return image;
 }
 

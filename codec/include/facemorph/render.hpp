@@ -20,6 +20,8 @@ struct RenderOptions {
   double margin = 0.05;      // fraction of the image left around the mesh
   bool shading = true;       // multiply by a headlight Lambert term
   std::array<uint8_t, 3> background = {255, 255, 255};
+  bool wireframe = false;    // draw the edges over the shading
+  std::array<uint8_t, 3> wire_color = {30, 30, 30};
 };
 
 // Renders `mesh` looking down -z (after the yaw/pitch rotation), fitting its bounding box.

@@ -1,0 +1,304 @@
+// fmbench conformal: quality and speed of the Riemann conformal map, QIEM against the linear map,
+// on meshes, captures (every frame) and in-memory synthetic faces.
+#include "tools/bench_conformal.hpp"
+
+#include "facemorph/capture.hpp"
+#include "facemorph/conformal.hpp"
+#include "facemorph/frame.hpp"
+#include "facemorph/image_io.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/render.hpp"
+#include "facemorph/synth.hpp"
+
+#include "tools/tool_support.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+namespace facemorph::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+struct FrameResult {
+  std::string name;
+  int vertices = 0, faces = 0, holes = 0;
+  double seconds_load = 0, seconds_map = 0;
+  ConformalReport report;
+  Distortion distortion;
+  double lambda2_ratio = 0;  // max λ² / min λ²: how crowded the map is
+};
+
+// One input: its frames, as meshes produced on demand (captures are read frame by frame).
+struct Source {
+  std::string label;
+  size_t frames = 1;
+  std::function<std::pair<TriangleMesh, PrepareOptions>(size_t)> frame;
+  std::function<std::string(size_t)> frame_name;
+  // The reference pose (spec/method.md §3.5): landmarks for the centre and the up direction.
+  std::function<std::optional<std::pair<Vec3, Vec3>>(size_t)> pose = [](size_t) { return std::nullopt; };
+};
+
+Source open_source(const std::string& input) {
+  Source source;
+  source.label = input;
+  if (input.rfind("synth:", 0) == 0) {
+    const int vertices = std::stoi(input.substr(6));
+    source.frame = [vertices](size_t) {
+      const SyntheticFace face(Expression::kMixed, 1);
+      return std::make_pair(face.truth_mesh(0.5, vertices), PrepareOptions{});
+    };
+    source.frame_name = [input](size_t) { return input; };
+    source.pose = [](size_t) {
+      const SyntheticFace face(Expression::kMixed, 1);
+      return std::make_optional(std::make_pair(face.position({0, -0.014}, 0.5), face.position({0, 0.012}, 0.5)));
+    };
+    return source;
+  }
+  std::error_code ec;
+  if (fs::is_directory(input, ec) || fs::path(input).filename() == "capture.json") {
+    auto capture = std::make_shared<Capture>(read_capture(input));
+    source.frames = capture->frames.size();
+    source.frame = [capture](size_t i) {
+      PrepareOptions options;
+      for (size_t l = 0; l < capture->landmark_names.size(); ++l) {
+        if (capture->landmark_names[l].rfind("rim_", 0) == 0 && capture->landmarks[i][l].allFinite()) {
+          options.rim_markers.push_back(capture->landmarks[i][l]);
+        }
+      }
+      return std::make_pair(read_mesh(capture->mesh_path(i), {.allow_missing_texture = true}), options);
+    };
+    source.frame_name = [capture](size_t i) { return capture->frames[i].mesh.string(); };
+    source.pose = [capture](size_t i) -> std::optional<std::pair<Vec3, Vec3>> {
+      const int centre = capture->landmark_index("nose_tip");
+      int up = capture->landmark_index("nose_bridge");
+      if (up < 0) up = capture->landmark_index("between_eyes");
+      if (centre < 0 || up < 0) return std::nullopt;
+      const Vec3 &c = capture->landmarks[i][static_cast<size_t>(centre)], &u = capture->landmarks[i][static_cast<size_t>(up)];
+      if (!c.allFinite() || !u.allFinite()) return std::nullopt;
+      return std::make_pair(c, u);
+    };
+    return source;
+  }
+  source.frame = [input](size_t) { return std::make_pair(read_mesh(input, {.allow_missing_texture = true}), PrepareOptions{}); };
+  source.frame_name = [input](size_t) { return fs::path(input).filename().string(); };
+  return source;
+}
+
+std::string slug(const std::string& text) {
+  std::string out;
+  for (char c : text) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  while (!out.empty() && out.front() == '_') out.erase(out.begin());
+  return out.substr(out.size() > 60 ? out.size() - 60 : 0);
+}
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(std::lround(q * (values.size() - 1))));
+  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+  return values[k];
+}
+
+// The paper's Figure 3 as a bar chart: area share of pulled-back checkerboard angles, 45°..135°.
+Image histogram_picture(const std::vector<double>& histogram) {
+  Image image(640, 320, 3);
+  std::fill(image.pixels.begin(), image.pixels.end(), uint8_t{255});
+  const double top = *std::max_element(histogram.begin(), histogram.end());
+  const int bins = static_cast<int>(histogram.size());
+  for (int b = 0; b < bins; ++b) {
+    const int x0 = 20 + b * 600 / bins, x1 = 20 + (b + 1) * 600 / bins - 1;
+    const int height = top > 0 ? static_cast<int>(280 * histogram[static_cast<size_t>(b)] / top) : 0;
+    for (int x = x0; x <= x1; ++x) {
+      for (int y = 300 - height; y < 300; ++y) {
+        uint8_t* p = image.at(x, y);
+        p[0] = 40, p[1] = 60, p[2] = b == bins / 2 ? 200 : 140;
+      }
+    }
+  }
+  for (int x = 20; x < 620; ++x) std::fill_n(image.at(x, 300), 3, uint8_t{0});  // axis
+  for (int y = 300; y < 310; ++y) std::fill_n(image.at(20 + (bins / 2) * 600 / bins + 300 / bins, y), 3, uint8_t{0});  // 90°
+  return image;
+}
+
+void write_pictures(const fs::path& dir, const std::string& name, const DiskMap& map) {
+  fs::create_directories(dir);
+  TriangleMesh surface = map.surface;
+  surface.uvs.clear();
+  for (const Vec2& w : map.disk) surface.uvs.push_back(0.5 * (w + Vec2(1, 1)));
+  surface.uv_faces = surface.faces;
+  RenderOptions options;
+  options.yaw_degrees = 20;
+  write_image(dir / (name + "_surface_checker.png"), render(surface, checkerboard_shader(surface, 16), options));
+  TriangleMesh disk = surface;
+  for (size_t v = 0; v < disk.positions.size(); ++v) disk.positions[v] = Vec3(map.disk[v].x(), map.disk[v].y(), 0);
+  RenderOptions flat;
+  flat.shading = false;
+  flat.wireframe = map.surface.vertex_count() <= 5000;
+  write_image(dir / (name + "_disk.png"), render(disk, checkerboard_shader(disk, 16), flat));
+  write_image(dir / (name + "_angle_histogram.png"), histogram_picture(measure_distortion(map).checkerboard_histogram));
+}
+
+void write_mesh_pair(const DiskMap& map, const std::string& mesh_out, const std::string& disk_out) {
+  if (!mesh_out.empty()) write_mesh(mesh_out, map.surface);
+  if (!disk_out.empty()) {
+    TriangleMesh disk;
+    disk.faces = map.surface.faces;
+    for (const Vec2& w : map.disk) {
+      disk.positions.emplace_back(w.x(), w.y(), 0);
+      disk.uvs.push_back(0.5 * (w + Vec2(1, 1)));
+    }
+    disk.uv_faces = disk.faces;
+    write_mesh(disk_out, disk);
+  }
+}
+
+json frame_json(const FrameResult& r) {
+  const ConformalReport& c = r.report;
+  const Distortion& d = r.distortion;
+  return {{"frame", r.name},
+          {"vertices", r.vertices},
+          {"faces", r.faces},
+          {"holes_filled", r.holes},
+          {"method", conformal_method_name(c.method)},
+          {"fallback_reason", c.fallback_reason},
+          {"iterations", c.iterations},
+          {"factorizations", c.factorizations},
+          {"energy", c.energy},
+          {"energy_excess", c.energy_excess},
+          {"intrinsic_flips", c.intrinsic_flips},
+          {"splits", {{"chords", c.split_chords}, {"ears", c.split_ears}, {"obtuse_boundary", c.split_obtuse_boundary}, {"caps", c.split_caps}}},
+          {"seconds", {{"load_and_prepare", r.seconds_load}, {"precondition", c.seconds_prepare}, {"initial_map", c.seconds_initial},
+                       {"flow", c.seconds_flow}, {"finish", c.seconds_finish}, {"map_total", r.seconds_map}}},
+          {"angle_error_degrees", {{"mean", d.mean_degrees}, {"p95", d.p95_degrees}, {"max", d.max_degrees}}},
+          {"mu", {{"mean", d.mu_mean}, {"max", d.mu_max}}},
+          {"flipped_after", d.flipped},
+          {"flipped_before_untangling", c.flipped_triangles},
+          {"untangled_vertices", c.untangled_vertices},
+          {"checkerboard_within_1_degree", d.checkerboard_within_1_degree},
+          {"checkerboard_histogram_45_to_135", d.checkerboard_histogram},
+          {"lambda2_max_over_min", r.lambda2_ratio}};
+}
+
+}  // namespace
+
+void add_conformal_command(CLI::App& app, ConformalBenchOptions& options) {
+  CLI::App* cmd = app.add_subcommand("conformal", "Riemann conformal map: angle distortion, flips, time per stage");
+  cmd->add_option("inputs", options.inputs,
+                  "Meshes, capture folders (every frame) or synth:N (a synthetic face of N vertices). "
+                  "None: synth:20000 synth:50000 synth:100000, the Medusa capture and the ICT face from --data");
+  cmd->add_option("--method", options.method, "qiem | linear | both")->capture_default_str();
+  cmd->add_option("--data", options.data, "Folder of the shared real data")->capture_default_str();
+  cmd->add_option("--mesh-out", options.mesh_out, "Write the mapped surface (validated, hole-filled) of the first input");
+  cmd->add_option("--disk-out", options.disk_out, "Write its disk embedding (z = 0; same vertices and faces as --mesh-out)");
+  cmd->add_option("--pictures", options.pictures, "Folder for pictures: checkerboard on the face, the disk, the angle histogram");
+  cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
+  cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
+}
+
+int run_conformal_bench(const ConformalBenchOptions& options) {
+  std::vector<std::string> inputs = options.inputs;
+  if (inputs.empty()) {
+    inputs = {"synth:20000", "synth:50000", "synth:100000"};
+    const fs::path data(options.data);
+    std::error_code ec;
+    if (fs::is_directory(data / "medusa-mediapipe-4d/capture", ec)) inputs.push_back((data / "medusa-mediapipe-4d/capture").string());
+    if (fs::exists(data / "ict-facekit/derived/face_area_neutral.obj", ec)) inputs.push_back((data / "ict-facekit/derived/face_area_neutral.obj").string());
+  }
+  std::vector<ConformalMethod> methods;
+  if (options.method == "both" || options.method == "qiem") methods.push_back(ConformalMethod::kQiem);
+  if (options.method == "both" || options.method == "linear") methods.push_back(ConformalMethod::kLinear);
+  if (methods.empty()) throw Error(ErrorCode::kInvalidArgument, "--method must be qiem, linear or both");
+
+  json results = json::array();
+  std::printf("%-34s %-6s %6s %7s %5s %5s %7s %7s %7s %7s %6s %6s %6s %7s %5s %5s %9s\n", "input", "method", "frames", "verts",
+              "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng");
+  bool first_output = true;
+  for (const std::string& input : inputs) {
+    const Source source = open_source(input);
+    for (ConformalMethod method : methods) {
+      std::vector<FrameResult> frames;
+      Progress progress("conformal " + fs::path(input).filename().string(), options.quiet || source.frames < 8);
+      for (size_t i = 0; i < source.frames; ++i) {
+        FrameResult r;
+        r.name = source.frame_name(i);
+        auto start = std::chrono::steady_clock::now();
+        auto [mesh, prepare] = source.frame(i);
+        const PreparedFrame prepared = prepare_frame(mesh, r.name, prepare);
+        r.seconds_load = seconds_since(start);
+        r.holes = static_cast<int>(prepared.report.holes.size());
+        start = std::chrono::steady_clock::now();
+        DiskMap map = conformal_disk_map(prepared.mesh, {.method = method});
+        r.seconds_map = seconds_since(start);
+        if (const auto pose = source.pose(i)) normalize(map, pose->first, pose->second);
+        r.vertices = map.surface.vertex_count();
+        r.faces = map.surface.face_count();
+        r.report = map.report;
+        r.distortion = measure_distortion(map);
+        const Eigen::VectorXd lambda = conformal_factor(map);
+        r.lambda2_ratio = std::pow(lambda.maxCoeff() / lambda.minCoeff(), 2);
+        if (i == 0 && method == methods.front()) {
+          if (first_output) write_mesh_pair(map, options.mesh_out, options.disk_out);
+          if (!options.pictures.empty()) write_pictures(options.pictures, slug(input) + "_" + conformal_method_name(method), map);
+        }
+        frames.push_back(std::move(r));
+        progress.update(static_cast<int>(i + 1), static_cast<int>(source.frames));
+      }
+      progress.finish();
+      first_output = false;
+
+      auto collect = [&](auto&& field) {
+        std::vector<double> v;
+        for (const FrameResult& r : frames) v.push_back(static_cast<double>(field(r)));
+        return v;
+      };
+      auto median = [&](auto&& field) { return percentile(collect(field), 0.5); };
+      auto worst = [&](auto&& field) { return percentile(collect(field), 1.0); };
+      int flips = 0, untangled = 0, fallbacks = 0;
+      for (const FrameResult& r : frames) {
+        flips += r.distortion.flipped;
+        untangled += r.report.untangled_vertices;
+        fallbacks += !r.report.fallback_reason.empty();
+      }
+      const bool many = frames.size() > 1;
+      std::string label = input.size() > 34 ? "..." + input.substr(input.size() - 31) : input;
+      std::printf("%-34s %-6s %6zu %7.0f %5.0f %5.0f %7.3f %7.3f %7.3f %7.3f %6.2f %6.2f %6.1f %7.4f %5d %5d %9.2e\n", label.c_str(),
+                  conformal_method_name(method), frames.size(), median([](auto& r) { return r.vertices; }),
+                  median([](auto& r) { return r.report.iterations; }), median([](auto& r) { return r.report.factorizations; }),
+                  median([](auto& r) { return r.seconds_load + r.report.seconds_prepare; }),
+                  median([](auto& r) { return r.report.seconds_initial; }), median([](auto& r) { return r.report.seconds_flow; }),
+                  median([](auto& r) { return r.seconds_map; }), median([](auto& r) { return r.distortion.mean_degrees; }),
+                  median([](auto& r) { return r.distortion.p95_degrees; }), worst([](auto& r) { return r.distortion.max_degrees; }),
+                  median([](auto& r) { return r.distortion.mu_mean; }), flips, untangled,
+                  worst([](auto& r) { return r.lambda2_ratio; }));
+      if (many) {
+        std::printf("%-34s %-6s worst frame: total %.3f s, mean %.2f°, p95 %.2f°; frames over mean 2.5°: %d, over p95 8°: %d%s\n", "",
+                    "", worst([](auto& r) { return r.seconds_map; }), worst([](auto& r) { return r.distortion.mean_degrees; }),
+                    worst([](auto& r) { return r.distortion.p95_degrees; }),
+                    static_cast<int>(std::count_if(frames.begin(), frames.end(), [](auto& r) { return r.distortion.mean_degrees > 2.5; })),
+                    static_cast<int>(std::count_if(frames.begin(), frames.end(), [](auto& r) { return r.distortion.p95_degrees > 8.0; })),
+                    fallbacks ? (", " + std::to_string(fallbacks) + " fell back to linear").c_str() : "");
+      }
+      json entry = {{"input", input}, {"method", conformal_method_name(method)}, {"frames", frames.size()},
+                    {"flipped_total", flips}, {"untangled_vertices_total", untangled}, {"fallbacks", fallbacks},
+                    {"median", {{"map_seconds", median([](auto& r) { return r.seconds_map; })},
+                                {"mean_degrees", median([](auto& r) { return r.distortion.mean_degrees; })},
+                                {"p95_degrees", median([](auto& r) { return r.distortion.p95_degrees; })}}},
+                    {"worst", {{"map_seconds", worst([](auto& r) { return r.seconds_map; })},
+                               {"mean_degrees", worst([](auto& r) { return r.distortion.mean_degrees; })},
+                               {"p95_degrees", worst([](auto& r) { return r.distortion.p95_degrees; })},
+                               {"max_degrees", worst([](auto& r) { return r.distortion.max_degrees; })}}}};
+      json per_frame = json::array();
+      for (const FrameResult& r : frames) per_frame.push_back(frame_json(r));
+      entry["per_frame"] = std::move(per_frame);
+      results.push_back(std::move(entry));
+    }
+  }
+  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "conformal"}, {"results", results}});
+  return 0;
+}
+
+}  // namespace facemorph::tools

@@ -1,0 +1,15 @@
+// fmbench: facemorph's benchmarks. Figures in a table on stdout, and as JSON with --json.
+#include "tools/bench_conformal.hpp"
+#include "tools/tool_support.hpp"
+
+int main(int argc, char** argv) {
+  using namespace facemorph::tools;
+  CLI::App app("facemorph benchmarks: quality, size and speed, printed as a table and as JSON.", "fmbench");
+  app.require_subcommand(1);
+  ConformalBenchOptions conformal;
+  add_conformal_command(app, conformal);
+  return guarded_main(app, argc, argv, [&] {
+    if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
+    return 2;
+  });
+}
