@@ -44,7 +44,10 @@ class FramePreparer {
         final_topology.euler_characteristic() != 1) {
       fail(ErrorCode::kNotADisk, "hole filling did not produce a disk (" +
                                      std::to_string(final_topology.boundary_loops().size()) + " boundary loops, Euler characteristic " +
-                                     std::to_string(final_topology.euler_characteristic()) + ")");
+                                     std::to_string(final_topology.euler_characteristic()) + ", " +
+                                     std::to_string(final_topology.non_manifold_edges().size()) + " non-manifold edges, " +
+                                     std::to_string(final_topology.non_manifold_vertices().size()) + " non-manifold vertices, " +
+                                     std::to_string(final_topology.inconsistently_oriented_edges().size()) + " flipped edges)");
     }
     PreparedFrame out;
     out.rim = final_topology.boundary_loops()[0];
