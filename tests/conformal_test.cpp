@@ -258,6 +258,31 @@ TEST(InverseDiskMap, RoundTripsSurfacePointsAndIsExactOnTheRim) {
   EXPECT_FALSE(inverse.locate(Vec2(1.01, 0)).has_value());
 }
 
+TEST(ConformalMap, SplitsKeepTextureCoordinatesAndGeometry) {
+  // A cap (an angle above 150°) and an obtuse boundary edge force splits; UVs must follow.
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {2, 0, 0}, {1, 0.1, 0.2}, {1, 1.5, 0.4}, {1, -1.2, 0.1}};
+  m.faces = {{0, 2, 3}, {2, 1, 3}, {0, 4, 1}, {0, 1, 2}};
+  m.uvs = {{0, 0}, {1, 0}, {0.5, 0.05}, {0.5, 0.75}, {0.5, -0.6}};
+  m.uv_faces = m.faces;
+  const PreparedFrame p = prepare_frame(m, "caps.obj");
+  const DiskMap map = conformal_disk_map(p.mesh);
+  EXPECT_GT(map.report.split_caps + map.report.split_obtuse_boundary + map.report.split_ears, 0);
+  ASSERT_TRUE(map.surface.has_uvs());
+  EXPECT_NEAR(total_area(map.surface.positions, map.surface.faces), total_area(p.mesh.positions, p.mesh.faces), 1e-12);
+  // Splits subdivide the UV triangles with the faces: the total signed UV area is unchanged.
+  auto uv_area = [](const TriangleMesh& mesh) {
+    double sum = 0;
+    for (const Face& t : mesh.uv_faces) {
+      const Vec2 &a = mesh.uvs[static_cast<size_t>(t[0])], &b = mesh.uvs[static_cast<size_t>(t[1])], &c = mesh.uvs[static_cast<size_t>(t[2])];
+      sum += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    }
+    return sum;
+  };
+  EXPECT_NEAR(uv_area(map.surface), uv_area(p.mesh), 1e-12);
+  for (size_t v = static_cast<size_t>(p.mesh.vertex_count()); v < map.surface.positions.size(); ++v) EXPECT_EQ(map.source_vertex[v], -1);
+}
+
 TEST(ConformalMap, HardInputIsHandledOrNamedNeverNaN) {
   // An ear (a boundary vertex of valence 1), very thin triangles and a needle: all handled.
   TriangleMesh disk = flat_disk(6, 24);

@@ -8,6 +8,7 @@
 #include "facemorph/image_io.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/render.hpp"
+#include "facemorph/resample.hpp"
 #include "facemorph/synth.hpp"
 
 #include "tools/tool_support.hpp"
@@ -28,6 +29,8 @@ struct FrameResult {
   std::string name;
   int vertices = 0, faces = 0, holes = 0;
   double seconds_load = 0, seconds_map = 0;
+  double seconds_grid = 0;     // positions onto G (N = 256)
+  double seconds_texture = -1; // texture onto 1024² (-1: the frame has no image)
   ConformalReport report;
   Distortion distortion;
   double lambda2_ratio = 0;  // max λ² / min λ²: how crowded the map is
@@ -172,7 +175,8 @@ json frame_json(const FrameResult& r) {
           {"intrinsic_flips", c.intrinsic_flips},
           {"splits", {{"chords", c.split_chords}, {"ears", c.split_ears}, {"obtuse_boundary", c.split_obtuse_boundary}, {"caps", c.split_caps}}},
           {"seconds", {{"load_and_prepare", r.seconds_load}, {"precondition", c.seconds_prepare}, {"initial_map", c.seconds_initial},
-                       {"flow", c.seconds_flow}, {"finish", c.seconds_finish}, {"map_total", r.seconds_map}}},
+                       {"flow", c.seconds_flow}, {"finish", c.seconds_finish}, {"map_total", r.seconds_map},
+                       {"resample_positions_N256", r.seconds_grid}, {"resample_texture_1024", r.seconds_texture}}},
           {"angle_error_degrees", {{"mean", d.mean_degrees}, {"p95", d.p95_degrees}, {"max", d.max_degrees}}},
           {"mu", {{"mean", d.mu_mean}, {"max", d.mu_max}}},
           {"flipped_after", d.flipped},
@@ -196,6 +200,10 @@ void add_conformal_command(CLI::App& app, ConformalBenchOptions& options) {
   cmd->add_option("--disk-out", options.disk_out, "Write its disk embedding (z = 0; same vertices and faces as --mesh-out)");
   cmd->add_option("--pictures", options.pictures, "Folder for pictures: checkerboard on the face, the disk, the angle histogram");
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
+  cmd->footer("Columns: iterations and factorisations of QIEM; seconds to load+validate, for the linear start, the flow, the "
+                "whole map; corner-angle error mean/p95/max (degrees); mean |mu|; flipped triangles left; vertices moved to "
+                "unflip; lambda^2 max/min (crowding); seconds to resample positions onto G (N=256) and the texture (1024^2, "
+                "-1 without an image). Captures: medians over frames (worst for max and lambda), then a line on the worst frame.");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
 }
 
@@ -213,9 +221,10 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
   if (options.method == "both" || options.method == "linear") methods.push_back(ConformalMethod::kLinear);
   if (methods.empty()) throw Error(ErrorCode::kInvalidArgument, "--method must be qiem, linear or both");
 
+  const DiskGrid grid = make_disk_grid(256);
   json results = json::array();
-  std::printf("%-34s %-6s %6s %7s %5s %5s %7s %7s %7s %7s %6s %6s %6s %7s %5s %5s %9s\n", "input", "method", "frames", "verts",
-              "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng");
+  std::printf("%-34s %-6s %6s %7s %5s %5s %7s %7s %7s %7s %6s %6s %6s %7s %5s %5s %9s %6s %6s\n", "input", "method", "frames", "verts",
+              "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng", "grid s", "tex s");
   bool first_output = true;
   for (const std::string& input : inputs) {
     const Source source = open_source(input);
@@ -238,6 +247,16 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
         r.faces = map.surface.face_count();
         r.report = map.report;
         r.distortion = measure_distortion(map);
+        start = std::chrono::steady_clock::now();
+        const InverseDiskMap inverse(map);
+        (void)resample_positions(inverse, grid);
+        r.seconds_grid = seconds_since(start);
+        if (!mesh.texture.empty() && map.surface.has_uvs()) {
+          const Image image = read_image(mesh.texture);
+          start = std::chrono::steady_clock::now();
+          (void)resample_texture(map, inverse, image, 1024);
+          r.seconds_texture = seconds_since(start);
+        }
         const Eigen::VectorXd lambda = conformal_factor(map);
         r.lambda2_ratio = std::pow(lambda.maxCoeff() / lambda.minCoeff(), 2);
         if (i == 0 && method == methods.front()) {
@@ -265,7 +284,7 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
       }
       const bool many = frames.size() > 1;
       std::string label = input.size() > 34 ? "..." + input.substr(input.size() - 31) : input;
-      std::printf("%-34s %-6s %6zu %7.0f %5.0f %5.0f %7.3f %7.3f %7.3f %7.3f %6.2f %6.2f %6.1f %7.4f %5d %5d %9.2e\n", label.c_str(),
+      std::printf("%-34s %-6s %6zu %7.0f %5.0f %5.0f %7.3f %7.3f %7.3f %7.3f %6.2f %6.2f %6.1f %7.4f %5d %5d %9.2e %6.3f %6.3f\n", label.c_str(),
                   conformal_method_name(method), frames.size(), median([](auto& r) { return r.vertices; }),
                   median([](auto& r) { return r.report.iterations; }), median([](auto& r) { return r.report.factorizations; }),
                   median([](auto& r) { return r.seconds_load + r.report.seconds_prepare; }),
@@ -273,7 +292,8 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
                   median([](auto& r) { return r.seconds_map; }), median([](auto& r) { return r.distortion.mean_degrees; }),
                   median([](auto& r) { return r.distortion.p95_degrees; }), worst([](auto& r) { return r.distortion.max_degrees; }),
                   median([](auto& r) { return r.distortion.mu_mean; }), flips, untangled,
-                  worst([](auto& r) { return r.lambda2_ratio; }));
+                  worst([](auto& r) { return r.lambda2_ratio; }), median([](auto& r) { return r.seconds_grid; }),
+                  median([](auto& r) { return r.seconds_texture; }));
       if (many) {
         std::printf("%-34s %-6s worst frame: total %.3f s, mean %.2f°, p95 %.2f°; frames over mean 2.5°: %d, over p95 8°: %d%s\n", "",
                     "", worst([](auto& r) { return r.seconds_map; }), worst([](auto& r) { return r.distortion.mean_degrees; }),

@@ -19,6 +19,7 @@ class MeshEditor {
 
   // Splits edge a-b (one or two faces) at a + t (b - a).
   void split_edge(int32_t a, int32_t b, double t = 0.5) {
+    const bool has_uv = mesh_.has_uvs();  // before faces and uv_faces are grown one after the other
     const auto m = static_cast<int32_t>(mesh_.positions.size());
     mesh_.positions.push_back((1 - t) * mesh_.positions[static_cast<size_t>(a)] + t * mesh_.positions[static_cast<size_t>(b)]);
     source_.push_back(-1);
@@ -31,7 +32,7 @@ class MeshEditor {
         // (u, v, w) -> (u, m, w) and (m, v, w)
         mesh_.faces[f] = {u, m, w};
         mesh_.faces.push_back({m, v, w});
-        if (mesh_.has_uvs()) {
+        if (has_uv) {
           const Face uv = mesh_.uv_faces[f];
           const auto tm = static_cast<int32_t>(mesh_.uvs.size());
           const double s = u == a ? t : 1 - t;  // the new vertex's parameter from u
@@ -45,6 +46,7 @@ class MeshEditor {
   }
 
   void split_face_at_centroid(size_t f) {
+    const bool has_uv = mesh_.has_uvs();
     const Face face = mesh_.faces[f];
     const auto g = static_cast<int32_t>(mesh_.positions.size());
     Vec3 c = Vec3::Zero();
@@ -54,7 +56,7 @@ class MeshEditor {
     mesh_.faces[f] = {face[0], face[1], g};
     mesh_.faces.push_back({face[1], face[2], g});
     mesh_.faces.push_back({face[2], face[0], g});
-    if (mesh_.has_uvs()) {
+    if (has_uv) {
       const Face t = mesh_.uv_faces[f];
       const auto tg = static_cast<int32_t>(mesh_.uvs.size());
       mesh_.uvs.push_back((mesh_.uvs[static_cast<size_t>(t[0])] + mesh_.uvs[static_cast<size_t>(t[1])] + mesh_.uvs[static_cast<size_t>(t[2])]) / 3.0);

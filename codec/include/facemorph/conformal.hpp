@@ -68,7 +68,8 @@ DiskMap conformal_disk_map(const TriangleMesh& surface, const ConformalOptions& 
 SurfacePoint closest_surface_point(const TriangleMesh& surface, const Vec3& point);
 
 // Applies the disk Möbius map sending the surface point nearest `centre` to 0 and the one nearest
-// `direction` onto the positive imaginary axis (the reference pose; spec/method.md §3.5).
+// `direction` onto the positive imaginary axis (the reference pose; spec/method.md §3.5). Triangles
+// rounding may turn over in crowded regions are untangled, as in conformal_disk_map.
 void normalize(DiskMap& map, const Vec3& centre, const Vec3& direction);
 
 // Conformal factor per vertex: λ_v² = Σ A_surface(f) / Σ A_disk(f) over the faces around v.

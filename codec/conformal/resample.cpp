@@ -1,0 +1,69 @@
+#include "facemorph/resample.hpp"
+
+#include "facemorph/error.hpp"
+#include "facemorph/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace facemorph {
+
+std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGrid& grid) {
+  std::vector<Vec3> positions(grid.nodes.size());
+  for (size_t i = 0; i < grid.nodes.size(); ++i) {
+    const auto hit = inverse.locate(grid.nodes[i]);
+    if (!hit) throw Error(ErrorCode::kNumerical, "grid node " + std::to_string(i) + " lies outside the disk map");
+    positions[i] = inverse.position(*hit);
+  }
+  return positions;
+}
+
+Image resample_texture(const DiskMap& map, const InverseDiskMap& inverse, const Image& texture, int size) {
+  if (!map.surface.has_uvs()) throw Error(ErrorCode::kMissingTexture, "the frame has no texture coordinates");
+  if (size < 2 || size > 16384) throw Error(ErrorCode::kInvalidArgument, "texture size must be in [2, 16384]");
+  Image out(size, size, 3);
+  std::vector<uint8_t> done(static_cast<size_t>(size) * size, 0);
+  auto to_pixel = [size](const Vec2& w) { return Vec2((w.x() + 1) * 0.5 * size - 0.5, (1 - w.y()) * 0.5 * size - 0.5); };
+  auto put = [&](int x, int y, const Vec2& uv) {
+    const auto rgb = sample_bilinear(texture, uv.x(), uv.y());
+    uint8_t* p = out.at(x, y);
+    for (int c = 0; c < 3; ++c) p[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[static_cast<size_t>(c)]), 0L, 255L));
+    done[static_cast<size_t>(y) * size + x] = 1;
+  };
+  // Rasterise the disk triangles: every texel centre inside one takes its barycentric UV.
+  const auto& faces = map.surface.faces;
+  for (size_t f = 0; f < faces.size(); ++f) {
+    const Vec2 a = to_pixel(map.disk[static_cast<size_t>(faces[f][0])]), b = to_pixel(map.disk[static_cast<size_t>(faces[f][1])]),
+               c = to_pixel(map.disk[static_cast<size_t>(faces[f][2])]);
+    const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+    if (area == 0) continue;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
+    const int x1 = std::min(size - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
+    const int y1 = std::min(size - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
+    const Face& t = map.surface.uv_faces[f];
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double w0 = ((b.x() - x) * (c.y() - y) - (b.y() - y) * (c.x() - x)) / area;
+        const double w1 = ((c.x() - x) * (a.y() - y) - (c.y() - y) * (a.x() - x)) / area;
+        const double w2 = 1 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        put(x, y, w0 * map.surface.uvs[static_cast<size_t>(t[0])] + w1 * map.surface.uvs[static_cast<size_t>(t[1])] +
+                      w2 * map.surface.uvs[static_cast<size_t>(t[2])]);
+      }
+    }
+  }
+  // The rest: thin gaps between rim chords and the circle, and the corners outside the disk.
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      if (done[static_cast<size_t>(y) * size + x]) continue;
+      Vec2 w(2 * (x + 0.5) / size - 1, 1 - 2 * (y + 0.5) / size);
+      if (w.norm() > 1) w.normalize();
+      const auto hit = inverse.locate(w);
+      if (hit) put(x, y, inverse.texture_uv(*hit));
+    }
+  }
+  return out;
+}
+
+}  // namespace facemorph
