@@ -246,13 +246,14 @@ FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, c
   double energy = energy_of(phi);
   SymmetricSystems systems(K, cover);
   FlowResult result;
-  // The fixed point K φ = D φ does not depend on δt, only the path does. Start at 0.9 / max D, where
-  // I + δt(K - D) is certainly SPD, and grow δt by 1.25 after every step that lowered the energy at
-  // the first try (halve it when a try did not): on crowded faces max D is set by a few tiny
-  // triangles and the safe step is far too short for the rest. A long step can make the matrix
-  // indefinite; a failed factorisation, like a rise in energy, just halves the step. (Growth 1.25
-  // took fewest factorisations on synthetic, Medusa and ICT frames of 1, 1.25, 1.5, 2 and 4.)
-  double growth = 1.0;
+  // The fixed point K φ = D φ does not depend on δt, only the path does. 0.9 / max D keeps
+  // I + δt(K - D) SPD, but on crowded faces max D is set by a few tiny triangles and that step is
+  // far too short for the rest. So start at twice it and grow δt by 1.25 after every step that
+  // lowered the energy at the first try (halve it when a try did not). A long step can make the
+  // matrix indefinite; a failed factorisation, like a rise in energy, just halves the step.
+  // Measured (spec/method.md §3.3): growth 1.25 of {1, 1.25, 1.5, 2, 4}, start 2x of {1, 2, 4, 8, 16}
+  // took fewest factorisations on synthetic, Medusa and ICT frames.
+  double growth = 2.0;
   for (int step = 0; step < options.max_iterations; ++step) {
     const Eigen::MatrixXd Kphi = K * phi;
     const Eigen::VectorXd D = (Kphi.array() * phi.array()).rowwise().sum();
