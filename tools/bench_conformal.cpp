@@ -11,6 +11,7 @@
 #include "facemorph/resample.hpp"
 #include "facemorph/synth.hpp"
 
+#include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
 
 #include <algorithm>
@@ -36,74 +37,11 @@ struct FrameResult {
   double lambda2_ratio = 0;  // max λ² / min λ²: how crowded the map is
 };
 
-// One input: its frames, as meshes produced on demand (captures are read frame by frame).
-struct Source {
-  std::string label;
-  size_t frames = 1;
-  std::function<std::pair<TriangleMesh, PrepareOptions>(size_t)> frame;
-  std::function<std::string(size_t)> frame_name;
-  // The reference pose (spec/method.md §3.5): landmarks for the centre and the up direction.
-  std::function<std::optional<std::pair<Vec3, Vec3>>(size_t)> pose = [](size_t) { return std::nullopt; };
-};
-
-Source open_source(const std::string& input) {
-  Source source;
-  source.label = input;
-  if (input.rfind("synth:", 0) == 0) {
-    const int vertices = std::stoi(input.substr(6));
-    source.frame = [vertices](size_t) {
-      const SyntheticFace face(Expression::kMixed, 1);
-      return std::make_pair(face.truth_mesh(0.5, vertices), PrepareOptions{});
-    };
-    source.frame_name = [input](size_t) { return input; };
-    source.pose = [](size_t) {
-      const SyntheticFace face(Expression::kMixed, 1);
-      return std::make_optional(std::make_pair(face.position({0, -0.014}, 0.5), face.position({0, 0.012}, 0.5)));
-    };
-    return source;
-  }
-  std::error_code ec;
-  if (fs::is_directory(input, ec) || fs::path(input).filename() == "capture.json") {
-    auto capture = std::make_shared<Capture>(read_capture(input));
-    source.frames = capture->frames.size();
-    source.frame = [capture](size_t i) {
-      PrepareOptions options;
-      for (size_t l = 0; l < capture->landmark_names.size(); ++l) {
-        if (capture->landmark_names[l].rfind("rim_", 0) == 0 && capture->landmarks[i][l].allFinite()) {
-          options.rim_markers.push_back(capture->landmarks[i][l]);
-        }
-      }
-      return std::make_pair(read_mesh(capture->mesh_path(i), {.allow_missing_texture = true}), options);
-    };
-    source.frame_name = [capture](size_t i) { return capture->frames[i].mesh.string(); };
-    source.pose = [capture](size_t i) -> std::optional<std::pair<Vec3, Vec3>> {
-      const int centre = capture->landmark_index("nose_tip");
-      int up = capture->landmark_index("nose_bridge");
-      if (up < 0) up = capture->landmark_index("between_eyes");
-      if (centre < 0 || up < 0) return std::nullopt;
-      const Vec3 &c = capture->landmarks[i][static_cast<size_t>(centre)], &u = capture->landmarks[i][static_cast<size_t>(up)];
-      if (!c.allFinite() || !u.allFinite()) return std::nullopt;
-      return std::make_pair(c, u);
-    };
-    return source;
-  }
-  source.frame = [input](size_t) { return std::make_pair(read_mesh(input, {.allow_missing_texture = true}), PrepareOptions{}); };
-  source.frame_name = [input](size_t) { return fs::path(input).filename().string(); };
-  return source;
-}
-
 std::string slug(const std::string& text) {
   std::string out;
   for (char c : text) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
   while (!out.empty() && out.front() == '_') out.erase(out.begin());
   return out.substr(out.size() > 60 ? out.size() - 60 : 0);
-}
-
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
-  const size_t k = std::min(values.size() - 1, static_cast<size_t>(std::lround(q * (values.size() - 1))));
-  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
-  return values[k];
 }
 
 // The paper's Figure 3 as a bar chart: area share of pulled-back checkerboard angles, 45°..135°.
@@ -209,13 +147,7 @@ void add_conformal_command(CLI::App& app, ConformalBenchOptions& options) {
 
 int run_conformal_bench(const ConformalBenchOptions& options) {
   std::vector<std::string> inputs = options.inputs;
-  if (inputs.empty()) {
-    inputs = {"synth:20000", "synth:50000", "synth:100000"};
-    const fs::path data(options.data);
-    std::error_code ec;
-    if (fs::is_directory(data / "medusa-mediapipe-4d/capture", ec)) inputs.push_back((data / "medusa-mediapipe-4d/capture").string());
-    if (fs::exists(data / "ict-facekit/derived/face_area_neutral.obj", ec)) inputs.push_back((data / "ict-facekit/derived/face_area_neutral.obj").string());
-  }
+  if (inputs.empty()) inputs = default_bench_inputs(options.data, /*large_synthetic=*/true);
   std::vector<ConformalMethod> methods;
   if (options.method == "both" || options.method == "qiem") methods.push_back(ConformalMethod::kQiem);
   if (options.method == "both" || options.method == "linear") methods.push_back(ConformalMethod::kLinear);
@@ -227,7 +159,7 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
               "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng", "grid s", "tex s");
   bool first_output = true;
   for (const std::string& input : inputs) {
-    const Source source = open_source(input);
+    const BenchSource source = open_bench_source(input);
     for (ConformalMethod method : methods) {
       std::vector<FrameResult> frames;
       Progress progress("conformal " + fs::path(input).filename().string(), options.quiet || source.frames < 8);

@@ -1,5 +1,6 @@
 // fmbench: facemorph's benchmarks. Figures in a table on stdout, and as JSON with --json.
 #include "tools/bench_conformal.hpp"
+#include "tools/bench_reconstruct.hpp"
 #include "tools/tool_support.hpp"
 
 int main(int argc, char** argv) {
@@ -8,8 +9,11 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   ConformalBenchOptions conformal;
   add_conformal_command(app, conformal);
+  ReconstructBenchOptions reconstruct;
+  add_reconstruct_command(app, reconstruct);
   return guarded_main(app, argc, argv, [&] {
     if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
+    if (app.got_subcommand("reconstruct")) return run_reconstruct_bench(reconstruct);
     return 2;
   });
 }

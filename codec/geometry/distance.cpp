@@ -1,0 +1,145 @@
+#include "facemorph/distance.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace facemorph {
+namespace {
+
+// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection §5.1.5).
+double point_triangle_squared(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).squaredNorm();
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).squaredNorm();
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return (p - (b + t * (c - b))).squaredNorm();
+  }
+  const double denominator = 1.0 / (va + vb + vc);
+  return (p - (a + ab * (vb * denominator) + ac * (vc * denominator))).squaredNorm();
+}
+
+}  // namespace
+
+PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const Vec3& p : mesh.positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (mesh.faces.empty()) return;
+  const Vec3 extent = (hi - lo).cwiseMax(1e-12 * std::max(1.0, (hi - lo).norm()));
+  cell_ = std::cbrt(extent.prod() / std::max<double>(1.0, static_cast<double>(mesh.faces.size()) / 2));
+  nx_ = std::clamp(static_cast<int>(std::ceil(extent.x() / cell_)), 1, 512);
+  ny_ = std::clamp(static_cast<int>(std::ceil(extent.y() / cell_)), 1, 512);
+  nz_ = std::clamp(static_cast<int>(std::ceil(extent.z() / cell_)), 1, 512);
+  cell_ = std::max({extent.x() / nx_, extent.y() / ny_, extent.z() / nz_});
+  origin_ = lo;
+  auto range = [&](const Face& f, std::array<int, 6>& r) {
+    Vec3 a = mesh.positions[static_cast<size_t>(f[0])], b = a;
+    for (int32_t v : f) {
+      a = a.cwiseMin(mesh.positions[static_cast<size_t>(v)]);
+      b = b.cwiseMax(mesh.positions[static_cast<size_t>(v)]);
+    }
+    const int n[3] = {nx_, ny_, nz_};
+    for (int k = 0; k < 3; ++k) {
+      r[static_cast<size_t>(k)] = std::clamp(static_cast<int>(std::floor((a[k] - origin_[k]) / cell_)), 0, n[k] - 1);
+      r[static_cast<size_t>(k + 3)] = std::clamp(static_cast<int>(std::floor((b[k] - origin_[k]) / cell_)), 0, n[k] - 1);
+    }
+  };
+  start_.assign(static_cast<size_t>(nx_) * ny_ * nz_ + 1, 0);
+  std::array<int, 6> r;
+  for (const Face& f : mesh.faces) {
+    range(f, r);
+    for (int z = r[2]; z <= r[5]; ++z)
+      for (int y = r[1]; y <= r[4]; ++y)
+        for (int x = r[0]; x <= r[3]; ++x) ++start_[static_cast<size_t>((z * ny_ + y) * nx_ + x) + 1];
+  }
+  for (size_t i = 1; i < start_.size(); ++i) start_[i] += start_[i - 1];
+  faces_.resize(static_cast<size_t>(start_.back()));
+  std::vector<int> fill(start_.begin(), start_.end() - 1);
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    range(mesh.faces[f], r);
+    for (int z = r[2]; z <= r[5]; ++z)
+      for (int y = r[1]; y <= r[4]; ++y)
+        for (int x = r[0]; x <= r[3]; ++x) faces_[static_cast<size_t>(fill[static_cast<size_t>((z * ny_ + y) * nx_ + x)]++)] = static_cast<int>(f);
+  }
+}
+
+double PointToMesh::distance(const Vec3& p) const {
+  if (mesh_.faces.empty()) return std::numeric_limits<double>::infinity();
+  const int n[3] = {nx_, ny_, nz_};
+  int c[3];
+  for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((p[k] - origin_[k]) / cell_)), 0, n[k] - 1);
+  // Outside the grid the nearest cell is still c; its distance bounds how far shells must go.
+  double best = std::numeric_limits<double>::infinity();
+  const int max_shell = std::max({nx_, ny_, nz_});
+  for (int shell = 0; shell <= max_shell; ++shell) {
+    for (int z = c[2] - shell; z <= c[2] + shell; ++z) {
+      if (z < 0 || z >= nz_) continue;
+      for (int y = c[1] - shell; y <= c[1] + shell; ++y) {
+        if (y < 0 || y >= ny_) continue;
+        for (int x = c[0] - shell; x <= c[0] + shell; ++x) {
+          if (x < 0 || x >= nx_) continue;
+          if (std::max({std::abs(x - c[0]), std::abs(y - c[1]), std::abs(z - c[2])}) != shell) continue;  // this shell only
+          const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
+          for (int i = start_[bucket]; i < start_[bucket + 1]; ++i) {
+            const Face& f = mesh_.faces[static_cast<size_t>(faces_[static_cast<size_t>(i)])];
+            best = std::min(best, point_triangle_squared(p, mesh_.positions[static_cast<size_t>(f[0])], mesh_.positions[static_cast<size_t>(f[1])],
+                                                         mesh_.positions[static_cast<size_t>(f[2])]));
+          }
+        }
+      }
+    }
+    // Every point in cells beyond this shell is at least `shell * cell` away from p's cell.
+    const Vec3 cell_lo = origin_ + Vec3(c[0], c[1], c[2]) * cell_;
+    const double margin = std::min((p - cell_lo).minCoeff(), (cell_lo + Vec3::Constant(cell_) - p).minCoeff());
+    const double reach = shell * cell_ + std::max(margin, 0.0);  // no margin when p is outside the grid
+    if (best < std::numeric_limits<double>::infinity() && std::sqrt(best) <= reach) break;
+  }
+  return std::sqrt(best);
+}
+
+SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test) {
+  SurfaceDistance d;
+  Vec3 lo = reference.positions[0], hi = lo;
+  for (const Vec3& p : reference.positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  d.diagonal = (hi - lo).norm();
+  const PointToMesh to_reference(reference), to_test(test);
+  double sum = 0;
+  size_t count = 0;
+  auto accumulate = [&](const std::vector<Vec3>& points, const PointToMesh& other, const TriangleMesh& owner) {
+    std::vector<uint8_t> used(points.size(), 0);
+    for (const Face& f : owner.faces) {
+      for (int32_t v : f) used[static_cast<size_t>(v)] = 1;
+    }
+    for (size_t i = 0; i < points.size(); ++i) {
+      if (!used[i]) continue;
+      const double e = other.distance(points[i]);
+      sum += e * e;
+      d.max = std::max(d.max, e);
+      ++count;
+    }
+  };
+  accumulate(test.positions, to_reference, test);
+  accumulate(reference.positions, to_test, reference);
+  d.rms = count ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
+  return d;
+}
+
+}  // namespace facemorph

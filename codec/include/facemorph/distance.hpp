@@ -1,0 +1,35 @@
+// Distances between surfaces: how the benchmarks measure geometric error (design §6).
+#pragma once
+
+#include "facemorph/mesh.hpp"
+
+#include <vector>
+
+namespace facemorph {
+
+// Closest-point queries against one triangle mesh, through a uniform grid of buckets.
+class PointToMesh {
+ public:
+  explicit PointToMesh(const TriangleMesh& mesh);  // the mesh must outlive this
+  // Distance from p to the nearest point of the mesh.
+  double distance(const Vec3& p) const;
+
+ private:
+  const TriangleMesh& mesh_;
+  Vec3 origin_;
+  double cell_ = 1;
+  int nx_ = 1, ny_ = 1, nz_ = 1;
+  std::vector<int> start_, faces_;
+};
+
+struct SurfaceDistance {
+  double rms = 0;         // over the vertices of both meshes, each to the other surface
+  double max = 0;         // Hausdorff distance (at vertices)
+  double diagonal = 0;    // bounding-box diagonal of the reference
+};
+
+// Symmetric point-to-surface distance between `reference` and `test` (each mesh's vertices to the
+// other surface), with the reference's bounding-box diagonal for relative figures.
+SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test);
+
+}  // namespace facemorph

@@ -1,0 +1,152 @@
+// Operators on the shared disk grid, shared by the encoder (fields) and the decoder (reconstruction).
+#include "facemorph/error.hpp"
+#include "facemorph/geometry.hpp"
+#include "facemorph/reconstruct.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace facemorph {
+
+const char* representation_name(Representation representation) {
+  switch (representation) {
+    case Representation::kHL: return "hl";
+    case Representation::kHLT: return "hl+t";
+    case Representation::kXYZ: return "xyz";
+  }
+  return "hl+t";
+}
+
+Representation parse_representation(const std::string& name) {
+  if (name == "hl") return Representation::kHL;
+  if (name == "hl+t") return Representation::kHLT;
+  if (name == "xyz") return Representation::kXYZ;
+  throw Error(ErrorCode::kInvalidArgument, "unknown representation '" + name + "' (hl, hl+t, xyz)");
+}
+
+GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
+  std::vector<Vec3> flat;
+  flat.reserve(grid_.nodes.size());
+  for (const Vec2& w : grid_.nodes) flat.emplace_back(w.x(), w.y(), 0);
+  K_ = cotangent_laplacian(flat, grid_.faces);
+  mass_ = mixed_voronoi_areas(flat, grid_.faces);
+
+  const int n = grid_.n;
+  band_index_.assign(grid_.nodes.size(), -1);
+  neighbours_.assign(static_cast<size_t>(grid_.interior_count), {-1, -1, -1, -1});
+  for (int v = 0; v < grid_.interior_count; ++v) {
+    if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) band_index_[static_cast<size_t>(v)] = band_count_++;
+    const auto [i, j] = grid_.cell[static_cast<size_t>(v)];
+    auto at = [&](int a, int b) {
+      return (a < 0 || b < 0 || a >= n || b >= n) ? -1 : grid_.node_at[static_cast<size_t>(b) * n + a];
+    };
+    neighbours_[static_cast<size_t>(v)] = {at(i + 1, j), at(i - 1, j), at(i, j + 1), at(i, j - 1)};
+  }
+  faces_of_.resize(grid_.nodes.size());
+  for (size_t f = 0; f < grid_.faces.size(); ++f) {
+    for (int32_t v : grid_.faces[f]) faces_of_[static_cast<size_t>(v)].push_back(static_cast<int32_t>(f));
+  }
+}
+
+std::vector<Vec3> GridGeometry::laplacian(const std::vector<Vec3>& positions) const {
+  const auto count = static_cast<size_t>(grid_.interior_count);
+  std::vector<Vec3> out(count, Vec3::Zero());
+  for (int c = 0; c < K_.outerSize(); ++c) {
+    for (SparseMatrix::InnerIterator it(K_, c); it; ++it) {
+      const auto r = static_cast<size_t>(it.row());
+      if (r < count) out[r] -= it.value() * positions[static_cast<size_t>(c)];
+    }
+  }
+  for (size_t i = 0; i < count; ++i) out[i] /= mass_[static_cast<Eigen::Index>(i)];
+  return out;
+}
+
+std::vector<double> GridGeometry::conformal_factor_squared(const std::vector<Vec3>& positions) const {
+  std::vector<double> out(static_cast<size_t>(grid_.interior_count));
+  for (size_t v = 0; v < out.size(); ++v) {
+    double surface = 0, disk = 0;
+    for (int32_t f : faces_of_[v]) {
+      const Face& t = grid_.faces[static_cast<size_t>(f)];
+      surface += triangle_area(positions[static_cast<size_t>(t[0])], positions[static_cast<size_t>(t[1])], positions[static_cast<size_t>(t[2])]);
+      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
+      disk += 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    }
+    out[v] = surface / disk;
+  }
+  return out;
+}
+
+void GridGeometry::frames(const std::vector<Vec3>& S, std::vector<Vec3>& tu, std::vector<Vec3>& tv, std::vector<Vec3>& n) const {
+  const auto count = static_cast<size_t>(grid_.interior_count);
+  tu.resize(count);
+  tv.resize(count);
+  n.resize(count);
+  const double inv2h = 0.5 / grid_.h;
+  for (size_t v = 0; v < count; ++v) {
+    const auto& nb = neighbours_[v];
+    Vec3 su, sv;
+    if (nb[0] >= 0 && nb[1] >= 0 && nb[2] >= 0 && nb[3] >= 0) {
+      su = (S[static_cast<size_t>(nb[0])] - S[static_cast<size_t>(nb[1])]) * inv2h;
+      sv = (S[static_cast<size_t>(nb[2])] - S[static_cast<size_t>(nb[3])]) * inv2h;
+    } else {
+      // Near the rim: the disk-area-weighted Jacobian of the faces around the node.
+      su = sv = Vec3::Zero();
+      for (int32_t f : faces_of_[v]) {
+        const Face& t = grid_.faces[static_cast<size_t>(f)];
+        const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
+        Eigen::Matrix2d W;
+        W << b.x() - a.x(), c.x() - a.x(), b.y() - a.y(), c.y() - a.y();
+        const double area = 0.5 * std::abs(W.determinant());
+        Eigen::Matrix<double, 3, 2> D;
+        D << S[static_cast<size_t>(t[1])] - S[static_cast<size_t>(t[0])], S[static_cast<size_t>(t[2])] - S[static_cast<size_t>(t[0])];
+        const Eigen::Matrix<double, 3, 2> J = D * W.inverse();
+        su += area * J.col(0);
+        sv += area * J.col(1);
+      }
+    }
+    Vec3 normal = su.cross(sv);
+    const double length = normal.norm();
+    normal = length > 0 ? Vec3(normal / length) : Vec3::UnitZ();
+    Vec3 u = su - su.dot(normal) * normal;
+    const double ul = u.norm();
+    u = ul > 0 ? Vec3(u / ul) : normal.unitOrthogonal();
+    n[v] = normal;
+    tu[v] = u;
+    tv[v] = normal.cross(u);
+  }
+}
+
+std::vector<std::array<Vec3, 3>> GridGeometry::band_frames(const std::vector<Vec3>& rim) const {
+  const int count = grid_.rim_count;
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : rim) centroid += p / static_cast<double>(rim.size());
+  std::vector<std::array<Vec3, 3>> out(static_cast<size_t>(band_count_));
+  for (int v = 0; v < grid_.interior_count; ++v) {
+    const int b = band_index_[static_cast<size_t>(v)];
+    if (b < 0) continue;
+    const Vec2& w = grid_.nodes[static_cast<size_t>(v)];
+    double angle = std::atan2(w.y(), w.x());
+    if (angle < 0) angle += 2 * std::numbers::pi;
+    const double position = angle / (2 * std::numbers::pi) * count;  // rim samples are at k 2π / count
+    const int k = static_cast<int>(std::floor(position)) % count;
+    const double f = position - std::floor(position);
+    const Vec3& a = rim[static_cast<size_t>(k)];
+    const Vec3& c = rim[static_cast<size_t>((k + 1) % count)];
+    Vec3 tangent = (c - a).normalized();
+    Vec3 inward = centroid - ((1 - f) * a + f * c);
+    inward = (inward - inward.dot(tangent) * tangent).normalized();
+    out[static_cast<size_t>(b)] = {tangent, inward, tangent.cross(inward)};
+  }
+  return out;
+}
+
+TriangleMesh grid_mesh(const DiskGrid& grid, const std::vector<Vec3>& positions) {
+  TriangleMesh mesh;
+  mesh.positions = positions;
+  mesh.faces = grid.faces;
+  for (const Vec2& w : grid.nodes) mesh.uvs.push_back(0.5 * (w + Vec2(1, 1)));
+  mesh.uv_faces = grid.faces;
+  return mesh;
+}
+
+}  // namespace facemorph

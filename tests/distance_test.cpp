@@ -1,0 +1,46 @@
+#include "facemorph/distance.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace facemorph {
+namespace {
+
+double brute_force(const TriangleMesh& mesh, const Vec3& p) {
+  double best = 1e300;
+  for (const Face& f : mesh.faces) {
+    // Dense sampling is not exact; use the closest-point formula through a one-face mesh.
+    TriangleMesh one;
+    one.positions = {mesh.positions[static_cast<size_t>(f[0])], mesh.positions[static_cast<size_t>(f[1])], mesh.positions[static_cast<size_t>(f[2])]};
+    one.faces = {{0, 1, 2}};
+    best = std::min(best, PointToMesh(one).distance(p));
+  }
+  return best;
+}
+
+TEST(Distance, BucketSearchMatchesBruteForceInsideAndFarOutside) {
+  const TriangleMesh sphere = testing::icosphere(1.0, 2);
+  const PointToMesh query(sphere);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-3, 3);
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 p(u(rng), u(rng), u(rng));
+    EXPECT_NEAR(query.distance(p), brute_force(sphere, p), 1e-12);
+  }
+  EXPECT_NEAR(query.distance(Vec3(0, 0, 10)), 9.0, 0.01);
+}
+
+TEST(Distance, SymmetricDistanceOfAnOffsetSurfaceIsTheOffset) {
+  const TriangleMesh a = testing::grid_mesh(20, [](double x, double y) { return Vec3(x, y, 0); });
+  TriangleMesh b = testing::grid_mesh(13, [](double x, double y) { return Vec3(x, y, 0.01); });
+  const SurfaceDistance d = surface_distance(a, b);
+  EXPECT_NEAR(d.rms, 0.01, 1e-12);
+  EXPECT_NEAR(d.max, 0.01, 1e-12);
+  EXPECT_NEAR(d.diagonal, std::sqrt(2.0), 1e-12);
+}
+
+}  // namespace
+}  // namespace facemorph
