@@ -156,6 +156,23 @@ TEST(Reconstruct, SixteenBitFieldsStayWithinHalfAStep) {
   EXPECT_LT(max_error(r.positions, truth), 1e-4);
 }
 
+TEST(Reconstruct, FieldsCombineLinearlyAndRefuseMismatches) {
+  Reconstructor reconstructor(33);
+  const auto& grid = reconstructor.geometry().grid();
+  const GridFields a = compute_fields(reconstructor.geometry(), sample(grid, [](const Vec2& w) { return cap(w, 1.0, 0.8); }), Representation::kHLT);
+  const GridFields b = compute_fields(reconstructor.geometry(), sample(grid, [](const Vec2& w) { return cap(w, 2.0, 1.2); }), Representation::kHLT);
+  const GridFields half = combine_fields({&a, &b}, {0.5, 0.5});
+  const GridFields extrapolated = combine_fields({&a, &b}, {2.0, -1.0});
+  for (size_t i = 0; i < a.mean_curvature.size(); ++i) {
+    EXPECT_DOUBLE_EQ(half.mean_curvature[i], 0.5 * (a.mean_curvature[i] + b.mean_curvature[i]));
+    EXPECT_NEAR(extrapolated.log_conformal_factor[i], 2 * a.log_conformal_factor[i] - b.log_conformal_factor[i], 1e-12);
+  }
+  for (size_t i = 0; i < a.rim.size(); ++i) EXPECT_LT((half.rim[i] - 0.5 * (a.rim[i] + b.rim[i])).norm(), 1e-15);
+  const GridFields xyz = compute_fields(reconstructor.geometry(), sample(grid, [](const Vec2& w) { return cap(w); }), Representation::kXYZ);
+  testing::expect_error(ErrorCode::kInvalidArgument, "different representations", [&] { combine_fields({&a, &xyz}, {0.5, 0.5}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "one weight per key", [&] { combine_fields({&a, &b}, {1.0}); });
+}
+
 TEST(Reconstruct, NonConvergenceIsDetectedNeverReturnedSilently) {
   Reconstructor reconstructor(33);
   const auto truth = sample(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });

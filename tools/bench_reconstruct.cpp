@@ -11,12 +11,16 @@
 #include "facemorph/resample.hpp"
 #include "facemorph/synth.hpp"
 
+#include "format/quantize.hpp"
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
+
+#include <zstd.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 namespace facemorph::tools {
 namespace fs = std::filesystem;
@@ -27,12 +31,49 @@ namespace {
 struct RoundTrip {
   Representation representation;
   bool quantized;
+  size_t bytes = 0;                 // compressed 16-bit fields (compressed_bytes)
   int iterations = 0;
   bool converged = false;
   double change = 0, seconds = 0;
   double rms = 0, max = 0;          // symmetric point-to-surface, relative to the frame's bbox diagonal
   double disk_l2 = 0, disk_linf = 0, disk_rms = 0;  // against the resampled surface on G (capture units)
 };
+
+// Bytes of a keyframe's 16-bit fields after a provisional coding (until the container fixes one):
+// each field's codes in node order (the grid is row-major, so neighbours are near), delta from the
+// previous code, split into high and low byte planes, then zstd level 19. The same for every
+// representation, so the sizes compare the representations, not the coders.
+size_t compressed_bytes(const GridFields& f) {
+  std::vector<uint8_t> high, low;
+  auto field = [&](const std::vector<double>& values) {
+    const format::Quantized16 q = format::quantize16(values);
+    uint16_t previous = 0;
+    for (uint16_t code : q.codes) {
+      const auto delta = static_cast<uint16_t>(code - previous);
+      previous = code;
+      high.push_back(static_cast<uint8_t>(delta >> 8));
+      low.push_back(static_cast<uint8_t>(delta & 0xff));
+    }
+  };
+  auto vectors = [&](const std::vector<Vec3>& values) {
+    for (int k = 0; k < 3; ++k) {
+      std::vector<double> c;
+      for (const Vec3& v : values) c.push_back(v[k]);
+      field(c);
+    }
+  };
+  field(f.mean_curvature);
+  field(f.log_conformal_factor);
+  field(f.tangential_u);
+  field(f.tangential_v);
+  vectors(f.band_laplacian);
+  vectors(f.positions);
+  vectors(f.rim);
+  high.insert(high.end(), low.begin(), low.end());
+  std::vector<uint8_t> out(ZSTD_compressBound(high.size()));
+  const size_t size = ZSTD_compress(out.data(), out.size(), high.data(), high.size(), 19);
+  return ZSTD_isError(size) ? high.size() : size;
+}
 
 std::vector<Representation> representations(const std::string& which) {
   if (which == "all") return {Representation::kHLT, Representation::kHL, Representation::kXYZ};
@@ -65,6 +106,9 @@ void add_reconstruct_command(CLI::App& app, ReconstructBenchOptions& options) {
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
   cmd->add_option("--limit", options.limit, "At most this many frames per capture (0: all)")->capture_default_str();
   cmd->add_flag("--speed", options.speed, "Measure decode speed at N = 64, 128, 256, 512 (cold and warm) on a synthetic sequence");
+  cmd->add_option("--rotation", options.rotation,
+                  "Head rotation test: two keyframes of a synthetic face turning by this many degrees, the midpoint decoded "
+                  "from their blended fields, per representation (repeatable)");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
   cmd->footer("Round trip: the frame's surface against the reconstruction from its own fields, as symmetric point-to-surface "
               "distance (RMS, max) relative to the frame's bounding-box diagonal, in float (f64) and at the stored 16 bits (q16); "
@@ -73,7 +117,7 @@ void add_reconstruct_command(CLI::App& app, ReconstructBenchOptions& options) {
 
 int run_reconstruct_bench(const ReconstructBenchOptions& options) {
   std::vector<std::string> inputs = options.inputs;
-  if (inputs.empty() && !options.speed) inputs = default_bench_inputs(options.data, /*large_synthetic=*/false);
+  if (inputs.empty() && !options.speed && options.rotation.empty()) inputs = default_bench_inputs(options.data, /*large_synthetic=*/false);
   const std::vector<Representation> reps = representations(options.representation);
   json results = json::array();
   if (!inputs.empty()) {
@@ -81,8 +125,8 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
     const GridGeometry& geometry = reconstructor.geometry();
     std::printf("grid N = %d: %d interior nodes (%d in the rim band), %d rim samples\n", options.grid, geometry.interior_count(),
                 geometry.band_count(), geometry.grid().rim_count);
-    std::printf("%-34s %6s %-5s %-4s %6s %5s %9s %9s %9s %9s %9s %11s %11s\n", "input", "frames", "repr", "bits", "iters", "conv",
-                "floor %", "rms %", "flrmax %", "max %", "worst %", "L2", "Linf");
+    std::printf("%-34s %6s %-5s %-4s %6s %5s %9s %9s %9s %9s %9s %11s %11s %8s\n", "input", "frames", "repr", "bits", "iters", "conv",
+                "floor %", "rms %", "flrmax %", "max %", "worst %", "L2", "Linf", "kB/key");
     bool wrote = false;
     for (const std::string& input : inputs) {
       const BenchSource source = open_bench_source(input);
@@ -104,6 +148,7 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
           const GridFields exact = compute_fields(geometry, sampled, rep);
           for (bool quantized : {false, true}) {
             RoundTrip r{rep, quantized};
+            if (quantized) r.bytes = compressed_bytes(exact);
             reconstructor.forget_warm_start();
             ReconstructOptions ro;
             ro.throw_on_failure = false;
@@ -131,7 +176,7 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
       progress.finish();
       const std::string label = input.size() > 34 ? "..." + input.substr(input.size() - 31) : input;
       for (size_t k = 0; k < per_frame[0].size(); ++k) {
-        std::vector<double> rms, max, iterations, l2, linf;
+        std::vector<double> rms, max, iterations, l2, linf, bytes;
         int converged = 0;
         for (const auto& frame : per_frame) {
           rms.push_back(frame[k].rms);
@@ -139,15 +184,18 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
           iterations.push_back(frame[k].iterations);
           l2.push_back(frame[k].disk_l2);
           linf.push_back(frame[k].disk_linf);
+          bytes.push_back(static_cast<double>(frame[k].bytes));
           converged += frame[k].converged;
         }
         const RoundTrip& first = per_frame[0][k];
-        std::printf("%-34s %6zu %-5s %-4s %6.0f %5d %9.5f %9.5f %9.5f %9.5f %9.5f %11.3e %11.3e\n", label.c_str(), frames,
+        std::printf("%-34s %6zu %-5s %-4s %6.0f %5d %9.5f %9.5f %9.5f %9.5f %9.5f %11.3e %11.3e %8s\n", label.c_str(), frames,
                     representation_name(first.representation), first.quantized ? "q16" : "f64", percentile(iterations, 0.5), converged,
                     100 * percentile(floors, 0.5), 100 * percentile(rms, 0.5), 100 * percentile(floor_max, 0.5), 100 * percentile(max, 0.5),
-                    100 * percentile(rms, 1.0), percentile(l2, 0.5), percentile(linf, 0.5));
+                    100 * percentile(rms, 1.0), percentile(l2, 0.5), percentile(linf, 0.5),
+                    first.quantized ? std::to_string(static_cast<int>(std::lround(percentile(bytes, 0.5) / 1000))).c_str() : "");
         json entry = {{"input", input}, {"frames", frames}, {"representation", representation_name(first.representation)},
                       {"bits", first.quantized ? 16 : 64}, {"converged_frames", converged},
+                      {"median_compressed_bytes_per_keyframe", first.quantized ? percentile(bytes, 0.5) : 0.0},
                       {"median", {{"iterations", percentile(iterations, 0.5)}, {"rms_relative", percentile(rms, 0.5)},
                                   {"max_relative", percentile(max, 0.5)}, {"resampling_floor_rms_relative", percentile(floors, 0.5)}, {"resampling_floor_max_relative", percentile(floor_max, 0.5)},
                                   {"disk_l2", percentile(l2, 0.5)}, {"disk_linf", percentile(linf, 0.5)}}},
@@ -168,8 +216,54 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
   }
   json speed = json::array();
   if (options.speed) speed = run_decode_speed(options.quiet);
-  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "reconstruct"}, {"grid", options.grid}, {"round_trip", results}, {"speed", speed}});
+  json rotation = json::array();
+  for (double degrees : options.rotation) rotation.push_back(run_rotation_experiment(options.grid, degrees));
+  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "reconstruct"}, {"grid", options.grid}, {"round_trip", results}, {"speed", speed}, {"rotation", rotation}});
   return 0;
+}
+
+json run_rotation_experiment(int grid_n, double degrees) {
+  // Keyframes: one synthetic face turned rigidly about the neck (yaw) by 0 and by `degrees`; the
+  // truth at the midpoint is the face turned by half. Every difference between the representations
+  // is then how they interpolate a rotation: (H, λ, a, b) do not change under it, positions do.
+  const SyntheticFace face(Expression::kMixed, 1);
+  const double t = 0.5;
+  const Vec3 pivot(0, -0.12, -0.05);
+  auto turned = [&](double angle_degrees) {
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(angle_degrees * std::numbers::pi / 180, Vec3::UnitY()).toRotationMatrix();
+    return [R, pivot](const Vec3& p) { return Vec3(R * (p - pivot) + pivot); };
+  };
+  Reconstructor reconstructor(grid_n);
+  std::vector<Vec3> sampled[2];
+  const TriangleMesh base = face.truth_mesh(t, 8000);
+  for (int k = 0; k < 2; ++k) {
+    const auto rotate = turned(k * degrees);
+    TriangleMesh mesh = base;
+    for (Vec3& p : mesh.positions) p = rotate(p);
+    DiskMap map = conformal_disk_map(mesh);
+    normalize(map, rotate(face.position({0, -0.014}, t)), rotate(face.position({0, 0.012}, t)));
+    sampled[k] = resample_positions(InverseDiskMap(map), reconstructor.geometry().grid());
+  }
+  TriangleMesh truth = face.truth_mesh(t, 20000);
+  const auto half = turned(degrees / 2);
+  for (Vec3& p : truth.positions) p = half(p);
+  std::printf("\nhead rotation %.0f°: one face turned by 0 and %.0f° about the neck, the midpoint decoded from the fields blended 50/50\n",
+              degrees, degrees);
+  json out = {{"degrees", degrees}, {"grid", grid_n}};
+  for (Representation rep : {Representation::kHLT, Representation::kHL, Representation::kXYZ}) {
+    const GridFields a = quantize_fields(compute_fields(reconstructor.geometry(), sampled[0], rep));
+    const GridFields b = quantize_fields(compute_fields(reconstructor.geometry(), sampled[1], rep));
+    reconstructor.forget_warm_start();
+    ReconstructOptions ro;
+    ro.throw_on_failure = false;
+    const ReconstructResult r = reconstructor.reconstruct(combine_fields({&a, &b}, {0.5, 0.5}), ro);
+    const SurfaceDistance d = surface_distance(truth, grid_mesh(reconstructor.geometry().grid(), r.positions));
+    std::printf("  %-5s midpoint error: rms %.4f%%, max %.4f%% of the diagonal (%d iterations%s)\n", representation_name(rep),
+                100 * d.rms / d.diagonal, 100 * d.max / d.diagonal, r.iterations, r.converged ? "" : ", not converged");
+    out[representation_name(rep)] = {{"rms_relative", d.rms / d.diagonal}, {"max_relative", d.max / d.diagonal}, {"iterations", r.iterations},
+                                     {"converged", r.converged}};
+  }
+  return out;
 }
 
 json run_decode_speed(bool quiet) {

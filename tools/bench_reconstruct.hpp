@@ -17,11 +17,13 @@ struct ReconstructBenchOptions {
   std::string out, json_out;
   int limit = 0;
   bool speed = false;
+  std::vector<double> rotation;
   bool quiet = false;
 };
 
 void add_reconstruct_command(CLI::App& app, ReconstructBenchOptions& options);
 int run_reconstruct_bench(const ReconstructBenchOptions& options);
 nlohmann::json run_decode_speed(bool quiet);
+nlohmann::json run_rotation_experiment(int grid_n, double degrees);
 
 }  // namespace facemorph::tools

@@ -53,6 +53,41 @@ GridFields compute_fields(const GridGeometry& geometry, const std::vector<Vec3>&
   return fields;
 }
 
+GridFields combine_fields(const std::vector<const GridFields*>& keys, const std::vector<double>& weights) {
+  if (keys.empty() || keys.size() != weights.size()) throw Error(ErrorCode::kInvalidArgument, "combine_fields: one weight per key needed");
+  const GridFields& first = *keys[0];
+  GridFields out = first;
+  auto scale = [](auto& values, double w) {
+    for (auto& v : values) v *= w;
+  };
+  auto add = [](auto& into, const auto& from, double w) {
+    for (size_t i = 0; i < into.size(); ++i) into[i] += w * from[i];
+  };
+  scale(out.mean_curvature, weights[0]);
+  scale(out.log_conformal_factor, weights[0]);
+  scale(out.tangential_u, weights[0]);
+  scale(out.tangential_v, weights[0]);
+  scale(out.band_laplacian, weights[0]);
+  scale(out.positions, weights[0]);
+  scale(out.rim, weights[0]);
+  for (size_t k = 1; k < keys.size(); ++k) {
+    const GridFields& key = *keys[k];
+    if (key.representation != first.representation || key.grid_n != first.grid_n || key.rim.size() != first.rim.size() ||
+        key.mean_curvature.size() != first.mean_curvature.size() || key.positions.size() != first.positions.size() ||
+        key.band_laplacian.size() != first.band_laplacian.size() || key.tangential_u.size() != first.tangential_u.size()) {
+      throw Error(ErrorCode::kInvalidArgument, "combine_fields: keyframes of different representations or grids");
+    }
+    add(out.mean_curvature, key.mean_curvature, weights[k]);
+    add(out.log_conformal_factor, key.log_conformal_factor, weights[k]);
+    add(out.tangential_u, key.tangential_u, weights[k]);
+    add(out.tangential_v, key.tangential_v, weights[k]);
+    add(out.band_laplacian, key.band_laplacian, weights[k]);
+    add(out.positions, key.positions, weights[k]);
+    add(out.rim, key.rim, weights[k]);
+  }
+  return out;
+}
+
 namespace {
 
 std::vector<double> round_trip(const std::vector<double>& values) { return format::dequantize16(format::quantize16(values)); }

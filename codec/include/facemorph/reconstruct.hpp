@@ -85,6 +85,12 @@ struct GridFields {
 // The fields of a surface sampled at every node of G (interior nodes, then rim nodes).
 GridFields compute_fields(const GridGeometry& geometry, const std::vector<Vec3>& positions, Representation representation);
 
+// Σ weights[k] · fields of keys[k], field by field (log λ in log space, band vectors in their band
+// frames, the boundary curve point by point): how keyframes are interpolated. The keys must share
+// the representation and grid (kInvalidArgument otherwise); weights need not sum to 1 (spline
+// extrapolation).
+GridFields combine_fields(const std::vector<const GridFields*>& keys, const std::vector<double>& weights);
+
 // Rounds every field to 16 bits (fixed point over its own [min, max]; the band separately from
 // the interior) and back: what a container keyframe holds (spec/method.md §5.3).
 GridFields quantize_fields(const GridFields& fields);
