@@ -101,7 +101,10 @@ struct ReconstructOptions {
   // 16-bit quantisation (spec/method.md §5.4); the notes' 1e-6 costs 3-4 more iterations per frame.
   double tolerance = 1e-5;
   double damping = 1.0;  // n ← normalize((1 - ω) n_old + ω n_new); 1: none
-  int anderson_depth = 0;  // Anderson acceleration over this many past iterates; 0: plain iteration
+  // Anderson acceleration over this many past iterates (0: the plain iteration). The plain iteration
+  // oscillates where the grid under-resolves crowded regions (ICT: no convergence in 200 steps);
+  // with depth 5 it converged in 42 (N = 256) and cut Medusa's 24 steps to 14.
+  int anderson_depth = 5;
   // In a sequence, start from 2 S(previous) - S(one before) rather than S(previous).
   bool extrapolate_warm_start = true;
   // Not meeting the tolerance throws kNotConverged; false returns the best effort with
