@@ -18,39 +18,15 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// A polar-grid disk: `rings` rings of `sectors` vertices around a centre, mapped through `lift`
-// from the unit disk (z = 0 for a flat disk). Odd rings are rotated half a sector.
-template <typename Lift>
-TriangleMesh polar_disk(int rings, int sectors, Lift&& lift) {
-  TriangleMesh m;
-  m.positions.push_back(lift(Vec2(0, 0)));
-  for (int r = 1; r <= rings; ++r) {
-    for (int s = 0; s < sectors; ++s) {
-      const double radius = static_cast<double>(r) / rings, angle = 2 * kPi * (s + 0.5 * (r % 2)) / sectors;
-      m.positions.push_back(lift(Vec2(radius * std::cos(angle), radius * std::sin(angle))));
-    }
-  }
-  auto id = [sectors](int r, int s) { return r == 0 ? 0 : 1 + (r - 1) * sectors + ((s % sectors) + sectors) % sectors; };
-  for (int s = 0; s < sectors; ++s) m.faces.push_back({id(0, 0), id(1, s), id(1, s + 1)});
-  for (int r = 1; r < rings; ++r) {
-    for (int s = 0; s < sectors; ++s) {
-      const int shift = r % 2 == 1 ? 1 : 0;
-      m.faces.push_back({id(r, s), id(r + 1, s + shift), id(r, s + 1)});
-      m.faces.push_back({id(r, s), id(r + 1, s - 1 + shift), id(r + 1, s + shift)});
-    }
-  }
-  return m;
-}
-
 TriangleMesh flat_disk(int rings, int sectors) {
-  return polar_disk(rings, sectors, [](const Vec2& p) { return Vec3(p.x(), p.y(), 0); });
+  return testing::polar_disk(rings, sectors, [](const Vec2& p) { return Vec3(p.x(), p.y(), 0); });
 }
 
 // Spherical cap of radius R over polar angle [0, θ0], parametrised by stereographic disk
 // coordinates so the polar grid is nearly uniform on the cap.
 TriangleMesh spherical_cap(int rings, int sectors, double R, double theta0) {
   const double t0 = std::tan(theta0 / 2);
-  return polar_disk(rings, sectors, [R, t0](const Vec2& p) {
+  return testing::polar_disk(rings, sectors, [R, t0](const Vec2& p) {
     const double rho = p.norm() * t0;  // tan(θ/2)
     const double theta = 2 * std::atan(rho), phi = std::atan2(p.y(), p.x());
     return Vec3(R * std::sin(theta) * std::cos(phi), R * std::sin(theta) * std::sin(phi), R * std::cos(theta));

@@ -19,24 +19,7 @@ using testing::expect_error;
 // A dome z = 1 - r² over the unit disk, sampled on a polar grid (rings x sectors), optionally
 // with circular holes (centre, radius) cut out by dropping faces inside them.
 TriangleMesh dome(int rings, int sectors, std::vector<std::pair<Vec2, double>> holes = {}) {
-  TriangleMesh m;
-  m.positions.emplace_back(0, 0, 1);
-  for (int r = 1; r <= rings; ++r) {
-    for (int s = 0; s < sectors; ++s) {
-      const double radius = static_cast<double>(r) / rings, angle = 2 * std::numbers::pi * (s + 0.5 * (r % 2)) / sectors;
-      m.positions.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 1 - radius * radius);
-    }
-  }
-  auto id = [sectors](int r, int s) { return r == 0 ? 0 : 1 + (r - 1) * sectors + ((s % sectors) + sectors) % sectors; };
-  for (int s = 0; s < sectors; ++s) m.faces.push_back({id(0, 0), id(1, s), id(1, s + 1)});
-  for (int r = 1; r < rings; ++r) {
-    for (int s = 0; s < sectors; ++s) {
-      // Odd rings are rotated half a sector: pair each vertex with the nearest of the next ring.
-      const int shift = r % 2 == 1 ? 1 : 0;
-      m.faces.push_back({id(r, s), id(r + 1, s + shift), id(r, s + 1)});
-      m.faces.push_back({id(r, s), id(r + 1, s - 1 + shift), id(r + 1, s + shift)});
-    }
-  }
+  TriangleMesh m = testing::polar_disk(rings, sectors, [](const Vec2& w) { return Vec3(w.x(), w.y(), 1 - w.squaredNorm()); });
   if (!holes.empty()) {
     std::vector<Face> kept;
     for (const Face& f : m.faces) {

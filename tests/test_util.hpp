@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cmath>
 #include <fstream>
 #include <random>
 #include <string>
@@ -82,6 +83,31 @@ TriangleMesh grid_mesh(int n, Surface&& surface) {
     }
   }
   return mesh;
+}
+
+// A polar-grid disk: a centre and `rings` rings of `sectors` vertices, odd rings rotated half a
+// sector, each unit-disk point w mapped through `lift(w)` (z = 0 for a flat disk); faces
+// counter-clockwise seen from +z.
+template <typename Lift>
+TriangleMesh polar_disk(int rings, int sectors, Lift&& lift) {
+  TriangleMesh m;
+  m.positions.push_back(lift(Vec2(0, 0)));
+  for (int r = 1; r <= rings; ++r) {
+    for (int s = 0; s < sectors; ++s) {
+      const double radius = static_cast<double>(r) / rings, angle = 2 * 3.14159265358979323846 * (s + 0.5 * (r % 2)) / sectors;
+      m.positions.push_back(lift(Vec2(radius * std::cos(angle), radius * std::sin(angle))));
+    }
+  }
+  auto id = [sectors](int r, int s) { return r == 0 ? 0 : 1 + (r - 1) * sectors + ((s % sectors) + sectors) % sectors; };
+  for (int s = 0; s < sectors; ++s) m.faces.push_back({id(0, 0), id(1, s), id(1, s + 1)});
+  for (int r = 1; r < rings; ++r) {
+    for (int s = 0; s < sectors; ++s) {
+      const int shift = r % 2 == 1 ? 1 : 0;  // pair each vertex with the nearest of the next ring
+      m.faces.push_back({id(r, s), id(r + 1, s + shift), id(r, s + 1)});
+      m.faces.push_back({id(r, s), id(r + 1, s - 1 + shift), id(r + 1, s + shift)});
+    }
+  }
+  return m;
 }
 
 // Icosphere of radius r with `subdivisions` loop-style midpoint splits, outward-facing.
