@@ -66,7 +66,7 @@ size_t compressed_bytes(const GridFields& f) {
   field(f.log_conformal_factor);
   field(f.tangential_u);
   field(f.tangential_v);
-  vectors(f.band_laplacian);
+  vectors(f.fixed_laplacian);
   vectors(f.positions);
   vectors(f.rim);
   high.insert(high.end(), low.begin(), low.end());
@@ -144,8 +144,9 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
         const SurfaceDistance floor = surface_distance(map.surface, grid_mesh(geometry.grid(), sampled));
         floors[i] = floor.rms / floor.diagonal;
         floor_max[i] = floor.max / floor.diagonal;
+        const std::vector<int32_t> folds = folded_nodes(geometry, sampled);
         for (Representation rep : reps) {
-          const GridFields exact = compute_fields(geometry, sampled, rep);
+          const GridFields exact = compute_fields(geometry, sampled, rep, folds);
           for (bool quantized : {false, true}) {
             RoundTrip r{rep, quantized};
             if (quantized) r.bytes = compressed_bytes(exact);

@@ -35,7 +35,10 @@ GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
   band_index_.assign(grid_.nodes.size(), -1);
   neighbours_.assign(static_cast<size_t>(grid_.interior_count), {-1, -1, -1, -1});
   for (int v = 0; v < grid_.interior_count; ++v) {
-    if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) band_index_[static_cast<size_t>(v)] = band_count_++;
+    if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) {
+      band_index_[static_cast<size_t>(v)] = band_count_++;
+      band_nodes_.push_back(v);
+    }
     const auto [i, j] = grid_.cell[static_cast<size_t>(v)];
     auto at = [&](int a, int b) {
       return (a < 0 || b < 0 || a >= n || b >= n) ? -1 : grid_.node_at[static_cast<size_t>(b) * n + a];
@@ -116,15 +119,13 @@ void GridGeometry::frames(const std::vector<Vec3>& S, std::vector<Vec3>& tu, std
   }
 }
 
-std::vector<std::array<Vec3, 3>> GridGeometry::band_frames(const std::vector<Vec3>& rim) const {
+std::vector<std::array<Vec3, 3>> GridGeometry::boundary_frames(const std::vector<Vec3>& rim, const std::vector<int32_t>& nodes) const {
   const int count = grid_.rim_count;
   Vec3 centroid = Vec3::Zero();
   for (const Vec3& p : rim) centroid += p / static_cast<double>(rim.size());
-  std::vector<std::array<Vec3, 3>> out(static_cast<size_t>(band_count_));
-  for (int v = 0; v < grid_.interior_count; ++v) {
-    const int b = band_index_[static_cast<size_t>(v)];
-    if (b < 0) continue;
-    const Vec2& w = grid_.nodes[static_cast<size_t>(v)];
+  std::vector<std::array<Vec3, 3>> out(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    const Vec2& w = grid_.nodes[static_cast<size_t>(nodes[i])];
     double angle = std::atan2(w.y(), w.x());
     if (angle < 0) angle += 2 * std::numbers::pi;
     const double position = angle / (2 * std::numbers::pi) * count;  // rim samples are at k 2π / count
@@ -132,10 +133,10 @@ std::vector<std::array<Vec3, 3>> GridGeometry::band_frames(const std::vector<Vec
     const double f = position - std::floor(position);
     const Vec3& a = rim[static_cast<size_t>(k)];
     const Vec3& c = rim[static_cast<size_t>((k + 1) % count)];
-    Vec3 tangent = (c - a).normalized();
+    const Vec3 tangent = (c - a).normalized();
     Vec3 inward = centroid - ((1 - f) * a + f * c);
     inward = (inward - inward.dot(tangent) * tangent).normalized();
-    out[static_cast<size_t>(b)] = {tangent, inward, tangent.cross(inward)};
+    out[i] = {tangent, inward, tangent.cross(inward)};
   }
   return out;
 }

@@ -119,7 +119,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   require(fields.mean_curvature.size() == interior && fields.log_conformal_factor.size() == interior, "H and log λ");
   if (tangential) {
     require(fields.tangential_u.size() == interior && fields.tangential_v.size() == interior, "tangential fields");
-    require(fields.band_laplacian.size() == static_cast<size_t>(geometry.band_count()), "rim band");
+    require(fields.fixed_laplacian.size() == fields.fixed_nodes.size(), "fixed-frame vectors");
+    for (int32_t v : fields.fixed_nodes) require(v >= 0 && static_cast<size_t>(v) < interior, "fixed-frame node out of range");
   }
 
   const auto n_int = static_cast<Eigen::Index>(interior);
@@ -155,14 +156,17 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   };
   store(S);
 
-  // The band's vectors are stored in frames of the boundary curve: fixed for the whole solve.
-  std::vector<Vec3> band_vectors;
+  // Fixed-frame nodes (the band, crowded nodes) have their vectors in frames of the boundary
+  // curve: known for the whole solve.
+  std::vector<int32_t> fixed_index(tangential ? interior : 0, -1);
+  std::vector<Vec3> fixed_vectors;
   if (tangential) {
-    const auto frames = geometry.band_frames(fields.rim);
-    band_vectors.resize(frames.size());
-    for (size_t b = 0; b < frames.size(); ++b) {
-      const Vec3& c = fields.band_laplacian[b];
-      band_vectors[b] = c.x() * frames[b][0] + c.y() * frames[b][1] + c.z() * frames[b][2];
+    const auto frames = geometry.boundary_frames(fields.rim, fields.fixed_nodes);
+    fixed_vectors.resize(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const Vec3& c = fields.fixed_laplacian[i];
+      fixed_vectors[i] = c.x() * frames[i][0] + c.y() * frames[i][1] + c.z() * frames[i][2];
+      fixed_index[static_cast<size_t>(fields.fixed_nodes[i])] = static_cast<int32_t>(i);
     }
   }
   std::vector<Vec3> tu, tv, n, previous_n;
@@ -180,8 +184,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     previous_n = n;
     for (size_t v = 0; v < interior; ++v) {
       Vec3 F;
-      if (tangential && geometry.in_band(static_cast<int>(v))) {
-        F = band_vectors[static_cast<size_t>(geometry.band_index(static_cast<int>(v)))];
+      if (tangential && fixed_index[v] >= 0) {
+        F = fixed_vectors[static_cast<size_t>(fixed_index[v])];
       } else {
         F = normal_scale[v] * n[v];
         if (tangential) F += fields.tangential_u[v] * tu[v] + fields.tangential_v[v] * tv[v];
