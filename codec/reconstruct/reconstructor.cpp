@@ -18,40 +18,46 @@ class AndersonMixer {
  public:
   explicit AndersonMixer(int depth) : depth_(depth) {}
 
-  Eigen::MatrixXd step(const Eigen::MatrixXd& x, const Eigen::MatrixXd& g) {
-    const Eigen::MatrixXd f = g - x;
+  // Returns the next iterate from the current one `x` and its image `g` (overwritten in place).
+  void step(const Eigen::MatrixXd& x, Eigen::MatrixXd& g) {
+    if (depth_ <= 0) return;
+    f_ = g - x;
     if (has_previous_) {
-      dF_.push_back(f - previous_f_);
-      dG_.push_back(g - previous_g_);
-      if (static_cast<int>(dF_.size()) > depth_) {
-        dF_.erase(dF_.begin());
-        dG_.erase(dG_.begin());
+      const int slot = static_cast<int>(stored_ < depth_ ? stored_ : oldest_);
+      if (static_cast<int>(dF_.size()) < depth_) {
+        dF_.emplace_back(f_ - previous_f_);
+        dG_.emplace_back(g - previous_g_);
+      } else {
+        dF_[static_cast<size_t>(slot)] = f_ - previous_f_;
+        dG_[static_cast<size_t>(slot)] = g - previous_g_;
+        oldest_ = (oldest_ + 1) % depth_;
       }
+      stored_ = std::min(stored_ + 1, depth_);
     }
-    previous_f_ = f;
+    previous_f_ = f_;
     previous_g_ = g;
     has_previous_ = true;
     const auto m = static_cast<Eigen::Index>(dF_.size());
-    if (m == 0) return g;
+    if (m == 0) return;
     // Least squares min |f - ΔF γ| through the m x m normal equations (m is small).
     Eigen::MatrixXd A(m, m);
     Eigen::VectorXd b(m);
     for (Eigen::Index i = 0; i < m; ++i) {
-      b[i] = (dF_[static_cast<size_t>(i)].array() * f.array()).sum();
-      for (Eigen::Index j = 0; j <= i; ++j) A(i, j) = A(j, i) = (dF_[static_cast<size_t>(i)].array() * dF_[static_cast<size_t>(j)].array()).sum();
+      b[i] = dF_[static_cast<size_t>(i)].cwiseProduct(f_).sum();
+      for (Eigen::Index j = 0; j <= i; ++j) A(i, j) = A(j, i) = dF_[static_cast<size_t>(i)].cwiseProduct(dF_[static_cast<size_t>(j)]).sum();
     }
     A.diagonal().array() += 1e-12 * A.diagonal().maxCoeff();
     const Eigen::VectorXd gamma = A.ldlt().solve(b);
-    Eigen::MatrixXd out = g;
-    for (Eigen::Index i = 0; i < m; ++i) out -= gamma[i] * dG_[static_cast<size_t>(i)];
-    return out.allFinite() ? out : g;
+    if (!gamma.allFinite()) return;
+    for (Eigen::Index i = 0; i < m; ++i) g.noalias() -= gamma[i] * dG_[static_cast<size_t>(i)];
   }
 
  private:
   int depth_;
   bool has_previous_ = false;
-  Eigen::MatrixXd previous_f_, previous_g_;
-  std::vector<Eigen::MatrixXd> dF_, dG_;
+  int stored_ = 0, oldest_ = 0;
+  Eigen::MatrixXd f_, previous_f_, previous_g_;
+  std::vector<Eigen::MatrixXd> dF_, dG_;  // a ring: once full, the oldest slot is overwritten
 };
 
 }  // namespace
@@ -195,9 +201,11 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     }
     Eigen::MatrixXd next = solve(rhs);
     if (!next.allFinite()) throw Error(ErrorCode::kNumerical, "reconstruction produced a non-finite surface at iteration " + std::to_string(iteration));
-    result.change = (next - S).rowwise().norm().maxCoeff() / diameter;
-    if (options.anderson_depth > 0) next = anderson.step(S, next);
-    S = next;
+    double change2 = 0;
+    for (Eigen::Index v = 0; v < n_int; ++v) change2 = std::max(change2, (next.row(v) - S.row(v)).squaredNorm());
+    result.change = std::sqrt(change2) / diameter;
+    anderson.step(S, next);
+    S.swap(next);
     store(S);
     result.iterations = iteration;
     if (result.change < options.tolerance) {
