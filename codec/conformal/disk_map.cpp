@@ -1,5 +1,6 @@
 // The Riemann conformal map: preconditioning, linear start, QIEM on the double cover, projection.
 #include "facemorph/conformal.hpp"
+#include "facemorph/distance.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/topology.hpp"
@@ -510,41 +511,13 @@ DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& op
 }
 
 SurfacePoint closest_surface_point(const TriangleMesh& surface, const Vec3& point) {
-  // Ericson, Real-Time Collision Detection §5.1.5: closest point on a triangle by Voronoi regions.
   SurfacePoint best;
   double best_distance = std::numeric_limits<double>::infinity();
   for (size_t f = 0; f < surface.faces.size(); ++f) {
     const Vec3& a = surface.positions[static_cast<size_t>(surface.faces[f][0])];
     const Vec3& b = surface.positions[static_cast<size_t>(surface.faces[f][1])];
     const Vec3& c = surface.positions[static_cast<size_t>(surface.faces[f][2])];
-    const Vec3 ab = b - a, ac = c - a, ap = point - a;
-    Vec3 bary;
-    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    const Vec3 bp = point - b;
-    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    const Vec3 cp = point - c;
-    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    const double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
-    if (d1 <= 0 && d2 <= 0) {
-      bary = {1, 0, 0};
-    } else if (d3 >= 0 && d4 <= d3) {
-      bary = {0, 1, 0};
-    } else if (d6 >= 0 && d5 <= d6) {
-      bary = {0, 0, 1};
-    } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-      const double t = d1 / (d1 - d3);
-      bary = {1 - t, t, 0};
-    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-      const double t = d2 / (d2 - d6);
-      bary = {1 - t, 0, t};
-    } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-      const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-      bary = {0, 1 - t, t};
-    } else {
-      const double denominator = va + vb + vc;
-      const double v = vb / denominator, w = vc / denominator;
-      bary = {1 - v - w, v, w};
-    }
+    const Vec3 bary = closest_point_barycentric(point, a, b, c);
     const double distance = (bary[0] * a + bary[1] * b + bary[2] * c - point).squaredNorm();
     if (distance < best_distance) {
       best_distance = distance;

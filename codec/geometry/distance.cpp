@@ -5,30 +5,42 @@
 #include <limits>
 
 namespace facemorph {
-namespace {
 
-// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection §5.1.5).
-double point_triangle_squared(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
   const Vec3 bp = p - b;
   const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
   const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).squaredNorm();
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double t = d1 / (d1 - d3);
+    return {1 - t, t, 0};
+  }
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
   const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).squaredNorm();
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double t = d2 / (d2 - d6);
+    return {1 - t, 0, t};
+  }
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
     const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return (p - (b + t * (c - b))).squaredNorm();
+    return {0, 1 - t, t};
   }
-  const double denominator = 1.0 / (va + vb + vc);
-  return (p - (a + ab * (vb * denominator) + ac * (vc * denominator))).squaredNorm();
+  const double denominator = va + vb + vc;
+  const double v = vb / denominator, w = vc / denominator;
+  return {1 - v - w, v, w};
+}
+
+namespace {
+
+double point_triangle_squared(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 bary = closest_point_barycentric(p, a, b, c);
+  return (bary[0] * a + bary[1] * b + bary[2] * c - p).squaredNorm();
 }
 
 }  // namespace

@@ -32,13 +32,9 @@ GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
   mass_ = mixed_voronoi_areas(flat, grid_.faces);
 
   const int n = grid_.n;
-  band_index_.assign(grid_.nodes.size(), -1);
   neighbours_.assign(static_cast<size_t>(grid_.interior_count), {-1, -1, -1, -1});
   for (int v = 0; v < grid_.interior_count; ++v) {
-    if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) {
-      band_index_[static_cast<size_t>(v)] = band_count_++;
-      band_nodes_.push_back(v);
-    }
+    if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) band_nodes_.push_back(v);
     const auto [i, j] = grid_.cell[static_cast<size_t>(v)];
     auto at = [&](int a, int b) {
       return (a < 0 || b < 0 || a >= n || b >= n) ? -1 : grid_.node_at[static_cast<size_t>(b) * n + a];

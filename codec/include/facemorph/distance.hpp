@@ -7,6 +7,10 @@
 
 namespace facemorph {
 
+// Barycentric coordinates of the point of triangle abc nearest to p (Ericson, Real-Time Collision
+// Detection §5.1.5: by Voronoi regions of the vertices, edges and face).
+Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
 // Closest-point queries against one triangle mesh, through a uniform grid of buckets.
 class PointToMesh {
  public:

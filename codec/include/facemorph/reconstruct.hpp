@@ -36,10 +36,9 @@ class GridGeometry {
 
   const DiskGrid& grid() const { return grid_; }
   int interior_count() const { return grid_.interior_count; }
-  // The rim band: interior nodes with |w| > 1 - 2h. hl+t stores the Cartesian Laplacian there.
-  bool in_band(int node) const { return band_index_[static_cast<size_t>(node)] >= 0; }
-  int band_index(int node) const { return band_index_[static_cast<size_t>(node)]; }
-  int band_count() const { return band_count_; }
+  // The rim band: interior nodes with |w| > 1 - 2h; hl+t stores their Laplacian in boundary frames.
+  const std::vector<int32_t>& band_nodes() const { return band_nodes_; }
+  int band_count() const { return static_cast<int>(band_nodes_.size()); }
 
   // Δ_h S = -M⁻¹ K S at the interior nodes (S given at every node of G).
   std::vector<Vec3> laplacian(const std::vector<Vec3>& positions) const;
@@ -55,8 +54,6 @@ class GridGeometry {
   // orthogonal to it, and their cross product. It rotates with the boundary and, the boundary
   // being data, does not change while the decoder iterates.
   std::vector<std::array<Vec3, 3>> boundary_frames(const std::vector<Vec3>& rim, const std::vector<int32_t>& nodes) const;
-  // The band's nodes, in order.
-  const std::vector<int32_t>& band_nodes() const { return band_nodes_; }
 
   const SparseMatrix& stiffness() const { return K_; }        // over all nodes, SPD on the interior block
   const Eigen::VectorXd& mass() const { return mass_; }       // lumped, per node
@@ -65,8 +62,6 @@ class GridGeometry {
   DiskGrid grid_;
   SparseMatrix K_;
   Eigen::VectorXd mass_;
-  std::vector<int> band_index_;
-  int band_count_ = 0;
   std::vector<int32_t> band_nodes_;
   std::vector<std::array<int32_t, 4>> neighbours_;  // interior node: E, W, N, S interior indices or -1
   std::vector<std::vector<int32_t>> faces_of_;      // faces around each node
