@@ -67,15 +67,11 @@ std::vector<int32_t> folded_nodes(const GridGeometry& geometry, const std::vecto
   const auto interior = static_cast<size_t>(grid.interior_count);
   std::vector<Vec3> tu, tv, n;
   geometry.frames(positions, tu, tv, n);
-  auto node = [&](int i, int j) -> int32_t {
-    if (i < 0 || j < 0 || i >= grid.n || j >= grid.n) return -1;
-    return grid.node_at[static_cast<size_t>(j) * static_cast<size_t>(grid.n) + static_cast<size_t>(i)];
-  };
   std::vector<uint8_t> mark(interior, 0);
   for (size_t v = 0; v < interior; ++v) {
     const auto [i, j] = grid.cell[v];
     for (const auto& [di, dj] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
-      const int32_t u = node(i + di, j + dj);
+      const int32_t u = grid.node(i + di, j + dj);
       if (u >= 0 && n[v].dot(n[static_cast<size_t>(u)]) < 0.5) mark[v] = 1;  // more than 60° apart
     }
   }
@@ -87,7 +83,7 @@ std::vector<int32_t> folded_nodes(const GridGeometry& geometry, const std::vecto
       const auto [i, j] = grid.cell[v];
       for (int dj = -1; dj <= 1; ++dj) {
         for (int di = -1; di <= 1; ++di) {
-          const int32_t u = node(i + di, j + dj);
+          const int32_t u = grid.node(i + di, j + dj);
           if (u >= 0) grown[static_cast<size_t>(u)] = 1;
         }
       }

@@ -31,15 +31,11 @@ GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
   K_ = cotangent_laplacian(flat, grid_.faces);
   mass_ = mixed_voronoi_areas(flat, grid_.faces);
 
-  const int n = grid_.n;
   neighbours_.assign(static_cast<size_t>(grid_.interior_count), {-1, -1, -1, -1});
   for (int v = 0; v < grid_.interior_count; ++v) {
     if (grid_.nodes[static_cast<size_t>(v)].norm() > 1 - 2 * grid_.h) band_nodes_.push_back(v);
     const auto [i, j] = grid_.cell[static_cast<size_t>(v)];
-    auto at = [&](int a, int b) {
-      return (a < 0 || b < 0 || a >= n || b >= n) ? -1 : grid_.node_at[static_cast<size_t>(b) * n + a];
-    };
-    neighbours_[static_cast<size_t>(v)] = {at(i + 1, j), at(i - 1, j), at(i, j + 1), at(i, j - 1)};
+    neighbours_[static_cast<size_t>(v)] = {grid_.node(i + 1, j), grid_.node(i - 1, j), grid_.node(i, j + 1), grid_.node(i, j - 1)};
   }
   faces_of_.resize(grid_.nodes.size());
   for (size_t f = 0; f < grid_.faces.size(); ++f) {

@@ -27,6 +27,10 @@ struct DiskGrid {
 
   int node_count() const { return static_cast<int>(nodes.size()); }
   bool is_rim(int node) const { return node >= interior_count; }
+  // Node index of grid point (i, j), or -1 where (i, j) is off the square or outside the disk.
+  int32_t node(int i, int j) const {
+    return (i < 0 || j < 0 || i >= n || j >= n) ? -1 : node_at[static_cast<size_t>(j) * static_cast<size_t>(n) + static_cast<size_t>(i)];
+  }
   double rim_angle(int k) const;              // angle of rim node k (node interior_count + k)
 };
 
