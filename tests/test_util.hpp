@@ -11,6 +11,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace facemorph::testing {
 
@@ -108,6 +109,42 @@ TriangleMesh polar_disk(int rings, int sectors, Lift&& lift) {
     }
   }
   return m;
+}
+
+// One random edit of `bytes` per call, up to four: a byte flipped, the input truncated, a byte
+// inserted or erased, or a plausible text character written.
+inline std::vector<uint8_t> mutate(std::vector<uint8_t> bytes, std::mt19937& rng) {
+  std::uniform_int_distribution<int> kind(0, 4), byte(0, 255);
+  const int edits = 1 + static_cast<int>(rng() % 4);
+  for (int e = 0; e < edits && !bytes.empty(); ++e) {
+    const size_t at = rng() % bytes.size();
+    switch (kind(rng)) {
+      case 0: bytes[at] = static_cast<uint8_t>(byte(rng)); break;                       // flip a byte
+      case 1: bytes.resize(at); break;                                                   // truncate
+      case 2: bytes.insert(bytes.begin() + static_cast<long>(at), static_cast<uint8_t>(byte(rng))); break;
+      case 3: bytes.erase(bytes.begin() + static_cast<long>(at)); break;
+      case 4: bytes[at] = "0123456789-.e \n/"[rng() % 16]; break;                       // plausible text
+    }
+  }
+  return bytes;
+}
+
+// A deterministic stand-in for fuzzing: `parse` runs on 1500 mutations of `seed` and must either
+// throw facemorph::Error or succeed (a crash or out-of-bounds read fails, under the sanitizers).
+// `parse` itself asserts the invariants of what it parsed. Some mutations must reach an error path.
+template <typename Parse>
+void survive_mutations(const std::vector<uint8_t>& seed, unsigned rng_seed, Parse&& parse, int trials = 1500) {
+  std::mt19937 rng(rng_seed);
+  int errors = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    const std::vector<uint8_t> input = mutate(seed, rng);
+    try {
+      parse(input);
+    } catch (const Error&) {
+      ++errors;
+    }
+  }
+  EXPECT_GT(errors, 0);  // the mutations did reach the error paths
 }
 
 // Icosphere of radius r with `subdivisions` loop-style midpoint splits, outward-facing.

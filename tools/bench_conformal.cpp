@@ -2,14 +2,14 @@
 // on meshes, captures (every frame) and in-memory synthetic faces.
 #include "tools/bench_conformal.hpp"
 
-#include "facemorph/capture.hpp"
-#include "facemorph/conformal.hpp"
-#include "facemorph/frame.hpp"
-#include "facemorph/image_io.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/image_io.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/render.hpp"
-#include "facemorph/resample.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/synth.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"

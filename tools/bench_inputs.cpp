@@ -1,8 +1,8 @@
 #include "tools/bench_inputs.hpp"
 
-#include "facemorph/capture.hpp"
+#include "facemorph/encoder/capture.hpp"
 #include "facemorph/mesh_io.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/synth.hpp"
 
 #include <algorithm>
 #include <cmath>

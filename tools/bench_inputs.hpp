@@ -2,7 +2,7 @@
 // faces ("synth:N"), one frame at a time, with the landmarks of the reference pose.
 #pragma once
 
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <functional>

@@ -2,14 +2,14 @@
 // -> Laplace-Beltrami reconstruction) for each representation, and the decoder's speed.
 #include "tools/bench_reconstruct.hpp"
 
-#include "facemorph/capture.hpp"
-#include "facemorph/conformal.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/conformal.hpp"
 #include "facemorph/distance.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
-#include "facemorph/resample.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/synth.hpp"
 
 #include "format/quantize.hpp"
 #include "tools/bench_inputs.hpp"

@@ -1,8 +1,8 @@
 // fminfo: describes a facemorph input or output. For a capture (a folder with capture.json, or a
 // plain folder of meshes with --fps) it reads, validates and repairs every frame the way the
 // encoder will, and prints a summary (or JSON).
-#include "facemorph/capture.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
 

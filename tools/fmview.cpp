@@ -1,5 +1,5 @@
 // fmview: renders a mesh to a PNG picture (textured, checkerboard over its UVs, or plain shaded).
-#include "facemorph/image_io.hpp"
+#include "facemorph/encoder/image_io.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/render.hpp"
 

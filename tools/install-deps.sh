@@ -5,9 +5,11 @@ set -euo pipefail
 
 packages=(
   g++ cmake ninja-build pkgconf        # toolchain
+  clang libclang-rt-14-dev             # the sanitizer pass (float-cast-overflow, which g++ lacks)
   libeigen3-dev                        # sparse linear algebra
   libopenexr-dev                       # H and λ fields as EXR images
   libzstd-dev                          # container payloads
+  libwebp-dev libpng-dev               # the decoder's images: textures (WebP), pictures (PNG)
   libopencv-dev                        # texture images (encoder and tools only)
   libsuitesparse-dev                   # CHOLMOD: the conformal map's sparse Cholesky
   libopenblas0-pthread                 # the BLAS CHOLMOD runs on (4x faster than reference BLAS)

@@ -2,8 +2,9 @@
 # The README's two commands.
 #   tools/quickstart.sh sample   install what is missing, build, and run the main job on a built-in
 #                                synthetic capture (out/sample/)
-#   tools/quickstart.sh test     install what is missing, build, and run every test, then again
-#                                under AddressSanitizer + UndefinedBehaviorSanitizer
+#   tools/quickstart.sh test     install what is missing, build, and run every test; build and test
+#                                the decoder alone (no encoder, no OpenCV); then every test again
+#                                under AddressSanitizer + UndefinedBehaviorSanitizer (clang)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -34,9 +35,12 @@ case "${1:-}" in
     tools/install-deps.sh
     build build all
     ctest --test-dir build --output-on-failure -j "$jobs"
-    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer"
+    echo "== the decoder side alone, as a player builds it: encoder off, OpenCV not even looked for"
+    build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON
+    ctest --test-dir build-decoder --output-on-failure -j "$jobs"
+    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too)"
     # Only what ctest runs, at -O1 -g1: the sanitizers need line tables, not full debug info.
-    build build-asan facemorph_tests -DFACEMORPH_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir build-asan --output-on-failure -j "$jobs"

@@ -1,5 +1,5 @@
 // capture.json + landmarks.csv reading and writing.
-#include "facemorph/capture.hpp"
+#include "facemorph/encoder/capture.hpp"
 #include "facemorph/error.hpp"
 
 #include "codec/mesh/text_scan.hpp"

@@ -1,5 +1,5 @@
 // The Riemann conformal map: preconditioning, linear start, QIEM on the double cover, projection.
-#include "facemorph/conformal.hpp"
+#include "facemorph/encoder/conformal.hpp"
 #include "facemorph/distance.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"

@@ -1,4 +1,4 @@
-#include "facemorph/moebius.hpp"
+#include "facemorph/encoder/moebius.hpp"
 
 #include <numbers>
 

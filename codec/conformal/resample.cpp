@@ -1,4 +1,4 @@
-#include "facemorph/resample.hpp"
+#include "facemorph/encoder/resample.hpp"
 
 #include "facemorph/error.hpp"
 #include "facemorph/render.hpp"

@@ -1,4 +1,4 @@
-#include "facemorph/image_io.hpp"
+#include "facemorph/encoder/image_io.hpp"
 
 #include "facemorph/error.hpp"
 #include "format/file_io.hpp"

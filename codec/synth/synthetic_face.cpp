@@ -1,6 +1,6 @@
-// The analytic synthetic face (see facemorph/synth.hpp for the model).
+// The analytic synthetic face (see facemorph/encoder/synth.hpp for the model).
 #include "facemorph/error.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/synth.hpp"
 
 #include "codec/geometry/delaunay.hpp"
 

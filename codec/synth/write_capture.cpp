@@ -1,9 +1,9 @@
 // fmsynth's capture writer: meshes, per-frame textures, landmarks and the manifest.
-#include "facemorph/capture.hpp"
+#include "facemorph/encoder/capture.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/synth.hpp"
 
 #include "format/file_io.hpp"
 

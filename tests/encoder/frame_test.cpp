@@ -1,4 +1,4 @@
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/topology.hpp"

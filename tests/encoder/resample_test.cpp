@@ -1,9 +1,7 @@
-#include "facemorph/conformal.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/synth.hpp"
 #include "facemorph/disk_grid.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/resample.hpp"
-#include "facemorph/synth.hpp"
-#include "facemorph/topology.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -16,48 +14,6 @@ namespace facemorph {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-TEST(DiskGrid, IsACartesianInteriorWithARimOnTheCircleAndNoSlivers) {
-  for (int n : {17, 65, 257}) {
-    const DiskGrid g = make_disk_grid(n);
-    EXPECT_DOUBLE_EQ(g.h, 2.0 / (n - 1));
-    EXPECT_EQ(g.rim_count, static_cast<int>(std::lround(2 * kPi / g.h)));
-    int expected_interior = 0;
-    for (int j = 0; j < n; ++j) {
-      for (int i = 0; i < n; ++i) {
-        const Vec2 w(-1 + i * g.h, -1 + j * g.h);
-        const int32_t node = g.node_at[static_cast<size_t>(j) * n + i];
-        if (w.norm() <= 1 - 0.5 * g.h) {
-          ++expected_interior;
-          ASSERT_GE(node, 0);
-          EXPECT_EQ(g.nodes[static_cast<size_t>(node)], w);
-        } else {
-          EXPECT_EQ(node, -1);
-        }
-      }
-    }
-    EXPECT_EQ(g.interior_count, expected_interior);
-    for (int k = 0; k < g.rim_count; ++k) EXPECT_NEAR(g.nodes[static_cast<size_t>(g.interior_count + k)].norm(), 1.0, 1e-15);
-    const MeshTopology topology(g.faces, g.node_count());
-    EXPECT_TRUE(topology.is_manifold());
-    EXPECT_EQ(topology.euler_characteristic(), 1);
-    ASSERT_EQ(topology.boundary_loops().size(), 1u);
-    EXPECT_EQ(topology.boundary_loops()[0].size(), static_cast<size_t>(g.rim_count));
-    std::vector<Vec3> lifted;
-    for (const Vec2& w : g.nodes) lifted.emplace_back(w.x(), w.y(), 0);
-    double min_angle = kPi, area = 0;
-    for (const auto& a : corner_angles(lifted, g.faces)) min_angle = std::min({min_angle, a[0], a[1], a[2]});
-    for (const Face& f : g.faces) {
-      const Vec2 &a = g.nodes[static_cast<size_t>(f[0])], &b = g.nodes[static_cast<size_t>(f[1])], &c = g.nodes[static_cast<size_t>(f[2])];
-      const double twice = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-      EXPECT_GT(twice, 0);
-      area += twice / 2;
-    }
-    EXPECT_GT(min_angle * 180 / kPi, 20.0) << "N = " << n;  // no slivers at the rim
-    EXPECT_NEAR(area, g.rim_count / 2.0 * std::sin(2 * kPi / g.rim_count), 1e-9);  // the rim polygon's area
-  }
-  testing::expect_error(ErrorCode::kInvalidArgument, "grid size N", [] { make_disk_grid(3); });
-}
 
 TEST(Resample, AFlatDiskResamplesToTheGridItself) {
   // The linear map of a polar-grid disk is the identity, so the resampled surface is the grid.

@@ -1,7 +1,7 @@
-#include "facemorph/conformal.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/synth.hpp"
 #include "facemorph/topology.hpp"
 
 #include "codec/conformal/double_cover.hpp"

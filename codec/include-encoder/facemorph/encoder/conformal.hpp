@@ -5,7 +5,7 @@
 
 #include "facemorph/locator.hpp"
 #include "facemorph/mesh.hpp"
-#include "facemorph/moebius.hpp"
+#include "facemorph/encoder/moebius.hpp"
 
 #include <Eigen/Core>
 

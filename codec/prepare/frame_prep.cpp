@@ -1,6 +1,6 @@
 // Frame validation and repair: from a scanner's triangle soup to a disk the conformal map accepts.
 #include "facemorph/error.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/topology.hpp"
 

@@ -1,5 +1,5 @@
-#include "facemorph/capture.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
 
 #include "tests/test_util.hpp"

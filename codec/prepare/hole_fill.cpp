@@ -4,7 +4,7 @@
 // instead of bulging into it. The membrane is what keeps an open mouth from becoming a deep
 // cavity whose conformal image would be crowded beyond any grid (spec/method.md §2).
 #include "facemorph/error.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
 
 #include <Eigen/SparseCholesky>

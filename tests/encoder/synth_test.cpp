@@ -1,7 +1,7 @@
-#include "facemorph/capture.hpp"
-#include "facemorph/frame.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
-#include "facemorph/synth.hpp"
+#include "facemorph/encoder/synth.hpp"
 #include "facemorph/topology.hpp"
 
 #include "tests/test_util.hpp"

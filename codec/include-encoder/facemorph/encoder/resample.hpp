@@ -2,7 +2,7 @@
 // of G, texture on an M x M image of the disk's bounding square.
 #pragma once
 
-#include "facemorph/conformal.hpp"
+#include "facemorph/encoder/conformal.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/image.hpp"
 

@@ -1,0 +1,32 @@
+// Image coding on the decoder's side, without OpenCV: WebP (how the container stores textures) and
+// PNG (how decoded textures and previews are written). Debian's libwebp and libpng: small, C,
+// and ported to WebAssembly, where the decoder is headed (spec/method.md §6).
+#pragma once
+
+#include "facemorph/image.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+// Lossy WebP at `quality` 0..100 (libwebp's scale), or lossless when `quality` is above 100.
+// RGB or RGBA in; throws kInvalidArgument for an empty image or another channel count.
+std::vector<uint8_t> encode_webp(const Image& image, int quality);
+// Decodes WebP bytes to RGB (`channels` 3) or RGBA (4). Throws kCorrupt naming `source` when the
+// bytes are not a WebP image, kInvalidArgument when its size exceeds `max_pixels`.
+Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int channels = 3,
+                  int64_t max_pixels = int64_t{1} << 26);
+
+// PNG, 8 bits per channel, RGB or RGBA (1-channel grey is written as grey).
+std::vector<uint8_t> encode_png(const Image& image);
+// Decodes PNG bytes to 8-bit RGB or RGBA (grey and palettes expanded, 16 bits reduced). Throws
+// kCorrupt naming `source` for anything that is not a complete PNG image.
+Image decode_png(std::span<const uint8_t> bytes, const std::string& source, int64_t max_pixels = int64_t{1} << 26);
+// Writes a PNG atomically (temporary name, then rename). Throws kIo naming the file.
+void write_png(const std::filesystem::path& path, const Image& image);
+
+}  // namespace facemorph

@@ -1,0 +1,78 @@
+#include "facemorph/image_codec.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace facemorph {
+namespace {
+
+// A smooth picture with an edge, like a face texture: gradients and one sharp boundary.
+Image test_picture(int width, int height, int channels) {
+  Image image(width, height, channels);
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> noise(-6, 6);  // skin-like grain: what makes lossless costly
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      uint8_t* p = image.at(x, y);
+      const int grain = noise(rng);
+      p[0] = static_cast<uint8_t>(128 + 100 * std::sin(x * 0.05) + grain);
+      p[1] = static_cast<uint8_t>(y * 255 / (height - 1));
+      p[2] = static_cast<uint8_t>((x - width / 2) * (x - width / 2) + (y - height / 2) * (y - height / 2) < width * width / 9 ? 220 : 40);
+      if (channels == 4) p[3] = static_cast<uint8_t>(x % 256);
+    }
+  }
+  return image;
+}
+
+double psnr(const Image& a, const Image& b) {
+  double sum = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) sum += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
+  const double mse = sum / static_cast<double>(a.pixels.size());
+  return 10 * std::log10(255.0 * 255.0 / std::max(mse, 1e-12));
+}
+
+TEST(ImageCodec, PngAndLosslessWebpRoundTripExactly) {
+  for (int channels : {3, 4}) {
+    const Image image = test_picture(97, 64, channels);
+    const Image png = decode_png(encode_png(image), "t.png");
+    EXPECT_EQ(png.channels, channels);
+    EXPECT_EQ(png.pixels, image.pixels);
+    const Image webp = decode_webp(encode_webp(image, 101), "t.webp", channels);
+    EXPECT_EQ(webp.pixels, image.pixels);
+  }
+}
+
+TEST(ImageCodec, LossyWebpIsSmallerAndClose) {
+  const Image image = test_picture(256, 256, 3);
+  const std::vector<uint8_t> lossy = encode_webp(image, 90), lossless = encode_webp(image, 101);
+  EXPECT_LT(lossy.size(), lossless.size());
+  const Image back = decode_webp(lossy, "t.webp");
+  ASSERT_EQ(back.width, 256);
+  EXPECT_GT(psnr(image, back), 30.0);
+}
+
+TEST(ImageCodec, DamagedBytesAreNamedErrors) {
+  const Image image = test_picture(64, 64, 3);
+  const std::vector<uint8_t> png = encode_png(image), webp = encode_webp(image, 80);
+  testing::expect_error(ErrorCode::kCorrupt, "t.png", [&] { decode_png(std::span(png).first(png.size() / 2), "t.png"); });
+  testing::expect_error(ErrorCode::kCorrupt, "t.webp", [&] { decode_webp(std::span(webp).first(webp.size() / 2), "t.webp"); });
+  testing::expect_error(ErrorCode::kCorrupt, "x.webp", [&] { decode_webp(png, "x.webp"); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "too large", [&] { decode_png(png, "t.png", 100); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "cannot encode", [] { encode_webp(Image(), 90); });
+  // Every truncation of a small WebP is an error or a full image, never a crash.
+  for (size_t n = 0; n < webp.size(); n += 7) {
+    try {
+      const Image back = decode_webp(std::span(webp).first(n), "t.webp");
+      EXPECT_EQ(back.width, 64);
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kCorrupt);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace facemorph
