@@ -10,8 +10,6 @@
 namespace facemorph {
 namespace {
 
-uint64_t directed_key(int32_t a, int32_t b) { return (uint64_t{static_cast<uint32_t>(a)} << 32) | static_cast<uint32_t>(b); }
-
 // Adds a vertex on the segment a-b (parameter t from a) with interpolated UV; returns its index.
 class MeshEditor {
  public:
@@ -199,11 +197,11 @@ int flip_to_intrinsic_delaunay(std::vector<Face>& faces, std::vector<CornerValue
     std::unordered_map<uint64_t, std::pair<int32_t, int8_t>> half;
     half.reserve(3 * face_count);
     for (size_t f = 0; f < face_count; ++f) {
-      for (int k = 0; k < 3; ++k) half[directed_key(faces[f][(k + 1) % 3], faces[f][(k + 2) % 3])] = {static_cast<int32_t>(f), static_cast<int8_t>(k)};
+      for (int k = 0; k < 3; ++k) half[directed_edge_key(faces[f][(k + 1) % 3], faces[f][(k + 2) % 3])] = {static_cast<int32_t>(f), static_cast<int8_t>(k)};
     }
     for (size_t f = 0; f < face_count; ++f) {
       for (int k = 0; k < 3; ++k) {
-        auto it = half.find(directed_key(faces[f][(k + 2) % 3], faces[f][(k + 1) % 3]));
+        auto it = half.find(directed_edge_key(faces[f][(k + 2) % 3], faces[f][(k + 1) % 3]));
         if (it == half.end()) continue;
         nf[f][static_cast<size_t>(k)] = it->second.first;
         nc[f][static_cast<size_t>(k)] = it->second.second;

@@ -1,6 +1,7 @@
 #include "codec/geometry/delaunay.hpp"
 
 #include "facemorph/error.hpp"
+#include "facemorph/topology.hpp"
 
 #include <algorithm>
 #include <array>
@@ -223,10 +224,7 @@ class Triangulator {
   static MeshBoundary boundary_of(const std::vector<Face>& faces) {
     std::vector<std::pair<uint64_t, std::array<int32_t, 2>>> half;
     for (const Face& f : faces) {
-      for (int k = 0; k < 3; ++k) {
-        const auto a = static_cast<uint32_t>(f[k]), b = static_cast<uint32_t>(f[(k + 1) % 3]);
-        half.push_back({(uint64_t{std::min(a, b)} << 32) | std::max(a, b), {f[k], f[(k + 1) % 3]}});
-      }
+      for (int k = 0; k < 3; ++k) half.push_back({undirected_edge_key(f[k], f[(k + 1) % 3]), {f[k], f[(k + 1) % 3]}});
     }
     std::sort(half.begin(), half.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
     std::vector<std::array<int32_t, 2>> boundary;

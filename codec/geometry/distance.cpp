@@ -36,15 +36,6 @@ Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, cons
   return {1 - v - w, v, w};
 }
 
-namespace {
-
-double point_triangle_squared(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 bary = closest_point_barycentric(p, a, b, c);
-  return (bary[0] * a + bary[1] * b + bary[2] * c - p).squaredNorm();
-}
-
-}  // namespace
-
 PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (const Vec3& p : mesh.positions) {
@@ -91,12 +82,24 @@ PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
 }
 
 double PointToMesh::distance(const Vec3& p) const {
-  if (mesh_.faces.empty()) return std::numeric_limits<double>::infinity();
+  double squared = 0;
+  nearest(p, squared);
+  return std::sqrt(squared);
+}
+
+SurfacePoint PointToMesh::closest(const Vec3& p) const {
+  double squared = 0;
+  return nearest(p, squared);
+}
+
+SurfacePoint PointToMesh::nearest(const Vec3& p, double& best) const {
+  SurfacePoint point;
+  best = std::numeric_limits<double>::infinity();
+  if (mesh_.faces.empty()) return point;
   const int n[3] = {nx_, ny_, nz_};
   int c[3];
   for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((p[k] - origin_[k]) / cell_)), 0, n[k] - 1);
   // Outside the grid the nearest cell is still c; its distance bounds how far shells must go.
-  double best = std::numeric_limits<double>::infinity();
   const int max_shell = std::max({nx_, ny_, nz_});
   for (int shell = 0; shell <= max_shell; ++shell) {
     for (int z = c[2] - shell; z <= c[2] + shell; ++z) {
@@ -108,9 +111,18 @@ double PointToMesh::distance(const Vec3& p) const {
           if (std::max({std::abs(x - c[0]), std::abs(y - c[1]), std::abs(z - c[2])}) != shell) continue;  // this shell only
           const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
           for (int i = start_[bucket]; i < start_[bucket + 1]; ++i) {
-            const Face& f = mesh_.faces[static_cast<size_t>(faces_[static_cast<size_t>(i)])];
-            best = std::min(best, point_triangle_squared(p, mesh_.positions[static_cast<size_t>(f[0])], mesh_.positions[static_cast<size_t>(f[1])],
-                                                         mesh_.positions[static_cast<size_t>(f[2])]));
+            const int face = faces_[static_cast<size_t>(i)];
+            const Face& f = mesh_.faces[static_cast<size_t>(face)];
+            const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
+            const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
+            const Vec3& v2 = mesh_.positions[static_cast<size_t>(f[2])];
+            const Vec3 bary = closest_point_barycentric(p, v0, v1, v2);
+            const double squared = (bary[0] * v0 + bary[1] * v1 + bary[2] * v2 - p).squaredNorm();
+            // Buckets are visited out of face order (and share faces): the index breaks ties.
+            if (squared < best || (squared == best && face < point.face)) {
+              best = squared;
+              point = {face, bary};
+            }
           }
         }
       }
@@ -121,7 +133,7 @@ double PointToMesh::distance(const Vec3& p) const {
     const double reach = shell * cell_ + std::max(margin, 0.0);  // no margin when p is outside the grid
     if (best < std::numeric_limits<double>::infinity() && std::sqrt(best) <= reach) break;
   }
-  return std::sqrt(best);
+  return point;
 }
 
 SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test) {

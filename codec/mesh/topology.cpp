@@ -43,9 +43,7 @@ MeshTopology::MeshTopology(std::span<const Face> faces, int vertex_count) : vert
   half_edges.reserve(3 * face_total);
   for (size_t f = 0; f < face_total; ++f) {
     for (int k = 0; k < 3; ++k) {
-      const auto a = static_cast<uint32_t>(faces[f][k]);
-      const auto b = static_cast<uint32_t>(faces[f][(k + 1) % 3]);
-      const uint64_t key = (uint64_t{std::min(a, b)} << 32) | std::max(a, b);
+      const uint64_t key = undirected_edge_key(faces[f][k], faces[f][(k + 1) % 3]);
       half_edges.push_back({key, static_cast<int32_t>(f), static_cast<int8_t>(k)});
     }
   }

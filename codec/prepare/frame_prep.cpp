@@ -14,11 +14,6 @@
 namespace facemorph {
 namespace {
 
-uint64_t edge_key(int32_t a, int32_t b) {
-  const auto lo = static_cast<uint32_t>(std::min(a, b)), hi = static_cast<uint32_t>(std::max(a, b));
-  return (uint64_t{lo} << 32) | hi;
-}
-
 class FramePreparer {
  public:
   FramePreparer(const TriangleMesh& input, const std::string& name, const PrepareOptions& options)
@@ -143,7 +138,7 @@ class FramePreparer {
       std::vector<uint8_t> drop(mesh_.faces.size(), 0);
       std::unordered_map<uint64_t, std::vector<int>> by_edge;
       for (size_t f = 0; f < mesh_.faces.size(); ++f) {
-        for (int k = 0; k < 3; ++k) by_edge[edge_key(mesh_.faces[f][k], mesh_.faces[f][(k + 1) % 3])].push_back(static_cast<int>(f));
+        for (int k = 0; k < 3; ++k) by_edge[undirected_edge_key(mesh_.faces[f][k], mesh_.faces[f][(k + 1) % 3])].push_back(static_cast<int>(f));
       }
       bool changed = false;
       const size_t count = mesh_.faces.size();
@@ -167,7 +162,7 @@ class FramePreparer {
           const int32_t m = face[k], e0 = face[(k + 1) % 3], e1 = face[(k + 2) % 3];
           const Vec3& pm = mesh_.positions[static_cast<size_t>(m)];
           if ((mesh_.positions[static_cast<size_t>(e0)] - pm).dot(mesh_.positions[static_cast<size_t>(e1)] - pm) >= 0) continue;
-          for (int g : by_edge[edge_key(e0, e1)]) {
+          for (int g : by_edge[undirected_edge_key(e0, e1)]) {
             if (g == static_cast<int>(f) || drop[static_cast<size_t>(g)]) continue;
             const Face other = mesh_.faces[static_cast<size_t>(g)];
             int j = 0;  // other = (e1, e0, d) up to rotation: find e1

@@ -6,6 +6,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/topology.hpp"
 
 #include <Eigen/SparseCholesky>
 
@@ -20,11 +21,6 @@ namespace facemorph {
 namespace {
 
 constexpr int kMaxLoop = 3000;  // the O(n³) triangulation takes about a second at this size
-
-uint64_t edge_key(int a, int b) {
-  const auto lo = static_cast<uint32_t>(std::min(a, b)), hi = static_cast<uint32_t>(std::max(a, b));
-  return (uint64_t{lo} << 32) | hi;
-}
 
 // The fill under construction, in local indices: 0..n-1 are the loop vertices in polygon order
 // (the loop reversed, so fill faces orient like the mesh), n.. are new vertices.
@@ -46,7 +42,7 @@ class Fill {
     for (const Face& f : mesh.faces) {
       for (int k = 0; k < 3; ++k) {
         auto a = local.find(f[k]), b = local.find(f[(k + 1) % 3]);
-        if (a != local.end() && b != local.end()) forbidden_.insert(edge_key(a->second, b->second));
+        if (a != local.end() && b != local.end()) forbidden_.insert(undirected_edge_key(a->second, b->second));
       }
     }
     // The side the fill faces point to: the area-weighted normal of the surface around the hole
@@ -75,7 +71,7 @@ class Fill {
     std::vector<int> split(n * n, -1);
     auto chord_ok = [&](size_t i, size_t j) {
       if (j == i + 1 || (i == 0 && j == n - 1)) return true;  // a loop edge
-      return !forbidden_.contains(edge_key(static_cast<int>(i), static_cast<int>(j)));
+      return !forbidden_.contains(undirected_edge_key(static_cast<int>(i), static_cast<int>(j)));
     };
     for (size_t span = 2; span < n; ++span) {
       for (size_t i = 0; i + span < n; ++i) {
@@ -159,7 +155,7 @@ class Fill {
       std::unordered_map<uint64_t, std::pair<int, int>> other;
       for (size_t f = 0; f < faces_.size(); ++f) {
         for (int k = 0; k < 3; ++k) {
-          const uint64_t key = edge_key(faces_[f][(k + 1) % 3], faces_[f][(k + 2) % 3]);
+          const uint64_t key = undirected_edge_key(faces_[f][(k + 1) % 3], faces_[f][(k + 2) % 3]);
           auto [it, inserted] = owner.try_emplace(key, static_cast<int>(f), k);
           if (!inserted) other[key] = {static_cast<int>(f), k};
         }
@@ -174,7 +170,7 @@ class Fill {
         const int32_t c = f1[first.second], d = f2[second.second];
         const int32_t a = f1[(first.second + 1) % 3], b = f1[(first.second + 2) % 3];
         if (angle_at(c, a, b) + angle_at(d, a, b) <= std::numbers::pi + 1e-9) continue;
-        if (c == d || forbidden_.contains(edge_key(c, d)) || owner.contains(edge_key(c, d))) continue;
+        if (c == d || forbidden_.contains(undirected_edge_key(c, d)) || owner.contains(undirected_edge_key(c, d))) continue;
         // f1 = (a, b, c) and f2 = (b, a, d) become (a, d, c) and (d, b, c).
         f1 = {a, d, c};
         f2 = {d, b, c};

@@ -1,6 +1,8 @@
-// Distances between surfaces: how the benchmarks measure geometric error (design §6).
+// Distances between surfaces and nearest points on them: how the benchmarks measure geometric error
+// (design §6) and where the encoder finds landmarks on a frame.
 #pragma once
 
+#include "facemorph/locator.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <vector>
@@ -15,10 +17,15 @@ Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, cons
 class PointToMesh {
  public:
   explicit PointToMesh(const TriangleMesh& mesh);  // the mesh must outlive this
-  // Distance from p to the nearest point of the mesh.
+  // Distance from p to the nearest point of the mesh (infinity for a mesh without faces).
   double distance(const Vec3& p) const;
+  // The nearest point of the mesh: its face and barycentric coordinates. Of equally near faces the
+  // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces.
+  SurfacePoint closest(const Vec3& p) const;
 
  private:
+  SurfacePoint nearest(const Vec3& p, double& best) const;  // best: its squared distance
+
   const TriangleMesh& mesh_;
   Vec3 origin_;
   double cell_ = 1;

@@ -64,9 +64,6 @@ struct DiskMap {
 // until normalize().
 DiskMap conformal_disk_map(const TriangleMesh& surface, const ConformalOptions& options = {});
 
-// Where a 3D point lies on the surface: the closest point on any triangle.
-SurfacePoint closest_surface_point(const TriangleMesh& surface, const Vec3& point);
-
 // Applies the disk Möbius map sending the surface point nearest `centre` to 0 and the one nearest
 // `direction` onto the positive imaginary axis (the reference pose; spec/method.md §3.5). Triangles
 // rounding may turn over in crowded regions are untangled, as in conformal_disk_map.

@@ -1,0 +1,25 @@
+// Flipped triangles of a disk map: signed areas, their count, and the re-solve that unflips them.
+#pragma once
+
+#include "facemorph/encoder/conformal.hpp"
+
+#include <vector>
+
+namespace facemorph {
+
+// Signed area of the disk triangle abc: positive when counter-clockwise.
+inline double signed_area(const Vec2& a, const Vec2& b, const Vec2& c) {
+  return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));
+}
+
+// Faces with non-positive signed area in the embedding w.
+int count_flipped(const std::vector<Vec2>& w, const std::vector<Face>& faces);
+
+// Removes flipped triangles from a disk map: the vertices within `rings` of a flipped face (rim
+// excluded) are re-solved with mean-value weights, the patch border fixed; the patch doubles until
+// no face is flipped. At worst the patch is the whole disk, whose border (the rim on the circle)
+// is convex, and the result is then guaranteed to be an embedding. Returns the vertices moved.
+// Throws kNumerical when a patch system is singular or even the whole disk stays flipped.
+int untangle(DiskMap& map);
+
+}  // namespace facemorph
