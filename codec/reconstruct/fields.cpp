@@ -1,13 +1,89 @@
 // What a keyframe stores on G, computed with the decoder's own operators.
+#include "facemorph/fields.hpp"
+
+#include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/reconstruct.hpp"
 
 #include "format/quantize.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace facemorph {
+
+const char* representation_name(Representation representation) {
+  switch (representation) {
+    case Representation::kHL: return "hl";
+    case Representation::kHLT: return "hl+t";
+    case Representation::kXYZ: return "xyz";
+  }
+  return "unknown";
+}
+
+Representation parse_representation(const std::string& name) {
+  if (name == "hl") return Representation::kHL;
+  if (name == "hl+t") return Representation::kHLT;
+  if (name == "xyz") return Representation::kXYZ;
+  throw Error(ErrorCode::kInvalidArgument, "unknown representation '" + name + "' (hl, hl+t, xyz)");
+}
+
+void validate_fields(const GridFields& fields) {
+  auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "fields: " + what); };
+  const bool hl = fields.representation == Representation::kHL, hlt = fields.representation == Representation::kHLT,
+             xyz = fields.representation == Representation::kXYZ;
+  if (!hl && !hlt && !xyz) fail("unknown representation " + std::to_string(static_cast<int>(fields.representation)));
+  if (fields.grid_n < kMinGridSize || fields.grid_n > kMaxGridSize) fail("grid size N = " + std::to_string(fields.grid_n) + " out of range");
+  const DiskGridShape shape = disk_grid_shape(fields.grid_n);
+  const auto interior = static_cast<size_t>(shape.interior_count);
+  auto sized = [&](const auto& values, bool used, size_t expected, const char* name) {
+    const size_t want = used ? expected : 0;
+    if (values.size() != want) {
+      fail(std::string(name) + " has " + std::to_string(values.size()) + " values, " + representation_name(fields.representation) + " at N = " +
+           std::to_string(fields.grid_n) + " needs " + std::to_string(want));
+    }
+  };
+  sized(fields.rim, true, static_cast<size_t>(shape.rim_count), "rim");
+  sized(fields.mean_curvature, !xyz, interior, "mean_curvature");
+  sized(fields.log_conformal_factor, !xyz, interior, "log_conformal_factor");
+  sized(fields.tangential_u, hlt, interior, "tangential_u");
+  sized(fields.tangential_v, hlt, interior, "tangential_v");
+  sized(fields.positions, xyz, interior, "positions");
+  if (!hlt) sized(fields.fixed_nodes, false, 0, "fixed_nodes");
+  sized(fields.fixed_laplacian, true, fields.fixed_nodes.size(), "fixed_laplacian");
+  for (size_t i = 0; i < fields.fixed_nodes.size(); ++i) {
+    const int32_t v = fields.fixed_nodes[i];
+    if (v < 0 || static_cast<size_t>(v) >= interior) fail("fixed node " + std::to_string(v) + " outside the interior");
+    if (i > 0 && v <= fields.fixed_nodes[i - 1]) fail("fixed nodes not strictly increasing at entry " + std::to_string(i));
+  }
+  auto finite = [&](const auto& values, const char* name) {
+    for (size_t i = 0; i < values.size(); ++i) {
+      bool ok;
+      if constexpr (std::is_same_v<std::decay_t<decltype(values[i])>, double>) ok = std::isfinite(values[i]);
+      else ok = values[i].allFinite();
+      if (!ok) fail(std::string(name) + " is not finite at entry " + std::to_string(i));
+    }
+  };
+  finite(fields.rim, "rim");
+  finite(fields.mean_curvature, "mean_curvature");
+  finite(fields.log_conformal_factor, "log_conformal_factor");
+  finite(fields.tangential_u, "tangential_u");
+  finite(fields.tangential_v, "tangential_v");
+  finite(fields.fixed_laplacian, "fixed_laplacian");
+  finite(fields.positions, "positions");
+}
+
+std::vector<std::vector<double>> scalar_arrays(const GridFields& fields) {
+  std::vector<std::vector<double>> out = {fields.mean_curvature, fields.log_conformal_factor, fields.tangential_u, fields.tangential_v};
+  for (const std::vector<Vec3>* vectors : {&fields.fixed_laplacian, &fields.positions, &fields.rim}) {
+    for (int k = 0; k < 3; ++k) {
+      std::vector<double> component(vectors->size());
+      for (size_t i = 0; i < vectors->size(); ++i) component[i] = (*vectors)[i][k];
+      out.push_back(std::move(component));
+    }
+  }
+  return out;
+}
 
 GridFields compute_fields(const GridGeometry& geometry, const std::vector<Vec3>& positions, Representation representation,
                           const std::vector<int32_t>& extra_fixed_nodes) {
@@ -59,6 +135,7 @@ GridFields compute_fields(const GridGeometry& geometry, const std::vector<Vec3>&
       fields.tangential_v[v] = laplacian[v].dot(tv[v]);
     }
   }
+  validate_fields(fields);  // a degenerate sample (zero-area cells, NaN) is named here, not downstream
   return fields;
 }
 
@@ -100,35 +177,28 @@ std::vector<int32_t> folded_nodes(const GridGeometry& geometry, const std::vecto
 GridFields combine_fields(const std::vector<const GridFields*>& keys, const std::vector<double>& weights) {
   if (keys.empty() || keys.size() != weights.size()) throw Error(ErrorCode::kInvalidArgument, "combine_fields: one weight per key needed");
   const GridFields& first = *keys[0];
-  GridFields out = first;
-  auto scale = [](auto& values, double w) {
-    for (auto& v : values) v *= w;
-  };
-  auto add = [](auto& into, const auto& from, double w) {
-    for (size_t i = 0; i < into.size(); ++i) into[i] += w * from[i];
-  };
-  scale(out.mean_curvature, weights[0]);
-  scale(out.log_conformal_factor, weights[0]);
-  scale(out.tangential_u, weights[0]);
-  scale(out.tangential_v, weights[0]);
-  scale(out.fixed_laplacian, weights[0]);
-  scale(out.positions, weights[0]);
-  scale(out.rim, weights[0]);
-  for (size_t k = 1; k < keys.size(); ++k) {
-    const GridFields& key = *keys[k];
-    if (key.representation != first.representation || key.grid_n != first.grid_n || key.rim.size() != first.rim.size() ||
-        key.mean_curvature.size() != first.mean_curvature.size() || key.positions.size() != first.positions.size() ||
-        key.fixed_nodes != first.fixed_nodes || key.tangential_u.size() != first.tangential_u.size()) {
-      throw Error(ErrorCode::kInvalidArgument, "combine_fields: keyframes of different representations or grids");
+  for (const GridFields* key : keys) {
+    validate_fields(*key);
+    if (key->representation != first.representation || key->grid_n != first.grid_n || key->fixed_nodes != first.fixed_nodes) {
+      throw Error(ErrorCode::kInvalidArgument, "combine_fields: keyframes of different representations, grids or fixed-frame nodes");
     }
-    add(out.mean_curvature, key.mean_curvature, weights[k]);
-    add(out.log_conformal_factor, key.log_conformal_factor, weights[k]);
-    add(out.tangential_u, key.tangential_u, weights[k]);
-    add(out.tangential_v, key.tangential_v, weights[k]);
-    add(out.fixed_laplacian, key.fixed_laplacian, weights[k]);
-    add(out.positions, key.positions, weights[k]);
-    add(out.rim, key.rim, weights[k]);
   }
+  // Valid keys of one representation and grid have equal array sizes: every array blends alike.
+  GridFields out = first;
+  auto blend = [&](auto member) {
+    auto& into = out.*member;
+    for (size_t i = 0; i < into.size(); ++i) {
+      into[i] = weights[0] * ((*keys[0]).*member)[i];
+      for (size_t k = 1; k < keys.size(); ++k) into[i] += weights[k] * ((*keys[k]).*member)[i];
+    }
+  };
+  blend(&GridFields::mean_curvature);
+  blend(&GridFields::log_conformal_factor);
+  blend(&GridFields::tangential_u);
+  blend(&GridFields::tangential_v);
+  blend(&GridFields::fixed_laplacian);
+  blend(&GridFields::positions);
+  blend(&GridFields::rim);
   return out;
 }
 
@@ -150,6 +220,7 @@ std::vector<Vec3> round_trip(const std::vector<Vec3>& values) {
 }  // namespace
 
 GridFields quantize_fields(const GridFields& fields) {
+  validate_fields(fields);
   GridFields q = fields;
   q.mean_curvature = round_trip(fields.mean_curvature);
   q.log_conformal_factor = round_trip(fields.log_conformal_factor);

@@ -1,28 +1,13 @@
 // Operators on the shared disk grid, shared by the encoder (fields) and the decoder (reconstruction).
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/grid_geometry.hpp"
 #include "facemorph/reconstruct.hpp"
 
 #include <cmath>
 #include <numbers>
 
 namespace facemorph {
-
-const char* representation_name(Representation representation) {
-  switch (representation) {
-    case Representation::kHL: return "hl";
-    case Representation::kHLT: return "hl+t";
-    case Representation::kXYZ: return "xyz";
-  }
-  return "hl+t";
-}
-
-Representation parse_representation(const std::string& name) {
-  if (name == "hl") return Representation::kHL;
-  if (name == "hl+t") return Representation::kHLT;
-  if (name == "xyz") return Representation::kXYZ;
-  throw Error(ErrorCode::kInvalidArgument, "unknown representation '" + name + "' (hl, hl+t, xyz)");
-}
 
 GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
   std::vector<Vec3> flat;
