@@ -111,10 +111,39 @@ TriangleMesh polar_disk(int rings, int sectors, Lift&& lift) {
   return m;
 }
 
+// The first promise a mesh parser broke in `mesh`, empty when it kept them all: positions and uvs
+// finite, every face index in [0, vertex count), uv_faces empty or one per face with every index in
+// [0, uvs.size()). Parse lambdas of survive_mutations check it, so a dropped range check fails.
+inline std::string broken_mesh_invariant(const TriangleMesh& mesh) {
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    if (!mesh.positions[i].allFinite()) return "position " + std::to_string(i) + " is not finite";
+  }
+  for (size_t i = 0; i < mesh.uvs.size(); ++i) {
+    if (!mesh.uvs[i].allFinite()) return "uv " + std::to_string(i) + " is not finite";
+  }
+  if (!mesh.uv_faces.empty() && mesh.uv_faces.size() != mesh.faces.size()) {
+    return std::to_string(mesh.uv_faces.size()) + " uv faces for " + std::to_string(mesh.faces.size()) + " faces";
+  }
+  for (const auto* faces : {&mesh.faces, &mesh.uv_faces}) {
+    const size_t count = faces == &mesh.faces ? mesh.positions.size() : mesh.uvs.size();
+    for (size_t f = 0; f < faces->size(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int32_t index = (*faces)[f][k];
+        if (index < 0 || static_cast<size_t>(index) >= count) {
+          return std::string(faces == &mesh.faces ? "face " : "uv face ") + std::to_string(f) + " index " +
+                 std::to_string(index) + " out of range (" + std::to_string(count) + ")";
+        }
+      }
+    }
+  }
+  return {};
+}
+
 // One random edit of `bytes` per call, up to four: a byte flipped, the input truncated, a byte
-// inserted or erased, or a plausible text character written.
+// inserted or erased, a plausible text character written, or a run of digits inserted (indices and
+// counts past any range: "f 1 2 3" becomes "f 1 27380 3" or "f 1 2 -9182736455463728193").
 inline std::vector<uint8_t> mutate(std::vector<uint8_t> bytes, std::mt19937& rng) {
-  std::uniform_int_distribution<int> kind(0, 4), byte(0, 255);
+  std::uniform_int_distribution<int> kind(0, 5), byte(0, 255);
   const int edits = 1 + static_cast<int>(rng() % 4);
   for (int e = 0; e < edits && !bytes.empty(); ++e) {
     const size_t at = rng() % bytes.size();
@@ -124,6 +153,13 @@ inline std::vector<uint8_t> mutate(std::vector<uint8_t> bytes, std::mt19937& rng
       case 2: bytes.insert(bytes.begin() + static_cast<long>(at), static_cast<uint8_t>(byte(rng))); break;
       case 3: bytes.erase(bytes.begin() + static_cast<long>(at)); break;
       case 4: bytes[at] = "0123456789-.e \n/"[rng() % 16]; break;                       // plausible text
+      case 5: {                                                                          // digit run
+        std::string run(1 + rng() % 20, '0');
+        for (char& c : run) c = static_cast<char>('0' + rng() % 10);
+        if (rng() % 4 == 0) run.front() = '-';
+        bytes.insert(bytes.begin() + static_cast<long>(at), run.begin(), run.end());
+        break;
+      }
     }
   }
   return bytes;
@@ -131,17 +167,25 @@ inline std::vector<uint8_t> mutate(std::vector<uint8_t> bytes, std::mt19937& rng
 
 // A deterministic stand-in for fuzzing: `parse` runs on 1500 mutations of `seed` and must either
 // throw facemorph::Error or succeed (a crash or out-of-bounds read fails, under the sanitizers).
-// `parse` itself asserts the invariants of what it parsed. Some mutations must reach an error path.
+// `parse` itself asserts the invariants of what it parsed (EXPECT_*); the first trial that breaks
+// one ends the run. Some mutations must reach an error path.
 template <typename Parse>
 void survive_mutations(const std::vector<uint8_t>& seed, unsigned rng_seed, Parse&& parse, int trials = 1500) {
   std::mt19937 rng(rng_seed);
   int errors = 0;
+  const ::testing::TestResult* result = ::testing::UnitTest::GetInstance()->current_test_info()->result();
+  const int failures_before = result->total_part_count();
   for (int trial = 0; trial < trials; ++trial) {
     const std::vector<uint8_t> input = mutate(seed, rng);
     try {
       parse(input);
     } catch (const Error&) {
       ++errors;
+    }
+    if (result->total_part_count() > failures_before) {
+      ADD_FAILURE() << "mutation " << trial << " of rng seed " << rng_seed << " (" << input.size()
+                    << " bytes) was parsed into something invalid";
+      return;
     }
   }
   EXPECT_GT(errors, 0);  // the mutations did reach the error paths

@@ -8,7 +8,6 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <map>
 
@@ -62,12 +61,6 @@ bool natural_less(const std::string& a, const std::string& b) {
     }
   }
   return a.size() - i < b.size() - j;
-}
-
-std::string format_number(double value) {
-  char buffer[32];
-  auto r = std::to_chars(buffer, buffer + sizeof buffer, value);
-  return std::string(buffer, r.ptr);
 }
 
 }  // namespace
@@ -248,8 +241,8 @@ void write_capture_manifest(const Capture& capture) {
     for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
       const Vec3& p = capture.landmarks[f][l];
       if (!p.allFinite()) continue;
-      csv += std::to_string(f) + "," + capture.landmark_names[l] + "," + format_number(p.x()) + "," +
-             format_number(p.y()) + "," + format_number(p.z()) + "\n";
+      csv += std::to_string(f) + "," + capture.landmark_names[l] + "," + text::format_number(p.x()) + "," +
+             text::format_number(p.y()) + "," + text::format_number(p.z()) + "\n";
     }
   }
   format::write_file_atomically(capture.root / "landmarks.csv", std::string_view(csv));

@@ -5,7 +5,10 @@
 #include "codec/mesh/text_scan.hpp"
 #include "format/file_io.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <limits>
 #include <string>
 
 namespace facemorph {
@@ -25,12 +28,16 @@ struct Corner {
 // Resolves an OBJ index (1-based, or negative = relative to the end) against `count` elements.
 int32_t resolve_index(std::string_view token, size_t count, const char* kind,
                       const std::string& source, size_t line) {
-  const auto value = text::parse_int(token);
-  if (!value) fail(ErrorCode::kParse, source, line, std::string("malformed ") + kind + " index '" + std::string(token) + "'");
-  int64_t index = *value;
-  if (index < 0) index += static_cast<int64_t>(count);
-  else index -= 1;
-  if (*value == 0 || index < 0 || index >= static_cast<int64_t>(count)) {
+  bool too_large = false;  // a whole integer beyond int64 is out of range, not malformed
+  const auto value = text::parse_int(token, &too_large);
+  if (!value && !too_large) {
+    fail(ErrorCode::kParse, source, line, std::string("malformed ") + kind + " index '" + std::string(token) + "'");
+  }
+  // value >= INT64_MIN and count < 2^63: neither adjustment can overflow.
+  const int64_t index = !value ? -1 : *value < 0 ? *value + static_cast<int64_t>(count) : *value - 1;
+  // Indices are int32 in memory: elements past the first 2^31 cannot be referenced.
+  const int64_t usable = std::min<int64_t>(static_cast<int64_t>(count), int64_t{std::numeric_limits<int32_t>::max()} + 1);
+  if (!value || *value == 0 || index < 0 || index >= usable) {
     fail(ErrorCode::kInvalidMesh, source, line,
          std::string(kind) + " index " + std::string(token) + " out of range (" +
              std::to_string(count) + " defined so far)");
@@ -131,6 +138,10 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
           fail(ErrorCode::kParse, source, lines.line_number(),
                std::string("malformed ") + std::string(keyword) + " line: expected " +
                    std::to_string(needed) + " numbers");
+        }
+        if (!std::isfinite(*value)) {
+          fail(ErrorCode::kInvalidMesh, source, lines.line_number(),
+               std::string(keyword) + " line: non-finite coordinate '" + std::string(token) + "'");
         }
         values[k] = *value;
       }

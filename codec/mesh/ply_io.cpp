@@ -6,6 +6,7 @@
 #include "format/byte_reader.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -99,9 +100,15 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
     } else if (keyword == "element") {
       Element element;
       element.name = std::string(text::next_token(rest));
-      const auto count = text::parse_int(text::next_token(rest));
-      if (element.name.empty() || !count || *count < 0 || *count > std::numeric_limits<int32_t>::max()) {
-        fail(ErrorCode::kParse, source, "malformed element line" + where);
+      const std::string_view count_token = text::next_token(rest);
+      bool too_large = false;
+      const auto count = text::parse_int(count_token, &too_large);
+      if (element.name.empty() || (!count && !too_large)) fail(ErrorCode::kParse, source, "malformed element line" + where);
+      // Vertex indices are int32 in memory, so no element may hold more.
+      if (!count || *count < 0 || *count > std::numeric_limits<int32_t>::max()) {
+        fail(ErrorCode::kCorrupt, source, "element '" + element.name + "' count " + std::string(count_token) +
+                                              " out of range (0.." +
+                                              std::to_string(std::numeric_limits<int32_t>::max()) + ")" + where);
       }
       element.count = static_cast<uint64_t>(*count);
       header.elements.push_back(std::move(element));
@@ -204,12 +211,27 @@ size_t minimum_element_bytes(const Element& element, bool binary) {
   return bytes;
 }
 
-// Converts a list count read as double into a bounded integer.
-uint64_t list_length(double value, const std::string& source, const char* what) {
-  if (!(value >= 0) || value > 1e6) {
-    fail(ErrorCode::kCorrupt, source, std::string("implausible list length in ") + what);
+std::string element_entry(const Element& element, uint64_t e) { return element.name + " " + std::to_string(e); }
+
+// A list count read as double (ASCII text, or any integer type in binary), as a bounded integer.
+uint64_t list_length(double value, const std::string& source, const Element& element, uint64_t e) {
+  const auto length = text::to_integer(value, 0, 1'000'000);
+  if (!length) {
+    fail(ErrorCode::kCorrupt, source, element_entry(element, e) + ": implausible list length " + text::format_number(value));
   }
-  return static_cast<uint64_t>(value);
+  return static_cast<uint64_t>(*length);
+}
+
+// A face's vertex index read as double (the list type may be float or double) as an index into the
+// vertices read so far: range-checked before the cast, which is undefined for 1e300.
+int32_t vertex_index(double value, size_t vertex_count, const std::string& source, uint64_t face) {
+  const std::string where = "face " + std::to_string(face) + ": vertex index " + text::format_number(value);
+  if (!std::isfinite(value) || value != std::trunc(value)) fail(ErrorCode::kCorrupt, source, where + " is not an integer");
+  const auto index = text::to_integer(value, 0, static_cast<int64_t>(vertex_count) - 1);
+  if (!index) {
+    fail(ErrorCode::kInvalidMesh, source, where + " out of range (" + std::to_string(vertex_count) + " vertices)");
+  }
+  return static_cast<int32_t>(*index);  // vertex_count <= int32 max: the header bounds element counts
 }
 
 }  // namespace
@@ -256,7 +278,7 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       have_faces = true;
     }
 
-    std::vector<int64_t> polygon;
+    std::vector<int32_t> polygon;
     std::vector<double> texcoords;
     for (uint64_t e = 0; e < element.count; ++e) {
       double scalar[3] = {0, 0, 0};
@@ -267,10 +289,10 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
         const Property& property = element.properties[p];
         const int pi = static_cast<int>(p);
         if (property.is_list) {
-          const uint64_t n = list_length(values.read(property.count_type, "list length"), source, element.name.c_str());
+          const uint64_t n = list_length(values.read(property.count_type, "list length"), source, element, e);
           for (uint64_t k = 0; k < n; ++k) {
             const double value = values.read(property.type, element.name.c_str());
-            if (pi == ilist) polygon.push_back(static_cast<int64_t>(value));
+            if (pi == ilist) polygon.push_back(vertex_index(value, mesh.positions.size(), source, e));
             else if (pi == itex) texcoords.push_back(value);
           }
         } else {
@@ -285,22 +307,20 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       if (is_vertex) {
         mesh.positions.emplace_back(scalar[0], scalar[1], scalar[2]);
         if (iu >= 0) vertex_uvs.emplace_back(uv[0], uv[1]);
+        if (!mesh.positions.back().allFinite() || (iu >= 0 && !vertex_uvs.back().allFinite())) {
+          fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite coordinate");
+        }
       } else if (is_face) {
         if (polygon.size() < 3) {
           fail(ErrorCode::kParse, source, "face " + std::to_string(e) + " has " + std::to_string(polygon.size()) + " corners");
         }
-        for (int64_t index : polygon) {
-          if (index < 0 || index >= static_cast<int64_t>(mesh.positions.size())) {
-            fail(ErrorCode::kInvalidMesh, source, "face " + std::to_string(e) + ": vertex index " +
-                                                      std::to_string(index) + " out of range (" +
-                                                      std::to_string(mesh.positions.size()) + " vertices)");
-          }
+        for (double t : texcoords) {
+          if (!std::isfinite(t)) fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite texture coordinate");
         }
         const bool corner_uv = itex >= 0 && texcoords.size() == 2 * polygon.size();
         if (polygon.size() > 3) ++polygons;
         for (size_t k = 1; k + 1 < polygon.size(); ++k) {
-          mesh.faces.push_back({static_cast<int32_t>(polygon[0]), static_cast<int32_t>(polygon[k]),
-                                static_cast<int32_t>(polygon[k + 1])});
+          mesh.faces.push_back({polygon[0], polygon[k], polygon[k + 1]});
           if (corner_uv) {
             for (size_t c : {size_t{0}, k, k + 1}) corner_uvs.emplace_back(texcoords[2 * c], texcoords[2 * c + 1]);
           }

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 namespace facemorph {
 namespace {
 
@@ -19,6 +21,22 @@ TriangleMesh textured_square() {
   m.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
   m.uv_faces = m.faces;
   return m;
+}
+
+// An input that must fail: its error code and a fragment of the message.
+struct BadInput {
+  ErrorCode code;
+  std::string fragment;
+  std::string input;
+};
+
+// Each input handed to `parse` must throw its named error.
+template <typename Parse>
+void expect_errors(const std::vector<BadInput>& cases, Parse&& parse) {
+  for (const BadInput& c : cases) {
+    SCOPED_TRACE(c.input);
+    expect_error(c.code, c.fragment, [&] { parse(c.input); });
+  }
 }
 
 void expect_same_geometry(const TriangleMesh& a, const TriangleMesh& b, double tol) {
@@ -75,6 +93,28 @@ TEST(ObjIo, BadInputIsANamedError) {
   expect_error(ErrorCode::kParse, "bad.obj:2", [] { parse_obj("v 0 0 0\nv 1 nan-ish 0\n", "bad.obj", "."); });
   expect_error(ErrorCode::kParse, "at least 3", [] { parse_obj("v 0 0 0\nv 1 0 0\nf 1 2\n", "two.obj", "."); });
   expect_error(ErrorCode::kParse, "malformed", [] { parse_obj("v 0 0 0\nv 1 0 0\nv 1 1 1\nf 1 2 x\n", "x.obj", "."); });
+}
+
+// Indices no integer type holds are out of range, found before any conversion (a cast of 1e20 to
+// int64 is undefined); non-finite coordinates are rejected where they enter.
+TEST(ObjIo, HugeIndicesAndNonFiniteCoordinatesAreNamedErrors) {
+  const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n";
+  auto parse = [&](const std::string& face) { return parse_obj(tri + face + "\n", "big.obj", "."); };
+  expect_errors({{ErrorCode::kInvalidMesh, "big.obj:5: vertex index 99999999999999999999 out of range", "f 99999999999999999999 1 2"},
+                 {ErrorCode::kInvalidMesh, "vertex index -99999999999999999999 out of range", "f -99999999999999999999 1 2"},
+                 {ErrorCode::kInvalidMesh, "vertex index -9223372036854775808 out of range", "f -9223372036854775808 1 2"},
+                 {ErrorCode::kInvalidMesh, "vertex index 9223372036854775807 out of range", "f 9223372036854775807 1 2"},
+                 {ErrorCode::kInvalidMesh, "vertex index -4 out of range", "f -4 1 2"},
+                 {ErrorCode::kInvalidMesh, "texture-coordinate index 18446744073709551617 out of range", "f 1/18446744073709551617 2/1 3/1"},
+                 {ErrorCode::kInvalidMesh, "texture-coordinate index -2 out of range", "f 1/-2 2/1 3/1"},
+                 {ErrorCode::kParse, "malformed vertex index '1e300'", "f 1e300 1 2"},
+                 {ErrorCode::kParse, "malformed vertex index '2.5'", "f 2.5 1 2"},
+                 {ErrorCode::kParse, "malformed vertex index '+-1'", "f +-1 1 2"},
+                 {ErrorCode::kInvalidMesh, "big.obj:5: v line: non-finite coordinate 'nan'", "v 1 nan 0"},
+                 {ErrorCode::kInvalidMesh, "big.obj:5: vt line: non-finite coordinate '-inf'", "vt 0 -inf"},
+                 {ErrorCode::kParse, "big.obj:5: malformed v line", "v 0 1e999 0"}},
+                parse);
+  EXPECT_EQ(parse("f +1 -2 3").faces[0], (Face{0, 1, 2}));
 }
 
 TEST(ObjIo, MissingTextureIsAnErrorUnlessAllowed) {
@@ -153,6 +193,72 @@ TEST(PlyIo, TruncatedAndCorruptFilesAreNamedErrors) {
   expect_error(ErrorCode::kInvalidMesh, "vertex index 7", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(bad_index.data()), bad_index.size()}, "i.ply", ".");
   });
+}
+
+// A PLY with one triangle whose index list is typed `index_type`, followed by `body`.
+std::string triangle_ply(const std::string& encoding, const std::string& count_type, const std::string& index_type) {
+  return "ply\nformat " + encoding + " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+         "element face 1\nproperty list " + count_type + " " + index_type + " vertex_indices\nend_header\n";
+}
+
+TriangleMesh parse_ply_text(const std::string& text, const std::string& name) {
+  return parse_ply({reinterpret_cast<const uint8_t*>(text.data()), text.size()}, name, ".");
+}
+
+// A vertex index or list count is range-checked while still a double: converting 1e300 or NaN to
+// an integer first is undefined behaviour (clang's -fsanitize=float-cast-overflow reports it).
+TEST(PlyIo, AsciiIndicesAndCountsNoIntegerHoldsAreNamedErrors) {
+  const std::string head = triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 0 0\n0 1 0\n";
+  auto face = [&](const std::string& row) { return parse_ply_text(head + row + "\n", "a.ply"); };
+  expect_errors({{ErrorCode::kInvalidMesh, "a.ply: face 0: vertex index 1e+300 out of range (3 vertices)", "3 0 1 1e300"},
+                 {ErrorCode::kInvalidMesh, "face 0: vertex index -1e+300 out of range", "3 -1e300 1 2"},
+                 {ErrorCode::kInvalidMesh, "face 0: vertex index 9223372036854775808 out of range", "3 0 1 9223372036854775808"},
+                 {ErrorCode::kCorrupt, "face 0: vertex index nan is not an integer", "3 0 nan 2"},
+                 {ErrorCode::kCorrupt, "face 0: vertex index inf is not an integer", "3 0 1 inf"},
+                 {ErrorCode::kCorrupt, "face 0: vertex index 2.5 is not an integer", "3 0 1 2.5"},
+                 {ErrorCode::kCorrupt, "face 0: implausible list length 1e+300", "1e300 0 1 2"},
+                 {ErrorCode::kCorrupt, "face 0: implausible list length 3.5", "3.5 0 1 2"},
+                 {ErrorCode::kCorrupt, "face 0: implausible list length nan", "nan 0 1 2"}},
+                face);
+  EXPECT_EQ(face("+3 0 1 2.0").faces[0], (Face{0, 1, 2}));
+
+  const std::string nan_vertex = triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n";
+  expect_error(ErrorCode::kInvalidMesh, "n.ply: vertex 1 has a non-finite coordinate", [&] { parse_ply_text(nan_vertex, "n.ply"); });
+  std::string count = triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  count.replace(count.find("vertex 3"), 8, "vertex 99999999999999999999");
+  expect_error(ErrorCode::kCorrupt, "c.ply: element 'vertex' count 99999999999999999999 out of range (0..2147483647) (header line 3)",
+               [&] { parse_ply_text(count, "c.ply"); });
+  count.replace(count.find("vertex 9"), 27, "vertex -1");
+  expect_error(ErrorCode::kCorrupt, "element 'vertex' count -1 out of range", [&] { parse_ply_text(count, "c.ply"); });
+  count.replace(count.find("vertex -1"), 9, "vertex 1e3");
+  expect_error(ErrorCode::kParse, "malformed element line (header line 3)", [&] { parse_ply_text(count, "c.ply"); });
+}
+
+TEST(PlyIo, BinaryFloatIndicesNoIntegerHoldsAreNamedErrors) {
+  for (const std::string index_type : {"float", "double"}) {
+    auto face = [&](double a, double b, double c) {
+      std::string bytes = triangle_ply("binary_little_endian", "uchar", index_type);
+      auto put = [&bytes](const auto& value) { bytes.append(reinterpret_cast<const char*>(&value), sizeof value); };
+      for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put(x);
+      put(uint8_t{3});
+      for (double v : {a, b, c}) {
+        if (index_type == "float") put(static_cast<float>(v));
+        else put(v);
+      }
+      return parse_ply_text(bytes, index_type + ".ply");
+    };
+    const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+    const double huge = index_type == "float" ? 0x1p100 : 1e300;  // exact in the list's type
+    const std::string huge_text = index_type == "float" ? "1.2676506002282294e+30" : "1e+300";
+    SCOPED_TRACE(index_type);
+    expect_error(ErrorCode::kInvalidMesh, "face 0: vertex index " + huge_text + " out of range", [&] { face(0, 1, huge); });
+    expect_error(ErrorCode::kInvalidMesh, "out of range (3 vertices)", [&] { face(-huge, 1, 2); });
+    expect_error(ErrorCode::kInvalidMesh, "vertex index 4294967296 out of range", [&] { face(0, 4294967296.0, 2); });
+    expect_error(ErrorCode::kCorrupt, "face 0: vertex index nan is not an integer", [&] { face(0, nan, 2); });
+    expect_error(ErrorCode::kCorrupt, "face 0: vertex index -inf is not an integer", [&] { face(-inf, 1, 2); });
+    expect_error(ErrorCode::kCorrupt, "face 0: vertex index 2.5 is not an integer", [&] { face(0, 1, 2.5); });
+    EXPECT_EQ(face(2, 1, 0).faces[0], (Face{2, 1, 0}));
+  }
 }
 
 TEST(MeshFiles, WritesAreAtomicAndFailuresNameTheFile) {

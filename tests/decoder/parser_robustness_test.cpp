@@ -1,5 +1,6 @@
 // Mutated inputs must give a facemorph::Error or a valid result: never a crash, never an out-of-
-// bounds read (this runs under AddressSanitizer in CI). A deterministic stand-in for fuzzing.
+// bounds read (this runs under AddressSanitizer in CI), never a mesh that breaks the parser's
+// promises (testing::broken_mesh_invariant). A deterministic stand-in for fuzzing.
 #include "facemorph/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
@@ -24,14 +25,16 @@ TriangleMesh sample_mesh() {
 TEST(ParserRobustness, ObjSurvivesMutations) {
   const std::string text = format_obj(sample_mesh(), "");
   survive_mutations({text.begin(), text.end()}, 1, [](const std::vector<uint8_t>& b) {
-    parse_obj({reinterpret_cast<const char*>(b.data()), b.size()}, "m.obj", ".", {.allow_missing_texture = true});
+    const TriangleMesh m =
+        parse_obj({reinterpret_cast<const char*>(b.data()), b.size()}, "m.obj", ".", {.allow_missing_texture = true});
+    EXPECT_EQ(testing::broken_mesh_invariant(m), "");
   });
 }
 
 TEST(ParserRobustness, BinaryAndAsciiPlySurviveMutations) {
   for (PlyEncoding encoding : {PlyEncoding::kBinaryLittleEndian, PlyEncoding::kAscii}) {
     survive_mutations(format_ply(sample_mesh(), encoding, "t.png"), 2, [](const std::vector<uint8_t>& b) {
-      parse_ply(b, "m.ply", ".", {.allow_missing_texture = true});
+      EXPECT_EQ(testing::broken_mesh_invariant(parse_ply(b, "m.ply", ".", {.allow_missing_texture = true})), "");
     });
   }
 }

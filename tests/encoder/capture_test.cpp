@@ -68,9 +68,25 @@ TEST(Capture, BadManifestsAreNamedErrors) {
   expect_error(ErrorCode::kParse, "no frames", [&] { read_capture(dir.path()); });
   manifest(R"({"fps": 30, "frames": [{"mesh": 7}]})");
   expect_error(ErrorCode::kParse, "frame 0 lacks a 'mesh'", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 30, "frames": [{"mesh": "a.obj", "time": 0}, {"mesh": "b.obj", "time": 1e999}]})");
+  expect_error(ErrorCode::kParse, "capture.json: not valid JSON", [&] { read_capture(dir.path()); });
+  manifest(R"({"fps": 1e-320, "frames": [{"mesh": "a.obj"}, {"mesh": "b.obj"}]})");  // default time 1 / fps overflows
+  expect_error(ErrorCode::kParse, "frame 1 has a non-finite time", [&] { read_capture(dir.path()); });
   expect_error(ErrorCode::kIo, "nowhere: not found", [&] { read_capture(dir / "nowhere"); });
   std::filesystem::create_directory(dir / "empty");
   expect_error(ErrorCode::kIo, "empty/capture.json", [&] { read_capture(dir / "empty"); });
+}
+
+// spec/capture.md §2: landmark_vertex_indices is ignored, so no number in it is ever converted.
+TEST(Capture, IgnoredMembersMayHoldAnyNumber) {
+  TempDir dir;
+  write_triangle(dir / "a.obj");
+  write_text(dir / "capture.json",
+             R"({"fps": 30, "frames": [{"mesh": "a.obj", "time": 0}],)"
+             R"( "landmark_vertex_indices": {"nose_tip": 1e300, "chin": -1e300, "rim_0": 2.5, "rim_1": 99999999999999999999999}})");
+  const Capture c = read_capture(dir.path());
+  EXPECT_EQ(c.frames.size(), 1u);
+  EXPECT_TRUE(c.landmark_names.empty());
 }
 
 TEST(Capture, BadLandmarkRowsAreNamedErrors) {
@@ -83,6 +99,10 @@ TEST(Capture, BadLandmarkRowsAreNamedErrors) {
   };
   expect_error(ErrorCode::kParse, "header", [&] { parse("f,n,x,y,z\n"); });
   expect_error(ErrorCode::kParse, "lm.csv:2: frame '5'", [&] { parse("frame,name,x,y,z\n5,nose,0,0,0\n"); });
+  for (const std::string frame : {"1e300", "-1e300", "nan", "inf", "1.0", "1e0", "99999999999999999999", "-9223372036854775809"}) {
+    expect_error(ErrorCode::kParse, "lm.csv:2: frame '" + frame + "' is not a frame of the capture (0..1)",
+                 [&] { parse("frame,name,x,y,z\n" + frame + ",nose,0,0,0\n"); });
+  }
   expect_error(ErrorCode::kParse, "lm.csv:2: coordinate 'nan'", [&] { parse("frame,name,x,y,z\n0,nose,nan,0,0\n"); });
   expect_error(ErrorCode::kParse, "lm.csv:2: expected 5 fields", [&] { parse("frame,name,x,y,z\n0,nose,1,2\n"); });
   expect_error(ErrorCode::kParse, "more than 5", [&] { parse("frame,name,x,y,z\n0,nose,1,2,3,4\n"); });
