@@ -1,4 +1,4 @@
-// 16-bit fixed-point quantisation of a field over its own range (spec/container.md, spec/method.md §5.3).
+// 16-bit fixed-point quantisation of a field over its own range (spec/method.md §5.3).
 #pragma once
 
 #include <cstdint>

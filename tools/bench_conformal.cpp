@@ -4,7 +4,7 @@
 
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/conformal.hpp"
-#include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/render.hpp"
@@ -167,24 +167,24 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
         FrameResult r;
         r.name = source.frame_name(i);
         auto start = std::chrono::steady_clock::now();
-        auto [mesh, prepare] = source.frame(i);
-        const PreparedFrame prepared = prepare_frame(mesh, r.name, prepare);
-        r.seconds_load = seconds_since(start);
-        r.holes = static_cast<int>(prepared.report.holes.size());
-        start = std::chrono::steady_clock::now();
-        DiskMap map = conformal_disk_map(prepared.mesh, {.method = method});
-        r.seconds_map = seconds_since(start);
-        if (const auto pose = source.pose(i)) normalize(map, pose->first, pose->second);
+        const BenchFrame input_frame = source.frame(i);
+        const double seconds_read = seconds_since(start);
+        const TriangleMesh& mesh = input_frame.mesh;
+        const MappedFrame mapped = map_frame(mesh, r.name, input_frame.landmarks, {.conformal = {.method = method}});
+        const DiskMap& map = mapped.map;
+        r.seconds_load = seconds_read + mapped.seconds_prepare;
+        r.seconds_map = mapped.seconds_map;
+        r.holes = static_cast<int>(mapped.prepared.report.holes.size());
         r.vertices = map.surface.vertex_count();
         r.faces = map.surface.face_count();
         r.report = map.report;
         r.distortion = measure_distortion(map);
         start = std::chrono::steady_clock::now();
-        const InverseDiskMap inverse(map);
-        (void)resample_positions(inverse, grid);
+        (void)sample_on_grid(mapped, grid);
         r.seconds_grid = seconds_since(start);
         if (!mesh.texture.empty() && map.surface.has_uvs()) {
           const Image image = read_image(mesh.texture);
+          const InverseDiskMap inverse(map);
           start = std::chrono::steady_clock::now();
           (void)resample_texture(map, inverse, image, 1024);
           r.seconds_texture = seconds_since(start);

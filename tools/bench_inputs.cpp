@@ -19,13 +19,9 @@ BenchSource open_bench_source(const std::string& input) {
     const int vertices = std::stoi(input.substr(6));
     source.frame = [vertices](size_t) {
       const SyntheticFace face(Expression::kMixed, 1);
-      return std::make_pair(face.truth_mesh(0.5, vertices), PrepareOptions{});
+      return BenchFrame{face.truth_mesh(0.5, vertices), synthetic_landmarks(face, 0.5)};
     };
     source.frame_name = [input](size_t) { return input; };
-    source.pose = [](size_t) {
-      const SyntheticFace face(Expression::kMixed, 1);
-      return std::make_optional(std::make_pair(face.position({0, -0.014}, 0.5), face.position({0, 0.012}, 0.5)));
-    };
     return source;
   }
   std::error_code ec;
@@ -33,29 +29,25 @@ BenchSource open_bench_source(const std::string& input) {
     auto capture = std::make_shared<Capture>(read_capture(input));
     source.frames = capture->frames.size();
     source.frame = [capture](size_t i) {
-      PrepareOptions options;
-      for (size_t l = 0; l < capture->landmark_names.size(); ++l) {
-        if (capture->landmark_names[l].rfind("rim_", 0) == 0 && capture->landmarks[i][l].allFinite()) {
-          options.rim_markers.push_back(capture->landmarks[i][l]);
-        }
-      }
-      return std::make_pair(read_mesh(capture->mesh_path(i), {.allow_missing_texture = true}), options);
+      return BenchFrame{read_mesh(capture->mesh_path(i), {.allow_missing_texture = true}), capture_frame_landmarks(*capture, i)};
     };
     source.frame_name = [capture](size_t i) { return capture->frames[i].mesh.string(); };
-    source.pose = [capture](size_t i) -> std::optional<std::pair<Vec3, Vec3>> {
-      const int centre = capture->landmark_index("nose_tip");
-      int up = capture->landmark_index("nose_bridge");
-      if (up < 0) up = capture->landmark_index("between_eyes");
-      if (centre < 0 || up < 0) return std::nullopt;
-      const Vec3 &c = capture->landmarks[i][static_cast<size_t>(centre)], &u = capture->landmarks[i][static_cast<size_t>(up)];
-      if (!c.allFinite() || !u.allFinite()) return std::nullopt;
-      return std::make_pair(c, u);
-    };
     return source;
   }
-  source.frame = [input](size_t) { return std::make_pair(read_mesh(input, {.allow_missing_texture = true}), PrepareOptions{}); };
+  source.frame = [input](size_t) { return BenchFrame{read_mesh(input, {.allow_missing_texture = true}), {}}; };
   source.frame_name = [input](size_t) { return fs::path(input).filename().string(); };
   return source;
+}
+
+FrameLandmarks synthetic_landmarks(const SyntheticFace& face, double time) {
+  FrameLandmarks landmarks;
+  for (const NamedPoint& point : face.landmarks()) {
+    const Vec3 x = face.position(point.material, time);
+    if (point.name == "nose_tip") landmarks.centre = x;
+    else if (point.name == "nose_bridge") landmarks.up = x;
+    else if (point.name.rfind("rim_", 0) == 0) landmarks.rim_markers.push_back(x);
+  }
+  return landmarks;
 }
 
 std::vector<std::string> default_bench_inputs(const std::string& data, bool large_synthetic) {

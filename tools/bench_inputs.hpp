@@ -2,28 +2,32 @@
 // faces ("synth:N"), one frame at a time, with the landmarks of the reference pose.
 #pragma once
 
-#include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/synth.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <functional>
-#include <optional>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace facemorph::tools {
 
+struct BenchFrame {
+  TriangleMesh mesh;
+  FrameLandmarks landmarks;  // rim markers and the reference pose (spec/method.md §3.5), where known
+};
+
 struct BenchSource {
   std::string label;
   size_t frames = 1;
-  // The frame's mesh and what prepare_frame needs to find its rim.
-  std::function<std::pair<TriangleMesh, PrepareOptions>(size_t)> frame;
+  std::function<BenchFrame(size_t)> frame;
   std::function<std::string(size_t)> frame_name;
-  // The reference pose (spec/method.md §3.5): points for the centre and the up direction.
-  std::function<std::optional<std::pair<Vec3, Vec3>>(size_t)> pose = [](size_t) { return std::nullopt; };
 };
 
 BenchSource open_bench_source(const std::string& input);
+
+// The landmarks of a synthetic face at `time`, as a capture of it would list them.
+FrameLandmarks synthetic_landmarks(const SyntheticFace& face, double time);
 
 // The standard inputs: synthetic faces (20k; with `large_synthetic` also 50k and 100k), then the
 // Medusa capture and the ICT face from `data` when they are there.

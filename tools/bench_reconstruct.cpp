@@ -3,19 +3,15 @@
 #include "tools/bench_reconstruct.hpp"
 
 #include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/conformal.hpp"
 #include "facemorph/distance.hpp"
-#include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
-#include "facemorph/encoder/resample.hpp"
 #include "facemorph/encoder/synth.hpp"
 
-#include "format/quantize.hpp"
+#include "format/field_coder.hpp"
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
-
-#include <zstd.h>
 
 #include <chrono>
 #include <cmath>
@@ -39,40 +35,11 @@ struct RoundTrip {
   double disk_l2 = 0, disk_linf = 0, disk_rms = 0;  // against the resampled surface on G (capture units)
 };
 
-// Bytes of a keyframe's 16-bit fields after a provisional coding (until the container fixes one):
-// each field's codes in node order (the grid is row-major, so neighbours are near), delta from the
-// previous code, split into high and low byte planes, then zstd level 19. The same for every
-// representation, so the sizes compare the representations, not the coders.
-size_t compressed_bytes(const GridFields& f) {
-  std::vector<uint8_t> high, low;
-  auto field = [&](const std::vector<double>& values) {
-    const format::Quantized16 q = format::quantize16(values);
-    uint16_t previous = 0;
-    for (uint16_t code : q.codes) {
-      const auto delta = static_cast<uint16_t>(code - previous);
-      previous = code;
-      high.push_back(static_cast<uint8_t>(delta >> 8));
-      low.push_back(static_cast<uint8_t>(delta & 0xff));
-    }
-  };
-  auto vectors = [&](const std::vector<Vec3>& values) {
-    for (int k = 0; k < 3; ++k) {
-      std::vector<double> c;
-      for (const Vec3& v : values) c.push_back(v[k]);
-      field(c);
-    }
-  };
-  field(f.mean_curvature);
-  field(f.log_conformal_factor);
-  field(f.tangential_u);
-  field(f.tangential_v);
-  vectors(f.fixed_laplacian);
-  vectors(f.positions);
-  vectors(f.rim);
-  high.insert(high.end(), low.begin(), low.end());
-  std::vector<uint8_t> out(ZSTD_compressBound(high.size()));
-  const size_t size = ZSTD_compress(out.data(), out.size(), high.data(), high.size(), 19);
-  return ZSTD_isError(size) ? high.size() : size;
+// Bytes of a keyframe's 16-bit fields with the provisional coder (format/field_coder.hpp).
+size_t compressed_bytes(const GridFields& fields) {
+  std::vector<format::Quantized16> arrays;
+  for (const std::vector<double>& values : scalar_arrays(fields)) arrays.push_back(format::quantize16(values));
+  return format::encode_code_planes(arrays).size();
 }
 
 std::vector<Representation> representations(const std::string& which) {
@@ -135,27 +102,25 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
       std::vector<double> floors(frames), floor_max(frames);
       Progress progress("reconstruct " + fs::path(input).filename().string(), options.quiet || frames < 8);
       for (size_t i = 0; i < frames; ++i) {
-        auto [mesh, prepare] = source.frame(i);
-        const PreparedFrame prepared = prepare_frame(mesh, source.frame_name(i), prepare);
-        DiskMap map = conformal_disk_map(prepared.mesh);
-        if (const auto pose = source.pose(i)) normalize(map, pose->first, pose->second);
-        const InverseDiskMap inverse(map);
-        const std::vector<Vec3> sampled = resample_positions(inverse, geometry.grid());
+        const BenchFrame input_frame = source.frame(i);
+        const MappedFrame mapped = map_frame(input_frame.mesh, source.frame_name(i), input_frame.landmarks);
+        const DiskMap& map = mapped.map;
+        const std::vector<Vec3> sampled = sample_on_grid(mapped, geometry.grid());
         const SurfaceDistance floor = surface_distance(map.surface, grid_mesh(geometry.grid(), sampled));
         floors[i] = floor.rms / floor.diagonal;
         floor_max[i] = floor.max / floor.diagonal;
         const std::vector<int32_t> folds = folded_nodes(geometry, sampled);
         for (Representation rep : reps) {
-          const GridFields exact = compute_fields(geometry, sampled, rep, folds);
           for (bool quantized : {false, true}) {
+            const GridFields fields = keyframe_fields(geometry, sampled, rep, folds, quantized);
             RoundTrip r{rep, quantized};
-            if (quantized) r.bytes = compressed_bytes(exact);
+            if (quantized) r.bytes = compressed_bytes(fields);
             reconstructor.forget_warm_start();
             ReconstructOptions ro;
             ro.throw_on_failure = false;
             ro.tolerance = 1e-6;  // a keyframe's round trip is measured to the notes' tolerance
             const auto start = std::chrono::steady_clock::now();
-            const ReconstructResult result = reconstructor.reconstruct(quantized ? quantize_fields(exact) : exact, ro);
+            const ReconstructResult result = reconstructor.reconstruct(fields, ro);
             r.seconds = seconds_since(start);
             r.iterations = result.iterations;
             r.converged = result.converged;
@@ -241,9 +206,11 @@ json run_rotation_experiment(int grid_n, double degrees) {
     const auto rotate = turned(k * degrees);
     TriangleMesh mesh = base;
     for (Vec3& p : mesh.positions) p = rotate(p);
-    DiskMap map = conformal_disk_map(mesh);
-    normalize(map, rotate(face.position({0, -0.014}, t)), rotate(face.position({0, 0.012}, t)));
-    sampled[k] = resample_positions(InverseDiskMap(map), reconstructor.geometry().grid());
+    FrameLandmarks landmarks = synthetic_landmarks(face, t);
+    landmarks.centre = rotate(*landmarks.centre);
+    landmarks.up = rotate(*landmarks.up);
+    for (Vec3& p : landmarks.rim_markers) p = rotate(p);
+    sampled[k] = sample_on_grid(map_frame(mesh, "turned face", landmarks), reconstructor.geometry().grid());
   }
   TriangleMesh truth = face.truth_mesh(t, 20000);
   const auto half = turned(degrees / 2);
@@ -252,8 +219,8 @@ json run_rotation_experiment(int grid_n, double degrees) {
               degrees, degrees);
   json out = {{"degrees", degrees}, {"grid", grid_n}};
   for (Representation rep : {Representation::kHLT, Representation::kHL, Representation::kXYZ}) {
-    const GridFields a = quantize_fields(compute_fields(reconstructor.geometry(), sampled[0], rep));
-    const GridFields b = quantize_fields(compute_fields(reconstructor.geometry(), sampled[1], rep));
+    const GridFields a = keyframe_fields(reconstructor.geometry(), sampled[0], rep);
+    const GridFields b = keyframe_fields(reconstructor.geometry(), sampled[1], rep);
     reconstructor.forget_warm_start();
     ReconstructOptions ro;
     ro.throw_on_failure = false;
@@ -271,13 +238,11 @@ json run_decode_speed(bool quiet) {
   // A 1-second synthetic sequence: 30 frames, each mapped once and resampled at every N.
   const SyntheticFace face(Expression::kMixed, 1);
   const int frames = 30;
-  std::vector<DiskMap> maps;
+  std::vector<MappedFrame> maps;
   Progress progress("mapping the sequence", quiet);
   for (int i = 0; i < frames; ++i) {
     const double t = i / 30.0;
-    DiskMap map = conformal_disk_map(face.truth_mesh(t, 8000));
-    normalize(map, face.position({0, -0.014}, t), face.position({0, 0.012}, t));
-    maps.push_back(std::move(map));
+    maps.push_back(map_frame(face.truth_mesh(t, 8000), "synthetic frame", synthetic_landmarks(face, t)));
     progress.update(i + 1, frames);
   }
   progress.finish();
@@ -291,10 +256,8 @@ json run_decode_speed(bool quiet) {
     Reconstructor reconstructor(n);
     const double factor_seconds = seconds_since(start);
     std::vector<GridFields> fields;
-    for (const DiskMap& map : maps) {
-      const InverseDiskMap inverse(map);
-      fields.push_back(quantize_fields(compute_fields(reconstructor.geometry(), resample_positions(inverse, reconstructor.geometry().grid()),
-                                                      Representation::kHLT)));
+    for (const MappedFrame& map : maps) {
+      fields.push_back(keyframe_fields(reconstructor.geometry(), sample_on_grid(map, reconstructor.geometry().grid()), Representation::kHLT));
     }
     start = std::chrono::steady_clock::now();
     const ReconstructResult cold = reconstructor.reconstruct(fields[0], ro);

@@ -155,7 +155,9 @@ TEST(Reconstruct, FieldsCombineLinearlyInEveryArrayAndRefuseMismatches) {
         spread = std::max(spread, std::abs(xa[k][i] - xb[k][i]));
       }
       EXPECT_LT(error, 1e-12 * (1 + spread)) << representation_name(rep) << ", array " << k;
-      if (!out[k].empty() && k < out.size() - 3) EXPECT_GT(spread, 0) << "array " << k << " does not tell the keys apart";
+      if (!out[k].empty() && k < out.size() - 3) {
+        EXPECT_GT(spread, 0) << "array " << k << " does not tell the keys apart";
+      }
     }
     EXPECT_EQ(used, rep == Representation::kHLT ? 10 : rep == Representation::kHL ? 5 : 6) << representation_name(rep);
   }

@@ -1,9 +1,7 @@
 // The keyframe round trip through the whole encode path: mesh -> conformal map -> G -> fields ->
 // 16 bits -> Laplace-Beltrami reconstruction, against the surface.
 #include "facemorph/distance.hpp"
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
 
@@ -24,13 +22,12 @@ TEST(KeyframeRoundTrip, ParaboloidAndSaddleThroughTheWholePipelineConvergeUnderR
       const double x = 2 * u - 1, y = 2 * v - 1;
       return Vec3(x, y, height(x, y));
     });
-    const DiskMap map = conformal_disk_map(mesh);
-    const InverseDiskMap inverse(map);
+    const MappedFrame mapped = map_frame(mesh, "graph", {});
     double previous = 1e9;
     for (int n : {33, 65, 129}) {
       Reconstructor reconstructor(n);
-      const auto sampled = resample_positions(inverse, reconstructor.geometry().grid());
-      const GridFields fields = quantize_fields(compute_fields(reconstructor.geometry(), sampled, Representation::kHLT));
+      const auto sampled = sample_on_grid(mapped, reconstructor.geometry().grid());
+      const GridFields fields = keyframe_fields(reconstructor.geometry(), sampled, Representation::kHLT);
       const ReconstructResult r = reconstructor.reconstruct(fields);
       const SurfaceDistance d = surface_distance(mesh, grid_mesh(reconstructor.geometry().grid(), r.positions));
       EXPECT_LT(d.rms, previous / 2) << "N = " << n;
@@ -46,13 +43,13 @@ TEST(KeyframeRoundTrip, RealFacesDecodeToTheirResamplingFloor) {
   Reconstructor reconstructor(256);
   const GridGeometry& geometry = reconstructor.geometry();
   auto round_trip = [&](const TriangleMesh& mesh, const std::string& name) {
-    const DiskMap map = conformal_disk_map(prepare_frame(mesh, name).mesh);
-    const auto sampled = resample_positions(InverseDiskMap(map), geometry.grid());
-    const GridFields fields = quantize_fields(compute_fields(geometry, sampled, Representation::kHLT, folded_nodes(geometry, sampled)));
+    const MappedFrame mapped = map_frame(mesh, name, {});
+    const auto sampled = sample_on_grid(mapped, geometry.grid());
+    const GridFields fields = keyframe_fields(geometry, sampled, Representation::kHLT, folded_nodes(geometry, sampled));
     reconstructor.forget_warm_start();
     const ReconstructResult r = reconstructor.reconstruct(fields);
-    const SurfaceDistance floor = surface_distance(map.surface, grid_mesh(geometry.grid(), sampled));
-    const SurfaceDistance decoded = surface_distance(map.surface, grid_mesh(geometry.grid(), r.positions));
+    const SurfaceDistance floor = surface_distance(mapped.map.surface, grid_mesh(geometry.grid(), sampled));
+    const SurfaceDistance decoded = surface_distance(mapped.map.surface, grid_mesh(geometry.grid(), r.positions));
     return std::make_pair(floor, decoded);
   };
   const auto [floor, decoded] = round_trip(read_mesh(data / "medusa-mediapipe-4d/capture/frame_0120.obj"), "medusa 120");

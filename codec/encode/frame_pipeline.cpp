@@ -1,0 +1,60 @@
+#include "facemorph/encoder/frame_pipeline.hpp"
+
+#include "facemorph/encoder/resample.hpp"
+
+#include <chrono>
+
+namespace facemorph {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) {
+  FrameLandmarks landmarks;
+  const auto& points = capture.landmarks[frame];
+  auto point = [&](const std::string& name) -> std::optional<Vec3> {
+    const int index = capture.landmark_index(name);
+    if (index < 0 || !points[static_cast<size_t>(index)].allFinite()) return std::nullopt;
+    return points[static_cast<size_t>(index)];
+  };
+  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+    if (capture.landmark_names[l].rfind("rim_", 0) == 0 && points[l].allFinite()) landmarks.rim_markers.push_back(points[l]);
+  }
+  landmarks.centre = point("nose_tip");
+  landmarks.up = point("nose_bridge");
+  if (!landmarks.up) landmarks.up = point("between_eyes");
+  return landmarks;
+}
+
+MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options) {
+  MappedFrame frame;
+  frame.name = name;
+  auto start = std::chrono::steady_clock::now();
+  frame.prepared = prepare_frame(mesh, name, {.fill_holes = options.fill_holes, .rim_markers = landmarks.rim_markers});
+  frame.seconds_prepare = seconds_since(start);
+  start = std::chrono::steady_clock::now();
+  frame.map = conformal_disk_map(frame.prepared.mesh, options.conformal);
+  if (landmarks.centre && landmarks.up) {
+    normalize(frame.map, *landmarks.centre, *landmarks.up);
+    frame.normalized = true;
+  }
+  frame.seconds_map = seconds_since(start);
+  return frame;
+}
+
+std::vector<Vec3> sample_on_grid(const MappedFrame& frame, const DiskGrid& grid) {
+  return resample_positions(InverseDiskMap(frame.map), grid);
+}
+
+GridFields keyframe_fields(const GridGeometry& geometry, const std::vector<Vec3>& sampled, Representation representation,
+                           const std::vector<int32_t>& fixed_nodes, bool quantized) {
+  GridFields fields = compute_fields(geometry, sampled, representation, fixed_nodes);
+  return quantized ? quantize_fields(fields) : fields;
+}
+
+}  // namespace facemorph

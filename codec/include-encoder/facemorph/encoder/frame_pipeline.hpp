@@ -1,0 +1,62 @@
+// The one path from a captured frame to what a keyframe stores (spec/method.md §2-5), shared by
+// the encoder, the benches and the tests:
+//
+//   prepare (validate, repair, fill holes) -> conformal map -> normalise by the landmarks
+//     -> resample on G -> fields (with the decoder's operators) -> 16-bit quantisation
+//
+// Each stage is a function, so a caller that needs an intermediate (the resampled surface for the
+// resampling floor, the map for its distortion) takes it on the way.
+#pragma once
+
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/frame.hpp"
+#include "facemorph/fields.hpp"
+#include "facemorph/grid_geometry.hpp"
+#include "facemorph/mesh.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+// The landmarks one frame's encoding uses, as 3D points on (or near) the frame.
+struct FrameLandmarks {
+  std::vector<Vec3> rim_markers;  // the rim_* markers: they pick the outer loop among the boundaries
+  std::optional<Vec3> centre;     // nose_tip: sent to the disk's centre
+  std::optional<Vec3> up;         // nose_bridge (else between_eyes): onto the positive imaginary axis
+};
+
+// The landmarks of frame `frame` of `capture` (those the frame lacks are left out).
+FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame);
+
+struct MapFrameOptions {
+  bool fill_holes = true;
+  ConformalOptions conformal;
+};
+
+// A frame made a disk and mapped conformally onto the unit disk, in the reference pose when the
+// landmarks give one (spec/method.md §3.5).
+struct MappedFrame {
+  std::string name;
+  PreparedFrame prepared;
+  DiskMap map;
+  bool normalized = false;       // centre and up were known
+  double seconds_prepare = 0;    // validation, repair, hole filling
+  double seconds_map = 0;        // the conformal map (normalisation included)
+};
+
+// Stages 1-3. Throws what prepare_frame and conformal_disk_map throw, naming `name`.
+MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options = {});
+
+// Stage 4: the mapped surface at every node of G (interior nodes, then rim nodes).
+std::vector<Vec3> sample_on_grid(const MappedFrame& frame, const DiskGrid& grid);
+
+// Stages 5-6: the fields of a surface sampled on G, rounded to what a container stores (16 bits)
+// unless `quantized` is false. `fixed_nodes`: see compute_fields.
+GridFields keyframe_fields(const GridGeometry& geometry, const std::vector<Vec3>& sampled, Representation representation,
+                           const std::vector<int32_t>& fixed_nodes = {}, bool quantized = true);
+
+}  // namespace facemorph

@@ -1,0 +1,61 @@
+#include "format/field_coder.hpp"
+
+#include "facemorph/error.hpp"
+
+#include <zstd.h>
+
+namespace facemorph::format {
+
+std::vector<uint8_t> encode_code_planes(std::span<const Quantized16> arrays, int level) {
+  size_t total = 0;
+  for (const Quantized16& q : arrays) total += q.codes.size();
+  std::vector<uint8_t> planes(2 * total);
+  size_t at = 0;
+  for (const Quantized16& q : arrays) {
+    uint16_t previous = 0;
+    for (uint16_t code : q.codes) {
+      const auto delta = static_cast<uint16_t>(code - previous);
+      previous = code;
+      planes[at] = static_cast<uint8_t>(delta >> 8);
+      planes[total + at] = static_cast<uint8_t>(delta & 0xff);
+      ++at;
+    }
+  }
+  std::vector<uint8_t> out(ZSTD_compressBound(planes.size()));
+  const size_t size = ZSTD_compress(out.data(), out.size(), planes.data(), planes.size(), level);
+  if (ZSTD_isError(size)) throw Error(ErrorCode::kInvalidArgument, std::string("zstd: ") + ZSTD_getErrorName(size));
+  out.resize(size);
+  return out;
+}
+
+std::vector<std::vector<uint16_t>> decode_code_planes(std::span<const uint8_t> bytes, std::span<const size_t> lengths, const std::string& source) {
+  size_t total = 0;
+  for (size_t n : lengths) {
+    if (n > (size_t{1} << 30) || total > (size_t{1} << 30)) throw Error(ErrorCode::kCorrupt, source + ": field arrays too long");
+    total += n;
+  }
+  // The decompressed size is announced by the frame; it must be exactly two bytes per code.
+  const unsigned long long announced = ZSTD_getFrameContentSize(bytes.data(), bytes.size());
+  if (announced == ZSTD_CONTENTSIZE_ERROR) throw Error(ErrorCode::kCorrupt, source + ": field payload is not a zstd frame");
+  if (announced != 2 * total) {
+    throw Error(ErrorCode::kCorrupt, source + ": field payload holds " + std::to_string(announced) + " bytes, " + std::to_string(2 * total) +
+                                         " expected");
+  }
+  std::vector<uint8_t> planes(2 * total);
+  const size_t size = ZSTD_decompress(planes.data(), planes.size(), bytes.data(), bytes.size());
+  if (ZSTD_isError(size) || size != planes.size()) throw Error(ErrorCode::kCorrupt, source + ": damaged field payload");
+  std::vector<std::vector<uint16_t>> out;
+  size_t at = 0;
+  for (size_t n : lengths) {
+    std::vector<uint16_t> codes(n);
+    uint16_t previous = 0;
+    for (size_t i = 0; i < n; ++i, ++at) {
+      previous = static_cast<uint16_t>(previous + ((planes[at] << 8) | planes[total + at]));
+      codes[i] = previous;
+    }
+    out.push_back(std::move(codes));
+  }
+  return out;
+}
+
+}  // namespace facemorph::format
