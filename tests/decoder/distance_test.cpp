@@ -33,6 +33,32 @@ TEST(Distance, BucketSearchMatchesBruteForceInsideAndFarOutside) {
   EXPECT_NEAR(query.distance(Vec3(0, 0, 10)), 9.0, 0.01);
 }
 
+TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
+  const TriangleMesh sphere = testing::icosphere(1.0, 2);
+  const PointToMesh query(sphere);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-2, 2);
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 p(u(rng), u(rng), u(rng));
+    const SurfacePoint c = query.closest(p);
+    ASSERT_GE(c.face, 0);
+    EXPECT_NEAR(c.bary.sum(), 1.0, 1e-12);
+    EXPECT_GE(c.bary.minCoeff(), -1e-12);
+    const Face& f = sphere.faces[static_cast<size_t>(c.face)];
+    const Vec3 x = c.bary[0] * sphere.positions[static_cast<size_t>(f[0])] + c.bary[1] * sphere.positions[static_cast<size_t>(f[1])] +
+                   c.bary[2] * sphere.positions[static_cast<size_t>(f[2])];
+    EXPECT_NEAR((x - p).norm(), brute_force(sphere, p), 1e-12);
+  }
+  // A vertex shared by several faces: the lowest face index wins, whatever bucket is searched first.
+  const Vec3 vertex = sphere.positions[5];
+  int lowest = -1;
+  for (size_t f = 0; f < sphere.faces.size() && lowest < 0; ++f) {
+    for (int32_t v : sphere.faces[f]) lowest = v == 5 ? static_cast<int>(f) : lowest;
+  }
+  EXPECT_EQ(query.closest(1.5 * vertex).face, lowest);
+  EXPECT_EQ(PointToMesh(TriangleMesh{}).closest(vertex).face, -1);
+}
+
 TEST(Distance, SymmetricDistanceOfAnOffsetSurfaceIsTheOffset) {
   const TriangleMesh a = testing::grid_mesh(20, [](double x, double y) { return Vec3(x, y, 0); });
   TriangleMesh b = testing::grid_mesh(13, [](double x, double y) { return Vec3(x, y, 0.01); });
