@@ -150,7 +150,17 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   const bool refine = options.tolerance < 1e-6;
   auto solve = [&](const Eigen::MatrixXd& b) { return refine ? impl_->solver->solve_refined(b) : impl_->solver->solve(b); };
   Eigen::MatrixXd S(n_int, 3);
-  if (impl_->last.size() == grid.nodes.size()) {
+  if (options.start != nullptr) {
+    if (options.start->size() != grid.nodes.size()) {
+      throw Error(ErrorCode::kInvalidArgument, "reconstruction start has " + std::to_string(options.start->size()) + " positions for a grid of " +
+                                                   std::to_string(grid.nodes.size()) + " nodes");
+    }
+    for (Eigen::Index v = 0; v < n_int; ++v) {
+      const Vec3& p = (*options.start)[static_cast<size_t>(v)];
+      if (!p.allFinite()) throw Error(ErrorCode::kInvalidArgument, "reconstruction start is not finite at node " + std::to_string(v));
+      S.row(v) = p.transpose();
+    }
+  } else if (impl_->last.size() == grid.nodes.size()) {
     // A sequence: start from the last surface, extrapolated linearly through the one before it
     // (the prediction error is second order in the time step).
     const bool extrapolate = options.extrapolate_warm_start && impl_->before.size() == grid.nodes.size();

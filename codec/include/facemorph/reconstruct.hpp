@@ -25,6 +25,9 @@ struct ReconstructOptions {
   int anderson_depth = 5;
   // In a sequence, start from 2 S(previous) - S(one before) rather than S(previous).
   bool extrapolate_warm_start = true;
+  // Start from this surface (every node of G; interior values used) instead of the warm start or
+  // the harmonic surface: e.g. the spline of the keyframes' own decoded surfaces. Not owned.
+  const std::vector<Vec3>* start = nullptr;
   // Not meeting the tolerance throws kNotConverged; false returns the best effort with
   // converged = false and the last change, for callers that prefer a frame to an error. (A
   // non-finite iterate has no best effort: it always throws kNumerical.)

@@ -1,0 +1,115 @@
+// A capture as the codec keeps it (spec/method.md §7): keyframes on the shared disk grid G — the
+// fields of the face in its own frame, the rigid head pose, the holes as a level set, the texture on
+// the disk — and the decoder that plays it back at any time t by blending the keyframes along a
+// spline, reconstructing the face, cutting the holes and placing it by the blended pose.
+#pragma once
+
+#include "facemorph/fields.hpp"
+#include "facemorph/image.hpp"
+#include "facemorph/mesh.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/reconstruct.hpp"
+#include "facemorph/spline.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+struct Keyframe {
+  double time = 0;        // seconds from the capture's first frame
+  GridFields fields;      // the face in its own frame (the pose taken out)
+  RigidPose pose;         // face frame -> capture frame
+  // Per node of G: < 0 inside a filled hole (eyes, mouth), > 0 outside; empty when the sequence
+  // keeps no holes. A distance-like level set in disk units, capped at +kHoleLevelBand outside
+  // (not inside: a hole opening between keyframes then grows from its deepest point).
+  std::vector<double> hole_level;
+  Image texture;          // the frame's texture on the disk (texel (x, y) at UV (x + ½, y + ½) / M); empty: none
+};
+
+inline constexpr double kHoleLevelBand = 0.1;
+
+struct Sequence {
+  int grid_n = 0;
+  Representation representation = Representation::kHLT;
+  SplineKind spline = SplineKind::kCatmullRom;
+  double fps = 0;              // the capture's nominal frame rate
+  double first_time = 0;       // the capture's first and last frame times (seconds)
+  double last_time = 0;
+  std::string units = "m";
+  // The point (face frame) whose path the pose blend follows (blend_poses): the face's centroid,
+  // so a head turning about itself turns in place between keyframes.
+  Vec3 pose_centre = Vec3::Zero();
+  std::vector<Keyframe> keyframes;  // strictly increasing times
+
+  bool has_holes() const { return !keyframes.empty() && !keyframes.front().hole_level.empty(); }
+  bool has_texture() const { return !keyframes.empty() && !keyframes.front().texture.empty(); }
+  std::vector<double> keyframe_times() const;
+};
+
+// Checks what the decoder relies on: at least one keyframe, strictly increasing finite times, every
+// keyframe's fields valid for the sequence's grid and representation and sharing their fixed nodes,
+// poses finite and proper, hole levels all present or all absent with one value per node, textures
+// all present or all absent with one size and three channels. Throws kInvalidArgument naming the
+// keyframe and the defect (the container reader reports kCorrupt).
+void validate_sequence(const Sequence& sequence);
+
+struct DecodeOptions {
+  bool cut_holes = true;      // false: keep the fill (--keep-holes-filled)
+  bool texture = true;        // blend the texture
+  // Extrapolation past the sane range (KeyframeSpline::sane_range) is an error (kOutOfRange)
+  // unless this is set: then t is clamped to the range.
+  bool clamp_to_sane_range = false;
+  // Extrapolate as far as asked, continuing the end pieces (for measuring how extrapolation
+  // degrades; a player should not).
+  bool ignore_sane_range = false;
+  ReconstructOptions reconstruct;  // `start` is set by the decoder
+  // When the reconstruction does not converge, show the spline of the keyframes' own surfaces
+  // (the reconstruction's start; DecodedFrame::fell_back says so) instead of failing
+  // (reconstruct.throw_on_failure) or showing the last iterate. A player wants a frame.
+  bool fall_back_to_start = true;
+};
+
+struct DecodedFrame {
+  double time = 0;                 // the time decoded (after any clamp)
+  std::vector<Vec3> grid_positions;  // every node of G, in capture coordinates
+  TriangleMesh mesh;               // G's faces (holes cut unless asked not to), UV = (w + 1) / 2
+  Image texture;                   // blended, clamped to 0..255; empty without texture
+  RigidPose pose;
+  SplineWeights weights;           // the keyframes that made it and their weights
+  int iterations = 0;              // reconstruction steps
+  bool converged = true;           // false only when the caller asked for the best effort
+  double change = 0;               // the reconstruction's last step, relative to the rim's diameter
+  bool fell_back = false;          // not converged: the frame is the spline of the keyframes' surfaces
+};
+
+// Plays a sequence back. Keeps the factorisation of G's Laplacian and, lazily, each keyframe's
+// own decoded surface: a frame starts from the spline of those surfaces (exact fixed points of
+// their fields), so it is close from the first step wherever t jumps. Not thread-safe: one decoder
+// per thread; several decoders may share one sequence.
+class SequenceDecoder {
+ public:
+  // Validates the sequence (kInvalidArgument).
+  explicit SequenceDecoder(std::shared_ptr<const Sequence> sequence);
+
+  const Sequence& sequence() const { return *sequence_; }
+  const KeyframeSpline& spline() const { return spline_; }
+  const GridGeometry& geometry() const { return reconstructor_.geometry(); }
+
+  // The frame at time t (seconds from the capture's first frame). Throws kOutOfRange beyond the
+  // sane range unless clamping, kNotConverged / kNumerical as Reconstructor::reconstruct.
+  DecodedFrame decode(double t, const DecodeOptions& options = {});
+
+ private:
+  const std::vector<Vec3>& keyframe_surface(size_t k, const ReconstructOptions& options);
+
+  std::shared_ptr<const Sequence> sequence_;
+  KeyframeSpline spline_;
+  Reconstructor reconstructor_;
+  std::vector<RigidPose> poses_;                       // of every keyframe, for blend_poses
+  std::vector<Vec3> rotation_vectors_;                 // unwrap_rotations(poses_), once
+  std::vector<std::vector<Vec3>> keyframe_surfaces_;  // in the face frame; empty until first used
+};
+
+}  // namespace facemorph

@@ -1,0 +1,179 @@
+// Playing a sequence back at any t (spec/method.md §7): blend, reconstruct, cut holes, place.
+#include "facemorph/sequence.hpp"
+
+#include "facemorph/error.hpp"
+#include "facemorph/hole_cut.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace facemorph {
+
+std::vector<double> Sequence::keyframe_times() const {
+  std::vector<double> times;
+  for (const Keyframe& k : keyframes) times.push_back(k.time);
+  return times;
+}
+
+void validate_sequence(const Sequence& sequence) {
+  auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: " + what); };
+  if (sequence.keyframes.empty()) fail("no keyframes");
+  if (!(sequence.fps > 0) || !std::isfinite(sequence.fps)) fail("frame rate must be finite and positive");
+  if (!std::isfinite(sequence.first_time) || !std::isfinite(sequence.last_time) || sequence.last_time < sequence.first_time) {
+    fail("the capture's time span is not a finite interval");
+  }
+  const Keyframe& first = sequence.keyframes.front();
+  const auto nodes = static_cast<size_t>(disk_grid_shape(sequence.grid_n).interior_count + disk_grid_shape(sequence.grid_n).rim_count);
+  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+    const Keyframe& key = sequence.keyframes[k];
+    const std::string name = "keyframe " + std::to_string(k);
+    if (!std::isfinite(key.time)) fail(name + ": time is not finite");
+    if (k > 0 && !(key.time > sequence.keyframes[k - 1].time)) fail(name + ": time does not increase");
+    try {
+      validate_fields(key.fields);
+    } catch (const Error& e) {
+      fail(name + ": " + e.what());
+    }
+    if (key.fields.grid_n != sequence.grid_n || key.fields.representation != sequence.representation) {
+      fail(name + ": fields of another grid or representation");
+    }
+    if (key.fields.fixed_nodes != first.fields.fixed_nodes) fail(name + ": fixed-frame nodes differ from keyframe 0's");
+    const Eigen::Matrix3d& R = key.pose.rotation;
+    if (!R.allFinite() || !key.pose.translation.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
+        R.determinant() < 0) {
+      fail(name + ": the pose is not a finite proper rotation and translation");
+    }
+    if (key.hole_level.empty() != first.hole_level.empty()) fail(name + ": hole levels present in some keyframes only");
+    if (!key.hole_level.empty()) {
+      if (key.hole_level.size() != nodes) fail(name + ": " + std::to_string(key.hole_level.size()) + " hole levels for " + std::to_string(nodes) + " nodes");
+      for (double v : key.hole_level) {
+        if (!std::isfinite(v)) fail(name + ": a hole level is not finite");
+      }
+    }
+    if (key.texture.empty() != first.texture.empty()) fail(name + ": textures present in some keyframes only");
+    if (!key.texture.empty() && (key.texture.width != first.texture.width || key.texture.height != first.texture.height ||
+                                 key.texture.channels != 3 || key.texture.pixels.size() != static_cast<size_t>(key.texture.width) * key.texture.height * 3)) {
+      fail(name + ": the texture is not " + std::to_string(first.texture.width) + " x " + std::to_string(first.texture.height) + " RGB");
+    }
+  }
+}
+
+namespace {
+
+std::shared_ptr<const Sequence> validated(std::shared_ptr<const Sequence> sequence) {
+  if (!sequence) throw Error(ErrorCode::kInvalidArgument, "sequence: null");
+  validate_sequence(*sequence);
+  return sequence;
+}
+
+// Σ w_k · values of key k, for arrays of one length; `zero` is T's zero (Eigen leaves T{} unset).
+template <typename T, typename Get>
+std::vector<T> blend(const SplineWeights& weights, const T& zero, Get&& get) {
+  std::vector<T> out(get(weights.keys.front()).size(), zero);
+  for (size_t i = 0; i < weights.keys.size(); ++i) {
+    const auto& values = get(weights.keys[i]);
+    const double w = weights.weights[i];
+    for (size_t j = 0; j < out.size(); ++j) out[j] += w * values[j];
+  }
+  return out;
+}
+
+}  // namespace
+
+SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence)
+    : sequence_(validated(std::move(sequence))),
+      spline_(sequence_->keyframe_times(), sequence_->spline),
+      reconstructor_(sequence_->grid_n),
+      keyframe_surfaces_(sequence_->keyframes.size()) {
+  for (const Keyframe& k : sequence_->keyframes) poses_.push_back(k.pose);
+  rotation_vectors_ = unwrap_rotations(poses_);
+}
+
+const std::vector<Vec3>& SequenceDecoder::keyframe_surface(size_t k, const ReconstructOptions& options) {
+  if (keyframe_surfaces_[k].empty()) {
+    // Cold, from the harmonic surface: the keyframe's own fields, exactly what the encoder stored.
+    ReconstructOptions cold = options;
+    cold.start = nullptr;
+    reconstructor_.forget_warm_start();
+    keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
+  }
+  return keyframe_surfaces_[k];
+}
+
+DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
+  if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "decode: t is not finite");
+  const auto [lo, hi] = spline_.sane_range();  // TimeRange
+  if ((t < lo || t > hi) && !options.ignore_sane_range) {
+    if (!options.clamp_to_sane_range) {
+      char text[200];
+      std::snprintf(text, sizeof text, "t = %.4g s is outside the range this sequence can serve, [%.4g, %.4g] s (keyframes span [%.4g, %.4g] s)", t, lo,
+                    hi, sequence_->keyframes.front().time, sequence_->keyframes.back().time);
+      throw Error(ErrorCode::kOutOfRange, text);
+    }
+    t = std::clamp(t, lo, hi);
+  }
+  const Sequence& sequence = *sequence_;
+  DecodedFrame frame;
+  frame.time = t;
+  frame.weights = spline_.weights(t);
+  const SplineWeights& w = frame.weights;
+
+  std::vector<const GridFields*> keys;
+  for (int32_t k : w.keys) keys.push_back(&sequence.keyframes[static_cast<size_t>(k)].fields);
+  const GridFields fields = combine_fields(keys, w.weights);
+  // Start from the spline of the keyframes' own surfaces: they are the fixed points of their
+  // fields, so the blend is close wherever t lies.
+  const std::vector<Vec3> start = blend<Vec3>(w, Vec3::Zero(), [&](int32_t k) -> const std::vector<Vec3>& {
+    return keyframe_surface(static_cast<size_t>(k), options.reconstruct);
+  });
+  ReconstructOptions ro = options.reconstruct;
+  ro.start = &start;
+  ro.throw_on_failure = false;
+  ReconstructResult result = reconstructor_.reconstruct(fields, ro);
+  frame.iterations = result.iterations;
+  frame.converged = result.converged;
+  frame.change = result.change;
+  if (!result.converged) {
+    // Blended fields need not be the fields of any surface (between keyframes they are not:
+    // Gauss-Codazzi does not blend), and where the iteration then keeps moving — measured on
+    // Medusa with cubic splines whose weights overshoot: a region near an eyelid swinging by
+    // ~1% of the face — its iterate is no surface to show. The spline of the keyframes' own
+    // surfaces is: the start, which the encoder's keyframe selection measured.
+    if (options.reconstruct.throw_on_failure && !options.fall_back_to_start) {
+      throw Error(ErrorCode::kNotConverged, "t = " + std::to_string(t) + ": the reconstruction did not converge (last change " +
+                                                std::to_string(result.change) + " of the rim diameter)");
+    }
+    if (options.fall_back_to_start) {
+      result.positions = start;
+      frame.fell_back = true;
+    }
+  }
+
+  frame.pose = blend_poses(poses_, rotation_vectors_, w, sequence.pose_centre);
+  frame.grid_positions.resize(result.positions.size());
+  for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
+
+  const DiskGrid& grid = reconstructor_.geometry().grid();
+  if (options.cut_holes && sequence.has_holes()) {
+    const std::vector<double> level = blend<double>(w, 0.0, [&](int32_t k) -> const std::vector<double>& {
+      return sequence.keyframes[static_cast<size_t>(k)].hole_level;
+    });
+    frame.mesh = cut_holes(grid, frame.grid_positions, level);
+  } else {
+    frame.mesh = grid_mesh(grid, frame.grid_positions);
+  }
+  if (options.texture && sequence.has_texture()) {
+    const Image& first = sequence.keyframes[static_cast<size_t>(w.keys.front())].texture;
+    frame.texture = Image(first.width, first.height, 3);
+    std::vector<float> sum(first.pixels.size(), 0.0f);
+    for (size_t i = 0; i < w.keys.size(); ++i) {
+      const auto& pixels = sequence.keyframes[static_cast<size_t>(w.keys[i])].texture.pixels;
+      const auto weight = static_cast<float>(w.weights[i]);
+      for (size_t p = 0; p < sum.size(); ++p) sum[p] += weight * pixels[p];
+    }
+    for (size_t p = 0; p < sum.size(); ++p) frame.texture.pixels[p] = static_cast<uint8_t>(std::clamp(std::lround(sum[p]), 0L, 255L));
+  }
+  return frame;
+}
+
+}  // namespace facemorph
