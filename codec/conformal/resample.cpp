@@ -8,11 +8,14 @@
 
 namespace facemorph {
 
-std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGrid& grid) {
-  std::vector<Vec3> positions(grid.nodes.size());
-  for (size_t i = 0; i < grid.nodes.size(); ++i) {
-    const auto hit = inverse.locate(grid.nodes[i]);
-    if (!hit) throw Error(ErrorCode::kNumerical, "grid node " + std::to_string(i) + " lies outside the disk map");
+std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGrid& grid) { return resample_positions(inverse, grid.nodes); }
+
+std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, std::span<const Vec2> points) {
+  std::vector<Vec3> positions(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2 w = points[i].norm() > 1 ? Vec2(points[i].normalized()) : points[i];
+    const auto hit = inverse.locate(w);
+    if (!hit) throw Error(ErrorCode::kNumerical, "disk point " + std::to_string(i) + " lies outside the disk map");
     positions[i] = inverse.position(*hit);
   }
   return positions;
@@ -61,6 +64,42 @@ Image resample_texture(const DiskMap& map, const InverseDiskMap& inverse, const 
       if (w.norm() > 1) w.normalize();
       const auto hit = inverse.locate(w);
       if (hit) put(x, y, inverse.texture_uv(*hit));
+    }
+  }
+  return out;
+}
+
+Image resample_texture(const InverseDiskMap& inverse, const Image& texture, int size, const DiskWarp& warp) {
+  if (size < 2 || size > 16384) throw Error(ErrorCode::kInvalidArgument, "texture size must be in [2, 16384]");
+  // The warp on a lattice of every 4th texel centre (plus the last), interpolated between.
+  const int stride = 4, lattice = (size - 1) / stride + 2;
+  auto texel_disk = [size](double x, double y) { return Vec2(2 * (x + 0.5) / size - 1, 1 - 2 * (y + 0.5) / size); };
+  std::vector<Vec2> warped(static_cast<size_t>(lattice) * lattice);
+  for (int j = 0; j < lattice; ++j) {
+    for (int i = 0; i < lattice; ++i) {
+      Vec2 w = texel_disk(std::min(i * stride, size - 1), std::min(j * stride, size - 1));
+      if (w.norm() > 1) w.normalize();  // outside the disk a texel repeats the rim along its ray
+      warped[static_cast<size_t>(j) * lattice + i] = warp(w);
+    }
+  }
+  Image out(size, size, 3);
+  for (int y = 0; y < size; ++y) {
+    const int j = std::min(y / stride, lattice - 2);
+    const int y0 = j * stride, y1 = std::min((j + 1) * stride, size - 1);
+    const double fy = y1 > y0 ? static_cast<double>(y - y0) / (y1 - y0) : 0.0;
+    for (int x = 0; x < size; ++x) {
+      const int i = std::min(x / stride, lattice - 2);
+      const int x0 = i * stride, x1 = std::min((i + 1) * stride, size - 1);
+      const double fx = x1 > x0 ? static_cast<double>(x - x0) / (x1 - x0) : 0.0;
+      auto at = [&](int a, int b) { return warped[static_cast<size_t>(b) * lattice + a]; };
+      Vec2 w = (1 - fy) * ((1 - fx) * at(i, j) + fx * at(i + 1, j)) + fy * ((1 - fx) * at(i, j + 1) + fx * at(i + 1, j + 1));
+      if (w.norm() > 1) w.normalize();
+      const auto hit = inverse.locate(w);
+      if (!hit) throw Error(ErrorCode::kNumerical, "texel (" + std::to_string(x) + ", " + std::to_string(y) + ") maps outside the disk map");
+      const Vec2 uv = inverse.texture_uv(*hit);
+      const auto rgb = sample_bilinear(texture, uv.x(), uv.y());
+      uint8_t* p = out.at(x, y);
+      for (int c = 0; c < 3; ++c) p[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[static_cast<size_t>(c)]), 0L, 255L));
     }
   }
   return out;

@@ -69,6 +69,9 @@ DiskMap conformal_disk_map(const TriangleMesh& surface, const ConformalOptions& 
 // rounding may turn over in crowded regions are untangled, as in conformal_disk_map.
 void normalize(DiskMap& map, const Vec3& centre, const Vec3& direction);
 
+// The disk point of a surface point (barycentric interpolation of its face's disk corners).
+Vec2 disk_point(const DiskMap& map, const SurfacePoint& point);
+
 // Conformal factor per vertex: λ_v² = Σ A_surface(f) / Σ A_disk(f) over the faces around v.
 Eigen::VectorXd conformal_factor(const DiskMap& map);
 

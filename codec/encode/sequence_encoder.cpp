@@ -1,0 +1,361 @@
+// The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
+#include "facemorph/encoder/sequence_encoder.hpp"
+
+#include "facemorph/distance.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+namespace facemorph {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
+// frames by error at a fraction of the cost of G itself.
+constexpr int kSelectionGrid = 65;
+// --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
+constexpr int kGridCandidates[] = {65, 97, 129, 193, 257};
+constexpr double kGridFloorTarget = 2e-4;
+
+double bbox_diagonal(const std::vector<Vec3>& positions) {
+  Vec3 lo = positions.front(), hi = lo;
+  for (const Vec3& p : positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return (hi - lo).norm();
+}
+
+std::vector<Vec2> warped(const DiskRegistration& f, const std::vector<Vec2>& points) {
+  std::vector<Vec2> out(points.size());
+  for (size_t i = 0; i < points.size(); ++i) out[i] = f(points[i]);
+  return out;
+}
+
+double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double length2 = ab.squaredNorm();
+  const double s = length2 > 0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * ab)).norm();
+}
+
+// Crossing-number test of a point against a closed polygon.
+bool inside_polygon(const Vec2& p, const std::vector<Vec2>& polygon) {
+  bool inside = false;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Vec2 &a = polygon[i], &b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
+  }
+  return inside;
+}
+
+}  // namespace
+
+DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame, const DiskMap& frame_map) {
+  DiskLandmarks landmarks;
+  const PointToMesh on_reference(reference_map.surface), on_frame(frame_map.surface);
+  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+    const Vec3 &p = capture.landmarks[reference][l], &q = capture.landmarks[frame][l];
+    if (!p.allFinite() || !q.allFinite()) continue;
+    Vec2 wp = disk_point(reference_map, on_reference.closest(p)), wq = disk_point(frame_map, on_frame.closest(q));
+    const bool rim = capture.landmark_names[l].rfind("rim_", 0) == 0;
+    if (rim) {
+      // A marker on the rim interpolates along a boundary chord: put it on the circle.
+      wp.normalize();
+      wq.normalize();
+    }
+    landmarks.reference.push_back(wp);
+    landmarks.frame.push_back(wq);
+    landmarks.on_rim.push_back(rim ? 1 : 0);
+  }
+  return landmarks;
+}
+
+std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map, const std::vector<Vec2>& points) {
+  std::vector<double> level(points.size(), kHoleLevelBand);
+  std::vector<std::vector<Vec2>> outlines;
+  Vec2 lo = Vec2::Constant(1e300), hi = -lo;
+  for (const FilledHole& hole : prepared.report.holes) {
+    std::vector<Vec2> outline;
+    for (int v : hole.loop) {
+      outline.push_back(map.disk[static_cast<size_t>(v)]);
+      lo = lo.cwiseMin(outline.back());
+      hi = hi.cwiseMax(outline.back());
+    }
+    if (outline.size() >= 3) outlines.push_back(std::move(outline));
+  }
+  if (outlines.empty()) return level;
+  lo -= Vec2::Constant(kHoleLevelBand);
+  hi += Vec2::Constant(kHoleLevelBand);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2& p = points[i];
+    if (p.x() < lo.x() || p.y() < lo.y() || p.x() > hi.x() || p.y() > hi.y()) continue;  // farther than the band
+    double distance = 1e300;
+    bool inside = false;
+    for (const auto& outline : outlines) {
+      for (size_t k = 0; k < outline.size(); ++k) distance = std::min(distance, distance_to_segment(p, outline[k], outline[(k + 1) % outline.size()]));
+      inside = inside || inside_polygon(p, outline);
+    }
+    if (!inside) distance = std::min(distance, kHoleLevelBand);
+    // Outside, the distance is capped (far from every hole it does not matter); inside it is not, so
+    // a hole that one keyframe has and the next has not opens from its deepest point and grows
+    // smoothly as the blend shifts, instead of appearing at once where a capped inside would meet
+    // the other keyframe's cap.
+    level[i] = inside ? -distance : distance;
+  }
+  return level;
+}
+
+SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) : capture_(capture), options_(std::move(options)) {
+  const int count = frame_count();
+  if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
+  if (options_.reference_frame < 0 || options_.reference_frame >= count) {
+    throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(options_.reference_frame) + " is not a frame of the capture");
+  }
+  if (!(options_.keyframe_fraction > 0 && options_.keyframe_fraction <= 1) && !(options_.max_error > 0)) {
+    throw Error(ErrorCode::kInvalidArgument, "the keyframe budget must be in (0, 100%]");
+  }
+  if (options_.grid != 0 && (options_.grid < kMinGridSize || options_.grid > kMaxGridSize)) {
+    throw Error(ErrorCode::kInvalidArgument, "grid size N must be 0 (auto) or in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
+  }
+  if (options_.texture && (options_.texture_size < 16 || options_.texture_size > 16383)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture size must be in [16, 16383]");
+  }
+}
+
+void SequenceEncoder::progress(const std::string& stage, int done, int total) const {
+  if (options_.progress) options_.progress(stage, done, total);
+}
+
+void SequenceEncoder::map_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  frames_.assign(static_cast<size_t>(count), {});
+  textures_.assign(static_cast<size_t>(count), {});
+  parallel_for(
+      count, options_.threads,
+      [&](int i) {
+        const auto index = static_cast<size_t>(i);
+        const std::string name = capture_.frames[index].mesh.string();
+        const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
+        if (!landmarks.centre || !landmarks.up) {
+          throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
+                                                       " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
+        }
+        const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
+        textures_[index] = mesh.texture;
+        frames_[index] = map_frame(mesh, name, landmarks, {.conformal = options_.conformal});
+      },
+      [&](int done, int total) { progress("mapping", done, total); });
+  report_.seconds_mapping = seconds_since(start);
+}
+
+void SequenceEncoder::register_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  landmarks_.assign(static_cast<size_t>(count), {});
+  registrations_.assign(static_cast<size_t>(count), {});
+  parallel_for(
+      count, options_.threads,
+      [&](int i) {
+        const auto index = static_cast<size_t>(i);
+        landmarks_[index] = disk_landmarks(capture_, reference, frames_[reference].map, index, frames_[index].map);
+        if (landmarks_[index].reference.size() < 3) {
+          throw Error(ErrorCode::kInvalidArgument, frames_[index].name + ": frame " + std::to_string(i) + " shares only " +
+                                                       std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
+        }
+        try {
+          registrations_[index] = register_disks(landmarks_[index], options_.registration);
+        } catch (const Error& e) {
+          throw Error(e.code(), frames_[index].name + ": registration: " + e.what());
+        }
+      },
+      [&](int done, int total) { progress("registering", done, total); });
+  report_.seconds_registration = seconds_since(start);
+}
+
+void SequenceEncoder::sample_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  const GridGeometry geometry(make_disk_grid(kSelectionGrid));
+  const auto nodes = static_cast<size_t>(geometry.interior_count());
+  node_weights_.resize(nodes);
+  for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
+  selection_.assign(static_cast<size_t>(count), {});
+  auto sample = [&](size_t index) {
+    SelectionFrame& s = selection_[index];
+    s.time = capture_.frames[index].time;
+    s.diagonal = bbox_diagonal(frames_[index].map.surface.positions);
+    std::vector<Vec3> all = resample_positions(InverseDiskMap(frames_[index].map), warped(registrations_[index], geometry.grid().nodes));
+    std::vector<Vec3> tu, tv;
+    geometry.frames(all, tu, tv, s.normal);
+    all.resize(nodes);
+    s.world = std::move(all);
+  };
+  sample(reference);
+  parallel_for(count, options_.threads, [&](int i) {
+    const auto index = static_cast<size_t>(i);
+    if (index != reference) sample(index);
+    // The head pose: the rigid motion taking the reference's registered surface onto this frame's,
+    // fitted over every node (weighted by area). The reference's frame is the face frame.
+    SelectionFrame& s = selection_[index];
+    s.pose = index == reference ? RigidPose{} : fit_rigid_pose(selection_[reference].world, s.world, node_weights_);
+    const RigidPose to_face = s.pose.inverse();
+    s.local.resize(nodes);
+    for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(s.world[v]);
+  });
+  report_.seconds_selection = seconds_since(start);
+}
+
+Vec3 SequenceEncoder::pose_centre() const {
+  const SelectionFrame& reference = selection_[static_cast<size_t>(options_.reference_frame)];
+  Vec3 sum = Vec3::Zero();
+  double total = 0;
+  for (size_t v = 0; v < node_weights_.size(); ++v) {
+    sum += node_weights_[v] * reference.local[v];
+    total += node_weights_[v];
+  }
+  return sum / total;
+}
+
+KeyframeSelection SequenceEncoder::select_keyframes() const {
+  SelectionOptions selection;
+  selection.fraction = options_.keyframe_fraction;
+  selection.max_error = options_.max_error;
+  selection.spline = options_.spline;
+  selection.pose_centre = pose_centre();
+  return facemorph::select_keyframes(selection_, node_weights_, selection);
+}
+
+int SequenceEncoder::choose_grid() {
+  if (options_.grid > 0) return options_.grid;
+  // The smallest N whose resampling floor on the reference frame is within the target; the
+  // largest candidate when none is (a crowded face: spec/method.md §7.6).
+  report_.grid_floors.clear();
+  const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
+  for (int n : kGridCandidates) {
+    const DiskGrid grid = make_disk_grid(n);
+    const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sample_on_grid(reference, grid)));
+    report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
+    if (floor.rms / floor.diagonal <= kGridFloorTarget) return n;
+  }
+  return kGridCandidates[std::size(kGridCandidates) - 1];
+}
+
+Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
+  const auto start = std::chrono::steady_clock::now();
+  if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
+  const GridGeometry geometry(make_disk_grid(grid_n));
+  const DiskGrid& grid = geometry.grid();
+  const size_t keys = keyframes.size();
+  bool any_holes = false;
+  for (const MappedFrame& f : frames_) any_holes = any_holes || !f.prepared.report.holes.empty();
+  const bool store_holes = any_holes && !options_.keep_holes_filled;
+  // Textures: every keyframe's, or (a capture without images) none; some but not all is an error.
+  bool store_texture = options_.texture;
+  for (int k : keyframes) {
+    const bool has = !textures_[static_cast<size_t>(k)].empty() && frames_[static_cast<size_t>(k)].map.surface.has_uvs();
+    if (store_texture && !has) {
+      if (k != keyframes.front()) {
+        throw Error(ErrorCode::kMissingTexture,
+                    frames_[static_cast<size_t>(k)].name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
+      }
+      store_texture = false;
+    }
+  }
+  // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
+  // keyframes' folds, since the keyframes are blended together.
+  std::vector<std::vector<Vec3>> local(keys);
+  std::vector<std::vector<int32_t>> folds(keys);
+  Sequence sequence;
+  sequence.grid_n = grid_n;
+  sequence.representation = options_.representation;
+  sequence.spline = options_.spline;
+  sequence.fps = capture_.fps;
+  sequence.first_time = capture_.frames.front().time;
+  sequence.last_time = capture_.frames.back().time;
+  sequence.units = capture_.units;
+  sequence.pose_centre = pose_centre();
+  sequence.keyframes.resize(keys);
+  parallel_for(
+      static_cast<int>(keys), options_.threads,
+      [&](int k) {
+        const auto index = static_cast<size_t>(keyframes[static_cast<size_t>(k)]);
+        const MappedFrame& f = frames_[index];
+        const InverseDiskMap inverse(f.map);
+        const std::vector<Vec2> points = warped(registrations_[index], grid.nodes);
+        const RigidPose to_face = selection_[index].pose.inverse();
+        std::vector<Vec3> positions = resample_positions(inverse, points);
+        for (Vec3& p : positions) p = to_face.apply(p);
+        folds[static_cast<size_t>(k)] = folded_nodes(geometry, positions);
+        local[static_cast<size_t>(k)] = std::move(positions);
+        Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
+        key.time = capture_.frames[index].time;
+        key.pose = selection_[index].pose;
+        if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
+        if (store_texture) {
+          const DiskRegistration& registration = registrations_[index];
+          key.texture = resample_texture(inverse, read_image(textures_[index]), options_.texture_size, [&](const Vec2& w) { return registration(w); });
+        }
+      },
+      [&](int done, int total) { progress("keyframes", done, total); });
+  std::vector<int32_t> fixed;
+  for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
+  std::sort(fixed.begin(), fixed.end());
+  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+  parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
+    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
+  });
+  validate_sequence(sequence);
+  report_.seconds_keyframes = seconds_since(start);
+  return sequence;
+}
+
+Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  EncodeReport& report = encoder.report();
+  report.keyframes = chosen.keyframes;
+  report.selection_history = chosen.history;
+  report.grid = encoder.choose_grid();
+  Sequence sequence = encoder.build(chosen.keyframes, report.grid);
+  for (int i = 0; i < encoder.frame_count(); ++i) {
+    const MappedFrame& frame = encoder.frame(i);
+    const DiskRegistration& registration = encoder.registration(i);
+    EncodedFrameReport r;
+    r.name = frame.name;
+    r.time = capture.frames[static_cast<size_t>(i)].time;
+    r.vertices = frame.prepared.mesh.vertex_count();
+    r.holes_filled = static_cast<int>(frame.prepared.report.holes.size());
+    r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
+    r.fallback = registration.fallback;
+    r.fallback_reason = registration.fallback_reason;
+    r.energy_moebius = registration.energy_moebius;
+    r.energy = registration.energy;
+    r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
+    r.diagonal = encoder.selection_frames()[static_cast<size_t>(i)].diagonal;
+    report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
+    report.frames.push_back(std::move(r));
+  }
+  if (report_out) *report_out = std::move(report);
+  return sequence;
+}
+
+}  // namespace facemorph

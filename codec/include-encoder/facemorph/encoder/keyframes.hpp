@@ -1,0 +1,53 @@
+// Keyframe selection by error (spec/method.md §7.5): keep the frames where the spline of the kept
+// ones predicts the others worst, within a budget (--keyframes 10%) or until every frame is
+// predicted within a tolerance (--max-error).
+#pragma once
+
+#include "facemorph/mesh.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/spline.hpp"
+
+#include <vector>
+
+namespace facemorph {
+
+// One captured frame as the selection sees it: its registered surface sampled on a coarse copy of
+// G, in the face's own frame and in the capture's, with the normals, the head pose and the size.
+struct SelectionFrame {
+  double time = 0;
+  std::vector<Vec3> local;    // face frame (the pose taken out)
+  std::vector<Vec3> world;    // capture frame: pose.apply(local)
+  std::vector<Vec3> normal;   // unit normals of `world`
+  RigidPose pose;
+  double diagonal = 1;        // bounding-box diagonal of the captured frame
+};
+
+struct SelectionOptions {
+  double fraction = 0.10;     // budget: keyframes = max(2, round(fraction * frames))
+  double max_error = 0;       // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
+  SplineKind spline = SplineKind::kCatmullRom;
+  Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
+};
+
+struct KeyframeSelection {
+  std::vector<int> keyframes;             // frame indices, increasing; always the first and the last frame
+  std::vector<double> predicted_error;    // per frame: RMS of the prediction's normal offset / diagonal (0 at keyframes)
+  // After each addition: how many keyframes, and the worst predicted error then.
+  std::vector<std::pair<int, double>> history;
+};
+
+// Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.
+// A frame's prediction is the spline (`options.spline`) of the keyframes' face-frame surfaces
+// placed by the spline of their poses, exactly as the decoder blends; its error is the RMS over the
+// nodes (weighted by `node_weights`, e.g. G's lumped mass) of the prediction's offset along the
+// frame's normal — the point-to-surface distance to first order, blind to sliding along the
+// surface, which costs nothing — divided by the frame's diagonal. Throws kInvalidArgument for
+// fewer than one frame, frames of unequal sizes or times not increasing.
+KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
+                                   const SelectionOptions& options);
+
+// The predicted error of every frame given the keyframes (frame indices, increasing).
+std::vector<double> prediction_errors(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
+                                      const std::vector<int>& keyframes, SplineKind spline, const Vec3& pose_centre);
+
+}  // namespace facemorph

@@ -1,0 +1,129 @@
+// The encoder: a capture in, a Sequence (facemorph/sequence.hpp) out (spec/method.md §7).
+//
+//   every frame: prepare, conformal map, normalise (frame_pipeline.hpp)        parallel
+//   every frame: landmarks on the disk, registered to the reference frame        parallel
+//   every frame: its registered surface on a coarse grid, its rigid head pose    parallel
+//   keyframes: chosen by the predicted error of the spline (keyframes.hpp)
+//   grid size N: from the capture (--grid auto)
+//   every keyframe: the registered surface on G in the face's own frame, its fields, its holes as
+//   a level set, its texture on the disk                                          parallel
+#pragma once
+
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/keyframes.hpp"
+#include "facemorph/encoder/registration.hpp"
+#include "facemorph/sequence.hpp"
+
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+struct EncodeOptions {
+  double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
+  double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
+  int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
+  Representation representation = Representation::kHLT;
+  RegistrationOptions registration;
+  SplineKind spline = SplineKind::kCatmullRom;
+  bool texture = true;
+  int texture_size = 1024;          // M: texels per side of the disk texture
+  bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
+  int reference_frame = 0;          // the frame every other is registered to
+  int threads = 0;                  // 0: one per core
+  ConformalOptions conformal;
+  // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
+  std::function<void(const std::string&, int, int)> progress;
+};
+
+// What the encoder did, frame by frame: for the tools' summaries and the bench.
+struct EncodedFrameReport {
+  std::string name;
+  double time = 0;
+  int vertices = 0;
+  int holes_filled = 0;
+  bool keyframe = false;
+  RegistrationFallback fallback = RegistrationFallback::kNone;
+  std::string fallback_reason;
+  double energy_moebius = 0, energy = 0;  // E_D of the OMT and of the registration (disk units²)
+  double predicted_error = 0;             // the selection's predicted error (fraction of the diagonal)
+  double diagonal = 0;                    // of the captured frame
+};
+
+struct EncodeReport {
+  std::vector<EncodedFrameReport> frames;
+  std::vector<int> keyframes;
+  std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
+  int grid = 0;
+  std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
+  int registration_fallbacks = 0;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0;
+};
+
+// Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
+// and at least three landmarks shared with the reference frame; rim_* markers give the boundary
+// correspondence. Throws facemorph::Error naming the frame and the defect (kInvalidArgument for
+// missing landmarks or bad options; what prepare_frame, conformal_disk_map and the image reader
+// throw, e.g. kNotADisk or kMissingTexture).
+Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
+
+// The same, stage by stage, keeping every frame's map and registration: what encode_capture runs,
+// and what the bench uses to try several registrations or keyframe sets on one mapping. Stages
+// run in order; a later stage may be re-run with other options (registering again redoes the
+// selection samples).
+class SequenceEncoder {
+ public:
+  SequenceEncoder(const Capture& capture, EncodeOptions options);
+
+  void map_frames();        // 1. prepare, conformal map, normalise every frame
+  void register_frames();   // 2. register every frame to the reference (options().registration)
+  void sample_frames();     // 3. registered surfaces on the selection grid, head poses
+  KeyframeSelection select_keyframes() const;  // 4. by predicted error
+  Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
+  int choose_grid();        // 5. N (options().grid, or automatic)
+  // 6. the keyframes on G: fields, poses, holes, textures.
+  Sequence build(const std::vector<int>& keyframes, int grid);
+
+  EncodeOptions& options() { return options_; }
+  const Capture& capture() const { return capture_; }
+  int frame_count() const { return static_cast<int>(capture_.frames.size()); }
+  const MappedFrame& frame(int i) const { return frames_[static_cast<size_t>(i)]; }
+  const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
+  const DiskLandmarks& landmarks(int i) const { return landmarks_[static_cast<size_t>(i)]; }
+  const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
+  const std::vector<double>& selection_weights() const { return node_weights_; }
+  const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
+  EncodeReport& report() { return report_; }
+
+ private:
+  void progress(const std::string& stage, int done, int total) const;
+
+  const Capture& capture_;
+  EncodeOptions options_;
+  std::vector<MappedFrame> frames_;
+  std::vector<std::filesystem::path> textures_;
+  std::vector<DiskLandmarks> landmarks_;
+  std::vector<DiskRegistration> registrations_;
+  std::vector<SelectionFrame> selection_;
+  std::vector<double> node_weights_;
+  EncodeReport report_;
+};
+
+// ---- The pieces, for tests and the bench ----
+
+// Where the capture's landmarks of one frame lie on its disk, paired with the reference's: the
+// registration's input. Landmarks missing in either frame are left out; rim_* markers are flagged
+// and put exactly on the circle.
+DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame,
+                             const DiskMap& frame_map);
+
+// The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
+// distance to the nearest hole outline inside a filled hole, plus it outside capped at
+// kHoleLevelBand; kHoleLevelBand everywhere without holes.
+std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map, const std::vector<Vec2>& points);
+
+}  // namespace facemorph

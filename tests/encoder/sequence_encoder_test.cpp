@@ -1,0 +1,138 @@
+// The encoder end to end on the project's own synthetic captures: map, register, choose keyframes,
+// store, and decode every captured frame at its time.
+#include "facemorph/distance.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/topology.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace facemorph {
+namespace {
+
+Capture small_capture(const testing::TempDir& dir, double head_motion) {
+  SynthOptions options;
+  options.frames = 12;
+  options.vertices = 3000;
+  options.remesh = true;
+  options.noise = 0;
+  options.texture_size = 128;
+  options.head_motion_degrees = head_motion;
+  write_synthetic_capture(dir.path(), options);
+  return read_capture(dir.path());
+}
+
+TEST(SequenceEncoder, EncodesASyntheticCaptureThatDecodesCloseToEveryFrame) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir, 20);
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 65;
+  options.texture_size = 64;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  ASSERT_EQ(sequence.keyframes.size(), 3u);
+  EXPECT_EQ(report.keyframes.front(), 0);
+  EXPECT_EQ(report.keyframes.back(), 11);
+  EXPECT_EQ(report.registration_fallbacks, 0);
+  EXPECT_TRUE(sequence.has_texture());
+  EXPECT_FALSE(sequence.has_holes());
+  EXPECT_EQ(sequence.keyframes[1].texture.width, 64);
+  // The head turns: the first keyframe is the face frame, the others are rotated.
+  EXPECT_LT((sequence.keyframes[0].pose.rotation - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_GT((sequence.keyframes[2].pose.rotation - Eigen::Matrix3d::Identity()).norm(), 1e-3);
+
+  SequenceDecoder decoder(std::make_shared<const Sequence>(sequence));
+  double worst_key = 0, worst_held = 0;
+  for (size_t i = 0; i < capture.frames.size(); ++i) {
+    const DecodedFrame frame = decoder.decode(capture.frames[i].time);
+    EXPECT_TRUE(frame.converged) << "frame " << i;
+    const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), frame.mesh);
+    const bool key = std::binary_search(report.keyframes.begin(), report.keyframes.end(), static_cast<int>(i));
+    (key ? worst_key : worst_held) = std::max(key ? worst_key : worst_held, d.rms / d.diagonal);
+    // The decoded texture is the captured one, registered onto the disk: faces look like faces.
+    EXPECT_EQ(frame.texture.width, 64);
+  }
+  EXPECT_LT(worst_key, 0.0015);   // the resampling floor of a 3k-vertex frame on a 65² grid, and 16 bits
+  EXPECT_LT(worst_held, 0.006);   // three keyframes for twelve frames of a changing expression
+  // The selection predicted the held-out error it measured (same spline, same pose blend).
+  for (const EncodedFrameReport& f : report.frames) EXPECT_LT(f.predicted_error, 0.006);
+}
+
+TEST(SequenceEncoder, HolesOfAFrameBecomeALevelSetAroundTheirOutline) {
+  // A flat disk with a round hole of radius 0.3 at (0.3, 0): prepare fills it, the level set is
+  // negative inside, zero on the outline and capped outside.
+  TriangleMesh disk = testing::polar_disk(24, 96, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); });
+  std::vector<Face> kept;
+  for (const Face& f : disk.faces) {
+    Vec3 c = Vec3::Zero();
+    for (int32_t v : f) c += disk.positions[static_cast<size_t>(v)] / 3;
+    if ((c.head<2>() - Vec2(0.3, 0)).norm() > 0.3) kept.push_back(f);
+  }
+  disk.faces = kept;
+  const MappedFrame frame = map_frame(disk, "holed disk", {});
+  ASSERT_EQ(frame.prepared.report.holes.size(), 1u);
+  // Points on the frame's own disk: find where the hole went by its 3D outline.
+  const InverseDiskMap inverse(frame.map);
+  std::vector<Vec2> points;
+  const int n = 81;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const Vec2 w(2.0 * i / (n - 1) - 1, 2.0 * j / (n - 1) - 1);
+      if (w.norm() <= 1) points.push_back(w);
+    }
+  }
+  const std::vector<double> level = hole_level(frame.prepared, frame.map, points);
+  int inside = 0;
+  for (size_t k = 0; k < points.size(); ++k) {
+    const Vec3 p = inverse.position(*inverse.locate(points[k]));
+    const double r = (p.head<2>() - Vec2(0.3, 0)).norm();  // distance in 3D to the hole's centre
+    if (r < 0.2) {
+      EXPECT_LT(level[k], 0) << "inside the hole";
+      ++inside;
+    }
+    if (r > 0.45) {
+      EXPECT_GT(level[k], 0) << "outside the hole";
+    }
+    EXPECT_LE(level[k], kHoleLevelBand);
+  }
+  EXPECT_GT(inside, 20);
+  // Without holes: the cap everywhere.
+  const MappedFrame whole = map_frame(testing::polar_disk(12, 48, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }), "disk", {});
+  for (double v : hole_level(whole.prepared, whole.map, points)) EXPECT_EQ(v, kHoleLevelBand);
+}
+
+TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 0);
+  capture.frames.resize(4);
+  capture.landmarks.resize(4);
+  EncodeOptions options;
+  options.grid = 33;
+  options.texture = false;
+  // A frame without its nose tip cannot be put in the reference pose.
+  Capture no_nose = capture;
+  no_nose.landmarks[2][static_cast<size_t>(no_nose.landmark_index("nose_tip"))] = Vec3::Constant(std::nan(""));
+  testing::expect_error(ErrorCode::kInvalidArgument, "frame 2 lacks the landmarks nose_tip", [&] { encode_capture(no_nose, options); });
+  // A missing texture image is named (and --no-texture encodes geometry only).
+  std::filesystem::remove(dir / "frame_0001.jpg");
+  options.texture = true;
+  testing::expect_error(ErrorCode::kMissingTexture, "frame_0001", [&] { encode_capture(capture, options); });
+  options.texture = false;
+  EXPECT_FALSE(encode_capture(capture, options).has_texture());
+  // Options out of range.
+  options.keyframe_fraction = 0;
+  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe budget", [&] { encode_capture(capture, options); });
+  options.keyframe_fraction = 0.5;
+  options.reference_frame = 9;
+  testing::expect_error(ErrorCode::kInvalidArgument, "reference frame 9", [&] { encode_capture(capture, options); });
+}
+
+}  // namespace
+}  // namespace facemorph
