@@ -1,6 +1,7 @@
 // fmbench: facemorph's benchmarks. Figures in a table on stdout, and as JSON with --json.
 #include "tools/bench_conformal.hpp"
 #include "tools/bench_reconstruct.hpp"
+#include "tools/bench_temporal.hpp"
 #include "tools/tool_support.hpp"
 
 int main(int argc, char** argv) {
@@ -11,9 +12,12 @@ int main(int argc, char** argv) {
   add_conformal_command(app, conformal);
   ReconstructBenchOptions reconstruct;
   add_reconstruct_command(app, reconstruct);
+  TemporalBenchOptions temporal;
+  add_temporal_command(app, temporal);
   return guarded_main(app, argc, argv, [&] {
     if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
     if (app.got_subcommand("reconstruct")) return run_reconstruct_bench(reconstruct);
+    if (app.got_subcommand("temporal")) return run_temporal_bench(temporal);
     return 2;
   });
 }

@@ -1,0 +1,463 @@
+// fmbench temporal: the temporal model on whole captures — registration (the paper's Tables 1 and
+// 3), keyframes and the spline (held-out error, Table 4's extrapolation), holes, texture — every
+// captured frame decoded at its own time and compared with the frame as captured.
+#include "tools/bench_temporal.hpp"
+
+#include "facemorph/distance.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/image_codec.hpp"
+#include "facemorph/mesh_io.hpp"
+
+#include "tools/bench_inputs.hpp"
+#include "tools/plot.hpp"
+#include "tools/tool_support.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+
+#include <unistd.h>
+
+namespace facemorph::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+double parse_fraction(const std::string& text, const char* what) {
+  std::string t = text;
+  double scale = 1;
+  if (!t.empty() && t.back() == '%') {
+    t.pop_back();
+    scale = 0.01;
+  }
+  char* end = nullptr;
+  const double v = std::strtod(t.c_str(), &end);
+  if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v) || v <= 0) {
+    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " must be a positive number or percentage, got '" + text + "'");
+  }
+  return v * scale;
+}
+
+// A capture to measure: a folder, or one the bench makes (synth, synth:head30, ict); nullopt when
+// the data it needs is absent.
+std::optional<fs::path> make_input(const std::string& input, const std::string& data, const fs::path& scratch, bool quiet) {
+  if (input == "synth" || input.rfind("synth:head", 0) == 0) {
+    SynthOptions options;
+    options.frames = 60;
+    options.expression = Expression::kMixed;
+    options.remesh = true;
+    options.noise = 0;
+    options.texture_size = 512;
+    if (input != "synth") options.head_motion_degrees = std::stod(input.substr(10));
+    const fs::path out = scratch / (input == "synth" ? "synth" : "synth_head" + input.substr(10));
+    if (!quiet) std::fprintf(stderr, "fmbench temporal: writing %s (fmsynth --frames 60 --expression mixed --remesh --noise 0%s)\n", out.c_str(),
+                             input == "synth" ? "" : (" --head-motion " + input.substr(10)).c_str());
+    write_synthetic_capture(out, options);
+    return out;
+  }
+  if (input == "ict") {
+    const fs::path script = fs::path(data) / "ict-facekit/tools/make_capture.py";
+    std::error_code ec;
+    if (!fs::exists(script, ec) || std::system("python3 --version > /dev/null 2>&1") != 0) return std::nullopt;
+    const fs::path out = scratch / "ict";
+    if (!quiet) std::fprintf(stderr, "fmbench temporal: making the ICT capture (make_capture.py --start-seconds 56 --seconds 4)\n");
+    const std::string command = "python3 '" + script.string() + "' '" + out.string() + "' --start-seconds 56 --seconds 4 > /dev/null 2>&1";
+    if (std::system(command.c_str()) != 0) throw Error(ErrorCode::kIo, "make_capture.py failed");
+    return out;
+  }
+  if (input == "medusa") {
+    const fs::path path = fs::path(data) / "medusa-mediapipe-4d/capture";
+    std::error_code ec;
+    if (!fs::is_directory(path, ec)) return std::nullopt;
+    return path;
+  }
+  return fs::path(input);
+}
+
+struct FrameError {
+  double rms = 0, max = 0;   // symmetric point-to-surface, relative to the captured frame's diagonal
+  double psnr = -1;          // decoded texture against the captured one on the disk (dB); -1 without
+  bool keyframe = false;
+  bool converged = true;
+  double time = 0;
+};
+
+struct Evaluation {
+  std::string registration, spline;
+  int keyframes = 0, grid = 0;
+  std::vector<FrameError> frames;
+  double decode_ms = 0;  // mean per decoded frame
+  int iterations = 0;    // mean reconstruction steps
+};
+
+struct Summary {
+  double key_rms_mean = 0, key_rms_worst = 0, held_rms_mean = 0, held_rms_worst = 0, held_max_worst = 0, psnr_mean = -1, psnr_worst = -1;
+};
+
+Summary summarise(const Evaluation& e) {
+  Summary s;
+  int keys = 0, held = 0, textured = 0;
+  double psnr_sum = 0;
+  s.psnr_worst = 1e300;
+  for (const FrameError& f : e.frames) {
+    if (f.keyframe) {
+      s.key_rms_mean += f.rms, s.key_rms_worst = std::max(s.key_rms_worst, f.rms), ++keys;
+    } else {
+      s.held_rms_mean += f.rms, s.held_rms_worst = std::max(s.held_rms_worst, f.rms), s.held_max_worst = std::max(s.held_max_worst, f.max), ++held;
+      if (f.psnr >= 0) psnr_sum += f.psnr, s.psnr_worst = std::min(s.psnr_worst, f.psnr), ++textured;
+    }
+  }
+  s.key_rms_mean /= std::max(keys, 1);
+  s.held_rms_mean /= std::max(held, 1);
+  s.psnr_mean = textured ? psnr_sum / textured : -1;
+  if (!textured) s.psnr_worst = -1;
+  return s;
+}
+
+double disk_psnr(const Image& a, const Image& b) {
+  double sum = 0;
+  long count = 0;
+  for (int y = 0; y < a.height; ++y) {
+    for (int x = 0; x < a.width; ++x) {
+      const Vec2 w(2 * (x + 0.5) / a.width - 1, 1 - 2 * (y + 0.5) / a.height);
+      if (w.norm() > 1) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double d = double(a.at(x, y)[c]) - double(b.at(x, y)[c]);
+        sum += d * d;
+        ++count;
+      }
+    }
+  }
+  return 10 * std::log10(255.0 * 255.0 / std::max(sum / std::max(count, 1L), 1e-12));
+}
+
+// Every captured frame decoded at its own time and compared with it as captured (holes and all).
+Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes,
+                    const std::vector<TriangleMesh>& captured, const std::vector<int>& frames_to_decode, bool textures) {
+  Evaluation e;
+  e.registration = registration_method_name(encoder.registration(0).method);
+  e.spline = spline_kind_name(sequence.spline);
+  e.keyframes = static_cast<int>(keyframes.size());
+  e.grid = sequence.grid_n;
+  SequenceDecoder decoder(std::make_shared<const Sequence>(sequence));
+  DecodeOptions options;
+  options.ignore_sane_range = true;
+  options.reconstruct.throw_on_failure = false;  // a frame that does not converge is measured and counted, not fatal
+  double seconds = 0;
+  int steps = 0;
+  for (int i : frames_to_decode) {
+    FrameError f;
+    f.time = encoder.capture().frames[static_cast<size_t>(i)].time;
+    f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
+    const auto start = std::chrono::steady_clock::now();
+    const DecodedFrame decoded = decoder.decode(f.time, options);
+    seconds += seconds_since(start);
+    steps += decoded.iterations;
+    f.converged = decoded.converged;
+    const SurfaceDistance d = surface_distance(captured[static_cast<size_t>(i)], decoded.mesh);
+    f.rms = d.rms / d.diagonal;
+    f.max = d.max / d.diagonal;
+    if (textures && !f.keyframe && !decoded.texture.empty()) {
+      const Image truth = resample_texture(InverseDiskMap(encoder.frame(i).map), read_image(encoder.texture_path(i)), decoded.texture.width,
+                                           [&](const Vec2& w) { return encoder.registration(i)(w); });
+      f.psnr = disk_psnr(truth, decoded.texture);
+    }
+    e.frames.push_back(f);
+  }
+  e.decode_ms = 1e3 * seconds / std::max<size_t>(frames_to_decode.size(), 1);
+  e.iterations = steps / std::max(static_cast<int>(frames_to_decode.size()), 1);
+  return e;
+}
+
+json evaluation_json(const Evaluation& e) {
+  const Summary s = summarise(e);
+  json frames = json::array();
+  for (const FrameError& f : e.frames) frames.push_back({{"time", f.time}, {"keyframe", f.keyframe}, {"rms_relative", f.rms}, {"max_relative", f.max}, {"texture_psnr_db", f.psnr}, {"converged", f.converged}});
+  return {{"registration", e.registration}, {"spline", e.spline}, {"keyframes", e.keyframes}, {"grid", e.grid},
+          {"keyframe_rms_mean", s.key_rms_mean}, {"keyframe_rms_worst", s.key_rms_worst}, {"held_out_rms_mean", s.held_rms_mean},
+          {"held_out_rms_worst", s.held_rms_worst}, {"held_out_max_worst", s.held_max_worst}, {"held_out_texture_psnr_mean", s.psnr_mean},
+          {"held_out_texture_psnr_worst", s.psnr_worst}, {"decode_ms_per_frame", e.decode_ms}, {"mean_iterations", e.iterations}, {"frames", frames}};
+}
+
+void print_evaluation(const std::string& label, const Evaluation& e) {
+  const Summary s = summarise(e);
+  std::printf("%-28s %-8s %-11s %4d %5d %9.4f %9.4f %9.4f %9.4f %9.4f %8.2f %8.2f %8.1f\n", label.c_str(), e.registration.c_str(), e.spline.c_str(),
+              e.keyframes, e.grid, 100 * s.key_rms_worst, 100 * s.held_rms_mean, 100 * s.held_rms_worst, 100 * s.held_max_worst,
+              100 * s.key_rms_mean, s.psnr_mean, s.psnr_worst, e.decode_ms);
+}
+
+// The paper's Table 1 for one registration: matching energies averaged over the frames.
+struct MatchingEnergies {
+  double disk_moebius = 0, disk = 0;   // E_D of the OMT alone and of the registration (disk units²)
+  double local = 0;                    // E_loc: Σ |f(p) - q|² over the landmarks, in 3D (capture units²)
+  double global = 0;                   // E: ∫_D |S_b(f(x)) - S_a(x)|² dx in the face frame (capture units²)
+  double global_relative = 0;          // sqrt(E / area of D) / diagonal: the RMS correspondence distance
+};
+
+MatchingEnergies matching_energies(SequenceEncoder& encoder) {
+  MatchingEnergies m;
+  const Capture& capture = encoder.capture();
+  const int reference = encoder.options().reference_frame;
+  const auto& selection = encoder.selection_frames();
+  const auto& weights = encoder.selection_weights();
+  double area = 0;
+  for (double w : weights) area += w;
+  int counted = 0;
+  for (int i = 0; i < encoder.frame_count(); ++i) {
+    if (i == reference) continue;
+    const DiskRegistration& f = encoder.registration(i);
+    m.disk_moebius += f.energy_moebius;
+    m.disk += f.energy;
+    // E_loc: the reference's landmarks carried through f onto frame i, against frame i's own.
+    const InverseDiskMap inverse(encoder.frame(i).map);
+    const DiskLandmarks& landmarks = encoder.landmarks(i);
+    size_t j = 0;
+    for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+      const Vec3 &p = capture.landmarks[static_cast<size_t>(reference)][l], &q = capture.landmarks[static_cast<size_t>(i)][l];
+      if (!p.allFinite() || !q.allFinite()) continue;
+      const auto hit = inverse.locate(f(landmarks.reference[j++]));
+      if (hit) m.local += (inverse.position(*hit) - q).squaredNorm();
+    }
+    double sum = 0;
+    for (size_t v = 0; v < weights.size(); ++v) sum += weights[v] * (selection[static_cast<size_t>(i)].local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
+    m.global += sum;
+    m.global_relative += std::sqrt(sum / area) / selection[static_cast<size_t>(i)].diagonal;
+    ++counted;
+  }
+  if (counted) {
+    m.disk_moebius /= counted, m.disk /= counted, m.local /= counted, m.global /= counted, m.global_relative /= counted;
+  }
+  return m;
+}
+
+void write_error_plot(const fs::path& path, const Evaluation& e) {
+  PlotSeries held, keys;
+  held.color = {40, 90, 200};
+  keys.color = {220, 80, 40};
+  keys.line = false;
+  keys.markers = true;
+  std::vector<double> marks;
+  for (const FrameError& f : e.frames) {
+    (f.keyframe ? keys : held).x.push_back(f.time);
+    (f.keyframe ? keys : held).y.push_back(100 * f.rms);
+    if (f.keyframe) marks.push_back(f.time);
+  }
+  PlotOptions options;
+  options.x_label = "time (s)";
+  options.y_label = "rms error (% of diagonal)";
+  options.vertical_marks = marks;
+  fs::create_directories(path.parent_path());
+  write_png(path, line_plot({held, keys}, options));
+}
+
+}  // namespace
+
+void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
+  CLI::App* cmd = app.add_subcommand("temporal", "The temporal model: registration, keyframes, spline, holes, texture on whole captures");
+  cmd->add_option("inputs", options.inputs,
+                  "Capture folders, or: synth (fmsynth --frames 60 --expression mixed --remesh --noise 0), synth:head30 (the same with "
+                  "--head-motion 30), medusa, ict (make_capture.py --start-seconds 56 --seconds 4). None: all four");
+  cmd->add_option("--keyframes", options.keyframes, "Keyframe budget, e.g. 10%")->capture_default_str();
+  cmd->add_option("--registration", options.registration, "moebius | gmf | frame | all")->capture_default_str();
+  cmd->add_option("--spline", options.spline, "local | catmull-rom | not-a-knot | linear | all")->capture_default_str();
+  cmd->add_option("--representation", options.representation, "hl | hl+t | xyz")->capture_default_str();
+  cmd->add_option("--grid", options.grid, "auto or N")->capture_default_str();
+  cmd->add_option("--texture-size", options.texture_size, "Disk texture texels per side")->capture_default_str();
+  cmd->add_option("--data", options.data, "Folder of the shared real data")->capture_default_str();
+  cmd->add_option("--limit", options.limit, "At most this many frames per capture (0: all)")->capture_default_str();
+  cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
+  cmd->add_option("--plots", options.plots, "Folder for error-against-time plots (PNG), keyframes marked");
+  cmd->add_flag("--no-targets", options.no_targets, "Skip the keyframes-for-1%-and-0.5% searches");
+  cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
+  cmd->footer("Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "
+              "relative to its bounding-box diagonal, %. key: keyframes' worst RMS; held: held-out frames' mean and worst RMS "
+              "and worst max; psnr: held-out texture against the captured one on the disk, mean and worst (dB).");
+}
+
+int run_temporal_bench(const TemporalBenchOptions& options) {
+  std::vector<std::string> inputs = options.inputs;
+  if (inputs.empty()) inputs = {"synth", "synth:head30", "medusa", "ict"};
+  std::vector<RegistrationMethod> methods;
+  if (options.registration == "all") {
+    methods = {RegistrationMethod::kMoebius, RegistrationMethod::kGmf};
+  } else {
+    methods = {parse_registration_method(options.registration)};
+  }
+  std::vector<SplineKind> splines;
+  if (options.spline == "all") {
+    splines = {SplineKind::kCatmullRom, SplineKind::kLocalCubic, SplineKind::kNotAKnot, SplineKind::kLinear};
+  } else {
+    splines = {parse_spline_kind(options.spline)};
+  }
+  const fs::path scratch = fs::temp_directory_path() / ("fmbench-temporal-" + std::to_string(::getpid()));
+  fs::create_directories(scratch);
+  struct Cleanup {
+    fs::path path;
+    ~Cleanup() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  } cleanup{scratch};
+
+  json results = json::array();
+  for (const std::string& input : inputs) {
+    const auto folder = make_input(input, options.data, scratch, options.quiet);
+    if (!folder) {
+      std::printf("\n%s: skipped (the shared data or python3 is absent)\n", input.c_str());
+      continue;
+    }
+    Capture capture = read_capture(*folder);
+    if (options.limit > 0 && capture.frames.size() > static_cast<size_t>(options.limit)) {
+      capture.frames.resize(static_cast<size_t>(options.limit));
+      capture.landmarks.resize(static_cast<size_t>(options.limit));
+    }
+    const int count = static_cast<int>(capture.frames.size());
+    EncodeOptions encode;
+    encode.keyframe_fraction = parse_fraction(options.keyframes, "--keyframes");
+    encode.representation = parse_representation(options.representation);
+    encode.grid = options.grid == "auto" ? 0 : std::stoi(options.grid);
+    encode.texture_size = options.texture_size;
+    encode.spline = splines.front();
+    Progress progress(input, options.quiet);
+    encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
+    SequenceEncoder encoder(capture, encode);
+    encoder.map_frames();
+    progress.finish();
+    std::vector<TriangleMesh> captured;
+    for (int i = 0; i < count; ++i) captured.push_back(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}));
+    std::vector<int> every(static_cast<size_t>(count));
+    for (int i = 0; i < count; ++i) every[static_cast<size_t>(i)] = i;
+    bool textured = !encoder.texture_path(0).empty() && encoder.frame(0).map.surface.has_uvs();
+
+    std::printf("\n%s: %d frames at %.3g fps, %s\n", input.c_str(), count, capture.fps, folder->c_str());
+    json entry = {{"input", input}, {"frames", count}, {"fps", capture.fps}};
+    // Table 1 and Table 3: each registration, keyframes chosen by its own prediction.
+    std::printf("%-28s %-8s %-11s %4s %5s %9s %9s %9s %9s %9s %8s %8s %8s\n", "", "reg", "spline", "keys", "N", "key wst%", "held mn%", "held wst%",
+                "held max%", "key mn%", "psnr mn", "psnr wst", "dec ms");
+    json registrations = json::array();
+    std::vector<Evaluation> by_method;
+    int grid = 0;
+    for (RegistrationMethod method : methods) {
+      encoder.options().registration.method = method;
+      encoder.options().spline = splines.front();
+      encoder.register_frames();
+      encoder.sample_frames();
+      if (grid == 0) grid = encoder.choose_grid();
+      const MatchingEnergies energies = matching_energies(encoder);
+      const KeyframeSelection chosen = encoder.select_keyframes();
+      const Sequence sequence = encoder.build(chosen.keyframes, grid);
+      Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, textured);
+      print_evaluation(input, e);
+      int fallbacks = 0;
+      for (int i = 0; i < count; ++i) fallbacks += encoder.registration(i).fallback != RegistrationFallback::kNone;
+      json r = evaluation_json(e);
+      r["matching_energies"] = {{"E_D_moebius", energies.disk_moebius}, {"E_D", energies.disk}, {"E_loc", energies.local}, {"E", energies.global},
+                                {"E_rms_relative", energies.global_relative}};
+      r["registration_fallbacks"] = fallbacks;
+      r["selection_history"] = chosen.history;
+      registrations.push_back(r);
+      if (!options.plots.empty()) {
+        write_error_plot(fs::path(options.plots) / (fs::path(input).filename().string() + "_" + registration_method_name(method) + "_error.png"), e);
+      }
+      by_method.push_back(std::move(e));
+      std::printf("    matching energies (mean over frames): E_D OMT %.3e, E_D %.3e, E_loc %.3e %s², E %.3e %s² (RMS %.4f%% of the diagonal); %d fallbacks\n",
+                  energies.disk_moebius, energies.disk, energies.local, capture.units.c_str(), energies.global, capture.units.c_str(),
+                  100 * energies.global_relative, fallbacks);
+    }
+    entry["grid"] = grid;
+    entry["grid_floors"] = encoder.report().grid_floors;
+    entry["registrations"] = registrations;
+    if (by_method.size() > 1 && by_method.front().registration == "moebius") {
+      const double m = summarise(by_method.front()).held_rms_mean;
+      for (size_t k = 1; k < by_method.size(); ++k) {
+        const double g = summarise(by_method[k]).held_rms_mean;
+        std::printf("    improvement of %s over moebius (held-out mean RMS): %.1f%%\n", by_method[k].registration.c_str(), 100 * (m - g) / m);
+        entry["improvement_over_moebius"][by_method[k].registration] = (m - g) / m;
+      }
+    }
+
+    // The rest with the default registration (the last one run).
+    const RegistrationMethod main_method = methods.back();
+    if (encoder.registration(0).method != main_method) {
+      encoder.options().registration.method = main_method;
+      encoder.register_frames();
+      encoder.sample_frames();
+    }
+    // Spline kinds, same keyframes count, each choosing its own keyframes.
+    if (splines.size() > 1) {
+      json kinds = json::array();
+      for (SplineKind kind : splines) {
+        encoder.options().spline = kind;
+        const KeyframeSelection chosen = encoder.select_keyframes();
+        Sequence sequence = encoder.build(chosen.keyframes, grid);
+        const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
+        print_evaluation(input, e);
+        kinds.push_back(evaluation_json(e));
+      }
+      entry["splines"] = kinds;
+      encoder.options().spline = splines.front();
+    }
+    // Table 4: keyframes chosen from all but the last 10 frames, decoded 1, 3 and 10 frames past.
+    if (count >= 20) {
+      const int last = count - 11;
+      const std::vector<SelectionFrame> head(encoder.selection_frames().begin(), encoder.selection_frames().begin() + last + 1);
+      SelectionOptions so;
+      so.fraction = encode.keyframe_fraction;
+      so.spline = encoder.options().spline;
+      so.pose_centre = encoder.pose_centre();
+      const KeyframeSelection chosen = select_keyframes(head, encoder.selection_weights(), so);
+      const Sequence sequence = encoder.build(chosen.keyframes, grid);
+      const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
+      const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, {last + 1, last + 3, last + 10}, false);
+      json extrapolation = json::array();
+      std::printf("    extrapolation past the last keyframe (t = %.3f s; sane to %.3f s):", capture.frames[static_cast<size_t>(last)].time,
+                  spline.sane_range().end);
+      for (size_t k = 0; k < e.frames.size(); ++k) {
+        const int ahead = k == 0 ? 1 : k == 1 ? 3 : 10;
+        std::printf("  +%d frames: %.4f%% RMS, %.4f%% max", ahead, 100 * e.frames[k].rms, 100 * e.frames[k].max);
+        extrapolation.push_back({{"frames_past", ahead}, {"time", e.frames[k].time}, {"rms_relative", e.frames[k].rms}, {"max_relative", e.frames[k].max},
+                                 {"within_sane_range", e.frames[k].time <= spline.sane_range().end}});
+      }
+      std::printf("\n");
+      entry["extrapolation"] = extrapolation;
+    }
+    // Keyframes needed for a worst held-out RMS of 1% and of 0.5%: the tolerance mode, tightened
+    // until the measured worst meets it (the selection predicts; the decoder decides).
+    if (!options.no_targets) {
+      json targets = json::array();
+      for (double target : {0.01, 0.005}) {
+        double tolerance = target;
+        for (int attempt = 0; attempt < 4; ++attempt) {
+          encoder.options().max_error = tolerance;
+          const KeyframeSelection chosen = encoder.select_keyframes();
+          const Sequence sequence = encoder.build(chosen.keyframes, grid);
+          const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
+          const double worst = summarise(e).held_rms_worst;
+          if (worst <= target || attempt == 3 || static_cast<int>(chosen.keyframes.size()) == count) {
+            std::printf("    worst held-out RMS <= %.1f%%: %d keyframes of %d (%.1f%%), measured worst %.4f%%%s\n", 100 * target,
+                        static_cast<int>(chosen.keyframes.size()), count, 100.0 * chosen.keyframes.size() / count, 100 * worst,
+                        worst <= target ? "" : " (not met)");
+            targets.push_back({{"target", target}, {"keyframes", chosen.keyframes.size()}, {"measured_worst", worst}, {"met", worst <= target}});
+            break;
+          }
+          tolerance *= 0.7 * target / worst;
+        }
+      }
+      encoder.options().max_error = 0;
+      entry["keyframes_for_target"] = targets;
+    }
+    results.push_back(entry);
+  }
+  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "temporal"}, {"results", results}});
+  return 0;
+}
+
+}  // namespace facemorph::tools
