@@ -85,6 +85,35 @@ std::vector<std::vector<double>> scalar_arrays(const GridFields& fields) {
   return out;
 }
 
+GridFields fields_from_scalar_arrays(Representation representation, int grid_n, std::vector<int32_t> fixed_nodes,
+                                     const std::vector<std::vector<double>>& arrays) {
+  if (arrays.size() != kScalarArrayCount) {
+    throw Error(ErrorCode::kInvalidArgument, "fields_from_scalar_arrays: " + std::to_string(arrays.size()) + " arrays, " +
+                                                 std::to_string(kScalarArrayCount) + " expected");
+  }
+  GridFields fields;
+  fields.representation = representation;
+  fields.grid_n = grid_n;
+  fields.mean_curvature = arrays[0];
+  fields.log_conformal_factor = arrays[1];
+  fields.tangential_u = arrays[2];
+  fields.tangential_v = arrays[3];
+  fields.fixed_nodes = std::move(fixed_nodes);
+  size_t next = 4;
+  for (std::vector<Vec3>* vectors : {&fields.fixed_laplacian, &fields.positions, &fields.rim}) {
+    const std::vector<double>& x = arrays[next];
+    const std::vector<double>& y = arrays[next + 1];
+    const std::vector<double>& z = arrays[next + 2];
+    next += 3;
+    if (y.size() != x.size() || z.size() != x.size()) {
+      throw Error(ErrorCode::kInvalidArgument, "fields_from_scalar_arrays: the components of array " + std::to_string(next - 3) + " differ in length");
+    }
+    vectors->resize(x.size());
+    for (size_t i = 0; i < x.size(); ++i) (*vectors)[i] = Vec3(x[i], y[i], z[i]);
+  }
+  return fields;
+}
+
 GridFields compute_fields(const GridGeometry& geometry, const std::vector<Vec3>& positions, Representation representation,
                           const std::vector<int32_t>& extra_fixed_nodes) {
   const DiskGrid& grid = geometry.grid();

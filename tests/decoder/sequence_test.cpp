@@ -140,7 +140,9 @@ TEST(SequenceDecoder, AHoleOpensBetweenKeyframesAlongTheBlendedOutline) {
   // Before s = 0.25 (t = 0.075) there is no hole; with the fill kept, never.
   const DecodedFrame closed = decoder.decode(0.07);
   EXPECT_EQ(MeshTopology(closed.mesh.faces, closed.mesh.vertex_count()).boundary_loops().size(), 1u);
-  const DecodedFrame kept = decoder.decode(0.3, {.cut_holes = false});
+  DecodeOptions keep_fill;
+  keep_fill.cut_holes = false;
+  const DecodedFrame kept = decoder.decode(0.3, keep_fill);
   EXPECT_EQ(kept.mesh.face_count(), static_cast<int>(decoder.geometry().grid().faces.size()));
 }
 
@@ -150,7 +152,9 @@ TEST(SequenceDecoder, TimesOutsideTheSaneRangeAreNamedOrClamped) {
   EXPECT_NO_THROW(decoder.decode(1.4));
   testing::expect_error(ErrorCode::kOutOfRange, "outside the range", [&] { decoder.decode(1.5); });
   testing::expect_error(ErrorCode::kOutOfRange, "outside the range", [&] { decoder.decode(-0.31); });
-  EXPECT_DOUBLE_EQ(decoder.decode(9, {.clamp_to_sane_range = true}).time, 1.45);
+  DecodeOptions clamp;
+  clamp.clamp_to_sane_range = true;
+  EXPECT_DOUBLE_EQ(decoder.decode(9, clamp).time, 1.45);
   testing::expect_error(ErrorCode::kInvalidArgument, "not finite", [&] { decoder.decode(std::nan("")); });
 }
 

@@ -47,6 +47,13 @@ void validate_fields(const GridFields& fields);
 // (not used by the representation) are included, so the list has the same length for every
 // representation.
 std::vector<std::vector<double>> scalar_arrays(const GridFields& fields);
+inline constexpr size_t kScalarArrayCount = 13;
+
+// The inverse of scalar_arrays: fields of `representation` on grid N from kScalarArrayCount arrays in
+// that order, with the fixed nodes they were stored with. Checks nothing beyond the array count
+// (kInvalidArgument): validate_fields says whether the result is what the representation promises.
+GridFields fields_from_scalar_arrays(Representation representation, int grid_n, std::vector<int32_t> fixed_nodes,
+                                     const std::vector<std::vector<double>>& arrays);
 
 // The fields of a surface sampled at every node of G (interior nodes, then rim nodes). For hl+t,
 // `extra_fixed_nodes` are stored in boundary frames like the band (see folded_nodes); keyframes to

@@ -1,0 +1,430 @@
+// The .fmv file of a Sequence: spec/container.md §4-7 in code. The outer layer (preamble, chunks,
+// checksums, zstd) is format/container; this file gives the payloads their meaning and checks every
+// value against the header before anything uses it.
+#include "facemorph/sequence_file.hpp"
+
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/image_codec.hpp"
+#include "format/byte_reader.hpp"
+#include "format/byte_writer.hpp"
+#include "format/container.hpp"
+#include "format/field_coder.hpp"
+#include "format/file_io.hpp"
+#include "format/quantize.hpp"
+
+#include <cmath>
+#include <map>
+#include <mutex>
+
+#ifndef FACEMORPH_VERSION
+#define FACEMORPH_VERSION "unknown"
+#endif
+
+namespace facemorph {
+
+namespace {
+
+using format::ByteReader;
+using format::ByteWriter;
+
+constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kTexture = "TEXR";
+constexpr uint32_t kTextureWebp = 1;
+constexpr uint8_t kHasTexture = 1, kHasHoles = 2;
+constexpr uint32_t kMaxKeyframes = 1u << 20;
+constexpr uint32_t kMaxStringBytes = 1u << 20;
+constexpr uint32_t kMaxLandmarks = 1u << 16;
+constexpr int kMaxTextureSize = 16384;
+constexpr size_t kKeyframeArrays = kScalarArrayCount + 1;  // the fields' arrays, then the hole level
+
+// The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
+// the order of the C++ enumerators.
+constexpr std::pair<Representation, uint8_t> kRepresentationCodes[] = {
+    {Representation::kHL, 0}, {Representation::kHLT, 1}, {Representation::kXYZ, 2}};
+constexpr std::pair<SplineKind, uint8_t> kSplineCodes[] = {
+    {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
+
+template <typename Enum, size_t N>
+uint8_t code_of(const std::pair<Enum, uint8_t> (&table)[N], Enum value) {
+  for (const auto& [e, c] : table) {
+    if (e == value) return c;
+  }
+  throw Error(ErrorCode::kInvalidArgument, "no file code for an enumerator");
+}
+
+template <typename Enum, size_t N>
+Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std::string& what) {
+  for (const auto& [e, c] : table) {
+    if (c == code) return e;
+  }
+  throw Error(ErrorCode::kUnsupported, what + " " + std::to_string(code) + " is not one this decoder knows");
+}
+
+// G's hash for N, built once per process and N (the grid is what costs; the hash is 8 bytes).
+uint64_t grid_hash(int n) {
+  static std::mutex mutex;
+  static std::map<int, uint64_t> hashes;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto it = hashes.find(n); it != hashes.end()) return it->second;
+  }
+  const uint64_t hash = make_disk_grid(n).hash;
+  std::lock_guard<std::mutex> lock(mutex);
+  hashes[n] = hash;
+  return hash;
+}
+
+[[noreturn]] void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
+
+double read_finite(ByteReader& r, const char* what) {
+  const double v = r.read<double>(what);
+  if (!std::isfinite(v)) corrupt(r.source(), std::string(what) + " is not finite");
+  return v;
+}
+
+std::string read_string(ByteReader& r, const char* what) {
+  const uint32_t size = r.read<uint32_t>(what);
+  if (size > kMaxStringBytes) corrupt(r.source(), std::string(what) + " announces " + std::to_string(size) + " bytes (at most 1 MiB)");
+  const auto bytes = r.bytes(size, what);
+  return {bytes.begin(), bytes.end()};
+}
+
+// ---- The header (HEAD) ----
+
+struct Header {
+  Sequence shape;  // every field but the keyframes
+  uint32_t keyframe_count = 0;
+  uint32_t grid_rule = 0;
+  uint64_t grid_hash = 0;
+  uint8_t flags = 0;
+  uint32_t texture_size = 0;
+  uint32_t rim_count = 0;
+  std::vector<int32_t> fixed_nodes;
+  SequenceFileMetadata metadata;
+};
+
+std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, const DiskGridShape& shape) {
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(s.grid_n));
+  w.write(static_cast<uint32_t>(kDiskGridRule));
+  w.write(grid_hash(s.grid_n));
+  w.write(code_of(kRepresentationCodes, s.representation));
+  w.write(code_of(kSplineCodes, s.spline));
+  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes() ? kHasHoles : 0)));
+  w.write(uint8_t{0});
+  w.write(static_cast<uint32_t>(s.keyframes.size()));
+  w.write(s.fps);
+  w.write(s.first_time);
+  w.write(s.last_time);
+  for (int k = 0; k < 3; ++k) w.write(s.pose_centre[k]);
+  w.write(static_cast<uint32_t>(s.has_texture() ? s.keyframes.front().texture.width : 0));
+  w.write(static_cast<uint32_t>(shape.rim_count));
+  const std::vector<int32_t>& fixed = s.keyframes.front().fields.fixed_nodes;
+  w.write(static_cast<uint32_t>(fixed.size()));
+  for (int32_t node : fixed) w.write(static_cast<uint32_t>(node));
+  w.string(s.units);
+  w.string(metadata.encoder.empty() ? std::string("facemorph ") + FACEMORPH_VERSION : metadata.encoder);
+  w.string(metadata.settings);
+  w.write(static_cast<uint32_t>(metadata.landmark_names.size()));
+  for (const std::string& name : metadata.landmark_names) w.string(name);
+  return w.take();
+}
+
+Header read_header(std::span<const uint8_t> payload, const std::string& source) {
+  ByteReader r(payload, source + ": header");
+  Header h;
+  const uint32_t n = r.read<uint32_t>("the grid size");
+  if (n < static_cast<uint32_t>(kMinGridSize) || n > static_cast<uint32_t>(kMaxGridSize)) {
+    corrupt(r.source(), "grid size " + std::to_string(n) + " outside [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
+  }
+  h.shape.grid_n = static_cast<int>(n);
+  h.grid_rule = r.read<uint32_t>("the grid rule");
+  h.grid_hash = r.read<uint64_t>("the grid hash");
+  h.shape.representation = enum_of(kRepresentationCodes, r.read<uint8_t>("the representation"), source + ": representation");
+  h.shape.spline = enum_of(kSplineCodes, r.read<uint8_t>("the spline"), source + ": spline kind");
+  h.flags = r.read<uint8_t>("the flags");
+  if ((h.flags & ~(kHasTexture | kHasHoles)) != 0) corrupt(r.source(), "reserved flags are set");
+  r.skip(1, "a reserved byte");
+  h.keyframe_count = r.read<uint32_t>("the keyframe count");
+  if (h.keyframe_count == 0 || h.keyframe_count > kMaxKeyframes) corrupt(r.source(), "keyframe count " + std::to_string(h.keyframe_count));
+  h.shape.fps = read_finite(r, "the frame rate");
+  h.shape.first_time = read_finite(r, "the first time");
+  h.shape.last_time = read_finite(r, "the last time");
+  if (h.shape.fps <= 0 || h.shape.last_time < h.shape.first_time) corrupt(r.source(), "impossible frame rate or time range");
+  for (int k = 0; k < 3; ++k) h.shape.pose_centre[k] = read_finite(r, "the pose centre");
+  h.texture_size = r.read<uint32_t>("the texture size");
+  if (((h.flags & kHasTexture) != 0) != (h.texture_size > 0) || h.texture_size > static_cast<uint32_t>(kMaxTextureSize)) {
+    corrupt(r.source(), "texture size " + std::to_string(h.texture_size) + " does not match the texture flag or exceeds 16384");
+  }
+  h.rim_count = r.read<uint32_t>("the rim node count");
+  const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
+  if (h.rim_count != static_cast<uint32_t>(shape.rim_count)) {
+    corrupt(r.source(), std::to_string(h.rim_count) + " rim nodes; G at N = " + std::to_string(n) + " has " + std::to_string(shape.rim_count));
+  }
+  const uint32_t fixed = r.read<uint32_t>("the fixed node count");
+  if (fixed > static_cast<uint32_t>(shape.interior_count)) corrupt(r.source(), "more fixed nodes than interior nodes");
+  r.require(size_t{4} * fixed, "the fixed nodes");
+  h.fixed_nodes.resize(fixed);
+  for (uint32_t i = 0; i < fixed; ++i) h.fixed_nodes[i] = static_cast<int32_t>(r.read<uint32_t>("a fixed node") & 0x7fffffffu);
+  h.shape.units = read_string(r, "the units");
+  h.metadata.encoder = read_string(r, "the encoder");
+  h.metadata.settings = read_string(r, "the settings");
+  const uint32_t landmarks = r.read<uint32_t>("the landmark count");
+  if (landmarks > kMaxLandmarks) corrupt(r.source(), std::to_string(landmarks) + " landmark names");
+  for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name"));
+  // Later minor versions append fields here; this reader ignores them.
+  if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != grid_hash(h.shape.grid_n)) {
+    throw Error(ErrorCode::kUnsupported, source + ": the file's grid (rule " + std::to_string(h.grid_rule) + ", N = " + std::to_string(n) +
+                                             ") is not the grid this decoder builds (rule " + std::to_string(kDiskGridRule) + "): it would decode differently");
+  }
+  return h;
+}
+
+// ---- The index (KIDX) ----
+
+struct IndexEntry {
+  double time = 0;
+  uint64_t keyframe_offset = 0, texture_offset = 0;
+};
+
+constexpr size_t kIndexEntryBytes = 24;
+
+std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries) {
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(entries.size()));
+  for (const IndexEntry& e : entries) {
+    w.write(e.time);
+    w.write(e.keyframe_offset);
+    w.write(e.texture_offset);
+  }
+  return w.take();
+}
+
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, uint32_t keyframes) {
+  ByteReader r(payload, source + ": index");
+  const uint32_t count = r.read<uint32_t>("the entry count");
+  if (count != keyframes) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(keyframes) + " keyframes");
+  r.require(size_t{count} * kIndexEntryBytes, "the entries");
+  std::vector<IndexEntry> entries(count);
+  for (IndexEntry& e : entries) {
+    e.time = read_finite(r, "a keyframe time");
+    e.keyframe_offset = r.read<uint64_t>("a keyframe offset");
+    e.texture_offset = r.read<uint64_t>("a texture offset");
+  }
+  return entries;
+}
+
+// ---- One keyframe (KEYF): time, pose, the quantised arrays ----
+
+std::vector<uint8_t> write_keyframe(const Keyframe& key, uint32_t number) {
+  ByteWriter w;
+  w.write(number);
+  w.write(key.time);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) w.write(key.pose.rotation(i, j));
+  }
+  for (int k = 0; k < 3; ++k) w.write(key.pose.translation[k]);
+  std::vector<std::vector<double>> arrays = scalar_arrays(key.fields);
+  arrays.push_back(key.hole_level);
+  std::vector<format::Quantized16> quantized;
+  w.write(static_cast<uint32_t>(arrays.size()));
+  for (const std::vector<double>& values : arrays) {
+    quantized.push_back(format::quantize16(values));
+    w.write(static_cast<uint32_t>(values.size()));
+    w.write(quantized.back().lo);
+    w.write(quantized.back().hi);
+  }
+  const std::vector<uint8_t> coded = format::encode_code_planes(quantized);
+  w.write(static_cast<uint32_t>(coded.size()));
+  w.bytes(coded);
+  return w.take();
+}
+
+// What each array's length must be, from the header alone.
+std::vector<size_t> expected_lengths(const Header& h) {
+  const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
+  const auto interior = static_cast<size_t>(shape.interior_count);
+  const size_t fixed = h.fixed_nodes.size();
+  const auto rim = static_cast<size_t>(shape.rim_count);
+  const bool fields = h.shape.representation != Representation::kXYZ;
+  const bool tangential = h.shape.representation == Representation::kHLT;
+  const size_t holes = (h.flags & kHasHoles) ? interior + rim : 0;
+  return {fields ? interior : 0, fields ? interior : 0, tangential ? interior : 0, tangential ? interior : 0,
+          fixed, fixed, fixed,
+          fields ? 0 : interior, fields ? 0 : interior, fields ? 0 : interior,
+          rim, rim, rim, holes};
+}
+
+Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t number) {
+  ByteReader r(payload, where);
+  Keyframe key;
+  if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe than the index says");
+  key.time = read_finite(r, "the time");
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) key.pose.rotation(i, j) = read_finite(r, "the rotation");
+  }
+  for (int k = 0; k < 3; ++k) key.pose.translation[k] = read_finite(r, "the translation");
+  const uint32_t count = r.read<uint32_t>("the array count");
+  if (count < kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
+  if (count > 64) corrupt(where, std::to_string(count) + " arrays (at most 64)");
+  const std::vector<size_t> expected = expected_lengths(h);
+  std::vector<format::Quantized16> ranges(count);
+  std::vector<size_t> lengths(count);
+  for (uint32_t a = 0; a < count; ++a) {
+    lengths[a] = r.read<uint32_t>("an array length");
+    ranges[a].lo = read_finite(r, "an array's range");
+    ranges[a].hi = read_finite(r, "an array's range");
+    if (a < kKeyframeArrays && lengths[a] != expected[a]) {
+      corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(lengths[a]) + " values, " + std::to_string(expected[a]) + " expected");
+    }
+    if (a >= kKeyframeArrays && lengths[a] > expected.front() + expected.back() + expected[10]) corrupt(where, "an appended array is too long");
+    if (!(ranges[a].lo <= ranges[a].hi) || !std::isfinite(ranges[a].hi - ranges[a].lo)) corrupt(where, "array " + std::to_string(a) + " has an impossible range");
+  }
+  const uint32_t coded = r.read<uint32_t>("the coded size");
+  const auto bytes = r.bytes(coded, "the coded arrays");
+  std::vector<std::vector<uint16_t>> codes = format::decode_code_planes(bytes, lengths, where);
+  std::vector<std::vector<double>> arrays(kScalarArrayCount);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    ranges[a].codes = std::move(codes[a]);
+    std::vector<double> values = format::dequantize16(ranges[a]);
+    if (a < kScalarArrayCount) {
+      arrays[a] = std::move(values);
+    } else {
+      key.hole_level = std::move(values);
+    }
+  }
+  // Arrays past the ones this version knows were appended by a later minor version: ignored.
+  key.fields = fields_from_scalar_arrays(h.shape.representation, h.shape.grid_n, h.fixed_nodes, arrays);
+  try {
+    validate_fields(key.fields);
+  } catch (const Error& e) {
+    corrupt(where, e.what());
+  }
+  return key;
+}
+
+std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, int quality) {
+  ByteWriter w;
+  w.write(number);
+  w.write(kTextureWebp);
+  w.bytes(encode_webp(texture, quality));
+  return w.take();
+}
+
+Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size) {
+  ByteReader r(payload, where);
+  if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe's texture than the index says");
+  const uint32_t codec = r.read<uint32_t>("the image codec");
+  if (codec != kTextureWebp) throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(codec) + " (this decoder reads WebP, 1)");
+  Image image = decode_webp(r.bytes(r.remaining(), "the image"), where, 3, int64_t{size} * size);
+  if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
+    corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
+  }
+  return image;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
+  validate_sequence(sequence);
+  if (metadata.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
+  const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
+  const format::PreparedChunk header = format::prepare_chunk(kHeader, write_header(sequence, metadata, shape), true, 19);
+  // Every payload first, so the index can hold the offsets of the chunks after it.
+  std::vector<format::PreparedChunk> keyframes, textures;
+  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+    const Keyframe& key = sequence.keyframes[k];
+    keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
+    if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_quality), true));
+  }
+  std::vector<IndexEntry> entries(sequence.keyframes.size());
+  uint64_t offset = format::kPreambleBytes + header.total_size() + format::kChunkHeaderBytes + 4 + kIndexEntryBytes * entries.size() +
+                    format::kChunkTrailerBytes;
+  for (size_t k = 0; k < entries.size(); ++k) {
+    entries[k].time = sequence.keyframes[k].time;
+    entries[k].keyframe_offset = offset;
+    offset += keyframes[k].total_size();
+    if (!textures.empty()) {
+      entries[k].texture_offset = offset;
+      offset += textures[k].total_size();
+    }
+  }
+  format::ContainerWriter writer;
+  writer.add(header);
+  writer.add(format::prepare_chunk(kIndex, write_index(entries), true));
+  for (size_t k = 0; k < entries.size(); ++k) {
+    if (writer.add(keyframes[k]) != entries[k].keyframe_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+    if (!textures.empty()) writer.add(textures[k]);
+  }
+  return writer.finish();
+}
+
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info) {
+  const format::ContainerReader reader(bytes, source);
+  const std::vector<format::ChunkView>& chunks = reader.chunks();
+  if (chunks.size() < 2 || chunks[0].type != kHeader || chunks[1].type != kIndex) {
+    corrupt(source, "the file does not start with its header and index chunks");
+  }
+  for (const format::ChunkView& chunk : chunks) {
+    const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kTexture;
+    if (!known && chunk.critical()) {
+      throw Error(ErrorCode::kUnsupported, source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
+    }
+  }
+  Header header = read_header(reader.payload(chunks[0]), source);
+  const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count);
+  auto sequence = std::move(header.shape);
+  std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
+  for (uint32_t k = 0; k < index.size(); ++k) {
+    const std::string name = "keyframe " + std::to_string(k);
+    const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
+    if (chunk.type != kKeyframe) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk");
+    Keyframe key = read_keyframe(reader.payload(chunk), source + ": " + reader.describe(chunk) + " (" + name + ")", header, k);
+    if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
+    sizes[k].fields = chunk.total_size();
+    if (header.flags & kHasTexture) {
+      const format::ChunkView& texture = reader.chunk_at(index[k].texture_offset, name + "'s texture entry");
+      if (texture.type != kTexture) corrupt(source, name + "'s texture entry points at a " + texture.type + " chunk");
+      key.texture = read_texture(reader.payload(texture), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size);
+      sizes[k].texture = texture.total_size();
+    } else if (index[k].texture_offset != 0) {
+      corrupt(source, name + " has a texture entry in a file without textures");
+    }
+    sequence.keyframes.push_back(std::move(key));
+  }
+  try {
+    validate_sequence(sequence);
+  } catch (const Error& e) {
+    corrupt(source, e.what());
+  }
+  if (info) {
+    *info = {};
+    info->major_version = reader.major_version();
+    info->minor_version = reader.minor_version();
+    info->file_bytes = bytes.size();
+    info->grid_hash = header.grid_hash;
+    info->grid_rule = static_cast<int>(header.grid_rule);
+    info->texture_size = static_cast<int>(header.texture_size);
+    info->metadata = std::move(header.metadata);
+    info->keyframes = std::move(sizes);
+    for (const format::ChunkView& chunk : chunks) {
+      auto it = std::find_if(info->chunks.begin(), info->chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
+      if (it == info->chunks.end()) it = info->chunks.insert(info->chunks.end(), {chunk.type, 0, 0, 0});
+      ++it->count;
+      it->stored_bytes += chunk.total_size();
+      it->raw_bytes += chunk.raw_size;
+    }
+  }
+  return sequence;
+}
+
+void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
+  format::write_file_atomically(path, encode_sequence_file(sequence, metadata));
+}
+
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info) {
+  const std::vector<uint8_t> bytes = format::read_file(path);
+  return decode_sequence_file(bytes, path.string(), info);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,59 @@
+// A Sequence as a .fmv file (spec/container.md): the header, the keyframe index, one chunk of
+// fields, pose and holes per keyframe, one texture chunk per keyframe. What fmenc writes, fmdec and
+// players read, fminfo describes.
+#pragma once
+
+#include "facemorph/sequence.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+// What a file says about itself besides the sequence.
+struct SequenceFileMetadata {
+  std::string encoder;                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
+  std::string settings;                     // the encoder's settings (JSON text)
+  std::vector<std::string> landmark_names;  // of the capture, for players that show them
+  int texture_quality = 90;                 // WebP quality 0..100 (above 100: lossless)
+};
+
+struct SequenceFileInfo {
+  uint16_t major_version = 0, minor_version = 0;
+  uint64_t file_bytes = 0;
+  uint64_t grid_hash = 0;
+  int grid_rule = 0;
+  int texture_size = 0;
+  SequenceFileMetadata metadata;
+  struct ChunkTotal {
+    std::string type;
+    int count = 0;
+    uint64_t stored_bytes = 0;  // as in the file, chunk headers and checksums included
+    uint64_t raw_bytes = 0;     // payloads after decompression
+  };
+  std::vector<ChunkTotal> chunks;  // per type, in order of first appearance
+  struct KeyframeBytes {
+    uint64_t fields = 0, texture = 0;  // chunk sizes in the file
+  };
+  std::vector<KeyframeBytes> keyframes;
+};
+
+// The file's bytes. Fields are quantised to 16 bits (spec/method.md §5.3), textures encoded as WebP
+// at metadata.texture_quality. Throws kInvalidArgument for a sequence validate_sequence rejects.
+std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
+
+// Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,
+// the grid's rule and hash against the one this decoder builds, every keyframe's fields by
+// validate_fields, the sequence by validate_sequence). Throws kTruncated, kCorrupt or kUnsupported
+// naming `source` and the chunk.
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info = nullptr);
+
+// The same through files: the write is atomic (a temporary name, then a rename), so a failed write
+// leaves any previous file untouched.
+void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr);
+
+}  // namespace facemorph

@@ -1,0 +1,168 @@
+#include "format/container.hpp"
+
+#include "facemorph/error.hpp"
+#include "format/byte_reader.hpp"
+#include "format/byte_writer.hpp"
+#include "format/checksum.hpp"
+
+#include <zstd.h>
+
+#include <algorithm>
+
+namespace facemorph::format {
+
+namespace {
+
+bool valid_type(std::string_view type) {
+  return type.size() == 4 && std::all_of(type.begin(), type.end(), [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9'); });
+}
+
+void write_chunk(std::vector<uint8_t>& out, std::string_view type, uint32_t flags, uint64_t raw_size, std::span<const uint8_t> stored) {
+  ByteWriter w;
+  w.bytes({reinterpret_cast<const uint8_t*>(type.data()), 4});
+  w.write(flags);
+  w.write(static_cast<uint64_t>(stored.size()));
+  w.write(raw_size);
+  w.bytes(stored);
+  w.write(crc32(w.data()));
+  out.insert(out.end(), w.data().begin(), w.data().end());
+}
+
+}  // namespace
+
+PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level) {
+  if (!valid_type(type) || type == kEndChunk) {
+    throw Error(ErrorCode::kInvalidArgument, "chunk type '" + std::string(type) + "' is not four characters [A-Z0-9] (or is reserved)");
+  }
+  if (payload.size() > kMaxPayloadBytes) throw Error(ErrorCode::kInvalidArgument, "chunk " + std::string(type) + " payload over 1 GiB");
+  PreparedChunk chunk;
+  chunk.type = std::string(type);
+  chunk.flags = critical ? kChunkCritical : 0;
+  chunk.raw_size = payload.size();
+  if (zstd_level > 0 && !payload.empty()) {
+    std::vector<uint8_t> packed(ZSTD_compressBound(payload.size()));
+    const size_t size = ZSTD_compress(packed.data(), packed.size(), payload.data(), payload.size(), zstd_level);
+    if (ZSTD_isError(size)) throw Error(ErrorCode::kInvalidArgument, std::string("zstd: ") + ZSTD_getErrorName(size));
+    if (size < payload.size()) {
+      packed.resize(size);
+      chunk.flags |= kChunkCompressed;
+      chunk.stored = std::move(packed);
+      return chunk;
+    }
+  }
+  chunk.stored = std::move(payload);
+  return chunk;
+}
+
+ContainerWriter::ContainerWriter() {
+  ByteWriter w;
+  w.bytes(kMagic);
+  w.write(kMajorVersion);
+  w.write(kMinorVersion);
+  w.write(crc32(w.data()));
+  bytes_ = w.take();
+}
+
+uint64_t ContainerWriter::add(const PreparedChunk& chunk) {
+  const uint64_t offset = bytes_.size();
+  write_chunk(bytes_, chunk.type, chunk.flags, chunk.raw_size, chunk.stored);
+  ++chunk_count_;
+  return offset;
+}
+
+std::vector<uint8_t> ContainerWriter::finish() {
+  ByteWriter count;
+  count.write(chunk_count_);
+  write_chunk(bytes_, kEndChunk, kChunkCritical, count.size(), count.data());
+  chunk_count_ = 0;
+  return std::move(bytes_);
+}
+
+ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source) : file_(file), source_(std::move(source)) {
+  ByteReader r(file, source_);
+  if (file.size() >= kMagic.size() && !std::equal(kMagic.begin(), kMagic.end(), file.begin())) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": not a facemorph container (bad magic)");
+  }
+  r.skip(kMagic.size(), "the magic");
+  major_ = r.read<uint16_t>("the major version");
+  minor_ = r.read<uint16_t>("the minor version");
+  const uint32_t crc = r.read<uint32_t>("the preamble checksum");
+  if (crc != crc32(file.first(12))) throw Error(ErrorCode::kCorrupt, source_ + ": preamble checksum mismatch");
+  if (major_ != kMajorVersion) {
+    throw Error(ErrorCode::kUnsupported, source_ + ": format version " + std::to_string(major_) + "." + std::to_string(minor_) +
+                                             " (this decoder reads " + std::to_string(kMajorVersion) + ".x)");
+  }
+  while (true) {
+    ChunkView chunk;
+    chunk.offset = r.position();
+    const std::string at = " at offset " + std::to_string(chunk.offset);
+    const auto type = r.bytes(4, "a chunk type");
+    chunk.type.assign(type.begin(), type.end());
+    if (!valid_type(chunk.type)) throw Error(ErrorCode::kCorrupt, source_ + ": chunk" + at + " has an invalid type");
+    const std::string name = "chunk " + chunk.type + at;
+    chunk.flags = r.read<uint32_t>("a chunk's flags");
+    const uint64_t stored = r.read<uint64_t>("a chunk's size");
+    chunk.raw_size = r.read<uint64_t>("a chunk's size");
+    if ((chunk.flags & ~kChunkKnownFlags) != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " sets reserved flags");
+    if (stored > kMaxPayloadBytes || chunk.raw_size > kMaxPayloadBytes) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " announces over 1 GiB");
+    if (!chunk.compressed() && chunk.raw_size != stored) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " has inconsistent sizes");
+    if (stored + kChunkTrailerBytes > r.remaining()) {
+      throw Error(ErrorCode::kTruncated, source_ + ": truncated: " + name + " needs " + std::to_string(stored + kChunkTrailerBytes) +
+                                             " bytes, only " + std::to_string(r.remaining()) + " left");
+    }
+    chunk.stored = r.bytes(static_cast<size_t>(stored), "a chunk's payload");
+    chunk.crc = r.read<uint32_t>("a chunk's checksum");
+    if (chunk.type == kEndChunk) {
+      if (crc32(file.subspan(chunk.offset, kChunkHeaderBytes + stored)) != chunk.crc) {
+        throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in the end chunk" + at);
+      }
+      ByteReader end(chunk.stored, source_ + " end chunk");
+      const uint32_t count = end.read<uint32_t>("the chunk count");
+      if (count != chunks_.size()) {
+        throw Error(ErrorCode::kCorrupt, source_ + ": the end chunk counts " + std::to_string(count) + " chunks, the file holds " +
+                                             std::to_string(chunks_.size()));
+      }
+      if (r.remaining() != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(r.remaining()) + " bytes after the end chunk");
+      return;
+    }
+    chunks_.push_back(std::move(chunk));
+    if (r.remaining() == 0) throw Error(ErrorCode::kTruncated, source_ + ": truncated: the file ends without its end chunk");
+  }
+}
+
+const ChunkView& ContainerReader::chunk_at(uint64_t offset, const std::string& what) const {
+  auto it = std::lower_bound(chunks_.begin(), chunks_.end(), offset, [](const ChunkView& c, uint64_t o) { return c.offset < o; });
+  if (it == chunks_.end() || it->offset != offset) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": " + what + " points at offset " + std::to_string(offset) + ", where no chunk starts");
+  }
+  return *it;
+}
+
+std::string ContainerReader::describe(const ChunkView& chunk) const {
+  return "chunk " + chunk.type + " at offset " + std::to_string(chunk.offset);
+}
+
+std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk) const {
+  if (crc32(file_.subspan(chunk.offset, kChunkHeaderBytes + chunk.stored.size())) != chunk.crc) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in " + describe(chunk));
+  }
+  if (!chunk.compressed()) return {chunk.stored.begin(), chunk.stored.end()};
+  const unsigned long long announced = ZSTD_getFrameContentSize(chunk.stored.data(), chunk.stored.size());
+  if (announced != chunk.raw_size) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": the zstd frame does not announce the chunk's size");
+  }
+  std::vector<uint8_t> out(static_cast<size_t>(chunk.raw_size));
+  const size_t size = ZSTD_decompress(out.data(), out.size(), chunk.stored.data(), chunk.stored.size());
+  if (ZSTD_isError(size) || size != out.size()) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");
+  return out;
+}
+
+void ContainerReader::verify() const {
+  for (const ChunkView& chunk : chunks_) {
+    if (crc32(file_.subspan(chunk.offset, kChunkHeaderBytes + chunk.stored.size())) != chunk.crc) {
+      throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in " + describe(chunk));
+    }
+  }
+}
+
+}  // namespace facemorph::format

@@ -1,0 +1,104 @@
+// The container's outer layer (spec/container.md §2-3): a preamble (magic, version) and a sequence
+// of chunks, each with a type, flags, sizes and a CRC-32, optionally zstd-compressed, closed by an
+// end chunk. It knows chunk types and bytes, nothing of what the payloads mean: the sequence file
+// (codec/container) gives them meaning.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace facemorph::format {
+
+inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
+inline constexpr uint16_t kMajorVersion = 1;  // a reader refuses another major version
+inline constexpr uint16_t kMinorVersion = 0;  // later minors only append fields and chunk types
+inline constexpr size_t kPreambleBytes = 16;
+inline constexpr size_t kChunkHeaderBytes = 24;
+inline constexpr size_t kChunkTrailerBytes = 4;
+inline constexpr uint64_t kMaxPayloadBytes = uint64_t{1} << 30;  // stored or decompressed
+inline constexpr std::string_view kEndChunk = "FEND";
+
+// Chunk flags (spec/container.md §3). Other bits are reserved: written 0, rejected when set.
+inline constexpr uint32_t kChunkCompressed = 1;  // the payload is one zstd frame
+inline constexpr uint32_t kChunkCritical = 2;    // a reader that does not know the type must refuse the file
+inline constexpr uint32_t kChunkKnownFlags = kChunkCompressed | kChunkCritical;
+
+// A chunk as found in a file: where it is, and its stored payload as a view into the file's bytes.
+struct ChunkView {
+  std::string type;            // four characters [A-Z0-9]
+  uint32_t flags = 0;
+  uint64_t offset = 0;         // of the chunk header in the file
+  uint64_t raw_size = 0;       // the payload's size once decompressed
+  std::span<const uint8_t> stored;
+  uint32_t crc = 0;            // as stored
+  bool compressed() const { return (flags & kChunkCompressed) != 0; }
+  bool critical() const { return (flags & kChunkCritical) != 0; }
+  uint64_t total_size() const { return kChunkHeaderBytes + stored.size() + kChunkTrailerBytes; }
+};
+
+// A chunk ready to be written: its payload already compressed (or not), so its size is known before
+// it is placed (the index needs the offsets of later chunks).
+struct PreparedChunk {
+  std::string type;
+  uint32_t flags = 0;
+  uint64_t raw_size = 0;
+  std::vector<uint8_t> stored;
+  uint64_t total_size() const { return kChunkHeaderBytes + stored.size() + kChunkTrailerBytes; }
+};
+
+// Prepares a chunk. With `zstd_level` > 0 the payload is compressed and kept compressed only where
+// that is smaller. Throws kInvalidArgument for a type that is not four [A-Z0-9] characters, the
+// end chunk's type, or a payload over kMaxPayloadBytes.
+PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level = 0);
+
+// Builds a container in memory: the preamble, then chunks in the order added, then the end chunk.
+class ContainerWriter {
+ public:
+  ContainerWriter();
+  // Appends a chunk and returns its offset in the file.
+  uint64_t add(const PreparedChunk& chunk);
+  uint64_t size() const { return bytes_.size(); }
+  // Appends the end chunk and returns the file's bytes; the writer is empty afterwards.
+  std::vector<uint8_t> finish();
+
+ private:
+  std::vector<uint8_t> bytes_;
+  uint32_t chunk_count_ = 0;
+};
+
+// Reads a container from its bytes (which must outlive the reader). The constructor checks the
+// preamble and walks every chunk header to the end chunk (sizes, flags, types, what follows the end
+// chunk); payload CRCs are checked when a payload is taken, or all at once by verify(). Every error
+// names `source`, the chunk and its offset: kTruncated when the bytes end early, kCorrupt for a bad
+// magic, checksum or impossible value, kUnsupported for another major version or an unknown
+// critical chunk.
+class ContainerReader {
+ public:
+  ContainerReader(std::span<const uint8_t> file, std::string source);
+
+  uint16_t major_version() const { return major_; }
+  uint16_t minor_version() const { return minor_; }
+  const std::string& source() const { return source_; }
+  // Every chunk before the end chunk, in file order (unknown, non-critical types included).
+  const std::vector<ChunkView>& chunks() const { return chunks_; }
+  // The chunk starting at `offset` (an index entry), or kCorrupt naming `what`.
+  const ChunkView& chunk_at(uint64_t offset, const std::string& what) const;
+  // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise).
+  std::vector<uint8_t> payload(const ChunkView& chunk) const;
+  // Checks every chunk's CRC.
+  void verify() const;
+  // "chunk KEYF at offset 1234" for messages.
+  std::string describe(const ChunkView& chunk) const;
+
+ private:
+  std::span<const uint8_t> file_;
+  std::string source_;
+  uint16_t major_ = 0, minor_ = 0;
+  std::vector<ChunkView> chunks_;
+};
+
+}  // namespace facemorph::format

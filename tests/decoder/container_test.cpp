@@ -1,0 +1,298 @@
+// The .fmv container (spec/container.md): round trips, the checksum's definition, and every way a
+// damaged or foreign file must be refused by name rather than crash or decode wrong.
+#include "facemorph/sequence_file.hpp"
+#include "format/byte_reader.hpp"
+#include "format/byte_writer.hpp"
+#include "format/checksum.hpp"
+#include "format/container.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+namespace facemorph {
+namespace {
+
+// A small sequence with everything a file can hold: hl+t fields of three surfaces, a turning pose,
+// a hole that grows, a texture.
+Sequence small_sequence(int n = 17, int texture = 16) {
+  const GridGeometry geometry(make_disk_grid(n));
+  Sequence s;
+  s.grid_n = n;
+  s.fps = 30;
+  s.first_time = 0;
+  s.last_time = 1;
+  s.units = "mm";
+  s.pose_centre = Vec3(0.1, 0.2, 0.3);
+  for (int k = 0; k < 3; ++k) {
+    Keyframe key;
+    key.time = 0.5 * k;
+    const double a = 0.2 + 0.1 * k;
+    std::vector<Vec3> positions;
+    for (const Vec2& w : geometry.grid().nodes) positions.push_back(Vec3(w.x(), w.y(), a * (w.x() * w.x() - 0.5 * w.y() * w.y())));
+    key.fields = compute_fields(geometry, positions, Representation::kHLT);
+    key.pose.rotation = Eigen::AngleAxisd(0.2 * k, Vec3(0, 1, 0)).toRotationMatrix();
+    key.pose.translation = Vec3(k, 0, -k);
+    for (const Vec2& w : geometry.grid().nodes) key.hole_level.push_back(std::min((w - Vec2(0.3, 0)).norm() - 0.1 * k, kHoleLevelBand));
+    key.texture = Image(texture, texture, 3);
+    for (int y = 0; y < texture; ++y) {
+      for (int x = 0; x < texture; ++x) {
+        uint8_t* p = key.texture.at(x, y);
+        p[0] = static_cast<uint8_t>(8 * x + 20 * k);
+        p[1] = static_cast<uint8_t>(8 * y);
+        p[2] = 128;
+      }
+    }
+    s.keyframes.push_back(std::move(key));
+  }
+  return s;
+}
+
+SequenceFileMetadata small_metadata() {
+  SequenceFileMetadata m;
+  m.settings = R"({"keyframes":"10%"})";
+  m.landmark_names = {"nose_tip", "rim_top"};
+  m.texture_quality = 101;  // lossless: the round trip compares exactly
+  return m;
+}
+
+double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double d = 0;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) d = std::max(d, std::abs(a[i] - b[i]));
+  return d;
+}
+
+double range(const std::vector<double>& v) {
+  if (v.empty()) return 0;
+  return *std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end());
+}
+
+TEST(Checksum, IsTheCrc32OfPngAndZip) {
+  const std::string check = "123456789";
+  EXPECT_EQ(format::crc32({reinterpret_cast<const uint8_t*>(check.data()), check.size()}), 0xCBF43926u);
+  EXPECT_EQ(format::crc32({}), 0u);
+  // Continuing a CRC is the CRC of the concatenation.
+  const std::vector<uint8_t> bytes(check.begin(), check.end());
+  EXPECT_EQ(format::crc32(std::span(bytes).subspan(4), format::crc32(std::span(bytes).first(4))), 0xCBF43926u);
+}
+
+TEST(Container, RoundTripKeepsEveryQuantityWithinItsQuantisation) {
+  const Sequence s = small_sequence();
+  SequenceFileInfo info;
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, small_metadata());
+  const Sequence back = decode_sequence_file(bytes, "small.fmv", &info);
+  EXPECT_EQ(back.grid_n, s.grid_n);
+  EXPECT_EQ(back.representation, s.representation);
+  EXPECT_EQ(back.spline, s.spline);
+  EXPECT_EQ(back.fps, s.fps);
+  EXPECT_EQ(back.units, "mm");
+  EXPECT_EQ(back.pose_centre, s.pose_centre);
+  ASSERT_EQ(back.keyframes.size(), s.keyframes.size());
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+    const Keyframe& a = s.keyframes[k];
+    const Keyframe& b = back.keyframes[k];
+    EXPECT_EQ(a.time, b.time);
+    EXPECT_EQ(a.pose.rotation, b.pose.rotation);  // poses are stored as doubles
+    EXPECT_EQ(a.pose.translation, b.pose.translation);
+    EXPECT_EQ(a.fields.fixed_nodes, b.fields.fixed_nodes);
+    const auto arrays_a = scalar_arrays(a.fields), arrays_b = scalar_arrays(b.fields);
+    for (size_t i = 0; i < arrays_a.size(); ++i) {
+      // 16-bit fixed point over the array's own range: half a step at most.
+      EXPECT_LE(max_difference(arrays_a[i], arrays_b[i]), 0.5 * range(arrays_a[i]) / 65535 * (1 + 1e-9)) << "array " << i;
+    }
+    EXPECT_LE(max_difference(a.hole_level, b.hole_level), 0.5 * range(a.hole_level) / 65535 * (1 + 1e-9));
+    EXPECT_EQ(a.texture.pixels, b.texture.pixels);  // lossless WebP
+  }
+  EXPECT_EQ(info.major_version, format::kMajorVersion);
+  EXPECT_EQ(info.file_bytes, bytes.size());
+  EXPECT_EQ(info.metadata.landmark_names, small_metadata().landmark_names);
+  EXPECT_EQ(info.metadata.settings, small_metadata().settings);
+  EXPECT_EQ(info.metadata.encoder.rfind("facemorph ", 0), 0u);
+  EXPECT_EQ(info.texture_size, 16);
+  uint64_t total = format::kPreambleBytes + format::kChunkHeaderBytes + 4 + format::kChunkTrailerBytes;  // + the end chunk
+  for (const auto& c : info.chunks) total += c.stored_bytes;
+  EXPECT_EQ(total, bytes.size());
+  // Writing is deterministic: the same sequence gives the same bytes.
+  EXPECT_EQ(encode_sequence_file(s, small_metadata()), bytes);
+}
+
+TEST(Container, GeometryOnlyAndHoleFreeSequencesRoundTrip) {
+  Sequence s = small_sequence();
+  for (Keyframe& key : s.keyframes) {
+    key.texture = {};
+    key.hole_level.clear();
+  }
+  const Sequence back = decode_sequence_file(encode_sequence_file(s, {}), "plain.fmv");
+  EXPECT_FALSE(back.has_texture());
+  EXPECT_FALSE(back.has_holes());
+  EXPECT_EQ(back.keyframes.size(), 3u);
+}
+
+// Every prefix of a file is refused as truncated (or, where the cut lands in the magic, as not a
+// container), never read past its end.
+TEST(Container, EveryTruncationIsNamed) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  for (size_t size = 0; size < bytes.size(); ++size) {
+    const std::span<const uint8_t> prefix(bytes.data(), size);
+    try {
+      decode_sequence_file(prefix, "cut.fmv");
+      ADD_FAILURE() << "a file cut at " << size << " bytes was read";
+    } catch (const Error& e) {
+      EXPECT_TRUE(e.code() == ErrorCode::kTruncated) << size << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find("cut.fmv"), std::string::npos);
+    }
+  }
+}
+
+// Flipping any byte is caught: by a checksum within a chunk, or as an impossible value in the
+// preamble and the chunk headers. Never a crash, never a file read as good.
+TEST(Container, EveryByteFlipIsNamed) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  const format::ContainerReader reader(bytes, "good.fmv");
+  for (size_t at = 0; at < bytes.size(); ++at) {
+    std::vector<uint8_t> damaged = bytes;
+    damaged[at] ^= 0x5A;
+    try {
+      decode_sequence_file(damaged, "flipped.fmv");
+      ADD_FAILURE() << "a flip at byte " << at << " went unnoticed";
+    } catch (const Error& e) {
+      EXPECT_TRUE(e.code() == ErrorCode::kCorrupt || e.code() == ErrorCode::kTruncated || e.code() == ErrorCode::kUnsupported)
+          << at << ": " << error_code_name(e.code()) << " " << e.what();
+    }
+  }
+  // A flip inside a payload is a checksum mismatch naming the chunk.
+  for (const format::ChunkView& chunk : reader.chunks()) {
+    std::vector<uint8_t> damaged = bytes;
+    damaged[chunk.offset + format::kChunkHeaderBytes + chunk.stored.size() / 2] ^= 1;
+    testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk " + chunk.type, [&] { decode_sequence_file(damaged, "f.fmv"); });
+  }
+}
+
+// Rebuilds a file chunk by chunk, letting `edit` change a payload (decompressed) or drop/add chunks,
+// and keeps the index's offsets right.
+template <typename Edit>
+std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
+  const format::ContainerReader reader(bytes, "in");
+  std::vector<format::PreparedChunk> chunks;
+  for (const format::ChunkView& c : reader.chunks()) {
+    std::vector<uint8_t> payload = reader.payload(c);
+    edit(c.type, payload);
+    chunks.push_back(format::prepare_chunk(c.type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
+  }
+  std::vector<format::PreparedChunk> extra;
+  if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
+  // The index (second chunk) holds offsets: shift them by how much the chunks before them moved.
+  const int64_t header_delta = static_cast<int64_t>(chunks[0].total_size()) - static_cast<int64_t>(reader.chunks()[0].total_size());
+  const int64_t extra_delta = extra.empty() ? 0 : static_cast<int64_t>(extra[0].total_size());
+  format::ByteReader index(chunks[1].stored, "index");
+  format::ByteWriter shifted;
+  const uint32_t count = index.read<uint32_t>("count");
+  shifted.write(count);
+  for (uint32_t k = 0; k < count; ++k) {
+    shifted.write(index.read<double>("t"));
+    for (int j = 0; j < 2; ++j) {
+      const uint64_t offset = index.read<uint64_t>("o");
+      shifted.write(offset == 0 ? 0 : static_cast<uint64_t>(static_cast<int64_t>(offset) + header_delta + extra_delta));
+    }
+  }
+  chunks[1] = format::prepare_chunk(chunks[1].type, shifted.take(), true);
+  format::ContainerWriter writer;
+  writer.add(chunks[0]);
+  writer.add(chunks[1]);
+  for (const auto& c : extra) writer.add(c);
+  for (size_t i = 2; i < chunks.size(); ++i) writer.add(chunks[i]);
+  return writer.finish();
+}
+
+TEST(Container, UnknownChunksAreSkippedUnlessCritical) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  const auto same = [](const std::string&, std::vector<uint8_t>&) {};
+  EXPECT_EQ(rebuild(bytes, same), bytes);  // the rebuild itself changes nothing
+  const Sequence with_extra = decode_sequence_file(rebuild(bytes, same, true, false), "extra.fmv");
+  EXPECT_EQ(with_extra.keyframes.size(), 3u);
+  testing::expect_error(ErrorCode::kUnsupported, "ZZZ1", [&] { decode_sequence_file(rebuild(bytes, same, true, true), "critical.fmv"); });
+}
+
+TEST(Container, FieldsAppendedByALaterMinorVersionAreIgnored) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  const auto append = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "HEAD") payload.insert(payload.end(), {9, 9, 9, 9});
+  };
+  EXPECT_EQ(decode_sequence_file(rebuild(bytes, append), "newer.fmv").keyframes.size(), 3u);
+}
+
+TEST(Container, ForeignFilesAndOtherVersionsAreRefused) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  testing::expect_error(ErrorCode::kCorrupt, "not a facemorph container", [&] {
+    const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    decode_sequence_file({reinterpret_cast<const uint8_t*>(obj.data()), obj.size()}, "face.obj");
+  });
+  // Major version 2, with a valid preamble checksum.
+  std::vector<uint8_t> v2 = bytes;
+  v2[8] = 2;
+  const uint32_t crc = format::crc32(std::span(v2).first(12));
+  for (int i = 0; i < 4; ++i) v2[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
+  testing::expect_error(ErrorCode::kUnsupported, "format version 2.0", [&] { decode_sequence_file(v2, "v2.fmv"); });
+  // A grid built by another rule, or another hash: the file would decode differently here.
+  for (size_t at : {size_t{4}, size_t{8}}) {
+    const auto other_grid = [at](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "HEAD") payload[at] ^= 1;
+    };
+    testing::expect_error(ErrorCode::kUnsupported, "not the grid this decoder builds", [&] { decode_sequence_file(rebuild(bytes, other_grid), "g.fmv"); });
+  }
+  // Bytes after the end chunk.
+  std::vector<uint8_t> trailing = bytes;
+  trailing.push_back(0);
+  testing::expect_error(ErrorCode::kCorrupt, "after the end chunk", [&] { decode_sequence_file(trailing, "t.fmv"); });
+}
+
+// Values that pass every checksum but are impossible: caught by the header's limits and by the
+// fields validator, as corrupt.
+TEST(Container, ImpossibleValuesWithGoodChecksumsAreCorrupt) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  const auto patch_header = [](size_t at, uint8_t value) {
+    return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "HEAD") payload[at] = value;
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "grid size 4", [&] { decode_sequence_file(rebuild(bytes, patch_header(0, 4)), "n.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe count", [&] { decode_sequence_file(rebuild(bytes, patch_header(20, 0)), "k.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "representation 7", [&] { decode_sequence_file(rebuild(bytes, patch_header(16, 7)), "r.fmv"); });
+  // A NaN pose, and times out of order.
+  const auto nan_pose = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "KEYF") std::fill(payload.begin() + 12, payload.begin() + 20, 0xFF);
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "rotation is not finite", [&] { decode_sequence_file(rebuild(bytes, nan_pose), "p.fmv"); });
+  const auto same_times = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "KEYF") std::fill(payload.begin() + 4, payload.begin() + 12, 0);
+    if (type == "KIDX") {
+      for (size_t k = 0; k < 3; ++k) std::fill(payload.begin() + 4 + 24 * static_cast<long>(k), payload.begin() + 12 + 24 * static_cast<long>(k), 0);
+    }
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe", [&] { decode_sequence_file(rebuild(bytes, same_times), "t.fmv"); });
+}
+
+TEST(Container, WritesAtomicallyAndKeepsThePreviousFileOnFailure) {
+  testing::TempDir dir;
+  const auto path = dir.path() / "a.fmv";
+  const Sequence s = small_sequence(9, 8);
+  write_sequence_file(path, s, small_metadata());
+  const auto before = std::filesystem::file_size(path);
+  EXPECT_EQ(read_sequence_file(path).keyframes.size(), 3u);
+  // An invalid sequence is refused before anything is written; the old file stays.
+  Sequence bad = s;
+  bad.keyframes[1].time = bad.keyframes[0].time;
+  EXPECT_THROW(write_sequence_file(path, bad, small_metadata()), Error);
+  EXPECT_EQ(std::filesystem::file_size(path), before);
+  // An unwritable destination is an I/O error naming it, and leaves no temporary behind.
+  testing::expect_error(ErrorCode::kIo, "missing", [&] { write_sequence_file(dir.path() / "missing" / "b.fmv", s, small_metadata()); });
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
+  testing::expect_error(ErrorCode::kIo, "nothing.fmv", [&] { read_sequence_file(dir.path() / "nothing.fmv"); });
+}
+
+}  // namespace
+}  // namespace facemorph
