@@ -5,12 +5,16 @@
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
+#include "facemorph/sequence_file.hpp"
+#include "format/container.hpp"
 
 #include "tools/tool_support.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
+#include <fstream>
 #include <cstdio>
 
 namespace {
@@ -120,6 +124,84 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
   return 0;
 }
 
+bool is_container(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec) || path.filename() == "capture.json") return false;
+  std::array<uint8_t, format::kMagic.size()> head{};
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(head.data()), static_cast<std::streamsize>(head.size()));
+  return in.gcount() == static_cast<std::streamsize>(head.size()) && head == format::kMagic;
+}
+
+// A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.
+int describe_container(const fs::path& path, bool json_out) {
+  SequenceFileInfo info;
+  const Sequence sequence = read_sequence_file(path, &info);
+  const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
+  const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
+  const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
+  const double bytes_per_second = static_cast<double>(info.file_bytes) / duration;
+  const size_t fixed = sequence.keyframes.front().fields.fixed_nodes.size();
+  if (json_out) {
+    nlohmann::json doc;
+    doc["file"] = path.string();
+    doc["bytes"] = info.file_bytes;
+    doc["format_version"] = std::to_string(info.major_version) + "." + std::to_string(info.minor_version);
+    doc["encoder"] = info.metadata.encoder;
+    doc["fps"] = sequence.fps;
+    doc["first_time"] = sequence.first_time;
+    doc["last_time"] = sequence.last_time;
+    doc["duration_seconds"] = duration;
+    doc["units"] = sequence.units;
+    doc["grid"] = {{"n", sequence.grid_n}, {"rule", info.grid_rule}, {"hash", tools::hex64(info.grid_hash)},
+                   {"nodes", shape.interior_count + shape.rim_count}, {"rim_nodes", shape.rim_count}, {"fixed_nodes", fixed}};
+    doc["representation"] = representation_name(sequence.representation);
+    doc["spline"] = spline_kind_name(sequence.spline);
+    doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
+    doc["texture_size"] = info.texture_size;
+    doc["holes"] = sequence.has_holes();
+    doc["landmarks"] = info.metadata.landmark_names;
+    doc["bytes_per_second"] = bytes_per_second;
+    nlohmann::json keys = nlohmann::json::array();
+    for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+      keys.push_back({{"time", sequence.keyframes[k].time}, {"fields_bytes", info.keyframes[k].fields}, {"texture_bytes", info.keyframes[k].texture}});
+    }
+    doc["keyframes"] = std::move(keys);
+    nlohmann::json chunks = nlohmann::json::array();
+    for (const auto& c : info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
+    doc["chunks"] = std::move(chunks);
+    doc["settings"] = nlohmann::json::parse(info.metadata.settings.empty() ? "{}" : info.metadata.settings, nullptr, false);
+    std::printf("%s\n", doc.dump(1).c_str());
+    return 0;
+  }
+  std::printf("file        %s: %llu bytes, format %d.%d, written by %s\n", path.string().c_str(), static_cast<unsigned long long>(info.file_bytes),
+              info.major_version, info.minor_version, info.metadata.encoder.c_str());
+  std::printf("capture     %.3f s at %.3f fps (frames at %.3f .. %.3f s), units %s\n", duration, sequence.fps, sequence.first_time,
+              sequence.last_time, sequence.units.c_str());
+  std::printf("rate        %.0f bytes per second of capture (%.1f kbit/s)\n", bytes_per_second, bytes_per_second * 8 / 1000);
+  std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", sequence.grid_n, shape.interior_count + shape.rim_count,
+              shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
+  std::printf("fields      %s, 16-bit; %zu nodes in boundary frames\n", representation_name(sequence.representation), fixed);
+  std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
+              spline.sane_range().begin, spline.sane_range().end);
+  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + " WebP per keyframe").c_str() : "none");
+  std::printf("holes       %s\n", sequence.has_holes() ? "stored as a level set, cut on decode" : "none stored");
+  std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
+  std::printf("keyframes   %zu\n", sequence.keyframes.size());
+  std::printf("    #     time   fields B  texture B\n");
+  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+    std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.keyframes[k].time, static_cast<unsigned long long>(info.keyframes[k].fields),
+                static_cast<unsigned long long>(info.keyframes[k].texture));
+  }
+  std::printf("chunks      type  count      bytes  (decompressed)\n");
+  for (const auto& c : info.chunks) {
+    std::printf("            %s %6d %10llu  (%llu)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
+                static_cast<unsigned long long>(c.raw_bytes));
+  }
+  if (!info.metadata.settings.empty()) std::printf("settings    %s\n", info.metadata.settings.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -127,20 +209,16 @@ int main(int argc, char** argv) {
   std::string input, landmarks, prepared;
   double fps = 0;
   bool json_out = false, quiet = false;
-  app.add_option("input", input, "Capture folder, capture.json, or a plain folder of meshes (with --fps)")->required();
+  app.add_option("input", input, "A .fmv file, a capture folder, capture.json, or a plain folder of meshes (with --fps)")->required();
   app.add_option("--fps", fps, "Frame rate for a plain folder of meshes");
   app.add_option("--landmarks", landmarks, "Landmarks CSV for a plain folder (frame,name,x,y,z)");
   app.add_option("--prepared", prepared, "Write each validated, hole-filled frame into this folder");
   app.add_flag("--json", json_out, "Print JSON");
   app.add_flag("-q,--quiet", quiet, "No progress display");
   return tools::guarded_main(app, argc, argv, [&] {
+    if (is_container(input)) return describe_container(input, json_out);
+    const Capture capture = open_capture(input, fps, landmarks);
     std::error_code ec;
-    const fs::path path(input);
-    const bool manifest = fs::is_regular_file(path, ec) || fs::exists(path / "capture.json", ec);
-    if (!manifest && fps <= 0) {
-      throw Error(ErrorCode::kInvalidArgument, input + ": no capture.json here; give --fps to read it as a plain folder of meshes");
-    }
-    const Capture capture = manifest ? read_capture(path) : scan_capture_folder(path, fps, landmarks);
     if (!prepared.empty()) fs::create_directories(prepared, ec);
     return describe_capture(capture, json_out, quiet, prepared);
   });

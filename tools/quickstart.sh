@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's two commands.
 #   tools/quickstart.sh sample   install what is missing, build, and run the main job on a built-in
-#                                synthetic capture (out/sample/)
+#                                synthetic capture: fmsynth -> fmenc -> fmdec --t 1.45 (out/sample/)
 #   tools/quickstart.sh test     install what is missing, build, and run every test; build and test
 #                                the decoder alone (no encoder, no OpenCV); then every test again
 #                                under AddressSanitizer + UndefinedBehaviorSanitizer (clang)
@@ -23,13 +23,19 @@ case "${1:-}" in
     out=out/sample
     rm -rf "$out"
     mkdir -p "$out"
-    echo "== fmsynth: a 2-second synthetic capture (60 frames, 20k vertices, textured)"
+    echo "== fmsynth: a 2-second synthetic capture (60 frames, 20k vertices, textured, scanner noise)"
     build/tools/fmsynth -o "$out/capture" --frames 60 --fps 30 --expression mixed
-    echo "== fminfo: validate every frame as the encoder will"
-    build/tools/fminfo "$out/capture" --quiet
-    echo "== fmview: a picture of frame 44 (t = 1.4667 s)"
-    build/tools/fmview "$out/capture/frame_0044.obj" -o "$out/frame_0044_view.png" --yaw 20
-    echo "sample done: capture in $out/capture, picture $out/frame_0044_view.png"
+    echo "== fmenc: encode it (10% keyframes, grid size from the capture)"
+    build/tools/fmenc "$out/capture" -o "$out/sample.fmv"
+    echo "== fminfo: what the file holds"
+    build/tools/fminfo "$out/sample.fmv"
+    echo "== fmdec: the face at t = 1.45 s, as a mesh with its texture and a picture"
+    build/tools/fmdec "$out/sample.fmv" --t 1.45 -o "$out/frame_1.45.obj" --preview "$out/frame_1.45_view.png"
+    echo "sample done:"
+    echo "  capture  $out/capture/ (60 OBJ frames with textures)"
+    echo "  file     $out/sample.fmv"
+    echo "  mesh     $out/frame_1.45.obj (+ frame_1.45.mtl, texture frame_1.45.png)"
+    echo "  picture  $out/frame_1.45_view.png"
     ;;
   test)
     tools/install-deps.sh

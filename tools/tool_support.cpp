@@ -41,4 +41,10 @@ void Progress::finish() {
   drawn_ = false;
 }
 
+std::string hex64(uint64_t value) {
+  char text[19];
+  std::snprintf(text, sizeof text, "0x%016llx", static_cast<unsigned long long>(value));
+  return text;
+}
+
 }  // namespace facemorph::tools

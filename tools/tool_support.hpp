@@ -48,6 +48,9 @@ class Progress {
   std::chrono::steady_clock::time_point last_draw_;
 };
 
+// "0x" and 16 hex digits.
+std::string hex64(uint64_t value);
+
 double seconds_since(std::chrono::steady_clock::time_point start);
 
 // Writes `doc` (indented) to `path` atomically, or to stdout when `path` is "-".

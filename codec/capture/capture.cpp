@@ -248,4 +248,15 @@ void write_capture_manifest(const Capture& capture) {
   format::write_file_atomically(capture.root / "landmarks.csv", std::string_view(csv));
 }
 
+Capture open_capture(const std::filesystem::path& path, double fps, const std::filesystem::path& landmarks_csv) {
+  std::error_code ec;
+  const bool manifest = std::filesystem::is_regular_file(path, ec) || std::filesystem::exists(path / "capture.json", ec);
+  if (manifest) return read_capture(path);
+  if (!std::filesystem::is_directory(path, ec)) throw Error(ErrorCode::kIo, path.string() + ": no such capture folder");
+  if (!(fps > 0)) {
+    throw Error(ErrorCode::kInvalidArgument, path.string() + ": no capture.json here; give --fps (and --landmarks) to read it as a plain folder of meshes");
+  }
+  return scan_capture_folder(path, fps, landmarks_csv);
+}
+
 }  // namespace facemorph

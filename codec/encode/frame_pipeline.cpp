@@ -35,7 +35,11 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   MappedFrame frame;
   frame.name = name;
   auto start = std::chrono::steady_clock::now();
-  frame.prepared = prepare_frame(mesh, name, {.fill_holes = options.fill_holes, .rim_markers = landmarks.rim_markers});
+  PrepareOptions prepare;
+  prepare.fill_holes = options.fill_holes;
+  prepare.rim_markers = landmarks.rim_markers;
+  prepare.keep_largest_component = options.keep_largest_component;
+  frame.prepared = prepare_frame(mesh, name, prepare);
   frame.seconds_prepare = seconds_since(start);
   start = std::chrono::steady_clock::now();
   frame.map = conformal_disk_map(frame.prepared.mesh, options.conformal);

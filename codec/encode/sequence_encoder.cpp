@@ -156,7 +156,10 @@ void SequenceEncoder::map_frames() {
         }
         const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
         textures_[index] = mesh.texture;
-        frames_[index] = map_frame(mesh, name, landmarks, {.conformal = options_.conformal});
+        MapFrameOptions map_options;
+        map_options.keep_largest_component = options_.largest_component;
+        map_options.conformal = options_.conformal;
+        frames_[index] = map_frame(mesh, name, landmarks, map_options);
       },
       [&](int done, int total) { progress("mapping", done, total); });
   report_.seconds_mapping = seconds_since(start);
@@ -168,6 +171,19 @@ void SequenceEncoder::register_frames() {
   const auto reference = static_cast<size_t>(options_.reference_frame);
   landmarks_.assign(static_cast<size_t>(count), {});
   registrations_.assign(static_cast<size_t>(count), {});
+  geodesic_frame_.reset();
+  if (options_.registration.method == RegistrationMethod::kFrame) {
+    // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
+    // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
+    // unconstrained there.
+    const MappedFrame& f = frames_[reference];
+    const DiskLandmarks own = disk_landmarks(capture_, reference, f.map, reference, f.map);
+    try {
+      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(f.map, own.reference, own.on_rim));
+    } catch (const Error& e) {
+      throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
+    }
+  }
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -178,7 +194,7 @@ void SequenceEncoder::register_frames() {
                                                        std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
         }
         try {
-          registrations_[index] = register_disks(landmarks_[index], options_.registration);
+          registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
         } catch (const Error& e) {
           throw Error(e.code(), frames_[index].name + ": registration: " + e.what());
         }
@@ -344,6 +360,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
     r.time = capture.frames[static_cast<size_t>(i)].time;
     r.vertices = frame.prepared.mesh.vertex_count();
     r.holes_filled = static_cast<int>(frame.prepared.report.holes.size());
+    r.repair = frame.prepared.report.summary();
     r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;

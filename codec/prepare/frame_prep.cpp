@@ -28,6 +28,7 @@ class FramePreparer {
     drop_duplicate_faces();
     drop_unreferenced_vertices();
     if (mesh_.faces.empty()) fail(ErrorCode::kInvalidMesh, "no faces left after removing degenerate ones");
+    if (options_.keep_largest_component) keep_largest_component();
     orient_consistently();
     std::vector<std::vector<int>> loops = check_topology();
     const size_t rim = choose_rim(loops);
@@ -122,6 +123,30 @@ class FramePreparer {
     }
     mesh_.faces.resize(out);
     if (!mesh_.uv_faces.empty()) mesh_.uv_faces.resize(out);
+  }
+
+  // Real scans carry eyeballs, teeth or stray shells as separate surfaces: the face is the
+  // component of largest area (not of most faces: a dense eyeball can outnumber a coarse face).
+  void keep_largest_component() {
+    const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
+    if (topology.component_count() <= 1) return;
+    std::vector<double> area(static_cast<size_t>(topology.component_count()), 0.0);
+    const std::vector<int>& component = topology.face_components();
+    for (size_t f = 0; f < mesh_.faces.size(); ++f) {
+      const Face& t = mesh_.faces[f];
+      const Vec3 &a = mesh_.positions[static_cast<size_t>(t[0])], &b = mesh_.positions[static_cast<size_t>(t[1])],
+                 &c = mesh_.positions[static_cast<size_t>(t[2])];
+      area[static_cast<size_t>(component[f])] += 0.5 * (b - a).cross(c - a).norm();
+    }
+    const int keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
+    std::vector<uint8_t> drop(mesh_.faces.size(), 0);
+    for (size_t f = 0; f < mesh_.faces.size(); ++f) drop[f] = component[f] != keep;
+    report_.dropped_components += topology.component_count() - 1;
+    report_.dropped_component_faces += static_cast<int>(std::count(drop.begin(), drop.end(), uint8_t{1}));
+    remove_faces(drop);
+    const int unreferenced_before = report_.dropped_unreferenced_vertices;
+    drop_unreferenced_vertices();
+    report_.dropped_unreferenced_vertices = unreferenced_before;  // the components' vertices are not a repair of their own
   }
 
   // Faces with a repeated vertex are dropped. A zero-area face with three distinct vertices has
@@ -304,7 +329,8 @@ class FramePreparer {
                                         std::to_string(source_[static_cast<size_t>(topology.non_manifold_vertices()[0])]) + ")");
     }
     if (topology.component_count() > 1) {
-      fail(ErrorCode::kNotADisk, std::to_string(topology.component_count()) + " components; a face capture must be one open surface");
+      fail(ErrorCode::kNotADisk, std::to_string(topology.component_count()) +
+                                     " components; a face capture must be one open surface (--largest-component keeps the largest)");
     }
     const auto& loops = topology.boundary_loops();
     if (loops.empty()) fail(ErrorCode::kNotADisk, "a closed surface (no boundary); a face capture must be an open surface");
@@ -425,7 +451,7 @@ class FramePreparer {
 
 bool RepairReport::changed() const {
   return merged_vertices || dropped_degenerate_faces || split_faces || dropped_duplicate_faces ||
-         dropped_unreferenced_vertices || reoriented_faces || !holes.empty();
+         dropped_unreferenced_vertices || reoriented_faces || dropped_components || !holes.empty();
 }
 
 std::string RepairReport::summary() const {
@@ -456,6 +482,11 @@ std::string RepairReport::summary() const {
   item(dropped_duplicate_faces, "dropped duplicate faces:");
   item(dropped_unreferenced_vertices, "dropped unreferenced vertices:");
   item(reoriented_faces, "reoriented faces:");
+  if (dropped_components > 0) {
+    out << separator << "dropped " << dropped_components << " other component" << (dropped_components > 1 ? "s" : "") << " ("
+        << dropped_component_faces << " faces)";
+    separator = "; ";
+  }
   const std::string text = out.str();
   return text.empty() ? "valid as captured" : text;
 }

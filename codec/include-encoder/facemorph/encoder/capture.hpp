@@ -52,6 +52,11 @@ Capture read_capture(const std::filesystem::path& path);
 Capture scan_capture_folder(const std::filesystem::path& folder, double fps,
                             const std::filesystem::path& landmarks_csv);
 
+// What the tools accept as a capture: a folder with capture.json (or that file), read by
+// read_capture; otherwise a plain folder of meshes at `fps`, with landmarks from `landmarks_csv`.
+// Throws kInvalidArgument for a plain folder without a frame rate.
+Capture open_capture(const std::filesystem::path& path, double fps, const std::filesystem::path& landmarks_csv);
+
 // Writes capture.json and landmarks.csv into capture.root (atomically, each file).
 void write_capture_manifest(const Capture& capture);
 

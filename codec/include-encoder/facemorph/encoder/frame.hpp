@@ -31,6 +31,8 @@ struct RepairReport {
   int dropped_duplicate_faces = 0;     // same three vertices as an earlier face
   int dropped_unreferenced_vertices = 0;
   int reoriented_faces = 0;            // flipped to agree with their neighbours
+  int dropped_components = 0;          // separate surfaces (eyeballs, teeth) dropped by keep_largest_component
+  int dropped_component_faces = 0;     // and their faces
   std::vector<FilledHole> holes;
 
   bool changed() const;
@@ -42,6 +44,9 @@ struct PrepareOptions {
   // Points on the outer rim (the rim_* landmarks); they pick the rim among the boundary loops.
   // Without them the loop with the longest perimeter is the rim.
   std::vector<Vec3> rim_markers;
+  // Keep only the component of largest area and drop the others (eyeballs, teeth, stray shells),
+  // saying so in the report; false: several components are an error naming their count.
+  bool keep_largest_component = false;
 };
 
 struct PreparedFrame {

@@ -34,6 +34,7 @@ FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame);
 
 struct MapFrameOptions {
   bool fill_holes = true;
+  bool keep_largest_component = false;  // see PrepareOptions
   ConformalOptions conformal;
 };
 

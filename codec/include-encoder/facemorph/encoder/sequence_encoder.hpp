@@ -18,6 +18,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,7 @@ struct EncodeOptions {
   bool texture = true;
   int texture_size = 1024;          // M: texels per side of the disk texture
   bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
+  bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
   int reference_frame = 0;          // the frame every other is registered to
   int threads = 0;                  // 0: one per core
   ConformalOptions conformal;
@@ -46,6 +48,7 @@ struct EncodedFrameReport {
   double time = 0;
   int vertices = 0;
   int holes_filled = 0;
+  std::string repair;  // what preparation changed ("valid as captured", "dropped 2 other components (812 faces)", ...)
   bool keyframe = false;
   RegistrationFallback fallback = RegistrationFallback::kNone;
   std::string fallback_reason;
@@ -80,7 +83,9 @@ class SequenceEncoder {
   SequenceEncoder(const Capture& capture, EncodeOptions options);
 
   void map_frames();        // 1. prepare, conformal map, normalise every frame
-  void register_frames();   // 2. register every frame to the reference (options().registration)
+  // 2. register every frame to the reference (options().registration); method kFrame first builds
+  // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
+  void register_frames();
   void sample_frames();     // 3. registered surfaces on the selection grid, head poses
   KeyframeSelection select_keyframes() const;  // 4. by predicted error
   Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
@@ -94,6 +99,8 @@ class SequenceEncoder {
   const MappedFrame& frame(int i) const { return frames_[static_cast<size_t>(i)]; }
   const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
   const DiskLandmarks& landmarks(int i) const { return landmarks_[static_cast<size_t>(i)]; }
+  // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
+  const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
   const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
@@ -108,6 +115,7 @@ class SequenceEncoder {
   std::vector<std::filesystem::path> textures_;
   std::vector<DiskLandmarks> landmarks_;
   std::vector<DiskRegistration> registrations_;
+  std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   std::vector<SelectionFrame> selection_;
   std::vector<double> node_weights_;
   EncodeReport report_;

@@ -1,0 +1,190 @@
+// fmdec: plays a .fmv file back. One time (--t) to a mesh with its texture and, on request, a
+// shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
+// for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
+#include "facemorph/image_codec.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/render.hpp"
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tools/field_export.hpp"
+#include "tools/tool_support.hpp"
+
+#include "format/file_io.hpp"
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <optional>
+
+namespace {
+
+using namespace facemorph;
+namespace fs = std::filesystem;
+
+struct Outputs {
+  fs::path mesh;      // -o: .obj (+ .mtl + .png) or .ply
+  fs::path preview;   // a .png picture, or an .mp4 video for a range
+  fs::path out_dir;   // a range: one mesh per frame
+  std::string format = "obj";
+  bool null = false;
+  double yaw = 20;
+};
+
+// The picture a person looks at: the textured face (or a grey one), turned a little.
+Image preview_picture(const DecodedFrame& frame, double yaw, int size) {
+  RenderOptions options;
+  options.width = options.height = size;
+  options.yaw_degrees = yaw;
+  const SurfaceShader shader = frame.texture.empty() ? constant_shader({200, 200, 200}) : texture_shader(frame.mesh, frame.texture);
+  return render(frame.mesh, shader, options);
+}
+
+// Writes the frame's mesh; for OBJ also FRAME.mtl and the texture FRAME.png beside it.
+void write_frame(const DecodedFrame& frame, const fs::path& path) {
+  TriangleMesh mesh = frame.mesh;
+  if (!frame.texture.empty()) {
+    fs::path texture = path;
+    texture.replace_extension(".png");
+    write_png(texture, frame.texture);
+    mesh.texture = texture;
+  }
+  write_mesh(path, mesh);
+}
+
+void check_mesh_path(const fs::path& path) {
+  const std::string ext = path.extension().string();
+  if (ext == ".glb" || ext == ".gltf") throw Error(ErrorCode::kUnsupported, path.string() + ": glTF output is not implemented yet; write .obj or .ply");
+  if (ext != ".obj" && ext != ".ply") throw Error(ErrorCode::kInvalidArgument, path.string() + ": the mesh must be .obj or .ply");
+}
+
+void print_frame(const DecodedFrame& frame, const fs::path& where) {
+  std::printf("fmdec: t = %.4f s -> %s: %d vertices, %d faces, %d iterations%s\n", frame.time, where.string().c_str(),
+              frame.mesh.vertex_count(), frame.mesh.face_count(), frame.iterations,
+              frame.fell_back ? " (did not converge: shows the keyframes' blended surfaces)" : "");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("Decode a facemorph file (.fmv): a frame at a time t, a range of frames, or the stored fields.", "fmdec");
+  std::string input, extract;
+  std::optional<double> t, from, to;
+  double fps = 0;
+  Outputs out;
+  std::string mesh_out, preview, out_dir;
+  bool keep_holes = false, clamp = false, quiet = false, no_texture = false;
+  int preview_size = 800;
+  app.add_option("input", input, "The .fmv file")->required();
+  app.add_option("--t", t, "The time to decode, in seconds from the first frame (past the ends: extrapolated within the sane range)");
+  app.add_option("-o,--output", mesh_out, "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply");
+  app.add_option("--preview", preview, "A shaded, textured picture (.png) of the frame, or a video (.mp4) of a range");
+  app.add_option("--preview-size", preview_size, "Preview pixels per side")->capture_default_str();
+  app.add_option("--yaw", out.yaw, "Preview: degrees the face is turned")->capture_default_str();
+  app.add_option("--fps", fps, "A range of frames at this rate (with --from, --to)");
+  app.add_option("--from", from, "First time of the range (default: the first frame)");
+  app.add_option("--to", to, "Last time of the range (default: the last frame)");
+  app.add_option("--out-dir", out_dir, "A range: one mesh per frame in this folder (frame_00000.obj, ...)");
+  app.add_option("--format", out.format, "Mesh format in --out-dir: obj or ply")->capture_default_str();
+  app.add_flag("--null", out.null, "Decode and write nothing (timing)");
+  app.add_option("--extract-fields", extract, "Write each keyframe's fields (EXR), boundary (CSV) and texture (PNG) into this folder");
+  app.add_flag("--keep-holes-filled", keep_holes, "Show eyes and mouth as the encoder's fill instead of cutting them out");
+  app.add_flag("--clamp", clamp, "Clamp times past the sane extrapolation range to it instead of failing");
+  app.add_flag("--no-texture", no_texture, "Do not blend or write the texture");
+  app.add_flag("-q,--quiet", quiet, "No progress display or summary");
+  return tools::guarded_main(app, argc, argv, [&] {
+    const auto start = std::chrono::steady_clock::now();
+    auto sequence = std::make_shared<const Sequence>(read_sequence_file(input));
+    const double seconds_read = tools::seconds_since(start);
+    if (!extract.empty()) {
+      const auto files = tools::export_keyframe_fields(*sequence, extract);
+      if (!quiet) std::printf("fmdec: %zu files for %zu keyframes in %s\n", files.size(), sequence->keyframes.size(), extract.c_str());
+      if (!t && fps <= 0) return 0;
+    }
+    SequenceDecoder decoder(sequence);
+    DecodeOptions options;
+    options.cut_holes = !keep_holes;
+    options.clamp_to_sane_range = clamp;
+    options.texture = !no_texture;
+    if (t) {
+      if (fps > 0 || from || to || !out_dir.empty() || out.null) {
+        throw Error(ErrorCode::kInvalidArgument, "--t decodes one frame; --fps/--from/--to/--out-dir/--null decode a range");
+      }
+      if (mesh_out.empty() && preview.empty()) throw Error(ErrorCode::kInvalidArgument, "--t needs -o FRAME.obj and/or --preview FRAME.png");
+      if (!mesh_out.empty()) check_mesh_path(mesh_out);
+      if (!preview.empty() && fs::path(preview).extension() != ".png") throw Error(ErrorCode::kInvalidArgument, preview + ": a frame's preview is a .png");
+      const DecodedFrame frame = decoder.decode(*t, options);
+      if (!mesh_out.empty()) write_frame(frame, mesh_out);
+      if (!preview.empty()) write_png(preview, preview_picture(frame, out.yaw, preview_size));
+      if (!quiet) {
+        print_frame(frame, mesh_out.empty() ? fs::path(preview) : fs::path(mesh_out));
+        if (!mesh_out.empty() && !frame.texture.empty()) std::printf("  texture %s\n", fs::path(mesh_out).replace_extension(".png").string().c_str());
+        if (!preview.empty()) std::printf("  preview %s\n", preview.c_str());
+      }
+      return 0;
+    }
+    if (fps <= 0) throw Error(ErrorCode::kInvalidArgument, "give --t T for one frame, or --fps F (with --out-dir, --null or --preview SEQ.mp4) for a range");
+    if (!mesh_out.empty()) {
+      check_mesh_path(mesh_out);
+      throw Error(ErrorCode::kInvalidArgument, "a range goes to --out-dir DIR, --null or --preview SEQ.mp4, not to one mesh");
+    }
+    if (out_dir.empty() && !out.null && preview.empty()) throw Error(ErrorCode::kInvalidArgument, "a range needs --out-dir DIR, --null or --preview SEQ.mp4");
+    if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");
+    const double begin = from.value_or(sequence->first_time), end = to.value_or(sequence->last_time);
+    if (!(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "--to is before --from");
+    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+    std::optional<cv::VideoWriter> video;
+    if (!preview.empty()) {
+      if (fs::path(preview).extension() != ".mp4") throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");
+      video.emplace(fs::path(preview).replace_extension(".partial.mp4").string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps,
+                    cv::Size(preview_size, preview_size));
+      if (!video->isOpened()) throw Error(ErrorCode::kIo, preview + ": cannot open a video writer");
+    }
+    if (!out_dir.empty()) {
+      std::error_code ec;
+      fs::create_directories(out_dir, ec);
+      if (ec) throw Error(ErrorCode::kIo, out_dir + ": " + ec.message());
+    }
+    tools::Progress progress("fmdec", quiet);
+    const auto decode_start = std::chrono::steady_clock::now();
+    double worst_ms = 0;
+    int fell_back = 0;
+    long iterations = 0;
+    for (int i = 0; i < count; ++i) {
+      const double time = begin + i / fps;
+      const auto frame_start = std::chrono::steady_clock::now();
+      const DecodedFrame frame = decoder.decode(time, options);
+      worst_ms = std::max(worst_ms, 1000 * tools::seconds_since(frame_start));
+      fell_back += frame.fell_back;
+      iterations += frame.iterations;
+      if (!out_dir.empty()) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%05d.%s", i, out.format.c_str());
+        write_frame(frame, fs::path(out_dir) / name);
+      }
+      if (video) {
+        const Image picture = preview_picture(frame, out.yaw, preview_size);
+        cv::Mat rgb(picture.height, picture.width, CV_8UC3, const_cast<uint8_t*>(picture.pixels.data())), bgr;
+        cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+        video->write(bgr);
+      }
+      progress.update(i + 1, count);
+    }
+    progress.finish();
+    const double seconds = tools::seconds_since(decode_start);
+    if (video) {
+      video->release();
+      format::commit_temporary(fs::path(preview).replace_extension(".partial.mp4"), preview);
+    }
+    if (!quiet) {
+      std::printf("fmdec: %d frames, t = %.3f .. %.3f s at %.3f fps: %.2f ms per frame (worst %.2f ms, %.1f iterations), file read in %.0f ms%s\n",
+                  count, begin, begin + (count - 1) / fps, fps, 1000 * seconds / count, worst_ms, static_cast<double>(iterations) / count,
+                  1000 * seconds_read, fell_back ? (", " + std::to_string(fell_back) + " frames did not converge").c_str() : "");
+      if (!out_dir.empty()) std::printf("  meshes in %s\n", out_dir.c_str());
+      if (video) std::printf("  video %s\n", preview.c_str());
+    }
+    return 0;
+  });
+}

@@ -1,0 +1,153 @@
+// fmenc: encodes a capture into a .fmv file (spec/container.md): every frame made a disk and mapped
+// conformally, registered to the reference frame, keyframes chosen by the spline's predicted error,
+// each keyframe's fields, pose, holes and texture written. The file is written under a temporary
+// name and renamed into place, so a failed encode leaves any earlier file untouched.
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tools/tool_support.hpp"
+
+#include <chrono>
+#include <map>
+#include <memory>
+
+namespace {
+
+using namespace facemorph;
+
+// "10%" or "0.1" -> 0.1: a fraction given either way.
+double parse_fraction(const std::string& text, const char* what) {
+  try {
+    size_t used = 0;
+    double value = std::stod(text, &used);
+    const std::string rest = text.substr(used);
+    if (rest == "%") {
+      value /= 100;
+    } else if (!rest.empty()) {
+      throw std::invalid_argument(text);
+    }
+    if (!(value > 0) || value > 1) throw std::out_of_range(text);
+    return value;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " '" + text + "' is not a fraction in (0, 1] (e.g. 10% or 0.1)");
+  }
+}
+
+nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report, int quality) {
+  return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
+          {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
+          {"grid", o.grid > 0 ? nlohmann::json(o.grid) : nlohmann::json("auto")},
+          {"grid_chosen", report.grid},
+          {"representation", representation_name(o.representation)},
+          {"registration", registration_method_name(o.registration.method)},
+          {"spline", spline_kind_name(o.spline)},
+          {"texture", o.texture ? o.texture_size : 0},
+          {"texture_quality", quality},
+          {"keep_holes_filled", o.keep_holes_filled},
+          {"largest_component", o.largest_component},
+          {"reference_frame", o.reference_frame}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
+  std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
+                              representation = "hl+t", landmarks;
+  double fps = 0;
+  int texture_size = 1024, quality = 90, threads = 0, reference = 0;
+  bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
+  app.add_option("capture", input, "Capture folder (capture.json) or a plain folder of OBJ/PLY frames (with --fps, --landmarks)")->required();
+  app.add_option("-o,--output", output, "The .fmv file to write")->required();
+  app.add_option("--fps", fps, "Frame rate of a plain folder of meshes");
+  app.add_option("--landmarks", landmarks, "Landmarks CSV of a plain folder (frame,name,x,y,z)");
+  app.add_option("--keyframes", keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
+  app.add_option("--max-error", max_error, "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
+  app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (from the capture's resolution)")->capture_default_str();
+  app.add_option("--texture", texture_size, "Texels per side of the disk texture")->capture_default_str();
+  app.add_option("--quality", quality, "Texture quality (WebP, 0-100; above 100 lossless)")->capture_default_str();
+  app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
+  app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
+  app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
+  app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
+  app.add_flag("--no-texture", no_texture, "Geometry only");
+  app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
+  app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
+  app.add_option("--threads", threads, "Worker threads (0: one per core)")->capture_default_str();
+  app.add_flag("-q,--quiet", quiet, "No progress display or summary");
+  return tools::guarded_main(app, argc, argv, [&] {
+    const auto start = std::chrono::steady_clock::now();
+    const Capture capture = open_capture(input, fps, landmarks);
+    EncodeOptions options;
+    if (!max_error.empty()) {
+      options.max_error = parse_fraction(max_error, "--max-error");
+    } else {
+      options.keyframe_fraction = parse_fraction(keyframes, "--keyframes");
+    }
+    if (grid != "auto") {
+      try {
+        options.grid = std::stoi(grid);
+      } catch (const std::exception&) {
+        throw Error(ErrorCode::kInvalidArgument, "--grid '" + grid + "' is neither auto nor a number");
+      }
+    }
+    if (quality < 0 || quality > 101) throw Error(ErrorCode::kInvalidArgument, "--quality " + std::to_string(quality) + " outside 0..101");
+    options.texture = !no_texture;
+    options.texture_size = texture_size;
+    options.registration.method = parse_registration_method(registration);
+    options.spline = parse_spline_kind(spline);
+    options.representation = parse_representation(representation);
+    options.keep_holes_filled = keep_holes_filled;
+    options.largest_component = largest_component;
+    options.threads = threads;
+    options.reference_frame = reference;
+    std::map<std::string, std::unique_ptr<tools::Progress>> stages;
+    std::string current;
+    options.progress = [&](const std::string& stage, int done, int total) {
+      if (stage != current && stages.count(current)) stages[current]->finish();
+      current = stage;
+      auto& bar = stages[stage];
+      if (!bar) bar = std::make_unique<tools::Progress>("fmenc " + stage, quiet);
+      bar->update(done, total);
+    };
+    EncodeReport report;
+    const Sequence sequence = encode_capture(capture, options, &report);
+    if (stages.count(current)) stages[current]->finish();
+    SequenceFileMetadata metadata;
+    metadata.settings = settings_json(options, report, quality).dump();
+    metadata.landmark_names = capture.landmark_names;
+    metadata.texture_quality = quality;
+    write_sequence_file(output, sequence, metadata);
+    if (quiet) return 0;
+    const double seconds = tools::seconds_since(start);
+    const auto bytes = std::filesystem::file_size(output);
+    const double duration = capture.duration() + 1.0 / capture.fps;
+    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size(), sequence.keyframes.size());
+    for (const Keyframe& key : sequence.keyframes) std::printf(" %.3f", key.time);
+    std::printf(" s\n");
+    std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
+                registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
+                sequence.has_texture() ? ", textured" : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+    std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
+                static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);
+    double worst = 0;
+    for (const EncodedFrameReport& f : report.frames) worst = std::max(worst, f.predicted_error);
+    std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
+    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s)\n", seconds,
+                seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
+                report.seconds_selection, report.seconds_keyframes);
+    if (report.registration_fallbacks > 0) {
+      std::printf("  %d frames fell back in registration:\n", report.registration_fallbacks);
+      for (const EncodedFrameReport& f : report.frames) {
+        if (f.fallback != RegistrationFallback::kNone) std::printf("    %s: %s\n", f.name.c_str(), f.fallback_reason.c_str());
+      }
+    }
+    std::string last;
+    for (const EncodedFrameReport& f : report.frames) {
+      if (f.repair == "valid as captured" || f.repair == last) continue;
+      std::printf("  %s: %s\n", f.name.c_str(), f.repair.c_str());
+      last = f.repair;
+    }
+    return 0;
+  });
+}
