@@ -167,6 +167,7 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source) 
   h.fixed_nodes.resize(fixed);
   for (uint32_t i = 0; i < fixed; ++i) h.fixed_nodes[i] = static_cast<int32_t>(r.read<uint32_t>("a fixed node") & 0x7fffffffu);
   h.shape.units = read_string(r, "the units");
+  if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm") corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");
   h.metadata.encoder = read_string(r, "the encoder");
   h.metadata.settings = read_string(r, "the settings");
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");

@@ -4,6 +4,7 @@
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/sequence_file.hpp"
 #include "facemorph/topology.hpp"
 
 #include "tests/test_util.hpp"
@@ -63,6 +64,40 @@ TEST(SequenceEncoder, EncodesASyntheticCaptureThatDecodesCloseToEveryFrame) {
   EXPECT_LT(worst_held, 0.006);   // three keyframes for twelve frames of a changing expression
   // The selection predicted the held-out error it measured (same spline, same pose blend).
   for (const EncodedFrameReport& f : report.frames) EXPECT_LT(f.predicted_error, 0.006);
+}
+
+// Through the file, as fmenc writes and fmdec reads it: every captured time decodes as the sequence
+// in memory did (the fields were already 16-bit; the texture goes through lossy WebP).
+TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir, 0);
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 49;
+  options.texture_size = 64;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  SequenceFileMetadata metadata;
+  metadata.landmark_names = capture.landmark_names;
+  const auto path = dir.path() / "capture.fmv";
+  write_sequence_file(path, sequence, metadata);
+  SequenceDecoder memory(std::make_shared<const Sequence>(sequence));
+  SequenceDecoder file(std::make_shared<const Sequence>(read_sequence_file(path)));
+  for (size_t i = 0; i < capture.frames.size(); ++i) {
+    const DecodedFrame a = memory.decode(capture.frames[i].time);
+    const DecodedFrame b = file.decode(capture.frames[i].time);
+    ASSERT_EQ(a.grid_positions.size(), b.grid_positions.size());
+    double worst = 0;
+    for (size_t n = 0; n < a.grid_positions.size(); ++n) worst = std::max(worst, (a.grid_positions[n] - b.grid_positions[n]).norm());
+    const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), b.mesh);
+    EXPECT_LT(worst, 1e-6 * d.diagonal) << "frame " << i;
+    EXPECT_LT(d.rms / d.diagonal, 0.006) << "frame " << i;
+    // Lossy WebP at quality 90: the texture stays close.
+    double error = 0;
+    for (size_t p = 0; p < a.texture.pixels.size(); ++p) error += std::pow(a.texture.pixels[p] - b.texture.pixels[p], 2);
+    const double psnr = 10 * std::log10(255.0 * 255.0 / (error / static_cast<double>(a.texture.pixels.size())));
+    EXPECT_GT(psnr, 30) << "frame " << i;
+  }
 }
 
 TEST(SequenceEncoder, HolesOfAFrameBecomeALevelSetAroundTheirOutline) {

@@ -1,0 +1,84 @@
+// Files written by earlier versions must keep decoding to the same surfaces. tests/data holds a small
+// container written by facemorph 0.2.0 (format 1.0) with tests/data/make_golden.sh, and a sample of
+// what it decoded to then: grid positions at keyframe times, between keyframes and past the ends.
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+#include "format/file_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#ifndef FACEMORPH_TEST_DATA
+#error "FACEMORPH_TEST_DATA must name tests/data"
+#endif
+
+namespace facemorph {
+namespace {
+
+constexpr int kNodeStride = 7;  // every 7th node of G is compared
+
+std::vector<double> sample_times(const Sequence& s) {
+  std::vector<double> times;
+  for (const Keyframe& key : s.keyframes) times.push_back(key.time);
+  for (size_t k = 0; k + 1 < s.keyframes.size(); ++k) times.push_back(0.5 * (s.keyframes[k].time + s.keyframes[k + 1].time));
+  const double step = 1 / s.fps;
+  times.push_back(s.keyframes.front().time - step);  // extrapolated, a frame before and after
+  times.push_back(s.keyframes.back().time + step);
+  return times;
+}
+
+TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) {
+  const std::filesystem::path data = FACEMORPH_TEST_DATA;
+  SequenceFileInfo info;
+  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(data / "golden_v1_0.fmv", &info));
+  EXPECT_EQ(info.major_version, 1);
+  EXPECT_EQ(info.minor_version, 0);
+  EXPECT_EQ(info.metadata.encoder, "facemorph 0.2.0");
+  SequenceDecoder decoder(sequence);
+  DecodeOptions options;
+  options.reconstruct.tolerance = 1e-10;  // tight, so the comparison measures the format, not the solver's stopping point
+  std::ostringstream fresh;
+  fresh.precision(17);
+  std::vector<std::vector<double>> rows;
+  for (double t : sample_times(*sequence)) {
+    const DecodedFrame frame = decoder.decode(t, options);
+    EXPECT_TRUE(frame.converged) << "t = " << t;
+    for (size_t n = 0; n < frame.grid_positions.size(); n += kNodeStride) {
+      const Vec3& p = frame.grid_positions[n];
+      fresh << t << "," << n << "," << p.x() << "," << p.y() << "," << p.z() << "\n";
+      rows.push_back({t, static_cast<double>(n), p.x(), p.y(), p.z()});
+    }
+  }
+  if (const char* out = std::getenv("FACEMORPH_WRITE_GOLDEN")) {
+    format::write_file_atomically(out, std::string_view(fresh.str()));
+    GTEST_SKIP() << "wrote " << out;
+  }
+  std::ifstream in(data / "golden_v1_0.csv");
+  ASSERT_TRUE(in) << "tests/data/golden_v1_0.csv is missing";
+  std::string line;
+  size_t row = 0;
+  double worst = 0;
+  while (std::getline(in, line)) {
+    ASSERT_LT(row, rows.size()) << "the golden sample has more rows than this decoder produces";
+    std::istringstream fields(line);
+    std::vector<double> v;
+    for (std::string cell; std::getline(fields, cell, ',');) v.push_back(std::stod(cell));
+    ASSERT_EQ(v.size(), 5u);
+    EXPECT_EQ(v[0], rows[row][0]);
+    EXPECT_EQ(v[1], rows[row][1]);
+    for (int c = 2; c < 5; ++c) worst = std::max(worst, std::abs(v[static_cast<size_t>(c)] - rows[row][static_cast<size_t>(c)]));
+    ++row;
+  }
+  EXPECT_EQ(row, rows.size());
+  // The face is ~0.2 m across: 1 µm. The solver stops at 1e-10 relative; platforms' rounding and
+  // summation order move the result far less than this, a change of format or method far more.
+  EXPECT_LT(worst, 1e-6);
+}
+
+}  // namespace
+}  // namespace facemorph

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# The command-line contract (design §4) end to end on a small synthetic capture: fmsynth -> fmenc ->
+# fminfo -> fmdec, and the failures a user meets: each must exit non-zero, name the file and the
+# reason, and leave no file (and no earlier file changed).
+#   cli_test.sh TOOLS_DIR
+set -uo pipefail
+tools=${1:?usage: cli_test.sh TOOLS_DIR}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+failures=0
+fail() { echo "FAIL: $*" >&2; failures=$((failures + 1)); }
+# expect_error "what" "message fragment" command...: non-zero exit and the fragment on stderr.
+expect_error() {
+  local what=$1 fragment=$2
+  shift 2
+  if "$@" >"$work/out" 2>"$work/err"; then
+    fail "$what: succeeded"
+  elif ! grep -q -- "$fragment" "$work/err"; then
+    fail "$what: stderr lacks '$fragment': $(cat "$work/err")"
+  fi
+}
+
+"$tools/fmsynth" -o "$work/cap" --frames 8 --fps 20 --vertices 2000 --remesh --noise 0 --texture-size 64 --quiet || fail "fmsynth"
+"$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
+[[ -s "$work/a.fmv" ]] || fail "fmenc wrote nothing"
+"$tools/fminfo" "$work/a.fmv" >"$work/info" || fail "fminfo"
+grep -q "format 1.0" "$work/info" || fail "fminfo does not name the format"
+"$tools/fminfo" "$work/a.fmv" --json >"$work/info.json" || fail "fminfo --json"
+python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
+  fail "fminfo --json is not the file's description"
+
+# One frame: mesh, material, texture, picture.
+"$tools/fmdec" "$work/a.fmv" --t 0.17 -o "$work/f.obj" --preview "$work/f_view.png" --quiet || fail "fmdec --t"
+for f in f.obj f.mtl f.png f_view.png; do [[ -s "$work/$f" ]] || fail "fmdec did not write $f"; done
+"$tools/fmdec" "$work/a.fmv" --t 0.17 -o "$work/f.ply" --quiet || fail "fmdec -o .ply"
+# A range: to nothing (timing), to a folder; the keyframes' fields as EXR.
+"$tools/fmdec" "$work/a.fmv" --fps 20 --null >"$work/null" || fail "fmdec --null"
+grep -q "ms per frame" "$work/null" || fail "fmdec --null reports no speed"
+"$tools/fmdec" "$work/a.fmv" --fps 20 --from 0.1 --to 0.2 --out-dir "$work/seq" --quiet || fail "fmdec --out-dir"
+[[ $(ls "$work/seq"/*.obj | wc -l) -eq 3 ]] || fail "fmdec --out-dir: not 3 frames"
+"$tools/fmdec" "$work/a.fmv" --extract-fields "$work/fields" --quiet || fail "fmdec --extract-fields"
+ls "$work/fields"/keyframe_000.exr >/dev/null || fail "no EXR"
+
+# Failures.
+expect_error "t past the sane range" "outside the range this sequence can serve" "$tools/fmdec" "$work/a.fmv" --t 99 -o "$work/late.obj"
+[[ ! -e "$work/late.obj" ]] || fail "a failed decode left late.obj"
+"$tools/fmdec" "$work/a.fmv" --t 99 --clamp -o "$work/late.obj" --quiet || fail "--clamp"
+head -c 3000 "$work/a.fmv" >"$work/cut.fmv"
+expect_error "truncated file" "truncated" "$tools/fmdec" "$work/cut.fmv" --t 0.1 -o "$work/cut.obj"
+expect_error "truncated file (fminfo)" "cut.fmv" "$tools/fminfo" "$work/cut.fmv"
+cp "$work/a.fmv" "$work/flip.fmv"
+printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=2000 conv=notrunc status=none
+expect_error "corrupted file" "checksum" "$tools/fmdec" "$work/flip.fmv" --t 0.1 -o "$work/flip.obj"
+expect_error "glTF not yet" "glTF" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/clip.glb"
+expect_error "not a container" "not a facemorph container" "$tools/fmdec" "$work/cap/frame_0000.obj" --t 0.1 -o "$work/x.obj"
+# An encode that fails keeps the earlier file and leaves nothing behind.
+cp "$work/a.fmv" "$work/before.fmv"
+mv "$work/cap/frame_0003.jpg" "$work/hidden.jpg"
+expect_error "missing texture" "frame_0003" "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --quiet
+cmp -s "$work/a.fmv" "$work/before.fmv" || fail "a failed encode changed the earlier file"
+[[ $(ls "$work" | grep -c '\.tmp') -eq 0 ]] || fail "a failed encode left a temporary file"
+"$tools/fmenc" "$work/cap" -o "$work/geometry.fmv" --grid 33 --no-texture --quiet || fail "--no-texture"
+mv "$work/hidden.jpg" "$work/cap/frame_0003.jpg"
+expect_error "unwritable output" "missing" "$tools/fmenc" "$work/cap" -o "$work/missing/b.fmv" --grid 33 --texture 64 --quiet
+expect_error "bad option" "--keyframes" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframes 150%
+expect_error "plain folder without fps" "--fps" "$tools/fmenc" "$work/seq" -o "$work/c.fmv"
+[[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
+
+if ((failures > 0)); then
+  echo "$failures failures" >&2
+  exit 1
+fi
+echo "command-line contract: all checks passed"
