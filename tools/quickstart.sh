@@ -4,7 +4,8 @@
 #                                synthetic capture: fmsynth -> fmenc -> fmdec --t 1.45 (out/sample/)
 #   tools/quickstart.sh test     install what is missing, build, and run every test; build and test
 #                                the decoder alone (no encoder, no OpenCV); then every test again
-#                                under AddressSanitizer + UndefinedBehaviorSanitizer (clang)
+#                                under AddressSanitizer + UndefinedBehaviorSanitizer (clang), with
+#                                the fuzz targets run for a bounded time
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -44,9 +45,10 @@ case "${1:-}" in
     echo "== the decoder side alone, as a player builds it: encoder off, OpenCV not even looked for"
     build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON
     ctest --test-dir build-decoder --output-on-failure -j "$jobs"
-    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too)"
+    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too), and"
+    echo "   the libFuzzer targets (container reader, OBJ/PLY parsers) for 45 s each"
     # Only what ctest runs, at -O1 -g1: the sanitizers need line tables, not full debug info.
-    CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DFACEMORPH_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir build-asan --output-on-failure -j "$jobs"
