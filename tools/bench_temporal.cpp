@@ -11,6 +11,7 @@
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/image_codec.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/sequence_file.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/plot.hpp"
@@ -80,6 +81,19 @@ std::optional<fs::path> make_input(const std::string& input, const std::string& 
     return path;
   }
   return fs::path(input);
+}
+
+// --through-file: every sequence is measured as a user gets it from fmenc and fmdec, written by
+// encode_sequence_file (16-bit fields, WebP textures at quality 90) and read back.
+bool through_file = false;
+
+Sequence stored(Sequence sequence, size_t* file_bytes = nullptr) {
+  if (!through_file) return sequence;
+  SequenceFileMetadata metadata;
+  metadata.texture_quality = 90;
+  const std::vector<uint8_t> file = encode_sequence_file(sequence, metadata);
+  if (file_bytes) *file_bytes = file.size();
+  return decode_sequence_file(file, "fmbench temporal --through-file");
 }
 
 struct FrameError {
@@ -275,6 +289,9 @@ void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
   cmd->add_option("--limit", options.limit, "At most this many frames per capture (0: all)")->capture_default_str();
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
   cmd->add_option("--plots", options.plots, "Folder for error-against-time plots (PNG), keyframes marked");
+  cmd->add_flag("--through-file", through_file,
+                "Measure each sequence after writing it as a .fmv file and reading it back (as fmenc and fmdec: 16-bit fields, WebP "
+                "textures at quality 90); report the file's bytes");
   cmd->add_flag("--no-targets", options.no_targets, "Skip the keyframes-for-1%-and-0.5% searches");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
   cmd->footer("Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "
@@ -353,12 +370,19 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       if (grid == 0) grid = encoder.choose_grid();
       const MatchingEnergies energies = matching_energies(encoder);
       const KeyframeSelection chosen = encoder.select_keyframes();
-      const Sequence sequence = encoder.build(chosen.keyframes, grid);
+      size_t file_bytes = 0;
+      const Sequence sequence = stored(encoder.build(chosen.keyframes, grid), &file_bytes);
       Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, textured);
       print_evaluation(input, e);
+      const double file_seconds = capture.duration() + 1.0 / capture.fps;
+      if (through_file) {
+        std::printf("    through the file: %zu bytes, %.0f bytes per second of capture (%.3f s)\n", file_bytes, file_bytes / file_seconds,
+                    file_seconds);
+      }
       int fallbacks = 0;
       for (int i = 0; i < count; ++i) fallbacks += encoder.registration(i).fallback != RegistrationFallback::kNone;
       json r = evaluation_json(e);
+      if (through_file) r["file_bytes"] = file_bytes, r["file_bytes_per_second"] = file_bytes / file_seconds;
       r["matching_energies"] = {{"E_D_moebius", energies.disk_moebius}, {"E_D", energies.disk}, {"E_loc", energies.local}, {"E", energies.global},
                                 {"E_rms_relative", energies.global_relative}};
       r["registration_fallbacks"] = fallbacks;
@@ -397,7 +421,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       for (SplineKind kind : splines) {
         encoder.options().spline = kind;
         const KeyframeSelection chosen = encoder.select_keyframes();
-        Sequence sequence = encoder.build(chosen.keyframes, grid);
+        Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
         const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
         print_evaluation(input, e);
         kinds.push_back(evaluation_json(e));
@@ -414,7 +438,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       so.spline = encoder.options().spline;
       so.pose_centre = encoder.pose_centre();
       const KeyframeSelection chosen = select_keyframes(head, encoder.selection_weights(), so);
-      const Sequence sequence = encoder.build(chosen.keyframes, grid);
+      const Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
       const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
       const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, {last + 1, last + 3, last + 10}, false);
       json extrapolation = json::array();
@@ -438,7 +462,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         for (int attempt = 0; attempt < 4; ++attempt) {
           encoder.options().max_error = tolerance;
           const KeyframeSelection chosen = encoder.select_keyframes();
-          const Sequence sequence = encoder.build(chosen.keyframes, grid);
+          const Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
           const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
           const double worst = summarise(e).held_rms_worst;
           if (worst <= target || attempt == 3 || static_cast<int>(chosen.keyframes.size()) == count) {
