@@ -1,6 +1,7 @@
 // fmdec: plays a .fmv file back. One time (--t) to a mesh with its texture and, on request, a
 // shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
 // for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
+#include "facemorph/gltf.hpp"
 #include "facemorph/image_codec.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/render.hpp"
@@ -56,9 +57,34 @@ void write_frame(const DecodedFrame& frame, const fs::path& path) {
 
 void check_mesh_path(const fs::path& path) {
   const std::string ext = path.extension().string();
-  if (ext == ".glb" || ext == ".gltf") throw Error(ErrorCode::kUnsupported, path.string() + ": glTF output is not implemented yet; write .obj or .ply");
+  if (ext == ".glb") throw Error(ErrorCode::kInvalidArgument, path.string() + ": a glTF clip is a range: give --fps (and --from, --to)");
   if (ext != ".obj" && ext != ".ply") throw Error(ErrorCode::kInvalidArgument, path.string() + ": the mesh must be .obj or .ply");
 }
+
+// Collects a range of frames as a glTF clip: G's mesh in every frame (glTF cannot change triangles
+// over time) less the triangles inside a hole in every frame (faces_outside_holes), the texture of
+// the middle frame (glTF has no animated textures).
+class ClipCollector {
+ public:
+  explicit ClipCollector(const DiskGrid& grid) {
+    clip_.faces = grid.faces;
+    for (const Vec2& w : grid.nodes) clip_.uvs.push_back(0.5 * (w + Vec2(1, 1)));
+  }
+  void add(const DecodedFrame& frame, bool middle) {
+    clip_.times.push_back(frame.time);
+    clip_.positions.push_back(frame.grid_positions);
+    if (!frame.hole_level.empty()) levels_.push_back(frame.hole_level);
+    if (middle) clip_.texture = frame.texture;
+  }
+  void write(const fs::path& path) {
+    if (!levels_.empty()) clip_.faces = faces_outside_holes(clip_.faces, levels_);
+    format::write_file_atomically(path, encode_glb(clip_));
+  }
+
+ private:
+  GltfClip clip_;
+  std::vector<std::vector<double>> levels_;
+};
 
 void print_frame(const DecodedFrame& frame, const fs::path& where) {
   std::printf("fmdec: t = %.4f s -> %s: %d vertices, %d faces, %d iterations%s\n", frame.time, where.string().c_str(),
@@ -79,7 +105,7 @@ int main(int argc, char** argv) {
   int preview_size = 800;
   app.add_option("input", input, "The .fmv file")->required();
   app.add_option("--t", t, "The time to decode, in seconds from the first frame (past the ends: extrapolated within the sane range)");
-  app.add_option("-o,--output", mesh_out, "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply");
+  app.add_option("-o,--output", mesh_out, "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply; for a range, CLIP.glb (glTF 2.0)");
   app.add_option("--preview", preview, "A shaded, textured picture (.png) of the frame, or a video (.mp4) of a range");
   app.add_option("--preview-size", preview_size, "Preview pixels per side")->capture_default_str();
   app.add_option("--yaw", out.yaw, "Preview: degrees the face is turned")->capture_default_str();
@@ -126,11 +152,16 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (fps <= 0) throw Error(ErrorCode::kInvalidArgument, "give --t T for one frame, or --fps F (with --out-dir, --null or --preview SEQ.mp4) for a range");
-    if (!mesh_out.empty()) {
-      check_mesh_path(mesh_out);
-      throw Error(ErrorCode::kInvalidArgument, "a range goes to --out-dir DIR, --null or --preview SEQ.mp4, not to one mesh");
+    const bool glb = fs::path(mesh_out).extension() == ".glb";
+    if (!mesh_out.empty() && !glb) throw Error(ErrorCode::kInvalidArgument, "a range goes to -o CLIP.glb, --out-dir DIR, --null or --preview SEQ.mp4, not to one mesh");
+    if (out_dir.empty() && !out.null && preview.empty() && !glb) {
+      throw Error(ErrorCode::kInvalidArgument, "a range needs -o CLIP.glb, --out-dir DIR, --null or --preview SEQ.mp4");
     }
-    if (out_dir.empty() && !out.null && preview.empty()) throw Error(ErrorCode::kInvalidArgument, "a range needs --out-dir DIR, --null or --preview SEQ.mp4");
+    std::optional<ClipCollector> clip;
+    if (glb) {
+      clip.emplace(decoder.geometry().grid());
+      options.cut_holes = false;  // the clip drops the triangles inside a hole throughout instead
+    }
     if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");
     const double begin = from.value_or(sequence->first_time), end = to.value_or(sequence->last_time);
     if (!(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "--to is before --from");
@@ -159,6 +190,7 @@ int main(int argc, char** argv) {
       worst_ms = std::max(worst_ms, 1000 * tools::seconds_since(frame_start));
       fell_back += frame.fell_back;
       iterations += frame.iterations;
+      if (clip) clip->add(frame, i == count / 2);
       if (!out_dir.empty()) {
         char name[32];
         std::snprintf(name, sizeof name, "frame_%05d.%s", i, out.format.c_str());
@@ -174,6 +206,7 @@ int main(int argc, char** argv) {
     }
     progress.finish();
     const double seconds = tools::seconds_since(decode_start);
+    if (clip) clip->write(mesh_out);
     if (video) {
       video->release();
       format::commit_temporary(fs::path(preview).replace_extension(".partial.mp4"), preview);
@@ -184,6 +217,7 @@ int main(int argc, char** argv) {
                   1000 * seconds_read, fell_back ? (", " + std::to_string(fell_back) + " frames did not converge").c_str() : "");
       if (!out_dir.empty()) std::printf("  meshes in %s\n", out_dir.c_str());
       if (video) std::printf("  video %s\n", preview.c_str());
+      if (clip) std::printf("  glTF clip %s (%llu bytes)\n", mesh_out.c_str(), static_cast<unsigned long long>(fs::file_size(mesh_out)));
     }
     return 0;
   });

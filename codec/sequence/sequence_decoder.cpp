@@ -154,11 +154,13 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
 
   const DiskGrid& grid = reconstructor_.geometry().grid();
-  if (options.cut_holes && sequence.has_holes()) {
-    const std::vector<double> level = blend<double>(w, 0.0, [&](int32_t k) -> const std::vector<double>& {
+  if (sequence.has_holes()) {
+    frame.hole_level = blend<double>(w, 0.0, [&](int32_t k) -> const std::vector<double>& {
       return sequence.keyframes[static_cast<size_t>(k)].hole_level;
     });
-    frame.mesh = cut_holes(grid, frame.grid_positions, level);
+  }
+  if (options.cut_holes && sequence.has_holes()) {
+    frame.mesh = cut_holes(grid, frame.grid_positions, frame.hole_level);
   } else {
     frame.mesh = grid_mesh(grid, frame.grid_positions);
   }

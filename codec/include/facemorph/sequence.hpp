@@ -76,6 +76,7 @@ struct DecodedFrame {
   std::vector<Vec3> grid_positions;  // every node of G, in capture coordinates
   TriangleMesh mesh;               // G's faces (holes cut unless asked not to), UV = (w + 1) / 2
   Image texture;                   // blended, clamped to 0..255; empty without texture
+  std::vector<double> hole_level;  // the blended level set per node of G (< 0 inside a hole); empty without holes
   RigidPose pose;
   SplineWeights weights;           // the keyframes that made it and their weights
   int iterations = 0;              // reconstruction steps

@@ -1,0 +1,37 @@
+// Decoded clips as glTF 2.0 binary (.glb), the file three.js, Blender and every engine load
+// (spec/method.md §8). One mesh on G's triangles; frame 0 is the base and every later frame a morph
+// target (positions and normals as differences from frame 0); one animation drives the morph
+// weights, one-hot at each frame's time and linear between, so a player interpolates frames as
+// fmdec would at its own rate. glTF has no animated textures: the clip carries one texture.
+#pragma once
+
+#include "facemorph/image.hpp"
+#include "facemorph/mesh.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace facemorph {
+
+struct GltfClip {
+  std::vector<double> times;                 // seconds, strictly increasing, one per frame
+  std::vector<std::vector<Vec3>> positions;  // per frame, one per vertex
+  std::vector<Face> faces;                   // shared by every frame, counter-clockwise
+  std::vector<Vec2> uvs;                     // per vertex, in [0,1]² (v up, as glTF's is flipped on writing)
+  Image texture;                             // RGB or RGBA; empty: untextured grey material
+  std::string name = "face";
+};
+
+// The .glb bytes. Throws kInvalidArgument for an empty clip, times not increasing, frames of
+// different sizes, faces out of range, UVs of the wrong count, or non-finite positions.
+std::vector<uint8_t> encode_glb(const GltfClip& clip);
+
+// Holes in a morphing mesh: glTF cannot change a mesh's triangles over time. The clip drops the
+// triangles that lie inside a hole (all three corners at level < 0) in every frame of the clip, so
+// eyes and a mouth that stay open are open; a hole that opens or closes within the clip shows the
+// encoder's fill while it is open (fmdec's OBJ/PLY frames and previews cut it exactly). Moving the
+// hole's nodes onto its outline instead was tried: the triangles across the hole then span it as a
+// lid. `levels`: per frame, one level per vertex.
+std::vector<Face> faces_outside_holes(const std::vector<Face>& faces, const std::vector<std::vector<double>>& levels);
+
+}  // namespace facemorph

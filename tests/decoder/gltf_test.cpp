@@ -1,0 +1,118 @@
+// glTF clips: the GLB container's structure, the morph animation's contract (frame f's shape at its
+// time), hole collapse, and, where node and the Khronos validator are installed, 0 validator errors.
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/gltf.hpp"
+#include "facemorph/reconstruct.hpp"
+#include "format/file_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <cstring>
+
+namespace facemorph {
+namespace {
+
+uint32_t u32(const std::vector<uint8_t>& b, size_t at) {
+  uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | b[at + static_cast<size_t>(i)];
+  return v;
+}
+
+GltfClip wave_clip(int frames) {
+  const DiskGrid grid = make_disk_grid(9);
+  GltfClip clip;
+  clip.faces = grid.faces;
+  for (const Vec2& w : grid.nodes) clip.uvs.push_back(0.5 * (w + Vec2(1, 1)));
+  for (int f = 0; f < frames; ++f) {
+    clip.times.push_back(f / 30.0);
+    std::vector<Vec3> p;
+    for (const Vec2& w : grid.nodes) p.push_back(Vec3(w.x(), w.y(), 0.1 * std::sin(f + 3 * w.x())));
+    clip.positions.push_back(std::move(p));
+  }
+  clip.texture = Image(8, 8, 3);
+  return clip;
+}
+
+TEST(Gltf, TheBinaryHasAHeaderAJsonChunkAndABinChunk) {
+  const GltfClip clip = wave_clip(4);
+  const std::vector<uint8_t> glb = encode_glb(clip);
+  ASSERT_GE(glb.size(), 28u);
+  EXPECT_EQ(u32(glb, 0), 0x46546C67u);  // "glTF"
+  EXPECT_EQ(u32(glb, 4), 2u);
+  EXPECT_EQ(u32(glb, 8), glb.size());
+  const uint32_t json_size = u32(glb, 12);
+  EXPECT_EQ(u32(glb, 16), 0x4E4F534Au);  // "JSON"
+  EXPECT_EQ(json_size % 4, 0u);
+  const std::string json(glb.begin() + 20, glb.begin() + 20 + json_size);
+  const size_t bin = 20 + json_size;
+  EXPECT_EQ(u32(glb, bin + 4), 0x004E4942u);  // "BIN\0"
+  EXPECT_EQ(bin + 8 + u32(glb, bin), glb.size());
+  // Three morph targets (frames 1-3 over frame 0), an animation of their weights, the texture.
+  size_t targets = 0;
+  for (size_t at = json.find("\"POSITION\""); at != std::string::npos; at = json.find("\"POSITION\"", at + 1)) ++targets;
+  EXPECT_EQ(targets, 1u + 3u);
+  EXPECT_NE(json.find("\"path\":\"weights\""), std::string::npos);
+  EXPECT_NE(json.find("\"mimeType\":\"image/png\""), std::string::npos);
+  EXPECT_NE(json.find("\"count\":" + std::to_string(clip.faces.size() * 3)), std::string::npos);
+}
+
+TEST(Gltf, BadClipsAreNamedErrors) {
+  GltfClip clip = wave_clip(3);
+  clip.times[2] = clip.times[1];
+  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing", [&] { encode_glb(clip); });
+  clip = wave_clip(3);
+  clip.positions[1].pop_back();
+  testing::expect_error(ErrorCode::kInvalidArgument, "frame 1", [&] { encode_glb(clip); });
+  clip = wave_clip(3);
+  clip.faces[0][0] = 10000;
+  testing::expect_error(ErrorCode::kInvalidArgument, "out of range", [&] { encode_glb(clip); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "at least one frame", [&] { encode_glb(GltfClip{}); });
+}
+
+TEST(Gltf, OnlyTrianglesInsideAHoleThroughoutAreDropped) {
+  const DiskGrid grid = make_disk_grid(17);
+  const auto levels_for = [&](double radius) {
+    std::vector<double> level;
+    for (const Vec2& w : grid.nodes) level.push_back(w.norm() - radius);
+    return level;
+  };
+  const auto inside = [&](const Face& f, double radius) {
+    for (int32_t v : f) {
+      if (grid.nodes[static_cast<size_t>(v)].norm() >= radius) return false;
+    }
+    return true;
+  };
+  // A hole of radius 0.3 in one frame and 0.5 in the next: what is inside 0.3 goes.
+  const std::vector<Face> kept = faces_outside_holes(grid.faces, {levels_for(0.3), levels_for(0.5)});
+  size_t expected = 0;
+  for (const Face& f : grid.faces) expected += !inside(f, 0.3);
+  EXPECT_EQ(kept.size(), expected);
+  EXPECT_LT(kept.size(), grid.faces.size());
+  for (const Face& f : kept) EXPECT_FALSE(inside(f, 0.3));
+  // A frame without the hole keeps every triangle; no frames keep every triangle.
+  EXPECT_EQ(faces_outside_holes(grid.faces, {levels_for(0.3), levels_for(-1)}).size(), grid.faces.size());
+  EXPECT_EQ(faces_outside_holes(grid.faces, {}).size(), grid.faces.size());
+}
+
+// The Khronos glTF validator (npm gltf-validator) finds no error; skipped without node or the
+// validator (FACEMORPH_GLTF_VALIDATOR may name a folder whose node_modules holds it).
+TEST(Gltf, TheKhronosValidatorFindsNoError) {
+  const char* folder = std::getenv("FACEMORPH_GLTF_VALIDATOR");
+  if (!folder || std::system("command -v node >/dev/null 2>&1") != 0) GTEST_SKIP() << "node or FACEMORPH_GLTF_VALIDATOR absent";
+  const std::filesystem::path modules = std::filesystem::path(folder) / "node_modules" / "gltf-validator";
+  if (!std::filesystem::exists(modules)) GTEST_SKIP() << "no gltf-validator in " << folder;
+  testing::TempDir dir;
+  format::write_file_atomically(dir.path() / "clip.glb", encode_glb(wave_clip(5)));
+  const std::string script = "const v=require('" + modules.string() + "');const b=new Uint8Array(require('fs').readFileSync('" +
+                             (dir.path() / "clip.glb").string() +
+                             "'));v.validateBytes(b).then(r=>{console.log(JSON.stringify(r.issues.messages));process.exit(r.issues.numErrors?1:0)})"
+                             ".catch(e=>{console.error(e);process.exit(2)})";
+  testing::write_text(dir.path() / "validate.js", script);
+  EXPECT_EQ(std::system(("node " + (dir.path() / "validate.js").string()).c_str()), 0);
+}
+
+}  // namespace
+}  // namespace facemorph
