@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
   std::string mesh_out, preview, out_dir;
   bool keep_holes = false, clamp = false, quiet = false, no_texture = false;
   int preview_size = 800;
+  double tolerance = ReconstructOptions{}.tolerance;
   app.add_option("input", input, "The .fmv file")->required();
   app.add_option("--t", t, "The time to decode, in seconds from the first frame (past the ends: extrapolated within the sane range)");
   app.add_option("-o,--output", mesh_out, "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply; for a range, CLIP.glb (glTF 2.0)");
@@ -119,6 +120,8 @@ int main(int argc, char** argv) {
   app.add_flag("--keep-holes-filled", keep_holes, "Show eyes and mouth as the encoder's fill instead of cutting them out");
   app.add_flag("--clamp", clamp, "Clamp times past the sane extrapolation range to it instead of failing");
   app.add_flag("--no-texture", no_texture, "Do not blend or write the texture");
+  app.add_option("--tolerance", tolerance, "Stop the reconstruction when a step moves no node more than this fraction of the rim's diameter")
+      ->capture_default_str();
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
   return tools::guarded_main(app, argc, argv, [&] {
     const auto start = std::chrono::steady_clock::now();
@@ -134,6 +137,8 @@ int main(int argc, char** argv) {
     options.cut_holes = !keep_holes;
     options.clamp_to_sane_range = clamp;
     options.texture = !no_texture;
+    if (!(tolerance > 0) || tolerance > 0.01) throw Error(ErrorCode::kInvalidArgument, "--tolerance must be in (0, 0.01]");
+    options.reconstruct.tolerance = tolerance;
     if (t) {
       if (fps > 0 || from || to || !out_dir.empty() || out.null) {
         throw Error(ErrorCode::kInvalidArgument, "--t decodes one frame; --fps/--from/--to/--out-dir/--null decode a range");
