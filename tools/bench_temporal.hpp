@@ -12,7 +12,7 @@ namespace facemorph::tools {
 struct TemporalBenchOptions {
   std::vector<std::string> inputs;
   std::string keyframes = "10%";
-  std::string registration = "all";   // moebius | gmf | frame | all
+  std::string registration = "all";   // a comma-separated list of moebius, gmf, frame; or all
   std::string spline = "catmull-rom"; // one kind, or "all" to compare them
   std::string representation = "hl+t";
   std::string grid = "auto";
