@@ -68,6 +68,19 @@ expect_error "bad option" "--keyframes" "$tools/fmenc" "$work/cap" -o "$work/c.f
 expect_error "plain folder without fps" "--fps" "$tools/fmenc" "$work/seq" -o "$work/c.fmv"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
+# An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.
+# (Other settings than a.fmv's, so a finished encode would change it.)
+"$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 65 --texture 32 --quiet &
+encoder=$!
+sleep 0.3
+kill -INT "$encoder" 2>/dev/null
+if wait "$encoder" 2>/dev/null; then
+  echo "note: the encode finished before the interrupt; interruption not exercised" >&2
+  cp "$work/before.fmv" "$work/a.fmv"
+fi
+cmp -s "$work/a.fmv" "$work/before.fmv" || fail "an interrupted encode changed the earlier file"
+[[ $(ls "$work" | grep -c '\.tmp') -eq 0 ]] || fail "an interrupted encode left a temporary file"
+
 if ((failures > 0)); then
   echo "$failures failures" >&2
   exit 1
