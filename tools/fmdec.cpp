@@ -145,6 +145,10 @@ int main(int argc, char** argv) {
       }
       if (mesh_out.empty() && preview.empty()) throw Error(ErrorCode::kInvalidArgument, "--t needs -o FRAME.obj and/or --preview FRAME.png");
       if (!mesh_out.empty()) check_mesh_path(mesh_out);
+      if (!mesh_out.empty() && !preview.empty() && fs::path(mesh_out).extension() == ".obj" &&
+          fs::weakly_canonical(fs::path(mesh_out).replace_extension(".png")) == fs::weakly_canonical(preview)) {
+        throw Error(ErrorCode::kInvalidArgument, preview + " is where the mesh's texture goes; give the preview another name (e.g. FRAME_view.png)");
+      }
       if (!preview.empty() && fs::path(preview).extension() != ".png") throw Error(ErrorCode::kInvalidArgument, preview + ": a frame's preview is a .png");
       const DecodedFrame frame = decoder.decode(*t, options);
       if (!mesh_out.empty()) write_frame(frame, mesh_out);
@@ -170,7 +174,9 @@ int main(int argc, char** argv) {
     if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");
     const double begin = from.value_or(sequence->first_time), end = to.value_or(sequence->last_time);
     if (!(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "--to is before --from");
-    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+    // A thousandth of a frame of slack: a rounded rate (23.976 for 24000/1001) must still reach the
+    // last frame.
+    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-3)) + 1;
     std::optional<cv::VideoWriter> video;
     if (!preview.empty()) {
       if (fs::path(preview).extension() != ".mp4") throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");

@@ -51,6 +51,7 @@ expect_error "truncated file (fminfo)" "cut.fmv" "$tools/fminfo" "$work/cut.fmv"
 cp "$work/a.fmv" "$work/flip.fmv"
 printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=2000 conv=notrunc status=none
 expect_error "corrupted file" "checksum" "$tools/fmdec" "$work/flip.fmv" --t 0.1 -o "$work/flip.obj"
+expect_error "preview over the texture" "give the preview another name" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/g.obj" --preview "$work/g.png"
 expect_error "glTF of one time" "a glTF clip is a range" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/clip.glb"
 "$tools/fmdec" "$work/a.fmv" --fps 20 -o "$work/clip.glb" --quiet || fail "fmdec -o clip.glb"
 [[ $(head -c 4 "$work/clip.glb") == "glTF" ]] || fail "clip.glb is not a glTF binary"
