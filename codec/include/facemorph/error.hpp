@@ -25,6 +25,9 @@ enum class ErrorCode : int {
   kNumerical = 10,       // a numerical method failed (singular system, NaN produced)
   kNotConverged = 11,    // an iteration stopped before meeting its tolerance
   kOutOfRange = 12,      // a request outside what the data can serve (e.g. t too far out)
+  kBufferTooSmall = 13,  // a caller-owned output buffer is smaller than the data (the call says what is needed)
+  kOutOfMemory = 14,     // an allocation failed
+  kInternal = 15,        // a failure that is none of the above (a bug in facemorph: please report it)
 };
 
 // Short stable name of a code, e.g. "truncated"; never null.
@@ -43,6 +46,9 @@ constexpr const char* error_code_name(ErrorCode code) noexcept {
     case ErrorCode::kNumerical: return "numerical";
     case ErrorCode::kNotConverged: return "not-converged";
     case ErrorCode::kOutOfRange: return "out-of-range";
+    case ErrorCode::kBufferTooSmall: return "buffer-too-small";
+    case ErrorCode::kOutOfMemory: return "out-of-memory";
+    case ErrorCode::kInternal: return "internal";
   }
   return "unknown";
 }

@@ -1,0 +1,170 @@
+/* facemorph.h: the C API of the facemorph decoder, for players in any language.
+ *
+ * Open a .fmv file (fm_file_open, fm_file_open_memory), ask what it holds (fm_file_get_info), make
+ * a decoder on it (fm_decoder_create) and decode any time t into buffers the caller owns
+ * (fm_decoder_decode): positions, normals and UVs per vertex, triangle indices, an RGBA8 texture.
+ *
+ *   fm_file* file; fm_decoder* decoder; fm_info info;
+ *   if (fm_file_open("face.fmv", &file) != FM_OK) { fprintf(stderr, "%s\n", fm_last_error_message()); ... }
+ *   fm_file_get_info(file, &info);
+ *   fm_decoder_create(file, &decoder);
+ *   float* positions = malloc(3 * sizeof(float) * info.max_vertex_count);
+ *   fm_frame frame = {0};
+ *   frame.positions = positions; frame.positions_bytes = 3 * sizeof(float) * info.max_vertex_count;
+ *   if (fm_decoder_decode(decoder, 1.45, 0, &frame) == FM_OK) printf("%u vertices\n", frame.vertex_count);
+ *   fm_decoder_destroy(decoder); fm_file_close(file); free(positions);
+ *
+ * Status: every function that can fail returns an fm_status. Its values mirror facemorph::ErrorCode
+ * (facemorph/error.hpp), never change meaning and are never renumbered; new ones are appended.
+ * fm_status_name gives a short stable name, fm_last_error_message the full message (naming the
+ * file, chunk and reason) of the last failed call on the calling thread.
+ *
+ * Threads: an fm_file is immutable once opened; any number of threads may create decoders on it at
+ * once. An fm_decoder is used by one thread at a time; decoders on one file may decode on
+ * different threads at once. A file may be closed while its decoders live (they share it).
+ *
+ * Conventions (spec/container.md §8, spec/method.md §7): positions in the capture's frame and units
+ * (fm_info.units), normals unit and area-weighted, pointing to the side from which the triangles
+ * wind counter-clockwise; UV = (w + 1) / 2 of the vertex's point w of the unit disk, v up (OBJ,
+ * OpenGL) unless FM_DECODE_FLIP_V; texture M x M texels of 4 bytes (R, G, B, 255), row 0 at the top
+ * (v = 1), rows packed.
+ */
+#ifndef FACEMORPH_H
+#define FACEMORPH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define FACEMORPH_VERSION_MAJOR 0
+#define FACEMORPH_VERSION_MINOR 2
+#define FACEMORPH_VERSION_PATCH 0
+/* major * 10000 + minor * 100 + patch, as fm_version_number returns it. */
+#define FACEMORPH_VERSION_NUMBER (FACEMORPH_VERSION_MAJOR * 10000 + FACEMORPH_VERSION_MINOR * 100 + FACEMORPH_VERSION_PATCH)
+
+typedef enum fm_status {
+  FM_OK = 0,
+  FM_ERROR_IO = 1,               /* a file could not be opened or read */
+  FM_ERROR_PARSE = 2,            /* text or structure that does not follow its grammar */
+  FM_ERROR_TRUNCATED = 3,        /* the input ends before the data it announces */
+  FM_ERROR_CORRUPT = 4,          /* bytes present but wrong (checksum, impossible value) */
+  FM_ERROR_UNSUPPORTED = 5,      /* a valid file using a feature this decoder does not implement */
+  FM_ERROR_INVALID_MESH = 6,
+  FM_ERROR_NOT_A_DISK = 7,
+  FM_ERROR_MISSING_TEXTURE = 8,
+  FM_ERROR_INVALID_ARGUMENT = 9, /* a NULL or wrong handle or pointer, t not finite, a bad option */
+  FM_ERROR_NUMERICAL = 10,       /* the reconstruction produced a non-finite surface */
+  FM_ERROR_NOT_CONVERGED = 11,
+  FM_ERROR_OUT_OF_RANGE = 12,    /* t outside [range_begin, range_end] without FM_DECODE_CLAMP */
+  FM_ERROR_BUFFER_TOO_SMALL = 13,/* an output buffer too small: the frame's counts say what is needed */
+  FM_ERROR_OUT_OF_MEMORY = 14,
+  FM_ERROR_INTERNAL = 15,        /* a bug in facemorph: please report it with the message */
+  /* Never returned: gives fm_status the range of a 32-bit int in C and C++ alike, so that any
+   * non-negative int a caller passes to fm_status_name is a valid value. */
+  FM_STATUS_FORCE_32BIT = 0x7fffffff
+} fm_status;
+
+/* Short stable name of a status ("ok", "truncated", "buffer-too-small", ...); "unknown" for
+ * another value. Never NULL; a static string. */
+const char* fm_status_name(fm_status status);
+
+/* The message of the last call on this thread that did not return FM_OK (every failing call sets
+ * it; a call that succeeds sets it to ""). Valid until the next facemorph call on this thread.
+ * Never NULL. */
+const char* fm_last_error_message(void);
+
+/* "0.2.0": the library's version, which may differ from the header's FACEMORPH_VERSION_*. */
+const char* fm_version(void);
+uint32_t fm_version_number(void);
+
+/* An opened .fmv file: every chunk read, checked and decoded. */
+typedef struct fm_file fm_file;
+/* The state that decodes one file's frames. */
+typedef struct fm_decoder fm_decoder;
+
+/* Opens and checks a whole file (FM_ERROR_IO, _TRUNCATED, _CORRUPT, _UNSUPPORTED). On success
+ * *file is a new handle for fm_file_close; on failure *file is NULL. */
+fm_status fm_file_open(const char* path, fm_file** file);
+/* The same from `size` bytes at `data`. They are parsed before this returns and not used
+ * afterwards (nothing is kept): the caller may free them at once. */
+fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file);
+/* Releases the handle; decoders created from it stay valid. NULL is ignored. */
+void fm_file_close(fm_file* file);
+
+typedef struct fm_info {
+  double fps;              /* the capture's nominal frame rate */
+  double first_time;       /* the capture's first and last frame times, seconds */
+  double last_time;
+  double duration;         /* last_time - first_time */
+  double range_begin;      /* the times fm_decoder_decode serves without FM_DECODE_CLAMP (+-infinity with one keyframe) */
+  double range_end;
+  uint32_t keyframe_count;
+  uint32_t grid_n;         /* N of the disk grid */
+  /* Buffers for these many vertices and triangles always suffice. Without holes (or with
+   * FM_DECODE_KEEP_HOLES_FILLED) every frame has exactly the grid's counts and the same indices. */
+  uint32_t max_vertex_count;
+  uint32_t max_triangle_count;
+  uint32_t grid_vertex_count;
+  uint32_t grid_triangle_count;
+  uint32_t has_holes;      /* 1: eyes and mouth are cut per frame, the counts change between frames */
+  uint32_t texture_size;   /* M, texels per side; 0: the file has no texture */
+  char units[8];           /* "m", "cm" or "mm", NUL-terminated */
+} fm_info;
+
+/* Fills *info. FM_ERROR_INVALID_ARGUMENT for a NULL or wrong handle or NULL info. */
+fm_status fm_file_get_info(const fm_file* file, fm_info* info);
+/* Copies the keyframe times (seconds) into times[0 .. capacity) and sets *count to the number of
+ * keyframes; FM_ERROR_BUFFER_TOO_SMALL (copying nothing) when capacity < *count. times may be NULL
+ * when capacity is 0, to ask the count. */
+fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count);
+
+/* A decoder on the file (which it shares: the file handle may be closed afterwards). */
+fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder);
+/* NULL is ignored. */
+void fm_decoder_destroy(fm_decoder* decoder);
+
+/* Decode flags, or-ed; 0 is the default. */
+#define FM_DECODE_CLAMP 1u              /* clamp t into [range_begin, range_end] instead of FM_ERROR_OUT_OF_RANGE */
+#define FM_DECODE_KEEP_HOLES_FILLED 2u  /* keep the filled eyes and mouth: fixed topology */
+#define FM_DECODE_FLIP_V 4u             /* UV v down (glTF, Direct3D): v -> 1 - v */
+
+/* One frame: the caller's buffers in, the frame's description out. A NULL buffer is not wanted
+ * (and not computed); a buffer that is not NULL must hold the whole array, its size given in
+ * BYTES: 3 floats per vertex (positions, normals), 2 floats per vertex (uvs), 3 uint32 per triangle
+ * (indices), 4 bytes per texel (texture). Zero-initialise the struct, then set what you want. */
+typedef struct fm_frame {
+  float* positions;
+  size_t positions_bytes;
+  float* normals;
+  size_t normals_bytes;
+  float* uvs;
+  size_t uvs_bytes;
+  uint32_t* indices;
+  size_t indices_bytes;
+  uint8_t* texture;
+  size_t texture_bytes;
+  /* Set by fm_decoder_decode on FM_OK and on FM_ERROR_BUFFER_TOO_SMALL (then they say what is
+   * needed; nothing was written to any buffer). */
+  double time;             /* the time decoded (t, or t clamped) */
+  uint32_t vertex_count;
+  uint32_t triangle_count;
+  uint32_t texture_size;   /* M (0: no texture) */
+  uint32_t iterations;     /* reconstruction steps */
+  uint32_t fell_back;      /* 1: the reconstruction did not converge; the frame is the spline of the keyframes' surfaces */
+} fm_frame;
+
+/* Decodes the frame at time t (seconds from the capture's first frame) into the buffers of
+ * *frame. FM_ERROR_INVALID_ARGUMENT (NULL or wrong handle, NULL frame, t not finite, unknown
+ * flag), FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_NUMERICAL. The decoded frame is
+ * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
+ * only copies it. Leaving every buffer NULL decodes and reports the sizes. */
+fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FACEMORPH_H */

@@ -1,0 +1,213 @@
+// The C API (facemorph.h): statuses and messages for bad handles, NULL arguments and bad files;
+// frames equal to the C++ decoder's; buffer sizes in bytes, checked before anything is written.
+#include "facemorph.h"
+
+#include "facemorph/decoder.hpp"
+#include "format/file_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#ifndef FACEMORPH_TEST_DATA
+#error "FACEMORPH_TEST_DATA must name tests/data"
+#endif
+
+namespace {
+
+const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v1_0.fmv";
+
+bool message_has(const std::string& fragment) { return std::string(fm_last_error_message()).find(fragment) != std::string::npos; }
+
+// Owns a file and a decoder on it for one test.
+struct Opened {
+  fm_file* file = nullptr;
+  fm_decoder* decoder = nullptr;
+  fm_info info{};
+  Opened() {
+    EXPECT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK) << fm_last_error_message();
+    EXPECT_EQ(fm_file_get_info(file, &info), FM_OK);
+    EXPECT_EQ(fm_decoder_create(file, &decoder), FM_OK);
+  }
+  ~Opened() {
+    fm_decoder_destroy(decoder);
+    fm_file_close(file);
+  }
+};
+
+TEST(CApi, VersionAndStatusNames) {
+  EXPECT_STREQ(fm_version(), "0.2.0");
+  EXPECT_EQ(fm_version_number(), static_cast<uint32_t>(FACEMORPH_VERSION_NUMBER));
+  EXPECT_STREQ(fm_status_name(FM_OK), "ok");
+  EXPECT_STREQ(fm_status_name(FM_ERROR_TRUNCATED), "truncated");
+  EXPECT_STREQ(fm_status_name(FM_ERROR_BUFFER_TOO_SMALL), "buffer-too-small");
+  EXPECT_STREQ(fm_status_name(FM_ERROR_INTERNAL), "internal");
+  EXPECT_STREQ(fm_status_name(static_cast<fm_status>(999)), "unknown");
+  EXPECT_STREQ(fm_status_name(FM_STATUS_FORCE_32BIT), "unknown");
+  for (int s = FM_OK; s <= FM_ERROR_INTERNAL; ++s) {  // the same names as the C++ codes
+    EXPECT_STREQ(fm_status_name(static_cast<fm_status>(s)), facemorph::error_code_name(static_cast<facemorph::ErrorCode>(s)));
+  }
+}
+
+TEST(CApi, OpensAndDescribesTheGoldenFile) {
+  Opened o;
+  EXPECT_STREQ(fm_last_error_message(), "");
+  EXPECT_EQ(o.info.grid_n, 33u);
+  EXPECT_EQ(o.info.keyframe_count, 3u);
+  EXPECT_EQ(o.info.texture_size, 64u);
+  EXPECT_EQ(o.info.has_holes, 0u);
+  EXPECT_EQ(o.info.max_vertex_count, o.info.grid_vertex_count);
+  EXPECT_STREQ(o.info.units, "m");
+  EXPECT_DOUBLE_EQ(o.info.fps, 30);
+  size_t count = 0;
+  EXPECT_EQ(fm_file_get_keyframe_times(o.file, nullptr, 0, &count), FM_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_EQ(count, 3u);
+  double times[3] = {-1, -1, -1};
+  EXPECT_EQ(fm_file_get_keyframe_times(o.file, times, 3, &count), FM_OK);
+  EXPECT_DOUBLE_EQ(times[0], 0);
+  EXPECT_GT(times[2], times[1]);
+}
+
+TEST(CApi, NullArgumentsAndBadHandles) {
+  fm_file* file = reinterpret_cast<fm_file*>(0x1);
+  EXPECT_EQ(fm_file_open(nullptr, &file), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(file, nullptr);  // cleared on failure
+  EXPECT_TRUE(message_has("fm_file_open: path is NULL")) << fm_last_error_message();
+  EXPECT_EQ(fm_file_open(kGolden.c_str(), nullptr), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_file_open_memory(nullptr, 10, &file), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("data is NULL"));
+  fm_info info;
+  EXPECT_EQ(fm_file_get_info(nullptr, &info), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("file is NULL"));
+  fm_decoder* decoder = nullptr;
+  EXPECT_EQ(fm_decoder_create(nullptr, &decoder), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(decoder, nullptr);
+  fm_frame frame{};
+  EXPECT_EQ(fm_decoder_decode(nullptr, 0.1, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("decoder is NULL"));
+
+  Opened o;
+  EXPECT_EQ(fm_file_get_info(o.file, nullptr), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_decoder_create(o.file, nullptr), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 0.1, 0, nullptr), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("frame is NULL"));
+  // The wrong kind of handle is refused, not used.
+  EXPECT_EQ(fm_decoder_decode(reinterpret_cast<fm_decoder*>(o.file), 0.1, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("not an fm_decoder handle")) << fm_last_error_message();
+  EXPECT_EQ(fm_file_get_info(reinterpret_cast<const fm_file*>(o.decoder), &info), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("not an open fm_file handle"));
+  fm_decoder_destroy(reinterpret_cast<fm_decoder*>(o.file));  // ignored: not a decoder
+  fm_file_close(reinterpret_cast<fm_file*>(o.decoder));       // ignored: not a file
+  fm_file_close(nullptr);
+  fm_decoder_destroy(nullptr);
+  // Bad values.
+  EXPECT_EQ(fm_decoder_decode(o.decoder, std::nan(""), 0, &frame), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("not finite"));
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 0.1, 0x80, &frame), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("unknown decode flags"));
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 9.0, 0, &frame), FM_ERROR_OUT_OF_RANGE);
+  EXPECT_TRUE(message_has("outside the range"));
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 9.0, FM_DECODE_CLAMP, &frame), FM_OK);
+  EXPECT_DOUBLE_EQ(frame.time, o.info.range_end);
+  EXPECT_STREQ(fm_last_error_message(), "");  // a success clears the message
+}
+
+TEST(CApi, BadFilesReturnTheirStatus) {
+  fm_file* file = nullptr;
+  EXPECT_EQ(fm_file_open("/nonexistent/face.fmv", &file), FM_ERROR_IO);
+  EXPECT_TRUE(message_has("/nonexistent/face.fmv")) << fm_last_error_message();
+  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
+  EXPECT_EQ(fm_file_open_memory(bytes.data(), bytes.size() / 2, &file), FM_ERROR_TRUNCATED);
+  EXPECT_EQ(file, nullptr);
+  EXPECT_NE(std::string(fm_last_error_message()), "");
+  EXPECT_EQ(fm_file_open_memory(bytes.data(), 0, &file), FM_ERROR_TRUNCATED);
+  std::vector<uint8_t> flipped = bytes;
+  flipped[bytes.size() / 2] ^= 0x10;
+  EXPECT_EQ(fm_file_open_memory(flipped.data(), flipped.size(), &file), FM_ERROR_CORRUPT);
+  EXPECT_TRUE(message_has("checksum")) << fm_last_error_message();
+  facemorph::testing::TempDir dir;
+  const std::string cut = (dir / "cut.fmv").string();
+  facemorph::format::write_file_atomically(cut, std::span<const uint8_t>(bytes).first(bytes.size() - 3));
+  EXPECT_EQ(fm_file_open(cut.c_str(), &file), FM_ERROR_TRUNCATED);
+  EXPECT_TRUE(message_has("cut.fmv")) << fm_last_error_message();
+  EXPECT_EQ(fm_file_open_memory(bytes.data(), bytes.size(), &file), FM_OK);
+  fm_file_close(file);
+}
+
+TEST(CApi, DecodesAsTheCppDecoder) {
+  Opened o;
+  facemorph::Decoder cpp = facemorph::Decoder::open(kGolden);
+  const size_t v = o.info.max_vertex_count, f = o.info.max_triangle_count, texels = size_t{o.info.texture_size} * o.info.texture_size;
+  std::vector<float> positions(3 * v), normals(3 * v), uvs(2 * v), cpp_positions(3 * v), cpp_normals(3 * v), cpp_uvs(2 * v);
+  std::vector<uint32_t> indices(3 * f), cpp_indices(3 * f);
+  std::vector<uint8_t> texture(4 * texels), cpp_texture(4 * texels);
+  fm_frame frame{};
+  frame.positions = positions.data();
+  frame.positions_bytes = positions.size() * sizeof(float);
+  frame.normals = normals.data();
+  frame.normals_bytes = normals.size() * sizeof(float);
+  frame.uvs = uvs.data();
+  frame.uvs_bytes = uvs.size() * sizeof(float);
+  frame.indices = indices.data();
+  frame.indices_bytes = indices.size() * sizeof(uint32_t);
+  frame.texture = texture.data();
+  frame.texture_bytes = texture.size();
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.2, FM_DECODE_FLIP_V, &frame), FM_OK) << fm_last_error_message();
+  facemorph::FrameOptions options;
+  options.flip_v = true;
+  const facemorph::FrameInfo info = cpp.decode(0.2, {cpp_positions, cpp_normals, cpp_uvs, cpp_indices, cpp_texture}, options);
+  EXPECT_EQ(frame.vertex_count, static_cast<uint32_t>(info.vertex_count));
+  EXPECT_EQ(frame.triangle_count, static_cast<uint32_t>(info.triangle_count));
+  EXPECT_EQ(frame.texture_size, 64u);
+  EXPECT_EQ(frame.iterations, static_cast<uint32_t>(info.iterations));
+  EXPECT_EQ(frame.fell_back, 0u);
+  EXPECT_DOUBLE_EQ(frame.time, 0.2);
+  EXPECT_EQ(positions, cpp_positions);
+  EXPECT_EQ(normals, cpp_normals);
+  EXPECT_EQ(uvs, cpp_uvs);
+  EXPECT_EQ(indices, cpp_indices);
+  EXPECT_EQ(texture, cpp_texture);
+}
+
+TEST(CApi, BufferTooSmallSaysWhatIsNeededAndWritesNothing) {
+  Opened o;
+  const size_t v = o.info.max_vertex_count;
+  std::vector<float> positions(3 * v + 16, -7.0f);
+  fm_frame frame{};
+  frame.positions = positions.data();
+  frame.positions_bytes = (3 * v - 1) * sizeof(float);  // one float short
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_TRUE(message_has("positions needs " + std::to_string(3 * v) + " floats")) << fm_last_error_message();
+  EXPECT_EQ(frame.vertex_count, static_cast<uint32_t>(v));  // what is needed
+  EXPECT_TRUE(std::all_of(positions.begin(), positions.end(), [](float x) { return x == -7.0f; }));
+  frame.positions_bytes = 2;  // not even one float: too small, not "not wanted"
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_TRUE(std::all_of(positions.begin(), positions.end(), [](float x) { return x == -7.0f; }));
+  // Ask with no buffers, then decode with exactly the sizes asked.
+  fm_frame ask{};
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.3, 0, &ask), FM_OK);
+  EXPECT_EQ(ask.vertex_count, static_cast<uint32_t>(v));
+  frame.positions_bytes = 3 * sizeof(float) * ask.vertex_count;
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.3, 0, &frame), FM_OK);
+  EXPECT_NE(positions[3 * v - 1], -7.0f);
+  EXPECT_TRUE(std::all_of(positions.begin() + static_cast<ptrdiff_t>(3 * v), positions.end(), [](float x) { return x == -7.0f; }));
+}
+
+TEST(CApi, FileMayCloseBeforeItsDecoders) {
+  fm_file* file = nullptr;
+  ASSERT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK);
+  fm_decoder* decoder = nullptr;
+  ASSERT_EQ(fm_decoder_create(file, &decoder), FM_OK);
+  fm_file_close(file);
+  fm_frame frame{};
+  EXPECT_EQ(fm_decoder_decode(decoder, 0.1, 0, &frame), FM_OK);
+  EXPECT_GT(frame.vertex_count, 0u);
+  fm_decoder_destroy(decoder);
+}
+
+}  // namespace

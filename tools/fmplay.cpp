@@ -1,0 +1,234 @@
+// fmplay: the example player. Decodes a .fmv file through the C API (facemorph.h) exactly as a
+// player embedding the library would — open, ask the sizes, decode every frame of a range into
+// buffers it owns — and reports the decode rate (mean and worst frame), the reconstruction's
+// iterations and the peak memory. With --video it also renders the frames with the decoder's
+// software renderer and writes them as an mp4 (OpenCV's video writer).
+#include "facemorph.h"
+
+#ifdef FACEMORPH_HAVE_VIDEO
+#include "facemorph/render.hpp"
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#endif
+
+#include <CLI/CLI.hpp>
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// A failed C call: the status and the library's message, printed at the tool's boundary.
+struct Failure {
+  fm_status status;
+  std::string message;
+};
+
+void check(fm_status status) {
+  if (status != FM_OK) throw Failure{status, fm_last_error_message()};
+}
+
+double peak_memory_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+// The buffers a player keeps for the file's largest frame, allocated once.
+struct Buffers {
+  std::vector<float> positions, normals, uvs;
+  std::vector<uint32_t> indices;
+  std::vector<uint8_t> texture;
+
+  explicit Buffers(const fm_info& info)
+      : positions(3 * size_t{info.max_vertex_count}),
+        normals(3 * size_t{info.max_vertex_count}),
+        uvs(2 * size_t{info.max_vertex_count}),
+        indices(3 * size_t{info.max_triangle_count}),
+        texture(4 * size_t{info.texture_size} * info.texture_size) {}
+
+  fm_frame frame() {
+    fm_frame f{};
+    f.positions = positions.data();
+    f.positions_bytes = positions.size() * sizeof(float);
+    f.normals = normals.data();
+    f.normals_bytes = normals.size() * sizeof(float);
+    f.uvs = uvs.data();
+    f.uvs_bytes = uvs.size() * sizeof(float);
+    f.indices = indices.data();
+    f.indices_bytes = indices.size() * sizeof(uint32_t);
+    f.texture = texture.empty() ? nullptr : texture.data();
+    f.texture_bytes = texture.size();
+    return f;
+  }
+};
+
+#ifdef FACEMORPH_HAVE_VIDEO
+// The frame as the renderer takes it (the one use of the C++ headers: the software renderer).
+cv::Mat render_frame(const Buffers& b, const fm_frame& frame, int size) {
+  facemorph::TriangleMesh mesh;
+  for (uint32_t v = 0; v < frame.vertex_count; ++v) {
+    mesh.positions.emplace_back(b.positions[3 * v], b.positions[3 * v + 1], b.positions[3 * v + 2]);
+    mesh.uvs.emplace_back(b.uvs[2 * v], b.uvs[2 * v + 1]);
+  }
+  for (uint32_t f = 0; f < frame.triangle_count; ++f) {
+    mesh.faces.push_back({static_cast<int32_t>(b.indices[3 * f]), static_cast<int32_t>(b.indices[3 * f + 1]), static_cast<int32_t>(b.indices[3 * f + 2])});
+  }
+  mesh.uv_faces = mesh.faces;
+  facemorph::RenderOptions options;
+  options.width = options.height = size;
+  options.yaw_degrees = 20;
+  facemorph::Image picture;
+  if (frame.texture_size > 0) {
+    facemorph::Image texture(static_cast<int>(frame.texture_size), static_cast<int>(frame.texture_size), 3);
+    for (size_t p = 0; p < texture.pixels.size() / 3; ++p) std::copy_n(&b.texture[4 * p], 3, &texture.pixels[3 * p]);
+    picture = facemorph::render(mesh, facemorph::texture_shader(mesh, texture), options);
+  } else {
+    picture = facemorph::render(mesh, facemorph::constant_shader({200, 200, 200}), options);
+  }
+  cv::Mat rgb(picture.height, picture.width, CV_8UC3, picture.pixels.data()), bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  return bgr;
+}
+#endif
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("Play a facemorph file (.fmv) through the C API as a player would, and report the decode rate and memory.", "fmplay");
+  std::string input, video;
+  std::optional<double> from, to;
+  double fps = 60;
+  int loops = 1, video_size = 480;
+  bool clamp = false, quiet = false;
+  app.add_option("input", input, "The .fmv file")->required();
+  app.add_option("--from", from, "First time, seconds (default: the capture's first frame)");
+  app.add_option("--to", to, "Last time, seconds (default: the capture's last frame)");
+  app.add_option("--fps", fps, "Frames per second of playback: the time step, and the rate to keep up with")->capture_default_str();
+  app.add_option("--loop", loops, "Play the range this many times (the decoder's state carries over)")->capture_default_str();
+  app.add_option("--video", video, "Also render the first pass to this .mp4 (not timed)");
+  app.add_option("--video-size", video_size, "Video pixels per side")->capture_default_str();
+  app.add_flag("--clamp", clamp, "Clamp times outside the file's range instead of failing");
+  app.add_flag("--quiet", quiet, "Print only the summary line");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  fm_file* file = nullptr;
+  fm_decoder* decoder = nullptr;
+  fs::path partial;  // the video being written, under a temporary name until complete
+  int status = 0;
+  try {
+    if (!(fps > 0) || !std::isfinite(fps)) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--fps must be positive"};
+    if (loops < 1) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--loop must be at least 1"};
+    if (video_size < 16 || video_size > 8192) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--video-size must be 16 .. 8192"};
+#ifndef FACEMORPH_HAVE_VIDEO
+    if (!video.empty()) throw Failure{FM_ERROR_UNSUPPORTED, "--video: fmplay was built without OpenCV's video writer"};
+#endif
+    if (!video.empty() && fs::path(video).extension() != ".mp4") throw Failure{FM_ERROR_INVALID_ARGUMENT, video + ": the video must be .mp4"};
+
+    const auto open_start = std::chrono::steady_clock::now();
+    check(fm_file_open(input.c_str(), &file));
+    fm_info info;
+    check(fm_file_get_info(file, &info));
+    const auto create_start = std::chrono::steady_clock::now();
+    check(fm_decoder_create(file, &decoder));  // builds G and factors its Laplacian
+    const auto created = std::chrono::steady_clock::now();
+    const double open_ms = std::chrono::duration<double, std::milli>(create_start - open_start).count();
+    const double create_ms = std::chrono::duration<double, std::milli>(created - create_start).count();
+    const double begin = from.value_or(info.first_time), end = to.value_or(info.last_time);
+    if (!(end >= begin)) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--to is before --from"};
+    if (!clamp && (begin < info.range_begin || end > info.range_end)) {
+      char text[200];
+      std::snprintf(text, sizeof text, "%s: t = %.4g .. %.4g s is outside the range the file serves, [%.4g, %.4g] s (--clamp clamps)", input.c_str(), begin,
+                    end, info.range_begin, info.range_end);
+      throw Failure{FM_ERROR_OUT_OF_RANGE, text};
+    }
+    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+    if (!quiet) {
+      std::printf("fmplay: %s: N = %u, %u keyframes, %.3f s at %.3f fps, up to %u vertices and %u triangles%s, texture %ux%u\n", input.c_str(),
+                  info.grid_n, info.keyframe_count, info.duration, info.fps, info.max_vertex_count, info.max_triangle_count,
+                  info.has_holes ? " (holes: counts change per frame)" : "", info.texture_size, info.texture_size);
+    }
+
+    Buffers buffers(info);
+#ifdef FACEMORPH_HAVE_VIDEO
+    std::optional<cv::VideoWriter> writer;
+    if (!video.empty()) {
+      partial = fs::path(video).replace_extension(".partial.mp4");
+      writer.emplace(partial.string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(video_size, video_size));
+      if (!writer->isOpened()) throw Failure{FM_ERROR_IO, video + ": cannot open a video writer"};
+    }
+#endif
+    const uint32_t flags = clamp ? FM_DECODE_CLAMP : 0;
+    double total_ms = 0, worst_ms = 0, worst_t = begin, first_ms = 0;
+    long iterations = 0;
+    int fell_back = 0, slow = 0;
+    const double budget_ms = 1000 / fps;
+    for (int loop = 0; loop < loops; ++loop) {
+      for (int i = 0; i < count; ++i) {
+        const double t = begin + i / fps;
+        fm_frame frame = buffers.frame();
+        const auto start = std::chrono::steady_clock::now();
+        check(fm_decoder_decode(decoder, t, flags, &frame));
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        total_ms += ms;
+        if (loop == 0 && i == 0) first_ms = ms;  // cold: the keyframes' own surfaces are decoded on first use
+        if (ms > worst_ms) worst_ms = ms, worst_t = t;
+        slow += ms > budget_ms;
+        iterations += frame.iterations;
+        fell_back += static_cast<int>(frame.fell_back);
+#ifdef FACEMORPH_HAVE_VIDEO
+        if (writer && loop == 0) writer->write(render_frame(buffers, frame, video_size));
+#endif
+      }
+    }
+    const int frames = count * loops;
+    const double mean_ms = total_ms / frames;
+    std::printf("fmplay: %d frames (%d x %d, t = %.3f .. %.3f s): %.1f fps mean (%.2f ms), worst frame %.2f ms (%.1f fps) at t = %.3f s, "
+                "%.1f iterations a frame, peak memory %.1f MiB, file opened in %.0f ms, decoder created in %.0f ms\n",
+                frames, loops, count, begin, begin + (count - 1) / fps, 1000 / mean_ms, mean_ms, worst_ms, 1000 / worst_ms, worst_t,
+                static_cast<double>(iterations) / frames, peak_memory_mib(), open_ms, create_ms);
+    if (!quiet) {
+      std::printf("  first frame (cold) %.2f ms; real time at %.3f fps (%.2f ms a frame): %s (%d of %d frames slower)\n", first_ms, fps, budget_ms,
+                  slow == 0 ? "yes" : "no", slow, frames);
+      if (fell_back > 0) std::printf("  %d frames did not converge and show the keyframes' blended surfaces\n", fell_back);
+    }
+#ifdef FACEMORPH_HAVE_VIDEO
+    if (writer) {
+      writer->release();
+      std::error_code ec;
+      fs::rename(partial, video, ec);
+      if (ec) throw Failure{FM_ERROR_IO, video + ": cannot write the video: " + ec.message()};
+      partial.clear();
+      if (!quiet) std::printf("  video %s (%d frames, %dx%d)\n", video.c_str(), count, video_size, video_size);
+    }
+#endif
+  } catch (const Failure& f) {
+    std::fprintf(stderr, "fmplay: error (%s): %s\n", fm_status_name(f.status), f.message.c_str());
+    status = 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fmplay: error: %s\n", e.what());
+    status = 1;
+  }
+  if (!partial.empty()) {
+    std::error_code ec;
+    fs::remove(partial, ec);  // a failed run leaves no half video (and any earlier one untouched)
+  }
+  fm_decoder_destroy(decoder);
+  fm_file_close(file);
+  return status;
+}
