@@ -1,4 +1,5 @@
 // fmbench: facemorph's benchmarks. Figures in a table on stdout, and as JSON with --json.
+#include "tools/bench_capture.hpp"
 #include "tools/bench_conformal.hpp"
 #include "tools/bench_reconstruct.hpp"
 #include "tools/bench_temporal.hpp"
@@ -7,7 +8,9 @@
 int main(int argc, char** argv) {
   using namespace facemorph::tools;
   CLI::App app("facemorph benchmarks: quality, size and speed, printed as a table and as JSON.", "fmbench");
-  app.require_subcommand(1);
+  app.require_subcommand(0, 1);
+  CaptureBenchOptions capture;
+  add_capture_options(app, capture);
   ConformalBenchOptions conformal;
   add_conformal_command(app, conformal);
   ReconstructBenchOptions reconstruct;
@@ -18,6 +21,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
     if (app.got_subcommand("reconstruct")) return run_reconstruct_bench(reconstruct);
     if (app.got_subcommand("temporal")) return run_temporal_bench(temporal);
-    return 2;
+    if (!capture.captures.empty()) return run_capture_bench(capture);
+    throw facemorph::Error(facemorph::ErrorCode::kInvalidArgument, "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal); --help lists them");
   });
 }

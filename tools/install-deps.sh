@@ -17,6 +17,7 @@ packages=(
   nlohmann-json3-dev                   # capture.json
   libgtest-dev                         # tests
   python3                              # optional real-data tests (ICT capture script)
+  draco ffmpeg                         # the rate bench's baselines: draco_encoder per frame, JPEG/H.264 (libx264) textures
 )
 
 missing=()

@@ -31,6 +31,7 @@ const std::map<char, std::array<uint8_t, 7>>& glyphs() {
     {')', {0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08}},
     {':', {0x00, 0x0c, 0x0c, 0x00, 0x0c, 0x0c, 0x00}},
     {'=', {0x00, 0x00, 0x1f, 0x00, 0x1f, 0x00, 0x00}},
+    {'+', {0x00, 0x04, 0x04, 0x1f, 0x04, 0x04, 0x00}},
     {' ', {0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00}},
     {'a', {0x00, 0x00, 0x0e, 0x01, 0x0f, 0x11, 0x0f}},
     {'b', {0x10, 0x10, 0x16, 0x19, 0x11, 0x11, 0x1e}},
@@ -179,6 +180,15 @@ Image line_plot(const std::vector<PlotSeries>& series, const PlotOptions& option
         }
       }
     }
+  }
+  // The legend: one line per labelled series, in its colour, at the top right.
+  int legend_y = top + 6;
+  for (const PlotSeries& s : series) {
+    if (s.label.empty()) continue;
+    const int x = right - 6 * static_cast<int>(s.label.size()) - 24;
+    for (int dy = -1; dy <= 1; ++dy) canvas.line(x, legend_y + 3 + dy, x + 14, legend_y + 3 + dy, s.color);
+    canvas.text(x + 20, legend_y, s.label, s.color);
+    legend_y += 12;
   }
   return image;
 }

@@ -1,0 +1,898 @@
+// fmbench --capture: facemorph's rate on whole captures, side by side in one run with what users
+// would ship instead. For each capture: the .fmv file's bytes (per chunk type, per second, bits per
+// captured vertex per frame); every captured frame decoded at its own time and measured against it
+// (symmetric point-to-surface RMS and max relative to the bbox diagonal, D1 PSNR with the diagonal as
+// peak, texture PSNR on the disk through the frame's own map); encode time by stage, decode time,
+// peak memory; and the baselines: the raw capture, Draco per frame at the coarsest quantisation
+// whose error is at most facemorph's held-out error, + JPEG textures or + one H.264 texture video at
+// the quality that matches facemorph's texture PSNR, and facemorph's own xyz representation.
+#include "tools/bench_capture.hpp"
+
+#include "facemorph/distance.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
+#include "facemorph/render.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tools/bench_sequence.hpp"
+#include "tools/plot.hpp"
+#include "tools/tool_support.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <utility>
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+namespace facemorph::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// What one run tries: the full bench, or the smoke test CI runs in about a minute.
+struct Plan {
+  SynthOptions synth;
+  int frame_limit = 0;      // 0: every frame
+  int texture_size = 1024;  // fmenc's default
+  int sample_frames = 15;   // frames the baselines' sweeps are measured on (the matched points on all)
+  std::vector<double> budgets = {0.05, 0.10, 0.20, 0.30};
+  std::vector<int> draco_qp = {4, 5, 6, 7, 8, 9, 10, 11, 12, 14};
+  std::vector<int> jpeg_quality = {10, 20, 30, 40, 50, 60, 70, 80, 90, 95};
+  std::vector<int> h264_crf = {14, 18, 22, 26, 30, 34, 38, 42};
+};
+
+Plan make_plan(bool quick) {
+  Plan plan;
+  plan.synth.remesh = true;  // fmsynth --remesh --expression mixed, its other defaults (60 frames, 20k vertices, noise)
+  if (!quick) return plan;
+  plan.synth.frames = 20;
+  plan.synth.vertices = 5000;
+  plan.synth.texture_size = 256;
+  plan.frame_limit = 20;
+  plan.texture_size = 256;
+  plan.sample_frames = 5;
+  plan.budgets = {0.10};
+  plan.draco_qp = {6, 8, 10, 12};
+  plan.jpeg_quality = {10, 30, 60, 90};
+  plan.h264_crf = {20, 30, 40};
+  return plan;
+}
+
+std::string shell_quote(const std::string& text) {
+  std::string out = "'";
+  for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// Throws naming the program and the package that has it when it is not on PATH.
+void require_program(const char* program, const char* package) {
+  if (std::system(("command -v " + std::string(program) + " > /dev/null 2>&1").c_str()) != 0) {
+    throw Error(ErrorCode::kIo, std::string(program) + " not found on PATH: the baselines need it (Debian package '" + package +
+                                    "'; tools/install-deps.sh installs it)");
+  }
+}
+
+void run_program(const std::string& command, const std::string& what) {
+  if (std::system((command + " > /dev/null 2>&1").c_str()) != 0) throw Error(ErrorCode::kIo, what + " failed: " + command);
+}
+
+uint64_t file_bytes(const fs::path& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  return ec ? 0 : static_cast<uint64_t>(size);
+}
+
+double mean(const std::vector<double>& values) {
+  double sum = 0;
+  for (double v : values) sum += v;
+  return values.empty() ? 0 : sum / static_cast<double>(values.size());
+}
+
+double worst(const std::vector<double>& values) { return values.empty() ? 0 : *std::max_element(values.begin(), values.end()); }
+
+// D1 PSNR with the bbox diagonal as peak (MPEG's convention for the peak), from the symmetric
+// point-to-surface RMS relative to the diagonal, averaged over frames as MPEG averages it.
+double d1_psnr(const std::vector<double>& relative_rms) {
+  std::vector<double> db;
+  for (double r : relative_rms) db.push_back(-20 * std::log10(std::max(r, 1e-12)));
+  return mean(db);
+}
+
+double peak_rss_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024;  // kilobytes on Linux
+}
+
+// ---- texture PSNR on the disk through each frame's own map --------------------------------------
+
+// The texels of a size x size disk texture inside the disk, where each lies in the captured
+// texture (through the frame's registration and map), and the captured texture's colour there.
+// Computed once per frame; then any image of the captured texture's layout (a JPEG or H.264
+// decode of it) or any disk texture (facemorph's decode) is compared against it.
+struct DiskTexels {
+  int size = 0;
+  std::vector<int> texel;       // y * size + x
+  std::vector<Vec2> uv;         // in the captured texture
+  std::vector<uint8_t> truth;   // RGB of the captured texture there
+};
+
+std::array<uint8_t, 3> rounded(const std::array<double, 3>& rgb) {
+  std::array<uint8_t, 3> out{};
+  for (size_t c = 0; c < 3; ++c) out[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[c]), 0L, 255L));
+  return out;
+}
+
+DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& captured, int size) {
+  DiskTexels t;
+  t.size = size;
+  const InverseDiskMap inverse(encoder.frame(frame).map);
+  const DiskRegistration& warp = encoder.registration(frame);
+  std::vector<std::vector<std::pair<int, Vec2>>> rows(static_cast<size_t>(size));
+  parallel_for(size, 0, [&](int y) {
+    for (int x = 0; x < size; ++x) {
+      const Vec2 w(2 * (x + 0.5) / size - 1, 1 - 2 * (y + 0.5) / size);
+      if (w.norm() > 1) continue;
+      Vec2 v = warp(w);
+      if (v.norm() > 1) v.normalize();
+      if (const auto hit = inverse.locate(v)) rows[static_cast<size_t>(y)].emplace_back(y * size + x, inverse.texture_uv(*hit));
+    }
+  });
+  for (const auto& row : rows) {
+    for (const auto& [texel, uv] : row) {
+      t.texel.push_back(texel);
+      t.uv.push_back(uv);
+      const auto rgb = rounded(sample_bilinear(captured, uv.x(), uv.y()));
+      t.truth.insert(t.truth.end(), rgb.begin(), rgb.end());
+    }
+  }
+  return t;
+}
+
+template <typename Colour>
+double texel_psnr(const DiskTexels& t, Colour&& colour) {
+  double sum = 0;
+  for (size_t k = 0; k < t.texel.size(); ++k) {
+    const std::array<uint8_t, 3> c = colour(k);
+    for (size_t j = 0; j < 3; ++j) {
+      const double d = double(c[j]) - double(t.truth[3 * k + j]);
+      sum += d * d;
+    }
+  }
+  const double mse = sum / std::max<double>(3.0 * static_cast<double>(t.texel.size()), 1);
+  return 10 * std::log10(255.0 * 255.0 / std::max(mse, 1e-12));
+}
+
+// A disk texture (facemorph's decode) against the captured texture.
+double psnr_of_disk(const DiskTexels& t, const Image& disk) {
+  if (disk.width != t.size) throw Error(ErrorCode::kInternal, "decoded texture size differs from the measured one");
+  return texel_psnr(t, [&](size_t k) {
+    const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
+    return std::array<uint8_t, 3>{p[0], p[1], p[2]};
+  });
+}
+
+// A coded copy of the captured texture (JPEG, an H.264 frame) against it, through the same map.
+double psnr_of_copy(const DiskTexels& t, const Image& copy) {
+  return texel_psnr(t, [&](size_t k) { return rounded(sample_bilinear(copy, t.uv[k].x(), t.uv[k].y())); });
+}
+
+// ---- Draco: every frame through draco_encoder and draco_decoder -------------------------------
+
+struct DracoPoint {
+  int qp = 0;
+  uint64_t bytes = 0;           // .drc bytes of the frames measured
+  std::vector<double> rms, max;  // relative to the captured frame's diagonal
+  int frames = 0;
+};
+
+DracoPoint draco_point(const Capture& capture, const std::vector<TriangleMesh>& captured, const std::vector<int>& frames, int qp,
+                       const fs::path& scratch, TriangleMesh* decoded_of_first = nullptr) {
+  DracoPoint p;
+  p.qp = qp;
+  p.frames = static_cast<int>(frames.size());
+  std::vector<uint64_t> bytes(frames.size());
+  p.rms.resize(frames.size());
+  p.max.resize(frames.size());
+  parallel_for(static_cast<int>(frames.size()), 0, [&](int k) {
+    const int i = frames[static_cast<size_t>(k)];
+    const fs::path drc = scratch / ("draco_" + std::to_string(i) + ".drc"), obj = scratch / ("draco_" + std::to_string(i) + ".obj");
+    run_program("draco_encoder -i " + shell_quote(capture.mesh_path(static_cast<size_t>(i)).string()) + " -o " + shell_quote(drc.string()) +
+                    " -qp " + std::to_string(qp) + " -cl 7",
+                "draco_encoder");
+    run_program("draco_decoder -i " + shell_quote(drc.string()) + " -o " + shell_quote(obj.string()), "draco_decoder");
+    bytes[static_cast<size_t>(k)] = file_bytes(drc);
+    TriangleMesh decoded = read_mesh(obj, {.allow_missing_texture = true});
+    const SurfaceDistance d = surface_distance(captured[static_cast<size_t>(i)], decoded);
+    p.rms[static_cast<size_t>(k)] = d.rms / d.diagonal;
+    p.max[static_cast<size_t>(k)] = d.max / d.diagonal;
+    if (k == 0 && decoded_of_first) *decoded_of_first = std::move(decoded);
+    std::error_code ec;
+    fs::remove(drc, ec);
+    fs::remove(obj, ec);
+  });
+  for (uint64_t b : bytes) p.bytes += b;
+  return p;
+}
+
+// ---- H.264: the captured textures as one video per CRF, streamed through ffmpeg ---------------
+
+struct Pipe {
+  FILE* file = nullptr;
+  std::string command;
+  ~Pipe() {
+    if (file) pclose(file);
+  }
+  int close() {
+    const int status = file ? pclose(file) : -1;
+    file = nullptr;
+    return status;
+  }
+};
+
+Image rgb_of(const Image& image) {
+  if (image.channels == 3) return image;
+  Image out(image.width, image.height, 3);
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) std::copy_n(image.at(x, y), 3, out.at(x, y));
+  }
+  return out;
+}
+
+// Writes one libx264 video per CRF of every captured texture (yuv420p, preset medium, the
+// capture's frame rate); returns each file's bytes.
+std::vector<uint64_t> encode_h264(const std::vector<fs::path>& textures, double fps, const std::vector<int>& crfs, const fs::path& scratch,
+                                  int& width, int& height) {
+  const Image first = read_image(textures.front());
+  width = first.width, height = first.height;
+  std::vector<std::unique_ptr<Pipe>> pipes;
+  for (int crf : crfs) {
+    auto pipe = std::make_unique<Pipe>();
+    char rate[32];
+    std::snprintf(rate, sizeof rate, "%.6g", fps);
+    // Odd sizes padded to even (yuv420p); the decode crops back.
+    pipe->command = "ffmpeg -v error -y -f rawvideo -pix_fmt rgb24 -s " + std::to_string(width) + "x" + std::to_string(height) + " -r " + rate +
+                    " -i - -vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' -c:v libx264 -preset medium -crf " + std::to_string(crf) +
+                    " -pix_fmt yuv420p " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) + " > /dev/null 2>&1";
+    pipe->file = popen(pipe->command.c_str(), "w");
+    if (!pipe->file) throw Error(ErrorCode::kIo, "could not start ffmpeg: " + pipe->command);
+    pipes.push_back(std::move(pipe));
+  }
+  for (const fs::path& path : textures) {
+    const Image image = rgb_of(read_image(path));
+    if (image.width != width || image.height != height) {
+      throw Error(ErrorCode::kUnsupported, path.string() + ": textures of several sizes cannot be one H.264 video");
+    }
+    for (auto& pipe : pipes) {
+      if (std::fwrite(image.pixels.data(), 1, image.pixels.size(), pipe->file) != image.pixels.size()) {
+        throw Error(ErrorCode::kIo, "ffmpeg stopped reading: " + pipe->command);
+      }
+    }
+  }
+  std::vector<uint64_t> bytes;
+  for (size_t k = 0; k < pipes.size(); ++k) {
+    if (pipes[k]->close() != 0) throw Error(ErrorCode::kIo, "ffmpeg failed: " + pipes[k]->command);
+    bytes.push_back(file_bytes(scratch / ("texture_crf" + std::to_string(crfs[k]) + ".mp4")));
+  }
+  return bytes;
+}
+
+// Frames of the videos encode_h264 wrote, read in order, one reader per CRF.
+class H264Readers {
+ public:
+  H264Readers(const std::vector<int>& crfs, const fs::path& scratch, int width, int height) : width_(width), height_(height) {
+    for (int crf : crfs) {
+      auto pipe = std::make_unique<Pipe>();
+      pipe->command = "ffmpeg -v error -i " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) + " -vf crop=" +
+                      std::to_string(width) + ":" + std::to_string(height) + ":0:0 -f rawvideo -pix_fmt rgb24 - 2> /dev/null";
+      pipe->file = popen(pipe->command.c_str(), "r");
+      if (!pipe->file) throw Error(ErrorCode::kIo, "could not start ffmpeg: " + pipe->command);
+      pipes_.push_back(std::move(pipe));
+    }
+  }
+  // The next frame of every video.
+  std::vector<Image> next() {
+    std::vector<Image> frames;
+    for (auto& pipe : pipes_) {
+      Image image(width_, height_, 3);
+      if (std::fread(image.pixels.data(), 1, image.pixels.size(), pipe->file) != image.pixels.size()) {
+        throw Error(ErrorCode::kIo, "ffmpeg gave fewer frames than were encoded: " + pipe->command);
+      }
+      frames.push_back(std::move(image));
+    }
+    return frames;
+  }
+
+ private:
+  int width_, height_;
+  std::vector<std::unique_ptr<Pipe>> pipes_;
+};
+
+// The coarsest candidate whose error meets the target; candidates ordered coarse to fine, `meets`
+// tells. The finest when none does (`met` false).
+template <typename Meets>
+size_t coarsest_meeting(size_t count, Meets&& meets, bool& met) {
+  for (size_t k = 0; k < count; ++k) {
+    if (meets(k)) return met = true, k;
+  }
+  met = false;
+  return count - 1;
+}
+
+// ---- one facemorph encode, measured -----------------------------------------------------------
+
+struct Encoded {
+  std::string label;
+  double budget = 0;
+  std::vector<int> keyframes;
+  uint64_t bytes = 0, texture_bytes = 0;
+  SequenceFileInfo info;
+  Evaluation evaluation;
+  std::map<int, double> psnr;  // texture PSNR by frame, where measured
+  double held_psnr() const {
+    std::vector<double> v;
+    for (const auto& [i, db] : psnr) {
+      if (!std::binary_search(keyframes.begin(), keyframes.end(), i)) v.push_back(db);
+    }
+    return v.empty() ? -1 : mean(v);
+  }
+  double key_psnr() const {
+    std::vector<double> v;
+    for (const auto& [i, db] : psnr) {
+      if (std::binary_search(keyframes.begin(), keyframes.end(), i)) v.push_back(db);
+    }
+    return v.empty() ? -1 : mean(v);
+  }
+  uint64_t geometry_bytes() const { return bytes - texture_bytes; }
+};
+
+uint64_t chunk_bytes(const SequenceFileInfo& info, const std::string& type) {
+  for (const auto& c : info.chunks) {
+    if (c.type == type) return c.stored_bytes;
+  }
+  return 0;
+}
+
+std::vector<double> relative_rms(const Evaluation& e, bool keyframes) {
+  std::vector<double> v;
+  for (const FrameError& f : e.frames) {
+    if (f.keyframe == keyframes) v.push_back(f.rms);
+  }
+  return v;
+}
+
+std::string fixed(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
+}
+
+std::string kilobytes(double bytes) { return fixed(bytes / 1000, bytes < 10000 ? 2 : 1) + " kB"; }
+
+std::string target_line(const char* what, double ratio, double target) {
+  return std::string(what) + ": " + fixed(ratio, 2) + "x (target " + fixed(target, 0) + "x: " +
+         (ratio >= target ? "met" : "missed by " + fixed(target / ratio, 1) + "x") + ")";
+}
+
+Image side_by_side(const std::vector<Image>& pictures) {
+  int width = 0, height = 0;
+  for (const Image& p : pictures) width += p.width, height = std::max(height, p.height);
+  Image out(width, height, 3);
+  std::fill(out.pixels.begin(), out.pixels.end(), uint8_t{255});
+  int x0 = 0;
+  for (const Image& p : pictures) {
+    for (int y = 0; y < p.height; ++y) {
+      for (int x = 0; x < p.width; ++x) std::copy_n(p.at(x, y), 3, out.at(x0 + x, y));
+    }
+    x0 += p.width;
+  }
+  return out;
+}
+
+Image picture(const TriangleMesh& mesh, const Image& texture) {
+  RenderOptions options;
+  options.width = options.height = 360;
+  return render(mesh, texture.empty() || !mesh.has_uvs() ? constant_shader({200, 200, 200}) : texture_shader(mesh, texture), options);
+}
+
+// Seconds by stage, in the order the stages first ran.
+class StageSeconds {
+ public:
+  double& operator[](const std::string& stage) {
+    for (auto& [name, seconds] : stages_) {
+      if (name == stage) return seconds;
+    }
+    return stages_.emplace_back(stage, 0.0).second;
+  }
+  auto begin() const { return stages_.begin(); }
+  auto end() const { return stages_.end(); }
+
+ private:
+  std::vector<std::pair<std::string, double>> stages_;
+};
+
+struct Context {
+  const CaptureBenchOptions& options;
+  const Plan& plan;
+  fs::path scratch;
+  std::string markdown;
+};
+
+json measure_capture(Context& context, const std::string& input) {
+  const CaptureBenchOptions& options = context.options;
+  const Plan& plan = context.plan;
+  const auto folder = make_bench_capture(input, options.data, context.scratch, plan.synth, "fmbench --capture", options.quiet);
+  if (!folder) {
+    std::printf("\n%s: skipped (the shared data or python3 is absent)\n", input.c_str());
+    context.markdown += "## " + input + "\n\nSkipped: the shared data (or python3) is absent.\n\n";
+    return {{"input", input}, {"skipped", true}};
+  }
+  std::error_code ec;
+  if (!fs::exists(*folder, ec)) throw Error(ErrorCode::kIo, "capture '" + folder->string() + "' does not exist");
+  Capture capture = read_capture(*folder);
+  if (plan.frame_limit > 0 && capture.frames.size() > static_cast<size_t>(plan.frame_limit)) {
+    capture.frames.resize(static_cast<size_t>(plan.frame_limit));
+    capture.landmarks.resize(static_cast<size_t>(plan.frame_limit));
+  }
+  const int count = static_cast<int>(capture.frames.size());
+  const double duration = capture.duration() + 1.0 / capture.fps;
+  const std::string label = fs::path(input).filename().string().empty() ? "capture" : fs::path(input).filename().string();
+  const fs::path scratch = context.scratch / (label + "_work");
+  fs::create_directories(scratch);
+
+  // The raw capture: its meshes, their materials and textures as they lie on disk.
+  std::vector<TriangleMesh> captured;
+  uint64_t raw_mesh = 0, raw_texture = 0;
+  int64_t vertex_frames = 0;
+  std::vector<fs::path> textures;
+  for (int i = 0; i < count; ++i) {
+    const fs::path path = capture.mesh_path(static_cast<size_t>(i));
+    captured.push_back(read_mesh(path, {.allow_missing_texture = true}));
+    raw_mesh += file_bytes(path) + file_bytes(fs::path(path).replace_extension(".mtl"));
+    vertex_frames += captured.back().vertex_count();
+    if (!captured.back().texture.empty()) {
+      textures.push_back(captured.back().texture);
+      raw_texture += file_bytes(captured.back().texture);
+    }
+  }
+  const bool textured = static_cast<int>(textures.size()) == count;
+  std::vector<int> every(static_cast<size_t>(count)), sample;
+  for (int i = 0; i < count; ++i) every[static_cast<size_t>(i)] = i;
+  const int stride = std::max(1, (count + plan.sample_frames - 1) / plan.sample_frames);
+  for (int i = 0; i < count; i += stride) sample.push_back(i);
+  std::printf("\n%s: %d frames at %.3g fps (%.2f s), %.0f vertices per frame, %s\n", label.c_str(), count, capture.fps, duration,
+              static_cast<double>(vertex_frames) / count, textured ? "textured" : "no texture");
+
+  // facemorph, stage by stage, with fmenc's defaults (the texture smaller with --quick).
+  EncodeOptions encode;
+  encode.texture = textured;
+  encode.texture_size = plan.texture_size;
+  Progress progress(label, options.quiet);
+  encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
+  SequenceFileInfo given_info;
+  std::optional<Sequence> given;
+  if (!options.fmv.empty()) {
+    given = read_sequence_file(options.fmv, &given_info);
+    const json settings = json::parse(given_info.metadata.settings.empty() ? "{}" : given_info.metadata.settings, nullptr, false);
+    if (settings.is_object() && settings.contains("registration")) encode.registration.method = parse_registration_method(settings["registration"]);
+    encode.representation = given->representation;
+  }
+  SequenceEncoder encoder(capture, encode);
+  StageSeconds stage_seconds;
+  auto timed = [&](const char* stage, auto&& body) {
+    const auto start = std::chrono::steady_clock::now();
+    body();
+    stage_seconds[stage] += seconds_since(start);
+  };
+  timed("mapping", [&] { encoder.map_frames(); });
+  timed("registration", [&] { encoder.register_frames(); });
+  timed("sampling", [&] { encoder.sample_frames(); });
+  int grid = 0;
+  timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(); });
+  progress.finish();
+
+  // Facemorph's texture PSNR per frame (and the baselines' on the sample frames) as frames decode.
+  auto measure = [&](const std::string& name, double budget, const std::vector<int>& keyframes, const Sequence& sequence, uint64_t bytes,
+                     const SequenceFileInfo& info, bool all_textures,
+                     const std::function<void(int, const DiskTexels&, const DecodedFrame&)>& also = {}) {
+    Encoded out;
+    out.label = name;
+    out.budget = budget;
+    out.keyframes = keyframes;
+    out.bytes = bytes;
+    out.info = info;
+    out.texture_bytes = chunk_bytes(info, "TEXR");
+    out.evaluation = evaluate(encoder, sequence, keyframes, captured, every, false, [&](int i, const DecodedFrame& decoded) {
+      const bool measured = textured && !decoded.texture.empty() && (all_textures || std::binary_search(sample.begin(), sample.end(), i));
+      if (!measured && !also) return;
+      if (!measured) return also(i, DiskTexels{}, decoded);
+      const Image source = read_image(textures[static_cast<size_t>(i)]);
+      const DiskTexels texels = disk_texels(encoder, i, source, decoded.texture.width);
+      out.psnr[i] = psnr_of_disk(texels, decoded.texture);
+      if (also) also(i, texels, decoded);
+    });
+    for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame
+    return out;
+  };
+  auto encode_file = [&](const std::vector<int>& keyframes, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
+    encoder.options().representation = representation;
+    Sequence sequence;
+    timed(representation == Representation::kXYZ ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(keyframes, grid); });
+    Sequence back;
+    timed(representation == Representation::kXYZ ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, 90, &bytes, &info); });
+    return back;
+  };
+
+  // The texture baselines are measured while facemorph's main encode decodes (one pass over the
+  // captured textures): JPEG at every quality, and H.264 at every CRF.
+  std::map<int, std::vector<double>> jpeg_psnr, h264_psnr;
+  std::map<int, uint64_t> jpeg_sample_bytes;
+  std::vector<uint64_t> h264_bytes;
+  std::unique_ptr<H264Readers> h264;
+  if (textured) {
+    Progress h264_progress(label + " h264", true);
+    int width = 0, height = 0;
+    const auto start = std::chrono::steady_clock::now();
+    h264_bytes = encode_h264(textures, capture.fps, plan.h264_crf, scratch, width, height);
+    stage_seconds["baseline h264 encode"] = seconds_since(start);
+    h264 = std::make_unique<H264Readers>(plan.h264_crf, scratch, width, height);
+  }
+  auto baselines_at = [&](int i, const DiskTexels& texels, const DecodedFrame&) {
+    if (!h264) return;
+    const std::vector<Image> videos = h264->next();  // every frame is read, the sample ones measured
+    if (texels.texel.empty() || !std::binary_search(sample.begin(), sample.end(), i)) return;
+    for (size_t k = 0; k < plan.h264_crf.size(); ++k) h264_psnr[plan.h264_crf[k]].push_back(psnr_of_copy(texels, videos[k]));
+    const Image source = rgb_of(read_image(textures[static_cast<size_t>(i)]));
+    for (int q : plan.jpeg_quality) {
+      const std::vector<uint8_t> jpeg = encode_image(source, ".jpg", q);
+      jpeg_sample_bytes[q] += jpeg.size();
+      jpeg_psnr[q].push_back(psnr_of_copy(texels, decode_image(jpeg, "jpeg")));
+    }
+  };
+
+  // The main point: fmenc's default budget (or the file given), every frame's texture measured.
+  std::vector<uint8_t> main_bytes;
+  SequenceFileInfo main_info;
+  Sequence main_sequence;
+  std::vector<int> main_keys;
+  if (given) {
+    for (const Keyframe& key : given->keyframes) {
+      int nearest = 0;
+      for (int i = 1; i < count; ++i) {
+        if (std::abs(capture.frames[static_cast<size_t>(i)].time - key.time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time)) nearest = i;
+      }
+      main_keys.push_back(nearest);
+    }
+    main_sequence = *given;
+    main_info = given_info;
+    main_bytes.resize(given_info.file_bytes);
+  } else {
+    KeyframeSelection chosen;
+    timed("selection", [&] { chosen = encoder.select_keyframes(); });
+    main_keys = chosen.keyframes;
+    main_sequence = encode_file(main_keys, encode.representation, main_bytes, main_info);
+  }
+  const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
+    for (int d = 0; d < count; ++d) {
+      for (int i : {count / 2 - d, count / 2 + d}) {
+        if (i >= 0 && i < count && !std::binary_search(main_keys.begin(), main_keys.end(), i)) return i;
+      }
+    }
+    return count / 2;
+  }();
+  DecodedFrame shown_decoded;
+  const auto decode_start = std::chrono::steady_clock::now();
+  Encoded main = measure(given ? "facemorph (" + options.fmv + ")" : "facemorph", encode.keyframe_fraction, main_keys, main_sequence,
+                         main_bytes.size(), main_info, true, [&](int i, const DiskTexels& texels, const DecodedFrame& decoded) {
+                           baselines_at(i, texels, decoded);
+                           if (i == shown) shown_decoded = decoded;
+                         });
+  stage_seconds["measuring facemorph and the texture baselines"] = seconds_since(decode_start);
+  h264.reset();
+  const Summary summary = summarise(main.evaluation);
+  const double target_rms = summary.held_rms_mean, target_psnr = main.held_psnr();
+
+  // Facemorph's xyz variant: the same keyframes, grid and spline.
+  std::vector<uint8_t> xyz_bytes;
+  SequenceFileInfo xyz_info;
+  const Sequence xyz_sequence = encode_file(main_keys, Representation::kXYZ, xyz_bytes, xyz_info);
+  const Encoded xyz = measure("facemorph xyz", main.budget, main_keys, xyz_sequence, xyz_bytes.size(), xyz_info, false);
+  encoder.options().representation = encode.representation;
+
+  // Keyframe budgets: facemorph's rate-distortion curve (and xyz's), texture on the sample frames.
+  std::vector<Encoded> curve, xyz_curve;
+  for (double budget : plan.budgets) {
+    if (!given && std::abs(budget - encode.keyframe_fraction) < 1e-9) {
+      curve.push_back(main);
+      xyz_curve.push_back(xyz);
+      continue;
+    }
+    encoder.options().keyframe_fraction = budget;
+    const KeyframeSelection chosen = encoder.select_keyframes();
+    std::vector<uint8_t> bytes;
+    SequenceFileInfo info;
+    const Sequence sequence = encode_file(chosen.keyframes, encode.representation, bytes, info);
+    curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
+    const Sequence xyz_at = encode_file(chosen.keyframes, Representation::kXYZ, bytes, info);
+    xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));
+    encoder.options().representation = encode.representation;
+    if (!options.quiet) std::fprintf(stderr, "fmbench --capture: %s: keyframe budget %g%% measured\n", label.c_str(), 100 * budget);
+  }
+  encoder.options().keyframe_fraction = encode.keyframe_fraction;
+
+  // Draco on the sample frames at every qp, the coarsest meeting facemorph's held-out RMS then on
+  // every frame (one finer while the whole capture misses it).
+  const auto draco_start = std::chrono::steady_clock::now();
+  std::vector<DracoPoint> draco_curve;
+  for (int qp : plan.draco_qp) draco_curve.push_back(draco_point(capture, captured, sample, qp, scratch));
+  bool draco_met = false;
+  size_t draco_pick = coarsest_meeting(draco_curve.size(), [&](size_t k) { return mean(draco_curve[k].rms) <= target_rms; }, draco_met);
+  DracoPoint draco;
+  TriangleMesh draco_shown;
+  for (;;) {
+    draco = draco_point(capture, captured, every, plan.draco_qp[draco_pick], scratch);
+    draco_met = mean(draco.rms) <= target_rms;
+    if (draco_met || draco_pick + 1 == plan.draco_qp.size()) break;
+    ++draco_pick;
+  }
+  draco_point(capture, captured, {shown}, draco.qp, scratch, &draco_shown);
+  stage_seconds["baseline draco"] = seconds_since(draco_start);
+
+  // JPEG and H.264 at the quality that meets facemorph's held-out texture PSNR on the sample frames.
+  bool jpeg_met = false, h264_met = false;
+  int jpeg_quality = 0, h264_crf = 0;
+  uint64_t jpeg_bytes = 0, h264_total = 0;
+  if (textured) {
+    const size_t q = coarsest_meeting(plan.jpeg_quality.size(), [&](size_t k) { return mean(jpeg_psnr[plan.jpeg_quality[k]]) >= target_psnr; }, jpeg_met);
+    jpeg_quality = plan.jpeg_quality[q];
+    for (const fs::path& path : textures) jpeg_bytes += encode_image(rgb_of(read_image(path)), ".jpg", jpeg_quality).size();
+    // CRFs fine to coarse in the plan: the coarsest meeting is the last that does.
+    const size_t n = plan.h264_crf.size();
+    const size_t c = coarsest_meeting(n, [&](size_t k) { return mean(h264_psnr[plan.h264_crf[n - 1 - k]]) >= target_psnr; }, h264_met);
+    h264_crf = plan.h264_crf[n - 1 - c];
+    h264_total = h264_bytes[n - 1 - c];
+  }
+
+  // ---- figures ---------------------------------------------------------------------------------
+  const double frames = count;
+  struct Row {
+    std::string name, setting;
+    double geometry = 0, texture = 0;  // bytes
+    double rms = -1, rms_worst = -1, psnr = -1;
+  };
+  std::vector<Row> rows = {
+      {"facemorph", "keyframes " + std::to_string(main_keys.size()) + ", N = " + std::to_string(grid), double(main.geometry_bytes()),
+       double(main.texture_bytes), target_rms, summary.held_rms_worst, target_psnr},
+      {"raw capture", "OBJ + MTL + images as captured", double(raw_mesh), double(raw_texture), -1, -1, -1},
+      {"draco", "-qp " + std::to_string(draco.qp) + " -cl 7" + (draco_met ? "" : " (finest tried; error not matched)"), double(draco.bytes), 0,
+       mean(draco.rms), worst(draco.rms), -1},
+  };
+  if (textured) {
+    rows.push_back({"draco + jpeg", "-qp " + std::to_string(draco.qp) + ", JPEG q" + std::to_string(jpeg_quality) + (jpeg_met ? "" : " (PSNR not matched)"),
+                    double(draco.bytes), double(jpeg_bytes), mean(draco.rms), worst(draco.rms), mean(jpeg_psnr[jpeg_quality])});
+    rows.push_back({"draco + h264", "-qp " + std::to_string(draco.qp) + ", x264 crf " + std::to_string(h264_crf) + (h264_met ? "" : " (PSNR not matched)"),
+                    double(draco.bytes), double(h264_total), mean(draco.rms), worst(draco.rms), mean(h264_psnr[h264_crf])});
+  }
+  rows.push_back({"facemorph xyz", "same keyframes and spline", double(xyz.geometry_bytes()), double(xyz.texture_bytes),
+                  summarise(xyz.evaluation).held_rms_mean, summarise(xyz.evaluation).held_rms_worst, -1});
+
+  const double fm_total = static_cast<double>(main.bytes), fm_geometry = static_cast<double>(main.geometry_bytes());
+  std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, N = %d\n",
+              static_cast<unsigned long long>(main.bytes), fm_total / duration, 8 * fm_total / double(vertex_frames),
+              8 * fm_geometry / double(vertex_frames), main_keys.size(), grid);
+  std::printf("  chunks:");
+  for (const auto& c : main.info.chunks) std::printf(" %s %llu", c.type.c_str(), static_cast<unsigned long long>(c.stored_bytes));
+  std::printf("\n  held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%%; D1 PSNR held-out %.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
+              100 * target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean,
+              d1_psnr(relative_rms(main.evaluation, false)), target_psnr, main.key_psnr());
+  std::printf("  %-16s %12s %12s %12s %10s %10s %9s %9s %9s  %s\n", "", "geometry B", "texture B", "total B", "rms mn%", "rms wst%", "tex dB",
+              "geo x", "total x", "setting");
+  json baselines = json::array();
+  for (const Row& r : rows) {
+    const double total = r.geometry + r.texture;
+    std::printf("  %-16s %12.0f %12.0f %12.0f %10s %10s %9s %9.2f %9.2f  %s\n", r.name.c_str(), r.geometry, r.texture, total,
+                r.rms >= 0 ? fixed(100 * r.rms, 4).c_str() : "-", r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4).c_str() : "-",
+                r.psnr >= 0 ? fixed(r.psnr, 2).c_str() : "-", r.geometry / fm_geometry, total / fm_total, r.setting.c_str());
+    baselines.push_back({{"name", r.name}, {"setting", r.setting}, {"geometry_bytes", r.geometry}, {"texture_bytes", r.texture}, {"total_bytes", total},
+                         {"rms_mean_relative", r.rms}, {"rms_worst_relative", r.rms_worst}, {"texture_psnr_db", r.psnr},
+                         {"geometry_ratio", r.geometry / fm_geometry}, {"total_ratio", total / fm_total}});
+  }
+  const double draco_ratio = double(draco.bytes) / fm_geometry;
+  const double jpeg_ratio = textured ? (double(draco.bytes) + double(jpeg_bytes)) / fm_total : 0;
+  const double h264_ratio = textured ? (double(draco.bytes) + double(h264_total)) / fm_total : 0;
+  const double bits = 8 * fm_total / double(vertex_frames);
+  std::vector<std::string> targets = {target_line("geometry vs Draco", draco_ratio, 20)};
+  if (textured) {
+    targets.push_back(target_line("total vs Draco + JPEG", jpeg_ratio, 20));
+    targets.push_back(target_line("total vs Draco + H.264", h264_ratio, 3));
+  }
+  targets.push_back("bits per captured vertex per frame incl. texture: " + fixed(bits, 3) + " (target <= 1 at held-out RMS <= 0.5%: " +
+                    (bits <= 1 && target_rms <= 0.005 ? std::string("met") : "missed" + (bits > 1 ? " by " + fixed(bits, 1) + "x" : std::string())) + ")");
+  for (const std::string& t : targets) std::printf("  %s\n", t.c_str());
+
+  double encode_seconds = 0;
+  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "file"}) encode_seconds += stage_seconds[stage];
+  std::printf("  speed: encode %.2f s per frame (", encode_seconds / frames);
+  const char* separator = "";
+  for (const auto& [stage, seconds] : stage_seconds) std::printf("%s%s %.2f s", std::exchange(separator, "; "), stage.c_str(), seconds);
+  std::printf("), decode %.1f ms per frame, peak memory %.0f MiB\n", main.evaluation.decode_ms, peak_rss_mib());
+
+  // ---- report: curves, pictures, Markdown ------------------------------------------------------
+  std::string md;
+  if (!options.report.empty()) {
+    const fs::path dir = fs::absolute(options.report).parent_path();
+    fs::create_directories(dir);
+    auto series = [](const char* name, std::array<uint8_t, 3> color) {
+      PlotSeries s;
+      s.label = name;
+      s.color = color;
+      s.markers = true;
+      return s;
+    };
+    PlotSeries fm = series("facemorph", {200, 40, 40}), fx = series("facemorph xyz", {230, 140, 30}), dr = series("draco", {40, 90, 200});
+    for (const Encoded& e : curve) fm.x.push_back(std::log10(e.geometry_bytes() / frames)), fm.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
+    for (const Encoded& e : xyz_curve) fx.x.push_back(std::log10(e.geometry_bytes() / frames)), fx.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
+    for (const DracoPoint& p : draco_curve) dr.x.push_back(std::log10(p.bytes / double(p.frames))), dr.y.push_back(100 * mean(p.rms));
+    PlotOptions geometry_plot;
+    geometry_plot.x_label = "log10 geometry bytes per frame";
+    geometry_plot.y_label = "held-out rms (% of diagonal)";
+    write_image(dir / (label + "_rd_geometry.png"), line_plot({fm, fx, dr}, geometry_plot));
+    md += "![geometry rate-distortion](" + label + "_rd_geometry.png)\n\n";
+    if (textured) {
+      PlotSeries ft = series("facemorph (keyframe budget)", {200, 40, 40}), jp = series("jpeg (quality)", {40, 150, 60}),
+                 hv = series("h264 (crf)", {120, 60, 180});
+      for (const Encoded& e : curve) ft.x.push_back(std::log10(e.texture_bytes / frames)), ft.y.push_back(e.held_psnr());
+      for (int q : plan.jpeg_quality) jp.x.push_back(std::log10(jpeg_sample_bytes[q] / double(sample.size()))), jp.y.push_back(mean(jpeg_psnr[q]));
+      for (size_t k = 0; k < plan.h264_crf.size(); ++k) hv.x.push_back(std::log10(h264_bytes[k] / frames)), hv.y.push_back(mean(h264_psnr[plan.h264_crf[k]]));
+      PlotOptions texture_plot;
+      texture_plot.x_label = "log10 texture bytes per frame";
+      texture_plot.y_label = "texture psnr on the disk (db)";
+      texture_plot.y_from_zero = false;
+      write_image(dir / (label + "_rd_texture.png"), line_plot({ft, jp, hv}, texture_plot));
+      md += "![texture rate-distortion](" + label + "_rd_texture.png)\n\n";
+    }
+    write_error_plot(dir / (label + "_error.png"), main.evaluation);
+    const TriangleMesh& truth = captured[static_cast<size_t>(shown)];
+    const Image truth_texture = textured ? rgb_of(read_image(textures[static_cast<size_t>(shown)])) : Image();
+    write_image(dir / (label + "_frames.png"), side_by_side({picture(truth, truth_texture), picture(shown_decoded.mesh, shown_decoded.texture),
+                                                             picture(draco_shown, truth_texture)}));
+    md += "Frame " + std::to_string(shown) + " (t = " + fixed(capture.frames[static_cast<size_t>(shown)].time, 3) +
+          " s, held out): captured, facemorph, Draco -qp " + std::to_string(draco.qp) + "\n\n![frames](" + label + "_frames.png)\n\n";
+    md += "Error against time (keyframes marked):\n\n![error](" + label + "_error.png)\n\n";
+  }
+
+  std::ostringstream report;
+  report << "## " << label << "\n\n" << folder->string() << ": " << count << " frames at " << fixed(capture.fps, 3) << " fps (" << fixed(duration, 2)
+         << " s), " << fixed(double(vertex_frames) / frames, 0) << " vertices per frame" << (textured ? ", textured" : ", no texture") << ".\n\n";
+  report << "### Rate\n\n| | |\n| --- | --- |\n| file | " << main.bytes << " bytes (" << main_keys.size() << " keyframes of " << count << ", N = " << grid
+         << ") |\n| per second | " << fixed(fm_total / duration, 0) << " B/s (" << fixed(8 * fm_total / duration / 1000, 1) << " kbit/s) |\n"
+         << "| bits per captured vertex per frame | " << fixed(bits, 3) << " with texture, " << fixed(8 * fm_geometry / double(vertex_frames), 3)
+         << " without |\n";
+  for (const auto& c : main.info.chunks) report << "| chunk " << c.type << " | " << c.count << " x, " << c.stored_bytes << " bytes |\n";
+  report << "\n### Distortion (every frame decoded at its own time)\n\n| frames | RMS mean | RMS worst | max worst | D1 PSNR | texture PSNR |\n"
+         << "| --- | --- | --- | --- | --- | --- |\n";
+  std::vector<double> key_max, held_max;
+  for (const FrameError& f : main.evaluation.frames) (f.keyframe ? key_max : held_max).push_back(f.max);
+  report << "| keyframes | " << fixed(100 * summary.key_rms_mean, 4) << "% | " << fixed(100 * summary.key_rms_worst, 4) << "% | "
+         << fixed(100 * worst(key_max), 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, true)), 2) << " dB | "
+         << fixed(main.key_psnr(), 2) << " dB |\n";
+  report << "| held out | " << fixed(100 * summary.held_rms_mean, 4) << "% | " << fixed(100 * summary.held_rms_worst, 4) << "% | "
+         << fixed(100 * summary.held_max_worst, 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, false)), 2) << " dB | "
+         << fixed(target_psnr, 2) << " dB |\n\n";
+  report << "### Baselines (geometry matched to facemorph's held-out mean RMS, texture to its held-out PSNR)\n\n"
+         << "| | setting | geometry | texture | total | RMS mean | RMS worst | texture PSNR | geometry / facemorph | total / facemorph |\n"
+         << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+  for (const Row& r : rows) {
+    report << "| " << r.name << " | " << r.setting << " | " << kilobytes(r.geometry) << " | " << kilobytes(r.texture) << " | "
+           << kilobytes(r.geometry + r.texture) << " | " << (r.rms >= 0 ? fixed(100 * r.rms, 4) + "%" : "") << " | "
+           << (r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4) + "%" : "") << " | " << (r.psnr >= 0 ? fixed(r.psnr, 2) + " dB" : "") << " | "
+           << fixed(r.geometry / fm_geometry, 2) << "x | " << fixed((r.geometry + r.texture) / fm_total, 2) << "x |\n";
+  }
+  report << "\nTargets (`../shared/design.md` §7):\n\n";
+  for (const std::string& t : targets) report << "- " << t << "\n";
+  report << "\n### Speed\n\n| stage | seconds | per frame |\n| --- | --- | --- |\n";
+  for (const auto& [stage, seconds] : stage_seconds) report << "| " << stage << " | " << fixed(seconds, 2) << " | " << fixed(seconds / frames, 3) << " |\n";
+  report << "\nEncode " << fixed(encode_seconds / frames, 2) << " s per frame (mapping to file); decode " << fixed(main.evaluation.decode_ms, 1)
+         << " ms per frame; peak memory of the bench " << fixed(peak_rss_mib(), 0) << " MiB.\n\n";
+  context.markdown += report.str() + md;
+
+  json budgets = json::array();
+  for (size_t k = 0; k < curve.size(); ++k) {
+    budgets.push_back({{"budget", curve[k].budget}, {"keyframes", curve[k].keyframes.size()}, {"bytes", curve[k].bytes},
+                       {"geometry_bytes", curve[k].geometry_bytes()}, {"held_out_rms_mean", summarise(curve[k].evaluation).held_rms_mean},
+                       {"held_out_texture_psnr_sample", curve[k].held_psnr()}, {"xyz_geometry_bytes", xyz_curve[k].geometry_bytes()},
+                       {"xyz_held_out_rms_mean", summarise(xyz_curve[k].evaluation).held_rms_mean}});
+  }
+  json draco_json = json::array();
+  for (const DracoPoint& p : draco_curve) draco_json.push_back({{"qp", p.qp}, {"bytes_per_frame", p.bytes / double(p.frames)}, {"rms_mean", mean(p.rms)}});
+  json jpeg_json = json::array(), h264_json = json::array();
+  for (int q : plan.jpeg_quality) jpeg_json.push_back({{"quality", q}, {"bytes_per_frame", jpeg_sample_bytes[q] / double(sample.size())}, {"psnr", mean(jpeg_psnr[q])}});
+  for (size_t k = 0; k < h264_bytes.size(); ++k) h264_json.push_back({{"crf", plan.h264_crf[k]}, {"bytes", h264_bytes[k]}, {"psnr", mean(h264_psnr[plan.h264_crf[k]])}});
+  json chunks = json::array();
+  for (const auto& c : main.info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}});
+  return {{"input", input},
+          {"capture", folder->string()},
+          {"frames", count},
+          {"fps", capture.fps},
+          {"vertex_frames", vertex_frames},
+          {"facemorph",
+           {{"bytes", main.bytes}, {"bytes_per_second", fm_total / duration}, {"bits_per_vertex_frame", bits},
+            {"bits_per_vertex_frame_geometry", 8 * fm_geometry / double(vertex_frames)}, {"chunks", chunks}, {"keyframes", main_keys},
+            {"grid", grid}, {"evaluation", evaluation_json(main.evaluation)}, {"held_out_texture_psnr", target_psnr},
+            {"keyframe_texture_psnr", main.key_psnr()}, {"held_out_d1_psnr", d1_psnr(relative_rms(main.evaluation, false))},
+            {"keyframe_d1_psnr", d1_psnr(relative_rms(main.evaluation, true))}}},
+          {"baselines", baselines},
+          {"ratios", {{"geometry_vs_draco", draco_ratio}, {"total_vs_draco_jpeg", jpeg_ratio}, {"total_vs_draco_h264", h264_ratio}}},
+          {"curves", {{"keyframe_budgets", budgets}, {"draco_sample", draco_json}, {"jpeg_sample", jpeg_json}, {"h264", h264_json}}},
+          {"speed", {{"stage_seconds", json(std::map<std::string, double>(stage_seconds.begin(), stage_seconds.end()))}, {"encode_seconds_per_frame", encode_seconds / frames},
+                     {"decode_ms_per_frame", main.evaluation.decode_ms}, {"peak_memory_mib", peak_rss_mib()}}}};
+}
+
+}  // namespace
+
+void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
+  app.add_option("--capture", options.captures,
+                 "The rate bench: capture folders, or synth (fmsynth --remesh --expression mixed), medusa, ict (from --data), all (those "
+                 "three); repeatable. Compares facemorph with the raw capture, Draco, Draco + JPEG, Draco + H.264 and its xyz variant");
+  app.add_option("--fmv", options.fmv, "With --capture: measure this file (made from that capture) instead of the bench's own encode");
+  app.add_option("--json", options.json_out, "With --capture: also write the results as JSON ('-': standard output)");
+  app.add_option("--report", options.report, "With --capture: write a Markdown report here, its curves and pictures beside it");
+  app.add_option("--data", options.data, "With --capture: folder of the shared real data")->capture_default_str();
+  app.add_flag("--quick", options.quick, "With --capture: the smoke test (20 frames, small texture, few candidates; about a minute)");
+  app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
+}
+
+int run_capture_bench(const CaptureBenchOptions& options) {
+  std::vector<std::string> captures;
+  for (const std::string& c : options.captures) {
+    if (c == "all") {
+      captures.insert(captures.end(), {"synth", "medusa", "ict"});
+    } else {
+      captures.push_back(c);
+    }
+  }
+  if (!options.fmv.empty() && captures.size() != 1) throw Error(ErrorCode::kInvalidArgument, "--fmv needs exactly one --capture, the one it was made from");
+  for (const std::string& c : captures) {
+    std::error_code ec;
+    if (c != "synth" && c != "medusa" && c != "ict" && !fs::exists(c, ec)) throw Error(ErrorCode::kIo, "capture '" + c + "' does not exist");
+  }
+  require_program("draco_encoder", "draco");
+  require_program("draco_decoder", "draco");
+  require_program("ffmpeg", "ffmpeg");
+  std::signal(SIGPIPE, SIG_IGN);  // an ffmpeg that dies is reported by its pipe, not by killing the bench
+  const Plan plan = make_plan(options.quick);
+  const ScratchFolder scratch("fmbench-capture");
+  Context context{options, plan, scratch.path, {}};
+  context.markdown = "# facemorph rate against Draco, JPEG and H.264\n\nMade by `fmbench --capture" + std::string(options.quick ? " --quick" : "") +
+                     "`. Geometry error: symmetric point-to-surface distance between each captured frame and its decode at the "
+                     "frame's own time, relative to the frame's bounding-box diagonal; D1 PSNR takes the diagonal as peak. Texture PSNR: "
+                     "RGB on the registered disk, each frame's texture carried there through its own conformal map. Ratios are baseline "
+                     "bytes over facemorph's (above 1: facemorph is smaller).\n\n";
+  json results = json::array();
+  const auto start = std::chrono::steady_clock::now();
+  for (const std::string& c : captures) results.push_back(measure_capture(context, c));
+  std::printf("\nfmbench --capture: %.1f s\n", seconds_since(start));
+  if (!options.report.empty()) {
+    std::ofstream out(options.report);
+    out << context.markdown;
+    if (!out) throw Error(ErrorCode::kIo, "could not write the report '" + options.report + "'");
+  }
+  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "capture"}, {"quick", options.quick}, {"results", results}});
+  return 0;
+}
+
+}  // namespace facemorph::tools
