@@ -26,6 +26,45 @@ GridGeometry::GridGeometry(DiskGrid grid) : grid_(std::move(grid)) {
   for (size_t f = 0; f < grid_.faces.size(); ++f) {
     for (int32_t v : grid_.faces[f]) faces_of_[static_cast<size_t>(v)].push_back(static_cast<int32_t>(f));
   }
+  build_jacobian_stencils();
+}
+
+// Near the rim S_u and S_v are the disk-area-weighted Jacobian of the faces around the node,
+// Σ_f area_f · D_f W_f⁻¹ with D_f = [S_b − S_a, S_c − S_a] and W_f the same of the disk points: linear
+// in S with coefficients that depend on G alone. Worked out once here; frames() was a quarter of a
+// decoder step when it inverted every face's W in every step.
+void GridGeometry::build_jacobian_stencils() {
+  stencil_start_.assign(static_cast<size_t>(grid_.interior_count) + 1, 0);
+  for (int v = 0; v < grid_.interior_count; ++v) {
+    stencil_start_[static_cast<size_t>(v) + 1] = stencil_start_[static_cast<size_t>(v)];
+    const auto& nb = neighbours_[static_cast<size_t>(v)];
+    if (nb[0] >= 0 && nb[1] >= 0 && nb[2] >= 0 && nb[3] >= 0) continue;  // central differences
+    std::vector<StencilEntry> entries;
+    auto add = [&](int32_t node, double cu, double cv) {
+      for (StencilEntry& e : entries) {
+        if (e.node == node) {
+          e.cu += cu;
+          e.cv += cv;
+          return;
+        }
+      }
+      entries.push_back({node, cu, cv});
+    };
+    for (int32_t f : faces_of_[static_cast<size_t>(v)]) {
+      const Face& t = grid_.faces[static_cast<size_t>(f)];
+      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
+      Eigen::Matrix2d W;
+      W << b.x() - a.x(), c.x() - a.x(), b.y() - a.y(), c.y() - a.y();
+      const double area = 0.5 * std::abs(W.determinant());
+      const Eigen::Matrix2d Wi = W.inverse();
+      // J.col(k) = (S_b − S_a) Wi(0, k) + (S_c − S_a) Wi(1, k).
+      add(t[1], area * Wi(0, 0), area * Wi(0, 1));
+      add(t[2], area * Wi(1, 0), area * Wi(1, 1));
+      add(t[0], -area * (Wi(0, 0) + Wi(1, 0)), -area * (Wi(0, 1) + Wi(1, 1)));
+    }
+    stencil_.insert(stencil_.end(), entries.begin(), entries.end());
+    stencil_start_[static_cast<size_t>(v) + 1] = static_cast<int32_t>(stencil_.size());
+  }
 }
 
 std::vector<Vec3> GridGeometry::laplacian(const std::vector<Vec3>& positions) const {
@@ -65,31 +104,27 @@ void GridGeometry::frames(const std::vector<Vec3>& S, std::vector<Vec3>& tu, std
   for (size_t v = 0; v < count; ++v) {
     const auto& nb = neighbours_[v];
     Vec3 su, sv;
-    if (nb[0] >= 0 && nb[1] >= 0 && nb[2] >= 0 && nb[3] >= 0) {
+    if (stencil_start_[v] == stencil_start_[v + 1]) {
       su = (S[static_cast<size_t>(nb[0])] - S[static_cast<size_t>(nb[1])]) * inv2h;
       sv = (S[static_cast<size_t>(nb[2])] - S[static_cast<size_t>(nb[3])]) * inv2h;
     } else {
       // Near the rim: the disk-area-weighted Jacobian of the faces around the node.
       su = sv = Vec3::Zero();
-      for (int32_t f : faces_of_[v]) {
-        const Face& t = grid_.faces[static_cast<size_t>(f)];
-        const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
-        Eigen::Matrix2d W;
-        W << b.x() - a.x(), c.x() - a.x(), b.y() - a.y(), c.y() - a.y();
-        const double area = 0.5 * std::abs(W.determinant());
-        Eigen::Matrix<double, 3, 2> D;
-        D << S[static_cast<size_t>(t[1])] - S[static_cast<size_t>(t[0])], S[static_cast<size_t>(t[2])] - S[static_cast<size_t>(t[0])];
-        const Eigen::Matrix<double, 3, 2> J = D * W.inverse();
-        su += area * J.col(0);
-        sv += area * J.col(1);
+      for (int32_t k = stencil_start_[v]; k < stencil_start_[v + 1]; ++k) {
+        const StencilEntry& e = stencil_[static_cast<size_t>(k)];
+        const Vec3& p = S[static_cast<size_t>(e.node)];
+        su += e.cu * p;
+        sv += e.cv * p;
       }
     }
+    // One division per length and multiplications (not three divisions each): the chain of
+    // square roots and divisions was most of this loop's time.
     Vec3 normal = su.cross(sv);
     const double length = normal.norm();
-    normal = length > 0 ? Vec3(normal / length) : Vec3::UnitZ();
+    normal = length > 0 ? Vec3(normal * (1 / length)) : Vec3::UnitZ();
     Vec3 u = su - su.dot(normal) * normal;
     const double ul = u.norm();
-    u = ul > 0 ? Vec3(u / ul) : normal.unitOrthogonal();
+    u = ul > 0 ? Vec3(u * (1 / ul)) : normal.unitOrthogonal();
     n[v] = normal;
     tu[v] = u;
     tv[v] = normal.cross(u);

@@ -6,6 +6,9 @@
 
 namespace facemorph {
 
+// Points are read as the rows of an n x 3 array.
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be three packed doubles");
+
 TripleSolver::TripleSolver(const SparseMatrix& K) : n_(K.rows()), matrix_(K) {
   Eigen::SimplicialLDLT<SparseMatrix> ldlt(K);  // AMD ordering
   if (ldlt.info() != Eigen::Success) throw Error(ErrorCode::kNumerical, "the grid Laplacian could not be factored");
@@ -28,10 +31,15 @@ TripleSolver::TripleSolver(const SparseMatrix& K) : n_(K.rows()), matrix_(K) {
   work_.resize(static_cast<size_t>(n_));
 }
 
-Eigen::MatrixXd TripleSolver::solve_refined(const Eigen::MatrixXd& B) const {
-  Eigen::MatrixXd X = solve(B);
-  X += solve(B - matrix_ * X);
-  return X;
+void TripleSolver::solve_refined(const Vec3* b, Vec3* x) const {
+  using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+  solve(b, x);
+  const Eigen::Map<const Points> B(b->data(), n_, 3);
+  Eigen::Map<Points> X(x->data(), n_, 3);
+  const Points residual = B - matrix_ * X;
+  std::vector<Vec3> correction(static_cast<size_t>(n_));
+  solve(reinterpret_cast<const Vec3*>(residual.data()), correction.data());
+  for (size_t i = 0; i < correction.size(); ++i) x[i] += correction[i];
 }
 
 size_t TripleSolver::bytes() const {
@@ -39,12 +47,12 @@ size_t TripleSolver::bytes() const {
          permutation_.size() * sizeof(int32_t) + inverse_diagonal_.size() * sizeof(float);
 }
 
-Eigen::MatrixXd TripleSolver::solve(const Eigen::MatrixXd& B) const {
+void TripleSolver::solve(const Vec3* b, Vec3* x) const {
   const auto n = static_cast<size_t>(n_);
   Float4* y = work_.data();
   for (size_t i = 0; i < n; ++i) {
-    const auto r = static_cast<Eigen::Index>(permutation_[i]);
-    y[i] = {{static_cast<float>(B(r, 0)), static_cast<float>(B(r, 1)), static_cast<float>(B(r, 2)), 0.0f}};
+    const Vec3& r = b[permutation_[i]];
+    y[i] = {{static_cast<float>(r.x()), static_cast<float>(r.y()), static_cast<float>(r.z()), 0.0f}};
   }
   // L z = y (unit lower, by columns).
   for (size_t j = 0; j < n; ++j) {
@@ -68,14 +76,7 @@ Eigen::MatrixXd TripleSolver::solve(const Eigen::MatrixXd& B) const {
     }
     y[j] = sum;
   }
-  Eigen::MatrixXd X(n_, 3);
-  for (size_t i = 0; i < n; ++i) {
-    const auto r = static_cast<Eigen::Index>(permutation_[i]);
-    X(r, 0) = y[i].v[0];
-    X(r, 1) = y[i].v[1];
-    X(r, 2) = y[i].v[2];
-  }
-  return X;
+  for (size_t i = 0; i < n; ++i) x[permutation_[i]] = Vec3(y[i].v[0], y[i].v[1], y[i].v[2]);
 }
 
 }  // namespace facemorph

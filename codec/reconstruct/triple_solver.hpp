@@ -17,11 +17,13 @@ class TripleSolver {
   // Factors `K` (SPD). Throws kNumerical if it is not.
   explicit TripleSolver(const SparseMatrix& K);
 
-  // X (n x 3) for B (n x 3), to ~4e-7 relative (single-precision factor).
-  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+  // x (n points) for b (n points), to ~4e-7 relative (single-precision factor). The points are the
+  // rows of the n x 3 right-hand side: the decoder keeps its surfaces as points, so no transposing
+  // copies. `x` may not alias `b`.
+  void solve(const Vec3* b, Vec3* x) const;
   // The same plus one step of iterative refinement in double precision: ~1e-13 relative, for
   // callers that need more than single precision (twice the cost).
-  Eigen::MatrixXd solve_refined(const Eigen::MatrixXd& B) const;
+  void solve_refined(const Vec3* b, Vec3* x) const;
 
   size_t bytes() const;  // memory held by the factor
   Eigen::Index size() const { return n_; }

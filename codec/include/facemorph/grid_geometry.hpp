@@ -51,6 +51,15 @@ class GridGeometry {
   std::vector<int32_t> band_nodes_;
   std::vector<std::array<int32_t, 4>> neighbours_;  // interior node: E, W, N, S interior indices or -1
   std::vector<std::vector<int32_t>> faces_of_;      // faces around each node
+  // Interior nodes without four interior neighbours: S_u = Σ cu S[node], S_v = Σ cv S[node] over
+  // stencil_[stencil_start_[v] .. stencil_start_[v + 1]) (empty for the others).
+  struct StencilEntry {
+    int32_t node;
+    double cu, cv;
+  };
+  std::vector<int32_t> stencil_start_;
+  std::vector<StencilEntry> stencil_;
+  void build_jacobian_stencils();
 };
 
 }  // namespace facemorph
