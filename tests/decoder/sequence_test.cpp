@@ -7,8 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 
 namespace facemorph {
 namespace {
@@ -118,6 +120,72 @@ TEST(SequenceDecoder, KeyframesComeBackAndTheHeadTurnsAtConstantSpeed) {
     EXPECT_LT((frame.pose.rotation - expected).norm(), 1e-12) << "t = " << t;
     EXPECT_LT((frame.pose.apply(sequence->pose_centre) - sequence->pose_centre).norm(), 1e-12);
   }
+}
+
+// A clip decoded frame after frame continues the last frames' correction (decoded − spline of the
+// keyframes' surfaces): it must land on the same surfaces as frames started from the spline alone,
+// within the tolerance, in fewer steps; a jump in t starts from the spline alone.
+TEST(SequenceDecoder, AClipContinuesTheCorrectionInFewerStepsToTheSameSurfaces) {
+  auto sequence = turning_bump(SplineKind::kCatmullRom, false);
+  SequenceDecoder tight(sequence), alone(sequence), continued(sequence);
+  DecodeOptions reference_options, alone_options, continued_options;
+  reference_options.reconstruct.tolerance = 1e-11;
+  reference_options.continue_correction = alone_options.continue_correction = false;
+  int steps_alone = 0, steps_continued = 0;
+  double worst_alone = 0, worst_continued = 0;
+  for (int i = 0; i <= 30; ++i) {
+    const double t = i / 30.0;
+    const DecodedFrame reference = tight.decode(t, reference_options);
+    const DecodedFrame a = alone.decode(t, alone_options);
+    const DecodedFrame c = continued.decode(t, continued_options);
+    ASSERT_TRUE(a.converged && c.converged) << "t = " << t;
+    steps_alone += a.iterations;
+    steps_continued += c.iterations;
+    for (size_t v = 0; v < reference.grid_positions.size(); ++v) {
+      worst_alone = std::max(worst_alone, (a.grid_positions[v] - reference.grid_positions[v]).norm());
+      worst_continued = std::max(worst_continued, (c.grid_positions[v] - reference.grid_positions[v]).norm());
+    }
+  }
+  // The rim spans ~2 units and the tolerance is 1e-5 of it per step: both land within a few steps'
+  // worth of the converged surface.
+  EXPECT_LT(worst_alone, 1e-4);
+  EXPECT_LT(worst_continued, 1e-4);
+  EXPECT_LT(steps_continued, steps_alone);
+  // After a jump the start is the spline's again: the same steps and surface as a fresh decoder.
+  SequenceDecoder fresh(sequence);
+  const DecodedFrame jumped = continued.decode(0.42, continued_options);
+  const DecodedFrame first = fresh.decode(0.42, continued_options);
+  EXPECT_EQ(jumped.iterations, first.iterations);
+  for (size_t v = 0; v < first.grid_positions.size(); ++v) ASSERT_EQ(jumped.grid_positions[v], first.grid_positions[v]);
+}
+
+// The texture is the keyframes' blend rounded to the nearest byte and clamped (Catmull-Rom weights
+// can be negative): against the sum in double precision, never more than rounding apart.
+TEST(SequenceDecoder, TexturesBlendToTheNearestByte) {
+  auto sequence = turning_bump(SplineKind::kCatmullRom, false);
+  std::mt19937 rng(7);
+  for (Keyframe& key : sequence->keyframes) {
+    key.texture = Image(37, 23, 3);
+    for (uint8_t& p : key.texture.pixels) p = static_cast<uint8_t>(rng() % 256);
+    key.texture.pixels[5] = 255;  // extremes, where an overshooting weight leaves 0..255
+    key.texture.pixels[6] = 0;
+  }
+  SequenceDecoder decoder(sequence);
+  for (double t : {0.0, 0.1, 0.42, 0.8}) {
+    const DecodedFrame frame = decoder.decode(t);
+    ASSERT_EQ(frame.texture.pixels.size(), 37u * 23u * 3u);
+    for (size_t p = 0; p < frame.texture.pixels.size(); ++p) {
+      double sum = 0;
+      for (size_t i = 0; i < frame.weights.keys.size(); ++i) {
+        sum += frame.weights.weights[i] * sequence->keyframes[static_cast<size_t>(frame.weights.keys[i])].texture.pixels[p];
+      }
+      const double expected = std::clamp(sum, 0.0, 255.0);
+      ASSERT_LE(std::abs(frame.texture.pixels[p] - expected), 0.5 + 1e-4) << "t = " << t << ", byte " << p;
+    }
+  }
+  DecodeOptions no_texture;
+  no_texture.texture = false;
+  EXPECT_TRUE(decoder.decode(0.42, no_texture).texture.empty());
 }
 
 TEST(SequenceDecoder, AHoleOpensBetweenKeyframesAlongTheBlendedOutline) {

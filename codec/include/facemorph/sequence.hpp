@@ -69,6 +69,11 @@ struct DecodeOptions {
   // (the reconstruction's start; DecodedFrame::fell_back says so) instead of failing
   // (reconstruct.throw_on_failure) or showing the last iterate. A player wants a frame.
   bool fall_back_to_start = true;
+  // Start the reconstruction from that spline plus the correction (decoded − spline) of the last
+  // two frames continued to t, when they lie within two capture frame periods of t: a clip then
+  // takes fewer steps. The result then depends on the frames decoded before it, within the
+  // reconstruction's tolerance; false makes every frame a function of t alone.
+  bool continue_correction = true;
 };
 
 struct DecodedFrame {
@@ -104,6 +109,9 @@ class SequenceDecoder {
 
  private:
   const std::vector<Vec3>& keyframe_surface(size_t k, const ReconstructOptions& options);
+  // The start for t from the spline `start` and the corrections of the last frames (empty: none).
+  std::vector<Vec3> predicted_start(double t, const std::vector<Vec3>& start, const DecodeOptions& options) const;
+  void remember_correction(double t, const ReconstructResult& result, const std::vector<Vec3>& start);
 
   std::shared_ptr<const Sequence> sequence_;
   KeyframeSpline spline_;
@@ -111,6 +119,12 @@ class SequenceDecoder {
   std::vector<RigidPose> poses_;                       // of every keyframe, for blend_poses
   std::vector<Vec3> rotation_vectors_;                 // unwrap_rotations(poses_), once
   std::vector<std::vector<Vec3>> keyframe_surfaces_;  // in the face frame; empty until first used
+  // The last frames' corrections (reconstruction − spline start, face frame), newest first.
+  struct History {
+    int count = 0;
+    double time[2] = {0, 0};
+    std::vector<Vec3> correction[2];
+  } history_;
 };
 
 }  // namespace facemorph
