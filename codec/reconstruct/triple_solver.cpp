@@ -25,6 +25,12 @@ TripleSolver::TripleSolver(const SparseMatrix& K) : n_(K.rows()), matrix_(K) {
     }
     column_start_[static_cast<size_t>(j) + 1] = static_cast<int32_t>(row_.size());
   }
+  if (n_ <= 65536) {
+    // Row indices in 16 bits: the walk streams 6 bytes per entry instead of 8 (N <= 257).
+    row16_.assign(row_.begin(), row_.end());
+    row_.clear();
+    row_.shrink_to_fit();
+  }
   inverse_diagonal_.resize(static_cast<size_t>(n_));
   const Eigen::VectorXd D = ldlt.vectorD();  // returned by value: once, not per entry
   for (Eigen::Index i = 0; i < n_; ++i) inverse_diagonal_[static_cast<size_t>(i)] = static_cast<float>(1.0 / D[i]);
@@ -43,7 +49,7 @@ void TripleSolver::solve_refined(const Vec3* b, Vec3* x) const {
 }
 
 size_t TripleSolver::bytes() const {
-  return row_.size() * (sizeof(int32_t) + sizeof(float)) + column_start_.size() * sizeof(int32_t) +
+  return row_.size() * sizeof(int32_t) + row16_.size() * sizeof(uint16_t) + value_.size() * sizeof(float) + column_start_.size() * sizeof(int32_t) +
          permutation_.size() * sizeof(int32_t) + inverse_diagonal_.size() * sizeof(float);
 }
 
@@ -54,12 +60,24 @@ void TripleSolver::solve(const Vec3* b, Vec3* x) const {
     const Vec3& r = b[permutation_[i]];
     y[i] = {{static_cast<float>(r.x()), static_cast<float>(r.y()), static_cast<float>(r.z()), 0.0f}};
   }
+  if (row16_.empty()) {
+    walk(row_.data(), y);
+  } else {
+    walk(row16_.data(), y);
+  }
+  for (size_t i = 0; i < n; ++i) x[permutation_[i]] = Vec3(y[i].v[0], y[i].v[1], y[i].v[2]);
+}
+
+template <typename Index>
+void TripleSolver::walk(const Index* row, Float4* y) const {
+  const auto n = static_cast<size_t>(n_);
+  const float* value = value_.data();
   // L z = y (unit lower, by columns).
   for (size_t j = 0; j < n; ++j) {
     const Float4 yj = y[j];
     for (int32_t k = column_start_[j]; k < column_start_[j + 1]; ++k) {
-      Float4& t = y[static_cast<size_t>(row_[static_cast<size_t>(k)])];
-      const float l = value_[static_cast<size_t>(k)];
+      Float4& t = y[static_cast<size_t>(row[k])];
+      const float l = value[k];
       for (int c = 0; c < 4; ++c) t.v[c] -= l * yj.v[c];
     }
   }
@@ -70,13 +88,12 @@ void TripleSolver::solve(const Vec3* b, Vec3* x) const {
   for (size_t j = n; j-- > 0;) {
     Float4 sum = y[j];
     for (int32_t k = column_start_[j]; k < column_start_[j + 1]; ++k) {
-      const Float4& t = y[static_cast<size_t>(row_[static_cast<size_t>(k)])];
-      const float l = value_[static_cast<size_t>(k)];
+      const Float4& t = y[static_cast<size_t>(row[k])];
+      const float l = value[k];
       for (int c = 0; c < 4; ++c) sum.v[c] -= l * t.v[c];
     }
     y[j] = sum;
   }
-  for (size_t i = 0; i < n; ++i) x[permutation_[i]] = Vec3(y[i].v[0], y[i].v[1], y[i].v[2]);
 }
 
 }  // namespace facemorph

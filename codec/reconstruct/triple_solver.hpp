@@ -34,12 +34,16 @@ class TripleSolver {
   std::vector<int32_t> permutation_;  // y = P b: y[i] = b[permutation_[i]]
   std::vector<int32_t> column_start_; // the strictly lower part of L, compressed by column
   std::vector<int32_t> row_;
+  std::vector<uint16_t> row16_;       // row_ in 16 bits when n <= 65536 (row_ then empty)
   std::vector<float> value_;
   std::vector<float> inverse_diagonal_;
   struct alignas(16) Float4 {
     float v[4];
   };
   mutable std::vector<Float4> work_;  // x y z (and padding) per unknown
+  // Both triangular solves and the diagonal on y in place, with row indices of type Index.
+  template <typename Index>
+  void walk(const Index* row, Float4* y) const;
 };
 
 }  // namespace facemorph
