@@ -50,9 +50,9 @@ struct Plan {
   int texture_size = 1024;  // fmenc's default
   int sample_frames = 15;   // frames the baselines' sweeps are measured on (the matched points on all)
   std::vector<double> budgets = {0.05, 0.10, 0.20, 0.30};
-  std::vector<int> draco_qp = {4, 5, 6, 7, 8, 9, 10, 11, 12, 14};
-  std::vector<int> jpeg_quality = {10, 20, 30, 40, 50, 60, 70, 80, 90, 95};
-  std::vector<int> h264_crf = {14, 18, 22, 26, 30, 34, 38, 42};
+  std::vector<int> draco_qp = {3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 14};  // coarse to fine
+  std::vector<int> jpeg_quality = {2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 95};
+  std::vector<int> h264_crf = {14, 18, 22, 26, 30, 34, 38, 42, 46, 51};  // fine to coarse
 };
 
 Plan make_plan(bool quick) {
@@ -323,7 +323,8 @@ class H264Readers {
 };
 
 // The coarsest candidate whose error meets the target; candidates ordered coarse to fine, `meets`
-// tells. The finest when none does (`met` false).
+// tells. The finest when none does (`met` false). When the coarsest meets, the baseline could go
+// coarser still: its bytes are an upper bound, and the report says so.
 template <typename Meets>
 size_t coarsest_meeting(size_t count, Meets&& meets, bool& met) {
   for (size_t k = 0; k < count; ++k) {
@@ -640,7 +641,11 @@ json measure_capture(Context& context, const std::string& input) {
   std::vector<DracoPoint> draco_curve;
   for (int qp : plan.draco_qp) draco_curve.push_back(draco_point(capture, captured, sample, qp, scratch));
   bool draco_met = false;
+  auto note = [](bool met, size_t pick, const char* missed) {
+    return !met ? std::string(" (") + missed + " not matched at the finest tried)" : pick == 0 ? std::string(" (the coarsest tried: an upper bound)") : std::string();
+  };
   size_t draco_pick = coarsest_meeting(draco_curve.size(), [&](size_t k) { return mean(draco_curve[k].rms) <= target_rms; }, draco_met);
+  const size_t draco_first_pick = draco_pick;
   DracoPoint draco;
   TriangleMesh draco_shown;
   for (;;) {
@@ -655,15 +660,18 @@ json measure_capture(Context& context, const std::string& input) {
   // JPEG and H.264 at the quality that meets facemorph's held-out texture PSNR on the sample frames.
   bool jpeg_met = false, h264_met = false;
   int jpeg_quality = 0, h264_crf = 0;
+  std::string jpeg_note, h264_note;
   uint64_t jpeg_bytes = 0, h264_total = 0;
   if (textured) {
     const size_t q = coarsest_meeting(plan.jpeg_quality.size(), [&](size_t k) { return mean(jpeg_psnr[plan.jpeg_quality[k]]) >= target_psnr; }, jpeg_met);
     jpeg_quality = plan.jpeg_quality[q];
+    jpeg_note = note(jpeg_met, q, "PSNR");
     for (const fs::path& path : textures) jpeg_bytes += encode_image(rgb_of(read_image(path)), ".jpg", jpeg_quality).size();
     // CRFs fine to coarse in the plan: the coarsest meeting is the last that does.
     const size_t n = plan.h264_crf.size();
     const size_t c = coarsest_meeting(n, [&](size_t k) { return mean(h264_psnr[plan.h264_crf[n - 1 - k]]) >= target_psnr; }, h264_met);
     h264_crf = plan.h264_crf[n - 1 - c];
+    h264_note = note(h264_met, c, "PSNR");
     h264_total = h264_bytes[n - 1 - c];
   }
 
@@ -678,13 +686,13 @@ json measure_capture(Context& context, const std::string& input) {
       {"facemorph", "keyframes " + std::to_string(main_keys.size()) + ", N = " + std::to_string(grid), double(main.geometry_bytes()),
        double(main.texture_bytes), target_rms, summary.held_rms_worst, target_psnr},
       {"raw capture", "OBJ + MTL + images as captured", double(raw_mesh), double(raw_texture), -1, -1, -1},
-      {"draco", "-qp " + std::to_string(draco.qp) + " -cl 7" + (draco_met ? "" : " (finest tried; error not matched)"), double(draco.bytes), 0,
+      {"draco", "-qp " + std::to_string(draco.qp) + " -cl 7" + note(draco_met, draco_pick == draco_first_pick ? draco_pick : 1, "error"), double(draco.bytes), 0,
        mean(draco.rms), worst(draco.rms), -1},
   };
   if (textured) {
-    rows.push_back({"draco + jpeg", "-qp " + std::to_string(draco.qp) + ", JPEG q" + std::to_string(jpeg_quality) + (jpeg_met ? "" : " (PSNR not matched)"),
+    rows.push_back({"draco + jpeg", "-qp " + std::to_string(draco.qp) + ", JPEG q" + std::to_string(jpeg_quality) + jpeg_note,
                     double(draco.bytes), double(jpeg_bytes), mean(draco.rms), worst(draco.rms), mean(jpeg_psnr[jpeg_quality])});
-    rows.push_back({"draco + h264", "-qp " + std::to_string(draco.qp) + ", x264 crf " + std::to_string(h264_crf) + (h264_met ? "" : " (PSNR not matched)"),
+    rows.push_back({"draco + h264", "-qp " + std::to_string(draco.qp) + ", x264 crf " + std::to_string(h264_crf) + h264_note,
                     double(draco.bytes), double(h264_total), mean(draco.rms), worst(draco.rms), mean(h264_psnr[h264_crf])});
   }
   rows.push_back({"facemorph xyz", "same keyframes and spline", double(xyz.geometry_bytes()), double(xyz.texture_bytes),
@@ -873,6 +881,7 @@ int run_capture_bench(const CaptureBenchOptions& options) {
   require_program("draco_encoder", "draco");
   require_program("draco_decoder", "draco");
   require_program("ffmpeg", "ffmpeg");
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // each capture's lines as they come, also into a log file
   std::signal(SIGPIPE, SIG_IGN);  // an ffmpeg that dies is reported by its pipe, not by killing the bench
   const Plan plan = make_plan(options.quick);
   const ScratchFolder scratch("fmbench-capture");
