@@ -1,11 +1,12 @@
 #include "format/container.hpp"
 
+
 #include "facemorph/error.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
+#include "format/zstd_frame.hpp"
 
-#include <zstd.h>
 
 #include <algorithm>
 
@@ -40,11 +41,8 @@ PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload,
   chunk.flags = critical ? kChunkCritical : 0;
   chunk.raw_size = payload.size();
   if (zstd_level > 0 && !payload.empty()) {
-    std::vector<uint8_t> packed(ZSTD_compressBound(payload.size()));
-    const size_t size = ZSTD_compress(packed.data(), packed.size(), payload.data(), payload.size(), zstd_level);
-    if (ZSTD_isError(size)) throw Error(ErrorCode::kInvalidArgument, std::string("zstd: ") + ZSTD_getErrorName(size));
-    if (size < payload.size()) {
-      packed.resize(size);
+    std::vector<uint8_t> packed = compress_frame(payload, zstd_level);
+    if (packed.size() < payload.size()) {
       chunk.flags |= kChunkCompressed;
       chunk.stored = std::move(packed);
       return chunk;
@@ -147,13 +145,11 @@ std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk) const {
     throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in " + describe(chunk));
   }
   if (!chunk.compressed()) return {chunk.stored.begin(), chunk.stored.end()};
-  const unsigned long long announced = ZSTD_getFrameContentSize(chunk.stored.data(), chunk.stored.size());
-  if (announced != chunk.raw_size) {
+  if (announced_size(chunk.stored) != chunk.raw_size) {
     throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": the zstd frame does not announce the chunk's size");
   }
   std::vector<uint8_t> out(static_cast<size_t>(chunk.raw_size));
-  const size_t size = ZSTD_decompress(out.data(), out.size(), chunk.stored.data(), chunk.stored.size());
-  if (ZSTD_isError(size) || size != out.size()) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");
+  if (!decompress_frame(chunk.stored, out)) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");
   return out;
 }
 

@@ -2,7 +2,7 @@
 
 #include "facemorph/error.hpp"
 
-#include <zstd.h>
+#include "format/zstd_frame.hpp"
 
 namespace facemorph::format {
 
@@ -21,11 +21,7 @@ std::vector<uint8_t> encode_code_planes(std::span<const Quantized16> arrays, int
       ++at;
     }
   }
-  std::vector<uint8_t> out(ZSTD_compressBound(planes.size()));
-  const size_t size = ZSTD_compress(out.data(), out.size(), planes.data(), planes.size(), level);
-  if (ZSTD_isError(size)) throw Error(ErrorCode::kInvalidArgument, std::string("zstd: ") + ZSTD_getErrorName(size));
-  out.resize(size);
-  return out;
+  return compress_frame(planes, level);
 }
 
 std::vector<std::vector<uint16_t>> decode_code_planes(std::span<const uint8_t> bytes, std::span<const size_t> lengths, const std::string& source) {
@@ -35,15 +31,14 @@ std::vector<std::vector<uint16_t>> decode_code_planes(std::span<const uint8_t> b
     total += n;
   }
   // The decompressed size is announced by the frame; it must be exactly two bytes per code.
-  const unsigned long long announced = ZSTD_getFrameContentSize(bytes.data(), bytes.size());
-  if (announced == ZSTD_CONTENTSIZE_ERROR) throw Error(ErrorCode::kCorrupt, source + ": field payload is not a zstd frame");
-  if (announced != 2 * total) {
-    throw Error(ErrorCode::kCorrupt, source + ": field payload holds " + std::to_string(announced) + " bytes, " + std::to_string(2 * total) +
+  const std::optional<uint64_t> announced = announced_size(bytes);
+  if (!announced) throw Error(ErrorCode::kCorrupt, source + ": field payload is not a zstd frame");
+  if (*announced != 2 * total) {
+    throw Error(ErrorCode::kCorrupt, source + ": field payload holds " + std::to_string(*announced) + " bytes, " + std::to_string(2 * total) +
                                          " expected");
   }
   std::vector<uint8_t> planes(2 * total);
-  const size_t size = ZSTD_decompress(planes.data(), planes.size(), bytes.data(), bytes.size());
-  if (ZSTD_isError(size) || size != planes.size()) throw Error(ErrorCode::kCorrupt, source + ": damaged field payload");
+  if (!decompress_frame(bytes, planes)) throw Error(ErrorCode::kCorrupt, source + ": damaged field payload");
   std::vector<std::vector<uint16_t>> out;
   size_t at = 0;
   for (size_t n : lengths) {

@@ -1,12 +1,14 @@
 // fmenc: encodes a capture into a .fmv file (spec/container.md): every frame made a disk and mapped
 // conformally, registered to the reference frame, keyframes chosen by the spline's predicted error,
 // each keyframe's fields, pose, holes and texture written. The file is written under a temporary
-// name and renamed into place, so a failed encode leaves any earlier file untouched.
+// name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
+// file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "tools/tool_support.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <memory>
@@ -33,6 +35,28 @@ double parse_fraction(const std::string& text, const char* what) {
   }
 }
 
+// Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
+// again from --field-error (from the file's values, so never finer than what it held); textures
+// re-encoded at `quality`.
+void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality, bool quiet) {
+  SequenceFileInfo info;
+  Sequence sequence = read_sequence_file(input, &info);
+  SequenceFileMetadata metadata = info.metadata;
+  metadata.encoder.clear();
+  metadata.texture_quality = quality;
+  metadata.field_coding = {};
+  FieldPrecisionReport precision;
+  if (options.predicted_fields) metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
+  write_sequence_file(output, sequence, metadata);
+  if (quiet) return;
+  std::printf("fmenc: %s re-coded to %s: %llu bytes (was %llu)\n", input.c_str(), output.c_str(),
+              static_cast<unsigned long long>(std::filesystem::file_size(output)), static_cast<unsigned long long>(info.file_bytes));
+  if (!precision.keyframe_errors.empty()) {
+    std::printf("  fields rounded to %.3g%% of the diagonal (RMS; worst keyframe %.3g%%)\n", 100 * options.field_precision.target_error,
+                100 * *std::max_element(precision.keyframe_errors.begin(), precision.keyframe_errors.end()));
+  }
+}
+
 nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report, int quality) {
   return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
@@ -45,7 +69,10 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report,
           {"texture_quality", quality},
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
-          {"reference_frame", o.reference_frame}};
+          {"reference_frame", o.reference_frame},
+          {"field_error", o.predicted_fields ? nlohmann::json(o.field_precision.target_error) : nlohmann::json(nullptr)},
+          {"intra_period", o.field_precision.intra_period},
+          {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"}};
 }
 
 }  // namespace
@@ -55,9 +82,12 @@ int main(int argc, char** argv) {
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "hl+t", landmarks;
   double fps = 0;
-  int texture_size = 1024, quality = 90, threads = 0, reference = 0;
+  std::string field_error = "0.01%", field_rounding = "shaped";
+  int texture_size = 1024, quality = 90, threads = 0, reference = 0, intra_period = 8;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
-  app.add_option("capture", input, "Capture folder (capture.json) or a plain folder of OBJ/PLY frames (with --fps, --landmarks)")->required();
+  app.add_option("capture", input,
+                 "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
+      ->required();
   app.add_option("-o,--output", output, "The .fmv file to write")->required();
   app.add_option("--fps", fps, "Frame rate of a plain folder of meshes");
   app.add_option("--landmarks", landmarks, "Landmarks CSV of a plain folder (frame,name,x,y,z)");
@@ -70,6 +100,11 @@ int main(int argc, char** argv) {
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
   app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
+  app.add_option("--field-error", field_error,
+                 "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); 0: 16-bit fields (format 1.0)")
+      ->capture_default_str();
+  app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
+  app.add_option("--intra-period", intra_period, "Every P-th keyframe coded without the previous one (random access)")->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
   app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
@@ -77,7 +112,6 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
   return tools::guarded_main(app, argc, argv, [&] {
     const auto start = std::chrono::steady_clock::now();
-    const Capture capture = open_capture(input, fps, landmarks);
     EncodeOptions options;
     if (!max_error.empty()) {
       options.max_error = parse_fraction(max_error, "--max-error");
@@ -101,6 +135,19 @@ int main(int argc, char** argv) {
     options.largest_component = largest_component;
     options.threads = threads;
     options.reference_frame = reference;
+    options.predicted_fields = field_error != "0";
+    if (options.predicted_fields) options.field_precision.target_error = parse_fraction(field_error, "--field-error");
+    if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "--intra-period must be at least 1");
+    options.field_precision.intra_period = intra_period;
+    if (field_rounding != "shaped" && field_rounding != "nearest") {
+      throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");
+    }
+    options.field_precision.noise_shaping = field_rounding == "shaped";
+    if (std::filesystem::path(input).extension() == ".fmv") {
+      recode(input, output, options, quality, quiet);
+      return 0;
+    }
+    const Capture capture = open_capture(input, fps, landmarks);
     std::map<std::string, std::unique_ptr<tools::Progress>> stages;
     std::string current;
     options.progress = [&](const std::string& stage, int done, int total) {
@@ -117,6 +164,7 @@ int main(int argc, char** argv) {
     metadata.settings = settings_json(options, report, quality).dump();
     metadata.landmark_names = capture.landmark_names;
     metadata.texture_quality = quality;
+    metadata.field_coding = report.field_coding;
     write_sequence_file(output, sequence, metadata);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);
@@ -133,9 +181,14 @@ int main(int argc, char** argv) {
     double worst = 0;
     for (const EncodedFrameReport& f : report.frames) worst = std::max(worst, f.predicted_error);
     std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
-    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s)\n", seconds,
-                seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
-                report.seconds_selection, report.seconds_keyframes);
+    if (report.field_coding.predicted()) {
+      const std::vector<double>& e = report.field_precision.keyframe_errors;
+      std::printf("  fields rounded to %.3g%% of the diagonal (RMS; worst keyframe %.3g%%), intra every %d keyframes\n",
+                  100 * options.field_precision.target_error, 100 * *std::max_element(e.begin(), e.end()), report.field_coding.intra_period);
+    }
+    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
+                seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
+                report.seconds_selection, report.seconds_keyframes, report.seconds_precision);
     if (report.registration_fallbacks > 0) {
       std::printf("  %d frames fell back in registration:\n", report.registration_fallbacks);
       for (const EncodedFrameReport& f : report.frames) {

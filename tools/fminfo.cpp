@@ -156,6 +156,9 @@ int describe_container(const fs::path& path, bool json_out) {
     doc["grid"] = {{"n", sequence.grid_n}, {"rule", info.grid_rule}, {"hash", tools::hex64(info.grid_hash)},
                    {"nodes", shape.interior_count + shape.rim_count}, {"rim_nodes", shape.rim_count}, {"fixed_nodes", fixed}};
     doc["representation"] = representation_name(sequence.representation);
+    const FieldCoding& coding = info.metadata.field_coding;
+    doc["field_coding"] = coding.predicted() ? nlohmann::json{{"kind", "predicted"}, {"steps", coding.steps}, {"intra_period", coding.intra_period}}
+                                             : nlohmann::json{{"kind", "16-bit code planes"}};
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
     doc["texture_size"] = info.texture_size;
@@ -181,7 +184,15 @@ int describe_container(const fs::path& path, bool json_out) {
   std::printf("rate        %.0f bytes per second of capture (%.1f kbit/s)\n", bytes_per_second, bytes_per_second * 8 / 1000);
   std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", sequence.grid_n, shape.interior_count + shape.rim_count,
               shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
-  std::printf("fields      %s, 16-bit; %zu nodes in boundary frames\n", representation_name(sequence.representation), fixed);
+  const FieldCoding& coding = info.metadata.field_coding;
+  if (coding.predicted()) {
+    std::printf("fields      %s, integer multiples of a step per array, predicted (intra every %d keyframes); %zu nodes in boundary frames\n",
+                representation_name(sequence.representation), coding.intra_period, fixed);
+    std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
+                coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
+  } else {
+    std::printf("fields      %s, 16-bit; %zu nodes in boundary frames\n", representation_name(sequence.representation), fixed);
+  }
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + " WebP per keyframe").c_str() : "none");

@@ -12,9 +12,13 @@
 #include "format/field_coder.hpp"
 #include "format/file_io.hpp"
 #include "format/quantize.hpp"
+#include "format/residual_coder.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 
 #ifndef FACEMORPH_VERSION
@@ -28,14 +32,18 @@ namespace {
 using format::ByteReader;
 using format::ByteWriter;
 
-constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kTexture = "TEXR";
+constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kTexture = "TEXR";
+constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1;  // the header's field coding (spec/container.md §5)
+constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
+constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
+constexpr uint32_t kMaxIntraPeriod = 1u << 20;
 constexpr uint32_t kTextureWebp = 1;
 constexpr uint8_t kHasTexture = 1, kHasHoles = 2;
 constexpr uint32_t kMaxKeyframes = 1u << 20;
 constexpr uint32_t kMaxStringBytes = 1u << 20;
 constexpr uint32_t kMaxLandmarks = 1u << 16;
 constexpr int kMaxTextureSize = 16384;
-constexpr size_t kKeyframeArrays = kScalarArrayCount + 1;  // the fields' arrays, then the hole level
+constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
 
 // The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
 // the order of the C++ enumerators.
@@ -60,19 +68,47 @@ Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std
   throw Error(ErrorCode::kUnsupported, what + " " + std::to_string(code) + " is not one this decoder knows");
 }
 
-// G's hash for N, built once per process and N (the grid is what costs; the hash is 8 bytes).
-uint64_t grid_hash(int n) {
+// What the container needs of G for N: its hash, and the lattice neighbours its predicted
+// arrays use (interior nodes row by row; the hole level's rim nodes follow, each after the one
+// before it). Built once per process and N: the grid is what costs.
+struct GridFacts {
+  uint64_t hash = 0;
+  format::LatticeNeighbours interior, all_nodes;
+};
+
+const GridFacts& grid_facts(int n) {
   static std::mutex mutex;
-  static std::map<int, uint64_t> hashes;
+  static std::map<int, std::unique_ptr<const GridFacts>> cache;
   {
     std::lock_guard<std::mutex> lock(mutex);
-    if (auto it = hashes.find(n); it != hashes.end()) return it->second;
+    if (auto it = cache.find(n); it != cache.end()) return *it->second;
   }
-  const uint64_t hash = make_disk_grid(n).hash;
+  const DiskGrid grid = make_disk_grid(n);
+  auto facts = std::make_unique<GridFacts>();
+  facts->hash = grid.hash;
+  format::LatticeNeighbours& l = facts->all_nodes;
+  for (int node = 0; node < grid.node_count(); ++node) {
+    if (grid.is_rim(node)) {
+      l.left.push_back(node - 1);
+      l.up.push_back(-1);
+      l.up_left.push_back(-1);
+      continue;
+    }
+    const auto [i, j] = grid.cell[static_cast<size_t>(node)];
+    l.left.push_back(grid.node(i - 1, j));
+    l.up.push_back(grid.node(i, j - 1));
+    l.up_left.push_back(grid.node(i - 1, j - 1));
+  }
+  const auto interior = static_cast<size_t>(grid.interior_count);
+  facts->interior.left.assign(l.left.begin(), l.left.begin() + static_cast<ptrdiff_t>(interior));
+  facts->interior.up.assign(l.up.begin(), l.up.begin() + static_cast<ptrdiff_t>(interior));
+  facts->interior.up_left.assign(l.up_left.begin(), l.up_left.begin() + static_cast<ptrdiff_t>(interior));
   std::lock_guard<std::mutex> lock(mutex);
-  hashes[n] = hash;
-  return hash;
+  auto [it, inserted] = cache.emplace(n, std::move(facts));
+  return *it->second;
 }
+
+uint64_t grid_hash(int n) { return grid_facts(n).hash; }
 
 [[noreturn]] void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
 
@@ -100,7 +136,7 @@ struct Header {
   uint32_t texture_size = 0;
   uint32_t rim_count = 0;
   std::vector<int32_t> fixed_nodes;
-  SequenceFileMetadata metadata;
+  SequenceFileMetadata metadata;  // with the field coding
 };
 
 std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, const DiskGridShape& shape) {
@@ -133,10 +169,17 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   w.string(metadata.settings);
   w.write(static_cast<uint32_t>(metadata.landmark_names.size()));
   for (const std::string& name : metadata.landmark_names) w.string(name);
+  // Appended in 1.1: how the keyframes' fields are coded.
+  const FieldCoding& coding = metadata.field_coding;
+  w.write(coding.predicted() ? kPredictedCodes : kCodePlanes);
+  if (coding.predicted()) {
+    w.write(static_cast<uint32_t>(coding.intra_period));
+    for (double step : coding.steps) w.write(step);
+  }
   return w.take();
 }
 
-Header read_header(std::span<const uint8_t> payload, const std::string& source) {
+Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version) {
   ByteReader r(payload, source + ": header");
   Header h;
   const uint32_t n = r.read<uint32_t>("the grid size");
@@ -184,6 +227,23 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source) 
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");
   if (landmarks > kMaxLandmarks) corrupt(r.source(), std::to_string(landmarks) + " landmark names");
   for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name"));
+  // 1.1: the field coding (1.0 files have code planes).
+  if (minor_version >= 1) {
+    const uint8_t coding = r.read<uint8_t>("the field coding");
+    if (coding == kPredictedCodes) {
+      FieldCoding& c = h.metadata.field_coding;
+      const uint32_t period = r.read<uint32_t>("the intra period");
+      if (period == 0 || period > kMaxIntraPeriod) corrupt(r.source(), "intra period " + std::to_string(period));
+      c.intra_period = static_cast<int>(period);
+      c.steps.resize(kKeyframeArrays);
+      for (double& step : c.steps) {
+        step = read_finite(r, "a field step");
+        if (!(step > 0)) corrupt(r.source(), "a field step that is not positive");
+      }
+    } else if (coding != kCodePlanes) {
+      throw Error(ErrorCode::kUnsupported, source + ": field coding " + std::to_string(coding) + " is not one this decoder knows");
+    }
+  }
   // Later minor versions append fields here; this reader ignores them.
   if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != grid_hash(h.shape.grid_n)) {
     throw Error(ErrorCode::kUnsupported, source + ": the file's grid (rule " + std::to_string(h.grid_rule) + ", N = " + std::to_string(n) +
@@ -228,16 +288,47 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
 
 // ---- One keyframe (KEYF): time, pose, the quantised arrays ----
 
-std::vector<uint8_t> write_keyframe(const Keyframe& key, uint32_t number) {
-  ByteWriter w;
+// What KEYF and KEYP share: the number, the time, the pose.
+void write_keyframe_preamble(ByteWriter& w, const Keyframe& key, uint32_t number) {
   w.write(number);
   w.write(key.time);
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) w.write(key.pose.rotation(i, j));
   }
   for (int k = 0; k < 3; ++k) w.write(key.pose.translation[k]);
+}
+
+void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& where, uint32_t number) {
+  if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe than the index says");
+  key.time = read_finite(r, "the time");
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) key.pose.rotation(i, j) = read_finite(r, "the rotation");
+  }
+  for (int k = 0; k < 3; ++k) key.pose.translation[k] = read_finite(r, "the translation");
+}
+
+std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key) {
   std::vector<std::vector<double>> arrays = scalar_arrays(key.fields);
   arrays.push_back(key.hole_level);
+  return arrays;
+}
+
+// The keyframe from its arrays in the file's order, checked as every decoded keyframe is.
+void set_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, const Header& h, const std::string& where) {
+  key.hole_level = std::move(arrays[kScalarArrayCount]);
+  arrays.resize(kScalarArrayCount);
+  key.fields = fields_from_scalar_arrays(h.shape.representation, h.shape.grid_n, h.fixed_nodes, arrays);
+  try {
+    validate_fields(key.fields);
+  } catch (const Error& e) {
+    corrupt(where, e.what());
+  }
+}
+
+std::vector<uint8_t> write_keyframe(const Keyframe& key, uint32_t number) {
+  ByteWriter w;
+  write_keyframe_preamble(w, key, number);
+  const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
   std::vector<format::Quantized16> quantized;
   w.write(static_cast<uint32_t>(arrays.size()));
   for (const std::vector<double>& values : arrays) {
@@ -270,12 +361,7 @@ std::vector<size_t> expected_lengths(const Header& h) {
 Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t number) {
   ByteReader r(payload, where);
   Keyframe key;
-  if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe than the index says");
-  key.time = read_finite(r, "the time");
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) key.pose.rotation(i, j) = read_finite(r, "the rotation");
-  }
-  for (int k = 0; k < 3; ++k) key.pose.translation[k] = read_finite(r, "the translation");
+  read_keyframe_preamble(r, key, where, number);
   const uint32_t count = r.read<uint32_t>("the array count");
   if (count < kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
   if (count > 64) corrupt(where, std::to_string(count) + " arrays (at most 64)");
@@ -295,23 +381,171 @@ Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& wher
   const uint32_t coded = r.read<uint32_t>("the coded size");
   const auto bytes = r.bytes(coded, "the coded arrays");
   std::vector<std::vector<uint16_t>> codes = format::decode_code_planes(bytes, lengths, where);
-  std::vector<std::vector<double>> arrays(kScalarArrayCount);
+  std::vector<std::vector<double>> arrays(kKeyframeArrays);
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
     ranges[a].codes = std::move(codes[a]);
-    std::vector<double> values = format::dequantize16(ranges[a]);
-    if (a < kScalarArrayCount) {
-      arrays[a] = std::move(values);
-    } else {
-      key.hole_level = std::move(values);
-    }
+    arrays[a] = format::dequantize16(ranges[a]);
   }
   // Arrays past the ones this version knows were appended by a later minor version: ignored.
-  key.fields = fields_from_scalar_arrays(h.shape.representation, h.shape.grid_n, h.fixed_nodes, arrays);
-  try {
-    validate_fields(key.fields);
-  } catch (const Error& e) {
-    corrupt(where, e.what());
+  set_keyframe_arrays(key, std::move(arrays), h, where);
+  return key;
+}
+
+// ---- One predicted keyframe (KEYP): integer multiples of the header's steps, residuals coded ----
+
+// Which arrays lie on G's lattice (spatial predictors 2 and 3 allowed): the per-node fields and
+// positions on the interior nodes, the hole level on every node. The band vectors and the rim are
+// sequences only.
+const format::LatticeNeighbours* lattice_of(size_t array, size_t length, const GridFacts& grid) {
+  const format::LatticeNeighbours* lattice = nullptr;
+  if (array <= 3 || (array >= 7 && array <= 9)) lattice = &grid.interior;
+  if (array == kScalarArrayCount) lattice = &grid.all_nodes;
+  return lattice && lattice->size() == length ? lattice : nullptr;  // an empty array has none
+}
+
+int32_t field_code(double value, double step) {
+  const double code = std::nearbyint(value / step);
+  if (!(std::abs(code) < static_cast<double>(kMaxFieldCode))) {
+    throw Error(ErrorCode::kInvalidArgument, "a field value " + std::to_string(value) + " lies more than 2^30 steps of " + std::to_string(step) + " from 0");
   }
+  return static_cast<int32_t>(code);
+}
+
+void check_steps(const FieldCoding& coding) {
+  if (coding.steps.size() != kKeyframeArrays) throw Error(ErrorCode::kInvalidArgument, "field coding: one step per keyframe array needed");
+  for (double step : coding.steps) {
+    if (!(step > 0) || !std::isfinite(step)) throw Error(ErrorCode::kInvalidArgument, "field coding: a step that is not finite and positive");
+  }
+  if (coding.intra_period < 1 || static_cast<uint32_t>(coding.intra_period) > kMaxIntraPeriod) {
+    throw Error(ErrorCode::kInvalidArgument, "field coding: intra period outside [1, 2^20]");
+  }
+}
+
+// Zigzag magnitudes' order-0 entropy in bits: how the coder chooses a predictor without running zstd.
+double estimated_bits(const std::vector<int64_t>& residuals) {
+  std::map<int64_t, size_t> counts;
+  for (int64_t r : residuals) ++counts[r];
+  double bits = 0;
+  const auto n = static_cast<double>(residuals.size());
+  for (const auto& [value, count] : counts) bits -= static_cast<double>(count) * std::log2(static_cast<double>(count) / n);
+  return bits;
+}
+
+struct CodedArray {
+  format::SpatialPredictor predictor = format::SpatialPredictor::kNone;
+  std::vector<int64_t> residuals;
+  double bits = 0;
+};
+
+CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice) {
+  CodedArray best;
+  best.bits = std::numeric_limits<double>::infinity();
+  for (uint8_t p = 0; p < format::kSpatialPredictorCount; ++p) {
+    const auto predictor = static_cast<format::SpatialPredictor>(p);
+    const bool on_lattice = predictor == format::SpatialPredictor::kGradient || predictor == format::SpatialPredictor::kMedian;
+    if (on_lattice && lattice == nullptr) continue;
+    std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
+    const double bits = estimated_bits(residuals);
+    if (bits < best.bits) best = {predictor, std::move(residuals), bits};
+  }
+  return best;
+}
+
+// `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
+// null where this keyframe must be intra.
+std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t number, const std::vector<std::vector<int32_t>>& codes,
+                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid) {
+  // Intra and predicted alike: each array's codes, or their change since the previous keyframe,
+  // under the spatial predictor that leaves the fewest bits. The reference that costs less wins.
+  auto code_all = [&](bool from_previous) {
+    std::vector<CodedArray> out;
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      std::vector<int32_t> values = codes[a];
+      if (from_previous) {
+        for (size_t i = 0; i < values.size(); ++i) values[i] -= (*previous)[a][i];  // |codes| < 2^30: no overflow
+      }
+      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid)));
+    }
+    return out;
+  };
+  auto total_bits = [](const std::vector<CodedArray>& arrays) {
+    double bits = 0;
+    for (const CodedArray& a : arrays) bits += a.bits;
+    return bits;
+  };
+  std::vector<CodedArray> coded = code_all(false);
+  uint8_t reference = kIntra;
+  if (previous) {
+    std::vector<CodedArray> predicted = code_all(true);
+    if (total_bits(predicted) < total_bits(coded)) {
+      coded = std::move(predicted);
+      reference = kFromPreviousKeyframe;
+    }
+  }
+  ByteWriter w;
+  write_keyframe_preamble(w, key, number);
+  w.write(reference);
+  w.write(static_cast<uint32_t>(kKeyframeArrays));
+  std::vector<std::vector<int64_t>> residuals;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    w.write(static_cast<uint32_t>(codes[a].size()));
+    w.write(static_cast<uint8_t>(coded[a].predictor));
+    residuals.push_back(std::move(coded[a].residuals));
+  }
+  const std::vector<uint8_t> stream = format::encode_residual_stream(residuals);
+  w.write(static_cast<uint32_t>(stream.size()));
+  w.bytes(stream);
+  return w.take();
+}
+
+// Reads keyframe `number`; `codes` holds the previous keyframe's codes on entry (empty for the
+// first) and this one's on return.
+Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t number,
+                                 std::vector<std::vector<int32_t>>& codes) {
+  ByteReader r(payload, where);
+  Keyframe key;
+  read_keyframe_preamble(r, key, where, number);
+  const uint8_t reference = r.read<uint8_t>("the reference");
+  if (reference != kIntra && reference != kFromPreviousKeyframe) corrupt(where, "unknown reference " + std::to_string(reference));
+  const int period = h.metadata.field_coding.intra_period;
+  if (reference == kFromPreviousKeyframe && (number % static_cast<uint32_t>(period) == 0 || codes.empty())) {
+    corrupt(where, "keyframe " + std::to_string(number) + " refers to the previous one, but the intra period is " + std::to_string(period));
+  }
+  const uint32_t count = r.read<uint32_t>("the array count");
+  if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
+  const std::vector<size_t> expected = expected_lengths(h);
+  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  std::vector<format::SpatialPredictor> predictors(count);
+  for (uint32_t a = 0; a < count; ++a) {
+    const uint32_t length = r.read<uint32_t>("an array length");
+    if (length != expected[a]) {
+      corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(length) + " values, " + std::to_string(expected[a]) + " expected");
+    }
+    const uint8_t p = r.read<uint8_t>("a predictor");
+    predictors[a] = static_cast<format::SpatialPredictor>(p);
+    const bool on_lattice = predictors[a] == format::SpatialPredictor::kGradient || predictors[a] == format::SpatialPredictor::kMedian;
+    if (p >= format::kSpatialPredictorCount || (on_lattice && lattice_of(a, length, grid) == nullptr)) {
+      corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
+    }
+  }
+  const uint32_t coded = r.read<uint32_t>("the coded size");
+  const std::vector<std::vector<int64_t>> residuals = format::decode_residual_stream(r.bytes(coded, "the coded residuals"), expected, where);
+  // Bytes after the residuals were appended by a later minor version: ignored.
+  const std::vector<double>& steps = h.metadata.field_coding.steps;
+  std::vector<std::vector<double>> arrays(kKeyframeArrays);
+  std::vector<std::vector<int32_t>> these(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    these[a] = format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
+    for (size_t i = 0; i < these[a].size(); ++i) {
+      const int64_t code = reference == kFromPreviousKeyframe ? int64_t{these[a][i]} + codes[a][i] : int64_t{these[a][i]};
+      if (code <= -kMaxFieldCode || code >= kMaxFieldCode) corrupt(where, "a field code beyond 2^30");
+      these[a][i] = static_cast<int32_t>(code);
+    }
+    arrays[a].resize(these[a].size());
+    for (size_t i = 0; i < these[a].size(); ++i) arrays[a][i] = steps[a] * these[a][i];
+  }
+  codes = std::move(these);
+  set_keyframe_arrays(key, std::move(arrays), h, where);
   return key;
 }
 
@@ -337,16 +571,42 @@ Image read_texture(std::span<const uint8_t> payload, const std::string& where, u
 
 }  // namespace
 
+void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
+  check_steps(coding);
+  std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    for (double& v : arrays[a]) v = coding.steps[a] * field_code(v, coding.steps[a]);
+  }
+  key.hole_level = std::move(arrays[kScalarArrayCount]);
+  arrays.resize(kScalarArrayCount);
+  key.fields = fields_from_scalar_arrays(key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes, arrays);
+}
+
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
   validate_sequence(sequence);
   if (metadata.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
+  const FieldCoding& coding = metadata.field_coding;
+  if (coding.predicted()) check_steps(coding);
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   const format::PreparedChunk header = format::prepare_chunk(kHeader, write_header(sequence, metadata, shape), true, 19);
   // Every payload first, so the index can hold the offsets of the chunks after it.
   std::vector<format::PreparedChunk> keyframes, textures;
+  std::vector<std::vector<int32_t>> previous_codes;
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
     const Keyframe& key = sequence.keyframes[k];
-    keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
+    if (coding.predicted()) {
+      const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+      std::vector<std::vector<int32_t>> codes(kKeyframeArrays);
+      for (size_t a = 0; a < kKeyframeArrays; ++a) {
+        for (double v : arrays[a]) codes[a].push_back(field_code(v, coding.steps[a]));
+      }
+      const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
+      keyframes.push_back(format::prepare_chunk(
+          kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n)), true));
+      previous_codes = std::move(codes);
+    } else {
+      keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
+    }
     if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_quality), true));
   }
   std::vector<IndexEntry> entries(sequence.keyframes.size());
@@ -378,20 +638,24 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     corrupt(source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
-    const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kTexture;
+    const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kPredictedKeyframe || chunk.type == kTexture;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported, source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
-  Header header = read_header(reader.payload(chunks[0]), source);
+  Header header = read_header(reader.payload(chunks[0]), source, reader.minor_version());
+  const bool predicted = header.metadata.field_coding.predicted();
+  const std::string_view keyframe_type = predicted ? kPredictedKeyframe : kKeyframe;
+  std::vector<std::vector<int32_t>> codes;  // the previous predicted keyframe's
   const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count);
   auto sequence = std::move(header.shape);
   std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
   for (uint32_t k = 0; k < index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
-    if (chunk.type != kKeyframe) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk");
-    Keyframe key = read_keyframe(reader.payload(chunk), source + ": " + reader.describe(chunk) + " (" + name + ")", header, k);
+    if (chunk.type != keyframe_type) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(keyframe_type));
+    const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
+    Keyframe key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes) : read_keyframe(reader.payload(chunk), where, header, k);
     if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
     sizes[k].fields = chunk.total_size();
     if (header.flags & kHasTexture) {

@@ -352,6 +352,11 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.selection_history = chosen.history;
   report.grid = encoder.choose_grid();
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
+  if (options.predicted_fields) {
+    const auto start = std::chrono::steady_clock::now();
+    report.field_coding = choose_field_coding(sequence, options.field_precision, &report.field_precision);
+    report.seconds_precision = seconds_since(start);
+  }
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const MappedFrame& frame = encoder.frame(i);
     const DiskRegistration& registration = encoder.registration(i);

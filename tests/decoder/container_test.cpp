@@ -59,6 +59,16 @@ SequenceFileMetadata small_metadata() {
   return m;
 }
 
+// The same with the predicted coding of format 1.1: every array on its own step, an intra keyframe
+// every second one.
+SequenceFileMetadata predicted_metadata() {
+  SequenceFileMetadata m = small_metadata();
+  m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
+  m.field_coding.steps[kScalarArrayCount] = 1e-3;
+  m.field_coding.intra_period = 2;
+  return m;
+}
+
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   EXPECT_EQ(a.size(), b.size());
   double d = 0;
@@ -135,7 +145,8 @@ TEST(Container, GeometryOnlyAndHoleFreeSequencesRoundTrip) {
 // Every prefix of a file is refused as truncated (or, where the cut lands in the magic, as not a
 // container), never read past its end.
 TEST(Container, EveryTruncationIsNamed) {
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata()}) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   for (size_t size = 0; size < bytes.size(); ++size) {
     const std::span<const uint8_t> prefix(bytes.data(), size);
     try {
@@ -146,12 +157,14 @@ TEST(Container, EveryTruncationIsNamed) {
       EXPECT_NE(std::string(e.what()).find("cut.fmv"), std::string::npos);
     }
   }
+  }
 }
 
 // Flipping any byte is caught: by a checksum within a chunk, or as an impossible value in the
 // preamble and the chunk headers. Never a crash, never a file read as good.
 TEST(Container, EveryByteFlipIsNamed) {
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata()}) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   const format::ContainerReader reader(bytes, "good.fmv");
   for (size_t at = 0; at < bytes.size(); ++at) {
     std::vector<uint8_t> damaged = bytes;
@@ -169,6 +182,7 @@ TEST(Container, EveryByteFlipIsNamed) {
     std::vector<uint8_t> damaged = bytes;
     damaged[chunk.offset + format::kChunkHeaderBytes + chunk.stored.size() / 2] ^= 1;
     testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk " + chunk.type, [&] { decode_sequence_file(damaged, "f.fmv"); });
+  }
   }
 }
 
@@ -208,6 +222,76 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
   return writer.finish();
 }
 
+// Format 1.1: values stored as exact multiples of their steps, so what the encoder rounded is
+// what every decoder reads, to the bit; keyframes predicted from the previous one only between
+// intra keyframes.
+TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
+  const Sequence s = small_sequence();
+  const SequenceFileMetadata m = predicted_metadata();
+  Sequence rounded = s;
+  for (Keyframe& key : rounded.keyframes) round_to_field_steps(key, m.field_coding);
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  EXPECT_EQ(encode_sequence_file(rounded, m), bytes);  // rounding twice changes nothing
+  SequenceFileInfo info;
+  const Sequence back = decode_sequence_file(bytes, "p.fmv", &info);
+  EXPECT_EQ(info.minor_version, 1);
+  EXPECT_EQ(info.metadata.field_coding.steps, m.field_coding.steps);
+  EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
+  ASSERT_EQ(back.keyframes.size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    const auto original = scalar_arrays(s.keyframes[k].fields), stored = scalar_arrays(rounded.keyframes[k].fields),
+               read = scalar_arrays(back.keyframes[k].fields);
+    for (size_t a = 0; a < kScalarArrayCount; ++a) {
+      EXPECT_EQ(read[a], stored[a]) << "keyframe " << k << " array " << a;
+      EXPECT_LE(max_difference(original[a], stored[a]), 0.5 * m.field_coding.steps[a] * (1 + 1e-9)) << a;
+    }
+    EXPECT_EQ(back.keyframes[k].hole_level, rounded.keyframes[k].hole_level);
+    EXPECT_LE(max_difference(s.keyframes[k].hole_level, back.keyframes[k].hole_level), 0.5e-3 * (1 + 1e-9));
+  }
+  const format::ContainerReader reader(bytes, "p.fmv");
+  int predicted_chunks = 0;
+  for (const format::ChunkView& c : reader.chunks()) {
+    EXPECT_NE(c.type, "KEYF");
+    if (c.type != "KEYP") continue;
+    const std::vector<uint8_t> payload = reader.payload(c);
+    if (payload[0] == 2) {
+      EXPECT_EQ(payload[108], 0) << "keyframe 2 starts a period: intra";
+    }
+    ++predicted_chunks;
+  }
+  EXPECT_EQ(predicted_chunks, 3);
+  // Steps that cannot code a value are the writer's error, not a broken file.
+  SequenceFileMetadata tiny = m;
+  tiny.field_coding.steps[10] = 1e-300;
+  testing::expect_error(ErrorCode::kInvalidArgument, "2^30 steps", [&] { encode_sequence_file(s, tiny); });
+  tiny.field_coding.steps.pop_back();
+  testing::expect_error(ErrorCode::kInvalidArgument, "one step per keyframe array", [&] { encode_sequence_file(s, tiny); });
+}
+
+TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata());
+  // Payload layout: number (4), time (8), rotation (72), translation (24), reference (1) at 108,
+  // array count (4), then per array a length (4) and a predictor (1): array a's at 117 + 5a.
+  const auto patch_first = [](size_t at, uint8_t value) {
+    return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "KEYP" && payload[0] == 0) payload[at] = value;
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "refers to the previous one", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 1)), "r.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "unknown reference 7", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 7)), "r.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(117, 9)), "p.fmv"); });
+  // The band vectors (array 4) are no lattice: a lattice predictor there cannot be decoded.
+  testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_first(117 + 20, 2)), "p.fmv"); });
+  // A 1.0 keyframe chunk where the header announces the predicted coding.
+  const std::vector<uint8_t> planes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  const auto predicted_header = [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "HEAD") return;
+    const format::ContainerReader predicted(bytes, "p");
+    payload = predicted.payload(predicted.chunks()[0]);
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "not KEYP", [&] { decode_sequence_file(rebuild(planes, predicted_header), "mixed.fmv"); });
+}
+
 TEST(Container, UnknownChunksAreSkippedUnlessCritical) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   const auto same = [](const std::string&, std::vector<uint8_t>&) {};
@@ -236,7 +320,7 @@ TEST(Container, ForeignFilesAndOtherVersionsAreRefused) {
   v2[8] = 2;
   const uint32_t crc = format::crc32(std::span(v2).first(12));
   for (int i = 0; i < 4; ++i) v2[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
-  testing::expect_error(ErrorCode::kUnsupported, "format version 2.0", [&] { decode_sequence_file(v2, "v2.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "format version 2.1", [&] { decode_sequence_file(v2, "v2.fmv"); });
   // A grid built by another rule, or another hash: the file would decode differently here.
   for (size_t at : {size_t{4}, size_t{8}}) {
     const auto other_grid = [at](const std::string& type, std::vector<uint8_t>& payload) {

@@ -32,13 +32,16 @@ std::vector<double> sample_times(const Sequence& s) {
   return times;
 }
 
-TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) {
+// Decodes tests/data/golden_v<version>.fmv at its sample times and compares with the positions it
+// decoded to when it was written (golden_v<version>.csv). Every later decoder must keep decoding
+// every earlier file identically.
+void expect_golden(const std::string& version, uint16_t minor_version, const std::string& encoder) {
   const std::filesystem::path data = FACEMORPH_TEST_DATA;
   SequenceFileInfo info;
-  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(data / "golden_v1_0.fmv", &info));
+  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(data / ("golden_v" + version + ".fmv"), &info));
   EXPECT_EQ(info.major_version, 1);
-  EXPECT_EQ(info.minor_version, 0);
-  EXPECT_EQ(info.metadata.encoder, "facemorph 0.2.0");
+  EXPECT_EQ(info.minor_version, minor_version);
+  EXPECT_EQ(info.metadata.encoder, encoder);
   SequenceDecoder decoder(sequence);
   DecodeOptions options;
   options.reconstruct.tolerance = 1e-10;  // tight, so the comparison measures the format, not the solver's stopping point
@@ -58,8 +61,8 @@ TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) {
     format::write_file_atomically(out, std::string_view(fresh.str()));
     GTEST_SKIP() << "wrote " << out;
   }
-  std::ifstream in(data / "golden_v1_0.csv");
-  ASSERT_TRUE(in) << "tests/data/golden_v1_0.csv is missing";
+  std::ifstream in(data / ("golden_v" + version + ".csv"));
+  ASSERT_TRUE(in) << "tests/data/golden_v" << version << ".csv is missing";
   std::string line;
   size_t row = 0;
   double worst = 0;
@@ -79,6 +82,11 @@ TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) {
   // summation order move the result far less than this, a change of format or method far more.
   EXPECT_LT(worst, 1e-6);
 }
+
+TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) { expect_golden("1_0", 0, "facemorph 0.2.0"); }
+
+// Format 1.1: fields as predicted integer multiples of their steps (KEYP).
+TEST(GoldenFile, Version1_1DecodesAsItDidWhenWritten) { expect_golden("1_1", 1, "facemorph 0.3.0"); }
 
 }  // namespace
 }  // namespace facemorph

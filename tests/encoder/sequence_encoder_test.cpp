@@ -4,6 +4,7 @@
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/reconstruct.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "facemorph/topology.hpp"
 
@@ -12,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <numbers>
 
 namespace facemorph {
@@ -79,6 +81,8 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
   const Sequence sequence = encode_capture(capture, options, &report);
   SequenceFileMetadata metadata;
   metadata.landmark_names = capture.landmark_names;
+  metadata.field_coding = report.field_coding;  // as fmenc writes it
+  ASSERT_TRUE(metadata.field_coding.predicted());
   const auto path = dir.path() / "capture.fmv";
   write_sequence_file(path, sequence, metadata);
   SequenceDecoder memory(std::make_shared<const Sequence>(sequence));
@@ -98,6 +102,65 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
     const double psnr = 10 * std::log10(255.0 * 255.0 / (error / static_cast<double>(a.texture.pixels.size())));
     EXPECT_GT(psnr, 30) << "frame " << i;
   }
+}
+
+// The fields' rounding is chosen from the decoded surface: every keyframe decoded from its rounded
+// fields stays within the target of the one decoded from its exact fields, and a looser target
+// costs fewer bytes.
+TEST(FieldPrecision, RoundingMeetsItsTargetInTheDecodedSurface) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir, 0);
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 49;
+  options.texture = false;
+  options.predicted_fields = false;  // fields as computed (16-bit: far finer than any target here)
+  const Sequence exact = encode_capture(capture, options);
+  Reconstructor reconstructor(exact.grid_n);
+  ReconstructOptions tight;
+  tight.tolerance = 1e-9;
+  tight.max_iterations = 500;
+  const size_t planes = encode_sequence_file(exact, {}).size();
+  size_t previous_bytes = planes;
+  for (double target : {1e-5, 1e-4, 1e-3}) {
+    Sequence rounded = exact;
+    FieldPrecisionReport report;
+    SequenceFileMetadata metadata;
+    metadata.field_coding = choose_field_coding(rounded, {target, 4}, &report);
+    ASSERT_EQ(report.keyframe_errors.size(), exact.keyframes.size());
+    for (size_t k = 0; k < exact.keyframes.size(); ++k) {
+      reconstructor.forget_warm_start();
+      const std::vector<Vec3> a = reconstructor.reconstruct(exact.keyframes[k].fields, tight).positions;
+      reconstructor.forget_warm_start();
+      const std::vector<Vec3> b = reconstructor.reconstruct(rounded.keyframes[k].fields, tight).positions;
+      double sum = 0;
+      Vec3 lo = a.front(), hi = a.front();
+      for (size_t n = 0; n < a.size(); ++n) {
+        sum += (a[n] - b[n]).squaredNorm();
+        lo = lo.cwiseMin(a[n]);
+        hi = hi.cwiseMax(a[n]);
+      }
+      const double error = std::sqrt(sum / static_cast<double>(a.size())) / (hi - lo).norm();
+      EXPECT_LE(error, 1.25 * target) << "keyframe " << k << " at target " << target;
+      EXPECT_GT(error, 0.02 * target) << "keyframe " << k << ": the steps could be far coarser";
+      EXPECT_NEAR(error, report.keyframe_errors[k], 0.1 * target) << k;
+    }
+    const size_t bytes = encode_sequence_file(rounded, metadata).size();
+    EXPECT_LT(bytes, previous_bytes) << "target " << target;
+    previous_bytes = bytes;
+  }
+  // Error diffusion leaves high-pass rounding error, which the reconstruction smooths: at the same
+  // measured error it affords coarser steps than rounding each value to its nearest step.
+  std::map<bool, size_t> bytes;
+  for (bool shaped : {false, true}) {
+    Sequence rounded = exact;
+    SequenceFileMetadata metadata;
+    metadata.field_coding = choose_field_coding(rounded, {1e-4, 8, shaped});
+    bytes[shaped] = encode_sequence_file(rounded, metadata).size();
+  }
+  EXPECT_LT(bytes[true], bytes[false]);
+  Sequence copy = exact;
+  testing::expect_error(ErrorCode::kInvalidArgument, "target error", [&] { choose_field_coding(copy, {0.0, 8}); });
 }
 
 TEST(SequenceEncoder, HolesOfAFrameBecomeALevelSetAroundTheirOutline) {

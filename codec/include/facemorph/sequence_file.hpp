@@ -13,12 +13,30 @@
 
 namespace facemorph {
 
+// The arrays a keyframe stores, in the file's order: scalar_arrays(fields), then the hole level.
+inline constexpr size_t kKeyframeArrayCount = kScalarArrayCount + 1;
+
+// How a file codes its keyframes' fields (spec/container.md §7).
+struct FieldCoding {
+  // Empty: every array in 16-bit fixed point over its own range, as code planes (format 1.0's KEYF).
+  // Otherwise one step per keyframe array (kKeyframeArrayCount; any positive value for an array the
+  // representation leaves empty): each value is stored as the nearest integer multiple of its step,
+  // predicted from the previous keyframe and from its neighbours on G (format 1.1's KEYP). The
+  // encoder chooses the steps from the error they cause in the decoded surface (field_precision.hpp).
+  std::vector<double> steps;
+  // Every intra_period-th keyframe (0, P, 2P, ...) is coded without the previous one, so decoding
+  // any keyframe needs at most P - 1 others. 1: every keyframe on its own.
+  int intra_period = 8;
+  bool predicted() const { return !steps.empty(); }
+};
+
 // What a file says about itself besides the sequence.
 struct SequenceFileMetadata {
   std::string encoder;                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
   std::string settings;                     // the encoder's settings (JSON text)
   std::vector<std::string> landmark_names;  // of the capture, for players that show them
   int texture_quality = 90;                 // WebP quality 0..100 (above 100: lossless)
+  FieldCoding field_coding;                 // the writer's; the reader reports the file's
 };
 
 struct SequenceFileInfo {
@@ -41,8 +59,15 @@ struct SequenceFileInfo {
   std::vector<KeyframeBytes> keyframes;
 };
 
-// The file's bytes. Fields are quantised to 16 bits (spec/method.md §5.3), textures encoded as WebP
-// at metadata.texture_quality. Throws kInvalidArgument for a sequence validate_sequence rejects.
+// The keyframe's fields and hole level rounded to the multiples of `coding`'s steps: exactly what a
+// file with that coding stores, so an encoder that keeps these values decodes from memory what a
+// player decodes from the file. Throws kInvalidArgument for steps that are not kKeyframeArrayCount
+// finite positive numbers, or a value more than 2³⁰ steps from 0.
+void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
+
+// The file's bytes. Fields are coded as metadata.field_coding says (16-bit code planes when it has
+// no steps; spec/method.md §5.3), textures encoded as WebP at metadata.texture_quality. Throws
+// kInvalidArgument for a sequence validate_sequence rejects, or a coding round_to_field_steps does.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
 
 // Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,

@@ -11,6 +11,7 @@
 
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/registration.hpp"
@@ -38,6 +39,10 @@ struct EncodeOptions {
   int reference_frame = 0;          // the frame every other is registered to
   int threads = 0;                  // 0: one per core
   ConformalOptions conformal;
+  // --field-error: the RMS displacement of a decoded keyframe that rounding its fields may cause
+  // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).
+  FieldPrecisionOptions field_precision;
+  bool predicted_fields = true;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -64,7 +69,9 @@ struct EncodeReport {
   int grid = 0;
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
   int registration_fallbacks = 0;
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0;
+  FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
+  FieldPrecisionReport field_precision;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0;
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)

@@ -1,0 +1,222 @@
+#include "facemorph/encoder/field_precision.hpp"
+
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/reconstruct.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace facemorph {
+
+namespace {
+
+// The groups of scalar_arrays that share a step: H; log λ; a and b; the band vectors; positions;
+// the boundary curve. (The hole level, array 13, does not move the surface.)
+const std::vector<std::vector<size_t>> kGroups = {{0}, {1}, {2, 3}, {4, 5, 6}, {7, 8, 9}, {10, 11, 12}};
+constexpr double kHoleStepPerCell = 1.0 / 16.0;
+constexpr double kTolerance = 1.25;  // a keyframe may exceed the target by this factor before steps shrink
+constexpr int kMaxRefinements = 6;
+
+ReconstructOptions tight() {
+  ReconstructOptions o;
+  o.tolerance = 1e-8;  // far under the errors measured (1e-5 .. 1e-3 of the diagonal)
+  o.max_iterations = 400;
+  return o;
+}
+
+double diagonal(const std::vector<Vec3>& points) {
+  Vec3 lo = points.front(), hi = points.front();
+  for (const Vec3& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return (hi - lo).norm();
+}
+
+double rms_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  double sum = 0;
+  for (size_t i = 0; i < a.size(); ++i) sum += (a[i] - b[i]).squaredNorm();
+  return std::sqrt(sum / static_cast<double>(a.size()));
+}
+
+// The keyframe's surface decoded from its exact fields, and from them rounded to `steps`
+// (starting there: the two differ by the rounding only).
+struct Decoded {
+  std::vector<Vec3> exact;
+  double diagonal = 0;
+};
+
+Decoded decode_exact(Reconstructor& reconstructor, const Keyframe& key) {
+  reconstructor.forget_warm_start();
+  Decoded d;
+  d.exact = reconstructor.reconstruct(key.fields, tight()).positions;
+  d.diagonal = diagonal(d.exact);
+  return d;
+}
+
+double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const Decoded& exact) {
+  ReconstructOptions o = tight();
+  o.start = &exact.exact;
+  const std::vector<Vec3> positions = reconstructor.reconstruct(rounded, o).positions;
+  return rms_distance(positions, exact.exact) / exact.diagonal;
+}
+
+// Rounds arrays to multiples of their steps. Per-node arrays on G's interior are rounded with error
+// diffusion (Floyd–Steinberg over the lattice, in node order): each node's rounding error is
+// passed on to the neighbours not yet rounded, so the error left is high-pass. The reconstruction
+// integrates the fields twice (Δ⁻¹ damps a wave of k cycles by 1/k²), so high-pass error barely
+// moves the surface, and the same decoded error allows far larger steps than plain rounding.
+// Only the encoder's choice of integers changes; the decoder reads integers as before.
+class FieldRounder {
+ public:
+  FieldRounder(int grid_n, bool shaped) : grid_(make_disk_grid(grid_n)), shaped_(shaped) {}
+
+  void round(std::vector<double>& values, double step) const {
+    if (!shaped_ || values.size() != static_cast<size_t>(grid_.interior_count)) {
+      for (double& v : values) v = step * std::nearbyint(v / step);
+      return;
+    }
+    std::vector<double> carried(values.size(), 0.0);
+    constexpr std::array<std::array<int, 3>, 4> kSpread = {{{1, 0, 7}, {-1, 1, 3}, {0, 1, 5}, {1, 1, 1}}};  // (di, dj, sixteenths)
+    for (size_t n = 0; n < values.size(); ++n) {
+      const double wanted = values[n] + carried[n];
+      const double rounded = step * std::nearbyint(wanted / step);
+      const double error = wanted - rounded;
+      values[n] = rounded;
+      const auto [i, j] = grid_.cell[n];
+      // Weights of the neighbours that exist renormalised, so the rim loses no error to outside G.
+      double weight = 0;
+      for (const auto& [di, dj, w] : kSpread) weight += grid_.node(i + di, j + dj) >= 0 ? w : 0;
+      if (weight == 0) continue;
+      for (const auto& [di, dj, w] : kSpread) {
+        const int32_t m = grid_.node(i + di, j + dj);
+        if (m >= 0) carried[static_cast<size_t>(m)] += error * w / weight;
+      }
+    }
+  }
+
+  GridFields rounded(const GridFields& fields, const std::vector<size_t>& which, const std::vector<double>& steps) const {
+    std::vector<std::vector<double>> arrays = scalar_arrays(fields);
+    for (size_t a : which) round(arrays[a], steps[a]);
+    return fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
+  }
+
+  // The keyframe as the file will hold it: every array on its step.
+  void round(Keyframe& key, const FieldCoding& coding) const {
+    std::vector<size_t> all(kScalarArrayCount);
+    for (size_t a = 0; a < all.size(); ++a) all[a] = a;
+    key.fields = rounded(key.fields, all, coding.steps);
+    round_to_field_steps(key, coding);  // exact multiples, and the hole level
+  }
+
+ private:
+  DiskGrid grid_;
+  bool shaped_;
+};
+
+double rounding_error(Reconstructor& reconstructor, const FieldRounder& rounder, const Keyframe& key, const Decoded& exact,
+                      const FieldCoding& coding) {
+  Keyframe rounded = key;
+  rounder.round(rounded, coding);
+  return decoded_error(reconstructor, rounded.fields, exact);
+}
+
+}  // namespace
+
+FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+  if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
+    throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
+  }
+  validate_sequence(sequence);
+  FieldCoding coding;
+  coding.intra_period = options.intra_period;
+  coding.steps.assign(kKeyframeArrayCount, 1.0);
+  coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
+  Reconstructor reconstructor(sequence.grid_n);
+  const FieldRounder rounder(sequence.grid_n, options.noise_shaping);
+
+  // Calibrate on keyframe 0: each group alone at a probe step, the rest exact.
+  const Keyframe& probe_key = sequence.keyframes.front();
+  const Decoded probe_exact = decode_exact(reconstructor, probe_key);
+  const std::vector<std::vector<double>> arrays = scalar_arrays(probe_key.fields);
+  std::vector<size_t> present;
+  for (size_t g = 0; g < kGroups.size(); ++g) {
+    for (size_t a : kGroups[g]) {
+      if (!arrays[a].empty()) {
+        present.push_back(g);
+        break;
+      }
+    }
+  }
+  // The budget's split: rounding a group of n values with step s costs about n (h - log2 s) bits
+  // and displaces the surface by e = c s, so the fewest bits for a total error sqrt(Σ e²) = T come
+  // with e_g² ∝ n_g (equal slopes): a group's share of the squared error is its share of the values.
+  size_t values = 0;
+  std::vector<size_t> group_values(kGroups.size(), 0);
+  for (size_t g : present) {
+    for (size_t a : kGroups[g]) group_values[g] += arrays[a].size();
+    values += group_values[g];
+  }
+  std::vector<double> group_steps(kGroups.size(), 0.0);
+  for (size_t g : present) {
+    const double share = options.target_error * std::sqrt(static_cast<double>(group_values[g]) / static_cast<double>(values));
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t a : kGroups[g]) {
+      for (double v : arrays[a]) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+    const double spread = std::max(hi - lo, 1e-300);
+    const double probe = spread / 4096;
+    const double error = decoded_error(reconstructor, rounder.rounded(probe_key.fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, probe)), probe_exact);
+    // Rounding error grows in proportion to the step while the step is small against the field's
+    // variation; the verification below catches where it does not.
+    group_steps[g] = error > 0 ? std::min(probe * share / error, spread) : spread;
+  }
+  auto apply = [&](double scale) {
+    for (size_t g : present) {
+      for (size_t a : kGroups[g]) coding.steps[a] = group_steps[g] * scale;
+    }
+  };
+
+  // Verify on every keyframe and rescale every step until the worst keyframe lies within
+  // [0.8, 1.25] of the target (the calibration's linear model is only a model); keep the coarsest
+  // scale that met the target.
+  std::vector<Decoded> exact;
+  for (const Keyframe& key : sequence.keyframes) exact.push_back(&key == &probe_key ? probe_exact : decode_exact(reconstructor, key));
+  double scale = 1, best_scale = 0;
+  std::vector<double> errors(sequence.keyframes.size()), best_errors;
+  int refinements = 0;
+  for (;; ++refinements) {
+    apply(scale);
+    for (size_t k = 0; k < errors.size(); ++k) errors[k] = rounding_error(reconstructor, rounder, sequence.keyframes[k], exact[k], coding);
+    const double worst = *std::max_element(errors.begin(), errors.end());
+    if (worst <= kTolerance * options.target_error && scale > best_scale) {
+      best_scale = scale;
+      best_errors = errors;
+    }
+    if ((worst <= kTolerance * options.target_error && worst >= 0.8 * options.target_error) || refinements == kMaxRefinements) break;
+    scale *= 0.95 * options.target_error / std::max(worst, 1e-300);
+  }
+  if (best_scale == 0) {
+    throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) + " in " +
+                                              std::to_string(kMaxRefinements) + " refinements");
+  }
+  scale = best_scale;
+  errors = best_errors;
+  apply(scale);
+  for (Keyframe& key : sequence.keyframes) rounder.round(key, coding);
+  if (report) {
+    report->group_steps = group_steps;
+    for (double& s : report->group_steps) s *= scale;
+    report->keyframe_errors = errors;
+    report->refinements = refinements;
+  }
+  return coding;
+}
+
+}  // namespace facemorph

@@ -1,0 +1,41 @@
+// How finely a keyframe's fields are stored (spec/method.md §5.3): the quantisation steps chosen
+// from the error they cause in the decoded surface, not from each field's own range. H, log λ, the
+// tangential components, the band vectors and the boundary curve disturb the reconstruction very
+// differently (a step in H is integrated twice; a step in the rim moves the surface directly), so
+// each group of arrays gets the step that makes its share of the error equal.
+#pragma once
+
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include <vector>
+
+namespace facemorph {
+
+struct FieldPrecisionOptions {
+  // The RMS displacement of a keyframe's decoded surface that rounding may cause, as a fraction of
+  // its bounding box diagonal (spread evenly over the groups of arrays). 1e-4 is a tenth of a
+  // millimetre on a 25 cm head: far under the spline's error between keyframes.
+  double target_error = 1e-4;
+  int intra_period = 8;  // FieldCoding::intra_period
+  // Round per-node fields with error diffusion, pushing the rounding error to high frequencies the
+  // reconstruction smooths away (see field_precision.cpp); false: each value to its nearest step.
+  bool noise_shaping = true;
+};
+
+struct FieldPrecisionReport {
+  std::vector<double> group_steps;      // per group: H, log λ, tangential, band, positions, rim (0: absent)
+  std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
+  int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
+};
+
+// Chooses the steps on keyframe 0 (a probe step per group, decoded, scaled to the target: rounding
+// error is proportional to the step), rounds every keyframe of `sequence` to them
+// (round_to_field_steps), measures every keyframe's decoded error and rescales all steps until the
+// worst keyframe lies within [0.8, 1.25] of the target (the coarsest that met it is kept; none:
+// kNotConverged). The hole level's step is a sixteenth of G's spacing.
+// Throws kInvalidArgument for a target that is not positive and finite, and what reconstruction
+// throws for fields it cannot decode.
+FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
+
+}  // namespace facemorph
