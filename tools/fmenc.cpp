@@ -70,7 +70,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report,
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
           {"reference_frame", o.reference_frame},
-          {"field_error", o.predicted_fields ? nlohmann::json(o.field_precision.target_error) : nlohmann::json(nullptr)},
+          {"field_error", o.predicted_fields ? nlohmann::json(report.field_precision.target_error) : nlohmann::json(nullptr)},
+          {"field_error_auto", o.predicted_fields && o.auto_field_error},
           {"intra_period", o.field_precision.intra_period},
           {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"}};
 }
@@ -82,7 +83,7 @@ int main(int argc, char** argv) {
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "hl+t", landmarks;
   double fps = 0;
-  std::string field_error = "0.01%", field_rounding = "shaped";
+  std::string field_error = "auto", field_rounding = "shaped";
   int texture_size = 1024, quality = 90, threads = 0, reference = 0, intra_period = 8;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
@@ -101,7 +102,8 @@ int main(int argc, char** argv) {
   app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
   app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", field_error,
-                 "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); 0: 16-bit fields (format 1.0)")
+                 "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: a tenth of the "
+                 "predicted error between keyframes, within [0.005%, 0.05%]; 0: 16-bit fields (format 1.0)")
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--intra-period", intra_period, "Every P-th keyframe coded without the previous one (random access)")->capture_default_str();
@@ -136,7 +138,8 @@ int main(int argc, char** argv) {
     options.threads = threads;
     options.reference_frame = reference;
     options.predicted_fields = field_error != "0";
-    if (options.predicted_fields) options.field_precision.target_error = parse_fraction(field_error, "--field-error");
+    options.auto_field_error = field_error == "auto";
+    if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = parse_fraction(field_error, "--field-error");
     if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "--intra-period must be at least 1");
     options.field_precision.intra_period = intra_period;
     if (field_rounding != "shaped" && field_rounding != "nearest") {
@@ -183,8 +186,8 @@ int main(int argc, char** argv) {
     std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
     if (report.field_coding.predicted()) {
       const std::vector<double>& e = report.field_precision.keyframe_errors;
-      std::printf("  fields rounded to %.3g%% of the diagonal (RMS; worst keyframe %.3g%%), intra every %d keyframes\n",
-                  100 * options.field_precision.target_error, 100 * *std::max_element(e.begin(), e.end()), report.field_coding.intra_period);
+      std::printf("  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes\n",
+                  100 * report.field_precision.target_error, options.auto_field_error ? " (auto)" : "", 100 * *std::max_element(e.begin(), e.end()), report.field_coding.intra_period);
     }
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,

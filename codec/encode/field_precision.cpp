@@ -211,6 +211,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   apply(scale);
   for (Keyframe& key : sequence.keyframes) rounder.round(key, coding);
   if (report) {
+    report->target_error = options.target_error;
     report->group_steps = group_steps;
     for (double& s : report->group_steps) s *= scale;
     report->keyframe_errors = errors;

@@ -341,6 +341,24 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   return sequence;
 }
 
+namespace {
+
+// --field-error auto: a tenth of the mean predicted error of the frames between keyframes.
+double auto_field_error(const KeyframeSelection& chosen) {
+  constexpr double kShare = 0.1, kLowest = 5e-5, kHighest = 5e-4;
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) {
+      sum += e;
+      ++count;
+    }
+  }
+  return count == 0 ? 1e-4 : std::clamp(kShare * sum / count, kLowest, kHighest);
+}
+
+}  // namespace
+
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
@@ -354,7 +372,9 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) {
     const auto start = std::chrono::steady_clock::now();
-    report.field_coding = choose_field_coding(sequence, options.field_precision, &report.field_precision);
+    FieldPrecisionOptions precision = options.field_precision;
+    if (options.auto_field_error) precision.target_error = auto_field_error(chosen);
+    report.field_coding = choose_field_coding(sequence, precision, &report.field_precision);
     report.seconds_precision = seconds_since(start);
   }
   for (int i = 0; i < encoder.frame_count(); ++i) {

@@ -24,6 +24,7 @@ struct FieldPrecisionOptions {
 };
 
 struct FieldPrecisionReport {
+  double target_error = 0;              // the target it was given
   std::vector<double> group_steps;      // per group: H, log λ, tangential, band, positions, rim (0: absent)
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe

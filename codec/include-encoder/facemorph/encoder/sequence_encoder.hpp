@@ -43,6 +43,10 @@ struct EncodeOptions {
   // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).
   FieldPrecisionOptions field_precision;
   bool predicted_fields = true;
+  // --field-error auto (the default): the target is a tenth of the mean error the spline is predicted
+  // to make between keyframes, within [0.005%, 0.05%] of the diagonal, so rounding adds under 0.5% to
+  // that error (in quadrature) whether the capture is clean or noisy; false: field_precision's target.
+  bool auto_field_error = true;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
