@@ -359,6 +359,15 @@ double auto_field_error(const KeyframeSelection& chosen) {
 
 }  // namespace
 
+FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
+  const auto start = std::chrono::steady_clock::now();
+  FieldPrecisionOptions precision = options_.field_precision;
+  if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
+  FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
+  report_.seconds_precision = seconds_since(start);
+  return coding;
+}
+
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
@@ -370,13 +379,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.selection_history = chosen.history;
   report.grid = encoder.choose_grid();
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
-  if (options.predicted_fields) {
-    const auto start = std::chrono::steady_clock::now();
-    FieldPrecisionOptions precision = options.field_precision;
-    if (options.auto_field_error) precision.target_error = auto_field_error(chosen);
-    report.field_coding = choose_field_coding(sequence, precision, &report.field_precision);
-    report.seconds_precision = seconds_since(start);
-  }
+  if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const MappedFrame& frame = encoder.frame(i);
     const DiskRegistration& registration = encoder.registration(i);

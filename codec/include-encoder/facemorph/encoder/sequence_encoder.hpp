@@ -103,6 +103,10 @@ class SequenceEncoder {
   int choose_grid();        // 5. N (options().grid, or automatic)
   // 6. the keyframes on G: fields, poses, holes, textures.
   Sequence build(const std::vector<int>& keyframes, int grid);
+  // 7. the fields rounded as the file will store them (options().field_precision, or with
+  // auto_field_error a tenth of `chosen`'s mean predicted error): what a file written with the
+  // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
+  FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
 
   EncodeOptions& options() { return options_; }
   const Capture& capture() const { return capture_; }
