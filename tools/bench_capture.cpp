@@ -784,7 +784,12 @@ json measure_capture(Context& context, const std::string& input) {
   }
 
   std::ostringstream report;
-  report << "## " << label << "\n\n" << folder->string() << ": " << count << " frames at " << fixed(capture.fps, 3) << " fps (" << fixed(duration, 2)
+  const bool synthetic = input == "synth" || input.rfind("synth:", 0) == 0;
+  const std::string source = synthetic ? "made by fmsynth --frames " + std::to_string(plan.synth.frames) + " --vertices " + std::to_string(plan.synth.vertices) +
+                                             " --remesh --expression mixed (noise " + fixed(plan.synth.noise, 4) + " m, texture " +
+                                             std::to_string(plan.synth.texture_size) + ")"
+                                       : folder->string();
+  report << "## " << label << "\n\n" << source << ": " << count << " frames at " << fixed(capture.fps, 3) << " fps (" << fixed(duration, 2)
          << " s), " << fixed(double(vertex_frames) / frames, 0) << " vertices per frame" << (textured ? ", textured" : ", no texture") << ".\n\n";
   report << "### Rate\n\n| | |\n| --- | --- |\n| file | " << main.bytes << " bytes (" << main_keys.size() << " keyframes of " << count << ", N = " << grid
          << ") |\n| per second | " << fixed(fm_total / duration, 0) << " B/s (" << fixed(8 * fm_total / duration / 1000, 1) << " kbit/s) |\n"
