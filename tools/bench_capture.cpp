@@ -529,12 +529,17 @@ json measure_capture(Context& context, const std::string& input) {
     for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame
     return out;
   };
-  auto encode_file = [&](const std::vector<int>& keyframes, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
+  // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
+  // (format 1.1; fmenc's default), the file written and read back.
+  auto encode_file = [&](const KeyframeSelection& chosen, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
+    const bool xyz_variant = representation == Representation::kXYZ && encode.representation != Representation::kXYZ;
     encoder.options().representation = representation;
     Sequence sequence;
-    timed(representation == Representation::kXYZ ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(keyframes, grid); });
+    timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, grid); });
+    FieldCoding coding;
+    if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
-    timed(representation == Representation::kXYZ ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, 90, &bytes, &info); });
+    timed(xyz_variant ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, 90, &bytes, &info, coding); });
     return back;
   };
 
@@ -570,6 +575,7 @@ json measure_capture(Context& context, const std::string& input) {
   SequenceFileInfo main_info;
   Sequence main_sequence;
   std::vector<int> main_keys;
+  KeyframeSelection main_chosen;
   if (given) {
     for (const Keyframe& key : given->keyframes) {
       int nearest = 0;
@@ -578,14 +584,14 @@ json measure_capture(Context& context, const std::string& input) {
       }
       main_keys.push_back(nearest);
     }
+    main_chosen.keyframes = main_keys;  // without predicted errors the xyz variant gets auto field error's default (1e-4)
     main_sequence = *given;
     main_info = given_info;
     main_bytes.resize(given_info.file_bytes);
   } else {
-    KeyframeSelection chosen;
-    timed("selection", [&] { chosen = encoder.select_keyframes(); });
-    main_keys = chosen.keyframes;
-    main_sequence = encode_file(main_keys, encode.representation, main_bytes, main_info);
+    timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
+    main_keys = main_chosen.keyframes;
+    main_sequence = encode_file(main_chosen, encode.representation, main_bytes, main_info);
   }
   const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
     for (int d = 0; d < count; ++d) {
@@ -610,7 +616,7 @@ json measure_capture(Context& context, const std::string& input) {
   // Facemorph's xyz variant: the same keyframes, grid and spline.
   std::vector<uint8_t> xyz_bytes;
   SequenceFileInfo xyz_info;
-  const Sequence xyz_sequence = encode_file(main_keys, Representation::kXYZ, xyz_bytes, xyz_info);
+  const Sequence xyz_sequence = encode_file(main_chosen, Representation::kXYZ, xyz_bytes, xyz_info);
   const Encoded xyz = measure("facemorph xyz", main.budget, main_keys, xyz_sequence, xyz_bytes.size(), xyz_info, false);
   encoder.options().representation = encode.representation;
 
@@ -626,9 +632,9 @@ json measure_capture(Context& context, const std::string& input) {
     const KeyframeSelection chosen = encoder.select_keyframes();
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
-    const Sequence sequence = encode_file(chosen.keyframes, encode.representation, bytes, info);
+    const Sequence sequence = encode_file(chosen, encode.representation, bytes, info);
     curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
-    const Sequence xyz_at = encode_file(chosen.keyframes, Representation::kXYZ, bytes, info);
+    const Sequence xyz_at = encode_file(chosen, Representation::kXYZ, bytes, info);
     xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));
     encoder.options().representation = encode.representation;
     if (!options.quiet) std::fprintf(stderr, "fmbench --capture: %s: keyframe budget %g%% measured\n", label.c_str(), 100 * budget);
@@ -733,7 +739,7 @@ json measure_capture(Context& context, const std::string& input) {
   for (const std::string& t : targets) std::printf("  %s\n", t.c_str());
 
   double encode_seconds = 0;
-  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "file"}) encode_seconds += stage_seconds[stage];
+  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "field precision", "file"}) encode_seconds += stage_seconds[stage];
   std::printf("  speed: encode %.2f s per frame (", encode_seconds / frames);
   const char* separator = "";
   for (const auto& [stage, seconds] : stage_seconds) std::printf("%s%s %.2f s", std::exchange(separator, "; "), stage.c_str(), seconds);

@@ -39,8 +39,11 @@ std::optional<std::filesystem::path> make_bench_capture(const std::string& input
                                                         const SynthOptions& synth, const char* bench, bool quiet);
 
 // `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with
-// `texture_quality`, then decode_sequence_file. `bytes` and `info` (when given) describe the file.
-Sequence file_round_trip(const Sequence& sequence, int texture_quality, std::vector<uint8_t>* bytes = nullptr, SequenceFileInfo* info = nullptr);
+// `texture_quality` and `coding` (empty: format 1.0's code planes; fmenc's come from
+// SequenceEncoder::round_fields), then decode_sequence_file. `bytes` and `info` (when given)
+// describe the file.
+Sequence file_round_trip(const Sequence& sequence, int texture_quality, std::vector<uint8_t>* bytes = nullptr, SequenceFileInfo* info = nullptr,
+                         const FieldCoding& coding = {});
 
 struct FrameError {
   double rms = 0, max = 0;   // symmetric point-to-surface, relative to the captured frame's diagonal
