@@ -65,7 +65,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report,
           {"representation", representation_name(o.representation)},
           {"registration", registration_method_name(o.registration.method)},
           {"spline", spline_kind_name(o.spline)},
-          {"texture", o.texture ? o.texture_size : 0},
+          {"texture", o.texture ? (o.texture_size > 0 ? nlohmann::json(o.texture_size) : nlohmann::json("auto")) : nlohmann::json(0)},
+          {"texture_chosen", report.texture_size},
           {"texture_quality", quality},
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
@@ -84,7 +85,8 @@ int main(int argc, char** argv) {
                               representation = "hl+t", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped";
-  int texture_size = 1024, quality = 90, threads = 0, reference = 0, intra_period = 8;
+  std::string texture_size = "auto";
+  int quality = 90, threads = 0, reference = 0, intra_period = 8;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
@@ -95,7 +97,8 @@ int main(int argc, char** argv) {
   app.add_option("--keyframes", keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
   app.add_option("--max-error", max_error, "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
   app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (from the capture's resolution)")->capture_default_str();
-  app.add_option("--texture", texture_size, "Texels per side of the disk texture")->capture_default_str();
+  app.add_option("--texture", texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
+      ->capture_default_str();
   app.add_option("--quality", quality, "Texture quality (WebP, 0-100; above 100 lossless)")->capture_default_str();
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
@@ -129,7 +132,13 @@ int main(int argc, char** argv) {
     }
     if (quality < 0 || quality > 101) throw Error(ErrorCode::kInvalidArgument, "--quality " + std::to_string(quality) + " outside 0..101");
     options.texture = !no_texture;
-    options.texture_size = texture_size;
+    if (texture_size != "auto") {
+      try {
+        options.texture_size = std::stoi(texture_size);
+      } catch (const std::exception&) {
+        throw Error(ErrorCode::kInvalidArgument, "--texture '" + texture_size + "' is neither auto nor a number");
+      }
+    }
     options.registration.method = parse_registration_method(registration);
     options.spline = parse_spline_kind(spline);
     options.representation = parse_representation(representation);
@@ -178,7 +187,7 @@ int main(int argc, char** argv) {
     std::printf(" s\n");
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
-                sequence.has_texture() ? ", textured" : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+                sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);
     double worst = 0;

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <numbers>
 #include <cmath>
 #include <numeric>
 
@@ -59,6 +60,23 @@ bool inside_polygon(const Vec2& p, const std::vector<Vec2>& polygon) {
     if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
   }
   return inside;
+}
+
+// --texture auto: the disk texture as sharp as the captured one, not sharper. The face covers
+// `texels` of the captured image (its UV area); the disk shows them on π/4 M² texels, and the
+// conformal map shrinks some regions against others, so M is 1.5 times the equal-area size, rounded
+// up to a multiple of 64, within [128, 1024] (a 1024² disk already holds a 1024² texture's face).
+int auto_texture_size(const TriangleMesh& surface, int width, int height) {
+  constexpr double kMargin = 1.5;
+  constexpr int kLowest = 128, kHighest = 1024;
+  double area = 0;
+  for (const Face& f : surface.uv_faces) {
+    const Vec2 a = surface.uvs[static_cast<size_t>(f[0])], b = surface.uvs[static_cast<size_t>(f[1])], c = surface.uvs[static_cast<size_t>(f[2])];
+    area += 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+  }
+  const double texels = std::min(area, 1.0) * width * height;
+  const double side = kMargin * std::sqrt(texels * 4 / std::numbers::pi);
+  return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
 }
 
 }  // namespace
@@ -130,8 +148,8 @@ SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) 
   if (options_.grid != 0 && (options_.grid < kMinGridSize || options_.grid > kMaxGridSize)) {
     throw Error(ErrorCode::kInvalidArgument, "grid size N must be 0 (auto) or in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
   }
-  if (options_.texture && (options_.texture_size < 16 || options_.texture_size > 16383)) {
-    throw Error(ErrorCode::kInvalidArgument, "texture size must be in [16, 16383]");
+  if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
   }
 }
 
@@ -293,6 +311,13 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
       store_texture = false;
     }
   }
+  int texture_size = options_.texture_size;
+  if (store_texture && texture_size == 0) {
+    const auto first = static_cast<size_t>(keyframes.front());
+    const Image image = read_image(textures_[first]);
+    texture_size = auto_texture_size(frames_[first].map.surface, image.width, image.height);
+  }
+  report_.texture_size = store_texture ? texture_size : 0;
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
   // keyframes' folds, since the keyframes are blended together.
   std::vector<std::vector<Vec3>> local(keys);
@@ -325,7 +350,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
         if (store_texture) {
           const DiskRegistration& registration = registrations_[index];
-          key.texture = resample_texture(inverse, read_image(textures_[index]), options_.texture_size, [&](const Vec2& w) { return registration(w); });
+          key.texture = resample_texture(inverse, read_image(textures_[index]), texture_size, [&](const Vec2& w) { return registration(w); });
         }
       },
       [&](int done, int total) { progress("keyframes", done, total); });

@@ -104,6 +104,24 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
   }
 }
 
+// --texture auto: as sharp as the captured texture and no sharper. The small capture's 128² images
+// hold the face on part of their area; a 1024² disk would store mostly interpolated texels.
+TEST(SequenceEncoder, AutomaticTextureSizeFollowsTheCapturedTexture) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir, 0);
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 33;
+  options.texture_size = 0;
+  options.predicted_fields = false;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  EXPECT_GE(report.texture_size, 128);
+  EXPECT_LE(report.texture_size, 256);  // 1.5 x the equal-area side of at most 128² texels, rounded up to 64
+  EXPECT_EQ(report.texture_size % 64, 0);
+  EXPECT_EQ(sequence.keyframes.front().texture.width, report.texture_size);
+}
+
 // The fields' rounding is chosen from the decoded surface: every keyframe decoded from its rounded
 // fields stays within the target of the one decoded from its exact fields, and a looser target
 // costs fewer bytes.

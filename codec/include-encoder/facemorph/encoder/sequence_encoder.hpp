@@ -33,7 +33,7 @@ struct EncodeOptions {
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;
   bool texture = true;
-  int texture_size = 1024;          // M: texels per side of the disk texture
+  int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
   bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
   bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
   int reference_frame = 0;          // the frame every other is registered to
@@ -71,6 +71,7 @@ struct EncodeReport {
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int grid = 0;
+  int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
   int registration_fallbacks = 0;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
