@@ -47,7 +47,7 @@ namespace {
 struct Plan {
   SynthOptions synth;
   int frame_limit = 0;      // 0: every frame
-  int texture_size = 1024;  // fmenc's default
+  int texture_size = 0;     // fmenc's default: auto (as sharp as the capture's texture, at most 1024)
   int sample_frames = 15;   // frames the baselines' sweeps are measured on (the matched points on all)
   std::vector<double> budgets = {0.05, 0.10, 0.20, 0.30};
   std::vector<int> draco_qp = {3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 14};  // coarse to fine
