@@ -33,14 +33,16 @@ using nlohmann::json;
 
 namespace {
 
-// --through-file: every sequence is measured as a user gets it from fmenc and fmdec, written by
-// encode_sequence_file (16-bit fields, WebP textures at quality 90) and read back.
+// --through-file: every sequence is measured as a user gets it from fmenc and fmdec: its fields
+// rounded as fmenc rounds them (SequenceEncoder::round_fields, format 1.1), written by
+// encode_sequence_file with WebP textures at quality 90, and read back.
 bool through_file = false;
 
-Sequence stored(Sequence sequence, size_t* file_bytes = nullptr) {
+Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelection& chosen, size_t* file_bytes = nullptr) {
   if (!through_file) return sequence;
+  const FieldCoding coding = encoder.round_fields(sequence, chosen);
   std::vector<uint8_t> file;
-  Sequence back = file_round_trip(sequence, 90, &file);
+  Sequence back = file_round_trip(sequence, 90, &file, nullptr, coding);
   if (file_bytes) *file_bytes = file.size();
   return back;
 }
@@ -117,8 +119,8 @@ void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
   cmd->add_option("--plots", options.plots, "Folder for error-against-time plots (PNG), keyframes marked");
   cmd->add_flag("--through-file", through_file,
-                "Measure each sequence after writing it as a .fmv file and reading it back (as fmenc and fmdec: 16-bit fields, WebP "
-                "textures at quality 90); report the file's bytes");
+                "Measure each sequence after writing it as a .fmv file and reading it back (as fmenc and fmdec: fields rounded to "
+                "--field-error auto, WebP textures at quality 90); report the file's bytes");
   cmd->add_flag("--no-targets", options.no_targets, "Skip the keyframes-for-1%-and-0.5% searches");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
   cmd->footer("Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "
@@ -204,7 +206,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       energies_by_method.push_back(energies);
       const KeyframeSelection chosen = encoder.select_keyframes();
       size_t file_bytes = 0;
-      const Sequence sequence = stored(encoder.build(chosen.keyframes, grid), &file_bytes);
+      const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen, &file_bytes);
       Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, textured);
       print_evaluation(input, e);
       const double file_seconds = capture.duration() + 1.0 / capture.fps;
@@ -279,7 +281,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       for (SplineKind kind : splines) {
         encoder.options().spline = kind;
         const KeyframeSelection chosen = encoder.select_keyframes();
-        Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
+        Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
         const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
         print_evaluation(input, e);
         kinds.push_back(evaluation_json(e));
@@ -296,7 +298,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       so.spline = encoder.options().spline;
       so.pose_centre = encoder.pose_centre();
       const KeyframeSelection chosen = select_keyframes(head, encoder.selection_weights(), so);
-      const Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
+      const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
       const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
       const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, {last + 1, last + 3, last + 10}, false);
       json extrapolation = json::array();
@@ -320,7 +322,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         for (int attempt = 0; attempt < 4; ++attempt) {
           encoder.options().max_error = tolerance;
           const KeyframeSelection chosen = encoder.select_keyframes();
-          const Sequence sequence = stored(encoder.build(chosen.keyframes, grid));
+          const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
           const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
           const double worst = summarise(e).held_rms_worst;
           if (worst <= target || attempt == 3 || static_cast<int>(chosen.keyframes.size()) == count) {
