@@ -12,17 +12,7 @@ for program in draco_encoder draco_decoder ffmpeg; do
 done
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-failures=0
-fail() { echo "FAIL: $*" >&2; failures=$((failures + 1)); }
-expect_error() {  # expect_error "what" "message fragment" command...
-  local what=$1 fragment=$2
-  shift 2
-  if "$@" >"$work/out" 2>"$work/err"; then
-    fail "$what: succeeded"
-  elif ! grep -q -- "$fragment" "$work/err"; then
-    fail "$what: stderr lacks '$fragment': $(cat "$work/err")"
-  fi
-}
+source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 
 start=$(date +%s)
 "$fmbench" --capture synth --quick --quiet --json "$work/bench.json" --report "$work/report/report.md" | tee "$work/stdout" ||

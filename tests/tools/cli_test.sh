@@ -7,18 +7,7 @@ set -uo pipefail
 tools=${1:?usage: cli_test.sh TOOLS_DIR}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-failures=0
-fail() { echo "FAIL: $*" >&2; failures=$((failures + 1)); }
-# expect_error "what" "message fragment" command...: non-zero exit and the fragment on stderr.
-expect_error() {
-  local what=$1 fragment=$2
-  shift 2
-  if "$@" >"$work/out" 2>"$work/err"; then
-    fail "$what: succeeded"
-  elif ! grep -q -- "$fragment" "$work/err"; then
-    fail "$what: stderr lacks '$fragment': $(cat "$work/err")"
-  fi
-}
+source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 
 "$tools/fmsynth" -o "$work/cap" --frames 8 --fps 20 --vertices 2000 --remesh --noise 0 --texture-size 64 --quiet || fail "fmsynth"
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
