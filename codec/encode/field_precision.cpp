@@ -72,7 +72,7 @@ double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, co
 // Only the encoder's choice of integers changes; the decoder reads integers as before.
 class FieldRounder {
  public:
-  FieldRounder(int grid_n, bool shaped) : grid_(make_disk_grid(grid_n)), shaped_(shaped) {}
+  FieldRounder(const DiskGrid& grid, bool shaped) : grid_(grid), shaped_(shaped) {}
 
   void round(std::vector<double>& values, double step) const {
     if (!shaped_ || values.size() != static_cast<size_t>(grid_.interior_count)) {
@@ -113,7 +113,7 @@ class FieldRounder {
   }
 
  private:
-  DiskGrid grid_;
+  const DiskGrid& grid_;  // the reconstructor's
   bool shaped_;
 };
 
@@ -136,7 +136,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
   Reconstructor reconstructor(sequence.grid_n);
-  const FieldRounder rounder(sequence.grid_n, options.noise_shaping);
+  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping);
 
   // Calibrate on keyframe 0: each group alone at a probe step, the rest exact.
   const Keyframe& probe_key = sequence.keyframes.front();
