@@ -61,8 +61,7 @@ int64_t unzigzag(uint64_t u) { return static_cast<int64_t>(u >> 1) ^ -static_cas
 }  // namespace
 
 std::vector<int64_t> spatial_residuals(std::span<const int32_t> codes, SpatialPredictor predictor, const LatticeNeighbours* lattice) {
-  const bool on_lattice = predictor == SpatialPredictor::kGradient || predictor == SpatialPredictor::kMedian;
-  if (on_lattice) check_order(checked_lattice(lattice, codes.size()));
+  if (uses_lattice(predictor)) check_order(checked_lattice(lattice, codes.size()));
   std::vector<int64_t> out(codes.size());
   for (size_t i = 0; i < codes.size(); ++i) {
     out[i] = codes[i] - predict(i, predictor, lattice, [&](size_t j) { return int64_t{codes[j]}; });
@@ -72,8 +71,7 @@ std::vector<int64_t> spatial_residuals(std::span<const int32_t> codes, SpatialPr
 
 std::vector<int32_t> codes_from_residuals(std::span<const int64_t> residuals, SpatialPredictor predictor, const LatticeNeighbours* lattice,
                                           const std::string& source) {
-  const bool on_lattice = predictor == SpatialPredictor::kGradient || predictor == SpatialPredictor::kMedian;
-  if (on_lattice) check_order(checked_lattice(lattice, residuals.size()));
+  if (uses_lattice(predictor)) check_order(checked_lattice(lattice, residuals.size()));
   std::vector<int32_t> codes(residuals.size());
   for (size_t i = 0; i < residuals.size(); ++i) {
     // Residuals are below 2^35 and predictions of int32 codes below 2^33: no overflow in 64 bits.

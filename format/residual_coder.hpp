@@ -25,6 +25,11 @@ enum class SpatialPredictor : uint8_t {
 };
 inline constexpr uint8_t kSpatialPredictorCount = 4;
 
+// Whether `predictor` reads lattice neighbours (and so needs a LatticeNeighbours table).
+constexpr bool uses_lattice(SpatialPredictor predictor) {
+  return predictor == SpatialPredictor::kGradient || predictor == SpatialPredictor::kMedian;
+}
+
 // For each element of an array on a lattice, the element index of its left (i − 1, j), up
 // (i, j − 1) and up-left (i − 1, j − 1) neighbours, or −1 where there is none. Every neighbour
 // must come before the element in array order (checked by the coder: kInvalidArgument).
