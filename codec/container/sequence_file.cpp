@@ -313,11 +313,17 @@ std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key) {
   return arrays;
 }
 
-// The keyframe from its arrays in the file's order, checked as every decoded keyframe is.
-void set_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, const Header& h, const std::string& where) {
+// The inverse of keyframe_arrays: the fields and hole level from the arrays in the file's order.
+void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, Representation representation, int grid_n,
+                            std::vector<int32_t> fixed_nodes) {
   key.hole_level = std::move(arrays[kScalarArrayCount]);
   arrays.resize(kScalarArrayCount);
-  key.fields = fields_from_scalar_arrays(h.shape.representation, h.shape.grid_n, h.fixed_nodes, arrays);
+  key.fields = fields_from_scalar_arrays(representation, grid_n, std::move(fixed_nodes), arrays);
+}
+
+// The same for a decoded keyframe, checked as every decoded keyframe is.
+void set_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, const Header& h, const std::string& where) {
+  assign_keyframe_arrays(key, std::move(arrays), h.shape.representation, h.shape.grid_n, h.fixed_nodes);
   try {
     validate_fields(key.fields);
   } catch (const Error& e) {
@@ -442,8 +448,7 @@ CodedArray best_prediction(std::span<const int32_t> codes, const format::Lattice
   best.bits = std::numeric_limits<double>::infinity();
   for (uint8_t p = 0; p < format::kSpatialPredictorCount; ++p) {
     const auto predictor = static_cast<format::SpatialPredictor>(p);
-    const bool on_lattice = predictor == format::SpatialPredictor::kGradient || predictor == format::SpatialPredictor::kMedian;
-    if (on_lattice && lattice == nullptr) continue;
+    if (format::uses_lattice(predictor) && lattice == nullptr) continue;
     std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
     const double bits = estimated_bits(residuals);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
@@ -523,8 +528,7 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
     }
     const uint8_t p = r.read<uint8_t>("a predictor");
     predictors[a] = static_cast<format::SpatialPredictor>(p);
-    const bool on_lattice = predictors[a] == format::SpatialPredictor::kGradient || predictors[a] == format::SpatialPredictor::kMedian;
-    if (p >= format::kSpatialPredictorCount || (on_lattice && lattice_of(a, length, grid) == nullptr)) {
+    if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, length, grid) == nullptr)) {
       corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
     }
   }
@@ -577,9 +581,7 @@ void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
     for (double& v : arrays[a]) v = coding.steps[a] * field_code(v, coding.steps[a]);
   }
-  key.hole_level = std::move(arrays[kScalarArrayCount]);
-  arrays.resize(kScalarArrayCount);
-  key.fields = fields_from_scalar_arrays(key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes, arrays);
+  assign_keyframe_arrays(key, std::move(arrays), key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes);
 }
 
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
