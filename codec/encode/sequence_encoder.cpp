@@ -39,12 +39,6 @@ double bbox_diagonal(const std::vector<Vec3>& positions) {
   return (hi - lo).norm();
 }
 
-std::vector<Vec2> warped(const DiskRegistration& f, const std::vector<Vec2>& points) {
-  std::vector<Vec2> out(points.size());
-  for (size_t i = 0; i < points.size(); ++i) out[i] = f(points[i]);
-  return out;
-}
-
 double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
   const Vec2 ab = b - a;
   const double length2 = ab.squaredNorm();
@@ -187,6 +181,8 @@ void SequenceEncoder::register_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
   const auto reference = static_cast<size_t>(options_.reference_frame);
+  reparametrisation_ = DiskReparametrisation(frames_[reference].map, options_.density_equalising);
+  report_.density_equalising = reparametrisation_.report();
   landmarks_.assign(static_cast<size_t>(count), {});
   registrations_.assign(static_cast<size_t>(count), {});
   geodesic_frame_.reset();
@@ -221,6 +217,17 @@ void SequenceEncoder::register_frames() {
   report_.seconds_registration = seconds_since(start);
 }
 
+Vec2 SequenceEncoder::sample_point(int i, const Vec2& node) const {
+  return registrations_[static_cast<size_t>(i)](reparametrisation_(node));
+}
+
+std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> nodes) const {
+  std::vector<Vec2> points = reparametrisation_(nodes);
+  const DiskRegistration& registration = registrations_[static_cast<size_t>(i)];
+  for (Vec2& p : points) p = registration(p);
+  return points;
+}
+
 void SequenceEncoder::sample_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
@@ -234,7 +241,7 @@ void SequenceEncoder::sample_frames() {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
     s.diagonal = bbox_diagonal(frames_[index].map.surface.positions);
-    std::vector<Vec3> all = resample_positions(InverseDiskMap(frames_[index].map), warped(registrations_[index], geometry.grid().nodes));
+    std::vector<Vec3> all = resample_positions(InverseDiskMap(frames_[index].map), sample_points(static_cast<int>(index), geometry.grid().nodes));
     std::vector<Vec3> tu, tv;
     geometry.frames(all, tu, tv, s.normal);
     all.resize(nodes);
@@ -283,7 +290,8 @@ int SequenceEncoder::choose_grid() {
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
   for (int n : kGridCandidates) {
     const DiskGrid grid = make_disk_grid(n);
-    const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sample_on_grid(reference, grid)));
+    const std::vector<Vec3> sampled = resample_positions(InverseDiskMap(reference.map), sample_points(options_.reference_frame, grid.nodes));
+    const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
     report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
     if (floor.rms / floor.diagonal <= kGridFloorTarget) return n;
   }
@@ -338,7 +346,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         const auto index = static_cast<size_t>(keyframes[static_cast<size_t>(k)]);
         const MappedFrame& f = frames_[index];
         const InverseDiskMap inverse(f.map);
-        const std::vector<Vec2> points = warped(registrations_[index], grid.nodes);
+        const std::vector<Vec2> points = sample_points(static_cast<int>(index), grid.nodes);
         const RigidPose to_face = selection_[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
@@ -349,8 +357,8 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         key.pose = selection_[index].pose;
         if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
         if (store_texture) {
-          const DiskRegistration& registration = registrations_[index];
-          key.texture = resample_texture(inverse, read_image(textures_[index]), texture_size, [&](const Vec2& w) { return registration(w); });
+          key.texture = resample_texture(inverse, read_image(textures_[index]), texture_size,
+                                         [&](const Vec2& w) { return sample_point(static_cast<int>(index), w); });
         }
       },
       [&](int done, int total) { progress("keyframes", done, total); });

@@ -11,6 +11,7 @@
 
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/density_equalising.hpp"
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/keyframes.hpp"
@@ -20,6 +21,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -39,6 +41,9 @@ struct EncodeOptions {
   int reference_frame = 0;          // the frame every other is registered to
   int threads = 0;                  // 0: one per core
   ConformalOptions conformal;
+  // --density-equalising: how far G's nodes spread over the reference's surface by area instead of
+  // conformally (density_equalising.hpp); strength 0 keeps the conformal disk.
+  DensityEqualisingOptions density_equalising{.strength = 0};
   // --field-error: the RMS displacement of a decoded keyframe that rounding its fields may cause
   // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).
   FieldPrecisionOptions field_precision;
@@ -74,6 +79,7 @@ struct EncodeReport {
   int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
   int registration_fallbacks = 0;
+  DensityEqualisingReport density_equalising;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0;
@@ -117,6 +123,11 @@ class SequenceEncoder {
   const DiskLandmarks& landmarks(int i) const { return landmarks_[static_cast<size_t>(i)]; }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
   const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
+  // Where frame i is sampled for the disk points `nodes` of G (or of the disk texture): the reference's
+  // reparametrisation, then the frame's registration (after register_frames).
+  Vec2 sample_point(int i, const Vec2& node) const;
+  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
   const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
@@ -132,6 +143,7 @@ class SequenceEncoder {
   std::vector<DiskLandmarks> landmarks_;
   std::vector<DiskRegistration> registrations_;
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
+  DiskReparametrisation reparametrisation_;
   std::vector<SelectionFrame> selection_;
   std::vector<double> node_weights_;
   EncodeReport report_;

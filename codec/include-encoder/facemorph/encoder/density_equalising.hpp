@@ -1,0 +1,67 @@
+// A reparametrisation of the reference frame's disk that spreads its surface area more evenly over
+// the disk (issue 8, item 10; spec/method.md §7.7).
+//
+// The conformal map crowds: a nose, a nostril pocket or a neck rim takes a tiny patch of the disk,
+// so a uniform grid G samples it coarsely and the resampling floor there dominates. `hl+t` fields
+// decode any parametrisation of the disk, so the encoder may sample the registered surfaces on G
+// through a map D⁻¹ of the disk onto itself chosen to balance area: the density-equalising map of
+// Choi & Rycroft (2018), a diffusion of the area density ρ = A_surface / A_disk on the disk mesh
+// whose flow v = -∇ρ/ρ carries the vertices until ρ is uniform. Partially: ρ is taken to the power
+// `strength` (0 keeps the conformal map, 1 aims at an equal-area map), since full equalisation
+// trades crowding for shear.
+//
+// The rim stays on the circle (its vertices slide along it), the map stays a bijection (a step that
+// would turn a triangle over is halved, and the flow stops if it cannot go on), and the decoder
+// needs nothing: it never sees D.
+#pragma once
+
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/locator.hpp"
+
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace facemorph {
+
+struct DensityEqualisingOptions {
+  double strength = 0.5;      // exponent of the density equalised, in [0, 1]; 0: the identity
+  double step = 0.05;         // diffusion time step (disk of area π)
+  int max_steps = 400;
+  double tolerance = 1e-3;    // stop when the density's coefficient of variation is below this
+};
+
+struct DensityEqualisingReport {
+  int steps = 0;
+  double variation_before = 0, variation_after = 0;  // coefficient of variation of the area density (to the power strength)
+  bool stopped_early = false;                         // a step could not keep every triangle positive
+};
+
+// D⁻¹: points of the equalised disk (where G's nodes are) to points of the reference's conformal
+// disk. The identity when default-constructed or built with strength 0.
+class DiskReparametrisation {
+ public:
+  DiskReparametrisation() = default;
+  // Throws kInvalidArgument for a strength outside [0, 1].
+  DiskReparametrisation(const DiskMap& reference, const DensityEqualisingOptions& options);
+
+  bool identity() const { return !mesh_; }
+  const DensityEqualisingReport& report() const { return report_; }
+
+  // Any |g| <= 1 (+1e-9); the circle onto the circle.
+  Vec2 operator()(const Vec2& g) const;
+  std::vector<Vec2> operator()(std::span<const Vec2> points) const;
+
+ private:
+  struct Mesh {
+    std::vector<Vec2> conformal, equalised;  // per vertex
+    std::vector<Face> faces;
+    std::vector<double> rim_angle;           // equalised rim vertices' angles, sorted, in [0, 2π)
+    std::vector<double> rim_conformal_angle; // the same vertices' conformal angles, unwrapped to increase
+    std::unique_ptr<TriangleLocator> locator;
+  };
+  std::shared_ptr<const Mesh> mesh_;
+  DensityEqualisingReport report_;
+};
+
+}  // namespace facemorph
