@@ -8,9 +8,14 @@
 #include "facemorph/error.hpp"
 #include "facemorph/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/spline.hpp"
+
+#include <Eigen/Cholesky>
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <numbers>
 #include <cmath>
 #include <numeric>
@@ -71,6 +76,40 @@ int auto_texture_size(const TriangleMesh& surface, int width, int height) {
   const double texels = std::min(area, 1.0) * width * height;
   const double side = kMargin * std::sqrt(texels * 4 / std::numbers::pi);
   return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
+}
+
+// What of frame k its neighbours' motion does not explain: its surface (selection grid, face frame)
+// against the cubic through the four nearest other frames in time (k−2, k−1, k+1, k+2; one-sided
+// at the ends), RMS by area, over the stencil's noise gain √(1 + Σ w²). For independent noise of
+// RMS σ per frame this is σ; smooth motion leaks in only through its fourth derivative (1.7% of a
+// sinusoid of 11 frames a period). Infinity with fewer than 5 frames.
+double frame_noise(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights, int k) {
+  const int count = static_cast<int>(frames.size());
+  if (count < 5) return std::numeric_limits<double>::infinity();
+  const int first = std::clamp(k - 2, 0, count - 5);
+  std::vector<int> others;
+  for (int j = first; j < first + 5; ++j) {
+    if (j != k) others.push_back(j);
+  }
+  const double t = frames[static_cast<size_t>(k)].time;
+  std::vector<double> w;
+  double gain = 1;
+  for (int a : others) {
+    double l = 1;
+    for (int b : others) {
+      if (b != a) l *= (t - frames[static_cast<size_t>(b)].time) / (frames[static_cast<size_t>(a)].time - frames[static_cast<size_t>(b)].time);
+    }
+    w.push_back(l);
+    gain += l * l;
+  }
+  double sum = 0, total = 0;
+  for (size_t v = 0; v < node_weights.size(); ++v) {
+    Vec3 r = frames[static_cast<size_t>(k)].local[v];
+    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * frames[static_cast<size_t>(others[i])].local[v];
+    sum += node_weights[v] * r.squaredNorm();
+    total += node_weights[v];
+  }
+  return std::sqrt(sum / std::max(total, 1e-300) / gain);
 }
 
 }  // namespace
@@ -138,6 +177,9 @@ SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) 
   }
   if (!(options_.keyframe_fraction > 0 && options_.keyframe_fraction <= 1) && !(options_.max_error > 0)) {
     throw Error(ErrorCode::kInvalidArgument, "the keyframe budget must be in (0, 100%]");
+  }
+  if (!(options_.keyframe_fit_weight >= 0) || !(options_.keyframe_fit_noise >= 0)) {
+    throw Error(ErrorCode::kInvalidArgument, "the keyframe fit's weight and noise factor must be >= 0");
   }
   if (options_.grid != 0 && (options_.grid < kMinGridSize || options_.grid > kMaxGridSize)) {
     throw Error(ErrorCode::kInvalidArgument, "grid size N must be 0 (auto) or in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
@@ -350,7 +392,6 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         const RigidPose to_face = selection_[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
-        folds[static_cast<size_t>(k)] = folded_nodes(geometry, positions);
         local[static_cast<size_t>(k)] = std::move(positions);
         Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
         key.time = capture_.frames[index].time;
@@ -362,6 +403,9 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         }
       },
       [&](int done, int total) { progress("keyframes", done, total); });
+  if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
+  parallel_for(static_cast<int>(keys), options_.threads,
+               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, local[static_cast<size_t>(k)]); });
   std::vector<int32_t> fixed;
   for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
   std::sort(fixed.begin(), fixed.end());
@@ -372,6 +416,82 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
   return sequence;
+}
+
+void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const {
+  const std::vector<Vec2>& nodes = geometry.grid().nodes;
+  // Per node of G, the keyframe values P_k minimising
+  //   Σ_j |Σ_k c_k(t_j) P_k − X_j|² + μ Σ_k |P_k − X_k|²
+  // over the frames j within the keyframes' span, X_j frame j's registered surface in the face frame
+  // of the pose the decoder blends at t_j (at a keyframe, its own pose). The weights c_k(t_j) are
+  // shared by every node, so this is one keys × keys normal matrix (banded, positive definite: each
+  // keyframe's own frame has weight 1 + μ) and a right-hand side per node coordinate.
+  const auto keys = static_cast<Eigen::Index>(keyframes.size());
+  const int count = frame_count();
+  if (keys < 2 || keys >= count || local.size() != keyframes.size()) return;
+  const double mu = options_.keyframe_fit_weight;
+  std::vector<double> times;
+  std::vector<RigidPose> poses;
+  for (int k : keyframes) {
+    times.push_back(capture_.frames[static_cast<size_t>(k)].time);
+    poses.push_back(selection_[static_cast<size_t>(k)].pose);
+  }
+  const KeyframeSpline spline(times, options_.spline);
+  const std::vector<Vec3> rotations = unwrap_rotations(poses);
+  const Vec3 centre = pose_centre();
+  const auto n = static_cast<Eigen::Index>(3 * nodes.size());
+  auto flat = [n](std::vector<Vec3>& v) { return Eigen::Map<Eigen::VectorXd>(v.data()->data(), n); };
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(keys, keys);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, keys);  // column k: Σ_j c_k(t_j) X_j + μ X_k
+  for (Eigen::Index k = 0; k < keys; ++k) {
+    normal(k, k) += 1 + mu;
+    rhs.col(k) += (1 + mu) * flat(local[static_cast<size_t>(k)]);
+  }
+  std::vector<int> held;
+  for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
+    if (!std::binary_search(keyframes.begin(), keyframes.end(), j)) held.push_back(j);
+  }
+  // In chunks: a frame on G is 3 doubles a node, and a capture may have thousands.
+  const int chunk = 32;
+  std::vector<std::vector<Vec3>> samples(chunk);
+  std::vector<SplineWeights> weights(chunk);
+  for (size_t begin = 0; begin < held.size(); begin += chunk) {
+    const int size = static_cast<int>(std::min(held.size() - begin, static_cast<size_t>(chunk)));
+    parallel_for(size, options_.threads, [&](int c) {
+      const int j = held[begin + static_cast<size_t>(c)];
+      weights[static_cast<size_t>(c)] = spline.weights(capture_.frames[static_cast<size_t>(j)].time);
+      const RigidPose to_face = blend_poses(poses, rotations, weights[static_cast<size_t>(c)], centre).inverse();
+      std::vector<Vec3> positions = resample_positions(InverseDiskMap(frames_[static_cast<size_t>(j)].map), sample_points(j, nodes));
+      for (Vec3& p : positions) p = to_face.apply(p);
+      samples[static_cast<size_t>(c)] = std::move(positions);
+    });
+    for (int c = 0; c < size; ++c) {
+      const SplineWeights& w = weights[static_cast<size_t>(c)];
+      const auto x = flat(samples[static_cast<size_t>(c)]);
+      for (size_t a = 0; a < w.keys.size(); ++a) {
+        for (size_t b = 0; b < w.keys.size(); ++b) normal(w.keys[a], w.keys[b]) += w.weights[a] * w.weights[b];
+        rhs.col(w.keys[a]) += w.weights[a] * x;
+      }
+    }
+  }
+  const Eigen::MatrixXd inverse = normal.ldlt().solve(Eigen::MatrixXd::Identity(keys, keys));
+  const Eigen::MatrixXd fitted = rhs * inverse;  // the normal matrix is symmetric
+  const Eigen::VectorXd& mass = geometry.mass();
+  for (Eigen::Index k = 0; k < keys; ++k) {
+    std::vector<Vec3>& own = local[static_cast<size_t>(k)];
+    double moved = 0, total = 0;
+    for (Eigen::Index v = 0; v < mass.size(); ++v) {
+      moved += mass[v] * (fitted.col(k).segment<3>(3 * v) - own[static_cast<size_t>(v)]).squaredNorm();
+      total += mass[v];
+    }
+    moved = std::sqrt(moved / total);
+    const double noise = frame_noise(selection_, node_weights_, keyframes[static_cast<size_t>(k)]);
+    // A move beyond κ times the frame's own noise would fit the spline's systematic error between
+    // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
+    // stay its frames).
+    const double scale = std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300));
+    flat(own) += scale * (fitted.col(k) - flat(own));
+  }
 }
 
 namespace {

@@ -52,6 +52,15 @@ struct EncodeOptions {
   // to make between keyframes, within [0.005%, 0.05%] of the diagonal, so rounding adds under 0.5% to
   // that error (in quadrature) whether the capture is clean or noisy; false: field_precision's target.
   bool auto_field_error = true;
+  // --keyframe-fit: store at each keyframe the values whose spline best matches every frame of the
+  // capture (least squares over all frames, in the face frame of the pose the decoder blends),
+  // instead of the keyframe's own frame: a noisy capture's noise is averaged away instead of
+  // interpolated (spec/method.md §7.5). keyframe_fit_weight μ is the extra weight of a keyframe's
+  // own frame (it already counts once). keyframe_fit_noise κ: a keyframe moves at most κ times its
+  // frame's estimated noise (RMS), so a clean capture's keyframes stay its frames.
+  bool keyframe_fit = true;
+  double keyframe_fit_weight = 1.0;
+  double keyframe_fit_noise = 3.0;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -127,6 +136,9 @@ class SequenceEncoder {
   // reparametrisation, then the frame's registration (after register_frames).
   Vec2 sample_point(int i, const Vec2& node) const;
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  // Replaces the keyframes' registered surfaces in the face frame (`local[k]`, frame keyframes[k],
+  // sampled at `nodes`) by the least-squares fit of the spline to every frame (options().keyframe_fit).
+  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
