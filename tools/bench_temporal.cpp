@@ -115,6 +115,9 @@ void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
   cmd->add_option("--grid", options.grid, "auto or N")->capture_default_str();
   cmd->add_option("--texture-size", options.texture_size, "Disk texture texels per side")->capture_default_str();
   cmd->add_option("--data", options.data, "Folder of the shared real data")->capture_default_str();
+  cmd->add_option("--density-equalising", options.density_equalising,
+                  "Strength in [0, 1] of the reference disk's density-equalising reparametrisation (0: the conformal disk)")
+      ->capture_default_str();
   cmd->add_option("--limit", options.limit, "At most this many frames per capture (0: all)")->capture_default_str();
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
   cmd->add_option("--plots", options.plots, "Folder for error-against-time plots (PNG), keyframes marked");
@@ -176,6 +179,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     encode.grid = options.grid == "auto" ? 0 : std::stoi(options.grid);
     encode.texture_size = options.texture_size;
     encode.spline = splines.front();
+    encode.density_equalising.strength = options.density_equalising;
     Progress progress(input, options.quiet);
     encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
     SequenceEncoder encoder(capture, encode);
@@ -202,6 +206,13 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       encoder.register_frames();
       encoder.sample_frames();
       if (grid == 0) grid = encoder.choose_grid();
+      if (!encoder.reparametrisation().identity()) {
+        const DensityEqualisingReport& d = encoder.reparametrisation().report();
+        std::printf("    density-equalising (strength %.2f): %d steps%s, area density variation %.3f -> %.3f\n", options.density_equalising, d.steps,
+                    d.stopped_early ? " (stopped: a step would make a sliver)" : "", d.variation_before, d.variation_after);
+        entry["density_equalising"] = {{"strength", options.density_equalising}, {"steps", d.steps}, {"stopped_early", d.stopped_early},
+                                       {"variation_before", d.variation_before}, {"variation_after", d.variation_after}};
+      }
       const MatchingEnergies energies = matching_energies(encoder);
       energies_by_method.push_back(energies);
       const KeyframeSelection chosen = encoder.select_keyframes();

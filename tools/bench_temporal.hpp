@@ -19,6 +19,7 @@ struct TemporalBenchOptions {
   int texture_size = 256;
   std::string data = "../shared/data";
   std::string json_out, plots;
+  double density_equalising = 0;      // strength of the reference disk's density-equalising reparametrisation
   int limit = 0;                      // at most this many frames per capture (0: all)
   bool no_targets = false;            // skip the keyframes-for-1%-and-0.5% searches
   bool quiet = false;

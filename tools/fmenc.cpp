@@ -71,6 +71,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report,
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
           {"reference_frame", o.reference_frame},
+          {"density_equalising", o.density_equalising.strength},
+          {"keyframe_fit", o.keyframe_fit},
           {"field_error", o.predicted_fields ? nlohmann::json(report.field_precision.target_error) : nlohmann::json(nullptr)},
           {"field_error_auto", o.predicted_fields && o.auto_field_error},
           {"intra_period", o.field_precision.intra_period},
@@ -84,9 +86,10 @@ int main(int argc, char** argv) {
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "hl+t", landmarks;
   double fps = 0;
-  std::string field_error = "auto", field_rounding = "shaped";
+  std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto";
   int quality = 90, threads = 0, reference = 0, intra_period = 8;
+  double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
@@ -103,6 +106,13 @@ int main(int argc, char** argv) {
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
+  app.add_option("--density-equalising", density_equalising,
+                 "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")
+      ->capture_default_str();
+  app.add_option("--keyframe-fit", keyframe_fit,
+                 "on | off: keyframes store the spline's least-squares fit to every frame (on: a capture's per-frame noise is averaged "
+                 "out) or their own frames")
+      ->capture_default_str();
   app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", field_error,
                  "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: a tenth of the "
@@ -146,6 +156,9 @@ int main(int argc, char** argv) {
     options.largest_component = largest_component;
     options.threads = threads;
     options.reference_frame = reference;
+    options.density_equalising.strength = density_equalising;
+    if (keyframe_fit != "on" && keyframe_fit != "off") throw Error(ErrorCode::kInvalidArgument, "--keyframe-fit '" + keyframe_fit + "' is neither on nor off");
+    options.keyframe_fit = keyframe_fit == "on";
     options.predicted_fields = field_error != "0";
     options.auto_field_error = field_error == "auto";
     if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = parse_fraction(field_error, "--field-error");

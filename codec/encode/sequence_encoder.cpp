@@ -184,6 +184,10 @@ SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) 
   if (options_.grid != 0 && (options_.grid < kMinGridSize || options_.grid > kMaxGridSize)) {
     throw Error(ErrorCode::kInvalidArgument, "grid size N must be 0 (auto) or in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
   }
+  const double strength = options_.density_equalising.strength;
+  if (!(strength >= 0 && strength <= 1)) {
+    throw Error(ErrorCode::kInvalidArgument, "density-equalising strength must be in [0, 1], not " + std::to_string(strength));
+  }
   if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
     throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
   }

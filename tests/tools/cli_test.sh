@@ -56,6 +56,12 @@ mv "$work/hidden.jpg" "$work/cap/frame_0003.jpg"
 expect_error "unwritable output" "missing" "$tools/fmenc" "$work/cap" -o "$work/missing/b.fmv" --grid 33 --texture 64 --quiet
 expect_error "bad option" "--keyframes" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframes 150%
 expect_error "plain folder without fps" "--fps" "$tools/fmenc" "$work/seq" -o "$work/c.fmv"
+expect_error "density-equalising strength" "density-equalising strength must be" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --density-equalising 2
+# The density-equalising reparametrisation is the encoder's business: the file decodes as any other.
+"$tools/fmenc" "$work/cap" -o "$work/dem.fmv" --grid 33 --no-texture --density-equalising 0.5 --quiet || fail "--density-equalising 0.5"
+"$tools/fmdec" "$work/dem.fmv" --t 0.17 -o "$work/dem.obj" --quiet || fail "fmdec of a density-equalised file"
+expect_error "keyframe fit" "--keyframe-fit" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframe-fit maybe
+"$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
 # An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.

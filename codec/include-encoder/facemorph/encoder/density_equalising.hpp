@@ -1,5 +1,5 @@
 // A reparametrisation of the reference frame's disk that spreads its surface area more evenly over
-// the disk (issue 8, item 10; spec/method.md §7.7).
+// the disk (issue 8, item 10; spec/method.md §7.11).
 //
 // The conformal map crowds: a nose, a nostril pocket or a neck rim takes a tiny patch of the disk,
 // so a uniform grid G samples it coarsely and the resampling floor there dominates. `hl+t` fields
@@ -10,9 +10,9 @@
 // `strength` (0 keeps the conformal map, 1 aims at an equal-area map), since full equalisation
 // trades crowding for shear.
 //
-// The rim stays on the circle (its vertices slide along it), the map stays a bijection (a step that
-// would turn a triangle over is halved, and the flow stops if it cannot go on), and the decoder
-// needs nothing: it never sees D.
+// The rim stays on the circle (its vertices slide along it), the map stays a bijection with no
+// sliver (a step that would squeeze a triangle of the flow's grid too thin is halved, and the flow
+// stops if it cannot go on), and the decoder needs nothing: it never sees D.
 #pragma once
 
 #include "facemorph/encoder/conformal.hpp"
@@ -27,14 +27,15 @@ namespace facemorph {
 struct DensityEqualisingOptions {
   double strength = 0.5;      // exponent of the density equalised, in [0, 1]; 0: the identity
   double step = 0.05;         // diffusion time step (disk of area π)
-  int max_steps = 400;
-  double tolerance = 1e-3;    // stop when the density's coefficient of variation is below this
+  int max_steps = 100;
+  double tolerance = 1e-2;    // stop when the vertex density's coefficient of variation is below this
 };
 
 struct DensityEqualisingReport {
   int steps = 0;
-  double variation_before = 0, variation_after = 0;  // coefficient of variation of the area density (to the power strength)
-  bool stopped_early = false;                         // a step could not keep every triangle positive
+  // Coefficient of variation of the area density (to the power strength) over the flow grid's triangles.
+  double variation_before = 0, variation_after = 0;
+  bool stopped_early = false;                         // a step could not keep every triangle well shaped
 };
 
 // D⁻¹: points of the equalised disk (where G's nodes are) to points of the reference's conformal

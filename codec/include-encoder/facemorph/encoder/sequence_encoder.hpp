@@ -42,7 +42,8 @@ struct EncodeOptions {
   int threads = 0;                  // 0: one per core
   ConformalOptions conformal;
   // --density-equalising: how far G's nodes spread over the reference's surface by area instead of
-  // conformally (density_equalising.hpp); strength 0 keeps the conformal disk.
+  // conformally (density_equalising.hpp); strength 0 (the default) keeps the conformal disk: measured,
+  // equalising lowers the floor at equal N but costs elsewhere (spec/method.md §7.11).
   DensityEqualisingOptions density_equalising{.strength = 0};
   // --field-error: the RMS displacement of a decoded keyframe that rounding its fields may cause
   // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).

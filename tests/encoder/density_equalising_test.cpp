@@ -1,0 +1,101 @@
+// The density-equalising reparametrisation of the reference disk (issue 8 item 10, spec/method.md
+// §7.11): it leaves an evenly mapped disk alone, spreads a crowded one, stays a bijection with the
+// rim on the circle, and refuses a strength outside [0, 1].
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/density_equalising.hpp"
+#include "facemorph/geometry.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace facemorph {
+namespace {
+
+// A disk with a tall narrow bump in the middle (a nose): the conformal map gives the bump's area a
+// small patch of the disk.
+TriangleMesh bump(double height) {
+  return testing::polar_disk(32, 128, [height](const Vec2& p) { return Vec3(p.x(), p.y(), height * std::exp(-p.squaredNorm() / 0.04)); });
+}
+
+// Surface areas of G's triangles when G is sampled through the reparametrisation.
+std::vector<double> surface_areas_of_grid(const DiskMap& map, const DiskReparametrisation& reparametrise, const DiskGrid& grid) {
+  const InverseDiskMap inverse(map);
+  std::vector<Vec3> positions;
+  for (const Vec2& node : grid.nodes) {
+    const auto hit = inverse.locate(reparametrise(node));
+    EXPECT_TRUE(hit.has_value());
+    positions.push_back(hit ? inverse.position(*hit) : Vec3::Zero());
+  }
+  return face_areas(positions, grid.faces);
+}
+
+double coefficient_of_variation(const std::vector<double>& values) {
+  double mean = 0, spread = 0;
+  for (double v : values) mean += v;
+  mean /= static_cast<double>(values.size());
+  for (double v : values) spread += (v - mean) * (v - mean);
+  return std::sqrt(spread / static_cast<double>(values.size())) / mean;
+}
+
+TEST(DensityEqualising, StrengthZeroIsTheIdentity) {
+  const DiskMap map = conformal_disk_map(bump(0.5));
+  const DiskReparametrisation identity(map, {.strength = 0});
+  EXPECT_TRUE(identity.identity());
+  for (const Vec2& node : make_disk_grid(17).nodes) EXPECT_EQ(identity(node), node);
+}
+
+TEST(DensityEqualising, AnEvenlyMappedDiskIsLeftAlone) {
+  // A flat disk maps onto the unit disk by (nearly) a similarity: its density is uniform already.
+  const DiskMap map = conformal_disk_map(testing::polar_disk(24, 96, [](const Vec2& p) { return Vec3(p.x(), p.y(), 0); }));
+  const DiskReparametrisation equalise(map, {.strength = 1});
+  EXPECT_LT(equalise.report().variation_before, 0.05);
+  double moved = 0;
+  for (const Vec2& node : make_disk_grid(33).nodes) moved = std::max(moved, (equalise(node) - node).norm());
+  EXPECT_LT(moved, 0.02);
+}
+
+TEST(DensityEqualising, ACrowdedBumpIsSpreadAndTheMapStaysABijection) {
+  const DiskMap map = conformal_disk_map(bump(0.6));
+  const DiskGrid grid = make_disk_grid(33);
+  const DiskReparametrisation conformal, half(map, {.strength = 0.5}), full(map, {.strength = 1});
+  const double before = coefficient_of_variation(surface_areas_of_grid(map, conformal, grid));
+  const double at_half = coefficient_of_variation(surface_areas_of_grid(map, half, grid));
+  const double at_full = coefficient_of_variation(surface_areas_of_grid(map, full, grid));
+  EXPECT_GT(before, 0.5) << "the bump should crowd the conformal disk";
+  EXPECT_LT(at_half, 0.75 * before);
+  EXPECT_LT(at_full, 0.5 * before);
+  EXPECT_LT(full.report().variation_after, 0.5 * full.report().variation_before);
+  for (const DiskReparametrisation* d : {&half, &full}) {
+    // Every triangle of G keeps its orientation on the conformal disk; the rim stays on the circle
+    // in its order.
+    for (const Face& f : grid.faces) {
+      const Vec2 a = (*d)(grid.nodes[static_cast<size_t>(f[0])]), b = (*d)(grid.nodes[static_cast<size_t>(f[1])]),
+                 c = (*d)(grid.nodes[static_cast<size_t>(f[2])]);
+      EXPECT_GT((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x(), 0);
+    }
+    double turned = 0;
+    for (int k = 0; k < grid.rim_count; ++k) {
+      const Vec2& node = grid.nodes[static_cast<size_t>(grid.interior_count + k)];
+      const Vec2 p = (*d)(node);
+      const Vec2 q = (*d)(grid.nodes[static_cast<size_t>(grid.interior_count + (k + 1) % grid.rim_count)]);
+      EXPECT_NEAR(p.norm(), std::min(node.norm(), 1.0), 1e-12);
+      const double step = std::atan2(p.x() * q.y() - p.y() * q.x(), p.dot(q));
+      EXPECT_GT(step, 0);
+      turned += step;
+    }
+    EXPECT_NEAR(turned, 2 * std::numbers::pi, 1e-9);
+  }
+}
+
+TEST(DensityEqualising, StrengthOutsideTheUnitIntervalIsRefused) {
+  const DiskMap map = conformal_disk_map(bump(0.2));
+  testing::expect_error(ErrorCode::kInvalidArgument, "strength", [&] { DiskReparametrisation(map, {.strength = 1.5}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "strength", [&] { DiskReparametrisation(map, {.strength = -0.1}); });
+}
+
+}  // namespace
+}  // namespace facemorph
