@@ -10,11 +10,10 @@
 
 #include "tools/field_export.hpp"
 #include "tools/tool_support.hpp"
+#include "tools/video_file.hpp"
 
 #include "format/file_io.hpp"
 
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -177,12 +176,10 @@ int main(int argc, char** argv) {
     // A thousandth of a frame of slack: a rounded rate (23.976 for 24000/1001) must still reach the
     // last frame.
     const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-3)) + 1;
-    std::optional<cv::VideoWriter> video;
+    std::optional<tools::VideoFile> video;
     if (!preview.empty()) {
       if (fs::path(preview).extension() != ".mp4") throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");
-      video.emplace(fs::path(preview).replace_extension(".partial.mp4").string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps,
-                    cv::Size(preview_size, preview_size));
-      if (!video->isOpened()) throw Error(ErrorCode::kIo, preview + ": cannot open a video writer");
+      video.emplace(fs::path(preview).replace_extension(".partial.mp4"), preview_size, fps);
     }
     if (!out_dir.empty()) {
       std::error_code ec;
@@ -207,19 +204,14 @@ int main(int argc, char** argv) {
         std::snprintf(name, sizeof name, "frame_%05d.%s", i, out.format.c_str());
         write_frame(frame, fs::path(out_dir) / name);
       }
-      if (video) {
-        const Image picture = preview_picture(frame, out.yaw, preview_size);
-        cv::Mat rgb(picture.height, picture.width, CV_8UC3, const_cast<uint8_t*>(picture.pixels.data())), bgr;
-        cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-        video->write(bgr);
-      }
+      if (video) video->write(preview_picture(frame, out.yaw, preview_size));
       progress.update(i + 1, count);
     }
     progress.finish();
     const double seconds = tools::seconds_since(decode_start);
     if (clip) clip->write(mesh_out);
     if (video) {
-      video->release();
+      video->close();
       format::commit_temporary(fs::path(preview).replace_extension(".partial.mp4"), preview);
     }
     if (!quiet) {

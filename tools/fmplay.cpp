@@ -2,15 +2,11 @@
 // player embedding the library would — open, ask the sizes, decode every frame of a range into
 // buffers it owns — and reports the decode rate (mean and worst frame), the reconstruction's
 // iterations and the peak memory. With --video it also renders the frames with the decoder's
-// software renderer and writes them as an mp4 (OpenCV's video writer).
+// software renderer and writes them as an mp4 (tools/video_file.hpp).
 #include "facemorph.h"
 
-#ifdef FACEMORPH_HAVE_VIDEO
 #include "facemorph/render.hpp"
-
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
-#endif
+#include "tools/video_file.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -74,9 +70,8 @@ struct Buffers {
   }
 };
 
-#ifdef FACEMORPH_HAVE_VIDEO
 // The frame as the renderer takes it (the one use of the C++ headers: the software renderer).
-cv::Mat render_frame(const Buffers& b, const fm_frame& frame, int size) {
+facemorph::Image render_frame(const Buffers& b, const fm_frame& frame, int size) {
   facemorph::TriangleMesh mesh;
   for (uint32_t v = 0; v < frame.vertex_count; ++v) {
     mesh.positions.emplace_back(b.positions[3 * v], b.positions[3 * v + 1], b.positions[3 * v + 2]);
@@ -97,11 +92,8 @@ cv::Mat render_frame(const Buffers& b, const fm_frame& frame, int size) {
   } else {
     picture = facemorph::render(mesh, facemorph::constant_shader({200, 200, 200}), options);
   }
-  cv::Mat rgb(picture.height, picture.width, CV_8UC3, picture.pixels.data()), bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  return bgr;
+  return picture;
 }
-#endif
 
 }  // namespace
 
@@ -135,9 +127,6 @@ int main(int argc, char** argv) {
     if (!(fps > 0) || !std::isfinite(fps)) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--fps must be positive"};
     if (loops < 1) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--loop must be at least 1"};
     if (video_size < 16 || video_size > 8192) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--video-size must be 16 .. 8192"};
-#ifndef FACEMORPH_HAVE_VIDEO
-    if (!video.empty()) throw Failure{FM_ERROR_UNSUPPORTED, "--video: fmplay was built without OpenCV's video writer"};
-#endif
     if (!video.empty() && fs::path(video).extension() != ".mp4") throw Failure{FM_ERROR_INVALID_ARGUMENT, video + ": the video must be .mp4"};
 
     const auto open_start = std::chrono::steady_clock::now();
@@ -165,14 +154,11 @@ int main(int argc, char** argv) {
     }
 
     Buffers buffers(info);
-#ifdef FACEMORPH_HAVE_VIDEO
-    std::optional<cv::VideoWriter> writer;
+    std::optional<facemorph::tools::VideoFile> writer;
     if (!video.empty()) {
       partial = fs::path(video).replace_extension(".partial.mp4");
-      writer.emplace(partial.string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(video_size, video_size));
-      if (!writer->isOpened()) throw Failure{FM_ERROR_IO, video + ": cannot open a video writer"};
+      writer.emplace(partial, video_size, fps);
     }
-#endif
     const uint32_t flags = clamp ? FM_DECODE_CLAMP : 0;
     double total_ms = 0, worst_ms = 0, worst_t = begin, first_ms = 0;
     long iterations = 0;
@@ -191,9 +177,7 @@ int main(int argc, char** argv) {
         slow += ms > budget_ms;
         iterations += frame.iterations;
         fell_back += static_cast<int>(frame.fell_back);
-#ifdef FACEMORPH_HAVE_VIDEO
         if (writer && loop == 0) writer->write(render_frame(buffers, frame, video_size));
-#endif
       }
     }
     const int frames = count * loops;
@@ -207,16 +191,14 @@ int main(int argc, char** argv) {
                   slow == 0 ? "yes" : "no", slow, frames);
       if (fell_back > 0) std::printf("  %d frames did not converge and show the keyframes' blended surfaces\n", fell_back);
     }
-#ifdef FACEMORPH_HAVE_VIDEO
     if (writer) {
-      writer->release();
+      writer->close();
       std::error_code ec;
       fs::rename(partial, video, ec);
       if (ec) throw Failure{FM_ERROR_IO, video + ": cannot write the video: " + ec.message()};
       partial.clear();
       if (!quiet) std::printf("  video %s (%d frames, %dx%d)\n", video.c_str(), count, video_size, video_size);
     }
-#endif
   } catch (const Failure& f) {
     std::fprintf(stderr, "fmplay: error (%s): %s\n", fm_status_name(f.status), f.message.c_str());
     status = 1;

@@ -27,6 +27,8 @@ for f in f.obj f.mtl f.png f_view.png; do [[ -s "$work/$f" ]] || fail "fmdec did
 grep -q "ms per frame" "$work/null" || fail "fmdec --null reports no speed"
 "$tools/fmdec" "$work/a.fmv" --fps 20 --from 0.1 --to 0.2 --out-dir "$work/seq" --quiet || fail "fmdec --out-dir"
 [[ $(ls "$work/seq"/*.obj | wc -l) -eq 3 ]] || fail "fmdec --out-dir: not 3 frames"
+"$tools/fmdec" "$work/a.fmv" --fps 20 --from 0.1 --to 0.2 --preview "$work/range.mp4" --quiet || fail "fmdec --preview .mp4"
+[[ -s "$work/range.mp4" && ! -e "$work/range.partial.mp4" ]] || fail "fmdec --preview .mp4 wrote no video"
 "$tools/fmdec" "$work/a.fmv" --extract-fields "$work/fields" --quiet || fail "fmdec --extract-fields"
 ls "$work/fields"/keyframe_000.exr >/dev/null || fail "no EXR"
 
