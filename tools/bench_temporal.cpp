@@ -205,7 +205,14 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       encoder.options().spline = splines.front();
       encoder.register_frames();
       encoder.sample_frames();
-      if (grid == 0) grid = encoder.choose_grid();
+      if (grid == 0) {
+        grid = encoder.choose_grid();
+        if (!encoder.report().grid_floors.empty()) {
+          std::printf("    --grid auto: N = %d (median frame noise %.4f%%; floors", grid, 100 * encoder.report().median_noise);
+          for (const auto& [n, floor] : encoder.report().grid_floors) std::printf(" %d: %.4f%%", n, 100 * floor);
+          std::printf(")\n");
+        }
+      }
       if (!encoder.reparametrisation().identity()) {
         const DensityEqualisingReport& d = encoder.reparametrisation().report();
         std::printf("    density-equalising (strength %.2f): %d steps%s, area density variation %.3f -> %.3f\n", options.density_equalising, d.steps,
@@ -260,6 +267,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     }
     entry["grid"] = grid;
     entry["grid_floors"] = encoder.report().grid_floors;
+    entry["median_frame_noise"] = encoder.report().median_noise;
     entry["registrations"] = registrations;
     // The rate of improvement over the OMT (paper Tables 1 and 3): 1 - (measure with f) / (measure with m).
     if (by_method.size() > 1 && methods.front() == RegistrationMethod::kMoebius) {

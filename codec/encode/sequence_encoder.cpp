@@ -34,6 +34,7 @@ constexpr int kSelectionGrid = 65;
 // --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
 constexpr int kGridCandidates[] = {65, 97, 129, 193, 257};
 constexpr double kGridFloorTarget = 2e-4;
+constexpr double kGridNoiseShare = 0.5;
 
 double bbox_diagonal(const std::vector<Vec3>& positions) {
   Vec3 lo = positions.front(), hi = lo;
@@ -333,13 +334,20 @@ int SequenceEncoder::choose_grid() {
   // The smallest N whose resampling floor on the reference frame is within the target; the
   // largest candidate when none is (a crowded face: spec/method.md §7.6).
   report_.grid_floors.clear();
+  // A grid fine enough to resolve a capture's per-frame noise spends its nodes on noise the
+  // keyframe fit averages away: the floor need not go below a share of the median frame noise.
+  std::vector<double> noise;
+  for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(selection_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
+  std::nth_element(noise.begin(), noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2), noise.end());
+  report_.median_noise = std::isfinite(noise[noise.size() / 2]) ? noise[noise.size() / 2] : 0.0;
+  const double target = std::max(kGridFloorTarget, kGridNoiseShare * report_.median_noise);
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
   for (int n : kGridCandidates) {
     const DiskGrid grid = make_disk_grid(n);
     const std::vector<Vec3> sampled = resample_positions(InverseDiskMap(reference.map), sample_points(options_.reference_frame, grid.nodes));
     const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
     report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
-    if (floor.rms / floor.diagonal <= kGridFloorTarget) return n;
+    if (floor.rms / floor.diagonal <= target) return n;
   }
   return kGridCandidates[std::size(kGridCandidates) - 1];
 }

@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -248,6 +249,45 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
   options.keyframe_fraction = 0.5;
   options.reference_frame = 9;
   testing::expect_error(ErrorCode::kInvalidArgument, "reference frame 9", [&] { encode_capture(capture, options); });
+}
+
+// --grid auto: the resampling floor need not resolve a capture's per-frame noise (spec/method.md
+// §7.6). The same face with 2 mm of noise (~0.6% of its diagonal) reads as noisy and gets a coarser
+// grid than without; the clean one is held to the fixed 0.02% floor.
+TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
+  auto grid_of = [](double noise, double* median_noise) {
+    testing::TempDir dir;
+    SynthOptions synth;
+    synth.frames = 12;
+    synth.vertices = 3000;
+    synth.remesh = true;
+    synth.noise = noise;
+    synth.texture_size = 64;
+    write_synthetic_capture(dir.path(), synth);
+    const Capture capture = read_capture(dir.path());
+    EncodeOptions options;
+    options.texture = false;
+    SequenceEncoder encoder(capture, options);
+    encoder.map_frames();
+    encoder.register_frames();
+    encoder.sample_frames();
+    const int n = encoder.choose_grid();
+    *median_noise = encoder.report().median_noise;
+    const auto& floors = encoder.report().grid_floors;
+    EXPECT_FALSE(floors.empty());
+    EXPECT_EQ(floors.back().first, n);
+    // Every coarser candidate tried missed the target the chosen one met.
+    const double target = std::max(2e-4, 0.5 * *median_noise);
+    for (size_t i = 0; i + 1 < floors.size(); ++i) EXPECT_GT(floors[i].second, target);
+    if (n < 257) {
+      EXPECT_LE(floors.back().second, target);
+    }
+    return n;
+  };
+  double clean_noise = 0, noisy_noise = 0;
+  const int clean = grid_of(0, &clean_noise), noisy = grid_of(0.002, &noisy_noise);
+  EXPECT_GT(noisy_noise, 10 * clean_noise);
+  EXPECT_LT(noisy, clean);
 }
 
 }  // namespace

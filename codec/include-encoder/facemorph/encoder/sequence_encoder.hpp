@@ -88,6 +88,7 @@ struct EncodeReport {
   int grid = 0;
   int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
+  double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
