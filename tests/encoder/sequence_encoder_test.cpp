@@ -20,12 +20,12 @@
 namespace facemorph {
 namespace {
 
-Capture small_capture(const testing::TempDir& dir, double head_motion) {
+Capture small_capture(const testing::TempDir& dir, double head_motion, double noise = 0) {
   SynthOptions options;
   options.frames = 12;
   options.vertices = 3000;
   options.remesh = true;
-  options.noise = 0;
+  options.noise = noise;
   options.texture_size = 128;
   options.head_motion_degrees = head_motion;
   write_synthetic_capture(dir.path(), options);
@@ -257,14 +257,7 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
 TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
   auto grid_of = [](double noise, double* median_noise) {
     testing::TempDir dir;
-    SynthOptions synth;
-    synth.frames = 12;
-    synth.vertices = 3000;
-    synth.remesh = true;
-    synth.noise = noise;
-    synth.texture_size = 64;
-    write_synthetic_capture(dir.path(), synth);
-    const Capture capture = read_capture(dir.path());
+    const Capture capture = small_capture(dir, 0, noise);
     EncodeOptions options;
     options.texture = false;
     SequenceEncoder encoder(capture, options);
