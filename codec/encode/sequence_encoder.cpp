@@ -275,6 +275,10 @@ std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> no
   return points;
 }
 
+std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const {
+  return resample_positions(InverseDiskMap(frames_[static_cast<size_t>(i)].map), sample_points(i, nodes));
+}
+
 void SequenceEncoder::sample_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
@@ -288,7 +292,7 @@ void SequenceEncoder::sample_frames() {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
     s.diagonal = bbox_diagonal(frames_[index].map.surface.positions);
-    std::vector<Vec3> all = resample_positions(InverseDiskMap(frames_[index].map), sample_points(static_cast<int>(index), geometry.grid().nodes));
+    std::vector<Vec3> all = sample_surface(static_cast<int>(index), geometry.grid().nodes);
     std::vector<Vec3> tu, tv;
     geometry.frames(all, tu, tv, s.normal);
     all.resize(nodes);
@@ -344,7 +348,7 @@ int SequenceEncoder::choose_grid() {
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
   for (int n : kGridCandidates) {
     const DiskGrid grid = make_disk_grid(n);
-    const std::vector<Vec3> sampled = resample_positions(InverseDiskMap(reference.map), sample_points(options_.reference_frame, grid.nodes));
+    const std::vector<Vec3> sampled = sample_surface(options_.reference_frame, grid.nodes);
     const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
     report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
     if (floor.rms / floor.diagonal <= target) return n;
@@ -473,7 +477,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
       const int j = held[begin + static_cast<size_t>(c)];
       weights[static_cast<size_t>(c)] = spline.weights(capture_.frames[static_cast<size_t>(j)].time);
       const RigidPose to_face = blend_poses(poses, rotations, weights[static_cast<size_t>(c)], centre).inverse();
-      std::vector<Vec3> positions = resample_positions(InverseDiskMap(frames_[static_cast<size_t>(j)].map), sample_points(j, nodes));
+      std::vector<Vec3> positions = sample_surface(j, nodes);
       for (Vec3& p : positions) p = to_face.apply(p);
       samples[static_cast<size_t>(c)] = std::move(positions);
     });

@@ -138,6 +138,8 @@ class SequenceEncoder {
   // reparametrisation, then the frame's registration (after register_frames).
   Vec2 sample_point(int i, const Vec2& node) const;
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
+  std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
   // Replaces the keyframes' registered surfaces in the face frame (`local[k]`, frame keyframes[k],
   // sampled at `nodes`) by the least-squares fit of the spline to every frame (options().keyframe_fit).
   void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const;
