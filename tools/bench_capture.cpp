@@ -538,7 +538,9 @@ json measure_capture(Context& context, const std::string& input) {
     FieldCoding coding;
     if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
-    timed(xyz_variant ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, 90, &bytes, &info, coding); });
+    std::vector<int> qualities;
+    timed(xyz_variant ? "texture quality (xyz)" : "texture quality", [&] { qualities = encoder.choose_texture_qualities(sequence, chosen.keyframes); });
+    timed(xyz_variant ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, qualities, &bytes, &info, coding); });
     return back;
   };
 

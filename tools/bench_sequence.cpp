@@ -81,10 +81,10 @@ std::optional<fs::path> make_bench_capture(const std::string& input, const std::
   return fs::path(input);
 }
 
-Sequence file_round_trip(const Sequence& sequence, int texture_quality, std::vector<uint8_t>* bytes, SequenceFileInfo* info,
+Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& texture_qualities, std::vector<uint8_t>* bytes, SequenceFileInfo* info,
                          const FieldCoding& coding) {
   SequenceFileMetadata metadata;
-  metadata.texture_quality = texture_quality;
+  metadata.keyframe_texture_qualities = texture_qualities;
   metadata.field_coding = coding;
   std::vector<uint8_t> file = encode_sequence_file(sequence, metadata);
   Sequence back = decode_sequence_file(file, "fmbench: the file round trip", info);

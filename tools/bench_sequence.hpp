@@ -38,12 +38,13 @@ double parse_fraction(const std::string& text, const char* what);
 std::optional<std::filesystem::path> make_bench_capture(const std::string& input, const std::string& data, const std::filesystem::path& scratch,
                                                         const SynthOptions& synth, const char* bench, bool quiet);
 
-// `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with
-// `texture_quality` and `coding` (empty: format 1.0's code planes; fmenc's come from
+// `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with per-keyframe
+// `texture_qualities` (fmenc's come from SequenceEncoder::choose_texture_qualities; empty: WebP
+// quality 90) and `coding` (empty: format 1.0's code planes; fmenc's come from
 // SequenceEncoder::round_fields), then decode_sequence_file. `bytes` and `info` (when given)
 // describe the file.
-Sequence file_round_trip(const Sequence& sequence, int texture_quality, std::vector<uint8_t>* bytes = nullptr, SequenceFileInfo* info = nullptr,
-                         const FieldCoding& coding = {});
+Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& texture_qualities, std::vector<uint8_t>* bytes = nullptr,
+                         SequenceFileInfo* info = nullptr, const FieldCoding& coding = {});
 
 struct FrameError {
   double rms = 0, max = 0;   // symmetric point-to-surface, relative to the captured frame's diagonal

@@ -37,8 +37,10 @@ double parse_fraction(const std::string& text, const char* what) {
 
 // Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
 // again from --field-error (from the file's values, so never finer than what it held); textures
-// re-encoded at `quality`.
+// re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
+// measure the blend against).
 void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality, bool quiet) {
+  if (quality == kAutoTextureQuality) quality = options.texture_coding.fallback_quality;
   SequenceFileInfo info;
   Sequence sequence = read_sequence_file(input, &info);
   SequenceFileMetadata metadata = info.metadata;
@@ -57,7 +59,7 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   }
 }
 
-nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report, int quality) {
+nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
   return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
           {"grid", o.grid > 0 ? nlohmann::json(o.grid) : nlohmann::json("auto")},
@@ -67,7 +69,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report,
           {"spline", spline_kind_name(o.spline)},
           {"texture", o.texture ? (o.texture_size > 0 ? nlohmann::json(o.texture_size) : nlohmann::json("auto")) : nlohmann::json(0)},
           {"texture_chosen", report.texture_size},
-          {"texture_quality", quality},
+          {"texture_quality", o.texture_quality == kAutoTextureQuality ? nlohmann::json("auto") : nlohmann::json(o.texture_quality)},
+          {"texture_qualities_chosen", report.texture_qualities},
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
           {"reference_frame", o.reference_frame},
@@ -87,8 +90,8 @@ int main(int argc, char** argv) {
                               representation = "hl+t", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
-  std::string texture_size = "auto";
-  int quality = 90, threads = 0, reference = 0, intra_period = 8;
+  std::string texture_size = "auto", quality_text = "auto";
+  int threads = 0, reference = 0, intra_period = 8;
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
@@ -102,7 +105,9 @@ int main(int argc, char** argv) {
   app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (from the capture's resolution)")->capture_default_str();
   app.add_option("--texture", texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
-  app.add_option("--quality", quality, "Texture quality (WebP, 0-100; above 100 lossless)")->capture_default_str();
+  app.add_option("--quality", quality_text,
+                 "Texture quality (WebP, 0-100; above 100 lossless), or auto: each keyframe's from the texture blend's error beside it")
+      ->capture_default_str();
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
@@ -140,7 +145,18 @@ int main(int argc, char** argv) {
         throw Error(ErrorCode::kInvalidArgument, "--grid '" + grid + "' is neither auto nor a number");
       }
     }
-    if (quality < 0 || quality > 101) throw Error(ErrorCode::kInvalidArgument, "--quality " + std::to_string(quality) + " outside 0..101");
+    int quality = kAutoTextureQuality;
+    if (quality_text != "auto") {
+      try {
+        size_t used = 0;
+        quality = std::stoi(quality_text, &used);
+        if (used != quality_text.size()) throw std::invalid_argument(quality_text);
+      } catch (const std::exception&) {
+        throw Error(ErrorCode::kInvalidArgument, "--quality '" + quality_text + "' is neither auto nor a number");
+      }
+      if (quality < 0 || quality > 101) throw Error(ErrorCode::kInvalidArgument, "--quality " + quality_text + " outside 0..101");
+    }
+    options.texture_quality = quality;
     options.texture = !no_texture;
     if (texture_size != "auto") {
       try {
@@ -186,9 +202,9 @@ int main(int argc, char** argv) {
     const Sequence sequence = encode_capture(capture, options, &report);
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
-    metadata.settings = settings_json(options, report, quality).dump();
+    metadata.settings = settings_json(options, report).dump();
     metadata.landmark_names = capture.landmark_names;
-    metadata.texture_quality = quality;
+    metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.field_coding = report.field_coding;
     write_sequence_file(output, sequence, metadata);
     if (quiet) return 0;
@@ -210,6 +226,19 @@ int main(int argc, char** argv) {
       const std::vector<double>& e = report.field_precision.keyframe_errors;
       std::printf("  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes\n",
                   100 * report.field_precision.target_error, options.auto_field_error ? " (auto)" : "", 100 * *std::max_element(e.begin(), e.end()), report.field_coding.intra_period);
+    }
+    if (!report.texture_qualities.empty()) {
+      const auto [lo, hi] = std::minmax_element(report.texture_qualities.begin(), report.texture_qualities.end());
+      std::printf("  textures: WebP quality %d to %d", *lo, *hi);
+      std::vector<double> measured;
+      for (double db : report.texture_interpolation_psnr) {
+        if (db > 0) measured.push_back(db);
+      }
+      if (!measured.empty()) {
+        const auto [low_db, high_db] = std::minmax_element(measured.begin(), measured.end());
+        std::printf(" (auto: the blend between keyframes is at %.1f to %.1f dB)", *low_db, *high_db);
+      }
+      std::printf("\n");
     }
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,

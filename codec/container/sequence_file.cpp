@@ -589,6 +589,15 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   if (metadata.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
   const FieldCoding& coding = metadata.field_coding;
   if (coding.predicted()) check_steps(coding);
+  const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
+  if (!qualities.empty()) {
+    if (qualities.size() != sequence.keyframes.size()) {
+      throw Error(ErrorCode::kInvalidArgument, std::to_string(qualities.size()) + " texture qualities for " + std::to_string(sequence.keyframes.size()) + " keyframes");
+    }
+    for (int q : qualities) {
+      if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
+    }
+  }
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   const format::PreparedChunk header = format::prepare_chunk(kHeader, write_header(sequence, metadata, shape), true, 19);
   // Every payload first, so the index can hold the offsets of the chunks after it.
@@ -609,7 +618,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     } else {
       keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
     }
-    if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_quality), true));
+    if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), qualities.empty() ? metadata.texture_quality : qualities[k]), true));
   }
   std::vector<IndexEntry> entries(sequence.keyframes.size());
   uint64_t offset = format::kPreambleBytes + header.total_size() + format::kChunkHeaderBytes + 4 + kIndexEntryBytes * entries.size() +

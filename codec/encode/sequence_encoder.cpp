@@ -192,6 +192,13 @@ SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) 
   if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
     throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
   }
+  if (options_.texture_quality != kAutoTextureQuality && (options_.texture_quality < 0 || options_.texture_quality > 101)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture quality must be auto or in [0, 101], not " + std::to_string(options_.texture_quality));
+  }
+  const TextureQualityOptions& coding = options_.texture_coding;
+  if (!(coding.interpolation_share > 0) || !(coding.min_psnr <= coding.max_psnr) || coding.fallback_quality < 0 || coding.fallback_quality > 101) {
+    throw Error(ErrorCode::kInvalidArgument, "texture coding: the interpolation share must be positive, min_psnr at most max_psnr, the fallback quality in [0, 101]");
+  }
 }
 
 void SequenceEncoder::progress(const std::string& stage, int done, int total) const {
@@ -537,6 +544,59 @@ FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSele
   return coding;
 }
 
+namespace {
+
+// Σ w_k · texture k at every texel, rounded and clamped as the decoder's blend.
+Image blend_key_textures(const Sequence& sequence, const SplineWeights& w) {
+  const Image& first = sequence.keyframes[static_cast<size_t>(w.keys.front())].texture;
+  Image out(first.width, first.height, first.channels);
+  for (size_t t = 0; t < out.pixels.size(); ++t) {
+    double sum = 0;
+    for (size_t i = 0; i < w.keys.size(); ++i) sum += w.weights[i] * sequence.keyframes[static_cast<size_t>(w.keys[i])].texture.pixels[t];
+    out.pixels[t] = static_cast<uint8_t>(std::clamp(std::lround(sum), 0L, 255L));
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes) {
+  const auto start = std::chrono::steady_clock::now();
+  report_.texture_qualities.clear();
+  report_.texture_interpolation_psnr.clear();
+  if (!sequence.has_texture()) return {};
+  const size_t keys = sequence.keyframes.size();
+  if (keyframes.size() != keys) throw Error(ErrorCode::kInvalidArgument, "choose_texture_qualities: the keyframes are not the sequence's");
+  std::vector<int> qualities(keys, options_.texture_quality);
+  if (options_.texture_quality == kAutoTextureQuality) {
+    // The blend's error at the frame midway between each pair of neighbouring keyframes, against
+    // that frame's own texture on the disk (sampled as a keyframe's would be).
+    std::vector<double> times;
+    for (const Keyframe& key : sequence.keyframes) times.push_back(key.time);
+    const KeyframeSpline spline(times, sequence.spline);
+    const int size = sequence.keyframes.front().texture.width;
+    std::vector<double> interval_mse(keys - 1, -1.0);
+    parallel_for(static_cast<int>(keys) - 1, options_.threads, [&](int k) {
+      const int middle = (keyframes[static_cast<size_t>(k)] + keyframes[static_cast<size_t>(k) + 1]) / 2;
+      const auto m = static_cast<size_t>(middle);
+      if (middle == keyframes[static_cast<size_t>(k)] || textures_[m].empty() || !frames_[m].map.surface.has_uvs()) return;
+      const InverseDiskMap inverse(frames_[m].map);
+      const Image own = resample_texture(inverse, read_image(textures_[m]), size, [&](const Vec2& w) { return sample_point(middle, w); });
+      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_key_textures(sequence, spline.weights(capture_.frames[m].time)));
+    });
+    const std::vector<double> targets = texture_error_targets(interval_mse, options_.texture_coding);
+    parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
+      const double target = targets[static_cast<size_t>(k)];
+      qualities[static_cast<size_t>(k)] = target < 0 ? options_.texture_coding.fallback_quality
+                                                      : webp_quality_for(sequence.keyframes[static_cast<size_t>(k)].texture, target);
+    });
+    for (double mse : interval_mse) report_.texture_interpolation_psnr.push_back(mse < 0 ? 0.0 : psnr_of_mse(mse));
+  }
+  report_.texture_qualities = qualities;
+  report_.seconds_texture = seconds_since(start);
+  return qualities;
+}
+
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
@@ -549,6 +609,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.grid = encoder.choose_grid();
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
+  encoder.choose_texture_qualities(sequence, chosen.keyframes);
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const MappedFrame& frame = encoder.frame(i);
     const DiskRegistration& registration = encoder.registration(i);

@@ -63,6 +63,8 @@ expect_error "density-equalising strength" "density-equalising strength must be"
 "$tools/fmenc" "$work/cap" -o "$work/dem.fmv" --grid 33 --no-texture --density-equalising 0.5 --quiet || fail "--density-equalising 0.5"
 "$tools/fmdec" "$work/dem.fmv" --t 0.17 -o "$work/dem.obj" --quiet || fail "fmdec of a density-equalised file"
 expect_error "keyframe fit" "--keyframe-fit" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframe-fit maybe
+expect_error "texture quality word" "neither auto nor a number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality best
+expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality 102
 "$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 

@@ -36,6 +36,7 @@ struct SequenceFileMetadata {
   std::string settings;                     // the encoder's settings (JSON text)
   std::vector<std::string> landmark_names;  // of the capture, for players that show them
   int texture_quality = 90;                 // WebP quality 0..100 (above 100: lossless)
+  std::vector<int> keyframe_texture_qualities;  // one per keyframe, in place of texture_quality (the encoder's choice)
   FieldCoding field_coding;                 // the writer's; the reader reports the file's
 };
 
@@ -66,8 +67,9 @@ struct SequenceFileInfo {
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 
 // The file's bytes. Fields are coded as metadata.field_coding says (16-bit code planes when it has
-// no steps; spec/method.md §5.3), textures encoded as WebP at metadata.texture_quality. Throws
-// kInvalidArgument for a sequence validate_sequence rejects, or a coding round_to_field_steps does.
+// no steps; spec/method.md §5.3), textures encoded as WebP at metadata.texture_quality (or each at its
+// keyframe_texture_qualities entry). Throws kInvalidArgument for a sequence validate_sequence rejects,
+// a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
 
 // Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,

@@ -16,6 +16,7 @@
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/registration.hpp"
+#include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <filesystem>
@@ -27,6 +28,8 @@
 
 namespace facemorph {
 
+inline constexpr int kAutoTextureQuality = -1;
+
 struct EncodeOptions {
   double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
   double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
@@ -36,6 +39,11 @@ struct EncodeOptions {
   SplineKind spline = SplineKind::kCatmullRom;
   bool texture = true;
   int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
+  // --quality: every keyframe's texture at this WebP quality (0..100, above 100 lossless), or
+  // kAutoTextureQuality (the default): each keyframe's from the interpolation error beside it
+  // (texture_quality.hpp, spec/method.md §7.12).
+  int texture_quality = kAutoTextureQuality;
+  TextureQualityOptions texture_coding;
   bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
   bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
   int reference_frame = 0;          // the frame every other is registered to
@@ -93,7 +101,12 @@ struct EncodeReport {
   DensityEqualisingReport density_equalising;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0;
+  // Per keyframe, the WebP quality of its texture (SequenceFileMetadata::keyframe_texture_qualities;
+  // empty without texture); with auto quality, per interval between keyframes the PSNR of the texture
+  // blend at the frame midway (0 where no frame lies between).
+  std::vector<int> texture_qualities;
+  std::vector<double> texture_interpolation_psnr;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0, seconds_texture = 0;
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
@@ -125,6 +138,11 @@ class SequenceEncoder {
   // auto_field_error a tenth of `chosen`'s mean predicted error): what a file written with the
   // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
   FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
+  // 8. each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
+  // at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
+  // what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
+  // build. Fills report().texture_qualities; empty for a sequence without texture.
+  std::vector<int> choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes);
 
   EncodeOptions& options() { return options_; }
   const Capture& capture() const { return capture_; }

@@ -1,0 +1,75 @@
+// Each keyframe's texture quality from the interpolation error beside it (spec/method.md §7.12).
+#include "facemorph/encoder/texture_quality.hpp"
+
+#include "facemorph/error.hpp"
+#include "facemorph/image_codec.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace facemorph {
+
+double disk_texture_mse(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height || a.channels != 3 || b.channels != 3 || a.pixels.size() != b.pixels.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "disk_texture_mse: the images differ in size or are not RGB");
+  }
+  double sum = 0;
+  size_t count = 0;
+  for (int y = 0; y < a.height; ++y) {
+    const double v = 1 - 2 * (y + 0.5) / a.height;
+    for (int x = 0; x < a.width; ++x) {
+      const double u = 2 * (x + 0.5) / a.width - 1;
+      if (u * u + v * v > 1) continue;
+      const uint8_t *p = a.at(x, y), *q = b.at(x, y);
+      for (int c = 0; c < 3; ++c) {
+        const double d = static_cast<double>(p[c]) - q[c];
+        sum += d * d;
+      }
+      count += 3;
+    }
+  }
+  return count ? sum / static_cast<double>(count) : 0.0;
+}
+
+double psnr_of_mse(double mse) { return mse > 0 ? 10 * std::log10(255.0 * 255.0 / mse) : std::numeric_limits<double>::infinity(); }
+
+double mse_of_psnr(double psnr) { return 255.0 * 255.0 * std::pow(10.0, -psnr / 10); }
+
+int webp_quality_for(const Image& texture, double target_mse) {
+  constexpr double kWebpFloorMargin = 1.25;
+  auto meets = [&](int quality) {
+    const Image decoded = decode_webp(encode_webp(texture, quality), "webp_quality_for", 3);
+    return disk_texture_mse(texture, decoded) <= target_mse;
+  };
+  // Lossy WebP cannot go below its floor (4:2:0 chroma, the finest quantiser): a target near or
+  // under it would buy bytes and no quality, so the target is at least a quarter above the floor.
+  const double floor = disk_texture_mse(texture, decode_webp(encode_webp(texture, 100), "webp_quality_for", 3));
+  target_mse = std::max(target_mse, kWebpFloorMargin * floor);
+  // The lowest quality that meets the target within [lo, hi]: lo fails (or is 0), hi meets.
+  int lo = 0, hi = 100;
+  if (meets(lo)) return 0;
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    (meets(mid) ? hi : lo) = mid;
+  }
+  return hi;
+}
+
+std::vector<double> texture_error_targets(const std::vector<double>& interval_mse, const TextureQualityOptions& options) {
+  if (!(options.interpolation_share > 0) || !(options.min_psnr <= options.max_psnr)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture quality: the interpolation share must be positive and min_psnr at most max_psnr");
+  }
+  const size_t keys = interval_mse.size() + 1;
+  std::vector<double> targets(keys, -1.0);
+  for (size_t k = 0; k < keys; ++k) {
+    double smallest = std::numeric_limits<double>::infinity();
+    if (k > 0 && interval_mse[k - 1] >= 0) smallest = std::min(smallest, interval_mse[k - 1]);
+    if (k + 1 < keys && interval_mse[k] >= 0) smallest = std::min(smallest, interval_mse[k]);
+    if (!std::isfinite(smallest)) continue;
+    targets[k] = std::clamp(options.interpolation_share * smallest, mse_of_psnr(options.max_psnr), mse_of_psnr(options.min_psnr));
+  }
+  return targets;
+}
+
+}  // namespace facemorph

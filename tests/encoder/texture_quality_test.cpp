@@ -1,0 +1,150 @@
+// Each keyframe's texture quality from the blend's error beside it (spec/method.md §7.12): the
+// pieces against known answers, then a capture end to end through the file.
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/encoder/texture_quality.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/image_codec.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace facemorph {
+namespace {
+
+// A texture with smooth shading and fine detail, as a face's: what WebP's quality trades.
+Image detailed_texture(int size, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> grain(-12, 12);
+  Image image(size, size, 3);
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const double shade = 0.5 + 0.4 * std::sin(x * 0.05) * std::cos(y * 0.07);
+      for (int c = 0; c < 3; ++c) image.at(x, y)[c] = static_cast<uint8_t>(std::clamp(static_cast<int>(60 + 150 * shade) + 20 * c + grain(rng), 0, 255));
+    }
+  }
+  return image;
+}
+
+TEST(TextureQuality, DiskErrorCountsTheDiskOnly) {
+  Image a(32, 32, 3), b(32, 32, 3);
+  b.at(0, 0)[0] = 200;  // a corner: outside the disk
+  b.at(31, 31)[2] = 200;
+  EXPECT_EQ(disk_texture_mse(a, b), 0.0);
+  for (uint8_t& p : b.pixels) p = 10;
+  EXPECT_DOUBLE_EQ(disk_texture_mse(a, b), 100.0);
+  EXPECT_NEAR(psnr_of_mse(100.0), 20 * std::log10(25.5), 1e-12);
+  EXPECT_NEAR(mse_of_psnr(psnr_of_mse(37.0)), 37.0, 1e-9);
+  testing::expect_error(ErrorCode::kInvalidArgument, "differ in size", [&] { disk_texture_mse(a, Image(16, 32, 3)); });
+}
+
+TEST(TextureQuality, WebpQualityIsTheLowestThatMeetsTheTarget) {
+  const Image texture = detailed_texture(128, 7);
+  auto error_at = [&](int quality) { return disk_texture_mse(texture, decode_webp(encode_webp(texture, quality), "test", 3)); };
+  const double target = error_at(50);
+  const int quality = webp_quality_for(texture, target);
+  EXPECT_LE(quality, 50);
+  EXPECT_LE(error_at(quality), target);
+  if (quality > 0) {
+    EXPECT_GT(error_at(quality - 1), target);
+  }
+  // A tighter target takes a higher quality; a loose one the lowest; one under lossy WebP's floor
+  // (its error at quality 100) the lowest within a quarter of that floor, short of 100.
+  EXPECT_GT(webp_quality_for(texture, target / 3), quality);
+  EXPECT_EQ(webp_quality_for(texture, 1e6), 0);
+  const int floor_quality = webp_quality_for(texture, 0.0);
+  EXPECT_LT(floor_quality, 100);
+  EXPECT_LE(error_at(floor_quality), 1.25 * error_at(100));
+  EXPECT_GT(error_at(floor_quality - 1), 1.25 * error_at(100));
+}
+
+TEST(TextureQuality, TargetsAreAShareOfTheSmallerNeighbouringIntervalWithinTheBounds) {
+  TextureQualityOptions options;
+  options.interpolation_share = 0.25;
+  options.min_psnr = 32;
+  options.max_psnr = 48;  // not the defaults: the test's own bounds
+  // Keyframes 0..3; intervals 0-1: MSE 100, 1-2: 400, 2-3: not measured (consecutive frames).
+  const std::vector<double> targets = texture_error_targets({100.0, 400.0, -1.0}, options);
+  ASSERT_EQ(targets.size(), 4u);
+  EXPECT_DOUBLE_EQ(targets[0], 25.0);
+  EXPECT_DOUBLE_EQ(targets[1], 25.0);
+  EXPECT_DOUBLE_EQ(targets[2], mse_of_psnr(32));  // 100 clamped to the coarsest allowed, 41.0
+  EXPECT_LT(targets[3], 0);                        // its only interval was not measured
+  // A nearly perfect blend does not ask for more than max_psnr; nothing measured: no target.
+  EXPECT_DOUBLE_EQ(texture_error_targets({1e-6}, options)[0], mse_of_psnr(48));
+  EXPECT_LT(texture_error_targets({-1.0}, options)[1], 0);
+  options.interpolation_share = 0;
+  testing::expect_error(ErrorCode::kInvalidArgument, "share", [&] { texture_error_targets({1.0}, options); });
+}
+
+// End to end: with auto quality the keyframes' textures take fewer bytes than at quality 90, and the
+// frames between keyframes — what the blend shows — lose little against their own textures.
+TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 12;
+  synth.vertices = 3000;
+  synth.remesh = true;
+  synth.noise = 0;
+  synth.texture_size = 256;
+  write_synthetic_capture(dir.path(), synth);
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 33;
+  options.texture_size = 128;
+  options.predicted_fields = false;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  const Sequence sequence = encoder.build(chosen.keyframes, options.grid);
+  const std::vector<int> automatic = encoder.choose_texture_qualities(sequence, chosen.keyframes);
+  ASSERT_EQ(automatic.size(), sequence.keyframes.size());
+  for (double db : encoder.report().texture_interpolation_psnr) EXPECT_GT(db, 20);
+  encoder.options().texture_quality = 90;
+  EXPECT_EQ(encoder.choose_texture_qualities(sequence, chosen.keyframes), std::vector<int>(sequence.keyframes.size(), 90));
+
+  auto through_file = [&](const std::vector<int>& qualities, uint64_t& texture_bytes) {
+    SequenceFileMetadata metadata;
+    metadata.keyframe_texture_qualities = qualities;
+    SequenceFileInfo info;
+    const Sequence back = decode_sequence_file(encode_sequence_file(sequence, metadata), "test", &info);
+    texture_bytes = 0;
+    for (const SequenceFileInfo::KeyframeBytes& k : info.keyframes) texture_bytes += k.texture;
+    return back;
+  };
+  uint64_t auto_bytes = 0, fixed_bytes = 0;
+  SequenceDecoder auto_decoder(std::make_shared<const Sequence>(through_file(automatic, auto_bytes)));
+  SequenceDecoder fixed_decoder(std::make_shared<const Sequence>(through_file(std::vector<int>(automatic.size(), 90), fixed_bytes)));
+  EXPECT_LT(auto_bytes, 0.8 * fixed_bytes);
+  double auto_mse = 0, fixed_mse = 0;
+  int held = 0;
+  for (int i = 0; i < encoder.frame_count(); ++i) {
+    if (std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i)) continue;
+    const Image own = resample_texture(InverseDiskMap(encoder.frame(i).map), read_image(encoder.texture_path(i)), 128,
+                                       [&](const Vec2& w) { return encoder.sample_point(i, w); });
+    const double t = capture.frames[static_cast<size_t>(i)].time;
+    auto_mse += disk_texture_mse(own, auto_decoder.decode(t).texture);
+    fixed_mse += disk_texture_mse(own, fixed_decoder.decode(t).texture);
+    ++held;
+  }
+  ASSERT_GT(held, 0);
+  const double loss = psnr_of_mse(fixed_mse / held) - psnr_of_mse(auto_mse / held);
+  EXPECT_LT(loss, 0.75) << "held-out texture PSNR " << psnr_of_mse(fixed_mse / held) << " dB at quality 90, " << psnr_of_mse(auto_mse / held)
+                        << " dB auto; texture bytes " << fixed_bytes << " and " << auto_bytes;
+  // Wrong per-keyframe qualities are refused by the writer.
+  SequenceFileMetadata bad;
+  bad.keyframe_texture_qualities = {90};
+  testing::expect_error(ErrorCode::kInvalidArgument, "texture qualities", [&] { encode_sequence_file(sequence, bad); });
+}
+
+}  // namespace
+}  // namespace facemorph
