@@ -501,8 +501,11 @@ json measure_capture(Context& context, const std::string& input) {
   timed("mapping", [&] { encoder.map_frames(); });
   timed("registration", [&] { encoder.register_frames(); });
   timed("sampling", [&] { encoder.sample_frames(); });
+  // fmenc's order: the keyframes first, then the grid their predicted error allows.
+  KeyframeSelection main_chosen;
+  if (!given) timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
   int grid = 0;
-  timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(); });
+  timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(&main_chosen); });
   progress.finish();
 
   // Facemorph's texture PSNR per frame (and the baselines' on the sample frames) as frames decode.
@@ -530,11 +533,11 @@ json measure_capture(Context& context, const std::string& input) {
   };
   // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
   // (format 1.1; fmenc's default), the file written and read back.
-  auto encode_file = [&](const KeyframeSelection& chosen, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
+  auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
     const bool xyz_variant = representation == Representation::kXYZ && encode.representation != Representation::kXYZ;
     encoder.options().representation = representation;
     Sequence sequence;
-    timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, grid); });
+    timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, n); });
     FieldCoding coding;
     if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
@@ -576,7 +579,6 @@ json measure_capture(Context& context, const std::string& input) {
   SequenceFileInfo main_info;
   Sequence main_sequence;
   std::vector<int> main_keys;
-  KeyframeSelection main_chosen;
   if (given) {
     for (const Keyframe& key : given->keyframes) {
       int nearest = 0;
@@ -590,9 +592,8 @@ json measure_capture(Context& context, const std::string& input) {
     main_info = given_info;
     main_bytes.resize(given_info.file_bytes);
   } else {
-    timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
     main_keys = main_chosen.keyframes;
-    main_sequence = encode_file(main_chosen, encode.representation, main_bytes, main_info);
+    main_sequence = encode_file(main_chosen, grid, encode.representation, main_bytes, main_info);
   }
   const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
     for (int d = 0; d < count; ++d) {
@@ -617,7 +618,7 @@ json measure_capture(Context& context, const std::string& input) {
   // Facemorph's xyz variant: the same keyframes, grid and spline.
   std::vector<uint8_t> xyz_bytes;
   SequenceFileInfo xyz_info;
-  const Sequence xyz_sequence = encode_file(main_chosen, Representation::kXYZ, xyz_bytes, xyz_info);
+  const Sequence xyz_sequence = encode_file(main_chosen, grid, Representation::kXYZ, xyz_bytes, xyz_info);
   const Encoded xyz = measure("facemorph xyz", main.budget, main_keys, xyz_sequence, xyz_bytes.size(), xyz_info, false);
   encoder.options().representation = encode.representation;
 
@@ -631,11 +632,12 @@ json measure_capture(Context& context, const std::string& input) {
     }
     encoder.options().keyframe_fraction = budget;
     const KeyframeSelection chosen = encoder.select_keyframes();
+    const int budget_grid = given ? grid : encoder.choose_grid(&chosen);  // as fmenc would for this budget
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
-    const Sequence sequence = encode_file(chosen, encode.representation, bytes, info);
+    const Sequence sequence = encode_file(chosen, budget_grid, encode.representation, bytes, info);
     curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
-    const Sequence xyz_at = encode_file(chosen, Representation::kXYZ, bytes, info);
+    const Sequence xyz_at = encode_file(chosen, budget_grid, Representation::kXYZ, bytes, info);
     xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));
     encoder.options().representation = encode.representation;
     if (!options.quiet) std::fprintf(stderr, "fmbench --capture: %s: keyframe budget %g%% measured\n", label.c_str(), 100 * budget);

@@ -205,8 +205,9 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       encoder.options().spline = splines.front();
       encoder.register_frames();
       encoder.sample_frames();
+      const KeyframeSelection chosen = encoder.select_keyframes();
       if (grid == 0) {
-        grid = encoder.choose_grid();
+        grid = encoder.choose_grid(&chosen);
         if (!encoder.report().grid_floors.empty()) {
           std::printf("    --grid auto: N = %d (median frame noise %.4f%%; floors", grid, 100 * encoder.report().median_noise);
           for (const auto& [n, floor] : encoder.report().grid_floors) std::printf(" %d: %.4f%%", n, 100 * floor);
@@ -222,7 +223,6 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       }
       const MatchingEnergies energies = matching_energies(encoder);
       energies_by_method.push_back(energies);
-      const KeyframeSelection chosen = encoder.select_keyframes();
       size_t file_bytes = 0;
       const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen, &file_bytes);
       Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, textured);

@@ -217,6 +217,11 @@ int main(int argc, char** argv) {
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
                 sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+    if (!report.grid_floors.empty()) {
+      std::printf("  --grid auto: resampling floor (RMS of the diagonal)");
+      for (const auto& [n, floor] : report.grid_floors) std::printf(" %d: %.3f%%", n, 100 * floor);
+      std::printf("; the capture's median frame noise %.3f%%\n", 100 * report.median_noise);
+    }
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);
     double worst = 0;

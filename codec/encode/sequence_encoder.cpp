@@ -35,6 +35,21 @@ constexpr int kSelectionGrid = 65;
 constexpr int kGridCandidates[] = {65, 97, 129, 193, 257};
 constexpr double kGridFloorTarget = 2e-4;
 constexpr double kGridNoiseShare = 0.5;
+constexpr double kGridErrorShare = 0.25;
+
+// The mean of the selection's predicted errors between keyframes (fraction of the diagonal); 0 when
+// none was predicted (every frame a keyframe).
+double mean_predicted_error(const KeyframeSelection& chosen) {
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) {
+      sum += e;
+      ++count;
+    }
+  }
+  return count == 0 ? 0.0 : sum / count;
+}
 
 double bbox_diagonal(const std::vector<Vec3>& positions) {
   Vec3 lo = positions.front(), hi = lo;
@@ -340,7 +355,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   return facemorph::select_keyframes(selection_, node_weights_, selection);
 }
 
-int SequenceEncoder::choose_grid() {
+int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   if (options_.grid > 0) return options_.grid;
   // The smallest N whose resampling floor on the reference frame is within the target; the
   // largest candidate when none is (a crowded face: spec/method.md §7.6).
@@ -351,7 +366,11 @@ int SequenceEncoder::choose_grid() {
   for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(selection_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
   std::nth_element(noise.begin(), noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2), noise.end());
   report_.median_noise = std::isfinite(noise[noise.size() / 2]) ? noise[noise.size() / 2] : 0.0;
-  const double target = std::max(kGridFloorTarget, kGridNoiseShare * report_.median_noise);
+  // Nor below a share of the error the spline makes between the chosen keyframes: a floor of a
+  // quarter of it adds 3% to that error (errors add in quadrature), a finer grid costs bytes as N²
+  // and shows nothing the frames between keyframes keep.
+  report_.grid_target = std::max({kGridFloorTarget, kGridNoiseShare * report_.median_noise, chosen ? kGridErrorShare * mean_predicted_error(*chosen) : 0.0});
+  const double target = report_.grid_target;
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
   for (int n : kGridCandidates) {
     const DiskGrid grid = make_disk_grid(n);
@@ -522,15 +541,8 @@ namespace {
 // --field-error auto: a tenth of the mean predicted error of the frames between keyframes.
 double auto_field_error(const KeyframeSelection& chosen) {
   constexpr double kShare = 0.1, kLowest = 5e-5, kHighest = 5e-4;
-  double sum = 0;
-  int count = 0;
-  for (double e : chosen.predicted_error) {
-    if (e > 0) {
-      sum += e;
-      ++count;
-    }
-  }
-  return count == 0 ? 1e-4 : std::clamp(kShare * sum / count, kLowest, kHighest);
+  const double mean = mean_predicted_error(chosen);
+  return mean == 0 ? 1e-4 : std::clamp(kShare * mean, kLowest, kHighest);
 }
 
 }  // namespace
@@ -606,7 +618,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   EncodeReport& report = encoder.report();
   report.keyframes = chosen.keyframes;
   report.selection_history = chosen.history;
-  report.grid = encoder.choose_grid();
+  report.grid = encoder.choose_grid(&chosen);
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   encoder.choose_texture_qualities(sequence, chosen.keyframes);

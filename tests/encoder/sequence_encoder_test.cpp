@@ -283,5 +283,41 @@ TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
   EXPECT_LT(noisy, clean);
 }
 
+// Given the keyframes, --grid auto also stops at a quarter of the error the spline makes between
+// them: with few keyframes for a changing expression that error is large, and a grid finer than a
+// quarter of it only adds bytes (spec/method.md §7.6).
+TEST(SequenceEncoder, AutomaticGridStopsAtAShareOfThePredictedError) {
+  testing::TempDir dir;
+  // 2 s of smoothly changing expressions: little frame noise, and two keyframes far apart.
+  write_synthetic_capture(dir.path(), {.frames = 60, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options;
+  options.texture = false;
+  options.keyframe_fraction = 0.02;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  EXPECT_EQ(chosen.keyframes.size(), 2u);
+  const int alone = encoder.choose_grid();
+  const double alone_target = encoder.report().grid_target;
+  const int with_keys = encoder.choose_grid(&chosen);
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) sum += e, ++count;
+  }
+  ASSERT_GT(count, 0);
+  const double target = encoder.report().grid_target;
+  EXPECT_DOUBLE_EQ(target, std::max(alone_target, 0.25 * sum / count));
+  const auto& floors = encoder.report().grid_floors;
+  ASSERT_FALSE(floors.empty());
+  EXPECT_EQ(floors.back().first, with_keys);
+  for (size_t i = 0; i + 1 < floors.size(); ++i) EXPECT_GT(floors[i].second, target);
+  EXPECT_LE(floors.back().second, target);
+  EXPECT_LT(with_keys, alone) << "floors tried: " << floors.size() << ", target " << target << " against " << alone_target;
+}
+
 }  // namespace
 }  // namespace facemorph

@@ -87,13 +87,7 @@ TEST(TextureQuality, TargetsAreAShareOfTheSmallerNeighbouringIntervalWithinTheBo
 // frames between keyframes — what the blend shows — lose little against their own textures.
 TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   testing::TempDir dir;
-  SynthOptions synth;
-  synth.frames = 12;
-  synth.vertices = 3000;
-  synth.remesh = true;
-  synth.noise = 0;
-  synth.texture_size = 256;
-  write_synthetic_capture(dir.path(), synth);
+  write_synthetic_capture(dir.path(), {.frames = 12, .vertices = 3000, .remesh = true, .noise = 0, .texture_size = 256});
   const Capture capture = read_capture(dir.path());
   EncodeOptions options;
   options.keyframe_fraction = 0.25;

@@ -97,6 +97,7 @@ struct EncodeReport {
   int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
   double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
+  double grid_target = 0;                                 // the floor --grid auto asked for / diagonal
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
@@ -131,7 +132,9 @@ class SequenceEncoder {
   void sample_frames();     // 3. registered surfaces on the selection grid, head poses
   KeyframeSelection select_keyframes() const;  // 4. by predicted error
   Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
-  int choose_grid();        // 5. N (options().grid, or automatic)
+  // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
+  // noise and, given the keyframes `chosen`, the error the spline makes between them.
+  int choose_grid(const KeyframeSelection* chosen = nullptr);
   // 6. the keyframes on G: fields, poses, holes, textures.
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
