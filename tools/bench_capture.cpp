@@ -173,7 +173,7 @@ double texel_psnr(const DiskTexels& t, Colour&& colour) {
     }
   }
   const double mse = sum / std::max<double>(3.0 * static_cast<double>(t.texel.size()), 1);
-  return 10 * std::log10(255.0 * 255.0 / std::max(mse, 1e-12));
+  return psnr_of_mse(std::max(mse, 1e-12));
 }
 
 // A disk texture (facemorph's decode) against the captured texture.
@@ -531,6 +531,7 @@ json measure_capture(Context& context, const std::string& input) {
     for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame
     return out;
   };
+  std::map<std::vector<int>, std::vector<int>> texture_qualities;  // per keyframe set, as encode_file chose them
   // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
   // (format 1.1; fmenc's default), the file written and read back.
   auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
@@ -541,8 +542,9 @@ json measure_capture(Context& context, const std::string& input) {
     FieldCoding coding;
     if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
-    std::vector<int> qualities;
-    timed(xyz_variant ? "texture quality (xyz)" : "texture quality", [&] { qualities = encoder.choose_texture_qualities(sequence, chosen.keyframes); });
+    // The textures depend on the keyframes only (not on the representation or N): chosen once for each set.
+    std::vector<int>& qualities = texture_qualities[chosen.keyframes];
+    if (qualities.empty()) timed("texture quality", [&] { qualities = encoder.choose_texture_qualities(sequence, chosen.keyframes); });
     timed(xyz_variant ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, qualities, &bytes, &info, coding); });
     return back;
   };

@@ -7,6 +7,7 @@
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/image_codec.hpp"
 #include "facemorph/encoder/synth.hpp"
+#include "facemorph/encoder/texture_quality.hpp"
 
 #include "tools/plot.hpp"
 #include "tools/tool_support.hpp"
@@ -112,22 +113,7 @@ Summary summarise(const Evaluation& e) {
   return s;
 }
 
-double disk_psnr(const Image& a, const Image& b) {
-  double sum = 0;
-  long count = 0;
-  for (int y = 0; y < a.height; ++y) {
-    for (int x = 0; x < a.width; ++x) {
-      const Vec2 w(2 * (x + 0.5) / a.width - 1, 1 - 2 * (y + 0.5) / a.height);
-      if (w.norm() > 1) continue;
-      for (int c = 0; c < 3; ++c) {
-        const double d = double(a.at(x, y)[c]) - double(b.at(x, y)[c]);
-        sum += d * d;
-        ++count;
-      }
-    }
-  }
-  return 10 * std::log10(255.0 * 255.0 / std::max(sum / std::max(count, 1L), 1e-12));
-}
+double disk_psnr(const Image& a, const Image& b) { return psnr_of_mse(std::max(disk_texture_mse(a, b), 1e-12)); }
 
 Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes,
                     const std::vector<TriangleMesh>& captured, const std::vector<int>& frames_to_decode, bool textures,

@@ -556,22 +556,6 @@ FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSele
   return coding;
 }
 
-namespace {
-
-// Σ w_k · texture k at every texel, rounded and clamped as the decoder's blend.
-Image blend_key_textures(const Sequence& sequence, const SplineWeights& w) {
-  const Image& first = sequence.keyframes[static_cast<size_t>(w.keys.front())].texture;
-  Image out(first.width, first.height, first.channels);
-  for (size_t t = 0; t < out.pixels.size(); ++t) {
-    double sum = 0;
-    for (size_t i = 0; i < w.keys.size(); ++i) sum += w.weights[i] * sequence.keyframes[static_cast<size_t>(w.keys[i])].texture.pixels[t];
-    out.pixels[t] = static_cast<uint8_t>(std::clamp(std::lround(sum), 0L, 255L));
-  }
-  return out;
-}
-
-}  // namespace
-
 std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes) {
   const auto start = std::chrono::steady_clock::now();
   report_.texture_qualities.clear();
@@ -594,7 +578,7 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
       if (middle == keyframes[static_cast<size_t>(k)] || textures_[m].empty() || !frames_[m].map.surface.has_uvs()) return;
       const InverseDiskMap inverse(frames_[m].map);
       const Image own = resample_texture(inverse, read_image(textures_[m]), size, [&](const Vec2& w) { return sample_point(middle, w); });
-      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_key_textures(sequence, spline.weights(capture_.frames[m].time)));
+      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_textures(sequence, spline.weights(capture_.frames[m].time)));
     });
     const std::vector<double> targets = texture_error_targets(interval_mse, options_.texture_coding);
     parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {

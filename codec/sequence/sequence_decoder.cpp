@@ -104,6 +104,9 @@ FACEMORPH_PIXEL_CLONES void blend_pixels(const uint8_t* const* pixels, const flo
   }
 }
 
+
+}  // namespace
+
 // Σ w_k · texture of key k, rounded to the nearest byte and clamped to 0..255 (Catmull-Rom weights
 // can be negative). One vectorised pass over the pixels with the keys' sum in a register: summed
 // through a float image and rounded by lround, the blend was half of a frame's time at 1024² (14 of
@@ -137,8 +140,6 @@ Image blend_textures(const Sequence& sequence, const SplineWeights& w) {
   }
   return out;
 }
-
-}  // namespace
 
 SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence)
     : sequence_(validated(std::move(sequence))),

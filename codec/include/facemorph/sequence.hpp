@@ -55,6 +55,11 @@ struct Sequence {
 // keyframe and the defect (the container reader reports kCorrupt).
 void validate_sequence(const Sequence& sequence);
 
+// The texture a frame shows: Σ w_k · texture of key k (SequenceDecoder's blend, also what the
+// encoder measures its texture quality against), rounded to the nearest byte and clamped to 0..255.
+// Requires a sequence with texture and weights of its keyframes.
+Image blend_textures(const Sequence& sequence, const SplineWeights& w);
+
 struct DecodeOptions {
   bool cut_holes = true;      // false: keep the fill (--keep-holes-filled)
   bool texture = true;        // blend the texture
