@@ -96,7 +96,7 @@ FileInfo describe(const Sequence& sequence) {
   info.range_end = range.end;
   info.grid_n = sequence.grid_n;
   // G triangulates the disk with every rim node on its boundary: F = 2 I + B − 2 (Euler), without
-  // building it (the decoder builds it once, with its factorisation).
+  // building it (the decoder builds it once, with its solver).
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   info.grid_vertex_count = shape.interior_count + shape.rim_count;
   info.grid_triangle_count = 2 * shape.interior_count + shape.rim_count - 2;

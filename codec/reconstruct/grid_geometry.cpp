@@ -100,35 +100,7 @@ void GridGeometry::frames(const std::vector<Vec3>& S, std::vector<Vec3>& tu, std
   tu.resize(count);
   tv.resize(count);
   n.resize(count);
-  const double inv2h = 0.5 / grid_.h;
-  for (size_t v = 0; v < count; ++v) {
-    const auto& nb = neighbours_[v];
-    Vec3 su, sv;
-    if (stencil_start_[v] == stencil_start_[v + 1]) {
-      su = (S[static_cast<size_t>(nb[0])] - S[static_cast<size_t>(nb[1])]) * inv2h;
-      sv = (S[static_cast<size_t>(nb[2])] - S[static_cast<size_t>(nb[3])]) * inv2h;
-    } else {
-      // Near the rim: the disk-area-weighted Jacobian of the faces around the node.
-      su = sv = Vec3::Zero();
-      for (int32_t k = stencil_start_[v]; k < stencil_start_[v + 1]; ++k) {
-        const StencilEntry& e = stencil_[static_cast<size_t>(k)];
-        const Vec3& p = S[static_cast<size_t>(e.node)];
-        su += e.cu * p;
-        sv += e.cv * p;
-      }
-    }
-    // One division per length and multiplications (not three divisions each): the chain of
-    // square roots and divisions was most of this loop's time.
-    Vec3 normal = su.cross(sv);
-    const double length = normal.norm();
-    normal = length > 0 ? Vec3(normal * (1 / length)) : Vec3::UnitZ();
-    Vec3 u = su - su.dot(normal) * normal;
-    const double ul = u.norm();
-    u = ul > 0 ? Vec3(u * (1 / ul)) : normal.unitOrthogonal();
-    n[v] = normal;
-    tu[v] = u;
-    tv[v] = normal.cross(u);
-  }
+  for (size_t v = 0; v < count; ++v) frame(v, S.data(), tu[v], tv[v], n[v]);
 }
 
 std::vector<std::array<Vec3, 3>> GridGeometry::boundary_frames(const std::vector<Vec3>& rim, const std::vector<int32_t>& nodes) const {

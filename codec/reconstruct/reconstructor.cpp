@@ -2,7 +2,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/reconstruct.hpp"
 
-#include "codec/reconstruct/triple_solver.hpp"
+#include "codec/reconstruct/lattice_multigrid.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -121,7 +121,7 @@ class AndersonMixer {
 
 struct Reconstructor::Impl {
   SparseMatrix K_II, K_IB;  // interior-interior and interior-rim blocks of the stiffness matrix
-  std::unique_ptr<TripleSolver> solver;
+  std::unique_ptr<LatticeMultigrid> multigrid;  // once per grid: K_II is SPD (Dirichlet on the rim)
   Eigen::VectorXd mass;     // lumped mass of the interior nodes
   std::vector<Vec3> last;      // the previous result...
   std::vector<Vec3> before;    // ...and the one before: the warm start extrapolates from both
@@ -133,10 +133,9 @@ Reconstructor::Reconstructor(int grid_n)
   const int interior = geometry_->interior_count();
   const int rim = geometry_->grid().rim_count;
   // G's Cartesian triangles give their diagonals a cotangent weight of exactly zero in exact
-  // arithmetic and ~1e-17 in floating point: a third of K's entries. Kept, they are edges to the
-  // factorisation's ordering and fill the factor; dropped, the matrix is the 5-point stencil the
-  // spec says it is, the factor has 40% fewer entries and a solve is 1.6x faster (N = 257: 18.4 MB,
-  // 6.0 ms -> 11.1 MB, 3.7 ms; the factorisation 2-3x faster).
+  // arithmetic and ~1e-17 in floating point: a third of K's entries. Dropped, the matrix is the
+  // 5-point stencil the spec says it is (rows of at most four neighbours for the multigrid's sweeps,
+  // and red-black ordering decouples them).
   double largest = 0;
   for (int c = 0; c < K.outerSize(); ++c) {
     for (SparseMatrix::InnerIterator it(K, c); it; ++it) largest = std::max(largest, std::abs(it.value()));
@@ -156,7 +155,8 @@ Reconstructor::Reconstructor(int grid_n)
   impl_->K_IB.resize(interior, rim);
   impl_->K_IB.setFromTriplets(ib.begin(), ib.end());
   impl_->mass = geometry_->mass().head(interior);
-  impl_->solver = std::make_unique<TripleSolver>(impl_->K_II);  // once per grid: SPD (Dirichlet on the rim)
+  const std::vector<std::array<int32_t, 2>> cells(geometry_->grid().cell.begin(), geometry_->grid().cell.begin() + interior);
+  impl_->multigrid = std::make_unique<LatticeMultigrid>(impl_->K_II, cells);
 }
 
 Reconstructor::~Reconstructor() = default;
@@ -166,7 +166,7 @@ void Reconstructor::forget_warm_start() {
   impl_->before.clear();
 }
 
-size_t Reconstructor::factorization_bytes() const { return impl_->solver->bytes(); }
+size_t Reconstructor::solver_bytes() const { return impl_->multigrid->bytes(); }
 
 ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const ReconstructOptions& options) {
   const GridGeometry& geometry = *geometry_;
@@ -206,11 +206,7 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   std::vector<double> normal_scale(interior);  // 2 H λ²
   for (size_t v = 0; v < interior; ++v) normal_scale[v] = 2 * fields.mean_curvature[v] * std::exp(2 * fields.log_conformal_factor[v]);
 
-  // The single-precision factor solves to ~4e-7; tolerances below 1e-6 get a refinement step.
-  const bool refine = options.tolerance < 1e-6;
-  auto solve = [&](const std::vector<Vec3>& b, std::vector<Vec3>& x) {
-    refine ? impl_->solver->solve_refined(b.data(), x.data()) : impl_->solver->solve(b.data(), x.data());
-  };
+  const LatticeMultigrid& multigrid = *impl_->multigrid;
   // The iterate lives in result.positions (interior nodes first, then the rim), as frames() reads it.
   std::vector<Vec3>& S = result.positions;
   if (options.start != nullptr) {
@@ -232,56 +228,81 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
       S[v] = extrapolate ? Vec3(2 * last - impl_->before[v]) : last;
     }
   } else {
-    std::vector<Vec3> harmonic(interior);
-    solve(boundary_rhs, harmonic);  // the harmonic surface spanning the rim
+    // The harmonic surface spanning the rim, to well under the tolerance (from nothing: a few
+    // cycles more than a step takes).
+    std::vector<Vec3> harmonic(interior, Vec3::Zero());
+    multigrid.solve(boundary_rhs.data(), harmonic.data(), std::min(1e-7, 0.01 * options.tolerance));
     std::copy(harmonic.begin(), harmonic.end(), S.begin());
   }
 
-  // Fixed-frame nodes (the band, crowded nodes) have their vectors in frames of the boundary
-  // curve: known for the whole solve.
-  std::vector<int32_t> fixed_index(tangential ? interior : 0, -1);
-  std::vector<Vec3> fixed_vectors;
+  // The right-hand side per node is rhs = −K_IB S_rim − M F(S) with F = 2Hλ² n (+ a t_u + b t_v):
+  // the coefficients of n, t_u and t_v with the mass folded in, once. Fixed-frame nodes (the band,
+  // crowded nodes) have their vectors in frames of the boundary curve, known for the whole solve:
+  // their rhs is constant and their coefficients zero.
+  std::vector<double> coefficient_n(interior), coefficient_u(tangential ? interior : 0), coefficient_v(tangential ? interior : 0);
+  std::vector<Vec3> constant_rhs = boundary_rhs;
+  std::vector<uint8_t> fixed(interior, 0);
+  for (size_t v = 0; v < interior; ++v) {
+    const double m = impl_->mass[static_cast<Eigen::Index>(v)];
+    coefficient_n[v] = m * normal_scale[v];
+    if (tangential) {
+      coefficient_u[v] = m * fields.tangential_u[v];
+      coefficient_v[v] = m * fields.tangential_v[v];
+    }
+  }
   if (tangential) {
     const auto frames = geometry.boundary_frames(fields.rim, fields.fixed_nodes);
-    fixed_vectors.resize(frames.size());
     for (size_t i = 0; i < frames.size(); ++i) {
+      const auto v = static_cast<size_t>(fields.fixed_nodes[i]);
       const Vec3& c = fields.fixed_laplacian[i];
-      fixed_vectors[i] = c.x() * frames[i][0] + c.y() * frames[i][1] + c.z() * frames[i][2];
-      fixed_index[static_cast<size_t>(fields.fixed_nodes[i])] = static_cast<int32_t>(i);
+      constant_rhs[v] -= impl_->mass[static_cast<Eigen::Index>(v)] * (c.x() * frames[i][0] + c.y() * frames[i][1] + c.z() * frames[i][2]);
+      fixed[v] = 1;
     }
   }
   std::vector<Vec3> tu, tv, n, previous_n, rhs(interior), next(interior);
   AndersonMixer anderson(options.anderson_depth, 3 * n_int);
   auto flat = [&](std::vector<Vec3>& points) { return AndersonMixer::Vector(points.data()->data(), 3 * n_int); };
+  const bool damped = options.damping < 1;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
-    geometry.frames(S, tu, tv, n);
-    if (options.damping < 1 && !previous_n.empty()) {
-      for (size_t v = 0; v < interior; ++v) {
-        n[v] = ((1 - options.damping) * previous_n[v] + options.damping * n[v]).normalized();
-        tu[v] = (tu[v] - tu[v].dot(n[v]) * n[v]).normalized();
-        tv[v] = n[v].cross(tu[v]);
+    if (damped) {
+      geometry.frames(S, tu, tv, n);
+      if (!previous_n.empty()) {
+        for (size_t v = 0; v < interior; ++v) {
+          n[v] = ((1 - options.damping) * previous_n[v] + options.damping * n[v]).normalized();
+          tu[v] = (tu[v] - tu[v].dot(n[v]) * n[v]).normalized();
+          tv[v] = n[v].cross(tu[v]);
+        }
       }
+      previous_n = n;
     }
-    if (options.damping < 1) previous_n = n;
+    // K S = −M Δ_h S: K_II S_I = −M F − K_IB S_rim. The frames are computed where they are used
+    // (undamped): three arrays a pass would write and the next read back.
     for (size_t v = 0; v < interior; ++v) {
-      Vec3 F;
-      if (tangential && fixed_index[v] >= 0) {
-        F = fixed_vectors[static_cast<size_t>(fixed_index[v])];
+      if (fixed[v]) {
+        rhs[v] = constant_rhs[v];
+        continue;
+      }
+      Vec3 fu, fv, fn;
+      if (damped) {
+        fu = tu[v], fv = tv[v], fn = n[v];
       } else {
-        F = normal_scale[v] * n[v];
-        if (tangential) F += fields.tangential_u[v] * tu[v] + fields.tangential_v[v] * tv[v];
+        geometry.frame(v, S.data(), fu, fv, fn);
       }
-      // K S = -M Δ_h S: K_II S_I = -M F - K_IB S_rim.
-      rhs[v] = boundary_rhs[v] - impl_->mass[static_cast<Eigen::Index>(v)] * F;
+      Vec3 mf = coefficient_n[v] * fn;
+      if (tangential) mf += coefficient_u[v] * fu + coefficient_v[v] * fv;
+      rhs[v] = constant_rhs[v] - mf;
     }
-    solve(rhs, next);
-    double change2 = 0;
-    bool finite = true;
+    // K_II S⁺ = rhs to within a tenth of the step: one V-cycle from S (see lattice_multigrid.hpp).
+    // A second cycle per step took as many steps on real clips (Medusa: 3.27 against 3.24 a
+    // frame), so one: the inexact solve only slows iterations that crawl anyway.
+    multigrid.cycle(rhs.data(), S.data(), next.data());
+    double change2 = 0, sum2 = 0;
     for (size_t v = 0; v < interior; ++v) {
-      finite = finite && next[v].allFinite();
-      change2 = std::max(change2, (next[v] - S[v]).squaredNorm());
+      const double d2 = (next[v] - S[v]).squaredNorm();
+      change2 = std::max(change2, d2);
+      sum2 += d2;  // not finite when any node is not
     }
-    if (!finite) throw Error(ErrorCode::kNumerical, "reconstruction produced a non-finite surface at iteration " + std::to_string(iteration));
+    if (!std::isfinite(sum2)) throw Error(ErrorCode::kNumerical, "reconstruction produced a non-finite surface at iteration " + std::to_string(iteration));
     result.change = std::sqrt(change2) / diameter;
     anderson.step(flat(S), flat(next));
     std::copy(next.begin(), next.end(), S.begin());

@@ -226,9 +226,10 @@ TEST(Reconstruct, AndersonAccelerationCutsTheIterationsAndNeverLosesConvergence)
     EXPECT_LT(max_error(r.positions, truth), 1e-6) << "h = " << h << ", s = " << s << ", depth " << depth;
     return r.iterations;
   };
-  // Where the plain iteration crawls (measured: 56 steps), Anderson needs fewer (37)...
+  // Where the plain iteration crawls, Anderson needs fewer steps (measured with one V-cycle per
+  // step: 75 against 87; with an exact inner solve 37 against 56)...
   const int plain = decode(2.0, 4.0, 0), accelerated = decode(2.0, 4.0, 5);
-  EXPECT_LE(accelerated * 4, plain * 3) << accelerated << " against " << plain;
+  EXPECT_LE(accelerated * 10, plain * 9) << accelerated << " against " << plain;
   // ...and where its linear model misleads, the restart keeps it converging to the surface
   // (unguarded, it wandered for 200 steps and stopped 0.43 away). On (1.0, 8.0) the plain
   // iteration itself converges, but to another surface 1.8 away: the equations have a second

@@ -1,7 +1,7 @@
 // The decoder a player embeds: open a .fmv file (or its bytes in memory), ask what it holds, and
 // decode any time t into arrays the caller owns — positions, normals, UVs, triangle indices and the
 // RGBA texture, the layout a GPU vertex buffer and texture take as they are. A thin layer over
-// SequenceDecoder (facemorph/sequence.hpp), which keeps the factorisation of G's Laplacian and the
+// SequenceDecoder (facemorph/sequence.hpp), which keeps the multigrid solver of G's Laplacian and the
 // keyframes' own decoded surfaces between calls. The C API (facemorph.h) is this class behind a
 // plain-C interface.
 //
@@ -74,7 +74,7 @@ struct FileInfo {
   std::string units;           // "m", "cm" or "mm"
 };
 
-// What a sequence holds, without a decoder (no factorisation): what a player shows before it
+// What a sequence holds, without a decoder (no solver built): what a player shows before it
 // decodes, and what the C API's fm_file_get_info returns. Throws kInvalidArgument for a sequence
 // validate_sequence rejects.
 FileInfo file_info(const Sequence& sequence);

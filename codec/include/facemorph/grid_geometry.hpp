@@ -11,6 +11,7 @@
 #include <Eigen/Sparse>
 
 #include <array>
+#include <cmath>
 #include <vector>
 
 namespace facemorph {
@@ -34,6 +35,9 @@ class GridGeometry {
   // t_v = n × t_u. Central differences where the four neighbours are interior nodes (every node
   // outside the rim band), else the area-weighted Jacobian of the surrounding faces.
   void frames(const std::vector<Vec3>& positions, std::vector<Vec3>& tu, std::vector<Vec3>& tv, std::vector<Vec3>& n) const;
+  // The frame of interior node v alone, as frames() computes it: for a caller that uses it at once
+  // (the decoder's iteration, which then never stores three arrays it reads once).
+  [[gnu::always_inline]] inline void frame(size_t v, const Vec3* positions, Vec3& tu, Vec3& tv, Vec3& n) const;
 
   // Orthonormal frame for each of `nodes` from the boundary curve alone (`rim`: positions at the
   // rim nodes): the rim's tangent at the node's angle, the direction towards the rim's centroid
@@ -61,5 +65,41 @@ class GridGeometry {
   std::vector<StencilEntry> stencil_;
   void build_jacobian_stencils();
 };
+
+[[gnu::always_inline]] inline void GridGeometry::frame(size_t v, const Vec3* S, Vec3& tu, Vec3& tv, Vec3& n) const {
+  Vec3 su, sv;
+  if (stencil_start_[v] == stencil_start_[v + 1]) {
+    const auto& nb = neighbours_[v];
+    const double inv2h = 0.5 / grid_.h;
+    su = (S[nb[0]] - S[nb[1]]) * inv2h;
+    sv = (S[nb[2]] - S[nb[3]]) * inv2h;
+  } else {
+    // Near the rim: the disk-area-weighted Jacobian of the faces around the node.
+    su = sv = Vec3::Zero();
+    for (int32_t k = stencil_start_[v]; k < stencil_start_[v + 1]; ++k) {
+      const StencilEntry& e = stencil_[static_cast<size_t>(k)];
+      const Vec3& p = S[e.node];
+      su += e.cu * p;
+      sv += e.cv * p;
+    }
+  }
+  // n ⟂ S_u by construction, so t_u is S_u's direction with no projection. The two square roots
+  // are independent and nothing branches on them: their latency was most of this function's time.
+  const Vec3 c = su.cross(sv);
+  const double c2 = c.squaredNorm();
+  if (c2 > 0) {
+    const double inverse_c = 1 / std::sqrt(c2), inverse_u = 1 / std::sqrt(su.squaredNorm());  // S_u ≠ 0 as S_u × S_v ≠ 0
+    n = c * inverse_c;
+    tu = su * inverse_u;
+    tv = n.cross(tu);
+    return;
+  }
+  // Degenerate (S_u ∥ S_v): n = +z, t_u along S_u's part orthogonal to it.
+  n = Vec3::UnitZ();
+  const Vec3 along(su.x(), su.y(), 0.0);
+  const double ul = along.norm();
+  tu = ul > 0 ? Vec3(along * (1 / ul)) : Vec3(n.unitOrthogonal());
+  tv = n.cross(tu);
+}
 
 }  // namespace facemorph

@@ -41,7 +41,7 @@ struct ReconstructResult {
   bool converged = false;
 };
 
-// The decoder's state for one grid: the factorisation of the interior Laplacian (done once) and the
+// The decoder's state for one grid: the multigrid hierarchy of the interior Laplacian (built once) and the
 // previous surface, the warm start for the next frame of a sequence. Not thread-safe; one per thread.
 class Reconstructor {
  public:
@@ -63,8 +63,8 @@ class Reconstructor {
   ReconstructResult reconstruct(const GridFields& fields, const ReconstructOptions& options = {});
 
   void forget_warm_start();
-  // Bytes held by the factorisation (its factor's nonzeros and indices).
-  size_t factorization_bytes() const;
+  // Bytes held by the solver of K_II (the multigrid hierarchy: its matrices and work arrays).
+  size_t solver_bytes() const;
 
  private:
   struct Impl;

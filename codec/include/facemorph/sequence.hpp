@@ -95,7 +95,7 @@ struct DecodedFrame {
   bool fell_back = false;          // not converged: the frame is the spline of the keyframes' surfaces
 };
 
-// Plays a sequence back. Keeps the factorisation of G's Laplacian and, lazily, each keyframe's
+// Plays a sequence back. Keeps the multigrid solver of G's Laplacian and, lazily, each keyframe's
 // own decoded surface: a frame starts from the spline of those surfaces (exact fixed points of
 // their fields), so it is close from the first step wherever t jumps. Not thread-safe: one decoder
 // per thread; several decoders may share one sequence.
