@@ -21,17 +21,30 @@ namespace {
 // (tests/decoder/reconstruct_test.cpp); guarded, real faces take the same steps as before.
 // The history is a ring of preallocated vectors and its Gram matrix is kept, so a step costs a few
 // passes over the surface (one new row of dot products), not one per pair of past steps: it was
-// an eighth of a decoder step at N = 257.
+// an eighth of a decoder step at N = 257. The decoder keeps one mixer and restarts it each frame:
+// its ~10 surface-sized vectors, allocated afresh, were a page fault per 4 kB every frame.
 class AndersonMixer {
  public:
   using Vector = Eigen::Map<Eigen::VectorXd>;
-  AndersonMixer(int depth, Eigen::Index size) : depth_(std::clamp(depth, 0, kMaxDepth)), gram_(depth_, depth_) {
+
+  // Forgets the history; `depth` past steps of `size` unknowns from now on (memory kept).
+  void restart(int depth, Eigen::Index size) {
+    depth_ = std::clamp(depth, 0, kMaxDepth);
+    has_previous_ = false;
+    count_ = oldest_ = 0;
+    previous_residual_ = 0;
     if (depth_ == 0) return;
-    f_.resize(size);
+    gram_.resize(depth_, depth_);
     previous_f_.resize(size);
     previous_g_.resize(size);
-    dF_.assign(static_cast<size_t>(depth_), Eigen::VectorXd(size));
-    dG_.assign(static_cast<size_t>(depth_), Eigen::VectorXd(size));
+    if (dF_.size() < static_cast<size_t>(depth_)) {
+      dF_.resize(static_cast<size_t>(depth_));
+      dG_.resize(static_cast<size_t>(depth_));
+    }
+    for (int j = 0; j < depth_; ++j) {
+      dF_[static_cast<size_t>(j)].resize(size);
+      dG_[static_cast<size_t>(j)].resize(size);
+    }
   }
 
   // Replaces `g`, the image of the current iterate `x`, by the next iterate. Two passes over the
@@ -107,13 +120,13 @@ class AndersonMixer {
   static constexpr int kMaxDepth = 16;
 
  private:
-  int depth_;
+  int depth_ = 0;
   bool has_previous_ = false;
   int count_ = 0;   // differences held
   int oldest_ = 0;  // once the ring is full, the slot overwritten next
   double previous_residual_ = 0;
   Eigen::MatrixXd gram_;  // dF_i · dF_j
-  Eigen::VectorXd f_, previous_f_, previous_g_;
+  Eigen::VectorXd previous_f_, previous_g_;
   std::vector<Eigen::VectorXd> dF_, dG_;
 };
 
@@ -125,6 +138,17 @@ struct Reconstructor::Impl {
   Eigen::VectorXd mass;     // lumped mass of the interior nodes
   std::vector<Vec3> last;      // the previous result...
   std::vector<Vec3> before;    // ...and the one before: the warm start extrapolates from both
+  // Work arrays of reconstruct(), kept between calls (sizes fixed by the grid).
+  AndersonMixer anderson;
+  std::vector<Vec3> boundary_rhs, constant_rhs, rhs, next, tu, tv, n, previous_n;
+  std::vector<double> coefficient_n, coefficient_u, coefficient_v;
+  std::vector<uint8_t> fixed;
+
+  // Keeps `surface` as the last result, the last as the one before (no allocation once warm).
+  void remember(const std::vector<Vec3>& surface) {
+    std::swap(before, last);
+    last.assign(surface.begin(), surface.end());
+  }
 };
 
 Reconstructor::Reconstructor(int grid_n)
@@ -183,8 +207,7 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   if (fields.representation == Representation::kXYZ) {
     std::copy(fields.positions.begin(), fields.positions.end(), result.positions.begin());
     result.converged = true;
-    impl_->before = std::move(impl_->last);
-    impl_->last = result.positions;
+    impl_->remember(result.positions);
     return result;
   }
   const bool tangential = fields.representation == Representation::kHLT;
@@ -198,13 +221,13 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     hi = hi.cwiseMax(fields.rim[static_cast<size_t>(k)]);
   }
   const double diameter = std::max((hi - lo).norm(), 1e-300);
-  std::vector<Vec3> boundary_rhs(interior);  // -K_IB S_rim
+  Impl& work = *impl_;
+  std::vector<Vec3>& boundary_rhs = work.boundary_rhs;  // -K_IB S_rim
+  boundary_rhs.resize(interior);
   {
     const Eigen::MatrixXd b = -(impl_->K_IB * rim);
     for (Eigen::Index v = 0; v < n_int; ++v) boundary_rhs[static_cast<size_t>(v)] = b.row(v).transpose();
   }
-  std::vector<double> normal_scale(interior);  // 2 H λ²
-  for (size_t v = 0; v < interior; ++v) normal_scale[v] = 2 * fields.mean_curvature[v] * std::exp(2 * fields.log_conformal_factor[v]);
 
   const LatticeMultigrid& multigrid = *impl_->multigrid;
   // The iterate lives in result.positions (interior nodes first, then the rim), as frames() reads it.
@@ -239,12 +262,19 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   // the coefficients of n, t_u and t_v with the mass folded in, once. Fixed-frame nodes (the band,
   // crowded nodes) have their vectors in frames of the boundary curve, known for the whole solve:
   // their rhs is constant and their coefficients zero.
-  std::vector<double> coefficient_n(interior), coefficient_u(tangential ? interior : 0), coefficient_v(tangential ? interior : 0);
-  std::vector<Vec3> constant_rhs = boundary_rhs;
-  std::vector<uint8_t> fixed(interior, 0);
+  std::vector<double>& coefficient_n = work.coefficient_n;
+  std::vector<double>& coefficient_u = work.coefficient_u;
+  std::vector<double>& coefficient_v = work.coefficient_v;
+  std::vector<Vec3>& constant_rhs = work.constant_rhs;
+  std::vector<uint8_t>& fixed = work.fixed;
+  coefficient_n.resize(interior);
+  coefficient_u.resize(tangential ? interior : 0);
+  coefficient_v.resize(tangential ? interior : 0);
+  constant_rhs.assign(boundary_rhs.begin(), boundary_rhs.end());
+  fixed.assign(interior, 0);
   for (size_t v = 0; v < interior; ++v) {
     const double m = impl_->mass[static_cast<Eigen::Index>(v)];
-    coefficient_n[v] = m * normal_scale[v];
+    coefficient_n[v] = m * 2 * fields.mean_curvature[v] * std::exp(2 * fields.log_conformal_factor[v]);  // M 2Hλ²
     if (tangential) {
       coefficient_u[v] = m * fields.tangential_u[v];
       coefficient_v[v] = m * fields.tangential_v[v];
@@ -259,8 +289,12 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
       fixed[v] = 1;
     }
   }
-  std::vector<Vec3> tu, tv, n, previous_n, rhs(interior), next(interior);
-  AndersonMixer anderson(options.anderson_depth, 3 * n_int);
+  std::vector<Vec3>&tu = work.tu, &tv = work.tv, &n = work.n, &previous_n = work.previous_n, &rhs = work.rhs, &next = work.next;
+  rhs.resize(interior);
+  next.resize(interior);
+  previous_n.clear();
+  AndersonMixer& anderson = work.anderson;
+  anderson.restart(options.anderson_depth, 3 * n_int);
   auto flat = [&](std::vector<Vec3>& points) { return AndersonMixer::Vector(points.data()->data(), 3 * n_int); };
   const bool damped = options.damping < 1;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
@@ -312,8 +346,7 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
       break;
     }
   }
-  impl_->before = std::move(impl_->last);
-  impl_->last = result.positions;
+  impl_->remember(result.positions);
   if (!result.converged && options.throw_on_failure) {
     char text[160];
     std::snprintf(text, sizeof text, "reconstruction did not converge in %d iterations (last change %.3g of the rim diameter, tolerance %.3g)",
