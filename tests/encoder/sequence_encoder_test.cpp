@@ -319,5 +319,33 @@ TEST(SequenceEncoder, AutomaticGridStopsAtAShareOfThePredictedError) {
   EXPECT_LT(with_keys, alone) << "floors tried: " << floors.size() << ", target " << target << " against " << alone_target;
 }
 
+TEST(SequenceEncoder, AutomaticFieldErrorIsAQuarterOfThePredictedError) {
+  // The same share as the grid's floor: rounding the fields adds 3% to the error between keyframes.
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 40, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
+  EncodeOptions options;
+  options.texture = false;
+  options.keyframe_fraction = 0.05;
+  const Capture capture = read_capture(dir.path());  // the encoder reads it, never owns it
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  Sequence sequence = encoder.build(chosen.keyframes, encoder.choose_grid(&chosen));
+  encoder.round_fields(sequence, chosen);
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) sum += e, ++count;
+  }
+  ASSERT_GT(count, 0);
+  const FieldPrecisionReport& precision = encoder.report().field_precision;
+  EXPECT_DOUBLE_EQ(precision.target_error, std::clamp(0.25 * sum / count, 5e-5, 5e-4));
+  // And the rounded keyframes honour it (field_precision.hpp: within 1.25x).
+  ASSERT_EQ(precision.keyframe_errors.size(), sequence.keyframes.size());
+  for (double e : precision.keyframe_errors) EXPECT_LE(e, 1.25 * precision.target_error);
+}
+
 }  // namespace
 }  // namespace facemorph
