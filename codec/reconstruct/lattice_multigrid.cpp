@@ -91,7 +91,8 @@ SparseMatrix permuted(const SparseMatrix& m, const std::vector<int32_t>& row_pla
 }  // namespace
 
 // A sparse matrix as rows of equal width (ELLPACK), a multiple of four entries: short rows are
-// padded with zero entries that point at column 0. Every row of these matrices has 2 to 9 entries,
+// padded with zero entries that repeat the row's last column (so a non-finite value spreads no
+// further than a real entry would). Every row of these matrices has 2 to 9 entries,
 // so the padding costs little and the sweeps' inner loops unroll by four with no per-row bounds.
 template <typename Value>
 struct LatticeMultigrid::PaddedRows {
@@ -110,12 +111,15 @@ struct LatticeMultigrid::PaddedRows {
     column.assign(static_cast<size_t>(m.outerSize()) * static_cast<size_t>(width), 0);
     value.assign(column.size(), Value(0));
     for (Eigen::Index r = 0; r < m.outerSize(); ++r) {
-      size_t at = static_cast<size_t>(r) * static_cast<size_t>(width);
+      const size_t first = static_cast<size_t>(r) * static_cast<size_t>(width), end = first + static_cast<size_t>(width);
+      size_t at = first;
       for (RowMajorSparse::InnerIterator it(m, r); it; ++it) {
         if (skip_diagonal && it.col() == r) continue;
         column[at] = static_cast<int32_t>(it.col());
         value[at++] = static_cast<Value>(it.value());
       }
+      const int32_t pad = at > first ? column[at - 1] : static_cast<int32_t>(std::min<Eigen::Index>(r, m.cols() - 1));
+      for (; at < end; ++at) column[at] = pad;
     }
   }
   PaddedRows() = default;
@@ -247,10 +251,11 @@ int LatticeMultigrid::solve(const Vec3* b, Vec3* x, double relative_residual, in
   double b2 = 0;
   for (Eigen::Index r = 0; r < n_; ++r) b2 += b[r].squaredNorm();
   const double target = relative_residual * std::sqrt(b2);
-  for (int cycles = 0; cycles < max_cycles; ++cycles) {
-    if (cycle(b, x) <= target) return cycles;
+  // A cycle reports the residual it started from: the one after cycle k is known in cycle k + 1.
+  for (int cycles = 1; cycles <= max_cycles + 1; ++cycles) {
+    if (cycle(b, x) <= target) return cycles - 1;  // (the cycle just run only improved x further)
   }
-  return max_cycles;
+  return -1;
 }
 
 void LatticeMultigrid::v_cycle(size_t l) const {

@@ -39,8 +39,9 @@ class LatticeMultigrid {
   double cycle(const Vec3* b, Vec3* x) const { return cycle(b, x, x); }
   // The same from `x` into `out` (which may be `x`; neither may alias `b`).
   double cycle(const Vec3* b, const Vec3* x, Vec3* out) const;
-  // V-cycles from `x` until |b − K x| ≤ relative_residual × |b| (at most `max_cycles`); the cycles
-  // taken. For starts with no good guess (x = 0: the harmonic surface).
+  // V-cycles from `x` until |b − K x| ≤ relative_residual × |b|; the cycles that took (one more
+  // is run to measure the last), or −1 when `max_cycles` did not. For starts with no good guess
+  // (x = 0: the harmonic surface).
   int solve(const Vec3* b, Vec3* x, double relative_residual, int max_cycles = 40) const;
 
   int levels() const;

@@ -144,10 +144,11 @@ struct Reconstructor::Impl {
   std::vector<double> coefficient_n, coefficient_u, coefficient_v;
   std::vector<uint8_t> fixed;
 
-  // Keeps `surface` as the last result, the last as the one before (no allocation once warm).
+  // Keeps `surface` as the last result, the last as the one before (no allocation once warm; a
+  // failed copy leaves both as they were).
   void remember(const std::vector<Vec3>& surface) {
+    before.assign(surface.begin(), surface.end());
     std::swap(before, last);
-    last.assign(surface.begin(), surface.end());
   }
 };
 
@@ -213,20 +214,17 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   const bool tangential = fields.representation == Representation::kHLT;
 
   const auto n_int = static_cast<Eigen::Index>(interior);
-  Eigen::MatrixXd rim(grid.rim_count, 3);
   Vec3 lo = fields.rim[0], hi = lo;
-  for (int k = 0; k < grid.rim_count; ++k) {
-    rim.row(k) = fields.rim[static_cast<size_t>(k)].transpose();
-    lo = lo.cwiseMin(fields.rim[static_cast<size_t>(k)]);
-    hi = hi.cwiseMax(fields.rim[static_cast<size_t>(k)]);
+  for (const Vec3& p : fields.rim) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
   }
   const double diameter = std::max((hi - lo).norm(), 1e-300);
   Impl& work = *impl_;
   std::vector<Vec3>& boundary_rhs = work.boundary_rhs;  // -K_IB S_rim
-  boundary_rhs.resize(interior);
-  {
-    const Eigen::MatrixXd b = -(impl_->K_IB * rim);
-    for (Eigen::Index v = 0; v < n_int; ++v) boundary_rhs[static_cast<size_t>(v)] = b.row(v).transpose();
+  boundary_rhs.assign(interior, Vec3::Zero());
+  for (Eigen::Index k = 0; k < impl_->K_IB.outerSize(); ++k) {  // by rim node (column)
+    for (SparseMatrix::InnerIterator it(impl_->K_IB, k); it; ++it) boundary_rhs[static_cast<size_t>(it.row())] -= it.value() * fields.rim[static_cast<size_t>(k)];
   }
 
   const LatticeMultigrid& multigrid = *impl_->multigrid;
@@ -254,6 +252,7 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     // The harmonic surface spanning the rim, to well under the tolerance (from nothing: a few
     // cycles more than a step takes).
     std::vector<Vec3> harmonic(interior, Vec3::Zero());
+    // (Only a start: falling short of that costs steps, never accuracy.)
     multigrid.solve(boundary_rhs.data(), harmonic.data(), std::min(1e-7, 0.01 * options.tolerance));
     std::copy(harmonic.begin(), harmonic.end(), S.begin());
   }
@@ -346,13 +345,13 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
       break;
     }
   }
-  impl_->remember(result.positions);
   if (!result.converged && options.throw_on_failure) {
     char text[160];
     std::snprintf(text, sizeof text, "reconstruction did not converge in %d iterations (last change %.3g of the rim diameter, tolerance %.3g)",
                   result.iterations, result.change, options.tolerance);
-    throw Error(ErrorCode::kNotConverged, text);
+    throw Error(ErrorCode::kNotConverged, text);  // the warm start stays as it was
   }
+  impl_->remember(result.positions);
   return result;
 }
 

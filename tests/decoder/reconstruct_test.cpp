@@ -238,6 +238,29 @@ TEST(Reconstruct, AndersonAccelerationCutsTheIterationsAndNeverLosesConvergence)
   decode(1.0, 8.0, 5);
 }
 
+TEST(Reconstruct, OneReconstructorDecodesEachCallAsAFreshOneWould) {
+  // The reconstructor keeps its work arrays and Anderson history between calls: nothing of one call
+  // may reach the next (after forget_warm_start), whatever the representation or depth before.
+  Reconstructor shared(33);
+  const GridGeometry& geometry = shared.geometry();
+  const auto truth = sample(geometry.grid(), [](const Vec2& w) { return Vec3(w.x(), 1.1 * w.y(), 0.5 * std::exp(-3 * w.squaredNorm())); });
+  const struct {
+    Representation representation;
+    int depth;
+  } calls[] = {{Representation::kHLT, 5}, {Representation::kHL, 0}, {Representation::kXYZ, 5}, {Representation::kHLT, 16}, {Representation::kHLT, 5}};
+  for (const auto& call : calls) {
+    const GridFields fields = compute_fields(geometry, truth, call.representation);
+    const ReconstructOptions options{.tolerance = 1e-9, .anderson_depth = call.depth, .throw_on_failure = false};
+    shared.forget_warm_start();
+    const ReconstructResult again = shared.reconstruct(fields, options);
+    Reconstructor fresh(33);
+    const ReconstructResult first = fresh.reconstruct(fields, options);
+    EXPECT_EQ(again.iterations, first.iterations) << "depth " << call.depth;
+    ASSERT_EQ(again.positions.size(), first.positions.size());
+    for (size_t v = 0; v < first.positions.size(); ++v) ASSERT_EQ(again.positions[v], first.positions[v]) << "node " << v << ", depth " << call.depth;
+  }
+}
+
 TEST(Reconstruct, WarmStartedSequenceDecodesEveryFrameLikeAColdStart) {
   // A bump growing and sliding over 8 frames, decoded as a player would (warm, extrapolated from
   // the last two frames) and each frame again from scratch: the same surfaces, in fewer steps.
@@ -309,6 +332,11 @@ TEST(Reconstruct, NonConvergenceAndNonFiniteIteratesAreNamedNeverReturnedSilentl
   const ReconstructResult again = reconstructor.reconstruct(good, {.tolerance = 1e-9});
   EXPECT_LE(again.iterations, 2);
   EXPECT_LT(max_error(again.positions, first.positions), 1e-9);
+  // So does one that did not converge (it had an iterate, which must not become the next start).
+  EXPECT_THROW(reconstructor.reconstruct(wild, {.max_iterations = 60}), Error);
+  const ReconstructResult after = reconstructor.reconstruct(good, {.tolerance = 1e-9});
+  EXPECT_LE(after.iterations, 2);
+  EXPECT_LT(max_error(after.positions, first.positions), 1e-9);
   // Fields of another grid are refused.
   testing::expect_error(ErrorCode::kInvalidArgument, "N = 33", [&] {
     Reconstructor other(17);

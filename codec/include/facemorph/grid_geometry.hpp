@@ -86,15 +86,15 @@ class GridGeometry {
   // n ⟂ S_u by construction, so t_u is S_u's direction with no projection. The two square roots
   // are independent and nothing branches on them: their latency was most of this function's time.
   const Vec3 c = su.cross(sv);
-  const double c2 = c.squaredNorm();
-  if (c2 > 0) {
-    const double inverse_c = 1 / std::sqrt(c2), inverse_u = 1 / std::sqrt(su.squaredNorm());  // S_u ≠ 0 as S_u × S_v ≠ 0
+  const double c2 = c.squaredNorm(), su2 = su.squaredNorm();
+  if (c2 > 0 && su2 > 0) {  // (|S_u|² may underflow where |S_u × S_v|² does not)
+    const double inverse_c = 1 / std::sqrt(c2), inverse_u = 1 / std::sqrt(su2);
     n = c * inverse_c;
     tu = su * inverse_u;
     tv = n.cross(tu);
     return;
   }
-  // Degenerate (S_u ∥ S_v): n = +z, t_u along S_u's part orthogonal to it.
+  // Degenerate (S_u ∥ S_v, or vanishing): n = +z, t_u along S_u's part orthogonal to it.
   n = Vec3::UnitZ();
   const Vec3 along(su.x(), su.y(), 0.0);
   const double ul = along.norm();

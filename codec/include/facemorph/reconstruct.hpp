@@ -1,7 +1,8 @@
 // The decoder's core (paper §6, method-notes §8, spec/method.md §5.4): the Laplace-Beltrami
 // reconstruction of a surface on the shared disk grid G from the fields a keyframe stores (or a
-// blend of them). The discrete Laplacian is symmetric, so it is factored once per grid by Cholesky;
-// each step solves it for x, y and z together with the right-hand side from the current frame.
+// blend of them). The discrete Laplacian is symmetric positive definite on G's interior; each step
+// solves it for x, y and z together, with the right-hand side from the current frame, by one
+// multigrid V-cycle from the current surface (its hierarchy built once per grid).
 #pragma once
 
 #include "facemorph/fields.hpp"
