@@ -254,6 +254,9 @@ int main(int argc, char** argv) {
         if (f.fallback != RegistrationFallback::kNone) std::printf("    %s: %s\n", f.name.c_str(), f.fallback_reason.c_str());
       }
     }
+    for (const EncodedFrameReport& f : report.frames) {
+      if (!f.conformal_fallback_reason.empty()) std::printf("  %s: mapped by the linear map: %s\n", f.name.c_str(), f.conformal_fallback_reason.c_str());
+    }
     std::string last;
     for (const EncodedFrameReport& f : report.frames) {
       if (f.repair == "valid as captured" || f.repair == last) continue;

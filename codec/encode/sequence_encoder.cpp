@@ -240,7 +240,14 @@ void SequenceEncoder::map_frames() {
         MapFrameOptions map_options;
         map_options.keep_largest_component = options_.largest_component;
         map_options.conformal = options_.conformal;
-        frames_[index] = map_frame(mesh, name, landmarks, map_options);
+        try {
+          frames_[index] = map_frame(mesh, name, landmarks, map_options);
+        } catch (const Error& e) {
+          // Every error names the frame it came from (frame preparation already does).
+          const std::string what = e.what();
+          if (what.rfind(name, 0) == 0) throw;
+          throw Error(e.code(), name + ": " + what);
+        }
       },
       [&](int done, int total) { progress("mapping", done, total); });
   report_.seconds_mapping = seconds_since(start);
@@ -623,6 +630,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
     r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;
+    r.conformal_fallback_reason = frame.map.report.fallback_reason;
     r.energy_moebius = registration.energy_moebius;
     r.energy = registration.energy;
     r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];

@@ -289,6 +289,22 @@ TEST(ConformalMap, HardInputIsHandledOrNamedNeverNaN) {
   testing::expect_error(ErrorCode::kInvalidArgument, "unknown conformal method 'lscm'", [] { parse_conformal_method("lscm"); });
 }
 
+// QIEM can return without an error and still collapse the disk: on a scan whose noise is as large
+// as its edges (3000 vertices, 4 mm of noise, fmsynth's frame 2 of 12 with seed 7) the whole disk came
+// back inside 1e-16 and untangling failed on the whole disk. The frame takes the linear map instead,
+// says why, and is an embedding.
+TEST(ConformalMap, FallsBackToTheLinearMapWhenQiemCollapses) {
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 12, .expression = Expression::kTalk, .vertices = 3000, .remesh = true, .noise = 0.004, .seed = 7, .texture_size = 64});
+  const PreparedFrame p = prepare_frame(read_mesh(dir.path() / "frame_0002.obj"), "frame_0002.obj");
+  const DiskMap map = conformal_disk_map(p.mesh);
+  EXPECT_EQ(map.report.method, ConformalMethod::kLinear);
+  EXPECT_NE(map.report.fallback_reason.find("could not be untangled"), std::string::npos) << map.report.fallback_reason;
+  EXPECT_EQ(measure_distortion(map).flipped, 0);
+  // Without the fallback, the error it replaces.
+  testing::expect_error(ErrorCode::kNumerical, "untangling the disk map failed", [&] { conformal_disk_map(p.mesh, {.fallback = false}); });
+}
+
 TEST(ConformalMap, RealFaces) {
   const auto data = testing::shared_data();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";

@@ -206,6 +206,19 @@ TEST(FieldPrecision, StepsLandInTheTargetWindowOnANoisyCapture) {
   }
 }
 
+// An error in one frame's conformal map names that frame (the capture has hundreds).
+TEST(SequenceEncoder, AMappingErrorNamesItsFrame) {
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 12, .expression = Expression::kTalk, .vertices = 3000, .remesh = true, .noise = 0.004, .seed = 7, .texture_size = 64});
+  EncodeOptions options;
+  options.texture = false;
+  options.conformal.fallback = false;  // this capture's frames 2, 8 and 10 collapse under QIEM (conformal_test)
+  options.threads = 1;                 // frame 2 first
+  const Capture capture = read_capture(dir.path());
+  SequenceEncoder encoder(capture, options);
+  testing::expect_error(ErrorCode::kNumerical, "frame_0002.obj: untangling the disk map failed", [&] { encoder.map_frames(); });
+}
+
 TEST(SequenceEncoder, HolesOfAFrameBecomeALevelSetAroundTheirOutline) {
   // A flat disk with a round hole of radius 0.3 at (0.3, 0): prepare fills it, the level set is
   // negative inside, zero on the outline and capped outside.

@@ -85,6 +85,7 @@ struct EncodedFrameReport {
   bool keyframe = false;
   RegistrationFallback fallback = RegistrationFallback::kNone;
   std::string fallback_reason;
+  std::string conformal_fallback_reason;  // non-empty when QIEM failed and the frame took the linear map
   double energy_moebius = 0, energy = 0;  // E_D of the OMT and of the registration (disk units²)
   double predicted_error = 0;             // the selection's predicted error (fraction of the diagonal)
   double diagonal = 0;                    // of the captured frame
