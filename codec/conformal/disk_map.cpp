@@ -111,32 +111,9 @@ DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& op
   }
 
   start = std::chrono::steady_clock::now();
-  const std::vector<int> rim = map.rim;
-  auto finish = [&] {
-    map.rim = rim;
-    double total = 0;
-    for (const Face& f : map.surface.faces) {
-      total += signed_area(map.disk[static_cast<size_t>(f[0])], map.disk[static_cast<size_t>(f[1])], map.disk[static_cast<size_t>(f[2])]);
-    }
-    if (total < 0) {
-      for (Vec2& p : map.disk) p.y() = -p.y();  // w -> conj(w): orientation-preserving
-      std::reverse(map.rim.begin(), map.rim.end());
-    }
-    report.flipped_triangles = count_flipped(map.disk, map.surface.faces);
-    report.untangled_vertices = untangle(map);
-  };
-  try {
-    finish();
-  } catch (const Error& e) {
-    // QIEM can return without an error and still collapse the disk (measured: a 20k-vertex frame
-    // with 1 mm of noise on 1.5 mm edges, its whole disk inside 1e-16). The linear map is an
-    // embedding by construction: fall back to it as when QIEM throws.
-    if (report.method != ConformalMethod::kQiem || !options.fallback) throw;
-    map.disk = std::move(linear);
-    report.method = ConformalMethod::kLinear;
-    report.fallback_reason = std::string("QIEM's disk could not be untangled (") + e.what() + ")";
-    finish();
-  }
+  // QIEM's disk falls back to the linear map where it cannot be untangled.
+  const bool qiem = report.method == ConformalMethod::kQiem;
+  finish_disk_map(map, qiem ? std::move(linear) : std::vector<Vec2>());
   report.seconds_finish = seconds_since(start);
   return map;
 }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <utility>
 
 namespace facemorph {
@@ -113,6 +114,32 @@ int untangle(DiskMap& map) {
     if (whole && !flipped.empty()) throw Error(ErrorCode::kNumerical, "untangling the disk map failed even on the whole disk");
   }
   return moved;
+}
+
+void finish_disk_map(DiskMap& map, std::vector<Vec2> fallback_disk) {
+  const std::vector<int> rim = map.rim;
+  auto finish = [&] {
+    map.rim = rim;
+    double total = 0;
+    for (const Face& f : map.surface.faces) {
+      total += signed_area(map.disk[static_cast<size_t>(f[0])], map.disk[static_cast<size_t>(f[1])], map.disk[static_cast<size_t>(f[2])]);
+    }
+    if (total < 0) {
+      for (Vec2& p : map.disk) p.y() = -p.y();  // w -> conj(w): orientation-preserving
+      std::reverse(map.rim.begin(), map.rim.end());
+    }
+    map.report.flipped_triangles = count_flipped(map.disk, map.surface.faces);
+    map.report.untangled_vertices = untangle(map);
+  };
+  try {
+    finish();
+  } catch (const Error& e) {
+    if (fallback_disk.empty()) throw;
+    map.disk = std::move(fallback_disk);
+    map.report.method = ConformalMethod::kLinear;
+    map.report.fallback_reason = std::string("the disk could not be untangled (") + e.what() + ")";
+    finish();
+  }
 }
 
 }  // namespace facemorph
