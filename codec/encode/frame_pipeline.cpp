@@ -1,6 +1,7 @@
 #include "facemorph/encoder/frame_pipeline.hpp"
 
 #include "facemorph/encoder/resample.hpp"
+#include "facemorph/error.hpp"
 
 #include <chrono>
 
@@ -42,10 +43,15 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   frame.prepared = prepare_frame(mesh, name, prepare);
   frame.seconds_prepare = seconds_since(start);
   start = std::chrono::steady_clock::now();
-  frame.map = conformal_disk_map(frame.prepared.mesh, options.conformal);
-  if (landmarks.centre && landmarks.up) {
-    normalize(frame.map, *landmarks.centre, *landmarks.up);
-    frame.normalized = true;
+  try {
+    frame.map = conformal_disk_map(frame.prepared.mesh, options.conformal);
+    if (landmarks.centre && landmarks.up) {
+      normalize(frame.map, *landmarks.centre, *landmarks.up);
+      frame.normalized = true;
+    }
+  } catch (const Error& e) {
+    // Named like preparation's errors: a capture has hundreds of frames.
+    throw Error(e.code(), name + ": " + e.what());
   }
   frame.seconds_map = seconds_since(start);
   return frame;

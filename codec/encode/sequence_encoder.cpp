@@ -240,14 +240,7 @@ void SequenceEncoder::map_frames() {
         MapFrameOptions map_options;
         map_options.keep_largest_component = options_.largest_component;
         map_options.conformal = options_.conformal;
-        try {
-          frames_[index] = map_frame(mesh, name, landmarks, map_options);
-        } catch (const Error& e) {
-          // Every error names the frame it came from (frame preparation already does).
-          const std::string what = e.what();
-          if (what.rfind(name, 0) == 0) throw;
-          throw Error(e.code(), name + ": " + what);
-        }
+        frames_[index] = map_frame(mesh, name, landmarks, map_options);
       },
       [&](int done, int total) { progress("mapping", done, total); });
   report_.seconds_mapping = seconds_since(start);
