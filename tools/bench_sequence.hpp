@@ -39,7 +39,7 @@ std::optional<std::filesystem::path> make_bench_capture(const std::string& input
                                                         const SynthOptions& synth, const char* bench, bool quiet);
 
 // `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with per-keyframe
-// `texture_qualities` (fmenc's come from SequenceEncoder::choose_texture_qualities; empty: WebP
+// `texture_qualities` (fmenc's come from SequenceEncoder::choose_texture_qualities; empty: AVIF
 // quality 90) and `coding` (empty: format 1.0's code planes; fmenc's come from
 // SequenceEncoder::round_fields), then decode_sequence_file. `bytes` and `info` (when given)
 // describe the file.

@@ -35,7 +35,7 @@ namespace {
 
 // --through-file: every sequence is measured as a user gets it from fmenc and fmdec: its fields
 // rounded as fmenc rounds them (SequenceEncoder::round_fields, format 1.1), written by
-// encode_sequence_file with WebP textures at fmenc's qualities (choose_texture_qualities), and read back.
+// encode_sequence_file with AVIF textures at fmenc's qualities (choose_texture_qualities), and read back.
 bool through_file = false;
 
 Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelection& chosen, size_t* file_bytes = nullptr) {
@@ -123,7 +123,7 @@ void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
   cmd->add_option("--plots", options.plots, "Folder for error-against-time plots (PNG), keyframes marked");
   cmd->add_flag("--through-file", through_file,
                 "Measure each sequence after writing it as a .fmv file and reading it back (as fmenc and fmdec: fields rounded to "
-                "--field-error auto, WebP textures at --quality auto); report the file's bytes");
+                "--field-error auto, AVIF textures at --quality auto); report the file's bytes");
   cmd->add_flag("--no-targets", options.no_targets, "Skip the keyframes-for-1%-and-0.5% searches");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
   cmd->footer("Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "

@@ -195,7 +195,7 @@ int describe_container(const fs::path& path, bool json_out) {
   }
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
-  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + " WebP per keyframe").c_str() : "none");
+  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + (info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") + " per keyframe").c_str() : "none");
   std::printf("holes       %s\n", sequence.has_holes() ? "stored as a level set, cut on decode" : "none stored");
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   std::printf("keyframes   %zu\n", sequence.keyframes.size());

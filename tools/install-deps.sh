@@ -9,7 +9,7 @@ packages=(
   libeigen3-dev                        # sparse linear algebra
   libopenexr-dev                       # H and λ fields as EXR images
   libzstd-dev                          # container payloads
-  libwebp-dev libpng-dev               # the decoder's images: textures (WebP), pictures (PNG)
+  libavif-dev libwebp-dev libpng-dev   # the decoder's images: textures (AVIF, WebP), pictures (PNG)
   libopencv-dev                        # texture images (encoder and tools only)
   libsuitesparse-dev                   # CHOLMOD: the conformal map's sparse Cholesky
   libopenblas0-pthread                 # the BLAS CHOLMOD runs on (4x faster than reference BLAS)

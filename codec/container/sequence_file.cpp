@@ -37,7 +37,7 @@ constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1;  // the header's field c
 constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
 constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
 constexpr uint32_t kMaxIntraPeriod = 1u << 20;
-constexpr uint32_t kTextureWebp = 1;
+constexpr uint32_t kTextureWebp = 1, kTextureAvif = 2;  // TEXR image codecs (spec/container.md §8)
 constexpr uint8_t kHasTexture = 1, kHasHoles = 2;
 constexpr uint32_t kMaxKeyframes = 1u << 20;
 constexpr uint32_t kMaxStringBytes = 1u << 20;
@@ -553,20 +553,24 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   return key;
 }
 
-std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, int quality) {
+std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
   ByteWriter w;
   w.write(number);
-  w.write(kTextureWebp);
-  w.bytes(encode_webp(texture, quality));
+  w.write(codec == TextureCodec::kAvif && quality <= 100 ? kTextureAvif : kTextureWebp);  // lossless is WebP's (encode_texture)
+  w.bytes(encode_texture(codec, texture, quality));
   return w.take();
 }
 
-Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size) {
+Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size, TextureCodec* codec_read) {
   ByteReader r(payload, where);
   if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe's texture than the index says");
-  const uint32_t codec = r.read<uint32_t>("the image codec");
-  if (codec != kTextureWebp) throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(codec) + " (this decoder reads WebP, 1)");
-  Image image = decode_webp(r.bytes(r.remaining(), "the image"), where, 3, int64_t{size} * size);
+  const uint32_t number_of_codec = r.read<uint32_t>("the image codec");
+  if (number_of_codec != kTextureWebp && number_of_codec != kTextureAvif) {
+    throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(number_of_codec) + " (this decoder reads WebP, 1, and AVIF, 2)");
+  }
+  const TextureCodec codec = number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
+  if (codec_read) *codec_read = codec;
+  Image image = decode_texture(codec, r.bytes(r.remaining(), "the image"), where, int64_t{size} * size);
   if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
     corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
   }
@@ -618,7 +622,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     } else {
       keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
     }
-    if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), qualities.empty() ? metadata.texture_quality : qualities[k]), true));
+    if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_codec, qualities.empty() ? metadata.texture_quality : qualities[k]), true));
   }
   std::vector<IndexEntry> entries(sequence.keyframes.size());
   uint64_t offset = format::kPreambleBytes + header.total_size() + format::kChunkHeaderBytes + 4 + kIndexEntryBytes * entries.size() +
@@ -661,6 +665,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
   const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count);
   auto sequence = std::move(header.shape);
   std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
+  TextureCodec first_texture_codec = TextureCodec::kWebp;
   for (uint32_t k = 0; k < index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
@@ -672,7 +677,8 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     if (header.flags & kHasTexture) {
       const format::ChunkView& texture = reader.chunk_at(index[k].texture_offset, name + "'s texture entry");
       if (texture.type != kTexture) corrupt(source, name + "'s texture entry points at a " + texture.type + " chunk");
-      key.texture = read_texture(reader.payload(texture), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size);
+      key.texture = read_texture(reader.payload(texture), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size,
+                                 k == 0 ? &first_texture_codec : nullptr);
       sizes[k].texture = texture.total_size();
     } else if (index[k].texture_offset != 0) {
       corrupt(source, name + " has a texture entry in a file without textures");
@@ -693,6 +699,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     info->grid_rule = static_cast<int>(header.grid_rule);
     info->texture_size = static_cast<int>(header.texture_size);
     info->metadata = std::move(header.metadata);
+    info->metadata.texture_codec = first_texture_codec;
     info->keyframes = std::move(sizes);
     for (const format::ChunkView& chunk : chunks) {
       auto it = std::find_if(info->chunks.begin(), info->chunks.end(), [&](const auto& t) { return t.type == chunk.type; });

@@ -589,7 +589,7 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
     parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
       const double target = targets[static_cast<size_t>(k)];
       qualities[static_cast<size_t>(k)] = target < 0 ? options_.texture_coding.fallback_quality
-                                                      : webp_quality_for(sequence.keyframes[static_cast<size_t>(k)].texture, target);
+                                                      : texture_quality_for(options_.texture_codec, sequence.keyframes[static_cast<size_t>(k)].texture, target);
     });
     for (double mse : interval_mse) report_.texture_interpolation_psnr.push_back(mse < 0 ? 0.0 : psnr_of_mse(mse));
   }

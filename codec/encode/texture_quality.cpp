@@ -36,22 +36,20 @@ double psnr_of_mse(double mse) { return mse > 0 ? 10 * std::log10(255.0 * 255.0 
 
 double mse_of_psnr(double psnr) { return 255.0 * 255.0 * std::pow(10.0, -psnr / 10); }
 
-int webp_quality_for(const Image& texture, double target_mse) {
-  constexpr double kWebpFloorMargin = 1.25;
-  auto meets = [&](int quality) {
-    const Image decoded = decode_webp(encode_webp(texture, quality), "webp_quality_for", 3);
-    return disk_texture_mse(texture, decoded) <= target_mse;
+int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse) {
+  constexpr double kFloorMargin = 1.25;
+  auto error_at = [&](int quality) {
+    return disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "texture_quality_for"));
   };
-  // Lossy WebP cannot go below its floor (4:2:0 chroma, the finest quantiser): a target near or
-  // under it would buy bytes and no quality, so the target is at least a quarter above the floor.
-  const double floor = disk_texture_mse(texture, decode_webp(encode_webp(texture, 100), "webp_quality_for", 3));
-  target_mse = std::max(target_mse, kWebpFloorMargin * floor);
+  // A lossy codec cannot go below its floor (chroma rounding, the finest quantiser): a target near
+  // or under it would buy bytes and no quality, so the target is at least a quarter above the floor.
+  target_mse = std::max(target_mse, kFloorMargin * error_at(100));
   // The lowest quality that meets the target within [lo, hi]: lo fails (or is 0), hi meets.
   int lo = 0, hi = 100;
-  if (meets(lo)) return 0;
+  if (error_at(lo) <= target_mse) return 0;
   while (hi - lo > 1) {
     const int mid = (lo + hi) / 2;
-    (meets(mid) ? hi : lo) = mid;
+    (error_at(mid) <= target_mse ? hi : lo) = mid;
   }
   return hi;
 }

@@ -234,7 +234,7 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
   EXPECT_EQ(encode_sequence_file(rounded, m), bytes);  // rounding twice changes nothing
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(bytes, "p.fmv", &info);
-  EXPECT_EQ(info.minor_version, 1);
+  EXPECT_EQ(info.minor_version, format::kMinorVersion);
   EXPECT_EQ(info.metadata.field_coding.steps, m.field_coding.steps);
   EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
   ASSERT_EQ(back.keyframes.size(), 3u);
@@ -320,7 +320,7 @@ TEST(Container, ForeignFilesAndOtherVersionsAreRefused) {
   v2[8] = 2;
   const uint32_t crc = format::crc32(std::span(v2).first(12));
   for (int i = 0; i < 4; ++i) v2[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
-  testing::expect_error(ErrorCode::kUnsupported, "format version 2.1", [&] { decode_sequence_file(v2, "v2.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "format version 2." + std::to_string(format::kMinorVersion), [&] { decode_sequence_file(v2, "v2.fmv"); });
   // A grid built by another rule, or another hash: the file would decode differently here.
   for (size_t at : {size_t{4}, size_t{8}}) {
     const auto other_grid = [at](const std::string& type, std::vector<uint8_t>& payload) {
@@ -332,6 +332,56 @@ TEST(Container, ForeignFilesAndOtherVersionsAreRefused) {
   std::vector<uint8_t> trailing = bytes;
   trailing.push_back(0);
   testing::expect_error(ErrorCode::kCorrupt, "after the end chunk", [&] { decode_sequence_file(trailing, "t.fmv"); });
+}
+
+// Format 1.2: lossy textures in AVIF (the writer's default) or WebP; the reader says which, a
+// decoder refuses a codec it does not know and names a damaged image's chunk.
+TEST(Container, LossyTexturesRoundTripInEitherCodec) {
+  Sequence s = small_sequence(9, 64);
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {  // smooth ramps: what lossy codecs are for
+    for (int y = 0; y < 64; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        uint8_t* p = s.keyframes[k].texture.at(x, y);
+        p[0] = static_cast<uint8_t>(3 * x + 20 * static_cast<int>(k));
+        p[1] = static_cast<uint8_t>(3 * y);
+      }
+    }
+  }
+  for (TextureCodec codec : {TextureCodec::kAvif, TextureCodec::kWebp}) {
+    SequenceFileMetadata m = small_metadata();
+    m.texture_codec = codec;
+    m.texture_quality = 90;
+    const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+    SequenceFileInfo info;
+    const Sequence back = decode_sequence_file(bytes, "t.fmv", &info);
+    EXPECT_EQ(info.metadata.texture_codec, codec);
+    EXPECT_EQ(info.minor_version, format::kMinorVersion);
+    for (size_t k = 0; k < s.keyframes.size(); ++k) {
+      const Image& a = s.keyframes[k].texture;
+      const Image& b = back.keyframes[k].texture;
+      ASSERT_EQ(b.width, 64);
+      double squared = 0;
+      for (size_t i = 0; i < a.pixels.size(); ++i) squared += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
+      const double psnr = 10 * std::log10(255.0 * 255.0 * static_cast<double>(a.pixels.size()) / squared);
+      EXPECT_GT(psnr, 35) << texture_codec_name(codec) << " keyframe " << k;
+    }
+    EXPECT_EQ(encode_sequence_file(s, m), bytes);  // deterministic in either codec
+  }
+  SequenceFileMetadata m = small_metadata();
+  m.texture_quality = 60;
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  const auto codec_number = [](uint8_t number) {
+    return [number](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "TEXR") payload[4] = number;
+    };
+  };
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 3", [&] { decode_sequence_file(rebuild(bytes, codec_number(3)), "c.fmv"); });
+  // AVIF bytes announced as WebP, and an AVIF image cut short: corrupt, naming the chunk.
+  testing::expect_error(ErrorCode::kCorrupt, "TEXR", [&] { decode_sequence_file(rebuild(bytes, codec_number(1)), "w.fmv"); });
+  const auto cut = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "TEXR") payload.resize(payload.size() / 2);
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "TEXR", [&] { decode_sequence_file(rebuild(bytes, cut), "x.fmv"); });
 }
 
 // Values that pass every checksum but are impossible: caught by the header's limits and by the

@@ -1,5 +1,5 @@
 // Files written by earlier versions must keep decoding to the same surfaces. tests/data holds a small
-// container written by facemorph 0.2.0 (format 1.0) with tests/data/make_golden.sh, and a sample of
+// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0), written with tests/data/make_golden.sh, and a sample of
 // what it decoded to then: grid positions at keyframe times, between keyframes and past the ends.
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -87,6 +87,16 @@ TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) { expect_golden("1_0", 0, 
 
 // Format 1.1: fields as predicted integer multiples of their steps (KEYP).
 TEST(GoldenFile, Version1_1DecodesAsItDidWhenWritten) { expect_golden("1_1", 1, "facemorph 0.3.0"); }
+
+// Format 1.2: textures in AVIF (TEXR image codec 2).
+TEST(GoldenFile, Version1_2DecodesAsItDidWhenWritten) {
+  expect_golden("1_2", 2, "facemorph 0.4.0");
+  SequenceFileInfo info;
+  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_2.fmv", &info);
+  EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
+  ASSERT_TRUE(s.has_texture());
+  EXPECT_EQ(s.keyframes.front().texture.width, 64);
+}
 
 }  // namespace
 }  // namespace facemorph

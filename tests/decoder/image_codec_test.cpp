@@ -74,5 +74,65 @@ TEST(ImageCodec, DamagedBytesAreNamedErrors) {
   }
 }
 
+TEST(ImageCodec, AvifIsCloseAtHighQualityAndSmallerThanWebpAtEqualError) {
+  const Image image = test_picture(256, 256, 3);
+  const std::vector<uint8_t> fine = encode_avif(image, 90), coarse = encode_avif(image, 40);
+  EXPECT_LT(coarse.size(), fine.size());
+  const Image back = decode_avif(fine, "t.avif");
+  ASSERT_EQ(back.width, 256);
+  ASSERT_EQ(back.height, 256);
+  EXPECT_GT(psnr(image, back), 38.0);
+  const double coarse_psnr = psnr(image, decode_avif(coarse, "t.avif"));
+  EXPECT_LT(coarse_psnr, psnr(image, back));
+  // The lowest WebP quality at least as close as AVIF at 40 takes more bytes: why AVIF is the default.
+  int webp_quality = 0;
+  while (webp_quality < 100 && psnr(image, decode_webp(encode_webp(image, webp_quality), "t.webp")) < coarse_psnr) webp_quality += 5;
+  EXPECT_GT(encode_webp(image, webp_quality).size(), coarse.size()) << "WebP q" << webp_quality;
+  // A file must be the same bytes on every run.
+  EXPECT_EQ(encode_avif(image, 40), coarse);
+  // RGBA in: the alpha is dropped; RGBA out: opaque.
+  const Image rgba = decode_avif(encode_avif(test_picture(64, 48, 4), 90), "t.avif", 4);
+  ASSERT_EQ(rgba.channels, 4);
+  for (size_t i = 3; i < rgba.pixels.size(); i += 4) ASSERT_EQ(rgba.pixels[i], 255);
+}
+
+TEST(ImageCodec, TextureCodecsDispatchAndLosslessIsWebp) {
+  const Image image = test_picture(64, 64, 3);
+  EXPECT_EQ(encode_texture(TextureCodec::kAvif, image, 70), encode_avif(image, 70));
+  EXPECT_EQ(encode_texture(TextureCodec::kWebp, image, 70), encode_webp(image, 70));
+  const std::vector<uint8_t> lossless = encode_texture(TextureCodec::kAvif, image, 101);
+  EXPECT_EQ(decode_texture(TextureCodec::kWebp, lossless, "t").pixels, image.pixels);
+  EXPECT_EQ(parse_texture_codec(texture_codec_name(TextureCodec::kAvif)), TextureCodec::kAvif);
+  EXPECT_EQ(parse_texture_codec(texture_codec_name(TextureCodec::kWebp)), TextureCodec::kWebp);
+  testing::expect_error(ErrorCode::kInvalidArgument, "'jpeg'", [] { parse_texture_codec("jpeg"); });
+}
+
+TEST(ImageCodec, DamagedAvifBytesAreNamedErrors) {
+  const Image image = test_picture(64, 64, 3);
+  const std::vector<uint8_t> avif = encode_avif(image, 60), png = encode_png(image);
+  testing::expect_error(ErrorCode::kCorrupt, "x.avif", [&] { decode_avif(png, "x.avif"); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "too large", [&] { decode_avif(avif, "t.avif", 3, 100); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "cannot encode", [] { encode_avif(Image(), 90); });
+  // Every truncation, and a byte changed at every 5th place, is an error or a full image, never a crash.
+  for (size_t n = 0; n < avif.size(); n += 5) {
+    for (bool truncate : {true, false}) {
+      std::vector<uint8_t> bad = avif;
+      if (truncate) {
+        bad.resize(n);
+      } else {
+        bad[n] ^= 0x5a;
+      }
+      try {
+        const Image back = decode_avif(bad, "t.avif");
+        EXPECT_EQ(back.width, 64);
+        EXPECT_EQ(back.pixels.size(), size_t{64} * 64 * 3);
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::kCorrupt) << e.what();
+        EXPECT_NE(std::string(e.what()).find("t.avif"), std::string::npos);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace facemorph

@@ -3,6 +3,7 @@
 // players read, fminfo describes.
 #pragma once
 
+#include "facemorph/image_codec.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <cstdint>
@@ -35,7 +36,8 @@ struct SequenceFileMetadata {
   std::string encoder;                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
   std::string settings;                     // the encoder's settings (JSON text)
   std::vector<std::string> landmark_names;  // of the capture, for players that show them
-  int texture_quality = 90;                 // WebP quality 0..100 (above 100: lossless)
+  TextureCodec texture_codec = TextureCodec::kAvif;  // the reader reports keyframe 0's
+  int texture_quality = 90;                 // the codec's quality 0..100 (above 100: lossless WebP)
   std::vector<int> keyframe_texture_qualities;  // one per keyframe, in place of texture_quality (the encoder's choice)
   FieldCoding field_coding;                 // the writer's; the reader reports the file's
 };
@@ -67,8 +69,8 @@ struct SequenceFileInfo {
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 
 // The file's bytes. Fields are coded as metadata.field_coding says (16-bit code planes when it has
-// no steps; spec/method.md §5.3), textures encoded as WebP at metadata.texture_quality (or each at its
-// keyframe_texture_qualities entry). Throws kInvalidArgument for a sequence validate_sequence rejects,
+// no steps; spec/method.md §5.3), textures encoded in metadata.texture_codec at metadata.texture_quality (or each
+// at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a sequence validate_sequence rejects,
 // a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
 

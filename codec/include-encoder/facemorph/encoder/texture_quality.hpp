@@ -2,11 +2,12 @@
 // blend already makes between keyframes, not at one quality for every capture. A frame between two
 // keyframes shows their blend, which differs from its own texture by the interpolation error; a
 // keyframe coded far finer than that spends bytes on detail no held-out frame shows. So each
-// keyframe's WebP quality is the lowest whose coding error is a share of the interpolation error
+// keyframe's quality (AVIF's or WebP's) is the lowest whose coding error is a share of the interpolation error
 // measured beside it, within a PSNR range that keeps a paused keyframe presentable.
 #pragma once
 
 #include "facemorph/image.hpp"
+#include "facemorph/image_codec.hpp"
 
 #include <vector>
 
@@ -33,11 +34,11 @@ double disk_texture_mse(const Image& a, const Image& b);
 double psnr_of_mse(double mse);
 double mse_of_psnr(double psnr);
 
-// The lowest WebP quality in [0, 100] whose decode of `texture` lies within `target_mse` of it over
-// the disk (bisection: WebP's error falls as its quality rises, to a few percent). A target under
-// 1.25 times the error at quality 100 (lossy WebP's floor: 4:2:0 chroma, its finest quantiser) is
-// raised to that: closer to the floor costs bytes and shows nothing.
-int webp_quality_for(const Image& texture, double target_mse);
+// The lowest quality in [0, 100] of `codec` (image_codec.hpp) whose decode of `texture` lies within
+// `target_mse` of it over the disk (bisection: the error falls as the quality rises, to a few
+// percent). A target under 1.25 times the error at quality 100 (the lossy codec's floor: chroma
+// rounding, its finest quantiser) is raised to that: closer to the floor costs bytes and shows nothing.
+int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse);
 
 // Per keyframe, the MSE its coding may add: options.interpolation_share times the smaller of the
 // interpolation errors of the intervals beside it (`interval_mse[k]`: between keyframes k and k + 1,
