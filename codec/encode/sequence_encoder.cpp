@@ -32,10 +32,13 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 // frames by error at a fraction of the cost of G itself.
 constexpr int kSelectionGrid = 65;
 // --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
-constexpr int kGridCandidates[] = {65, 97, 129, 193, 257};
+// The floor falls as 1/N², so steps of ~1.2-1.5 in N give the rule steps of at most ~2.2 in floor.
+constexpr int kGridCandidates[] = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
 constexpr double kGridFloorTarget = 2e-4;
 constexpr double kGridNoiseShare = 1.0;
-constexpr double kGridErrorShare = 0.25;
+// Half the error the spline makes between keyframes: where bytes spent on a finer grid and on more
+// keyframes buy the same error (equal slopes; measured on Medusa, spec/method.md §7.6).
+constexpr double kGridErrorShare = 0.5;
 
 // The mean of the selection's predicted errors between keyframes (fraction of the diagonal); 0 when
 // none was predicted (every frame a keyframe).
@@ -369,9 +372,9 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(selection_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
   std::nth_element(noise.begin(), noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2), noise.end());
   report_.median_noise = std::isfinite(noise[noise.size() / 2]) ? noise[noise.size() / 2] : 0.0;
-  // Nor below a share of the error the spline makes between the chosen keyframes: a floor of a
-  // quarter of it adds 3% to that error (errors add in quadrature), a finer grid costs bytes as N²
-  // and shows nothing the frames between keyframes keep.
+  // Nor below half the error the spline makes between the chosen keyframes: errors add in
+  // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
+  // for the error it removes than more keyframes would (spec/method.md §7.6).
   report_.grid_target = std::max({kGridFloorTarget, kGridNoiseShare * report_.median_noise, chosen ? kGridErrorShare * mean_predicted_error(*chosen) : 0.0});
   const double target = report_.grid_target;
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
@@ -541,9 +544,8 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
 
 namespace {
 
-// --field-error auto: a quarter of the mean predicted error of the frames between keyframes (the
-// grid's floor takes the same share, spec/method.md §7.6): rounding then adds 3% to that error in
-// quadrature. A tenth added 0.5% and cost Medusa's fields 22% more bytes (spec/method.md §5.3).
+// --field-error auto: a quarter of the mean predicted error of the frames between keyframes:
+// rounding then adds 3% to that error in quadrature. A tenth added 0.5% and cost Medusa's fields 22% more bytes (spec/method.md §5.3).
 double auto_field_error(const KeyframeSelection& chosen) {
   constexpr double kShare = 0.25, kLowest = 5e-5, kHighest = 5e-4;
   const double mean = mean_predicted_error(chosen);
