@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
   app.add_option("--landmarks", landmarks, "Landmarks CSV of a plain folder (frame,name,x,y,z)");
   app.add_option("--keyframes", keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
   app.add_option("--max-error", max_error, "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
-  app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (from the capture's resolution)")->capture_default_str();
+  app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error between keyframes)")->capture_default_str();
   app.add_option("--texture", texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
   app.add_option("--quality", quality_text,
@@ -240,7 +240,9 @@ int main(int argc, char** argv) {
     }
     if (!report.texture_qualities.empty()) {
       const auto [lo, hi] = std::minmax_element(report.texture_qualities.begin(), report.texture_qualities.end());
-      std::printf("  textures: %s quality %d to %d", options.texture_codec == TextureCodec::kAvif ? "AVIF" : "WebP", *lo, *hi);
+      const bool lossless = *lo > 100;
+      std::printf("  textures: %s", lossless ? "lossless WebP" : (std::string(options.texture_codec == TextureCodec::kAvif ? "AVIF" : "WebP") + " quality " +
+                                                                  std::to_string(*lo) + " to " + std::to_string(*hi)).c_str());
       std::vector<double> measured;
       for (double db : report.texture_interpolation_psnr) {
         if (db > 0) measured.push_back(db);

@@ -556,7 +556,7 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
 std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
   ByteWriter w;
   w.write(number);
-  w.write(codec == TextureCodec::kAvif && quality <= 100 ? kTextureAvif : kTextureWebp);  // lossless is WebP's (encode_texture)
+  w.write(stored_texture_codec(codec, quality) == TextureCodec::kAvif ? kTextureAvif : kTextureWebp);
   w.bytes(encode_texture(codec, texture, quality));
   return w.take();
 }

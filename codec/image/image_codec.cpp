@@ -118,8 +118,13 @@ std::vector<uint8_t> encode_avif(const Image& image, int quality) {
   if (result == AVIF_RESULT_OK) {
     const int quantizer = avif_quantizer(quality);
     encoder->minQuantizer = encoder->maxQuantizer = quantizer;
-    encoder->speed = 6;       // libavif's default: within 2% of the bytes of speed 0 here, 20x faster
-    encoder->maxThreads = 1;  // the same bytes on every machine (a file is deterministic)
+    encoder->speed = 6;       // avifenc's default, 0.06 s for a 448² texture
+    encoder->maxThreads = 1;  // the same bytes on every run (with one libaom version)
+    // libaom: it codes 4:4:4 (SVT-AV1 does not), and a fixed encoder keeps the bytes reproducible.
+    encoder->codecChoice = AVIF_CODEC_CHOICE_AOM;
+    if (avifCodecName(AVIF_CODEC_CHOICE_AOM, AVIF_CODEC_FLAG_CAN_ENCODE) == nullptr) {
+      throw Error(ErrorCode::kUnsupported, "AVIF encoding needs libavif built with libaom");
+    }
   }
   AvifBytes bytes;
   if (result == AVIF_RESULT_OK) result = avifEncoderWrite(encoder.get(), yuv.get(), &bytes.data);
@@ -139,13 +144,25 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
   avifResult result = avifDecoderSetIOMemory(decoder.get(), bytes.data(), bytes.size());
   if (result == AVIF_RESULT_OK) result = avifDecoderParse(decoder.get());
   if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": not an AVIF image (" + avifResultToString(result) + ")");
-  const avifImage* header = decoder->image;
-  if (static_cast<int64_t>(header->width) * header->height > max_pixels) {
-    throw Error(ErrorCode::kInvalidArgument, source + ": AVIF image of " + std::to_string(header->width) + " x " + std::to_string(header->height) + " pixels is too large");
+  const uint32_t width = decoder->image->width, height = decoder->image->height;
+  if (static_cast<int64_t>(width) * height > max_pixels) {
+    throw Error(ErrorCode::kInvalidArgument, source + ": AVIF image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is too large");
   }
+  // One 8-bit still image (spec/container.md §8): a sequence or a deeper image is not a texture.
+  if (decoder->imageCount != 1 || decoder->image->depth != 8) {
+    throw Error(ErrorCode::kCorrupt, source + ": an AVIF of " + std::to_string(decoder->imageCount) + " images at " + std::to_string(decoder->image->depth) +
+                                         " bits, not one 8-bit still image");
+  }
+  // The AV1 frame may claim another size than the container's header; the AV1 decoder refuses a
+  // frame larger than the header's, so a hostile file cannot make it allocate more.
+  decoder->imageSizeLimit = std::max<uint32_t>(width * height, 1);
   result = avifDecoderNextImage(decoder.get());
   if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": the AVIF image data is damaged (" + avifResultToString(result) + ")");
   const avifImage* decoded = decoder->image;
+  if (decoded->width != width || decoded->height != height || decoded->depth != 8) {
+    throw Error(ErrorCode::kCorrupt, source + ": the AVIF frame is " + std::to_string(decoded->width) + " x " + std::to_string(decoded->height) +
+                                         ", its header says " + std::to_string(width) + " x " + std::to_string(height));
+  }
   Image image(static_cast<int>(decoded->width), static_cast<int>(decoded->height), channels);
   AvifRgb rgb;
   avifRGBImageSetDefaults(&rgb.rgb, decoded);
@@ -170,8 +187,10 @@ TextureCodec parse_texture_codec(const std::string& name) {
   throw Error(ErrorCode::kInvalidArgument, "unknown texture codec '" + name + "' (avif or webp)");
 }
 
+TextureCodec stored_texture_codec(TextureCodec codec, int quality) { return quality > 100 ? TextureCodec::kWebp : codec; }
+
 std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality) {
-  return codec == TextureCodec::kAvif && quality <= 100 ? encode_avif(image, quality) : encode_webp(image, quality);
+  return stored_texture_codec(codec, quality) == TextureCodec::kAvif ? encode_avif(image, quality) : encode_webp(image, quality);
 }
 
 Image decode_texture(TextureCodec codec, std::span<const uint8_t> bytes, const std::string& source, int64_t max_pixels) {

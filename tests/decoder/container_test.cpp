@@ -123,6 +123,7 @@ TEST(Container, RoundTripKeepsEveryQuantityWithinItsQuantisation) {
   EXPECT_EQ(info.metadata.settings, small_metadata().settings);
   EXPECT_EQ(info.metadata.encoder.rfind("facemorph ", 0), 0u);
   EXPECT_EQ(info.texture_size, 16);
+  EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kWebp);  // lossless: WebP, whatever the codec asked
   uint64_t total = format::kPreambleBytes + format::kChunkHeaderBytes + 4 + format::kChunkTrailerBytes;  // + the end chunk
   for (const auto& c : info.chunks) total += c.stored_bytes;
   EXPECT_EQ(total, bytes.size());

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -86,7 +87,7 @@ TEST(ImageCodec, AvifIsCloseAtHighQualityAndSmallerThanWebpAtEqualError) {
   EXPECT_LT(coarse_psnr, psnr(image, back));
   // The lowest WebP quality at least as close as AVIF at 40 takes more bytes: why AVIF is the default.
   int webp_quality = 0;
-  while (webp_quality < 100 && psnr(image, decode_webp(encode_webp(image, webp_quality), "t.webp")) < coarse_psnr) webp_quality += 5;
+  while (webp_quality < 100 && psnr(image, decode_webp(encode_webp(image, webp_quality), "t.webp")) < coarse_psnr) ++webp_quality;
   EXPECT_GT(encode_webp(image, webp_quality).size(), coarse.size()) << "WebP q" << webp_quality;
   // A file must be the same bytes on every run.
   EXPECT_EQ(encode_avif(image, 40), coarse);
@@ -101,6 +102,8 @@ TEST(ImageCodec, TextureCodecsDispatchAndLosslessIsWebp) {
   EXPECT_EQ(encode_texture(TextureCodec::kAvif, image, 70), encode_avif(image, 70));
   EXPECT_EQ(encode_texture(TextureCodec::kWebp, image, 70), encode_webp(image, 70));
   const std::vector<uint8_t> lossless = encode_texture(TextureCodec::kAvif, image, 101);
+  EXPECT_EQ(stored_texture_codec(TextureCodec::kAvif, 101), TextureCodec::kWebp);
+  EXPECT_EQ(stored_texture_codec(TextureCodec::kAvif, 100), TextureCodec::kAvif);
   EXPECT_EQ(decode_texture(TextureCodec::kWebp, lossless, "t").pixels, image.pixels);
   EXPECT_EQ(parse_texture_codec(texture_codec_name(TextureCodec::kAvif)), TextureCodec::kAvif);
   EXPECT_EQ(parse_texture_codec(texture_codec_name(TextureCodec::kWebp)), TextureCodec::kWebp);
@@ -113,6 +116,15 @@ TEST(ImageCodec, DamagedAvifBytesAreNamedErrors) {
   testing::expect_error(ErrorCode::kCorrupt, "x.avif", [&] { decode_avif(png, "x.avif"); });
   testing::expect_error(ErrorCode::kInvalidArgument, "too large", [&] { decode_avif(avif, "t.avif", 3, 100); });
   testing::expect_error(ErrorCode::kInvalidArgument, "cannot encode", [] { encode_avif(Image(), 90); });
+  // A header (ispe) that claims a smaller image than the AV1 frame holds: refused, before the frame's
+  // size is trusted for an allocation.
+  std::vector<uint8_t> small_header = avif;
+  const std::string ispe = "ispe";
+  const auto at = std::search(small_header.begin(), small_header.end(), ispe.begin(), ispe.end());
+  ASSERT_NE(at, small_header.end());
+  const auto size_at = static_cast<size_t>(at - small_header.begin()) + 8;  // after the box's version and flags
+  for (size_t i = 0; i < 8; ++i) small_header[size_at + i] = i % 4 == 3 ? 16 : 0;  // 16 x 16, big-endian
+  testing::expect_error(ErrorCode::kCorrupt, "t.avif", [&] { decode_avif(small_header, "t.avif", 3, 16 * 16); });
   // Every truncation, and a byte changed at every 5th place, is an error or a full image, never a crash.
   for (size_t n = 0; n < avif.size(); n += 5) {
     for (bool truncate : {true, false}) {

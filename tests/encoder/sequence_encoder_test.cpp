@@ -70,7 +70,7 @@ TEST(SequenceEncoder, EncodesASyntheticCaptureThatDecodesCloseToEveryFrame) {
 }
 
 // Through the file, as fmenc writes and fmdec reads it: every captured time decodes as the sequence
-// in memory did (the fields were already 16-bit; the texture goes through lossy WebP).
+// in memory did (the fields were already 16-bit; the texture goes through lossy AVIF).
 TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
   testing::TempDir dir;
   const Capture capture = small_capture(dir, 0);
@@ -97,7 +97,7 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
     const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), b.mesh);
     EXPECT_LT(worst, 1e-6 * d.diagonal) << "frame " << i;
     EXPECT_LT(d.rms / d.diagonal, 0.006) << "frame " << i;
-    // Lossy WebP at quality 90: the texture stays close.
+    // Lossy AVIF at quality 90: the texture stays close.
     double error = 0;
     for (size_t p = 0; p < a.texture.pixels.size(); ++p) error += std::pow(a.texture.pixels[p] - b.texture.pixels[p], 2);
     const double psnr = 10 * std::log10(255.0 * 255.0 / (error / static_cast<double>(a.texture.pixels.size())));

@@ -62,7 +62,9 @@ TEST(TextureQuality, QualityIsTheLowestThatMeetsTheTargetInEitherCodec) {
     EXPECT_GT(texture_quality_for(codec, texture, target / 3), quality);
     EXPECT_EQ(texture_quality_for(codec, texture, 1e6), 0);
     const int floor_quality = texture_quality_for(codec, texture, 0.0);
-    if (codec == TextureCodec::kWebp) EXPECT_LT(floor_quality, 100);
+    if (codec == TextureCodec::kWebp) {
+      EXPECT_LT(floor_quality, 100);
+    }
     EXPECT_LE(error_at(floor_quality), 1.25 * error_at(100));
     EXPECT_GT(error_at(floor_quality - 1), 1.25 * error_at(100));
   }

@@ -36,8 +36,11 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
 enum class TextureCodec { kAvif, kWebp };
 const char* texture_codec_name(TextureCodec codec);          // "avif", "webp"
 TextureCodec parse_texture_codec(const std::string& name);   // throws kInvalidArgument
-// encode_avif or encode_webp; a quality above 100 is lossless WebP whatever the codec (AVIF's
-// lossless mode needs 4:4:4 and an identity matrix, and is larger than lossless WebP on faces).
+// The codec a texture asked for in `codec` at `quality` is stored in: a quality above 100 is
+// lossless WebP whatever the codec (AVIF's lossless mode needs an identity matrix, and lossless
+// WebP is what facemorph has always written).
+TextureCodec stored_texture_codec(TextureCodec codec, int quality);
+// encode_avif or encode_webp, as stored_texture_codec says.
 std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality);
 // decode_avif or decode_webp, to RGB, with their errors.
 Image decode_texture(TextureCodec codec, std::span<const uint8_t> bytes, const std::string& source, int64_t max_pixels = int64_t{1} << 26);
