@@ -102,6 +102,9 @@ int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std
 
 std::vector<uint8_t> encode_avif(const Image& image, int quality) {
   require_codable(image, false);
+  if (avifCodecName(AVIF_CODEC_CHOICE_AOM, AVIF_CODEC_FLAG_CAN_ENCODE) == nullptr) {
+    throw Error(ErrorCode::kUnsupported, "AVIF encoding needs libavif built with libaom");
+  }
   std::unique_ptr<avifImage, AvifImageFree> yuv(avifImageCreate(static_cast<uint32_t>(image.width), static_cast<uint32_t>(image.height), 8, AVIF_PIXEL_FORMAT_YUV444));
   std::unique_ptr<avifEncoder, AvifEncoderFree> encoder(avifEncoderCreate());
   if (!yuv || !encoder) throw Error(ErrorCode::kInvalidArgument, "AVIF encoding: out of memory");
@@ -122,9 +125,6 @@ std::vector<uint8_t> encode_avif(const Image& image, int quality) {
     encoder->maxThreads = 1;  // the same bytes on every run (with one libaom version)
     // libaom: it codes 4:4:4 (SVT-AV1 does not), and a fixed encoder keeps the bytes reproducible.
     encoder->codecChoice = AVIF_CODEC_CHOICE_AOM;
-    if (avifCodecName(AVIF_CODEC_CHOICE_AOM, AVIF_CODEC_FLAG_CAN_ENCODE) == nullptr) {
-      throw Error(ErrorCode::kUnsupported, "AVIF encoding needs libavif built with libaom");
-    }
   }
   AvifBytes bytes;
   if (result == AVIF_RESULT_OK) result = avifEncoderWrite(encoder.get(), yuv.get(), &bytes.data);
