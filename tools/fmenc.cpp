@@ -39,7 +39,8 @@ double parse_fraction(const std::string& text, const char* what) {
 // again from --field-error (from the file's values, so never finer than what it held); textures
 // re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
 // measure the blend against).
-void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality, bool quiet) {
+void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality,
+            FieldCoding::Residuals residuals, bool quiet) {
   if (quality == kAutoTextureQuality) quality = options.texture_coding.fallback_quality;
   SequenceFileInfo info;
   Sequence sequence = read_sequence_file(input, &info);
@@ -50,6 +51,7 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   metadata.field_coding = {};
   FieldPrecisionReport precision;
   if (options.predicted_fields) metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
+  metadata.field_coding.residuals = residuals;
   write_sequence_file(output, sequence, metadata);
   if (quiet) return;
   std::printf("fmenc: %s re-coded to %s: %llu bytes (was %llu)\n", input.c_str(), output.c_str(),
@@ -91,7 +93,7 @@ int main(int argc, char** argv) {
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "hl+t", landmarks;
   double fps = 0;
-  std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
+  std::string field_error = "auto", field_rounding = "shaped", field_residuals = "range", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif";
   int threads = 0, reference = 0, intra_period = 8;
   double density_equalising = EncodeOptions{}.density_equalising.strength;
@@ -128,6 +130,9 @@ int main(int argc, char** argv) {
                  "predicted error between keyframes, within [0.005%, 0.05%]; 0: 16-bit fields (format 1.0)")
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
+  app.add_option("--field-residuals", field_residuals,
+                 "range (adaptive range coder, format 1.3) | zstd (format 1.1's varints, which facemorph 0.3 and 0.4 decoders read)")
+      ->capture_default_str();
   app.add_option("--intra-period", intra_period, "Every P-th keyframe coded without the previous one (random access)")->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
@@ -189,8 +194,12 @@ int main(int argc, char** argv) {
       throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
+    if (field_residuals != "range" && field_residuals != "zstd") {
+      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is neither range nor zstd");
+    }
+    const auto residuals = field_residuals == "range" ? FieldCoding::Residuals::kRangeCoded : FieldCoding::Residuals::kZstdVarints;
     if (std::filesystem::path(input).extension() == ".fmv") {
-      recode(input, output, options, quality, quiet);
+      recode(input, output, options, quality, residuals, quiet);
       return 0;
     }
     const Capture capture = open_capture(input, fps, landmarks);
@@ -207,11 +216,14 @@ int main(int argc, char** argv) {
     const Sequence sequence = encode_capture(capture, options, &report);
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
-    metadata.settings = settings_json(options, report).dump();
+    nlohmann::json settings = settings_json(options, report);
+    settings["field_residuals"] = field_residuals;
+    metadata.settings = settings.dump();
     metadata.landmark_names = capture.landmark_names;
     metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.texture_codec = options.texture_codec;
     metadata.field_coding = report.field_coding;
+    metadata.field_coding.residuals = residuals;
     write_sequence_file(output, sequence, metadata);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);

@@ -133,7 +133,12 @@ bool is_container(const fs::path& path) {
   return in.gcount() == static_cast<std::streamsize>(head.size()) && head == format::kMagic;
 }
 
+const char* residual_coder_name(FieldCoding::Residuals residuals) {
+  return residuals == FieldCoding::Residuals::kRangeCoded ? "range-coded" : "zstd varints";
+}
+
 // A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.
+
 int describe_container(const fs::path& path, bool json_out) {
   SequenceFileInfo info;
   const Sequence sequence = read_sequence_file(path, &info);
@@ -157,7 +162,10 @@ int describe_container(const fs::path& path, bool json_out) {
                    {"nodes", shape.interior_count + shape.rim_count}, {"rim_nodes", shape.rim_count}, {"fixed_nodes", fixed}};
     doc["representation"] = representation_name(sequence.representation);
     const FieldCoding& coding = info.metadata.field_coding;
-    doc["field_coding"] = coding.predicted() ? nlohmann::json{{"kind", "predicted"}, {"steps", coding.steps}, {"intra_period", coding.intra_period}}
+    doc["field_coding"] = coding.predicted() ? nlohmann::json{{"kind", "predicted"},
+                                                               {"residuals", residual_coder_name(coding.residuals)},
+                                                               {"steps", coding.steps},
+                                                               {"intra_period", coding.intra_period}}
                                              : nlohmann::json{{"kind", "16-bit code planes"}};
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
@@ -186,8 +194,8 @@ int describe_container(const fs::path& path, bool json_out) {
               shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
   const FieldCoding& coding = info.metadata.field_coding;
   if (coding.predicted()) {
-    std::printf("fields      %s, integer multiples of a step per array, predicted (intra every %d keyframes); %zu nodes in boundary frames\n",
-                representation_name(sequence.representation), coding.intra_period, fixed);
+    std::printf("fields      %s, integer multiples of a step per array, predicted (intra every %d keyframes), residuals %s; %zu nodes in boundary frames\n",
+                representation_name(sequence.representation), coding.intra_period, residual_coder_name(coding.residuals), fixed);
     std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
                 coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
   } else {

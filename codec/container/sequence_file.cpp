@@ -12,9 +12,11 @@
 #include "format/field_coder.hpp"
 #include "format/file_io.hpp"
 #include "format/quantize.hpp"
+#include "format/ranged_residuals.hpp"
 #include "format/residual_coder.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -33,7 +35,8 @@ using format::ByteReader;
 using format::ByteWriter;
 
 constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kTexture = "TEXR";
-constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1;  // the header's field coding (spec/container.md §5)
+// The header's field coding (spec/container.md §5).
+constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1, kRangeCodedPredictions = 2;
 constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
 constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
 constexpr uint32_t kMaxIntraPeriod = 1u << 20;
@@ -171,7 +174,8 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   for (const std::string& name : metadata.landmark_names) w.string(name);
   // Appended in 1.1: how the keyframes' fields are coded.
   const FieldCoding& coding = metadata.field_coding;
-  w.write(coding.predicted() ? kPredictedCodes : kCodePlanes);
+  const bool range_coded = coding.residuals == FieldCoding::Residuals::kRangeCoded;
+  w.write(!coding.predicted() ? kCodePlanes : range_coded ? kRangeCodedPredictions : kPredictedCodes);
   if (coding.predicted()) {
     w.write(static_cast<uint32_t>(coding.intra_period));
     for (double step : coding.steps) w.write(step);
@@ -227,11 +231,12 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");
   if (landmarks > kMaxLandmarks) corrupt(r.source(), std::to_string(landmarks) + " landmark names");
   for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name"));
-  // 1.1: the field coding (1.0 files have code planes).
+  // 1.1: the field coding (1.0 files have code planes); 1.3 adds range-coded residuals.
   if (minor_version >= 1) {
     const uint8_t coding = r.read<uint8_t>("the field coding");
-    if (coding == kPredictedCodes) {
+    if (coding == kPredictedCodes || coding == kRangeCodedPredictions) {
       FieldCoding& c = h.metadata.field_coding;
+      c.residuals = coding == kPredictedCodes ? FieldCoding::Residuals::kZstdVarints : FieldCoding::Residuals::kRangeCoded;
       const uint32_t period = r.read<uint32_t>("the intra period");
       if (period == 0 || period > kMaxIntraPeriod) corrupt(r.source(), "intra period " + std::to_string(period));
       c.intra_period = static_cast<int>(period);
@@ -443,14 +448,18 @@ struct CodedArray {
   double bits = 0;
 };
 
-CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice) {
+// The models each array's residuals adapt under when range-coded (spec/container.md §7.4): its own,
+// except that b continues a's and the second and third components of a vector field the first's.
+constexpr std::array<uint8_t, kKeyframeArrays> kRangeModelSets = {0, 1, 2, 2, 4, 4, 4, 7, 7, 7, 10, 10, 10, 13};
+
+CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice, FieldCoding::Residuals coder) {
   CodedArray best;
   best.bits = std::numeric_limits<double>::infinity();
   for (uint8_t p = 0; p < format::kSpatialPredictorCount; ++p) {
     const auto predictor = static_cast<format::SpatialPredictor>(p);
     if (format::uses_lattice(predictor) && lattice == nullptr) continue;
     std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
-    const double bits = estimated_bits(residuals);
+    const double bits = coder == FieldCoding::Residuals::kRangeCoded ? format::ranged_residual_bits(residuals, lattice) : estimated_bits(residuals);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
   }
   return best;
@@ -459,7 +468,7 @@ CodedArray best_prediction(std::span<const int32_t> codes, const format::Lattice
 // `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
 // null where this keyframe must be intra.
 std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t number, const std::vector<std::vector<int32_t>>& codes,
-                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid) {
+                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid, FieldCoding::Residuals coder) {
   // Intra and predicted alike: each array's codes, or their change since the previous keyframe,
   // under the spatial predictor that leaves the fewest bits. The reference that costs less wins.
   auto code_all = [&](bool from_previous) {
@@ -469,7 +478,7 @@ std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t numb
       if (from_previous) {
         for (size_t i = 0; i < values.size(); ++i) values[i] -= (*previous)[a][i];  // |codes| < 2^30: no overflow
       }
-      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid)));
+      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid), coder));
     }
     return out;
   };
@@ -487,17 +496,22 @@ std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t numb
       reference = kFromPreviousKeyframe;
     }
   }
+  const bool range_coded = coder == FieldCoding::Residuals::kRangeCoded;
   ByteWriter w;
   write_keyframe_preamble(w, key, number);
   w.write(reference);
-  w.write(static_cast<uint32_t>(kKeyframeArrays));
+  // Field coding 1 repeats every array's length, which the header already fixes; 2 does not.
+  if (!range_coded) w.write(static_cast<uint32_t>(kKeyframeArrays));
   std::vector<std::vector<int64_t>> residuals;
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    w.write(static_cast<uint32_t>(codes[a].size()));
+    if (!range_coded) w.write(static_cast<uint32_t>(codes[a].size()));
     w.write(static_cast<uint8_t>(coded[a].predictor));
     residuals.push_back(std::move(coded[a].residuals));
   }
-  const std::vector<uint8_t> stream = format::encode_residual_stream(residuals);
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, residuals[a].size(), grid));
+  const std::vector<uint8_t> stream = range_coded ? format::encode_ranged_residuals(residuals, lattices, kRangeModelSets)
+                                          : format::encode_residual_stream(residuals);
   w.write(static_cast<uint32_t>(stream.size()));
   w.bytes(stream);
   return w.take();
@@ -516,24 +530,33 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   if (reference == kFromPreviousKeyframe && (number % static_cast<uint32_t>(period) == 0 || codes.empty())) {
     corrupt(where, "keyframe " + std::to_string(number) + " refers to the previous one, but the intra period is " + std::to_string(period));
   }
-  const uint32_t count = r.read<uint32_t>("the array count");
-  if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
+  const bool range_coded = h.metadata.field_coding.residuals == FieldCoding::Residuals::kRangeCoded;
+  if (!range_coded) {
+    const uint32_t count = r.read<uint32_t>("the array count");
+    if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
+  }
   const std::vector<size_t> expected = expected_lengths(h);
   const GridFacts& grid = grid_facts(h.shape.grid_n);
-  std::vector<format::SpatialPredictor> predictors(count);
-  for (uint32_t a = 0; a < count; ++a) {
-    const uint32_t length = r.read<uint32_t>("an array length");
-    if (length != expected[a]) {
-      corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(length) + " values, " + std::to_string(expected[a]) + " expected");
+  std::vector<format::SpatialPredictor> predictors(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    if (!range_coded) {
+      const uint32_t length = r.read<uint32_t>("an array length");
+      if (length != expected[a]) {
+        corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(length) + " values, " + std::to_string(expected[a]) + " expected");
+      }
     }
     const uint8_t p = r.read<uint8_t>("a predictor");
     predictors[a] = static_cast<format::SpatialPredictor>(p);
-    if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, length, grid) == nullptr)) {
+    if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, expected[a], grid) == nullptr)) {
       corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
     }
   }
   const uint32_t coded = r.read<uint32_t>("the coded size");
-  const std::vector<std::vector<int64_t>> residuals = format::decode_residual_stream(r.bytes(coded, "the coded residuals"), expected, where);
+  const auto stream = r.bytes(coded, "the coded residuals");
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, expected[a], grid));
+  const std::vector<std::vector<int64_t>> residuals = range_coded ? format::decode_ranged_residuals(stream, expected, lattices, kRangeModelSets, where)
+                                                          : format::decode_residual_stream(stream, expected, where);
   // Bytes after the residuals were appended by a later minor version: ignored.
   const std::vector<double>& steps = h.metadata.field_coding.steps;
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
@@ -617,7 +640,9 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       }
       const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
       keyframes.push_back(format::prepare_chunk(
-          kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n)), true));
+          kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n),
+                                                       coding.residuals),
+          true));
       previous_codes = std::move(codes);
     } else {
       keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));

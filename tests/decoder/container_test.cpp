@@ -8,6 +8,7 @@
 
 #include "tests/test_util.hpp"
 
+#include <cstring>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -59,15 +60,18 @@ SequenceFileMetadata small_metadata() {
   return m;
 }
 
-// The same with the predicted coding of format 1.1: every array on its own step, an intra keyframe
-// every second one.
-SequenceFileMetadata predicted_metadata() {
+// The same with the predicted coding: every array on its own step, an intra keyframe every second
+// one; residuals range-coded (format 1.3, the default) or as zstd varints (1.1).
+SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded) {
   SequenceFileMetadata m = small_metadata();
   m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
   m.field_coding.steps[kScalarArrayCount] = 1e-3;
   m.field_coding.intra_period = 2;
+  m.field_coding.residuals = residuals;
   return m;
 }
+
+SequenceFileMetadata zstd_predicted_metadata() { return predicted_metadata(FieldCoding::Residuals::kZstdVarints); }
 
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   EXPECT_EQ(a.size(), b.size());
@@ -146,7 +150,7 @@ TEST(Container, GeometryOnlyAndHoleFreeSequencesRoundTrip) {
 // Every prefix of a file is refused as truncated (or, where the cut lands in the magic, as not a
 // container), never read past its end.
 TEST(Container, EveryTruncationIsNamed) {
-  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata()}) {
+  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata(), zstd_predicted_metadata()}) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   for (size_t size = 0; size < bytes.size(); ++size) {
     const std::span<const uint8_t> prefix(bytes.data(), size);
@@ -164,7 +168,7 @@ TEST(Container, EveryTruncationIsNamed) {
 // Flipping any byte is caught: by a checksum within a chunk, or as an impossible value in the
 // preamble and the chunk headers. Never a crash, never a file read as good.
 TEST(Container, EveryByteFlipIsNamed) {
-  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata()}) {
+  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata(), zstd_predicted_metadata()}) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   const format::ContainerReader reader(bytes, "good.fmv");
   for (size_t at = 0; at < bytes.size(); ++at) {
@@ -223,12 +227,13 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
   return writer.finish();
 }
 
-// Format 1.1: values stored as exact multiples of their steps, so what the encoder rounded is
-// what every decoder reads, to the bit; keyframes predicted from the previous one only between
-// intra keyframes.
+// Format 1.1 on: values stored as exact multiples of their steps, so what the encoder rounded is
+// what every decoder reads, to the bit, with either residual coder; keyframes predicted from the
+// previous one only between intra keyframes.
 TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
+  for (const SequenceFileMetadata& m : {predicted_metadata(), zstd_predicted_metadata()}) {
+  SCOPED_TRACE(m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded ? "range-coded" : "zstd varints");
   const Sequence s = small_sequence();
-  const SequenceFileMetadata m = predicted_metadata();
   Sequence rounded = s;
   for (Keyframe& key : rounded.keyframes) round_to_field_steps(key, m.field_coding);
   const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
@@ -238,6 +243,7 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
   EXPECT_EQ(info.minor_version, format::kMinorVersion);
   EXPECT_EQ(info.metadata.field_coding.steps, m.field_coding.steps);
   EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
+  EXPECT_EQ(info.metadata.field_coding.residuals, m.field_coding.residuals);
   ASSERT_EQ(back.keyframes.size(), 3u);
   for (size_t k = 0; k < 3; ++k) {
     const auto original = scalar_arrays(s.keyframes[k].fields), stored = scalar_arrays(rounded.keyframes[k].fields),
@@ -267,12 +273,37 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
   testing::expect_error(ErrorCode::kInvalidArgument, "2^30 steps", [&] { encode_sequence_file(s, tiny); });
   tiny.field_coding.steps.pop_back();
   testing::expect_error(ErrorCode::kInvalidArgument, "one step per keyframe array", [&] { encode_sequence_file(s, tiny); });
+  }
+}
+
+// The range coder spends fewer bytes than zstd on the same keyframes' residuals (the reason for
+// field coding 2), and both decode to the same values.
+TEST(Container, RangeCodedResidualsTakeFewerBytesThanZstd) {
+  const Sequence s = small_sequence(17, 8);
+  SequenceFileInfo ranged, zstd;
+  const Sequence a = decode_sequence_file(encode_sequence_file(s, predicted_metadata()), "r.fmv", &ranged);
+  const Sequence b = decode_sequence_file(encode_sequence_file(s, zstd_predicted_metadata()), "z.fmv", &zstd);
+  const auto keyp_bytes = [](const SequenceFileInfo& info) {
+    for (const auto& chunk : info.chunks) {
+      if (chunk.type == "KEYP") return chunk.stored_bytes;
+    }
+    return uint64_t{0};
+  };
+  EXPECT_LT(keyp_bytes(ranged), keyp_bytes(zstd));
+  for (size_t k = 0; k < a.keyframes.size(); ++k) EXPECT_EQ(scalar_arrays(a.keyframes[k].fields), scalar_arrays(b.keyframes[k].fields));
 }
 
 TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata());
-  // Payload layout: number (4), time (8), rotation (72), translation (24), reference (1) at 108,
-  // array count (4), then per array a length (4) and a predictor (1): array a's at 117 + 5a.
+  for (const SequenceFileMetadata& m : {predicted_metadata(), zstd_predicted_metadata()}) {
+  const bool range_coded = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded;
+  SCOPED_TRACE(range_coded ? "range-coded" : "zstd varints");
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), m);
+  // Payload layout: number (4), time (8), rotation (72), translation (24), reference (1) at 108;
+  // then range-coded: a predictor (1) per array, array a's at 109 + a, and the coded size at 123;
+  // zstd varints: the array count (4), then per array a length (4) and a predictor (1), array a's at
+  // 117 + 5a, and the coded size at 183.
+  const auto predictor_at = [&](size_t a) { return range_coded ? 109 + a : 117 + 5 * a; };
+  const size_t size_at = range_coded ? 123 : 183;
   const auto patch_first = [](size_t at, uint8_t value) {
     return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
       if (type == "KEYP" && payload[0] == 0) payload[at] = value;
@@ -280,9 +311,32 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
   };
   testing::expect_error(ErrorCode::kCorrupt, "refers to the previous one", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 1)), "r.fmv"); });
   testing::expect_error(ErrorCode::kCorrupt, "unknown reference 7", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 7)), "r.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(117, 9)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(0), 9)), "p.fmv"); });
   // The band vectors (array 4) are no lattice: a lattice predictor there cannot be decoded.
-  testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_first(117 + 20, 2)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(4), 2)), "p.fmv"); });
+  // Residuals that end early or leave bytes over (the chunk's checksum is made right by the rebuild).
+  const auto resize_stream = [&](int delta) {
+    return [=](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type != "KEYP" || payload[0] != 0) return;
+      uint32_t size = 0;
+      std::memcpy(&size, payload.data() + size_at, 4);
+      size = static_cast<uint32_t>(static_cast<int64_t>(size) + delta);
+      std::memcpy(payload.data() + size_at, &size, 4);
+      if (delta > 0) payload.insert(payload.begin() + static_cast<std::ptrdiff_t>(size_at + 4 + size - delta), static_cast<size_t>(delta), uint8_t{0});
+      if (delta < 0) payload.erase(payload.begin() + static_cast<std::ptrdiff_t>(size_at + 4 + size), payload.begin() + static_cast<std::ptrdiff_t>(size_at + 4 + size - delta));
+    };
+  };
+  for (int delta : {-3, 2}) {
+    try {
+      decode_sequence_file(rebuild(bytes, resize_stream(delta)), "s.fmv");
+      ADD_FAILURE() << "residuals resized by " << delta << " were read";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kCorrupt) << e.what();
+      EXPECT_NE(std::string(e.what()).find("s.fmv: chunk KEYP"), std::string::npos) << e.what();
+    }
+  }
+  }
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata());
   // A 1.0 keyframe chunk where the header announces the predicted coding.
   const std::vector<uint8_t> planes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   const auto predicted_header = [&](const std::string& type, std::vector<uint8_t>& payload) {
@@ -291,6 +345,14 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
     payload = predicted.payload(predicted.chunks()[0]);
   };
   testing::expect_error(ErrorCode::kCorrupt, "not KEYP", [&] { decode_sequence_file(rebuild(planes, predicted_header), "mixed.fmv"); });
+  // A field coding this decoder does not know (3) is unsupported, not corrupt.
+  const auto coding_3 = [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "HEAD") return;
+    const format::ContainerReader predicted(bytes, "p");
+    payload = predicted.payload(predicted.chunks()[0]);
+    payload[payload.size() - 4 - 8 * kKeyframeArrayCount - 1] = 3;
+  };
+  testing::expect_error(ErrorCode::kUnsupported, "field coding 3", [&] { decode_sequence_file(rebuild(bytes, coding_3), "c3.fmv"); });
 }
 
 TEST(Container, UnknownChunksAreSkippedUnlessCritical) {

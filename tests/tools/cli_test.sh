@@ -13,7 +13,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
 [[ -s "$work/a.fmv" ]] || fail "fmenc wrote nothing"
 "$tools/fminfo" "$work/a.fmv" >"$work/info" || fail "fminfo"
-grep -q "format 1.2" "$work/info" || fail "fminfo does not name the format"
+grep -q "format 1.3" "$work/info" || fail "fminfo does not name the format"
 "$tools/fminfo" "$work/a.fmv" --json >"$work/info.json" || fail "fminfo --json"
 python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
   fail "fminfo --json is not the file's description"

@@ -22,12 +22,17 @@ struct FieldCoding {
   // Empty: every array in 16-bit fixed point over its own range, as code planes (format 1.0's KEYF).
   // Otherwise one step per keyframe array (kKeyframeArrayCount; any positive value for an array the
   // representation leaves empty): each value is stored as the nearest integer multiple of its step,
-  // predicted from the previous keyframe and from its neighbours on G (format 1.1's KEYP). The
+  // predicted from the previous keyframe and from its neighbours on G (KEYP, format 1.1 on). The
   // encoder chooses the steps from the error they cause in the decoded surface (field_precision.hpp).
   std::vector<double> steps;
   // Every intra_period-th keyframe (0, P, 2P, ...) is coded without the previous one, so decoding
   // any keyframe needs at most P - 1 others. 1: every keyframe on its own.
   int intra_period = 8;
+  // How predicted codes' residuals are stored: range-coded under adaptive context models (format
+  // 1.3's field coding 2, the default), or as varints in a zstd frame (1.1's field coding 1, which
+  // 1.1 and 1.2 decoders read).
+  enum class Residuals { kRangeCoded, kZstdVarints };
+  Residuals residuals = Residuals::kRangeCoded;
   bool predicted() const { return !steps.empty(); }
 };
 

@@ -1,0 +1,39 @@
+// Residuals of a predicted keyframe range-coded (field coding 2, spec/container.md §7.4): each
+// residual becomes a few yes/no decisions — zero?, sign, then "larger than 1, 2, …" and an
+// Exp-Golomb escape — coded under adaptive models chosen by the size of the residuals already coded
+// beside it. Smooth fields leave runs of small residuals where their neighbours are small, and large
+// ones cluster at features; the context turns that into fewer bits than one order-0 table could.
+#pragma once
+
+#include "format/residual_coder.hpp"
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace facemorph::format {
+
+// Every residual's magnitude must be at most this (2^34): codes are below 2^30 and predictions of
+// three of them below 2^32, so every residual of valid codes is.
+inline constexpr int64_t kMaxRangedResidual = int64_t{1} << 34;
+
+// The arrays' residuals in order. `lattices[k]`: array k's lattice neighbours when it lies on G's
+// lattice (then its size must be the array's), null when it is a plain sequence. `model_sets[k]`:
+// the array whose models array k continues to adapt (k itself, or an earlier array of the same
+// kind: the three components of a vector field learn together). Models start fresh in every call.
+// kInvalidArgument for a residual beyond kMaxRangedResidual or tables that do not match.
+std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
+                                             std::span<const uint8_t> model_sets);
+
+// The inverse: `lengths[k]` residuals for array k, which must use the whole stream. Throws kCorrupt
+// naming `source` when the stream ends early, has bytes left, or decodes a residual out of range.
+std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
+                                                          std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
+                                                          const std::string& source);
+
+// The bits the range coder would spend on one array with fresh models (less the stream's end): how
+// the encoder chooses predictors and references without coding every candidate.
+double ranged_residual_bits(std::span<const int64_t> residuals, const LatticeNeighbours* lattice);
+
+}  // namespace facemorph::format
