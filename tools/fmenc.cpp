@@ -126,8 +126,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", field_error,
-                 "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: a quarter of the "
-                 "predicted error between keyframes, within [0.005%, 0.05%]; 0: 16-bit fields (format 1.0)")
+                 "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: two fifths of the "
+                 "predicted error between keyframes, within [0.005%, 0.2%]; 0: 16-bit fields (format 1.0)")
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--field-residuals", field_residuals,

@@ -358,8 +358,8 @@ TEST(SequenceEncoder, AutomaticGridStopsAtAShareOfThePredictedError) {
   EXPECT_LT(with_keys, alone) << "floors tried: " << floors.size() << ", target " << target << " against " << alone_target;
 }
 
-TEST(SequenceEncoder, AutomaticFieldErrorIsAQuarterOfThePredictedError) {
-  // Rounding the fields adds 3% to the error between keyframes (in quadrature).
+TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
+  // The rule of spec/method.md §5.3: two fifths of the mean predicted error, within [0.005%, 0.2%].
   testing::TempDir dir;
   write_synthetic_capture(dir.path(), {.frames = 40, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
   EncodeOptions options;
@@ -380,7 +380,7 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsAQuarterOfThePredictedError) {
   }
   ASSERT_GT(count, 0);
   const FieldPrecisionReport& precision = encoder.report().field_precision;
-  EXPECT_DOUBLE_EQ(precision.target_error, std::clamp(0.25 * sum / count, 5e-5, 5e-4));
+  EXPECT_DOUBLE_EQ(precision.target_error, std::clamp(0.4 * sum / count, 5e-5, 2e-3));
   // And the rounded keyframes honour it (field_precision.hpp: within 1.25x).
   ASSERT_EQ(precision.keyframe_errors.size(), sequence.keyframes.size());
   for (double e : precision.keyframe_errors) EXPECT_LE(e, 1.25 * precision.target_error);
