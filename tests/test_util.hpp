@@ -3,6 +3,7 @@
 
 #include "facemorph/error.hpp"
 #include "facemorph/mesh.hpp"
+#include "format/residual_coder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -193,5 +194,18 @@ void survive_mutations(const std::vector<uint8_t>& seed, unsigned rng_seed, Pars
 
 // Icosphere of radius r with `subdivisions` loop-style midpoint splits, outward-facing.
 TriangleMesh icosphere(double radius, int subdivisions);
+
+// A w x w square lattice in row-major order, with its neighbour table (the residual coders' tests).
+inline format::LatticeNeighbours square_lattice(int w) {
+  format::LatticeNeighbours l;
+  for (int j = 0; j < w; ++j) {
+    for (int i = 0; i < w; ++i) {
+      l.left.push_back(i > 0 ? j * w + i - 1 : -1);
+      l.up.push_back(j > 0 ? (j - 1) * w + i : -1);
+      l.up_left.push_back(i > 0 && j > 0 ? (j - 1) * w + i - 1 : -1);
+    }
+  }
+  return l;
+}
 
 }  // namespace facemorph::testing

@@ -37,22 +37,9 @@ TEST(FieldCoder, CodePlanesRoundTripAndDamageIsNamed) {
 }
 
 
-// A w x w square lattice in row-major order, with its neighbour table.
-format::LatticeNeighbours square_lattice(int w) {
-  format::LatticeNeighbours l;
-  for (int j = 0; j < w; ++j) {
-    for (int i = 0; i < w; ++i) {
-      l.left.push_back(i > 0 ? j * w + i - 1 : -1);
-      l.up.push_back(j > 0 ? (j - 1) * w + i : -1);
-      l.up_left.push_back(i > 0 && j > 0 ? (j - 1) * w + i - 1 : -1);
-    }
-  }
-  return l;
-}
-
 TEST(ResidualCoder, EveryPredictorRoundTripsExactlyAndPlanesLeaveSmallResiduals) {
   const int w = 40;
-  const format::LatticeNeighbours lattice = square_lattice(w);
+  const format::LatticeNeighbours lattice = testing::square_lattice(w);
   std::vector<int32_t> plane, rough;
   for (int j = 0; j < w; ++j) {
     for (int i = 0; i < w; ++i) {

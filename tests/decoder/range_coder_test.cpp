@@ -70,19 +70,6 @@ TEST(RangeCoder, StreamsThatEndEarlyOrLateAreCorrupt) {
   testing::expect_error(ErrorCode::kCorrupt, "does not start with 0", [&] { read_all(bytes); });
 }
 
-// A w x w square lattice in row-major order, with its neighbour table.
-format::LatticeNeighbours square_lattice(int w) {
-  format::LatticeNeighbours l;
-  for (int j = 0; j < w; ++j) {
-    for (int i = 0; i < w; ++i) {
-      l.left.push_back(i > 0 ? j * w + i - 1 : -1);
-      l.up.push_back(j > 0 ? (j - 1) * w + i : -1);
-      l.up_left.push_back(i > 0 && j > 0 ? (j - 1) * w + i - 1 : -1);
-    }
-  }
-  return l;
-}
-
 // Residuals like a keyframe's: small (two-sided geometric, as noise-shaped rounding leaves), larger in
 // a patch of the lattice (a feature), and a few extremes that take the escape, up to ±2^34.
 struct ResidualArrays {
@@ -124,7 +111,7 @@ ResidualArrays keyframe_like_residuals(const format::LatticeNeighbours& lattice,
 
 TEST(RangedResiduals, RoundTripExactlyAndCostLessThanZstd) {
   const int w = 37;
-  const format::LatticeNeighbours lattice = square_lattice(w);
+  const format::LatticeNeighbours lattice = testing::square_lattice(w);
   const ResidualArrays r = keyframe_like_residuals(lattice, w);
   const std::vector<uint8_t> bytes = format::encode_ranged_residuals(r.arrays, r.lattices, r.model_sets);
   EXPECT_EQ(format::decode_ranged_residuals(bytes, r.lengths(), r.lattices, r.model_sets, "k.res"), r.arrays);
@@ -138,7 +125,7 @@ TEST(RangedResiduals, RoundTripExactlyAndCostLessThanZstd) {
 }
 
 TEST(RangedResiduals, OutOfRangeAndMismatchedInputIsTheWritersError) {
-  const format::LatticeNeighbours lattice = square_lattice(3);
+  const format::LatticeNeighbours lattice = testing::square_lattice(3);
   const std::vector<const format::LatticeNeighbours*> none = {nullptr};
   const std::vector<uint8_t> own = {0};
   const std::vector<std::vector<int64_t>> extremes = {{int64_t{1} << 34, -(int64_t{1} << 34)}};
@@ -164,7 +151,7 @@ TEST(RangedResiduals, OutOfRangeAndMismatchedInputIsTheWritersError) {
 // happens to decode, values within the format's range. Never a crash or a read past the end.
 TEST(RangedResiduals, DamagedStreamsAreNamed) {
   const int w = 12;
-  const format::LatticeNeighbours lattice = square_lattice(w);
+  const format::LatticeNeighbours lattice = testing::square_lattice(w);
   const ResidualArrays r = keyframe_like_residuals(lattice, w);
   const std::vector<uint8_t> bytes = format::encode_ranged_residuals(r.arrays, r.lattices, r.model_sets);
   const std::vector<size_t> lengths = r.lengths();
