@@ -83,7 +83,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"field_error", o.predicted_fields ? nlohmann::json(report.field_precision.target_error) : nlohmann::json(nullptr)},
           {"field_error_auto", o.predicted_fields && o.auto_field_error},
           {"intra_period", o.field_precision.intra_period},
-          {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"}};
+          {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"},
+          {"inter_dead_zone", o.field_precision.inter_dead_zone}};
 }
 
 }  // namespace
@@ -96,6 +97,7 @@ int main(int argc, char** argv) {
   std::string field_error = "auto", field_rounding = "shaped", field_residuals = "range", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif";
   int threads = 0, reference = 0, intra_period = 8;
+  double inter_dead_zone = FieldPrecisionOptions{}.inter_dead_zone;
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
@@ -132,6 +134,10 @@ int main(int argc, char** argv) {
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--field-residuals", field_residuals,
                  "range (adaptive range coder, format 1.3) | zstd (format 1.1's varints, which facemorph 0.3 and 0.4 decoders read)")
+      ->capture_default_str();
+  app.add_option("--inter-dead-zone", inter_dead_zone,
+                 "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
+                 "below 1)")
       ->capture_default_str();
   app.add_option("--intra-period", intra_period, "Every P-th keyframe coded without the previous one (random access)")->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
@@ -194,6 +200,8 @@ int main(int argc, char** argv) {
       throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
+    if (!(inter_dead_zone >= 0.5 && inter_dead_zone < 1)) throw Error(ErrorCode::kInvalidArgument, "--inter-dead-zone must lie in [0.5, 1)");
+    options.field_precision.inter_dead_zone = inter_dead_zone;
     if (field_residuals != "range" && field_residuals != "zstd") {
       throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is neither range nor zstd");
     }

@@ -57,6 +57,12 @@ Decoded decode_exact(Reconstructor& reconstructor, const Keyframe& key) {
   return d;
 }
 
+void check_dead_zone(const FieldPrecisionOptions& options) {
+  if (!(options.inter_dead_zone >= 0.5 && options.inter_dead_zone < 1)) {
+    throw Error(ErrorCode::kInvalidArgument, "field precision: the inter dead zone must lie in [0.5, 1) steps");
+  }
+}
+
 double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const Decoded& exact) {
   ReconstructOptions o = tight();
   o.start = &exact.exact;
@@ -70,20 +76,70 @@ double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, co
 // integrates the fields twice (Δ⁻¹ damps a wave of k cycles by 1/k²), so high-pass error barely
 // moves the surface, and the same decoded error allows far larger steps than plain rounding.
 // Only the encoder's choice of integers changes; the decoder reads integers as before.
+//
+// An inter keyframe (one the file codes as its change from the previous keyframe) rounds that
+// change instead, with a dead zone: a value keeps the previous keyframe's code unless it moved by
+// more than `dead_zone` steps (0.5: plain rounding, which gives the same codes as rounding the
+// keyframe alone, since the previous codes are whole steps). A kept code is a zero in the file, its
+// cheapest symbol; error diffusion carries what the dead zone leaves to the next nodes, so it stays
+// high-pass.
 class FieldRounder {
  public:
-  FieldRounder(const DiskGrid& grid, bool shaped) : grid_(grid), shaped_(shaped) {}
+  FieldRounder(const DiskGrid& grid, bool shaped, double dead_zone) : grid_(grid), shaped_(shaped), dead_zone_(dead_zone) {}
 
-  void round(std::vector<double>& values, double step) const {
-    if (!shaped_ || values.size() != static_cast<size_t>(grid_.interior_count)) {
-      for (double& v : values) v = step * std::nearbyint(v / step);
-      return;
+  // `values` to multiples of `step`; with `previous` (the previous keyframe's rounded values), their
+  // change from it, through the dead zone.
+  void round(std::vector<double>& values, double step, const std::vector<double>* previous = nullptr) const {
+    if (previous) {
+      for (size_t n = 0; n < values.size(); ++n) values[n] -= (*previous)[n];
     }
+    const double zone = previous ? dead_zone_ * step : 0;
+    const auto quantise = [&](double x) { return std::abs(x) < zone ? 0.0 : step * std::nearbyint(x / step); };
+    if (!shaped_ || values.size() != static_cast<size_t>(grid_.interior_count)) {
+      for (double& v : values) v = quantise(v);
+    } else {
+      diffuse(values, quantise);
+    }
+    if (previous) {
+      for (size_t n = 0; n < values.size(); ++n) values[n] += (*previous)[n];
+    }
+  }
+
+  GridFields rounded(const GridFields& fields, const std::vector<size_t>& which, const std::vector<double>& steps) const {
+    std::vector<std::vector<double>> arrays = scalar_arrays(fields);
+    for (size_t a : which) round(arrays[a], steps[a]);
+    return fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
+  }
+
+  // The keyframe as the file will hold it: every array on its step; with `previous` (the previous
+  // keyframe as rounded), rounded as an inter keyframe.
+  void round(Keyframe& key, const FieldCoding& coding, const Keyframe* previous) const {
+    std::vector<std::vector<double>> arrays = scalar_arrays(key.fields);
+    const std::vector<std::vector<double>> before = previous ? scalar_arrays(previous->fields) : std::vector<std::vector<double>>{};
+    for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], previous ? &before[a] : nullptr);
+    key.fields = fields_from_scalar_arrays(key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes, arrays);
+    round_to_field_steps(key, coding);  // exact multiples, and the hole level
+  }
+
+  // Every keyframe as the file will hold it, in order: those the file may predict from the previous
+  // keyframe (not a multiple of the intra period) as inter keyframes.
+  std::vector<Keyframe> rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
+    std::vector<Keyframe> out = keyframes;
+    for (size_t k = 0; k < out.size(); ++k) {
+      const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
+      round(out[k], coding, intra ? nullptr : &out[k - 1]);
+    }
+    return out;
+  }
+
+ private:
+  template <typename Quantise>
+  void diffuse(std::vector<double>& values, const Quantise& quantise) const {
     std::vector<double> carried(values.size(), 0.0);
     constexpr std::array<std::array<int, 3>, 4> kSpread = {{{1, 0, 7}, {-1, 1, 3}, {0, 1, 5}, {1, 1, 1}}};  // (di, dj, sixteenths)
     for (size_t n = 0; n < values.size(); ++n) {
       const double wanted = values[n] + carried[n];
-      const double rounded = step * std::nearbyint(wanted / step);
+      const double rounded = quantise(wanted);
       const double error = wanted - rounded;
       values[n] = rounded;
       const auto [i, j] = grid_.cell[n];
@@ -98,45 +154,32 @@ class FieldRounder {
     }
   }
 
-  GridFields rounded(const GridFields& fields, const std::vector<size_t>& which, const std::vector<double>& steps) const {
-    std::vector<std::vector<double>> arrays = scalar_arrays(fields);
-    for (size_t a : which) round(arrays[a], steps[a]);
-    return fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
-  }
-
-  // The keyframe as the file will hold it: every array on its step.
-  void round(Keyframe& key, const FieldCoding& coding) const {
-    std::vector<size_t> all(kScalarArrayCount);
-    for (size_t a = 0; a < all.size(); ++a) all[a] = a;
-    key.fields = rounded(key.fields, all, coding.steps);
-    round_to_field_steps(key, coding);  // exact multiples, and the hole level
-  }
-
- private:
   const DiskGrid& grid_;  // the reconstructor's
   bool shaped_;
+  double dead_zone_;
 };
 
-double rounding_error(Reconstructor& reconstructor, const FieldRounder& rounder, const Keyframe& key, const Decoded& exact,
-                      const FieldCoding& coding) {
-  Keyframe rounded = key;
-  rounder.round(rounded, coding);
-  return decoded_error(reconstructor, rounded.fields, exact);
-}
-
 }  // namespace
+
+void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options) {
+  check_dead_zone(options);
+  validate_sequence(sequence);
+  const DiskGrid grid = make_disk_grid(sequence.grid_n);
+  sequence.keyframes = FieldRounder(grid, options.noise_shaping, options.inter_dead_zone).rounded(sequence.keyframes, coding);
+}
 
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
   if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
   }
+  check_dead_zone(options);
   validate_sequence(sequence);
   FieldCoding coding;
   coding.intra_period = options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
   Reconstructor reconstructor(sequence.grid_n);
-  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping);
+  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, options.inter_dead_zone);
 
   // Calibrate on keyframe 0: each group alone at a probe step, the rest exact.
   const Keyframe& probe_key = sequence.keyframes.front();
@@ -198,7 +241,8 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   int refinements = 0;
   for (;; ++refinements) {
     apply(scale);
-    for (size_t k = 0; k < errors.size(); ++k) errors[k] = rounding_error(reconstructor, rounder, sequence.keyframes[k], exact[k], coding);
+    const std::vector<Keyframe> rounded = rounder.rounded(sequence.keyframes, coding);
+    for (size_t k = 0; k < errors.size(); ++k) errors[k] = decoded_error(reconstructor, rounded[k].fields, exact[k]);
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {
@@ -224,7 +268,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   scale = best_scale;
   errors = best_errors;
   apply(scale);
-  for (Keyframe& key : sequence.keyframes) rounder.round(key, coding);
+  sequence.keyframes = rounder.rounded(sequence.keyframes, coding);
   if (report) {
     report->target_error = options.target_error;
     report->group_steps = group_steps;

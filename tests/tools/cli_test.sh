@@ -66,6 +66,9 @@ expect_error "keyframe fit" "--keyframe-fit" "$tools/fmenc" "$work/cap" -o "$wor
 expect_error "texture quality word" "neither auto nor a number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality best
 expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality 102
 "$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
+expect_error "inter dead zone" "--inter-dead-zone must lie in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
+"$tools/fmenc" "$work/cap" -o "$work/zone.fmv" --grid 33 --no-texture --inter-dead-zone 0.6 --quiet || fail "--inter-dead-zone 0.6"
+"$tools/fminfo" "$work/zone.fmv" | grep -q "\"inter_dead_zone\":0.6" || fail "--inter-dead-zone not in the settings"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
 # An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.

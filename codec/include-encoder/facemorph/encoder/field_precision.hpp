@@ -21,6 +21,12 @@ struct FieldPrecisionOptions {
   // Round per-node fields with error diffusion, pushing the rounding error to high frequencies the
   // reconstruction smooths away (see field_precision.cpp); false: each value to its nearest step.
   bool noise_shaping = true;
+  // An inter keyframe's value keeps the previous keyframe's code unless it moved by more than this
+  // many steps (the error diffused as always); 0.5 is plain rounding. A kept code is the file's
+  // cheapest symbol, but the error a dead zone adds makes the steps finer: 0.6 saved 5-8% on
+  // Medusa at equal keyframe error and cost up to 6% on a noisy fmsynth capture (spec/method.md
+  // §5.3), so the default is plain rounding. In [0.5, 1).
+  double inter_dead_zone = 0.5;
 };
 
 struct FieldPrecisionReport {
@@ -32,11 +38,18 @@ struct FieldPrecisionReport {
 
 // Chooses the steps on keyframe 0 (a probe step per group, decoded, scaled to the target: rounding
 // error is proportional to the step), rounds every keyframe of `sequence` to them
-// (round_to_field_steps), measures every keyframe's decoded error and rescales all steps until the
+// (round_to_field_steps; the keyframes the file may predict from the previous one through the dead
+// zone), measures every keyframe's decoded error and rescales all steps until the
 // worst keyframe lies within [0.8, 1.25] of the target (the coarsest that met it is kept; none:
 // kNotConverged). The hole level's step is a sixteenth of G's spacing.
-// Throws kInvalidArgument for a target that is not positive and finite, and what reconstruction
-// throws for fields it cannot decode.
+// Throws kInvalidArgument for a target that is not positive and finite or a dead zone outside
+// [0.5, 1), and what reconstruction throws for fields it cannot decode.
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
+
+// Rounds every keyframe's fields to `coding`'s steps as choose_field_coding does (error diffusion
+// per options.noise_shaping; the keyframes the file may predict, those not a multiple of the intra
+// period, through the dead zone), without choosing or checking anything else.
+// Throws kInvalidArgument for a dead zone outside [0.5, 1) or a sequence that fails validation.
+void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options);
 
 }  // namespace facemorph
