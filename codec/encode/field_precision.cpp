@@ -101,7 +101,8 @@ class FieldRounder {
       diffuse(values, quantise);
     }
     if (previous) {
-      for (size_t n = 0; n < values.size(); ++n) values[n] += (*previous)[n];
+      // Back to values, snapped to exact multiples (a sum may miss one by an ulp).
+      for (size_t n = 0; n < values.size(); ++n) values[n] = step * std::nearbyint((values[n] + (*previous)[n]) / step);
     }
   }
 
@@ -111,25 +112,31 @@ class FieldRounder {
     return fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
   }
 
-  // The keyframe as the file will hold it: every array on its step; with `previous` (the previous
-  // keyframe as rounded), rounded as an inter keyframe.
-  void round(Keyframe& key, const FieldCoding& coding, const Keyframe* previous) const {
-    std::vector<std::vector<double>> arrays = scalar_arrays(key.fields);
-    const std::vector<std::vector<double>> before = previous ? scalar_arrays(previous->fields) : std::vector<std::vector<double>>{};
-    for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], previous ? &before[a] : nullptr);
-    key.fields = fields_from_scalar_arrays(key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes, arrays);
-    round_to_field_steps(key, coding);  // exact multiples, and the hole level
-  }
-
-  // Every keyframe as the file will hold it, in order: those the file may predict from the previous
-  // keyframe (not a multiple of the intra period) as inter keyframes.
-  std::vector<Keyframe> rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
-    std::vector<Keyframe> out = keyframes;
-    for (size_t k = 0; k < out.size(); ++k) {
+  // Every keyframe's fields as the file will hold them, in order: those the file may predict from
+  // the previous keyframe (not a multiple of the intra period) rounded as their change from it.
+  // Fields only: a keyframe's texture is not copied.
+  std::vector<GridFields> rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
+    std::vector<GridFields> out;
+    out.reserve(keyframes.size());
+    std::vector<std::vector<double>> before;  // the previous keyframe's rounded arrays
+    for (size_t k = 0; k < keyframes.size(); ++k) {
+      const GridFields& fields = keyframes[k].fields;
       const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
-      round(out[k], coding, intra ? nullptr : &out[k - 1]);
+      std::vector<std::vector<double>> arrays = scalar_arrays(fields);
+      for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], intra ? nullptr : &before[a]);
+      out.push_back(fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays));
+      before = std::move(arrays);
     }
     return out;
+  }
+
+  // The keyframes as the file will hold them: their fields as above, and the hole level.
+  void round(std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
+    std::vector<GridFields> fields = rounded(keyframes, coding);
+    for (size_t k = 0; k < keyframes.size(); ++k) {
+      keyframes[k].fields = std::move(fields[k]);
+      round_to_field_steps(keyframes[k], coding);
+    }
   }
 
  private:
@@ -165,7 +172,7 @@ void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldP
   check_dead_zone(options);
   validate_sequence(sequence);
   const DiskGrid grid = make_disk_grid(sequence.grid_n);
-  sequence.keyframes = FieldRounder(grid, options.noise_shaping, options.inter_dead_zone).rounded(sequence.keyframes, coding);
+  FieldRounder(grid, options.noise_shaping, options.inter_dead_zone).round(sequence.keyframes, coding);
 }
 
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
@@ -241,8 +248,8 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   int refinements = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<Keyframe> rounded = rounder.rounded(sequence.keyframes, coding);
-    for (size_t k = 0; k < errors.size(); ++k) errors[k] = decoded_error(reconstructor, rounded[k].fields, exact[k]);
+    const std::vector<GridFields> rounded = rounder.rounded(sequence.keyframes, coding);
+    for (size_t k = 0; k < errors.size(); ++k) errors[k] = decoded_error(reconstructor, rounded[k], exact[k]);
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {
@@ -268,7 +275,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   scale = best_scale;
   errors = best_errors;
   apply(scale);
-  sequence.keyframes = rounder.rounded(sequence.keyframes, coding);
+  rounder.round(sequence.keyframes, coding);
   if (report) {
     report->target_error = options.target_error;
     report->group_steps = group_steps;
