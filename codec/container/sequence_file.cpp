@@ -526,11 +526,11 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   read_keyframe_preamble(r, key, where, number);
   const uint8_t reference = r.read<uint8_t>("the reference");
   if (reference != kIntra && reference != kFromPreviousKeyframe) corrupt(where, "unknown reference " + std::to_string(reference));
-  const int period = h.metadata.field_coding.intra_period;
-  if (reference == kFromPreviousKeyframe && (number % static_cast<uint32_t>(period) == 0 || codes.empty())) {
-    corrupt(where, "keyframe " + std::to_string(number) + " refers to the previous one, but the intra period is " + std::to_string(period));
+  const FieldCoding& coding = h.metadata.field_coding;
+  if (reference == kFromPreviousKeyframe && (coding.intra(number) || codes.empty())) {
+    corrupt(where, "keyframe " + std::to_string(number) + " refers to the previous one, but the intra period is " + std::to_string(coding.intra_period));
   }
-  const bool range_coded = h.metadata.field_coding.residuals == FieldCoding::Residuals::kRangeCoded;
+  const bool range_coded = coding.residuals == FieldCoding::Residuals::kRangeCoded;
   if (!range_coded) {
     const uint32_t count = r.read<uint32_t>("the array count");
     if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
@@ -558,7 +558,7 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   const std::vector<std::vector<int64_t>> residuals = range_coded ? format::decode_ranged_residuals(stream, expected, lattices, kRangeModelSets, where)
                                                           : format::decode_residual_stream(stream, expected, where);
   // Bytes after the residuals were appended by a later minor version: ignored.
-  const std::vector<double>& steps = h.metadata.field_coding.steps;
+  const std::vector<double>& steps = coding.steps;
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
   std::vector<std::vector<int32_t>> these(kKeyframeArrays);
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -638,7 +638,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       for (size_t a = 0; a < kKeyframeArrays; ++a) {
         for (double v : arrays[a]) codes[a].push_back(field_code(v, coding.steps[a]));
       }
-      const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
+      const bool intra = coding.intra(k);
       keyframes.push_back(format::prepare_chunk(
           kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n),
                                                        coding.residuals),

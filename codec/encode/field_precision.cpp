@@ -121,7 +121,7 @@ class FieldRounder {
     std::vector<std::vector<double>> before;  // the previous keyframe's rounded arrays
     for (size_t k = 0; k < keyframes.size(); ++k) {
       const GridFields& fields = keyframes[k].fields;
-      const bool intra = k % static_cast<size_t>(coding.intra_period) == 0;
+      const bool intra = coding.intra(k);
       std::vector<std::vector<double>> arrays = scalar_arrays(fields);
       for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], intra ? nullptr : &before[a]);
       out.push_back(fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays));

@@ -28,6 +28,8 @@ struct FieldCoding {
   // Every intra_period-th keyframe (0, P, 2P, ...) is coded without the previous one, so decoding
   // any keyframe needs at most P - 1 others. 1: every keyframe on its own.
   int intra_period = 8;
+  // Whether keyframe `keyframe` must be coded without the previous one (it is a multiple of P).
+  bool intra(size_t keyframe) const { return keyframe % static_cast<size_t>(intra_period) == 0; }
   // How predicted codes' residuals are stored: range-coded under adaptive context models (format
   // 1.3's field coding 2, the default), or as varints in a zstd frame (1.1's field coding 1, which
   // 1.1 and 1.2 decoders read).
