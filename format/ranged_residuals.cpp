@@ -22,12 +22,10 @@ constexpr int kMaxEscapeBits = 34;    // |r| ≤ 2^34 needs at most 34 suffix bi
 // holds fewer than 650 residuals, so a stream announcing more is refused before anything is allocated.
 constexpr size_t kMaxResidualsPerByte = 650;
 
-struct Models {
-  std::array<BitModel, kMagnitudeClasses> zero;
-  std::array<BitModel, kSignClasses> sign;
-  std::array<std::array<BitModel, kUnary>, kMagnitudeClasses> larger;
-  std::array<BitModel, kEscapeModels> escape;
-};
+using Models = ResidualModels;
+static_assert(std::tuple_size_v<decltype(Models::zero)> == kMagnitudeClasses && std::tuple_size_v<decltype(Models::sign)> == kSignClasses);
+static_assert(std::tuple_size_v<decltype(Models::larger)> == kMagnitudeClasses && std::tuple_size_v<decltype(Models::larger)::value_type> == kUnary);
+static_assert(std::tuple_size_v<decltype(Models::escape)> == kEscapeModels);
 
 uint64_t magnitude(int64_t r) { return r < 0 ? uint64_t{0} - static_cast<uint64_t>(r) : static_cast<uint64_t>(r); }
 
@@ -150,13 +148,22 @@ void check_layout(size_t arrays, std::span<const LatticeNeighbours* const> latti
   }
 }
 
+// The models a stream starts from: the caller's (fresh ones where it has none yet).
+std::vector<Models>& starting_models(std::vector<Models>* carried, std::vector<Models>& fresh, size_t arrays) {
+  std::vector<Models>& models = carried ? *carried : fresh;
+  if (models.empty()) models.resize(arrays);
+  if (models.size() != arrays) throw Error(ErrorCode::kInvalidArgument, "one set of carried models per residual array needed");
+  return models;
+}
+
 }  // namespace
 
 std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
-                                             std::span<const uint8_t> model_sets) {
+                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* carried) {
   check_layout(arrays.size(), lattices, model_sets);
   EncoderSide side;
-  std::vector<Models> models(arrays.size());
+  std::vector<Models> fresh;
+  std::vector<Models>& models = starting_models(carried, fresh, arrays.size());
   for (size_t a = 0; a < arrays.size(); ++a) {
     for (int64_t r : arrays[a]) {
       if (magnitude(r) > static_cast<uint64_t>(kMaxRangedResidual)) throw Error(ErrorCode::kInvalidArgument, "a residual beyond 2^34");
@@ -169,7 +176,7 @@ std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t
 
 std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
                                                           std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
-                                                          const std::string& source) {
+                                                          const std::string& source, std::vector<ResidualModels>* carried) {
   check_layout(lengths.size(), lattices, model_sets);
   const size_t most = kMaxResidualsPerByte * bytes.size();
   size_t total = 0;
@@ -178,7 +185,8 @@ std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_
     total += n;
   }
   DecoderSide side{RangeDecoder(bytes, source), source};
-  std::vector<Models> models(lengths.size());
+  std::vector<Models> fresh;
+  std::vector<Models>& models = starting_models(carried, fresh, lengths.size());
   std::vector<std::vector<int64_t>> out;
   for (size_t a = 0; a < lengths.size(); ++a) {
     std::vector<int64_t> values(lengths[a], 0);

@@ -5,7 +5,10 @@
 // ones cluster at features; the context turns that into fewer bits than one order-0 table could.
 #pragma once
 
+#include "format/range_coder.hpp"
 #include "format/residual_coder.hpp"
+
+#include <array>
 
 #include <cstdint>
 #include <span>
@@ -18,19 +21,29 @@ namespace facemorph::format {
 // three of them below 2^32, so every residual of valid codes is.
 inline constexpr int64_t kMaxRangedResidual = int64_t{1} << 34;
 
+// One set of adaptive models (spec/container.md §7.4): 6 zero, 9 sign, 6 × 8 larger, 12 escape.
+struct ResidualModels {
+  std::array<BitModel, 6> zero;
+  std::array<BitModel, 9> sign;
+  std::array<std::array<BitModel, 8>, 6> larger;
+  std::array<BitModel, 12> escape;
+};
+
 // The arrays' residuals in order. `lattices[k]`: array k's lattice neighbours when it lies on G's
 // lattice (then its size must be the array's), null when it is a plain sequence. `model_sets[k]`:
 // the array whose models array k continues to adapt (k itself, or an earlier array of the same
-// kind: the three components of a vector field learn together). Models start fresh in every call.
+// kind: the three components of a vector field learn together). `models`: one set per array (only
+// the sets model_sets names are used), which the stream starts from and leaves as it ended (field
+// coding 3 carries them from one predicted keyframe to the next); null or empty: fresh models.
 // kInvalidArgument for a residual beyond kMaxRangedResidual or tables that do not match.
 std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
-                                             std::span<const uint8_t> model_sets);
+                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* models = nullptr);
 
-// The inverse: `lengths[k]` residuals for array k, which must use the whole stream. Throws kCorrupt
+// The inverse (with the same `models` as the encoder had): `lengths[k]` residuals for array k, which must use the whole stream. Throws kCorrupt
 // naming `source` when the stream ends early, has bytes left, or decodes a residual out of range.
 std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
                                                           std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
-                                                          const std::string& source);
+                                                          const std::string& source, std::vector<ResidualModels>* models = nullptr);
 
 // The bits the range coder would spend on one array with fresh models (less the stream's end): how
 // the encoder chooses predictors and references without coding every candidate.

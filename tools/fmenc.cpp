@@ -133,7 +133,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--field-residuals", field_residuals,
-                 "range (adaptive range coder, format 1.3) | zstd (format 1.1's varints, which facemorph 0.3 and 0.4 decoders read)")
+                 "range (adaptive range coder, models carried from keyframe to keyframe, format 1.4) | range-1.3 (models afresh in "
+                 "every keyframe, which facemorph 0.5 decoders read) | zstd (format 1.1's varints, which 0.3 and 0.4 decoders read)")
       ->capture_default_str();
   app.add_option("--inter-dead-zone", inter_dead_zone,
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
@@ -202,10 +203,12 @@ int main(int argc, char** argv) {
     options.field_precision.noise_shaping = field_rounding == "shaped";
     if (!(inter_dead_zone >= 0.5 && inter_dead_zone < 1)) throw Error(ErrorCode::kInvalidArgument, "--inter-dead-zone must lie in [0.5, 1)");
     options.field_precision.inter_dead_zone = inter_dead_zone;
-    if (field_residuals != "range" && field_residuals != "zstd") {
-      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is neither range nor zstd");
+    if (field_residuals != "range" && field_residuals != "range-1.3" && field_residuals != "zstd") {
+      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.3 and zstd");
     }
-    const auto residuals = field_residuals == "range" ? FieldCoding::Residuals::kRangeCoded : FieldCoding::Residuals::kZstdVarints;
+    const auto residuals = field_residuals == "range"       ? FieldCoding::Residuals::kRangeCoded
+                           : field_residuals == "range-1.3" ? FieldCoding::Residuals::kRangeCodedV13
+                                                            : FieldCoding::Residuals::kZstdVarints;
     if (std::filesystem::path(input).extension() == ".fmv") {
       recode(input, output, options, quality, residuals, quiet);
       return 0;

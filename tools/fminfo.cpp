@@ -134,7 +134,12 @@ bool is_container(const fs::path& path) {
 }
 
 const char* residual_coder_name(FieldCoding::Residuals residuals) {
-  return residuals == FieldCoding::Residuals::kRangeCoded ? "range-coded" : "zstd varints";
+  switch (residuals) {
+    case FieldCoding::Residuals::kRangeCoded: return "range-coded with models carried from keyframe to keyframe";
+    case FieldCoding::Residuals::kRangeCodedV13: return "range-coded";
+    case FieldCoding::Residuals::kZstdVarints: break;
+  }
+  return "zstd varints";
 }
 
 // A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.

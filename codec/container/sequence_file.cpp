@@ -6,6 +6,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/image_codec.hpp"
+#include "facemorph/pose.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/container.hpp"
@@ -36,7 +37,7 @@ using format::ByteWriter;
 
 constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kTexture = "TEXR";
 // The header's field coding (spec/container.md §5).
-constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1, kRangeCodedPredictions = 2;
+constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1, kRangeCodedPredictions = 2, kRangeCodedChains = 3;
 constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
 constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
 constexpr uint32_t kMaxIntraPeriod = 1u << 20;
@@ -47,6 +48,7 @@ constexpr uint32_t kMaxStringBytes = 1u << 20;
 constexpr uint32_t kMaxLandmarks = 1u << 16;
 constexpr int kMaxTextureSize = 16384;
 constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
+constexpr double kMaxCompactTranslation = 1e30;            // float32 holds it (field coding 3's pose)
 
 // The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
 // the order of the C++ enumerators.
@@ -142,6 +144,22 @@ struct Header {
   SequenceFileMetadata metadata;  // with the field coding
 };
 
+// The header's field coding number (spec/container.md §5).
+uint8_t field_coding_number(const FieldCoding& coding) {
+  if (!coding.predicted()) return kCodePlanes;
+  switch (coding.residuals) {
+    case FieldCoding::Residuals::kZstdVarints: return kPredictedCodes;
+    case FieldCoding::Residuals::kRangeCodedV13: return kRangeCodedPredictions;
+    case FieldCoding::Residuals::kRangeCoded: break;
+  }
+  return kRangeCodedChains;
+}
+
+// What a KEYP chunk's layout depends on (spec/container.md §7.3).
+bool range_coded(FieldCoding::Residuals coder) { return coder != FieldCoding::Residuals::kZstdVarints; }
+// Field coding 3: the compact pose, the predictors packed, the models carried from the previous keyframe.
+bool chained(FieldCoding::Residuals coder) { return coder == FieldCoding::Residuals::kRangeCoded; }
+
 std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, const DiskGridShape& shape) {
   ByteWriter w;
   w.write(static_cast<uint32_t>(s.grid_n));
@@ -174,8 +192,7 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   for (const std::string& name : metadata.landmark_names) w.string(name);
   // Appended in 1.1: how the keyframes' fields are coded.
   const FieldCoding& coding = metadata.field_coding;
-  const bool range_coded = coding.residuals == FieldCoding::Residuals::kRangeCoded;
-  w.write(!coding.predicted() ? kCodePlanes : range_coded ? kRangeCodedPredictions : kPredictedCodes);
+  w.write(field_coding_number(coding));
   if (coding.predicted()) {
     w.write(static_cast<uint32_t>(coding.intra_period));
     for (double step : coding.steps) w.write(step);
@@ -231,12 +248,15 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");
   if (landmarks > kMaxLandmarks) corrupt(r.source(), std::to_string(landmarks) + " landmark names");
   for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name"));
-  // 1.1: the field coding (1.0 files have code planes); 1.3 adds range-coded residuals.
+  // 1.1: the field coding (1.0 files have code planes); 1.3 adds range-coded residuals, 1.4 their
+  // models carried along chains of predicted keyframes and compact poses.
   if (minor_version >= 1) {
     const uint8_t coding = r.read<uint8_t>("the field coding");
-    if (coding == kPredictedCodes || coding == kRangeCodedPredictions) {
+    if (coding == kPredictedCodes || coding == kRangeCodedPredictions || coding == kRangeCodedChains) {
       FieldCoding& c = h.metadata.field_coding;
-      c.residuals = coding == kPredictedCodes ? FieldCoding::Residuals::kZstdVarints : FieldCoding::Residuals::kRangeCoded;
+      c.residuals = coding == kPredictedCodes           ? FieldCoding::Residuals::kZstdVarints
+                    : coding == kRangeCodedPredictions ? FieldCoding::Residuals::kRangeCodedV13
+                                                       : FieldCoding::Residuals::kRangeCoded;
       const uint32_t period = r.read<uint32_t>("the intra period");
       if (period == 0 || period > kMaxIntraPeriod) corrupt(r.source(), "intra period " + std::to_string(period));
       c.intra_period = static_cast<int>(period);
@@ -293,19 +313,55 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
 
 // ---- One keyframe (KEYF): time, pose, the quantised arrays ----
 
-// What KEYF and KEYP share: the number, the time, the pose.
-void write_keyframe_preamble(ByteWriter& w, const Keyframe& key, uint32_t number) {
+// Field coding 3's pose: the rotation vector log R and the translation, as float32. Half a float's
+// step is 3e-8 of a value: a tenth of a micrometre on a head, and a 24-byte pose instead of 96.
+std::array<float, 6> compact_pose(const RigidPose& pose) {
+  const Vec3 rotation = rotation_log(pose.rotation);
+  std::array<float, 6> stored{};
+  for (int k = 0; k < 3; ++k) {
+    if (!(std::abs(pose.translation[k]) < kMaxCompactTranslation)) {
+      throw Error(ErrorCode::kInvalidArgument, "a pose translation of " + std::to_string(pose.translation[k]) + ", beyond what float32 stores");
+    }
+    stored[static_cast<size_t>(k)] = static_cast<float>(rotation[k]);
+    stored[static_cast<size_t>(3 + k)] = static_cast<float>(pose.translation[k]);
+  }
+  return stored;
+}
+
+RigidPose pose_of(const std::array<float, 6>& stored) {
+  RigidPose pose;
+  pose.rotation = rotation_exp(Vec3(stored[0], stored[1], stored[2]));
+  pose.translation = Vec3(stored[3], stored[4], stored[5]);
+  return pose;
+}
+
+// What KEYF and KEYP share: the number, the time, the pose (float64 matrix and translation, or
+// field coding 3's compact pose).
+void write_keyframe_preamble(ByteWriter& w, const Keyframe& key, uint32_t number, bool compact = false) {
   w.write(number);
   w.write(key.time);
+  if (compact) {
+    for (float v : compact_pose(key.pose)) w.write(v);
+    return;
+  }
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) w.write(key.pose.rotation(i, j));
   }
   for (int k = 0; k < 3; ++k) w.write(key.pose.translation[k]);
 }
 
-void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& where, uint32_t number) {
+void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& where, uint32_t number, bool compact = false) {
   if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe than the index says");
   key.time = read_finite(r, "the time");
+  if (compact) {
+    std::array<float, 6> stored{};
+    for (float& v : stored) {
+      v = r.read<float>("the pose");
+      if (!std::isfinite(v)) corrupt(where, "the pose is not finite");
+    }
+    key.pose = pose_of(stored);
+    return;
+  }
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) key.pose.rotation(i, j) = read_finite(r, "the rotation");
   }
@@ -459,16 +515,22 @@ CodedArray best_prediction(std::span<const int32_t> codes, const format::Lattice
     const auto predictor = static_cast<format::SpatialPredictor>(p);
     if (format::uses_lattice(predictor) && lattice == nullptr) continue;
     std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
-    const double bits = coder == FieldCoding::Residuals::kRangeCoded ? format::ranged_residual_bits(residuals, lattice) : estimated_bits(residuals);
+    const double bits = range_coded(coder) ? format::ranged_residual_bits(residuals, lattice) : estimated_bits(residuals);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
   }
   return best;
 }
 
+// Field coding 3's predictors: 2 bits per array, array a's at bits 2a and 2a + 1.
+constexpr int kPackedPredictorBits = 2;
+static_assert(format::kSpatialPredictorCount <= (1 << kPackedPredictorBits) && kKeyframeArrays * kPackedPredictorBits <= 32);
+
 // `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
-// null where this keyframe must be intra.
+// null where this keyframe must be intra. `models`: field coding 3's range coder models as the
+// previous keyframe's stream left them (empty before the first), and as this one's leaves them.
 std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t number, const std::vector<std::vector<int32_t>>& codes,
-                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid, FieldCoding::Residuals coder) {
+                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid, FieldCoding::Residuals coder,
+                                              std::vector<format::ResidualModels>& models) {
   // Intra and predicted alike: each array's codes, or their change since the previous keyframe,
   // under the spatial predictor that leaves the fewest bits. The reference that costs less wins.
   auto code_all = [&](bool from_previous) {
@@ -496,56 +558,66 @@ std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t numb
       reference = kFromPreviousKeyframe;
     }
   }
-  const bool range_coded = coder == FieldCoding::Residuals::kRangeCoded;
   ByteWriter w;
-  write_keyframe_preamble(w, key, number);
+  write_keyframe_preamble(w, key, number, chained(coder));
   w.write(reference);
-  // Field coding 1 repeats every array's length, which the header already fixes; 2 does not.
-  if (!range_coded) w.write(static_cast<uint32_t>(kKeyframeArrays));
+  // Field coding 1 repeats every array's length, which the header already fixes; 2 and 3 do not.
+  if (!range_coded(coder)) w.write(static_cast<uint32_t>(kKeyframeArrays));
   std::vector<std::vector<int64_t>> residuals;
+  uint32_t packed = 0;
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    if (!range_coded) w.write(static_cast<uint32_t>(codes[a].size()));
-    w.write(static_cast<uint8_t>(coded[a].predictor));
+    if (!range_coded(coder)) w.write(static_cast<uint32_t>(codes[a].size()));
+    if (chained(coder)) {
+      packed |= static_cast<uint32_t>(coded[a].predictor) << (kPackedPredictorBits * a);
+    } else {
+      w.write(static_cast<uint8_t>(coded[a].predictor));
+    }
     residuals.push_back(std::move(coded[a].residuals));
   }
+  if (chained(coder)) w.write(packed);
   std::vector<const format::LatticeNeighbours*> lattices;
   for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, residuals[a].size(), grid));
-  const std::vector<uint8_t> stream = range_coded ? format::encode_ranged_residuals(residuals, lattices, kRangeModelSets)
-                                          : format::encode_residual_stream(residuals);
+  // Field coding 3 continues the previous keyframe's models where this one is coded from it (a
+  // player decodes that keyframe first anyway), and starts fresh where it is intra.
+  if (reference == kIntra) models.clear();
+  const std::vector<uint8_t> stream = !range_coded(coder) ? format::encode_residual_stream(residuals)
+                                      : format::encode_ranged_residuals(residuals, lattices, kRangeModelSets, chained(coder) ? &models : nullptr);
   w.write(static_cast<uint32_t>(stream.size()));
   w.bytes(stream);
   return w.take();
 }
 
-// Reads keyframe `number`; `codes` holds the previous keyframe's codes on entry (empty for the
-// first) and this one's on return.
+// Reads keyframe `number`; `codes` and `models` hold the previous keyframe's codes and its stream's
+// models (field coding 3) on entry (empty for the first) and this one's on return.
 Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t number,
-                                 std::vector<std::vector<int32_t>>& codes) {
+                                 std::vector<std::vector<int32_t>>& codes, std::vector<format::ResidualModels>& models) {
   ByteReader r(payload, where);
   Keyframe key;
-  read_keyframe_preamble(r, key, where, number);
+  const FieldCoding::Residuals coder = h.metadata.field_coding.residuals;
+  read_keyframe_preamble(r, key, where, number, chained(coder));
   const uint8_t reference = r.read<uint8_t>("the reference");
   if (reference != kIntra && reference != kFromPreviousKeyframe) corrupt(where, "unknown reference " + std::to_string(reference));
   const FieldCoding& coding = h.metadata.field_coding;
   if (reference == kFromPreviousKeyframe && (coding.intra(number) || codes.empty())) {
     corrupt(where, "keyframe " + std::to_string(number) + " refers to the previous one, but the intra period is " + std::to_string(coding.intra_period));
   }
-  const bool range_coded = coding.residuals == FieldCoding::Residuals::kRangeCoded;
-  if (!range_coded) {
+  if (!range_coded(coder)) {
     const uint32_t count = r.read<uint32_t>("the array count");
     if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
   }
   const std::vector<size_t> expected = expected_lengths(h);
   const GridFacts& grid = grid_facts(h.shape.grid_n);
   std::vector<format::SpatialPredictor> predictors(kKeyframeArrays);
+  const uint32_t packed = chained(coder) ? r.read<uint32_t>("the predictors") : 0;
+  if ((packed >> (kPackedPredictorBits * kKeyframeArrays)) != 0) corrupt(where, "unused predictor bits are set");
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    if (!range_coded) {
+    if (!range_coded(coder)) {
       const uint32_t length = r.read<uint32_t>("an array length");
       if (length != expected[a]) {
         corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(length) + " values, " + std::to_string(expected[a]) + " expected");
       }
     }
-    const uint8_t p = r.read<uint8_t>("a predictor");
+    const uint8_t p = chained(coder) ? static_cast<uint8_t>((packed >> (kPackedPredictorBits * a)) & 3u) : r.read<uint8_t>("a predictor");
     predictors[a] = static_cast<format::SpatialPredictor>(p);
     if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, expected[a], grid) == nullptr)) {
       corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
@@ -555,8 +627,10 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   const auto stream = r.bytes(coded, "the coded residuals");
   std::vector<const format::LatticeNeighbours*> lattices;
   for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, expected[a], grid));
-  const std::vector<std::vector<int64_t>> residuals = range_coded ? format::decode_ranged_residuals(stream, expected, lattices, kRangeModelSets, where)
-                                                          : format::decode_residual_stream(stream, expected, where);
+  if (reference == kIntra) models.clear();
+  const std::vector<std::vector<int64_t>> residuals =
+      !range_coded(coder) ? format::decode_residual_stream(stream, expected, where)
+                          : format::decode_ranged_residuals(stream, expected, lattices, kRangeModelSets, where, chained(coder) ? &models : nullptr);
   // Bytes after the residuals were appended by a later minor version: ignored.
   const std::vector<double>& steps = coding.steps;
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
@@ -609,6 +683,7 @@ void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
     for (double& v : arrays[a]) v = coding.steps[a] * field_code(v, coding.steps[a]);
   }
   assign_keyframe_arrays(key, std::move(arrays), key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes);
+  if (chained(coding.residuals)) key.pose = pose_of(compact_pose(key.pose));
 }
 
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
@@ -630,6 +705,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   // Every payload first, so the index can hold the offsets of the chunks after it.
   std::vector<format::PreparedChunk> keyframes, textures;
   std::vector<std::vector<int32_t>> previous_codes;
+  std::vector<format::ResidualModels> models;  // field coding 3's, carried from keyframe to keyframe
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
     const Keyframe& key = sequence.keyframes[k];
     if (coding.predicted()) {
@@ -641,7 +717,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       const bool intra = coding.intra(k);
       keyframes.push_back(format::prepare_chunk(
           kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n),
-                                                       coding.residuals),
+                                                       coding.residuals, models),
           true));
       previous_codes = std::move(codes);
     } else {
@@ -687,6 +763,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
   const bool predicted = header.metadata.field_coding.predicted();
   const std::string_view keyframe_type = predicted ? kPredictedKeyframe : kKeyframe;
   std::vector<std::vector<int32_t>> codes;  // the previous predicted keyframe's
+  std::vector<format::ResidualModels> models;  // its range coder models (field coding 3)
   const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count);
   auto sequence = std::move(header.shape);
   std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
@@ -696,7 +773,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
     if (chunk.type != keyframe_type) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(keyframe_type));
     const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
-    Keyframe key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes) : read_keyframe(reader.payload(chunk), where, header, k);
+    Keyframe key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes, models) : read_keyframe(reader.payload(chunk), where, header, k);
     if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
     sizes[k].fields = chunk.total_size();
     if (header.flags & kHasTexture) {

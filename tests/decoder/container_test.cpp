@@ -61,7 +61,8 @@ SequenceFileMetadata small_metadata() {
 }
 
 // The same with the predicted coding: every array on its own step, an intra keyframe every second
-// one; residuals range-coded (format 1.3, the default) or as zstd varints (1.1).
+// one; residuals range-coded with models carried (format 1.4, the default), range-coded afresh in
+// every keyframe (1.3) or as zstd varints (1.1).
 SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded) {
   SequenceFileMetadata m = small_metadata();
   m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
@@ -72,6 +73,20 @@ SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = Field
 }
 
 SequenceFileMetadata zstd_predicted_metadata() { return predicted_metadata(FieldCoding::Residuals::kZstdVarints); }
+
+// Every predicted coding a writer can choose, newest first.
+std::vector<SequenceFileMetadata> predicted_codings() {
+  return {predicted_metadata(), predicted_metadata(FieldCoding::Residuals::kRangeCodedV13), zstd_predicted_metadata()};
+}
+
+std::string coding_name(const SequenceFileMetadata& m) {
+  switch (m.field_coding.residuals) {
+    case FieldCoding::Residuals::kRangeCoded: return "field coding 3";
+    case FieldCoding::Residuals::kRangeCodedV13: return "field coding 2";
+    case FieldCoding::Residuals::kZstdVarints: break;
+  }
+  return "field coding 1";
+}
 
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   EXPECT_EQ(a.size(), b.size());
@@ -150,7 +165,9 @@ TEST(Container, GeometryOnlyAndHoleFreeSequencesRoundTrip) {
 // Every prefix of a file is refused as truncated (or, where the cut lands in the magic, as not a
 // container), never read past its end.
 TEST(Container, EveryTruncationIsNamed) {
-  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata(), zstd_predicted_metadata()}) {
+  std::vector<SequenceFileMetadata> codings = predicted_codings();
+  codings.insert(codings.begin(), small_metadata());
+  for (const SequenceFileMetadata& metadata : codings) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   for (size_t size = 0; size < bytes.size(); ++size) {
     const std::span<const uint8_t> prefix(bytes.data(), size);
@@ -168,7 +185,9 @@ TEST(Container, EveryTruncationIsNamed) {
 // Flipping any byte is caught: by a checksum within a chunk, or as an impossible value in the
 // preamble and the chunk headers. Never a crash, never a file read as good.
 TEST(Container, EveryByteFlipIsNamed) {
-  for (const SequenceFileMetadata& metadata : {small_metadata(), predicted_metadata(), zstd_predicted_metadata()}) {
+  std::vector<SequenceFileMetadata> codings = predicted_codings();
+  codings.insert(codings.begin(), small_metadata());
+  for (const SequenceFileMetadata& metadata : codings) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
   const format::ContainerReader reader(bytes, "good.fmv");
   for (size_t at = 0; at < bytes.size(); ++at) {
@@ -231,8 +250,8 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
 // what every decoder reads, to the bit, with either residual coder; keyframes predicted from the
 // previous one only between intra keyframes.
 TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
-  for (const SequenceFileMetadata& m : {predicted_metadata(), zstd_predicted_metadata()}) {
-  SCOPED_TRACE(m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded ? "range-coded" : "zstd varints");
+  for (const SequenceFileMetadata& m : predicted_codings()) {
+  SCOPED_TRACE(coding_name(m));
   const Sequence s = small_sequence();
   Sequence rounded = s;
   for (Keyframe& key : rounded.keyframes) round_to_field_steps(key, m.field_coding);
@@ -253,6 +272,12 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
       EXPECT_LE(max_difference(original[a], stored[a]), 0.5 * m.field_coding.steps[a] * (1 + 1e-9)) << a;
     }
     EXPECT_EQ(back.keyframes[k].hole_level, rounded.keyframes[k].hole_level);
+    // Field coding 3 stores the pose in float32: what round_to_field_steps left, to the bit, and
+    // within float32's rounding of the original (1e-7 of the values here).
+    EXPECT_EQ(back.keyframes[k].pose.rotation, rounded.keyframes[k].pose.rotation);
+    EXPECT_EQ(back.keyframes[k].pose.translation, rounded.keyframes[k].pose.translation);
+    EXPECT_LT((back.keyframes[k].pose.rotation - s.keyframes[k].pose.rotation).cwiseAbs().maxCoeff(), 1e-6);
+    EXPECT_LT((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).cwiseAbs().maxCoeff(), 1e-6 * s.keyframes[k].pose.translation.norm() + 1e-12);
     EXPECT_LE(max_difference(s.keyframes[k].hole_level, back.keyframes[k].hole_level), 0.5e-3 * (1 + 1e-9));
   }
   const format::ContainerReader reader(bytes, "p.fmv");
@@ -262,7 +287,8 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
     if (c.type != "KEYP") continue;
     const std::vector<uint8_t> payload = reader.payload(c);
     if (payload[0] == 2) {
-      EXPECT_EQ(payload[108], 0) << "keyframe 2 starts a period: intra";
+      const size_t reference_at = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded ? 36 : 108;
+      EXPECT_EQ(payload[reference_at], 0) << "keyframe 2 starts a period: intra";
     }
     ++predicted_chunks;
   }
@@ -276,44 +302,71 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
   }
 }
 
-// The range coder spends fewer bytes than zstd on the same keyframes' residuals (the reason for
-// field coding 2), and both decode to the same values.
-TEST(Container, RangeCodedResidualsTakeFewerBytesThanZstd) {
+// Each newer predicted coding spends fewer bytes on the same keyframes: the range coder fewer than
+// zstd (the reason for field coding 2); carried models and the compact pose fewer again (3). All
+// decode to the same values.
+TEST(Container, NewerPredictedCodingsTakeFewerBytes) {
   const Sequence s = small_sequence(17, 8);
-  SequenceFileInfo ranged, zstd;
-  const Sequence a = decode_sequence_file(encode_sequence_file(s, predicted_metadata()), "r.fmv", &ranged);
-  const Sequence b = decode_sequence_file(encode_sequence_file(s, zstd_predicted_metadata()), "z.fmv", &zstd);
-  const auto keyp_bytes = [](const SequenceFileInfo& info) {
+  std::vector<uint64_t> keyp_bytes;
+  std::vector<Sequence> decoded;
+  for (const SequenceFileMetadata& m : predicted_codings()) {
+    SequenceFileInfo info;
+    decoded.push_back(decode_sequence_file(encode_sequence_file(s, m), "p.fmv", &info));
     for (const auto& chunk : info.chunks) {
-      if (chunk.type == "KEYP") return chunk.stored_bytes;
+      if (chunk.type == "KEYP") keyp_bytes.push_back(chunk.stored_bytes);
     }
-    return uint64_t{0};
-  };
-  EXPECT_LT(keyp_bytes(ranged), keyp_bytes(zstd));
-  for (size_t k = 0; k < a.keyframes.size(); ++k) EXPECT_EQ(scalar_arrays(a.keyframes[k].fields), scalar_arrays(b.keyframes[k].fields));
+  }
+  ASSERT_EQ(keyp_bytes.size(), 3u);
+  EXPECT_LT(keyp_bytes[0], keyp_bytes[1]);
+  EXPECT_LT(keyp_bytes[1], keyp_bytes[2]);
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+    for (size_t c = 1; c < decoded.size(); ++c) EXPECT_EQ(scalar_arrays(decoded[c].keyframes[k].fields), scalar_arrays(decoded[0].keyframes[k].fields));
+  }
 }
 
 TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
-  for (const SequenceFileMetadata& m : {predicted_metadata(), zstd_predicted_metadata()}) {
-  const bool range_coded = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded;
-  SCOPED_TRACE(range_coded ? "range-coded" : "zstd varints");
+  for (const SequenceFileMetadata& m : predicted_codings()) {
+  const FieldCoding::Residuals coder = m.field_coding.residuals;
+  SCOPED_TRACE(coding_name(m));
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), m);
-  // Payload layout: number (4), time (8), rotation (72), translation (24), reference (1) at 108;
-  // then range-coded: a predictor (1) per array, array a's at 109 + a, and the coded size at 123;
-  // zstd varints: the array count (4), then per array a length (4) and a predictor (1), array a's at
+  // Payload layout. Field coding 3: number (4), time (8), pose (24), reference (1) at 36, the
+  // predictors packed in a u32 at 37 (array a's in bits 2a, 2a + 1), the coded size at 41.
+  // Codings 2 and 1: number (4), time (8), rotation (72), translation (24), reference (1) at 108;
+  // then 2: a predictor (1) per array, array a's at 109 + a, and the coded size at 123;
+  // 1: the array count (4), then per array a length (4) and a predictor (1), array a's at
   // 117 + 5a, and the coded size at 183.
-  const auto predictor_at = [&](size_t a) { return range_coded ? 109 + a : 117 + 5 * a; };
-  const size_t size_at = range_coded ? 123 : 183;
+  const bool chained = coder == FieldCoding::Residuals::kRangeCoded;
+  const size_t reference_at = chained ? 36 : 108;
+  const auto predictor_at = [&](size_t a) { return coder == FieldCoding::Residuals::kRangeCodedV13 ? 109 + a : 117 + 5 * a; };
+  const size_t size_at = chained ? 41 : coder == FieldCoding::Residuals::kRangeCodedV13 ? 123 : 183;
   const auto patch_first = [](size_t at, uint8_t value) {
     return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
       if (type == "KEYP" && payload[0] == 0) payload[at] = value;
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "refers to the previous one", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 1)), "r.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "unknown reference 7", [&] { decode_sequence_file(rebuild(bytes, patch_first(108, 7)), "r.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(0), 9)), "p.fmv"); });
-  // The band vectors (array 4) are no lattice: a lattice predictor there cannot be decoded.
-  testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(4), 2)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "refers to the previous one", [&] { decode_sequence_file(rebuild(bytes, patch_first(reference_at, 1)), "r.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "unknown reference 7", [&] { decode_sequence_file(rebuild(bytes, patch_first(reference_at, 7)), "r.fmv"); });
+  if (chained) {
+    // Bits 28 to 31 hold no array's predictor; array 4's (bits 8, 9) is byte 38's low two bits.
+    const auto patch_packed = [](size_t at, uint8_t clear, uint8_t set) {
+      return [=](const std::string& type, std::vector<uint8_t>& payload) {
+        if (type == "KEYP" && payload[0] == 0) payload[at] = static_cast<uint8_t>((payload[at] & ~clear) | set);
+      };
+    };
+    testing::expect_error(ErrorCode::kCorrupt, "unused predictor bits", [&] { decode_sequence_file(rebuild(bytes, patch_packed(40, 0, 0x10)), "p.fmv"); });
+    testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_packed(38, 3, 2)), "p.fmv"); });
+    // A pose that is no number.
+    testing::expect_error(ErrorCode::kCorrupt, "the pose is not finite", [&] {
+      decode_sequence_file(rebuild(bytes, [](const std::string& type, std::vector<uint8_t>& payload) {
+                             if (type == "KEYP" && payload[0] == 1) std::fill(payload.begin() + 12, payload.begin() + 16, uint8_t{0xFF});
+                           }),
+                           "p.fmv");
+    });
+  } else {
+    testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(0), 9)), "p.fmv"); });
+    // The band vectors (array 4) are no lattice: a lattice predictor there cannot be decoded.
+    testing::expect_error(ErrorCode::kCorrupt, "array 4 has predictor 2", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(4), 2)), "p.fmv"); });
+  }
   // Residuals that end early or leave bytes over (the chunk's checksum is made right by the rebuild).
   const auto resize_stream = [&](int delta) {
     return [=](const std::string& type, std::vector<uint8_t>& payload) {
@@ -345,14 +398,14 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
     payload = predicted.payload(predicted.chunks()[0]);
   };
   testing::expect_error(ErrorCode::kCorrupt, "not KEYP", [&] { decode_sequence_file(rebuild(planes, predicted_header), "mixed.fmv"); });
-  // A field coding this decoder does not know (3) is unsupported, not corrupt.
-  const auto coding_3 = [&](const std::string& type, std::vector<uint8_t>& payload) {
+  // A field coding this decoder does not know (4) is unsupported, not corrupt.
+  const auto coding_4 = [&](const std::string& type, std::vector<uint8_t>& payload) {
     if (type != "HEAD") return;
     const format::ContainerReader predicted(bytes, "p");
     payload = predicted.payload(predicted.chunks()[0]);
-    payload[payload.size() - 4 - 8 * kKeyframeArrayCount - 1] = 3;
+    payload[payload.size() - 4 - 8 * kKeyframeArrayCount - 1] = 4;
   };
-  testing::expect_error(ErrorCode::kUnsupported, "field coding 3", [&] { decode_sequence_file(rebuild(bytes, coding_3), "c3.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "field coding 4", [&] { decode_sequence_file(rebuild(bytes, coding_4), "c4.fmv"); });
 }
 
 TEST(Container, UnknownChunksAreSkippedUnlessCritical) {

@@ -1,5 +1,5 @@
 // Files written by earlier versions must keep decoding to the same surfaces. tests/data holds a small
-// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0, 1.3 by 0.5.0), written with tests/data/make_golden.sh, and a sample of
+// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0, 1.3 by 0.5.0, 1.4 by 0.6.0), written with tests/data/make_golden.sh, and a sample of
 // what it decoded to then: grid positions at keyframe times, between keyframes and past the ends.
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -103,6 +103,15 @@ TEST(GoldenFile, Version1_3DecodesAsItDidWhenWritten) {
   expect_golden("1_3", 3, "facemorph 0.5.0");
   SequenceFileInfo info;
   read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_3.fmv", &info);
+  EXPECT_TRUE(info.metadata.field_coding.predicted());
+  EXPECT_EQ(info.metadata.field_coding.residuals, FieldCoding::Residuals::kRangeCodedV13);
+}
+
+// Format 1.4: models carried along chains of predicted keyframes, float32 poses (field coding 3).
+TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) {
+  expect_golden("1_4", 4, "facemorph 0.6.0");
+  SequenceFileInfo info;
+  read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_4.fmv", &info);
   EXPECT_TRUE(info.metadata.field_coding.predicted());
   EXPECT_EQ(info.metadata.field_coding.residuals, FieldCoding::Residuals::kRangeCoded);
 }

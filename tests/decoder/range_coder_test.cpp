@@ -1,4 +1,4 @@
-// The binary range coder and the range-coded residuals of field coding 2 (spec/container.md §7.4):
+// The binary range coder and the range-coded residuals of field codings 2 and 3 (spec/container.md §7.4):
 // exact round trips, sizes near the information the data holds, and damaged streams named, never
 // read past their end.
 #include "format/range_coder.hpp"
@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -122,6 +123,34 @@ TEST(RangedResiduals, RoundTripExactlyAndCostLessThanZstd) {
   double estimate = 0;
   for (size_t a = 0; a < r.arrays.size(); ++a) estimate += format::ranged_residual_bits(r.arrays[a], r.lattices[a]);
   EXPECT_NEAR(8.0 * static_cast<double>(bytes.size()), estimate, 0.05 * estimate + 64);
+}
+
+// Field coding 3: a second keyframe's stream continues the models where the first's left them. It
+// decodes with the same models, costs less than starting afresh (the models know the statistics
+// already), and is not the stream that fresh models read.
+TEST(RangedResiduals, CarriedModelsContinueWhereTheLastStreamEnded) {
+  const int w = 37;
+  const format::LatticeNeighbours lattice = testing::square_lattice(w);
+  const ResidualArrays first = keyframe_like_residuals(lattice, w);
+  ResidualArrays second = first;
+  std::reverse(second.arrays[0].begin(), second.arrays[0].end());  // the same statistics, other values
+  std::vector<format::ResidualModels> written, read;
+  format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets, &written);
+  const std::vector<uint8_t> carried = format::encode_ranged_residuals(second.arrays, second.lattices, second.model_sets, &written);
+  const std::vector<uint8_t> fresh = format::encode_ranged_residuals(second.arrays, second.lattices, second.model_sets);
+  EXPECT_LT(carried.size(), fresh.size());
+  format::decode_ranged_residuals(format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets), first.lengths(), first.lattices,
+                                  first.model_sets, "k0.res", &read);
+  EXPECT_EQ(format::decode_ranged_residuals(carried, second.lengths(), second.lattices, second.model_sets, "k1.res", &read), second.arrays);
+  try {
+    EXPECT_NE(format::decode_ranged_residuals(carried, second.lengths(), second.lattices, second.model_sets, "k1.res"), second.arrays);
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kCorrupt) << e.what();  // or the stream does not even fit
+  }
+  std::vector<format::ResidualModels> wrong_count(2);
+  testing::expect_error(ErrorCode::kInvalidArgument, "carried models", [&] {
+    format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets, &wrong_count);
+  });
 }
 
 TEST(RangedResiduals, OutOfRangeAndMismatchedInputIsTheWritersError) {

@@ -13,7 +13,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
 [[ -s "$work/a.fmv" ]] || fail "fmenc wrote nothing"
 "$tools/fminfo" "$work/a.fmv" >"$work/info" || fail "fminfo"
-grep -q "format 1.3" "$work/info" || fail "fminfo does not name the format"
+grep -q "format 1.4" "$work/info" || fail "fminfo does not name the format"
 "$tools/fminfo" "$work/a.fmv" --json >"$work/info.json" || fail "fminfo --json"
 python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
   fail "fminfo --json is not the file's description"
@@ -40,7 +40,8 @@ head -c 3000 "$work/a.fmv" >"$work/cut.fmv"
 expect_error "truncated file" "truncated" "$tools/fmdec" "$work/cut.fmv" --t 0.1 -o "$work/cut.obj"
 expect_error "truncated file (fminfo)" "cut.fmv" "$tools/fminfo" "$work/cut.fmv"
 cp "$work/a.fmv" "$work/flip.fmv"
-printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=2000 conv=notrunc status=none
+# Zeros in the middle of the file: inside a texture's payload, which only its checksum can catch.
+printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=$(($(stat -c %s "$work/a.fmv") / 2)) conv=notrunc status=none
 expect_error "corrupted file" "checksum" "$tools/fmdec" "$work/flip.fmv" --t 0.1 -o "$work/flip.obj"
 expect_error "preview over the texture" "give the preview another name" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/g.obj" --preview "$work/g.png"
 expect_error "glTF of one time" "a glTF clip is a range" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/clip.glb"
@@ -69,6 +70,11 @@ expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap"
 expect_error "inter dead zone" "--inter-dead-zone must lie in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
 "$tools/fmenc" "$work/cap" -o "$work/zone.fmv" --grid 33 --no-texture --inter-dead-zone 0.6 --quiet || fail "--inter-dead-zone 0.6"
 "$tools/fminfo" "$work/zone.fmv" | grep -q "\"inter_dead_zone\":0.6" || fail "--inter-dead-zone not in the settings"
+# The older predicted codings, for players with facemorph 0.5 (field coding 2) or 0.3 and 0.4 (1).
+expect_error "residual coder" "none of range, range-1.3 and zstd" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --field-residuals lzma
+"$tools/fmenc" "$work/cap" -o "$work/r13.fmv" --grid 33 --no-texture --field-residuals range-1.3 --quiet || fail "--field-residuals range-1.3"
+"$tools/fminfo" "$work/r13.fmv" | grep -q "residuals range-coded;" || fail "--field-residuals range-1.3: fminfo names another coding"
+"$tools/fminfo" "$work/zone.fmv" | grep -q "residuals range-coded with models carried" || fail "the default coding is not field coding 3"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
 # An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.

@@ -30,10 +30,14 @@ struct FieldCoding {
   int intra_period = 8;
   // Whether keyframe `keyframe` must be coded without the previous one (it is a multiple of P).
   bool intra(size_t keyframe) const { return keyframe % static_cast<size_t>(intra_period) == 0; }
-  // How predicted codes' residuals are stored: range-coded under adaptive context models (format
-  // 1.3's field coding 2, the default), or as varints in a zstd frame (1.1's field coding 1, which
-  // 1.1 and 1.2 decoders read).
-  enum class Residuals { kRangeCoded, kZstdVarints };
+  // How predicted keyframes are stored (spec/container.md §7.3):
+  //   kRangeCoded: format 1.4's field coding 3, the default. Residuals range-coded under adaptive
+  //     context models that a keyframe predicted from the previous one continues from where the
+  //     previous keyframe's stream left them; the pose as float32 rotation vector and translation.
+  //   kRangeCodedV13: 1.3's field coding 2, which facemorph 0.5 decoders read: models fresh in every
+  //     keyframe, the pose as float64 matrix and translation.
+  //   kZstdVarints: 1.1's field coding 1, which 0.3 and 0.4 decoders read.
+  enum class Residuals { kRangeCoded, kRangeCodedV13, kZstdVarints };
   Residuals residuals = Residuals::kRangeCoded;
   bool predicted() const { return !steps.empty(); }
 };
@@ -69,9 +73,9 @@ struct SequenceFileInfo {
   std::vector<KeyframeBytes> keyframes;
 };
 
-// The keyframe's fields and hole level rounded to the multiples of `coding`'s steps: exactly what a
-// file with that coding stores, so an encoder that keeps these values decodes from memory what a
-// player decodes from the file. Throws kInvalidArgument for steps that are not kKeyframeArrayCount
+// The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose to
+// float32 where the coding stores it so (kRangeCoded): exactly what a file with that coding stores,
+// so an encoder that keeps these values decodes from memory what a player decodes from the file. Throws kInvalidArgument for steps that are not kKeyframeArrayCount
 // finite positive numbers, or a value more than 2³⁰ steps from 0.
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 
