@@ -35,6 +35,18 @@ double parse_fraction(const std::string& text, const char* what) {
   }
 }
 
+// "--intra-period N": a whole number of keyframes from 1 to 2^20 (the container's bound).
+int parse_intra_period(const std::string& text) {
+  try {
+    size_t used = 0;
+    const long value = std::stol(text, &used);
+    if (used != text.size() || value < 1 || value > (1L << 20)) throw std::out_of_range(text);
+    return static_cast<int>(value);
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, "--intra-period '" + text + "' is neither auto nor a whole number from 1 to 2^20");
+  }
+}
+
 // Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
 // again from --field-error (from the file's values, so never finer than what it held); textures
 // re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
@@ -82,7 +94,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"keyframe_fit", o.keyframe_fit},
           {"field_error", o.predicted_fields ? nlohmann::json(report.field_precision.target_error) : nlohmann::json(nullptr)},
           {"field_error_auto", o.predicted_fields && o.auto_field_error},
-          {"intra_period", o.field_precision.intra_period},
+          {"intra_period", o.field_precision.intra_period == kAutoIntraPeriod ? nlohmann::json("auto") : nlohmann::json(o.field_precision.intra_period)},
+          {"intra_period_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_coding.intra_period) : nlohmann::json(nullptr)},
           {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"},
           {"inter_dead_zone", o.field_precision.inter_dead_zone}};
 }
@@ -96,7 +109,8 @@ int main(int argc, char** argv) {
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", field_residuals = "range", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif";
-  int threads = 0, reference = 0, intra_period = 8;
+  int threads = 0, reference = 0;
+  std::string intra_period = "auto";
   double inter_dead_zone = FieldPrecisionOptions{}.inter_dead_zone;
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
@@ -140,7 +154,9 @@ int main(int argc, char** argv) {
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
                  "below 1)")
       ->capture_default_str();
-  app.add_option("--intra-period", intra_period, "Every P-th keyframe coded without the previous one (random access)")->capture_default_str();
+  app.add_option("--intra-period", intra_period,
+                 "Every P-th keyframe coded without the previous one (random access), or auto (one at least every 10 s of capture)")
+      ->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
   app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
@@ -195,8 +211,7 @@ int main(int argc, char** argv) {
     options.predicted_fields = field_error != "0";
     options.auto_field_error = field_error == "auto";
     if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = parse_fraction(field_error, "--field-error");
-    if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "--intra-period must be at least 1");
-    options.field_precision.intra_period = intra_period;
+    options.field_precision.intra_period = intra_period == "auto" ? kAutoIntraPeriod : parse_intra_period(intra_period);
     if (field_rounding != "shaped" && field_rounding != "nearest") {
       throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");
     }

@@ -175,14 +175,22 @@ void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldP
   FieldRounder(grid, options.noise_shaping, options.inter_dead_zone).round(sequence.keyframes, coding);
 }
 
+int auto_intra_period(const Sequence& sequence) {
+  const std::vector<Keyframe>& keys = sequence.keyframes;
+  if (keys.size() < 2) return 1;
+  const double interval = (keys.back().time - keys.front().time) / static_cast<double>(keys.size() - 1);
+  return static_cast<int>(std::clamp(std::floor(kAutoIntraSeconds / interval), 1.0, static_cast<double>(keys.size())));
+}
+
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
   if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
   }
   check_dead_zone(options);
+  if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   validate_sequence(sequence);
   FieldCoding coding;
-  coding.intra_period = options.intra_period;
+  coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
   Reconstructor reconstructor(sequence.grid_n);

@@ -260,6 +260,25 @@ TEST(FieldPrecision, StepsLandInTheTargetWindowOnANoisyCapture) {
   }
 }
 
+// Intra period auto: an intra keyframe at least every 10 s of capture, whatever the keyframe rate.
+TEST(FieldPrecision, AutoIntraPeriodSpacesIntraKeyframesTenSecondsApart) {
+  const auto keyframes_every = [](double interval, size_t count) {
+    Sequence s;
+    s.keyframes.resize(count);
+    for (size_t k = 0; k < count; ++k) s.keyframes[k].time = 3 + interval * static_cast<double>(k);
+    return s;
+  };
+  EXPECT_EQ(auto_intra_period(keyframes_every(0.5, 100)), 20);
+  EXPECT_EQ(auto_intra_period(keyframes_every(0.3, 100)), 33);  // ⌊10 / 0.3⌋: never more than 10 s apart
+  EXPECT_EQ(auto_intra_period(keyframes_every(0.5, 6)), 6);     // a short capture: keyframe 0 alone is intra
+  EXPECT_EQ(auto_intra_period(keyframes_every(25, 4)), 1);      // keyframes further apart than 10 s: all intra
+  EXPECT_EQ(auto_intra_period(keyframes_every(0.5, 1)), 1);
+  Sequence any = keyframes_every(0.5, 3);
+  FieldPrecisionOptions negative;
+  negative.intra_period = -1;
+  testing::expect_error(ErrorCode::kInvalidArgument, "negative intra period", [&] { choose_field_coding(any, negative); });
+}
+
 // An error in one frame's conformal map names that frame (the capture has hundreds): QIEM allowed
 // no step and no fallback fails on every frame, frame_0000 first with one thread.
 TEST(SequenceEncoder, AMappingErrorNamesItsFrame) {

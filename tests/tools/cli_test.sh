@@ -70,6 +70,8 @@ expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap"
 expect_error "inter dead zone" "--inter-dead-zone must lie in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
 "$tools/fmenc" "$work/cap" -o "$work/zone.fmv" --grid 33 --no-texture --inter-dead-zone 0.6 --quiet || fail "--inter-dead-zone 0.6"
 "$tools/fminfo" "$work/zone.fmv" | grep -q "\"inter_dead_zone\":0.6" || fail "--inter-dead-zone not in the settings"
+expect_error "intra period" "--intra-period '0' is neither auto nor a whole number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --intra-period 0
+"$tools/fminfo" "$work/zone.fmv" | grep -q '"intra_period":"auto","intra_period_chosen":' || fail "--intra-period auto and its choice not in the settings"
 # The older predicted codings, for players with facemorph 0.5 (field coding 2) or 0.3 and 0.4 (1).
 expect_error "residual coder" "none of range, range-1.3 and zstd" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --field-residuals lzma
 "$tools/fmenc" "$work/cap" -o "$work/r13.fmv" --grid 33 --no-texture --field-residuals range-1.3 --quiet || fail "--field-residuals range-1.3"

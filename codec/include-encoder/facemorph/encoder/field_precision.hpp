@@ -12,12 +12,19 @@
 
 namespace facemorph {
 
+// FieldPrecisionOptions::intra_period's "auto": an intra keyframe at least every 10 s of capture,
+// as video encoders space theirs (x264's default keyint, 250 frames, is 10 s at 25 fps). A player
+// seeking into a stream decodes at most that much; every chain of predicted keyframes is a tenth
+// cheaper per keyframe than a new intra one (spec/method.md §5.3).
+inline constexpr int kAutoIntraPeriod = 0;
+inline constexpr double kAutoIntraSeconds = 10;
+
 struct FieldPrecisionOptions {
   // The RMS displacement of a keyframe's decoded surface that rounding may cause, as a fraction of
   // its bounding box diagonal (spread evenly over the groups of arrays). 1e-4 is a tenth of a
   // millimetre on a 25 cm head: far under the spline's error between keyframes.
   double target_error = 1e-4;
-  int intra_period = 8;  // FieldCoding::intra_period
+  int intra_period = kAutoIntraPeriod;  // FieldCoding::intra_period, or auto_intra_period's
   // Round per-node fields with error diffusion, pushing the rounding error to high frequencies the
   // reconstruction smooths away (see field_precision.cpp); false: each value to its nearest step.
   bool noise_shaping = true;
@@ -36,14 +43,18 @@ struct FieldPrecisionReport {
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
 };
 
+// The intra period "auto" gives `sequence`: ⌊kAutoIntraSeconds / its mean keyframe interval⌋, at
+// least 1 (K for a single keyframe). Assumes a sequence validate_sequence accepts.
+int auto_intra_period(const Sequence& sequence);
+
 // Chooses the steps on keyframe 0 (a probe step per group, decoded, scaled to the target: rounding
 // error is proportional to the step), rounds every keyframe of `sequence` to them
 // (round_to_field_steps; the keyframes the file may predict from the previous one through the dead
 // zone), measures every keyframe's decoded error and rescales all steps until the
 // worst keyframe lies within [0.8, 1.25] of the target (the coarsest that met it is kept; none:
 // kNotConverged). The hole level's step is a sixteenth of G's spacing.
-// Throws kInvalidArgument for a target that is not positive and finite or a dead zone outside
-// [0.5, 1), and what reconstruction throws for fields it cannot decode.
+// Throws kInvalidArgument for a target that is not positive and finite, a dead zone outside
+// [0.5, 1) or a negative intra period, and what reconstruction throws for fields it cannot decode.
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
 
 // Rounds every keyframe's fields to `coding`'s steps as choose_field_coding does (error diffusion
