@@ -49,6 +49,7 @@ constexpr uint32_t kMaxLandmarks = 1u << 16;
 constexpr int kMaxTextureSize = 16384;
 constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
 constexpr double kMaxCompactTranslation = 1e30;            // float32 holds it (field coding 3's pose)
+constexpr float kMaxRotationComponent = 4;                 // > π: field coding 3's rotation vector
 
 // The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
 // the order of the C++ enumerators.
@@ -358,6 +359,10 @@ void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& whe
     for (float& v : stored) {
       v = r.read<float>("the pose");
       if (!std::isfinite(v)) corrupt(where, "the pose is not finite");
+    }
+    // log R has an angle of at most π: a larger component is no pose an encoder wrote.
+    for (size_t k = 0; k < 3; ++k) {
+      if (std::abs(stored[k]) > kMaxRotationComponent) corrupt(where, "a rotation vector component beyond 4");
     }
     key.pose = pose_of(stored);
     return;

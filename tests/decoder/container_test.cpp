@@ -362,6 +362,13 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
                            }),
                            "p.fmv");
     });
+    testing::expect_error(ErrorCode::kCorrupt, "a rotation vector component beyond 4", [&] {
+      decode_sequence_file(rebuild(bytes, [](const std::string& type, std::vector<uint8_t>& payload) {
+                             const float far = 1e30f;
+                             if (type == "KEYP" && payload[0] == 1) std::memcpy(payload.data() + 16, &far, 4);
+                           }),
+                           "p.fmv");
+    });
   } else {
     testing::expect_error(ErrorCode::kCorrupt, "predictor 9", [&] { decode_sequence_file(rebuild(bytes, patch_first(predictor_at(0), 9)), "p.fmv"); });
     // The band vectors (array 4) are no lattice: a lattice predictor there cannot be decoded.
