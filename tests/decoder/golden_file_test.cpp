@@ -98,23 +98,20 @@ TEST(GoldenFile, Version1_2DecodesAsItDidWhenWritten) {
   EXPECT_EQ(s.keyframes.front().texture.width, 64);
 }
 
-// Format 1.3: predicted fields' residuals range-coded (field coding 2).
-TEST(GoldenFile, Version1_3DecodesAsItDidWhenWritten) {
-  expect_golden("1_3", 3, "facemorph 0.5.0");
+// A golden file of a predicted field coding: it decodes as it did, and reads as that coding.
+void expect_golden_predicted(const std::string& version, uint16_t minor_version, const std::string& encoder, FieldCoding::Residuals residuals) {
+  expect_golden(version, minor_version, encoder);
   SequenceFileInfo info;
-  read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_3.fmv", &info);
+  read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / ("golden_v" + version + ".fmv"), &info);
   EXPECT_TRUE(info.metadata.field_coding.predicted());
-  EXPECT_EQ(info.metadata.field_coding.residuals, FieldCoding::Residuals::kRangeCodedV13);
+  EXPECT_EQ(info.metadata.field_coding.residuals, residuals);
 }
 
+// Format 1.3: predicted fields' residuals range-coded (field coding 2).
+TEST(GoldenFile, Version1_3DecodesAsItDidWhenWritten) { expect_golden_predicted("1_3", 3, "facemorph 0.5.0", FieldCoding::Residuals::kRangeCodedV13); }
+
 // Format 1.4: models carried along chains of predicted keyframes, float32 poses (field coding 3).
-TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) {
-  expect_golden("1_4", 4, "facemorph 0.6.0");
-  SequenceFileInfo info;
-  read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_4.fmv", &info);
-  EXPECT_TRUE(info.metadata.field_coding.predicted());
-  EXPECT_EQ(info.metadata.field_coding.residuals, FieldCoding::Residuals::kRangeCoded);
-}
+TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) { expect_golden_predicted("1_4", 4, "facemorph 0.6.0", FieldCoding::Residuals::kRangeCoded); }
 
 }  // namespace
 }  // namespace facemorph
