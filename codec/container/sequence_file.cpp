@@ -36,8 +36,7 @@ using format::ByteReader;
 using format::ByteWriter;
 
 constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kTexture = "TEXR";
-// The header's field coding (spec/container.md §5).
-constexpr uint8_t kCodePlanes = 0, kPredictedCodes = 1, kRangeCodedPredictions = 2, kRangeCodedChains = 3;
+constexpr uint8_t kCodePlanes = 0;  // the header's field coding without steps (spec/container.md §5)
 constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
 constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
 constexpr uint32_t kMaxIntraPeriod = 1u << 20;
@@ -57,6 +56,9 @@ constexpr std::pair<Representation, uint8_t> kRepresentationCodes[] = {
     {Representation::kHL, 0}, {Representation::kHLT, 1}, {Representation::kXYZ, 2}};
 constexpr std::pair<SplineKind, uint8_t> kSplineCodes[] = {
     {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
+// The header's field codings with steps (KEYP chunks); 0 is kCodePlanes.
+constexpr std::pair<FieldCoding::Residuals, uint8_t> kPredictedCodingCodes[] = {
+    {FieldCoding::Residuals::kZstdVarints, 1}, {FieldCoding::Residuals::kRangeCodedV13, 2}, {FieldCoding::Residuals::kRangeCoded, 3}};
 
 template <typename Enum, size_t N>
 uint8_t code_of(const std::pair<Enum, uint8_t> (&table)[N], Enum value) {
@@ -145,17 +147,6 @@ struct Header {
   SequenceFileMetadata metadata;  // with the field coding
 };
 
-// The header's field coding number (spec/container.md §5).
-uint8_t field_coding_number(const FieldCoding& coding) {
-  if (!coding.predicted()) return kCodePlanes;
-  switch (coding.residuals) {
-    case FieldCoding::Residuals::kZstdVarints: return kPredictedCodes;
-    case FieldCoding::Residuals::kRangeCodedV13: return kRangeCodedPredictions;
-    case FieldCoding::Residuals::kRangeCoded: break;
-  }
-  return kRangeCodedChains;
-}
-
 // What a KEYP chunk's layout depends on (spec/container.md §7.3).
 bool range_coded(FieldCoding::Residuals coder) { return coder != FieldCoding::Residuals::kZstdVarints; }
 // Field coding 3: the compact pose, the predictors packed, the models carried from the previous keyframe.
@@ -193,7 +184,7 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   for (const std::string& name : metadata.landmark_names) w.string(name);
   // Appended in 1.1: how the keyframes' fields are coded.
   const FieldCoding& coding = metadata.field_coding;
-  w.write(field_coding_number(coding));
+  w.write(coding.predicted() ? code_of(kPredictedCodingCodes, coding.residuals) : kCodePlanes);
   if (coding.predicted()) {
     w.write(static_cast<uint32_t>(coding.intra_period));
     for (double step : coding.steps) w.write(step);
@@ -253,11 +244,9 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   // models carried along chains of predicted keyframes and compact poses.
   if (minor_version >= 1) {
     const uint8_t coding = r.read<uint8_t>("the field coding");
-    if (coding == kPredictedCodes || coding == kRangeCodedPredictions || coding == kRangeCodedChains) {
+    if (coding != kCodePlanes) {
       FieldCoding& c = h.metadata.field_coding;
-      c.residuals = coding == kPredictedCodes           ? FieldCoding::Residuals::kZstdVarints
-                    : coding == kRangeCodedPredictions ? FieldCoding::Residuals::kRangeCodedV13
-                                                       : FieldCoding::Residuals::kRangeCoded;
+      c.residuals = enum_of(kPredictedCodingCodes, coding, source + ": field coding");
       const uint32_t period = r.read<uint32_t>("the intra period");
       if (period == 0 || period > kMaxIntraPeriod) corrupt(r.source(), "intra period " + std::to_string(period));
       c.intra_period = static_cast<int>(period);
@@ -266,8 +255,6 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
         step = read_finite(r, "a field step");
         if (!(step > 0)) corrupt(r.source(), "a field step that is not positive");
       }
-    } else if (coding != kCodePlanes) {
-      throw Error(ErrorCode::kUnsupported, source + ": field coding " + std::to_string(coding) + " is not one this decoder knows");
     }
   }
   // Later minor versions append fields here; this reader ignores them.
@@ -622,7 +609,8 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
         corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(length) + " values, " + std::to_string(expected[a]) + " expected");
       }
     }
-    const uint8_t p = chained(coder) ? static_cast<uint8_t>((packed >> (kPackedPredictorBits * a)) & 3u) : r.read<uint8_t>("a predictor");
+    constexpr uint32_t kPredictorMask = (1u << kPackedPredictorBits) - 1;
+    const uint8_t p = chained(coder) ? static_cast<uint8_t>((packed >> (kPackedPredictorBits * a)) & kPredictorMask) : r.read<uint8_t>("a predictor");
     predictors[a] = static_cast<format::SpatialPredictor>(p);
     if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, expected[a], grid) == nullptr)) {
       corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
