@@ -74,6 +74,27 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   }
 }
 
+std::string dead_zone_candidates() {
+  std::string out;
+  for (double zone : kDeadZoneCandidates) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", zone);
+    out += (out.empty() ? "" : ", ") + std::string(text);
+  }
+  return out;
+}
+
+double parse_dead_zone(const std::string& text) {
+  try {
+    size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used != text.size() || !(value >= 0.5 && value < 1)) throw std::out_of_range(text);
+    return value;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, "--inter-dead-zone '" + text + "' is neither auto nor a number in [0.5, 1)");
+  }
+}
+
 nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
   return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
@@ -97,7 +118,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"intra_period", o.field_precision.intra_period == kAutoIntraPeriod ? nlohmann::json("auto") : nlohmann::json(o.field_precision.intra_period)},
           {"intra_period_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_coding.intra_period) : nlohmann::json(nullptr)},
           {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"},
-          {"inter_dead_zone", o.field_precision.inter_dead_zone}};
+          {"inter_dead_zone", o.field_precision.inter_dead_zone == kAutoDeadZone ? nlohmann::json("auto") : nlohmann::json(o.field_precision.inter_dead_zone)},
+          {"inter_dead_zone_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_precision.inter_dead_zone) : nlohmann::json(nullptr)}};
 }
 
 }  // namespace
@@ -111,7 +133,7 @@ int main(int argc, char** argv) {
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif";
   int threads = 0, reference = 0;
   std::string intra_period = "auto";
-  double inter_dead_zone = FieldPrecisionOptions{}.inter_dead_zone;
+  std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
   app.add_option("capture", input,
@@ -152,7 +174,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--inter-dead-zone", inter_dead_zone,
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
-                 "below 1)")
+                 "below 1), or auto (the one of " + dead_zone_candidates() + " that makes the smallest file)")
       ->capture_default_str();
   app.add_option("--intra-period", intra_period,
                  "Every P-th keyframe coded without the previous one (random access), or auto (one at least every 10 s of capture)")
@@ -216,8 +238,7 @@ int main(int argc, char** argv) {
       throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
-    if (!(inter_dead_zone >= 0.5 && inter_dead_zone < 1)) throw Error(ErrorCode::kInvalidArgument, "--inter-dead-zone must lie in [0.5, 1)");
-    options.field_precision.inter_dead_zone = inter_dead_zone;
+    options.field_precision.inter_dead_zone = inter_dead_zone == "auto" ? kAutoDeadZone : parse_dead_zone(inter_dead_zone);
     if (field_residuals != "range" && field_residuals != "range-1.3" && field_residuals != "zstd") {
       throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.3 and zstd");
     }
@@ -273,8 +294,9 @@ int main(int argc, char** argv) {
     std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
     if (report.field_coding.predicted()) {
       const std::vector<double>& e = report.field_precision.keyframe_errors;
-      std::printf("  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes\n",
-                  100 * report.field_precision.target_error, options.auto_field_error ? " (auto)" : "", 100 * *std::max_element(e.begin(), e.end()), report.field_coding.intra_period);
+      std::printf("  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes, dead zone %.2f steps\n",
+                  100 * report.field_precision.target_error, options.auto_field_error ? " (auto)" : "", 100 * *std::max_element(e.begin(), e.end()),
+                  report.field_coding.intra_period, report.field_precision.inter_dead_zone);
     }
     if (!report.texture_qualities.empty()) {
       const auto [lo, hi] = std::minmax_element(report.texture_qualities.begin(), report.texture_qualities.end());

@@ -3,6 +3,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/reconstruct.hpp"
+#include "facemorph/sequence_file.hpp"
 
 #include <algorithm>
 #include <array>
@@ -182,13 +183,10 @@ int auto_intra_period(const Sequence& sequence) {
   return static_cast<int>(std::clamp(std::floor(kAutoIntraSeconds / interval), 1.0, static_cast<double>(keys.size())));
 }
 
-FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
-  if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
-    throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
-  }
-  check_dead_zone(options);
-  if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
-  validate_sequence(sequence);
+namespace {
+
+// choose_field_coding for one dead zone (options checked).
+FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
   FieldCoding coding;
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
@@ -290,8 +288,55 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
     for (double& s : report->group_steps) s *= scale;
     report->keyframe_errors = errors;
     report->refinements = refinements;
+    report->inter_dead_zone = options.inter_dead_zone;
   }
   return coding;
+}
+
+// The keyframes' fields, poses and holes without their textures: what a trial rounds and encodes.
+Sequence fields_alone(const Sequence& sequence) {
+  Sequence out = sequence;
+  for (Keyframe& key : out.keyframes) key.texture = {};
+  return out;
+}
+
+}  // namespace
+
+FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+  if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
+    throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
+  }
+  if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options);
+  if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
+  validate_sequence(sequence);
+  FieldPrecisionOptions chosen = options;
+  if (options.inter_dead_zone == kAutoDeadZone) {
+    // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins. The
+    // trials round a copy, then the winner is run again on `sequence` (the search is deterministic).
+    chosen.inter_dead_zone = kDeadZoneCandidates.front();
+    const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
+    const bool predicts = period > 1 && sequence.keyframes.size() > 1;
+    const Sequence fields = predicts ? fields_alone(sequence) : Sequence{};
+    size_t fewest = std::numeric_limits<size_t>::max();
+    for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
+      FieldPrecisionOptions trial_options = options;
+      trial_options.inter_dead_zone = kDeadZoneCandidates[c];
+      Sequence trial = fields;
+      SequenceFileMetadata metadata;
+      try {
+        metadata.field_coding = choose_steps(trial, trial_options, nullptr);
+      } catch (const Error& e) {
+        if (e.code() != ErrorCode::kNotConverged) throw;
+        continue;  // this zone met no steps; another may
+      }
+      const size_t bytes = encode_sequence_file(trial, metadata).size();
+      if (bytes < fewest) {
+        fewest = bytes;
+        chosen.inter_dead_zone = kDeadZoneCandidates[c];
+      }
+    }
+  }
+  return choose_steps(sequence, chosen, report);
 }
 
 }  // namespace facemorph

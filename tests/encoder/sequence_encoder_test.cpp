@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 
@@ -180,7 +181,7 @@ TEST(FieldPrecision, RoundingMeetsItsTargetInTheDecodedSurface) {
   for (bool shaped : {false, true}) {
     Sequence rounded = exact;
     SequenceFileMetadata metadata;
-    metadata.field_coding = choose_field_coding(rounded, {1e-4, 8, shaped});
+    metadata.field_coding = choose_field_coding(rounded, {1e-4, 8, shaped, 0.5});
     bytes[shaped] = encode_sequence_file(rounded, metadata).size();
   }
   EXPECT_LT(bytes[true], bytes[false]);
@@ -240,6 +241,43 @@ TEST(FieldPrecision, ADeadZoneKeepsThePreviousKeyframesCodes) {
     testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { choose_field_coding(copy, {kTarget, 8, true, bad}); });
     testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { round_keyframes(copy, metadata.field_coding, {kTarget, 8, true, bad}); });
   }
+}
+
+// The dead zone "auto" tries every candidate at the same target and keeps the one whose file is
+// smallest: its file is exactly that candidate's, byte for byte, and still meets the target.
+// Without predicted keyframes (intra period 1) there is nothing to choose: plain rounding.
+TEST(FieldPrecision, AutoDeadZoneKeepsTheSmallestOfItsCandidates) {
+  testing::TempDir dir;
+  const Sequence exact = unrounded_keyframes(dir, 0.0003, 0.4, 65);
+  ASSERT_GE(exact.keyframes.size(), 4u);
+  constexpr double kTarget = 3e-4;
+  auto file_of = [&](double dead_zone, int intra_period, FieldPrecisionReport* report) {
+    Sequence rounded = exact;
+    SequenceFileMetadata metadata;
+    metadata.field_coding = choose_field_coding(rounded, {kTarget, intra_period, true, dead_zone}, report);
+    return encode_sequence_file(rounded, metadata);
+  };
+  size_t fewest = std::numeric_limits<size_t>::max(), largest = 0;
+  double best = 0;
+  for (double zone : kDeadZoneCandidates) {
+    const size_t bytes = file_of(zone, 8, nullptr).size();
+    if (bytes < fewest) fewest = bytes, best = zone;
+    largest = std::max(largest, bytes);
+  }
+  ASSERT_LT(fewest, largest) << "the candidates should differ on this capture";
+  FieldPrecisionReport report;
+  const std::vector<uint8_t> chosen = file_of(kAutoDeadZone, 8, &report);
+  EXPECT_EQ(report.inter_dead_zone, best);
+  EXPECT_EQ(chosen, file_of(best, 8, nullptr));
+  for (double e : report.keyframe_errors) EXPECT_LE(e, 1.25 * kTarget);
+
+  FieldPrecisionReport intra;
+  EXPECT_EQ(file_of(kAutoDeadZone, 1, &intra), file_of(0.5, 1, nullptr));
+  EXPECT_EQ(intra.inter_dead_zone, 0.5);
+  Sequence copy = exact;
+  FieldCoding coding;
+  coding.steps.assign(kKeyframeArrayCount, 1e-3);
+  testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { round_keyframes(copy, coding, {kTarget, 8, true, kAutoDeadZone}); });
 }
 
 // On a noisy capture the decoded error is far from linear in the steps (error diffusion hides small

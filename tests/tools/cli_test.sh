@@ -67,9 +67,11 @@ expect_error "keyframe fit" "--keyframe-fit" "$tools/fmenc" "$work/cap" -o "$wor
 expect_error "texture quality word" "neither auto nor a number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality best
 expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality 102
 "$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
-expect_error "inter dead zone" "--inter-dead-zone must lie in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
+expect_error "inter dead zone" "--inter-dead-zone '1.5' is neither auto nor a number in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
+expect_error "inter dead zone word" "--inter-dead-zone 'wide' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone wide
 "$tools/fmenc" "$work/cap" -o "$work/zone.fmv" --grid 33 --no-texture --inter-dead-zone 0.6 --quiet || fail "--inter-dead-zone 0.6"
-"$tools/fminfo" "$work/zone.fmv" | grep -q "\"inter_dead_zone\":0.6" || fail "--inter-dead-zone not in the settings"
+"$tools/fminfo" "$work/zone.fmv" | grep -q "\"inter_dead_zone\":0.6,\"inter_dead_zone_chosen\":0.6" || fail "--inter-dead-zone not in the settings"
+"$tools/fminfo" "$work/own.fmv" | grep -q '"inter_dead_zone":"auto","inter_dead_zone_chosen":0\.[56]' || fail "--inter-dead-zone auto and its choice not in the settings"
 expect_error "intra period" "--intra-period '0' is neither auto nor a whole number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --intra-period 0
 "$tools/fminfo" "$work/zone.fmv" | grep -q '"intra_period":"auto","intra_period_chosen":' || fail "--intra-period auto and its choice not in the settings"
 # The older predicted codings, for players with facemorph 0.5 (field coding 2) or 0.3 and 0.4 (1).

@@ -8,6 +8,7 @@
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 
+#include <array>
 #include <vector>
 
 namespace facemorph {
@@ -18,6 +19,11 @@ namespace facemorph {
 // cheaper per keyframe than a new intra one (spec/method.md §5.3).
 inline constexpr int kAutoIntraPeriod = 0;
 inline constexpr double kAutoIntraSeconds = 10;
+
+// FieldPrecisionOptions::inter_dead_zone's "auto", and the dead zones it tries: plain rounding and
+// the zones that measured best where a zone pays (spec/method.md §5.3).
+inline constexpr double kAutoDeadZone = 0;
+inline constexpr std::array<double, 4> kDeadZoneCandidates = {0.5, 0.55, 0.6, 0.65};
 
 struct FieldPrecisionOptions {
   // The RMS displacement of a keyframe's decoded surface that rounding may cause, as a fraction of
@@ -30,10 +36,11 @@ struct FieldPrecisionOptions {
   bool noise_shaping = true;
   // An inter keyframe's value keeps the previous keyframe's code unless it moved by more than this
   // many steps (the error diffused as always); 0.5 is plain rounding. A kept code is the file's
-  // cheapest symbol, but the error a dead zone adds makes the steps finer: 0.6 saved 5-8% on
-  // Medusa at equal keyframe error and cost up to 6% on a noisy fmsynth capture (spec/method.md
-  // §5.3), so the default is plain rounding. In [0.5, 1).
-  double inter_dead_zone = 0.5;
+  // cheapest symbol, but the error a dead zone adds makes the steps finer, and which wins depends
+  // on the capture: measured at equal keyframe error, 0.6-0.65 saved 10-14% on Medusa's tracked
+  // mesh and cost 5-28% on a noisy fmsynth capture (spec/method.md §5.3). kAutoDeadZone (the
+  // default) tries kDeadZoneCandidates and keeps the one whose file is smallest; else in [0.5, 1).
+  double inter_dead_zone = kAutoDeadZone;
 };
 
 struct FieldPrecisionReport {
@@ -41,6 +48,7 @@ struct FieldPrecisionReport {
   std::vector<double> group_steps;      // per group: H, log λ, tangential, band, positions, rim (0: absent)
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
+  double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
 };
 
 // The intra period "auto" gives `sequence`: ⌊kAutoIntraSeconds / its mean keyframe interval⌋, at
@@ -53,14 +61,17 @@ int auto_intra_period(const Sequence& sequence);
 // zone), measures every keyframe's decoded error and rescales all steps until the
 // worst keyframe lies within [0.8, 1.25] of the target (the coarsest that met it is kept; none:
 // kNotConverged). The hole level's step is a sixteenth of G's spacing.
-// Throws kInvalidArgument for a target that is not positive and finite, a dead zone outside
-// [0.5, 1) or a negative intra period, and what reconstruction throws for fields it cannot decode.
+// With the dead zone auto, does that for each of kDeadZoneCandidates on the fields alone, encodes
+// each result, and keeps the smallest (plain rounding where no keyframe is predicted).
+// Throws kInvalidArgument for a target that is not positive and finite, a dead zone neither auto nor
+// in [0.5, 1) or a negative intra period, and what reconstruction throws for fields it cannot decode.
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
 
 // Rounds every keyframe's fields to `coding`'s steps as choose_field_coding does (error diffusion
 // per options.noise_shaping; the keyframes the file may predict, those not a multiple of the intra
 // period, through the dead zone), without choosing or checking anything else.
-// Throws kInvalidArgument for a dead zone outside [0.5, 1) or a sequence that fails validation.
+// Throws kInvalidArgument for a dead zone outside [0.5, 1) (auto among them: it is chosen, not
+// applied) or a sequence that fails validation.
 void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options);
 
 }  // namespace facemorph
