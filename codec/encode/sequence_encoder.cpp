@@ -544,11 +544,9 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
 
 namespace {
 
-// --field-error auto: a quarter of the mean predicted error of the frames between keyframes:
-// rounding then adds 3% to that error in quadrature. A tenth added 0.5% and cost Medusa's fields 22% more bytes (spec/method.md §5.3).
-// The fields' rounding target: two fifths of the spline's mean predicted error, where rounding error
-// and more keyframes buy held-out error at about the same price in bytes (spec/method.md §5.3). The
-// rounding's node displacement is mostly along the surface and reaches the point-to-surface error at
+// --field-error auto, the fields' rounding target: two fifths of the spline's mean predicted error,
+// where rounding error and more keyframes buy held-out error at about the same price in bytes
+// (spec/method.md §5.3). The rounding's node displacement is mostly along the surface and reaches the point-to-surface error at
 // about half its size, so it may be larger than a quadrature rule on displacements would allow.
 double auto_field_error(const KeyframeSelection& chosen) {
   constexpr double kShare = 0.4, kLowest = 5e-5, kHighest = 2e-3;

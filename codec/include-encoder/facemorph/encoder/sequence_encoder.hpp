@@ -59,10 +59,10 @@ struct EncodeOptions {
   // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).
   FieldPrecisionOptions field_precision;
   bool predicted_fields = true;
-  // --field-error auto (the default): the target is a quarter of the mean error the spline is
-  // predicted to make between keyframes, within [0.005%, 0.05%] of the diagonal, so rounding adds
-  // 3% to that error (in quadrature, as the grid's floor does) whether the capture is clean or noisy;
-  // false: field_precision's target.
+  // --field-error auto (the default): the target is two fifths of the mean error the spline is
+  // predicted to make between keyframes, within [0.005%, 0.2%] of the diagonal, where rounding
+  // error and more keyframes buy held-out error at about the same price in bytes, whether the
+  // capture is clean or noisy (spec/method.md §5.3); false: field_precision's target.
   bool auto_field_error = true;
   // --keyframe-fit: store at each keyframe the values whose spline best matches every frame of the
   // capture (least squares over all frames, in the face frame of the pose the decoder blends),
@@ -144,7 +144,7 @@ class SequenceEncoder {
   // 6. the keyframes on G: fields, poses, holes, textures.
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
-  // auto_field_error a quarter of `chosen`'s mean predicted error): what a file written with the
+  // auto_field_error two fifths of `chosen`'s mean predicted error): what a file written with the
   // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
   FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
   // 8. each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
