@@ -293,12 +293,24 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   return coding;
 }
 
-// The keyframes' fields, poses and holes without their textures: what a trial rounds and encodes.
-Sequence fields_alone(const Sequence& sequence) {
-  Sequence out = sequence;
-  for (Keyframe& key : out.keyframes) key.texture = {};
-  return out;
-}
+// Moves the keyframes' textures out of a sequence for its lifetime and back at its end (also when a
+// trial throws): the trials copy and encode fields, poses and holes only.
+class TexturesSetAside {
+ public:
+  explicit TexturesSetAside(Sequence& sequence) : sequence_(sequence) {
+    for (Keyframe& key : sequence_.keyframes) textures_.push_back(std::move(key.texture));
+    for (Keyframe& key : sequence_.keyframes) key.texture = {};
+  }
+  ~TexturesSetAside() {
+    for (size_t k = 0; k < textures_.size(); ++k) sequence_.keyframes[k].texture = std::move(textures_[k]);
+  }
+  TexturesSetAside(const TexturesSetAside&) = delete;
+  TexturesSetAside& operator=(const TexturesSetAside&) = delete;
+
+ private:
+  Sequence& sequence_;
+  std::vector<Image> textures_;
+};
 
 }  // namespace
 
@@ -312,16 +324,17 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   FieldPrecisionOptions chosen = options;
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins. The
-    // trials round a copy, then the winner is run again on `sequence` (the search is deterministic).
+    // trials round a copy of the fields, then the winner is run again on `sequence` (the search is
+    // deterministic).
     chosen.inter_dead_zone = kDeadZoneCandidates.front();
     const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
     const bool predicts = period > 1 && sequence.keyframes.size() > 1;
-    const Sequence fields = predicts ? fields_alone(sequence) : Sequence{};
+    const TexturesSetAside aside(sequence);
     size_t fewest = std::numeric_limits<size_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       FieldPrecisionOptions trial_options = options;
       trial_options.inter_dead_zone = kDeadZoneCandidates[c];
-      Sequence trial = fields;
+      Sequence trial = sequence;
       SequenceFileMetadata metadata;
       try {
         metadata.field_coding = choose_steps(trial, trial_options, nullptr);
