@@ -72,6 +72,8 @@ class RangeDecoder {
   // Throws kCorrupt unless the decisions read so far consumed every byte, no more and no fewer: the
   // check that the stream ends where the encoder ended it.
   void expect_end() const;
+  // Bytes of the stream read so far (the first five on construction).
+  size_t position() const { return pos_; }
 
  private:
   void normalize();

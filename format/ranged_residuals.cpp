@@ -92,8 +92,33 @@ void code_array(Side& side, Models& models, std::span<int64_t> values, const Lat
 
 uint32_t low_bits(uint32_t value, int count) { return count >= 32 ? value : value & ((uint32_t{1} << count) - 1); }
 
+constexpr int kNumberLengthDecisions = 6;  // the bit length, 0..63, of which 0..kMaxNumberBits are valid
+static_assert(std::tuple_size_v<decltype(NumberModels::length)> == (1 << kNumberLengthDecisions));
+
+// One signed number's decisions (spec/container.md §7.5), for all three sides as code_residual.
+template <typename Side>
+int64_t code_number(Side& side, NumberModels& m, int64_t value) {
+  const uint64_t size = magnitude(value);  // the encoder's; unused by the decoder
+  const auto wanted = static_cast<uint32_t>(std::bit_width(size));
+  uint32_t n = 0, node = 1;
+  for (int b = kNumberLengthDecisions - 1; b >= 0; --b) {
+    const uint32_t bit = side.bit(m.length[node], ((wanted >> b) & 1u) != 0) ? 1 : 0;
+    node = 2 * node + bit;
+    n = (n << 1) | bit;
+  }
+  if (n > static_cast<uint32_t>(kMaxNumberBits)) side.corrupt("a number longer than 42 bits");
+  if (n == 0) return 0;
+  const bool negative = side.direct(value < 0 ? 1 : 0, 1) != 0;
+  const int below = static_cast<int>(n) - 1;  // the bits under the top one, which is 1
+  uint64_t low = 0;
+  if (below > 32) low = uint64_t{side.direct(static_cast<uint32_t>(size >> 32), below - 32)} << 32;
+  low |= side.direct(static_cast<uint32_t>(size), std::min(below, 32));
+  const uint64_t decoded = (uint64_t{1} << below) | low;
+  return negative ? -static_cast<int64_t>(decoded) : static_cast<int64_t>(decoded);
+}
+
 struct EncoderSide {
-  RangeEncoder coder;
+  RangeEncoder& coder;
   bool bit(BitModel& model, bool bit) {
     coder.encode(model, bit ? 1 : 0);
     return bit;
@@ -106,8 +131,8 @@ struct EncoderSide {
 };
 
 struct DecoderSide {
-  RangeDecoder coder;
-  std::string source;
+  RangeDecoder& coder;
+  const std::string& source;
   bool bit(BitModel& model, bool) { return coder.decode(model) != 0; }
   uint32_t direct(uint32_t, int count) { return count > 0 ? coder.decode_direct(count) : 0; }
   [[noreturn]] void corrupt(const char* what) { throw Error(ErrorCode::kCorrupt, source + ": " + what); }
@@ -148,9 +173,8 @@ void check_layout(size_t arrays, std::span<const LatticeNeighbours* const> latti
   }
 }
 
-// The models a stream starts from: the caller's (fresh ones where it has none yet).
-std::vector<Models>& starting_models(std::vector<Models>* carried, std::vector<Models>& fresh, size_t arrays) {
-  std::vector<Models>& models = carried ? *carried : fresh;
+// The models a stream starts from: the caller's, fresh ones where it has none yet.
+std::vector<Models>& starting_models(std::vector<Models>& models, size_t arrays) {
   if (models.empty()) models.resize(arrays);
   if (models.size() != arrays) throw Error(ErrorCode::kInvalidArgument, "one set of carried models per residual array needed");
   return models;
@@ -158,12 +182,19 @@ std::vector<Models>& starting_models(std::vector<Models>* carried, std::vector<M
 
 }  // namespace
 
-std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
-                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* carried) {
+void RangedStreamWriter::decision(BitModel& model, bool bit) { coder_.encode(model, bit ? 1 : 0); }
+
+void RangedStreamWriter::number(NumberModels& models, int64_t value) {
+  if (magnitude(value) >= (uint64_t{1} << kMaxNumberBits)) throw Error(ErrorCode::kInvalidArgument, "a number beyond 2^42 for the range coder");
+  EncoderSide side{coder_};
+  code_number(side, models, value);
+}
+
+void RangedStreamWriter::residual_arrays(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
+                                         std::span<const uint8_t> model_sets, std::vector<ResidualModels>& carried) {
   check_layout(arrays.size(), lattices, model_sets);
-  EncoderSide side;
-  std::vector<Models> fresh;
-  std::vector<Models>& models = starting_models(carried, fresh, arrays.size());
+  EncoderSide side{coder_};
+  std::vector<Models>& models = starting_models(carried, arrays.size());
   for (size_t a = 0; a < arrays.size(); ++a) {
     for (int64_t r : arrays[a]) {
       if (magnitude(r) > static_cast<uint64_t>(kMaxRangedResidual)) throw Error(ErrorCode::kInvalidArgument, "a residual beyond 2^34");
@@ -171,29 +202,53 @@ std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t
     std::vector<int64_t> values = arrays[a];
     code_array(side, models[model_sets[a]], std::span<int64_t>(values), checked(lattices[a], values.size()));
   }
-  return side.coder.finish();
 }
 
-std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
-                                                          std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
-                                                          const std::string& source, std::vector<ResidualModels>* carried) {
+RangedStreamReader::RangedStreamReader(std::span<const uint8_t> bytes, std::string source)
+    : coder_(bytes, source), source_(std::move(source)), bytes_(bytes.size()) {}
+
+bool RangedStreamReader::decision(BitModel& model) { return coder_.decode(model) != 0; }
+
+int64_t RangedStreamReader::number(NumberModels& models) {
+  DecoderSide side{coder_, source_};
+  return code_number(side, models, 0);
+}
+
+std::vector<std::vector<int64_t>> RangedStreamReader::residual_arrays(std::span<const size_t> lengths, std::span<const LatticeNeighbours* const> lattices,
+                                                                      std::span<const uint8_t> model_sets, std::vector<ResidualModels>& carried) {
   check_layout(lengths.size(), lattices, model_sets);
-  const size_t most = kMaxResidualsPerByte * bytes.size();
-  size_t total = 0;
+  // Refused before anything is allocated: more residuals than the whole stream can hold.
+  const size_t most = kMaxResidualsPerByte * bytes_;
   for (size_t n : lengths) {
-    if (n > most - total) throw Error(ErrorCode::kCorrupt, source + ": " + std::to_string(bytes.size()) + " range-coded bytes cannot hold the arrays' values");
-    total += n;
+    if (n > most - residuals_read_) throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(bytes_) + " range-coded bytes cannot hold the arrays' values");
+    residuals_read_ += n;
   }
-  DecoderSide side{RangeDecoder(bytes, source), source};
-  std::vector<Models> fresh;
-  std::vector<Models>& models = starting_models(carried, fresh, lengths.size());
+  DecoderSide side{coder_, source_};
+  std::vector<Models>& models = starting_models(carried, lengths.size());
   std::vector<std::vector<int64_t>> out;
   for (size_t a = 0; a < lengths.size(); ++a) {
     std::vector<int64_t> values(lengths[a], 0);
     code_array(side, models[model_sets[a]], std::span<int64_t>(values), checked(lattices[a], values.size()));
     out.push_back(std::move(values));
   }
-  side.coder.expect_end();
+  return out;
+}
+
+std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
+                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* carried) {
+  RangedStreamWriter stream;
+  std::vector<Models> fresh;
+  stream.residual_arrays(arrays, lattices, model_sets, carried ? *carried : fresh);
+  return stream.finish();
+}
+
+std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
+                                                          std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
+                                                          const std::string& source, std::vector<ResidualModels>* carried) {
+  RangedStreamReader stream(bytes, source);
+  std::vector<Models> fresh;
+  std::vector<std::vector<int64_t>> out = stream.residual_arrays(lengths, lattices, model_sets, carried ? *carried : fresh);
+  stream.expect_end();
   return out;
 }
 

@@ -29,6 +29,52 @@ struct ResidualModels {
   std::array<BitModel, 12> escape;
 };
 
+// Models for a signed integer of any size below 2^kMaxNumberBits (field coding 4's pose): its bit
+// length n as six decisions down a binary tree of models (most significant first), then the sign
+// and the n - 1 bits below its top as direct bits (spec/container.md §7.5).
+inline constexpr int kMaxNumberBits = 42;
+struct NumberModels {
+  std::array<BitModel, 64> length;  // node 1 is the root, node m's children 2m and 2m + 1
+};
+
+// One range-coded stream that holds several things in order: decisions, numbers and arrays of
+// residuals (field coding 4: a group of keyframes, each with its reference, predictors, pose and
+// fields). Each call codes its part; finish() ends the stream.
+class RangedStreamWriter {
+ public:
+  void decision(BitModel& model, bool bit);
+  // kInvalidArgument for |value| ≥ 2^kMaxNumberBits.
+  void number(NumberModels& models, int64_t value);
+  // As encode_ranged_residuals, onto this stream, with `models` carried.
+  void residual_arrays(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
+                       std::span<const uint8_t> model_sets, std::vector<ResidualModels>& models);
+  std::vector<uint8_t> finish() { return coder_.finish(); }
+
+ private:
+  RangeEncoder coder_;
+};
+
+// The reader of a RangedStreamWriter's stream: the same calls in the same order. Every error is
+// kCorrupt naming `source`.
+class RangedStreamReader {
+ public:
+  RangedStreamReader(std::span<const uint8_t> bytes, std::string source);
+  bool decision(BitModel& model);
+  int64_t number(NumberModels& models);
+  std::vector<std::vector<int64_t>> residual_arrays(std::span<const size_t> lengths, std::span<const LatticeNeighbours* const> lattices,
+                                                    std::span<const uint8_t> model_sets, std::vector<ResidualModels>& models);
+  // Bytes read so far: what a part of the stream cost, to within the coder's few bytes of lag.
+  size_t position() const { return coder_.position(); }
+  // kCorrupt unless the stream ends exactly here.
+  void expect_end() const { coder_.expect_end(); }
+
+ private:
+  RangeDecoder coder_;
+  std::string source_;
+  size_t bytes_ = 0;          // the stream's size, which bounds how many residuals it can hold
+  size_t residuals_read_ = 0;
+};
+
 // The arrays' residuals in order. `lattices[k]`: array k's lattice neighbours when it lies on G's
 // lattice (then its size must be the array's), null when it is a plain sequence. `model_sets[k]`:
 // the array whose models array k continues to adapt (k itself, or an earlier array of the same
