@@ -169,8 +169,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--field-residuals", field_residuals,
-                 "range (adaptive range coder, models carried from keyframe to keyframe, format 1.4) | range-1.3 (models afresh in "
-                 "every keyframe, which facemorph 0.5 decoders read) | zstd (format 1.1's varints, which 0.3 and 0.4 decoders read)")
+                 "range (adaptive range coder, one stream per intra period, format 1.5) | range-1.4 (a chunk per keyframe, models "
+                 "carried, which facemorph 0.6 decoders read) | range-1.3 (models afresh in every keyframe, which 0.5 decoders read) | "
+                 "zstd (format 1.1's varints, which 0.3 and 0.4 decoders read)")
       ->capture_default_str();
   app.add_option("--inter-dead-zone", inter_dead_zone,
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
@@ -239,12 +240,15 @@ int main(int argc, char** argv) {
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
     options.field_precision.inter_dead_zone = inter_dead_zone == "auto" ? kAutoDeadZone : parse_dead_zone(inter_dead_zone);
-    if (field_residuals != "range" && field_residuals != "range-1.3" && field_residuals != "zstd") {
-      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.3 and zstd");
+    const std::map<std::string, FieldCoding::Residuals> residual_codings = {{"range", FieldCoding::Residuals::kRangeCoded},
+                                                                            {"range-1.4", FieldCoding::Residuals::kRangeCodedV14},
+                                                                            {"range-1.3", FieldCoding::Residuals::kRangeCodedV13},
+                                                                            {"zstd", FieldCoding::Residuals::kZstdVarints}};
+    if (!residual_codings.count(field_residuals)) {
+      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.4, range-1.3 and zstd");
     }
-    const auto residuals = field_residuals == "range"       ? FieldCoding::Residuals::kRangeCoded
-                           : field_residuals == "range-1.3" ? FieldCoding::Residuals::kRangeCodedV13
-                                                            : FieldCoding::Residuals::kZstdVarints;
+    const FieldCoding::Residuals residuals = residual_codings.at(field_residuals);
+    options.field_precision.residuals = residuals;
     if (std::filesystem::path(input).extension() == ".fmv") {
       recode(input, output, options, quality, residuals, quiet);
       return 0;

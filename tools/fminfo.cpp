@@ -135,7 +135,8 @@ bool is_container(const fs::path& path) {
 
 const char* residual_coder_name(FieldCoding::Residuals residuals) {
   switch (residuals) {
-    case FieldCoding::Residuals::kRangeCoded: return "range-coded with models carried from keyframe to keyframe";
+    case FieldCoding::Residuals::kRangeCoded: return "range-coded, one stream per intra period (group of keyframes)";
+    case FieldCoding::Residuals::kRangeCodedV14: return "range-coded with models carried from keyframe to keyframe";
     case FieldCoding::Residuals::kRangeCodedV13: return "range-coded";
     case FieldCoding::Residuals::kZstdVarints: break;
   }
@@ -172,6 +173,9 @@ int describe_container(const fs::path& path, bool json_out) {
                                                                {"steps", coding.steps},
                                                                {"intra_period", coding.intra_period}}
                                              : nlohmann::json{{"kind", "16-bit code planes"}};
+    if (coding.predicted() && coding.rotation_step > 0) {
+      doc["field_coding"]["pose_steps"] = {{"rotation_radians", coding.rotation_step}, {"translation", coding.translation_step}};
+    }
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
     doc["texture_size"] = info.texture_size;
@@ -203,6 +207,10 @@ int describe_container(const fs::path& path, bool json_out) {
                 representation_name(sequence.representation), coding.intra_period, residual_coder_name(coding.residuals), fixed);
     std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
                 coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
+    if (coding.rotation_step > 0) {
+      std::printf("pose        rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step, coding.translation_step,
+                  sequence.units.c_str());
+    }
   } else {
     std::printf("fields      %s, 16-bit; %zu nodes in boundary frames\n", representation_name(sequence.representation), fixed);
   }

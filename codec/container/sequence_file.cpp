@@ -35,7 +35,8 @@ namespace {
 using format::ByteReader;
 using format::ByteWriter;
 
-constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kTexture = "TEXR";
+constexpr std::string_view kHeader = "HEAD", kIndex = "KIDX", kKeyframe = "KEYF", kPredictedKeyframe = "KEYP", kKeyframeGroup = "KGOP",
+                           kTexture = "TEXR";
 constexpr uint8_t kCodePlanes = 0;  // the header's field coding without steps (spec/container.md §5)
 constexpr uint8_t kIntra = 0, kFromPreviousKeyframe = 1;  // a KEYP chunk's reference
 constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
@@ -48,7 +49,8 @@ constexpr uint32_t kMaxLandmarks = 1u << 16;
 constexpr int kMaxTextureSize = 16384;
 constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
 constexpr double kMaxCompactTranslation = 1e30;            // float32 holds it (field coding 3's pose)
-constexpr float kMaxRotationComponent = 4;                 // > π: field coding 3's rotation vector
+constexpr float kMaxRotationComponent = 4;                 // > π: field codings 3 and 4's rotation vector
+constexpr int64_t kMaxPoseCode = int64_t{1} << 40;         // field coding 4's pose codes: changes fit 42 bits
 
 // The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
 // the order of the C++ enumerators.
@@ -58,7 +60,8 @@ constexpr std::pair<SplineKind, uint8_t> kSplineCodes[] = {
     {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
 // The header's field codings with steps (KEYP chunks); 0 is kCodePlanes.
 constexpr std::pair<FieldCoding::Residuals, uint8_t> kPredictedCodingCodes[] = {
-    {FieldCoding::Residuals::kZstdVarints, 1}, {FieldCoding::Residuals::kRangeCodedV13, 2}, {FieldCoding::Residuals::kRangeCoded, 3}};
+    {FieldCoding::Residuals::kZstdVarints, 1}, {FieldCoding::Residuals::kRangeCodedV13, 2}, {FieldCoding::Residuals::kRangeCodedV14, 3},
+    {FieldCoding::Residuals::kRangeCoded, 4}};
 
 template <typename Enum, size_t N>
 uint8_t code_of(const std::pair<Enum, uint8_t> (&table)[N], Enum value) {
@@ -150,7 +153,9 @@ struct Header {
 // What a KEYP chunk's layout depends on (spec/container.md §7.3).
 bool range_coded(FieldCoding::Residuals coder) { return coder != FieldCoding::Residuals::kZstdVarints; }
 // Field coding 3: the compact pose, the predictors packed, the models carried from the previous keyframe.
-bool chained(FieldCoding::Residuals coder) { return coder == FieldCoding::Residuals::kRangeCoded; }
+bool chained(FieldCoding::Residuals coder) { return coder == FieldCoding::Residuals::kRangeCodedV14; }
+// Field coding 4: a chunk and one stream per group of keyframes (an intra period), the pose quantised.
+bool grouped(FieldCoding::Residuals coder) { return coder == FieldCoding::Residuals::kRangeCoded; }
 
 std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, const DiskGridShape& shape) {
   ByteWriter w;
@@ -188,6 +193,10 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   if (coding.predicted()) {
     w.write(static_cast<uint32_t>(coding.intra_period));
     for (double step : coding.steps) w.write(step);
+    if (grouped(coding.residuals)) {
+      w.write(coding.rotation_step);
+      w.write(coding.translation_step);
+    }
   }
   return w.take();
 }
@@ -255,6 +264,11 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
         step = read_finite(r, "a field step");
         if (!(step > 0)) corrupt(r.source(), "a field step that is not positive");
       }
+      if (grouped(c.residuals)) {
+        c.rotation_step = read_finite(r, "the rotation step");
+        c.translation_step = read_finite(r, "the translation step");
+        if (!(c.rotation_step > 0) || !(c.translation_step > 0)) corrupt(r.source(), "a pose step that is not positive");
+      }
     }
   }
   // Later minor versions append fields here; this reader ignores them.
@@ -274,27 +288,52 @@ struct IndexEntry {
 
 constexpr size_t kIndexEntryBytes = 24;
 
-std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries) {
+// Field codings 0-3: one record per keyframe. Field coding 4 (`group` = the intra period): every
+// keyframe's time, then every group's chunk offset, then (with textures) every keyframe's texture
+// chunk offset, each a run of like numbers that the chunk's zstd packs. An entry's keyframe offset
+// is its group's chunk there.
+std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, size_t group, bool textured) {
   ByteWriter w;
   w.write(static_cast<uint32_t>(entries.size()));
-  for (const IndexEntry& e : entries) {
-    w.write(e.time);
-    w.write(e.keyframe_offset);
-    w.write(e.texture_offset);
+  if (group == 0) {
+    for (const IndexEntry& e : entries) {
+      w.write(e.time);
+      w.write(e.keyframe_offset);
+      w.write(e.texture_offset);
+    }
+    return w.take();
+  }
+  for (const IndexEntry& e : entries) w.write(e.time);
+  for (size_t k = 0; k < entries.size(); k += group) w.write(entries[k].keyframe_offset);
+  if (textured) {
+    for (const IndexEntry& e : entries) w.write(e.texture_offset);
   }
   return w.take();
 }
 
-std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, uint32_t keyframes) {
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, uint32_t keyframes, size_t group, bool textured) {
   ByteReader r(payload, source + ": index");
   const uint32_t count = r.read<uint32_t>("the entry count");
   if (count != keyframes) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(keyframes) + " keyframes");
-  r.require(size_t{count} * kIndexEntryBytes, "the entries");
   std::vector<IndexEntry> entries(count);
-  for (IndexEntry& e : entries) {
-    e.time = read_finite(r, "a keyframe time");
-    e.keyframe_offset = r.read<uint64_t>("a keyframe offset");
-    e.texture_offset = r.read<uint64_t>("a texture offset");
+  if (group == 0) {
+    r.require(size_t{count} * kIndexEntryBytes, "the entries");
+    for (IndexEntry& e : entries) {
+      e.time = read_finite(r, "a keyframe time");
+      e.keyframe_offset = r.read<uint64_t>("a keyframe offset");
+      e.texture_offset = r.read<uint64_t>("a texture offset");
+    }
+    return entries;
+  }
+  const size_t groups = (count + group - 1) / group;
+  r.require(size_t{8} * (count + groups + (textured ? count : 0)), "the entries");
+  for (IndexEntry& e : entries) e.time = read_finite(r, "a keyframe time");
+  for (size_t g = 0; g < groups; ++g) {
+    const uint64_t offset = r.read<uint64_t>("a group offset");
+    for (size_t k = g * group; k < std::min<size_t>(count, (g + 1) * group); ++k) entries[k].keyframe_offset = offset;
+  }
+  if (textured) {
+    for (IndexEntry& e : entries) e.texture_offset = r.read<uint64_t>("a texture offset");
   }
   return entries;
 }
@@ -478,6 +517,10 @@ void check_steps(const FieldCoding& coding) {
   if (coding.intra_period < 1 || static_cast<uint32_t>(coding.intra_period) > kMaxIntraPeriod) {
     throw Error(ErrorCode::kInvalidArgument, "field coding: intra period outside [1, 2^20]");
   }
+  if (grouped(coding.residuals) && !(coding.rotation_step > 0 && coding.translation_step > 0 && std::isfinite(coding.rotation_step) &&
+                                     std::isfinite(coding.translation_step))) {
+    throw Error(ErrorCode::kInvalidArgument, "field coding 4: pose steps that are not finite and positive (set_default_pose_steps)");
+  }
 }
 
 // Zigzag magnitudes' order-0 entropy in bits: how the coder chooses a predictor without running zstd.
@@ -517,14 +560,60 @@ CodedArray best_prediction(std::span<const int32_t> codes, const format::Lattice
 constexpr int kPackedPredictorBits = 2;
 static_assert(format::kSpatialPredictorCount <= (1 << kPackedPredictorBits) && kKeyframeArrays * kPackedPredictorBits <= 32);
 
+// Array a's spatial predictor p as read, or kCorrupt where it is none this array can have.
+format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, const GridFacts& grid, const std::string& where) {
+  const auto predictor = static_cast<format::SpatialPredictor>(p);
+  if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictor) && lattice_of(a, length, grid) == nullptr)) {
+    corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
+  }
+  return predictor;
+}
+
+// A decoded keyframe's arrays from its residuals: the spatial predictors undone, then the previous
+// keyframe's `codes` added where the reference says so. `codes` holds this keyframe's on return.
+std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::vector<int64_t>>& residuals, const std::vector<format::SpatialPredictor>& predictors,
+                                                       uint8_t reference, std::vector<std::vector<int32_t>>& codes, const Header& h, const std::string& where) {
+  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  const std::vector<double>& steps = h.metadata.field_coding.steps;
+  std::vector<std::vector<double>> arrays(kKeyframeArrays);
+  std::vector<std::vector<int32_t>> these(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    these[a] = format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
+    for (size_t i = 0; i < these[a].size(); ++i) {
+      const int64_t code = reference == kFromPreviousKeyframe ? int64_t{these[a][i]} + codes[a][i] : int64_t{these[a][i]};
+      if (code <= -kMaxFieldCode || code >= kMaxFieldCode) corrupt(where, "a field code beyond 2^30");
+      these[a][i] = static_cast<int32_t>(code);
+    }
+    arrays[a].resize(these[a].size());
+    for (size_t i = 0; i < these[a].size(); ++i) arrays[a][i] = steps[a] * these[a][i];
+  }
+  codes = std::move(these);
+  return arrays;
+}
+
+// A keyframe's arrays as integer multiples of the coding's steps.
+std::vector<std::vector<int32_t>> field_codes(const Keyframe& key, const FieldCoding& coding) {
+  const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+  std::vector<std::vector<int32_t>> codes(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    for (double v : arrays[a]) codes[a].push_back(field_code(v, coding.steps[a]));
+  }
+  return codes;
+}
+
+// How a keyframe's codes are predicted: from nothing or the previous keyframe's, and each array
+// under its own spatial predictor, with the residuals that leaves.
+struct Prediction {
+  uint8_t reference = kIntra;
+  std::vector<CodedArray> arrays;
+};
+
 // `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
-// null where this keyframe must be intra. `models`: field coding 3's range coder models as the
-// previous keyframe's stream left them (empty before the first), and as this one's leaves them.
-std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t number, const std::vector<std::vector<int32_t>>& codes,
-                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid, FieldCoding::Residuals coder,
-                                              std::vector<format::ResidualModels>& models) {
-  // Intra and predicted alike: each array's codes, or their change since the previous keyframe,
-  // under the spatial predictor that leaves the fewest bits. The reference that costs less wins.
+// null where this keyframe must be intra. Intra and predicted alike: each array's codes, or their
+// change since the previous keyframe, under the spatial predictor that leaves the fewest bits. The
+// reference that costs less wins.
+Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid,
+                             FieldCoding::Residuals coder) {
   auto code_all = [&](bool from_previous) {
     std::vector<CodedArray> out;
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -541,15 +630,20 @@ std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t numb
     for (const CodedArray& a : arrays) bits += a.bits;
     return bits;
   };
-  std::vector<CodedArray> coded = code_all(false);
-  uint8_t reference = kIntra;
+  Prediction chosen{kIntra, code_all(false)};
   if (previous) {
     std::vector<CodedArray> predicted = code_all(true);
-    if (total_bits(predicted) < total_bits(coded)) {
-      coded = std::move(predicted);
-      reference = kFromPreviousKeyframe;
-    }
+    if (total_bits(predicted) < total_bits(chosen.arrays)) chosen = {kFromPreviousKeyframe, std::move(predicted)};
   }
+  return chosen;
+}
+
+// One KEYP chunk's payload (field codings 1-3). `models`: field coding 3's range coder models as
+// the previous keyframe's stream left them (empty before the first), and as this one's leaves them.
+std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t number, const std::vector<std::vector<int32_t>>& codes,
+                                              const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid, FieldCoding::Residuals coder,
+                                              std::vector<format::ResidualModels>& models) {
+  auto [reference, coded] = choose_prediction(codes, previous, grid, coder);
   ByteWriter w;
   write_keyframe_preamble(w, key, number, chained(coder));
   w.write(reference);
@@ -611,10 +705,7 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
     }
     constexpr uint32_t kPredictorMask = (1u << kPackedPredictorBits) - 1;
     const uint8_t p = chained(coder) ? static_cast<uint8_t>((packed >> (kPackedPredictorBits * a)) & kPredictorMask) : r.read<uint8_t>("a predictor");
-    predictors[a] = static_cast<format::SpatialPredictor>(p);
-    if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictors[a]) && lattice_of(a, expected[a], grid) == nullptr)) {
-      corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
-    }
+    predictors[a] = checked_predictor(a, p, expected[a], grid, where);
   }
   const uint32_t coded = r.read<uint32_t>("the coded size");
   const auto stream = r.bytes(coded, "the coded residuals");
@@ -625,22 +716,123 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
       !range_coded(coder) ? format::decode_residual_stream(stream, expected, where)
                           : format::decode_ranged_residuals(stream, expected, lattices, kRangeModelSets, where, chained(coder) ? &models : nullptr);
   // Bytes after the residuals were appended by a later minor version: ignored.
-  const std::vector<double>& steps = coding.steps;
-  std::vector<std::vector<double>> arrays(kKeyframeArrays);
-  std::vector<std::vector<int32_t>> these(kKeyframeArrays);
-  for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    these[a] = format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
-    for (size_t i = 0; i < these[a].size(); ++i) {
-      const int64_t code = reference == kFromPreviousKeyframe ? int64_t{these[a][i]} + codes[a][i] : int64_t{these[a][i]};
-      if (code <= -kMaxFieldCode || code >= kMaxFieldCode) corrupt(where, "a field code beyond 2^30");
-      these[a][i] = static_cast<int32_t>(code);
-    }
-    arrays[a].resize(these[a].size());
-    for (size_t i = 0; i < these[a].size(); ++i) arrays[a][i] = steps[a] * these[a][i];
-  }
-  codes = std::move(these);
-  set_keyframe_arrays(key, std::move(arrays), h, where);
+  set_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, reference, codes, h, where), h, where);
   return key;
+}
+
+// ---- A group of keyframes (KGOP, field coding 4): an intra period in one range-coded stream ----
+
+// The models a group's stream adapts, fresh at its start and carried through its keyframes.
+struct GroupModels {
+  format::BitModel reference;                                           // 1: from the previous keyframe
+  std::array<std::array<format::BitModel, 3>, kKeyframeArrays> predictor;  // the high bit's, then the low bit's under each high bit
+  std::array<format::NumberModels, 2> pose;                             // the rotation vector's components, the translation's
+  std::vector<format::ResidualModels> residuals;
+};
+
+constexpr size_t kPoseCodes = 6;  // the rotation vector, then the translation
+using PoseCodes = std::array<int64_t, kPoseCodes>;
+
+size_t pose_model(size_t component) { return component < 3 ? 0 : 1; }
+
+PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
+  const Vec3 rotation = rotation_log(pose.rotation);
+  PoseCodes codes{};
+  for (int k = 0; k < 3; ++k) {
+    const double r = std::nearbyint(rotation[k] / coding.rotation_step), t = std::nearbyint(pose.translation[k] / coding.translation_step);
+    if (!(std::abs(r) < static_cast<double>(kMaxPoseCode)) || !(std::abs(t) < static_cast<double>(kMaxPoseCode))) {
+      throw Error(ErrorCode::kInvalidArgument, "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
+    }
+    codes[static_cast<size_t>(k)] = static_cast<int64_t>(r);
+    codes[static_cast<size_t>(3 + k)] = static_cast<int64_t>(t);
+  }
+  return codes;
+}
+
+RigidPose pose_of(const PoseCodes& codes, const FieldCoding& coding) {
+  RigidPose pose;
+  const auto c = [&](size_t i) { return static_cast<double>(codes[i]); };
+  pose.rotation = rotation_exp(Vec3(coding.rotation_step * c(0), coding.rotation_step * c(1), coding.rotation_step * c(2)));
+  pose.translation = Vec3(coding.translation_step * c(3), coding.translation_step * c(4), coding.translation_step * c(5));
+  return pose;
+}
+
+// Keyframes first .. first + count - 1 of `s`, as a KGOP payload (spec/container.md §7.5).
+std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_t count, const FieldCoding& coding, const GridFacts& grid) {
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(first));
+  format::RangedStreamWriter stream;
+  GroupModels models;
+  std::vector<std::vector<int32_t>> previous;
+  PoseCodes previous_pose{};
+  for (size_t j = 0; j < count; ++j) {
+    const Keyframe& key = s.keyframes[first + j];
+    std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
+    Prediction prediction = choose_prediction(codes, j > 0 ? &previous : nullptr, grid, coding.residuals);
+    if (j > 0) stream.decision(models.reference, prediction.reference == kFromPreviousKeyframe);
+    std::vector<std::vector<int64_t>> residuals;
+    std::vector<const format::LatticeNeighbours*> lattices;
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      if (!codes[a].empty()) {
+        const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
+        stream.decision(models.predictor[a][0], (p >> 1) != 0);
+        stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
+      }
+      residuals.push_back(std::move(prediction.arrays[a].residuals));
+      lattices.push_back(lattice_of(a, residuals[a].size(), grid));
+    }
+    const PoseCodes pose = pose_codes(key.pose, coding);
+    for (size_t i = 0; i < kPoseCodes; ++i) stream.number(models.pose[pose_model(i)], pose[i] - previous_pose[i]);
+    stream.residual_arrays(residuals, lattices, kRangeModelSets, models.residuals);
+    previous = std::move(codes);
+    previous_pose = pose;
+  }
+  w.bytes(stream.finish());
+  return w.take();
+}
+
+// Reads the KGOP payload of keyframes first .. first + count - 1 (their times are the index's).
+// `bytes[j]`: where keyframe j's part of the stream ended, from the payload's start.
+std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t first, uint32_t count,
+                                          std::vector<uint64_t>& ends) {
+  ByteReader r(payload, where);
+  if (r.read<uint32_t>("the first keyframe number") != first) corrupt(where, "holds another group of keyframes than the index says");
+  const size_t stream_start = payload.size() - r.remaining();
+  format::RangedStreamReader stream(r.bytes(r.remaining(), "the stream"), where);
+  const FieldCoding& coding = h.metadata.field_coding;
+  const std::vector<size_t> expected = expected_lengths(h);
+  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, expected[a], grid));
+  GroupModels models;
+  std::vector<std::vector<int32_t>> codes;
+  PoseCodes pose{};
+  std::vector<Keyframe> keys(count);
+  ends.assign(count, 0);
+  for (uint32_t j = 0; j < count; ++j) {
+    const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
+    const uint8_t reference = j > 0 && stream.decision(models.reference) ? kFromPreviousKeyframe : kIntra;
+    std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      if (expected[a] == 0) continue;
+      const bool high = stream.decision(models.predictor[a][0]);
+      const bool low = stream.decision(models.predictor[a][high ? 2 : 1]);
+      predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), expected[a], grid, keyframe_where);
+    }
+    for (size_t i = 0; i < kPoseCodes; ++i) {
+      pose[i] += stream.number(models.pose[pose_model(i)]);  // both below 2^42: no overflow
+      if (pose[i] <= -kMaxPoseCode || pose[i] >= kMaxPoseCode) corrupt(keyframe_where, "a pose code beyond 2^40");
+    }
+    for (size_t k = 0; k < 3; ++k) {
+      if (std::abs(coding.rotation_step * static_cast<double>(pose[k])) > kMaxRotationComponent) corrupt(keyframe_where, "a rotation vector component beyond 4");
+    }
+    keys[j].pose = pose_of(pose, coding);
+    const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
+    set_keyframe_arrays(keys[j], arrays_from_residuals(residuals, predictors, reference, codes, h, keyframe_where), h, keyframe_where);
+    ends[j] = stream_start + stream.position();
+  }
+  stream.expect_end();
+  return keys;
 }
 
 std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
@@ -677,6 +869,15 @@ void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
   }
   assign_keyframe_arrays(key, std::move(arrays), key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes);
   if (chained(coding.residuals)) key.pose = pose_of(compact_pose(key.pose));
+  if (grouped(coding.residuals)) key.pose = pose_of(pose_codes(key.pose, coding), coding);
+}
+
+void set_default_pose_steps(FieldCoding& coding, const std::string& units) {
+  constexpr double kRotationStep = 1e-5, kTranslationStepMetres = 1e-5;
+  const double metres = units == "m" ? 1 : units == "cm" ? 1e-2 : units == "mm" ? 1e-3 : 0;
+  if (metres == 0) throw Error(ErrorCode::kInvalidArgument, "units '" + units + "' (m, cm or mm)");
+  coding.rotation_step = kRotationStep;
+  coding.translation_step = kTranslationStepMetres / metres;
 }
 
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
@@ -695,46 +896,71 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   }
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   const format::PreparedChunk header = format::prepare_chunk(kHeader, write_header(sequence, metadata, shape), true, 19);
-  // Every payload first, so the index can hold the offsets of the chunks after it.
-  std::vector<format::PreparedChunk> keyframes, textures;
+  // Every payload first, so the index can hold the offsets of the chunks after it. `fields[k]`:
+  // keyframe k's fields chunk, or for field coding 4 its group's (empty but at a group's first).
+  const size_t count = sequence.keyframes.size();
+  const size_t group = coding.predicted() && grouped(coding.residuals) ? static_cast<size_t>(coding.intra_period) : 0;
+  std::vector<format::PreparedChunk> fields(count), textures;
   std::vector<std::vector<int32_t>> previous_codes;
   std::vector<format::ResidualModels> models;  // field coding 3's, carried from keyframe to keyframe
-  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+  for (size_t k = 0; k < count; ++k) {
     const Keyframe& key = sequence.keyframes[k];
-    if (coding.predicted()) {
-      const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
-      std::vector<std::vector<int32_t>> codes(kKeyframeArrays);
-      for (size_t a = 0; a < kKeyframeArrays; ++a) {
-        for (double v : arrays[a]) codes[a].push_back(field_code(v, coding.steps[a]));
+    if (group > 0) {
+      if (k % group == 0) {
+        fields[k] = format::prepare_chunk(kKeyframeGroup, write_keyframe_group(sequence, k, std::min(group, count - k), coding, grid_facts(sequence.grid_n)), true);
       }
+    } else if (coding.predicted()) {
+      std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
       const bool intra = coding.intra(k);
-      keyframes.push_back(format::prepare_chunk(
+      fields[k] = format::prepare_chunk(
           kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n),
                                                        coding.residuals, models),
-          true));
+          true);
       previous_codes = std::move(codes);
     } else {
-      keyframes.push_back(format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true));
+      fields[k] = format::prepare_chunk(kKeyframe, write_keyframe(key, static_cast<uint32_t>(k)), true);
     }
     if (sequence.has_texture()) textures.push_back(format::prepare_chunk(kTexture, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_codec, qualities.empty() ? metadata.texture_quality : qualities[k]), true));
   }
-  std::vector<IndexEntry> entries(sequence.keyframes.size());
-  uint64_t offset = format::kPreambleBytes + header.total_size() + format::kChunkHeaderBytes + 4 + kIndexEntryBytes * entries.size() +
-                    format::kChunkTrailerBytes;
-  for (size_t k = 0; k < entries.size(); ++k) {
-    entries[k].time = sequence.keyframes[k].time;
-    entries[k].keyframe_offset = offset;
-    offset += keyframes[k].total_size();
-    if (!textures.empty()) {
-      entries[k].texture_offset = offset;
-      offset += textures[k].total_size();
+  // The chunks' offsets depend on the index's size, which (compressed, field coding 4) depends on
+  // the offsets: the index is laid out again until its size stays put, and stored uncompressed (a
+  // size the offsets do not change) in the unlikely case it keeps changing.
+  std::vector<IndexEntry> entries(count);
+  const auto lay_out = [&](uint64_t index_size) {
+    uint64_t offset = format::kPreambleBytes + header.total_size() + index_size;
+    for (size_t k = 0; k < count; ++k) {
+      entries[k].time = sequence.keyframes[k].time;
+      const bool starts_chunk = group == 0 || k % group == 0;
+      entries[k].keyframe_offset = starts_chunk ? offset : entries[k - 1].keyframe_offset;
+      if (starts_chunk) offset += fields[k].total_size();
+      if (!textures.empty()) {
+        entries[k].texture_offset = offset;
+        offset += textures[k].total_size();
+      }
+    }
+  };
+  constexpr int kIndexLayouts = 8;
+  format::PreparedChunk index;
+  uint64_t index_size = 0;
+  for (int layout = 0; layout <= kIndexLayouts; ++layout) {
+    lay_out(index_size);
+    const int level = group > 0 && layout < kIndexLayouts ? 19 : 0;
+    index = format::prepare_chunk(kIndex, write_index(entries, group, sequence.has_texture()), true, level);
+    if (index.total_size() == index_size) break;
+    index_size = index.total_size();
+    if (level == 0) {  // its size does not depend on the offsets: once more with them right
+      lay_out(index_size);
+      index = format::prepare_chunk(kIndex, write_index(entries, group, sequence.has_texture()), true, 0);
+      break;
     }
   }
   format::ContainerWriter writer;
   writer.add(header);
-  writer.add(format::prepare_chunk(kIndex, write_index(entries), true));
-  for (size_t k = 0; k < entries.size(); ++k) {
-    if (writer.add(keyframes[k]) != entries[k].keyframe_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+  writer.add(index);
+  for (size_t k = 0; k < count; ++k) {
+    if (group == 0 || k % group == 0) {
+      if (writer.add(fields[k]) != entries[k].keyframe_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+    }
     if (!textures.empty()) writer.add(textures[k]);
   }
   return writer.finish();
@@ -747,17 +973,22 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     corrupt(source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
-    const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kPredictedKeyframe || chunk.type == kTexture;
+    const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kPredictedKeyframe ||
+                       chunk.type == kKeyframeGroup || chunk.type == kTexture;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported, source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
   Header header = read_header(reader.payload(chunks[0]), source, reader.minor_version());
-  const bool predicted = header.metadata.field_coding.predicted();
-  const std::string_view keyframe_type = predicted ? kPredictedKeyframe : kKeyframe;
+  const FieldCoding& coding = header.metadata.field_coding;
+  const bool predicted = coding.predicted();
+  const size_t group = predicted && grouped(coding.residuals) ? static_cast<size_t>(coding.intra_period) : 0;
+  const std::string_view keyframe_type = group > 0 ? kKeyframeGroup : predicted ? kPredictedKeyframe : kKeyframe;
   std::vector<std::vector<int32_t>> codes;  // the previous predicted keyframe's
   std::vector<format::ResidualModels> models;  // its range coder models (field coding 3)
-  const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count);
+  std::vector<Keyframe> group_keys;  // field coding 4: the current group's keyframes
+  std::vector<uint64_t> group_ends;  // and where each one's part of the chunk ends
+  const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count, group, (header.flags & kHasTexture) != 0);
   auto sequence = std::move(header.shape);
   std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
   TextureCodec first_texture_codec = TextureCodec::kWebp;
@@ -766,9 +997,22 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
     if (chunk.type != keyframe_type) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(keyframe_type));
     const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
-    Keyframe key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes, models) : read_keyframe(reader.payload(chunk), where, header, k);
-    if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
-    sizes[k].fields = chunk.total_size();
+    Keyframe key;
+    if (group > 0) {
+      const size_t j = k % group;
+      if (j == 0) {
+        const auto count = static_cast<uint32_t>(std::min<size_t>(group, index.size() - k));
+        group_keys = read_keyframe_group(reader.payload(chunk), source + ": " + reader.describe(chunk), header, k, count, group_ends);
+        group_ends.back() = chunk.raw_size;  // the last keyframe's part runs to the chunk's end
+      }
+      key = std::move(group_keys[j]);
+      key.time = index[k].time;  // field coding 4 stores it in the index only
+      sizes[k].fields = group_ends[j] - (j > 0 ? group_ends[j - 1] : 0) + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
+    } else {
+      key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes, models) : read_keyframe(reader.payload(chunk), where, header, k);
+      if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
+      sizes[k].fields = chunk.total_size();
+    }
     if (header.flags & kHasTexture) {
       const format::ChunkView& texture = reader.chunk_at(index[k].texture_offset, name + "'s texture entry");
       if (texture.type != kTexture) corrupt(source, name + "'s texture entry points at a " + texture.type + " chunk");

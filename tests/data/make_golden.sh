@@ -11,5 +11,6 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$build/tools/fmsynth" -o "$work/capture" --frames 12 --fps 30 --expression mixed --vertices 3000 --remesh --noise 0 \
   --texture-size 128 --head-motion 10 --quiet
-"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --quiet
+# Intra period 2 (since 1.5): two groups of keyframes, one coded from the other within it.
+"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet
 FACEMORPH_WRITE_GOLDEN="$here/golden_v$version.csv" "$build/tests/facemorph_decoder_tests" --gtest_filter="GoldenFile.Version${version}*"

@@ -41,7 +41,7 @@ struct Opened {
 };
 
 TEST(CApi, VersionAndStatusNames) {
-  EXPECT_STREQ(fm_version(), "0.6.0");
+  EXPECT_STREQ(fm_version(), "0.7.0");
   EXPECT_EQ(fm_version_number(), static_cast<uint32_t>(FACEMORPH_VERSION_NUMBER));
   EXPECT_STREQ(fm_status_name(FM_OK), "ok");
   EXPECT_STREQ(fm_status_name(FM_ERROR_TRUNCATED), "truncated");

@@ -36,7 +36,7 @@ Sequence small_sequence(int n = 17, int texture = 16) {
     for (const Vec2& w : geometry.grid().nodes) positions.push_back(Vec3(w.x(), w.y(), a * (w.x() * w.x() - 0.5 * w.y() * w.y())));
     key.fields = compute_fields(geometry, positions, Representation::kHLT);
     key.pose.rotation = Eigen::AngleAxisd(0.2 * k, Vec3(0, 1, 0)).toRotationMatrix();
-    key.pose.translation = Vec3(k, 0, -k);
+    key.pose.translation = Vec3(k, 0.1234567 * k, -k);
     for (const Vec2& w : geometry.grid().nodes) key.hole_level.push_back(std::min((w - Vec2(0.3, 0)).norm() - 0.1 * k, kHoleLevelBand));
     key.texture = Image(texture, texture, 3);
     for (int y = 0; y < texture; ++y) {
@@ -61,14 +61,16 @@ SequenceFileMetadata small_metadata() {
 }
 
 // The same with the predicted coding: every array on its own step, an intra keyframe every second
-// one; residuals range-coded with models carried (format 1.4, the default), range-coded afresh in
-// every keyframe (1.3) or as zstd varints (1.1).
+// one; residuals range-coded in one stream per group of keyframes (format 1.5, the default), with
+// models carried in a chunk per keyframe (1.4), range-coded afresh in every keyframe (1.3) or as
+// zstd varints (1.1).
 SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded) {
   SequenceFileMetadata m = small_metadata();
   m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
   m.field_coding.steps[kScalarArrayCount] = 1e-3;
   m.field_coding.intra_period = 2;
   m.field_coding.residuals = residuals;
+  set_default_pose_steps(m.field_coding, "mm");
   return m;
 }
 
@@ -76,12 +78,14 @@ SequenceFileMetadata zstd_predicted_metadata() { return predicted_metadata(Field
 
 // Every predicted coding a writer can choose, newest first.
 std::vector<SequenceFileMetadata> predicted_codings() {
-  return {predicted_metadata(), predicted_metadata(FieldCoding::Residuals::kRangeCodedV13), zstd_predicted_metadata()};
+  return {predicted_metadata(), predicted_metadata(FieldCoding::Residuals::kRangeCodedV14), predicted_metadata(FieldCoding::Residuals::kRangeCodedV13),
+          zstd_predicted_metadata()};
 }
 
 std::string coding_name(const SequenceFileMetadata& m) {
   switch (m.field_coding.residuals) {
-    case FieldCoding::Residuals::kRangeCoded: return "field coding 3";
+    case FieldCoding::Residuals::kRangeCoded: return "field coding 4";
+    case FieldCoding::Residuals::kRangeCodedV14: return "field coding 3";
     case FieldCoding::Residuals::kRangeCodedV13: return "field coding 2";
     case FieldCoding::Residuals::kZstdVarints: break;
   }
@@ -216,28 +220,50 @@ template <typename Edit>
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
+  size_t groups = 0;  // field coding 4's KGOP chunks
+  bool textured = false;
   for (const format::ChunkView& c : reader.chunks()) {
     std::vector<uint8_t> payload = reader.payload(c);
     edit(c.type, payload);
+    groups += c.type == "KGOP" ? 1 : 0;
+    textured = textured || c.type == "TEXR";
     chunks.push_back(format::prepare_chunk(c.type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
   }
   std::vector<format::PreparedChunk> extra;
   if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
-  // The index (second chunk) holds offsets: shift them by how much the chunks before them moved.
+  // The index (second chunk) holds offsets: shift them by how much the chunks before them moved,
+  // the index itself included (compressed, its size moves with its numbers).
+  const format::ChunkView& old_index = reader.chunks()[1];
+  const std::vector<uint8_t> index_payload = reader.payload(old_index);
   const int64_t header_delta = static_cast<int64_t>(chunks[0].total_size()) - static_cast<int64_t>(reader.chunks()[0].total_size());
   const int64_t extra_delta = extra.empty() ? 0 : static_cast<int64_t>(extra[0].total_size());
-  format::ByteReader index(chunks[1].stored, "index");
-  format::ByteWriter shifted;
-  const uint32_t count = index.read<uint32_t>("count");
-  shifted.write(count);
-  for (uint32_t k = 0; k < count; ++k) {
-    shifted.write(index.read<double>("t"));
-    for (int j = 0; j < 2; ++j) {
+  int64_t index_delta = 0;
+  for (int pass = 0; pass < 8; ++pass) {
+    const int64_t delta = header_delta + extra_delta + index_delta;
+    format::ByteReader index(index_payload, "index");
+    format::ByteWriter shifted;
+    const auto shift = [&] {
       const uint64_t offset = index.read<uint64_t>("o");
-      shifted.write(offset == 0 ? 0 : static_cast<uint64_t>(static_cast<int64_t>(offset) + header_delta + extra_delta));
+      shifted.write(offset == 0 ? 0 : static_cast<uint64_t>(static_cast<int64_t>(offset) + delta));
+    };
+    const uint32_t count = index.read<uint32_t>("count");
+    shifted.write(count);
+    if (groups == 0) {
+      for (uint32_t k = 0; k < count; ++k) {
+        shifted.write(index.read<double>("t"));
+        shift();
+        shift();
+      }
+    } else {  // times, group offsets, texture offsets (spec/container.md §6)
+      for (uint32_t k = 0; k < count; ++k) shifted.write(index.read<double>("t"));
+      for (size_t g = 0; g < groups; ++g) shift();
+      for (uint32_t k = 0; textured && k < count; ++k) shift();
     }
+    chunks[1] = format::prepare_chunk(chunks[1].type, shifted.take(), true, old_index.compressed() ? 19 : 0);
+    const int64_t moved = static_cast<int64_t>(chunks[1].total_size()) - static_cast<int64_t>(old_index.total_size());
+    if (moved == index_delta) break;
+    index_delta = moved;
   }
-  chunks[1] = format::prepare_chunk(chunks[1].type, shifted.take(), true);
   format::ContainerWriter writer;
   writer.add(chunks[0]);
   writer.add(chunks[1]);
@@ -272,27 +298,38 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
       EXPECT_LE(max_difference(original[a], stored[a]), 0.5 * m.field_coding.steps[a] * (1 + 1e-9)) << a;
     }
     EXPECT_EQ(back.keyframes[k].hole_level, rounded.keyframes[k].hole_level);
-    // Field coding 3 stores the pose in float32: what round_to_field_steps left, to the bit, and
-    // within float32's rounding of the original (1e-7 of the values here).
+    // Field coding 3 stores the pose in float32, 4 as multiples of the pose steps: what
+    // round_to_field_steps left, to the bit, and within that rounding of the original (1e-7 of the
+    // values here in float32; half a step in a rotation vector component moves R by at most
+    // √3/2 steps, a translation component half a step).
     EXPECT_EQ(back.keyframes[k].pose.rotation, rounded.keyframes[k].pose.rotation);
     EXPECT_EQ(back.keyframes[k].pose.translation, rounded.keyframes[k].pose.translation);
-    EXPECT_LT((back.keyframes[k].pose.rotation - s.keyframes[k].pose.rotation).cwiseAbs().maxCoeff(), 1e-6);
-    EXPECT_LT((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).cwiseAbs().maxCoeff(), 1e-6 * s.keyframes[k].pose.translation.norm() + 1e-12);
+    const bool quantised = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded;
+    const double rotation_tolerance = quantised ? 0.87 * m.field_coding.rotation_step : 1e-6;
+    const double translation_tolerance = quantised ? 0.5 * m.field_coding.translation_step * (1 + 1e-9) : 1e-6 * s.keyframes[k].pose.translation.norm() + 1e-12;
+    EXPECT_LT((back.keyframes[k].pose.rotation - s.keyframes[k].pose.rotation).cwiseAbs().maxCoeff(), rotation_tolerance);
+    EXPECT_LE((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).cwiseAbs().maxCoeff(), translation_tolerance);
+    if (quantised && k > 0) {
+      EXPECT_GT((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).norm(), 0) << "the test's poses must need rounding";
+    }
     EXPECT_LE(max_difference(s.keyframes[k].hole_level, back.keyframes[k].hole_level), 0.5e-3 * (1 + 1e-9));
   }
   const format::ContainerReader reader(bytes, "p.fmv");
   int predicted_chunks = 0;
+  const std::string chunk_type = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded ? "KGOP" : "KEYP";
   for (const format::ChunkView& c : reader.chunks()) {
     EXPECT_NE(c.type, "KEYF");
-    if (c.type != "KEYP") continue;
+    EXPECT_NE(c.type, chunk_type == "KGOP" ? "KEYP" : "KGOP");
+    if (c.type != chunk_type) continue;
     const std::vector<uint8_t> payload = reader.payload(c);
-    if (payload[0] == 2) {
-      const size_t reference_at = m.field_coding.residuals == FieldCoding::Residuals::kRangeCoded ? 36 : 108;
+    if (payload[0] == 2 && chunk_type == "KEYP") {
+      const size_t reference_at = m.field_coding.residuals == FieldCoding::Residuals::kRangeCodedV14 ? 36 : 108;
       EXPECT_EQ(payload[reference_at], 0) << "keyframe 2 starts a period: intra";
     }
     ++predicted_chunks;
   }
-  EXPECT_EQ(predicted_chunks, 3);
+  // A chunk per keyframe, or per group of (intra period) 2: keyframes 0-1 and 2.
+  EXPECT_EQ(predicted_chunks, chunk_type == "KGOP" ? 2 : 3);
   // Steps that cannot code a value are the writer's error, not a broken file.
   SequenceFileMetadata tiny = m;
   tiny.field_coding.steps[10] = 1e-300;
@@ -303,22 +340,24 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
 }
 
 // Each newer predicted coding spends fewer bytes on the same keyframes: the range coder fewer than
-// zstd (the reason for field coding 2); carried models and the compact pose fewer again (3). All
-// decode to the same values.
+// zstd (the reason for field coding 2); carried models and the compact pose fewer again (3); one
+// stream per group, a quantised pose and a packed index fewer again (4). All decode to the same
+// values. Counted: every byte but the textures'.
 TEST(Container, NewerPredictedCodingsTakeFewerBytes) {
   const Sequence s = small_sequence(17, 8);
-  std::vector<uint64_t> keyp_bytes;
+  std::vector<uint64_t> geometry_bytes;
   std::vector<Sequence> decoded;
   for (const SequenceFileMetadata& m : predicted_codings()) {
     SequenceFileInfo info;
-    decoded.push_back(decode_sequence_file(encode_sequence_file(s, m), "p.fmv", &info));
+    const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+    decoded.push_back(decode_sequence_file(bytes, "p.fmv", &info));
+    geometry_bytes.push_back(bytes.size());
     for (const auto& chunk : info.chunks) {
-      if (chunk.type == "KEYP") keyp_bytes.push_back(chunk.stored_bytes);
+      if (chunk.type == "TEXR") geometry_bytes.back() -= chunk.stored_bytes;
     }
   }
-  ASSERT_EQ(keyp_bytes.size(), 3u);
-  EXPECT_LT(keyp_bytes[0], keyp_bytes[1]);
-  EXPECT_LT(keyp_bytes[1], keyp_bytes[2]);
+  ASSERT_EQ(geometry_bytes.size(), 4u);
+  for (size_t c = 1; c < geometry_bytes.size(); ++c) EXPECT_LT(geometry_bytes[c - 1], geometry_bytes[c]) << c;
   for (size_t k = 0; k < s.keyframes.size(); ++k) {
     for (size_t c = 1; c < decoded.size(); ++c) EXPECT_EQ(scalar_arrays(decoded[c].keyframes[k].fields), scalar_arrays(decoded[0].keyframes[k].fields));
   }
@@ -327,6 +366,7 @@ TEST(Container, NewerPredictedCodingsTakeFewerBytes) {
 TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
   for (const SequenceFileMetadata& m : predicted_codings()) {
   const FieldCoding::Residuals coder = m.field_coding.residuals;
+  if (coder == FieldCoding::Residuals::kRangeCoded) continue;  // no KEYP chunks: KeyframeGroupsThatBreakTheirRulesAreCorrupt
   SCOPED_TRACE(coding_name(m));
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), m);
   // Payload layout. Field coding 3: number (4), time (8), pose (24), reference (1) at 36, the
@@ -335,7 +375,7 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
   // then 2: a predictor (1) per array, array a's at 109 + a, and the coded size at 123;
   // 1: the array count (4), then per array a length (4) and a predictor (1), array a's at
   // 117 + 5a, and the coded size at 183.
-  const bool chained = coder == FieldCoding::Residuals::kRangeCoded;
+  const bool chained = coder == FieldCoding::Residuals::kRangeCodedV14;
   const size_t reference_at = chained ? 36 : 108;
   const auto predictor_at = [&](size_t a) { return coder == FieldCoding::Residuals::kRangeCodedV13 ? 109 + a : 117 + 5 * a; };
   const size_t size_at = chained ? 41 : coder == FieldCoding::Residuals::kRangeCodedV13 ? 123 : 183;
@@ -396,7 +436,7 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
     }
   }
   }
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata());
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata(FieldCoding::Residuals::kRangeCodedV14));
   // A 1.0 keyframe chunk where the header announces the predicted coding.
   const std::vector<uint8_t> planes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   const auto predicted_header = [&](const std::string& type, std::vector<uint8_t>& payload) {
@@ -405,14 +445,72 @@ TEST(Container, PredictedKeyframesThatBreakTheirRulesAreCorrupt) {
     payload = predicted.payload(predicted.chunks()[0]);
   };
   testing::expect_error(ErrorCode::kCorrupt, "not KEYP", [&] { decode_sequence_file(rebuild(planes, predicted_header), "mixed.fmv"); });
-  // A field coding this decoder does not know (4) is unsupported, not corrupt.
-  const auto coding_4 = [&](const std::string& type, std::vector<uint8_t>& payload) {
+  // A field coding this decoder does not know (5) is unsupported, not corrupt.
+  const auto coding_5 = [&](const std::string& type, std::vector<uint8_t>& payload) {
     if (type != "HEAD") return;
     const format::ContainerReader predicted(bytes, "p");
     payload = predicted.payload(predicted.chunks()[0]);
-    payload[payload.size() - 4 - 8 * kKeyframeArrayCount - 1] = 4;
+    payload[payload.size() - 4 - 8 * kKeyframeArrayCount - 1] = 5;
   };
-  testing::expect_error(ErrorCode::kUnsupported, "field coding 4", [&] { decode_sequence_file(rebuild(bytes, coding_4), "c4.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "field coding 5", [&] { decode_sequence_file(rebuild(bytes, coding_5), "c5.fmv"); });
+}
+
+// Field coding 4 (format 1.5): a chunk per group of keyframes, its stream shared by them. A group
+// the index does not expect, a stream that ends early or late, pose steps that are not positive are
+// corrupt; a writer without pose steps, or a pose they cannot code, is refused.
+TEST(Container, KeyframeGroupsThatBreakTheirRulesAreCorrupt) {
+  const SequenceFileMetadata m = predicted_metadata();
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), m);
+  // The group's stream is divided among its keyframes: every byte counted once, each keyframe some.
+  SequenceFileInfo info;
+  decode_sequence_file(bytes, "g.fmv", &info);
+  uint64_t group_bytes = 0, keyframe_bytes = 0;
+  for (const auto& chunk : info.chunks) group_bytes += chunk.type == "KGOP" ? chunk.stored_bytes : 0;
+  for (const auto& k : info.keyframes) {
+    EXPECT_GT(k.fields, 0u);
+    keyframe_bytes += k.fields;
+  }
+  EXPECT_EQ(keyframe_bytes, group_bytes);
+  const auto first_group = [](auto change) {
+    return [change](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "KGOP" && payload[0] == 0) change(payload);
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "another group of keyframes", [&] {
+    decode_sequence_file(rebuild(bytes, first_group([](std::vector<uint8_t>& p) { p[0] = 1; })), "n.fmv");
+  });
+  for (int delta : {-3, 2}) {
+    const auto resize = first_group([delta](std::vector<uint8_t>& p) { p.resize(static_cast<size_t>(static_cast<int64_t>(p.size()) + delta), 0); });
+    try {
+      decode_sequence_file(rebuild(bytes, resize), "s.fmv");
+      ADD_FAILURE() << "a stream resized by " << delta << " was read";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kCorrupt) << e.what();
+      EXPECT_NE(std::string(e.what()).find("s.fmv: chunk KGOP"), std::string::npos) << e.what();
+    }
+  }
+  // The header ends with the rotation step and the translation step (f64 each).
+  const auto translation_step = [](double step) {
+    return [step](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "HEAD") std::memcpy(payload.data() + payload.size() - 8, &step, 8);
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "a pose step that is not positive", [&] { decode_sequence_file(rebuild(bytes, translation_step(-1)), "p.fmv"); });
+  // A coarser step is a valid file that decodes the same rotations and other translations.
+  const Sequence coarser = decode_sequence_file(rebuild(bytes, translation_step(2 * m.field_coding.translation_step)), "c.fmv");
+  const Sequence same = decode_sequence_file(bytes, "g.fmv");
+  EXPECT_EQ(coarser.keyframes[1].pose.rotation, same.keyframes[1].pose.rotation);
+  EXPECT_EQ(coarser.keyframes[1].pose.translation, 2 * same.keyframes[1].pose.translation);
+  SequenceFileMetadata no_steps = m;
+  no_steps.field_coding.rotation_step = 0;
+  testing::expect_error(ErrorCode::kInvalidArgument, "pose steps", [&] { encode_sequence_file(small_sequence(9, 8), no_steps); });
+  Sequence far = small_sequence(9, 8);
+  far.keyframes[1].pose.translation.x() = 1e20;  // 1e17 km in mm: beyond 2^40 steps of 10 µm
+  testing::expect_error(ErrorCode::kInvalidArgument, "2^40 pose steps", [&] { encode_sequence_file(far, m); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "units", [&] {
+    FieldCoding c;
+    set_default_pose_steps(c, "inch");
+  });
 }
 
 TEST(Container, UnknownChunksAreSkippedUnlessCritical) {

@@ -1,5 +1,5 @@
 // Files written by earlier versions must keep decoding to the same surfaces. tests/data holds a small
-// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0, 1.3 by 0.5.0, 1.4 by 0.6.0), written with tests/data/make_golden.sh, and a sample of
+// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0, 1.3 by 0.5.0, 1.4 by 0.6.0, 1.5 by 0.7.0), written with tests/data/make_golden.sh, and a sample of
 // what it decoded to then: grid positions at keyframe times, between keyframes and past the ends.
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -111,7 +111,10 @@ void expect_golden_predicted(const std::string& version, uint16_t minor_version,
 TEST(GoldenFile, Version1_3DecodesAsItDidWhenWritten) { expect_golden_predicted("1_3", 3, "facemorph 0.5.0", FieldCoding::Residuals::kRangeCodedV13); }
 
 // Format 1.4: models carried along chains of predicted keyframes, float32 poses (field coding 3).
-TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) { expect_golden_predicted("1_4", 4, "facemorph 0.6.0", FieldCoding::Residuals::kRangeCoded); }
+TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) { expect_golden_predicted("1_4", 4, "facemorph 0.6.0", FieldCoding::Residuals::kRangeCodedV14); }
+
+// Format 1.5: a chunk and one range-coded stream per group of keyframes, quantised poses (field coding 4).
+TEST(GoldenFile, Version1_5DecodesAsItDidWhenWritten) { expect_golden_predicted("1_5", 5, "facemorph 0.7.0", FieldCoding::Residuals::kRangeCoded); }
 
 }  // namespace
 }  // namespace facemorph

@@ -1,5 +1,5 @@
-// A Sequence as a .fmv file (spec/container.md): the header, the keyframe index, one chunk of
-// fields, pose and holes per keyframe, one texture chunk per keyframe. What fmenc writes, fmdec and
+// A Sequence as a .fmv file (spec/container.md): the header, the keyframe index, the fields, pose
+// and holes of every keyframe (one chunk per group of keyframes), one texture chunk per keyframe. What fmenc writes, fmdec and
 // players read, fminfo describes.
 #pragma once
 
@@ -30,17 +30,30 @@ struct FieldCoding {
   int intra_period = 8;
   // Whether keyframe `keyframe` must be coded without the previous one (it is a multiple of P).
   bool intra(size_t keyframe) const { return keyframe % static_cast<size_t>(intra_period) == 0; }
-  // How predicted keyframes are stored (spec/container.md §7.3):
-  //   kRangeCoded: format 1.4's field coding 3, the default. Residuals range-coded under adaptive
-  //     context models that a keyframe predicted from the previous one continues from where the
-  //     previous keyframe's stream left them; the pose as float32 rotation vector and translation.
+  // How predicted keyframes are stored (spec/container.md §7.3-7.5):
+  //   kRangeCoded: format 1.5's field coding 4, the default. Every intra period's keyframes in one
+  //     chunk and one range-coded stream: references and predictors as modelled decisions, the pose
+  //     as integer multiples of pose_steps coded as its change from the previous keyframe, the
+  //     residuals under adaptive context models carried through the group.
+  //   kRangeCodedV14: 1.4's field coding 3, which facemorph 0.6 decoders read: a chunk per
+  //     keyframe, models carried from the previous keyframe, the pose as float32.
   //   kRangeCodedV13: 1.3's field coding 2, which facemorph 0.5 decoders read: models fresh in every
   //     keyframe, the pose as float64 matrix and translation.
   //   kZstdVarints: 1.1's field coding 1, which 0.3 and 0.4 decoders read.
-  enum class Residuals { kRangeCoded, kRangeCodedV13, kZstdVarints };
+  enum class Residuals { kRangeCoded, kRangeCodedV14, kRangeCodedV13, kZstdVarints };
   Residuals residuals = Residuals::kRangeCoded;
+  // Field coding 4's pose quantisation: the rotation vector log R in multiples of rotation_step
+  // radians, the translation in multiples of translation_step (the capture's units). Both must be
+  // set (default_pose_steps) where residuals is kRangeCoded; other codings ignore them.
+  double rotation_step = 0, translation_step = 0;
   bool predicted() const { return !steps.empty(); }
 };
+
+// Field coding 4's pose steps as facemorph's encoder sets them: 10⁻⁵ rad and 10 µm in `units`
+// (m, cm or mm), 1.5 µm at the far side of a face for the rotation. Thirty times below the
+// smallest geometry error the encoder aims at (0.1% of a ~30 cm diagonal), and 2-3 bytes a
+// component where a float32 takes 4 (spec/container.md §7.5). kInvalidArgument for other units.
+void set_default_pose_steps(FieldCoding& coding, const std::string& units);
 
 // What a file says about itself besides the sequence.
 struct SequenceFileMetadata {
@@ -68,13 +81,15 @@ struct SequenceFileInfo {
   };
   std::vector<ChunkTotal> chunks;  // per type, in order of first appearance
   struct KeyframeBytes {
-    uint64_t fields = 0, texture = 0;  // chunk sizes in the file
+    // Chunk sizes in the file. Field coding 4 shares a chunk among a group of keyframes: each gets
+    // the bytes its part of the stream took (the first also the chunk's framing).
+    uint64_t fields = 0, texture = 0;
   };
   std::vector<KeyframeBytes> keyframes;
 };
 
-// The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose to
-// float32 where the coding stores it so (kRangeCoded): exactly what a file with that coding stores,
+// The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose as
+// the coding stores it (float32 in kRangeCodedV14, multiples of the pose steps in kRangeCoded): exactly what a file with that coding stores,
 // so an encoder that keeps these values decodes from memory what a player decodes from the file. Throws kInvalidArgument for steps that are not kKeyframeArrayCount
 // finite positive numbers, or a value more than 2³⁰ steps from 0.
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
