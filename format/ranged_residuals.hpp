@@ -1,4 +1,4 @@
-// Residuals of a predicted keyframe range-coded (field coding 2, spec/container.md §7.4): each
+// Residuals of predicted keyframes range-coded (field codings 2-4, spec/container.md §7.4, §7.5): each
 // residual becomes a few yes/no decisions — zero?, sign, then "larger than 1, 2, …" and an
 // Exp-Golomb escape — coded under adaptive models chosen by the size of the residuals already coded
 // beside it. Smooth fields leave runs of small residuals where their neighbours are small, and large

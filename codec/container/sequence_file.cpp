@@ -315,9 +315,9 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
   ByteReader r(payload, source + ": index");
   const uint32_t count = r.read<uint32_t>("the entry count");
   if (count != keyframes) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(keyframes) + " keyframes");
-  std::vector<IndexEntry> entries(count);
   if (group == 0) {
     r.require(size_t{count} * kIndexEntryBytes, "the entries");
+    std::vector<IndexEntry> entries(count);
     for (IndexEntry& e : entries) {
       e.time = read_finite(r, "a keyframe time");
       e.keyframe_offset = r.read<uint64_t>("a keyframe offset");
@@ -327,6 +327,7 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
   }
   const size_t groups = (count + group - 1) / group;
   r.require(size_t{8} * (count + groups + (textured ? count : 0)), "the entries");
+  std::vector<IndexEntry> entries(count);
   for (IndexEntry& e : entries) e.time = read_finite(r, "a keyframe time");
   for (size_t g = 0; g < groups; ++g) {
     const uint64_t offset = r.read<uint64_t>("a group offset");
@@ -743,6 +744,9 @@ PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
     if (!(std::abs(r) < static_cast<double>(kMaxPoseCode)) || !(std::abs(t) < static_cast<double>(kMaxPoseCode))) {
       throw Error(ErrorCode::kInvalidArgument, "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
     }
+    if (std::abs(coding.rotation_step * r) > kMaxRotationComponent) {
+      throw Error(ErrorCode::kInvalidArgument, "a rotation step of " + std::to_string(coding.rotation_step) + " rad rounds a rotation vector beyond 4");
+    }
     codes[static_cast<size_t>(k)] = static_cast<int64_t>(r);
     codes[static_cast<size_t>(3 + k)] = static_cast<int64_t>(t);
   }
@@ -792,7 +796,8 @@ std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_
 }
 
 // Reads the KGOP payload of keyframes first .. first + count - 1 (their times are the index's).
-// `bytes[j]`: where keyframe j's part of the stream ended, from the payload's start.
+// `ends[j]`: where keyframe j's part of the stream ended, from the payload's start. Keyframes are
+// allocated as they are decoded: a group's count alone allocates nothing.
 std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t first, uint32_t count,
                                           std::vector<uint64_t>& ends) {
   ByteReader r(payload, where);
@@ -807,10 +812,11 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
   GroupModels models;
   std::vector<std::vector<int32_t>> codes;
   PoseCodes pose{};
-  std::vector<Keyframe> keys(count);
-  ends.assign(count, 0);
+  std::vector<Keyframe> keys;
+  ends.clear();
   for (uint32_t j = 0; j < count; ++j) {
     const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
+    Keyframe& key = keys.emplace_back();
     const uint8_t reference = j > 0 && stream.decision(models.reference) ? kFromPreviousKeyframe : kIntra;
     std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -826,10 +832,10 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
     for (size_t k = 0; k < 3; ++k) {
       if (std::abs(coding.rotation_step * static_cast<double>(pose[k])) > kMaxRotationComponent) corrupt(keyframe_where, "a rotation vector component beyond 4");
     }
-    keys[j].pose = pose_of(pose, coding);
+    key.pose = pose_of(pose, coding);
     const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
-    set_keyframe_arrays(keys[j], arrays_from_residuals(residuals, predictors, reference, codes, h, keyframe_where), h, keyframe_where);
-    ends[j] = stream_start + stream.position();
+    set_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, reference, codes, h, keyframe_where), h, keyframe_where);
+    ends.push_back(stream_start + stream.position());
   }
   stream.expect_end();
   return keys;
@@ -961,7 +967,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     if (group == 0 || k % group == 0) {
       if (writer.add(fields[k]) != entries[k].keyframe_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
     }
-    if (!textures.empty()) writer.add(textures[k]);
+    if (!textures.empty() && writer.add(textures[k]) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
   }
   return writer.finish();
 }
@@ -1002,8 +1008,9 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
       const size_t j = k % group;
       if (j == 0) {
         const auto count = static_cast<uint32_t>(std::min<size_t>(group, index.size() - k));
+        // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
+        if (chunk.compressed()) corrupt(source, reader.describe(chunk) + " is compressed; a group's chunk never is");
         group_keys = read_keyframe_group(reader.payload(chunk), source + ": " + reader.describe(chunk), header, k, count, group_ends);
-        group_ends.back() = chunk.raw_size;  // the last keyframe's part runs to the chunk's end
       }
       key = std::move(group_keys[j]);
       key.time = index[k].time;  // field coding 4 stores it in the index only

@@ -507,6 +507,13 @@ TEST(Container, KeyframeGroupsThatBreakTheirRulesAreCorrupt) {
   Sequence far = small_sequence(9, 8);
   far.keyframes[1].pose.translation.x() = 1e20;  // 1e17 km in mm: beyond 2^40 steps of 10 µm
   testing::expect_error(ErrorCode::kInvalidArgument, "2^40 pose steps", [&] { encode_sequence_file(far, m); });
+  // A rotation step so coarse that a rotation of 3.1 rad rounds to a vector beyond 4, which no
+  // decoder would accept.
+  Sequence turned = small_sequence(9, 8);
+  turned.keyframes[1].pose.rotation = Eigen::AngleAxisd(3.1, Vec3(0, 1, 0)).toRotationMatrix();
+  SequenceFileMetadata coarse = m;
+  coarse.field_coding.rotation_step = 4.5;
+  testing::expect_error(ErrorCode::kInvalidArgument, "beyond 4", [&] { encode_sequence_file(turned, coarse); });
   testing::expect_error(ErrorCode::kInvalidArgument, "units", [&] {
     FieldCoding c;
     set_default_pose_steps(c, "inch");

@@ -44,7 +44,7 @@ struct FieldCoding {
   Residuals residuals = Residuals::kRangeCoded;
   // Field coding 4's pose quantisation: the rotation vector log R in multiples of rotation_step
   // radians, the translation in multiples of translation_step (the capture's units). Both must be
-  // set (default_pose_steps) where residuals is kRangeCoded; other codings ignore them.
+  // set (set_default_pose_steps) where residuals is kRangeCoded; other codings ignore them.
   double rotation_step = 0, translation_step = 0;
   bool predicted() const { return !steps.empty(); }
 };
