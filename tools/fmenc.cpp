@@ -52,7 +52,7 @@ int parse_intra_period(const std::string& text) {
 // re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
 // measure the blend against).
 void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality,
-            FieldCoding::Residuals residuals, bool quiet) {
+            bool quiet) {
   if (quality == kAutoTextureQuality) quality = options.texture_coding.fallback_quality;
   SequenceFileInfo info;
   Sequence sequence = read_sequence_file(input, &info);
@@ -63,7 +63,6 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   metadata.field_coding = {};
   FieldPrecisionReport precision;
   if (options.predicted_fields) metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
-  metadata.field_coding.residuals = residuals;
   write_sequence_file(output, sequence, metadata);
   if (quiet) return;
   std::printf("fmenc: %s re-coded to %s: %llu bytes (was %llu)\n", input.c_str(), output.c_str(),
@@ -247,10 +246,9 @@ int main(int argc, char** argv) {
     if (!residual_codings.count(field_residuals)) {
       throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.4, range-1.3 and zstd");
     }
-    const FieldCoding::Residuals residuals = residual_codings.at(field_residuals);
-    options.field_precision.residuals = residuals;
+    options.field_precision.residuals = residual_codings.at(field_residuals);
     if (std::filesystem::path(input).extension() == ".fmv") {
-      recode(input, output, options, quality, residuals, quiet);
+      recode(input, output, options, quality, quiet);
       return 0;
     }
     const Capture capture = open_capture(input, fps, landmarks);
@@ -273,8 +271,7 @@ int main(int argc, char** argv) {
     metadata.landmark_names = capture.landmark_names;
     metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.texture_codec = options.texture_codec;
-    metadata.field_coding = report.field_coding;
-    metadata.field_coding.residuals = residuals;
+    metadata.field_coding = report.field_coding;  // coded as options.field_precision.residuals says
     write_sequence_file(output, sequence, metadata);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);

@@ -502,6 +502,20 @@ const format::LatticeNeighbours* lattice_of(size_t array, size_t length, const G
   return lattice && lattice->size() == length ? lattice : nullptr;  // an empty array has none
 }
 
+// lattice_of for every array of a keyframe, given their lengths (the header's, or the arrays').
+std::vector<const format::LatticeNeighbours*> lattices_of(const std::vector<size_t>& lengths, const GridFacts& grid) {
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < lengths.size(); ++a) lattices.push_back(lattice_of(a, lengths[a], grid));
+  return lattices;
+}
+
+template <typename T>
+std::vector<size_t> lengths_of(const std::vector<std::vector<T>>& arrays) {
+  std::vector<size_t> lengths;
+  for (const std::vector<T>& a : arrays) lengths.push_back(a.size());
+  return lengths;
+}
+
 int32_t field_code(double value, double step) {
   const double code = std::nearbyint(value / step);
   if (!(std::abs(code) < static_cast<double>(kMaxFieldCode))) {
@@ -662,8 +676,7 @@ std::vector<uint8_t> write_predicted_keyframe(const Keyframe& key, uint32_t numb
     residuals.push_back(std::move(coded[a].residuals));
   }
   if (chained(coder)) w.write(packed);
-  std::vector<const format::LatticeNeighbours*> lattices;
-  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, residuals[a].size(), grid));
+  const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(lengths_of(residuals), grid);
   // Field coding 3 continues the previous keyframe's models where this one is coded from it (a
   // player decodes that keyframe first anyway), and starts fresh where it is intra.
   if (reference == kIntra) models.clear();
@@ -710,8 +723,7 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
   }
   const uint32_t coded = r.read<uint32_t>("the coded size");
   const auto stream = r.bytes(coded, "the coded residuals");
-  std::vector<const format::LatticeNeighbours*> lattices;
-  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, expected[a], grid));
+  const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
   if (reference == kIntra) models.clear();
   const std::vector<std::vector<int64_t>> residuals =
       !range_coded(coder) ? format::decode_residual_stream(stream, expected, where)
@@ -769,13 +781,14 @@ std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_
   GroupModels models;
   std::vector<std::vector<int32_t>> previous;
   PoseCodes previous_pose{};
+  std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (validate_sequence)
   for (size_t j = 0; j < count; ++j) {
     const Keyframe& key = s.keyframes[first + j];
     std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
+    if (j == 0) lattices = lattices_of(lengths_of(codes), grid);
     Prediction prediction = choose_prediction(codes, j > 0 ? &previous : nullptr, grid, coding.residuals);
     if (j > 0) stream.decision(models.reference, prediction.reference == kFromPreviousKeyframe);
     std::vector<std::vector<int64_t>> residuals;
-    std::vector<const format::LatticeNeighbours*> lattices;
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
       if (!codes[a].empty()) {
         const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
@@ -783,7 +796,6 @@ std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_
         stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
       }
       residuals.push_back(std::move(prediction.arrays[a].residuals));
-      lattices.push_back(lattice_of(a, residuals[a].size(), grid));
     }
     const PoseCodes pose = pose_codes(key.pose, coding);
     for (size_t i = 0; i < kPoseCodes; ++i) stream.number(models.pose[pose_model(i)], pose[i] - previous_pose[i]);
@@ -807,8 +819,7 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
   const FieldCoding& coding = h.metadata.field_coding;
   const std::vector<size_t> expected = expected_lengths(h);
   const GridFacts& grid = grid_facts(h.shape.grid_n);
-  std::vector<const format::LatticeNeighbours*> lattices;
-  for (size_t a = 0; a < kKeyframeArrays; ++a) lattices.push_back(lattice_of(a, expected[a], grid));
+  const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
   GroupModels models;
   std::vector<std::vector<int32_t>> codes;
   PoseCodes pose{};
@@ -1002,7 +1013,6 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
     if (chunk.type != keyframe_type) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(keyframe_type));
-    const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
     Keyframe key;
     if (group > 0) {
       const size_t j = k % group;
@@ -1016,6 +1026,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
       key.time = index[k].time;  // field coding 4 stores it in the index only
       sizes[k].fields = group_ends[j] - (j > 0 ? group_ends[j - 1] : 0) + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
     } else {
+      const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
       key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes, models) : read_keyframe(reader.payload(chunk), where, header, k);
       if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
       sizes[k].fields = chunk.total_size();
