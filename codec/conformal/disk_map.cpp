@@ -24,34 +24,60 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
-const char* conformal_method_name(ConformalMethod method) { return method == ConformalMethod::kQiem ? "qiem" : "linear"; }
-
-ConformalMethod parse_conformal_method(const std::string& name) {
-  if (name == "qiem") return ConformalMethod::kQiem;
-  if (name == "linear") return ConformalMethod::kLinear;
-  throw Error(ErrorCode::kInvalidArgument, "unknown conformal method '" + name + "' (qiem, linear)");
+const char* conformal_method_name(ConformalMethod method) {
+  switch (method) {
+    case ConformalMethod::kQiem: return "qiem";
+    case ConformalMethod::kLinear: return "linear";
+    case ConformalMethod::kTutte: return "tutte";
+  }
+  return "?";
 }
 
-DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& options) {
-  auto start = std::chrono::steady_clock::now();
+ConformalMethod parse_conformal_method(const std::string& name) {
+  for (ConformalMethod method : {ConformalMethod::kQiem, ConformalMethod::kLinear, ConformalMethod::kTutte}) {
+    if (name == conformal_method_name(method)) return method;
+  }
+  throw Error(ErrorCode::kInvalidArgument, "unknown conformal method '" + name + "' (qiem, linear, tutte)");
+}
+
+namespace {
+
+DiskMap unmapped(const TriangleMesh& input) {
   DiskMap map;
   map.surface = input;
   map.source_vertex.resize(input.positions.size());
   for (size_t i = 0; i < map.source_vertex.size(); ++i) map.source_vertex[i] = static_cast<int>(i);
-  {
-    const MeshTopology topology(input.faces, input.vertex_count());
-    if (!topology.is_manifold() || topology.boundary_loops().size() != 1 || topology.euler_characteristic() != 1) {
-      throw Error(ErrorCode::kNotADisk, "the conformal map needs a disk (one boundary loop, Euler characteristic 1); got " +
-                                            std::to_string(topology.boundary_loops().size()) + " loops, Euler characteristic " +
-                                            std::to_string(topology.euler_characteristic()));
-    }
-  }
+  return map;
+}
+
+// The last resort (spec/method.md §3.6): Tutte's map of the disk as given, no preconditioning.
+DiskMap tutte_map(const TriangleMesh& input) {
+  auto start = std::chrono::steady_clock::now();
+  DiskMap map = unmapped(input);
+  map.rim = MeshTopology(map.surface.faces, map.surface.vertex_count()).boundary_loops()[0];
+  map.disk = tutte_disk_map(map.surface, map.rim);
+  for (int v : map.rim) map.disk[static_cast<size_t>(v)].normalize();
+  map.report.method = ConformalMethod::kTutte;
+  map.report.seconds_initial = seconds_since(start);
+  start = std::chrono::steady_clock::now();
+  finish_disk_map(map, {});
+  map.report.seconds_finish = seconds_since(start);
+  return map;
+}
+
+// Preconditioning, the linear map, and QIEM from it (unless options.method is kLinear); QIEM's
+// failures fall back to the linear map when options.fallback allows.
+DiskMap preconditioned_map(const TriangleMesh& input, const ConformalOptions& options) {
+  auto start = std::chrono::steady_clock::now();
+  DiskMap map = unmapped(input);
   ConformalReport& report = map.report;
   const DiskPreconditioning pre = precondition_disk(map.surface, map.source_vertex);
   report.split_chords = pre.split_chords;
   report.split_ears = pre.split_ears;
   report.split_obtuse_boundary = pre.split_obtuse_boundary;
   report.split_caps = pre.split_caps;
+  report.caps_left = pre.caps_left;
+  report.obtuse_boundary_left = pre.obtuse_boundary_left;
   const MeshTopology topology(map.surface.faces, map.surface.vertex_count());
   map.rim = topology.boundary_loops()[0];
   report.seconds_prepare = seconds_since(start);
@@ -116,6 +142,30 @@ DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& op
   finish_disk_map(map, qiem ? std::move(linear) : std::vector<Vec2>());
   report.seconds_finish = seconds_since(start);
   return map;
+}
+
+}  // namespace
+
+DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& options) {
+  {
+    const MeshTopology topology(input.faces, input.vertex_count());
+    if (!topology.is_manifold() || topology.boundary_loops().size() != 1 || topology.euler_characteristic() != 1) {
+      throw Error(ErrorCode::kNotADisk, "the conformal map needs a disk (one boundary loop, Euler characteristic 1); got " +
+                                            std::to_string(topology.boundary_loops().size()) + " loops, Euler characteristic " +
+                                            std::to_string(topology.euler_characteristic()));
+    }
+  }
+  if (options.method == ConformalMethod::kTutte) return tutte_map(input);
+  try {
+    return preconditioned_map(input, options);
+  } catch (const Error& e) {
+    // Whatever stopped the preconditioned maps (a solver, the intrinsic flips, untangling the
+    // linear map), Tutte's map needs none of it.
+    if (!options.fallback) throw;
+    DiskMap map = tutte_map(input);
+    map.report.fallback_reason = e.what();
+    return map;
+  }
 }
 
 }  // namespace facemorph

@@ -15,6 +15,9 @@ struct DiskPreconditioning {
   int split_ears = 0;             // faces with three boundary vertices, split at the centroid
   int split_obtuse_boundary = 0;  // boundary edges facing an obtuse angle, split at the midpoint
   int split_caps = 0;             // edges facing an angle above 150°, split at the altitude's foot
+  int caps_left = 0;              // caps still there when preconditioning stopped (see below)
+  int obtuse_boundary_left = 0;   // obtuse boundary edges still there
+  int rounds = 0;                 // rounds of splits taken
 };
 
 // Splits, in place, what would break the double cover or give it negative weights: chords and ears
@@ -24,6 +27,9 @@ struct DiskPreconditioning {
 // chords of the original triangle can then fold in the disk (ICT's mouth corners have 172°). Splits add real
 // surface points on existing edges (or a centroid), so the geometry is unchanged; UVs are
 // interpolated. `source_vertex` (one entry per vertex) grows with -1 for new vertices.
+// Terminates on every disk: ears and chords take at most two rounds and never come back; caps and
+// obtuse boundary edges get a bounded number of rounds each, and those left are counted in the
+// report (the cover's intrinsic flips and untangling cope with them at some cost in distortion).
 DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex);
 
 // Two copies of a disk glued along the boundary: vertices 0..n-1 are the disk's, n.. the mirror

@@ -22,4 +22,10 @@ IntrinsicMesh intrinsic_delaunay(const TriangleMesh& mesh);
 // Throws kNumerical when the system cannot be factored or solved.
 std::vector<Vec2> linear_disk_map(const TriangleMesh& mesh, const IntrinsicMesh& intrinsic, const std::vector<int>& rim);
 
+// The last resort: Tutte's map with positive weights that ignore the geometry (one per edge), the
+// rim at arc length. Needs nothing of the triangles' shapes, so it maps a disk whose preconditioning
+// or intrinsic weights failed; an embedding by Tutte's theorem (Floater: any positive weights), far
+// from conformal. Throws kNumerical only if the solver fails.
+std::vector<Vec2> tutte_disk_map(const TriangleMesh& mesh, const std::vector<int>& rim);
+
 }  // namespace facemorph

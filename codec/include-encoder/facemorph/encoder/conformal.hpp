@@ -18,13 +18,15 @@ namespace facemorph {
 enum class ConformalMethod {
   kQiem,    // conformal: double cover + QIEM (default)
   kLinear,  // harmonic map with the boundary on the circle at arc length: bijective, not conformal
+  kTutte,   // Tutte's map (positive weights blind to the geometry): the last resort, far from conformal
 };
 const char* conformal_method_name(ConformalMethod method);
-ConformalMethod parse_conformal_method(const std::string& name);  // "qiem" | "linear"
+ConformalMethod parse_conformal_method(const std::string& name);  // "qiem" | "linear" | "tutte"
 
 struct ConformalOptions {
   ConformalMethod method = ConformalMethod::kQiem;
-  bool fallback = true;           // use the linear map (and say so) if QIEM fails
+  // If QIEM fails, use the linear map; if the linear map fails too, Tutte's map (and say so).
+  bool fallback = true;
   int max_iterations = 100;
   // Stop when the relative harmonic-energy change is below this. Measured: angle statistics do not
   // change (to 0.001°) between 1e-7 and 1e-9 on synthetic, Medusa and ICT frames.
@@ -33,13 +35,15 @@ struct ConformalOptions {
 
 struct ConformalReport {
   ConformalMethod method = ConformalMethod::kQiem;  // the method that produced the map
-  std::string fallback_reason;     // non-empty when QIEM failed and the linear map was used
+  std::string fallback_reason;     // non-empty when the method asked for failed and `method` took over
   int iterations = 0;              // QIEM steps taken
   int factorizations = 0;          // numeric factorizations (one per step unless a step is redone)
   double energy = 0;               // final harmonic energy of the spherical map (4π when conformal)
   double energy_excess = 0;        // energy - area of the image (≥ 0; 0 when conformal)
   int intrinsic_flips = 0;         // edge flips to reach the intrinsic Delaunay triangulation
   int split_chords = 0, split_ears = 0, split_obtuse_boundary = 0, split_caps = 0;
+  int caps_left = 0, obtuse_boundary_left = 0;  // what preconditioning's bounded rounds left
+
   int flipped_triangles = 0;       // faces the method left with non-positive disk area...
   int untangled_vertices = 0;      // ...and the vertices re-placed (mean-value weights) to unflip them
   double seconds_prepare = 0;      // preconditioning, double cover, intrinsic Delaunay
@@ -59,8 +63,8 @@ struct DiskMap {
 };
 
 // Maps `surface` (a disk: one boundary loop, Euler characteristic 1; see prepare_frame) onto the
-// unit disk. Throws kNotADisk for other topology, kNumerical / kNotConverged when no method
-// succeeds. The image is orientation-preserving; its rotation and Möbius position are arbitrary
+// unit disk. Throws kNotADisk for other topology; with options.fallback, kNumerical only when even
+// Tutte's map fails (its solver), else what the method asked for throws. The image is orientation-preserving; its rotation and Möbius position are arbitrary
 // until normalize().
 DiskMap conformal_disk_map(const TriangleMesh& surface, const ConformalOptions& options = {});
 
