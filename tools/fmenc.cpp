@@ -94,6 +94,23 @@ double parse_dead_zone(const std::string& text) {
   }
 }
 
+// What fminfo shows of the frames the encoder dropped or mapped another way (spec/container.md §8).
+nlohmann::json dropped_json(const EncodeReport& report) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const DroppedFrame& d : report.dropped) list.push_back({{"frame", d.index}, {"name", d.name}, {"time", d.time}, {"reason", d.reason}});
+  return list;
+}
+
+nlohmann::json conformal_fallbacks_json(const EncodeReport& report) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const EncodedFrameReport& f : report.frames) {
+    if (!f.conformal_fallback_reason.empty()) {
+      list.push_back({{"name", f.name}, {"time", f.time}, {"method", conformal_method_name(f.conformal_method)}, {"reason", f.conformal_fallback_reason}});
+    }
+  }
+  return list;
+}
+
 nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
   return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
@@ -118,7 +135,12 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"intra_period_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_coding.intra_period) : nlohmann::json(nullptr)},
           {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"},
           {"inter_dead_zone", o.field_precision.inter_dead_zone == kAutoDeadZone ? nlohmann::json("auto") : nlohmann::json(o.field_precision.inter_dead_zone)},
-          {"inter_dead_zone_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_precision.inter_dead_zone) : nlohmann::json(nullptr)}};
+          {"inter_dead_zone_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_precision.inter_dead_zone) : nlohmann::json(nullptr)},
+          {"strict", o.strict},
+          {"reference_frame_chosen", report.reference_frame},
+          {"dropped_frames", dropped_json(report)},
+          {"conformal_fallbacks", conformal_fallbacks_json(report)},
+          {"warnings", report.warnings}};
 }
 
 }  // namespace
@@ -134,7 +156,7 @@ int main(int argc, char** argv) {
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
-  bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false;
+  bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
       ->required();
@@ -183,6 +205,9 @@ int main(int argc, char** argv) {
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
   app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
   app.add_option("--threads", threads, "Worker threads (0: one per core)")->capture_default_str();
+  app.add_flag("--strict", strict,
+               "End the encode at the first frame that cannot be read or mapped, or a landmark off its frame's surface (default: drop "
+               "the frame or ignore the landmark, and say so)");
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
   return tools::guarded_main(app, argc, argv, [&] {
     const auto start = std::chrono::steady_clock::now();
@@ -226,6 +251,7 @@ int main(int argc, char** argv) {
     options.keep_holes_filled = keep_holes_filled;
     options.largest_component = largest_component;
     options.threads = threads;
+    options.strict = strict;
     options.reference_frame = reference;
     options.density_equalising.strength = density_equalising;
     if (keyframe_fit != "on" && keyframe_fit != "off") throw Error(ErrorCode::kInvalidArgument, "--keyframe-fit '" + keyframe_fit + "' is neither on nor off");
@@ -277,7 +303,7 @@ int main(int argc, char** argv) {
     const double seconds = tools::seconds_since(start);
     const auto bytes = std::filesystem::file_size(output);
     const double duration = capture.duration() + 1.0 / capture.fps;
-    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size(), sequence.keyframes.size());
+    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size() - report.dropped.size(), sequence.keyframes.size());
     for (const Keyframe& key : sequence.keyframes) std::printf(" %.3f", key.time);
     std::printf(" s\n");
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
@@ -324,8 +350,16 @@ int main(int argc, char** argv) {
       }
     }
     for (const EncodedFrameReport& f : report.frames) {
-      if (!f.conformal_fallback_reason.empty()) std::printf("  %s: mapped by the linear map: %s\n", f.name.c_str(), f.conformal_fallback_reason.c_str());
+      if (!f.conformal_fallback_reason.empty()) {
+        std::printf("  %s: mapped by the %s map: %s\n", f.name.c_str(), conformal_method_name(f.conformal_method), f.conformal_fallback_reason.c_str());
+      }
     }
+    if (!report.dropped.empty()) {
+      std::printf("  %zu of %zu frames dropped (the spline covers their times; --strict ends the encode instead):\n", report.dropped.size(),
+                  capture.frames.size());
+      for (const DroppedFrame& d : report.dropped) std::printf("    %s (frame %d, %.3f s): %s\n", d.name.c_str(), d.index, d.time, d.reason.c_str());
+    }
+    for (const std::string& warning : report.warnings) std::printf("  warning: %s\n", warning.c_str());
     std::string last;
     for (const EncodedFrameReport& f : report.frames) {
       if (f.repair == "valid as captured" || f.repair == last) continue;

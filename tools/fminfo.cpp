@@ -145,6 +145,34 @@ const char* residual_coder_name(FieldCoding::Residuals residuals) {
 
 // A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.
 
+// What the encoder dropped, mapped another way or warned about, from the settings it stored
+// (spec/container.md §8): written by fmenc 0.8 on, absent before.
+void print_encoder_notes(const std::string& settings_text) {
+  const nlohmann::json settings = nlohmann::json::parse(settings_text.empty() ? "{}" : settings_text, nullptr, false);
+  if (!settings.is_object()) return;
+  auto list = [&](const char* key) { return settings.contains(key) && settings[key].is_array() ? settings[key] : nlohmann::json::array(); };
+  auto text = [](const nlohmann::json& item, const char* key) {
+    return item.is_object() && item.contains(key) && item[key].is_string() ? item[key].get<std::string>() : std::string("?");
+  };
+  auto number = [](const nlohmann::json& item, const char* key) {
+    return item.is_object() && item.contains(key) && item[key].is_number() ? item[key].get<double>() : 0.0;
+  };
+  const nlohmann::json dropped = list("dropped_frames"), fallbacks = list("conformal_fallbacks"), warnings = list("warnings");
+  if (!dropped.empty()) {
+    std::printf("dropped     %zu frames, not encoded (the spline covers their times):\n", dropped.size());
+    for (const auto& d : dropped) std::printf("            %s at %.3f s: %s\n", text(d, "name").c_str(), number(d, "time"), text(d, "reason").c_str());
+  }
+  if (!fallbacks.empty()) {
+    std::printf("fallbacks   %zu frames mapped without QIEM:\n", fallbacks.size());
+    for (const auto& f : fallbacks) {
+      std::printf("            %s at %.3f s, %s map: %s\n", text(f, "name").c_str(), number(f, "time"), text(f, "method").c_str(), text(f, "reason").c_str());
+    }
+  }
+  for (const auto& w : warnings) {
+    if (w.is_string()) std::printf("warning     %s\n", w.get<std::string>().c_str());
+  }
+}
+
 int describe_container(const fs::path& path, bool json_out) {
   SequenceFileInfo info;
   const Sequence sequence = read_sequence_file(path, &info);
@@ -231,6 +259,7 @@ int describe_container(const fs::path& path, bool json_out) {
                 static_cast<unsigned long long>(c.raw_bytes));
   }
   if (!info.metadata.settings.empty()) std::printf("settings    %s\n", info.metadata.settings.c_str());
+  print_encoder_notes(info.metadata.settings);
   return 0;
 }
 

@@ -191,6 +191,16 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
 SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) : capture_(capture), options_(std::move(options)) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
+  if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
+  if (capture_.landmarks.size() != capture_.frames.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
+                                                 std::to_string(count) + " frames");
+  }
+  source_index_.resize(static_cast<size_t>(count));
+  std::iota(source_index_.begin(), source_index_.end(), 0);
+  first_time_ = capture_.frames.front().time;
+  last_time_ = capture_.frames.back().time;
+  if (!(options_.landmark_tolerance > 0)) throw Error(ErrorCode::kInvalidArgument, "the landmark tolerance must be positive");
   if (options_.reference_frame < 0 || options_.reference_frame >= count) {
     throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(options_.reference_frame) + " is not a frame of the capture");
   }
@@ -223,29 +233,122 @@ void SequenceEncoder::progress(const std::string& stage, int done, int total) co
   if (options_.progress) options_.progress(stage, done, total);
 }
 
+namespace {
+
+std::string length_text(double value, const std::string& units) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.3g %s", value, units.c_str());
+  return text;
+}
+
+}  // namespace
+
+SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const std::string& name) {
+  // Stages name their frame; the report names it once.
+  std::string reason = e.what();
+  if (reason.rfind(name + ": ", 0) == 0) reason.erase(0, name.size() + 2);
+  return {e.code(), reason};
+}
+
+void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings) {
+  if (mesh.positions.empty() || mesh.faces.empty()) return;
+  const PointToMesh surface(mesh);
+  const double diagonal = bbox_diagonal(mesh.positions);
+  const std::string& name = capture_.frames[index].mesh.string();
+  for (size_t l = 0; l < capture_.landmark_names.size(); ++l) {
+    Vec3& point = capture_.landmarks[index][l];
+    if (!point.allFinite()) continue;
+    const double distance = surface.distance(point);
+    if (distance <= options_.landmark_tolerance * diagonal) continue;
+    char share[32];
+    std::snprintf(share, sizeof share, "%.3g%%", 100 * distance / diagonal);
+    const std::string what = "landmark '" + capture_.landmark_names[l] + "' lies " + length_text(distance, capture_.units) + " (" + share +
+                             " of the frame's diagonal) off its surface, farther than the " + length_text(100 * options_.landmark_tolerance, "%") +
+                             " allowed";
+    if (options_.strict) throw Error(ErrorCode::kInvalidArgument, name + ": " + what);
+    warnings.push_back(name + ": " + what + "; ignored");
+    point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
+}
+
+void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
+  std::vector<size_t> kept;
+  for (size_t i = 0; i < failures.size(); ++i) {
+    if (failures[i].code == ErrorCode::kOk) {
+      kept.push_back(i);
+      continue;
+    }
+    report_.dropped.push_back({source_index_[i], capture_.frames[i].mesh.string(), capture_.frames[i].time, failures[i].reason});
+  }
+  if (kept.size() == failures.size()) return;
+  if (kept.empty()) {
+    const DroppedFrame& first = report_.dropped.front();
+    const auto it = std::find_if(failures.begin(), failures.end(), [](const FrameFailure& f) { return f.code != ErrorCode::kOk; });
+    throw Error(it->code, "no frame of the capture could be encoded (" + std::to_string(failures.size()) + " dropped); the first, " +
+                              first.name + ": " + first.reason);
+  }
+  // The reference moves to the nearest frame kept (the earlier of two as near).
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  size_t new_reference = 0;
+  for (size_t k = 0; k < kept.size(); ++k) {
+    const double d = std::abs(capture_.frames[kept[k]].time - capture_.frames[reference].time);
+    if (d < std::abs(capture_.frames[kept[new_reference]].time - capture_.frames[reference].time)) new_reference = k;
+  }
+  if (kept[new_reference] != reference) {
+    report_.warnings.push_back(capture_.frames[reference].mesh.string() + ": the reference frame was dropped; " +
+                               capture_.frames[kept[new_reference]].mesh.string() + " is the reference instead");
+  }
+  options_.reference_frame = static_cast<int>(new_reference);
+  auto compact = [&](auto& items) {
+    if (items.size() != failures.size()) return;
+    std::remove_reference_t<decltype(items)> out;
+    out.reserve(kept.size());
+    for (size_t i : kept) out.push_back(std::move(items[i]));
+    items = std::move(out);
+  };
+  compact(capture_.frames);
+  compact(capture_.landmarks);
+  compact(source_index_);
+  compact(frames_);
+  compact(textures_);
+  compact(landmarks_);
+  compact(registrations_);
+}
+
 void SequenceEncoder::map_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
   frames_.assign(static_cast<size_t>(count), {});
   textures_.assign(static_cast<size_t>(count), {});
+  std::vector<FrameFailure> failures(static_cast<size_t>(count));
+  std::vector<std::vector<std::string>> warnings(static_cast<size_t>(count));
   parallel_for(
       count, options_.threads,
       [&](int i) {
         const auto index = static_cast<size_t>(i);
         const std::string name = capture_.frames[index].mesh.string();
-        const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
-        if (!landmarks.centre || !landmarks.up) {
-          throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
-                                                       " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
+        try {
+          const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
+          ignore_far_landmarks(mesh, index, warnings[index]);
+          const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
+          if (!landmarks.centre || !landmarks.up) {
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
+                                                         " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
+          }
+          textures_[index] = mesh.texture;
+          MapFrameOptions map_options;
+          map_options.keep_largest_component = options_.largest_component;
+          map_options.conformal = options_.conformal;
+          frames_[index] = map_frame(mesh, name, landmarks, map_options);
+        } catch (const Error& e) {
+          if (options_.strict) throw;
+          failures[index] = failure_of(e, name);
         }
-        const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
-        textures_[index] = mesh.texture;
-        MapFrameOptions map_options;
-        map_options.keep_largest_component = options_.largest_component;
-        map_options.conformal = options_.conformal;
-        frames_[index] = map_frame(mesh, name, landmarks, map_options);
       },
       [&](int done, int total) { progress("mapping", done, total); });
+  for (auto& w : warnings) report_.warnings.insert(report_.warnings.end(), w.begin(), w.end());
+  drop_frames(failures);
+  report_.reference_frame = source_index_[static_cast<size_t>(options_.reference_frame)];
   report_.seconds_mapping = seconds_since(start);
 }
 
@@ -270,22 +373,31 @@ void SequenceEncoder::register_frames() {
       throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
     }
   }
+  std::vector<FrameFailure> failures(static_cast<size_t>(count));
   parallel_for(
       count, options_.threads,
       [&](int i) {
         const auto index = static_cast<size_t>(i);
-        landmarks_[index] = disk_landmarks(capture_, reference, frames_[reference].map, index, frames_[index].map);
-        if (landmarks_[index].reference.size() < 3) {
-          throw Error(ErrorCode::kInvalidArgument, frames_[index].name + ": frame " + std::to_string(i) + " shares only " +
-                                                       std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
-        }
         try {
-          registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
+          landmarks_[index] = disk_landmarks(capture_, reference, frames_[reference].map, index, frames_[index].map);
+          if (landmarks_[index].reference.size() < 3) {
+            throw Error(ErrorCode::kInvalidArgument, frames_[index].name + ": frame " + std::to_string(i) + " shares only " +
+                                                         std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
+          }
+          try {
+            registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
+          } catch (const Error& e) {
+            throw Error(e.code(), frames_[index].name + ": registration: " + e.what());
+          }
         } catch (const Error& e) {
-          throw Error(e.code(), frames_[index].name + ": registration: " + e.what());
+          // The reference cannot be dropped here: every other frame is already registered to it.
+          if (options_.strict || index == reference) throw;
+          failures[index] = failure_of(e, frames_[index].name);
         }
       },
       [&](int done, int total) { progress("registering", done, total); });
+  drop_frames(failures);
+  std::sort(report_.dropped.begin(), report_.dropped.end(), [](const DroppedFrame& a, const DroppedFrame& b) { return a.index < b.index; });
   report_.seconds_registration = seconds_since(start);
 }
 
@@ -425,8 +537,8 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   sequence.representation = options_.representation;
   sequence.spline = options_.spline;
   sequence.fps = capture_.fps;
-  sequence.first_time = capture_.frames.front().time;
-  sequence.last_time = capture_.frames.back().time;
+  sequence.first_time = first_time_;
+  sequence.last_time = last_time_;
   sequence.units = capture_.units;
   sequence.pose_centre = pose_centre();
   sequence.keyframes.resize(keys);
@@ -536,8 +648,9 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
     const double noise = frame_noise(selection_, node_weights_, keyframes[static_cast<size_t>(k)]);
     // A move beyond κ times the frame's own noise would fit the spline's systematic error between
     // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
-    // stay its frames).
-    const double scale = std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300));
+    // stay its frames). Fewer than 5 frames give no estimate of the noise, so nothing bounds the
+    // move: the keyframe stays its frame.
+    const double scale = std::isfinite(noise) ? std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300)) : 0.0;
     flat(own) += scale * (fitted.col(k) - flat(own));
   }
 }
@@ -620,7 +733,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
     const DiskRegistration& registration = encoder.registration(i);
     EncodedFrameReport r;
     r.name = frame.name;
-    r.time = capture.frames[static_cast<size_t>(i)].time;
+    r.time = encoder.capture().frames[static_cast<size_t>(i)].time;
     r.vertices = frame.prepared.mesh.vertex_count();
     r.holes_filled = static_cast<int>(frame.prepared.report.holes.size());
     r.repair = frame.prepared.report.summary();
@@ -628,6 +741,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;
     r.conformal_fallback_reason = frame.map.report.fallback_reason;
+    r.conformal_method = frame.map.report.method;
     r.energy_moebius = registration.energy_moebius;
     r.energy = registration.energy;
     r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];

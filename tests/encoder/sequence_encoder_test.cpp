@@ -21,6 +21,18 @@
 namespace facemorph {
 namespace {
 
+// `mesh` with a second surface beside it (a loose eyeball, say): not one open surface any more.
+TriangleMesh with_a_second_component(TriangleMesh mesh) {
+  mesh.uvs.clear();
+  mesh.uv_faces.clear();
+  mesh.texture.clear();
+  const auto offset = static_cast<int32_t>(mesh.positions.size());
+  const TriangleMesh ball = testing::icosphere(0.01, 1);
+  for (const Vec3& p : ball.positions) mesh.positions.push_back(p + Vec3(0.3, 0, 0));
+  for (const Face& f : ball.faces) mesh.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
+  return mesh;
+}
+
 Capture small_capture(const testing::TempDir& dir, double head_motion, double noise = 0) {
   SynthOptions options;
   options.frames = 12;
@@ -382,6 +394,7 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
   EncodeOptions options;
   options.grid = 33;
   options.texture = false;
+  options.strict = true;
   // A frame without its nose tip cannot be put in the reference pose.
   Capture no_nose = capture;
   no_nose.landmarks[2][static_cast<size_t>(no_nose.landmark_index("nose_tip"))] = Vec3::Constant(std::nan(""));
@@ -398,6 +411,87 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
   options.keyframe_fraction = 0.5;
   options.reference_frame = 9;
   testing::expect_error(ErrorCode::kInvalidArgument, "reference frame 9", [&] { encode_capture(capture, options); });
+  options.reference_frame = 0;
+  options.landmark_tolerance = 0;
+  testing::expect_error(ErrorCode::kInvalidArgument, "landmark tolerance", [&] { encode_capture(capture, options); });
+}
+
+// Without --strict, a frame that cannot be encoded is dropped and named, never chosen as a
+// keyframe, and the spline covers its time; a landmark off its frame's surface is ignored and
+// named. Here: frame 5 has a second surface (an eyeball), frame 8's nose tip lies 5 cm off it (so
+// frame 8 cannot be put in the reference pose either), frame 3's chin lies 5 cm off (chin_bottom_midline) (ignored; the
+// frame is kept).
+TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 0);
+  const TriangleMesh frame5 = read_mesh(capture.mesh_path(5), {.allow_missing_texture = true});
+  write_mesh(capture.mesh_path(5), with_a_second_component(frame5));
+  const auto nose = static_cast<size_t>(capture.landmark_index("nose_tip")), chin = static_cast<size_t>(capture.landmark_index("chin_bottom_midline"));
+  ASSERT_LT(chin, capture.landmark_names.size());
+  capture.landmarks[8][nose] += Vec3(0, 0, 0.05);
+  capture.landmarks[3][chin] += Vec3(0, 0, 0.05);
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 49;
+  options.texture = false;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  ASSERT_EQ(report.dropped.size(), 2u);
+  EXPECT_EQ(report.dropped[0].index, 5);
+  EXPECT_NE(report.dropped[0].reason.find("2 components"), std::string::npos) << report.dropped[0].reason;
+  EXPECT_EQ(report.dropped[0].name, capture.frames[5].mesh.string());
+  EXPECT_EQ(report.dropped[1].index, 8);
+  EXPECT_NE(report.dropped[1].reason.find("lacks the landmarks nose_tip"), std::string::npos) << report.dropped[1].reason;
+  EXPECT_EQ(report.frames.size(), 10u);
+  std::string warnings;
+  for (const std::string& w : report.warnings) warnings += w + "\n";
+  EXPECT_NE(warnings.find(capture.frames[8].mesh.string() + ": landmark 'nose_tip' lies "), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find(capture.frames[3].mesh.string() + ": landmark 'chin_bottom_midline' lies "), std::string::npos) << warnings;
+  // The capture keeps its span; no keyframe sits at a dropped frame's time.
+  EXPECT_EQ(sequence.first_time, capture.frames.front().time);
+  EXPECT_EQ(sequence.last_time, capture.frames.back().time);
+  for (const Keyframe& key : sequence.keyframes) {
+    EXPECT_NE(key.time, capture.frames[5].time);
+    EXPECT_NE(key.time, capture.frames[8].time);
+  }
+  // The spline covers the dropped frame: decoded at its time, the face is where the frame was.
+  SequenceDecoder decoder(std::make_shared<const Sequence>(sequence));
+  const SurfaceDistance d = surface_distance(frame5, decoder.decode(capture.frames[5].time).mesh);
+  EXPECT_LT(d.rms / d.diagonal, 0.006);
+
+  // --strict: the first of them ends the encode, named (one thread: frame 3's chin comes first).
+  options.strict = true;
+  options.threads = 1;
+  testing::expect_error(ErrorCode::kInvalidArgument, capture.frames[3].mesh.string() + ": landmark 'chin_bottom_midline' lies", [&] { encode_capture(capture, options); });
+  capture.landmarks[3][chin] -= Vec3(0, 0, 0.05);
+  testing::expect_error(ErrorCode::kNotADisk, capture.frames[5].mesh.string() + ": 2 components", [&] { encode_capture(capture, options); });
+}
+
+// The reference frame dropped: the nearest frame kept takes its place, and the report says so.
+// Every frame dropped: an error naming the first.
+TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 0);
+  capture.frames.resize(6);
+  capture.landmarks.resize(6);
+  write_mesh(capture.mesh_path(0), with_a_second_component(read_mesh(capture.mesh_path(0), {.allow_missing_texture = true})));
+  EncodeOptions options;
+  options.keyframe_fraction = 0.5;
+  options.grid = 33;
+  options.texture = false;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  ASSERT_EQ(report.dropped.size(), 1u);
+  EXPECT_EQ(report.reference_frame, 1);
+  ASSERT_FALSE(report.warnings.empty());
+  EXPECT_NE(report.warnings.back().find("the reference frame was dropped"), std::string::npos) << report.warnings.back();
+  EXPECT_EQ(sequence.first_time, capture.frames[0].time);
+  EXPECT_EQ(sequence.keyframes.front().time, capture.frames[1].time);
+  for (size_t i = 1; i < capture.frames.size(); ++i) {
+    write_mesh(capture.mesh_path(i), with_a_second_component(read_mesh(capture.mesh_path(i), {.allow_missing_texture = true})));
+  }
+  testing::expect_error(ErrorCode::kNotADisk, "no frame of the capture could be encoded (6 dropped); the first, " + capture.frames[0].mesh.string(),
+                        [&] { encode_capture(capture, options); });
 }
 
 // --grid auto: the resampling floor need not resolve a capture's per-frame noise (spec/method.md

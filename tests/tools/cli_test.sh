@@ -51,9 +51,16 @@ expect_error "not a container" "not a facemorph container" "$tools/fmdec" "$work
 # An encode that fails keeps the earlier file and leaves nothing behind.
 cp "$work/a.fmv" "$work/before.fmv"
 mv "$work/cap/frame_0003.jpg" "$work/hidden.jpg"
-expect_error "missing texture" "frame_0003" "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --quiet
+expect_error "missing texture (--strict)" "frame_0003" "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --quiet --strict
 cmp -s "$work/a.fmv" "$work/before.fmv" || fail "a failed encode changed the earlier file"
 [[ $(ls "$work" | grep -c '\.tmp') -eq 0 ]] || fail "a failed encode left a temporary file"
+# Without --strict the frame is dropped, named in fmenc's summary and in fminfo.
+"$tools/fmenc" "$work/cap" -o "$work/dropped.fmv" --grid 33 --texture 64 >"$work/dropped.txt" 2>&1 || fail "fmenc does not drop a frame without its texture"
+grep -q "1 of 8 frames dropped" "$work/dropped.txt" || fail "fmenc's summary does not count the dropped frame"
+grep -q "frame_0003.obj (frame 3, 0.150 s):.*frame_0003" "$work/dropped.txt" || fail "fmenc's summary does not name the dropped frame and why"
+"$tools/fminfo" "$work/dropped.fmv" >"$work/dropped.info" || fail "fminfo of a file with a dropped frame"
+grep -q "^dropped     1 frames" "$work/dropped.info" || fail "fminfo does not show the dropped frame"
+grep -q "frame_0003.obj at 0.150 s" "$work/dropped.info" || fail "fminfo does not name the dropped frame"
 "$tools/fmenc" "$work/cap" -o "$work/geometry.fmv" --grid 33 --no-texture --quiet || fail "--no-texture"
 mv "$work/hidden.jpg" "$work/cap/frame_0003.jpg"
 expect_error "unwritable output" "missing" "$tools/fmenc" "$work/cap" -o "$work/missing/b.fmv" --grid 33 --texture 64 --quiet

@@ -17,6 +17,7 @@
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
+#include "facemorph/error.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <filesystem>
@@ -73,6 +74,16 @@ struct EncodeOptions {
   bool keyframe_fit = true;
   double keyframe_fit_weight = 1.0;
   double keyframe_fit_noise = 3.0;
+  // --strict: a frame that cannot be read, prepared or mapped, or a landmark farther from its frame
+  // than landmark_tolerance, ends the encode with its error. Otherwise (the default) such a frame is
+  // dropped and named in the report, a far landmark is ignored and named, and the spline covers the
+  // dropped frame's time.
+  bool strict = false;
+  // How far from its frame's surface a landmark may lie, as a fraction of the frame's bounding-box
+  // diagonal (2%: 4-6 mm on a face). A landmark from a detector or a hand lies on the surface up
+  // to its noise; one farther off is a mistake (another frame's, another unit), and snapping it to
+  // the closest point would pass the mistake on to the registration.
+  double landmark_tolerance = 0.02;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -87,14 +98,27 @@ struct EncodedFrameReport {
   bool keyframe = false;
   RegistrationFallback fallback = RegistrationFallback::kNone;
   std::string fallback_reason;
-  std::string conformal_fallback_reason;  // non-empty when QIEM failed and the frame took the linear map
+  std::string conformal_fallback_reason;  // non-empty when QIEM failed and the frame took another map...
+  ConformalMethod conformal_method = ConformalMethod::kQiem;  // ...this one
   double energy_moebius = 0, energy = 0;  // E_D of the OMT and of the registration (disk units²)
   double predicted_error = 0;             // the selection's predicted error (fraction of the diagonal)
   double diagonal = 0;                    // of the captured frame
 };
 
+// A frame the encoder left out (EncodeOptions::strict is false), with the error that would have
+// ended the encode.
+struct DroppedFrame {
+  int index = 0;  // in the capture as given
+  std::string name;
+  double time = 0;
+  std::string reason;
+};
+
 struct EncodeReport {
-  std::vector<EncodedFrameReport> frames;
+  std::vector<EncodedFrameReport> frames;  // the frames encoded (without the dropped ones)
+  std::vector<DroppedFrame> dropped;       // in capture order
+  std::vector<std::string> warnings;       // landmarks ignored, a reference frame moved; each names its frame
+  int reference_frame = 0;                 // the frame registered to, in the capture as given
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int grid = 0;
@@ -116,9 +140,11 @@ struct EncodeReport {
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
 // and at least three landmarks shared with the reference frame; rim_* markers give the boundary
-// correspondence. Throws facemorph::Error naming the frame and the defect (kInvalidArgument for
-// missing landmarks or bad options; what prepare_frame, conformal_disk_map and the image reader
-// throw, e.g. kNotADisk or kMissingTexture).
+// correspondence. A frame that lacks them, or cannot be read, prepared or mapped, is dropped and
+// named in the report (EncodeOptions::strict: the encode ends with its error instead). Throws
+// facemorph::Error for bad options, when no frame is left, and in strict mode what the frame's
+// stage threw, naming the frame (kInvalidArgument for missing landmarks; what prepare_frame,
+// conformal_disk_map and the image reader throw, e.g. kNotADisk or kMissingTexture).
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
 // The same, stage by stage, keeping every frame's map and registration: what encode_capture runs,
@@ -127,11 +153,13 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {
 // selection samples).
 class SequenceEncoder {
  public:
-  // Reads `capture` through every stage and keeps a reference: it must outlive the encoder.
+  // Keeps its own copy of `capture` (paths and landmarks; meshes are read as the stages need them).
   SequenceEncoder(const Capture& capture, EncodeOptions options);
-  SequenceEncoder(Capture&& capture, EncodeOptions options) = delete;  // a temporary would dangle
 
-  void map_frames();        // 1. prepare, conformal map, normalise every frame
+  // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
+  // options().strict): from here on the encoder's capture() and frame indices are those of the
+  // frames kept, and report().dropped names the others.
+  void map_frames();
   // 2. register every frame to the reference (options().registration); method kFrame first builds
   // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
   void register_frames();
@@ -154,7 +182,8 @@ class SequenceEncoder {
   std::vector<int> choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes);
 
   EncodeOptions& options() { return options_; }
-  const Capture& capture() const { return capture_; }
+  const Capture& capture() const { return capture_; }  // the frames kept (all until map_frames drops any)
+  int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
   int frame_count() const { return static_cast<int>(capture_.frames.size()); }
   const MappedFrame& frame(int i) const { return frames_[static_cast<size_t>(i)]; }
   const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
@@ -177,9 +206,22 @@ class SequenceEncoder {
   EncodeReport& report() { return report_; }
 
  private:
+  struct FrameFailure {  // why a frame failed; code kOk while it has not
+    ErrorCode code = ErrorCode::kOk;
+    std::string reason;
+  };
+  static FrameFailure failure_of(const Error& e, const std::string& name);
   void progress(const std::string& stage, int done, int total) const;
+  // Sets the landmarks of frame `index` that lie farther from `mesh` than options().landmark_tolerance
+  // to NaN, with a warning each (strict: throws kInvalidArgument).
+  void ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings);
+  // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
+  // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
+  void drop_frames(const std::vector<FrameFailure>& failures);
 
-  const Capture& capture_;
+  Capture capture_;
+  std::vector<int> source_index_;
+  double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
   std::vector<MappedFrame> frames_;
   std::vector<std::filesystem::path> textures_;
