@@ -7,6 +7,7 @@
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
 #include "facemorph/render.hpp"
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/encoder/synth.hpp"
@@ -143,9 +144,86 @@ void add_conformal_command(CLI::App& app, ConformalBenchOptions& options) {
                 "unflip; lambda^2 max/min (crowding); seconds to resample positions onto G (N=256) and the texture (1024^2, "
                 "-1 without an image). Captures: medians over frames (worst for max and lambda), then a line on the worst frame.");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
+  cmd->add_flag("--sweep", options.sweep,
+                "Every frame of every input through the encoder's map (QIEM with its fallbacks), failures caught: counts by outcome "
+                "(qiem, linear, tutte, failed), preconditioning left-overs, time. tools/bench/conformal_sweep.sh makes the standard inputs");
+  cmd->add_option("--threads", options.threads, "Worker threads for --sweep (0: one per core)")->capture_default_str();
 }
 
+namespace {
+
+struct SweepFrame {
+  std::string name;
+  std::string outcome;  // "qiem", "linear", "tutte" or "failed"
+  std::string reason;   // why QIEM was not used, or why the frame failed
+  int caps_left = 0, obtuse_left = 0, vertices = 0;
+  double seconds = 0;
+};
+
+// fmbench conformal --sweep: what fmenc's mapping stage makes of every frame.
+int run_conformal_sweep(const ConformalBenchOptions& options) {
+  if (options.inputs.empty()) throw Error(ErrorCode::kInvalidArgument, "--sweep needs inputs (tools/bench/conformal_sweep.sh makes the standard ones)");
+  json results = json::array();
+  std::printf("%-40s %6s %6s %6s %6s %6s %9s %9s %8s %8s\n", "input", "frames", "qiem", "linear", "tutte", "failed", "caps left",
+              "obtuse l.", "median s", "worst s");
+  for (const std::string& input : options.inputs) {
+    const BenchSource source = open_bench_source(input);
+    std::vector<SweepFrame> frames(source.frames);
+    Progress progress("sweep " + fs::path(input).filename().string(), options.quiet);
+    parallel_for(
+        static_cast<int>(source.frames), options.threads,
+        [&](int i) {
+          SweepFrame& r = frames[static_cast<size_t>(i)];
+          r.name = source.frame_name(static_cast<size_t>(i));
+          const auto start = std::chrono::steady_clock::now();
+          try {
+            const BenchFrame frame = source.frame(static_cast<size_t>(i));
+            const MappedFrame mapped = map_frame(frame.mesh, r.name, frame.landmarks);
+            const ConformalReport& c = mapped.map.report;
+            r.outcome = conformal_method_name(c.method);
+            r.reason = c.fallback_reason;
+            r.caps_left = c.caps_left;
+            r.obtuse_left = c.obtuse_boundary_left;
+            r.vertices = mapped.map.surface.vertex_count();
+          } catch (const Error& e) {
+            r.outcome = "failed";
+            r.reason = e.what();
+          }
+          r.seconds = seconds_since(start);
+        },
+        [&](int done, int total) { progress.update(done, total); });
+    progress.finish();
+    auto count = [&](const char* outcome) {
+      return static_cast<int>(std::count_if(frames.begin(), frames.end(), [&](const SweepFrame& f) { return f.outcome == outcome; }));
+    };
+    std::vector<double> seconds;
+    int caps = 0, obtuse = 0;
+    json per_frame = json::array();
+    for (const SweepFrame& f : frames) {
+      seconds.push_back(f.seconds);
+      caps += f.caps_left > 0;
+      obtuse += f.obtuse_left > 0;
+      per_frame.push_back({{"frame", f.name}, {"outcome", f.outcome}, {"reason", f.reason}, {"caps_left", f.caps_left},
+                           {"obtuse_boundary_left", f.obtuse_left}, {"vertices", f.vertices}, {"seconds", f.seconds}});
+    }
+    const std::string label = input.size() > 40 ? "..." + input.substr(input.size() - 37) : input;
+    std::printf("%-40s %6zu %6d %6d %6d %6d %9d %9d %8.3f %8.3f\n", label.c_str(), frames.size(), count("qiem"), count("linear"),
+                count("tutte"), count("failed"), caps, obtuse, percentile(seconds, 0.5), percentile(seconds, 1.0));
+    for (const SweepFrame& f : frames) {
+      if (f.outcome != "qiem") std::printf("    %s: %s: %s\n", f.name.c_str(), f.outcome.c_str(), f.reason.c_str());
+    }
+    results.push_back({{"input", input}, {"frames", frames.size()}, {"qiem", count("qiem")}, {"linear", count("linear")}, {"tutte", count("tutte")},
+                       {"failed", count("failed")}, {"frames_with_caps_left", caps}, {"frames_with_obtuse_boundary_left", obtuse},
+                       {"median_seconds", percentile(seconds, 0.5)}, {"worst_seconds", percentile(seconds, 1.0)}, {"per_frame", per_frame}});
+  }
+  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "conformal-sweep"}, {"results", results}});
+  return 0;
+}
+
+}  // namespace
+
 int run_conformal_bench(const ConformalBenchOptions& options) {
+  if (options.sweep) return run_conformal_sweep(options);
   std::vector<std::string> inputs = options.inputs;
   if (inputs.empty()) inputs = default_bench_inputs(options.data, /*large_synthetic=*/true);
   std::vector<ConformalMethod> methods;

@@ -14,6 +14,8 @@ struct ConformalBenchOptions {
   std::string data = "../shared/data";
   std::string mesh_out, disk_out, pictures, json_out;
   bool quiet = false;
+  bool sweep = false;  // --sweep: every frame through the encoder's map, failures caught and counted
+  int threads = 0;
 };
 
 void add_conformal_command(CLI::App& app, ConformalBenchOptions& options);
