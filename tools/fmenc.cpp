@@ -216,6 +216,8 @@ int main(int argc, char** argv) {
       options.max_error = parse_fraction(max_error, "--max-error");
     } else {
       options.keyframe_fraction = parse_fraction(keyframes, "--keyframes");
+      // A budget given is a budget kept; the default one grows where frames are far apart or fast.
+      if (app.count("--keyframes") > 0) options.keyframe_error_bound = 0;
     }
     if (grid != "auto") {
       try {
@@ -309,10 +311,20 @@ int main(int argc, char** argv) {
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
                 sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+    if (report.keyframe_budget > 0 && static_cast<int>(sequence.keyframes.size()) > report.keyframe_budget) {
+      std::printf("  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
+                  "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
+                  100 * options.keyframe_fraction, report.keyframe_budget, 100 * report.budget_mean_error, 100 * report.budget_worst_error,
+                  100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound, sequence.keyframes.size());
+    }
     if (!report.grid_floors.empty()) {
       std::printf("  --grid auto: resampling floor (RMS of the diagonal)");
       for (const auto& [n, floor] : report.grid_floors) std::printf(" %d: %.3f%%", n, 100 * floor);
       std::printf("; the capture's median frame noise %.3f%%\n", 100 * report.median_noise);
+      const char* why = report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
+                        : report.grid_term == "noise"       ? "the median frame noise"
+                                                            : "the fixed floor";
+      std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence.grid_n, 100 * report.grid_target, why);
     }
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);

@@ -207,6 +207,7 @@ SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) 
   if (!(options_.keyframe_fraction > 0 && options_.keyframe_fraction <= 1) && !(options_.max_error > 0)) {
     throw Error(ErrorCode::kInvalidArgument, "the keyframe budget must be in (0, 100%]");
   }
+  if (!(options_.keyframe_error_bound >= 0)) throw Error(ErrorCode::kInvalidArgument, "the keyframe error bound must be >= 0");
   if (!(options_.keyframe_fit_weight >= 0) || !(options_.keyframe_fit_noise >= 0)) {
     throw Error(ErrorCode::kInvalidArgument, "the keyframe fit's weight and noise factor must be >= 0");
   }
@@ -465,6 +466,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   SelectionOptions selection;
   selection.fraction = options_.keyframe_fraction;
   selection.max_error = options_.max_error;
+  selection.error_bound = options_.keyframe_error_bound;
   selection.spline = options_.spline;
   selection.pose_centre = pose_centre();
   return facemorph::select_keyframes(selection_, node_weights_, selection);
@@ -487,7 +489,9 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   // Nor below half the error the spline makes between the chosen keyframes: errors add in
   // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
   // for the error it removes than more keyframes would (spec/method.md §7.6).
-  report_.grid_target = std::max({kGridFloorTarget, kGridNoiseShare * report_.median_noise, chosen ? kGridErrorShare * mean_predicted_error(*chosen) : 0.0});
+  const double noise_term = kGridNoiseShare * report_.median_noise, interpolation_term = chosen ? kGridErrorShare * mean_predicted_error(*chosen) : 0.0;
+  report_.grid_target = std::max({kGridFloorTarget, noise_term, interpolation_term});
+  report_.grid_term = report_.grid_target == interpolation_term ? "interpolation" : report_.grid_target == noise_term ? "noise" : "floor";
   const double target = report_.grid_target;
   const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
   for (int n : kGridCandidates) {
@@ -724,6 +728,9 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   EncodeReport& report = encoder.report();
   report.keyframes = chosen.keyframes;
   report.selection_history = chosen.history;
+  report.keyframe_budget = chosen.budget;
+  report.budget_mean_error = chosen.budget_mean_error;
+  report.budget_worst_error = chosen.budget_worst_error;
   report.grid = encoder.choose_grid(&chosen);
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);

@@ -191,6 +191,25 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
     predictor.errors(keys, 0, count - 1, errors);
     selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
     refine(predictor, keys, errors, 0);
+    selection.budget = budget;
+    const Objective spread = objective(errors, keys);
+    selection.budget_mean_error = spread.mean;
+    selection.budget_worst_error = spread.worst;
+    // Frames far apart or fast: the budget spread thin leaves errors no budget was meant to allow;
+    // add the worst-predicted frame until the mean and the worst are within the bound (spec/method.md
+    // §7.5), then let refinement move them without lifting the worst past its bound.
+    const double bound = options.error_bound, worst_bound = 3 * options.error_bound;
+    if (bound > 0 && (spread.mean > bound || spread.worst > worst_bound)) {
+      for (;;) {
+        const Objective o = objective(errors, keys);
+        if ((o.mean <= bound && o.worst <= worst_bound) || static_cast<int>(keys.size()) >= count) break;
+        const int add = static_cast<int>(std::max_element(errors.begin(), errors.end()) - errors.begin());
+        keys.insert(std::upper_bound(keys.begin(), keys.end(), add), add);
+        predictor.errors(keys, 0, count - 1, errors);
+        selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
+      }
+      refine(predictor, keys, errors, worst_bound);
+    }
   }
   selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
   return selection;

@@ -1,6 +1,7 @@
 // The encoder end to end on the project's own synthetic captures: map, register, choose keyframes,
 // store, and decode every captured frame at its time.
 #include "facemorph/distance.hpp"
+#include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/mesh_io.hpp"
@@ -17,6 +18,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <random>
 
 namespace facemorph {
 namespace {
@@ -527,6 +529,49 @@ TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
   EXPECT_LT(noisy, clean);
 }
 
+// Frames far apart or fast: the frames' surfaces move by amounts the spline cannot follow (an
+// independent bump of up to 3% of the diagonal per frame), so the 10% budget spread thin leaves the
+// mean predicted error far above the default bound. The selection adds keyframes until the mean is
+// within the bound and the worst within 3 times it; a bound of 0 keeps the budget exactly.
+TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
+  const int side = 9, count = 40;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
+  std::vector<double> weights(static_cast<size_t>(side * side), 1.0);
+  std::vector<SelectionFrame> frames(count);
+  for (int k = 0; k < count; ++k) {
+    SelectionFrame& f = frames[static_cast<size_t>(k)];
+    f.time = k / 30.0;
+    const double a = amplitude(rng);
+    for (int j = 0; j < side; ++j) {
+      for (int i = 0; i < side; ++i) {
+        const double x = i / (side - 1.0) - 0.5, y = j / (side - 1.0) - 0.5;
+        f.local.emplace_back(x, y, a * std::exp(-8 * (x * x + y * y)) * std::sqrt(2.0));
+        f.normal.emplace_back(0, 0, 1);
+      }
+    }
+    f.world = f.local;
+  }
+  SelectionOptions options;
+  options.error_bound = 0.005;
+  const KeyframeSelection bounded = select_keyframes(frames, weights, options);
+  EXPECT_EQ(bounded.budget, 4);
+  ASSERT_GT(bounded.budget_mean_error, 0.005) << "the frames do not move enough to test the bound";
+  EXPECT_GT(bounded.keyframes.size(), 4u);
+  double sum = 0, worst = 0;
+  int held = 0;
+  for (size_t j = 0; j < bounded.predicted_error.size(); ++j) {
+    if (std::binary_search(bounded.keyframes.begin(), bounded.keyframes.end(), static_cast<int>(j))) continue;
+    sum += bounded.predicted_error[j];
+    worst = std::max(worst, bounded.predicted_error[j]);
+    ++held;
+  }
+  EXPECT_LE(held == 0 ? 0.0 : sum / held, 0.005 + 1e-12);
+  EXPECT_LE(worst, 0.015 + 1e-12);
+  options.error_bound = 0;
+  EXPECT_EQ(select_keyframes(frames, weights, options).keyframes.size(), 4u);
+}
+
 // Given the keyframes, --grid auto also stops at half the error the spline makes between them:
 // with few keyframes for a changing expression that error is large, and a grid finer than half of
 // it buys less error per byte than keyframes would (spec/method.md §7.6).
@@ -538,6 +583,7 @@ TEST(SequenceEncoder, AutomaticGridStopsAtAShareOfThePredictedError) {
   EncodeOptions options;
   options.texture = false;
   options.keyframe_fraction = 0.02;
+  options.keyframe_error_bound = 0;  // the budget exactly: two keyframes
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
   encoder.register_frames();

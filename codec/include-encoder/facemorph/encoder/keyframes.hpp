@@ -24,6 +24,10 @@ struct SelectionFrame {
 
 struct SelectionOptions {
   double fraction = 0.10;     // budget: keyframes = max(2, round(fraction * frames))
+  // With the budget, > 0: more keyframes than the budget where it leaves the mean predicted error
+  // between keyframes above this, or the worst above 3 times this (frames far apart, fast motion):
+  // the worst-predicted frame is added until both hold. 0: the budget exactly.
+  double error_bound = 0;
   double max_error = 0;       // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
   SplineKind spline = SplineKind::kCatmullRom;
   Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
@@ -34,6 +38,8 @@ struct KeyframeSelection {
   std::vector<double> predicted_error;    // per frame: RMS of the prediction's normal offset / diagonal (0 at keyframes)
   // After each addition: how many keyframes, and the worst predicted error then.
   std::vector<std::pair<int, double>> history;
+  int budget = 0;                         // keyframes the budget gave (0 with max_error)
+  double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
 };
 
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.

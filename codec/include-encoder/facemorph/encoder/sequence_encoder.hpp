@@ -33,6 +33,11 @@ inline constexpr int kAutoTextureQuality = -1;
 
 struct EncodeOptions {
   double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
+  // The budget grows where it would leave the mean error predicted between keyframes above this
+  // (fraction of the diagonal), or the worst above 3 times it: frames far apart or fast motion get
+  // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
+  // 0: the budget exactly (fmenc --keyframes P sets 0).
+  double keyframe_error_bound = 0.005;
   double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
   int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
   Representation representation = Representation::kHLT;
@@ -121,11 +126,14 @@ struct EncodeReport {
   int reference_frame = 0;                 // the frame registered to, in the capture as given
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
+  int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
+  double budget_mean_error = 0, budget_worst_error = 0;   // the predicted errors it left (fraction of the diagonal)
   int grid = 0;
   int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
   double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
   double grid_target = 0;                                 // the floor --grid auto asked for / diagonal
+  std::string grid_term;                                  // which term set it: "floor", "noise" or "interpolation"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
