@@ -237,6 +237,31 @@ TEST(ConformalMap, AFlatDiskMapsToItself) {
   }
 }
 
+// QIEM runs to its tolerance. On a flat 2:1 ellipse the linear map (QIEM's start) is harmonic but
+// not conformal; the converged map's angle error is the discretisation's. At the defaults the map is
+// as good as a much tighter tolerance makes it, while stopping after the first step, or at a
+// tolerance 10⁴ times looser, leaves it measurably worse.
+TEST(ConformalMap, QiemRunsToItsToleranceNotItsFirstStep) {
+  const TriangleMesh ellipse = testing::polar_disk(16, 64, [](const Vec2& p) { return Vec3(2 * p.x(), p.y(), 0); });
+  auto mean_angle_error = [&](const ConformalOptions& options, int* steps) {
+    const DiskMap map = conformal_disk_map(ellipse, options);
+    if (steps) *steps = map.report.iterations;
+    return measure_distortion(map).mean_degrees;
+  };
+  int steps = 0, tight_steps = 0, loose_steps = 0;
+  const double defaults = mean_angle_error({}, &steps);
+  const double tight = mean_angle_error({.max_iterations = 400, .energy_tolerance = 1e-11}, &tight_steps);
+  const double loose = mean_angle_error({.energy_tolerance = 1e-3}, &loose_steps);
+  const double one_step = mean_angle_error({.energy_tolerance = 1e9}, nullptr);
+  const double linear = mean_angle_error({.method = ConformalMethod::kLinear}, nullptr);
+  std::printf("ellipse mean angle error: linear %.4f°, one step %.4f°, 1e-3 %.4f° (%d steps), defaults %.4f° (%d steps), 1e-11 %.4f° (%d steps)\n",
+              linear, one_step, loose, loose_steps, defaults, steps, tight, tight_steps);
+  EXPECT_LT(defaults, tight * 1.02 + 1e-3);
+  EXPECT_GT(one_step, defaults * 1.5);
+  EXPECT_GT(loose, defaults * 1.03);
+  EXPECT_GT(linear, defaults * 3);
+}
+
 TEST(ConformalMap, SphericalCapHasTheAnalyticConformalFactor) {
   // Stereographic projection from the antipode: λ(w) = 2 R t0 / (1 + t0² |w|²), t0 = tan(θ0/2).
   const double R = 1.5, theta0 = 1.2, t0 = std::tan(theta0 / 2);

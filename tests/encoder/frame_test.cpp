@@ -142,6 +142,24 @@ TEST(PrepareFrame, InconsistentOrientationIsRepaired) {
   EXPECT_GT(p.report.reoriented_faces, 0);
 }
 
+// --largest-component keeps the face (the component of largest area, not of most faces) and says
+// what it dropped: a dome with a small, densely meshed closed ball beside it.
+TEST(PrepareFrame, TheLargestComponentIsTheFace) {
+  const TriangleMesh face = dome(6, 16);
+  const TriangleMesh ball = testing::icosphere(0.05, 3);
+  ASSERT_GT(ball.face_count(), face.face_count());  // more faces, far less area
+  TriangleMesh both = ball;
+  const auto offset = static_cast<int32_t>(both.positions.size());
+  for (const Vec3& q : face.positions) both.positions.push_back(q);
+  for (const Face& f : face.faces) both.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
+  const PreparedFrame alone = prepare_frame(face, "face.obj");
+  const PreparedFrame kept = prepare_frame(both, "both.obj", {.keep_largest_component = true});
+  EXPECT_EQ(kept.mesh.vertex_count(), alone.mesh.vertex_count());
+  EXPECT_EQ(kept.mesh.face_count(), alone.mesh.face_count());
+  EXPECT_NEAR(total_area(kept.mesh.positions, kept.mesh.faces), total_area(alone.mesh.positions, alone.mesh.faces), 1e-12);
+  EXPECT_NE(kept.report.summary().find("dropped 1 other component"), std::string::npos) << kept.report.summary();
+}
+
 TEST(PrepareFrame, BadFramesAreNamedErrors) {
   const TriangleMesh disk = dome(6, 16);
 

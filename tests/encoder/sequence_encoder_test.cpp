@@ -345,6 +345,33 @@ TEST(SequenceEncoder, AMappingErrorNamesItsFrame) {
   testing::expect_error(ErrorCode::kNotConverged, "frame_0000.obj: QIEM: no convergence in 0 steps", [&] { encoder.map_frames(); });
 }
 
+// The registration's input: every landmark both frames have, in the capture's order; rim_*
+// markers flagged and exactly on the circle, the others inside it.
+TEST(SequenceEncoder, DiskLandmarksFlagTheRimMarkersAndOnlyThem) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 0);
+  capture.frames.resize(3);
+  capture.landmarks.resize(3);
+  EncodeOptions options;
+  options.texture = false;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  const DiskLandmarks l = disk_landmarks(capture, 0, encoder.frame(0).map, 2, encoder.frame(2).map);
+  ASSERT_EQ(l.reference.size(), capture.landmark_names.size());
+  int rim = 0;
+  for (size_t j = 0; j < l.reference.size(); ++j) {
+    const bool named_rim = capture.landmark_names[j].rfind("rim_", 0) == 0;
+    EXPECT_EQ(l.on_rim[j] != 0, named_rim) << capture.landmark_names[j];
+    for (const Vec2& w : {l.reference[j], l.frame[j]}) {
+      if (named_rim) EXPECT_NEAR(w.norm(), 1.0, 1e-12) << capture.landmark_names[j];
+      else EXPECT_LT(w.norm(), 0.999) << capture.landmark_names[j];
+    }
+    rim += named_rim;
+  }
+  EXPECT_GE(rim, 3);
+  EXPECT_LT(rim, static_cast<int>(l.reference.size()) - 3);
+}
+
 TEST(SequenceEncoder, HolesOfAFrameBecomeALevelSetAroundTheirOutline) {
   // A flat disk with a round hole of radius 0.3 at (0.3, 0): prepare fills it, the level set is
   // negative inside, zero on the outline and capped outside.
@@ -529,29 +556,83 @@ TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
   EXPECT_LT(noisy, clean);
 }
 
-// Frames far apart or fast: the frames' surfaces move by amounts the spline cannot follow (an
-// independent bump of up to 3% of the diagonal per frame), so the 10% budget spread thin leaves the
-// mean predicted error far above the default bound. The selection adds keyframes until the mean is
-// within the bound and the worst within 3 times it; a bound of 0 keeps the budget exactly.
-TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
-  const int side = 9, count = 40;
-  std::mt19937 rng(4);
-  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
-  std::vector<double> weights(static_cast<size_t>(side * side), 1.0);
-  std::vector<SelectionFrame> frames(count);
-  for (int k = 0; k < count; ++k) {
-    SelectionFrame& f = frames[static_cast<size_t>(k)];
-    f.time = k / 30.0;
-    const double a = amplitude(rng);
+// Synthetic selection frames on a 9 x 9 patch: frame k's surface is a bump of height
+// amplitude(k) (fraction of the unit diagonal), identity pose, normals along z.
+std::vector<SelectionFrame> bump_frames(const std::vector<double>& amplitudes) {
+  const int side = 9;
+  std::vector<SelectionFrame> frames(amplitudes.size());
+  for (size_t k = 0; k < amplitudes.size(); ++k) {
+    SelectionFrame& f = frames[k];
+    f.time = static_cast<double>(k) / 30.0;
     for (int j = 0; j < side; ++j) {
       for (int i = 0; i < side; ++i) {
         const double x = i / (side - 1.0) - 0.5, y = j / (side - 1.0) - 0.5;
-        f.local.emplace_back(x, y, a * std::exp(-8 * (x * x + y * y)) * std::sqrt(2.0));
+        f.local.emplace_back(x, y, amplitudes[k] * std::exp(-8 * (x * x + y * y)) * std::sqrt(2.0));
         f.normal.emplace_back(0, 0, 1);
       }
     }
     f.world = f.local;
   }
+  return frames;
+}
+
+double held_out_mean(const std::vector<double>& errors, const std::vector<int>& keys) {
+  double sum = 0;
+  int held = 0;
+  for (size_t j = 0; j < errors.size(); ++j) {
+    if (std::binary_search(keys.begin(), keys.end(), static_cast<int>(j))) continue;
+    sum += errors[j];
+    ++held;
+  }
+  return held == 0 ? 0.0 : sum / held;
+}
+
+// --max-error: every frame within the tolerance, with fewer keyframes than frames.
+TEST(KeyframeSelection, AToleranceHoldsForEveryFrame) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 60; ++k) amplitudes.push_back(0.02 * std::sin(k * 0.35));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  for (double tolerance : {0.002, 0.0005}) {
+    SelectionOptions options;
+    options.max_error = tolerance;
+    const KeyframeSelection chosen = select_keyframes(frames, weights, options);
+    EXPECT_LT(chosen.keyframes.size(), frames.size());
+    EXPECT_GT(chosen.keyframes.size(), 2u);
+    for (double e : chosen.predicted_error) EXPECT_LE(e, tolerance);
+  }
+}
+
+// A budget's keyframes move to where the frames need them: motion only in the second half of the
+// capture, so evenly spaced keyframes waste those in the still first half.
+TEST(KeyframeSelection, TheBudgetsKeyframesMoveToTheMotion) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 60; ++k) amplitudes.push_back(k < 30 ? 0.0 : 0.02 * std::sin((k - 30) * 0.5));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.fraction = 0.15;
+  const KeyframeSelection chosen = select_keyframes(frames, weights, options);
+  std::vector<int> even;
+  for (int k = 0; k < 9; ++k) even.push_back(static_cast<int>(std::lround(59.0 * k / 8)));
+  const std::vector<double> even_errors = prediction_errors(frames, weights, even, options.spline, Vec3::Zero());
+  ASSERT_EQ(chosen.keyframes.size(), even.size());
+  EXPECT_LT(held_out_mean(chosen.predicted_error, chosen.keyframes), 0.7 * held_out_mean(even_errors, even));
+  // Even spacing puts 4 keyframes past frame 30; the moves put more there.
+  EXPECT_GE(std::count_if(chosen.keyframes.begin(), chosen.keyframes.end(), [](int k) { return k > 30; }), 5);
+}
+
+// Frames far apart or fast: the frames' surfaces move by amounts the spline cannot follow (an
+// independent bump of up to 3% of the diagonal per frame), so the 10% budget spread thin leaves the
+// mean predicted error far above the default bound. The selection adds keyframes until the mean is
+// within the bound and the worst within 3 times it; a bound of 0 keeps the budget exactly.
+TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 40; ++k) amplitudes.push_back(amplitude(rng));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
   SelectionOptions options;
   options.error_bound = 0.005;
   const KeyframeSelection bounded = select_keyframes(frames, weights, options);
