@@ -248,7 +248,9 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
         const BenchFrame input_frame = source.frame(i);
         const double seconds_read = seconds_since(start);
         const TriangleMesh& mesh = input_frame.mesh;
-        const MappedFrame mapped = map_frame(mesh, r.name, input_frame.landmarks, {.conformal = {.method = method}});
+        MapFrameOptions map_options;
+        map_options.conformal.method = method;
+        const MappedFrame mapped = map_frame(mesh, r.name, input_frame.landmarks, map_options);
         const DiskMap& map = mapped.map;
         r.seconds_load = seconds_read + mapped.seconds_prepare;
         r.seconds_map = mapped.seconds_map;

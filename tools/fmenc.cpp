@@ -137,6 +137,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"inter_dead_zone", o.field_precision.inter_dead_zone == kAutoDeadZone ? nlohmann::json("auto") : nlohmann::json(o.field_precision.inter_dead_zone)},
           {"inter_dead_zone_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_precision.inter_dead_zone) : nlohmann::json(nullptr)},
           {"strict", o.strict},
+          {"landmarks_found", {{"orientation_frames", report.orientation_found}, {"rim_markers", report.rim_markers_found},
+                               {"weakest_up_evidence", report.orientation_found > 0 ? nlohmann::json(report.weakest_up_evidence) : nlohmann::json(nullptr)}}},
           {"reference_frame_chosen", report.reference_frame},
           {"dropped_frames", dropped_json(report)},
           {"conformal_fallbacks", conformal_fallbacks_json(report)},
@@ -162,7 +164,9 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("-o,--output", output, "The .fmv file to write")->required();
   app.add_option("--fps", fps, "Frame rate of a plain folder of meshes");
-  app.add_option("--landmarks", landmarks, "Landmarks CSV of a plain folder (frame,name,x,y,z)");
+  app.add_option("--landmarks", landmarks,
+                 "Landmarks CSV of a plain folder (frame,name,x,y,z), or auto: ignore the capture's landmarks and find the nose tip, "
+                 "the face's up direction and rim markers from the geometry (frames without landmarks get them found anyway)");
   app.add_option("--keyframes", keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
   app.add_option("--max-error", max_error, "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
   app.add_option("--grid", grid, "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error between keyframes)")->capture_default_str();
@@ -279,7 +283,11 @@ int main(int argc, char** argv) {
       recode(input, output, options, quality, quiet);
       return 0;
     }
-    const Capture capture = open_capture(input, fps, landmarks);
+    Capture capture = open_capture(input, fps, landmarks == "auto" ? "" : landmarks);
+    if (landmarks == "auto") {
+      capture.landmark_names.clear();
+      capture.landmarks.assign(capture.frames.size(), {});
+    }
     std::map<std::string, std::unique_ptr<tools::Progress>> stages;
     std::string current;
     options.progress = [&](const std::string& stage, int done, int total) {
@@ -372,6 +380,14 @@ int main(int argc, char** argv) {
       for (const DroppedFrame& d : report.dropped) std::printf("    %s (frame %d, %.3f s): %s\n", d.name.c_str(), d.index, d.time, d.reason.c_str());
     }
     for (const std::string& warning : report.warnings) std::printf("  warning: %s\n", warning.c_str());
+    if (report.orientation_found > 0) {
+      std::printf("  landmarks: nose tip and up found from the geometry on %d frames (mirror plane within %.2f%% of the diagonal, up evidence at "
+                  "least %.2f of 1; %d frames took up from another frame)%s\n",
+                  report.orientation_found, 100 * report.worst_mirror_error, report.weakest_up_evidence, report.up_from_hint,
+                  report.rim_markers_found ? "; rim markers placed on each frame's rim" : "");
+    } else if (report.rim_markers_found) {
+      std::printf("  landmarks: rim markers placed on each frame's rim (the capture has none)\n");
+    }
     std::string last;
     for (const EncodedFrameReport& f : report.frames) {
       if (f.repair == "valid as captured" || f.repair == last) continue;

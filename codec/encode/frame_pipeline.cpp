@@ -4,6 +4,8 @@
 #include "facemorph/error.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <numbers>
 
 namespace facemorph {
 
@@ -32,6 +34,34 @@ FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) {
   return landmarks;
 }
 
+namespace {
+
+// The surface points of the rim at disk angles π/2 + 2πk/count: on the rim edge whose disk angles
+// bracket each.
+std::vector<Vec3> rim_points_at_angles(const DiskMap& map, int count) {
+  std::vector<Vec3> points;
+  const std::vector<int>& rim = map.rim;
+  const size_t n = rim.size();
+  for (int k = 0; k < count; ++k) {
+    const double target = std::remainder(std::numbers::pi / 2 + 2 * std::numbers::pi * k / count, 2 * std::numbers::pi);
+    for (size_t i = 0; i < n; ++i) {
+      const Vec2 &a = map.disk[static_cast<size_t>(rim[i])], &b = map.disk[static_cast<size_t>(rim[(i + 1) % n])];
+      const double ta = std::atan2(a.y(), a.x());
+      double span = std::remainder(std::atan2(b.y(), b.x()) - ta, 2 * std::numbers::pi);
+      const double offset = std::remainder(target - ta, 2 * std::numbers::pi);
+      // The rim runs counter-clockwise on the disk: the edge whose angles bracket the target.
+      if (span > 0 && offset >= 0 && offset <= span) {
+        const double s = offset / span;
+        points.push_back((1 - s) * map.surface.positions[static_cast<size_t>(rim[i])] + s * map.surface.positions[static_cast<size_t>(rim[(i + 1) % n])]);
+        break;
+      }
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
 MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options) {
   MappedFrame frame;
   frame.name = name;
@@ -43,11 +73,18 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   frame.prepared = prepare_frame(mesh, name, prepare);
   frame.seconds_prepare = seconds_since(start);
   start = std::chrono::steady_clock::now();
+  std::optional<Vec3> centre = landmarks.centre, up = landmarks.up;
+  if ((!centre || !up) && options.find_orientation) {
+    frame.found = find_face_orientation(frame.prepared.mesh, name, options.vertical_hint ? &*options.vertical_hint : nullptr);  // names the frame
+    centre = frame.found->nose_tip;
+    up = frame.found->up;
+  }
   try {
     frame.map = conformal_disk_map(frame.prepared.mesh, options.conformal);
-    if (landmarks.centre && landmarks.up) {
-      normalize(frame.map, *landmarks.centre, *landmarks.up);
+    if (centre && up) {
+      normalize(frame.map, *centre, *up);
       frame.normalized = true;
+      frame.found_rim = rim_points_at_angles(frame.map, kFoundRimMarkers);
     }
   } catch (const Error& e) {
     // Named like preparation's errors: a capture has hundreds of frames.

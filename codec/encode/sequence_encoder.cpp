@@ -2,6 +2,8 @@
 #include "facemorph/encoder/sequence_encoder.hpp"
 
 #include "facemorph/distance.hpp"
+#include "facemorph/encoder/face_orientation.hpp"
+#include "facemorph/encoder/frame.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/resample.hpp"
@@ -316,6 +318,55 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
   compact(registrations_);
 }
 
+std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
+  // The first frame from the reference on that lacks its pose landmarks and whose own surface says
+  // clearly which way is up: its up direction settles the frames whose surfaces do not.
+  const int count = frame_count();
+  for (int step = 0; step < count; ++step) {
+    const auto index = static_cast<size_t>((options_.reference_frame + step) % count);
+    const FrameLandmarks given = capture_frame_landmarks(capture_, index);
+    if (given.centre && given.up) continue;
+    try {
+      PrepareOptions prepare;
+      prepare.keep_largest_component = options_.largest_component;
+      const PreparedFrame p = prepare_frame(read_mesh(capture_.mesh_path(index), {.allow_missing_texture = true}), capture_.frames[index].mesh.string(), prepare);
+      return find_face_orientation(p.mesh, capture_.frames[index].mesh.string()).vertical;
+    } catch (const Error&) {
+      // This frame does not say; the next may. Its own mapping reports why.
+    }
+  }
+  return std::nullopt;
+}
+
+void SequenceEncoder::adopt_found_landmarks() {
+  auto name_index = [&](const std::string& name) {
+    int index = capture_.landmark_index(name);
+    if (index >= 0) return static_cast<size_t>(index);
+    capture_.landmark_names.push_back(name);
+    for (auto& points : capture_.landmarks) points.push_back(Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+    return capture_.landmark_names.size() - 1;
+  };
+  const bool given_rim = std::any_of(capture_.landmark_names.begin(), capture_.landmark_names.end(),
+                                     [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
+  for (size_t i = 0; i < frames_.size(); ++i) {
+    const MappedFrame& f = frames_[i];
+    if (!f.found) continue;
+    capture_.landmarks[i][name_index("nose_tip")] = f.found->nose_tip;
+    capture_.landmarks[i][name_index("nose_bridge")] = f.found->up;
+    ++report_.orientation_found;
+    report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
+    report_.up_from_hint += f.found->up_from_hint;
+    report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
+  }
+  if (given_rim) return;
+  // No rim markers given: each normalised frame's rim points at the same disk angles.
+  for (size_t i = 0; i < frames_.size(); ++i) {
+    if (frames_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
+    for (int k = 0; k < kFoundRimMarkers; ++k) capture_.landmarks[i][name_index("rim_" + std::to_string(k))] = frames_[i].found_rim[static_cast<size_t>(k)];
+    report_.rim_markers_found = true;
+  }
+}
+
 void SequenceEncoder::map_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
@@ -323,6 +374,7 @@ void SequenceEncoder::map_frames() {
   textures_.assign(static_cast<size_t>(count), {});
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
   std::vector<std::vector<std::string>> warnings(static_cast<size_t>(count));
+  const std::optional<Vec3> vertical_hint = options_.find_landmarks ? find_vertical_hint() : std::nullopt;
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -332,7 +384,7 @@ void SequenceEncoder::map_frames() {
           const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
           ignore_far_landmarks(mesh, index, warnings[index]);
           const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
-          if (!landmarks.centre || !landmarks.up) {
+          if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
                                                          " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
           }
@@ -340,6 +392,8 @@ void SequenceEncoder::map_frames() {
           MapFrameOptions map_options;
           map_options.keep_largest_component = options_.largest_component;
           map_options.conformal = options_.conformal;
+          map_options.find_orientation = options_.find_landmarks;
+          map_options.vertical_hint = vertical_hint;
           frames_[index] = map_frame(mesh, name, landmarks, map_options);
         } catch (const Error& e) {
           if (options_.strict) throw;
@@ -349,6 +403,7 @@ void SequenceEncoder::map_frames() {
       [&](int done, int total) { progress("mapping", done, total); });
   for (auto& w : warnings) report_.warnings.insert(report_.warnings.end(), w.begin(), w.end());
   drop_frames(failures);
+  adopt_found_landmarks();
   report_.reference_frame = source_index_[static_cast<size_t>(options_.reference_frame)];
   report_.seconds_mapping = seconds_since(start);
 }

@@ -153,7 +153,9 @@ TEST(PrepareFrame, TheLargestComponentIsTheFace) {
   for (const Vec3& q : face.positions) both.positions.push_back(q);
   for (const Face& f : face.faces) both.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
   const PreparedFrame alone = prepare_frame(face, "face.obj");
-  const PreparedFrame kept = prepare_frame(both, "both.obj", {.keep_largest_component = true});
+  PrepareOptions options;
+  options.keep_largest_component = true;
+  const PreparedFrame kept = prepare_frame(both, "both.obj", options);
   EXPECT_EQ(kept.mesh.vertex_count(), alone.mesh.vertex_count());
   EXPECT_EQ(kept.mesh.face_count(), alone.mesh.face_count());
   EXPECT_NEAR(total_area(kept.mesh.positions, kept.mesh.faces), total_area(alone.mesh.positions, alone.mesh.faces), 1e-12);

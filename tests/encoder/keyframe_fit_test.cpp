@@ -149,7 +149,7 @@ TEST(KeyframeFit, TheNoiseBoundKeepsACleanCapturesKeyframesWhereTheyAre) {
     }
     return worst;
   };
-  const double bounded = moved(3.0), free = moved(1e6);
+  const double bounded = moved(EncodeOptions{}.keyframe_fit_noise), free = moved(1e6);
   std::printf("clean capture, two keyframes: keyframes moved %.4f%% with the bound, %.4f%% without\n", 100 * bounded, 100 * free);
   EXPECT_LT(bounded, 0.0005);
   EXPECT_GT(free, 3 * bounded);

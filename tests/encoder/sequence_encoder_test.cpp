@@ -424,7 +424,8 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
   options.grid = 33;
   options.texture = false;
   options.strict = true;
-  // A frame without its nose tip cannot be put in the reference pose.
+  options.find_landmarks = false;
+  // A frame without its nose tip cannot be put in the reference pose (unless found from its geometry).
   Capture no_nose = capture;
   no_nose.landmarks[2][static_cast<size_t>(no_nose.landmark_index("nose_tip"))] = Vec3::Constant(std::nan(""));
   testing::expect_error(ErrorCode::kInvalidArgument, "frame 2 lacks the landmarks nose_tip", [&] { encode_capture(no_nose, options); });
@@ -447,8 +448,8 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
 
 // Without --strict, a frame that cannot be encoded is dropped and named, never chosen as a
 // keyframe, and the spline covers its time; a landmark off its frame's surface is ignored and
-// named. Here: frame 5 has a second surface (an eyeball), frame 8's nose tip lies 5 cm off it (so
-// frame 8 cannot be put in the reference pose either), frame 3's chin lies 5 cm off (chin_bottom_midline) (ignored; the
+// named. Here: frame 5 has a second surface (an eyeball), frame 8's nose tip lies 5 cm off it (so,
+// unless found from the geometry, frame 8 cannot be put in the reference pose either), frame 3's chin lies 5 cm off (chin_bottom_midline) (ignored; the
 // frame is kept).
 TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   testing::TempDir dir;
@@ -463,6 +464,7 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   options.keyframe_fraction = 0.25;
   options.grid = 49;
   options.texture = false;
+  options.find_landmarks = false;  // frame 8 then lacks its nose tip (below: found from its geometry)
   EncodeReport report;
   const Sequence sequence = encode_capture(capture, options, &report);
   ASSERT_EQ(report.dropped.size(), 2u);
@@ -488,12 +490,60 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   const SurfaceDistance d = surface_distance(frame5, decoder.decode(capture.frames[5].time).mesh);
   EXPECT_LT(d.rms / d.diagonal, 0.006);
 
+  // Finding landmarks (the default), frame 8 keeps its nose tip found from the geometry.
+  options.find_landmarks = true;
+  EncodeReport found;
+  encode_capture(capture, options, &found);
+  ASSERT_EQ(found.dropped.size(), 1u);
+  EXPECT_EQ(found.dropped[0].index, 5);
+  EXPECT_EQ(found.orientation_found, 1);
+
   // --strict: the first of them ends the encode, named (one thread: frame 3's chin comes first).
   options.strict = true;
   options.threads = 1;
   testing::expect_error(ErrorCode::kInvalidArgument, capture.frames[3].mesh.string() + ": landmark 'chin_bottom_midline' lies", [&] { encode_capture(capture, options); });
   capture.landmarks[3][chin] -= Vec3(0, 0, 0.05);
   testing::expect_error(ErrorCode::kNotADisk, capture.frames[5].mesh.string() + ": 2 components", [&] { encode_capture(capture, options); });
+}
+
+// A capture without landmarks: the nose tip and up come from each frame's geometry, rim markers
+// from its rim, and the encode decodes about as close to every frame as with the capture's own
+// landmarks. Without find_landmarks every frame lacks its pose landmarks and the encode fails.
+TEST(SequenceEncoder, ACaptureWithoutLandmarksEncodesFromItsGeometry) {
+  testing::TempDir dir;
+  const Capture given = small_capture(dir, 10);
+  Capture bare = given;
+  bare.landmark_names.clear();
+  bare.landmarks.assign(bare.frames.size(), {});
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 65;
+  options.texture = false;
+  auto held_out = [&](const Capture& capture, EncodeReport& report) {
+    const Sequence sequence = encode_capture(capture, options, &report);
+    SequenceDecoder decoder(std::make_shared<const Sequence>(sequence));
+    double sum = 0;
+    int count = 0;
+    for (size_t i = 0; i < given.frames.size(); ++i) {
+      if (std::binary_search(report.keyframes.begin(), report.keyframes.end(), static_cast<int>(i))) continue;
+      const SurfaceDistance d = surface_distance(read_mesh(given.mesh_path(i)), decoder.decode(given.frames[i].time).mesh);
+      sum += d.rms / d.diagonal;
+      ++count;
+    }
+    return sum / count;
+  };
+  EncodeReport with, without;
+  const double landmarked = held_out(given, with), found = held_out(bare, without);
+  std::printf("held-out mean RMS: landmarks %.4f%%, found from the geometry %.4f%%\n", 100 * landmarked, 100 * found);
+  EXPECT_EQ(with.orientation_found, 0);
+  EXPECT_FALSE(with.rim_markers_found);
+  EXPECT_EQ(without.orientation_found, static_cast<int>(given.frames.size()));
+  EXPECT_TRUE(without.rim_markers_found);
+  EXPECT_TRUE(without.dropped.empty()) << without.dropped.front().name << ": " << without.dropped.front().reason;
+  EXPECT_LE(without.up_from_hint, 2);  // a coarse (3k-vertex) face may leave a frame or two to its neighbours
+  EXPECT_LT(found, 1.3 * landmarked);
+  options.find_landmarks = false;
+  testing::expect_error(ErrorCode::kInvalidArgument, "lacks the landmarks nose_tip", [&] { encode_capture(bare, options); });
 }
 
 // The reference frame dropped: the nearest frame kept takes its place, and the report says so.

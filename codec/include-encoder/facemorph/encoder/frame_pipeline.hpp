@@ -11,6 +11,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/conformal.hpp"
+#include "facemorph/encoder/face_orientation.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/fields.hpp"
 #include "facemorph/grid_geometry.hpp"
@@ -36,7 +37,17 @@ struct MapFrameOptions {
   bool fill_holes = true;
   bool keep_largest_component = false;  // see PrepareOptions
   ConformalOptions conformal;
+  // A frame without centre or up landmarks: find them from its geometry (find_face_orientation)
+  // and put its disk in the pose they give, instead of leaving it unnormalised.
+  bool find_orientation = false;
+  std::optional<Vec3> vertical_hint;  // see find_face_orientation
 };
+
+// Rim markers found on a normalised disk: the rim points at these disk angles, the first straight
+// up (the direction the `up` landmark is turned to), the others evenly round the circle. Frames in
+// the same pose put the same names at the same angles, so the registration can match boundaries
+// without markers from the capture.
+inline constexpr int kFoundRimMarkers = 6;
 
 // A frame made a disk and mapped conformally onto the unit disk, in the reference pose when the
 // landmarks give one (spec/method.md §3.5).
@@ -44,12 +55,15 @@ struct MappedFrame {
   std::string name;
   PreparedFrame prepared;
   DiskMap map;
-  bool normalized = false;       // centre and up were known
+  bool normalized = false;       // centre and up were known (given or found)
+  std::optional<FaceOrientation> found;  // set when the centre and up were found from the geometry
+  std::vector<Vec3> found_rim;   // kFoundRimMarkers points on the rim (after normalisation; empty if not normalised)
   double seconds_prepare = 0;    // validation, repair, hole filling
   double seconds_map = 0;        // the conformal map (normalisation included)
 };
 
-// Stages 1-3. Throws what prepare_frame and conformal_disk_map throw, naming `name`.
+// Stages 1-3. Throws what prepare_frame, conformal_disk_map and (with options.find_orientation)
+// find_face_orientation throw, naming `name`.
 MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options = {});
 
 // Stage 4: the mapped surface at every node of G (interior nodes, then rim nodes).

@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -79,6 +80,11 @@ struct EncodeOptions {
   bool keyframe_fit = true;
   double keyframe_fit_weight = 1.0;
   double keyframe_fit_noise = 3.0;
+  // A frame without nose_tip and nose_bridge (or between_eyes): find them from its geometry
+  // (find_face_orientation) instead of dropping it; and where the capture has no rim_* markers at
+  // all, place rim_0..rim_5 on each frame's rim at fixed angles of its normalised disk
+  // (spec/method.md §7.14). false: such a frame is dropped (or, strict, ends the encode).
+  bool find_landmarks = true;
   // --strict: a frame that cannot be read, prepared or mapped, or a landmark farther from its frame
   // than landmark_tolerance, ends the encode with its error. Otherwise (the default) such a frame is
   // dropped and named in the report, a far landmark is ignored and named, and the spline covers the
@@ -124,6 +130,11 @@ struct EncodeReport {
   std::vector<DroppedFrame> dropped;       // in capture order
   std::vector<std::string> warnings;       // landmarks ignored, a reference frame moved; each names its frame
   int reference_frame = 0;                 // the frame registered to, in the capture as given
+  int orientation_found = 0;               // frames whose nose tip and up were found from the geometry
+  double weakest_up_evidence = 1;          // the least clear of their up readings (FaceOrientation::up_evidence)
+  int up_from_hint = 0;                    // of them, frames whose surface did not say and another frame's up was taken
+  double worst_mirror_error = 0;           // the least symmetric of them (FaceOrientation::mirror_error)
+  bool rim_markers_found = false;          // rim markers placed on the rims (the capture had none)
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
@@ -226,6 +237,12 @@ class SequenceEncoder {
   // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
   // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
   void drop_frames(const std::vector<FrameFailure>& failures);
+  // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
+  // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
+  void adopt_found_landmarks();
+  // The up direction of the first frame (from the reference on) without pose landmarks whose
+  // surface says which way is up; none when there is none.
+  std::optional<Vec3> find_vertical_hint() const;
 
   Capture capture_;
   std::vector<int> source_index_;
