@@ -317,7 +317,10 @@ TEST(PlyIo, ReadsVertexColoursAsciiAndBinaryUcharAndFloatWithAlpha) {
     SCOPED_TRACE(type);
     expect_colours(parse_ply_text(bytes, type + ".ply"), expected, type == "uchar" ? 0.0 : 1e-7);
   }
-  // Without red/green/blue, no colours; with only some of them, none either, and a warning.
+  // 16-bit colours are full range too.
+  const TriangleMesh wide = parse_ply_text(coloured_ply_head("ascii", "ushort", false) + "0 0 0 65535 0 0\n1 0 0 0 32896 65535\n0 1 0 13107 26214 39321\n3 0 1 2\n", "u.ply");
+  expect_colours(wide, expected, 1e-15);
+  // Without red/green/blue, no colours.
   EXPECT_FALSE(parse_ply_text(triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "n.ply").has_colours());
 }
 
