@@ -122,6 +122,12 @@ inline std::string broken_mesh_invariant(const TriangleMesh& mesh) {
   for (size_t i = 0; i < mesh.uvs.size(); ++i) {
     if (!mesh.uvs[i].allFinite()) return "uv " + std::to_string(i) + " is not finite";
   }
+  if (!mesh.colours.empty() && mesh.colours.size() != mesh.positions.size()) {
+    return std::to_string(mesh.colours.size()) + " colours for " + std::to_string(mesh.positions.size()) + " vertices";
+  }
+  for (size_t i = 0; i < mesh.colours.size(); ++i) {
+    if (!mesh.colours[i].allFinite() || mesh.colours[i].minCoeff() < 0 || mesh.colours[i].maxCoeff() > 1) return "colour " + std::to_string(i) + " outside [0, 1]";
+  }
   if (!mesh.uv_faces.empty() && mesh.uv_faces.size() != mesh.faces.size()) {
     return std::to_string(mesh.uv_faces.size()) + " uv faces for " + std::to_string(mesh.faces.size()) + " faces";
   }

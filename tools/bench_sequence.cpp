@@ -142,8 +142,7 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
     f.rms = d.rms / d.diagonal;
     f.max = d.max / d.diagonal;
     if (textures && !f.keyframe && !decoded.texture.empty()) {
-      const Image truth = resample_texture(InverseDiskMap(encoder.frame(i).map), read_image(encoder.texture_path(i)), decoded.texture.width,
-                                           [&](const Vec2& w) { return encoder.sample_point(i, w); });
+      const Image truth = encoder.frame_texture(i, decoded.texture.width);
       f.psnr = disk_psnr(truth, decoded.texture);
     }
     if (on_decoded) on_decoded(i, decoded);

@@ -189,7 +189,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     for (int i = 0; i < count; ++i) captured.push_back(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}));
     std::vector<int> every(static_cast<size_t>(count));
     for (int i = 0; i < count; ++i) every[static_cast<size_t>(i)] = i;
-    bool textured = !encoder.texture_path(0).empty() && encoder.frame(0).map.surface.has_uvs();
+    bool textured = encoder.has_texture(0);
 
     std::printf("\n%s: %d frames at %.3g fps, %s\n", input.c_str(), count, capture.fps, folder->c_str());
     json entry = {{"input", input}, {"frames", count}, {"fps", capture.fps}};

@@ -26,7 +26,7 @@ struct FrameSummary {
   int vertices = 0, faces = 0, prepared_vertices = 0, prepared_faces = 0;
   std::string report;
   std::vector<FilledHole> holes;
-  bool has_uvs = false, has_texture = false;
+  bool has_uvs = false, has_texture = false, has_colours = false;
 };
 
 std::vector<Vec3> rim_markers(const Capture& capture, size_t frame) {
@@ -61,6 +61,7 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
         s.holes = prepared.report.holes;
         s.has_uvs = mesh.has_uvs();
         s.has_texture = !mesh.texture.empty();
+        s.has_colours = mesh.has_colours();
         if (!prepared_dir.empty()) write_mesh(fs::path(prepared_dir) / path.filename().replace_extension(".obj"), prepared.mesh);
       },
       [&](int done, int total) { progress.update(done, total); });
@@ -109,7 +110,10 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
   if (!capture.description.empty()) std::printf("            %s\n", capture.description.c_str());
   std::printf("frames      %zu at %.3f fps, %.3f s, units %s\n", count, capture.fps, capture.duration(), capture.units.c_str());
   std::printf("vertices    %d .. %d per frame\n", vmin->vertices, vmax->vertices);
-  std::printf("texture     %s\n", frames[0].has_texture ? "per-frame image with UVs" : frames[0].has_uvs ? "UVs, no image" : "none");
+  std::printf("texture     %s\n", frames[0].has_texture ? "per-frame image with UVs"
+                                  : frames[0].has_colours ? "colour per vertex, no image (painted onto the disk)"
+                                  : frames[0].has_uvs   ? "UVs, no image"
+                                                        : "none");
   std::printf("landmarks   %zu (%zu on the rim)\n", capture.landmark_names.size(), rim_markers(capture, 0).size());
   std::printf("validation  all %zu frames are disks after repair; %zu repaired\n", count, repaired);
   if (holes > 0) {

@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   app.add_option("--noise", options.noise, "Scanner noise along the normal, metres (standard deviation)")->capture_default_str();
   app.add_option("--seed", options.seed, "Face identity, texture detail, noise and remeshing seed")->capture_default_str();
   app.add_option("--texture-size", options.texture_size, "Texture pixels per side")->capture_default_str();
+  app.add_flag("--vertex-colour", options.vertex_colour,
+               "Colour per vertex instead of a texture: binary PLY frames with red/green/blue, no UVs or image (a depth camera's capture)");
   app.add_option("--head-motion", options.head_motion_degrees, "Amplitude of a slow rigid head rotation, degrees")->capture_default_str();
   app.add_option("--truth-at", truth_times, "Also write the exact noise-free surface at these times as truth_T.obj");
   app.add_option("--truth-vertices", truth_vertices, "Vertices of the truth meshes")->capture_default_str();

@@ -10,7 +10,7 @@
 namespace facemorph {
 namespace {
 
-// Adds a vertex on the segment a-b (parameter t from a) with interpolated UV; returns its index.
+// Adds a vertex on the segment a-b (parameter t from a) with interpolated UV and colour; returns its index.
 class MeshEditor {
  public:
   MeshEditor(TriangleMesh& mesh, std::vector<int>& source) : mesh_(mesh), source_(source) {}
@@ -19,6 +19,7 @@ class MeshEditor {
   void split_edge(int32_t a, int32_t b, double t = 0.5) {
     const bool has_uv = mesh_.has_uvs();  // before faces and uv_faces are grown one after the other
     const auto m = static_cast<int32_t>(mesh_.positions.size());
+    if (mesh_.has_colours()) mesh_.colours.push_back((1 - t) * mesh_.colours[static_cast<size_t>(a)] + t * mesh_.colours[static_cast<size_t>(b)]);
     mesh_.positions.push_back((1 - t) * mesh_.positions[static_cast<size_t>(a)] + t * mesh_.positions[static_cast<size_t>(b)]);
     source_.push_back(-1);
     const size_t count = mesh_.faces.size();
@@ -49,6 +50,11 @@ class MeshEditor {
     const auto g = static_cast<int32_t>(mesh_.positions.size());
     Vec3 c = Vec3::Zero();
     for (int32_t v : face) c += mesh_.positions[static_cast<size_t>(v)] / 3.0;
+    if (mesh_.has_colours()) {
+      Vec3 colour = Vec3::Zero();
+      for (int32_t v : face) colour += mesh_.colours[static_cast<size_t>(v)] / 3.0;
+      mesh_.colours.push_back(colour);
+    }
     mesh_.positions.push_back(c);
     source_.push_back(-1);
     mesh_.faces[f] = {face[0], face[1], g};

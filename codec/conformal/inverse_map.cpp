@@ -78,4 +78,10 @@ Vec2 InverseDiskMap::texture_uv(const SurfacePoint& p) const {
          p.bary[2] * map_.surface.uvs[static_cast<size_t>(t[2])];
 }
 
+Vec3 InverseDiskMap::colour(const SurfacePoint& p) const {
+  const Face& f = map_.surface.faces[static_cast<size_t>(p.face)];
+  return p.bary[0] * map_.surface.colours[static_cast<size_t>(f[0])] + p.bary[1] * map_.surface.colours[static_cast<size_t>(f[1])] +
+         p.bary[2] * map_.surface.colours[static_cast<size_t>(f[2])];
+}
+
 }  // namespace facemorph

@@ -1,5 +1,6 @@
 #include "facemorph/encoder/resample.hpp"
 
+#include "facemorph/encoder/image_io.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/render.hpp"
 
@@ -69,7 +70,35 @@ Image resample_texture(const DiskMap& map, const InverseDiskMap& inverse, const 
   return out;
 }
 
+void TextureSource::check(const DiskMap& map) const {
+  if (image_ && !map.surface.has_uvs()) throw Error(ErrorCode::kMissingTexture, "the frame has no texture coordinates");
+  if (!image_ && !map.surface.has_colours()) throw Error(ErrorCode::kMissingTexture, "the frame has no vertex colours");
+}
+
+std::array<double, 3> TextureSource::sample(const InverseDiskMap& inverse, const SurfacePoint& p) const {
+  if (image_) {
+    const Vec2 uv = inverse.texture_uv(p);
+    return sample_bilinear(*image_, uv.x(), uv.y());
+  }
+  // Colours are interpolated as stored (linear 0..1) and coded to 8 bits like an image's texels.
+  const Vec3 c = inverse.colour(p);
+  return {255 * c.x(), 255 * c.y(), 255 * c.z()};
+}
+
+std::optional<TextureSource> frame_texture_source(const DiskMap& map, const std::filesystem::path& texture, Image& image) {
+  if (!texture.empty() && map.surface.has_uvs()) {
+    image = read_image(texture);
+    return TextureSource::image(image);
+  }
+  if (map.surface.has_colours()) return TextureSource::vertex_colours();
+  return std::nullopt;
+}
+
 Image resample_texture(const InverseDiskMap& inverse, const Image& texture, int size, const DiskWarp& warp) {
+  return resample_texture(inverse, TextureSource::image(texture), size, warp);
+}
+
+Image resample_texture(const InverseDiskMap& inverse, const TextureSource& source, int size, const DiskWarp& warp) {
   if (size < 2 || size > 16384) throw Error(ErrorCode::kInvalidArgument, "texture size must be in [2, 16384]");
   // The warp on a lattice of every 4th texel centre (plus the last), interpolated between.
   const int stride = 4, lattice = (size - 1) / stride + 2;
@@ -96,8 +125,7 @@ Image resample_texture(const InverseDiskMap& inverse, const Image& texture, int 
       if (w.norm() > 1) w.normalize();
       const auto hit = inverse.locate(w);
       if (!hit) throw Error(ErrorCode::kNumerical, "texel (" + std::to_string(x) + ", " + std::to_string(y) + ") maps outside the disk map");
-      const Vec2 uv = inverse.texture_uv(*hit);
-      const auto rgb = sample_bilinear(texture, uv.x(), uv.y());
+      const auto rgb = source.sample(inverse, *hit);
       uint8_t* p = out.at(x, y);
       for (int c = 0; c < 3; ++c) p[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[static_cast<size_t>(c)]), 0L, 255L));
     }

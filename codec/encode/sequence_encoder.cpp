@@ -21,6 +21,7 @@
 #include <numbers>
 #include <cmath>
 #include <numeric>
+#include <optional>
 
 namespace facemorph {
 
@@ -96,6 +97,17 @@ int auto_texture_size(const TriangleMesh& surface, int width, int height) {
   }
   const double texels = std::min(area, 1.0) * width * height;
   const double side = kMargin * std::sqrt(texels * 4 / std::numbers::pi);
+  return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
+}
+
+// --texture auto for a frame coloured per vertex: vertex colours hold no detail finer than the
+// triangles, so the disk gets a texel per triangle (about 2 V for V vertices) over its π/4 M²
+// texels, with the same 1.5 margin for the conformal map's crowding, rounding and bounds as above.
+// 20k vertices give 384, 5k give 192 (spec/method.md §7.7).
+int auto_texture_size_for_colours(const TriangleMesh& surface) {
+  constexpr double kMargin = 1.5, kTexelsPerVertex = 2;
+  constexpr int kLowest = 128, kHighest = 1024;
+  const double side = kMargin * std::sqrt(kTexelsPerVertex * surface.vertex_count() * 4 / std::numbers::pi);
   return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
 }
 
@@ -468,6 +480,20 @@ std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> no
   return points;
 }
 
+bool SequenceEncoder::has_texture(int i) const {
+  const auto index = static_cast<size_t>(i);
+  const TriangleMesh& surface = frames_[index].map.surface;
+  return (!textures_[index].empty() && surface.has_uvs()) || surface.has_colours();
+}
+
+Image SequenceEncoder::frame_texture(int i, int size) const {
+  const MappedFrame& f = frames_[static_cast<size_t>(i)];
+  Image image;
+  const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
+  if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
+  return resample_texture(InverseDiskMap(f.map), *source, size, [&](const Vec2& w) { return sample_point(i, w); });
+}
+
 std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const {
   return resample_positions(InverseDiskMap(frames_[static_cast<size_t>(i)].map), sample_points(i, nodes));
 }
@@ -568,10 +594,11 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   bool any_holes = false;
   for (const MappedFrame& f : frames_) any_holes = any_holes || !f.prepared.report.holes.empty();
   const bool store_holes = any_holes && !options_.keep_holes_filled;
-  // Textures: every keyframe's, or (a capture without images) none; some but not all is an error.
+  // Textures: every keyframe's, or (a capture without images or vertex colours) none; some but not
+  // all is an error.
   bool store_texture = options_.texture;
   for (int k : keyframes) {
-    const bool has = !textures_[static_cast<size_t>(k)].empty() && frames_[static_cast<size_t>(k)].map.surface.has_uvs();
+    const bool has = has_texture(k);
     if (store_texture && !has) {
       if (k != keyframes.front()) {
         throw Error(ErrorCode::kMissingTexture,
@@ -583,8 +610,13 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   int texture_size = options_.texture_size;
   if (store_texture && texture_size == 0) {
     const auto first = static_cast<size_t>(keyframes.front());
-    const Image image = read_image(textures_[first]);
-    texture_size = auto_texture_size(frames_[first].map.surface, image.width, image.height);
+    const TriangleMesh& surface = frames_[first].map.surface;
+    if (!textures_[first].empty() && surface.has_uvs()) {
+      const Image image = read_image(textures_[first]);
+      texture_size = auto_texture_size(surface, image.width, image.height);
+    } else {
+      texture_size = auto_texture_size_for_colours(frames_[first].prepared.mesh);
+    }
   }
   report_.texture_size = store_texture ? texture_size : 0;
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
@@ -616,10 +648,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         key.time = capture_.frames[index].time;
         key.pose = selection_[index].pose;
         if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
-        if (store_texture) {
-          key.texture = resample_texture(inverse, read_image(textures_[index]), texture_size,
-                                         [&](const Vec2& w) { return sample_point(static_cast<int>(index), w); });
-        }
+        if (store_texture) key.texture = frame_texture(static_cast<int>(index), texture_size);
       },
       [&](int done, int total) { progress("keyframes", done, total); });
   if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
@@ -756,9 +785,8 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
     parallel_for(static_cast<int>(keys) - 1, options_.threads, [&](int k) {
       const int middle = (keyframes[static_cast<size_t>(k)] + keyframes[static_cast<size_t>(k) + 1]) / 2;
       const auto m = static_cast<size_t>(middle);
-      if (middle == keyframes[static_cast<size_t>(k)] || textures_[m].empty() || !frames_[m].map.surface.has_uvs()) return;
-      const InverseDiskMap inverse(frames_[m].map);
-      const Image own = resample_texture(inverse, read_image(textures_[m]), size, [&](const Vec2& w) { return sample_point(middle, w); });
+      if (middle == keyframes[static_cast<size_t>(k)] || !has_texture(middle)) return;
+      const Image own = frame_texture(middle, size);
       interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_textures(sequence, spline.weights(capture_.frames[m].time)));
     });
     const std::vector<double> targets = texture_error_targets(interval_mse, options_.texture_coding);

@@ -9,6 +9,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <string>
 
 namespace facemorph {
@@ -94,6 +95,29 @@ std::string find_diffuse_map(std::string_view mtl_text, const std::string& mater
   return material.empty() ? first_map : std::string();
 }
 
+// The colour after a "v" line's coordinates: "v x y z r g b" (r, g, b in [0, 1]); nothing after them,
+// or a single w (the rational weight some writers add), is no colour.
+std::optional<Vec3> vertex_colour(std::string_view rest, const std::string& source, size_t line) {
+  std::string_view tokens[4];
+  int count = 0;
+  for (std::string_view token = text::next_token(rest); !token.empty(); token = text::next_token(rest)) {
+    if (count == 4) break;
+    tokens[count++] = token;
+  }
+  if (count <= 1) return std::nullopt;
+  if (count != 3) fail(ErrorCode::kParse, source, line, "malformed v line: expected x y z, x y z w or x y z r g b");
+  Vec3 colour;
+  for (int k = 0; k < 3; ++k) {
+    const auto value = text::parse_double(tokens[k]);
+    if (!value) fail(ErrorCode::kParse, source, line, "malformed vertex colour '" + std::string(tokens[k]) + "'");
+    if (!(*value >= 0 && *value <= 1)) {
+      fail(ErrorCode::kInvalidMesh, source, line, "vertex colour '" + std::string(tokens[k]) + "' outside [0, 1]");
+    }
+    colour[k] = *value;
+  }
+  return colour;
+}
+
 void append_number(std::string& out, double value, int significant_digits) {
   char buffer[48];
   auto result = significant_digits > 0
@@ -145,8 +169,15 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
         }
         values[k] = *value;
       }
-      if (keyword == "v") mesh.positions.emplace_back(values[0], values[1], values[2]);
-      else mesh.uvs.emplace_back(values[0], values[1]);
+      if (keyword == "v") {
+        mesh.positions.emplace_back(values[0], values[1], values[2]);
+        if (const auto colour = vertex_colour(rest, source, lines.line_number())) {
+          mesh.colours.resize(mesh.positions.size() - 1, Vec3::Constant(-1));  // -1: a vertex without colour
+          mesh.colours.push_back(*colour);
+        }
+      } else {
+        mesh.uvs.emplace_back(values[0], values[1]);
+      }
     } else if (keyword == "vn") {
       ++normal_count;
     } else if (keyword == "f") {
@@ -184,6 +215,15 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
 
   if (polygons > 0 && warnings) {
     warnings->push_back(source + ": " + std::to_string(polygons) + " polygon faces fan-triangulated");
+  }
+  if (!mesh.colours.empty()) {
+    // Colour on some vertices only: no colour a vertex could stand for the others', so none.
+    mesh.colours.resize(mesh.positions.size(), Vec3::Constant(-1));
+    const auto without = std::count_if(mesh.colours.begin(), mesh.colours.end(), [](const Vec3& c) { return c.x() < 0; });
+    if (without > 0) {
+      if (warnings) warnings->push_back(source + ": " + std::to_string(without) + " vertices lack a colour; vertex colours dropped");
+      mesh.colours.clear();
+    }
   }
   if (faces_with_uv > 0 && faces_without_uv == 0) {
     mesh.uv_faces = std::move(uv_faces);
@@ -228,13 +268,19 @@ std::string format_obj(const TriangleMesh& mesh, const std::string& material_lib
   out.reserve(mesh.positions.size() * 40 + mesh.faces.size() * 30 + mesh.uvs.size() * 28);
   out += "# facemorph\n";
   if (!material_library.empty()) out += "mtllib " + material_library + "\nusemtl face\n";
-  for (const Vec3& p : mesh.positions) {
+  const bool colours = mesh.has_colours();
+  for (size_t v = 0; v < mesh.positions.size(); ++v) {
+    const Vec3& p = mesh.positions[v];
     out += "v ";
     append_number(out, p.x(), significant_digits);
     out += ' ';
     append_number(out, p.y(), significant_digits);
     out += ' ';
     append_number(out, p.z(), significant_digits);
+    for (int k = 0; k < 3 && colours; ++k) {
+      out += ' ';
+      append_number(out, mesh.colours[v][k], significant_digits);
+    }
     out += '\n';
   }
   const bool uv = mesh.has_uvs();

@@ -5,6 +5,7 @@
 #include "codec/mesh/text_scan.hpp"
 #include "format/byte_reader.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -234,6 +235,30 @@ int32_t vertex_index(double value, size_t vertex_count, const std::string& sourc
   return static_cast<int32_t>(*index);  // vertex_count <= int32 max: the header bounds element counts
 }
 
+// The scale that takes a colour property to [0, 1]: 8- and 16-bit unsigned integers are full range,
+// floats are already in [0, 1]. Other types no scanner writes; refusing them beats guessing a range.
+double colour_scale(const Property& property, const std::string& source) {
+  switch (property.type) {
+    case ScalarType::kUint8: return 1.0 / 255;
+    case ScalarType::kUint16: return 1.0 / 65535;
+    case ScalarType::kFloat32: case ScalarType::kFloat64: return 1.0;
+    default:
+      fail(ErrorCode::kUnsupported, source, "vertex colour '" + property.name + "' has a type other than uchar, ushort, float or double");
+  }
+}
+
+// A colour component as read (ASCII text, or the binary type), as a value in [0, 1]. Integer types
+// must hold a whole number in their range; floats must lie in [0, 1].
+double colour_value(double value, const Property& property, double scale, const std::string& source, const Element& element, uint64_t e) {
+  const double limit = is_integer(property.type) ? 1 / scale : 1.0;
+  const bool whole = !is_integer(property.type) || value == std::trunc(value);
+  if (!std::isfinite(value) || !whole || value < 0 || value > limit) {
+    fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + ": colour " + property.name + " " + text::format_number(value) +
+                                              " is not " + (is_integer(property.type) ? "a whole number in [0, " + text::format_number(limit) + "]" : std::string("in [0, 1]")));
+  }
+  return value * scale;
+}
+
 }  // namespace
 
 TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source, const fs::path& base_dir,
@@ -259,6 +284,8 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
     const bool is_vertex = element.name == "vertex";
     const bool is_face = element.name == "face";
     int ix = -1, iy = -1, iz = -1, iu = -1, iv = -1, ilist = -1, itex = -1;
+    int icolour[3] = {-1, -1, -1};
+    double colour_scales[3] = {1, 1, 1};
     if (is_vertex) {
       if (have_vertices) fail(ErrorCode::kParse, source, "two vertex elements");
       ix = find_property(element, {"x"});
@@ -268,7 +295,19 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       iu = find_property(element, {"s", "u", "texture_u", "texture_s"});
       iv = find_property(element, {"t", "v", "texture_v", "texture_t"});
       if (iu < 0 || iv < 0) iu = iv = -1;
+      // Colour: red, green and blue together (alpha, when present, is read and ignored). One or two
+      // of them is no colour a frame could be painted with: read past, said in a warning.
+      icolour[0] = find_property(element, {"red", "diffuse_red"});
+      icolour[1] = find_property(element, {"green", "diffuse_green"});
+      icolour[2] = find_property(element, {"blue", "diffuse_blue"});
+      const int colour_count = (icolour[0] >= 0) + (icolour[1] >= 0) + (icolour[2] >= 0);
+      if (colour_count != 3) {
+        if (colour_count > 0 && warnings) warnings->push_back(source + ": vertices have some of red, green and blue but not all three; colour ignored");
+        icolour[0] = icolour[1] = icolour[2] = -1;
+      }
+      for (int c = 0; c < 3 && colour_count == 3; ++c) colour_scales[c] = colour_scale(element.properties[static_cast<size_t>(icolour[c])], source);
       mesh.positions.reserve(element.count);
+      if (colour_count == 3) mesh.colours.reserve(element.count);
       have_vertices = true;
     } else if (is_face) {
       if (have_faces) fail(ErrorCode::kParse, source, "two face elements");
@@ -283,6 +322,7 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
     for (uint64_t e = 0; e < element.count; ++e) {
       double scalar[3] = {0, 0, 0};
       double uv[2] = {0, 0};
+      Vec3 colour = Vec3::Zero();
       polygon.clear();
       texcoords.clear();
       for (size_t p = 0; p < element.properties.size(); ++p) {
@@ -302,11 +342,15 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
           else if (pi == iz) scalar[2] = value;
           else if (pi == iu) uv[0] = value;
           else if (pi == iv) uv[1] = value;
+          for (int c = 0; c < 3; ++c) {
+            if (pi == icolour[c]) colour[c] = colour_value(value, property, colour_scales[c], source, element, e);
+          }
         }
       }
       if (is_vertex) {
         mesh.positions.emplace_back(scalar[0], scalar[1], scalar[2]);
         if (iu >= 0) vertex_uvs.emplace_back(uv[0], uv[1]);
+        if (icolour[0] >= 0) mesh.colours.push_back(colour);
         if (!mesh.positions.back().allFinite() || (iu >= 0 && !vertex_uvs.back().allFinite())) {
           fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite coordinate");
         }
@@ -368,6 +412,8 @@ std::vector<uint8_t> format_ply(const TriangleMesh& mesh, PlyEncoding encoding, 
   if (!texture_name.empty()) head += "comment TextureFile " + texture_name + "\n";
   head += "element vertex " + std::to_string(mesh.positions.size()) + "\n";
   head += "property double x\nproperty double y\nproperty double z\n";
+  const bool colours = mesh.has_colours();
+  if (colours) head += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   head += "element face " + std::to_string(mesh.faces.size()) + "\n";
   head += "property list uchar int vertex_indices\n";
   if (uv) head += "property list uchar float texcoord\n";
@@ -386,14 +432,25 @@ std::vector<uint8_t> format_ply(const TriangleMesh& mesh, PlyEncoding encoding, 
     return std::string_view(buffer, static_cast<size_t>(r.ptr - buffer));
   };
   static_assert(std::endian::native == std::endian::little, "binary PLY writer assumes a little-endian host");
-  for (const Vec3& p : mesh.positions) {
+  for (size_t v = 0; v < mesh.positions.size(); ++v) {
+    const Vec3& p = mesh.positions[v];
+    uint8_t rgb[3] = {0, 0, 0};
+    if (colours) {
+      // 8 bits a channel, as scanners write them: k / 255 reads back exactly.
+      for (int k = 0; k < 3; ++k) rgb[k] = static_cast<uint8_t>(std::clamp(std::lround(255 * mesh.colours[v][k]), 0L, 255L));
+    }
     if (ascii) {
       for (int k = 0; k < 3; ++k) {
         put_text(number(p[k]));
+        put_text(k < 2 || colours ? " " : "\n");
+      }
+      for (int k = 0; k < 3 && colours; ++k) {
+        put_text(number(int{rgb[k]}));
         put_text(k < 2 ? " " : "\n");
       }
     } else {
       put(p.data(), 3 * sizeof(double));
+      if (colours) put(rgb, sizeof rgb);
     }
   }
   for (size_t f = 0; f < mesh.faces.size(); ++f) {

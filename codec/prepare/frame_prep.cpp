@@ -87,6 +87,14 @@ class FramePreparer {
     } else if (!mesh_.uv_faces.empty()) {
       fail(ErrorCode::kInvalidMesh, "texture-coordinate faces do not match the faces");
     }
+    // Colours are optional but, when present, one per vertex: every later step keeps them so.
+    if (!mesh_.colours.empty() && !mesh_.has_colours()) {
+      fail(ErrorCode::kInvalidMesh, std::to_string(mesh_.colours.size()) + " vertex colours for " + std::to_string(mesh_.vertex_count()) + " vertices");
+    }
+    for (size_t i = 0; i < mesh_.colours.size(); ++i) {
+      const Vec3& c = mesh_.colours[i];
+      if (!c.allFinite() || c.minCoeff() < 0 || c.maxCoeff() > 1) fail(ErrorCode::kInvalidMesh, "vertex " + std::to_string(i) + " has a colour outside [0, 1]");
+    }
   }
 
   // Scanners split vertices along texture seams; welding exact duplicates restores one surface.
@@ -239,12 +247,15 @@ class FramePreparer {
     }
     report_.dropped_unreferenced_vertices = static_cast<int>(mesh_.positions.size()) - next - report_.merged_vertices;
     std::vector<Vec3> positions(static_cast<size_t>(next));
+    std::vector<Vec3> colours(mesh_.has_colours() ? static_cast<size_t>(next) : 0);
     std::vector<int> source(static_cast<size_t>(next));
     for (size_t v = 0; v < remap.size(); ++v) {
       if (remap[v] < 0) continue;
       positions[static_cast<size_t>(remap[v])] = mesh_.positions[v];
+      if (!colours.empty()) colours[static_cast<size_t>(remap[v])] = mesh_.colours[v];
       source[static_cast<size_t>(remap[v])] = source_[v];
     }
+    mesh_.colours = std::move(colours);
     for (Face& f : mesh_.faces) {
       for (int32_t& v : f) v = remap[static_cast<size_t>(v)];
     }
@@ -422,6 +433,7 @@ class FramePreparer {
       mesh_.positions.push_back(p);
       source_.push_back(-1);
     }
+    if (!mesh_.colours.empty()) mesh_.colours.insert(mesh_.colours.end(), fill.colours.begin(), fill.colours.end());
     if (mesh_.has_uvs()) {
       mesh_.uvs.insert(mesh_.uvs.end(), fill.uvs.begin(), fill.uvs.end());
       for (const Face& f : fill.faces) {

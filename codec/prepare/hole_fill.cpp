@@ -272,6 +272,25 @@ class Fill {
   Vec3 reference_normal_;
 };
 
+// A fill vertex's colour: the rim's, each rim vertex weighted by its inverse squared distance, so
+// an eye's fill shades from lid to lid instead of taking one flat average. (Decoding cuts an open
+// eye back out; with --keep-holes-filled this is the colour shown.)
+std::vector<Vec3> rim_colours(const TriangleMesh& mesh, const std::vector<int>& loop, const std::vector<Vec3>& points) {
+  std::vector<Vec3> colours;
+  colours.reserve(points.size());
+  for (const Vec3& p : points) {
+    Vec3 sum = Vec3::Zero();
+    double total = 0;
+    for (int v : loop) {
+      const double w = 1 / std::max((mesh.positions[static_cast<size_t>(v)] - p).squaredNorm(), 1e-300);
+      sum += w * mesh.colours[static_cast<size_t>(v)];
+      total += w;
+    }
+    colours.push_back(sum / total);
+  }
+  return colours;
+}
+
 }  // namespace
 
 HoleFill fill_hole(const TriangleMesh& mesh, const std::vector<int>& loop, const std::vector<double>& target_edge_length,
@@ -285,7 +304,9 @@ HoleFill fill_hole(const TriangleMesh& mesh, const std::vector<int>& loop, const
   fill.triangulate_minimal_area();
   fill.refine();
   fill.fair();
-  return fill.result(mesh.vertex_count());
+  HoleFill result = fill.result(mesh.vertex_count());
+  if (mesh.has_colours()) result.colours = rim_colours(mesh, loop, result.positions);
+  return result;
 }
 
 }  // namespace facemorph

@@ -86,7 +86,17 @@ void write_frame(const fs::path& directory, const SynthOptions& options, const S
     Vec3 p = face.position(m, time);
     if (options.noise > 0) p += options.noise * gaussian(rng) * face.normal(m, time);
     mesh.positions.push_back(p);
-    mesh.uvs.push_back(SyntheticFace::texture_coordinate(m));
+    if (options.vertex_colour) {
+      const auto rgb = face.color(m, time);
+      mesh.colours.emplace_back(rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0);
+    } else {
+      mesh.uvs.push_back(SyntheticFace::texture_coordinate(m));
+    }
+  }
+  if (options.vertex_colour) {
+    // A depth camera's frame: colour per vertex, no image.
+    write_mesh(directory / (stem + ".ply"), mesh);
+    return;
   }
   mesh.uv_faces = mesh.faces;
 
@@ -117,7 +127,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   if (ec || !fs::is_directory(directory)) throw Error(ErrorCode::kIo, directory.string() + ": cannot create the folder");
 
   const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees);
-  const TexturePainter painter(face, options.texture_size);
+  const TexturePainter painter(face, options.vertex_colour ? 16 : options.texture_size);  // no image to paint with vertex colours
   std::optional<MaterialSampling> fixed;
   if (!options.remesh) fixed = sample_material_ellipse(options.vertices, false, 0);
 
@@ -129,7 +139,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   capture.description = std::string("fmsynth synthetic face, expression ") + expression_name(options.expression);
   capture.fps = options.fps;
   capture.units = "m";
-  for (int i = 0; i < options.frames; ++i) capture.frames.push_back({frame_stem(i, options.frames) + ".obj", i / options.fps});
+  const std::string extension = options.vertex_colour ? ".ply" : ".obj";
+  for (int i = 0; i < options.frames; ++i) capture.frames.push_back({frame_stem(i, options.frames) + extension, i / options.fps});
   for (const NamedPoint& l : face.landmarks()) capture.landmark_names.push_back(l.name);
   capture.landmarks.resize(capture.frames.size());
   for (size_t i = 0; i < capture.frames.size(); ++i) {
@@ -141,7 +152,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"head_motion_degrees", std::to_string(options.head_motion_degrees)},
                        {"vertices", std::to_string(options.vertices)},
                        {"remesh", options.remesh ? "true" : "false"},
-                       {"noise", std::to_string(options.noise)}};
+                       {"noise", std::to_string(options.noise)},
+                       {"colour", options.vertex_colour ? "vertex" : "texture"}};
   write_capture_manifest(capture);
 }
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
 namespace facemorph {
@@ -273,6 +274,112 @@ TEST(MeshFiles, WritesAreAtomicAndFailuresNameTheFile) {
   EXPECT_EQ(leftovers, 0u);
   expect_error(ErrorCode::kIo, "missing.ply", [&] { read_mesh(dir / "missing.ply"); });
   expect_error(ErrorCode::kUnsupported, ".stl", [&] { read_mesh(dir / "x.stl"); });
+}
+
+// Vertex colours: PLY red/green/blue (+ alpha) as uchar or float, OBJ "v x y z r g b".
+std::string coloured_ply_head(const std::string& encoding, const std::string& colour_type, bool alpha) {
+  std::string head = "ply\nformat " + encoding + " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  for (const char* c : {"red", "green", "blue"}) head += "property " + colour_type + " " + c + "\n";
+  if (alpha) head += "property " + colour_type + " alpha\n";
+  return head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+void expect_colours(const TriangleMesh& m, const std::vector<Vec3>& expected, double tolerance) {
+  ASSERT_TRUE(m.has_colours());
+  ASSERT_EQ(m.colours.size(), expected.size());
+  for (size_t v = 0; v < expected.size(); ++v) EXPECT_LE((m.colours[v] - expected[v]).cwiseAbs().maxCoeff(), tolerance) << "vertex " << v;
+}
+
+TEST(PlyIo, ReadsVertexColoursAsciiAndBinaryUcharAndFloatWithAlpha) {
+  const std::vector<Vec3> expected = {{1, 0, 0}, {0, 128 / 255.0, 1}, {51 / 255.0, 102 / 255.0, 153 / 255.0}};
+  // ASCII uchar with alpha (ignored).
+  const TriangleMesh a = parse_ply_text(coloured_ply_head("ascii", "uchar", true) + "0 0 0 255 0 0 255\n1 0 0 0 128 255 7\n0 1 0 51 102 153 0\n3 0 1 2\n", "a.ply");
+  expect_colours(a, expected, 0.0);
+  EXPECT_EQ(a.positions[1], Vec3(1, 0, 0));  // alpha does not shift the other properties
+  // ASCII float without alpha.
+  const TriangleMesh f = parse_ply_text(coloured_ply_head("ascii", "float", false) + "0 0 0 1 0 0\n1 0 0 0 0.50196078 1\n0 1 0 0.2 0.4 0.6\n3 0 1 2\n", "f.ply");
+  expect_colours(f, expected, 1e-7);
+  // Binary little-endian, uchar and float, with alpha.
+  for (const std::string type : {"uchar", "float"}) {
+    std::string bytes = coloured_ply_head("binary_little_endian", type, true);
+    auto put = [&bytes](const auto& value) { bytes.append(reinterpret_cast<const char*>(&value), sizeof value); };
+    const float xyz[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (int v = 0; v < 3; ++v) {
+      for (float x : xyz[v]) put(x);
+      for (int c = 0; c < 4; ++c) {
+        const double value = c < 3 ? expected[static_cast<size_t>(v)][c] : 1.0;
+        if (type == "uchar") put(static_cast<uint8_t>(std::lround(255 * value)));
+        else put(static_cast<float>(value));
+      }
+    }
+    put(uint8_t{3});
+    for (int32_t i : {0, 1, 2}) put(i);
+    SCOPED_TRACE(type);
+    expect_colours(parse_ply_text(bytes, type + ".ply"), expected, type == "uchar" ? 0.0 : 1e-7);
+  }
+  // 16-bit colours are full range too.
+  const TriangleMesh wide = parse_ply_text(coloured_ply_head("ascii", "ushort", false) + "0 0 0 65535 0 0\n1 0 0 0 32896 65535\n0 1 0 13107 26214 39321\n3 0 1 2\n", "u.ply");
+  expect_colours(wide, expected, 1e-15);
+  // Without red/green/blue, no colours.
+  EXPECT_FALSE(parse_ply_text(triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "n.ply").has_colours());
+}
+
+TEST(PlyIo, BadVertexColoursAreNamedErrors) {
+  const std::string uchar = coloured_ply_head("ascii", "uchar", false), real = coloured_ply_head("ascii", "float", false);
+  auto parse = [](const std::string& text) { return parse_ply_text(text + "1 0 0 0 0 0\n0 1 0 0 0 0\n3 0 1 2\n", "c.ply"); };
+  expect_errors({{ErrorCode::kInvalidMesh, "c.ply: vertex 0: colour red 256 is not a whole number in [0, 255]", uchar + "0 0 0 256 0 0\n"},
+                 {ErrorCode::kInvalidMesh, "vertex 0: colour green 1.5 is not a whole number", uchar + "0 0 0 0 1.5 0\n"},
+                 {ErrorCode::kInvalidMesh, "vertex 0: colour blue -1 is not a whole number", uchar + "0 0 0 0 0 -1\n"},
+                 {ErrorCode::kInvalidMesh, "c.ply: vertex 0: colour red 1.5 is not in [0, 1]", real + "0 0 0 1.5 0 0\n"},
+                 {ErrorCode::kInvalidMesh, "vertex 0: colour green -0.25 is not in [0, 1]", real + "0 0 0 0 -0.25 0\n"},
+                 {ErrorCode::kInvalidMesh, "vertex 0: colour blue nan is not in [0, 1]", real + "0 0 0 0 0 nan\n"},
+                 {ErrorCode::kUnsupported, "vertex colour 'red' has a type other than uchar", coloured_ply_head("ascii", "int", false) + "0 0 0 0 0 0\n"}},
+                parse);
+  Warnings warnings;
+  const std::string partial = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                              "property uchar red\nproperty uchar green\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                              "0 0 0 1 2\n1 0 0 3 4\n0 1 0 5 6\n3 0 1 2\n";
+  const TriangleMesh m = parse_ply({reinterpret_cast<const uint8_t*>(partial.data()), partial.size()}, "p.ply", ".", {}, &warnings);
+  EXPECT_FALSE(m.has_colours());
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("not all three"), std::string::npos);
+}
+
+TEST(ObjIo, ReadsVertexColoursAndBadOnesAreNamedErrors) {
+  const TriangleMesh m = parse_obj("v 0 0 0 1 0 0\nv 1 0 0 0 0.5 1\nv 0 1 0 0.2 0.4 0.6\nf 1 2 3\n", "c.obj", ".");
+  expect_colours(m, {{1, 0, 0}, {0, 0.5, 1}, {0.2, 0.4, 0.6}}, 0.0);
+  EXPECT_EQ(m.positions[1], Vec3(1, 0, 0));
+  // A weight w is no colour.
+  EXPECT_FALSE(parse_obj("v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n", "w.obj", ".").has_colours());
+  // Colour on some vertices only: dropped, with a warning.
+  Warnings warnings;
+  EXPECT_FALSE(parse_obj("v 0 0 0\nv 1 0 0 0 0.5 1\nv 0 1 0\nf 1 2 3\n", "some.obj", ".", {}, &warnings).has_colours());
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("2 vertices lack a colour"), std::string::npos);
+  auto parse = [](const std::string& text) { parse_obj(text + "v 1 0 0\nv 0 1 0\nf 1 2 3\n", "bad.obj", "."); };
+  expect_errors({{ErrorCode::kInvalidMesh, "bad.obj:1: vertex colour '255' outside [0, 1]", "v 0 0 0 255 0 0\n"},
+                 {ErrorCode::kInvalidMesh, "bad.obj:1: vertex colour '-0.1' outside [0, 1]", "v 0 0 0 0 -0.1 0\n"},
+                 {ErrorCode::kInvalidMesh, "vertex colour 'nan' outside [0, 1]", "v 0 0 0 0 0 nan\n"},
+                 {ErrorCode::kParse, "bad.obj:1: malformed vertex colour 'red'", "v 0 0 0 red 0 0\n"},
+                 {ErrorCode::kParse, "bad.obj:1: malformed v line: expected x y z, x y z w or x y z r g b", "v 0 0 0 0.5 0.5\n"}},
+                parse);
+}
+
+TEST(MeshFiles, VertexColoursRoundTripThroughObjAndBothPlyEncodings) {
+  TempDir dir;
+  TriangleMesh m = textured_square();
+  m.colours = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {17 / 255.0, 200 / 255.0, 99 / 255.0}};
+  write_mesh(dir / "c.obj", m);
+  expect_colours(read_mesh(dir / "c.obj"), m.colours, 0.0);  // shortest round-trip decimal: exact
+  for (PlyEncoding encoding : {PlyEncoding::kBinaryLittleEndian, PlyEncoding::kAscii}) {
+    write_mesh(dir / "c.ply", m, {.ply_encoding = encoding});
+    const TriangleMesh back = read_mesh(dir / "c.ply");
+    expect_same_geometry(m, back, 0.0);
+    expect_colours(back, m.colours, 1e-15);  // 8 bits a channel: k / 255 comes back as k / 255
+  }
+  // Without colours, none are written.
+  write_mesh(dir / "plain.ply", textured_square());
+  EXPECT_FALSE(read_mesh(dir / "plain.ply").has_colours());
 }
 
 TEST(MeshFiles, ReadsTheRealMedusaFrame) {

@@ -414,6 +414,30 @@ TEST(ConformalMap, SplitsKeepTextureCoordinatesAndGeometry) {
   for (size_t v = static_cast<size_t>(p.mesh.vertex_count()); v < map.surface.positions.size(); ++v) EXPECT_EQ(map.source_vertex[v], -1);
 }
 
+TEST(ConformalMap, SplitsInterpolateVertexColours) {
+  // The mesh of the test above, coloured by a linear function of position: every vertex a split
+  // adds (on an edge, at a centroid) must carry exactly its position's colour.
+  auto colour_of = [](const Vec3& p) { return Vec3(0.25 * p.x(), 0.2 * p.y() + 0.5, p.z()); };  // in [0, 1] on the mesh
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {2, 0, 0}, {1, 0.1, 0.2}, {1, 1.5, 0.4}, {1, -1.2, 0.1}};
+  m.faces = {{0, 2, 3}, {2, 1, 3}, {0, 4, 1}, {0, 1, 2}};
+  for (const Vec3& p : m.positions) m.colours.push_back(colour_of(p));
+  const PreparedFrame p = prepare_frame(m, "caps.ply");
+  const DiskMap map = conformal_disk_map(p.mesh);
+  EXPECT_GT(map.surface.vertex_count(), p.mesh.vertex_count());  // it did split
+  ASSERT_TRUE(map.surface.has_colours());
+  for (size_t v = 0; v < map.surface.positions.size(); ++v) {
+    EXPECT_LT((map.surface.colours[v] - colour_of(map.surface.positions[v])).norm(), 1e-12) << "vertex " << v;
+  }
+  // And the inverse map interpolates them across the triangles.
+  const InverseDiskMap inverse(map);
+  for (const Vec2& w : {Vec2(0, 0), Vec2(0.3, -0.2), Vec2(-0.5, 0.4)}) {
+    const auto hit = inverse.locate(w);
+    ASSERT_TRUE(hit.has_value());
+    EXPECT_LT((inverse.colour(*hit) - colour_of(inverse.position(*hit))).norm(), 1e-12);
+  }
+}
+
 TEST(ConformalMap, HardInputIsHandledOrNamedNeverNaN) {
   // An ear (a boundary vertex of valence 1), very thin triangles and a needle: all handled.
   TriangleMesh disk = flat_disk(6, 24);

@@ -120,6 +120,52 @@ TEST(PrepareFrame, RepairsDuplicatesDegenerateFacesAndUnreferencedVertices) {
   EXPECT_TRUE(p.report.changed());
 }
 
+// A colour that is a linear function of position: interpolation along an edge or across a face
+// reproduces it exactly, so a vertex whose colour is not its position's was renumbered wrongly.
+Vec3 linear_colour(const Vec3& p) { return Vec3(0.5 + 0.4 * p.x(), 0.5 + 0.4 * p.y(), 0.2 + 0.6 * p.z()); }
+
+TEST(PrepareFrame, VertexColoursSurviveRepairsAndHoleFilling) {
+  TriangleMesh m = dome(30, 120, {{{-0.3, 0.3}, 0.12}, {{0.0, -0.35}, 0.2}});
+  m.positions.emplace_back(0.5, 0.5, 5);  // unreferenced: dropped, and every later vertex renumbered
+  std::swap(m.positions.front(), m.positions.back());
+  for (Face& f : m.faces) {
+    for (int32_t& v : f) v = v == 0 ? m.vertex_count() - 1 : v;
+  }
+  for (const Vec3& p : m.positions) m.colours.push_back(p.z() > 1 ? Vec3(1, 0, 1) : linear_colour(p));
+  const PreparedFrame p = prepare_frame(m, "colours.ply");
+  EXPECT_GT(p.report.dropped_unreferenced_vertices, 1);  // the one added and those the holes' faces left
+  ASSERT_EQ(p.report.holes.size(), 2u);
+  ASSERT_TRUE(p.mesh.has_colours());
+  const int captured = p.report.holes.front().first_vertex;
+  for (int v = 0; v < captured; ++v) {
+    const Vec3& q = p.mesh.positions[static_cast<size_t>(v)];
+    ASSERT_LT((p.mesh.colours[static_cast<size_t>(v)] - linear_colour(q)).norm(), 1e-15) << "vertex " << v;
+  }
+  // A fill vertex takes its rim's colours, weighted: within their range, and near the colour the
+  // surface would have there (the fill lies a little below the dome, so z's channel is looser).
+  for (const FilledHole& h : p.report.holes) {
+    Vec3 lo = Vec3::Constant(1), hi = Vec3::Zero();
+    for (int v : h.loop) {
+      lo = lo.cwiseMin(p.mesh.colours[static_cast<size_t>(v)]);
+      hi = hi.cwiseMax(p.mesh.colours[static_cast<size_t>(v)]);
+    }
+    ASSERT_GT(h.vertex_count, 0);
+    for (int v = h.first_vertex; v < h.first_vertex + h.vertex_count; ++v) {
+      const Vec3& c = p.mesh.colours[static_cast<size_t>(v)];
+      EXPECT_TRUE((c.array() >= lo.array() - 1e-12).all() && (c.array() <= hi.array() + 1e-12).all()) << "fill vertex " << v;
+      EXPECT_LT(std::abs(c.x() - linear_colour(p.mesh.positions[static_cast<size_t>(v)]).x()), 0.1) << "fill vertex " << v;
+    }
+  }
+}
+
+TEST(PrepareFrame, BadVertexColoursAreNamedErrors) {
+  TriangleMesh m = dome(6, 16);
+  m.colours.assign(static_cast<size_t>(m.vertex_count()) - 1, Vec3::Constant(0.5));
+  expect_error(ErrorCode::kInvalidMesh, "short.ply: 96 vertex colours for 97 vertices", [&] { prepare_frame(m, "short.ply"); });
+  m.colours.push_back(Vec3(0.5, 1.25, 0.5));
+  expect_error(ErrorCode::kInvalidMesh, "bright.ply: vertex 96 has a colour outside [0, 1]", [&] { prepare_frame(m, "bright.ply"); });
+}
+
 TEST(PrepareFrame, ZeroAreaFaceAtATJunctionSplitsItsNeighbour) {
   // Square (0,1,2,3) as two triangles plus vertex 4 on edge 0-1 with a zero-area face (0,4,1)
   // stitched into the lower triangle's edge: a T-junction.

@@ -91,6 +91,16 @@ expect_error "residual coder" "none of range, range-1.4, range-1.3 and zstd" "$t
 "$tools/fminfo" "$work/r14.fmv" | grep -q "residuals range-coded with models carried" || fail "--field-residuals range-1.4: fminfo names another coding"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
+# A depth camera's capture: colour per vertex, no image. It encodes with a texture and decodes with it.
+"$tools/fmsynth" -o "$work/vc" --frames 6 --fps 20 --vertices 2000 --noise 0 --vertex-colour --quiet || fail "fmsynth --vertex-colour"
+[[ -s "$work/vc/frame_0000.ply" && ! -e "$work/vc/frame_0000.jpg" ]] || fail "fmsynth --vertex-colour wrote no PLY frame, or an image"
+grep -q "property uchar red" "$work/vc/frame_0000.ply" || fail "fmsynth --vertex-colour wrote no vertex colour"
+"$tools/fminfo" "$work/vc" | grep -q "^texture  *colour per vertex" || fail "fminfo does not say the capture is coloured per vertex"
+"$tools/fmenc" "$work/vc" -o "$work/vc.fmv" --grid 33 --keyframes 40% --quiet || fail "fmenc of a vertex-coloured capture"
+"$tools/fminfo" "$work/vc.fmv" | grep -q "^texture  *128x128 AVIF per keyframe" || fail "a vertex-coloured capture has no 128² texture (2000 vertices)"
+"$tools/fmdec" "$work/vc.fmv" --t 0.1 -o "$work/vc.obj" --quiet || fail "fmdec of a vertex-coloured capture"
+[[ -s "$work/vc.png" ]] || fail "the decoded vertex-coloured frame has no texture"
+
 # An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.
 # (Other settings than a.fmv's, so a finished encode would change it.)
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 65 --texture 32 --quiet &

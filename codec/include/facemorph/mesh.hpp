@@ -29,7 +29,13 @@ struct TriangleMesh {
   // against the mesh file's folder by the readers.
   std::filesystem::path texture;
 
+  // Optional colour per vertex (PLY red/green/blue, OBJ "v x y z r g b"): linear RGB in [0, 1],
+  // either empty or exactly positions.size() long. Scanners without a texture image write these;
+  // the encoder paints the disk texture from them (spec/capture.md).
+  std::vector<Vec3> colours;
+
   bool has_uvs() const { return !uv_faces.empty() && uv_faces.size() == faces.size(); }
+  bool has_colours() const { return !colours.empty() && colours.size() == positions.size(); }
   int vertex_count() const { return static_cast<int>(positions.size()); }
   int face_count() const { return static_cast<int>(faces.size()); }
 };

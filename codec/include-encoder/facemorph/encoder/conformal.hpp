@@ -104,6 +104,7 @@ class InverseDiskMap {
   std::optional<SurfacePoint> locate(const Vec2& w) const;
   Vec3 position(const SurfacePoint& p) const;
   Vec2 texture_uv(const SurfacePoint& p) const;  // requires surface UVs
+  Vec3 colour(const SurfacePoint& p) const;      // linear RGB in [0, 1]; requires surface colours
 
  private:
   const DiskMap& map_;

@@ -71,6 +71,7 @@ PreparedFrame prepare_frame(const TriangleMesh& mesh, const std::string& name, c
 struct HoleFill {
   std::vector<Vec3> positions;
   std::vector<Vec2> uvs;  // per new vertex, when `loop_uvs` was given
+  std::vector<Vec3> colours;  // per new vertex, when the mesh has colours: the rim's, weighted by inverse distance
   std::vector<Face> faces;
   double min_angle_degrees = 0;
   double sharpest_hole_corner_degrees = 0;

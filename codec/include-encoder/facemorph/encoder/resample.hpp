@@ -6,7 +6,10 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/image.hpp"
 
+#include <array>
+#include <filesystem>
 #include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -17,6 +20,29 @@ std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGr
 // The surface point at each disk point (points beyond the circle are taken on it, radially).
 // Throws kNumerical if a point cannot be located.
 std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, std::span<const Vec2> points);
+
+// Where a frame's colour comes from: its texture image sampled at the surface point's UV, or its
+// vertex colours interpolated barycentrically across the surface triangle (a capture without an
+// image, spec/capture.md). Both give 8-bit sRGB-coded values, as the image holds them.
+class TextureSource {
+ public:
+  // The image is kept by reference: it must outlive the source. Needs surface UVs.
+  static TextureSource image(const Image& texture) { return TextureSource(&texture); }
+  // Needs surface colours (TriangleMesh::colours).
+  static TextureSource vertex_colours() { return TextureSource(nullptr); }
+  // Of `map`'s surface (kMissingTexture naming what it lacks otherwise).
+  void check(const DiskMap& map) const;
+  // The colour at surface point `p`, per channel in [0, 255].
+  std::array<double, 3> sample(const InverseDiskMap& inverse, const SurfacePoint& p) const;
+
+ private:
+  explicit TextureSource(const Image* image) : image_(image) {}
+  const Image* image_;
+};
+
+// The texture source a mapped frame offers: its image when it has one and UVs (read into `image`,
+// which must outlive the result), else its vertex colours; nullopt when it has neither.
+std::optional<TextureSource> frame_texture_source(const DiskMap& map, const std::filesystem::path& texture, Image& image);
 
 // A map of the disk onto itself: where a point of the reference disk lies on a frame's disk.
 using DiskWarp = std::function<Vec2(const Vec2&)>;
@@ -30,5 +56,8 @@ Image resample_texture(const DiskMap& map, const InverseDiskMap& inverse, const 
 // of the frame that corresponds to the reference disk's x). The warp is evaluated on every 4th
 // texel and interpolated bilinearly in between (it is smooth: measured below 1e-5 disk units off).
 Image resample_texture(const InverseDiskMap& inverse, const Image& texture, int size, const DiskWarp& warp);
+// The same from either source: a vertex-coloured frame's disk texture is its triangles painted with
+// their corners' colours, sampled through the same registration as an image would be.
+Image resample_texture(const InverseDiskMap& inverse, const TextureSource& source, int size, const DiskWarp& warp);
 
 }  // namespace facemorph

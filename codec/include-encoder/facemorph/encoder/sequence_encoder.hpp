@@ -222,6 +222,12 @@ class SequenceEncoder {
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
   const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
+  // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
+  bool has_texture(int i) const;
+  // Frame i's own colour on the size x size disk texture, sampled through its registration as a
+  // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
+  // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
+  Image frame_texture(int i, int size) const;
   EncodeReport& report() { return report_; }
 
  private:

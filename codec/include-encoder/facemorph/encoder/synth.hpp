@@ -45,6 +45,9 @@ struct SynthOptions {
   uint64_t seed = 1;        // face identity, texture detail, noise, remeshing
   int texture_size = 1024;  // pixels per side of each frame's texture
   double head_motion_degrees = 0;  // amplitude of a slow rigid head rotation (0: none)
+  // Colour per vertex instead of a texture: each frame a binary PLY with red/green/blue (uchar, the
+  // skin's colour at the vertex) and neither UVs nor image, as depth cameras write (spec/capture.md).
+  bool vertex_colour = false;
 };
 
 struct NamedPoint {
@@ -106,7 +109,7 @@ MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, ui
 // Progress callback: (frames done, frames total).
 using ProgressCallback = std::function<void(int, int)>;
 
-// Writes a capture (capture.json, frame_NNNN.obj/.mtl/.jpg, landmarks.csv) into `directory`,
+// Writes a capture (capture.json, frame_NNNN.obj/.mtl/.jpg or with vertex_colour frame_NNNN.ply, landmarks.csv) into `directory`,
 // creating it. Throws facemorph::Error on failure (kIo naming the file, kInvalidArgument).
 void write_synthetic_capture(const std::filesystem::path& directory, const SynthOptions& options,
                              const ProgressCallback& progress = {});
