@@ -13,12 +13,12 @@
 
 namespace facemorph {
 
-std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path) {
-  return std::make_shared<const Sequence>(read_sequence_file(path));
+std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  return std::make_shared<const Sequence>(read_sequence_file(path, nullptr, limits));
 }
 
-std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name) {
-  return std::make_shared<const Sequence>(decode_sequence_file(bytes, name));
+std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+  return std::make_shared<const Sequence>(decode_sequence_file(bytes, name, nullptr, limits));
 }
 
 void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
@@ -42,6 +42,28 @@ void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face
     for (int k = 0; k < 3; ++k) out[3 * v + static_cast<size_t>(k)] = static_cast<float>(n[k]);
   }
 }
+
+namespace {
+
+// A file can pass every check of its own numbers and still decode to overflow (a λ that grows a
+// surface past float range, weights that cancel badly): no frame leaves the decoder with a
+// non-finite number in it (spec/container.md §10.4).
+void check_finite(const DecodedFrame& frame) {
+  const auto fail = [&](const char* what) {
+    char text[160];
+    std::snprintf(text, sizeof text, "t = %.6g s: the file decodes to %s (a corrupt file)", frame.time, what);
+    throw Error(ErrorCode::kCorrupt, text);
+  };
+  constexpr double kFloatMax = 3.4028234663852886e38;  // what the caller's float buffers hold
+  for (const Vec3& p : frame.mesh.positions) {
+    if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) fail("positions beyond float range or not finite");
+  }
+  for (const Vec2& uv : frame.mesh.uvs) {
+    if (!std::isfinite(uv.x()) || !std::isfinite(uv.y())) fail("UVs that are not finite");
+  }
+}
+
+}  // namespace
 
 struct Decoder::Impl {
   explicit Impl(std::shared_ptr<const Sequence> sequence) : decoder(std::move(sequence)) {}
@@ -68,7 +90,16 @@ struct Decoder::Impl {
     decode_options.cut_holes = !options.keep_holes_filled;
     decode_options.texture = texture;
     decode_options.clamp_to_sane_range = options.clamp;
-    frame = decoder.decode(t, decode_options);
+    if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "decode: t is not finite");
+    try {
+      frame = decoder.decode(t, decode_options);
+    } catch (const Error& e) {
+      // t and the options are checked above: anything else that calls itself an argument error
+      // here (a spline weight, a field, a pose the decoder computed) is the file's fault.
+      if (e.code() == ErrorCode::kInvalidArgument) throw Error(ErrorCode::kCorrupt, e.what());
+      throw;
+    }
+    check_finite(frame);
     info = FrameInfo{};
     info.time = frame.time;
     info.vertex_count = frame.mesh.vertex_count();
@@ -144,9 +175,11 @@ Decoder::Decoder(std::shared_ptr<const Sequence> sequence) {
   }
 }
 
-Decoder Decoder::open(const std::filesystem::path& path) { return Decoder(open_sequence_file(path)); }
+Decoder Decoder::open(const std::filesystem::path& path, const DecoderLimits& limits) { return Decoder(open_sequence_file(path, limits)); }
 
-Decoder Decoder::open_memory(std::span<const uint8_t> bytes, const std::string& name) { return Decoder(open_sequence_memory(bytes, name)); }
+Decoder Decoder::open_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+  return Decoder(open_sequence_memory(bytes, name, limits));
+}
 
 Decoder::Decoder(Decoder&&) noexcept = default;
 Decoder& Decoder::operator=(Decoder&&) noexcept = default;

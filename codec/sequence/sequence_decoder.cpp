@@ -145,18 +145,27 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence)
     : sequence_(validated(std::move(sequence))),
       spline_(sequence_->keyframe_times(), sequence_->spline),
       reconstructor_(sequence_->grid_n),
-      keyframe_surfaces_(sequence_->keyframes.size()) {
+      keyframe_surfaces_(sequence_->keyframes.size()),
+      keyframe_failures_(sequence_->keyframes.size()) {
   for (const Keyframe& k : sequence_->keyframes) poses_.push_back(k.pose);
   rotation_vectors_ = unwrap_rotations(poses_);
 }
 
 const std::vector<Vec3>& SequenceDecoder::keyframe_surface(size_t k, const ReconstructOptions& options) {
+  if (!keyframe_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
   if (keyframe_surfaces_[k].empty()) {
     // Cold, from the harmonic surface: the keyframe's own fields, exactly what the encoder stored.
     ReconstructOptions cold = options;
     cold.start = nullptr;
     reconstructor_.forget_warm_start();
-    keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
+    try {
+      keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
+      // The encoder reconstructed every keyframe it wrote: one that does not is a corrupt file.
+      keyframe_failures_[k] = "keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
+      throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
+    }
   }
   return keyframe_surfaces_[k];
 }
