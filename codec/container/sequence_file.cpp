@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <memory>
@@ -231,6 +232,13 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
 
 [[noreturn]] void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
 
+// "12.5 MiB" for messages.
+std::string mebibytes(uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  return text;
+}
+
 Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version, const DecoderLimits& limits) {
   ByteReader r(payload, source + ": header");
   Header h;
@@ -297,8 +305,8 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   const uint64_t memory = estimated_memory_bytes(static_cast<int>(n), h.keyframe_count, static_cast<int>(h.texture_size), values);
   if (memory > limits.max_memory_bytes) {
     over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes on G at N = " + std::to_string(n) + " with " + std::to_string(h.texture_size) +
-                               "² textures need about " + std::to_string(memory >> 20) + " MiB, over the memory limit of " +
-                               std::to_string(limits.max_memory_bytes >> 20) + " MiB (max_memory_bytes, --max-memory)");
+                               "² textures need about " + mebibytes(memory) + ", over the memory limit of " + mebibytes(limits.max_memory_bytes) +
+                               " (max_memory_bytes, --max-memory)");
   }
   h.shape.units = read_string(r, "the units");
   if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm") corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");

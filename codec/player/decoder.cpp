@@ -43,28 +43,6 @@ void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face
   }
 }
 
-namespace {
-
-// A file can pass every check of its own numbers and still decode to overflow (a λ that grows a
-// surface past float range, weights that cancel badly): no frame leaves the decoder with a
-// non-finite number in it (spec/container.md §10.4).
-void check_finite(const DecodedFrame& frame) {
-  const auto fail = [&](const char* what) {
-    char text[160];
-    std::snprintf(text, sizeof text, "t = %.6g s: the file decodes to %s (a corrupt file)", frame.time, what);
-    throw Error(ErrorCode::kCorrupt, text);
-  };
-  constexpr double kFloatMax = 3.4028234663852886e38;  // what the caller's float buffers hold
-  for (const Vec3& p : frame.mesh.positions) {
-    if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) fail("positions beyond float range or not finite");
-  }
-  for (const Vec2& uv : frame.mesh.uvs) {
-    if (!std::isfinite(uv.x()) || !std::isfinite(uv.y())) fail("UVs that are not finite");
-  }
-}
-
-}  // namespace
-
 struct Decoder::Impl {
   explicit Impl(std::shared_ptr<const Sequence> sequence) : decoder(std::move(sequence)) {}
 
@@ -99,7 +77,6 @@ struct Decoder::Impl {
       if (e.code() == ErrorCode::kInvalidArgument) throw Error(ErrorCode::kCorrupt, e.what());
       throw;
     }
-    check_finite(frame);
     info = FrameInfo{};
     info.time = frame.time;
     info.vertex_count = frame.mesh.vertex_count();

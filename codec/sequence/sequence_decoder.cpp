@@ -260,6 +260,17 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   frame.pose = blend_poses(poses_, rotation_vectors_, w, sequence.pose_centre);
   frame.grid_positions.resize(result.positions.size());
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
+  // A file can pass every check of its own numbers and still decode to overflow (a λ that grows
+  // the surface past float range, weights that cancel badly): no frame leaves the decoder with a
+  // number a float cannot hold (spec/container.md §10.4). The mesh's points lie between these.
+  constexpr double kFloatMax = 3.4028234663852886e38;
+  for (const Vec3& p : frame.grid_positions) {
+    if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) {
+      char text[160];
+      std::snprintf(text, sizeof text, "t = %.6g s: the file decodes to positions beyond float range or not finite (a corrupt file)", t);
+      throw Error(ErrorCode::kCorrupt, text);
+    }
+  }
 
   const DiskGrid& grid = reconstructor_.geometry().grid();
   if (sequence.has_holes()) {

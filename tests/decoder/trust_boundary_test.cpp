@@ -119,7 +119,7 @@ TEST(TrustBoundary, KeyframesTexturesAndMemoryOverTheLimitsAreRefusedFromTheHead
   // 5000 keyframes of 4096² textures: 250 GB decoded from a file of a few kB. Refused from the
   // header, before the index is read, in well under 0.1 s.
   const std::vector<uint8_t> huge = rebuild(rebuild(bytes, patch_header<uint32_t>(20, 5000)), patch_header<uint32_t>(72, 4096));
-  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "over the memory limit of 512 MiB", [&] { decode_sequence_file(huge, "m.fmv"); }); });
+  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "over the memory limit of 512.0 MiB", [&] { decode_sequence_file(huge, "m.fmv"); }); });
   EXPECT_LT(s, 0.1);
   // The estimate counts every keyframe's fields and texture (all are decoded at open): the default
   // budget holds 40 keyframes of 1024² on a grid of 257, not 200 of 4096², nor a grid of 1025.
