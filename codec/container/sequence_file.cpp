@@ -338,7 +338,10 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
     }
   }
   // Later minor versions append fields here; this reader ignores them.
-  if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != grid_hash(h.shape.grid_n)) {
+  // The hash from the table where N has one (no G built for a header that is refused), else from
+  // G built within the caller's limit.
+  const uint64_t known = known_disk_grid_hash(h.shape.grid_n);
+  if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != (known != 0 ? known : grid_hash(h.shape.grid_n))) {
     throw Error(ErrorCode::kUnsupported, source + ": the file's grid (rule " + std::to_string(h.grid_rule) + ", N = " + std::to_string(n) +
                                              ") is not the grid this decoder builds (rule " + std::to_string(kDiskGridRule) + "): it would decode differently");
   }

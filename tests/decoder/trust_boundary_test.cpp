@@ -100,7 +100,26 @@ TEST(TrustBoundary, AGridOverTheLimitIsRefusedBeforeItIsBuilt) {
   const std::vector<uint8_t> big = rebuild(bytes, patch_header<uint32_t>(0, 4097));
   const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "grid size 4097 over the limit of 1025", [&] { decode_sequence_file(big, "n.fmv"); }); });
   EXPECT_LT(s, 0.1);
-  // A caller may allow it (then the hash decides: N changed, the rim count no longer matches).
+  // N = 1025 with its rim count but another grid's hash: the hash comes from a table, so the refusal
+  // builds no G (which took 0.12 s and 90 MB at N = 1025).
+  const std::vector<uint8_t> wrong_hash = rebuild(bytes, [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "HEAD") return;
+    const uint32_t n = 1025, rim = static_cast<uint32_t>(disk_grid_shape(1025).rim_count);
+    std::memcpy(payload.data(), &n, 4);
+    std::memcpy(payload.data() + 76, &rim, 4);
+  });
+  // (Under the default budget its solver alone is over the limit: refused before the hash.)
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { decode_sequence_file(wrong_hash, "h.fmv"); });
+  DecoderLimits roomy;
+  roomy.max_memory_bytes = uint64_t{4} << 30;
+  const bool measured = reset_peak();
+  const uint64_t before = status_bytes("VmRSS");
+  const double hash_s = seconds([&] {
+    testing::expect_error(ErrorCode::kUnsupported, "N = 1025", [&] { decode_sequence_file(wrong_hash, "h.fmv", nullptr, roomy); });
+  });
+  EXPECT_LT(hash_s, 0.1);
+  if (measured && before > 0) EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  // A caller may allow more (then the hash decides: N changed, the rim count no longer matches).
   DecoderLimits wide;
   wide.max_grid_n = 4097;
   testing::expect_error(ErrorCode::kCorrupt, "rim nodes", [&] { decode_sequence_file(rebuild(bytes, patch_header<uint32_t>(0, 33)), "n.fmv", nullptr, wide); });
