@@ -1,5 +1,5 @@
 // DecoderLimits (facemorph/limits.hpp): what a file may make a decoder allocate, estimated from its
-// header before anything is decoded (spec/container.md §10.2).
+// header before anything is decoded (spec/container.md §10.1).
 #include "facemorph/limits.hpp"
 
 #include "facemorph/disk_grid.hpp"
@@ -18,7 +18,7 @@ uint64_t mul(uint64_t a, uint64_t b) { return b != 0 && a > std::numeric_limits<
 }  // namespace
 
 uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size, uint64_t values_per_keyframe) {
-  // Measured peaks (spec/container.md §10.2): G, its geometry and the multigrid solver took 421
+  // Measured peaks (spec/container.md §10.1): G, its geometry and the multigrid solver took 421
   // bytes a node at N = 257 and 513 (counted as 640), G alone 108 (building it to check its hash);
   // a decoded frame about 0.3 kB a node (blended fields, start, grid positions, mesh, cut).
   constexpr uint64_t kSolverBytesPerNode = 640, kFrameBytesPerNode = 320;

@@ -2,8 +2,10 @@
 // keyframe count and texture a file may state, and a memory budget. Every size a file states is
 // compared with these and with the bytes the file actually has before anything is allocated; a file
 // over a limit is refused with kLimit naming the limit (zstd's ZSTD_d_windowLogMax, libavif's
-// imageDimensionLimit). The defaults hold every file facemorph's encoder writes with its automatic
-// settings (N <= 1025, M <= 1024) and refuse what would take a player's machine.
+// imageDimensionLimit). The defaults hold every grid and texture size facemorph's encoder chooses
+// automatically (N <= 1025, M <= 1024); since a file is decoded whole when opened, the memory budget
+// also bounds keyframes × (fields + texture): about 40 keyframes of M = 1024 at N = 257 (§10.1).
+// A player that opens longer or finer captures raises it.
 #pragma once
 
 #include <cstdint>
@@ -23,8 +25,8 @@ inline constexpr DecoderLimits kDefaultDecoderLimits{};
 // What opening a file and decoding from it holds at most, in bytes, from what its header states:
 // every keyframe's fields (`values_per_keyframe` float64 values) and texture (RGB8),
 // each keyframe's reconstructed surface, G with its multigrid solver, and one decoded frame. An
-// estimate that errs high (spec/container.md §10.2 gives the constants); 0 on overflow never
-// happens: the result saturates at UINT64_MAX.
+// estimate that errs high (spec/container.md §10.1 gives the constants); it saturates at
+// UINT64_MAX instead of overflowing.
 uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size, uint64_t values_per_keyframe);
 
 // Throws kInvalidArgument for limits a decoder cannot run under (a grid below 5, no keyframe, no
