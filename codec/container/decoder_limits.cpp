@@ -18,10 +18,11 @@ uint64_t mul(uint64_t a, uint64_t b) { return b != 0 && a > std::numeric_limits<
 }  // namespace
 
 uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size, uint64_t values_per_keyframe) {
-  // Measured peaks (spec/container.md §10.1): G, its geometry and the multigrid solver took 421
-  // bytes a node at N = 257 and 513 (counted as 640), G alone 108 (building it to check its hash);
-  // a decoded frame about 0.3 kB a node (blended fields, start, grid positions, mesh, cut).
-  constexpr uint64_t kSolverBytesPerNode = 640, kFrameBytesPerNode = 320;
+  // Measured peaks (spec/container.md §10.1): the multigrid solver took 421 bytes a node at N = 257
+  // and 513, G alone 108; fmdec --null of an encoder's N = 257 file (3 keyframes of 1024²) peaked at
+  // 92 MB above the process's own 8 MB, which these constants put at 106 MB (G, geometry, solver,
+  // the decoder's work arrays, the decode's temporaries: counted as 1.5 kB a node).
+  constexpr uint64_t kSolverBytesPerNode = 1024, kFrameBytesPerNode = 512;
   const DiskGridShape shape = disk_grid_shape(grid_n);
   const auto nodes = static_cast<uint64_t>(shape.interior_count) + static_cast<uint64_t>(shape.rim_count);
   const auto texels = mul(static_cast<uint64_t>(texture_size), static_cast<uint64_t>(texture_size));

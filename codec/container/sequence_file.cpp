@@ -232,10 +232,14 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
 
 [[noreturn]] void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
 
-// "12.5 MiB" for messages.
+// "12.5 MiB" (or "16.0 KiB") for messages.
 std::string mebibytes(uint64_t bytes) {
   char text[32];
-  std::snprintf(text, sizeof text, "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  if (bytes < (1 << 20)) {
+    std::snprintf(text, sizeof text, "%.1f KiB", static_cast<double>(bytes) / (1 << 10));
+  } else {
+    std::snprintf(text, sizeof text, "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  }
   return text;
 }
 

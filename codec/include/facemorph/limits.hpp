@@ -4,7 +4,7 @@
 // over a limit is refused with kLimit naming the limit (zstd's ZSTD_d_windowLogMax, libavif's
 // imageDimensionLimit). The defaults hold every grid and texture size facemorph's encoder chooses
 // automatically (N <= 1025, M <= 1024); since a file is decoded whole when opened, the memory budget
-// also bounds keyframes × (fields + texture): about 40 keyframes of M = 1024 at N = 257 (§10.1).
+// also bounds keyframes × (fields + texture): about 60 keyframes of M = 1024 at N = 257 (§10.1).
 // A player that opens longer or finer captures raises it.
 #pragma once
 
