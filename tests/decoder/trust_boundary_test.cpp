@@ -5,6 +5,7 @@
 // reaches the check it means.
 #include "facemorph.h"
 #include "facemorph/decoder.hpp"
+#include "facemorph/disk_grid.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "format/field_coder.hpp"
@@ -118,7 +119,9 @@ TEST(TrustBoundary, AGridOverTheLimitIsRefusedBeforeItIsBuilt) {
     testing::expect_error(ErrorCode::kUnsupported, "N = 1025", [&] { decode_sequence_file(wrong_hash, "h.fmv", nullptr, roomy); });
   });
   EXPECT_LT(hash_s, 0.1);
-  if (measured && before > 0) EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  if (measured && before > 0) {
+    EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  }
   // A caller may allow more (then the hash decides: N changed, the rim count no longer matches).
   DecoderLimits wide;
   wide.max_grid_n = 4097;
@@ -162,7 +165,9 @@ TEST(TrustBoundary, ACompressedPayloadCostsWhatItHoldsNotWhatItAnnounces) {
   const bool measured = reset_peak();
   const uint64_t before = status_bytes("VmRSS");
   testing::expect_error(ErrorCode::kCorrupt, "damaged zstd payload", [&] { decode_sequence_file(file, "z.fmv"); });
-  if (measured && before > 0) EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  if (measured && before > 0) {
+    EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  }
   // Announcing more than the budget is a limit before anything is allocated; more than zstd can
   // expand the stored bytes to, corrupt.
   head.raw_size = uint64_t{1} << 30;
@@ -187,7 +192,9 @@ TEST(TrustBoundary, CodePlanesAreAllocatedAsTheyDecompress) {
   const bool measured = reset_peak();
   const uint64_t before = status_bytes("VmRSS");
   testing::expect_error(ErrorCode::kCorrupt, "damaged field payload", [&] { format::decode_code_planes(frame, lengths, "planes"); });
-  if (measured && before > 0) EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  if (measured && before > 0) {
+    EXPECT_LT(status_bytes("VmHWM") - before, uint64_t{64} << 20);
+  }
 }
 
 // ---- Ranges: every number a file states is bounded where it is read ----
@@ -339,30 +346,38 @@ TEST(TrustBoundary, OptionsSetTheLimitsThroughTheCApi) {
 }
 
 TEST(TrustBoundary, MemoryAfterAHundredCraftedFilesIsThatAfterTheFirst) {
-  // Each names another grid N and a hash no grid has: each is refused, and what checking them
-  // built is not kept (the grid cache held every N a process had seen: about 2 MB for each of
-  // these, 200 MB in all). The allowance is the allocator's, well below one file's share.
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
+  // Each names another grid N, with that grid's hash and rim count, and keyframes of another grid:
+  // each gets as far as decoding its keyframe group (which needs G's lattice for its N) and is
+  // refused there. What the reader built for them is not kept (the grid cache held every N a
+  // process had seen: about 2 MB for each of these, 200 MB in all). The allowance is the
+  // allocator's, well below one file's share.
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), predicted_metadata());
   std::vector<std::vector<uint8_t>> files;
   for (uint32_t i = 0; i < 100; ++i) {
-    std::vector<uint8_t> f = rebuild(bytes, [i](const std::string& type, std::vector<uint8_t>& payload) {
+    files.push_back(rebuild(bytes, [i](const std::string& type, std::vector<uint8_t>& payload) {
       if (type != "HEAD") return;
-      const uint32_t n = 359 - 2 * i;  // the first the largest
+      const uint32_t n = 259 - 2 * i;  // the first the largest
       const uint32_t rim = static_cast<uint32_t>(disk_grid_shape(static_cast<int>(n)).rim_count);
+      const uint64_t hash = known_disk_grid_hash(static_cast<int>(n));
       std::memcpy(payload.data(), &n, 4);
+      std::memcpy(payload.data() + 8, &hash, 8);
       std::memcpy(payload.data() + 76, &rim, 4);
-    });
-    files.push_back(std::move(f));
+    }));
   }
   uint64_t after_first = 0;
   for (size_t i = 0; i < files.size(); ++i) {
     fm_file* file = nullptr;
-    EXPECT_EQ(fm_file_open_memory(files[i].data(), files[i].size(), &file), FM_ERROR_UNSUPPORTED) << fm_last_error_message();
+    EXPECT_EQ(fm_file_open_memory(files[i].data(), files[i].size(), &file), FM_ERROR_CORRUPT) << fm_last_error_message();
+    if (i == 0) {
+      EXPECT_NE(std::string(fm_last_error_message()).find("KGOP"), std::string::npos) << fm_last_error_message();
+    }
     fm_file_close(file);
     if (i == 0) after_first = status_bytes("VmRSS");
   }
   const uint64_t after_all = status_bytes("VmRSS");
-  if (after_first > 0) EXPECT_LT(after_all, after_first + (uint64_t{8} << 20)) << after_first << " -> " << after_all;
+  if (after_first > 0) {
+    EXPECT_LT(after_all, after_first + (uint64_t{8} << 20)) << after_first << " -> " << after_all;
+  }
 }
 
 // ---- Tests that notice: each fails on a mutation the older tests let through ----
