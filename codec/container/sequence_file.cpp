@@ -953,7 +953,14 @@ Image read_texture(std::span<const uint8_t> payload, const std::string& where, u
   }
   const TextureCodec codec = number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
   if (codec_read) *codec_read = codec;
-  Image image = decode_texture(codec, r.bytes(r.remaining(), "the image"), where, int64_t{size} * size);
+  Image image;
+  try {
+    // At most the header's M² pixels, from the image's own header before its pixels are decoded.
+    image = decode_texture(codec, r.bytes(r.remaining(), "the image"), where, int64_t{size} * size);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kInvalidArgument) throw;
+    corrupt(where, std::string("an image larger than the header's texture size: ") + e.what());  // the file's fault, not the caller's
+  }
   if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
     corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
   }

@@ -6,6 +6,7 @@
 #include "facemorph.h"
 #include "facemorph/decoder.hpp"
 #include "facemorph/disk_grid.hpp"
+#include "facemorph/image_codec.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "format/field_coder.hpp"
@@ -238,6 +239,17 @@ TEST(TrustBoundary, KeyframeTimesTooCloseForTheSplineAreCorruptNotAnArgumentErro
   const std::vector<uint8_t> crafted = rebuild(bytes, close_times);
   EXPECT_EQ(fm_file_open_memory(crafted.data(), crafted.size(), &file), FM_ERROR_CORRUPT) << fm_last_error_message();
   EXPECT_EQ(file, nullptr);
+}
+
+TEST(TrustBoundary, ATextureLargerThanTheHeaderSaysIsCorruptBeforeItIsDecoded) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());  // 8² lossless WebP
+  const std::vector<uint8_t> big = encode_texture(TextureCodec::kWebp, Image(64, 64, 3), 101);
+  const auto swap_image = [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "TEXR") return;
+    payload.resize(8);  // keyframe number, image codec 1 (WebP)
+    payload.insert(payload.end(), big.begin(), big.end());
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "64 x 64 pixels is too large", [&] { decode_sequence_file(rebuild(bytes, swap_image), "t.fmv"); });
 }
 
 TEST(TrustBoundary, TheDecoderNeverReturnsNonFiniteNumbers) {
