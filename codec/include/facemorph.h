@@ -56,7 +56,7 @@ typedef enum fm_status {
   FM_ERROR_NOT_A_DISK = 7,
   FM_ERROR_MISSING_TEXTURE = 8,
   FM_ERROR_INVALID_ARGUMENT = 9, /* the caller's fault, never the file's: a NULL or wrong handle or pointer, t not finite, a bad option */
-  FM_ERROR_NUMERICAL = 10,       /* the reconstruction failed numerically (a singular system) */
+  FM_ERROR_NUMERICAL = 10,       /* the reconstruction failed numerically (a non-finite iterate: a corrupt file) */
   FM_ERROR_NOT_CONVERGED = 11,
   FM_ERROR_OUT_OF_RANGE = 12,    /* t outside [range_begin, range_end] without FM_DECODE_CLAMP */
   FM_ERROR_BUFFER_TOO_SMALL = 13,/* an output buffer too small: the frame's counts say what is needed */
