@@ -140,7 +140,7 @@ std::string ContainerReader::describe(const ChunkView& chunk) const {
   return "chunk " + chunk.type + " at offset " + std::to_string(chunk.offset);
 }
 
-std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk) const {
+std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk, uint64_t max_bytes) const {
   if (crc32(file_.subspan(chunk.offset, kChunkHeaderBytes + chunk.stored.size())) != chunk.crc) {
     throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in " + describe(chunk));
   }
@@ -148,9 +148,17 @@ std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk) const {
   if (announced_size(chunk.stored) != chunk.raw_size) {
     throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": the zstd frame does not announce the chunk's size");
   }
-  std::vector<uint8_t> out(static_cast<size_t>(chunk.raw_size));
-  if (!decompress_frame(chunk.stored, out)) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");
-  return out;
+  if (!possible_content_size(chunk.stored.size(), chunk.raw_size)) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + " announces " + std::to_string(chunk.raw_size) + " bytes from " +
+                                         std::to_string(chunk.stored.size()) + ", more than zstd can expand");
+  }
+  if (chunk.raw_size > max_bytes) {
+    throw Error(ErrorCode::kLimit, source_ + ": " + describe(chunk) + " decompresses to " + std::to_string(chunk.raw_size) +
+                                       " bytes, over the memory limit of " + std::to_string(max_bytes));
+  }
+  std::optional<std::vector<uint8_t>> out = decompress_frame_growing(chunk.stored, chunk.raw_size);
+  if (!out) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");
+  return std::move(*out);
 }
 
 void ContainerReader::verify() const {

@@ -88,7 +88,10 @@ class ContainerReader {
   // The chunk starting at `offset` (an index entry), or kCorrupt naming `what`.
   const ChunkView& chunk_at(uint64_t offset, const std::string& what) const;
   // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise).
-  std::vector<uint8_t> payload(const ChunkView& chunk) const;
+  // A raw size over `max_bytes` (the caller's memory budget) is kLimit before anything is
+  // allocated; a compressed payload is allocated as it decompresses, so a frame that announces more
+  // than it holds costs what it holds.
+  std::vector<uint8_t> payload(const ChunkView& chunk, uint64_t max_bytes = kMaxPayloadBytes) const;
   // Checks every chunk's CRC.
   void verify() const;
   // "chunk KEYF at offset 1234" for messages.

@@ -37,8 +37,11 @@ std::vector<std::vector<uint16_t>> decode_code_planes(std::span<const uint8_t> b
     throw Error(ErrorCode::kCorrupt, source + ": field payload holds " + std::to_string(*announced) + " bytes, " + std::to_string(2 * total) +
                                          " expected");
   }
-  std::vector<uint8_t> planes(2 * total);
-  if (!decompress_frame(bytes, planes)) throw Error(ErrorCode::kCorrupt, source + ": damaged field payload");
+  // Allocated as it decompresses: a frame that announces the right size but cannot back it (1.7 kB
+  // announcing 1.28 GiB) fails after what it holds, not after zero-filling what it claims.
+  const std::optional<std::vector<uint8_t>> decompressed = decompress_frame_growing(bytes, *announced);
+  if (!decompressed) throw Error(ErrorCode::kCorrupt, source + ": damaged field payload");
+  const std::vector<uint8_t>& planes = *decompressed;
   std::vector<std::vector<uint16_t>> out;
   size_t at = 0;
   for (size_t n : lengths) {

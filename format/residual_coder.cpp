@@ -114,8 +114,10 @@ std::vector<std::vector<int64_t>> decode_residual_stream(std::span<const uint8_t
     throw Error(ErrorCode::kCorrupt, source + ": residual payload announces " + std::to_string(*announced) + " bytes for " + std::to_string(total) +
                                          " residuals");
   }
-  std::vector<uint8_t> varints(static_cast<size_t>(*announced));
-  if (!decompress_frame(bytes, varints)) throw Error(ErrorCode::kCorrupt, source + ": damaged residual payload");
+  // Allocated as it decompresses: an announcement the frame cannot back costs nothing.
+  const std::optional<std::vector<uint8_t>> decompressed = decompress_frame_growing(bytes, *announced);
+  if (!decompressed) throw Error(ErrorCode::kCorrupt, source + ": damaged residual payload");
+  const std::vector<uint8_t>& varints = *decompressed;
   std::vector<std::vector<int64_t>> out;
   size_t at = 0;
   for (size_t n : lengths) {

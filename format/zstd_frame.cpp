@@ -2,6 +2,9 @@
 
 #include "facemorph/error.hpp"
 
+#include <algorithm>
+#include <memory>
+#include <new>
 #include <string>
 #include <zstd.h>
 
@@ -24,6 +27,34 @@ std::optional<uint64_t> announced_size(std::span<const uint8_t> frame) {
 bool decompress_frame(std::span<const uint8_t> frame, std::span<uint8_t> out) {
   const size_t size = ZSTD_decompress(out.data(), out.size(), frame.data(), frame.size());
   return !ZSTD_isError(size) && size == out.size();
+}
+
+std::optional<std::vector<uint8_t>> decompress_frame_growing(std::span<const uint8_t> frame, uint64_t size) {
+  if (!possible_content_size(frame.size(), size)) return std::nullopt;
+  std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> context(ZSTD_createDCtx(), ZSTD_freeDCtx);
+  if (!context) throw std::bad_alloc();
+  // The window a frame may ask for is bounded as its output is: no more than the announced size.
+  ZSTD_DCtx_setParameter(context.get(), ZSTD_d_windowLogMax, 27);
+  constexpr uint64_t kFirstStep = uint64_t{1} << 20;  // then doubling: at most twice what arrived
+  std::vector<uint8_t> out(static_cast<size_t>(std::min(size, kFirstStep)));
+  ZSTD_inBuffer in{frame.data(), frame.size(), 0};
+  size_t produced = 0;
+  while (true) {
+    ZSTD_outBuffer o{out.data(), out.size(), produced};
+    const size_t status = ZSTD_decompressStream(context.get(), &o, &in);
+    if (ZSTD_isError(status)) return std::nullopt;
+    produced = o.pos;
+    if (status == 0) break;  // the frame is complete
+    if (produced == out.size()) {
+      if (out.size() >= size) return std::nullopt;  // more than announced
+      out.resize(static_cast<size_t>(std::min<uint64_t>(size, 2 * static_cast<uint64_t>(out.size()))));
+    } else if (in.pos == in.size) {
+      return std::nullopt;  // the frame ends before its end
+    }
+  }
+  if (produced != size || in.pos != in.size) return std::nullopt;
+  out.resize(produced);
+  return out;
 }
 
 }  // namespace facemorph::format

@@ -19,4 +19,17 @@ std::optional<uint64_t> announced_size(std::span<const uint8_t> frame);
 // or decompresses to another size.
 bool decompress_frame(std::span<const uint8_t> frame, std::span<uint8_t> out);
 
+// Decompresses `frame`, which must announce `size` bytes and decompress to exactly that, into a
+// vector that grows with what the frame actually produces (never allocated from the announcement
+// alone: a frame that claims 1 GiB and is damaged after a few bytes costs a few bytes). Nothing
+// when the frame is damaged or its output differs from `size`.
+std::optional<std::vector<uint8_t>> decompress_frame_growing(std::span<const uint8_t> frame, uint64_t size);
+
+// zstd's largest expansion: a 4-byte RLE block gives at most 128 KiB (RFC 8878 §3.1.1.2), so a
+// frame of S bytes decompresses to less than 32768 S + 128 KiB. An announcement beyond that is a lie.
+inline constexpr uint64_t kMaxZstdExpansion = 32768;
+inline bool possible_content_size(uint64_t frame_bytes, uint64_t size) {
+  return size <= kMaxZstdExpansion * frame_bytes + (uint64_t{128} << 10);
+}
+
 }  // namespace facemorph::format

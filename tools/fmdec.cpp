@@ -122,9 +122,14 @@ int main(int argc, char** argv) {
   app.add_option("--tolerance", tolerance, "Stop the reconstruction when a step moves no node more than this fraction of the rim's diameter")
       ->capture_default_str();
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
+  DecoderLimits limits;
+  std::string max_memory;
+  tools::add_limit_options(app, limits, max_memory);
   return tools::guarded_main(app, argc, argv, [&] {
+    const DecoderLimits checked_limits = tools::parsed_limits(limits, max_memory);
+    if (!std::isfinite(fps) || fps < 0) throw Error(ErrorCode::kInvalidArgument, "--fps must be a finite positive number");
     const auto start = std::chrono::steady_clock::now();
-    auto sequence = std::make_shared<const Sequence>(read_sequence_file(input));
+    auto sequence = std::make_shared<const Sequence>(read_sequence_file(input, nullptr, checked_limits));
     const double seconds_read = tools::seconds_since(start);
     if (!extract.empty()) {
       const auto files = tools::export_keyframe_fields(*sequence, extract);
@@ -175,7 +180,7 @@ int main(int argc, char** argv) {
     if (!(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "--to is before --from");
     // A thousandth of a frame of slack: a rounded rate (23.976 for 24000/1001) must still reach the
     // last frame.
-    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-3)) + 1;
+    const int count = tools::frame_count(begin, end, fps, 1e-3);
     std::optional<tools::VideoFile> video;
     if (!preview.empty()) {
       if (fs::path(preview).extension() != ".mp4") throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");

@@ -177,9 +177,9 @@ void print_encoder_notes(const std::string& settings_text) {
   }
 }
 
-int describe_container(const fs::path& path, bool json_out) {
+int describe_container(const fs::path& path, bool json_out, const DecoderLimits& limits) {
   SequenceFileInfo info;
-  const Sequence sequence = read_sequence_file(path, &info);
+  const Sequence sequence = read_sequence_file(path, &info, limits);
   const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
@@ -280,8 +280,11 @@ int main(int argc, char** argv) {
   app.add_option("--prepared", prepared, "Write each validated, hole-filled frame into this folder");
   app.add_flag("--json", json_out, "Print JSON");
   app.add_flag("-q,--quiet", quiet, "No progress display");
+  DecoderLimits limits;
+  std::string max_memory;
+  tools::add_limit_options(app, limits, max_memory);
   return tools::guarded_main(app, argc, argv, [&] {
-    if (is_container(input)) return describe_container(input, json_out);
+    if (is_container(input)) return describe_container(input, json_out, tools::parsed_limits(limits, max_memory));
     const Capture capture = open_capture(input, fps, landmarks);
     std::error_code ec;
     if (!prepared.empty()) fs::create_directories(prepared, ec);

@@ -6,6 +6,7 @@
 #include "facemorph.h"
 
 #include "facemorph/render.hpp"
+#include "tools/tool_support.hpp"
 #include "tools/video_file.hpp"
 
 #include <CLI/CLI.hpp>
@@ -150,6 +151,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--clamp", clamp, "Clamp times outside the file's range instead of failing");
   app.add_flag("--quiet", quiet, "Print only the summary line");
+  facemorph::DecoderLimits limits;
+  std::string max_memory;
+  facemorph::tools::add_limit_options(app, limits, max_memory);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -168,7 +172,18 @@ int main(int argc, char** argv) {
     if (!video.empty() && fs::path(video).extension() != ".mp4") throw Failure{FM_ERROR_INVALID_ARGUMENT, video + ": the video must be .mp4"};
 
     const auto open_start = std::chrono::steady_clock::now();
-    check(fm_file_open(input.c_str(), &file));
+    fm_decoder_options options;
+    fm_decoder_options_init(&options);
+    try {
+      const facemorph::DecoderLimits checked = facemorph::tools::parsed_limits(limits, max_memory);
+      options.max_grid_n = static_cast<uint32_t>(checked.max_grid_n);
+      options.max_keyframes = checked.max_keyframes;
+      options.max_texture_size = static_cast<uint32_t>(checked.max_texture_size);
+      options.max_memory_bytes = checked.max_memory_bytes;
+    } catch (const facemorph::Error& e) {
+      throw Failure{FM_ERROR_INVALID_ARGUMENT, e.what()};
+    }
+    check(fm_file_open_with_options(input.c_str(), &options, &file));
     fm_info info;
     check(fm_file_get_info(file, &info));
     const auto create_start = std::chrono::steady_clock::now();
@@ -184,7 +199,12 @@ int main(int argc, char** argv) {
                     end, info.range_begin, info.range_end);
       throw Failure{FM_ERROR_OUT_OF_RANGE, text};
     }
-    const int count = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+    int count = 0;
+    try {
+      count = facemorph::tools::frame_count(begin, end, fps, 1e-9);
+    } catch (const facemorph::Error& e) {
+      throw Failure{FM_ERROR_INVALID_ARGUMENT, e.what()};
+    }
     if (!quiet) {
       std::printf("fmplay: %s: N = %u, %u keyframes, %.3f s at %.3f fps, up to %u vertices and %u triangles%s, texture %ux%u\n", input.c_str(),
                   info.grid_n, info.keyframe_count, info.duration, info.fps, info.max_vertex_count, info.max_triangle_count,

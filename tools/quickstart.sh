@@ -46,7 +46,7 @@ case "${1:-}" in
     build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON
     ctest --test-dir build-decoder --output-on-failure -j "$jobs"
     echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too), and"
-    echo "   the libFuzzer targets (container reader, OBJ/PLY parsers) for 45 s each"
+    echo "   the libFuzzer targets (container reader, OBJ/PLY parsers: 45 s each; the decode path: 40 s)"
     # Only what ctest runs, at -O1 -g1: the sanitizers need line tables, not full debug info.
     CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DFACEMORPH_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF

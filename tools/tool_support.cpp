@@ -1,5 +1,8 @@
 #include "tools/tool_support.hpp"
 
+#include <cmath>
+#include <stdexcept>
+
 #include "format/file_io.hpp"
 
 #include <unistd.h>
@@ -45,6 +48,50 @@ std::string hex64(uint64_t value) {
   char text[19];
   std::snprintf(text, sizeof text, "0x%016llx", static_cast<unsigned long long>(value));
   return text;
+}
+
+void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory) {
+  app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")->default_str("512M");
+  app.add_option("--max-grid", limits.max_grid_n, "Refuse files whose grid N is larger")->capture_default_str();
+  app.add_option("--max-keyframes", limits.max_keyframes, "Refuse files with more keyframes")->capture_default_str();
+  app.add_option("--max-texture", limits.max_texture_size, "Refuse files whose texture has more texels per side")->capture_default_str();
+}
+
+DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory) {
+  if (!max_memory.empty()) {
+    const auto bad = [&] { return Error(ErrorCode::kInvalidArgument, "--max-memory '" + max_memory + "' is not a size (bytes, or 512M, 2G)"); };
+    size_t used = 0;
+    unsigned long long value = 0;
+    try {
+      if (max_memory.find_first_not_of("0123456789KMGkmg") != std::string::npos) throw bad();
+      value = std::stoull(max_memory, &used);
+    } catch (const std::logic_error&) {
+      throw bad();
+    }
+    const std::string suffix = max_memory.substr(used);
+    int shift = 0;
+    if (suffix == "K" || suffix == "k") shift = 10;
+    else if (suffix == "M" || suffix == "m") shift = 20;
+    else if (suffix == "G" || suffix == "g") shift = 30;
+    else if (!suffix.empty()) throw bad();
+    if (value == 0 || value > (~0ull >> shift)) throw bad();
+    limits.max_memory_bytes = static_cast<uint64_t>(value) << shift;
+  }
+  check_decoder_limits(limits, "--max-grid/--max-keyframes/--max-texture/--max-memory");
+  return limits;
+}
+
+int frame_count(double begin, double end, double fps, double slack) {
+  constexpr double kMaxFrames = 1e8;
+  if (!(fps > 0) || !std::isfinite(fps)) throw Error(ErrorCode::kInvalidArgument, "--fps must be a finite positive number");
+  if (!std::isfinite(begin) || !std::isfinite(end) || !(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "the time range is not a finite interval");
+  const double frames = std::floor((end - begin) * fps + slack);  // inf - inf and overflow give no number below the bound
+  if (!(frames >= 0 && frames < kMaxFrames)) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%.4g s at %.4g fps is more than 10^8 frames", end - begin, fps);
+    throw Error(ErrorCode::kInvalidArgument, text);
+  }
+  return static_cast<int>(frames) + 1;
 }
 
 }  // namespace facemorph::tools

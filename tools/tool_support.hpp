@@ -3,6 +3,7 @@
 #pragma once
 
 #include "facemorph/error.hpp"
+#include "facemorph/limits.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -52,6 +53,19 @@ class Progress {
 std::string hex64(uint64_t value);
 
 double seconds_since(std::chrono::steady_clock::time_point start);
+
+// The decoder's limits as options (--max-memory 512M, --max-grid, --max-keyframes, --max-texture):
+// what a file may make the tool allocate (spec/container.md §10). parsed_limits gives them after
+// parsing.
+void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory);
+// `limits` with --max-memory's text ("536870912", "512M", "2G": bytes or binary K/M/G) applied;
+// kInvalidArgument naming the option for anything else.
+DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory);
+
+// Frames in [begin, end] at `fps` (plus `slack` of a frame, for rounded rates), range-checked
+// before the cast: kInvalidArgument for a rate or range that is not finite and positive, or more
+// than 10⁸ frames (1e300 s at 30 fps was undefined behaviour in the cast to int).
+int frame_count(double begin, double end, double fps, double slack);
 
 // Writes `doc` (indented) to `path` atomically, or to stdout when `path` is "-".
 void write_json(const std::string& path, const nlohmann::json& doc);

@@ -6,6 +6,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/image_codec.hpp"
+#include "facemorph/limits.hpp"
 #include "facemorph/pose.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
@@ -19,10 +20,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #ifndef FACEMORPH_VERSION
 #define FACEMORPH_VERSION "unknown"
@@ -51,6 +54,12 @@ constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, 
 constexpr double kMaxCompactTranslation = 1e30;            // float32 holds it (field coding 3's pose)
 constexpr float kMaxRotationComponent = 4;                 // > π: field codings 3 and 4's rotation vector
 constexpr int64_t kMaxPoseCode = int64_t{1} << 40;         // field coding 4's pose codes: changes fit 42 bits
+// Ranges a file may state (spec/container.md §5, §6, §7): within them every product the decoder
+// forms (a pose applied to a point, a spline's powers of time ratios) is a finite double.
+constexpr double kMaxCoordinate = 1e9;        // |pose centre|, |translation| in the file's units (1000 km in mm)
+constexpr double kMaxTime = 1e9;              // |a time|, seconds (31 years)
+constexpr double kMinFrameRate = 1e-6, kMaxFrameRate = 1e6;
+constexpr double kMinKeyframeGap = 1e-9;      // keyframe times at least this fraction of their span apart
 
 // The numbers the file uses for enumerations (spec/container.md §5): fixed forever, independent of
 // the order of the C++ enumerators.
@@ -83,19 +92,24 @@ Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std
 // arrays use (interior nodes row by row; the hole level's rim nodes follow, each after the one
 // before it). Built once per process and N: the grid is what costs.
 struct GridFacts {
+  int n = 0;
   uint64_t hash = 0;
   format::LatticeNeighbours interior, all_nodes;
 };
 
-const GridFacts& grid_facts(int n) {
+// One N kept (a player opens files of one grid; an encoder writes one): memory never grows with the
+// number of grids a process has seen. The caller holds what it uses, so a file opened on another
+// thread with another N cannot free it under it.
+std::shared_ptr<const GridFacts> grid_facts(int n) {
   static std::mutex mutex;
-  static std::map<int, std::unique_ptr<const GridFacts>> cache;
+  static std::shared_ptr<const GridFacts> cached;
   {
     std::lock_guard<std::mutex> lock(mutex);
-    if (auto it = cache.find(n); it != cache.end()) return *it->second;
+    if (cached && cached->n == n) return cached;
   }
   const DiskGrid grid = make_disk_grid(n);
-  auto facts = std::make_unique<GridFacts>();
+  auto facts = std::make_shared<GridFacts>();
+  facts->n = n;
   facts->hash = grid.hash;
   format::LatticeNeighbours& l = facts->all_nodes;
   for (int node = 0; node < grid.node_count(); ++node) {
@@ -115,11 +129,11 @@ const GridFacts& grid_facts(int n) {
   facts->interior.up.assign(l.up.begin(), l.up.begin() + static_cast<ptrdiff_t>(interior));
   facts->interior.up_left.assign(l.up_left.begin(), l.up_left.begin() + static_cast<ptrdiff_t>(interior));
   std::lock_guard<std::mutex> lock(mutex);
-  auto [it, inserted] = cache.emplace(n, std::move(facts));
-  return *it->second;
+  cached = std::move(facts);
+  return cached;
 }
 
-uint64_t grid_hash(int n) { return grid_facts(n).hash; }
+uint64_t grid_hash(int n) { return grid_facts(n)->hash; }
 
 [[noreturn]] void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
 
@@ -136,9 +150,24 @@ std::string read_string(ByteReader& r, const char* what) {
   return {bytes.begin(), bytes.end()};
 }
 
+// What each array's length must be, from the header alone.
+std::vector<size_t> expected_lengths(int grid_n, Representation representation, size_t fixed, bool with_holes) {
+  const DiskGridShape shape = disk_grid_shape(grid_n);
+  const auto interior = static_cast<size_t>(shape.interior_count);
+  const auto rim = static_cast<size_t>(shape.rim_count);
+  const bool fields = representation != Representation::kXYZ;
+  const bool tangential = representation == Representation::kHLT;
+  const size_t holes = with_holes ? interior + rim : 0;
+  return {fields ? interior : 0, fields ? interior : 0, tangential ? interior : 0, tangential ? interior : 0,
+          fixed, fixed, fixed,
+          fields ? 0 : interior, fields ? 0 : interior, fields ? 0 : interior,
+          rim, rim, rim, holes};
+}
+
 // ---- The header (HEAD) ----
 
 struct Header {
+  DecoderLimits limits;  // the caller's: what the file may make the decoder allocate
   Sequence shape;  // every field but the keyframes
   uint32_t keyframe_count = 0;
   uint32_t grid_rule = 0;
@@ -201,12 +230,29 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   return w.take();
 }
 
-Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version) {
+[[noreturn]] void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
+
+// "12.5 MiB" (or "16.0 KiB") for messages.
+std::string mebibytes(uint64_t bytes) {
+  char text[32];
+  if (bytes < (1 << 20)) {
+    std::snprintf(text, sizeof text, "%.1f KiB", static_cast<double>(bytes) / (1 << 10));
+  } else {
+    std::snprintf(text, sizeof text, "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  }
+  return text;
+}
+
+Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version, const DecoderLimits& limits) {
   ByteReader r(payload, source + ": header");
   Header h;
+  h.limits = limits;
   const uint32_t n = r.read<uint32_t>("the grid size");
   if (n < static_cast<uint32_t>(kMinGridSize) || n > static_cast<uint32_t>(kMaxGridSize)) {
     corrupt(r.source(), "grid size " + std::to_string(n) + " outside [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
+  }
+  if (n > static_cast<uint32_t>(limits.max_grid_n)) {
+    over_limit(r.source(), "grid size " + std::to_string(n) + " over the limit of " + std::to_string(limits.max_grid_n) + " (max_grid_n, --max-grid)");
   }
   h.shape.grid_n = static_cast<int>(n);
   h.grid_rule = r.read<uint32_t>("the grid rule");
@@ -218,14 +264,27 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   r.skip(1, "a reserved byte");
   h.keyframe_count = r.read<uint32_t>("the keyframe count");
   if (h.keyframe_count == 0 || h.keyframe_count > kMaxKeyframes) corrupt(r.source(), "keyframe count " + std::to_string(h.keyframe_count));
+  if (h.keyframe_count > limits.max_keyframes) {
+    over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes, over the limit of " + std::to_string(limits.max_keyframes) + " (max_keyframes)");
+  }
   h.shape.fps = read_finite(r, "the frame rate");
   h.shape.first_time = read_finite(r, "the first time");
   h.shape.last_time = read_finite(r, "the last time");
   if (h.shape.fps <= 0 || h.shape.last_time < h.shape.first_time) corrupt(r.source(), "impossible frame rate or time range");
-  for (int k = 0; k < 3; ++k) h.shape.pose_centre[k] = read_finite(r, "the pose centre");
+  if (h.shape.fps < kMinFrameRate || h.shape.fps > kMaxFrameRate || std::abs(h.shape.first_time) > kMaxTime || std::abs(h.shape.last_time) > kMaxTime) {
+    corrupt(r.source(), "a frame rate outside [1e-6, 1e6] or a time beyond 1e9 s");
+  }
+  for (int k = 0; k < 3; ++k) {
+    h.shape.pose_centre[k] = read_finite(r, "the pose centre");
+    if (std::abs(h.shape.pose_centre[k]) > kMaxCoordinate) corrupt(r.source(), "a pose centre coordinate beyond 1e9");
+  }
   h.texture_size = r.read<uint32_t>("the texture size");
   if (((h.flags & kHasTexture) != 0) != (h.texture_size > 0) || h.texture_size > static_cast<uint32_t>(kMaxTextureSize)) {
     corrupt(r.source(), "texture size " + std::to_string(h.texture_size) + " does not match the texture flag or exceeds 16384");
+  }
+  if (h.texture_size > static_cast<uint32_t>(limits.max_texture_size)) {
+    over_limit(r.source(), "texture size " + std::to_string(h.texture_size) + " over the limit of " + std::to_string(limits.max_texture_size) +
+                               " (max_texture_size)");
   }
   h.rim_count = r.read<uint32_t>("the rim node count");
   const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
@@ -241,6 +300,17 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
     node += r.read<uint32_t>("a fixed node");
     if (node >= static_cast<uint64_t>(shape.interior_count)) corrupt(r.source(), "a fixed node beyond G's interior nodes");
     h.fixed_nodes[i] = static_cast<int32_t>(node);
+  }
+  // What decoding this file holds, from these numbers alone, before any keyframe is read.
+  uint64_t values = 0;
+  for (size_t length : expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), (h.flags & kHasHoles) != 0)) {
+    values += length;
+  }
+  const uint64_t memory = estimated_memory_bytes(static_cast<int>(n), h.keyframe_count, static_cast<int>(h.texture_size), values);
+  if (memory > limits.max_memory_bytes) {
+    over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes on G at N = " + std::to_string(n) + " with " + std::to_string(h.texture_size) +
+                               "² textures need about " + mebibytes(memory) + ", over the memory limit of " + mebibytes(limits.max_memory_bytes) +
+                               " (max_memory_bytes, --max-memory)");
   }
   h.shape.units = read_string(r, "the units");
   if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm") corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");
@@ -272,7 +342,10 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
     }
   }
   // Later minor versions append fields here; this reader ignores them.
-  if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != grid_hash(h.shape.grid_n)) {
+  // The hash from the table where N has one (no G built for a header that is refused), else from
+  // G built within the caller's limit.
+  const uint64_t known = known_disk_grid_hash(h.shape.grid_n);
+  if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != (known != 0 ? known : grid_hash(h.shape.grid_n))) {
     throw Error(ErrorCode::kUnsupported, source + ": the file's grid (rule " + std::to_string(h.grid_rule) + ", N = " + std::to_string(n) +
                                              ") is not the grid this decoder builds (rule " + std::to_string(kDiskGridRule) + "): it would decode differently");
   }
@@ -378,6 +451,13 @@ void write_keyframe_preamble(ByteWriter& w, const Keyframe& key, uint32_t number
   for (int k = 0; k < 3; ++k) w.write(key.pose.translation[k]);
 }
 
+// A decoded pose's translation within the bound every position a file states has (§7).
+void check_translation(const RigidPose& pose, const std::string& where) {
+  for (int k = 0; k < 3; ++k) {
+    if (!(std::abs(pose.translation[k]) <= kMaxCoordinate)) corrupt(where, "a pose translation beyond 1e9");
+  }
+}
+
 void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& where, uint32_t number, bool compact = false) {
   if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe than the index says");
   key.time = read_finite(r, "the time");
@@ -392,12 +472,14 @@ void read_keyframe_preamble(ByteReader& r, Keyframe& key, const std::string& whe
       if (std::abs(stored[k]) > kMaxRotationComponent) corrupt(where, "a rotation vector component beyond 4");
     }
     key.pose = pose_of(stored);
+    check_translation(key.pose, where);
     return;
   }
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) key.pose.rotation(i, j) = read_finite(r, "the rotation");
   }
   for (int k = 0; k < 3; ++k) key.pose.translation[k] = read_finite(r, "the translation");
+  check_translation(key.pose, where);
 }
 
 std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key) {
@@ -442,19 +524,8 @@ std::vector<uint8_t> write_keyframe(const Keyframe& key, uint32_t number) {
   return w.take();
 }
 
-// What each array's length must be, from the header alone.
 std::vector<size_t> expected_lengths(const Header& h) {
-  const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
-  const auto interior = static_cast<size_t>(shape.interior_count);
-  const size_t fixed = h.fixed_nodes.size();
-  const auto rim = static_cast<size_t>(shape.rim_count);
-  const bool fields = h.shape.representation != Representation::kXYZ;
-  const bool tangential = h.shape.representation == Representation::kHLT;
-  const size_t holes = (h.flags & kHasHoles) ? interior + rim : 0;
-  return {fields ? interior : 0, fields ? interior : 0, tangential ? interior : 0, tangential ? interior : 0,
-          fixed, fixed, fixed,
-          fields ? 0 : interior, fields ? 0 : interior, fields ? 0 : interior,
-          rim, rim, rim, holes};
+  return expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), (h.flags & kHasHoles) != 0);
 }
 
 Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t number) {
@@ -465,8 +536,12 @@ Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& wher
   if (count < kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
   if (count > 64) corrupt(where, std::to_string(count) + " arrays (at most 64)");
   const std::vector<size_t> expected = expected_lengths(h);
+  // An appended array is at most I + B + B long (§7.1): the longest a later version may add.
+  const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
+  const auto longest_appended = static_cast<size_t>(shape.interior_count) + 2 * static_cast<size_t>(shape.rim_count);
   std::vector<format::Quantized16> ranges(count);
   std::vector<size_t> lengths(count);
+  uint64_t total = 0;
   for (uint32_t a = 0; a < count; ++a) {
     lengths[a] = r.read<uint32_t>("an array length");
     ranges[a].lo = read_finite(r, "an array's range");
@@ -474,8 +549,13 @@ Keyframe read_keyframe(std::span<const uint8_t> payload, const std::string& wher
     if (a < kKeyframeArrays && lengths[a] != expected[a]) {
       corrupt(where, "array " + std::to_string(a) + " holds " + std::to_string(lengths[a]) + " values, " + std::to_string(expected[a]) + " expected");
     }
-    if (a >= kKeyframeArrays && lengths[a] > expected.front() + expected.back() + expected[10]) corrupt(where, "an appended array is too long");
+    if (a >= kKeyframeArrays && lengths[a] > longest_appended) corrupt(where, "an appended array is too long (at most I + B + B)");
+    total += lengths[a];
     if (!(ranges[a].lo <= ranges[a].hi) || !std::isfinite(ranges[a].hi - ranges[a].lo)) corrupt(where, "array " + std::to_string(a) + " has an impossible range");
+  }
+  // Two bytes a code decompressed and two decoded, appended arrays included.
+  if (4 * total > h.limits.max_memory_bytes) {
+    over_limit(where, std::to_string(total) + " codes need " + std::to_string(4 * total) + " bytes, over the memory limit");
   }
   const uint32_t coded = r.read<uint32_t>("the coded size");
   const auto bytes = r.bytes(coded, "the coded arrays");
@@ -588,7 +668,8 @@ format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, c
 // keyframe's `codes` added where the reference says so. `codes` holds this keyframe's on return.
 std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::vector<int64_t>>& residuals, const std::vector<format::SpatialPredictor>& predictors,
                                                        uint8_t reference, std::vector<std::vector<int32_t>>& codes, const Header& h, const std::string& where) {
-  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  const std::shared_ptr<const GridFacts> grid_held = grid_facts(h.shape.grid_n);
+  const GridFacts& grid = *grid_held;
   const std::vector<double>& steps = h.metadata.field_coding.steps;
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
   std::vector<std::vector<int32_t>> these(kKeyframeArrays);
@@ -706,7 +787,8 @@ Keyframe read_predicted_keyframe(std::span<const uint8_t> payload, const std::st
     if (count != kKeyframeArrays) corrupt(where, std::to_string(count) + " arrays, " + std::to_string(kKeyframeArrays) + " expected");
   }
   const std::vector<size_t> expected = expected_lengths(h);
-  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  const std::shared_ptr<const GridFacts> grid_held = grid_facts(h.shape.grid_n);
+  const GridFacts& grid = *grid_held;
   std::vector<format::SpatialPredictor> predictors(kKeyframeArrays);
   const uint32_t packed = chained(coder) ? r.read<uint32_t>("the predictors") : 0;
   if ((packed >> (kPackedPredictorBits * kKeyframeArrays)) != 0) corrupt(where, "unused predictor bits are set");
@@ -818,7 +900,8 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
   format::RangedStreamReader stream(r.bytes(r.remaining(), "the stream"), where);
   const FieldCoding& coding = h.metadata.field_coding;
   const std::vector<size_t> expected = expected_lengths(h);
-  const GridFacts& grid = grid_facts(h.shape.grid_n);
+  const std::shared_ptr<const GridFacts> grid_held = grid_facts(h.shape.grid_n);
+  const GridFacts& grid = *grid_held;
   const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
   GroupModels models;
   std::vector<std::vector<int32_t>> codes;
@@ -844,6 +927,7 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
       if (std::abs(coding.rotation_step * static_cast<double>(pose[k])) > kMaxRotationComponent) corrupt(keyframe_where, "a rotation vector component beyond 4");
     }
     key.pose = pose_of(pose, coding);
+    check_translation(key.pose, keyframe_where);
     const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
     set_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, reference, codes, h, keyframe_where), h, keyframe_where);
     ends.push_back(stream_start + stream.position());
@@ -869,7 +953,14 @@ Image read_texture(std::span<const uint8_t> payload, const std::string& where, u
   }
   const TextureCodec codec = number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
   if (codec_read) *codec_read = codec;
-  Image image = decode_texture(codec, r.bytes(r.remaining(), "the image"), where, int64_t{size} * size);
+  Image image;
+  try {
+    // At most the header's M² pixels, from the image's own header before its pixels are decoded.
+    image = decode_texture(codec, r.bytes(r.remaining(), "the image"), where, int64_t{size} * size);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kInvalidArgument) throw;
+    corrupt(where, std::string("an image larger than the header's texture size: ") + e.what());  // the file's fault, not the caller's
+  }
   if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
     corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
   }
@@ -924,13 +1015,13 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     const Keyframe& key = sequence.keyframes[k];
     if (group > 0) {
       if (k % group == 0) {
-        fields[k] = format::prepare_chunk(kKeyframeGroup, write_keyframe_group(sequence, k, std::min(group, count - k), coding, grid_facts(sequence.grid_n)), true);
+        fields[k] = format::prepare_chunk(kKeyframeGroup, write_keyframe_group(sequence, k, std::min(group, count - k), coding, *grid_facts(sequence.grid_n)), true);
       }
     } else if (coding.predicted()) {
       std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
       const bool intra = coding.intra(k);
       fields[k] = format::prepare_chunk(
-          kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, grid_facts(sequence.grid_n),
+          kPredictedKeyframe, write_predicted_keyframe(key, static_cast<uint32_t>(k), codes, intra ? nullptr : &previous_codes, *grid_facts(sequence.grid_n),
                                                        coding.residuals, models),
           true);
       previous_codes = std::move(codes);
@@ -983,7 +1074,11 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   return writer.finish();
 }
 
-Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info) {
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  if (bytes.size() > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
   const format::ContainerReader reader(bytes, source);
   const std::vector<format::ChunkView>& chunks = reader.chunks();
   if (chunks.size() < 2 || chunks[0].type != kHeader || chunks[1].type != kIndex) {
@@ -996,7 +1091,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
       throw Error(ErrorCode::kUnsupported, source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
-  Header header = read_header(reader.payload(chunks[0]), source, reader.minor_version());
+  Header header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), source, reader.minor_version(), limits);
   const FieldCoding& coding = header.metadata.field_coding;
   const bool predicted = coding.predicted();
   const size_t group = predicted && grouped(coding.residuals) ? static_cast<size_t>(coding.intra_period) : 0;
@@ -1005,7 +1100,17 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
   std::vector<format::ResidualModels> models;  // its range coder models (field coding 3)
   std::vector<Keyframe> group_keys;  // field coding 4: the current group's keyframes
   std::vector<uint64_t> group_ends;  // and where each one's part of the chunk ends
-  const std::vector<IndexEntry> index = read_index(reader.payload(chunks[1]), source, header.keyframe_count, group, (header.flags & kHasTexture) != 0);
+  const std::vector<IndexEntry> index =
+      read_index(reader.payload(chunks[1], limits.max_memory_bytes), source, header.keyframe_count, group, (header.flags & kHasTexture) != 0);
+  // Keyframe times: within ±1e9 s, increasing, and at least 1e-9 of their span apart, so that the
+  // spline's ratios of intervals stay finite (0, 1e-200, 2e-200, 1 would not).
+  const double span = index.back().time - index.front().time;
+  for (size_t k = 0; k < index.size(); ++k) {
+    if (std::abs(index[k].time) > kMaxTime) corrupt(source, "keyframe " + std::to_string(k) + "'s time is beyond 1e9 s");
+    if (k > 0 && !(index[k].time - index[k - 1].time >= kMinKeyframeGap * span && index[k].time > index[k - 1].time)) {
+      corrupt(source, "keyframe " + std::to_string(k) + "'s time is not at least 1e-9 of the keyframes' span after the previous one");
+    }
+  }
   auto sequence = std::move(header.shape);
   std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
   TextureCodec first_texture_codec = TextureCodec::kWebp;
@@ -1020,21 +1125,21 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
         const auto count = static_cast<uint32_t>(std::min<size_t>(group, index.size() - k));
         // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
         if (chunk.compressed()) corrupt(source, reader.describe(chunk) + " is compressed; a group's chunk never is");
-        group_keys = read_keyframe_group(reader.payload(chunk), source + ": " + reader.describe(chunk), header, k, count, group_ends);
+        group_keys = read_keyframe_group(reader.payload(chunk, limits.max_memory_bytes), source + ": " + reader.describe(chunk), header, k, count, group_ends);
       }
       key = std::move(group_keys[j]);
       key.time = index[k].time;  // field coding 4 stores it in the index only
       sizes[k].fields = group_ends[j] - (j > 0 ? group_ends[j - 1] : 0) + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
     } else {
       const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
-      key = predicted ? read_predicted_keyframe(reader.payload(chunk), where, header, k, codes, models) : read_keyframe(reader.payload(chunk), where, header, k);
+      key = predicted ? read_predicted_keyframe(reader.payload(chunk, limits.max_memory_bytes), where, header, k, codes, models) : read_keyframe(reader.payload(chunk, limits.max_memory_bytes), where, header, k);
       if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
       sizes[k].fields = chunk.total_size();
     }
     if (header.flags & kHasTexture) {
       const format::ChunkView& texture = reader.chunk_at(index[k].texture_offset, name + "'s texture entry");
       if (texture.type != kTexture) corrupt(source, name + "'s texture entry points at a " + texture.type + " chunk");
-      key.texture = read_texture(reader.payload(texture), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size,
+      key.texture = read_texture(reader.payload(texture, limits.max_memory_bytes), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size,
                                  k == 0 ? &first_texture_codec : nullptr);
       sizes[k].texture = texture.total_size();
     } else if (index[k].texture_offset != 0) {
@@ -1073,9 +1178,15 @@ void write_sequence_file(const std::filesystem::path& path, const Sequence& sequ
   format::write_file_atomically(path, encode_sequence_file(sequence, metadata));
 }
 
-Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info) {
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info, const DecoderLimits& limits) {
+  // The file's size against the budget before its bytes are read.
+  std::error_code error;
+  const uintmax_t size = std::filesystem::file_size(path, error);
+  if (!error && size > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, path.string() + ": " + std::to_string(size) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
   const std::vector<uint8_t> bytes = format::read_file(path);
-  return decode_sequence_file(bytes, path.string(), info);
+  return decode_sequence_file(bytes, path.string(), info, limits);
 }
 
 }  // namespace facemorph

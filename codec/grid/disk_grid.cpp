@@ -7,6 +7,7 @@
 #include "codec/geometry/exact_delaunay.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -249,6 +250,14 @@ DiskGrid make_disk_grid(int n) {
   }
   grid.hash = hash.value();
   return grid;
+}
+
+uint64_t known_disk_grid_hash(int n) {
+  static constexpr uint64_t kHashes[] = {
+#include "codec/grid/disk_grid_hashes.inc"
+  };
+  static_assert(std::size(kHashes) == kKnownGridHashes - kMinGridSize + 1);
+  return n >= kMinGridSize && n <= kKnownGridHashes ? kHashes[n - kMinGridSize] : 0;
 }
 
 }  // namespace facemorph

@@ -50,18 +50,20 @@ typedef enum fm_status {
   FM_ERROR_IO = 1,               /* a file could not be opened or read */
   FM_ERROR_PARSE = 2,            /* text or structure that does not follow its grammar */
   FM_ERROR_TRUNCATED = 3,        /* the input ends before the data it announces */
-  FM_ERROR_CORRUPT = 4,          /* bytes present but wrong (checksum, impossible value) */
+  FM_ERROR_CORRUPT = 4,          /* bytes present but wrong (checksum, impossible value, a file that decodes to non-finite numbers) */
   FM_ERROR_UNSUPPORTED = 5,      /* a valid file using a feature this decoder does not implement */
   FM_ERROR_INVALID_MESH = 6,
   FM_ERROR_NOT_A_DISK = 7,
   FM_ERROR_MISSING_TEXTURE = 8,
-  FM_ERROR_INVALID_ARGUMENT = 9, /* a NULL or wrong handle or pointer, t not finite, a bad option */
-  FM_ERROR_NUMERICAL = 10,       /* the reconstruction produced a non-finite surface */
+  FM_ERROR_INVALID_ARGUMENT = 9, /* the caller's fault, never the file's: a NULL or wrong handle or pointer, t not finite, a bad option */
+  FM_ERROR_NUMERICAL = 10,       /* the reconstruction failed numerically (a non-finite iterate: a corrupt file) */
   FM_ERROR_NOT_CONVERGED = 11,
   FM_ERROR_OUT_OF_RANGE = 12,    /* t outside [range_begin, range_end] without FM_DECODE_CLAMP */
   FM_ERROR_BUFFER_TOO_SMALL = 13,/* an output buffer too small: the frame's counts say what is needed */
   FM_ERROR_OUT_OF_MEMORY = 14,
   FM_ERROR_INTERNAL = 15,        /* a bug in facemorph: please report it with the message */
+  FM_ERROR_LIMIT = 16,           /* the file needs more than the decoder's limits allow (fm_decoder_options): refused before allocating */
+  FM_ERROR_CLOSED_HANDLE = 17,   /* a handle used after fm_file_close / fm_decoder_destroy, or closed twice */
   /* Never returned: gives fm_status the range of a 32-bit int in C and C++ alike, so that any
    * non-negative int a caller passes to fm_status_name is a valid value. */
   FM_STATUS_FORCE_32BIT = 0x7fffffff
@@ -80,19 +82,49 @@ const char* fm_last_error_message(void);
 const char* fm_version(void);
 uint32_t fm_version_number(void);
 
-/* An opened .fmv file: every chunk read, checked and decoded. */
+/* An opened .fmv file: every chunk read, checked and decoded.
+ *
+ * Handles are not pointers to memory: they name an entry of a table with a generation count, so a
+ * handle used after it was closed (or closed twice) is FM_ERROR_CLOSED_HANDLE and never reads freed
+ * memory, and closing a stale handle never closes the live handle that reuses its entry. */
 typedef struct fm_file fm_file;
 /* The state that decodes one file's frames. */
 typedef struct fm_decoder fm_decoder;
 
-/* Opens and checks a whole file (FM_ERROR_IO, _TRUNCATED, _CORRUPT, _UNSUPPORTED). On success
- * *file is a new handle for fm_file_close; on failure *file is NULL. */
+/* What a decoder may spend on a file it did not write (spec/container.md §10). Set struct_size to
+ * sizeof(fm_decoder_options) and call fm_decoder_options_init first: fields appended by later
+ * versions then keep their defaults. A file that would exceed a limit is refused with
+ * FM_ERROR_LIMIT, before the memory is allocated. */
+typedef struct fm_decoder_options {
+  size_t struct_size;          /* sizeof(fm_decoder_options) as the caller compiled it */
+  uint32_t max_grid_n;         /* largest grid N (default 1025; the format allows 4097) */
+  uint32_t max_keyframes;      /* most keyframes (default 65536) */
+  uint32_t max_texture_size;   /* largest texture M, texels per side (default 4096; the format allows 16384) */
+  uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 512 MiB) */
+} fm_decoder_options;
+
+/* Sets every field to its default, struct_size to sizeof(fm_decoder_options). NULL is ignored. */
+void fm_decoder_options_init(fm_decoder_options* options);
+
+/* Opens and checks a whole file under the default limits. Returns FM_OK, FM_ERROR_INVALID_ARGUMENT
+ * (NULL path or file), FM_ERROR_IO, FM_ERROR_TRUNCATED, FM_ERROR_CORRUPT, FM_ERROR_UNSUPPORTED,
+ * FM_ERROR_LIMIT, FM_ERROR_OUT_OF_MEMORY. On success *file is a new handle for fm_file_close; on
+ * failure *file is NULL. */
 fm_status fm_file_open(const char* path, fm_file** file);
 /* The same from `size` bytes at `data`. They are parsed before this returns and not used
  * afterwards (nothing is kept): the caller may free them at once. */
 fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file);
-/* Releases the handle; decoders created from it stay valid. NULL is ignored. */
+/* fm_file_open / fm_file_open_memory under the caller's limits (options NULL: the defaults).
+ * FM_ERROR_INVALID_ARGUMENT also for options whose struct_size is 0 or whose limits cannot work
+ * (max_grid_n below 5, max_keyframes or max_memory_bytes 0). */
+fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file);
+fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file);
+/* Releases the handle; decoders created from it stay valid. NULL is ignored. A handle already
+ * closed (or never opened) changes nothing; fm_last_error_message then says so. */
 void fm_file_close(fm_file* file);
+/* fm_file_close with a status: FM_OK, FM_ERROR_CLOSED_HANDLE (already closed), FM_ERROR_INVALID_ARGUMENT
+ * (NULL, or not a file handle). */
+fm_status fm_file_release(fm_file* file);
 
 typedef struct fm_info {
   double fps;              /* the capture's nominal frame rate */
@@ -114,17 +146,22 @@ typedef struct fm_info {
   char units[8];           /* "m", "cm" or "mm", NUL-terminated */
 } fm_info;
 
-/* Fills *info. FM_ERROR_INVALID_ARGUMENT for a NULL or wrong handle or NULL info. */
+/* Fills *info. FM_OK, FM_ERROR_INVALID_ARGUMENT (a NULL or wrong handle, NULL info), FM_ERROR_CLOSED_HANDLE. */
 fm_status fm_file_get_info(const fm_file* file, fm_info* info);
 /* Copies the keyframe times (seconds) into times[0 .. capacity) and sets *count to the number of
  * keyframes; FM_ERROR_BUFFER_TOO_SMALL (copying nothing) when capacity < *count. times may be NULL
- * when capacity is 0, to ask the count. */
+ * when capacity is 0, to ask the count. FM_OK, FM_ERROR_INVALID_ARGUMENT, FM_ERROR_CLOSED_HANDLE,
+ * FM_ERROR_BUFFER_TOO_SMALL. */
 fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count);
 
-/* A decoder on the file (which it shares: the file handle may be closed afterwards). */
+/* A decoder on the file (which it shares: the file handle may be closed afterwards), under the
+ * limits the file was opened with. FM_OK, FM_ERROR_INVALID_ARGUMENT, FM_ERROR_CLOSED_HANDLE,
+ * FM_ERROR_LIMIT, FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. */
 fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder);
-/* NULL is ignored. */
+/* NULL is ignored; a destroyed handle changes nothing (fm_last_error_message says so). */
 void fm_decoder_destroy(fm_decoder* decoder);
+/* fm_decoder_destroy with a status: FM_OK, FM_ERROR_CLOSED_HANDLE, FM_ERROR_INVALID_ARGUMENT. */
+fm_status fm_decoder_release(fm_decoder* decoder);
 
 /* Decode flags, or-ed; 0 is the default. */
 #define FM_DECODE_CLAMP 1u              /* clamp t into [range_begin, range_end] instead of FM_ERROR_OUT_OF_RANGE */
@@ -157,8 +194,12 @@ typedef struct fm_frame {
 } fm_frame;
 
 /* Decodes the frame at time t (seconds from the capture's first frame) into the buffers of
- * *frame. FM_ERROR_INVALID_ARGUMENT (NULL or wrong handle, NULL frame, t not finite, unknown
- * flag), FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_NUMERICAL. The decoded frame is
+ * *frame. Returns FM_OK (every number written is finite), FM_ERROR_INVALID_ARGUMENT (NULL or wrong
+ * handle, NULL frame, t not finite, unknown flag: the caller's fault only), FM_ERROR_CLOSED_HANDLE,
+ * FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_CORRUPT (the file decodes to
+ * non-finite numbers, or a keyframe of it cannot be reconstructed: every later call that needs that
+ * keyframe fails at once the same way), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
+ * FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. The decoded frame is
  * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
  * only copies it. Leaving every buffer NULL decodes and reports the sizes. */
 fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame);

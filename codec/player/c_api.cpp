@@ -1,12 +1,15 @@
-// The C API (facemorph.h) over facemorph::Decoder: handles that check their own type, every
-// exception caught at the boundary and turned into an fm_status with a thread-local message.
+// The C API (facemorph.h) over facemorph::Decoder: handles that name entries of a table with a
+// generation count (never pointers the library dereferences), every exception caught at the
+// boundary and turned into an fm_status with a thread-local message.
 #include "facemorph.h"
 
 #include "facemorph/decoder.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
+#include <mutex>
 #include <memory>
 #include <new>
 #include <span>
@@ -33,24 +36,8 @@ static_assert(FM_ERROR_OUT_OF_RANGE == static_cast<int>(facemorph::ErrorCode::kO
 static_assert(FM_ERROR_BUFFER_TOO_SMALL == static_cast<int>(facemorph::ErrorCode::kBufferTooSmall));
 static_assert(FM_ERROR_OUT_OF_MEMORY == static_cast<int>(facemorph::ErrorCode::kOutOfMemory));
 static_assert(FM_ERROR_INTERNAL == static_cast<int>(facemorph::ErrorCode::kInternal));
-
-// Each handle starts with a tag, so that a NULL, a closed (best effort: the tag is cleared on
-// release) or a wrong kind of handle is an FM_ERROR_INVALID_ARGUMENT rather than a crash.
-namespace {
-constexpr uint32_t kFileTag = 0x464d4649;     // "FMFI"
-constexpr uint32_t kDecoderTag = 0x464d4445;  // "FMDE"
-}  // namespace
-
-struct fm_file {
-  uint32_t tag = kFileTag;
-  std::shared_ptr<const facemorph::Sequence> sequence;
-  facemorph::FileInfo info;
-};
-
-struct fm_decoder {
-  uint32_t tag = kDecoderTag;
-  facemorph::Decoder decoder;
-};
+static_assert(FM_ERROR_LIMIT == static_cast<int>(facemorph::ErrorCode::kLimit));
+static_assert(FM_ERROR_CLOSED_HANDLE == static_cast<int>(facemorph::ErrorCode::kClosedHandle));
 
 namespace {
 
@@ -92,14 +79,118 @@ fm_status guarded(const char* function, Body&& body) noexcept {
   }
 }
 
-void check_file(const fm_file* file, const char* name = "file") {
-  if (file == nullptr) throw Error(ErrorCode::kInvalidArgument, std::string(name) + " is NULL");
-  if (file->tag != kFileTag) throw Error(ErrorCode::kInvalidArgument, std::string(name) + " is not an open fm_file handle");
+// What a file handle names: the opened file, what it holds, and the limits it was opened under.
+struct FileEntry {
+  std::shared_ptr<const facemorph::Sequence> sequence;
+  facemorph::FileInfo info;
+};
+
+// A table of objects named by handles: (kind, generation, slot) packed into a pointer-sized value
+// that is never dereferenced. Closing bumps the slot's generation, so every copy of the old handle
+// is stale forever (FM_ERROR_CLOSED_HANDLE) and a slot reused by a new object never answers to
+// the old handle. Lookups copy a shared_ptr under the lock: an object closed on another thread
+// while a call uses it lives until that call returns. The table grows only to the most handles
+// open at once.
+template <typename T>
+class HandleTable {
+  static constexpr bool kWide = sizeof(uintptr_t) >= 8;
+  static constexpr unsigned kSlotBits = kWide ? 24 : 12, kGenerationBits = kWide ? 32 : 16;
+  static constexpr uintptr_t kSlotMask = (uintptr_t{1} << kSlotBits) - 1, kGenerationMask = (uintptr_t{1} << kGenerationBits) - 1;
+
+ public:
+  HandleTable(uintptr_t kind, const char* type) : kind_(kind), type_(type) {}
+
+  uintptr_t add(std::shared_ptr<T> object) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    size_t slot;
+    if (!free_.empty()) {
+      slot = free_.back();
+      free_.pop_back();
+    } else {
+      if (slots_.size() >= kSlotMask) throw Error(ErrorCode::kOutOfMemory, std::string("too many open ") + type_ + " handles");
+      slot = slots_.size();
+      slots_.emplace_back();
+    }
+    slots_[slot].object = std::move(object);
+    return (kind_ << (kSlotBits + kGenerationBits)) | ((slots_[slot].generation & kGenerationMask) << kSlotBits) | (slot + 1);
+  }
+
+  // The object `handle` names; kInvalidArgument for NULL or another kind, kClosedHandle once closed.
+  std::shared_ptr<T> get(const void* handle, const char* name) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return slot_of(handle, name).object;
+  }
+
+  // Closes `handle` (kClosedHandle when it already is).
+  void remove(const void* handle, const char* name) {
+    std::shared_ptr<T> released;  // freed after the lock is let go
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      Slot& slot = slot_of(handle, name);
+      released = std::move(slot.object);
+      ++slot.generation;
+      free_.push_back(static_cast<size_t>(&slot - slots_.data()));
+    }
+  }
+
+ private:
+  struct Slot {
+    uintptr_t generation = 1;
+    std::shared_ptr<T> object;
+  };
+
+  Slot& slot_of(const void* handle, const char* name) {
+    const auto value = reinterpret_cast<uintptr_t>(handle);
+    if (value == 0) throw Error(ErrorCode::kInvalidArgument, std::string(name) + " is NULL");
+    const uintptr_t slot = value & kSlotMask;
+    if ((value >> (kSlotBits + kGenerationBits)) != kind_ || slot == 0 || slot > slots_.size()) {
+      throw Error(ErrorCode::kInvalidArgument, std::string(name) + " is not an " + type_ + " handle");
+    }
+    Slot& s = slots_[slot - 1];
+    const uintptr_t generation = (value >> kSlotBits) & kGenerationMask;
+    if (generation != (s.generation & kGenerationMask) || !s.object) {
+      throw Error(ErrorCode::kClosedHandle, std::string(name) + " is an " + type_ + " handle that was already closed");
+    }
+    return s;
+  }
+
+  std::mutex mutex_;
+  std::vector<Slot> slots_;
+  std::vector<size_t> free_;
+  const uintptr_t kind_;
+  const char* type_;
+};
+
+// Never destroyed: a handle closed from another static destructor at exit still finds its table.
+HandleTable<FileEntry>& files() {
+  static auto* table = new HandleTable<FileEntry>(1, "fm_file");
+  return *table;
+}
+HandleTable<facemorph::Decoder>& decoders() {
+  static auto* table = new HandleTable<facemorph::Decoder>(2, "fm_decoder");
+  return *table;
 }
 
-void check_decoder(const fm_decoder* decoder) {
-  if (decoder == nullptr) throw Error(ErrorCode::kInvalidArgument, "decoder is NULL");
-  if (decoder->tag != kDecoderTag) throw Error(ErrorCode::kInvalidArgument, "decoder is not an fm_decoder handle");
+std::shared_ptr<FileEntry> check_file(const fm_file* file, const char* name = "file") { return files().get(file, name); }
+
+std::shared_ptr<facemorph::Decoder> check_decoder(const fm_decoder* decoder) { return decoders().get(decoder, "decoder"); }
+
+facemorph::DecoderLimits limits_of(const fm_decoder_options* options) {
+  facemorph::DecoderLimits limits;
+  if (options == nullptr) return limits;
+  if (options->struct_size == 0) throw Error(ErrorCode::kInvalidArgument, "options->struct_size is 0 (fm_decoder_options_init sets it)");
+  // Fields the caller's struct has; later ones keep their defaults.
+  const auto has = [&](size_t offset, size_t size) { return options->struct_size >= offset + size; };
+  if (has(offsetof(fm_decoder_options, max_grid_n), sizeof options->max_grid_n)) {
+    limits.max_grid_n = static_cast<int>(std::min<uint32_t>(options->max_grid_n, facemorph::kMaxGridSize));
+  }
+  if (has(offsetof(fm_decoder_options, max_keyframes), sizeof options->max_keyframes)) limits.max_keyframes = options->max_keyframes;
+  if (has(offsetof(fm_decoder_options, max_texture_size), sizeof options->max_texture_size)) {
+    limits.max_texture_size = static_cast<int>(std::min<uint32_t>(options->max_texture_size, 1u << 20));
+  }
+  if (has(offsetof(fm_decoder_options, max_memory_bytes), sizeof options->max_memory_bytes)) limits.max_memory_bytes = options->max_memory_bytes;
+  facemorph::check_decoder_limits(limits, "options");
+  return limits;
 }
 
 void check_pointer(const void* pointer, const char* name) {
@@ -107,11 +198,32 @@ void check_pointer(const void* pointer, const char* name) {
 }
 
 fm_status open_into(std::shared_ptr<const facemorph::Sequence> sequence, fm_file** file) {
-  auto handle = std::make_unique<fm_file>();
-  handle->info = facemorph::file_info(*sequence);  // validates it as a decoder will
-  handle->sequence = std::move(sequence);
-  *file = handle.release();
+  auto entry = std::make_shared<FileEntry>();
+  entry->info = facemorph::file_info(*sequence);  // validates it as a decoder will
+  entry->sequence = std::move(sequence);
+  *file = reinterpret_cast<fm_file*>(files().add(std::move(entry)));
   return ok();
+}
+
+fm_status open_path(const char* function, const char* path, const fm_decoder_options* options, fm_file** file) {
+  return guarded(function, [&] {
+    check_pointer(file, "file");
+    *file = nullptr;
+    check_pointer(path, "path");
+    const facemorph::DecoderLimits limits = limits_of(options);
+    return open_into(facemorph::open_sequence_file(path, limits), file);
+  });
+}
+
+fm_status open_bytes(const char* function, const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
+  return guarded(function, [&] {
+    check_pointer(file, "file");
+    *file = nullptr;
+    if (data == nullptr && size > 0) throw Error(ErrorCode::kInvalidArgument, "data is NULL");
+    const facemorph::DecoderLimits limits = limits_of(options);
+    const std::span<const uint8_t> bytes(static_cast<const uint8_t*>(data), data == nullptr ? 0 : size);
+    return open_into(facemorph::open_sequence_memory(bytes, "memory", limits), file);
+  });
 }
 
 // A buffer's element count from its size in bytes; a NULL buffer is an empty span.
@@ -134,7 +246,7 @@ void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
 extern "C" {
 
 const char* fm_status_name(fm_status status) {
-  if (status < FM_OK || status > FM_ERROR_INTERNAL) return "unknown";
+  if (status < FM_OK || status > FM_ERROR_CLOSED_HANDLE) return "unknown";
   return facemorph::error_code_name(static_cast<ErrorCode>(status));
 }
 
@@ -144,36 +256,45 @@ const char* fm_version(void) { return FACEMORPH_VERSION; }
 
 uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER_BUILT; }
 
-fm_status fm_file_open(const char* path, fm_file** file) {
-  return guarded("fm_file_open", [&] {
-    check_pointer(file, "file");
-    *file = nullptr;
-    check_pointer(path, "path");
-    return open_into(facemorph::open_sequence_file(path), file);
-  });
+void fm_decoder_options_init(fm_decoder_options* options) {
+  if (options == nullptr) return;
+  const facemorph::DecoderLimits defaults;
+  *options = fm_decoder_options{};
+  options->struct_size = sizeof(fm_decoder_options);
+  options->max_grid_n = static_cast<uint32_t>(defaults.max_grid_n);
+  options->max_keyframes = defaults.max_keyframes;
+  options->max_texture_size = static_cast<uint32_t>(defaults.max_texture_size);
+  options->max_memory_bytes = defaults.max_memory_bytes;
 }
 
-fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) {
-  return guarded("fm_file_open_memory", [&] {
-    check_pointer(file, "file");
-    *file = nullptr;
-    if (data == nullptr && size > 0) throw Error(ErrorCode::kInvalidArgument, "data is NULL");
-    const std::span<const uint8_t> bytes(static_cast<const uint8_t*>(data), data == nullptr ? 0 : size);
-    return open_into(facemorph::open_sequence_memory(bytes), file);
+fm_status fm_file_open(const char* path, fm_file** file) { return open_path("fm_file_open", path, nullptr, file); }
+
+fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) { return open_bytes("fm_file_open_memory", data, size, nullptr, file); }
+
+fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file) {
+  return open_path("fm_file_open_with_options", path, options, file);
+}
+
+fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
+  return open_bytes("fm_file_open_memory_with_options", data, size, options, file);
+}
+
+fm_status fm_file_release(fm_file* file) {
+  return guarded("fm_file_release", [&] {
+    files().remove(file, "file");
+    return ok();
   });
 }
 
 void fm_file_close(fm_file* file) {
-  if (file == nullptr || file->tag != kFileTag) return;
-  file->tag = 0;
-  delete file;
+  if (file != nullptr) (void)fm_file_release(file);
 }
 
 fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
   return guarded("fm_file_get_info", [&] {
-    check_file(file);
+    const std::shared_ptr<FileEntry> entry = check_file(file);
     check_pointer(info, "info");
-    const facemorph::FileInfo& in = file->info;
+    const facemorph::FileInfo& in = entry->info;
     fm_info out{};
     out.fps = in.fps;
     out.first_time = in.first_time;
@@ -198,9 +319,9 @@ fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
 
 fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count) {
   return guarded("fm_file_get_keyframe_times", [&] {
-    check_file(file);
+    const std::shared_ptr<FileEntry> entry = check_file(file);
     check_pointer(count, "count");
-    const std::vector<double>& keys = file->info.keyframe_times;
+    const std::vector<double>& keys = entry->info.keyframe_times;
     *count = keys.size();
     if (capacity < keys.size()) {
       throw Error(ErrorCode::kBufferTooSmall, std::to_string(keys.size()) + " keyframe times, room for " + std::to_string(capacity));
@@ -215,21 +336,27 @@ fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder) {
   return guarded("fm_decoder_create", [&] {
     check_pointer(decoder, "decoder");
     *decoder = nullptr;
-    check_file(file);
-    *decoder = new fm_decoder{kDecoderTag, facemorph::Decoder(file->sequence)};
+    const std::shared_ptr<FileEntry> entry = check_file(file);
+    *decoder = reinterpret_cast<fm_decoder*>(decoders().add(std::make_shared<facemorph::Decoder>(entry->sequence)));
+    return ok();
+  });
+}
+
+fm_status fm_decoder_release(fm_decoder* decoder) {
+  return guarded("fm_decoder_release", [&] {
+    decoders().remove(decoder, "decoder");
     return ok();
   });
 }
 
 void fm_decoder_destroy(fm_decoder* decoder) {
-  if (decoder == nullptr || decoder->tag != kDecoderTag) return;
-  decoder->tag = 0;
-  delete decoder;
+  if (decoder != nullptr) (void)fm_decoder_release(decoder);
 }
 
 fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame) {
   return guarded("fm_decoder_decode", [&] {
-    check_decoder(decoder);
+    const std::shared_ptr<facemorph::Decoder> held = check_decoder(decoder);
+    facemorph::Decoder& d = *held;
     check_pointer(frame, "frame");
     if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "t is not finite");
     constexpr uint32_t known = FM_DECODE_CLAMP | FM_DECODE_KEEP_HOLES_FILLED | FM_DECODE_FLIP_V;
@@ -249,16 +376,16 @@ fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_fr
     if (tiny(frame->positions, frame->positions_bytes, sizeof(float)) || tiny(frame->normals, frame->normals_bytes, sizeof(float)) ||
         tiny(frame->uvs, frame->uvs_bytes, sizeof(float)) || tiny(frame->indices, frame->indices_bytes, sizeof(uint32_t)) ||
         tiny(frame->texture, frame->texture_bytes, 1)) {
-      describe(decoder->decoder.frame_info(t, options), frame);
+      describe(d.frame_info(t, options), frame);
       throw Error(ErrorCode::kBufferTooSmall, "a buffer smaller than one element (sizes are in bytes)");
     }
     const bool wants_nothing = buffers.positions.empty() && buffers.normals.empty() && buffers.uvs.empty() && buffers.indices.empty() &&
                                buffers.texture.empty();
     try {
-      describe(wants_nothing ? decoder->decoder.frame_info(t, options) : decoder->decoder.decode(t, buffers, options), frame);
+      describe(wants_nothing ? d.frame_info(t, options) : d.decode(t, buffers, options), frame);
     } catch (const Error& e) {
       // The frame was decoded and kept: say what it needs.
-      if (e.code() == ErrorCode::kBufferTooSmall) describe(decoder->decoder.frame_info(t, options), frame);
+      if (e.code() == ErrorCode::kBufferTooSmall) describe(d.frame_info(t, options), frame);
       throw;
     }
     return ok();

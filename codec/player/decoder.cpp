@@ -13,12 +13,12 @@
 
 namespace facemorph {
 
-std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path) {
-  return std::make_shared<const Sequence>(read_sequence_file(path));
+std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  return std::make_shared<const Sequence>(read_sequence_file(path, nullptr, limits));
 }
 
-std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name) {
-  return std::make_shared<const Sequence>(decode_sequence_file(bytes, name));
+std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+  return std::make_shared<const Sequence>(decode_sequence_file(bytes, name, nullptr, limits));
 }
 
 void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
@@ -68,7 +68,15 @@ struct Decoder::Impl {
     decode_options.cut_holes = !options.keep_holes_filled;
     decode_options.texture = texture;
     decode_options.clamp_to_sane_range = options.clamp;
-    frame = decoder.decode(t, decode_options);
+    if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "decode: t is not finite");
+    try {
+      frame = decoder.decode(t, decode_options);
+    } catch (const Error& e) {
+      // t and the options are checked above: anything else that calls itself an argument error
+      // here (a spline weight, a field, a pose the decoder computed) is the file's fault.
+      if (e.code() == ErrorCode::kInvalidArgument) throw Error(ErrorCode::kCorrupt, e.what());
+      throw;
+    }
     info = FrameInfo{};
     info.time = frame.time;
     info.vertex_count = frame.mesh.vertex_count();
@@ -144,9 +152,11 @@ Decoder::Decoder(std::shared_ptr<const Sequence> sequence) {
   }
 }
 
-Decoder Decoder::open(const std::filesystem::path& path) { return Decoder(open_sequence_file(path)); }
+Decoder Decoder::open(const std::filesystem::path& path, const DecoderLimits& limits) { return Decoder(open_sequence_file(path, limits)); }
 
-Decoder Decoder::open_memory(std::span<const uint8_t> bytes, const std::string& name) { return Decoder(open_sequence_memory(bytes, name)); }
+Decoder Decoder::open_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+  return Decoder(open_sequence_memory(bytes, name, limits));
+}
 
 Decoder::Decoder(Decoder&&) noexcept = default;
 Decoder& Decoder::operator=(Decoder&&) noexcept = default;

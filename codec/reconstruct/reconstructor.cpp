@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace facemorph {
 
@@ -296,6 +297,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   anderson.restart(options.anderson_depth, 3 * n_int);
   auto flat = [&](std::vector<Vec3>& points) { return AndersonMixer::Vector(points.data()->data(), 3 * n_int); };
   const bool damped = options.damping < 1;
+  double lowest_change = std::numeric_limits<double>::infinity();
+  int lowest_at = 0;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
     if (damped) {
       geometry.frames(S, tu, tv, n);
@@ -343,6 +346,12 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     if (result.change < options.tolerance) {
       result.converged = true;
       break;
+    }
+    if (result.change < lowest_change) {
+      lowest_change = result.change;
+      lowest_at = iteration;
+    } else if (options.stall_iterations > 0 && iteration - lowest_at >= options.stall_iterations) {
+      break;  // stopped falling: it will not converge
     }
   }
   if (!result.converged && options.throw_on_failure) {

@@ -145,18 +145,27 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence)
     : sequence_(validated(std::move(sequence))),
       spline_(sequence_->keyframe_times(), sequence_->spline),
       reconstructor_(sequence_->grid_n),
-      keyframe_surfaces_(sequence_->keyframes.size()) {
+      keyframe_surfaces_(sequence_->keyframes.size()),
+      keyframe_failures_(sequence_->keyframes.size()) {
   for (const Keyframe& k : sequence_->keyframes) poses_.push_back(k.pose);
   rotation_vectors_ = unwrap_rotations(poses_);
 }
 
 const std::vector<Vec3>& SequenceDecoder::keyframe_surface(size_t k, const ReconstructOptions& options) {
+  if (!keyframe_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
   if (keyframe_surfaces_[k].empty()) {
     // Cold, from the harmonic surface: the keyframe's own fields, exactly what the encoder stored.
     ReconstructOptions cold = options;
     cold.start = nullptr;
     reconstructor_.forget_warm_start();
-    keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
+    try {
+      keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
+      // The encoder reconstructed every keyframe it wrote: one that does not is a corrupt file.
+      keyframe_failures_[k] = "keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
+      throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
+    }
   }
   return keyframe_surfaces_[k];
 }
@@ -251,6 +260,17 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   frame.pose = blend_poses(poses_, rotation_vectors_, w, sequence.pose_centre);
   frame.grid_positions.resize(result.positions.size());
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
+  // A file can pass every check of its own numbers and still decode to overflow (a λ that grows
+  // the surface past float range, weights that cancel badly): no frame leaves the decoder with a
+  // number a float cannot hold (spec/container.md §10.4). The mesh's points lie between these.
+  constexpr double kFloatMax = 3.4028234663852886e38;
+  for (const Vec3& p : frame.grid_positions) {
+    if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) {
+      char text[160];
+      std::snprintf(text, sizeof text, "t = %.6g s: the file decodes to positions beyond float range or not finite (a corrupt file)", t);
+      throw Error(ErrorCode::kCorrupt, text);
+    }
+  }
 
   const DiskGrid& grid = reconstructor_.geometry().grid();
   if (sequence.has_holes()) {

@@ -100,7 +100,7 @@ TEST(CApi, NullArgumentsAndBadHandles) {
   EXPECT_EQ(fm_decoder_decode(reinterpret_cast<fm_decoder*>(o.file), 0.1, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("not an fm_decoder handle")) << fm_last_error_message();
   EXPECT_EQ(fm_file_get_info(reinterpret_cast<const fm_file*>(o.decoder), &info), FM_ERROR_INVALID_ARGUMENT);
-  EXPECT_TRUE(message_has("not an open fm_file handle"));
+  EXPECT_TRUE(message_has("not an fm_file handle")) << fm_last_error_message();
   fm_decoder_destroy(reinterpret_cast<fm_decoder*>(o.file));  // ignored: not a decoder
   fm_file_close(reinterpret_cast<fm_file*>(o.decoder));       // ignored: not a file
   fm_file_close(nullptr);

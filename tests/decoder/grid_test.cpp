@@ -123,6 +123,15 @@ TEST(DiskGrid, GoldenHashesPinTheRule) {
   for (const auto& [n, hash] : golden) EXPECT_EQ(make_disk_grid(n).hash, hash) << "N = " << n;
 }
 
+// The table a header's hash is checked against (codec/grid/disk_grid_hashes.inc) is the rule's own:
+// every N to 129, and a sample of the larger ones. (The whole table takes 40 s.)
+TEST(DiskGrid, KnownHashesAreTheGridsOwn) {
+  for (int n = kMinGridSize; n <= 129; ++n) EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
+  for (int n : {160, 200, 256, 257, 321, 513, 1024, kKnownGridHashes}) EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
+  EXPECT_EQ(known_disk_grid_hash(kKnownGridHashes + 1), 0u);
+  EXPECT_EQ(known_disk_grid_hash(kMinGridSize - 1), 0u);
+}
+
 TEST(ExactPredicates, DecideTiesByThePerturbationAndHugeValuesExactly) {
   // The unit square is cocircular: x² + y² ties, −ε x y picks the (0,0)-(1,1) diagonal.
   const IntPoint a{0, 0}, b{1, 0}, c{1, 1}, d{0, 1};

@@ -45,6 +45,11 @@ printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=$(($(stat -c %s "$w
 expect_error "corrupted file" "checksum" "$tools/fmdec" "$work/flip.fmv" --t 0.1 -o "$work/flip.obj"
 expect_error "preview over the texture" "give the preview another name" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/g.obj" --preview "$work/g.png"
 expect_error "glTF of one time" "a glTF clip is a range" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/clip.glb"
+# Frame counts are range-checked before the cast to int (1e300 s at 30 fps was undefined behaviour).
+expect_error "a rate past int" "more than 10^8 frames" "$tools/fmdec" "$work/a.fmv" --fps 1e300 --null
+expect_error "a range past int" "more than 10^8 frames" "$tools/fmdec" "$work/a.fmv" --fps 30 --to 1e300 --clamp --null
+expect_error "a file over --max-memory" "over the memory limit of 16.0 KiB" "$tools/fminfo" "$work/a.fmv" --max-memory 16K
+expect_error "a bad --max-memory" "is not a size" "$tools/fmdec" "$work/a.fmv" --fps 20 --null --max-memory 12X
 "$tools/fmdec" "$work/a.fmv" --fps 20 -o "$work/clip.glb" --quiet || fail "fmdec -o clip.glb"
 [[ $(head -c 4 "$work/clip.glb") == "glTF" ]] || fail "clip.glb is not a glTF binary"
 expect_error "not a container" "not a facemorph container" "$tools/fmdec" "$work/cap/frame_0000.obj" --t 0.1 -o "$work/x.obj"

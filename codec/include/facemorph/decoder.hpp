@@ -25,6 +25,7 @@
 #pragma once
 
 #include "facemorph/error.hpp"
+#include "facemorph/limits.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <cstddef>
@@ -38,13 +39,15 @@
 namespace facemorph {
 
 // Reads and checks a whole .fmv file (spec/container.md §9: kIo, kTruncated, kCorrupt,
-// kUnsupported, each naming the file and the chunk). The result is immutable: share it between
-// decoders and threads.
-std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path);
+// kUnsupported, each naming the file and the chunk; kLimit where it needs more than `limits`
+// allow, found from the sizes it states before they are allocated, §10). The result is immutable:
+// share it between decoders and threads.
+std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
 // The same from bytes in memory. The bytes are parsed (and the textures decoded) before this
 // returns and not used afterwards: the caller may free them at once. `name` names the source in
 // error messages.
-std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory");
+std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
+                                                     const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // What a file holds, fixed for the file.
 struct FileInfo {
@@ -124,8 +127,8 @@ class Decoder {
   // Throws kInvalidArgument for a null or invalid sequence.
   explicit Decoder(std::shared_ptr<const Sequence> sequence);
   // open_sequence_file / open_sequence_memory, then a decoder on it.
-  static Decoder open(const std::filesystem::path& path);
-  static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory");
+  static Decoder open(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
+  static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory", const DecoderLimits& limits = kDefaultDecoderLimits);
 
   Decoder(Decoder&&) noexcept;
   Decoder& operator=(Decoder&&) noexcept;
@@ -135,11 +138,14 @@ class Decoder {
   // The opened file, to share with another decoder (on another thread).
   const std::shared_ptr<const Sequence>& sequence() const { return sequence_; }
 
-  // Decodes the frame at t (seconds from the capture's first frame) into `out`. Throws
-  //   kInvalidArgument  t not finite;
+  // Decodes the frame at t (seconds from the capture's first frame) into `out`; every number it
+  // writes is finite. Throws
+  //   kInvalidArgument  t not finite (only the caller's arguments: never for a fault of the file);
   //   kOutOfRange       t outside [range_begin, range_end] without options.clamp;
   //   kBufferTooSmall   a non-empty span too small (the message says which and what is needed);
-  //   kNumerical        the reconstruction produced a non-finite surface (a corrupt file).
+  //   kCorrupt          the file decodes to non-finite numbers at t, or a keyframe t needs cannot be
+  //                     reconstructed (remembered: the next call that needs it fails at once);
+  //   kNumerical, kNotConverged  the reconstruction failed (a corrupt file).
   // The frame is kept: asking again for the same t and options (after kBufferTooSmall, or through
   // frame_info) copies it out again without decoding.
   FrameInfo decode(double t, const FrameBuffers& out, const FrameOptions& options = {});

@@ -51,6 +51,11 @@ inline constexpr int kMaxGridSize = 4097;
 // Builds G. Throws kInvalidArgument unless kMinGridSize <= N <= kMaxGridSize.
 DiskGrid make_disk_grid(int n);
 
+// G's hash for N up to kKnownGridHashes without building G (a table, checked against
+// make_disk_grid by the tests): checking a file's header costs no grid. 0 for other N.
+inline constexpr int kKnownGridHashes = 1025;
+uint64_t known_disk_grid_hash(int n);
+
 // The node counts of G for N without building it (cheap): what validating fields needs.
 struct DiskGridShape {
   int interior_count = 0;

@@ -28,6 +28,8 @@ enum class ErrorCode : int {
   kBufferTooSmall = 13,  // a caller-owned output buffer is smaller than the data (the call says what is needed)
   kOutOfMemory = 14,     // an allocation failed
   kInternal = 15,        // a failure that is none of the above (a bug in facemorph: please report it)
+  kLimit = 16,           // an input that needs more than the caller's limits allow (DecoderLimits: grid, keyframes, texture, memory)
+  kClosedHandle = 17,    // a C API handle used after it was closed or destroyed (or closed twice)
 };
 
 // Short stable name of a code, e.g. "truncated"; never null.
@@ -49,6 +51,8 @@ constexpr const char* error_code_name(ErrorCode code) noexcept {
     case ErrorCode::kBufferTooSmall: return "buffer-too-small";
     case ErrorCode::kOutOfMemory: return "out-of-memory";
     case ErrorCode::kInternal: return "internal";
+    case ErrorCode::kLimit: return "limit";
+    case ErrorCode::kClosedHandle: return "closed-handle";
   }
   return "unknown";
 }

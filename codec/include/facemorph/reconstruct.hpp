@@ -33,6 +33,10 @@ struct ReconstructOptions {
   // converged = false and the last change, for callers that prefer a frame to an error. (A
   // non-finite iterate has no best effort: it always throws kNumerical.)
   bool throw_on_failure = true;
+  // Give up when the change has not reached a new low for this many iterations (0: run to
+  // max_iterations): an iteration that stops falling does not converge, and a file whose fields
+  // never settle then costs this many steps a call instead of max_iterations (spec/container.md §10.3).
+  int stall_iterations = 40;
 };
 
 struct ReconstructResult {

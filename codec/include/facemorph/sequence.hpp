@@ -124,6 +124,9 @@ class SequenceDecoder {
   std::vector<RigidPose> poses_;                       // of every keyframe, for blend_poses
   std::vector<Vec3> rotation_vectors_;                 // unwrap_rotations(poses_), once
   std::vector<std::vector<Vec3>> keyframe_surfaces_;  // in the face frame; empty until first used
+  // Why keyframe k could not be reconstructed (empty: it could, or was not tried): a keyframe that
+  // fails once fails at once ever after, instead of running its iteration again on every call.
+  std::vector<std::string> keyframe_failures_;
   // The last frames' corrections (reconstruction − spline start, face frame), newest first.
   struct History {
     int count = 0;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "facemorph/image_codec.hpp"
+#include "facemorph/limits.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <cstdint>
@@ -103,12 +104,14 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 // Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,
 // the grid's rule and hash against the one this decoder builds, every keyframe's fields by
 // validate_fields, the sequence by validate_sequence). Throws kTruncated, kCorrupt or kUnsupported
-// naming `source` and the chunk.
-Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info = nullptr);
+// naming `source` and the chunk, kLimit where the file needs more than `limits` allow (checked from
+// the sizes it states, before they are allocated; spec/container.md §10).
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info = nullptr,
+                              const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
 // leaves any previous file untouched.
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
-Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr);
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr, const DecoderLimits& limits = kDefaultDecoderLimits);
 
 }  // namespace facemorph

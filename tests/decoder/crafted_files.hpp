@@ -1,0 +1,155 @@
+// Crafted .fmv files for tests: a small sequence with everything a file can hold, its metadata,
+// and a rebuild that edits a file's payloads (decompressed) and keeps every checksum and index
+// offset right, so that a test reaches the check it means, past the CRCs.
+#pragma once
+
+#include "facemorph/fields.hpp"
+#include "facemorph/grid_geometry.hpp"
+#include "facemorph/sequence_file.hpp"
+#include "format/byte_reader.hpp"
+#include "format/byte_writer.hpp"
+#include "format/container.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <string>
+#include <vector>
+
+namespace facemorph::crafted {
+
+// A small sequence with everything a file can hold: hl+t fields of three surfaces, a turning pose,
+// a hole that grows, a texture.
+inline Sequence small_sequence(int n = 17, int texture = 16) {
+  const GridGeometry geometry(make_disk_grid(n));
+  Sequence s;
+  s.grid_n = n;
+  s.fps = 30;
+  s.first_time = 0;
+  s.last_time = 1;
+  s.units = "mm";
+  s.pose_centre = Vec3(0.1, 0.2, 0.3);
+  for (int k = 0; k < 3; ++k) {
+    Keyframe key;
+    key.time = 0.5 * k;
+    const double a = 0.2 + 0.1 * k;
+    std::vector<Vec3> positions;
+    for (const Vec2& w : geometry.grid().nodes) positions.push_back(Vec3(w.x(), w.y(), a * (w.x() * w.x() - 0.5 * w.y() * w.y())));
+    key.fields = compute_fields(geometry, positions, Representation::kHLT);
+    key.pose.rotation = Eigen::AngleAxisd(0.2 * k, Vec3(0, 1, 0)).toRotationMatrix();
+    key.pose.translation = Vec3(k, 0.1234567 * k, -k);
+    for (const Vec2& w : geometry.grid().nodes) key.hole_level.push_back(std::min((w - Vec2(0.3, 0)).norm() - 0.1 * k, kHoleLevelBand));
+    key.texture = Image(texture, texture, 3);
+    for (int y = 0; y < texture; ++y) {
+      for (int x = 0; x < texture; ++x) {
+        uint8_t* p = key.texture.at(x, y);
+        p[0] = static_cast<uint8_t>(8 * x + 20 * k);
+        p[1] = static_cast<uint8_t>(8 * y);
+        p[2] = 128;
+      }
+    }
+    s.keyframes.push_back(std::move(key));
+  }
+  return s;
+}
+
+inline SequenceFileMetadata small_metadata() {
+  SequenceFileMetadata m;
+  m.settings = R"({"keyframes":"10%"})";
+  m.landmark_names = {"nose_tip", "rim_top"};
+  m.texture_quality = 101;  // lossless: the round trip compares exactly
+  return m;
+}
+
+// The same with the predicted coding: every array on its own step, an intra keyframe every second
+// one; residuals range-coded in one stream per group of keyframes (format 1.5, the default), with
+// models carried in a chunk per keyframe (1.4), range-coded afresh in every keyframe (1.3) or as
+// zstd varints (1.1).
+inline SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded) {
+  SequenceFileMetadata m = small_metadata();
+  m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
+  m.field_coding.steps[kScalarArrayCount] = 1e-3;
+  m.field_coding.intra_period = 2;
+  m.field_coding.residuals = residuals;
+  set_default_pose_steps(m.field_coding, "mm");
+  return m;
+}
+
+// Rebuilds a file chunk by chunk, letting `edit` change a payload (decompressed) or drop/add chunks,
+// and keeps the index's offsets right: each offset that named a chunk names it where it now starts
+// (chunks before it may have grown), the index itself included (compressed, its size moves with its
+// numbers). Times and other index fields are taken from the index as `edit` left it.
+template <typename Edit>
+std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
+  const format::ContainerReader reader(bytes, "in");
+  std::vector<format::PreparedChunk> chunks;
+  size_t groups = 0;  // field coding 4's KGOP chunks
+  bool textured = false;
+  std::vector<uint8_t> index_payload;
+  for (const format::ChunkView& c : reader.chunks()) {
+    std::vector<uint8_t> payload = reader.payload(c);
+    edit(c.type, payload);
+    groups += c.type == "KGOP" ? 1 : 0;
+    textured = textured || c.type == "TEXR";
+    if (c.type == "KIDX") index_payload = payload;
+    chunks.push_back(format::prepare_chunk(c.type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
+  }
+  std::vector<format::PreparedChunk> extra;
+  if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
+  const std::vector<format::ChunkView>& old = reader.chunks();
+  const format::ChunkView& old_index = old[1];
+  const int64_t header_delta = static_cast<int64_t>(chunks[0].total_size()) - static_cast<int64_t>(old[0].total_size());
+  const int64_t extra_delta = extra.empty() ? 0 : static_cast<int64_t>(extra[0].total_size());
+  // The index with its offsets for an index of `size` bytes, at zstd `level` (0: stored).
+  const auto index_chunk = [&](uint64_t size, int level) {
+    // Where each chunk after the index starts now.
+    std::vector<std::pair<uint64_t, uint64_t>> moved;
+    uint64_t at = format::kPreambleBytes + chunks[0].total_size() + size + static_cast<uint64_t>(extra_delta);
+    for (size_t i = 2; i < chunks.size(); ++i) {
+      moved.emplace_back(old[i].offset, at);
+      at += chunks[i].total_size();
+    }
+    const int64_t delta = header_delta + extra_delta + (static_cast<int64_t>(size) - static_cast<int64_t>(old_index.total_size()));
+    format::ByteReader index(index_payload, "index");
+    format::ByteWriter shifted;
+    const auto shift = [&] {
+      const uint64_t offset = index.read<uint64_t>("o");
+      uint64_t now = offset == 0 ? 0 : static_cast<uint64_t>(static_cast<int64_t>(offset) + delta);
+      for (const auto& [before, after] : moved) {
+        if (before == offset) now = after;
+      }
+      shifted.write(now);
+    };
+    const uint32_t count = index.read<uint32_t>("count");
+    shifted.write(count);
+    if (groups == 0) {
+      for (uint32_t k = 0; k < count; ++k) {
+        shifted.write(index.read<double>("t"));
+        shift();
+        shift();
+      }
+    } else {  // times, group offsets, texture offsets (spec/container.md §6)
+      for (uint32_t k = 0; k < count; ++k) shifted.write(index.read<double>("t"));
+      for (size_t g = 0; g < groups; ++g) shift();
+      for (uint32_t k = 0; textured && k < count; ++k) shift();
+    }
+    return format::prepare_chunk(chunks[1].type, shifted.take(), true, level);
+  };
+  // Compressed, its size moves with its numbers: laid out until it stays put, else stored (a size
+  // the offsets do not change), as the writer does.
+  uint64_t index_size = old_index.total_size();
+  bool placed = false;
+  for (int pass = 0; pass < 8 && !placed; ++pass) {
+    chunks[1] = index_chunk(index_size, old_index.compressed() ? 19 : 0);
+    placed = chunks[1].total_size() == index_size;
+    index_size = chunks[1].total_size();
+  }
+  if (!placed) chunks[1] = index_chunk(index_chunk(index_size, 0).total_size(), 0);
+  format::ContainerWriter writer;
+  writer.add(chunks[0]);
+  writer.add(chunks[1]);
+  for (const auto& c : extra) writer.add(c);
+  for (size_t i = 2; i < chunks.size(); ++i) writer.add(chunks[i]);
+  return writer.finish();
+}
+
+}  // namespace facemorph::crafted
