@@ -266,7 +266,9 @@ SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const 
 }
 
 void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings) {
-  if (mesh.positions.empty() || mesh.faces.empty()) return;
+  // A capture without landmarks (or a frame without any) needs no closest-point structure.
+  const std::vector<Vec3>& points = capture_.landmarks[index];
+  if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return;
   const PointToMesh surface(mesh);
   const double diagonal = bbox_diagonal(mesh.positions);
   const std::string& name = capture_.frames[index].mesh.string();
