@@ -8,6 +8,9 @@
 #include <cstring>
 #include <fstream>
 #include <system_error>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace facemorph::format {
@@ -36,6 +39,34 @@ std::vector<uint8_t> read_file(const fs::path& path, uint64_t max_bytes) {
     throw Error(ErrorCode::kIo, path.string() + ": read failed");
   }
   return data;
+}
+
+MappedFile::MappedFile(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(ErrorCode::kIo, path.string() + ": is a directory, not a file");
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw Error(ErrorCode::kIo, path.string() + ": cannot open: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || st.st_size < 0) {
+    const int error = errno;
+    ::close(fd);
+    throw Error(ErrorCode::kIo, path.string() + ": cannot determine the file size: " + std::strerror(error));
+  }
+  size_ = static_cast<size_t>(st.st_size);
+  if (size_ > 0) {
+    void* mapped = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (mapped == MAP_FAILED) {
+      const int error = errno;
+      ::close(fd);
+      throw Error(ErrorCode::kIo, path.string() + ": cannot map: " + std::strerror(error));
+    }
+    data_ = static_cast<const uint8_t*>(mapped);
+  }
+  ::close(fd);  // the mapping keeps the file
+}
+
+MappedFile::~MappedFile() {
+  if (data_) ::munmap(const_cast<uint8_t*>(data_), size_);
 }
 
 fs::path temporary_sibling(const fs::path& path) {

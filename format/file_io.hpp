@@ -15,6 +15,24 @@ namespace facemorph::format {
 std::vector<uint8_t> read_file(const std::filesystem::path& path,
                                uint64_t max_bytes = uint64_t{1} << 34);
 
+// A file's bytes mapped read-only (POSIX mmap): pages are read as they are touched and belong to
+// the page cache, not the process's heap, so opening a long file costs what is read of it. The file
+// must not be truncated in place while mapped (touching a page past its new end raises SIGBUS);
+// facemorph's writers replace files by rename, which leaves a mapping intact.
+class MappedFile {
+ public:
+  // Throws kIo naming the file if it cannot be opened or mapped.
+  explicit MappedFile(const std::filesystem::path& path);
+  ~MappedFile();
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  std::span<const uint8_t> bytes() const { return {data_, size_}; }
+
+ private:
+  const uint8_t* data_ = nullptr;
+  size_t size_ = 0;
+};
+
 // Writes `data` to `path` atomically (temporary file + rename). Throws kIo naming the file.
 void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> data);
 void write_file_atomically(const std::filesystem::path& path, std::string_view text);

@@ -129,13 +129,16 @@ int main(int argc, char** argv) {
     const DecoderLimits checked_limits = tools::parsed_limits(limits, max_memory);
     if (!std::isfinite(fps) || fps < 0) throw Error(ErrorCode::kInvalidArgument, "--fps must be a finite positive number");
     const auto start = std::chrono::steady_clock::now();
-    auto sequence = std::make_shared<const Sequence>(read_sequence_file(input, nullptr, checked_limits));
-    const double seconds_read = tools::seconds_since(start);
     if (!extract.empty()) {
-      const auto files = tools::export_keyframe_fields(*sequence, extract);
-      if (!quiet) std::printf("fmdec: %zu files for %zu keyframes in %s\n", files.size(), sequence->keyframes.size(), extract.c_str());
+      // Every keyframe's fields at once: the file decoded whole, within the same limits.
+      const Sequence whole = read_sequence_file(input, nullptr, checked_limits);
+      const auto files = tools::export_keyframe_fields(whole, extract);
+      if (!quiet) std::printf("fmdec: %zu files for %zu keyframes in %s\n", files.size(), whole.keyframes.size(), extract.c_str());
       if (!t && fps <= 0) return 0;
     }
+    // Keyframes decoded as the frames need them, within the memory budget.
+    const std::shared_ptr<const KeyframeSource> sequence = open_sequence_source(input, checked_limits);
+    const double seconds_read = tools::seconds_since(start);
     SequenceDecoder decoder(sequence);
     DecodeOptions options;
     options.cut_holes = !keep_holes;
@@ -176,7 +179,7 @@ int main(int argc, char** argv) {
       options.cut_holes = false;  // the clip drops the triangles inside a hole throughout instead
     }
     if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");
-    const double begin = from.value_or(sequence->first_time), end = to.value_or(sequence->last_time);
+    const double begin = from.value_or(sequence->outline().first_time), end = to.value_or(sequence->outline().last_time);
     if (!(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "--to is before --from");
     // A thousandth of a frame of slack: a rounded rate (23.976 for 24000/1001) must still reach the
     // last frame.

@@ -179,12 +179,14 @@ void print_encoder_notes(const std::string& settings_text) {
 
 int describe_container(const fs::path& path, bool json_out, const DecoderLimits& limits) {
   SequenceFileInfo info;
-  const Sequence sequence = read_sequence_file(path, &info, limits);
-  const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
+  // Opened as a player opens it: keyframes checked once, not held.
+  const std::shared_ptr<const KeyframeSource> source = open_sequence_source(path, limits, &info);
+  const SequenceOutline& sequence = source->outline();
+  const KeyframeSpline spline(sequence.times, sequence.spline);
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
   const double bytes_per_second = static_cast<double>(info.file_bytes) / duration;
-  const size_t fixed = sequence.keyframes.front().fields.fixed_nodes.size();
+  const size_t fixed = sequence.fixed_node_count;
   if (json_out) {
     nlohmann::json doc;
     doc["file"] = path.string();
@@ -211,12 +213,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
     doc["texture_size"] = info.texture_size;
-    doc["holes"] = sequence.has_holes();
+    doc["holes"] = sequence.has_holes;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
     nlohmann::json keys = nlohmann::json::array();
-    for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-      keys.push_back({{"time", sequence.keyframes[k].time}, {"fields_bytes", info.keyframes[k].fields}, {"texture_bytes", info.keyframes[k].texture}});
+    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
+      keys.push_back({{"time", sequence.times[k]}, {"fields_bytes", info.keyframes[k].fields}, {"texture_bytes", info.keyframes[k].texture}});
     }
     doc["keyframes"] = std::move(keys);
     nlohmann::json chunks = nlohmann::json::array();
@@ -249,12 +251,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + (info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") + " per keyframe").c_str() : "none");
-  std::printf("holes       %s\n", sequence.has_holes() ? "stored as a level set, cut on decode" : "none stored");
+  std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
-  std::printf("keyframes   %zu\n", sequence.keyframes.size());
+  std::printf("keyframes   %zu\n", sequence.keyframe_count());
   std::printf("    #     time   fields B  texture B\n");
-  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-    std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.keyframes[k].time, static_cast<unsigned long long>(info.keyframes[k].fields),
+  for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
+    std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.times[k], static_cast<unsigned long long>(info.keyframes[k].fields),
                 static_cast<unsigned long long>(info.keyframes[k].texture));
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");

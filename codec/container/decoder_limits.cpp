@@ -33,6 +33,13 @@ uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size
   return add(add(mul(keyframes, per_keyframe), mul(nodes, kSolverBytesPerNode)), frame);
 }
 
+uint64_t index_memory_bytes(uint64_t keyframes) {
+  // Counted: the time (8), index entry (24), pose (96) and its unwrapped rotation vector (24), the
+  // byte counts fminfo shows (16), a decoder's empty surface slot and failure string (64): 232.
+  constexpr uint64_t kBytesPerKeyframe = 256;
+  return mul(keyframes, kBytesPerKeyframe);
+}
+
 void check_decoder_limits(const DecoderLimits& limits, const std::string& what) {
   if (limits.max_grid_n < kMinGridSize) throw Error(ErrorCode::kInvalidArgument, what + ": the largest grid must be at least " + std::to_string(kMinGridSize));
   if (limits.max_keyframes < 1) throw Error(ErrorCode::kInvalidArgument, what + ": at least one keyframe must be allowed");

@@ -3,6 +3,8 @@
 // value against the header before anything uses it.
 #include "facemorph/sequence_file.hpp"
 
+#include "codec/container/opened_file.hpp"
+
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/image_codec.hpp"
@@ -21,6 +23,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -243,7 +246,10 @@ std::string mebibytes(uint64_t bytes) {
   return text;
 }
 
-Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version, const DecoderLimits& limits) {
+// `keyframes_held`: how many keyframes the caller holds at once for the given count and spline
+// (every one to decode the file whole; the spline's window to decode on demand).
+Header read_header(std::span<const uint8_t> payload, const std::string& source, uint16_t minor_version, const DecoderLimits& limits,
+                   const OpenedFile::KeyframesHeld& keyframes_held) {
   ByteReader r(payload, source + ": header");
   Header h;
   h.limits = limits;
@@ -306,9 +312,10 @@ Header read_header(std::span<const uint8_t> payload, const std::string& source, 
   for (size_t length : expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), (h.flags & kHasHoles) != 0)) {
     values += length;
   }
-  const uint64_t memory = estimated_memory_bytes(static_cast<int>(n), h.keyframe_count, static_cast<int>(h.texture_size), values);
+  const uint64_t held = keyframes_held(h.keyframe_count, h.shape.spline);
+  const uint64_t memory = estimated_memory_bytes(static_cast<int>(n), held, static_cast<int>(h.texture_size), values) + index_memory_bytes(h.keyframe_count);
   if (memory > limits.max_memory_bytes) {
-    over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes on G at N = " + std::to_string(n) + " with " + std::to_string(h.texture_size) +
+    over_limit(r.source(), std::to_string(held) + " keyframes held at once on G at N = " + std::to_string(n) + " with " + std::to_string(h.texture_size) +
                                "² textures need about " + mebibytes(memory) + ", over the memory limit of " + mebibytes(limits.max_memory_bytes) +
                                " (max_memory_bytes, --max-memory)");
   }
@@ -889,11 +896,12 @@ std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_
   return w.take();
 }
 
-// Reads the KGOP payload of keyframes first .. first + count - 1 (their times are the index's).
-// `ends[j]`: where keyframe j's part of the stream ended, from the payload's start. Keyframes are
-// allocated as they are decoded: a group's count alone allocates nothing.
-std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t first, uint32_t count,
-                                          std::vector<uint64_t>& ends) {
+// Reads the KGOP payload of keyframes first .. first + count - 1 (their times are the index's), the
+// first `decoded` of them (the stream's end is checked when that is all), handing each to
+// `take(j, key, end)` as it is decoded, with `end` where its part of the stream ended from the
+// payload's start. One keyframe is held at a time: a group's count alone allocates nothing.
+void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const Header& h, uint32_t first, uint32_t count, uint32_t decoded,
+                         const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take) {
   ByteReader r(payload, where);
   if (r.read<uint32_t>("the first keyframe number") != first) corrupt(where, "holds another group of keyframes than the index says");
   const size_t stream_start = payload.size() - r.remaining();
@@ -906,11 +914,9 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
   GroupModels models;
   std::vector<std::vector<int32_t>> codes;
   PoseCodes pose{};
-  std::vector<Keyframe> keys;
-  ends.clear();
-  for (uint32_t j = 0; j < count; ++j) {
+  for (uint32_t j = 0; j < decoded; ++j) {
     const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
-    Keyframe& key = keys.emplace_back();
+    Keyframe key;
     const uint8_t reference = j > 0 && stream.decision(models.reference) ? kFromPreviousKeyframe : kIntra;
     std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -930,10 +936,9 @@ std::vector<Keyframe> read_keyframe_group(std::span<const uint8_t> payload, cons
     check_translation(key.pose, keyframe_where);
     const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
     set_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, reference, codes, h, keyframe_where), h, keyframe_where);
-    ends.push_back(stream_start + stream.position());
+    take(j, std::move(key), stream_start + stream.position());
   }
-  stream.expect_end();
-  return keys;
+  if (decoded == count) stream.expect_end();
 }
 
 std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
@@ -1074,78 +1079,183 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   return writer.finish();
 }
 
-Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info, const DecoderLimits& limits) {
+// ---- A file opened for reading (opened_file.hpp) ----
+
+struct OpenedFile::State {
+  State(std::span<const uint8_t> bytes, std::string source_name) : reader(bytes, source_name), source(std::move(source_name)), file_bytes(bytes.size()) {}
+  format::ContainerReader reader;
+  std::string source;
+  uint64_t file_bytes = 0;
+  DecoderLimits limits;
+  std::optional<Header> header;
+  size_t group = 0;  // field coding 4: the intra period, one KGOP chunk per group; else 0
+  std::string_view keyframe_type;
+  std::vector<IndexEntry> index;
+};
+
+OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
   check_decoder_limits(limits);
-  if (bytes.size() > limits.max_memory_bytes) {
-    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
-  }
-  const format::ContainerReader reader(bytes, source);
+  state_ = std::make_unique<State>(bytes, std::move(source));
+  State& s = *state_;
+  s.limits = limits;
+  const format::ContainerReader& reader = s.reader;
   const std::vector<format::ChunkView>& chunks = reader.chunks();
   if (chunks.size() < 2 || chunks[0].type != kHeader || chunks[1].type != kIndex) {
-    corrupt(source, "the file does not start with its header and index chunks");
+    corrupt(s.source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
     const bool known = chunk.type == kHeader || chunk.type == kIndex || chunk.type == kKeyframe || chunk.type == kPredictedKeyframe ||
                        chunk.type == kKeyframeGroup || chunk.type == kTexture;
     if (!known && chunk.critical()) {
-      throw Error(ErrorCode::kUnsupported, source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
+      throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
-  Header header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), source, reader.minor_version(), limits);
+  s.header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), s.source, reader.minor_version(), limits, keyframes_held);
+  const Header& header = *s.header;
   const FieldCoding& coding = header.metadata.field_coding;
   const bool predicted = coding.predicted();
-  const size_t group = predicted && grouped(coding.residuals) ? static_cast<size_t>(coding.intra_period) : 0;
-  const std::string_view keyframe_type = group > 0 ? kKeyframeGroup : predicted ? kPredictedKeyframe : kKeyframe;
-  std::vector<std::vector<int32_t>> codes;  // the previous predicted keyframe's
-  std::vector<format::ResidualModels> models;  // its range coder models (field coding 3)
-  std::vector<Keyframe> group_keys;  // field coding 4: the current group's keyframes
-  std::vector<uint64_t> group_ends;  // and where each one's part of the chunk ends
-  const std::vector<IndexEntry> index =
-      read_index(reader.payload(chunks[1], limits.max_memory_bytes), source, header.keyframe_count, group, (header.flags & kHasTexture) != 0);
+  s.group = predicted && grouped(coding.residuals) ? static_cast<size_t>(coding.intra_period) : 0;
+  s.keyframe_type = s.group > 0 ? kKeyframeGroup : predicted ? kPredictedKeyframe : kKeyframe;
+  s.index = read_index(reader.payload(chunks[1], limits.max_memory_bytes), s.source, header.keyframe_count, s.group, (header.flags & kHasTexture) != 0);
   // Keyframe times: within ±1e9 s, increasing, and at least 1e-9 of their span apart, so that the
   // spline's ratios of intervals stay finite (0, 1e-200, 2e-200, 1 would not).
+  const std::vector<IndexEntry>& index = s.index;
   const double span = index.back().time - index.front().time;
   for (size_t k = 0; k < index.size(); ++k) {
-    if (std::abs(index[k].time) > kMaxTime) corrupt(source, "keyframe " + std::to_string(k) + "'s time is beyond 1e9 s");
+    if (std::abs(index[k].time) > kMaxTime) corrupt(s.source, "keyframe " + std::to_string(k) + "'s time is beyond 1e9 s");
     if (k > 0 && !(index[k].time - index[k - 1].time >= kMinKeyframeGap * span && index[k].time > index[k - 1].time)) {
-      corrupt(source, "keyframe " + std::to_string(k) + "'s time is not at least 1e-9 of the keyframes' span after the previous one");
+      corrupt(s.source, "keyframe " + std::to_string(k) + "'s time is not at least 1e-9 of the keyframes' span after the previous one");
     }
   }
-  auto sequence = std::move(header.shape);
-  std::vector<SequenceFileInfo::KeyframeBytes> sizes(index.size());
-  TextureCodec first_texture_codec = TextureCodec::kWebp;
-  for (uint32_t k = 0; k < index.size(); ++k) {
+  // Every entry points at a chunk of its kind, before anything is decoded from it.
+  for (size_t k = 0; k < index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(index[k].keyframe_offset, name + "'s index entry");
-    if (chunk.type != keyframe_type) corrupt(source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(keyframe_type));
-    Keyframe key;
-    if (group > 0) {
-      const size_t j = k % group;
-      if (j == 0) {
-        const auto count = static_cast<uint32_t>(std::min<size_t>(group, index.size() - k));
-        // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
-        if (chunk.compressed()) corrupt(source, reader.describe(chunk) + " is compressed; a group's chunk never is");
-        group_keys = read_keyframe_group(reader.payload(chunk, limits.max_memory_bytes), source + ": " + reader.describe(chunk), header, k, count, group_ends);
-      }
-      key = std::move(group_keys[j]);
-      key.time = index[k].time;  // field coding 4 stores it in the index only
-      sizes[k].fields = group_ends[j] - (j > 0 ? group_ends[j - 1] : 0) + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
-    } else {
-      const std::string where = source + ": " + reader.describe(chunk) + " (" + name + ")";
-      key = predicted ? read_predicted_keyframe(reader.payload(chunk, limits.max_memory_bytes), where, header, k, codes, models) : read_keyframe(reader.payload(chunk, limits.max_memory_bytes), where, header, k);
-      if (key.time != index[k].time) corrupt(source, name + ": its time disagrees with the index");
-      sizes[k].fields = chunk.total_size();
-    }
+    if (chunk.type != s.keyframe_type) corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(s.keyframe_type));
     if (header.flags & kHasTexture) {
       const format::ChunkView& texture = reader.chunk_at(index[k].texture_offset, name + "'s texture entry");
-      if (texture.type != kTexture) corrupt(source, name + "'s texture entry points at a " + texture.type + " chunk");
-      key.texture = read_texture(reader.payload(texture, limits.max_memory_bytes), source + ": " + reader.describe(texture) + " (" + name + ")", k, header.texture_size,
-                                 k == 0 ? &first_texture_codec : nullptr);
-      sizes[k].texture = texture.total_size();
+      if (texture.type != kTexture) corrupt(s.source, name + "'s texture entry points at a " + texture.type + " chunk");
     } else if (index[k].texture_offset != 0) {
-      corrupt(source, name + " has a texture entry in a file without textures");
+      corrupt(s.source, name + " has a texture entry in a file without textures");
     }
-    sequence.keyframes.push_back(std::move(key));
+  }
+}
+
+OpenedFile::~OpenedFile() = default;
+
+const std::string& OpenedFile::source() const { return state_->source; }
+const Sequence& OpenedFile::shape() const { return state_->header->shape; }
+size_t OpenedFile::keyframe_count() const { return state_->index.size(); }
+double OpenedFile::keyframe_time(size_t k) const { return state_->index.at(k).time; }
+bool OpenedFile::has_texture() const { return (state_->header->flags & kHasTexture) != 0; }
+bool OpenedFile::has_holes() const { return (state_->header->flags & kHasHoles) != 0; }
+int OpenedFile::texture_size() const { return static_cast<int>(state_->header->texture_size); }
+
+uint64_t OpenedFile::values_per_keyframe() const {
+  uint64_t values = 0;
+  for (size_t length : expected_lengths(*state_->header)) values += length;
+  return values;
+}
+
+size_t OpenedFile::run_length() const {
+  const FieldCoding& coding = state_->header->metadata.field_coding;
+  return coding.predicted() ? static_cast<size_t>(coding.intra_period) : 1;
+}
+
+void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
+  const State& s = *state_;
+  const Header& header = *s.header;
+  const format::ContainerReader& reader = s.reader;
+  const uint64_t budget = s.limits.max_memory_bytes;
+  if (first % run_length() != 0 || last < first || last >= s.index.size() || run_of(last) != run_of(first)) {
+    throw Error(ErrorCode::kInternal, s.source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  if (s.group > 0) {
+    const format::ChunkView& chunk = reader.chunk_at(s.index[first].keyframe_offset, "keyframe " + std::to_string(first) + "'s index entry");
+    // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
+    if (chunk.compressed()) corrupt(s.source, reader.describe(chunk) + " is compressed; a group's chunk never is");
+    const auto count = static_cast<uint32_t>(std::min<size_t>(s.group, s.index.size() - first));
+    uint64_t previous_end = 0;
+    read_keyframe_group(reader.payload(chunk, budget), s.source + ": " + reader.describe(chunk), header, static_cast<uint32_t>(first), count,
+                        static_cast<uint32_t>(last - first + 1), [&](uint32_t j, Keyframe&& key, uint64_t end) {
+                          const size_t k = first + j;
+                          key.time = s.index[k].time;  // field coding 4 stores it in the index only
+                          // The chunk's framing counts with its first keyframe.
+                          const uint64_t bytes = end - previous_end + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
+                          previous_end = end;
+                          take(k, std::move(key), bytes);
+                        });
+    return;
+  }
+  const bool predicted = header.metadata.field_coding.predicted();
+  std::vector<std::vector<int32_t>> codes;     // the previous predicted keyframe's
+  std::vector<format::ResidualModels> models;  // its range coder models (field coding 3)
+  for (size_t k = first; k <= last; ++k) {
+    const std::string name = "keyframe " + std::to_string(k);
+    const format::ChunkView& chunk = reader.chunk_at(s.index[k].keyframe_offset, name + "'s index entry");
+    const std::string where = s.source + ": " + reader.describe(chunk) + " (" + name + ")";
+    const auto number = static_cast<uint32_t>(k);
+    Keyframe key = predicted ? read_predicted_keyframe(reader.payload(chunk, budget), where, header, number, codes, models)
+                             : read_keyframe(reader.payload(chunk, budget), where, header, number);
+    if (key.time != s.index[k].time) corrupt(s.source, name + ": its time disagrees with the index");
+    take(k, std::move(key), chunk.total_size());
+  }
+}
+
+Image OpenedFile::decode_texture(size_t k, TextureCodec* codec) const {
+  const State& s = *state_;
+  const std::string name = "keyframe " + std::to_string(k);
+  const format::ChunkView& texture = s.reader.chunk_at(s.index.at(k).texture_offset, name + "'s texture entry");
+  return read_texture(s.reader.payload(texture, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(texture) + " (" + name + ")",
+                      static_cast<uint32_t>(k), s.header->texture_size, codec);
+}
+
+void OpenedFile::verify_checksums() const { state_->reader.verify(); }
+
+SequenceFileInfo OpenedFile::describe() const {
+  const State& s = *state_;
+  const Header& header = *s.header;
+  SequenceFileInfo info;
+  info.major_version = s.reader.major_version();
+  info.minor_version = s.reader.minor_version();
+  info.file_bytes = s.file_bytes;
+  info.grid_hash = header.grid_hash;
+  info.grid_rule = static_cast<int>(header.grid_rule);
+  info.texture_size = static_cast<int>(header.texture_size);
+  info.metadata = header.metadata;
+  info.keyframes.resize(s.index.size());
+  if (has_texture()) {
+    for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = s.reader.chunk_at(s.index[k].texture_offset, "a texture entry").total_size();
+  }
+  for (const format::ChunkView& chunk : s.reader.chunks()) {
+    auto it = std::find_if(info.chunks.begin(), info.chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
+    if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0});
+    ++it->count;
+    it->stored_bytes += chunk.total_size();
+    it->raw_bytes += chunk.raw_size;
+  }
+  return info;
+}
+
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  if (bytes.size() > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
+  // Decoded whole: every keyframe is held at once.
+  const OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
+  Sequence sequence = file.shape();
+  std::vector<uint64_t> field_bytes(file.keyframe_count());
+  const size_t run = file.run_length();
+  for (size_t first = 0; first < file.keyframe_count(); first += run) {
+    file.decode_run(first, std::min(first + run, file.keyframe_count()) - 1, [&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
+      sequence.keyframes.push_back(std::move(key));
+      field_bytes[k] = bytes_taken;
+    });
+  }
+  TextureCodec first_texture_codec = TextureCodec::kWebp;
+  if (file.has_texture()) {
+    for (size_t k = 0; k < file.keyframe_count(); ++k) sequence.keyframes[k].texture = file.decode_texture(k, k == 0 ? &first_texture_codec : nullptr);
   }
   try {
     validate_sequence(sequence);
@@ -1153,23 +1263,9 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     corrupt(source, e.what());
   }
   if (info) {
-    *info = {};
-    info->major_version = reader.major_version();
-    info->minor_version = reader.minor_version();
-    info->file_bytes = bytes.size();
-    info->grid_hash = header.grid_hash;
-    info->grid_rule = static_cast<int>(header.grid_rule);
-    info->texture_size = static_cast<int>(header.texture_size);
-    info->metadata = std::move(header.metadata);
+    *info = file.describe();
     info->metadata.texture_codec = first_texture_codec;
-    info->keyframes = std::move(sizes);
-    for (const format::ChunkView& chunk : chunks) {
-      auto it = std::find_if(info->chunks.begin(), info->chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
-      if (it == info->chunks.end()) it = info->chunks.insert(info->chunks.end(), {chunk.type, 0, 0, 0});
-      ++it->count;
-      it->stored_bytes += chunk.total_size();
-      it->raw_bytes += chunk.raw_size;
-    }
+    for (size_t k = 0; k < field_bytes.size(); ++k) info->keyframes[k].fields = field_bytes[k];
   }
   return sequence;
 }

@@ -81,7 +81,7 @@ fm_status guarded(const char* function, Body&& body) noexcept {
 
 // What a file handle names: the opened file, what it holds, and the limits it was opened under.
 struct FileEntry {
-  std::shared_ptr<const facemorph::Sequence> sequence;
+  std::shared_ptr<const facemorph::KeyframeSource> source;
   facemorph::FileInfo info;
 };
 
@@ -197,10 +197,10 @@ void check_pointer(const void* pointer, const char* name) {
   if (pointer == nullptr) throw Error(ErrorCode::kInvalidArgument, std::string(name) + " is NULL");
 }
 
-fm_status open_into(std::shared_ptr<const facemorph::Sequence> sequence, fm_file** file) {
+fm_status open_into(std::shared_ptr<const facemorph::KeyframeSource> source, fm_file** file) {
   auto entry = std::make_shared<FileEntry>();
-  entry->info = facemorph::file_info(*sequence);  // validates it as a decoder will
-  entry->sequence = std::move(sequence);
+  entry->info = facemorph::file_info(*source);
+  entry->source = std::move(source);
   *file = reinterpret_cast<fm_file*>(files().add(std::move(entry)));
   return ok();
 }
@@ -337,7 +337,7 @@ fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder) {
     check_pointer(decoder, "decoder");
     *decoder = nullptr;
     const std::shared_ptr<FileEntry> entry = check_file(file);
-    *decoder = reinterpret_cast<fm_decoder*>(decoders().add(std::make_shared<facemorph::Decoder>(entry->sequence)));
+    *decoder = reinterpret_cast<fm_decoder*>(decoders().add(std::make_shared<facemorph::Decoder>(entry->source)));
     return ok();
   });
 }

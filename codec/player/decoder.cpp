@@ -13,12 +13,12 @@
 
 namespace facemorph {
 
-std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
-  return std::make_shared<const Sequence>(read_sequence_file(path, nullptr, limits));
+std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  return open_sequence_source(path, limits);
 }
 
-std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
-  return std::make_shared<const Sequence>(decode_sequence_file(bytes, name, nullptr, limits));
+std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+  return open_sequence_source(bytes, name, limits);
 }
 
 void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
@@ -44,7 +44,7 @@ void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face
 }
 
 struct Decoder::Impl {
-  explicit Impl(std::shared_ptr<const Sequence> sequence) : decoder(std::move(sequence)) {}
+  explicit Impl(std::shared_ptr<const KeyframeSource> source) : decoder(std::move(source)) {}
 
   SequenceDecoder decoder;
   // The last frame, kept so that asking its size first (frame_info) or again after
@@ -81,7 +81,7 @@ struct Decoder::Impl {
     info.time = frame.time;
     info.vertex_count = frame.mesh.vertex_count();
     info.triangle_count = frame.mesh.face_count();
-    info.texture_size = decoder.sequence().has_texture() ? decoder.sequence().keyframes.front().texture.width : 0;
+    info.texture_size = decoder.outline().texture_size;
     info.iterations = frame.iterations;
     info.converged = frame.converged;
     info.fell_back = frame.fell_back;
@@ -92,13 +92,13 @@ struct Decoder::Impl {
 
 namespace {
 
-FileInfo describe(const Sequence& sequence) {
+FileInfo describe(const SequenceOutline& sequence) {
   FileInfo info;
   info.fps = sequence.fps;
   info.first_time = sequence.first_time;
   info.last_time = sequence.last_time;
   info.duration = sequence.last_time - sequence.first_time;
-  info.keyframe_times = sequence.keyframe_times();
+  info.keyframe_times = sequence.times;
   const TimeRange range = KeyframeSpline(info.keyframe_times, sequence.spline).sane_range();
   info.range_begin = range.begin;
   info.range_end = range.end;
@@ -108,7 +108,7 @@ FileInfo describe(const Sequence& sequence) {
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
   info.grid_vertex_count = shape.interior_count + shape.rim_count;
   info.grid_triangle_count = 2 * shape.interior_count + shape.rim_count - 2;
-  info.has_holes = sequence.has_holes();
+  info.has_holes = sequence.has_holes;
   if (info.has_holes) {
     // A cut frame's vertices are kept nodes and one crossing per cut edge (G is a disk: E = V + F − 1);
     // each of G's triangles leaves at most two (a quad split in two).
@@ -119,7 +119,7 @@ FileInfo describe(const Sequence& sequence) {
     info.max_triangle_count = info.grid_triangle_count;
   }
   info.has_texture = sequence.has_texture();
-  info.texture_size = info.has_texture ? sequence.keyframes.front().texture.width : 0;
+  info.texture_size = sequence.texture_size;
   info.units = sequence.units;
   return info;
 }
@@ -136,14 +136,18 @@ void check_size(const char* what, std::span<T> buffer, size_t needed, const char
 
 FileInfo file_info(const Sequence& sequence) {
   validate_sequence(sequence);
-  return describe(sequence);
+  return describe(outline_of(sequence));
 }
 
-Decoder::Decoder(std::shared_ptr<const Sequence> sequence) {
-  if (!sequence) throw Error(ErrorCode::kInvalidArgument, "decoder: no sequence");
-  impl_ = std::make_unique<Impl>(sequence);  // validates the sequence
-  sequence_ = std::move(sequence);
-  info_ = describe(*sequence_);
+FileInfo file_info(const KeyframeSource& source) { return describe(source.outline()); }
+
+Decoder::Decoder(std::shared_ptr<const Sequence> sequence) : Decoder(memory_source(std::move(sequence))) {}
+
+Decoder::Decoder(std::shared_ptr<const KeyframeSource> source) {
+  if (!source) throw Error(ErrorCode::kInvalidArgument, "decoder: no source");
+  impl_ = std::make_unique<Impl>(source);
+  source_ = std::move(source);
+  info_ = describe(source_->outline());
   // The counts above follow from N; the grid the decoder built must have them.
   const DiskGrid& grid = impl_->decoder.geometry().grid();
   if (grid.node_count() != info_.grid_vertex_count || static_cast<int>(grid.faces.size()) != info_.grid_triangle_count) {

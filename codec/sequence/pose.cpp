@@ -53,6 +53,11 @@ Eigen::Matrix3d skew(const Vec3& w) {
 
 }  // namespace
 
+bool RigidPose::is_proper() const {
+  return rotation.allFinite() && translation.allFinite() && (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() <= 1e-6 &&
+         rotation.determinant() > 0;
+}
+
 RigidPose RigidPose::inverse() const {
   RigidPose out;
   out.rotation = rotation.transpose();

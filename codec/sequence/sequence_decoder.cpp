@@ -38,11 +38,7 @@ void validate_sequence(const Sequence& sequence) {
       fail(name + ": fields of another grid or representation");
     }
     if (key.fields.fixed_nodes != first.fields.fixed_nodes) fail(name + ": fixed-frame nodes differ from keyframe 0's");
-    const Eigen::Matrix3d& R = key.pose.rotation;
-    if (!R.allFinite() || !key.pose.translation.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
-        R.determinant() < 0) {
-      fail(name + ": the pose is not a finite proper rotation and translation");
-    }
+    if (!key.pose.is_proper()) fail(name + ": the pose is not a finite proper rotation and translation");
     if (key.hole_level.empty() != first.hole_level.empty()) fail(name + ": hole levels present in some keyframes only");
     if (!key.hole_level.empty()) {
       if (key.hole_level.size() != nodes) fail(name + ": " + std::to_string(key.hole_level.size()) + " hole levels for " + std::to_string(nodes) + " nodes");
@@ -60,18 +56,13 @@ void validate_sequence(const Sequence& sequence) {
 
 namespace {
 
-std::shared_ptr<const Sequence> validated(std::shared_ptr<const Sequence> sequence) {
-  if (!sequence) throw Error(ErrorCode::kInvalidArgument, "sequence: null");
-  validate_sequence(*sequence);
-  return sequence;
-}
-
-// Σ w_k · values of key k, for arrays of one length; `zero` is T's zero (Eigen leaves T{} unset).
+// Σ w_i · values of the i-th key of `weights`, for arrays of one length; `zero` is T's zero (Eigen
+// leaves T{} unset).
 template <typename T, typename Get>
 std::vector<T> blend(const SplineWeights& weights, const T& zero, Get&& get) {
-  std::vector<T> out(get(weights.keys.front()).size(), zero);
+  std::vector<T> out(get(size_t{0}).size(), zero);
   for (size_t i = 0; i < weights.keys.size(); ++i) {
-    const auto& values = get(weights.keys[i]);
+    const auto& values = get(i);
     const double w = weights.weights[i];
     for (size_t j = 0; j < out.size(); ++j) out[j] += w * values[j];
   }
@@ -113,14 +104,20 @@ FACEMORPH_PIXEL_CLONES void blend_pixels(const uint8_t* const* pixels, const flo
 // 27 ms at N = 129); now about 1 ms. The float sum is taken in the same order as before, so the
 // bytes are the same but where adding ½ itself rounds (sums within a float ulp below a half).
 Image blend_textures(const Sequence& sequence, const SplineWeights& w) {
-  const Image& first = sequence.keyframes[static_cast<size_t>(w.keys.front())].texture;
+  std::vector<const Image*> images;
+  for (int32_t k : w.keys) images.push_back(&sequence.keyframes[static_cast<size_t>(k)].texture);
+  return blend_images(images, w.weights);
+}
+
+Image blend_images(const std::vector<const Image*>& images, const std::vector<double>& weights) {
+  const Image& first = *images.front();
   Image out(first.width, first.height, 3);
   std::vector<const uint8_t*> pixels;
   std::vector<float> weight;
-  for (size_t i = 0; i < w.keys.size(); ++i) {
-    if (w.weights[i] == 0) continue;  // a keyframe time: one key has it all
-    pixels.push_back(sequence.keyframes[static_cast<size_t>(w.keys[i])].texture.pixels.data());
-    weight.push_back(static_cast<float>(w.weights[i]));
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (weights[i] == 0) continue;  // a keyframe time: one key has it all
+    pixels.push_back(images[i]->pixels.data());
+    weight.push_back(static_cast<float>(weights[i]));
   }
   const size_t count = out.pixels.size();
   switch (pixels.size()) {
@@ -141,39 +138,55 @@ Image blend_textures(const Sequence& sequence, const SplineWeights& w) {
   return out;
 }
 
-SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence)
-    : sequence_(validated(std::move(sequence))),
-      spline_(sequence_->keyframe_times(), sequence_->spline),
-      reconstructor_(sequence_->grid_n),
-      keyframe_surfaces_(sequence_->keyframes.size()),
-      keyframe_failures_(sequence_->keyframes.size()) {
-  for (const Keyframe& k : sequence_->keyframes) poses_.push_back(k.pose);
-  rotation_vectors_ = unwrap_rotations(poses_);
+SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence) : SequenceDecoder(memory_source(std::move(sequence))) {}
+
+SequenceDecoder::SequenceDecoder(std::shared_ptr<const KeyframeSource> source)
+    : source_(source ? std::move(source) : throw Error(ErrorCode::kInvalidArgument, "sequence decoder: no source")),
+      spline_(source_->outline().times, source_->outline().spline),
+      reconstructor_(source_->outline().grid_n),
+      rotation_vectors_(unwrap_rotations(source_->outline().poses)),
+      keyframe_surfaces_(source_->outline().keyframe_count()),
+      keyframe_failures_(source_->outline().keyframe_count()) {
+  if (source_->surfaces_kept() < static_cast<size_t>(spline_.max_keys())) {
+    throw Error(ErrorCode::kLimit, "sequence decoder: the source lets a decoder keep " + std::to_string(source_->surfaces_kept()) +
+                                       " keyframe surfaces; a frame of its spline needs up to " + std::to_string(spline_.max_keys()));
+  }
 }
 
-const std::vector<Vec3>& SequenceDecoder::keyframe_surface(size_t k, const ReconstructOptions& options) {
+std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options) {
   if (!keyframe_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
-  if (keyframe_surfaces_[k].empty()) {
-    // Cold, from the harmonic surface: the keyframe's own fields, exactly what the encoder stored.
-    ReconstructOptions cold = options;
-    cold.start = nullptr;
-    reconstructor_.forget_warm_start();
-    try {
-      keyframe_surfaces_[k] = reconstructor_.reconstruct(sequence_->keyframes[k].fields, cold).positions;
-    } catch (const Error& e) {
-      if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
-      // The encoder reconstructed every keyframe it wrote: one that does not is a corrupt file.
-      keyframe_failures_[k] = "keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
-      throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
-    }
+  std::shared_ptr<const std::vector<Vec3>>& surface = keyframe_surfaces_[k];
+  if (surface) {
+    surface_order_.erase(std::find(surface_order_.begin(), surface_order_.end(), k));
+    surface_order_.insert(surface_order_.begin(), k);
+    return surface;
   }
-  return keyframe_surfaces_[k];
+  // Cold, from the harmonic surface: the keyframe's own fields, exactly what the encoder stored (so a
+  // surface dropped and made again is the same surface).
+  ReconstructOptions cold = options;
+  cold.start = nullptr;
+  reconstructor_.forget_warm_start();
+  try {
+    surface = std::make_shared<const std::vector<Vec3>>(reconstructor_.reconstruct(fields, cold).positions);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
+    // The encoder reconstructed every keyframe it wrote: one that does not is a corrupt file.
+    keyframe_failures_[k] = "keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
+    throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
+  }
+  surface_order_.insert(surface_order_.begin(), k);
+  // The caller holds the surfaces of this frame's keys, so dropping the oldest frees only others'.
+  while (surface_order_.size() > source_->surfaces_kept()) {
+    keyframe_surfaces_[surface_order_.back()].reset();
+    surface_order_.pop_back();
+  }
+  return surface;
 }
 
 std::vector<Vec3> SequenceDecoder::predicted_start(double t, const std::vector<Vec3>& start, const DecodeOptions& options) const {
   // Only from frames of the same clip: within two of the capture's frame periods of t and of each
   // other. A jump in t (seeking, another rate) starts from the spline alone, as any first frame.
-  const double near = 2 / sequence_->fps;
+  const double near = 2 / outline().fps;
   const auto& h = history_;
   if (!options.continue_correction || h.count == 0 || !(std::abs(t - h.time[0]) <= near) || t == h.time[0]) return {};
   std::vector<Vec3> guess = start;
@@ -210,25 +223,30 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
     if (!options.clamp_to_sane_range) {
       char text[200];
       std::snprintf(text, sizeof text, "t = %.4g s is outside the range this sequence can serve, [%.4g, %.4g] s (keyframes span [%.4g, %.4g] s)", t, lo,
-                    hi, sequence_->keyframes.front().time, sequence_->keyframes.back().time);
+                    hi, outline().times.front(), outline().times.back());
       throw Error(ErrorCode::kOutOfRange, text);
     }
     t = std::clamp(t, lo, hi);
   }
-  const Sequence& sequence = *sequence_;
+  const SequenceOutline& outline = source_->outline();
   DecodedFrame frame;
   frame.time = t;
   frame.weights = spline_.weights(t);
   const SplineWeights& w = frame.weights;
 
+  // The keyframes this frame blends, held for the call (the source may drop them from its cache).
+  std::vector<std::shared_ptr<const Keyframe>> held;
   std::vector<const GridFields*> keys;
-  for (int32_t k : w.keys) keys.push_back(&sequence.keyframes[static_cast<size_t>(k)].fields);
+  for (int32_t k : w.keys) {
+    held.push_back(source_->keyframe(static_cast<size_t>(k)));
+    keys.push_back(&held.back()->fields);
+  }
   const GridFields fields = combine_fields(keys, w.weights);
   // Start from the spline of the keyframes' own surfaces: they are the fixed points of their
   // fields, so the blend is close wherever t lies.
-  const std::vector<Vec3> start = blend<Vec3>(w, Vec3::Zero(), [&](int32_t k) -> const std::vector<Vec3>& {
-    return keyframe_surface(static_cast<size_t>(k), options.reconstruct);
-  });
+  std::vector<std::shared_ptr<const std::vector<Vec3>>> surfaces;
+  for (size_t i = 0; i < w.keys.size(); ++i) surfaces.push_back(keyframe_surface(static_cast<size_t>(w.keys[i]), held[i]->fields, options.reconstruct));
+  const std::vector<Vec3> start = blend<Vec3>(w, Vec3::Zero(), [&](size_t i) -> const std::vector<Vec3>& { return *surfaces[i]; });
   // Playing a clip, the previous frames tell how far the reconstruction lands from that spline:
   // the correction δ = S − start is smooth in t (and zero at keyframes), so continuing it from the
   // last two frames starts closer still (N = 257 sample at 30 fps: 5.4 -> 4.1 steps a frame).
@@ -257,7 +275,7 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
     }
   }
 
-  frame.pose = blend_poses(poses_, rotation_vectors_, w, sequence.pose_centre);
+  frame.pose = blend_poses(outline.poses, rotation_vectors_, w, outline.pose_centre);
   frame.grid_positions.resize(result.positions.size());
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
   // A file can pass every check of its own numbers and still decode to overflow (a λ that grows
@@ -273,17 +291,23 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   }
 
   const DiskGrid& grid = reconstructor_.geometry().grid();
-  if (sequence.has_holes()) {
-    frame.hole_level = blend<double>(w, 0.0, [&](int32_t k) -> const std::vector<double>& {
-      return sequence.keyframes[static_cast<size_t>(k)].hole_level;
-    });
+  if (outline.has_holes) {
+    frame.hole_level = blend<double>(w, 0.0, [&](size_t i) -> const std::vector<double>& { return held[i]->hole_level; });
   }
-  if (options.cut_holes && sequence.has_holes()) {
+  if (options.cut_holes && outline.has_holes) {
     frame.mesh = cut_holes(grid, frame.grid_positions, frame.hole_level);
   } else {
     frame.mesh = grid_mesh(grid, frame.grid_positions);
   }
-  if (options.texture && sequence.has_texture()) frame.texture = blend_textures(sequence, w);
+  if (options.texture && outline.has_texture()) {
+    std::vector<std::shared_ptr<const Image>> textures;
+    std::vector<const Image*> images;
+    for (int32_t k : w.keys) {
+      textures.push_back(source_->texture(static_cast<size_t>(k)));
+      images.push_back(textures.back().get());
+    }
+    frame.texture = blend_images(images, w.weights);
+  }
   return frame;
 }
 

@@ -58,7 +58,7 @@ TEST(Decoder, DescribesTheGoldenFile) {
   EXPECT_EQ(info.max_vertex_count, grid.node_count());
   EXPECT_EQ(info.max_triangle_count, static_cast<int>(grid.faces.size()));
   // Without a decoder, the same description.
-  const FileInfo alone = file_info(*decoder.sequence());
+  const FileInfo alone = file_info(*decoder.source());
   EXPECT_EQ(alone.keyframe_times, info.keyframe_times);
   EXPECT_EQ(alone.max_triangle_count, info.max_triangle_count);
   EXPECT_EQ(alone.range_end, info.range_end);
@@ -245,7 +245,7 @@ TEST(Decoder, DecodersShareOneFileAcrossThreads) {
 
 // The golden sequence with a hole (an opening eye) whose radius changes between keyframes, through
 // the container: the cut mesh changes from frame to frame.
-std::shared_ptr<const Sequence> with_holes() {
+std::shared_ptr<const KeyframeSource> with_holes() {
   Sequence sequence = read_sequence_file(kGolden);
   const DiskGrid grid = make_disk_grid(sequence.grid_n);
   const double radii[] = {0.12, 0.25, 0.05};

@@ -9,8 +9,8 @@
 // code and a message naming the file and the reason. decode() writes nothing when it throws.
 //
 // Threads: a Decoder is used by one thread at a time (decode changes its state). Several Decoders
-// may share one opened file — `std::shared_ptr<const Sequence>` from open_sequence_file /
-// open_sequence_memory, immutable once opened — and decode on as many threads at once.
+// may share one opened file — `std::shared_ptr<const KeyframeSource>` from open_sequence_file /
+// open_sequence_memory, thread-safe — and decode on as many threads at once.
 //
 // Conventions (spec/method.md §7 and spec/container.md §8):
 //   positions  the capture's frame and units (FileInfo::units: "m", "cm" or "mm"), head pose applied;
@@ -38,16 +38,18 @@
 
 namespace facemorph {
 
-// Reads and checks a whole .fmv file (spec/container.md §9: kIo, kTruncated, kCorrupt,
-// kUnsupported, each naming the file and the chunk; kLimit where it needs more than `limits`
-// allow, found from the sizes it states before they are allocated, §10). The result is immutable:
-// share it between decoders and threads.
-std::shared_ptr<const Sequence> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
-// The same from bytes in memory. The bytes are parsed (and the textures decoded) before this
-// returns and not used afterwards: the caller may free them at once. `name` names the source in
-// error messages.
-std::shared_ptr<const Sequence> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
-                                                     const DecoderLimits& limits = kDefaultDecoderLimits);
+// Opens a .fmv file for decoding on demand (open_sequence_source, facemorph/sequence_file.hpp):
+// the header and index are read and every keyframe's fields decoded once and checked
+// (spec/container.md §9: kIo, kTruncated, kCorrupt, kUnsupported, each naming the file and the
+// chunk; kLimit where a frame needs more than `limits` allow, found from the sizes it states before
+// they are allocated, §10). Afterwards keyframes and textures are decoded when a frame needs them,
+// into a cache bounded by limits.max_memory_bytes: memory follows what is played, not the file.
+// The result is immutable to its users and thread-safe: share it between decoders and threads.
+std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
+// The same from bytes in memory. The bytes are copied (and count against the budget): the caller
+// may free them at once. `name` names the source in error messages.
+std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
+                                                           const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // What a file holds, fixed for the file.
 struct FileInfo {
@@ -81,6 +83,7 @@ struct FileInfo {
 // decodes, and what the C API's fm_file_get_info returns. Throws kInvalidArgument for a sequence
 // validate_sequence rejects.
 FileInfo file_info(const Sequence& sequence);
+FileInfo file_info(const KeyframeSource& source);
 
 struct FrameOptions {
   // Outside [range_begin, range_end]: clamp t into it instead of throwing kOutOfRange.
@@ -124,8 +127,10 @@ struct FrameInfo {
 
 class Decoder {
  public:
-  // Throws kInvalidArgument for a null or invalid sequence.
+  // Throws kInvalidArgument for a null or invalid sequence, kLimit for a source whose budget holds
+  // fewer keyframe surfaces than a frame blends.
   explicit Decoder(std::shared_ptr<const Sequence> sequence);
+  explicit Decoder(std::shared_ptr<const KeyframeSource> source);
   // open_sequence_file / open_sequence_memory, then a decoder on it.
   static Decoder open(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
   static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory", const DecoderLimits& limits = kDefaultDecoderLimits);
@@ -136,7 +141,7 @@ class Decoder {
 
   const FileInfo& info() const { return info_; }
   // The opened file, to share with another decoder (on another thread).
-  const std::shared_ptr<const Sequence>& sequence() const { return sequence_; }
+  const std::shared_ptr<const KeyframeSource>& source() const { return source_; }
 
   // Decodes the frame at t (seconds from the capture's first frame) into `out`; every number it
   // writes is finite. Throws
@@ -155,7 +160,7 @@ class Decoder {
 
  private:
   struct Impl;
-  std::shared_ptr<const Sequence> sequence_;
+  std::shared_ptr<const KeyframeSource> source_;
   FileInfo info_;
   std::unique_ptr<Impl> impl_;
 };

@@ -29,6 +29,10 @@ inline constexpr DecoderLimits kDefaultDecoderLimits{};
 // UINT64_MAX instead of overflowing.
 uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size, uint64_t values_per_keyframe);
 
+// What an opened file holds per keyframe whatever is decoded: its time, pose, index entry and
+// byte counts, a decoder's slot for its surface (spec/container.md §10.1: 256 bytes a keyframe).
+uint64_t index_memory_bytes(uint64_t keyframes);
+
 // Throws kInvalidArgument for limits a decoder cannot run under (a grid below 5, no keyframe, no
 // memory); `what` names the caller's option.
 void check_decoder_limits(const DecoderLimits& limits, const std::string& what = "decoder limits");

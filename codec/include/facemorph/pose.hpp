@@ -23,6 +23,9 @@ struct RigidPose {
   RigidPose inverse() const;
   // This after `first`: (a * b).apply(x) = a.apply(b.apply(x)).
   RigidPose operator*(const RigidPose& first) const;
+  // Finite, with a rotation orthonormal to 1e-6 and of determinant +1 (no reflection): what a
+  // decoder accepts from a file.
+  bool is_proper() const;
 };
 
 // The proper rigid motion that best maps `from` onto `to`: the one minimising

@@ -6,6 +6,7 @@
 
 #include "facemorph/fields.hpp"
 #include "facemorph/image.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/mesh.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/reconstruct.hpp"
@@ -59,6 +60,8 @@ void validate_sequence(const Sequence& sequence);
 // encoder measures its texture quality against), rounded to the nearest byte and clamped to 0..255.
 // Requires a sequence with texture and weights of its keyframes.
 Image blend_textures(const Sequence& sequence, const SplineWeights& w);
+// The same over images of one size: Σ weights[i] · images[i].
+Image blend_images(const std::vector<const Image*>& images, const std::vector<double>& weights);
 
 struct DecodeOptions {
   bool cut_holes = true;      // false: keep the fill (--keep-holes-filled)
@@ -95,35 +98,43 @@ struct DecodedFrame {
   bool fell_back = false;          // not converged: the frame is the spline of the keyframes' surfaces
 };
 
-// Plays a sequence back. Keeps the multigrid solver of G's Laplacian and, lazily, each keyframe's
-// own decoded surface: a frame starts from the spline of those surfaces (exact fixed points of
-// their fields), so it is close from the first step wherever t jumps. Not thread-safe: one decoder
-// per thread; several decoders may share one sequence.
+// Plays a sequence back. Keeps the multigrid solver of G's Laplacian and, lazily, the keyframes' own
+// decoded surfaces (at most the source's surfaces_kept(), the least recently used dropped first): a
+// frame starts from the spline of those surfaces (exact fixed points of their fields), so it is
+// close from the first step wherever t jumps. Not thread-safe: one decoder per thread; several
+// decoders may share one source.
 class SequenceDecoder {
  public:
   // Validates the sequence (kInvalidArgument).
   explicit SequenceDecoder(std::shared_ptr<const Sequence> sequence);
+  explicit SequenceDecoder(std::shared_ptr<const KeyframeSource> source);
 
-  const Sequence& sequence() const { return *sequence_; }
+  const SequenceOutline& outline() const { return source_->outline(); }
+  const std::shared_ptr<const KeyframeSource>& source() const { return source_; }
   const KeyframeSpline& spline() const { return spline_; }
   const GridGeometry& geometry() const { return reconstructor_.geometry(); }
+  // Keyframe surfaces held now (at most source().surfaces_kept()).
+  size_t surfaces_held() const { return surface_order_.size(); }
 
   // The frame at time t (seconds from the capture's first frame). Throws kOutOfRange beyond the
-  // sane range unless clamping, kNotConverged / kNumerical as Reconstructor::reconstruct.
+  // sane range unless clamping, kNotConverged / kNumerical as Reconstructor::reconstruct, and what
+  // the source throws for a keyframe it cannot give.
   DecodedFrame decode(double t, const DecodeOptions& options = {});
 
  private:
-  const std::vector<Vec3>& keyframe_surface(size_t k, const ReconstructOptions& options);
+  std::shared_ptr<const std::vector<Vec3>> keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options);
   // The start for t from the spline `start` and the corrections of the last frames (empty: none).
   std::vector<Vec3> predicted_start(double t, const std::vector<Vec3>& start, const DecodeOptions& options) const;
   void remember_correction(double t, const ReconstructResult& result, const std::vector<Vec3>& start);
 
-  std::shared_ptr<const Sequence> sequence_;
+  std::shared_ptr<const KeyframeSource> source_;
   KeyframeSpline spline_;
   Reconstructor reconstructor_;
-  std::vector<RigidPose> poses_;                       // of every keyframe, for blend_poses
-  std::vector<Vec3> rotation_vectors_;                 // unwrap_rotations(poses_), once
-  std::vector<std::vector<Vec3>> keyframe_surfaces_;  // in the face frame; empty until first used
+  std::vector<Vec3> rotation_vectors_;  // unwrap_rotations(outline().poses), once
+  // Keyframe surfaces in the face frame (null until first used, or after being dropped), and the
+  // keyframes holding one, most recently used first.
+  std::vector<std::shared_ptr<const std::vector<Vec3>>> keyframe_surfaces_;
+  std::vector<size_t> surface_order_;
   // Why keyframe k could not be reconstructed (empty: it could, or was not tried): a keyframe that
   // fails once fails at once ever after, instead of running its iteration again on every call.
   std::vector<std::string> keyframe_failures_;

@@ -4,11 +4,13 @@
 #pragma once
 
 #include "facemorph/image_codec.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/sequence.hpp"
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -108,6 +110,20 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 // the sizes it states, before they are allocated; spec/container.md §10).
 Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info = nullptr,
                               const DecoderLimits& limits = kDefaultDecoderLimits);
+
+// Opens a file for decoding on demand (spec/container.md §10.1): the header and index are read, every
+// keyframe's fields decoded once in order (their poses are in the fields' streams) and checked, each
+// kept only while the cache has room, and every chunk's checksum verified; textures are decoded when
+// first asked for. What the source holds then is bounded by limits.max_memory_bytes whatever the
+// file's length: the index, a cache of keyframes, and (with a decoder on it) the keyframe surfaces
+// its surfaces_kept() allows. Throws as decode_sequence_file; kLimit where the budget does not hold
+// the keyframes one frame of the spline blends. A file is mapped (format::MappedFile), not read;
+// bytes are copied (they count against the budget) and may be freed at once. `info`: the file's
+// description, as decode_sequence_file gives it.
+std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits,
+                                                           SequenceFileInfo* info = nullptr);
+std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
+                                                           const DecoderLimits& limits = kDefaultDecoderLimits, SequenceFileInfo* info = nullptr);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
 // leaves any previous file untouched.

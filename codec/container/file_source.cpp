@@ -1,0 +1,254 @@
+// An opened .fmv file as a KeyframeSource (open_sequence_source, facemorph/sequence_file.hpp):
+// keyframes decoded on demand into a cache bounded by the caller's memory budget, so what a player
+// holds follows what it plays, not the file's length (spec/container.md §10.1).
+#include "facemorph/sequence_file.hpp"
+
+#include "codec/container/opened_file.hpp"
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/error.hpp"
+#include "format/file_io.hpp"
+
+#include <algorithm>
+#include <list>
+#include <mutex>
+#include <variant>
+
+namespace facemorph {
+
+namespace {
+
+// The most keys one frame of a spline kind blends, whatever the times (spec/container.md §10.3):
+// the local kinds' windows, and for not-a-knot two rows of second-derivative weights, each cut where
+// it has fallen below 2⁻⁶⁰ of its largest, at least 2× a key: at most 61 keys either side.
+uint64_t window_bound(SplineKind kind) {
+  switch (kind) {
+    case SplineKind::kLinear: return 2;
+    case SplineKind::kCatmullRom: return 4;
+    case SplineKind::kLocalCubic: return 6;
+    case SplineKind::kNotAKnot: return 124;
+  }
+  return 124;
+}
+
+// What the source and a decoder on it hold, in bytes (spec/container.md §10.1's terms).
+struct MemoryPlan {
+  uint64_t fields = 0;      // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
+  uint64_t surface = 0;     // one keyframe's reconstructed surface (24 n)
+  uint64_t texture = 0;     // one keyframe's RGB texture (3 M²)
+  uint64_t in_flight = 0;   // decoding a keyframe: its codes, residuals and arrays, and the previous one's codes
+  uint64_t fixed = 0;       // G, the solver, one frame, the index, the file's bytes where they are copied
+  uint64_t keyframes_kept = 0;  // keyframes the budget holds at once: fields, texture and surface each
+};
+
+MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, const DecoderLimits& limits) {
+  MemoryPlan plan;
+  const DiskGridShape shape = disk_grid_shape(file.shape().grid_n);
+  const auto nodes = static_cast<uint64_t>(shape.interior_count + shape.rim_count);
+  const uint64_t values = file.values_per_keyframe();
+  const auto m = static_cast<uint64_t>(file.texture_size());
+  plan.fields = 8 * values + 4 * nodes + 1024;
+  plan.surface = 24 * nodes;
+  plan.texture = 3 * m * m;
+  plan.in_flight = 24 * values;
+  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes;
+  const uint64_t per_keyframe = plan.fields + plan.surface + plan.texture;
+  const uint64_t needed = plan.fixed + plan.in_flight;
+  plan.keyframes_kept = limits.max_memory_bytes > needed ? (limits.max_memory_bytes - needed) / per_keyframe : 0;
+  return plan;
+}
+
+class FileSource final : public KeyframeSource {
+ public:
+  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes, const std::string& source, const DecoderLimits& limits,
+             SequenceFileInfo* info)
+      : bytes_(std::move(bytes)),
+        file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }) {
+    const uint64_t owned = std::holds_alternative<std::vector<uint8_t>>(bytes_) ? view().size() : 0;
+    plan_ = plan_memory(file_, owned, limits);
+    const size_t count = file_.keyframe_count();
+    outline_.times.reserve(count);
+    for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
+    const KeyframeSpline spline(outline_.times, file_.shape().spline);
+    const auto window = static_cast<uint64_t>(spline.max_keys());
+    if (plan_.keyframes_kept < window) {
+      const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);
+      throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) + " keyframes, which with G and its solver need about " +
+                                         std::to_string(needed >> 20) + " MiB, over the memory limit of " + std::to_string(limits.max_memory_bytes >> 20) +
+                                         " MiB (max_memory_bytes, --max-memory)");
+    }
+    cache_capacity_ = plan_.keyframes_kept * (plan_.fields + plan_.texture);
+    fields_.resize(count);
+    textures_.resize(count);
+    texture_failures_.resize(count);
+
+    // Every keyframe once, in order: the poses are in the fields' streams, and a file that opens is
+    // one whose every keyframe decodes (as decode_sequence_file's). The first keyframes stay cached
+    // while there is room: a player starts there.
+    const Sequence& shape = file_.shape();
+    outline_.grid_n = shape.grid_n;
+    outline_.representation = shape.representation;
+    outline_.spline = shape.spline;
+    outline_.fps = shape.fps;
+    outline_.first_time = shape.first_time;
+    outline_.last_time = shape.last_time;
+    outline_.units = shape.units;
+    outline_.pose_centre = shape.pose_centre;
+    outline_.has_holes = file_.has_holes();
+    outline_.texture_size = file_.texture_size();
+    outline_.poses.resize(count);
+    std::vector<uint64_t> field_bytes(count);
+    for (size_t first = 0; first < count; first += file_.run_length()) {
+      file_.decode_run(first, std::min(first + file_.run_length(), count) - 1, [&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
+        check_pose(k, key);
+        outline_.poses[k] = key.pose;
+        if (k == 0) outline_.fixed_node_count = key.fields.fixed_nodes.size();
+        field_bytes[k] = bytes_taken;
+        if (held_bytes_ + plan_.fields <= cache_capacity_) remember_fields(k, std::make_shared<const Keyframe>(std::move(key)));
+      });
+    }
+    file_.verify_checksums();  // the textures' bytes too, though they are decoded later
+    if (info) {
+      *info = file_.describe();
+      for (size_t k = 0; k < count; ++k) info->keyframes[k].fields = field_bytes[k];
+      info->metadata.texture_codec = TextureCodec::kWebp;  // as decode_sequence_file says of a file without textures
+      if (outline_.has_texture()) file_.decode_texture(0, &info->metadata.texture_codec);
+    }
+  }
+
+  const SequenceOutline& outline() const override { return outline_; }
+  size_t surfaces_kept() const override { return static_cast<size_t>(plan_.keyframes_kept); }
+  uint64_t bytes_held() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return held_bytes_;
+  }
+
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (k >= fields_.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
+    if (fields_[k].value) {
+      touch(fields_[k]);
+      return fields_[k].value;
+    }
+    // A run decodes from its first keyframe. The whole run is kept where the cache holds it twice
+    // over (playing on needs the next keyframes); else only as far as k, the rest dropped as decoded.
+    const size_t first = file_.run_of(k) * file_.run_length();
+    const size_t run_end = std::min(first + file_.run_length(), fields_.size());
+    const bool whole_run = 2 * (run_end - first) * plan_.fields <= cache_capacity_;
+    std::shared_ptr<const Keyframe> wanted;
+    file_.decode_run(first, whole_run ? run_end - 1 : k, [&](size_t j, Keyframe&& key, uint64_t) {
+      check_pose(j, key);
+      if (j != k && (fields_[j].value || !whole_run)) return;
+      auto shared = std::make_shared<const Keyframe>(std::move(key));
+      if (j == k) wanted = shared;
+      remember_fields(j, std::move(shared));
+    });
+    return wanted;
+  }
+
+  std::shared_ptr<const Image> texture(size_t k) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (k >= textures_.size() || !outline_.has_texture()) {
+      throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no texture for keyframe " + std::to_string(k));
+    }
+    if (textures_[k].value) {
+      touch(textures_[k]);
+      return textures_[k].value;
+    }
+    // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
+    if (!texture_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, texture_failures_[k]);
+    std::shared_ptr<const Image> image;
+    try {
+      image = std::make_shared<const Image>(file_.decode_texture(k));
+    } catch (const Error& e) {
+      texture_failures_[k] = e.what();
+      throw;
+    }
+    Slot<Image>& slot = textures_[k];
+    slot.value = image;
+    slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
+    held_bytes_ += plan_.texture;
+    evict();
+    return image;
+  }
+
+ private:
+  struct Entry {
+    bool texture = false;
+    size_t keyframe = 0;
+    uint64_t bytes = 0;
+  };
+  template <typename T>
+  struct Slot {
+    std::shared_ptr<const T> value;
+    std::list<Entry>::iterator where;
+  };
+
+  std::span<const uint8_t> view() const {
+    if (const auto* owned = std::get_if<std::vector<uint8_t>>(&bytes_)) return *owned;
+    return std::get<std::unique_ptr<format::MappedFile>>(bytes_)->bytes();
+  }
+
+  // What validate_sequence checks of a pose: field codings 0-2 store the rotation as a matrix.
+  void check_pose(size_t k, const Keyframe& key) const {
+    if (!key.pose.is_proper()) throw Error(ErrorCode::kCorrupt, file_.source() + ": keyframe " + std::to_string(k) + ": the pose is not a finite proper rotation and translation");
+  }
+
+  template <typename T>
+  void touch(Slot<T>& slot) const {
+    order_.splice(order_.begin(), order_, slot.where);
+  }
+
+  void remember_fields(size_t k, std::shared_ptr<const Keyframe> key) const {
+    Slot<Keyframe>& slot = fields_[k];
+    if (slot.value) return;
+    slot.value = std::move(key);
+    slot.where = order_.insert(order_.begin(), Entry{false, k, plan_.fields});
+    held_bytes_ += plan_.fields;
+    evict();
+  }
+
+  // Drops the least recently used until the cache is within its capacity (a caller may still hold
+  // what is dropped: the decoder, for the frame it is decoding).
+  void evict() const {
+    while (held_bytes_ > cache_capacity_ && !order_.empty()) {
+      const Entry& oldest = order_.back();
+      if (oldest.texture) {
+        textures_[oldest.keyframe].value.reset();
+      } else {
+        fields_[oldest.keyframe].value.reset();
+      }
+      held_bytes_ -= oldest.bytes;
+      order_.pop_back();
+    }
+  }
+
+  std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes_;
+  OpenedFile file_;
+  MemoryPlan plan_;
+  SequenceOutline outline_;
+  uint64_t cache_capacity_ = 0;  // bytes of fields and textures kept
+  mutable std::mutex mutex_;
+  mutable std::vector<Slot<Keyframe>> fields_;
+  mutable std::vector<Slot<Image>> textures_;
+  mutable std::vector<std::string> texture_failures_;
+  mutable std::list<Entry> order_;  // most recently used first
+  mutable uint64_t held_bytes_ = 0;
+};
+
+}  // namespace
+
+std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits, SequenceFileInfo* info) {
+  check_decoder_limits(limits);
+  return std::make_shared<FileSource>(std::make_unique<format::MappedFile>(path), path.string(), limits, info);
+}
+
+std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source, const DecoderLimits& limits,
+                                                           SequenceFileInfo* info) {
+  check_decoder_limits(limits);
+  if (bytes.size() > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
+  return std::make_shared<FileSource>(std::vector<uint8_t>(bytes.begin(), bytes.end()), source, limits, info);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,65 @@
+// A .fmv file opened for reading piece by piece (spec/container.md §10.2): the chunks walked, the
+// header and index read and checked; keyframes and textures decoded when asked for. What
+// decode_sequence_file (every keyframe at once) and the on-demand source of an opened file
+// (file_source.cpp) share. Internal to the decoder library.
+#pragma once
+
+#include "facemorph/limits.hpp"
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+
+namespace facemorph {
+
+class OpenedFile {
+ public:
+  // How many keyframes' fields, surfaces and textures the caller holds at once, given the file's
+  // keyframe count and spline: for the memory estimate of §10.1, checked from the header.
+  using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spline)>;
+  // Walks the chunks and reads the header and index of `bytes` (which must outlive this object),
+  // every check of §10.2 steps 1-5 but the keyframes' own (every index entry points at a chunk of
+  // its kind). Throws as decode_sequence_file.
+  OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
+  ~OpenedFile();
+  OpenedFile(const OpenedFile&) = delete;
+  OpenedFile& operator=(const OpenedFile&) = delete;
+
+  const std::string& source() const;
+  // The sequence without keyframes: grid, representation, spline, rate, times, units, pose centre.
+  const Sequence& shape() const;
+  size_t keyframe_count() const;
+  double keyframe_time(size_t k) const;
+  bool has_texture() const;
+  bool has_holes() const;
+  int texture_size() const;
+  // Float64 values of one keyframe's arrays (fields and hole level), as the header fixes them.
+  uint64_t values_per_keyframe() const;
+  // Keyframes are decoded in runs: a run's first keyframe stands alone, each later one needs the one
+  // before it (an intra period; a single keyframe where every keyframe is coded alone).
+  size_t run_length() const;
+  size_t run_of(size_t k) const { return k / run_length(); }
+
+  // Decodes keyframes first_of_run .. last (last within the run of first_of_run), each checked as
+  // §7 says (fields, pose), calling `take(k, key, field_bytes)` for each in order; `key` holds
+  // everything but the texture. field_bytes: what keyframe k's fields take in the file.
+  void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
+  // Keyframe k's texture, its size checked against the header's (has_texture()). `codec`: the
+  // image codec it was stored in.
+  Image decode_texture(size_t k, TextureCodec* codec = nullptr) const;
+  // Every chunk's checksum (§3), without decoding anything.
+  void verify_checksums() const;
+  // The file's description (versions, grid, metadata, chunk totals, each texture's bytes); the
+  // keyframes' field bytes are the caller's, from decode_run.
+  SequenceFileInfo describe() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace facemorph

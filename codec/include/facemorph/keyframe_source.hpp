@@ -1,0 +1,63 @@
+// What a decoder reads a sequence through: its outline (everything but the keyframes' fields, hole
+// levels and textures) at once, and each keyframe's content when first asked for. A Sequence in
+// memory hands out its own keyframes; an opened file (open_sequence_source, sequence_file.hpp)
+// decodes them on demand into a cache bounded by the caller's memory budget (spec/container.md
+// §10.1), so memory follows what is played, not the length of the file.
+#pragma once
+
+#include "facemorph/fields.hpp"
+#include "facemorph/image.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/spline.hpp"
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+struct Keyframe;
+struct Sequence;
+
+struct SequenceOutline {
+  int grid_n = 0;
+  Representation representation = Representation::kHLT;
+  SplineKind spline = SplineKind::kCatmullRom;
+  double fps = 0, first_time = 0, last_time = 0;  // as Sequence's
+  std::string units = "m";
+  Vec3 pose_centre = Vec3::Zero();
+  std::vector<double> times;       // every keyframe's, strictly increasing
+  std::vector<RigidPose> poses;    // every keyframe's
+  size_t fixed_node_count = 0;     // nodes in the boundary frames (GridFields::fixed_nodes)
+  bool has_holes = false;
+  int texture_size = 0;            // M; 0: no texture
+  bool has_texture() const { return texture_size > 0; }
+  size_t keyframe_count() const { return times.size(); }
+};
+
+// The outline of a sequence validate_sequence accepts.
+SequenceOutline outline_of(const Sequence& sequence);
+
+// Thread-safe: decoders on several threads may share one source.
+class KeyframeSource {
+ public:
+  virtual ~KeyframeSource() = default;
+  virtual const SequenceOutline& outline() const = 0;
+  // Keyframe k's time, pose, fields and hole level (its texture may be left empty: texture(k)).
+  // An opened file throws kCorrupt (or kLimit) where keyframe k's chunk is, naming it.
+  virtual std::shared_ptr<const Keyframe> keyframe(size_t k) const = 0;
+  // Keyframe k's texture, M × M RGB (outline().has_texture()).
+  virtual std::shared_ptr<const Image> texture(size_t k) const = 0;
+  // How many keyframes' reconstructed surfaces one decoder on this source may keep: its share of
+  // the memory budget (every keyframe for a sequence in memory).
+  virtual size_t surfaces_kept() const = 0;
+  // What the source's cache of decoded keyframes and textures holds now, in bytes as §10.1 counts
+  // them (0 for a sequence in memory: it shares the sequence and decodes nothing).
+  virtual uint64_t bytes_held() const = 0;
+};
+
+// A source over a sequence in memory, which it shares. Validates the sequence (kInvalidArgument).
+std::shared_ptr<const KeyframeSource> memory_source(std::shared_ptr<const Sequence> sequence);
+
+}  // namespace facemorph

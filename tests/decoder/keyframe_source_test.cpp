@@ -1,0 +1,175 @@
+// Decoding on demand (open_sequence_source, spec/container.md §10.1): an opened file holds what the
+// budget allows whatever its length, and decodes every frame exactly as the file decoded whole.
+#include "facemorph/decoder.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+#include "tests/decoder/crafted_files.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <thread>
+
+namespace facemorph {
+namespace {
+
+constexpr int kKeyframes = 60;
+
+// The crafted small sequence's three surfaces, poses, holes and textures repeated over 60 keyframes
+// (intra every second one: runs of two), so that a file is long next to the budget a test gives it.
+std::vector<uint8_t> long_file() {
+  const Sequence three = crafted::small_sequence();
+  Sequence s = three;
+  s.keyframes.clear();
+  for (int k = 0; k < kKeyframes; ++k) {
+    Keyframe key = three.keyframes[static_cast<size_t>(k % 3)];
+    key.time = k / 10.0;
+    key.pose.translation.x() += 0.01 * k;
+    for (uint8_t& p : key.texture.pixels) p = static_cast<uint8_t>(p + 3 * k);
+    s.keyframes.push_back(std::move(key));
+  }
+  s.last_time = s.keyframes.back().time;
+  return encode_sequence_file(s, crafted::predicted_metadata());
+}
+
+DecoderLimits with_memory(uint64_t bytes) {
+  DecoderLimits limits;
+  limits.max_memory_bytes = bytes;
+  return limits;
+}
+
+// The smallest budget (in 16 KiB steps) under which the file opens on demand.
+uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
+  for (uint64_t budget = 16 << 10;; budget += 16 << 10) {
+    try {
+      open_sequence_source(bytes, "long", with_memory(budget));
+      return budget;
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kLimit) throw;
+    }
+  }
+}
+
+struct Decoded {
+  std::vector<Vec3> positions;
+  std::vector<uint8_t> texture;
+  std::vector<double> holes;
+};
+
+Decoded decode_at(SequenceDecoder& decoder, double t) {
+  const DecodedFrame frame = decoder.decode(t);
+  return {frame.grid_positions, frame.texture.pixels, frame.hole_level};
+}
+
+void expect_same(const Decoded& a, const Decoded& b, double t) {
+  ASSERT_EQ(a.positions.size(), b.positions.size()) << "t = " << t;
+  for (size_t v = 0; v < a.positions.size(); ++v) ASSERT_EQ(a.positions[v], b.positions[v]) << "t = " << t << ", node " << v;
+  EXPECT_EQ(a.texture, b.texture) << "t = " << t;
+  EXPECT_EQ(a.holes, b.holes) << "t = " << t;
+}
+
+TEST(KeyframeSource, ALongFileDecodesOnDemandWithinABudgetItsWholeDecodeExceeds) {
+  const std::vector<uint8_t> bytes = long_file();
+  const uint64_t budget = smallest_budget(bytes);
+  // Decoded whole, the same file needs more than that budget holds.
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { decode_sequence_file(bytes, "long", nullptr, with_memory(budget)); });
+  // One step less and a frame's four keyframes no longer fit: refused by name, at open.
+  testing::expect_error(ErrorCode::kLimit, "--max-memory", [&] { open_sequence_source(bytes, "long", with_memory(budget - (16 << 10))); });
+
+  const auto source = open_sequence_source(bytes, "long", with_memory(budget));
+  EXPECT_GE(source->surfaces_kept(), 4u);
+  EXPECT_LT(source->surfaces_kept(), static_cast<size_t>(kKeyframes));
+  EXPECT_LE(source->bytes_held(), budget);
+  SequenceDecoder lazy(source);
+  SequenceDecoder whole(std::make_shared<const Sequence>(decode_sequence_file(bytes, "long")));
+  // Forwards as a player plays, then backwards: the cache drops and decodes keyframes again, and
+  // every frame is the one the whole file gives (keyframe surfaces are made cold: the same bits).
+  std::vector<double> times;
+  for (int i = 0; i <= 30 * 59 / 10; i += 2) times.push_back(i / 30.0);
+  for (int i = 30 * 59 / 10; i >= 0; i -= 7) times.push_back(i / 30.0);
+  for (double t : times) {
+    expect_same(decode_at(lazy, t), decode_at(whole, t), t);
+    ASSERT_LE(source->bytes_held(), budget) << "t = " << t;
+    ASSERT_LE(lazy.surfaces_held(), source->surfaces_kept()) << "t = " << t;
+  }
+  // It kept what the budget allows, not the whole file.
+  EXPECT_GE(lazy.surfaces_held(), 4u);
+  EXPECT_EQ(whole.surfaces_held(), static_cast<size_t>(kKeyframes));
+}
+
+TEST(KeyframeSource, DecodersOnThreadsShareOneSmallCache) {
+  const std::vector<uint8_t> bytes = long_file();
+  const uint64_t budget = smallest_budget(bytes);
+  const auto source = open_sequence_source(bytes, "long", with_memory(budget));
+  SequenceDecoder whole(std::make_shared<const Sequence>(decode_sequence_file(bytes, "long")));
+  std::vector<double> times;
+  for (int i = 0; i < 40; ++i) times.push_back(0.147 * i);
+  std::vector<Decoded> expected;
+  for (double t : times) expected.push_back(decode_at(whole, t));
+  std::vector<std::thread> threads;
+  std::vector<int> mismatches(3, 0);
+  for (size_t i = 0; i < mismatches.size(); ++i) {
+    threads.emplace_back([&, i] {
+      SequenceDecoder decoder(source);
+      // Each thread walks the times in another order, so their keyframes evict each other's.
+      for (size_t j = 0; j < times.size(); ++j) {
+        const size_t at = (j * (2 * i + 1) + 7 * i) % times.size();
+        const Decoded d = decode_at(decoder, times[at]);
+        if (d.positions != expected[at].positions || d.texture != expected[at].texture) ++mismatches[i];
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(mismatches, std::vector<int>(mismatches.size(), 0));
+  EXPECT_LE(source->bytes_held(), budget);
+}
+
+TEST(KeyframeSource, OpeningDescribesTheFileAsTheWholeDecodeDoes) {
+  const std::vector<uint8_t> bytes = long_file();
+  SequenceFileInfo lazy_info, whole_info;
+  const auto source = open_sequence_source(bytes, "long", kDefaultDecoderLimits, &lazy_info);
+  const Sequence whole = decode_sequence_file(bytes, "long", &whole_info);
+  const SequenceOutline expected = outline_of(whole);
+  const SequenceOutline& outline = source->outline();
+  EXPECT_EQ(outline.times, expected.times);
+  ASSERT_EQ(outline.poses.size(), expected.poses.size());
+  for (size_t k = 0; k < expected.poses.size(); ++k) {
+    EXPECT_EQ(outline.poses[k].rotation, expected.poses[k].rotation);
+    EXPECT_EQ(outline.poses[k].translation, expected.poses[k].translation);
+  }
+  EXPECT_EQ(outline.fixed_node_count, expected.fixed_node_count);
+  EXPECT_EQ(outline.texture_size, expected.texture_size);
+  EXPECT_EQ(outline.has_holes, expected.has_holes);
+  EXPECT_EQ(lazy_info.file_bytes, whole_info.file_bytes);
+  EXPECT_EQ(lazy_info.metadata.texture_codec, whole_info.metadata.texture_codec);
+  ASSERT_EQ(lazy_info.keyframes.size(), whole_info.keyframes.size());
+  for (size_t k = 0; k < whole_info.keyframes.size(); ++k) {
+    EXPECT_EQ(lazy_info.keyframes[k].fields, whole_info.keyframes[k].fields);
+    EXPECT_EQ(lazy_info.keyframes[k].texture, whole_info.keyframes[k].texture);
+  }
+  EXPECT_EQ(file_info(*source).keyframe_times, file_info(whole).keyframe_times);
+}
+
+TEST(KeyframeSource, ATextureThatDoesNotDecodeFailsTheFramesThatShowItNotTheFile) {
+  // A texture whose image bytes are replaced by others of the same length: its checksum is made
+  // right, so the file opens (textures are decoded when a frame first needs them).
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 1) {
+                                                          std::fill(payload.begin() + 8, payload.end(), 0x5A);
+                                                        }
+                                                      });
+  const auto source = open_sequence_source(bytes, "broken texture");
+  SequenceDecoder decoder(source);
+  DecodeOptions no_texture;
+  no_texture.texture = false;
+  EXPECT_NO_THROW(decoder.decode(0.5, no_texture));  // keyframe 1's fields are fine
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decoder.decode(0.5); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { source->texture(1); });
+  EXPECT_NO_THROW(source->texture(0));
+}
+
+}  // namespace
+}  // namespace facemorph
