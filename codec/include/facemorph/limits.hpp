@@ -3,9 +3,10 @@
 // compared with these and with the bytes the file actually has before anything is allocated; a file
 // over a limit is refused with kLimit naming the limit (zstd's ZSTD_d_windowLogMax, libavif's
 // imageDimensionLimit). The defaults hold every grid and texture size facemorph's encoder chooses
-// automatically (N <= 1025, M <= 1024); since a file is decoded whole when opened, the memory budget
-// also bounds keyframes × (fields + texture): about 60 keyframes of M = 1024 at N = 257 (§10.1).
-// A player that opens longer or finer captures raises it.
+// automatically (N <= 1025, M <= 1024). Keyframes are decoded on demand (open_sequence_source): the
+// memory budget sets how many an opened file and a decoder on it keep at once, never fewer than a
+// frame blends (§10.1), whatever the file's length. decode_sequence_file, which decodes a file
+// whole, holds every keyframe and is refused where they exceed the budget.
 #pragma once
 
 #include <cstdint>
@@ -22,9 +23,9 @@ struct DecoderLimits {
 
 inline constexpr DecoderLimits kDefaultDecoderLimits{};
 
-// What opening a file and decoding from it holds at most, in bytes, from what its header states:
-// every keyframe's fields (`values_per_keyframe` float64 values) and texture (RGB8),
-// each keyframe's reconstructed surface, G with its multigrid solver, and one decoded frame. An
+// What decoding from a file holds at most, in bytes, from what its header states, with `keyframes`
+// keyframes held at once: their fields (`values_per_keyframe` float64 values), textures (RGB8) and
+// reconstructed surfaces, G with its multigrid solver, and one decoded frame. An
 // estimate that errs high (spec/container.md §10.1 gives the constants); it saturates at
 // UINT64_MAX instead of overflowing.
 uint64_t estimated_memory_bytes(int grid_n, uint64_t keyframes, int texture_size, uint64_t values_per_keyframe);
