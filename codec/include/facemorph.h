@@ -106,13 +106,15 @@ typedef struct fm_decoder_options {
 /* Sets every field to its default, struct_size to sizeof(fm_decoder_options). NULL is ignored. */
 void fm_decoder_options_init(fm_decoder_options* options);
 
-/* Opens and checks a whole file under the default limits. Returns FM_OK, FM_ERROR_INVALID_ARGUMENT
+/* Opens a file under the default limits: its header and index read, every keyframe's fields decoded
+ * once and checked, every checksum verified; keyframes and textures are then decoded again when a
+ * frame needs them, into a cache bounded by max_memory_bytes (spec/container.md §10.1). Returns FM_OK, FM_ERROR_INVALID_ARGUMENT
  * (NULL path or file), FM_ERROR_IO, FM_ERROR_TRUNCATED, FM_ERROR_CORRUPT, FM_ERROR_UNSUPPORTED,
  * FM_ERROR_LIMIT, FM_ERROR_OUT_OF_MEMORY. On success *file is a new handle for fm_file_close; on
  * failure *file is NULL. */
 fm_status fm_file_open(const char* path, fm_file** file);
-/* The same from `size` bytes at `data`. They are parsed before this returns and not used
- * afterwards (nothing is kept): the caller may free them at once. */
+/* The same from `size` bytes at `data`. They are copied (the copy counts against max_memory_bytes):
+ * the caller may free them at once. */
 fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file);
 /* fm_file_open / fm_file_open_memory under the caller's limits (options NULL: the defaults).
  * FM_ERROR_INVALID_ARGUMENT also for options whose struct_size is 0 or whose limits cannot work
@@ -198,7 +200,9 @@ typedef struct fm_frame {
  * handle, NULL frame, t not finite, unknown flag: the caller's fault only), FM_ERROR_CLOSED_HANDLE,
  * FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_CORRUPT (the file decodes to
  * non-finite numbers, or a keyframe of it cannot be reconstructed: every later call that needs that
- * keyframe fails at once the same way), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
+ * keyframe fails at once the same way; or a keyframe's texture, decoded when a frame first shows it,
+ * does not decode), FM_ERROR_UNSUPPORTED (that texture is in an image codec this decoder does not
+ * read), FM_ERROR_LIMIT (its chunk is larger than the memory budget), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
  * FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. The decoded frame is
  * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
  * only copies it. Leaving every buffer NULL decodes and reports the sizes. */
