@@ -151,9 +151,9 @@ typedef struct fm_info {
 /* Fills *info. FM_OK, FM_ERROR_INVALID_ARGUMENT (a NULL or wrong handle, NULL info), FM_ERROR_CLOSED_HANDLE. */
 fm_status fm_file_get_info(const fm_file* file, fm_info* info);
 /* Copies the keyframe times (seconds) into times[0 .. capacity) and sets *count to the number of
- * keyframes; FM_ERROR_BUFFER_TOO_SMALL (copying nothing) when capacity < *count. times may be NULL
- * when capacity is 0, to ask the count. FM_OK, FM_ERROR_INVALID_ARGUMENT, FM_ERROR_CLOSED_HANDLE,
- * FM_ERROR_BUFFER_TOO_SMALL. */
+ * keyframes; FM_ERROR_BUFFER_TOO_SMALL (copying nothing) when capacity < *count. times NULL with
+ * capacity 0 asks the count only: FM_OK, no error message set. FM_OK, FM_ERROR_INVALID_ARGUMENT,
+ * FM_ERROR_CLOSED_HANDLE, FM_ERROR_BUFFER_TOO_SMALL. */
 fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count);
 
 /* A decoder on the file (which it shares: the file handle may be closed afterwards), under the

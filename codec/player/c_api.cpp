@@ -323,6 +323,7 @@ fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t 
     check_pointer(count, "count");
     const std::vector<double>& keys = entry->info.keyframe_times;
     *count = keys.size();
+    if (times == nullptr && capacity == 0) return ok();  // the count alone was asked for: not an error
     if (capacity < keys.size()) {
       throw Error(ErrorCode::kBufferTooSmall, std::to_string(keys.size()) + " keyframe times, room for " + std::to_string(capacity));
     }
