@@ -166,6 +166,7 @@ std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_
   ReconstructOptions cold = options;
   cold.start = nullptr;
   reconstructor_.forget_warm_start();
+  ++keyframe_reconstructions_;
   try {
     surface = std::make_shared<const std::vector<Vec3>>(reconstructor_.reconstruct(fields, cold).positions);
   } catch (const Error& e) {

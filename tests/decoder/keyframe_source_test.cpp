@@ -94,9 +94,11 @@ TEST(KeyframeSource, ALongFileDecodesOnDemandWithinABudgetItsWholeDecodeExceeds)
     ASSERT_LE(source->bytes_held(), budget) << "t = " << t;
     ASSERT_LE(lazy.surfaces_held(), source->surfaces_kept()) << "t = " << t;
   }
-  // It kept what the budget allows, not the whole file.
+  // It kept what the budget allows, not the whole file, and made dropped surfaces again.
   EXPECT_GE(lazy.surfaces_held(), 4u);
   EXPECT_EQ(whole.surfaces_held(), static_cast<size_t>(kKeyframes));
+  EXPECT_EQ(whole.keyframe_reconstructions(), static_cast<size_t>(kKeyframes));
+  EXPECT_GT(lazy.keyframe_reconstructions(), static_cast<size_t>(kKeyframes));
 }
 
 TEST(KeyframeSource, DecodersOnThreadsShareOneSmallCache) {

@@ -115,6 +115,12 @@ class SequenceDecoder {
   const GridGeometry& geometry() const { return reconstructor_.geometry(); }
   // Keyframe surfaces held now (at most source().surfaces_kept()).
   size_t surfaces_held() const { return surface_order_.size(); }
+  // Why keyframe k could not be reconstructed, remembered so that every later frame that needs it
+  // fails at once (empty: it could, or has not been tried).
+  const std::string& keyframe_failure(size_t k) const { return keyframe_failures_.at(k); }
+  // Keyframe surfaces reconstructed so far, tried and failed ones and ones made again after being
+  // dropped included: what the surface cache saves.
+  size_t keyframe_reconstructions() const { return keyframe_reconstructions_; }
 
   // The frame at time t (seconds from the capture's first frame). Throws kOutOfRange beyond the
   // sane range unless clamping, kNotConverged / kNumerical as Reconstructor::reconstruct, and what
@@ -138,6 +144,7 @@ class SequenceDecoder {
   // Why keyframe k could not be reconstructed (empty: it could, or was not tried): a keyframe that
   // fails once fails at once ever after, instead of running its iteration again on every call.
   std::vector<std::string> keyframe_failures_;
+  size_t keyframe_reconstructions_ = 0;
   // The last frames' corrections (reconstruction − spline start, face frame), newest first.
   struct History {
     int count = 0;
