@@ -151,6 +151,13 @@ DiskFeatures disk_features(const DiskMap& map, int size, const std::vector<Fille
   f.curvature.assign(texels, none);
   f.log_factor.assign(texels, none);
   f.hole.assign(texels, 0);
+  f.vertices.assign(texels, 0);
+  for (const Vec2& w : map.disk) {
+    const cv::Point2f t = to_texel(w, size);
+    const int x = std::clamp(static_cast<int>(std::lround(t.x)), 0, size - 1), y = std::clamp(static_cast<int>(std::lround(t.y)), 0, size - 1);
+    uint8_t& c = f.vertices[static_cast<size_t>(y) * size + x];
+    if (c < 255) ++c;
+  }
   // Each disk triangle's texels, its corners' values interpolated.
   for (const Face& face : surface.faces) {
     cv::Point2f t[3];
@@ -241,6 +248,19 @@ TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& fr
   const cv::Mat a = to_image(reference, curvature, factor, options.blur), b = to_image(frame, curvature, factor, options.blur);
   std::vector<cv::Point2f> from, guess;
   for (const Vec2& p : points) from.push_back(to_texel(p, size));
+  // Points whose window the reference's mesh does not resolve are not tracked.
+  std::vector<uint8_t> resolved(points.size(), 1);
+  if (options.min_window_vertices > 0 && reference.vertices.size() == static_cast<size_t>(size) * size) {
+    const int half = options.window / 2;
+    for (size_t i = 0; i < points.size(); ++i) {
+      const int cx = static_cast<int>(std::lround(from[i].x)), cy = static_cast<int>(std::lround(from[i].y));
+      int count = 0;
+      for (int y = std::max(0, cy - half); y <= std::min(size - 1, cy + half); ++y) {
+        for (int x = std::max(0, cx - half); x <= std::min(size - 1, cx + half); ++x) count += reference.vertices[static_cast<size_t>(y) * size + x];
+      }
+      if (count < options.min_window_vertices) resolved[i] = 0, ++out.unresolved;
+    }
+  }
   // From the point itself (the disks are normalised alike), and from the start given; the better
   // round trip wins.
   Flow best = lucas_kanade(a, b, from, from, options);
@@ -257,9 +277,39 @@ TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& fr
   }
   std::vector<int> kept;
   for (size_t i = 0; i < from.size(); ++i) {
-    if (best.ok[i] && (!options.check_round_trip || best.round_trip[i] <= options.max_round_trip)) kept.push_back(static_cast<int>(i));
+    if (resolved[i] && best.ok[i] && (!options.check_round_trip || best.round_trip[i] <= options.max_round_trip)) kept.push_back(static_cast<int>(i));
   }
-  out.lost = out.tried - static_cast<int>(kept.size());
+  out.lost = out.tried - out.unresolved - static_cast<int>(kept.size());
+  if (options.check_round_trip && options.min_gain > 0) {
+    // The windows' squared differences, at the tracked point and at the point itself.
+    cv::Mat fa, fb;
+    a.convertTo(fa, CV_32F);
+    b.convertTo(fb, CV_32F);
+    cv::Mat pa[2], pb[2];
+    cv::split(fa, pa);
+    cv::split(fb, pb);
+    const cv::Size window(options.window, options.window);
+    auto difference = [&](const cv::Point2f& at_reference, const cv::Point2f& at_frame) {
+      double sum = 0;
+      for (int c = 0; c < 2; ++c) {
+        cv::Mat r, f;
+        cv::getRectSubPix(pa[c], window, at_reference, r);
+        cv::getRectSubPix(pb[c], window, at_frame, f);
+        sum += cv::norm(r, f, cv::NORM_L2SQR);
+      }
+      return sum;
+    };
+    std::vector<int> gained;
+    for (int i : kept) {
+      const auto k = static_cast<size_t>(i);
+      if (difference(from[k], best.at[k]) <= options.min_gain * difference(from[k], from[k])) {
+        gained.push_back(i);
+      } else {
+        ++out.no_gain;
+      }
+    }
+    kept = std::move(gained);
+  }
   // The neighbour check: a kept point's displacement against the median of its kept neighbours'.
   std::vector<Vec2> moved(points.size(), Vec2::Zero());
   for (int i : kept) moved[static_cast<size_t>(i)] = to_disk(best.at[static_cast<size_t>(i)], size) - points[static_cast<size_t>(i)];

@@ -131,7 +131,21 @@ TEST(LandmarkTracking, MeasureOnACapture) {
   std::vector<int> per_kept(interior.size());
   for (int i = 1; i < encoder.frame_count(); i += stride) {
     const DiskFeatures other = draw(i);
-    const TrackedPoints t = track_points(reference, other, from, last, tracking);
+    TrackedPoints t;
+    if (std::getenv("FACEMORPH_TRACKING_CHAIN")) {
+      // Frame to frame: from where the previous frame put each point.
+      const DiskFeatures previous = draw(i - stride);
+      t = track_points(previous, other, last, {}, tracking);
+      if (std::getenv("FACEMORPH_TRACKING_CHAIN_DIRECT")) {
+        std::vector<Vec2> start = last;
+        for (size_t k = 0; k < t.index.size(); ++k) start[static_cast<size_t>(t.index[k])] = t.frame[k];
+        t = track_points(reference, other, from, start, tracking);
+      } else {
+        for (size_t k = 0; k < t.index.size(); ++k) t.reference[k] = from[static_cast<size_t>(t.index[k])];
+      }
+    } else {
+      t = track_points(reference, other, from, last, tracking);
+    }
     const std::vector<Vec2> truth = points_of(static_cast<size_t>(i));
     double e = 0, u = 0;
     std::vector<Vec2> estimate = from;  // a point lost stays where the reference has it
@@ -199,6 +213,58 @@ TEST(LandmarkTracking, MeasureAFile) {
   }
   std::printf("%s: %llu bytes, %zu keyframes, N = %d; held-out RMS %.4f%% mean, %.4f%% worst\n", file, static_cast<unsigned long long>(info.file_bytes),
               keys.size(), sequence->grid_n, 100 * sum / std::max(held, 1), 100 * worst);
+}
+
+}  // namespace
+}  // namespace facemorph
+
+namespace facemorph {
+namespace {
+
+// The keyframe selection's predicted error between keyframes (what held-out frames will show) for
+// tracking variants on one mapping of FACEMORPH_MEASURE_CAPTURE, its landmarks withheld (a
+// measurement, not a check). FACEMORPH_MEASURE_VARIANTS: "spacing,window,max_round_trip,smoothing;...".
+TEST(LandmarkTracking, MeasureSelection) {
+  const char* capture_path = std::getenv("FACEMORPH_MEASURE_CAPTURE");
+  const char* variants = std::getenv("FACEMORPH_MEASURE_VARIANTS");
+  if (!capture_path || !variants) GTEST_SKIP() << "FACEMORPH_MEASURE_CAPTURE and FACEMORPH_MEASURE_VARIANTS not set";
+  Capture capture = read_capture(capture_path);
+  if (!std::getenv("FACEMORPH_MEASURE_GIVEN")) {
+    capture.landmark_names.clear();
+    capture.landmarks.assign(capture.frames.size(), {});
+  }
+  EncodeOptions options;
+  options.texture = false;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  std::string text = variants;
+  for (size_t begin = 0; begin < text.size();) {
+    size_t end = text.find(';', begin);
+    if (end == std::string::npos) end = text.size();
+    double spacing = 0, window = 0, round_trip = 0, smoothing = 0, gain = 0.7;
+    std::sscanf(text.substr(begin, end - begin).c_str(), "%lf,%lf,%lf,%lf,%lf", &spacing, &window, &round_trip, &smoothing, &gain);
+    encoder.options().tracking.min_gain = gain;
+    begin = end + 1;
+    encoder.options().track_landmarks = spacing > 0;
+    if (spacing > 0) encoder.options().tracking.spacing = spacing;
+    if (window > 0) encoder.options().tracking.window = static_cast<int>(window);
+    if (round_trip > 0) encoder.options().tracking.max_round_trip = round_trip;
+    encoder.options().registration.smoothing = smoothing;
+    encoder.register_frames();
+    encoder.sample_frames();
+    const KeyframeSelection chosen = encoder.select_keyframes();
+    double sum = 0;
+    int n = 0;
+    for (double e : chosen.predicted_error) {
+      if (e > 0) sum += e, ++n;
+    }
+    int fallbacks = 0;
+    for (int i = 0; i < encoder.frame_count(); ++i) fallbacks += encoder.registration(i).fallback != RegistrationFallback::kNone;
+    std::printf("gain %.2f spacing %.3f window %.0f round trip %.3f smoothing %.3g: %zu keyframes, predicted mean %.4f%% (budget mean %.4f%%), "
+                "%d fallbacks, %.1f points, %.2f s tracking, %.2f s registration\n",
+                gain, spacing, window, round_trip, smoothing, chosen.keyframes.size(), 100 * sum / std::max(n, 1), 100 * chosen.budget_mean_error, fallbacks,
+                encoder.report().tracked_points_mean, encoder.report().seconds_tracking, encoder.report().seconds_registration);
+  }
 }
 
 }  // namespace

@@ -33,6 +33,14 @@ struct TrackingOptions {
   // And when its displacement agrees with the median of its kept neighbours' (within 2.5 spacings)
   // to this (disk units): one point dragged along by a feature that is not its own is dropped.
   double max_neighbour_disagreement = 0.03;
+  // And when the frame's window at the tracked point matches the reference's window at most this
+  // share of the squared difference the frame shows at the point itself (where the normalised maps
+  // alone put it): a point the flow moves without explaining the images better is no evidence.
+  double min_gain = 0.7;
+  // A point is tracked only where the reference's window holds at least this many of its surface's
+  // vertices: over fewer the images show the triangles' interpolation, not the face (a 468-vertex
+  // MediaPipe mesh has ~2 per window of a 512² image; scans and fmsynth's faces 20-40).
+  int min_window_vertices = 8;
   bool check_round_trip = true;  // false: every point Lucas-Kanade converges on is kept (for tests)
 };
 
@@ -48,6 +56,7 @@ struct DiskFeatures {
   int size = 0;
   std::vector<float> curvature, log_factor;  // size² each, row 0 at the top
   std::vector<uint8_t> hole;                 // 1 for a texel of a hole's fill
+  std::vector<uint8_t> vertices;             // the surface's vertices on each texel (at most 255)
 };
 
 // Draws `map` (a mapped, normalised frame); `holes` are the fills of its prepared frame
@@ -61,8 +70,10 @@ struct TrackedPoints {
   std::vector<int> index;              // per point kept: its index among the points tracked
   std::vector<double> round_trip;      // per point kept: the forward-backward error (disk units)
   int tried = 0;                       // points tracked
+  int unresolved = 0;                  // points not tracked: too few vertices in their window
   int lost = 0;                        // of them, dropped: Lucas-Kanade failed, left the disk, or round trip too far
   int outliers = 0;                    // of them, dropped by the neighbour check
+  int no_gain = 0;                     // of them, dropped as matching no better than the point itself
   // A confidence weight per kept point in (0, 1]: 1 / (1 + (round trip / (max_round_trip / 2))²).
   std::vector<double> confidence() const;
 };
