@@ -20,7 +20,7 @@ namespace facemorph {
 
 struct TrackingOptions {
   int image_size = 512;          // texels per side of the disk images ([-1, 1]²)
-  double spacing = 0.08;         // the reference's points: a square grid this far apart (disk units)...
+  double spacing = 0.05;         // the reference's points: a square grid this far apart (disk units)...
   double max_radius = 0.85;      // ...within this radius (the rim has its own markers)
   int window = 21;             
   double blur = 1.0;             // Gaussian blur of the images before the flow (texels; 0: none)
