@@ -139,6 +139,9 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"strict", o.strict},
           {"landmarks_found", {{"orientation_frames", report.orientation_found}, {"rim_markers", report.rim_markers_found},
                                {"weakest_up_evidence", report.orientation_found > 0 ? nlohmann::json(report.weakest_up_evidence) : nlohmann::json(nullptr)}}},
+          {"landmarks_tracked", {{"frames", report.tracked_frames}, {"grid_points", report.tracking_grid_points},
+                                 {"points_mean", report.tracked_points_mean}, {"points_fewest", report.tracked_points_fewest},
+                                 {"round_trip_median", report.tracked_round_trip_median}, {"round_trip_p90", report.tracked_round_trip_p90}}},
           {"reference_frame_chosen", report.reference_frame},
           {"dropped_frames", dropped_json(report)},
           {"conformal_fallbacks", conformal_fallbacks_json(report)},
@@ -158,7 +161,7 @@ int main(int argc, char** argv) {
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
-  bool no_texture = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
+  bool no_texture = false, no_tracking = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
       ->required();
@@ -206,6 +209,9 @@ int main(int argc, char** argv) {
                  "Every P-th keyframe coded without the previous one (random access), or auto (one at least every 10 s of capture)")
       ->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
+  app.add_flag("--no-tracking", no_tracking,
+               "Frames without interior landmarks (--landmarks auto, or none given) follow the normalised conformal maps only, without "
+               "points tracked from the reference by optical flow");
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
   app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
   app.add_option("--threads", threads, "Worker threads (0: one per core)")->capture_default_str();
@@ -244,6 +250,7 @@ int main(int argc, char** argv) {
     options.texture_quality = quality;
     options.texture_codec = parse_texture_codec(texture_codec);
     options.texture = !no_texture;
+    options.track_landmarks = !no_tracking;
     if (texture_size != "auto") {
       try {
         options.texture_size = std::stoi(texture_size);
@@ -387,6 +394,12 @@ int main(int argc, char** argv) {
                   report.rim_markers_found ? "; rim markers placed on each frame's rim" : "");
     } else if (report.rim_markers_found) {
       std::printf("  landmarks: rim markers placed on each frame's rim (the capture has none)\n");
+    }
+    if (report.tracked_frames > 0) {
+      std::printf("  landmarks: %d points of the reference's disk tracked onto %d frames by optical flow (%.2f s): %.0f kept per frame on average, "
+                  "%d at fewest; round trip median %.2f%%, 90%% within %.2f%% of the disk's radius\n",
+                  report.tracking_grid_points, report.tracked_frames, report.seconds_tracking, report.tracked_points_mean, report.tracked_points_fewest,
+                  100 * report.tracked_round_trip_median, 100 * report.tracked_round_trip_p90);
     }
     std::string last;
     for (const EncodedFrameReport& f : report.frames) {

@@ -422,6 +422,38 @@ void SequenceEncoder::map_frames() {
   report_.seconds_mapping = seconds_since(start);
 }
 
+std::vector<TrackedPoints> SequenceEncoder::track_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const size_t count = frames_.size(), reference = static_cast<size_t>(options_.reference_frame);
+  report_.tracked_frames = 0;
+  std::vector<TrackedPoints> tracked;
+  bool needed = false;
+  for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked_points(capture_, reference, i);
+  if (!options_.track_landmarks || !needed) return tracked;
+  const int size = options_.tracking.image_size;
+  tracked = track_sequence(count, reference, [&](size_t i) { return disk_features(frames_[i].map, size); }, options_.tracking, options_.threads);
+  std::vector<double> round_trips;
+  double kept = 0;
+  report_.tracked_points_fewest = std::numeric_limits<int>::max();
+  for (size_t i = 0; i < count; ++i) {
+    if (i == reference || !needs_tracked_points(capture_, reference, i)) continue;
+    ++report_.tracked_frames;
+    kept += static_cast<double>(tracked[i].reference.size());
+    report_.tracked_points_fewest = std::min(report_.tracked_points_fewest, static_cast<int>(tracked[i].reference.size()));
+    round_trips.insert(round_trips.end(), tracked[i].round_trip.begin(), tracked[i].round_trip.end());
+  }
+  report_.tracking_grid_points = tracked[reference].tried;
+  report_.tracked_points_mean = report_.tracked_frames > 0 ? kept / report_.tracked_frames : 0.0;
+  if (report_.tracked_frames == 0) report_.tracked_points_fewest = 0;
+  std::sort(round_trips.begin(), round_trips.end());
+  if (!round_trips.empty()) {
+    report_.tracked_round_trip_median = round_trips[round_trips.size() / 2];
+    report_.tracked_round_trip_p90 = round_trips[round_trips.size() * 9 / 10];
+  }
+  report_.seconds_tracking = seconds_since(start);
+  return tracked;
+}
+
 void SequenceEncoder::register_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
@@ -443,6 +475,7 @@ void SequenceEncoder::register_frames() {
       throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
     }
   }
+  const std::vector<TrackedPoints> tracked = track_frames();
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
   parallel_for(
       count, options_.threads,
@@ -450,6 +483,7 @@ void SequenceEncoder::register_frames() {
         const auto index = static_cast<size_t>(i);
         try {
           landmarks_[index] = disk_landmarks(capture_, reference, frames_[reference].map, index, frames_[index].map);
+          if (!tracked.empty() && needs_tracked_points(capture_, reference, index)) add_tracked_points(landmarks_[index], tracked[index]);
           if (landmarks_[index].reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, frames_[index].name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");

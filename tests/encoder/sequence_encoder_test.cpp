@@ -598,7 +598,7 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
 }
 
 // A capture without landmarks: the nose tip and up come from each frame's geometry, rim markers
-// from its rim, and the encode decodes about as close to every frame as with the capture's own
+// from its rim, interior points by tracking, and the encode decodes about as close to every frame as with the capture's own
 // landmarks. Without find_landmarks every frame lacks its pose landmarks and the encode fails.
 TEST(SequenceEncoder, ACaptureWithoutLandmarksEncodesFromItsGeometry) {
   testing::TempDir dir;
@@ -632,6 +632,12 @@ TEST(SequenceEncoder, ACaptureWithoutLandmarksEncodesFromItsGeometry) {
   EXPECT_TRUE(without.rim_markers_found);
   EXPECT_TRUE(without.dropped.empty()) << without.dropped.front().name << ": " << without.dropped.front().reason;
   EXPECT_LE(without.up_from_hint, 2);  // a coarse (3k-vertex) face may leave a frame or two to its neighbours
+  // Interior correspondence tracked from the reference onto every other frame (not where the
+  // capture's own landmarks give it).
+  EXPECT_EQ(with.tracked_frames, 0);
+  EXPECT_EQ(without.tracked_frames, static_cast<int>(given.frames.size()) - 1);
+  EXPECT_GT(without.tracked_points_mean, 50);
+  EXPECT_LT(without.tracked_round_trip_median, 0.005);
   EXPECT_LT(found, 1.3 * landmarked);
   options.find_landmarks = false;
   testing::expect_error(ErrorCode::kInvalidArgument, "lacks the landmarks nose_tip", [&] { encode_capture(bare, options); });

@@ -15,6 +15,7 @@
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/keyframes.hpp"
+#include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/error.hpp"
@@ -85,6 +86,12 @@ struct EncodeOptions {
   // all, place rim_0..rim_5 on each frame's rim at fixed angles of its normalised disk
   // (spec/method.md §7.14). false: such a frame is dropped (or, strict, ends the encode).
   bool find_landmarks = true;
+  // A frame that shares fewer than 3 interior landmarks with the reference (every frame of a capture
+  // without landmarks, or with --landmarks auto): a grid of the reference's disk points tracked onto
+  // it by optical flow on disk images of the geometry, the reliable ones added to its landmarks
+  // (landmark_tracking.hpp, spec/method.md §7.14). false: its interior follows the normalised maps.
+  bool track_landmarks = true;
+  TrackingOptions tracking;
   // --strict: a frame that cannot be read, prepared or mapped, or a landmark farther from its frame
   // than landmark_tolerance, ends the encode with its error. Otherwise (the default) such a frame is
   // dropped and named in the report, a far landmark is ignored and named, and the spline covers the
@@ -135,6 +142,15 @@ struct EncodeReport {
   int up_from_hint = 0;                    // of them, frames whose surface did not say and another frame's up was taken
   double worst_mirror_error = 0;           // the least symmetric of them (FaceOrientation::mirror_error)
   bool rim_markers_found = false;          // rim markers placed on the rims (the capture had none)
+  // Tracking (EncodeOptions::track_landmarks), over the frames that took tracked points (the
+  // reference excluded): how many, the reference's grid, the points kept per frame (mean, fewest),
+  // the median and 90th percentile of their round-trip errors (disk units; the disk's radius is 1).
+  int tracked_frames = 0;
+  int tracking_grid_points = 0;
+  double tracked_points_mean = 0;
+  int tracked_points_fewest = 0;
+  double tracked_round_trip_median = 0, tracked_round_trip_p90 = 0;
+  double seconds_tracking = 0;
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
@@ -249,6 +265,9 @@ class SequenceEncoder {
   // The up direction of the first frame (from the reference on) without pose landmarks whose
   // surface says which way is up; none when there is none.
   std::optional<Vec3> find_vertical_hint() const;
+  // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
+  // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
+  std::vector<TrackedPoints> track_frames();
 
   Capture capture_;
   std::vector<int> source_index_;
