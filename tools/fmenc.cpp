@@ -161,7 +161,7 @@ int main(int argc, char** argv) {
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
-  bool no_texture = false, no_tracking = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
+  bool no_texture = false, track_landmarks = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
       ->required();
@@ -209,9 +209,9 @@ int main(int argc, char** argv) {
                  "Every P-th keyframe coded without the previous one (random access), or auto (one at least every 10 s of capture)")
       ->capture_default_str();
   app.add_flag("--no-texture", no_texture, "Geometry only");
-  app.add_flag("--no-tracking", no_tracking,
-               "Frames without interior landmarks (--landmarks auto, or none given) follow the normalised conformal maps only, without "
-               "points tracked from the reference by optical flow");
+  app.add_flag("--track-landmarks", track_landmarks,
+               "Frames without interior landmarks (--landmarks auto, or none given) also take points of the reference tracked onto them "
+               "by optical flow: lower error, larger files, slower (spec/method.md 7.14)");
   app.add_flag("--largest-component", largest_component, "Keep each frame's largest surface, drop others (eyeballs, teeth) and say so");
   app.add_flag("--keep-holes-filled", keep_holes_filled, "Store no holes: eyes and mouth decode as the fill");
   app.add_option("--threads", threads, "Worker threads (0: one per core)")->capture_default_str();
@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
     options.texture_quality = quality;
     options.texture_codec = parse_texture_codec(texture_codec);
     options.texture = !no_texture;
-    options.track_landmarks = !no_tracking;
+    options.track_landmarks = track_landmarks;
     if (texture_size != "auto") {
       try {
         options.texture_size = std::stoi(texture_size);

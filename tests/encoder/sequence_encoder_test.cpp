@@ -610,6 +610,7 @@ TEST(SequenceEncoder, ACaptureWithoutLandmarksEncodesFromItsGeometry) {
   options.keyframe_fraction = 0.25;
   options.grid = 65;
   options.texture = false;
+  options.track_landmarks = true;
   auto held_out = [&](const Capture& capture, EncodeReport& report) {
     const Sequence sequence = encode_capture(capture, options, &report);
     SequenceDecoder decoder(std::make_shared<const Sequence>(sequence));
