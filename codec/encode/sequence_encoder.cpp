@@ -715,6 +715,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
     sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
+    local[static_cast<size_t>(k)] = {};  // its fields replace it: memory holds one or the other
   });
   validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
@@ -778,7 +779,19 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
     }
   }
   const Eigen::MatrixXd inverse = normal.ldlt().solve(Eigen::MatrixXd::Identity(keys, keys));
-  const Eigen::MatrixXd fitted = rhs * inverse;  // the normal matrix is symmetric
+  // fitted = rhs * inverse (the normal matrix is symmetric), written over rhs a block of rows at a
+  // time: a 2000-frame capture's rhs is 200 keyframes x 3 N² doubles (300 MB at N = 257), and a
+  // second matrix that size would be the encode's largest. Every block has at least kRows rows
+  // (the last up to twice that), so Eigen multiplies each block as it did the whole matrix (the same
+  // blocking over the keyframes, never its small-matrix path) and the values are the same doubles.
+  constexpr Eigen::Index kRows = 3 * 1024;
+  Eigen::MatrixXd& fitted = rhs;
+  for (Eigen::Index row = 0; row < n;) {
+    const Eigen::Index rows = n - row < 2 * kRows ? n - row : kRows;
+    const Eigen::MatrixXd block = rhs.middleRows(row, rows) * inverse;
+    fitted.middleRows(row, rows) = block;
+    row += rows;
+  }
   const Eigen::VectorXd& mass = geometry.mass();
   for (Eigen::Index k = 0; k < keys; ++k) {
     std::vector<Vec3>& own = local[static_cast<size_t>(k)];

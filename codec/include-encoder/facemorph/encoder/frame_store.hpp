@@ -1,4 +1,4 @@
-// Where the encoder keeps its frames' maps between stages (spec/method.md §7.1).
+// Where the encoder keeps its frames' maps between stages (spec/method.md §7.15).
 //
 // A mapped frame is ~2 MB (the surface as mapped and its disk), and every stage after mapping comes
 // back to it: registration, the selection grid, the keyframe fit on G (every frame, once N is
