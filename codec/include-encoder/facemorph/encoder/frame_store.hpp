@@ -1,11 +1,12 @@
 // Where the encoder keeps its frames' maps between stages (spec/method.md §7.15).
 //
-// A mapped frame is ~2 MB (the surface as mapped and its disk), and every stage after mapping comes
-// back to it: registration, the selection grid, the keyframe fit on G (every frame, once N is
-// known) and the keyframes' textures. Kept in memory, a 2000-frame capture held 9 GB. The store
-// writes each map to a temporary file as it is made and reads it back when a stage asks, so only
-// the frames being worked on are in memory. Mapping again instead would cost the mapping's time
-// (most of an encode) once more; reading a map back costs milliseconds.
+// A mapped frame is ~4 MB in memory (10k vertices: the prepared mesh, the surface as mapped, its
+// disk), and every stage after mapping comes back to it: registration, the selection grid, the
+// keyframe fit on G (every frame, once N is known) and the keyframes' textures. Kept in memory, a
+// 2000-frame capture held 9 GB. The store writes each map to a temporary file as it is made (1.1 MB
+// a frame: the prepared mesh is left out) and reads it back when a stage asks, so only the frames
+// being worked on are in memory. Mapping again instead would cost the mapping's time (about half
+// an encode) once more for each stage; reading a map back is too quick to show in stage times.
 #pragma once
 
 #include "facemorph/encoder/frame_pipeline.hpp"
