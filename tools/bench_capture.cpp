@@ -140,7 +140,8 @@ std::array<uint8_t, 3> rounded(const std::array<double, 3>& rgb) {
 DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& captured, int size) {
   DiskTexels t;
   t.size = size;
-  const InverseDiskMap inverse(encoder.frame(frame).map);
+  const std::shared_ptr<const MappedFrame> mapped = encoder.frame(frame);  // held while `inverse` refers to its map
+  const InverseDiskMap inverse(mapped->map);
   std::vector<std::vector<std::pair<int, Vec2>>> rows(static_cast<size_t>(size));
   parallel_for(size, 0, [&](int y) {
     for (int x = 0; x < size; ++x) {

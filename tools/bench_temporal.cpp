@@ -77,7 +77,8 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
     m.disk_moebius += f.energy_moebius;
     m.disk += f.energy;
     // E_loc: the reference's landmarks carried through f onto frame i, against frame i's own.
-    const InverseDiskMap inverse(encoder.frame(i).map);
+    const std::shared_ptr<const MappedFrame> frame = encoder.frame(i);  // held while `inverse` refers to its map
+    const InverseDiskMap inverse(frame->map);
     const DiskLandmarks& landmarks = encoder.landmarks(i);
     size_t j = 0;
     for (size_t l = 0; l < capture.landmark_names.size(); ++l) {

@@ -370,6 +370,10 @@ int main(int argc, char** argv) {
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
                 report.seconds_selection, report.seconds_keyframes, report.seconds_precision);
+    if (report.spilled_bytes > 0) {
+      std::printf("  frames' maps: %.0f MB in a temporary file, at most %d in memory at once\n", static_cast<double>(report.spilled_bytes) / 1e6,
+                  report.peak_frames_in_memory);
+    }
     if (report.registration_fallbacks > 0) {
       std::printf("  %d frames fell back in registration:\n", report.registration_fallbacks);
       for (const EncodedFrameReport& f : report.frames) {

@@ -113,31 +113,31 @@ class FieldRounder {
     return fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
   }
 
-  // Every keyframe's fields as the file will hold them, in order: those the file may predict from
-  // the previous keyframe (not a multiple of the intra period) rounded as their change from it.
-  // Fields only: a keyframe's texture is not copied.
-  std::vector<GridFields> rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
-    std::vector<GridFields> out;
-    out.reserve(keyframes.size());
+  // Every keyframe's fields as the file will hold them, in order, handed to use(k, fields): those
+  // the file may predict from the previous keyframe (not a multiple of the intra period) rounded as
+  // their change from it. One keyframe's at a time (a long capture has hundreds): the rounding
+  // carries only the previous keyframe's rounded arrays. Fields only: a texture is not copied.
+  template <typename Use>
+  void for_each_rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding, const Use& use) const {
     std::vector<std::vector<double>> before;  // the previous keyframe's rounded arrays
     for (size_t k = 0; k < keyframes.size(); ++k) {
       const GridFields& fields = keyframes[k].fields;
       const bool intra = coding.intra(k);
       std::vector<std::vector<double>> arrays = scalar_arrays(fields);
       for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], intra ? nullptr : &before[a]);
-      out.push_back(fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays));
+      GridFields out = fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
       before = std::move(arrays);
+      use(k, std::move(out));
     }
-    return out;
   }
 
-  // The keyframes as the file will hold them: their fields as above, and the hole level.
+  // The keyframes as the file will hold them: their fields as above, and the hole level. Keyframe
+  // k's exact fields are not read again once k is rounded, so each is replaced in place.
   void round(std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
-    std::vector<GridFields> fields = rounded(keyframes, coding);
-    for (size_t k = 0; k < keyframes.size(); ++k) {
-      keyframes[k].fields = std::move(fields[k]);
+    for_each_rounded(keyframes, coding, [&](size_t k, GridFields&& fields) {
+      keyframes[k].fields = std::move(fields);
       round_to_field_steps(keyframes[k], coding);
-    }
+    });
   }
 
  private:
@@ -256,8 +256,8 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   int refinements = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<GridFields> rounded = rounder.rounded(sequence.keyframes, coding);
-    for (size_t k = 0; k < errors.size(); ++k) errors[k] = decoded_error(reconstructor, rounded[k], exact[k]);
+    rounder.for_each_rounded(sequence.keyframes, coding,
+                             [&](size_t k, GridFields&& rounded) { errors[k] = decoded_error(reconstructor, rounded, exact[k]); });
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {

@@ -104,10 +104,10 @@ int auto_texture_size(const TriangleMesh& surface, int width, int height) {
 // triangles, so the disk gets a texel per triangle (about 2 V for V vertices) over its π/4 M²
 // texels, with the same 1.5 margin for the conformal map's crowding, rounding and bounds as above.
 // 20k vertices give 384, 5k give 192 (spec/method.md §7.7).
-int auto_texture_size_for_colours(const TriangleMesh& surface) {
+int auto_texture_size_for_colours(int vertex_count) {
   constexpr double kMargin = 1.5, kTexelsPerVertex = 2;
   constexpr int kLowest = 128, kHighest = 1024;
-  const double side = kMargin * std::sqrt(kTexelsPerVertex * surface.vertex_count() * 4 / std::numbers::pi);
+  const double side = kMargin * std::sqrt(kTexelsPerVertex * vertex_count * 4 / std::numbers::pi);
   return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
 }
 
@@ -202,7 +202,8 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
   return level;
 }
 
-SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options) : capture_(capture), options_(std::move(options)) {
+SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options)
+    : capture_(capture), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
@@ -326,7 +327,14 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
   compact(capture_.frames);
   compact(capture_.landmarks);
   compact(source_index_);
-  compact(frames_);
+  compact(summaries_);
+  if (store_ && store_->size() == failures.size()) store_->keep(kept);
+  if (pinned_index_ >= 0) {
+    // The pinned frame keeps its pin under its new index (a dropped one loses it).
+    const auto it = std::find(kept.begin(), kept.end(), static_cast<size_t>(pinned_index_));
+    pinned_index_ = it == kept.end() ? -1 : static_cast<int>(it - kept.begin());
+    if (pinned_index_ < 0) pinned_.reset();
+  }
   compact(textures_);
   compact(landmarks_);
   compact(registrations_);
@@ -341,6 +349,7 @@ std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
     const FrameLandmarks given = capture_frame_landmarks(capture_, index);
     if (given.centre && given.up) continue;
     try {
+      const FrameStore::Hold held = store_->hold();
       PrepareOptions prepare;
       prepare.keep_largest_component = options_.largest_component;
       const PreparedFrame p = prepare_frame(read_mesh(capture_.mesh_path(index), {.allow_missing_texture = true}), capture_.frames[index].mesh.string(), prepare);
@@ -362,8 +371,8 @@ void SequenceEncoder::adopt_found_landmarks() {
   };
   const bool given_rim = std::any_of(capture_.landmark_names.begin(), capture_.landmark_names.end(),
                                      [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
-  for (size_t i = 0; i < frames_.size(); ++i) {
-    const MappedFrame& f = frames_[i];
+  for (size_t i = 0; i < summaries_.size(); ++i) {
+    const FrameSummary& f = summaries_[i];
     if (!f.found) continue;
     capture_.landmarks[i][name_index("nose_tip")] = f.found->nose_tip;
     capture_.landmarks[i][name_index("nose_bridge")] = f.found->up;
@@ -374,9 +383,9 @@ void SequenceEncoder::adopt_found_landmarks() {
   }
   if (given_rim) return;
   // No rim markers given: each normalised frame's rim points at the same disk angles.
-  for (size_t i = 0; i < frames_.size(); ++i) {
-    if (frames_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
-    for (int k = 0; k < kFoundRimMarkers; ++k) capture_.landmarks[i][name_index("rim_" + std::to_string(k))] = frames_[i].found_rim[static_cast<size_t>(k)];
+  for (size_t i = 0; i < summaries_.size(); ++i) {
+    if (summaries_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
+    for (int k = 0; k < kFoundRimMarkers; ++k) capture_.landmarks[i][name_index("rim_" + std::to_string(k))] = summaries_[i].found_rim[static_cast<size_t>(k)];
     report_.rim_markers_found = true;
   }
 }
@@ -384,7 +393,13 @@ void SequenceEncoder::adopt_found_landmarks() {
 void SequenceEncoder::map_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
-  frames_.assign(static_cast<size_t>(count), {});
+  // Each frame is read, mapped, summarised and put in the store by one thread, then released: the
+  // maps in memory at once are one per thread (frame_store.hpp).
+  store_ = std::make_unique<FrameStore>(options_.spill_frames ? FrameStore::Mode::kSpill : FrameStore::Mode::kMemory);
+  store_->reset(static_cast<size_t>(count));
+  pinned_index_ = -1;
+  pinned_.reset();
+  summaries_.assign(static_cast<size_t>(count), {});
   textures_.assign(static_cast<size_t>(count), {});
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
   std::vector<std::vector<std::string>> warnings(static_cast<size_t>(count));
@@ -394,6 +409,8 @@ void SequenceEncoder::map_frames() {
       [&](int i) {
         const auto index = static_cast<size_t>(i);
         const std::string name = capture_.frames[index].mesh.string();
+        const FrameStore::Hold held = store_->hold();
+        MappedFrame mapped;
         try {
           const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
           ignore_far_landmarks(mesh, index, warnings[index]);
@@ -408,30 +425,48 @@ void SequenceEncoder::map_frames() {
           map_options.conformal = options_.conformal;
           map_options.find_orientation = options_.find_landmarks;
           map_options.vertical_hint = vertical_hint;
-          frames_[index] = map_frame(mesh, name, landmarks, map_options);
+          mapped = map_frame(mesh, name, landmarks, map_options);
         } catch (const Error& e) {
           if (options_.strict) throw;
           failures[index] = failure_of(e, name);
+          return;
         }
+        FrameSummary& summary = summaries_[index];
+        summary.name = mapped.name;
+        summary.vertices = mapped.prepared.mesh.vertex_count();
+        summary.holes_filled = static_cast<int>(mapped.prepared.report.holes.size());
+        summary.repair = mapped.prepared.report.summary();
+        summary.conformal_method = mapped.map.report.method;
+        summary.conformal_fallback_reason = mapped.map.report.fallback_reason;
+        summary.has_uvs = mapped.map.surface.has_uvs();
+        summary.has_colours = mapped.map.surface.has_colours();
+        summary.found = mapped.found;
+        summary.found_rim = mapped.found_rim;
+        // Outside the try: a map the store cannot write ends the encode (it is no fault of the frame).
+        store_->put(index, std::move(mapped));
       },
       [&](int done, int total) { progress("mapping", done, total); });
   for (auto& w : warnings) report_.warnings.insert(report_.warnings.end(), w.begin(), w.end());
   drop_frames(failures);
   adopt_found_landmarks();
+  pin_reference();
   report_.reference_frame = source_index_[static_cast<size_t>(options_.reference_frame)];
   report_.seconds_mapping = seconds_since(start);
 }
 
 std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   const auto start = std::chrono::steady_clock::now();
-  const size_t count = frames_.size(), reference = static_cast<size_t>(options_.reference_frame);
+  const auto count = static_cast<size_t>(frame_count());
+  const auto reference = static_cast<size_t>(options_.reference_frame);
   report_.tracked_frames = 0;
   std::vector<TrackedPoints> tracked;
   bool needed = false;
   for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked_points(capture_, reference, i);
   if (!options_.track_landmarks || !needed) return tracked;
   const int size = options_.tracking.image_size;
-  tracked = track_sequence(count, reference, [&](size_t i) { return disk_features(frames_[i].map, size); }, options_.tracking, options_.threads);
+  // Each frame's map read back from the store while its images are drawn (frame() is thread-safe).
+  tracked = track_sequence(
+      count, reference, [&](size_t i) { return disk_features(this->frame(static_cast<int>(i))->map, size); }, options_.tracking, options_.threads);
   std::vector<double> round_trips;
   double kept = 0;
   report_.tracked_points_fewest = std::numeric_limits<int>::max();
@@ -458,7 +493,8 @@ void SequenceEncoder::register_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
   const auto reference = static_cast<size_t>(options_.reference_frame);
-  reparametrisation_ = DiskReparametrisation(frames_[reference].map, options_.density_equalising);
+  const std::shared_ptr<const MappedFrame> reference_frame = pin_reference();
+  reparametrisation_ = DiskReparametrisation(reference_frame->map, options_.density_equalising);
   report_.density_equalising = reparametrisation_.report();
   landmarks_.assign(static_cast<size_t>(count), {});
   registrations_.assign(static_cast<size_t>(count), {});
@@ -467,7 +503,7 @@ void SequenceEncoder::register_frames() {
     // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
     // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
     // unconstrained there.
-    const MappedFrame& f = frames_[reference];
+    const MappedFrame& f = *reference_frame;
     const DiskLandmarks own = disk_landmarks(capture_, reference, f.map, reference, f.map);
     try {
       geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(f.map, own.reference, own.on_rim));
@@ -481,22 +517,24 @@ void SequenceEncoder::register_frames() {
       count, options_.threads,
       [&](int i) {
         const auto index = static_cast<size_t>(i);
+        const std::shared_ptr<const MappedFrame> frame = this->frame(i);  // a failed read is no fault of the frame: outside the try
+        const std::string& name = frame->name;
         try {
-          landmarks_[index] = disk_landmarks(capture_, reference, frames_[reference].map, index, frames_[index].map);
+          landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
           if (!tracked.empty() && needs_tracked_points(capture_, reference, index)) add_tracked_points(landmarks_[index], tracked[index]);
           if (landmarks_[index].reference.size() < 3) {
-            throw Error(ErrorCode::kInvalidArgument, frames_[index].name + ": frame " + std::to_string(i) + " shares only " +
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
           }
           try {
             registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
           } catch (const Error& e) {
-            throw Error(e.code(), frames_[index].name + ": registration: " + e.what());
+            throw Error(e.code(), name + ": registration: " + e.what());
           }
         } catch (const Error& e) {
           // The reference cannot be dropped here: every other frame is already registered to it.
           if (options_.strict || index == reference) throw;
-          failures[index] = failure_of(e, frames_[index].name);
+          failures[index] = failure_of(e, name);
         }
       },
       [&](int done, int total) { progress("registering", done, total); });
@@ -516,22 +554,39 @@ std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> no
   return points;
 }
 
-bool SequenceEncoder::has_texture(int i) const {
-  const auto index = static_cast<size_t>(i);
-  const TriangleMesh& surface = frames_[index].map.surface;
-  return (!textures_[index].empty() && surface.has_uvs()) || surface.has_colours();
+std::shared_ptr<const MappedFrame> SequenceEncoder::frame(int i) const {
+  if (i == pinned_index_) return pinned_;
+  return store_->get(static_cast<size_t>(i));
 }
 
-Image SequenceEncoder::frame_texture(int i, int size) const {
-  const MappedFrame& f = frames_[static_cast<size_t>(i)];
+std::shared_ptr<const MappedFrame> SequenceEncoder::pin_reference() {
+  if (pinned_index_ != options_.reference_frame) {
+    pinned_.reset();  // first: the old one need not be held beside the new
+    pinned_ = store_->get(static_cast<size_t>(options_.reference_frame));
+    pinned_index_ = options_.reference_frame;
+  }
+  return pinned_;
+}
+
+bool SequenceEncoder::has_texture(int i) const {
+  const auto index = static_cast<size_t>(i);
+  const FrameSummary& f = summaries_[index];
+  return (!textures_[index].empty() && f.has_uvs) || f.has_colours;
+}
+
+Image SequenceEncoder::frame_texture(int i, int size) const { return frame_texture(*frame(i), i, size); }
+
+Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) const {
   Image image;
   const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
   if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
   return resample_texture(InverseDiskMap(f.map), *source, size, [&](const Vec2& w) { return sample_point(i, w); });
 }
 
-std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const {
-  return resample_positions(InverseDiskMap(frames_[static_cast<size_t>(i)].map), sample_points(i, nodes));
+std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const { return sample_surface(*frame(i), i, nodes); }
+
+std::vector<Vec3> SequenceEncoder::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const {
+  return resample_positions(InverseDiskMap(frame.map), sample_points(i, nodes));
 }
 
 void SequenceEncoder::sample_frames() {
@@ -546,8 +601,9 @@ void SequenceEncoder::sample_frames() {
   auto sample = [&](size_t index) {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
-    s.diagonal = bbox_diagonal(frames_[index].map.surface.positions);
-    std::vector<Vec3> all = sample_surface(static_cast<int>(index), geometry.grid().nodes);
+    const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
+    s.diagonal = bbox_diagonal(frame->map.surface.positions);
+    std::vector<Vec3> all = sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
     std::vector<Vec3> tu, tv;
     geometry.frames(all, tu, tv, s.normal);
     all.resize(nodes);
@@ -610,11 +666,11 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   report_.grid_target = std::max({kGridFloorTarget, noise_term, interpolation_term});
   report_.grid_term = report_.grid_target == interpolation_term ? "interpolation" : report_.grid_target == noise_term ? "noise" : "floor";
   const double target = report_.grid_target;
-  const MappedFrame& reference = frames_[static_cast<size_t>(options_.reference_frame)];
+  const std::shared_ptr<const MappedFrame> reference = frame(options_.reference_frame);
   for (int n : kGridCandidates) {
     const DiskGrid grid = make_disk_grid(n);
-    const std::vector<Vec3> sampled = sample_surface(options_.reference_frame, grid.nodes);
-    const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
+    const std::vector<Vec3> sampled = sample_surface(*reference, options_.reference_frame, grid.nodes);
+    const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
     report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
     if (floor.rms / floor.diagonal <= target) return n;
   }
@@ -628,7 +684,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   const DiskGrid& grid = geometry.grid();
   const size_t keys = keyframes.size();
   bool any_holes = false;
-  for (const MappedFrame& f : frames_) any_holes = any_holes || !f.prepared.report.holes.empty();
+  for (const FrameSummary& f : summaries_) any_holes = any_holes || f.holes_filled > 0;
   const bool store_holes = any_holes && !options_.keep_holes_filled;
   // Textures: every keyframe's, or (a capture without images or vertex colours) none; some but not
   // all is an error.
@@ -638,7 +694,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
     if (store_texture && !has) {
       if (k != keyframes.front()) {
         throw Error(ErrorCode::kMissingTexture,
-                    frames_[static_cast<size_t>(k)].name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
+                    summaries_[static_cast<size_t>(k)].name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
       }
       store_texture = false;
     }
@@ -646,12 +702,11 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   int texture_size = options_.texture_size;
   if (store_texture && texture_size == 0) {
     const auto first = static_cast<size_t>(keyframes.front());
-    const TriangleMesh& surface = frames_[first].map.surface;
-    if (!textures_[first].empty() && surface.has_uvs()) {
+    if (!textures_[first].empty() && summaries_[first].has_uvs) {
       const Image image = read_image(textures_[first]);
-      texture_size = auto_texture_size(surface, image.width, image.height);
+      texture_size = auto_texture_size(frame(keyframes.front())->map.surface, image.width, image.height);
     } else {
-      texture_size = auto_texture_size_for_colours(frames_[first].prepared.mesh);
+      texture_size = auto_texture_size_for_colours(summaries_[first].vertices);
     }
   }
   report_.texture_size = store_texture ? texture_size : 0;
@@ -673,7 +728,8 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
       static_cast<int>(keys), options_.threads,
       [&](int k) {
         const auto index = static_cast<size_t>(keyframes[static_cast<size_t>(k)]);
-        const MappedFrame& f = frames_[index];
+        const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
+        const MappedFrame& f = *frame;
         const InverseDiskMap inverse(f.map);
         const std::vector<Vec2> points = sample_points(static_cast<int>(index), grid.nodes);
         const RigidPose to_face = selection_[index].pose.inverse();
@@ -684,7 +740,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         key.time = capture_.frames[index].time;
         key.pose = selection_[index].pose;
         if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
-        if (store_texture) key.texture = frame_texture(static_cast<int>(index), texture_size);
+        if (store_texture) key.texture = frame_texture(f, static_cast<int>(index), texture_size);
       },
       [&](int done, int total) { progress("keyframes", done, total); });
   if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
@@ -696,6 +752,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
     sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
+    local[static_cast<size_t>(k)] = {};  // its fields replace it: memory holds one or the other
   });
   validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
@@ -759,7 +816,19 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
     }
   }
   const Eigen::MatrixXd inverse = normal.ldlt().solve(Eigen::MatrixXd::Identity(keys, keys));
-  const Eigen::MatrixXd fitted = rhs * inverse;  // the normal matrix is symmetric
+  // fitted = rhs * inverse (the normal matrix is symmetric), written over rhs a block of rows at a
+  // time: a 2000-frame capture's rhs is 200 keyframes x 3 N² doubles (300 MB at N = 257), and a
+  // second matrix that size would be the encode's largest. Every block has at least kRows rows
+  // (the last up to twice that), so Eigen multiplies each block as it did the whole matrix (the same
+  // blocking over the keyframes, never its small-matrix path) and the values are the same doubles.
+  constexpr Eigen::Index kRows = 3 * 1024;
+  Eigen::MatrixXd& fitted = rhs;
+  for (Eigen::Index row = 0; row < n;) {
+    const Eigen::Index rows = n - row < 2 * kRows ? n - row : kRows;
+    const Eigen::MatrixXd block = rhs.middleRows(row, rows) * inverse;
+    fitted.middleRows(row, rows) = block;
+    row += rows;
+  }
   const Eigen::VectorXd& mass = geometry.mass();
   for (Eigen::Index k = 0; k < keys; ++k) {
     std::vector<Vec3>& own = local[static_cast<size_t>(k)];
@@ -855,19 +924,19 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   encoder.choose_texture_qualities(sequence, chosen.keyframes);
   for (int i = 0; i < encoder.frame_count(); ++i) {
-    const MappedFrame& frame = encoder.frame(i);
+    const FrameSummary& frame = encoder.frame_summary(i);
     const DiskRegistration& registration = encoder.registration(i);
     EncodedFrameReport r;
     r.name = frame.name;
     r.time = encoder.capture().frames[static_cast<size_t>(i)].time;
-    r.vertices = frame.prepared.mesh.vertex_count();
-    r.holes_filled = static_cast<int>(frame.prepared.report.holes.size());
-    r.repair = frame.prepared.report.summary();
+    r.vertices = frame.vertices;
+    r.holes_filled = frame.holes_filled;
+    r.repair = frame.repair;
     r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;
-    r.conformal_fallback_reason = frame.map.report.fallback_reason;
-    r.conformal_method = frame.map.report.method;
+    r.conformal_fallback_reason = frame.conformal_fallback_reason;
+    r.conformal_method = frame.conformal_method;
     r.energy_moebius = registration.energy_moebius;
     r.energy = registration.energy;
     r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
@@ -875,6 +944,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
     report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
     report.frames.push_back(std::move(r));
   }
+  report.peak_frames_in_memory = encoder.frame_store().peak_held();
+  report.spilled_bytes = encoder.frame_store().spilled_bytes();
   if (report_out) *report_out = std::move(report);
   return sequence;
 }

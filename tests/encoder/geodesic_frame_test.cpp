@@ -481,8 +481,9 @@ class FaceFrame : public ::testing::Test {
     options.grid = 65;
     encoder_ = new SequenceEncoder(*capture_, options);
     encoder_->map_frames();
-    landmarks_ = new DiskLandmarks(disk_landmarks(*capture_, 0, encoder_->frame(0).map, 0, encoder_->frame(0).map));
-    frame_ = new GeodesicFrame(make_geodesic_frame(encoder_->frame(0).map, landmarks_->reference, landmarks_->on_rim));
+    const std::shared_ptr<const MappedFrame> reference = encoder_->frame(0);
+    landmarks_ = new DiskLandmarks(disk_landmarks(*capture_, 0, reference->map, 0, reference->map));
+    frame_ = new GeodesicFrame(make_geodesic_frame(reference->map, landmarks_->reference, landmarks_->on_rim));
   }
   static void TearDownTestSuite() {
     delete frame_;

@@ -447,7 +447,7 @@ TEST(SequenceEncoder, DiskLandmarksFlagTheRimMarkersAndOnlyThem) {
   options.texture = false;
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
-  const DiskLandmarks l = disk_landmarks(capture, 0, encoder.frame(0).map, 2, encoder.frame(2).map);
+  const DiskLandmarks l = disk_landmarks(capture, 0, encoder.frame(0)->map, 2, encoder.frame(2)->map);
   ASSERT_EQ(l.reference.size(), capture.landmark_names.size());
   int rim = 0;
   for (size_t j = 0; j < l.reference.size(); ++j) {

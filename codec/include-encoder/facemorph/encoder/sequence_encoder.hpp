@@ -14,6 +14,7 @@
 #include "facemorph/encoder/density_equalising.hpp"
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/frame_store.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
@@ -105,6 +106,11 @@ struct EncodeOptions {
   // to its noise; one farther off is a mistake (another frame's, another unit), and snapping it to
   // the closest point would pass the mistake on to the registration.
   double landmark_tolerance = 0.02;
+  // true (the default): each frame's map goes to a temporary file (TMPDIR) once it is made and is
+  // read back by the stages that need it, so memory holds only the frames being worked on (about
+  // one per thread) whatever the capture's length (frame_store.hpp). false: every map stays in
+  // memory, ~4 MB a frame of a 10k-vertex capture; the output is the same.
+  bool spill_frames = true;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -173,6 +179,10 @@ struct EncodeReport {
   // blend at the frame midway (0 where no frame lies between).
   std::vector<int> texture_qualities;
   std::vector<double> texture_interpolation_psnr;
+  // The most frames' maps in memory at once (FrameStore::peak_held: the reference's, and those
+  // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
+  int peak_frames_in_memory = 0;
+  uint64_t spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0, seconds_texture = 0;
 };
 
@@ -185,10 +195,25 @@ struct EncodeReport {
 // conformal_disk_map and the image reader throw, e.g. kNotADisk or kMissingTexture).
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
-// The same, stage by stage, keeping every frame's map and registration: what encode_capture runs,
-// and what the bench uses to try several registrations or keyframe sets on one mapping. Stages
-// run in order; a later stage may be re-run with other options (registering again redoes the
-// selection samples).
+// What the encoder keeps in memory of every frame once it is mapped (its map goes to the FrameStore):
+// the counts and reasons the report gives, whether it has colour, and the landmarks it found.
+struct FrameSummary {
+  std::string name;
+  int vertices = 0;      // of the prepared mesh
+  int holes_filled = 0;
+  std::string repair;    // RepairReport::summary()
+  ConformalMethod conformal_method = ConformalMethod::kQiem;
+  std::string conformal_fallback_reason;
+  bool has_uvs = false, has_colours = false;  // of the mapped surface
+  std::optional<FaceOrientation> found;       // MappedFrame::found
+  std::vector<Vec3> found_rim;                // MappedFrame::found_rim
+};
+
+// The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
+// encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
+// mapping. Stages run in order; a later stage may be re-run with other options (registering again
+// redoes the selection samples). Each stage goes through the frames a few at a time (one per
+// thread), reading each map back from the store and releasing it when done.
 class SequenceEncoder {
  public:
   // Keeps its own copy of `capture` (paths and landmarks; meshes are read as the stages need them).
@@ -223,7 +248,11 @@ class SequenceEncoder {
   const Capture& capture() const { return capture_; }  // the frames kept (all until map_frames drops any)
   int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
   int frame_count() const { return static_cast<int>(capture_.frames.size()); }
-  const MappedFrame& frame(int i) const { return frames_[static_cast<size_t>(i)]; }
+  // Frame i's map, read back from the store (options().spill_frames; its prepared mesh left empty,
+  // see FrameStore::put) and held in memory as long as the pointer is. After map_frames.
+  std::shared_ptr<const MappedFrame> frame(int i) const;
+  const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
+  const FrameStore& frame_store() const { return *store_; }
   const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
   const DiskLandmarks& landmarks(int i) const { return landmarks_[static_cast<size_t>(i)]; }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
@@ -265,6 +294,11 @@ class SequenceEncoder {
   // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
   // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
   void adopt_found_landmarks();
+  // Frame i's map and colour, given its map (loaded once by the caller).
+  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
+  Image frame_texture(const MappedFrame& frame, int i, int size) const;
+  // The reference's map, kept in memory while it is the reference: every stage uses it.
+  std::shared_ptr<const MappedFrame> pin_reference();
   // The up direction of the first frame (from the reference on) without pose landmarks whose
   // surface says which way is up; none when there is none.
   std::optional<Vec3> find_vertical_hint() const;
@@ -276,7 +310,10 @@ class SequenceEncoder {
   std::vector<int> source_index_;
   double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
-  std::vector<MappedFrame> frames_;
+  std::unique_ptr<FrameStore> store_;
+  std::vector<FrameSummary> summaries_;
+  int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
+  std::shared_ptr<const MappedFrame> pinned_;
   std::vector<std::filesystem::path> textures_;
   std::vector<DiskLandmarks> landmarks_;
   std::vector<DiskRegistration> registrations_;
