@@ -133,13 +133,13 @@ TEST(LandmarkTracking, MeasureOnACapture) {
   if (std::getenv("FACEMORPH_TRACKING_ROUND_TRIP")) tracking.max_round_trip = std::atof(std::getenv("FACEMORPH_TRACKING_ROUND_TRIP"));
   auto points_of = [&](size_t i) {
     std::vector<Vec2> p;
-    for (size_t l : interior) p.push_back(on_disk(encoder.frame(static_cast<int>(i)), kept.landmarks[i][l]));
+    for (size_t l : interior) p.push_back(on_disk(*encoder.frame(static_cast<int>(i)), kept.landmarks[i][l]));
     return p;
   };
   const bool holes = !std::getenv("FACEMORPH_TRACKING_NO_HOLES");
   auto draw = [&](int i) {
-    const MappedFrame& f = encoder.frame(i);
-    return disk_features(f.map, tracking.image_size, holes ? f.prepared.report.holes : std::vector<FilledHole>{});
+    const std::shared_ptr<const MappedFrame> f = encoder.frame(i);  // held: it may be read back from the store
+    return disk_features(f->map, tracking.image_size, holes ? f->prepared.report.holes : std::vector<FilledHole>{});
   };
   const DiskFeatures reference = draw(0);
   const std::vector<Vec2> from = points_of(0);
