@@ -159,12 +159,12 @@ class FileSource final : public KeyframeSource {
       return textures_[k].value;
     }
     // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
-    if (!texture_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, texture_failures_[k]);
+    if (!texture_failures_[k].second.empty()) throw Error(texture_failures_[k].first, texture_failures_[k].second);
     std::shared_ptr<const Image> image;
     try {
       image = std::make_shared<const Image>(file_.decode_texture(k));
     } catch (const Error& e) {
-      texture_failures_[k] = e.what();
+      texture_failures_[k] = {e.code(), e.what()};
       throw;
     }
     Slot<Image>& slot = textures_[k];
@@ -234,7 +234,7 @@ class FileSource final : public KeyframeSource {
   mutable std::mutex mutex_;
   mutable std::vector<Slot<Keyframe>> fields_;
   mutable std::vector<Slot<Image>> textures_;
-  mutable std::vector<std::string> texture_failures_;
+  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;  // the error and its message
   mutable std::list<Entry> order_;  // most recently used first
   mutable uint64_t held_bytes_ = 0;
 };

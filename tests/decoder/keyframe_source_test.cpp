@@ -4,6 +4,8 @@
 #include "facemorph/error.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
+#include "format/container.hpp"
+#include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
@@ -169,6 +171,57 @@ TEST(KeyframeSource, ATextureThatDoesNotDecodeFailsTheFramesThatShowItNotTheFile
   testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decoder.decode(0.5); });
   testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { source->texture(1); });
   EXPECT_NO_THROW(source->texture(0));
+}
+
+// A file padded before its end chunk with empty ancillary chunks (ignored by a reader): each takes
+// 28 bytes of the file and a ChunkView of about 80 in the walk's list, which opening builds before
+// the header is read.
+std::vector<uint8_t> with_empty_chunks(const std::vector<uint8_t>& bytes, size_t count) {
+  const format::ContainerReader reader(bytes, "in");
+  format::ContainerWriter writer;
+  for (const format::ChunkView& c : reader.chunks()) writer.add({c.type, c.flags, c.raw_size, {c.stored.begin(), c.stored.end()}});
+  for (size_t i = 0; i < count; ++i) writer.add({"ZZZ1", 0, 0, {}});
+  return writer.finish();
+}
+
+TEST(KeyframeSource, AFileOfManyEmptyChunksIsRefusedBeforeItsChunkListOutgrowsTheBudget) {
+  // 28 MB of chunks under a 32 MiB budget: walked, their list alone would take about 80 MB.
+  const std::vector<uint8_t> bytes = with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 1'000'000);
+  ASSERT_LE(bytes.size(), uint64_t{32} << 20);
+  testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(bytes, "many chunks", with_memory(uint64_t{32} << 20)); });
+  // Mapped from disk, the file's size is no longer held to the budget: the same count refuses it.
+  testing::TempDir dir;
+  const auto path = dir / "many.fmv";
+  format::write_file_atomically(path, bytes);
+  testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(path, with_memory(uint64_t{4} << 20)); });
+  // A file with a few unknown chunks still opens.
+  EXPECT_NO_THROW(open_sequence_source(with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 100), "some"));
+}
+
+TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
+  // A texture chunk stored (not compressed) with 8 MiB after its image: a file mapped from disk is
+  // not held to the budget as a whole, so each payload must be, before it is copied to decode.
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 2) payload.resize(payload.size() + (8 << 20));
+                                                      });
+  testing::TempDir dir;
+  const auto path = dir / "padded.fmv";
+  format::write_file_atomically(path, bytes);
+  const auto source = open_sequence_source(path, with_memory(uint64_t{4} << 20));
+  EXPECT_NO_THROW(source->texture(0));
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { source->texture(2); });
+}
+
+TEST(KeyframeSource, ATextureFailureKeepsItsErrorCodeWhenAskedAgain) {
+  // Keyframe 1's texture names image codec 7: unsupported, not corrupt, the first time and after.
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 1) payload[4] = 7;
+                                                      });
+  const auto source = open_sequence_source(bytes, "codec 7");
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 7", [&] { source->texture(1); });
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 7", [&] { source->texture(1); });
 }
 
 }  // namespace
