@@ -76,7 +76,7 @@ std::vector<uint8_t> ContainerWriter::finish() {
   return std::move(bytes_);
 }
 
-ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source) : file_(file), source_(std::move(source)) {
+ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks) : file_(file), source_(std::move(source)) {
   ByteReader r(file, source_);
   if (file.size() >= kMagic.size() && !std::equal(kMagic.begin(), kMagic.end(), file.begin())) {
     throw Error(ErrorCode::kCorrupt, source_ + ": not a facemorph container (bad magic)");
@@ -123,6 +123,9 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
       if (r.remaining() != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(r.remaining()) + " bytes after the end chunk");
       return;
     }
+    if (chunks_.size() >= max_chunks) {
+      throw Error(ErrorCode::kLimit, source_ + ": more than " + std::to_string(max_chunks) + " chunks, over the limit the keyframe limit sets (max_keyframes)");
+    }
     chunks_.push_back(std::move(chunk));
     if (r.remaining() == 0) throw Error(ErrorCode::kTruncated, source_ + ": truncated: the file ends without its end chunk");
   }
@@ -144,7 +147,13 @@ std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk, uint64_t m
   if (crc32(file_.subspan(chunk.offset, kChunkHeaderBytes + chunk.stored.size())) != chunk.crc) {
     throw Error(ErrorCode::kCorrupt, source_ + ": checksum mismatch in " + describe(chunk));
   }
-  if (!chunk.compressed()) return {chunk.stored.begin(), chunk.stored.end()};
+  if (!chunk.compressed()) {
+    if (chunk.stored.size() > max_bytes) {
+      throw Error(ErrorCode::kLimit, source_ + ": " + describe(chunk) + " holds " + std::to_string(chunk.stored.size()) +
+                                         " bytes, over the memory limit of " + std::to_string(max_bytes));
+    }
+    return {chunk.stored.begin(), chunk.stored.end()};
+  }
   if (announced_size(chunk.stored) != chunk.raw_size) {
     throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": the zstd frame does not announce the chunk's size");
   }

@@ -75,10 +75,11 @@ class ContainerWriter {
 // chunk); payload CRCs are checked when a payload is taken, or all at once by verify(). Every error
 // names `source`, the chunk and its offset: kTruncated when the bytes end early, kCorrupt for a bad
 // magic, checksum or impossible value, kUnsupported for another major version or an unknown
-// critical chunk.
+// critical chunk. `max_chunks`: kLimit past that many chunks, before the list of them grows further
+// (a file's size alone does not bound it where the file is mapped rather than read).
 class ContainerReader {
  public:
-  ContainerReader(std::span<const uint8_t> file, std::string source);
+  ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks = UINT64_MAX);
 
   uint16_t major_version() const { return major_; }
   uint16_t minor_version() const { return minor_; }
@@ -89,7 +90,7 @@ class ContainerReader {
   const ChunkView& chunk_at(uint64_t offset, const std::string& what) const;
   // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise).
   // A raw size over `max_bytes` (the caller's memory budget) is kLimit before anything is
-  // allocated; a compressed payload is allocated as it decompresses, so a frame that announces more
+  // allocated, a stored payload's as a compressed one's; a compressed payload is allocated as it decompresses, so a frame that announces more
   // than it holds costs what it holds.
   std::vector<uint8_t> payload(const ChunkView& chunk, uint64_t max_bytes = kMaxPayloadBytes) const;
   // Checks every chunk's CRC.

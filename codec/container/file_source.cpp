@@ -41,8 +41,8 @@ struct MemoryPlan {
 };
 
 // `window`: the keyframes one frame blends, which a decoder holds for the frame even where the cache
-// has dropped them.
-MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t window, const DecoderLimits& limits) {
+// has dropped them. `spline_bytes`: the rows of the spline a decoder keeps (KeyframeSpline::memory_bytes).
+MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t window, uint64_t spline_bytes, const DecoderLimits& limits) {
   MemoryPlan plan;
   const DiskGridShape shape = disk_grid_shape(file.shape().grid_n);
   const auto nodes = static_cast<uint64_t>(shape.interior_count + shape.rim_count);
@@ -54,7 +54,7 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
   plan.in_flight = 24 * values;
   // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
   // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
-  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes +
+  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +
                window * (plan.fields + plan.texture) + limits.max_memory_bytes / 16;
   const uint64_t per_keyframe = plan.fields + plan.surface + plan.texture;
   const uint64_t needed = plan.fixed + plan.in_flight;
@@ -71,9 +71,10 @@ class FileSource final : public KeyframeSource {
     const size_t count = file_.keyframe_count();
     outline_.times.reserve(count);
     for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
-    const auto window = static_cast<uint64_t>(KeyframeSpline(outline_.times, file_.shape().spline).max_keys());
+    const KeyframeSpline spline(outline_.times, file_.shape().spline);
+    const auto window = static_cast<uint64_t>(spline.max_keys());
     const uint64_t owned = std::holds_alternative<std::vector<uint8_t>>(bytes_) ? view().size() : 0;
-    plan_ = plan_memory(file_, owned, window, limits);
+    plan_ = plan_memory(file_, owned, window, spline.memory_bytes(), limits);
     if (plan_.keyframes_kept < window) {
       const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);
       throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) + " keyframes, which with G and its solver need about " +
@@ -159,12 +160,12 @@ class FileSource final : public KeyframeSource {
       return textures_[k].value;
     }
     // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
-    if (!texture_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, texture_failures_[k]);
+    if (!texture_failures_[k].second.empty()) throw Error(texture_failures_[k].first, texture_failures_[k].second);
     std::shared_ptr<const Image> image;
     try {
       image = std::make_shared<const Image>(file_.decode_texture(k));
     } catch (const Error& e) {
-      texture_failures_[k] = e.what();
+      texture_failures_[k] = {e.code(), e.what()};
       throw;
     }
     Slot<Image>& slot = textures_[k];
@@ -234,7 +235,7 @@ class FileSource final : public KeyframeSource {
   mutable std::mutex mutex_;
   mutable std::vector<Slot<Keyframe>> fields_;
   mutable std::vector<Slot<Image>> textures_;
-  mutable std::vector<std::string> texture_failures_;
+  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;  // the error and its message
   mutable std::list<Entry> order_;  // most recently used first
   mutable uint64_t held_bytes_ = 0;
 };

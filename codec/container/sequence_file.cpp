@@ -1082,7 +1082,11 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 // ---- A file opened for reading (opened_file.hpp) ----
 
 struct OpenedFile::State {
-  State(std::span<const uint8_t> bytes, std::string source_name) : reader(bytes, source_name), source(std::move(source_name)), file_bytes(bytes.size()) {}
+  // A file of K keyframes has 2 K + 2 chunks at most before its end chunk: the walk stops at twice
+  // that for the largest K allowed (room for chunks a later minor version adds), so that its list
+  // of chunks (about 80 bytes each) does not grow with a file padded with empty ones.
+  State(std::span<const uint8_t> bytes, std::string source_name, const DecoderLimits& limits)
+      : reader(bytes, source_name, 4 * uint64_t{limits.max_keyframes} + 64), source(std::move(source_name)), file_bytes(bytes.size()) {}
   format::ContainerReader reader;
   std::string source;
   uint64_t file_bytes = 0;
@@ -1095,7 +1099,7 @@ struct OpenedFile::State {
 
 OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
   check_decoder_limits(limits);
-  state_ = std::make_unique<State>(bytes, std::move(source));
+  state_ = std::make_unique<State>(bytes, std::move(source), limits);
   State& s = *state_;
   s.limits = limits;
   const format::ContainerReader& reader = s.reader;

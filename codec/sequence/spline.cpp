@@ -235,6 +235,12 @@ SplineWeights KeyframeSpline::weights(double t) const { return evaluate(t, false
 
 SplineWeights KeyframeSpline::derivative_weights(double t) const { return evaluate(t, true); }
 
+uint64_t KeyframeSpline::memory_bytes() const {
+  uint64_t bytes = sizeof(double) * times_.capacity() + sizeof(Row) * rows_.capacity();
+  for (const Row& row : rows_) bytes += sizeof(double) * row.values.capacity();
+  return bytes;
+}
+
 SplineWeights KeyframeSpline::evaluate(double t, bool derivative) const {
   if (!std::isfinite(t)) {
     throw Error(ErrorCode::kInvalidArgument, std::string("keyframe spline: ") + (derivative ? "derivative " : "") + "weights at a non-finite t");

@@ -1,15 +1,21 @@
 // Decoding on demand (open_sequence_source, spec/container.md §10.1): an opened file holds what the
 // budget allows whatever its length, and decodes every frame exactly as the file decoded whole.
 #include "facemorph/decoder.hpp"
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/limits.hpp"
+#include "facemorph/spline.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
+#include "format/container.hpp"
+#include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <thread>
 
 namespace facemorph {
@@ -19,11 +25,12 @@ constexpr int kKeyframes = 60;
 
 // The crafted small sequence's three surfaces, poses, holes and textures repeated over 60 keyframes
 // (intra every second one: runs of two), so that a file is long next to the budget a test gives it.
-std::vector<uint8_t> long_file() {
+std::vector<uint8_t> long_file(SplineKind spline = SplineKind::kCatmullRom, int keyframes = kKeyframes) {
   const Sequence three = crafted::small_sequence();
   Sequence s = three;
+  s.spline = spline;
   s.keyframes.clear();
-  for (int k = 0; k < kKeyframes; ++k) {
+  for (int k = 0; k < keyframes; ++k) {
     Keyframe key = three.keyframes[static_cast<size_t>(k % 3)];
     key.time = k / 10.0;
     key.pose.translation.x() += 0.01 * k;
@@ -171,6 +178,122 @@ TEST(KeyframeSource, ATextureThatDoesNotDecodeFailsTheFramesThatShowItNotTheFile
   testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decoder.decode(0.5); });
   testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { source->texture(1); });
   EXPECT_NO_THROW(source->texture(0));
+}
+
+// A file padded before its end chunk with empty ancillary chunks (ignored by a reader): each takes
+// 28 bytes of the file and a ChunkView of about 80 in the walk's list, which opening builds before
+// the header is read.
+std::vector<uint8_t> with_empty_chunks(const std::vector<uint8_t>& bytes, size_t count) {
+  const format::ContainerReader reader(bytes, "in");
+  format::ContainerWriter writer;
+  for (const format::ChunkView& c : reader.chunks()) writer.add({c.type, c.flags, c.raw_size, {c.stored.begin(), c.stored.end()}});
+  for (size_t i = 0; i < count; ++i) writer.add({"ZZZ1", 0, 0, {}});
+  return writer.finish();
+}
+
+TEST(KeyframeSource, AFileOfManyEmptyChunksIsRefusedBeforeItsChunkListOutgrowsTheBudget) {
+  // 28 MB of chunks under a 32 MiB budget: walked, their list alone would take about 80 MB.
+  const std::vector<uint8_t> bytes = with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 1'000'000);
+  ASSERT_LE(bytes.size(), uint64_t{32} << 20);
+  testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(bytes, "many chunks", with_memory(uint64_t{32} << 20)); });
+  // Mapped from disk, the file's size is no longer held to the budget: the same count refuses it.
+  testing::TempDir dir;
+  const auto path = dir / "many.fmv";
+  format::write_file_atomically(path, bytes);
+  testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(path, with_memory(uint64_t{4} << 20)); });
+  // A file with a few unknown chunks still opens.
+  EXPECT_NO_THROW(open_sequence_source(with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 100), "some"));
+}
+
+TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
+  // A texture chunk stored (not compressed) with 8 MiB after its image: a file mapped from disk is
+  // not held to the budget as a whole, so each payload must be, before it is copied to decode.
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 2) payload.resize(payload.size() + (8 << 20));
+                                                      });
+  testing::TempDir dir;
+  const auto path = dir / "padded.fmv";
+  format::write_file_atomically(path, bytes);
+  const auto source = open_sequence_source(path, with_memory(uint64_t{4} << 20));
+  EXPECT_NO_THROW(source->texture(0));
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { source->texture(2); });
+}
+
+TEST(KeyframeSource, ATextureFailureKeepsItsErrorCodeWhenAskedAgain) {
+  // Keyframe 1's texture names image codec 7: unsupported, not corrupt, the first time and after.
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 1) payload[4] = 7;
+                                                      });
+  const auto source = open_sequence_source(bytes, "codec 7");
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 7", [&] { source->texture(1); });
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 7", [&] { source->texture(1); });
+}
+
+// The budget split of spec/container.md §10.1, recomputed from its table: how many keyframes a
+// source keeps under `budget`, and that its cache, played through, fills to their fields and
+// textures and no further.
+void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t budget) {
+  const auto source = open_sequence_source(bytes, "plan", with_memory(budget));
+  const Sequence whole = decode_sequence_file(bytes, "plan");
+  const SequenceOutline& o = source->outline();
+  const DiskGridShape shape = disk_grid_shape(o.grid_n);
+  const auto n = static_cast<uint64_t>(shape.interior_count + shape.rim_count);
+  uint64_t values = whole.keyframes[0].hole_level.size();
+  for (const std::vector<double>& a : scalar_arrays(whole.keyframes[0].fields)) values += a.size();
+  const auto m = static_cast<uint64_t>(o.texture_size);
+  const uint64_t f = 8 * values + 4 * n + 1024, s = 24 * n, x = 3 * m * m;
+  const KeyframeSpline spline(o.times, o.spline);
+  const auto w = static_cast<uint64_t>(spline.max_keys());
+  const uint64_t fixed = estimated_memory_bytes(o.grid_n, 0, o.texture_size, values) + 256 * o.keyframe_count() + bytes.size() +
+                         spline.memory_bytes() + w * (f + x) + budget / 16;
+  const uint64_t kept = (budget - fixed - 24 * values) / (f + x + s);
+  ASSERT_GE(kept, w);
+  EXPECT_EQ(source->surfaces_kept(), kept);
+  SequenceDecoder decoder(source);
+  for (double t = o.times.front(); t <= o.times.back(); t += 0.05) {
+    decoder.decode(t);
+    ASSERT_LE(source->bytes_held(), kept * (f + x)) << "t = " << t;
+  }
+  if (kept < o.keyframe_count()) EXPECT_GE(source->bytes_held() + f + x, kept * (f + x));
+}
+
+TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
+  const std::vector<uint8_t> bytes = long_file();
+  expect_the_plan_of_section_10_1(bytes, smallest_budget(bytes));
+  expect_the_plan_of_section_10_1(bytes, smallest_budget(bytes) + (256 << 10));
+  // Not-a-knot: each keyframe's row of second-derivative weights is up to 124 values, held by a
+  // decoder: with many keyframes, more than the index (measured before it was counted: 65536
+  // keyframes at N = 5 under a 24 MiB budget, fmdec --null peaked at 82 MB RSS, 49 MB with
+  // Catmull-Rom).
+  expect_the_plan_of_section_10_1(long_file(SplineKind::kNotAKnot, 200), uint64_t{8} << 20);
+}
+
+TEST(KeyframeSource, AnImproperPoseInAKeyframeIsRefusedAtOpen) {
+  // Field coding 0 stores the rotation as a matrix (after the number and time): keyframe 1's is
+  // scaled, which the whole decode's validate_sequence refuses; opening on demand must too.
+  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
+                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
+                                                        if (type == "KEYF" && payload[0] == 1) {
+                                                          const double scaled = 2;
+                                                          std::memcpy(payload.data() + 12, &scaled, sizeof scaled);
+                                                        }
+                                                      });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decode_sequence_file(bytes, "scaled"); });
+  testing::expect_error(ErrorCode::kCorrupt, "not a finite proper rotation", [&] { open_sequence_source(bytes, "scaled"); });
+}
+
+TEST(KeyframeSource, ATextureWithABadChecksumIsRefusedAtOpen) {
+  // Textures are decoded later, but every chunk's checksum is verified when the file opens.
+  std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(), crafted::small_metadata());
+  uint64_t at = 0;
+  for (const format::ChunkView& c : format::ContainerReader(bytes, "in").chunks()) {
+    if (c.type == "TEXR") at = c.offset + format::kChunkHeaderBytes + c.stored.size() - 1;
+  }
+  ASSERT_GT(at, 0u);
+  bytes[at] ^= 0x40;
+  testing::expect_error(ErrorCode::kCorrupt, "checksum", [&] { open_sequence_source(bytes, "bad crc"); });
 }
 
 }  // namespace

@@ -97,6 +97,10 @@ class KeyframeSpline {
   // the widest window left after dropping coefficients.
   int max_keys() const { return max_keys_; }
 
+  // What this spline holds, in bytes: its times and rows (a decoder's, for its memory budget; a
+  // not-a-knot row keeps up to 124 weights, so this grows with the keyframes far past the index).
+  uint64_t memory_bytes() const;
+
   // The segment [t_i, t_{i+1}] whose polynomial piece serves t: 0 before t_1, K - 2 from t_{K-2}
   // on (0 when K = 1). Assumes a finite t.
   int segment(double t) const;
