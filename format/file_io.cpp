@@ -65,6 +65,10 @@ MappedFile::MappedFile(const fs::path& path) {
   ::close(fd);  // the mapping keeps the file
 }
 
+void MappedFile::release_pages() const {
+  if (data_) ::madvise(const_cast<uint8_t*>(data_), size_, MADV_DONTNEED);  // advice: a failure changes nothing read
+}
+
 MappedFile::~MappedFile() {
   if (data_) ::munmap(const_cast<uint8_t*>(data_), size_);
 }

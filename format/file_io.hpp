@@ -27,6 +27,9 @@ class MappedFile {
   MappedFile(const MappedFile&) = delete;
   MappedFile& operator=(const MappedFile&) = delete;
   std::span<const uint8_t> bytes() const { return {data_, size_}; }
+  // Tells the system the pages read so far are not needed soon (madvise MADV_DONTNEED): they leave
+  // the process's resident set and are read again from the file when next touched.
+  void release_pages() const;
 
  private:
   const uint8_t* data_ = nullptr;

@@ -112,6 +112,9 @@ class FileSource final : public KeyframeSource {
       });
     }
     file_.verify_checksums();  // the textures' bytes too, though they are decoded later
+    // The walk and the checksums read every page of a mapped file; they are the page cache's, but
+    // they would count in the process's resident memory (and a cgroup's) until reclaimed.
+    if (const auto* mapped = std::get_if<std::unique_ptr<format::MappedFile>>(&bytes_)) (*mapped)->release_pages();
     if (info) {
       *info = file_.describe();
       for (size_t k = 0; k < count; ++k) info->keyframes[k].fields = field_bytes[k];
@@ -169,8 +172,9 @@ class FileSource final : public KeyframeSource {
       throw;
     }
     Slot<Image>& slot = textures_[k];
-    slot.value = image;
+    // The list entry first: if it cannot be allocated, nothing is cached uncounted.
     slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
+    slot.value = image;
     held_bytes_ += plan_.texture;
     evict();
     return image;
@@ -206,8 +210,8 @@ class FileSource final : public KeyframeSource {
   void remember_fields(size_t k, std::shared_ptr<const Keyframe> key) const {
     Slot<Keyframe>& slot = fields_[k];
     if (slot.value) return;
-    slot.value = std::move(key);
     slot.where = order_.insert(order_.begin(), Entry{false, k, plan_.fields});
+    slot.value = std::move(key);
     held_bytes_ += plan_.fields;
     evict();
   }

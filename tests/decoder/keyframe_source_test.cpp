@@ -256,7 +256,9 @@ void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t
     decoder.decode(t);
     ASSERT_LE(source->bytes_held(), kept * (f + x)) << "t = " << t;
   }
-  if (kept < o.keyframe_count()) EXPECT_GE(source->bytes_held() + f + x, kept * (f + x));
+  if (kept < o.keyframe_count()) {
+    EXPECT_GE(source->bytes_held() + f + x, kept * (f + x));
+  }
 }
 
 TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
@@ -288,7 +290,8 @@ TEST(KeyframeSource, ATextureWithABadChecksumIsRefusedAtOpen) {
   // Textures are decoded later, but every chunk's checksum is verified when the file opens.
   std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(), crafted::small_metadata());
   uint64_t at = 0;
-  for (const format::ChunkView& c : format::ContainerReader(bytes, "in").chunks()) {
+  const format::ContainerReader reader(bytes, "in");  // named: the chunks are views into it
+  for (const format::ChunkView& c : reader.chunks()) {
     if (c.type == "TEXR") at = c.offset + format::kChunkHeaderBytes + c.stored.size() - 1;
   }
   ASSERT_GT(at, 0u);
