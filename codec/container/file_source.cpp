@@ -35,7 +35,7 @@ struct MemoryPlan {
   uint64_t fields = 0;      // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
   uint64_t surface = 0;     // one keyframe's reconstructed surface (24 n)
   uint64_t texture = 0;     // one keyframe's RGB texture (3 M²)
-  uint64_t in_flight = 0;   // decoding a keyframe: its codes, residuals and arrays, and the previous one's codes
+  uint64_t in_flight = 0;   // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes
   uint64_t fixed = 0;       // G, the solver, one frame, the index, the file's bytes where they are copied
   uint64_t keyframes_kept = 0;  // keyframes the budget holds at once: fields, texture and surface each
 };
@@ -51,7 +51,9 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
   plan.fields = 8 * values + 4 * nodes + 1024;
   plan.surface = 24 * nodes;
   plan.texture = 3 * m * m;
-  plan.in_flight = 24 * values;
+  // The payload too: a chunk decompresses to its stated size before it is decoded, and a file may
+  // state any size up to the budget, so the largest one is counted, not assumed small.
+  plan.in_flight = 24 * values + file.largest_payload();
   // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
   // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
   plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +

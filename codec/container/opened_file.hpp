@@ -39,6 +39,9 @@ class OpenedFile {
   int texture_size() const;
   // Float64 values of one keyframe's arrays (fields and hole level), as the header fixes them.
   uint64_t values_per_keyframe() const;
+  // The largest payload, once decompressed, of any keyframe or texture chunk: what decoding one
+  // holds besides its product.
+  uint64_t largest_payload() const;
   // Keyframes are decoded in runs: a run's first keyframe stands alone, each later one needs the one
   // before it (an intra period; a single keyframe where every keyframe is coded alone).
   size_t run_length() const;

@@ -1161,6 +1161,16 @@ uint64_t OpenedFile::values_per_keyframe() const {
   return values;
 }
 
+uint64_t OpenedFile::largest_payload() const {
+  uint64_t largest = 0;
+  for (const format::ChunkView& chunk : state_->reader.chunks()) {
+    if (chunk.type == kKeyframe || chunk.type == kPredictedKeyframe || chunk.type == kKeyframeGroup || chunk.type == kTexture) {
+      largest = std::max(largest, chunk.raw_size);
+    }
+  }
+  return largest;
+}
+
 size_t OpenedFile::run_length() const {
   const FieldCoding& coding = state_->header->metadata.field_coding;
   return coding.predicted() ? static_cast<size_t>(coding.intra_period) : 1;

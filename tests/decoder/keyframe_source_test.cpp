@@ -207,7 +207,8 @@ TEST(KeyframeSource, AFileOfManyEmptyChunksIsRefusedBeforeItsChunkListOutgrowsTh
 
 TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
   // A texture chunk stored (not compressed) with 8 MiB after its image: a file mapped from disk is
-  // not held to the budget as a whole, so each payload must be, before it is copied to decode.
+  // not held to the budget as a whole, so each payload must be, before it is copied to decode. The
+  // largest payload is counted when the file opens (§10.1), so it is refused there.
   const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
                                                       [](const std::string& type, std::vector<uint8_t>& payload) {
                                                         if (type == "TEXR" && payload.size() > 12 && payload[0] == 2) payload.resize(payload.size() + (8 << 20));
@@ -215,9 +216,7 @@ TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
   testing::TempDir dir;
   const auto path = dir / "padded.fmv";
   format::write_file_atomically(path, bytes);
-  const auto source = open_sequence_source(path, with_memory(uint64_t{4} << 20));
-  EXPECT_NO_THROW(source->texture(0));
-  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { source->texture(2); });
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { open_sequence_source(path, with_memory(uint64_t{4} << 20)); });
 }
 
 TEST(KeyframeSource, ATextureFailureKeepsItsErrorCodeWhenAskedAgain) {
@@ -248,7 +247,12 @@ void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t
   const auto w = static_cast<uint64_t>(spline.max_keys());
   const uint64_t fixed = estimated_memory_bytes(o.grid_n, 0, o.texture_size, values) + 256 * o.keyframe_count() + bytes.size() +
                          spline.memory_bytes() + w * (f + x) + budget / 16;
-  const uint64_t kept = (budget - fixed - 24 * values) / (f + x + s);
+  uint64_t largest_payload = 0;
+  const format::ContainerReader reader(bytes, "plan");
+  for (const format::ChunkView& c : reader.chunks()) {
+    if (c.type == "KEYF" || c.type == "KEYP" || c.type == "KGOP" || c.type == "TEXR") largest_payload = std::max(largest_payload, c.raw_size);
+  }
+  const uint64_t kept = (budget - fixed - 24 * values - largest_payload) / (f + x + s);
   ASSERT_GE(kept, w);
   EXPECT_EQ(source->surfaces_kept(), kept);
   SequenceDecoder decoder(source);
@@ -284,6 +288,22 @@ TEST(KeyframeSource, AnImproperPoseInAKeyframeIsRefusedAtOpen) {
                                                       });
   testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decode_sequence_file(bytes, "scaled"); });
   testing::expect_error(ErrorCode::kCorrupt, "not a finite proper rotation", [&] { open_sequence_source(bytes, "scaled"); });
+}
+
+TEST(KeyframeSource, TheLargestChunkIsCountedAtOpen) {
+  // A texture padded after its image (the image decoder reads only the image) to half the budget
+  // that the plain file needs, in a file on disk: mapped, its size counts nowhere else. Decoding
+  // that texture copies the payload on top of a full cache, so the file is refused at open.
+  const std::vector<uint8_t> plain = encode_sequence_file(crafted::small_sequence(), crafted::small_metadata());
+  const uint64_t budget = smallest_budget(plain);
+  const std::vector<uint8_t> padded = crafted::rebuild(plain, [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "TEXR" && payload.size() > 12 && payload[0] == 1) payload.resize(payload.size() + budget / 2, 0);
+  });
+  testing::TempDir dir;
+  const std::filesystem::path path = dir.path() / "padded.fmv";
+  format::write_file_atomically(path, padded);
+  testing::expect_error(ErrorCode::kLimit, "--max-memory", [&] { open_sequence_source(path, with_memory(budget)); });
+  EXPECT_NO_THROW(open_sequence_source(path, with_memory(2 * budget)));
 }
 
 TEST(KeyframeSource, ATextureWithABadChecksumIsRefusedAtOpen) {
