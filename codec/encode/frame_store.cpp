@@ -82,6 +82,7 @@ class Reader {
   }
   void bytes(void* data, size_t size) {
     if (size > static_cast<size_t>(end_ - p_)) throw Error(ErrorCode::kInternal, "frame store: a stored frame is cut short");
+    if (size == 0) return;  // an empty array's data() may be null, which memcpy must not be given
     std::memcpy(data, p_, size);
     p_ += size;
   }
