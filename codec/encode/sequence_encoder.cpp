@@ -57,15 +57,6 @@ double mean_predicted_error(const KeyframeSelection& chosen) {
   return count == 0 ? 0.0 : sum / count;
 }
 
-double bbox_diagonal(const std::vector<Vec3>& positions) {
-  Vec3 lo = positions.front(), hi = lo;
-  for (const Vec3& p : positions) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  return (hi - lo).norm();
-}
-
 double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
   const Vec2 ab = b - a;
   const double length2 = ab.squaredNorm();
@@ -271,7 +262,7 @@ void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t inde
   const std::vector<Vec3>& points = capture_.landmarks[index];
   if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return;
   const PointToMesh surface(mesh);
-  const double diagonal = bbox_diagonal(mesh.positions);
+  const double diagonal = bounding_box_diagonal(mesh.positions);
   const std::string& name = capture_.frames[index].mesh.string();
   for (size_t l = 0; l < capture_.landmark_names.size(); ++l) {
     Vec3& point = capture_.landmarks[index][l];
@@ -602,7 +593,7 @@ void SequenceEncoder::sample_frames() {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
     const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
-    s.diagonal = bbox_diagonal(frame->map.surface.positions);
+    s.diagonal = bounding_box_diagonal(frame->map.surface.positions);
     std::vector<Vec3> all = sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
     std::vector<Vec3> tu, tv;
     geometry.frames(all, tu, tv, s.normal);

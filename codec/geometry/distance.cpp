@@ -136,14 +136,19 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best) const {
   return point;
 }
 
-SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test) {
-  SurfaceDistance d;
-  Vec3 lo = reference.positions[0], hi = lo;
-  for (const Vec3& p : reference.positions) {
+double bounding_box_diagonal(std::span<const Vec3> points) {
+  if (points.empty()) return 0;
+  Vec3 lo = points.front(), hi = lo;
+  for (const Vec3& p : points) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  d.diagonal = (hi - lo).norm();
+  return (hi - lo).norm();
+}
+
+SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test) {
+  SurfaceDistance d;
+  d.diagonal = bounding_box_diagonal(reference.positions);
   const PointToMesh to_reference(reference), to_test(test);
   double sum = 0;
   size_t count = 0;

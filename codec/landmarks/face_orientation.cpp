@@ -92,12 +92,7 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
     fail(name, "the surface faces no single direction (its mean normal is " + percent(o.facing_share) + " of its area: a closed surface or a whole head)");
   }
   o.facing = normal_sum.normalized();
-  Vec3 lo = mesh.positions.front(), hi = lo;
-  for (const Vec3& p : mesh.positions) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const double diagonal = (hi - lo).norm();
+  const double diagonal = bounding_box_diagonal(mesh.positions);
 
   // 2. The nose tip: the most protruding vertex along the facing direction, off the boundary.
   std::vector<double> height(mesh.positions.size());

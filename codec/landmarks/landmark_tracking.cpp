@@ -1,6 +1,7 @@
 // Correspondence between frames by optical flow on disk images of their geometry (spec/method.md §7.14).
 #include "facemorph/encoder/landmark_tracking.hpp"
 
+#include "facemorph/distance.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/parallel.hpp"
@@ -22,15 +23,6 @@ cv::Point2f to_texel(const Vec2& w, int size) {
   return {static_cast<float>((w.x() + 1) * 0.5 * size - 0.5), static_cast<float>((1 - w.y()) * 0.5 * size - 0.5)};
 }
 Vec2 to_disk(const cv::Point2f& t, int size) { return {2 * (t.x + 0.5) / size - 1, 1 - 2 * (t.y + 0.5) / size}; }
-
-double bbox_diagonal(const std::vector<Vec3>& positions) {
-  Vec3 lo = positions.front(), hi = lo;
-  for (const Vec3& p : positions) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  return (hi - lo).norm();
-}
 
 // Per-channel affine map of float values to 8 bits, from the reference's values inside the disk:
 // its 2nd..98th percentiles fill [20, 235], and every frame uses the same map (brightness constancy).
@@ -127,7 +119,7 @@ DiskFeatures disk_features(const DiskMap& map, int size, const std::vector<Fille
   const size_t n = surface.positions.size();
   if (size < 16) throw Error(ErrorCode::kInvalidArgument, "disk features: image size " + std::to_string(size) + " is below 16");
   if (n == 0 || map.disk.size() != n || surface.faces.empty()) throw Error(ErrorCode::kInvalidArgument, "disk features: the map's surface and disk disagree");
-  const double diagonal = bbox_diagonal(surface.positions);
+  const double diagonal = bounding_box_diagonal(surface.positions);
   std::vector<bool> boundary(n, false);
   for (int v : map.rim) boundary[static_cast<size_t>(v)] = true;
   const Eigen::VectorXd h = mean_curvature(surface.positions, surface.faces, boundary);

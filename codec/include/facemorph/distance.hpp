@@ -5,12 +5,17 @@
 #include "facemorph/locator.hpp"
 #include "facemorph/mesh.hpp"
 
+#include <span>
 #include <vector>
 
 namespace facemorph {
 
 // Barycentric coordinates of the point of triangle abc nearest to p (Ericson, Real-Time Collision
 // Detection §5.1.5: by Voronoi regions of the vertices, edges and face).
+// The diagonal of the points' axis-aligned bounding box: the scale relative errors are given in
+// (0 for no points).
+double bounding_box_diagonal(std::span<const Vec3> points);
+
 Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
 // Closest-point queries against one triangle mesh, through a uniform grid of buckets.
