@@ -71,6 +71,9 @@ class FileSource final : public KeyframeSource {
       : bytes_(std::move(bytes)),
         file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }) {
     const size_t count = file_.keyframe_count();
+    // The header's fields as a sequence in memory gives them (the shape has no keyframes: times,
+    // poses, holes and texture are the file's, below).
+    outline_ = outline_of(file_.shape());
     outline_.times.reserve(count);
     for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
     const KeyframeSpline spline(outline_.times, file_.shape().spline);
@@ -91,15 +94,6 @@ class FileSource final : public KeyframeSource {
     // Every keyframe once, in order: the poses are in the fields' streams, and a file that opens is
     // one whose every keyframe decodes (as decode_sequence_file's). The first keyframes stay cached
     // while there is room: a player starts there.
-    const Sequence& shape = file_.shape();
-    outline_.grid_n = shape.grid_n;
-    outline_.representation = shape.representation;
-    outline_.spline = shape.spline;
-    outline_.fps = shape.fps;
-    outline_.first_time = shape.first_time;
-    outline_.last_time = shape.last_time;
-    outline_.units = shape.units;
-    outline_.pose_centre = shape.pose_centre;
     outline_.has_holes = file_.has_holes();
     outline_.texture_size = file_.texture_size();
     outline_.poses.resize(count);
