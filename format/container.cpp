@@ -86,6 +86,11 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
   minor_ = r.read<uint16_t>("the minor version");
   const uint32_t crc = r.read<uint32_t>("the preamble checksum");
   if (crc != crc32(file.first(12))) throw Error(ErrorCode::kCorrupt, source_ + ": preamble checksum mismatch");
+  if (major_ == 1) {
+    // Format 1.x was written by facemorph 0.2-0.7 only, before the format was frozen at 2.0.
+    throw Error(ErrorCode::kUnsupported, source_ + ": format version 1." + std::to_string(minor_) +
+                                             " is an experimental version this decoder does not read; encode the capture again");
+  }
   if (major_ != kMajorVersion) {
     throw Error(ErrorCode::kUnsupported, source_ + ": format version " + std::to_string(major_) + "." + std::to_string(minor_) +
                                              " (this decoder reads " + std::to_string(kMajorVersion) + ".x)");

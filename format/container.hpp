@@ -14,8 +14,8 @@
 namespace facemorph::format {
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
-inline constexpr uint16_t kMajorVersion = 1;  // a reader refuses another major version
-inline constexpr uint16_t kMinorVersion = 5;  // later minors only append fields and chunk types
+inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
+inline constexpr uint16_t kMinorVersion = 0;  // later minors only append fields, chunk types and codings
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;

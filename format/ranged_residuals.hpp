@@ -6,7 +6,7 @@
 #pragma once
 
 #include "format/range_coder.hpp"
-#include "format/residual_coder.hpp"
+#include "format/spatial_predictor.hpp"
 
 #include <array>
 

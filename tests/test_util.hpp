@@ -3,7 +3,7 @@
 
 #include "facemorph/error.hpp"
 #include "facemorph/mesh.hpp"
-#include "format/residual_coder.hpp"
+#include "format/spatial_predictor.hpp"
 
 #include <gtest/gtest.h>
 

@@ -2,6 +2,7 @@
 // -> Laplace-Beltrami reconstruction) for each representation, and the decoder's speed.
 #include "tools/bench_reconstruct.hpp"
 
+#include "facemorph/sequence_file.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/distance.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
@@ -9,7 +10,6 @@
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/encoder/synth.hpp"
 
-#include "format/field_coder.hpp"
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
 
@@ -35,11 +35,15 @@ struct RoundTrip {
   double disk_l2 = 0, disk_linf = 0, disk_rms = 0;  // against the resampled surface on G (capture units)
 };
 
-// Bytes of a keyframe's 16-bit fields with the provisional coder (format/field_coder.hpp).
+// Bytes of a file holding the fields as its one keyframe, at 16-bit precision (the writer's steps
+// where none are given: a 65535th of each array's range).
 size_t compressed_bytes(const GridFields& fields) {
-  std::vector<format::Quantized16> arrays;
-  for (const std::vector<double>& values : scalar_arrays(fields)) arrays.push_back(format::quantize16(values));
-  return format::encode_code_planes(arrays).size();
+  Sequence one;
+  one.grid_n = fields.grid_n;
+  one.representation = fields.representation;
+  one.fps = 30;
+  one.keyframes.push_back(Keyframe{0, fields, RigidPose{}, {}, {}});
+  return encode_sequence_file(one, {}).size();
 }
 
 std::vector<Representation> representations(const std::string& which) {

@@ -155,7 +155,7 @@ int main(int argc, char** argv) {
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "hl+t", landmarks;
   double fps = 0;
-  std::string field_error = "auto", field_rounding = "shaped", field_residuals = "range", keyframe_fit = "on";
+  std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif";
   int threads = 0, reference = 0;
   std::string intra_period = "auto";
@@ -193,14 +193,9 @@ int main(int argc, char** argv) {
   app.add_option("--reference", reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", field_error,
                  "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: two fifths of the "
-                 "predicted error between keyframes, within [0.005%, 0.2%]; 0: 16-bit fields (format 1.0)")
+                 "predicted error between keyframes, within [0.005%, 0.2%]; 0: 16-bit precision, no search")
       ->capture_default_str();
   app.add_option("--field-rounding", field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
-  app.add_option("--field-residuals", field_residuals,
-                 "range (adaptive range coder, one stream per intra period, format 1.5) | range-1.4 (a chunk per keyframe, models "
-                 "carried, which facemorph 0.6 decoders read) | range-1.3 (models afresh in every keyframe, which 0.5 decoders read) | "
-                 "zstd (format 1.1's varints, which 0.3 and 0.4 decoders read)")
-      ->capture_default_str();
   app.add_option("--inter-dead-zone", inter_dead_zone,
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
                  "below 1), or auto (the one of " + dead_zone_candidates() + " that makes the smallest file)")
@@ -278,14 +273,6 @@ int main(int argc, char** argv) {
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
     options.field_precision.inter_dead_zone = inter_dead_zone == "auto" ? kAutoDeadZone : parse_dead_zone(inter_dead_zone);
-    const std::map<std::string, FieldCoding::Residuals> residual_codings = {{"range", FieldCoding::Residuals::kRangeCoded},
-                                                                            {"range-1.4", FieldCoding::Residuals::kRangeCodedV14},
-                                                                            {"range-1.3", FieldCoding::Residuals::kRangeCodedV13},
-                                                                            {"zstd", FieldCoding::Residuals::kZstdVarints}};
-    if (!residual_codings.count(field_residuals)) {
-      throw Error(ErrorCode::kInvalidArgument, "--field-residuals '" + field_residuals + "' is none of range, range-1.4, range-1.3 and zstd");
-    }
-    options.field_precision.residuals = residual_codings.at(field_residuals);
     if (std::filesystem::path(input).extension() == ".fmv") {
       recode(input, output, options, quality, quiet);
       return 0;
@@ -309,12 +296,11 @@ int main(int argc, char** argv) {
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
     nlohmann::json settings = settings_json(options, report);
-    settings["field_residuals"] = field_residuals;
     metadata.settings = settings.dump();
     metadata.landmark_names = capture.landmark_names;
     metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.texture_codec = options.texture_codec;
-    metadata.field_coding = report.field_coding;  // coded as options.field_precision.residuals says
+    metadata.field_coding = report.field_coding;
     write_sequence_file(output, sequence, metadata);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);

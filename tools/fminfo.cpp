@@ -137,16 +137,6 @@ bool is_container(const fs::path& path) {
   return in.gcount() == static_cast<std::streamsize>(head.size()) && head == format::kMagic;
 }
 
-const char* residual_coder_name(FieldCoding::Residuals residuals) {
-  switch (residuals) {
-    case FieldCoding::Residuals::kRangeCoded: return "range-coded, one stream per intra period (group of keyframes)";
-    case FieldCoding::Residuals::kRangeCodedV14: return "range-coded with models carried from keyframe to keyframe";
-    case FieldCoding::Residuals::kRangeCodedV13: return "range-coded";
-    case FieldCoding::Residuals::kZstdVarints: break;
-  }
-  return "zstd varints";
-}
-
 // A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.
 
 // What the encoder dropped, mapped another way or warned about, from the settings it stored
@@ -178,9 +168,10 @@ void print_encoder_notes(const std::string& settings_text) {
 }
 
 int describe_container(const fs::path& path, bool json_out, const DecoderLimits& limits) {
-  SequenceFileInfo info;
-  // Opened as a player opens it: keyframes checked once, not held.
-  const std::shared_ptr<const KeyframeSource> source = open_sequence_source(path, limits, &info);
+  // Every keyframe decoded once, one at a time, and every checksum verified (the bytes each takes);
+  // then opened as a player opens it.
+  const SequenceFileInfo info = inspect_sequence_file(path, limits);
+  const std::shared_ptr<const KeyframeSource> source = open_sequence_source(path, limits);
   const SequenceOutline& sequence = source->outline();
   const KeyframeSpline spline(sequence.times, sequence.spline);
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
@@ -202,14 +193,9 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
                    {"nodes", shape.interior_count + shape.rim_count}, {"rim_nodes", shape.rim_count}, {"fixed_nodes", fixed}};
     doc["representation"] = representation_name(sequence.representation);
     const FieldCoding& coding = info.metadata.field_coding;
-    doc["field_coding"] = coding.predicted() ? nlohmann::json{{"kind", "predicted"},
-                                                               {"residuals", residual_coder_name(coding.residuals)},
-                                                               {"steps", coding.steps},
-                                                               {"intra_period", coding.intra_period}}
-                                             : nlohmann::json{{"kind", "16-bit code planes"}};
-    if (coding.predicted() && coding.rotation_step > 0) {
-      doc["field_coding"]["pose_steps"] = {{"rotation_radians", coding.rotation_step}, {"translation", coding.translation_step}};
-    }
+    doc["field_coding"] = {{"steps", coding.steps},
+                           {"intra_period", coding.intra_period},
+                           {"pose_steps", {{"rotation_radians", coding.rotation_step}, {"translation", coding.translation_step}}}};
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
     doc["texture_size"] = info.texture_size;
@@ -236,18 +222,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
   std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", sequence.grid_n, shape.interior_count + shape.rim_count,
               shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
   const FieldCoding& coding = info.metadata.field_coding;
-  if (coding.predicted()) {
-    std::printf("fields      %s, integer multiples of a step per array, predicted (intra every %d keyframes), residuals %s; %zu nodes in boundary frames\n",
-                representation_name(sequence.representation), coding.intra_period, residual_coder_name(coding.residuals), fixed);
-    std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
-                coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
-    if (coding.rotation_step > 0) {
-      std::printf("pose        rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step, coding.translation_step,
-                  sequence.units.c_str());
-    }
-  } else {
-    std::printf("fields      %s, 16-bit; %zu nodes in boundary frames\n", representation_name(sequence.representation), fixed);
-  }
+  std::printf("fields      %s, integer multiples of a step per array, predicted and range-coded in groups of %d keyframes; %zu nodes in boundary frames\n",
+              representation_name(sequence.representation), coding.intra_period, fixed);
+  std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
+              coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
+  std::printf("pose        in the index: rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step, coding.translation_step,
+              sequence.units.c_str());
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + (info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") + " per keyframe").c_str() : "none");

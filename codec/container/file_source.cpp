@@ -89,34 +89,18 @@ class FileSource final : public KeyframeSource {
     cache_capacity_ = plan_.keyframes_kept * (plan_.fields + plan_.texture);
     fields_.resize(count);
     textures_.resize(count);
+    field_failures_.resize(count);
     texture_failures_.resize(count);
-
-    // Every keyframe once, in order: the poses are in the fields' streams, and a file that opens is
-    // one whose every keyframe decodes (as decode_sequence_file's). The first keyframes stay cached
-    // while there is room: a player starts there.
+    // The index holds every keyframe's time and pose: nothing is decoded until a frame needs it.
     outline_.has_holes = file_.has_holes();
     outline_.texture_size = file_.texture_size();
-    outline_.poses.resize(count);
-    std::vector<uint64_t> field_bytes(count);
-    for (size_t first = 0; first < count; first += file_.run_length()) {
-      file_.decode_run(first, std::min(first + file_.run_length(), count) - 1, [&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
-        check_pose(k, key);
-        outline_.poses[k] = key.pose;
-        if (k == 0) outline_.fixed_node_count = key.fields.fixed_nodes.size();
-        field_bytes[k] = bytes_taken;
-        if (held_bytes_ + plan_.fields <= cache_capacity_) remember_fields(k, std::make_shared<const Keyframe>(std::move(key)));
-      });
-    }
-    file_.verify_checksums();  // the textures' bytes too, though they are decoded later
-    // The walk and the checksums read every page of a mapped file; they are the page cache's, but
+    outline_.fixed_node_count = file_.fixed_node_count();
+    outline_.poses.reserve(count);
+    for (size_t k = 0; k < count; ++k) outline_.poses.push_back(file_.keyframe_pose(k));
+    if (info) *info = file_.describe();
+    // The walk read every chunk's header from a mapped file; those pages are the page cache's, but
     // they would count in the process's resident memory (and a cgroup's) until reclaimed.
     if (const auto* mapped = std::get_if<std::unique_ptr<format::MappedFile>>(&bytes_)) (*mapped)->release_pages();
-    if (info) {
-      *info = file_.describe();
-      for (size_t k = 0; k < count; ++k) info->keyframes[k].fields = field_bytes[k];
-      info->metadata.texture_codec = TextureCodec::kWebp;  // as decode_sequence_file says of a file without textures
-      if (outline_.has_texture()) file_.decode_texture(0, &info->metadata.texture_codec);
-    }
   }
 
   const SequenceOutline& outline() const override { return outline_; }
@@ -133,19 +117,28 @@ class FileSource final : public KeyframeSource {
       touch(fields_[k]);
       return fields_[k].value;
     }
+    // A keyframe that did not decode fails at once the next time (§10.3: time follows the frame).
+    if (!field_failures_[k].second.empty()) throw Error(field_failures_[k].first, field_failures_[k].second);
     // A run decodes from its first keyframe. The whole run is kept where the cache holds it twice
     // over (playing on needs the next keyframes); else only as far as k, the rest dropped as decoded.
     const size_t first = file_.run_of(k) * file_.run_length();
     const size_t run_end = std::min(first + file_.run_length(), fields_.size());
     const bool whole_run = 2 * (run_end - first) * plan_.fields <= cache_capacity_;
     std::shared_ptr<const Keyframe> wanted;
-    file_.decode_run(first, whole_run ? run_end - 1 : k, [&](size_t j, Keyframe&& key, uint64_t) {
-      check_pose(j, key);
-      if (j != k && (fields_[j].value || !whole_run)) return;
-      auto shared = std::make_shared<const Keyframe>(std::move(key));
-      if (j == k) wanted = shared;
-      remember_fields(j, std::move(shared));
-    });
+    try {
+      file_.decode_run(first, whole_run ? run_end - 1 : k, [&](size_t j, Keyframe&& key, uint64_t) {
+        if (j != k && (fields_[j].value || !whole_run)) return;
+        auto shared = std::make_shared<const Keyframe>(std::move(key));
+        if (j == k) wanted = shared;
+        remember_fields(j, std::move(shared));
+      });
+    } catch (const Error& e) {
+      // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
+      if (wanted) return wanted;
+      // kLimit too: the same file under the same limits fails the same way.
+      field_failures_[k] = {e.code(), e.what()};
+      throw;
+    }
     return wanted;
   }
 
@@ -193,11 +186,6 @@ class FileSource final : public KeyframeSource {
     return std::get<std::unique_ptr<format::MappedFile>>(bytes_)->bytes();
   }
 
-  // What validate_sequence checks of a pose: field codings 0-2 store the rotation as a matrix.
-  void check_pose(size_t k, const Keyframe& key) const {
-    if (!key.pose.is_proper()) throw Error(ErrorCode::kCorrupt, file_.source() + ": keyframe " + std::to_string(k) + ": the pose is not a finite proper rotation and translation");
-  }
-
   template <typename T>
   void touch(Slot<T>& slot) const {
     order_.splice(order_.begin(), order_, slot.where);
@@ -235,7 +223,8 @@ class FileSource final : public KeyframeSource {
   mutable std::mutex mutex_;
   mutable std::vector<Slot<Keyframe>> fields_;
   mutable std::vector<Slot<Image>> textures_;
-  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;  // the error and its message
+  mutable std::vector<std::pair<ErrorCode, std::string>> field_failures_;    // the error and its message
+  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;
   mutable std::list<Entry> order_;  // most recently used first
   mutable uint64_t held_bytes_ = 0;
 };

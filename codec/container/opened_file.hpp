@@ -7,6 +7,7 @@
 #include "facemorph/limits.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
+#include "format/container.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -34,6 +35,10 @@ class OpenedFile {
   const Sequence& shape() const;
   size_t keyframe_count() const;
   double keyframe_time(size_t k) const;
+  // Keyframe k's pose, from the index (checked there: a proper rotation, a translation in bounds).
+  const RigidPose& keyframe_pose(size_t k) const;
+  // The header's fixed nodes (GridFields::fixed_nodes of every keyframe).
+  size_t fixed_node_count() const;
   bool has_texture() const;
   bool has_holes() const;
   int texture_size() const;
@@ -48,19 +53,24 @@ class OpenedFile {
   size_t run_of(size_t k) const { return k / run_length(); }
 
   // Decodes keyframes first_of_run .. last (last within the run of first_of_run), each checked as
-  // §7 says (fields, pose), calling `take(k, key, field_bytes)` for each in order; `key` holds
-  // everything but the texture. field_bytes: what keyframe k's fields take in the file.
+  // §7 says, calling `take(k, key, field_bytes)` for each in order; `key` holds everything but the
+  // texture (time and pose from the index). field_bytes: what keyframe k's fields take in the file.
   void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
-  // Keyframe k's texture, its size checked against the header's (has_texture()). `codec`: the
-  // image codec it was stored in.
-  Image decode_texture(size_t k, TextureCodec* codec = nullptr) const;
+  // Keyframe k's texture, its size checked against the header's (has_texture()).
+  Image decode_texture(size_t k) const;
+  // The image codec keyframe k's texture is stored in, without decoding it.
+  TextureCodec texture_codec(size_t k) const;
   // Every chunk's checksum (§3), without decoding anything.
   void verify_checksums() const;
   // The file's description (versions, grid, metadata, chunk totals, each texture's bytes); the
   // keyframes' field bytes are the caller's, from decode_run.
   SequenceFileInfo describe() const;
+  // Decodes every keyframe's fields and texture once, one at a time, and verifies every checksum:
+  // throws what the first fault throws. `info`: describe() with every keyframe's field bytes.
+  void check_every_keyframe(SequenceFileInfo* info) const;
 
  private:
+  const format::ChunkView& texture_chunk(size_t k) const;
   struct State;
   std::unique_ptr<State> state_;
 };

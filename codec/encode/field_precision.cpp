@@ -191,7 +191,6 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
-  coding.residuals = options.residuals;
   set_default_pose_steps(coding, sequence.units);
   Reconstructor reconstructor(sequence.grid_n);
   const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, options.inter_dead_zone);

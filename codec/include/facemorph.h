@@ -40,7 +40,7 @@ extern "C" {
 #endif
 
 #define FACEMORPH_VERSION_MAJOR 0
-#define FACEMORPH_VERSION_MINOR 7
+#define FACEMORPH_VERSION_MINOR 8
 #define FACEMORPH_VERSION_PATCH 0
 /* major * 10000 + minor * 100 + patch, as fm_version_number returns it. */
 #define FACEMORPH_VERSION_NUMBER (FACEMORPH_VERSION_MAJOR * 10000 + FACEMORPH_VERSION_MINOR * 100 + FACEMORPH_VERSION_PATCH)
@@ -78,7 +78,7 @@ const char* fm_status_name(fm_status status);
  * Never NULL. */
 const char* fm_last_error_message(void);
 
-/* "0.7.0": the library's version, which may differ from the header's FACEMORPH_VERSION_*. */
+/* "0.8.0": the library's version, which may differ from the header's FACEMORPH_VERSION_*. */
 const char* fm_version(void);
 uint32_t fm_version_number(void);
 

@@ -2,15 +2,15 @@
 # Writes a golden container for the current format version, and what it decodes to, with the
 # project's own tools. Run it only when the format version changes, naming the new version: never
 # replace an old golden file (later versions must keep decoding every earlier file identically).
-#   tests/data/make_golden.sh BUILD_DIR VERSION        e.g. VERSION = 1_1
+#   tests/data/make_golden.sh BUILD_DIR VERSION        e.g. VERSION = 2_0
 set -euo pipefail
 build=${1:?usage: make_golden.sh BUILD_DIR VERSION}
-version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 1_1)}
+version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 2_0)}
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$build/tools/fmsynth" -o "$work/capture" --frames 12 --fps 30 --expression mixed --vertices 3000 --remesh --noise 0 \
   --texture-size 128 --head-motion 10 --quiet
-# Intra period 2 (since 1.5): two groups of keyframes, one coded from the other within it.
+# Intra period 2: two groups of keyframes, one coded from the other within it.
 "$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet
 FACEMORPH_WRITE_GOLDEN="$here/golden_v$version.csv" "$build/tests/facemorph_decoder_tests" --gtest_filter="GoldenFile.Version${version}*"

@@ -3,6 +3,7 @@
 #include "facemorph.h"
 
 #include "facemorph/decoder.hpp"
+#include "format/container.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"
@@ -20,7 +21,7 @@
 
 namespace {
 
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v1_0.fmv";
+const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
 
 bool message_has(const std::string& fragment) { return std::string(fm_last_error_message()).find(fragment) != std::string::npos; }
 
@@ -41,7 +42,7 @@ struct Opened {
 };
 
 TEST(CApi, VersionAndStatusNames) {
-  EXPECT_STREQ(fm_version(), "0.7.0");
+  EXPECT_STREQ(fm_version(), "0.8.0");
   EXPECT_EQ(fm_version_number(), static_cast<uint32_t>(FACEMORPH_VERSION_NUMBER));
   EXPECT_STREQ(fm_status_name(FM_OK), "ok");
   EXPECT_STREQ(fm_status_name(FM_ERROR_TRUNCATED), "truncated");
@@ -132,10 +133,13 @@ TEST(CApi, BadFilesReturnTheirStatus) {
   EXPECT_EQ(file, nullptr);
   EXPECT_NE(std::string(fm_last_error_message()), "");
   EXPECT_EQ(fm_file_open_memory(bytes.data(), 0, &file), FM_ERROR_TRUNCATED);
+  // A flip in the index (read at open) is refused at open; one in a keyframe's chunk when the
+  // keyframe is decoded (opening reads the header and index only).
+  const facemorph::format::ContainerReader reader(bytes, "golden");
   std::vector<uint8_t> flipped = bytes;
-  flipped[bytes.size() / 2] ^= 0x10;
+  flipped[reader.chunks()[1].offset + facemorph::format::kChunkHeaderBytes] ^= 0x10;
   EXPECT_EQ(fm_file_open_memory(flipped.data(), flipped.size(), &file), FM_ERROR_CORRUPT);
-  EXPECT_TRUE(message_has("checksum")) << fm_last_error_message();
+  EXPECT_TRUE(message_has("checksum mismatch in chunk KIDX")) << fm_last_error_message();
   facemorph::testing::TempDir dir;
   const std::string cut = (dir / "cut.fmv").string();
   facemorph::format::write_file_atomically(cut, std::span<const uint8_t>(bytes).first(bytes.size() - 3));

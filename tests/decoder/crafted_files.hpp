@@ -60,18 +60,48 @@ inline SequenceFileMetadata small_metadata() {
   return m;
 }
 
-// The same with the predicted coding: every array on its own step, an intra keyframe every second
-// one; residuals range-coded in one stream per group of keyframes (format 1.5, the default), with
-// models carried in a chunk per keyframe (1.4), range-coded afresh in every keyframe (1.3) or as
-// zstd varints (1.1).
-inline SequenceFileMetadata predicted_metadata(FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded) {
+// The same with steps of the caller's choosing: every array on its own step, a group of keyframes
+// every second one.
+inline SequenceFileMetadata predicted_metadata() {
   SequenceFileMetadata m = small_metadata();
   m.field_coding.steps.assign(kKeyframeArrayCount, 1e-4);
   m.field_coding.steps[kScalarArrayCount] = 1e-3;
   m.field_coding.intra_period = 2;
-  m.field_coding.residuals = residuals;
   set_default_pose_steps(m.field_coding, "mm");
   return m;
+}
+
+// An index payload (spec/container.md §6) with pose component `component`'s change at keyframe `k`
+// (from keyframe k - 1's, or from 0) moved by `change`, written as the varint it then is (one
+// longer than 6 bytes if it must).
+inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, size_t component, size_t k, int64_t change) {
+  format::ByteReader r(index, "index");
+  format::ByteWriter w;
+  const uint32_t count = r.read<uint32_t>("count");
+  w.write(count);
+  for (uint32_t i = 0; i < count; ++i) w.write(r.read<double>("t"));
+  for (size_t c = 0; c < 6; ++c) {
+    for (uint32_t i = 0; i < count; ++i) {
+      uint64_t zigzag = 0;
+      int shift = 0;
+      uint8_t byte = 0;
+      do {
+        byte = r.read<uint8_t>("pose");
+        zigzag |= static_cast<uint64_t>(byte & 0x7F) << shift;
+        shift += 7;
+      } while ((byte & 0x80) != 0);
+      int64_t value = (zigzag & 1) != 0 ? -static_cast<int64_t>(zigzag >> 1) - 1 : static_cast<int64_t>(zigzag >> 1);
+      if (c == component && i == k) value += change;
+      zigzag = value >= 0 ? static_cast<uint64_t>(value) << 1 : (static_cast<uint64_t>(-(value + 1)) << 1) | 1;
+      while (zigzag >= 0x80) {
+        w.write(static_cast<uint8_t>(zigzag | 0x80));
+        zigzag >>= 7;
+      }
+      w.write(static_cast<uint8_t>(zigzag));
+    }
+  }
+  w.bytes(r.bytes(r.remaining(), "offsets"));
+  return w.take();
 }
 
 // Rebuilds a file chunk by chunk, letting `edit` change a payload (decompressed) or drop/add chunks,
@@ -82,7 +112,7 @@ template <typename Edit>
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
-  size_t groups = 0;  // field coding 4's KGOP chunks
+  size_t groups = 0;  // KGOP chunks
   bool textured = false;
   std::vector<uint8_t> index_payload;
   for (const format::ChunkView& c : reader.chunks()) {
@@ -121,17 +151,18 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     };
     const uint32_t count = index.read<uint32_t>("count");
     shifted.write(count);
-    if (groups == 0) {
-      for (uint32_t k = 0; k < count; ++k) {
-        shifted.write(index.read<double>("t"));
-        shift();
-        shift();
-      }
-    } else {  // times, group offsets, texture offsets (spec/container.md §6)
-      for (uint32_t k = 0; k < count; ++k) shifted.write(index.read<double>("t"));
-      for (size_t g = 0; g < groups; ++g) shift();
-      for (uint32_t k = 0; textured && k < count; ++k) shift();
+    // Times, the pose's six runs of varints (copied as they are), group offsets, texture offsets
+    // (spec/container.md §6).
+    for (uint32_t k = 0; k < count; ++k) shifted.write(index.read<double>("t"));
+    for (uint32_t v = 0; v < 6 * count; ++v) {
+      uint8_t byte = 0;
+      do {
+        byte = index.read<uint8_t>("pose");
+        shifted.write(byte);
+      } while ((byte & 0x80) != 0);
     }
+    for (size_t g = 0; g < groups; ++g) shift();
+    for (uint32_t k = 0; textured && k < count; ++k) shift();
     return format::prepare_chunk(chunks[1].type, shifted.take(), true, level);
   };
   // Compressed, its size moves with its numbers: laid out until it stays put, else stored (a size

@@ -1,6 +1,8 @@
 // Files written by earlier versions must keep decoding to the same surfaces. tests/data holds a small
-// container per format version (1.0 by facemorph 0.2.0, 1.1 by 0.3.0, 1.2 by 0.4.0, 1.3 by 0.5.0, 1.4 by 0.6.0, 1.5 by 0.7.0), written with tests/data/make_golden.sh, and a sample of
-// what it decoded to then: grid positions at keyframe times, between keyframes and past the ends.
+// container per format version since the format was frozen (2.0 by facemorph 0.8.0), written with
+// tests/data/make_golden.sh, and a sample of what it decoded to then: grid positions at keyframe
+// times, between keyframes and past the ends. Format 1.x (facemorph 0.2-0.7) was experimental and
+// is refused by name (experimental_v1_5.fmv, the last of them).
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/file_io.hpp"
@@ -35,11 +37,11 @@ std::vector<double> sample_times(const Sequence& s) {
 // Decodes tests/data/golden_v<version>.fmv at its sample times and compares with the positions it
 // decoded to when it was written (golden_v<version>.csv). Every later decoder must keep decoding
 // every earlier file identically.
-void expect_golden(const std::string& version, uint16_t minor_version, const std::string& encoder) {
+void expect_golden(const std::string& version, uint16_t major_version, uint16_t minor_version, const std::string& encoder) {
   const std::filesystem::path data = FACEMORPH_TEST_DATA;
   SequenceFileInfo info;
   const auto sequence = std::make_shared<const Sequence>(read_sequence_file(data / ("golden_v" + version + ".fmv"), &info));
-  EXPECT_EQ(info.major_version, 1);
+  EXPECT_EQ(info.major_version, major_version);
   EXPECT_EQ(info.minor_version, minor_version);
   EXPECT_EQ(info.metadata.encoder, encoder);
   SequenceDecoder decoder(sequence);
@@ -83,38 +85,25 @@ void expect_golden(const std::string& version, uint16_t minor_version, const std
   EXPECT_LT(worst, 1e-6);
 }
 
-TEST(GoldenFile, Version1_0DecodesAsItDidWhenWritten) { expect_golden("1_0", 0, "facemorph 0.2.0"); }
-
-// Format 1.1: fields as predicted integer multiples of their steps (KEYP).
-TEST(GoldenFile, Version1_1DecodesAsItDidWhenWritten) { expect_golden("1_1", 1, "facemorph 0.3.0"); }
-
-// Format 1.2: textures in AVIF (TEXR image codec 2).
-TEST(GoldenFile, Version1_2DecodesAsItDidWhenWritten) {
-  expect_golden("1_2", 2, "facemorph 0.4.0");
+// Format 2.0: the header, the index with every keyframe's time and pose, one KGOP chunk per group
+// of keyframes, textures in AVIF.
+TEST(GoldenFile, Version2_0DecodesAsItDidWhenWritten) {
+  expect_golden("2_0", 2, 0, "facemorph 0.8.0");
   SequenceFileInfo info;
-  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_2.fmv", &info);
+  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_0.fmv", &info);
   EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
+  EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
   ASSERT_TRUE(s.has_texture());
   EXPECT_EQ(s.keyframes.front().texture.width, 64);
 }
 
-// A golden file of a predicted field coding: it decodes as it did, and reads as that coding.
-void expect_golden_predicted(const std::string& version, uint16_t minor_version, const std::string& encoder, FieldCoding::Residuals residuals) {
-  expect_golden(version, minor_version, encoder);
-  SequenceFileInfo info;
-  read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / ("golden_v" + version + ".fmv"), &info);
-  EXPECT_TRUE(info.metadata.field_coding.predicted());
-  EXPECT_EQ(info.metadata.field_coding.residuals, residuals);
+// Format 1.x is refused by name, with what to do about it, from its preamble alone.
+TEST(GoldenFile, AnExperimentalVersion1FileIsRefusedByName) {
+  const std::filesystem::path file = std::filesystem::path(FACEMORPH_TEST_DATA) / "experimental_v1_5.fmv";
+  testing::expect_error(ErrorCode::kUnsupported, "format version 1.5 is an experimental version this decoder does not read; encode the capture again",
+                        [&] { read_sequence_file(file); });
+  testing::expect_error(ErrorCode::kUnsupported, "experimental version", [&] { open_sequence_source(file); });
 }
-
-// Format 1.3: predicted fields' residuals range-coded (field coding 2).
-TEST(GoldenFile, Version1_3DecodesAsItDidWhenWritten) { expect_golden_predicted("1_3", 3, "facemorph 0.5.0", FieldCoding::Residuals::kRangeCodedV13); }
-
-// Format 1.4: models carried along chains of predicted keyframes, float32 poses (field coding 3).
-TEST(GoldenFile, Version1_4DecodesAsItDidWhenWritten) { expect_golden_predicted("1_4", 4, "facemorph 0.6.0", FieldCoding::Residuals::kRangeCodedV14); }
-
-// Format 1.5: a chunk and one range-coded stream per group of keyframes, quantised poses (field coding 4).
-TEST(GoldenFile, Version1_5DecodesAsItDidWhenWritten) { expect_golden_predicted("1_5", 5, "facemorph 0.7.0", FieldCoding::Residuals::kRangeCoded); }
 
 }  // namespace
 }  // namespace facemorph

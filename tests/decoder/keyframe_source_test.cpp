@@ -139,6 +139,9 @@ TEST(KeyframeSource, OpeningDescribesTheFileAsTheWholeDecodeDoes) {
   const std::vector<uint8_t> bytes = long_file();
   SequenceFileInfo lazy_info, whole_info;
   const auto source = open_sequence_source(bytes, "long", kDefaultDecoderLimits, &lazy_info);
+  testing::TempDir dir;
+  format::write_file_atomically(dir.path() / "long.fmv", bytes);
+  const SequenceFileInfo inspected = inspect_sequence_file(dir.path() / "long.fmv");
   const Sequence whole = decode_sequence_file(bytes, "long", &whole_info);
   const SequenceOutline expected = outline_of(whole);
   const SequenceOutline& outline = source->outline();
@@ -154,9 +157,13 @@ TEST(KeyframeSource, OpeningDescribesTheFileAsTheWholeDecodeDoes) {
   EXPECT_EQ(lazy_info.file_bytes, whole_info.file_bytes);
   EXPECT_EQ(lazy_info.metadata.texture_codec, whole_info.metadata.texture_codec);
   ASSERT_EQ(lazy_info.keyframes.size(), whole_info.keyframes.size());
+  ASSERT_EQ(inspected.keyframes.size(), whole_info.keyframes.size());
   for (size_t k = 0; k < whole_info.keyframes.size(); ++k) {
-    EXPECT_EQ(lazy_info.keyframes[k].fields, whole_info.keyframes[k].fields);
+    EXPECT_EQ(lazy_info.keyframes[k].fields, 0u);  // nothing decoded at open
     EXPECT_EQ(lazy_info.keyframes[k].texture, whole_info.keyframes[k].texture);
+    EXPECT_GT(inspected.keyframes[k].fields, 0u);
+    EXPECT_EQ(inspected.keyframes[k].fields, whole_info.keyframes[k].fields);
+    EXPECT_EQ(inspected.keyframes[k].texture, whole_info.keyframes[k].texture);
   }
   EXPECT_EQ(file_info(*source).keyframe_times, file_info(whole).keyframe_times);
 }
@@ -276,18 +283,28 @@ TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
   expect_the_plan_of_section_10_1(long_file(SplineKind::kNotAKnot, 200), uint64_t{8} << 20);
 }
 
-TEST(KeyframeSource, AnImproperPoseInAKeyframeIsRefusedAtOpen) {
-  // Field coding 0 stores the rotation as a matrix (after the number and time): keyframe 1's is
-  // scaled, which the whole decode's validate_sequence refuses; opening on demand must too.
-  const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
-                                                      [](const std::string& type, std::vector<uint8_t>& payload) {
-                                                        if (type == "KEYF" && payload[0] == 1) {
-                                                          const double scaled = 2;
-                                                          std::memcpy(payload.data() + 12, &scaled, sizeof scaled);
-                                                        }
-                                                      });
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1", [&] { decode_sequence_file(bytes, "scaled"); });
-  testing::expect_error(ErrorCode::kCorrupt, "not a finite proper rotation", [&] { open_sequence_source(bytes, "scaled"); });
+// Opening reads the header and index only: a damaged group of keyframes opens, and its keyframes
+// fail when asked for, naming the chunk, and at once every later time; the other group decodes.
+TEST(KeyframeSource, ADamagedKeyframeGroupFailsItsKeyframesNotTheFile) {
+  const std::vector<uint8_t> good = encode_sequence_file(crafted::small_sequence(), crafted::predicted_metadata());
+  std::vector<uint8_t> bytes = good;
+  const format::ContainerReader reader(good, "in");
+  uint64_t at = 0;
+  for (const format::ChunkView& c : reader.chunks()) {
+    if (c.type == "KGOP" && at == 0) at = c.offset + format::kChunkHeaderBytes + c.stored.size() / 2;  // keyframes 0-1's
+  }
+  ASSERT_GT(at, 0u);
+  bytes[at] ^= 0x40;
+  testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk KGOP", [&] { decode_sequence_file(bytes, "flipped"); });
+  const auto source = open_sequence_source(bytes, "flipped");
+  EXPECT_EQ(source->outline().poses.size(), 3u);
+  testing::expect_error(ErrorCode::kCorrupt, "flipped: checksum mismatch in chunk KGOP", [&] { source->keyframe(1); });
+  testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk KGOP", [&] { source->keyframe(1); });
+  testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk KGOP", [&] { source->keyframe(0); });
+  EXPECT_EQ(source->keyframe(2)->time, 1.0);
+  SequenceDecoder decoder(source);
+  EXPECT_THROW(decoder.decode(0.25), Error);
+  EXPECT_TRUE(decoder.decode(1.0).converged);  // Catmull-Rom at a keyframe weighs only it
 }
 
 TEST(KeyframeSource, TheLargestChunkIsCountedAtOpen) {
@@ -306,8 +323,9 @@ TEST(KeyframeSource, TheLargestChunkIsCountedAtOpen) {
   EXPECT_NO_THROW(open_sequence_source(path, with_memory(2 * budget)));
 }
 
-TEST(KeyframeSource, ATextureWithABadChecksumIsRefusedAtOpen) {
-  // Textures are decoded later, but every chunk's checksum is verified when the file opens.
+TEST(KeyframeSource, ATextureWithABadChecksumFailsWhenFirstShown) {
+  // A texture's checksum is verified when the texture is first decoded (opening reads the header
+  // and index only); inspect_sequence_file checks every chunk.
   std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(), crafted::small_metadata());
   uint64_t at = 0;
   const format::ContainerReader reader(bytes, "in");  // named: the chunks are views into it
@@ -316,7 +334,12 @@ TEST(KeyframeSource, ATextureWithABadChecksumIsRefusedAtOpen) {
   }
   ASSERT_GT(at, 0u);
   bytes[at] ^= 0x40;
-  testing::expect_error(ErrorCode::kCorrupt, "checksum", [&] { open_sequence_source(bytes, "bad crc"); });
+  const auto source = open_sequence_source(bytes, "bad crc");
+  testing::expect_error(ErrorCode::kCorrupt, "bad crc: checksum mismatch in chunk TEXR", [&] { source->texture(2); });
+  EXPECT_NO_THROW(source->texture(0));
+  testing::TempDir dir;
+  format::write_file_atomically(dir.path() / "bad.fmv", bytes);
+  testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk TEXR", [&] { inspect_sequence_file(dir.path() / "bad.fmv"); });
 }
 
 }  // namespace

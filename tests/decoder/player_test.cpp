@@ -22,7 +22,7 @@
 namespace facemorph {
 namespace {
 
-const std::filesystem::path kGolden = std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v1_0.fmv";
+const std::filesystem::path kGolden = std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_0.fmv";
 
 // Every array of one frame, sized for the file's largest frame.
 struct Arrays {

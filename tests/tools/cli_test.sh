@@ -13,7 +13,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
 [[ -s "$work/a.fmv" ]] || fail "fmenc wrote nothing"
 "$tools/fminfo" "$work/a.fmv" >"$work/info" || fail "fminfo"
-grep -q "format 1.5" "$work/info" || fail "fminfo does not name the format"
+grep -q "format 2.0" "$work/info" || fail "fminfo does not name the format"
 "$tools/fminfo" "$work/a.fmv" --json >"$work/info.json" || fail "fminfo --json"
 python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
   fail "fminfo --json is not the file's description"
@@ -86,14 +86,10 @@ expect_error "inter dead zone word" "--inter-dead-zone 'wide' is neither auto" "
 "$tools/fminfo" "$work/own.fmv" | grep -q '"inter_dead_zone":"auto","inter_dead_zone_chosen":0\.[56]' || fail "--inter-dead-zone auto and its choice not in the settings"
 expect_error "intra period" "--intra-period '0' is neither auto nor a whole number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --intra-period 0
 "$tools/fminfo" "$work/zone.fmv" | grep -q '"intra_period":"auto","intra_period_chosen":' || fail "--intra-period auto and its choice not in the settings"
-# The older predicted codings, for players with facemorph 0.6 (field coding 3), 0.5 (2) or 0.3 and 0.4 (1).
-expect_error "residual coder" "none of range, range-1.4, range-1.3 and zstd" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --field-residuals lzma
-"$tools/fmenc" "$work/cap" -o "$work/r13.fmv" --grid 33 --no-texture --field-residuals range-1.3 --quiet || fail "--field-residuals range-1.3"
-"$tools/fminfo" "$work/r13.fmv" | grep -q "residuals range-coded;" || fail "--field-residuals range-1.3: fminfo names another coding"
-"$tools/fminfo" "$work/zone.fmv" | grep -q "residuals range-coded, one stream per intra period" || fail "the default coding is not field coding 4"
-"$tools/fminfo" "$work/zone.fmv" | grep -q "^pose  *rotation vector in steps of 1e-05 rad, translation in steps of" || fail "fminfo shows no pose steps for field coding 4"
-"$tools/fmenc" "$work/cap" -o "$work/r14.fmv" --grid 33 --no-texture --field-residuals range-1.4 --quiet || fail "--field-residuals range-1.4"
-"$tools/fminfo" "$work/r14.fmv" | grep -q "residuals range-coded with models carried" || fail "--field-residuals range-1.4: fminfo names another coding"
+# One coding (format 2.0): the older ones' option is gone, and fminfo shows the pose steps of the index.
+expect_error "retired option" "--field-residuals" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --field-residuals zstd
+"$tools/fminfo" "$work/zone.fmv" | grep -q "predicted and range-coded in groups of" || fail "fminfo does not describe the keyframe coding"
+"$tools/fminfo" "$work/zone.fmv" | grep -q "^pose  *in the index: rotation vector in steps of 1e-05 rad, translation in steps of" || fail "fminfo shows no pose steps"
 [[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 
 # A depth camera's capture: colour per vertex, no image. It encodes with a texture and decodes with it.

@@ -41,9 +41,6 @@ struct FieldPrecisionOptions {
   // mesh and cost 5-28% on a noisy fmsynth capture (spec/method.md §5.3). kAutoDeadZone (the
   // default) tries kDeadZoneCandidates and keeps the one whose file is smallest; else in [0.5, 1).
   double inter_dead_zone = kAutoDeadZone;
-  // How the file will code the keyframes: the poses are rounded as it stores them, and the dead
-  // zone's trials measure its bytes.
-  FieldCoding::Residuals residuals = FieldCoding::Residuals::kRangeCoded;
 };
 
 struct FieldPrecisionReport {

@@ -1,11 +1,10 @@
-// The predicted coding of a keyframe's integer codes (spec/container.md §7.3): each array's codes are
-// predicted from codes already decoded — the same node of the previous keyframe, and neighbours on
-// G's lattice — and only the residuals are stored, zigzag-mapped, as LEB128 varints in one zstd
-// frame. Smooth fields on a lattice leave residuals of a few units, which is what makes a keyframe
-// cost a few bits per node instead of sixteen.
+// Spatial prediction of a keyframe's integer codes (spec/container.md §7.2): each code is predicted
+// from codes of the same array decoded before it — its neighbours on G's lattice — and only the
+// residual is coded (ranged_residuals.hpp). Smooth fields on a lattice leave residuals of a few
+// units, which is what makes a keyframe cost a few bits per node instead of sixteen.
 //
 // This layer knows integers and neighbour tables only; what the arrays mean, and which lattice they
-// lie on, is the container's business (codec/container/sequence_file.cpp).
+// lie on, is the container's business (codec/container/keyframe_group_chunk.cpp).
 #pragma once
 
 #include <cstdint>
@@ -15,7 +14,7 @@
 
 namespace facemorph::format {
 
-// How a code is predicted from codes of the same array decoded before it (spec/container.md §7.3).
+// How a code is predicted from codes of the same array decoded before it (spec/container.md §7.2).
 // The numbers are the file's and fixed forever.
 enum class SpatialPredictor : uint8_t {
   kNone = 0,      // 0
@@ -45,14 +44,5 @@ std::vector<int64_t> spatial_residuals(std::span<const int32_t> codes, SpatialPr
 // The inverse. Throws kCorrupt naming `source` when a code leaves int32's range.
 std::vector<int32_t> codes_from_residuals(std::span<const int64_t> residuals, SpatialPredictor predictor, const LatticeNeighbours* lattice,
                                           const std::string& source);
-
-// The residuals of every array in order, zigzag-mapped to unsigned, as LEB128 varints (at most 5
-// bytes: values below 2³⁵, which every residual of int32 codes is), compressed as one zstd frame that announces its size.
-std::vector<uint8_t> encode_residual_stream(std::span<const std::vector<int64_t>> arrays, int level = 19);
-
-// The inverse: `lengths[k]` residuals for array k, exactly filling the frame. Throws kCorrupt naming
-// `source` for a frame that is not zstd, decompresses to another size than it announces, holds a
-// varint over 5 bytes, or more or fewer residuals than the lengths say.
-std::vector<std::vector<int64_t>> decode_residual_stream(std::span<const uint8_t> bytes, std::span<const size_t> lengths, const std::string& source);
 
 }  // namespace facemorph::format

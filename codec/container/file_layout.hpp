@@ -1,0 +1,144 @@
+// What the readers and writers of a .fmv file's chunks share (spec/container.md, format 2.0): the
+// chunk types, the bounds a file's numbers must keep, the header as read, the index entries and the
+// grid facts the keyframe coding predicts along. Internal to the decoder library: each chunk's
+// reader and writer is a file of its own (header_chunk, index_chunk, keyframe_group_chunk,
+// texture_chunk); sequence_file.cpp puts them together.
+#pragma once
+
+#include "facemorph/error.hpp"
+#include "facemorph/limits.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+#include "format/byte_reader.hpp"
+#include "format/spatial_predictor.hpp"
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace facemorph::file_layout {
+
+inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR";
+
+inline constexpr uint8_t kHasTexture = 1, kHasHoles = 2;  // the header's flags
+inline constexpr uint32_t kMaxKeyframes = 1u << 20;
+inline constexpr uint32_t kMaxIntraPeriod = 1u << 20;
+inline constexpr uint32_t kMaxStringBytes = 1u << 20;
+inline constexpr uint32_t kMaxLandmarks = 1u << 16;
+inline constexpr int kMaxTextureSize = 16384;
+inline constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
+inline constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
+inline constexpr double kMaxRotationComponent = 4;               // > π: a rotation vector log R is within it
+inline constexpr int64_t kMaxPoseCode = int64_t{1} << 40;        // pose codes: changes fit 42 bits
+// Ranges a file may state (spec/container.md §5, §6): within them every product the decoder forms
+// (a pose applied to a point, a spline's powers of time ratios) is a finite double.
+inline constexpr double kMaxCoordinate = 1e9;  // |pose centre|, |translation| in the file's units (1000 km in mm)
+inline constexpr double kMaxTime = 1e9;        // |a time|, seconds (31 years)
+inline constexpr double kMinFrameRate = 1e-6, kMaxFrameRate = 1e6;
+inline constexpr double kMinKeyframeGap = 1e-9;  // keyframe times at least this fraction of their span apart
+
+[[noreturn]] inline void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
+[[noreturn]] inline void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
+
+// A float64 the file states, which must be finite.
+double read_finite(format::ByteReader& r, const char* what);
+
+// ---- The header (HEAD, header_chunk.cpp) ----
+
+struct FileHeader {
+  DecoderLimits limits;  // the caller's: what the file may make the decoder allocate
+  Sequence shape;        // every field but the keyframes
+  uint32_t keyframe_count = 0;
+  uint32_t grid_rule = 0;
+  uint64_t grid_hash = 0;
+  uint8_t flags = 0;
+  uint32_t texture_size = 0;
+  std::vector<int32_t> fixed_nodes;
+  SequenceFileMetadata metadata;  // with the field coding
+  bool has_texture() const { return (flags & kHasTexture) != 0; }
+  bool has_holes() const { return (flags & kHasHoles) != 0; }
+  // One KGOP chunk per intra period.
+  size_t group_size() const { return static_cast<size_t>(metadata.field_coding.intra_period); }
+  size_t group_count() const { return (keyframe_count + group_size() - 1) / group_size(); }
+};
+
+// What each array of a keyframe must hold (§7.1), from the header alone.
+std::vector<size_t> expected_lengths(int grid_n, Representation representation, size_t fixed, bool with_holes);
+std::vector<size_t> expected_lengths(const FileHeader& h);
+
+// How many keyframes the caller holds at once for a keyframe count and spline: for the memory
+// estimate checked from the header (§10.1).
+using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spline)>;
+
+std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata);
+FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
+
+// ---- The pose as the file stores it: integer multiples of the header's pose steps ----
+
+inline constexpr size_t kPoseCodes = 6;  // the rotation vector log R, then the translation
+using PoseCodes = std::array<int64_t, kPoseCodes>;
+// Throws kInvalidArgument for a pose beyond 2⁴⁰ steps or a rotation step that rounds it beyond 4.
+PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding);
+RigidPose pose_of(const PoseCodes& codes, const FieldCoding& coding);
+
+// ---- The index (KIDX, index_chunk.cpp) ----
+
+struct IndexEntry {
+  double time = 0;
+  PoseCodes pose{};
+  uint64_t group_offset = 0;    // the KGOP chunk of the keyframe's group
+  uint64_t texture_offset = 0;  // its TEXR chunk; 0 in a file without textures
+};
+
+std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h);
+// Checks the times (bounds, separation) and pose codes (bounds) as it reads; the offsets are the
+// caller's to check against the chunks.
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h);
+
+// ---- G's lattice, along which the keyframe coding predicts (grid_facts.cpp) ----
+
+// What the container needs of G for N: its hash, and the lattice neighbours its predicted arrays
+// use (interior nodes row by row; the hole level's rim nodes follow, each after the one before it).
+struct GridFacts {
+  int n = 0;
+  uint64_t hash = 0;
+  format::LatticeNeighbours interior, all_nodes;
+};
+// Built once per N; one N kept (a player opens files of one grid, an encoder writes one), so memory
+// never grows with the grids a process has seen. The caller holds what it uses.
+std::shared_ptr<const GridFacts> grid_facts(int n);
+
+// ---- A group of keyframes (KGOP, keyframe_group_chunk.cpp) ----
+
+// A keyframe's arrays in the file's order (§7.1): scalar_arrays(fields), then the hole level.
+std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key);
+void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, Representation representation, int grid_n, std::vector<int32_t> fixed_nodes);
+// A value as an integer multiple of `step`; kInvalidArgument beyond 2³⁰ steps.
+int32_t field_code(double value, double step);
+// kInvalidArgument unless the coding has kKeyframeArrays finite positive steps, an intra period in
+// [1, 2²⁰] and finite positive pose steps.
+void check_field_coding(const FieldCoding& coding);
+
+// Keyframes first .. first + count - 1 of `s` (their fields only: times and poses are the index's).
+std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_t count, const FieldCoding& coding, const GridFacts& grid);
+// Reads the fields of keyframes first .. first + decoded - 1 of a group of `count`, handing each to
+// `take(j, key, end)` as it is decoded (key holds the fields and hole level, checked by
+// validate_fields), `end` where its part of the stream ended from the payload's start. The stream's
+// end is checked when decoded == count. One keyframe is held at a time.
+void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
+                         const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take);
+
+// ---- A texture (TEXR, texture_chunk.cpp) ----
+
+std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality);
+// The image codec a TEXR payload names, from its first 8 bytes (kUnsupported for an unknown one).
+TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::string& where, uint32_t number);
+Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size);
+
+}  // namespace facemorph::file_layout
