@@ -534,7 +534,7 @@ json measure_capture(Context& context, const std::string& input) {
   };
   std::map<std::vector<int>, std::vector<int>> texture_qualities;  // per keyframe set, as encode_file chose them
   // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
-  // (format 1.1; fmenc's default), the file written and read back.
+  // (fmenc's default), the file written and read back.
   auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
     const bool xyz_variant = representation == Representation::kXYZ && encode.representation != Representation::kXYZ;
     encoder.options().representation = representation;

@@ -34,7 +34,7 @@ using nlohmann::json;
 namespace {
 
 // --through-file: every sequence is measured as a user gets it from fmenc and fmdec: its fields
-// rounded as fmenc rounds them (SequenceEncoder::round_fields, format 1.1), written by
+// rounded as fmenc rounds them (SequenceEncoder::round_fields), written by
 // encode_sequence_file with AVIF textures at fmenc's qualities (choose_texture_qualities), and read back.
 bool through_file = false;
 

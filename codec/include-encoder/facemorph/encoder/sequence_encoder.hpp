@@ -65,7 +65,8 @@ struct EncodeOptions {
   // equalising lowers the floor at equal N but costs elsewhere (spec/method.md §7.11).
   DensityEqualisingOptions density_equalising{.strength = 0};
   // --field-error: the RMS displacement of a decoded keyframe that rounding its fields may cause
-  // (fraction of the diagonal; field_precision.hpp); 0 stores 16-bit code planes (format 1.0).
+  // (fraction of the diagonal; field_precision.hpp). predicted_fields false (--field-error 0): no
+  // search, each array at a 65535th of its range (16-bit precision, spec/container.md §7.1).
   FieldPrecisionOptions field_precision;
   bool predicted_fields = true;
   // --field-error auto (the default): the target is two fifths of the mean error the spline is
