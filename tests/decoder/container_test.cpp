@@ -5,6 +5,7 @@
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
+#include "format/file_io.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -13,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 
 namespace facemorph {
@@ -421,6 +423,37 @@ TEST(Container, WritesAtomicallyAndKeepsThePreviousFileOnFailure) {
   testing::expect_error(ErrorCode::kIo, "missing", [&] { write_sequence_file(dir.path() / "missing" / "b.fmv", s, small_metadata()); });
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
   testing::expect_error(ErrorCode::kIo, "nothing.fmv", [&] { read_sequence_file(dir.path() / "nothing.fmv"); });
+}
+
+// The decode-path fuzzer's seeds (tests/fuzz/seeds/fmv) are small valid files of the current
+// version, of several N and both kinds of steps: each decodes here. FACEMORPH_WRITE_FUZZ_SEEDS=DIR
+// writes them again (when the format's version changes).
+TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
+  std::vector<std::pair<std::string, std::vector<uint8_t>>> seeds;
+  seeds.emplace_back("n5_sixteen_bit.fmv", encode_sequence_file(small_sequence(5, 8), small_metadata()));
+  seeds.emplace_back("n9_groups.fmv", encode_sequence_file(small_sequence(9, 8), predicted_metadata()));
+  Sequence plain = small_sequence(13, 8);
+  for (Keyframe& key : plain.keyframes) {
+    key.texture = {};
+    key.hole_level.clear();
+  }
+  seeds.emplace_back("n13_geometry_only.fmv", encode_sequence_file(plain, predicted_metadata()));
+  SequenceFileMetadata alone = predicted_metadata();
+  alone.field_coding.intra_period = 1;
+  seeds.emplace_back("n17_every_keyframe_alone.fmv", encode_sequence_file(small_sequence(17, 16), alone));
+  const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
+  if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
+    for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);
+    GTEST_SKIP() << "wrote the seeds to " << out;
+  }
+  size_t found = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    SCOPED_TRACE(entry.path().filename().string());
+    const std::vector<uint8_t> bytes = format::read_file(entry.path());
+    EXPECT_NO_THROW(decode_sequence_file(bytes, entry.path().string()));
+    ++found;
+  }
+  EXPECT_EQ(found, seeds.size());
 }
 
 }  // namespace
