@@ -153,8 +153,11 @@ struct Reconstructor::Impl {
   }
 };
 
-Reconstructor::Reconstructor(int grid_n)
-    : geometry_(std::make_unique<GridGeometry>(make_disk_grid(grid_n))), impl_(std::make_unique<Impl>()) {
+Reconstructor::Reconstructor(int grid_n) : Reconstructor(std::make_shared<const GridGeometry>(make_disk_grid(grid_n))) {}
+
+Reconstructor::Reconstructor(std::shared_ptr<const GridGeometry> geometry)
+    : geometry_(geometry ? std::move(geometry) : throw Error(ErrorCode::kInvalidArgument, "reconstructor: no grid geometry")),
+      impl_(std::make_unique<Impl>()) {
   const SparseMatrix& K = geometry_->stiffness();
   const int interior = geometry_->interior_count();
   const int rim = geometry_->grid().rim_count;

@@ -2,7 +2,9 @@
 // out as they are, shared with the sequence.
 #include "facemorph/keyframe_source.hpp"
 
+#include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
+#include "facemorph/grid_geometry.hpp"
 #include "facemorph/sequence.hpp"
 
 namespace facemorph {
@@ -25,6 +27,12 @@ SequenceOutline outline_of(const Sequence& sequence) {
   o.has_holes = sequence.has_holes();
   o.texture_size = sequence.has_texture() ? sequence.keyframes.front().texture.width : 0;
   return o;
+}
+
+std::shared_ptr<const GridGeometry> KeyframeSource::grid_geometry() const {
+  // A throw (no memory) leaves the flag unset: the next call tries again.
+  std::call_once(grid_built_, [this] { grid_ = std::make_shared<const GridGeometry>(make_disk_grid(outline().grid_n)); });
+  return grid_;
 }
 
 namespace {

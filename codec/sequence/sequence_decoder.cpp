@@ -143,7 +143,7 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const Sequence> sequence) : Seq
 SequenceDecoder::SequenceDecoder(std::shared_ptr<const KeyframeSource> source)
     : source_(source ? std::move(source) : throw Error(ErrorCode::kInvalidArgument, "sequence decoder: no source")),
       spline_(source_->outline().times, source_->outline().spline),
-      reconstructor_(source_->outline().grid_n),
+      reconstructor_(source_->grid_geometry()),
       rotation_vectors_(unwrap_rotations(source_->outline().poses)),
       keyframe_surfaces_(source_->outline().keyframe_count()),
       keyframe_failures_(source_->outline().keyframe_count()) {

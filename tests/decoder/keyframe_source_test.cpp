@@ -2,6 +2,7 @@
 // budget allows whatever its length, and decodes every frame exactly as the file decoded whole.
 #include "facemorph/decoder.hpp"
 #include "facemorph/disk_grid.hpp"
+#include "facemorph/grid_geometry.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/spline.hpp"
 #include "facemorph/error.hpp"
@@ -340,6 +341,19 @@ TEST(KeyframeSource, ATextureWithABadChecksumFailsWhenFirstShown) {
   testing::TempDir dir;
   format::write_file_atomically(dir.path() / "bad.fmv", bytes);
   testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk TEXR", [&] { inspect_sequence_file(dir.path() / "bad.fmv"); });
+}
+
+// G is built once per opened file: every decoder on a source shares its grid geometry.
+TEST(KeyframeSource, DecodersOnOneSourceShareOneGrid) {
+  const auto source = open_sequence_source(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), "shared");
+  const std::shared_ptr<const GridGeometry> grid = source->grid_geometry();
+  ASSERT_TRUE(grid);
+  EXPECT_EQ(grid->grid().n, source->outline().grid_n);
+  const long held = grid.use_count();
+  SequenceDecoder first(source), second(source);
+  EXPECT_EQ(source->grid_geometry().get(), grid.get());
+  EXPECT_EQ(grid.use_count(), held + 2);  // each decoder holds the source's G, not one of its own
+  EXPECT_EQ(first.decode(0.25).grid_positions, second.decode(0.25).grid_positions);
 }
 
 }  // namespace

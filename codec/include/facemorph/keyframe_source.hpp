@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@ namespace facemorph {
 
 struct Keyframe;
 struct Sequence;
+class GridGeometry;
 
 struct SequenceOutline {
   int grid_n = 0;
@@ -55,6 +57,13 @@ class KeyframeSource {
   // What the source's cache of decoded keyframes and textures holds now, in bytes as §10.1 counts
   // them (0 for a sequence in memory: it shares the sequence and decodes nothing).
   virtual uint64_t bytes_held() const = 0;
+  // G for the outline's N and its geometry, built on the first call and shared by every decoder on
+  // this source (immutable; one per source, so opening a file builds at most one G).
+  std::shared_ptr<const GridGeometry> grid_geometry() const;
+
+ private:
+  mutable std::once_flag grid_built_;
+  mutable std::shared_ptr<const GridGeometry> grid_;
 };
 
 // A source over a sequence in memory, which it shares. Validates the sequence (kInvalidArgument).

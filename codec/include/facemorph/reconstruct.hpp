@@ -51,11 +51,15 @@ struct ReconstructResult {
 class Reconstructor {
  public:
   explicit Reconstructor(int grid_n);
+  // On a G and geometry built before and shared (immutable): several decoders of one file build G
+  // once (KeyframeSource::grid_geometry). Null: kInvalidArgument.
+  explicit Reconstructor(std::shared_ptr<const GridGeometry> geometry);
   ~Reconstructor();
   Reconstructor(const Reconstructor&) = delete;
   Reconstructor& operator=(const Reconstructor&) = delete;
 
   const GridGeometry& geometry() const { return *geometry_; }
+  const std::shared_ptr<const GridGeometry>& shared_geometry() const { return geometry_; }
 
   // Solves Δ_h S = F(S) with S = rim on the boundary, F from the fields (hl: 2Hλ²n; hl+t: 2Hλ²n +
   // a t_u + b t_v inside, the stored vector in the band), iterating on the frame. Starts from the
@@ -73,7 +77,7 @@ class Reconstructor {
 
  private:
   struct Impl;
-  std::unique_ptr<GridGeometry> geometry_;
+  std::shared_ptr<const GridGeometry> geometry_;
   std::unique_ptr<Impl> impl_;
 };
 
