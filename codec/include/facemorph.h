@@ -141,13 +141,13 @@ typedef struct fm_decoder_options {
 #define FM_DEFAULT_MAX_GRID_N 1025u
 #define FM_DEFAULT_MAX_KEYFRAMES 65536u
 #define FM_DEFAULT_MAX_TEXTURE_SIZE 4096u
-#define FM_DEFAULT_MAX_MEMORY_BYTES ((uint64_t)512 << 20)
+#define FM_DEFAULT_MAX_MEMORY_BYTES (UINT64_C(512) << 20)
 
 /* Sets struct_size to sizeof(fm_decoder_options) and every field to its default. NULL is ignored.
  * Inline, not in the library: struct_size is then the size of the struct as the caller compiled it,
  * whatever version of the library runs (spec/api.md §3). */
 static inline void fm_decoder_options_init(fm_decoder_options* options) {
-  if (options == NULL) return;
+  if (!options) return;
   memset(options, 0, sizeof *options);
   options->struct_size = sizeof *options;
   options->max_grid_n = FM_DEFAULT_MAX_GRID_N;
@@ -204,7 +204,7 @@ typedef struct fm_info {
 
 /* Zeroes *info and sets struct_size to sizeof(fm_info) as the caller compiled it. NULL is ignored. */
 static inline void fm_info_init(fm_info* info) {
-  if (info == NULL) return;
+  if (!info) return;
   memset(info, 0, sizeof *info);
   info->struct_size = sizeof *info;
 }
@@ -262,7 +262,7 @@ typedef struct fm_frame {
 /* Zeroes *frame (no buffer wanted) and sets struct_size to sizeof(fm_frame) as the caller compiled
  * it. NULL is ignored. */
 static inline void fm_frame_init(fm_frame* frame) {
-  if (frame == NULL) return;
+  if (!frame) return;
   memset(frame, 0, sizeof *frame);
   frame->struct_size = sizeof *frame;
 }
