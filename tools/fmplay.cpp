@@ -57,7 +57,8 @@ struct Buffers {
         texture(4 * size_t{info.texture_size} * info.texture_size) {}
 
   fm_frame frame() {
-    fm_frame f{};
+    fm_frame f;
+    fm_frame_init(&f);
     f.positions = positions.data();
     f.positions_bytes = positions.size() * sizeof(float);
     f.normals = normals.data();
@@ -185,6 +186,7 @@ int main(int argc, char** argv) {
     }
     check(fm_file_open_with_options(input.c_str(), &options, &file));
     fm_info info;
+    fm_info_init(&info);
     check(fm_file_get_info(file, &info));
     const auto create_start = std::chrono::steady_clock::now();
     check(fm_decoder_create(file, &decoder));  // builds G and factors its Laplacian

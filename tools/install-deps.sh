@@ -16,6 +16,7 @@ packages=(
   libcli11-dev                         # command lines
   nlohmann-json3-dev                   # capture.json
   libgtest-dev                         # tests
+  abigail-tools                        # the player API's ABI check (abidiff; the test skips without it)
   python3                              # optional real-data tests (ICT capture script)
   draco ffmpeg                         # the rate bench's baselines: draco_encoder per frame, JPEG/H.264 (libx264) textures
 )

@@ -4,24 +4,34 @@
  * a decoder on it (fm_decoder_create) and decode any time t into buffers the caller owns
  * (fm_decoder_decode): positions, normals and UVs per vertex, triangle indices, an RGBA8 texture.
  *
- *   fm_file* file; fm_decoder* decoder; fm_info info;
+ *   fm_file* file; fm_decoder* decoder; fm_info info; fm_frame frame;
  *   if (fm_file_open("face.fmv", &file) != FM_OK) { fprintf(stderr, "%s\n", fm_last_error_message()); ... }
- *   fm_file_get_info(file, &info);
+ *   fm_info_init(&info); fm_file_get_info(file, &info);
  *   fm_decoder_create(file, &decoder);
  *   float* positions = malloc(3 * sizeof(float) * info.max_vertex_count);
- *   fm_frame frame = {0};
+ *   fm_frame_init(&frame);
  *   frame.positions = positions; frame.positions_bytes = 3 * sizeof(float) * info.max_vertex_count;
  *   if (fm_decoder_decode(decoder, 1.45, 0, &frame) == FM_OK) printf("%u vertices\n", frame.vertex_count);
  *   fm_decoder_destroy(decoder); fm_file_close(file); free(positions);
  *
- * Status: every function that can fail returns an fm_status. Its values mirror facemorph::ErrorCode
- * (facemorph/error.hpp), never change meaning and are never renumbered; new ones are appended.
+ * Status: every function that can fail returns an fm_status. Its values never change meaning and
+ * are never renumbered; new ones are appended. Each function lists every status it can return.
  * fm_status_name gives a short stable name, fm_last_error_message the full message (naming the
  * file, chunk and reason) of the last failed call on the calling thread.
  *
  * Threads: an fm_file is immutable once opened; any number of threads may create decoders on it at
  * once. An fm_decoder is used by one thread at a time; decoders on one file may decode on
  * different threads at once. A file may be closed while its decoders live (they share it).
+ *
+ * API and ABI 1.0 (spec/api.md): this header is the only one a C player needs; the library exports
+ * exactly the functions below (every one starts with fm_) and nothing else. Within 1.x nothing is
+ * removed, renumbered or reordered: functions, enum values, flags and struct fields are only ever
+ * appended, and libfacemorph_decoder.so.1 keeps its name; a program built against 1.0 runs on every
+ * 1.x library. Structs that cross the API grow by one rule: their first field, struct_size, is set by
+ * the caller to sizeof the struct as it compiled it; the library reads and writes only the fields
+ * that lie wholly inside struct_size bytes (fields beyond it keep their defaults: zero, NULL, not
+ * wanted), and struct_size 0 is FM_ERROR_INVALID_ARGUMENT. fm_info_init, fm_frame_init and
+ * fm_decoder_options_init (inline) set it. Handles are opaque.
  *
  * Conventions (spec/container.md §8, spec/method.md §7): positions in the capture's frame and units
  * (fm_info.units), normals unit and area-weighted, pointing to the side from which the triangles
@@ -34,10 +44,32 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
+
+/* FM_API marks the library's exported functions. The shared library is built with
+ * -fvisibility=hidden and FACEMORPH_BUILDING_LIBRARY, so that these are all it exports. */
+#if defined(_WIN32)
+#if defined(FACEMORPH_BUILDING_LIBRARY)
+#define FM_API __declspec(dllexport)
+#elif defined(FACEMORPH_STATIC)
+#define FM_API
+#else
+#define FM_API __declspec(dllimport)
+#endif
+#elif defined(__GNUC__) && __GNUC__ >= 4
+#define FM_API __attribute__((visibility("default")))
+#else
+#define FM_API
+#endif
 
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* The API (and ABI) this header declares: 1.0. The soname follows the major version only
+ * (libfacemorph_decoder.so.1); the library's own version is FACEMORPH_VERSION_*, below. */
+#define FACEMORPH_API_VERSION_MAJOR 1
+#define FACEMORPH_API_VERSION_MINOR 0
 
 #define FACEMORPH_VERSION_MAJOR 0
 #define FACEMORPH_VERSION_MINOR 8
@@ -70,19 +102,21 @@ typedef enum fm_status {
 } fm_status;
 
 /* Short stable name of a status ("ok", "truncated", "buffer-too-small", ...); "unknown" for
- * another value. Never NULL; a static string. */
-const char* fm_status_name(fm_status status);
+ * another value. Never NULL; a static string. Cannot fail; sets no message. */
+FM_API const char* fm_status_name(fm_status status);
 
 /* The message of the last call on this thread that did not return FM_OK (every failing call sets
  * it; a call that succeeds sets it to ""). Valid until the next facemorph call on this thread.
  * Never NULL. */
-const char* fm_last_error_message(void);
+FM_API const char* fm_last_error_message(void);
 
-/* "0.8.0": the library's version, which may differ from the header's FACEMORPH_VERSION_*. */
-const char* fm_version(void);
-uint32_t fm_version_number(void);
+/* "0.8.0": the library's version, which may differ from the header's FACEMORPH_VERSION_* (a 1.x
+ * program may run on any 1.x library). Never NULL; a static string. Cannot fail; sets no message. */
+FM_API const char* fm_version(void);
+/* The same as major * 10000 + minor * 100 + patch. Cannot fail; sets no message. */
+FM_API uint32_t fm_version_number(void);
 
-/* An opened .fmv file: every chunk read, checked and decoded.
+/* An opened .fmv file: its header and index read and checked; keyframes decoded when needed.
  *
  * Handles are not pointers to memory: they name an entry of a table with a generation count, so a
  * handle used after it was closed (or closed twice) is FM_ERROR_CLOSED_HANDLE and never reads freed
@@ -91,10 +125,10 @@ typedef struct fm_file fm_file;
 /* The state that decodes one file's frames. */
 typedef struct fm_decoder fm_decoder;
 
-/* What a decoder may spend on a file it did not write (spec/container.md §10). Set struct_size to
- * sizeof(fm_decoder_options) and call fm_decoder_options_init first: fields appended by later
- * versions then keep their defaults. A file that would exceed a limit is refused with
- * FM_ERROR_LIMIT, before the memory is allocated. */
+/* What a decoder may spend on a file it did not write (spec/container.md §10). Call
+ * fm_decoder_options_init first, then change what you want: fields appended by later versions keep
+ * their defaults. A file that would exceed a limit is refused with FM_ERROR_LIMIT, before the
+ * memory is allocated. */
 typedef struct fm_decoder_options {
   size_t struct_size;          /* sizeof(fm_decoder_options) as the caller compiled it */
   uint32_t max_grid_n;         /* largest grid N (default 1025; the format allows 4097) */
@@ -103,32 +137,53 @@ typedef struct fm_decoder_options {
   uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 512 MiB) */
 } fm_decoder_options;
 
-/* Sets every field to its default, struct_size to sizeof(fm_decoder_options). NULL is ignored. */
-void fm_decoder_options_init(fm_decoder_options* options);
+/* The defaults fm_decoder_options_init sets (those of API 1.0). */
+#define FM_DEFAULT_MAX_GRID_N 1025u
+#define FM_DEFAULT_MAX_KEYFRAMES 65536u
+#define FM_DEFAULT_MAX_TEXTURE_SIZE 4096u
+#define FM_DEFAULT_MAX_MEMORY_BYTES (UINT64_C(512) << 20)
 
-/* Opens a file under the default limits: its header and index read, every keyframe's fields decoded
- * once and checked, every checksum verified; keyframes and textures are then decoded again when a
- * frame needs them, into a cache bounded by max_memory_bytes (spec/container.md §10.1). Returns FM_OK, FM_ERROR_INVALID_ARGUMENT
+/* Sets struct_size to sizeof(fm_decoder_options) and every field to its default. NULL is ignored.
+ * Inline, not in the library: struct_size is then the size of the struct as the caller compiled it,
+ * whatever version of the library runs (spec/api.md §3). */
+static inline void fm_decoder_options_init(fm_decoder_options* options) {
+  if (!options) return;
+  memset(options, 0, sizeof *options);
+  options->struct_size = sizeof *options;
+  options->max_grid_n = FM_DEFAULT_MAX_GRID_N;
+  options->max_keyframes = FM_DEFAULT_MAX_KEYFRAMES;
+  options->max_texture_size = FM_DEFAULT_MAX_TEXTURE_SIZE;
+  options->max_memory_bytes = FM_DEFAULT_MAX_MEMORY_BYTES;
+}
+
+/* Opens a file under the default limits: its header and index read and checked (every keyframe's
+ * time and pose are there), and nothing else; a keyframe's fields and texture are decoded (their
+ * checksums verified) when a frame first needs them, into a cache bounded by max_memory_bytes
+ * (spec/container.md §10.1): a fault there is FM_ERROR_CORRUPT from fm_decoder_decode. Returns FM_OK, FM_ERROR_INVALID_ARGUMENT
  * (NULL path or file), FM_ERROR_IO, FM_ERROR_TRUNCATED, FM_ERROR_CORRUPT, FM_ERROR_UNSUPPORTED,
  * FM_ERROR_LIMIT, FM_ERROR_OUT_OF_MEMORY. On success *file is a new handle for fm_file_close; on
  * failure *file is NULL. */
-fm_status fm_file_open(const char* path, fm_file** file);
+FM_API fm_status fm_file_open(const char* path, fm_file** file);
 /* The same from `size` bytes at `data`. They are copied (the copy counts against max_memory_bytes):
- * the caller may free them at once. */
-fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file);
-/* fm_file_open / fm_file_open_memory under the caller's limits (options NULL: the defaults).
- * FM_ERROR_INVALID_ARGUMENT also for options whose struct_size is 0 or whose limits cannot work
- * (max_grid_n below 5, max_keyframes or max_memory_bytes 0). */
-fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file);
-fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file);
+ * the caller may free them at once. FM_OK, FM_ERROR_INVALID_ARGUMENT (NULL file, or NULL data with
+ * size > 0), FM_ERROR_TRUNCATED, FM_ERROR_CORRUPT, FM_ERROR_UNSUPPORTED, FM_ERROR_LIMIT,
+ * FM_ERROR_OUT_OF_MEMORY. */
+FM_API fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file);
+/* fm_file_open / fm_file_open_memory under the caller's limits (options NULL: the defaults). The
+ * same statuses; FM_ERROR_INVALID_ARGUMENT also for options whose struct_size is 0 or whose limits
+ * cannot work (max_grid_n below 5, max_keyframes or max_memory_bytes 0). */
+FM_API fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file);
+FM_API fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file);
 /* Releases the handle; decoders created from it stay valid. NULL is ignored. A handle already
  * closed (or never opened) changes nothing; fm_last_error_message then says so. */
-void fm_file_close(fm_file* file);
+FM_API void fm_file_close(fm_file* file);
 /* fm_file_close with a status: FM_OK, FM_ERROR_CLOSED_HANDLE (already closed), FM_ERROR_INVALID_ARGUMENT
  * (NULL, or not a file handle). */
-fm_status fm_file_release(fm_file* file);
+FM_API fm_status fm_file_release(fm_file* file);
 
+/* What a file holds. fm_info_init it (or set struct_size to sizeof(fm_info)) before fm_file_get_info. */
 typedef struct fm_info {
+  size_t struct_size;      /* sizeof(fm_info) as the caller compiled it */
   double fps;              /* the capture's nominal frame rate */
   double first_time;       /* the capture's first and last frame times, seconds */
   double last_time;
@@ -148,22 +203,31 @@ typedef struct fm_info {
   char units[8];           /* "m", "cm" or "mm", NUL-terminated */
 } fm_info;
 
-/* Fills *info. FM_OK, FM_ERROR_INVALID_ARGUMENT (a NULL or wrong handle, NULL info), FM_ERROR_CLOSED_HANDLE. */
-fm_status fm_file_get_info(const fm_file* file, fm_info* info);
+/* Zeroes *info and sets struct_size to sizeof(fm_info) as the caller compiled it. NULL is ignored. */
+static inline void fm_info_init(fm_info* info) {
+  if (!info) return;
+  memset(info, 0, sizeof *info);
+  info->struct_size = sizeof *info;
+}
+
+/* Fills the fields of *info that its struct_size covers. FM_OK, FM_ERROR_INVALID_ARGUMENT (a NULL or
+ * wrong handle, NULL info, info->struct_size 0), FM_ERROR_CLOSED_HANDLE. */
+FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info);
 /* Copies the keyframe times (seconds) into times[0 .. capacity) and sets *count to the number of
  * keyframes; FM_ERROR_BUFFER_TOO_SMALL (copying nothing) when capacity < *count. times NULL with
- * capacity 0 asks the count only: FM_OK, no error message set. FM_OK, FM_ERROR_INVALID_ARGUMENT,
- * FM_ERROR_CLOSED_HANDLE, FM_ERROR_BUFFER_TOO_SMALL. */
-fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count);
+ * capacity 0 asks the count only: FM_OK, no error message set. FM_OK, FM_ERROR_INVALID_ARGUMENT
+ * (a NULL or wrong handle, NULL count, NULL times with capacity > 0), FM_ERROR_CLOSED_HANDLE,
+ * FM_ERROR_BUFFER_TOO_SMALL. */
+FM_API fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count);
 
 /* A decoder on the file (which it shares: the file handle may be closed afterwards), under the
  * limits the file was opened with. FM_OK, FM_ERROR_INVALID_ARGUMENT, FM_ERROR_CLOSED_HANDLE,
  * FM_ERROR_LIMIT, FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. */
-fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder);
+FM_API fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder);
 /* NULL is ignored; a destroyed handle changes nothing (fm_last_error_message says so). */
-void fm_decoder_destroy(fm_decoder* decoder);
+FM_API void fm_decoder_destroy(fm_decoder* decoder);
 /* fm_decoder_destroy with a status: FM_OK, FM_ERROR_CLOSED_HANDLE, FM_ERROR_INVALID_ARGUMENT. */
-fm_status fm_decoder_release(fm_decoder* decoder);
+FM_API fm_status fm_decoder_release(fm_decoder* decoder);
 
 /* Decode flags, or-ed; 0 is the default. */
 #define FM_DECODE_CLAMP 1u              /* clamp t into [range_begin, range_end] instead of FM_ERROR_OUT_OF_RANGE */
@@ -173,8 +237,9 @@ fm_status fm_decoder_release(fm_decoder* decoder);
 /* One frame: the caller's buffers in, the frame's description out. A NULL buffer is not wanted
  * (and not computed); a buffer that is not NULL must hold the whole array, its size given in
  * BYTES: 3 floats per vertex (positions, normals), 2 floats per vertex (uvs), 3 uint32 per triangle
- * (indices), 4 bytes per texel (texture). Zero-initialise the struct, then set what you want. */
+ * (indices), 4 bytes per texel (texture). fm_frame_init it, then set what you want. */
 typedef struct fm_frame {
+  size_t struct_size;      /* sizeof(fm_frame) as the caller compiled it */
   float* positions;
   size_t positions_bytes;
   float* normals;
@@ -195,18 +260,27 @@ typedef struct fm_frame {
   uint32_t fell_back;      /* 1: the reconstruction did not converge; the frame is the spline of the keyframes' surfaces */
 } fm_frame;
 
+/* Zeroes *frame (no buffer wanted) and sets struct_size to sizeof(fm_frame) as the caller compiled
+ * it. NULL is ignored. */
+static inline void fm_frame_init(fm_frame* frame) {
+  if (!frame) return;
+  memset(frame, 0, sizeof *frame);
+  frame->struct_size = sizeof *frame;
+}
+
 /* Decodes the frame at time t (seconds from the capture's first frame) into the buffers of
  * *frame. Returns FM_OK (every number written is finite), FM_ERROR_INVALID_ARGUMENT (NULL or wrong
- * handle, NULL frame, t not finite, unknown flag: the caller's fault only), FM_ERROR_CLOSED_HANDLE,
+ * handle, NULL frame, frame->struct_size 0, t not finite, unknown flag: the caller's fault only),
+ * FM_ERROR_CLOSED_HANDLE,
  * FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_CORRUPT (the file decodes to
  * non-finite numbers, or a keyframe of it cannot be reconstructed: every later call that needs that
- * keyframe fails at once the same way; or a keyframe's texture, decoded when a frame first shows it,
- * does not decode), FM_ERROR_UNSUPPORTED (that texture is in an image codec this decoder does not
+ * keyframe fails at once the same way; or a keyframe's fields or texture, decoded when a frame first
+ * needs them, do not decode: a bad checksum, a damaged stream), FM_ERROR_UNSUPPORTED (that texture is in an image codec this decoder does not
  * read), FM_ERROR_LIMIT (its chunk is larger than the memory budget), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
  * FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. The decoded frame is
  * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
- * only copies it. Leaving every buffer NULL decodes and reports the sizes. */
-fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame);
+ * only copies it. Leaving every buffer NULL decodes and reports the sizes (FM_OK): the count query. */
+FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame);
 
 #ifdef __cplusplus
 }

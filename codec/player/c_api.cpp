@@ -1,9 +1,11 @@
 // The C API (facemorph.h) over facemorph::Decoder: handles that name entries of a table with a
 // generation count (never pointers the library dereferences), every exception caught at the
-// boundary and turned into an fm_status with a thread-local message.
+// boundary and turned into an fm_status with a thread-local message, structs read and written only
+// as far as their struct_size reaches (spec/api.md §3).
+#define FACEMORPH_BUILDING_LIBRARY
 #include "facemorph.h"
 
-#include "facemorph/decoder.hpp"
+#include "codec/player/decoder.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +20,14 @@
 
 // fm_version() is the library's version (CMake's project version); the header must say the same.
 static_assert(FACEMORPH_VERSION_NUMBER == FACEMORPH_VERSION_NUMBER_BUILT, "bump FACEMORPH_VERSION_* in facemorph.h with the project's version");
+// The soname's major version (codec/player/CMakeLists.txt) is the header's API major version.
+static_assert(FACEMORPH_API_VERSION_MAJOR == FACEMORPH_API_VERSION_MAJOR_BUILT, "the soname follows FACEMORPH_API_VERSION_MAJOR");
+
+// fm_decoder_options_init (inline in the header) sets the library's own defaults.
+static_assert(FM_DEFAULT_MAX_GRID_N == facemorph::kDefaultDecoderLimits.max_grid_n);
+static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_keyframes);
+static_assert(FM_DEFAULT_MAX_TEXTURE_SIZE == facemorph::kDefaultDecoderLimits.max_texture_size);
+static_assert(FM_DEFAULT_MAX_MEMORY_BYTES == facemorph::kDefaultDecoderLimits.max_memory_bytes);
 
 // The C enum mirrors facemorph::ErrorCode value for value.
 static_assert(FM_OK == static_cast<int>(facemorph::ErrorCode::kOk));
@@ -175,20 +185,29 @@ std::shared_ptr<FileEntry> check_file(const fm_file* file, const char* name = "f
 
 std::shared_ptr<facemorph::Decoder> check_decoder(const fm_decoder* decoder) { return decoders().get(decoder, "decoder"); }
 
+// Whether a caller's struct of `struct_size` bytes holds the whole field at [offset, offset + size):
+// the growth rule of every struct of the API (a field appended later lies beyond an older caller's
+// struct_size and is neither read nor written).
+constexpr bool covers(size_t struct_size, size_t offset, size_t size) { return struct_size >= offset + size; }
+#define FM_COVERS(object, type, field) covers((object)->struct_size, offsetof(type, field), sizeof((object)->field))
+
+void check_struct_size(size_t struct_size, const char* name) {
+  if (struct_size == 0) throw Error(ErrorCode::kInvalidArgument, std::string(name) + "->struct_size is 0 (set it to sizeof the struct)");
+}
+
 facemorph::DecoderLimits limits_of(const fm_decoder_options* options) {
   facemorph::DecoderLimits limits;
   if (options == nullptr) return limits;
   if (options->struct_size == 0) throw Error(ErrorCode::kInvalidArgument, "options->struct_size is 0 (fm_decoder_options_init sets it)");
   // Fields the caller's struct has; later ones keep their defaults.
-  const auto has = [&](size_t offset, size_t size) { return options->struct_size >= offset + size; };
-  if (has(offsetof(fm_decoder_options, max_grid_n), sizeof options->max_grid_n)) {
+  if (FM_COVERS(options, fm_decoder_options, max_grid_n)) {
     limits.max_grid_n = static_cast<int>(std::min<uint32_t>(options->max_grid_n, facemorph::kMaxGridSize));
   }
-  if (has(offsetof(fm_decoder_options, max_keyframes), sizeof options->max_keyframes)) limits.max_keyframes = options->max_keyframes;
-  if (has(offsetof(fm_decoder_options, max_texture_size), sizeof options->max_texture_size)) {
+  if (FM_COVERS(options, fm_decoder_options, max_keyframes)) limits.max_keyframes = options->max_keyframes;
+  if (FM_COVERS(options, fm_decoder_options, max_texture_size)) {
     limits.max_texture_size = static_cast<int>(std::min<uint32_t>(options->max_texture_size, 1u << 20));
   }
-  if (has(offsetof(fm_decoder_options, max_memory_bytes), sizeof options->max_memory_bytes)) limits.max_memory_bytes = options->max_memory_bytes;
+  if (FM_COVERS(options, fm_decoder_options, max_memory_bytes)) limits.max_memory_bytes = options->max_memory_bytes;
   facemorph::check_decoder_limits(limits, "options");
   return limits;
 }
@@ -232,68 +251,61 @@ std::span<T> span_of(T* data, size_t bytes) {
   return data == nullptr ? std::span<T>() : std::span<T>(data, bytes / sizeof(T));
 }
 
+// A buffer field of *frame, or NULL (not wanted) where the caller's struct does not hold it.
+#define FM_FRAME_BUFFER(frame, field) (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes) ? span_of((frame)->field, (frame)->field##_bytes) : decltype(span_of((frame)->field, 0))())
+
 void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
-  frame->time = info.time;
-  frame->vertex_count = static_cast<uint32_t>(info.vertex_count);
-  frame->triangle_count = static_cast<uint32_t>(info.triangle_count);
-  frame->texture_size = static_cast<uint32_t>(info.texture_size);
-  frame->iterations = static_cast<uint32_t>(info.iterations);
-  frame->fell_back = info.fell_back ? 1 : 0;
+  if (FM_COVERS(frame, fm_frame, time)) frame->time = info.time;
+  if (FM_COVERS(frame, fm_frame, vertex_count)) frame->vertex_count = static_cast<uint32_t>(info.vertex_count);
+  if (FM_COVERS(frame, fm_frame, triangle_count)) frame->triangle_count = static_cast<uint32_t>(info.triangle_count);
+  if (FM_COVERS(frame, fm_frame, texture_size)) frame->texture_size = static_cast<uint32_t>(info.texture_size);
+  if (FM_COVERS(frame, fm_frame, iterations)) frame->iterations = static_cast<uint32_t>(info.iterations);
+  if (FM_COVERS(frame, fm_frame, fell_back)) frame->fell_back = info.fell_back ? 1 : 0;
 }
 
 }  // namespace
 
 extern "C" {
 
-const char* fm_status_name(fm_status status) {
+FM_API const char* fm_status_name(fm_status status) {
   if (status < FM_OK || status > FM_ERROR_CLOSED_HANDLE) return "unknown";
   return facemorph::error_code_name(static_cast<ErrorCode>(status));
 }
 
-const char* fm_last_error_message(void) { return last_message().c_str(); }
+FM_API const char* fm_last_error_message(void) { return last_message().c_str(); }
 
-const char* fm_version(void) { return FACEMORPH_VERSION; }
+FM_API const char* fm_version(void) { return FACEMORPH_VERSION; }
 
-uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER_BUILT; }
+FM_API uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER_BUILT; }
 
-void fm_decoder_options_init(fm_decoder_options* options) {
-  if (options == nullptr) return;
-  const facemorph::DecoderLimits defaults;
-  *options = fm_decoder_options{};
-  options->struct_size = sizeof(fm_decoder_options);
-  options->max_grid_n = static_cast<uint32_t>(defaults.max_grid_n);
-  options->max_keyframes = defaults.max_keyframes;
-  options->max_texture_size = static_cast<uint32_t>(defaults.max_texture_size);
-  options->max_memory_bytes = defaults.max_memory_bytes;
-}
+FM_API fm_status fm_file_open(const char* path, fm_file** file) { return open_path("fm_file_open", path, nullptr, file); }
 
-fm_status fm_file_open(const char* path, fm_file** file) { return open_path("fm_file_open", path, nullptr, file); }
+FM_API fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) { return open_bytes("fm_file_open_memory", data, size, nullptr, file); }
 
-fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) { return open_bytes("fm_file_open_memory", data, size, nullptr, file); }
-
-fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file) {
+FM_API fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file) {
   return open_path("fm_file_open_with_options", path, options, file);
 }
 
-fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
+FM_API fm_status fm_file_open_memory_with_options(const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
   return open_bytes("fm_file_open_memory_with_options", data, size, options, file);
 }
 
-fm_status fm_file_release(fm_file* file) {
+FM_API fm_status fm_file_release(fm_file* file) {
   return guarded("fm_file_release", [&] {
     files().remove(file, "file");
     return ok();
   });
 }
 
-void fm_file_close(fm_file* file) {
+FM_API void fm_file_close(fm_file* file) {
   if (file != nullptr) (void)fm_file_release(file);
 }
 
-fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
+FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
   return guarded("fm_file_get_info", [&] {
     const std::shared_ptr<FileEntry> entry = check_file(file);
     check_pointer(info, "info");
+    check_struct_size(info->struct_size, "info");
     const facemorph::FileInfo& in = entry->info;
     fm_info out{};
     out.fps = in.fps;
@@ -312,12 +324,22 @@ fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
     out.texture_size = static_cast<uint32_t>(in.texture_size);
     // Units are "m", "cm" or "mm" (the container's reader checks): they fit with their NUL.
     std::strncpy(out.units, in.units.c_str(), sizeof out.units - 1);
-    *info = out;
+    // The fields the caller's struct holds (all of them in 1.0), in their order; struct_size stays.
+    size_t end = 0;
+#define FM_INFO_FIELD(field) \
+  if (FM_COVERS(info, fm_info, field)) end = offsetof(fm_info, field) + sizeof out.field;
+    FM_INFO_FIELD(fps) FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin)
+    FM_INFO_FIELD(range_end) FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count)
+    FM_INFO_FIELD(max_triangle_count) FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes)
+    FM_INFO_FIELD(texture_size) FM_INFO_FIELD(units)
+#undef FM_INFO_FIELD
+    const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
+    if (end > begin) std::memcpy(reinterpret_cast<char*>(info) + begin, reinterpret_cast<const char*>(&out) + begin, end - begin);
     return ok();
   });
 }
 
-fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count) {
+FM_API fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t capacity, size_t* count) {
   return guarded("fm_file_get_keyframe_times", [&] {
     const std::shared_ptr<FileEntry> entry = check_file(file);
     check_pointer(count, "count");
@@ -333,7 +355,7 @@ fm_status fm_file_get_keyframe_times(const fm_file* file, double* times, size_t 
   });
 }
 
-fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder) {
+FM_API fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder) {
   return guarded("fm_decoder_create", [&] {
     check_pointer(decoder, "decoder");
     *decoder = nullptr;
@@ -343,22 +365,23 @@ fm_status fm_decoder_create(const fm_file* file, fm_decoder** decoder) {
   });
 }
 
-fm_status fm_decoder_release(fm_decoder* decoder) {
+FM_API fm_status fm_decoder_release(fm_decoder* decoder) {
   return guarded("fm_decoder_release", [&] {
     decoders().remove(decoder, "decoder");
     return ok();
   });
 }
 
-void fm_decoder_destroy(fm_decoder* decoder) {
+FM_API void fm_decoder_destroy(fm_decoder* decoder) {
   if (decoder != nullptr) (void)fm_decoder_release(decoder);
 }
 
-fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame) {
+FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame) {
   return guarded("fm_decoder_decode", [&] {
     const std::shared_ptr<facemorph::Decoder> held = check_decoder(decoder);
     facemorph::Decoder& d = *held;
     check_pointer(frame, "frame");
+    check_struct_size(frame->struct_size, "frame");
     if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "t is not finite");
     constexpr uint32_t known = FM_DECODE_CLAMP | FM_DECODE_KEEP_HOLES_FILLED | FM_DECODE_FLIP_V;
     if ((flags & ~known) != 0) throw Error(ErrorCode::kInvalidArgument, "unknown decode flags " + std::to_string(flags & ~known));
@@ -367,16 +390,18 @@ fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_fr
     options.keep_holes_filled = (flags & FM_DECODE_KEEP_HOLES_FILLED) != 0;
     options.flip_v = (flags & FM_DECODE_FLIP_V) != 0;
     facemorph::FrameBuffers buffers;
-    buffers.positions = span_of(frame->positions, frame->positions_bytes);
-    buffers.normals = span_of(frame->normals, frame->normals_bytes);
-    buffers.uvs = span_of(frame->uvs, frame->uvs_bytes);
-    buffers.indices = span_of(frame->indices, frame->indices_bytes);
-    buffers.texture = span_of(frame->texture, frame->texture_bytes);
+    buffers.positions = FM_FRAME_BUFFER(frame, positions);
+    buffers.normals = FM_FRAME_BUFFER(frame, normals);
+    buffers.uvs = FM_FRAME_BUFFER(frame, uvs);
+    buffers.indices = FM_FRAME_BUFFER(frame, indices);
+    buffers.texture = FM_FRAME_BUFFER(frame, texture);
     // A non-NULL buffer smaller than one element is too small, not "not wanted".
-    auto tiny = [](const void* p, size_t bytes, size_t element) { return p != nullptr && bytes < element; };
-    if (tiny(frame->positions, frame->positions_bytes, sizeof(float)) || tiny(frame->normals, frame->normals_bytes, sizeof(float)) ||
-        tiny(frame->uvs, frame->uvs_bytes, sizeof(float)) || tiny(frame->indices, frame->indices_bytes, sizeof(uint32_t)) ||
-        tiny(frame->texture, frame->texture_bytes, 1)) {
+    auto tiny = [](bool present, const void* p, size_t bytes, size_t element) { return present && p != nullptr && bytes < element; };
+    if (tiny(FM_COVERS(frame, fm_frame, positions_bytes), frame->positions, frame->positions_bytes, sizeof(float)) ||
+        tiny(FM_COVERS(frame, fm_frame, normals_bytes), frame->normals, frame->normals_bytes, sizeof(float)) ||
+        tiny(FM_COVERS(frame, fm_frame, uvs_bytes), frame->uvs, frame->uvs_bytes, sizeof(float)) ||
+        tiny(FM_COVERS(frame, fm_frame, indices_bytes), frame->indices, frame->indices_bytes, sizeof(uint32_t)) ||
+        tiny(FM_COVERS(frame, fm_frame, texture_bytes), frame->texture, frame->texture_bytes, 1)) {
       describe(d.frame_info(t, options), frame);
       throw Error(ErrorCode::kBufferTooSmall, "a buffer smaller than one element (sizes are in bytes)");
     }

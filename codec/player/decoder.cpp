@@ -1,6 +1,6 @@
-// The player's decoder (facemorph/decoder.hpp): SequenceDecoder's frames copied into caller-owned
+// The player's decoder (codec/player/decoder.hpp, private): SequenceDecoder's frames copied into caller-owned
 // arrays of the layout a GPU takes, with the sizes checked before anything is written.
-#include "facemorph/decoder.hpp"
+#include "codec/player/decoder.hpp"
 
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/sequence_file.hpp"

@@ -2,7 +2,7 @@
 // frames equal to the C++ decoder's; buffer sizes in bytes, checked before anything is written.
 #include "facemorph.h"
 
-#include "facemorph/decoder.hpp"
+#include "codec/player/decoder.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
@@ -29,8 +29,9 @@ bool message_has(const std::string& fragment) { return std::string(fm_last_error
 struct Opened {
   fm_file* file = nullptr;
   fm_decoder* decoder = nullptr;
-  fm_info info{};
+  fm_info info;
   Opened() {
+    fm_info_init(&info);
     EXPECT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK) << fm_last_error_message();
     EXPECT_EQ(fm_file_get_info(file, &info), FM_OK);
     EXPECT_EQ(fm_decoder_create(file, &decoder), FM_OK);
@@ -89,12 +90,14 @@ TEST(CApi, NullArgumentsAndBadHandles) {
   EXPECT_EQ(fm_file_open_memory(nullptr, 10, &file), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("data is NULL"));
   fm_info info;
+  fm_info_init(&info);
   EXPECT_EQ(fm_file_get_info(nullptr, &info), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("file is NULL"));
   fm_decoder* decoder = nullptr;
   EXPECT_EQ(fm_decoder_create(nullptr, &decoder), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(decoder, nullptr);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   EXPECT_EQ(fm_decoder_decode(nullptr, 0.1, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("decoder is NULL"));
 
@@ -156,7 +159,8 @@ TEST(CApi, DecodesAsTheCppDecoder) {
   std::vector<float> positions(3 * v), normals(3 * v), uvs(2 * v), cpp_positions(3 * v), cpp_normals(3 * v), cpp_uvs(2 * v);
   std::vector<uint32_t> indices(3 * f), cpp_indices(3 * f);
   std::vector<uint8_t> texture(4 * texels), cpp_texture(4 * texels);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   frame.positions = positions.data();
   frame.positions_bytes = positions.size() * sizeof(float);
   frame.normals = normals.data();
@@ -188,7 +192,8 @@ TEST(CApi, BufferTooSmallSaysWhatIsNeededAndWritesNothing) {
   Opened o;
   const size_t v = o.info.max_vertex_count;
   std::vector<float> positions(3 * v + 16, -7.0f);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   frame.positions = positions.data();
   frame.positions_bytes = (3 * v - 1) * sizeof(float);  // one float short
   EXPECT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_ERROR_BUFFER_TOO_SMALL);
@@ -199,7 +204,8 @@ TEST(CApi, BufferTooSmallSaysWhatIsNeededAndWritesNothing) {
   EXPECT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_ERROR_BUFFER_TOO_SMALL);
   EXPECT_TRUE(std::all_of(positions.begin(), positions.end(), [](float x) { return x == -7.0f; }));
   // Ask with no buffers, then decode with exactly the sizes asked.
-  fm_frame ask{};
+  fm_frame ask;
+  fm_frame_init(&ask);
   ASSERT_EQ(fm_decoder_decode(o.decoder, 0.3, 0, &ask), FM_OK);
   EXPECT_EQ(ask.vertex_count, static_cast<uint32_t>(v));
   frame.positions_bytes = 3 * sizeof(float) * ask.vertex_count;
@@ -214,10 +220,76 @@ TEST(CApi, FileMayCloseBeforeItsDecoders) {
   fm_decoder* decoder = nullptr;
   ASSERT_EQ(fm_decoder_create(file, &decoder), FM_OK);
   fm_file_close(file);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   EXPECT_EQ(fm_decoder_decode(decoder, 0.1, 0, &frame), FM_OK);
   EXPECT_GT(frame.vertex_count, 0u);
   fm_decoder_destroy(decoder);
+}
+
+// The growth rule of API 1.0 (spec/api.md §3): struct_size 0 is the caller's error; a caller
+// compiled against a shorter struct (an older header) has only its own fields read and written.
+TEST(CApi, StructsAreReadAndWrittenOnlyAsFarAsTheirStructSize) {
+  Opened o;
+  fm_info info;
+  fm_info_init(&info);
+  info.struct_size = 0;
+  EXPECT_EQ(fm_file_get_info(o.file, &info), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(message_has("info->struct_size is 0")) << fm_last_error_message();
+  // An fm_info that ends before texture_size and units: they stay as the caller left them.
+  std::memset(&info, 0x5a, sizeof info);
+  info.struct_size = offsetof(fm_info, texture_size);
+  ASSERT_EQ(fm_file_get_info(o.file, &info), FM_OK);
+  EXPECT_EQ(info.grid_n, o.info.grid_n);
+  EXPECT_EQ(info.has_holes, o.info.has_holes);
+  EXPECT_EQ(info.texture_size, 0x5a5a5a5au);
+  EXPECT_EQ(info.units[0], 0x5a);
+  EXPECT_EQ(info.struct_size, offsetof(fm_info, texture_size));  // never rewritten
+
+  fm_frame frame;
+  fm_frame_init(&frame);
+  frame.struct_size = 0;
+  EXPECT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
+  // An fm_frame that holds positions but ends before the outputs: positions written, counts not.
+  std::vector<float> positions(3 * static_cast<size_t>(o.info.max_vertex_count), -7.0f);
+  fm_frame_init(&frame);
+  frame.positions = positions.data();
+  frame.positions_bytes = sizeof(float) * positions.size();
+  frame.normals = positions.data();  // beyond struct_size: never read
+  frame.normals_bytes = 4;
+  frame.vertex_count = 12345;
+  frame.struct_size = offsetof(fm_frame, normals);
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &frame), FM_OK) << fm_last_error_message();
+  EXPECT_EQ(frame.vertex_count, 12345u);
+  EXPECT_NE(positions[3 * 850 - 1], -7.0f);
+  // A newer caller's larger struct: the fields this library knows are served.
+  struct Newer {
+    fm_frame frame;
+    uint64_t appended;
+  } newer{};
+  fm_frame_init(&newer.frame);
+  newer.frame.struct_size = sizeof newer;
+  newer.appended = 99;
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.2, 0, &newer.frame), FM_OK);
+  EXPECT_EQ(newer.frame.vertex_count, 850u);
+  EXPECT_EQ(newer.appended, 99u);
+}
+
+// Every call that fills a caller's buffer answers the count query with NULL buffers, as FM_OK.
+TEST(CApi, CountQueriesSucceedWithNullBuffers) {
+  Opened o;
+  size_t count = 0;
+  EXPECT_EQ(fm_file_get_keyframe_times(o.file, nullptr, 0, &count), FM_OK);
+  EXPECT_EQ(count, o.info.keyframe_count);
+  EXPECT_STREQ(fm_last_error_message(), "");
+  EXPECT_EQ(fm_file_get_keyframe_times(o.file, nullptr, 4, &count), FM_ERROR_INVALID_ARGUMENT);  // room claimed, no buffer
+  fm_frame frame;
+  fm_frame_init(&frame);
+  ASSERT_EQ(fm_decoder_decode(o.decoder, 0.2, FM_DECODE_CLAMP, &frame), FM_OK);
+  EXPECT_EQ(frame.vertex_count, 850u);
+  EXPECT_GT(frame.triangle_count, 0u);
+  EXPECT_EQ(frame.texture_size, o.info.texture_size);
+  EXPECT_STREQ(fm_last_error_message(), "");
 }
 
 }  // namespace

@@ -4,7 +4,7 @@
 // memory errors. Every file here is crafted with valid checksums (crafted::rebuild), so each test
 // reaches the check it means.
 #include "facemorph.h"
-#include "facemorph/decoder.hpp"
+#include "codec/player/decoder.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/image_codec.hpp"
 #include "facemorph/limits.hpp"
@@ -302,7 +302,8 @@ TEST(TrustBoundary, HandlesAfterCloseAreNamedErrors) {
   fm_decoder* decoder = nullptr;
   ASSERT_EQ(fm_decoder_create(a, &decoder), FM_OK);
   ASSERT_EQ(fm_decoder_release(decoder), FM_OK);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   // Decode after destroy, double destroy.
   EXPECT_EQ(fm_decoder_decode(decoder, 0.1, 0, &frame), FM_ERROR_CLOSED_HANDLE);
   EXPECT_NE(std::string(fm_last_error_message()).find("already closed"), std::string::npos) << fm_last_error_message();
@@ -312,6 +313,7 @@ TEST(TrustBoundary, HandlesAfterCloseAreNamedErrors) {
   // get_info after close; a second close of a does not close b, which may reuse a's entry.
   ASSERT_EQ(fm_file_release(a), FM_OK);
   fm_info info;
+  fm_info_init(&info);
   EXPECT_EQ(fm_file_get_info(a, &info), FM_ERROR_CLOSED_HANDLE);
   EXPECT_EQ(fm_decoder_create(a, &decoder), FM_ERROR_CLOSED_HANDLE);
   EXPECT_EQ(decoder, nullptr);
@@ -475,7 +477,8 @@ TEST(TrustBoundary, AnIndicesBufferOneTriangleShortIsRefused) {
   fm_decoder* d = nullptr;
   ASSERT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK);
   ASSERT_EQ(fm_decoder_create(file, &d), FM_OK);
-  fm_frame frame{};
+  fm_frame frame;
+  fm_frame_init(&frame);
   frame.indices = indices.data();
   frame.indices_bytes = sizeof(uint32_t) * (needed - 3);
   EXPECT_EQ(fm_decoder_decode(d, 0.2, 0, &frame), FM_ERROR_BUFFER_TOO_SMALL);

@@ -42,6 +42,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (opened == FM_ERROR_INVALID_ARGUMENT || opened == FM_ERROR_INTERNAL) std::abort();  // a file's fault blamed on the caller, or a bug
   if (opened != FM_OK) return 0;
   fm_info info;
+  fm_info_init(&info);
   fm_decoder* decoder = nullptr;
   if (fm_file_get_info(file, &info) != FM_OK || fm_decoder_create(file, &decoder) != FM_OK) std::abort();  // an opened file has both
   fm_file_close(file);  // the decoder keeps it
@@ -55,7 +56,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const double ts[] = {info.first_time, info.first_time + 0.37 * span, info.first_time + 0.37 * span, info.last_time, info.last_time + span + 1,
                        info.first_time - 1};
   for (size_t i = 0; i < sizeof ts / sizeof ts[0]; ++i) {
-    fm_frame frame{};
+    fm_frame frame;
+    fm_frame_init(&frame);
     frame.positions = positions.data(), frame.positions_bytes = sizeof(float) * positions.size();
     frame.normals = normals.data(), frame.normals_bytes = sizeof(float) * normals.size();
     frame.uvs = uvs.data(), frame.uvs_bytes = sizeof(float) * uvs.size();

@@ -1,174 +1,213 @@
-// The decoder a player embeds: open a .fmv file (or its bytes in memory), ask what it holds, and
-// decode any time t into arrays the caller owns — positions, normals, UVs, triangle indices and the
-// RGBA texture, the layout a GPU vertex buffer and texture take as they are. A thin layer over
-// SequenceDecoder (facemorph/sequence.hpp), which keeps the multigrid solver of G's Laplacian and the
-// keyframes' own decoded surfaces between calls. The C API (facemorph.h) is this class behind a
-// plain-C interface.
+// facemorph/decoder.hpp: the C++ player API, a header-only wrapper over the C API (facemorph.h),
+// as libjxl's decode_cxx.h is over decode.h. It adds only what C++ gives: handles closed by their
+// destructors, exceptions for statuses, frames into std::vectors. It includes facemorph.h and the
+// standard library only, compiles as C++17 or later, and is part of API 1.0 (spec/api.md): every
+// function is inline, so its ABI is the C API's.
 //
-// Errors: every function that can fail throws facemorph::Error (facemorph/error.hpp) with a named
-// code and a message naming the file and the reason. decode() writes nothing when it throws.
+//   fm::File file = fm::File::open("face.fmv");                  // throws fm::Error
+//   fm::Decoder decoder(file);
+//   fm::Frame frame;
+//   decoder.decode(1.45, frame);                                  // positions, normals, UVs, indices, texture
+//   draw(frame.positions.data(), frame.vertex_count, frame.indices.data(), frame.triangle_count);
 //
-// Threads: a Decoder is used by one thread at a time (decode changes its state). Several Decoders
-// may share one opened file — `std::shared_ptr<const KeyframeSource>` from open_sequence_file /
-// open_sequence_memory, thread-safe — and decode on as many threads at once.
+// Namespace fm (the C API's prefix): the library's internal C++ lives in namespace facemorph, and a
+// program linking the static library has both.
 //
-// Conventions (spec/method.md §7 and spec/container.md §8):
-//   positions  the capture's frame and units (FileInfo::units: "m", "cm" or "mm"), head pose applied;
-//   normals    unit, area-weighted vertex normals of the decoded triangles, pointing to the side
-//              from which the triangles wind counter-clockwise (zero only for a vertex that touches
-//              no triangle of non-zero area);
-//   UVs        (u, v) in [0, 1]², one per vertex, UV = (w + 1) / 2 of the vertex's point w of the
-//              unit disk, v up as in OBJ and OpenGL (FrameOptions::flip_v: v down, as glTF and
-//              Direct3D sample images);
-//   indices    three per triangle, counter-clockwise, 0-based vertex numbers;
-//   texture    M × M RGBA8 texels, alpha 255, row 0 at the top (v = 1), rows packed without padding.
-#pragma once
+// Errors: every call that fails throws fm::Error, whose status() is the C API's fm_status and whose
+// what() is "name: message" (fm_status_name, fm_last_error_message).
+// Threads: as the C API. A File is immutable once opened: decoders on it may be created and used on
+// several threads; a Decoder is used by one thread at a time. A File may be destroyed while its
+// decoders live.
+// Conventions (units, UV, winding, texture rows): facemorph.h.
+#ifndef FACEMORPH_DECODER_HPP
+#define FACEMORPH_DECODER_HPP
 
-#include "facemorph/error.hpp"
-#include "facemorph/limits.hpp"
-#include "facemorph/sequence.hpp"
+#if !defined(__cplusplus) || __cplusplus < 201703L
+#error "facemorph/decoder.hpp needs C++17 or later (-std=c++17); C programs include facemorph.h"
+#endif
+
+#include "facemorph.h"
 
 #include <cstddef>
 #include <cstdint>
-#include <filesystem>
-#include <memory>
-#include <span>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
-namespace facemorph {
+namespace fm {
 
-// Opens a .fmv file for decoding on demand (open_sequence_source, facemorph/sequence_file.hpp):
-// the header and index are read and every keyframe's fields decoded once and checked
-// (spec/container.md §9: kIo, kTruncated, kCorrupt, kUnsupported, each naming the file and the
-// chunk; kLimit where a frame needs more than `limits` allow, found from the sizes it states before
-// they are allocated, §10). Afterwards keyframes and textures are decoded when a frame needs them,
-// into a cache bounded by limits.max_memory_bytes: memory follows what is played, not the file.
-// The result is immutable to its users and thread-safe: share it between decoders and threads.
-std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
-// The same from bytes in memory. The bytes are copied (and count against the budget): the caller
-// may free them at once. `name` names the source in error messages.
-std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
-                                                           const DecoderLimits& limits = kDefaultDecoderLimits);
-
-// What a file holds, fixed for the file.
-struct FileInfo {
-  double fps = 0;             // the capture's nominal frame rate (frames per second)
-  double first_time = 0;      // the capture's first and last frame times, seconds
-  double last_time = 0;
-  double duration = 0;        // last_time - first_time, seconds
-  // Times decode() serves without FrameOptions::clamp: the keyframes' span extended by one
-  // keyframe interval at each end (extrapolation; ±infinity with a single keyframe, which is
-  // constant); outside it decode throws kOutOfRange.
-  double range_begin = 0;
-  double range_end = 0;
-  std::vector<double> keyframe_times;  // seconds, strictly increasing
-  int grid_n = 0;             // N of the disk grid G
-  // Every decoded frame has at most this many vertices and triangles, so buffers of these sizes
-  // always suffice. Without holes (or with FrameOptions::keep_holes_filled) every frame has
-  // exactly these counts and the same indices; with holes cut, the counts change from frame to
-  // frame (FrameInfo says each frame's) and these bounds are G's nodes plus its edges, and twice
-  // its triangles.
-  int max_vertex_count = 0;
-  int max_triangle_count = 0;
-  int grid_vertex_count = 0;   // G's nodes and triangles: every frame's counts when the topology is fixed
-  int grid_triangle_count = 0;
-  bool has_holes = false;      // eyes and mouth are cut out per frame: the topology changes
-  bool has_texture = false;
-  int texture_size = 0;        // M, texels per side (0: no texture)
-  std::string units;           // "m", "cm" or "mm"
-};
-
-// What a sequence holds, without a decoder (no solver built): what a player shows before it
-// decodes, and what the C API's fm_file_get_info returns. Throws kInvalidArgument for a sequence
-// validate_sequence rejects.
-FileInfo file_info(const Sequence& sequence);
-FileInfo file_info(const KeyframeSource& source);
-
-struct FrameOptions {
-  // Outside [range_begin, range_end]: clamp t into it instead of throwing kOutOfRange.
-  bool clamp = false;
-  // Keep the filled eyes and mouth instead of cutting them out: the topology is then fixed.
-  bool keep_holes_filled = false;
-  // UV v pointing down (glTF, Direct3D) instead of up (OBJ, OpenGL): v ↦ 1 − v.
-  bool flip_v = false;
-};
-
-// Caller-owned outputs. An empty span is not wanted (and not computed: no normals, no texture
-// blend). A span that is not empty must hold the whole array — 3 floats per vertex for positions
-// and normals, 2 per vertex for UVs, 3 indices per triangle, 4 bytes per texel — or decode throws
-// kBufferTooSmall naming the array and the size needed, and writes nothing anywhere.
-struct FrameBuffers {
-  std::span<float> positions{};
-  std::span<float> normals{};
-  std::span<float> uvs{};
-  std::span<uint32_t> indices{};
-  std::span<uint8_t> texture{};
-};
-
-// What a decode produced.
-struct FrameInfo {
-  double time = 0;          // the time decoded, seconds (t, or t clamped into the range)
-  int vertex_count = 0;
-  int triangle_count = 0;
-  int texture_size = 0;     // M (0: no texture)
-  int iterations = 0;       // reconstruction steps the frame took
-  // The reconstruction did not meet its tolerance; the frame is then the spline of the keyframes'
-  // own surfaces (always a valid face), which fell_back says.
-  bool converged = true;
-  bool fell_back = false;
-  // Array lengths the frame needs, in elements: floats, indices, bytes.
-  size_t positions_size() const { return 3 * static_cast<size_t>(vertex_count); }
-  size_t normals_size() const { return 3 * static_cast<size_t>(vertex_count); }
-  size_t uvs_size() const { return 2 * static_cast<size_t>(vertex_count); }
-  size_t indices_size() const { return 3 * static_cast<size_t>(triangle_count); }
-  size_t texture_bytes() const { return 4 * static_cast<size_t>(texture_size) * static_cast<size_t>(texture_size); }
-};
-
-class Decoder {
+class Error : public std::runtime_error {
  public:
-  // Throws kInvalidArgument for a null or invalid sequence, kLimit for a source whose budget holds
-  // fewer keyframe surfaces than a frame blends.
-  explicit Decoder(std::shared_ptr<const Sequence> sequence);
-  explicit Decoder(std::shared_ptr<const KeyframeSource> source);
-  // open_sequence_file / open_sequence_memory, then a decoder on it.
-  static Decoder open(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
-  static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory", const DecoderLimits& limits = kDefaultDecoderLimits);
-
-  Decoder(Decoder&&) noexcept;
-  Decoder& operator=(Decoder&&) noexcept;
-  ~Decoder();
-
-  const FileInfo& info() const { return info_; }
-  // The opened file, to share with another decoder (on another thread).
-  const std::shared_ptr<const KeyframeSource>& source() const { return source_; }
-
-  // Decodes the frame at t (seconds from the capture's first frame) into `out`; every number it
-  // writes is finite. Throws
-  //   kInvalidArgument  t not finite (only the caller's arguments: never for a fault of the file);
-  //   kOutOfRange       t outside [range_begin, range_end] without options.clamp;
-  //   kBufferTooSmall   a non-empty span too small (the message says which and what is needed);
-  //   kCorrupt          the file decodes to non-finite numbers at t, or a keyframe t needs cannot be
-  //                     reconstructed (remembered: the next call that needs it fails at once);
-  //   kNumerical, kNotConverged  the reconstruction failed (a corrupt file).
-  // The frame is kept: asking again for the same t and options (after kBufferTooSmall, or through
-  // frame_info) copies it out again without decoding.
-  FrameInfo decode(double t, const FrameBuffers& out, const FrameOptions& options = {});
-  // Decodes the frame at t (kept for the next decode) and says its sizes without copying anything:
-  // the "ask the size, then hand the buffers" pattern for files with holes.
-  FrameInfo frame_info(double t, const FrameOptions& options = {});
+  Error(fm_status status, const std::string& message)
+      : std::runtime_error(std::string(fm_status_name(status)) + ": " + message), status_(status) {}
+  fm_status status() const noexcept { return status_; }
 
  private:
-  struct Impl;
-  std::shared_ptr<const KeyframeSource> source_;
-  FileInfo info_;
-  std::unique_ptr<Impl> impl_;
+  fm_status status_;
 };
 
-// Area-weighted unit vertex normals (Σ over the vertex's triangles of (b − a) × (c − a), then
-// normalised) as 3 floats per vertex into `out` (3 × positions.size()); zero for a vertex that
-// touches no triangle of non-zero area. Throws kInvalidArgument for a face index out of range or
-// a wrong output size.
-void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out);
+// Throws fm::Error for any status but FM_OK, with the calling thread's last message.
+inline void check(fm_status status) {
+  if (status != FM_OK) throw Error(status, fm_last_error_message());
+}
 
-}  // namespace facemorph
+// The decoder's limits for a file it did not write (facemorph.h fm_decoder_options), at their
+// defaults: change the fields you want, pass to File::open.
+inline fm_decoder_options default_options() noexcept {
+  fm_decoder_options options;
+  fm_decoder_options_init(&options);
+  return options;
+}
+
+// Decode flags (facemorph.h FM_DECODE_*), or-ed.
+enum DecodeFlags : uint32_t {
+  kClamp = FM_DECODE_CLAMP,
+  kKeepHolesFilled = FM_DECODE_KEEP_HOLES_FILLED,
+  kFlipV = FM_DECODE_FLIP_V,
+};
+
+// Which arrays Decoder::decode fills, or-ed.
+enum Outputs : uint32_t {
+  kPositions = 1,
+  kNormals = 2,
+  kUvs = 4,
+  kIndices = 8,
+  kTexture = 16,
+  kAllOutputs = 31,
+};
+
+// An opened .fmv file (fm_file). Move-only; the destructor closes it.
+class File {
+ public:
+  // fm_file_open_with_options: throws fm::Error (FM_ERROR_IO, _TRUNCATED, _CORRUPT, _UNSUPPORTED,
+  // _LIMIT, _OUT_OF_MEMORY, _INVALID_ARGUMENT for bad options).
+  static File open(const std::string& path, const fm_decoder_options& options = default_options()) {
+    fm_file* file = nullptr;
+    check(fm_file_open_with_options(path.c_str(), &options, &file));
+    return File(file);
+  }
+  // fm_file_open_memory_with_options: the bytes are copied; free them at once if you like.
+  static File open_memory(const void* data, std::size_t size, const fm_decoder_options& options = default_options()) {
+    fm_file* file = nullptr;
+    check(fm_file_open_memory_with_options(data, size, &options, &file));
+    return File(file);
+  }
+
+  File(File&& other) noexcept : file_(std::exchange(other.file_, nullptr)) {}
+  File& operator=(File&& other) noexcept {
+    if (this != &other) {
+      fm_file_close(file_);
+      file_ = std::exchange(other.file_, nullptr);
+    }
+    return *this;
+  }
+  File(const File&) = delete;
+  File& operator=(const File&) = delete;
+  ~File() { fm_file_close(file_); }
+
+  // What the file holds (fm_file_get_info).
+  fm_info info() const {
+    fm_info info{};
+    info.struct_size = sizeof info;
+    check(fm_file_get_info(file_, &info));
+    return info;
+  }
+  // The keyframes' times, seconds, increasing (fm_file_get_keyframe_times: count, then copy).
+  std::vector<double> keyframe_times() const {
+    std::size_t count = 0;
+    check(fm_file_get_keyframe_times(file_, nullptr, 0, &count));
+    std::vector<double> times(count);
+    check(fm_file_get_keyframe_times(file_, times.data(), times.size(), &count));
+    return times;
+  }
+  // The C handle, for the C API; still owned by this File.
+  const fm_file* get() const noexcept { return file_; }
+
+ private:
+  explicit File(fm_file* file) noexcept : file_(file) {}
+  fm_file* file_ = nullptr;
+};
+
+// A decoded frame in arrays the decoder resizes (and reuses: decoding into the same Frame again
+// allocates only when a frame needs more than the last). Sizes are in elements: 3 floats per vertex
+// for positions and normals, 2 for UVs, 3 indices per triangle, 4 bytes per texel.
+struct Frame {
+  std::vector<float> positions;
+  std::vector<float> normals;
+  std::vector<float> uvs;
+  std::vector<uint32_t> indices;
+  std::vector<uint8_t> texture;
+  double time = 0;              // the time decoded (t, or t clamped), seconds
+  uint32_t vertex_count = 0;
+  uint32_t triangle_count = 0;
+  uint32_t texture_size = 0;    // M (0: no texture)
+  uint32_t iterations = 0;      // reconstruction steps
+  bool fell_back = false;       // the reconstruction did not converge: the keyframes' spline
+};
+
+// The state that decodes one file's frames (fm_decoder). Move-only; the destructor destroys it.
+class Decoder {
+ public:
+  // fm_decoder_create: throws fm::Error (FM_ERROR_LIMIT, _OUT_OF_MEMORY, _CLOSED_HANDLE, ...).
+  explicit Decoder(const File& file) { check(fm_decoder_create(file.get(), &decoder_)); }
+  Decoder(Decoder&& other) noexcept : decoder_(std::exchange(other.decoder_, nullptr)) {}
+  Decoder& operator=(Decoder&& other) noexcept {
+    if (this != &other) {
+      fm_decoder_destroy(decoder_);
+      decoder_ = std::exchange(other.decoder_, nullptr);
+    }
+    return *this;
+  }
+  Decoder(const Decoder&) = delete;
+  Decoder& operator=(const Decoder&) = delete;
+  ~Decoder() { fm_decoder_destroy(decoder_); }
+
+  // Decodes the frame at t (seconds) into `frame`: the arrays `outputs` names are resized to the
+  // frame's counts and filled, the others emptied. Throws fm::Error with the statuses of
+  // fm_decoder_decode (FM_ERROR_OUT_OF_RANGE without kClamp, FM_ERROR_CORRUPT, ...); `frame` is then
+  // unspecified. Asks the sizes first (a decode that is kept), then copies.
+  void decode(double t, Frame& frame, uint32_t outputs = kAllOutputs, uint32_t flags = 0) {
+    fm_frame out = {};
+    out.struct_size = sizeof out;
+    check(fm_decoder_decode(decoder_, t, flags, &out));
+    const std::size_t vertices = out.vertex_count, triangles = out.triangle_count, texels = std::size_t{out.texture_size} * out.texture_size;
+    wire(outputs & kPositions, frame.positions, 3 * vertices, out.positions, out.positions_bytes);
+    wire(outputs & kNormals, frame.normals, 3 * vertices, out.normals, out.normals_bytes);
+    wire(outputs & kUvs, frame.uvs, 2 * vertices, out.uvs, out.uvs_bytes);
+    wire(outputs & kIndices, frame.indices, 3 * triangles, out.indices, out.indices_bytes);
+    wire(outputs & kTexture, frame.texture, 4 * texels, out.texture, out.texture_bytes);
+    check(fm_decoder_decode(decoder_, t, flags, &out));
+    frame.time = out.time;
+    frame.vertex_count = out.vertex_count;
+    frame.triangle_count = out.triangle_count;
+    frame.texture_size = out.texture_size;
+    frame.iterations = out.iterations;
+    frame.fell_back = out.fell_back != 0;
+  }
+  // The C API's own call, for buffers the caller manages (a mapped GPU buffer): throws fm::Error
+  // for every status but FM_OK (FM_ERROR_BUFFER_TOO_SMALL too: frame's counts then say what is
+  // needed). frame.struct_size must be set (sizeof(fm_frame)).
+  void decode_into(double t, fm_frame& frame, uint32_t flags = 0) { check(fm_decoder_decode(decoder_, t, flags, &frame)); }
+
+  // The C handle, for the C API; still owned by this Decoder.
+  fm_decoder* get() const noexcept { return decoder_; }
+
+ private:
+  template <typename T>
+  static void wire(uint32_t wanted, std::vector<T>& array, std::size_t size, T*& pointer, std::size_t& bytes) {
+    if (wanted == 0 || size == 0) {
+      array.clear();
+      return;
+    }
+    array.resize(size);
+    pointer = array.data();
+    bytes = size * sizeof(T);
+  }
+
+  fm_decoder* decoder_ = nullptr;
+};
+
+}  // namespace fm
+
+#endif  // FACEMORPH_DECODER_HPP

@@ -1,0 +1,126 @@
+// The C++ player API (facemorph/decoder.hpp, header-only over the C API) as a player uses it: built
+// as C++17, linked to libfacemorph_decoder.so.1 alone, no internal header in sight.
+#include <facemorph/decoder.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+#include <type_traits>
+#include <vector>
+
+namespace {
+
+const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v1_0.fmv";
+
+static_assert(!std::is_copy_constructible_v<fm::File> && std::is_nothrow_move_constructible_v<fm::File>);
+static_assert(!std::is_copy_constructible_v<fm::Decoder> && std::is_nothrow_move_constructible_v<fm::Decoder>);
+
+TEST(DecoderApi, OpensAndDecodesEveryOutputIntoReusedArrays) {
+  const fm::File file = fm::File::open(kGolden);
+  const fm_info info = file.info();
+  EXPECT_EQ(info.struct_size, sizeof(fm_info));
+  EXPECT_EQ(info.grid_n, 33u);
+  EXPECT_EQ(file.keyframe_times().size(), info.keyframe_count);
+  fm::Decoder decoder(file);
+  fm::Frame frame;
+  decoder.decode(0.2, frame);
+  EXPECT_EQ(frame.vertex_count, 850u);
+  EXPECT_DOUBLE_EQ(frame.time, 0.2);
+  ASSERT_EQ(frame.positions.size(), 3u * frame.vertex_count);
+  ASSERT_EQ(frame.normals.size(), 3u * frame.vertex_count);
+  ASSERT_EQ(frame.uvs.size(), 2u * frame.vertex_count);
+  ASSERT_EQ(frame.indices.size(), 3u * frame.triangle_count);
+  ASSERT_EQ(frame.texture.size(), 4u * frame.texture_size * frame.texture_size);
+  for (float x : frame.positions) ASSERT_TRUE(std::isfinite(x));
+  for (uint32_t v : frame.indices) ASSERT_LT(v, frame.vertex_count);
+  // Another time into the same arrays: same topology, no new allocation.
+  const float* positions = frame.positions.data();
+  const std::vector<float> first = frame.positions;
+  decoder.decode(0.3, frame);
+  EXPECT_EQ(frame.positions.data(), positions);
+  EXPECT_NE(frame.positions, first);
+  // Only what is asked for.
+  decoder.decode(0.3, frame, fm::kPositions);
+  EXPECT_EQ(frame.positions.size(), 3u * frame.vertex_count);
+  EXPECT_TRUE(frame.normals.empty() && frame.uvs.empty() && frame.indices.empty() && frame.texture.empty());
+}
+
+TEST(DecoderApi, StatusesAreExceptionsThatNameThem) {
+  try {
+    fm::File::open("/nonexistent/face.fmv");
+    FAIL() << "a missing file opened";
+  } catch (const fm::Error& e) {
+    EXPECT_EQ(e.status(), FM_ERROR_IO);
+    EXPECT_EQ(std::string(e.what()).rfind("io: fm_file_open_with_options: ", 0), 0u) << e.what();
+  }
+  fm_decoder_options options = fm::default_options();
+  options.max_grid_n = 17;  // the golden file's grid is 33
+  try {
+    fm::File::open(kGolden, options);
+    FAIL() << "opened over the limit";
+  } catch (const fm::Error& e) {
+    EXPECT_EQ(e.status(), FM_ERROR_LIMIT);
+  }
+  const fm::File file = fm::File::open(kGolden);
+  fm::Decoder decoder(file);
+  fm::Frame frame;
+  try {
+    decoder.decode(1000, frame);
+    FAIL() << "decoded outside the range";
+  } catch (const fm::Error& e) {
+    EXPECT_EQ(e.status(), FM_ERROR_OUT_OF_RANGE);
+  }
+  decoder.decode(1000, frame, fm::kPositions, fm::kClamp);
+  EXPECT_DOUBLE_EQ(frame.time, file.info().range_end);
+}
+
+TEST(DecoderApi, DecodeIntoTheCallersBuffersSaysWhatIsNeeded) {
+  const fm::File file = fm::File::open(kGolden);
+  fm::Decoder decoder(file);
+  std::vector<float> positions(3);
+  fm_frame frame;
+  fm_frame_init(&frame);
+  frame.positions = positions.data();
+  frame.positions_bytes = sizeof(float) * positions.size();
+  try {
+    decoder.decode_into(0.2, frame);
+    FAIL() << "three floats held 850 vertices";
+  } catch (const fm::Error& e) {
+    EXPECT_EQ(e.status(), FM_ERROR_BUFFER_TOO_SMALL);
+  }
+  EXPECT_EQ(frame.vertex_count, 850u);
+  positions.resize(3 * frame.vertex_count);
+  frame.positions = positions.data();
+  frame.positions_bytes = sizeof(float) * positions.size();
+  decoder.decode_into(0.2, frame);
+  EXPECT_TRUE(std::isfinite(positions.back()));
+}
+
+TEST(DecoderApi, DecodersOutliveTheirFileAndDecodeOnThreads) {
+  std::ifstream in(kGolden, std::ios::binary);
+  const std::vector<char> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::vector<fm::Decoder> decoders;
+  {
+    fm::File file = fm::File::open_memory(bytes.data(), bytes.size());
+    fm::File moved = std::move(file);  // the moved-from File closes nothing
+    decoders.emplace_back(moved);
+    decoders.emplace_back(moved);
+  }
+  std::vector<uint32_t> counts(2);
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < decoders.size(); ++i) {
+    threads.emplace_back([&, i] {
+      fm::Frame frame;
+      decoders[i].decode(0.1 + 0.1 * static_cast<double>(i), frame, fm::kPositions);
+      counts[i] = frame.vertex_count;
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(counts, (std::vector<uint32_t>{850, 850}));
+}
+
+}  // namespace
