@@ -2,7 +2,7 @@
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/linear_map.hpp"

@@ -1,7 +1,7 @@
 #include "codec/conformal/double_cover.hpp"
 
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,14 +1,14 @@
 // The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
 #include "facemorph/encoder/sequence_encoder.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/face_orientation.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/spline.hpp"

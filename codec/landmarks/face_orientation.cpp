@@ -1,9 +1,9 @@
 // The face's orientation from its geometry: facing direction, nose tip, mirror plane, up.
 #include "facemorph/encoder/face_orientation.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

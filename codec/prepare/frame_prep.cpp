@@ -2,7 +2,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

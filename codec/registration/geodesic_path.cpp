@@ -2,9 +2,9 @@
 // toward a surface geodesic (method-notes §6 steps 2-4).
 #include "codec/registration/surface_path.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <array>

@@ -2,10 +2,10 @@
 // of its images f̄(V) (paper §5, method-notes §6 "Barycentric coordinates").
 #include "codec/registration/partition_map.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "codec/registration/registration_internal.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

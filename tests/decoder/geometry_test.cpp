@@ -1,5 +1,5 @@
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,7 +1,7 @@
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/mesh_io.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "tests/test_util.hpp"
 
