@@ -3,6 +3,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/linear_map.hpp"

@@ -1,6 +1,7 @@
 // Measures of a disk map: conformal factor per vertex, angle and quasi-conformal distortion.
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/untangle.hpp"
 

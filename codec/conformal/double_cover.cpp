@@ -2,6 +2,7 @@
 
 #include "facemorph/error.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>

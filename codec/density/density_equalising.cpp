@@ -14,6 +14,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>

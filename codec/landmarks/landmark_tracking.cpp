@@ -4,6 +4,7 @@
 #include "facemorph/meshkit/distance.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 #include "facemorph/parallel.hpp"
 
 #include <opencv2/core.hpp>

@@ -7,6 +7,7 @@
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <Eigen/SparseCholesky>
 

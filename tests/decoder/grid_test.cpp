@@ -2,6 +2,7 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -3,6 +3,7 @@
 #include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/untangle.hpp"

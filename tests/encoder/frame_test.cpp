@@ -2,6 +2,7 @@
 #include "facemorph/geometry.hpp"
 #include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -6,6 +6,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/image_codec.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <cmath>
 #include <cstring>
