@@ -1,5 +1,6 @@
 #include "facemorph/meshkit/surface_measures.hpp"
 
+#include "codec/geometry/elementary.hpp"
 #include <algorithm>
 #include <cmath>
 
@@ -17,7 +18,7 @@ std::vector<CornerValues> corner_angles(std::span<const Vec3> positions, std::sp
       const Vec3& p = at(positions, faces[f][k]);
       const Vec3 a = at(positions, faces[f][(k + 1) % 3]) - p;
       const Vec3 b = at(positions, faces[f][(k + 2) % 3]) - p;
-      angles[f][k] = std::atan2(a.cross(b).norm(), a.dot(b));
+      angles[f][k] = angle_between(a, b);
     }
   }
   return angles;
