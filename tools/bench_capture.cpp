@@ -8,14 +8,14 @@
 // the quality that matches facemorph's texture PSNR, and facemorph's own xyz representation.
 #include "tools/bench_capture.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/render.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "tools/bench_sequence.hpp"

@@ -6,9 +6,9 @@
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/render.hpp"
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/encoder/synth.hpp"
 

@@ -1,7 +1,7 @@
 #include "tools/bench_inputs.hpp"
 
 #include "facemorph/encoder/capture.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/encoder/synth.hpp"
 
 #include <algorithm>

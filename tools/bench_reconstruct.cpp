@@ -4,9 +4,9 @@
 
 #include "facemorph/sequence_file.hpp"
 #include "facemorph/encoder/capture.hpp"
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/encoder/synth.hpp"
 

@@ -1,7 +1,7 @@
 // What fmbench's whole-capture benches share (see bench_sequence.hpp).
 #include "tools/bench_sequence.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/resample.hpp"

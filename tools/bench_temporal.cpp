@@ -3,14 +3,14 @@
 // captured frame decoded at its own time and compared with the frame as captured.
 #include "tools/bench_temporal.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/image_codec.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "tools/bench_inputs.hpp"

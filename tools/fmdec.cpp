@@ -1,10 +1,10 @@
 // fmdec: plays a .fmv file back. One time (--t) to a mesh with its texture and, on request, a
 // shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
 // for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
-#include "facemorph/gltf.hpp"
+#include "facemorph/meshkit/gltf.hpp"
 #include "facemorph/image_codec.hpp"
-#include "facemorph/mesh_io.hpp"
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/meshkit/render.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 

@@ -3,7 +3,7 @@
 // encoder will, and prints a summary (or JSON).
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/frame.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/container.hpp"

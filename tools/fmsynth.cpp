@@ -1,5 +1,5 @@
 // fmsynth: writes a synthetic face capture (spec/capture.md), facemorph's own sample and test data.
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/encoder/synth.hpp"
 
 #include "tools/tool_support.hpp"

@@ -1,7 +1,7 @@
 // fmview: renders a mesh to a PNG picture (textured, checkerboard over its UVs, or plain shaded).
 #include "facemorph/encoder/image_io.hpp"
-#include "facemorph/mesh_io.hpp"
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/meshkit/render.hpp"
 
 #include "tools/tool_support.hpp"
 

@@ -2,7 +2,7 @@
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/error.hpp"
 
-#include "codec/mesh/text_scan.hpp"
+#include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/file_io.hpp"
 
 #include <nlohmann/json.hpp>

@@ -2,7 +2,8 @@
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/linear_map.hpp"
@@ -117,7 +118,7 @@ DiskMap preconditioned_map(const TriangleMesh& input, const ConformalOptions& op
       double image_area = 0;
       for (const Face& f : faces) {
         const Eigen::Vector3d a = flow.phi.row(f[0]), b = flow.phi.row(f[1]), c = flow.phi.row(f[2]);
-        image_area += 0.5 * (b - a).cross(c - a).norm();
+        image_area += triangle_area(a, b, c);
       }
       report.energy_excess = flow.energy - image_area;
       // Stereographic projection of copy 1 (southern hemisphere) from the north pole.

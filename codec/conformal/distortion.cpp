@@ -1,8 +1,10 @@
 // Measures of a disk map: conformal factor per vertex, angle and quasi-conformal distortion.
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/untangle.hpp"
+#include "codec/geometry/elementary.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -41,7 +43,7 @@ Distortion measure_distortion(const DiskMap& map) {
     d.flipped += signed_area(w[0], w[1], w[2]) <= 0;
     for (int k = 0; k < 3; ++k) {
       const Vec2 e1 = w[(k + 1) % 3] - w[k], e2 = w[(k + 2) % 3] - w[k];
-      const double disk_angle = std::atan2(std::abs(e1.x() * e2.y() - e1.y() * e2.x()), e1.dot(e2));
+      const double disk_angle = plane_angle(e1, e2);
       errors.push_back(std::abs(disk_angle - surface_angles[f][k]) * 180 / std::numbers::pi);
     }
     // Beltrami coefficient (method-notes §2.7): the surface triangle laid flat in C, then f: z -> w.

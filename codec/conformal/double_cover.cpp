@@ -1,7 +1,8 @@
 #include "codec/conformal/double_cover.hpp"
 
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,6 +2,7 @@
 #include "codec/conformal/linear_map.hpp"
 
 #include "facemorph/error.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/spd_solver.hpp"

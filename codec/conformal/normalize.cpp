@@ -1,5 +1,5 @@
 // Landmark normalisation: the disk Möbius map sending the centre landmark to 0, the direction one up.
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/error.hpp"
 

@@ -2,7 +2,7 @@
 
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/render.hpp"
 
 #include <algorithm>
 #include <cmath>

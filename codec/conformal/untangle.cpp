@@ -26,7 +26,7 @@ void add_mean_value_row(const TriangleMesh& surface, const std::vector<std::vect
     const int j = t[(k + 1) % 3], l = t[(k + 2) % 3];
     const Vec3& p = surface.positions[static_cast<size_t>(i)];
     const Vec3 a = surface.positions[static_cast<size_t>(j)] - p, b = surface.positions[static_cast<size_t>(l)] - p;
-    const double half_tan = std::tan(0.5 * std::atan2(a.cross(b).norm(), a.dot(b)));
+    const double half_tan = std::tan(0.5 * angle_between(a, b));
     row.push_back({j, half_tan / std::max(a.norm(), 1e-300)});
     row.push_back({l, half_tan / std::max(b.norm(), 1e-300)});
   }

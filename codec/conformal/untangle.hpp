@@ -2,15 +2,11 @@
 #pragma once
 
 #include "facemorph/encoder/conformal.hpp"
+#include "codec/geometry/elementary.hpp"
 
 #include <vector>
 
 namespace facemorph {
-
-// Signed area of the disk triangle abc: positive when counter-clockwise.
-inline double signed_area(const Vec2& a, const Vec2& b, const Vec2& c) {
-  return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));
-}
 
 // Faces with non-positive signed area in the embedding w.
 int count_flipped(const std::vector<Vec2>& w, const std::vector<Face>& faces);

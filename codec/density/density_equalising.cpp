@@ -11,9 +11,11 @@
 #include "facemorph/encoder/density_equalising.hpp"
 
 #include "codec/conformal/spd_solver.hpp"
+#include "codec/geometry/elementary.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -24,10 +26,6 @@
 namespace facemorph {
 
 namespace {
-
-double signed_area(const Vec2& a, const Vec2& b, const Vec2& c) {
-  return 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
-}
 
 std::vector<double> disk_areas(const std::vector<Vec2>& points, const std::vector<Face>& faces) {
   std::vector<double> areas(faces.size());

@@ -1,14 +1,15 @@
 // The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
 #include "facemorph/encoder/sequence_encoder.hpp"
 
-#include "facemorph/distance.hpp"
+#include "codec/geometry/elementary.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/face_orientation.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/spline.hpp"
@@ -84,7 +85,7 @@ int auto_texture_size(const TriangleMesh& surface, int width, int height) {
   double area = 0;
   for (const Face& f : surface.uv_faces) {
     const Vec2 a = surface.uvs[static_cast<size_t>(f[0])], b = surface.uvs[static_cast<size_t>(f[1])], c = surface.uvs[static_cast<size_t>(f[2])];
-    area += 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    area += std::abs(signed_area(a, b, c));
   }
   const double texels = std::min(area, 1.0) * width * height;
   const double side = kMargin * std::sqrt(texels * 4 / std::numbers::pi);

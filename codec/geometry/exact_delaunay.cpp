@@ -1,5 +1,6 @@
 #include "codec/geometry/exact_delaunay.hpp"
 
+#include "codec/geometry/bowyer_watson.hpp"
 #include "facemorph/error.hpp"
 
 #include <algorithm>
@@ -60,184 +61,54 @@ int lifted_determinant_sign(const std::array<int64_t, 6>& rel, const std::array<
   return det.sign();
 }
 
-// Position along a Hilbert curve of order 16; inserting in this order keeps point-location walks short.
-uint64_t hilbert_index(uint32_t x, uint32_t y) {
-  uint64_t d = 0;
-  for (uint32_t s = 1u << 15; s > 0; s >>= 1) {
-    const uint32_t rx = (x & s) > 0, ry = (y & s) > 0;
-    d += uint64_t{s} * s * ((3 * rx) ^ ry);
-    if (ry == 0) {
-      if (rx == 1) {
-        x = s - 1 - (x & (s - 1)) + (x & ~(s - 1));
-        y = s - 1 - (y & (s - 1)) + (y & ~(s - 1));
-      }
-      std::swap(x, y);
-    }
-  }
-  return d;
-}
+// The exact predicates of the header, counting the in-circle tests no perturbation term decided.
+struct ExactPredicates {
+  static constexpr const char* kName = "exact_delaunay";
+  int unresolved_ties = 0;
 
-struct Triangle {
-  std::array<int32_t, 3> v;
-  std::array<int32_t, 3> n;  // n[k]: neighbour across the edge opposite v[k]; -1 none
-};
-
-class ExactTriangulator {
- public:
-  explicit ExactTriangulator(std::span<const IntPoint> input) : points_(input.begin(), input.end()) {}
-
-  ExactDelaunayResult run() {
-    ExactDelaunayResult result;
-    const size_t n = points_.size();
-    for (const IntPoint& p : points_) {
-      if (p.x < -kExactCoordinateLimit || p.x > kExactCoordinateLimit || p.y < -kExactCoordinateLimit || p.y > kExactCoordinateLimit) {
-        throw Error(ErrorCode::kInvalidArgument, "exact_delaunay: coordinate beyond 2^30");
-      }
-    }
-    if (n < 3) return result;
-    // A super triangle 8x beyond the coordinate limit: far outside every circumcircle of three
-    // input points that are not nearly collinear.
-    constexpr int64_t kFar = kExactCoordinateLimit * 8;
-    super_ = static_cast<int32_t>(n);
-    points_.push_back({-kFar, -kFar});
-    points_.push_back({kFar, -kFar});
-    points_.push_back({0, kFar});
-    triangles_.push_back({{super_, super_ + 1, super_ + 2}, {-1, -1, -1}});
-    alive_.push_back(1);
-    stamp_.push_back(0);
-
-    std::vector<uint32_t> order(n);
-    std::iota(order.begin(), order.end(), 0u);
-    std::vector<uint64_t> key(n);
-    for (size_t i = 0; i < n; ++i) {
-      const auto x = static_cast<uint32_t>((points_[i].x + kExactCoordinateLimit) >> 15);
-      const auto y = static_cast<uint32_t>((points_[i].y + kExactCoordinateLimit) >> 15);
-      key[i] = hilbert_index(x, y);
-    }
-    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
-    for (uint32_t i : order) insert(static_cast<int32_t>(i));
-
-    for (size_t t = 0; t < triangles_.size(); ++t) {
-      const auto& v = triangles_[t].v;
-      if (alive_[t] && v[0] < super_ && v[1] < super_ && v[2] < super_) result.faces.push_back({v[0], v[1], v[2]});
-    }
-    result.unresolved_ties = unresolved_ties_;
-    return result;
-  }
-
- private:
-  const IntPoint& p(int32_t i) const { return points_[static_cast<size_t>(i)]; }
-
-  int32_t locate(const IntPoint& q) const {
-    int32_t t = last_;
-    for (size_t steps = 0; steps < 4 * triangles_.size() + 16; ++steps) {
-      const Triangle& tri = triangles_[static_cast<size_t>(t)];
-      int32_t next = -1;
-      for (int k = 0; k < 3; ++k) {
-        const int k1 = (k + 1 + static_cast<int>(steps % 3)) % 3;  // rotate the test order: no cycling
-        if (exact_orientation(p(tri.v[static_cast<size_t>((k1 + 1) % 3)]), p(tri.v[static_cast<size_t>((k1 + 2) % 3)]), q) < 0) {
-          next = tri.n[static_cast<size_t>(k1)];
-          break;
-        }
-      }
-      if (next < 0) return t;
-      t = next;
-    }
-    throw Error(ErrorCode::kNumerical, "exact_delaunay: point location did not terminate");
-  }
-
-  bool in_circumcircle(const Triangle& t, const IntPoint& q) {
-    const int s = perturbed_incircle(p(t.v[0]), p(t.v[1]), p(t.v[2]), q);
-    if (s == 0) ++unresolved_ties_;
+  static int orientation(const IntPoint& a, const IntPoint& b, const IntPoint& c) { return exact_orientation(a, b, c); }
+  bool in_circle(const IntPoint& a, const IntPoint& b, const IntPoint& c, const IntPoint& q) {
+    const int s = perturbed_incircle(a, b, c, q);
+    if (s == 0) ++unresolved_ties;
     return s > 0;
   }
-
-  void insert(int32_t index) {
-    const IntPoint& q = p(index);
-    const int32_t start = locate(q);
-    for (int32_t v : triangles_[static_cast<size_t>(start)].v) {
-      if (p(v) == q) throw Error(ErrorCode::kInvalidArgument, "exact_delaunay: repeated point");
-    }
-    ++epoch_;
-    cavity_.assign(1, start);
-    stamp_[static_cast<size_t>(start)] = epoch_;
-    for (size_t i = 0; i < cavity_.size(); ++i) {
-      const Triangle t = triangles_[static_cast<size_t>(cavity_[i])];
-      for (int32_t nb : t.n) {
-        if (nb < 0 || stamp_[static_cast<size_t>(nb)] == epoch_) continue;
-        if (in_circumcircle(triangles_[static_cast<size_t>(nb)], q)) {
-          stamp_[static_cast<size_t>(nb)] = epoch_;
-          cavity_.push_back(nb);
-        }
-      }
-    }
-    // The cavity's boundary edges, each becoming a new triangle (a, b, q).
-    rims_.clear();
-    for (int32_t c : cavity_) {
-      const Triangle& t = triangles_[static_cast<size_t>(c)];
-      for (int k = 0; k < 3; ++k) {
-        const int32_t nb = t.n[static_cast<size_t>(k)];
-        if (nb >= 0 && stamp_[static_cast<size_t>(nb)] == epoch_) continue;
-        const int32_t a = t.v[static_cast<size_t>((k + 1) % 3)], b = t.v[static_cast<size_t>((k + 2) % 3)];
-        if (exact_orientation(p(a), p(b), q) <= 0) throw Error(ErrorCode::kNumerical, "exact_delaunay: the cavity is not star-shaped");
-        int32_t slot = -1;
-        if (nb >= 0) {
-          for (int m = 0; m < 3; ++m) {
-            if (triangles_[static_cast<size_t>(nb)].n[static_cast<size_t>(m)] == c) slot = m;
-          }
-        }
-        rims_.push_back({a, b, nb, slot});
-      }
-    }
-    for (int32_t c : cavity_) {
-      alive_[static_cast<size_t>(c)] = 0;
-      free_.push_back(c);
-    }
-    created_.clear();
-    for (const CavityEdge& rim : rims_) {
-      int32_t id;
-      if (!free_.empty()) {
-        id = free_.back();
-        free_.pop_back();
-      } else {
-        id = static_cast<int32_t>(triangles_.size());
-        triangles_.push_back({});
-        alive_.push_back(0);
-        stamp_.push_back(0);
-      }
-      triangles_[static_cast<size_t>(id)] = {{rim.a, rim.b, index}, {-1, -1, rim.outside}};
-      alive_[static_cast<size_t>(id)] = 1;
-      if (rim.outside >= 0) triangles_[static_cast<size_t>(rim.outside)].n[static_cast<size_t>(rim.outside_slot)] = id;
-      created_.push_back(id);
-    }
-    // Link the fan: triangle (a, b, q) meets (b, c, q) across edge (b, q), opposite its vertex a.
-    for (int32_t id : created_) {
-      Triangle& t = triangles_[static_cast<size_t>(id)];
-      for (int32_t other : created_) {
-        const Triangle& u = triangles_[static_cast<size_t>(other)];
-        if (u.v[0] == t.v[1]) t.n[0] = other;  // u starts where t ends
-        if (u.v[1] == t.v[0]) t.n[1] = other;  // u ends where t starts
-      }
-    }
-    last_ = created_.front();
-  }
-
-  // A cavity boundary edge (a, b) and the triangle outside it (and the slot pointing back).
-  struct CavityEdge {
-    int32_t a, b, outside, outside_slot;
-  };
-
-  std::vector<IntPoint> points_;
-  std::vector<Triangle> triangles_;
-  std::vector<uint8_t> alive_;
-  std::vector<uint32_t> stamp_;  // stamp_[t] == epoch_: t is in the current cavity
-  uint32_t epoch_ = 0;
-  std::vector<int32_t> cavity_, free_, created_;
-  std::vector<CavityEdge> rims_;
-  int32_t super_ = 0;
-  int32_t last_ = 0;
-  int unresolved_ties_ = 0;
 };
+
+ExactDelaunayResult triangulate(std::span<const IntPoint> input) {
+  ExactDelaunayResult result;
+  const size_t n = input.size();
+  for (const IntPoint& p : input) {
+    if (p.x < -kExactCoordinateLimit || p.x > kExactCoordinateLimit || p.y < -kExactCoordinateLimit || p.y > kExactCoordinateLimit) {
+      throw Error(ErrorCode::kInvalidArgument, "exact_delaunay: coordinate beyond 2^30");
+    }
+  }
+  if (n < 3) return result;
+  // A super triangle 8x beyond the coordinate limit: far outside every circumcircle of three
+  // input points that are not nearly collinear.
+  constexpr int64_t kFar = kExactCoordinateLimit * 8;
+  std::vector<IntPoint> points(input.begin(), input.end());
+  points.push_back({-kFar, -kFar});
+  points.push_back({kFar, -kFar});
+  points.push_back({0, kFar});
+  ExactPredicates predicates;
+  bowyer_watson::Triangulation<IntPoint, ExactPredicates> triangulation(points, predicates);
+
+  std::vector<uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::vector<uint64_t> key(n);
+  for (size_t i = 0; i < n; ++i) {
+    const auto x = static_cast<uint32_t>((points[i].x + kExactCoordinateLimit) >> 15);
+    const auto y = static_cast<uint32_t>((points[i].y + kExactCoordinateLimit) >> 15);
+    key[i] = bowyer_watson::hilbert_index(x, y);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
+  for (uint32_t i : order) {
+    if (!triangulation.insert(static_cast<int32_t>(i))) throw Error(ErrorCode::kInvalidArgument, "exact_delaunay: repeated point");
+  }
+  result.faces = triangulation.faces();
+  result.unresolved_ties = predicates.unresolved_ties;
+  return result;
+}
 
 }  // namespace
 
@@ -259,6 +130,6 @@ int perturbed_incircle(const IntPoint& a, const IntPoint& b, const IntPoint& c, 
   return lifted_determinant_sign(rel, minor, [](int64_t x, int64_t y) { return static_cast<Int128>(x) * x - static_cast<Int128>(y) * y; });
 }
 
-ExactDelaunayResult exact_delaunay(std::span<const IntPoint> points) { return ExactTriangulator(points).run(); }
+ExactDelaunayResult exact_delaunay(std::span<const IntPoint> points) { return triangulate(points); }
 
 }  // namespace facemorph

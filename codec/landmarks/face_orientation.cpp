@@ -1,9 +1,10 @@
 // The face's orientation from its geometry: facing direction, nose tip, mirror plane, up.
 #include "facemorph/encoder/face_orientation.hpp"
 
-#include "facemorph/distance.hpp"
+#include "codec/geometry/elementary.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -162,10 +163,10 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
     std::optional<double> front;
     for (const auto& t : projected) {
       const Vec2 a = t[0].head<2>(), b = t[1].head<2>(), c = t[2].head<2>(), p(along, across);
-      const double twice_area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+      const double twice_area = cross2(b - a, c - a);
       if (std::abs(twice_area) < 1e-300) continue;
-      const double wb = ((p - a).x() * (c - a).y() - (p - a).y() * (c - a).x()) / twice_area;
-      const double wc = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / twice_area;
+      const double wb = cross2(p - a, c - a) / twice_area;
+      const double wc = cross2(b - a, p - a) / twice_area;
       if (wb < 0 || wc < 0 || wb + wc > 1) continue;
       const double h = (1 - wb - wc) * t[0].z() + wb * t[1].z() + wc * t[2].z();
       if (!front || h > *front) front = h;

@@ -1,9 +1,10 @@
 // Correspondence between frames by optical flow on disk images of their geometry (spec/method.md §7.14).
 #include "facemorph/encoder/landmark_tracking.hpp"
 
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 #include "facemorph/parallel.hpp"
 
 #include <opencv2/core.hpp>

@@ -2,7 +2,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -144,7 +144,7 @@ class FramePreparer {
       const Face& t = mesh_.faces[f];
       const Vec3 &a = mesh_.positions[static_cast<size_t>(t[0])], &b = mesh_.positions[static_cast<size_t>(t[1])],
                  &c = mesh_.positions[static_cast<size_t>(t[2])];
-      area[static_cast<size_t>(component[f])] += 0.5 * (b - a).cross(c - a).norm();
+      area[static_cast<size_t>(component[f])] += triangle_area(a, b, c);
     }
     const int keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
     std::vector<uint8_t> drop(mesh_.faces.size(), 0);
@@ -186,7 +186,7 @@ class FramePreparer {
         }
         const Vec3 &a = mesh_.positions[static_cast<size_t>(face[0])], &b = mesh_.positions[static_cast<size_t>(face[1])],
                    &c = mesh_.positions[static_cast<size_t>(face[2])];
-        if (0.5 * (b - a).cross(c - a).norm() > tolerance) continue;
+        if (triangle_area(a, b, c) > tolerance) continue;
         drop[f] = 1;
         ++report_.dropped_degenerate_faces;
         changed = true;

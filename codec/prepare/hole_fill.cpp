@@ -4,9 +4,11 @@
 // instead of bulging into it. The membrane is what keeps an open mouth from becoming a deep
 // cavity whose conformal image would be crowded beyond any grid (spec/method.md §2).
 #include "facemorph/error.hpp"
+#include "codec/geometry/elementary.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <Eigen/SparseCholesky>
 
@@ -258,7 +260,7 @@ class Fill {
   double angle_at(int32_t apex, int32_t a, int32_t b) const {
     const Vec3 u = p_[static_cast<size_t>(a)] - p_[static_cast<size_t>(apex)];
     const Vec3 v = p_[static_cast<size_t>(b)] - p_[static_cast<size_t>(apex)];
-    return std::atan2(u.cross(v).norm(), u.dot(v));
+    return angle_between(u, v);
   }
 
   int n_;

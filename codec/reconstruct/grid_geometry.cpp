@@ -1,5 +1,6 @@
 // Operators on the shared disk grid, shared by the encoder (fields) and the decoder (reconstruction).
 #include "facemorph/error.hpp"
+#include "codec/geometry/elementary.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/grid_geometry.hpp"
 #include "facemorph/reconstruct.hpp"
@@ -88,7 +89,7 @@ std::vector<double> GridGeometry::conformal_factor_squared(const std::vector<Vec
       const Face& t = grid_.faces[static_cast<size_t>(f)];
       surface += triangle_area(positions[static_cast<size_t>(t[0])], positions[static_cast<size_t>(t[1])], positions[static_cast<size_t>(t[2])]);
       const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
-      disk += 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+      disk += std::abs(signed_area(a, b, c));
     }
     out[v] = surface / disk;
   }

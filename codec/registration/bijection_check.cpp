@@ -1,6 +1,7 @@
 // Whether a registration is a bijection of the disk: det Df > 0 on a dense grid and the circle's
 // images in strictly increasing cyclic angle (method-notes §5, "Keeping a bijection").
 #include "codec/registration/registration_internal.hpp"
+#include "codec/geometry/elementary.hpp"
 
 #include "facemorph/error.hpp"
 
@@ -91,7 +92,7 @@ BijectionCheck inspect(const DiskRegistration& f, int grid_size, std::optional<d
   for (size_t k = 0; k < images.size(); ++k) {
     const Vec2& a = images[k];
     const Vec2& b = images[(k + 1) % images.size()];
-    const double step = std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));
+    const double step = turning_angle(a, b);
     if (!(step > 0)) ++check.boundary_order_breaks;
     turn += step;
   }

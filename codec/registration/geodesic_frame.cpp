@@ -3,12 +3,12 @@
 // triangulation of the disk whose edges follow those curves.
 #include "codec/registration/surface_path.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "codec/registration/partition_map.hpp"
 #include "codec/registration/registration_internal.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/parallel.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <chrono>

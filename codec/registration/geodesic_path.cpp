@@ -1,10 +1,11 @@
 // Straight disk segments pulled back onto the surface, and Martínez-Velho-Carvalho path correction
 // toward a surface geodesic (method-notes §6 steps 2-4).
 #include "codec/registration/surface_path.hpp"
+#include "codec/geometry/elementary.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <array>
@@ -21,9 +22,6 @@ constexpr double kPi = std::numbers::pi;
 // two-triangle unfolding of a point that near a vertex says nothing reliable.
 constexpr double kSnap = 1e-12;
 
-double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
-double surface_angle(const Vec3& u, const Vec3& v) { return std::atan2(u.cross(v).norm(), u.dot(v)); }
-double plane_angle(const Vec2& u, const Vec2& v) { return std::atan2(std::abs(cross2(u, v)), u.dot(v)); }
 
 int corner_of(const Face& f, int v) {
   for (int k = 0; k < 3; ++k) {
@@ -603,7 +601,7 @@ SurfacePaths::Fan SurfacePaths::fan_view(int v) const {
     const int n1 = face[static_cast<size_t>((k + 1) % 3)];
     second = face[static_cast<size_t>((k + 2) % 3)];
     view.neighbours.push_back(n1);
-    view.theta.push_back(view.theta.back() + surface_angle(mesh.positions[static_cast<size_t>(n1)] - xv, mesh.positions[static_cast<size_t>(second)] - xv));
+    view.theta.push_back(view.theta.back() + angle_between(mesh.positions[static_cast<size_t>(n1)] - xv, mesh.positions[static_cast<size_t>(second)] - xv));
   }
   if (view.open) view.neighbours.push_back(second);
   return view;
@@ -614,7 +612,7 @@ double SurfacePaths::direction(const Fan& fan, const PathPoint& p) const {
   const Vec3& xv = map_.surface.positions[static_cast<size_t>(fan.v)];
   for (size_t k = 0; k < fan.faces.size(); ++k) {
     if (!touches(p, fan.faces[k])) continue;
-    const double phi = surface_angle(map_.surface.positions[static_cast<size_t>(fan.neighbours[k])] - xv, position(p) - xv);
+    const double phi = angle_between(map_.surface.positions[static_cast<size_t>(fan.neighbours[k])] - xv, position(p) - xv);
     return fan.theta[k] + std::clamp(phi, 0.0, fan.theta[k + 1] - fan.theta[k]);
   }
   return std::numeric_limits<double>::quiet_NaN();

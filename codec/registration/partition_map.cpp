@@ -1,11 +1,12 @@
 // The partition mesh and Φ, the piecewise-affine map taking each partition triangle V to the triangle
 // of its images f̄(V) (paper §5, method-notes §6 "Barycentric coordinates").
 #include "codec/registration/partition_map.hpp"
+#include "codec/geometry/elementary.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "codec/registration/registration_internal.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -16,8 +17,6 @@
 
 namespace facemorph {
 namespace {
-
-double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
 // The radial map of the gap between the chord (va, vb) and the circle onto the gap between the chord
 // (wa, wb) and the circle: w's ray crosses the chord at c = va + u (vb - va); w sits a fraction t of
@@ -170,7 +169,7 @@ BijectionCheck check_images(const PiecewiseAffineMap& phi, const DiskMoebius& m)
   for (size_t k = 0; k < boundary.size(); ++k) {
     const Vec2& a = W[static_cast<size_t>(boundary[k])];
     const Vec2& b = W[static_cast<size_t>(boundary[(k + 1) % boundary.size()])];
-    const double step = std::atan2(cross2(a, b), a.dot(b));
+    const double step = turning_angle(a, b);
     if (!(step > 0)) ++check.boundary_order_breaks;
     turn += step;
     check.max_boundary_radius_error = std::max(check.max_boundary_radius_error, std::abs(a.norm() - 1));

@@ -1,7 +1,7 @@
 #include "facemorph/hole_cut.hpp"
 
 #include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/mesh.hpp"
 
 #include <cmath>
 #include <unordered_map>

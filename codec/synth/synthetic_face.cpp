@@ -2,7 +2,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/encoder/synth.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // fmsynth's capture writer: meshes, per-frame textures, landmarks and the manifest.
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/encoder/synth.hpp"
 

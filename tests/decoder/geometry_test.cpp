@@ -1,5 +1,6 @@
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,7 +1,8 @@
 #include "codec/geometry/exact_delaunay.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,6 +1,6 @@
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/frame.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
 

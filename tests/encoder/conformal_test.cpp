@@ -1,8 +1,9 @@
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/encoder/frame.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "codec/conformal/double_cover.hpp"
 #include "codec/conformal/untangle.hpp"

@@ -5,6 +5,7 @@
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/encoder/density_equalising.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

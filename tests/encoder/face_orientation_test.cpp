@@ -4,7 +4,7 @@
 #include "facemorph/encoder/face_orientation.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -3,7 +3,7 @@
 #include "facemorph/encoder/frame_store.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "tests/test_util.hpp"

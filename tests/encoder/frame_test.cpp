@@ -1,7 +1,8 @@
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
-#include "facemorph/mesh_io.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/meshkit/topology.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

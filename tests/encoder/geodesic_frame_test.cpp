@@ -5,7 +5,7 @@
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/error.hpp"
 
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "codec/registration/partition_map.hpp"
 #include "tests/test_util.hpp"
 

@@ -1,8 +1,8 @@
 // The keyframe round trip through the whole encode path: mesh -> conformal map -> G -> fields ->
 // 16 bits -> Laplace-Beltrami reconstruction, against the surface.
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
 
 #include "tests/test_util.hpp"

@@ -1,12 +1,12 @@
 // Landmark correspondence by optical flow on the disk images (landmark_tracking.hpp): fmsynth's
 // faces, whose every material point is known at every time, tracked from a reference frame.
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 

@@ -1,14 +1,14 @@
 // The encoder end to end on the project's own synthetic captures: map, register, choose keyframes,
 // store, and decode every captured frame at its time.
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/sequence_file.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "tests/test_util.hpp"
 

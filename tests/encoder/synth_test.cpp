@@ -1,8 +1,8 @@
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/frame.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/encoder/synth.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -2,7 +2,7 @@
 // mesh or a named facemorph::Error; nothing is read from or written to disk (a missing texture is
 // allowed so the parser does not stop at the material).
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
 #include <string_view>
 

@@ -1,4 +1,6 @@
-// Discrete differential geometry on triangle meshes (method-notes §1, spec/method.md §1).
+// Discrete differential geometry on triangle meshes (method-notes §1, spec/method.md §1): the
+// operators the reconstruction needs. Measures only the encoder and the tools use (angles, normals,
+// mean curvature, ...) are meshkit's, in facemorph/meshkit/surface_measures.hpp.
 //
 // Sign conventions, used everywhere in facemorph:
 //  * K is the positive semidefinite cotangent Laplacian: K_ij = -w_ij, K_ii = sum_j w_ij,
@@ -25,13 +27,8 @@ using CornerValues = std::array<double, 3>;  // one value per corner of a face
 // 1e-12 |a||b| so that degenerate triangles give large finite weights, never Inf/NaN.
 double cotangent(const Vec3& a, const Vec3& b);
 
-// Interior angle (radians) at each corner of each face.
-std::vector<CornerValues> corner_angles(std::span<const Vec3> positions, std::span<const Face> faces);
-
-// Cotangent of the angle at each corner, from positions or from intrinsic edge lengths
-// (lengths[f][k] is the length of the edge opposite corner k).
+// Cotangent of the angle at each corner of each face.
 std::vector<CornerValues> corner_cotangents(std::span<const Vec3> positions, std::span<const Face> faces);
-std::vector<CornerValues> corner_cotangents_from_lengths(std::span<const CornerValues> lengths);
 
 // K from per-corner cotangents: corner k of face f weights the edge opposite it by cot/2.
 SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<const CornerValues> cotangents,
@@ -39,28 +36,7 @@ SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<co
 SparseMatrix cotangent_laplacian(std::span<const Vec3> positions, std::span<const Face> faces);
 
 double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
-std::vector<double> face_areas(std::span<const Vec3> positions, std::span<const Face> faces);
-double total_area(std::span<const Vec3> positions, std::span<const Face> faces);
-// Signed enclosed volume (divergence theorem); meaningful for closed, consistently oriented meshes.
-double signed_volume(std::span<const Vec3> positions, std::span<const Face> faces);
-
 // Mixed Voronoi vertex areas (Meyer et al. 2003); sums to the total area.
 Eigen::VectorXd mixed_voronoi_areas(std::span<const Vec3> positions, std::span<const Face> faces);
-// One third of the area of each incident face.
-Eigen::VectorXd barycentric_areas(std::span<const Vec3> positions, std::span<const Face> faces);
-
-// Unit face normals ((b-a) x (c-a), normalised; zero for degenerate faces).
-std::vector<Vec3> face_normals(std::span<const Vec3> positions, std::span<const Face> faces);
-// Angle-weighted unit vertex normals; zero for vertices with no non-degenerate face.
-std::vector<Vec3> vertex_normals(std::span<const Vec3> positions, std::span<const Face> faces);
-
-// Signed mean curvature per vertex, H_i = <(Δx)_i, n_i> / 2 with angle-weighted normals and mixed
-// areas. At boundary vertices the one-ring is incomplete, so H there is the mean over interior
-// neighbours (0 when a boundary vertex has none). `is_boundary` has one flag per vertex.
-Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const Face> faces,
-                               const std::vector<bool>& is_boundary);
-
-// The per-vertex mean-curvature vector Δx (length 2|H|), before projection on the normal.
-std::vector<Vec3> laplace_beltrami_of_positions(std::span<const Vec3> positions, std::span<const Face> faces);
 
 }  // namespace facemorph

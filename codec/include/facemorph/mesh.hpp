@@ -16,6 +16,11 @@ using Vec3 = Eigen::Vector3d;
 // Three vertex indices, counter-clockwise seen from the side the normal points to.
 using Face = std::array<int32_t, 3>;
 
+// Hash and sort key of the edge a -> b (vertex indices, non-negative): a in the high 32 bits.
+constexpr uint64_t directed_edge_key(int32_t a, int32_t b) { return (uint64_t{static_cast<uint32_t>(a)} << 32) | static_cast<uint32_t>(b); }
+// The same for the undirected edge {a, b}: both directions give the key of (min, max).
+constexpr uint64_t undirected_edge_key(int32_t a, int32_t b) { return a < b ? directed_edge_key(a, b) : directed_edge_key(b, a); }
+
 struct TriangleMesh {
   std::vector<Vec3> positions;  // capture units (see Capture::units)
   std::vector<Face> faces;

@@ -3,7 +3,7 @@
 // (QIEM), stereographic projection of one hemisphere; a linear harmonic map as the fallback.
 #pragma once
 
-#include "facemorph/locator.hpp"
+#include "facemorph/meshkit/locator.hpp"
 #include "facemorph/mesh.hpp"
 #include "facemorph/encoder/moebius.hpp"
 

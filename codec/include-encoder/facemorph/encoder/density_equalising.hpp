@@ -16,7 +16,7 @@
 #pragma once
 
 #include "facemorph/encoder/conformal.hpp"
-#include "facemorph/locator.hpp"
+#include "facemorph/meshkit/locator.hpp"
 
 #include <memory>
 #include <span>

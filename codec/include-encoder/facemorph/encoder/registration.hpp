@@ -6,7 +6,7 @@
 // Disk coordinates throughout: points of the closed unit disk |w| <= 1, dimensionless.
 #pragma once
 
-#include "facemorph/locator.hpp"
+#include "facemorph/meshkit/locator.hpp"
 #include "facemorph/mesh.hpp"
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/encoder/moebius.hpp"

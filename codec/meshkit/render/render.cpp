@@ -1,4 +1,4 @@
-#include "facemorph/render.hpp"
+#include "facemorph/meshkit/render.hpp"
 
 #include <algorithm>
 #include <cmath>

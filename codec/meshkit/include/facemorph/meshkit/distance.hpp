@@ -2,7 +2,7 @@
 // (design §6) and where the encoder finds landmarks on a frame.
 #pragma once
 
-#include "facemorph/locator.hpp"
+#include "facemorph/meshkit/locator.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <span>

@@ -10,11 +10,6 @@
 
 namespace facemorph {
 
-// Hash and sort key of the edge a -> b (vertex indices, non-negative): a in the high 32 bits.
-constexpr uint64_t directed_edge_key(int32_t a, int32_t b) { return (uint64_t{static_cast<uint32_t>(a)} << 32) | static_cast<uint32_t>(b); }
-// The same for the undirected edge {a, b}: both directions give the key of (min, max).
-constexpr uint64_t undirected_edge_key(int32_t a, int32_t b) { return a < b ? directed_edge_key(a, b) : directed_edge_key(b, a); }
-
 class MeshTopology {
  public:
   // Builds the edge structure of `faces` over `vertex_count` vertices (indices must be in range).

@@ -1,4 +1,4 @@
-#include "facemorph/distance.hpp"
+#include "facemorph/meshkit/distance.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,4 +1,4 @@
-#include "facemorph/locator.hpp"
+#include "facemorph/meshkit/locator.hpp"
 
 #include <algorithm>
 #include <cmath>

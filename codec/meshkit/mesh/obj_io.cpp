@@ -1,8 +1,8 @@
 // Wavefront OBJ + MTL reading and writing.
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
-#include "codec/mesh/text_scan.hpp"
+#include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/file_io.hpp"
 
 #include <algorithm>

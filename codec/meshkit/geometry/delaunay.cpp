@@ -1,7 +1,7 @@
-#include "codec/geometry/delaunay.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/topology.hpp"
+#include "codec/geometry/bowyer_watson.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>
 #include <array>
@@ -43,27 +43,11 @@ double incircle(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
 
 namespace {
 
-// Position along a Hilbert curve of order 16; inserting in this order keeps point-location walks short.
-uint64_t hilbert_index(uint32_t x, uint32_t y) {
-  uint64_t d = 0;
-  for (uint32_t s = 1u << 15; s > 0; s >>= 1) {
-    const uint32_t rx = (x & s) > 0, ry = (y & s) > 0;
-    d += uint64_t{s} * s * ((3 * rx) ^ ry);
-    if (ry == 0) {
-      if (rx == 1) {
-        x = s - 1 - (x & (s - 1)) + (x & ~(s - 1));
-        y = s - 1 - (y & (s - 1)) + (y & ~(s - 1));
-      }
-      std::swap(x, y);
-    }
-  }
-  return d;
-}
-
-struct Triangle {
-  std::array<int32_t, 3> v;
-  std::array<int32_t, 3> n;  // n[k]: neighbour across the edge opposite v[k]; -1 none
-  bool alive;
+// The float predicates of the header.
+struct FloatPredicates {
+  static constexpr const char* kName = "Delaunay";
+  static double orientation(const Vec2& a, const Vec2& b, const Vec2& c) { return orient2d(a, b, c); }
+  static bool in_circle(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& q) { return incircle(a, b, c, q) > 0; }
 };
 
 class Triangulator {
@@ -81,123 +65,29 @@ class Triangulator {
     const Vec2 center = 0.5 * (lo + hi);
     const double extent = std::max((hi - lo).maxCoeff(), 1e-300);
     const double big = 1e3 * extent;
-    super_ = static_cast<int32_t>(n);
     points_.push_back(center + Vec2(-big, -big));
     points_.push_back(center + Vec2(big, -big));
     points_.push_back(center + Vec2(0, big));
-    triangles_.push_back({{super_, super_ + 1, super_ + 2}, {-1, -1, -1}, true});
+    FloatPredicates predicates;
+    bowyer_watson::Triangulation<Vec2, FloatPredicates> triangulation(points_, predicates);
 
     std::vector<uint32_t> order(n);
     std::iota(order.begin(), order.end(), 0u);
     std::vector<uint64_t> key(n);
     for (size_t i = 0; i < n; ++i) {
       const Vec2 q = (points_[i] - lo) / extent * 65535.0;
-      key[i] = hilbert_index(static_cast<uint32_t>(q.x()), static_cast<uint32_t>(q.y()));
+      key[i] = bowyer_watson::hilbert_index(static_cast<uint32_t>(q.x()), static_cast<uint32_t>(q.y()));
     }
     std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
-    stamp_.assign(triangles_.size(), 0);
-    for (uint32_t i : order) insert(static_cast<int32_t>(i));
+    for (uint32_t i : order) triangulation.insert(static_cast<int32_t>(i));  // false: an exact duplicate, left out
 
-    std::vector<Face> faces;
-    for (const Triangle& t : triangles_) {
-      if (!t.alive || t.v[0] >= super_ || t.v[1] >= super_ || t.v[2] >= super_) continue;
-      faces.push_back({t.v[0], t.v[1], t.v[2]});
-    }
+    std::vector<Face> faces = triangulation.faces();
     complete_hull(faces);
     return faces;
   }
 
  private:
   const Vec2& p(int32_t i) const { return points_[static_cast<size_t>(i)]; }
-
-  int32_t locate(const Vec2& q) const {
-    int32_t t = last_;
-    for (size_t steps = 0; steps < 4 * triangles_.size() + 16; ++steps) {
-      const Triangle& tri = triangles_[static_cast<size_t>(t)];
-      int32_t next = -1;
-      for (int k = 0; k < 3; ++k) {
-        const int k1 = (k + 1 + static_cast<int>(steps % 3)) % 3;  // rotate the test order: no cycling
-        if (orient2d(p(tri.v[(k1 + 1) % 3]), p(tri.v[(k1 + 2) % 3]), q) < 0) {
-          next = tri.n[k1];
-          break;
-        }
-      }
-      if (next < 0) return t;
-      t = next;
-    }
-    throw Error(ErrorCode::kNumerical, "Delaunay: point location did not terminate");
-  }
-
-  void insert(int32_t index) {
-    const Vec2& q = p(index);
-    const int32_t start = locate(q);
-    for (int32_t v : triangles_[static_cast<size_t>(start)].v) {
-      if (p(v) == q) return;  // exact duplicate: left out
-    }
-    ++epoch_;
-    cavity_.assign(1, start);
-    stamp_[static_cast<size_t>(start)] = epoch_;
-    for (size_t i = 0; i < cavity_.size(); ++i) {
-      const Triangle& t = triangles_[static_cast<size_t>(cavity_[i])];
-      for (int32_t nb : t.n) {
-        if (nb < 0 || stamp_[static_cast<size_t>(nb)] == epoch_) continue;
-        const Triangle& u = triangles_[static_cast<size_t>(nb)];
-        if (incircle(p(u.v[0]), p(u.v[1]), p(u.v[2]), q) > 0) {
-          stamp_[static_cast<size_t>(nb)] = epoch_;
-          cavity_.push_back(nb);
-        }
-      }
-    }
-    // Boundary edges of the cavity, each becoming a new triangle (a, b, q).
-    rims_.clear();
-    for (int32_t c : cavity_) {
-      const Triangle& t = triangles_[static_cast<size_t>(c)];
-      for (int k = 0; k < 3; ++k) {
-        const int32_t nb = t.n[k];
-        if (nb >= 0 && stamp_[static_cast<size_t>(nb)] == epoch_) continue;
-        const int32_t a = t.v[(k + 1) % 3], b = t.v[(k + 2) % 3];
-        if (orient2d(p(a), p(b), q) <= 0) {
-          throw Error(ErrorCode::kNumerical, "Delaunay: degenerate cavity at point " + std::to_string(index));
-        }
-        int32_t slot = -1;
-        if (nb >= 0) {
-          for (int m = 0; m < 3; ++m) {
-            if (triangles_[static_cast<size_t>(nb)].n[m] == c) slot = m;
-          }
-        }
-        rims_.push_back({a, b, nb, slot});
-      }
-    }
-    for (int32_t c : cavity_) {
-      triangles_[static_cast<size_t>(c)].alive = false;
-      free_.push_back(c);
-    }
-    created_.clear();
-    for (const Rim& rim : rims_) {
-      int32_t id;
-      if (!free_.empty()) {
-        id = free_.back();
-        free_.pop_back();
-      } else {
-        id = static_cast<int32_t>(triangles_.size());
-        triangles_.push_back({});
-        stamp_.push_back(0);
-      }
-      triangles_[static_cast<size_t>(id)] = {{rim.a, rim.b, index}, {-1, -1, rim.outside}, true};
-      if (rim.outside >= 0) triangles_[static_cast<size_t>(rim.outside)].n[static_cast<size_t>(rim.outside_slot)] = id;
-      created_.push_back(id);
-    }
-    // Link the fan: triangle (a, b, q) meets (b, c, q) across edge (b, q), opposite its vertex a.
-    for (int32_t id : created_) {
-      Triangle& t = triangles_[static_cast<size_t>(id)];
-      for (int32_t other : created_) {
-        const Triangle& u = triangles_[static_cast<size_t>(other)];
-        if (u.v[0] == t.v[1]) t.n[0] = other;  // u starts where t ends
-        if (u.v[1] == t.v[0]) t.n[1] = other;  // u ends where t starts
-      }
-    }
-    last_ = created_.front();
-  }
 
   // Removing the super triangle can leave the hull with reflex notches where a far super vertex
   // "saw" a hull edge; close each notch (a, b, c turning clockwise) with the triangle (a, c, b).
@@ -253,19 +143,7 @@ class Triangulator {
     return loops;
   }
 
-  // A cavity boundary edge (a, b) and the triangle outside it (and the slot pointing back).
-  struct Rim {
-    int32_t a, b, outside, outside_slot;
-  };
-
   std::vector<Vec2> points_;
-  std::vector<Triangle> triangles_;
-  std::vector<uint32_t> stamp_;  // stamp_[t] == epoch_: t is in the current cavity
-  uint32_t epoch_ = 0;
-  std::vector<int32_t> cavity_, free_, created_;
-  std::vector<Rim> rims_;
-  int32_t super_ = 0;
-  int32_t last_ = 0;
 };
 
 }  // namespace

@@ -1,8 +1,8 @@
 // PLY reading (ASCII, binary little/big endian) and writing (ASCII, binary little endian).
 #include "facemorph/error.hpp"
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
-#include "codec/mesh/text_scan.hpp"
+#include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/byte_reader.hpp"
 
 #include <algorithm>

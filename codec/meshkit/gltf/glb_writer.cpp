@@ -1,11 +1,12 @@
 // glTF 2.0 binary, written directly: a JSON chunk and one binary buffer (the glTF 2.0 specification,
 // §4.4 "GLB File Format Specification"). A few hundred lines do not justify a dependency for the
 // decoder a player links.
-#include "facemorph/gltf.hpp"
+#include "facemorph/meshkit/gltf.hpp"
 
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/image_codec.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <cmath>
 #include <cstring>

@@ -1,5 +1,5 @@
-#include "codec/geometry/delaunay.hpp"
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <gtest/gtest.h>
 

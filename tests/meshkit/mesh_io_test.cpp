@@ -1,4 +1,4 @@
-#include "facemorph/mesh_io.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
 
 #include "format/file_io.hpp"
 #include "tests/test_util.hpp"

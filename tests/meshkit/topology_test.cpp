@@ -1,4 +1,4 @@
-#include "facemorph/topology.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include "tests/test_util.hpp"
 
