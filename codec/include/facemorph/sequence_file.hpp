@@ -87,7 +87,8 @@ struct SequenceFileInfo {
     // the stream took (the first also the chunk's framing); 0 until the fields are decoded
     // (inspect_sequence_file, decode_sequence_file). A group's texture sequence (TGOP) is divided
     // by its frames' AV1 samples, the first keyframe taking the chunk's framing and the AVIF
-    // container's own bytes too.
+    // container's own bytes too (a sample that only shows a hidden frame coded in an earlier one,
+    // libaom's alternate reference, is a few bytes).
     uint64_t fields = 0, texture = 0;
   };
   std::vector<KeyframeBytes> keyframes;
