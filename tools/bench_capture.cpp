@@ -519,7 +519,7 @@ json measure_capture(Context& context, const std::string& input) {
     out.keyframes = keyframes;
     out.bytes = bytes;
     out.info = info;
-    out.texture_bytes = chunk_bytes(info, "TEXR");
+    out.texture_bytes = chunk_bytes(info, "TEXR") + chunk_bytes(info, "TGOP");  // stills, or one sequence per group (2.1)
     out.evaluation = evaluate(encoder, sequence, keyframes, captured, every, false, [&](int i, const DecodedFrame& decoded) {
       const bool measured = textured && !decoded.texture.empty() && (all_textures || std::binary_search(sample.begin(), sample.end(), i));
       if (!measured && !also) return;

@@ -199,6 +199,7 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
     doc["spline"] = spline_kind_name(sequence.spline);
     doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
     doc["texture_size"] = info.texture_size;
+    if (info.texture_size > 0) doc["texture_coding"] = texture_coding_name(info.metadata.texture_coding);
     doc["holes"] = sequence.has_holes;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
@@ -230,7 +231,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
               sequence.units.c_str());
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
-  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + (info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") + " per keyframe").c_str() : "none");
+  const bool texture_groups = info.texture_size > 0 && info.metadata.texture_coding == TextureCoding::kSequence;
+  const std::string texture_coding = texture_groups ? " AVIF image sequence per group of " + std::to_string(coding.intra_period) +
+                                                          " keyframes (format 2.1 TGOP; each keyframe's bytes its AV1 sample, a group's first also the chunk's and AVIF container's)"
+                                     : info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF still per keyframe"
+                                                                                          : " WebP per keyframe";
+  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str() : "none");
   std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   std::printf("keyframes   %zu\n", sequence.keyframe_count());

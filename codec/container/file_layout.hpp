@@ -24,9 +24,12 @@
 
 namespace facemorph::file_layout {
 
-inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR";
+inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR",
+                                  kTextureGroupChunk = "TGOP";
 
-inline constexpr uint8_t kHasTexture = 1, kHasHoles = 2;  // the header's flags
+// The header's flags. kTextureGroups (format 2.1): the textures are one TGOP chunk per group of
+// keyframes, not one TEXR per keyframe.
+inline constexpr uint8_t kHasTexture = 1, kHasHoles = 2, kTextureGroups = 4;
 inline constexpr uint32_t kMaxKeyframes = 1u << 20;
 inline constexpr uint32_t kMaxIntraPeriod = 1u << 20;
 inline constexpr uint32_t kMaxStringBytes = 1u << 20;
@@ -63,6 +66,7 @@ struct FileHeader {
   SequenceFileMetadata metadata;  // with the field coding
   bool has_texture() const { return (flags & kHasTexture) != 0; }
   bool has_holes() const { return (flags & kHasHoles) != 0; }
+  bool texture_groups() const { return (flags & kTextureGroups) != 0; }
   // One KGOP chunk per intra period.
   size_t group_size() const { return static_cast<size_t>(metadata.field_coding.intra_period); }
   size_t group_count() const { return (keyframe_count + group_size() - 1) / group_size(); }
@@ -72,11 +76,16 @@ struct FileHeader {
 std::vector<size_t> expected_lengths(int grid_n, Representation representation, size_t fixed, bool with_holes);
 std::vector<size_t> expected_lengths(const FileHeader& h);
 
+// What an AV1 decoder holds while it decodes a group's texture sequence of M x M frames (§10.1):
+// up to 8 reference frames and the frame it decodes, each 8-bit YUV 4:4:4 (3 M² bytes).
+inline uint64_t texture_sequence_decoder_bytes(uint64_t texture_size) { return 9 * 3 * texture_size * texture_size; }
+
 // How many keyframes the caller holds at once for a keyframe count and spline: for the memory
 // estimate checked from the header (§10.1).
 using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spline)>;
 
-std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata);
+// `texture_groups`: the file's textures are TGOP chunks (flag bit 2, format 2.1).
+std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, bool texture_groups);
 FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
 
 // ---- The pose as the file stores it: integer multiples of the header's pose steps ----
@@ -93,7 +102,7 @@ struct IndexEntry {
   double time = 0;
   PoseCodes pose{};
   uint64_t group_offset = 0;    // the KGOP chunk of the keyframe's group
-  uint64_t texture_offset = 0;  // its TEXR chunk; 0 in a file without textures
+  uint64_t texture_offset = 0;  // its TEXR chunk, or its group's TGOP chunk; 0 in a file without textures
 };
 
 std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h);
@@ -140,5 +149,21 @@ std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, Textur
 // The image codec a TEXR payload names, from its first 8 bytes (kUnsupported for an unknown one).
 TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::string& where, uint32_t number);
 Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size);
+
+// ---- A group's textures as one AV1 image sequence (TGOP, texture_group_chunk.cpp; format 2.1) ----
+
+// Whether a file of `s` written with `metadata` stores its textures in TGOP chunks: textures,
+// the sequence coding, AVIF, and every keyframe's quality lossy (≤ 100).
+bool uses_texture_groups(const Sequence& s, const SequenceFileMetadata& metadata);
+// The textures of keyframes first .. first + count - 1 of `s`, at the finest of their qualities.
+std::vector<uint8_t> write_texture_group(const Sequence& s, size_t first, size_t count, int quality);
+// Decodes the textures of keyframes first .. last of the group of `count` starting at `first`,
+// after checking the chunk's first keyframe, codec and its image sequence's count and size against
+// the container's (corrupt, naming `where`, before any pixel); hands take(k, image) each keyframe k
+// for which wanted(k).
+void read_texture_group(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t last, uint32_t size,
+                        const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take);
+// The bytes of each of the group's keyframes' AV1 samples, in order (fminfo). Throws as read_texture_group.
+std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size);
 
 }  // namespace facemorph::file_layout

@@ -35,7 +35,8 @@ struct MemoryPlan {
   uint64_t fields = 0;      // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
   uint64_t surface = 0;     // one keyframe's reconstructed surface (24 n)
   uint64_t texture = 0;     // one keyframe's RGB texture (3 M²)
-  uint64_t in_flight = 0;   // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes
+  uint64_t in_flight = 0;   // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes;
+                            // with texture groups, the AV1 decoder's reference frames
   uint64_t fixed = 0;       // G, the solver, one frame, the index, the file's bytes where they are copied
   uint64_t keyframes_kept = 0;  // keyframes the budget holds at once: fields, texture and surface each
 };
@@ -53,7 +54,7 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
   plan.texture = 3 * m * m;
   // The payload too: a chunk decompresses to its stated size before it is decoded, and a file may
   // state any size up to the budget, so the largest one is counted, not assumed small.
-  plan.in_flight = 24 * values + file.largest_payload();
+  plan.in_flight = 24 * values + file.largest_payload() + file.texture_decoder_bytes();
   // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
   // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
   plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +
@@ -153,20 +154,28 @@ class FileSource final : public KeyframeSource {
     }
     // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
     if (!texture_failures_[k].second.empty()) throw Error(texture_failures_[k].first, texture_failures_[k].second);
-    std::shared_ptr<const Image> image;
+    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. As
+    // for fields, the whole run is kept where the cache holds it twice over; else only k.
+    const size_t run = file_.texture_run_length();
+    const size_t first = k / run * run;
+    const size_t run_end = std::min(first + run, textures_.size());
+    const bool whole_run = 2 * (run_end - first) * plan_.texture <= cache_capacity_;
+    std::shared_ptr<const Image> wanted;
     try {
-      image = std::make_shared<const Image>(file_.decode_texture(k));
+      file_.decode_textures(
+          first, whole_run ? run_end - 1 : k, [&](size_t j) { return j == k || (whole_run && !textures_[j].value); },
+          [&](size_t j, Image&& image) {
+            auto shared = std::make_shared<const Image>(std::move(image));
+            if (j == k) wanted = shared;
+            remember_texture(j, std::move(shared));
+          });
     } catch (const Error& e) {
+      // Past k, in the rest of a whole run: k stands; the failing frame fails when asked for.
+      if (wanted) return wanted;
       texture_failures_[k] = {e.code(), e.what()};
       throw;
     }
-    Slot<Image>& slot = textures_[k];
-    // The list entry first: if it cannot be allocated, nothing is cached uncounted.
-    slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
-    slot.value = image;
-    held_bytes_ += plan_.texture;
-    evict();
-    return image;
+    return wanted;
   }
 
  private:
@@ -197,6 +206,16 @@ class FileSource final : public KeyframeSource {
     slot.where = order_.insert(order_.begin(), Entry{false, k, plan_.fields});
     slot.value = std::move(key);
     held_bytes_ += plan_.fields;
+    evict();
+  }
+
+  void remember_texture(size_t k, std::shared_ptr<const Image> image) const {
+    Slot<Image>& slot = textures_[k];
+    if (slot.value) return;
+    // The list entry first: if it cannot be allocated, nothing is cached uncounted.
+    slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
+    slot.value = std::move(image);
+    held_bytes_ += plan_.texture;
     evict();
   }
 

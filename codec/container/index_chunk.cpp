@@ -82,7 +82,9 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
     }
   }
   for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].group_offset);
-  if (h.has_texture()) {
+  if (h.texture_groups()) {  // one TGOP per group (format 2.1)
+    for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].texture_offset);
+  } else if (h.has_texture()) {
     for (const IndexEntry& e : entries) w.write(e.texture_offset);
   }
   return w.take();
@@ -95,7 +97,9 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
   // The smallest index of `count` entries, before they are allocated: the times, a byte for each
   // pose number, the offsets.
   const size_t groups = h.group_count();
-  r.require(size_t{8} * count + kPoseCodes * count + size_t{8} * (groups + (h.has_texture() ? count : 0)), "the entries");
+  // Texture offsets: one per keyframe (TEXR), or one per group (TGOP, format 2.1).
+  const size_t textures = h.texture_groups() ? groups : h.has_texture() ? count : 0;
+  r.require(size_t{8} * count + kPoseCodes * count + size_t{8} * (groups + textures), "the entries");
   std::vector<IndexEntry> entries(count);
   // Times: within ±1e9 s, increasing, and at least 1e-9 of their span apart, so that the spline's
   // ratios of intervals stay finite (0, 1e-200, 2e-200, 1 would not).
@@ -123,12 +127,17 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
       entries[k].pose[i] = code;
     }
   }
-  r.require(size_t{8} * (groups + (h.has_texture() ? count : 0)), "the chunk offsets");
+  r.require(size_t{8} * (groups + textures), "the chunk offsets");
   for (size_t g = 0; g < groups; ++g) {
     const uint64_t offset = r.read<uint64_t>("a group offset");
     for (size_t k = g * h.group_size(); k < std::min<size_t>(count, (g + 1) * h.group_size()); ++k) entries[k].group_offset = offset;
   }
-  if (h.has_texture()) {
+  if (h.texture_groups()) {
+    for (size_t g = 0; g < groups; ++g) {
+      const uint64_t offset = r.read<uint64_t>("a texture group offset");
+      for (size_t k = g * h.group_size(); k < std::min<size_t>(count, (g + 1) * h.group_size()); ++k) entries[k].texture_offset = offset;
+    }
+  } else if (h.has_texture()) {
     for (IndexEntry& e : entries) e.texture_offset = r.read<uint64_t>("a texture offset");
   }
   // Later minor versions append runs here; this reader ignores them.

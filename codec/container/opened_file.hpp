@@ -56,7 +56,19 @@ class OpenedFile {
   // §7 says, calling `take(k, key, field_bytes)` for each in order; `key` holds everything but the
   // texture (time and pose from the index). field_bytes: what keyframe k's fields take in the file.
   void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
-  // Keyframe k's texture, its size checked against the header's (has_texture()).
+  // Textures are decoded in runs too: one keyframe's still (TEXR), or a group's image sequence
+  // (TGOP, format 2.1), in which keyframe k is decoded from the group's first up to it.
+  size_t texture_run_length() const;
+  // What decoding a texture run holds besides its payload and product: the AV1 decoder's frames
+  // for a group's sequence (§10.1), 0 for stills.
+  uint64_t texture_decoder_bytes() const;
+  // Decodes the textures of keyframes first_of_run .. last (within one texture run), each checked
+  // as §8 / §8.1 say, handing take(k, image) those for which wanted(k), in order.
+  void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const;
+  // Every keyframe's texture, run by run (each group's sequence decoded once).
+  void decode_every_texture(const std::function<void(size_t, Image&&)>& take) const;
+  // Keyframe k's texture, its size checked against the header's (has_texture()); in a file with
+  // texture groups, its group's sequence decoded up to k.
   Image decode_texture(size_t k) const;
   // The image codec keyframe k's texture is stored in, without decoding it.
   TextureCodec texture_codec(size_t k) const;

@@ -1,6 +1,7 @@
-// The .fmv file of a Sequence (spec/container.md, format 2.0): the chunks put together. The outer
+// The .fmv file of a Sequence (spec/container.md, format 2.1): the chunks put together. The outer
 // layer (preamble, chunks, checksums, zstd) is format/container; each chunk's payload has its own
-// reader and writer (header_chunk, index_chunk, keyframe_group_chunk, texture_chunk). This file
+// reader and writer (header_chunk, index_chunk, keyframe_group_chunk, texture_chunk,
+// texture_group_chunk). This file
 // writes a whole file, and opens one for reading: the header and index read and checked, every
 // index entry at a chunk of its kind; keyframes and textures decoded when asked for.
 #include "facemorph/sequence_file.hpp"
@@ -49,6 +50,14 @@ FieldCoding fixed_point_coding(const Sequence& s, FieldCoding coding) {
 
 }  // namespace
 
+const char* texture_coding_name(TextureCoding coding) { return coding == TextureCoding::kSequence ? "sequence" : "stills"; }
+
+TextureCoding parse_texture_coding(const std::string& name) {
+  if (name == "sequence") return TextureCoding::kSequence;
+  if (name == "stills") return TextureCoding::kStills;
+  throw Error(ErrorCode::kInvalidArgument, "unknown texture coding '" + name + "' (sequence or stills)");
+}
+
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
   check_field_coding(coding);
   std::vector<std::vector<double>> arrays = keyframe_arrays(key);
@@ -83,13 +92,15 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
     }
   }
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata), true, 19);
+  // Format 2.1: lossy AVIF textures as one image sequence per group of keyframes (TGOP).
+  const bool grouped_textures = uses_texture_groups(sequence, metadata);
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata, grouped_textures), true, 19);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(sequence.keyframes.size());
-  layout.flags = sequence.has_texture() ? kHasTexture : 0;
+  layout.flags = static_cast<uint8_t>((sequence.has_texture() ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
   layout.metadata.field_coding = coding;
   // Every payload first, so the index can hold the offsets of the chunks after it. `groups[g]`:
-  // group g's chunk; `textures[k]`: keyframe k's.
+  // group g's chunk; `textures[k]`: keyframe k's (TEXR), or `textures[g]` group g's (TGOP).
   const size_t count = sequence.keyframes.size();
   const size_t group = layout.group_size();
   const std::shared_ptr<const GridFacts> grid = grid_facts(sequence.grid_n);
@@ -100,9 +111,18 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     entries[k].time = key.time;
     entries[k].pose = pose_codes(key.pose, coding);
     if (k % group == 0) {
-      groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, std::min(group, count - k), coding, *grid), true));
+      const size_t n = std::min(group, count - k);
+      groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, n, coding, *grid), true));
+      if (grouped_textures) {
+        // One quantiser for the sequence (libavif 0.11 gives a changed one to every frame still in
+        // libaom's look-ahead): the finest its keyframes ask for, so each is at least as fine as
+        // its quality asks.
+        int quality = metadata.texture_quality;
+        if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
+        textures.push_back(format::prepare_chunk(kTextureGroupChunk, write_texture_group(sequence, k, n, quality), true));
+      }
     }
-    if (sequence.has_texture()) {
+    if (sequence.has_texture() && !grouped_textures) {
       const int quality = qualities.empty() ? metadata.texture_quality : qualities[k];
       textures.push_back(format::prepare_chunk(kTextureChunk, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_codec, quality), true));
     }
@@ -116,10 +136,15 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       if (k % group == 0) {
         entries[k].group_offset = offset;
         offset += groups[k / group].total_size();
+        if (grouped_textures) {
+          entries[k].texture_offset = offset;
+          offset += textures[k / group].total_size();
+        }
       } else {
         entries[k].group_offset = entries[k - 1].group_offset;
+        if (grouped_textures) entries[k].texture_offset = entries[k - 1].texture_offset;
       }
-      if (!textures.empty()) {
+      if (!textures.empty() && !grouped_textures) {
         entries[k].texture_offset = offset;
         offset += textures[k].total_size();
       }
@@ -145,7 +170,10 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   writer.add(index);
   for (size_t k = 0; k < count; ++k) {
     if (k % group == 0 && writer.add(groups[k / group]) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
-    if (!textures.empty() && writer.add(textures[k]) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+    const bool texture_here = !textures.empty() && (!grouped_textures || k % group == 0);
+    if (texture_here && writer.add(textures[grouped_textures ? k / group : k]) != entries[k].texture_offset) {
+      throw Error(ErrorCode::kNumerical, "container index out of step");
+    }
   }
   return writer.finish();
 }
@@ -177,13 +205,18 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
     corrupt(s.source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
-    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk;
+    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk ||
+                       chunk.type == kTextureGroupChunk;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
   s.header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), s.source, limits, keyframes_held);
   const FileHeader& header = *s.header;
+  // Texture groups came with format 2.1: a file stamped 2.0 cannot hold them.
+  if (header.texture_groups() && reader.minor_version() < 1) {
+    corrupt(s.source, "header: texture groups (flag bit 2) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
+  }
   s.index = read_index(reader.payload(chunks[1], limits.max_memory_bytes), s.source, header);
   // Every entry points at a chunk of its kind, before anything is decoded from it.
   for (size_t k = 0; k < s.index.size(); ++k) {
@@ -192,9 +225,15 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
     if (chunk.type != kKeyframeGroupChunk) corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
     // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
     if (chunk.compressed()) corrupt(s.source, reader.describe(chunk) + " is compressed; a group's chunk never is");
-    if (header.has_texture()) {
+    if (header.texture_groups()) {
+      if (k % header.group_size() == 0) {  // the group's entry (its later keyframes share it)
+        const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture group entry");
+        if (texture.type != kTextureGroupChunk) corrupt(s.source, name + "'s texture group entry points at a " + texture.type + " chunk, not TGOP");
+        if (texture.compressed()) corrupt(s.source, reader.describe(texture) + " is compressed; a texture group's chunk never is");
+      }
+    } else if (header.has_texture()) {
       const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture entry");
-      if (texture.type != kTextureChunk) corrupt(s.source, name + "'s texture entry points at a " + texture.type + " chunk");
+      if (texture.type != kTextureChunk) corrupt(s.source, name + "'s texture entry points at a " + texture.type + " chunk, not TEXR");
     } else if (s.index[k].texture_offset != 0) {
       corrupt(s.source, name + " has a texture entry in a file without textures");
     }
@@ -224,12 +263,16 @@ uint64_t OpenedFile::values_per_keyframe() const {
 uint64_t OpenedFile::largest_payload() const {
   uint64_t largest = 0;
   for (const format::ChunkView& chunk : state_->reader.chunks()) {
-    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk) largest = std::max(largest, chunk.raw_size);
+    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk) largest = std::max(largest, chunk.raw_size);
   }
   return largest;
 }
 
 size_t OpenedFile::run_length() const { return state_->header->group_size(); }
+
+size_t OpenedFile::texture_run_length() const { return state_->header->texture_groups() ? state_->header->group_size() : 1; }
+
+uint64_t OpenedFile::texture_decoder_bytes() const { return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0; }
 
 void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
   const State& s = *state_;
@@ -256,8 +299,39 @@ const format::ChunkView& OpenedFile::texture_chunk(size_t k) const {
   return state_->reader.chunk_at(state_->index.at(k).texture_offset, "keyframe " + std::to_string(k) + "'s texture entry");
 }
 
+void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const {
+  const State& s = *state_;
+  const size_t run = texture_run_length();
+  if (first % run != 0 || last < first || last >= s.index.size() || last / run != first / run) {
+    throw Error(ErrorCode::kInternal, s.source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  if (!s.header->texture_groups()) {
+    if (wanted(first)) take(first, decode_texture(first));
+    return;
+  }
+  const format::ChunkView& chunk = texture_chunk(first);
+  const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
+  read_texture_group(s.reader.payload(chunk, s.limits.max_memory_bytes),
+                     s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first) + ".." + std::to_string(first + count - 1) + ")",
+                     static_cast<uint32_t>(first), count, static_cast<uint32_t>(last), s.header->texture_size, [&](uint32_t k) { return wanted(k); },
+                     [&](uint32_t k, Image&& image) { take(k, std::move(image)); });
+}
+
+void OpenedFile::decode_every_texture(const std::function<void(size_t, Image&&)>& take) const {
+  const size_t run = texture_run_length();
+  for (size_t first = 0; first < keyframe_count(); first += run) {
+    decode_textures(first, std::min(first + run, keyframe_count()) - 1, [](size_t) { return true; }, take);
+  }
+}
+
 Image OpenedFile::decode_texture(size_t k) const {
   const State& s = *state_;
+  if (s.header->texture_groups()) {
+    Image image;
+    const size_t first = k / texture_run_length() * texture_run_length();
+    decode_textures(first, k, [k](size_t j) { return j == k; }, [&](size_t, Image&& decoded) { image = std::move(decoded); });
+    return image;
+  }
   const format::ChunkView& chunk = texture_chunk(k);
   return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")",
                       static_cast<uint32_t>(k), s.header->texture_size);
@@ -265,6 +339,7 @@ Image OpenedFile::decode_texture(size_t k) const {
 
 TextureCodec OpenedFile::texture_codec(size_t k) const {
   const State& s = *state_;
+  if (s.header->texture_groups()) return TextureCodec::kAvif;  // TGOP's only codec, 3
   const format::ChunkView& chunk = texture_chunk(k);
   // The codec's number is in the payload's first bytes, which a TEXR chunk stores uncompressed.
   const std::string where = s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")";
@@ -286,8 +361,32 @@ SequenceFileInfo OpenedFile::describe() const {
   info.texture_size = static_cast<int>(header.texture_size);
   info.metadata = header.metadata;
   info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
+  info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
   info.keyframes.resize(s.index.size());
-  if (has_texture()) {
+  if (header.texture_groups()) {
+    // Each keyframe its frame's AV1 sample; the group's first also the chunk's framing and the AVIF
+    // container. A group whose sequence does not parse (a fault its frames report when decoded)
+    // is given whole to its first keyframe.
+    const size_t run = texture_run_length();
+    for (size_t first = 0; first < s.index.size(); first += run) {
+      const format::ChunkView& chunk = texture_chunk(first);
+      const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
+      std::vector<uint64_t> samples;
+      try {
+        samples = texture_group_sample_bytes(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk),
+                                             static_cast<uint32_t>(first), count, header.texture_size);
+      } catch (const Error&) {
+        samples.clear();
+      }
+      uint64_t shared = chunk.total_size();
+      for (size_t j = 1; j < samples.size(); ++j) {
+        const uint64_t bytes = std::min(samples[j], shared);
+        info.keyframes[first + j].texture = bytes;
+        shared -= bytes;
+      }
+      info.keyframes[first].texture = shared;
+    }
+  } else if (has_texture()) {
     for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = texture_chunk(k).total_size();
   }
   for (const format::ChunkView& chunk : s.reader.chunks()) {
@@ -305,9 +404,7 @@ void OpenedFile::check_every_keyframe(SequenceFileInfo* info) const {
   for (size_t first = 0; first < keyframe_count(); first += run_length()) {
     decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, [&](size_t k, Keyframe&&, uint64_t bytes) { field_bytes[k] = bytes; });
   }
-  if (has_texture()) {
-    for (size_t k = 0; k < keyframe_count(); ++k) decode_texture(k);
-  }
+  if (has_texture()) decode_every_texture([](size_t, Image&&) {});
   verify_checksums();  // chunks no keyframe refers to too
   if (info) {
     *info = describe();
@@ -331,9 +428,7 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
       field_bytes[k] = bytes_taken;
     });
   }
-  if (file.has_texture()) {
-    for (size_t k = 0; k < file.keyframe_count(); ++k) sequence.keyframes[k].texture = file.decode_texture(k);
-  }
+  if (file.has_texture()) file.decode_every_texture([&](size_t k, Image&& image) { sequence.keyframes[k].texture = std::move(image); });
   file.verify_checksums();
   try {
     validate_sequence(sequence);

@@ -98,17 +98,13 @@ struct AvifRgb {
 // The AV1 quantiser (0 finest .. 63 coarsest) of a quality 0..100.
 int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std::clamp(quality, 0, 100)) * 63 / 100.0)); }
 
-}  // namespace
 
-std::vector<uint8_t> encode_avif(const Image& image, int quality) {
+// An image as 8-bit YUV 4:4:4, full-range BT.601 (the matrix WebP and JPEG use; every decoder
+// converts back with the matrix the file signals): what the stills and the sequences code.
+std::unique_ptr<avifImage, AvifImageFree> yuv_of(const Image& image) {
   require_codable(image, false);
-  if (avifCodecName(AVIF_CODEC_CHOICE_AOM, AVIF_CODEC_FLAG_CAN_ENCODE) == nullptr) {
-    throw Error(ErrorCode::kUnsupported, "AVIF encoding needs libavif built with libaom");
-  }
   std::unique_ptr<avifImage, AvifImageFree> yuv(avifImageCreate(static_cast<uint32_t>(image.width), static_cast<uint32_t>(image.height), 8, AVIF_PIXEL_FORMAT_YUV444));
-  std::unique_ptr<avifEncoder, AvifEncoderFree> encoder(avifEncoderCreate());
-  if (!yuv || !encoder) throw Error(ErrorCode::kInvalidArgument, "AVIF encoding: out of memory");
-  // Full-range BT.601, the matrix WebP and JPEG use; every decoder converts back with the matrix the file signals.
+  if (!yuv) throw Error(ErrorCode::kInvalidArgument, "AVIF encoding: out of memory");
   yuv->yuvRange = AVIF_RANGE_FULL;
   yuv->matrixCoefficients = AVIF_MATRIX_COEFFICIENTS_BT601;
   avifRGBImage rgb;
@@ -117,23 +113,144 @@ std::vector<uint8_t> encode_avif(const Image& image, int quality) {
   rgb.ignoreAlpha = AVIF_TRUE;  // textures are opaque
   rgb.pixels = const_cast<uint8_t*>(image.pixels.data());  // read only: libavif's API is not const
   rgb.rowBytes = static_cast<uint32_t>(image.width * image.channels);
-  avifResult result = avifImageRGBToYUV(yuv.get(), &rgb);
-  if (result == AVIF_RESULT_OK) {
-    const int quantizer = avif_quantizer(quality);
-    encoder->minQuantizer = encoder->maxQuantizer = quantizer;
-    encoder->speed = 6;       // avifenc's default, 0.06 s for a 448² texture
-    encoder->maxThreads = 1;  // the same bytes on every run (with one libaom version)
-    // libaom: it codes 4:4:4 (SVT-AV1 does not), and a fixed encoder keeps the bytes reproducible.
-    encoder->codecChoice = AVIF_CODEC_CHOICE_AOM;
+  const avifResult result = avifImageRGBToYUV(yuv.get(), &rgb);
+  if (result != AVIF_RESULT_OK) {
+    throw Error(ErrorCode::kInvalidArgument, "AVIF encoding of " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                                                 " pixels failed: " + avifResultToString(result));
   }
+  return yuv;
+}
+
+// The encoder the stills and the sequences share, at the AV1 quantiser of `quality`.
+std::unique_ptr<avifEncoder, AvifEncoderFree> avif_encoder(int quality) {
+  if (avifCodecName(AVIF_CODEC_CHOICE_AOM, AVIF_CODEC_FLAG_CAN_ENCODE) == nullptr) {
+    throw Error(ErrorCode::kUnsupported, "AVIF encoding needs libavif built with libaom");
+  }
+  std::unique_ptr<avifEncoder, AvifEncoderFree> encoder(avifEncoderCreate());
+  if (!encoder) throw Error(ErrorCode::kInvalidArgument, "AVIF encoding: out of memory");
+  encoder->minQuantizer = encoder->maxQuantizer = avif_quantizer(quality);
+  encoder->speed = 6;       // avifenc's default, 0.06 s for a 448² texture
+  encoder->maxThreads = 1;  // the same bytes on every run (with one libaom version)
+  // libaom: it codes 4:4:4 (SVT-AV1 does not), and a fixed encoder keeps the bytes reproducible.
+  encoder->codecChoice = AVIF_CODEC_CHOICE_AOM;
+  return encoder;
+}
+
+// An 8-bit decoded frame as RGB (`channels` 3) or opaque RGBA (4).
+Image rgb_of(const avifImage* decoded, int channels, const std::string& source) {
+  Image image(static_cast<int>(decoded->width), static_cast<int>(decoded->height), channels);
+  AvifRgb rgb;
+  avifRGBImageSetDefaults(&rgb.rgb, decoded);
+  rgb.rgb.format = channels == 4 ? AVIF_RGB_FORMAT_RGBA : AVIF_RGB_FORMAT_RGB;
+  rgb.rgb.depth = 8;
+  rgb.rgb.pixels = image.pixels.data();
+  rgb.rgb.rowBytes = static_cast<uint32_t>(image.width * channels);
+  const avifResult result = avifImageYUVToRGB(decoded, &rgb.rgb);
+  rgb.rgb.pixels = nullptr;  // ours, not libavif's to free
+  if (channels == 4 && decoded->alphaPlane == nullptr) {
+    for (size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;  // no alpha stored: opaque
+  }
+  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": the AVIF image cannot be converted to RGB (" + avifResultToString(result) + ")");
+  return image;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_avif(const Image& image, int quality) {
+  const auto yuv = yuv_of(image);
+  const auto encoder = avif_encoder(quality);
   AvifBytes bytes;
-  if (result == AVIF_RESULT_OK) result = avifEncoderWrite(encoder.get(), yuv.get(), &bytes.data);
+  const avifResult result = avifEncoderWrite(encoder.get(), yuv.get(), &bytes.data);
   if (result != AVIF_RESULT_OK) {
     throw Error(ErrorCode::kInvalidArgument, "AVIF encoding of " + std::to_string(image.width) + " x " + std::to_string(image.height) +
                                                  " pixels failed: " + avifResultToString(result));
   }
   return std::vector<uint8_t>(bytes.data.data, bytes.data.data + bytes.data.size);
 }
+
+std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality) {
+  if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of no frames");
+  const auto encoder = avif_encoder(quality);
+  encoder->timescale = 30;        // informative: a frame a tick (the file's times are the container's)
+  encoder->keyframeInterval = 0;  // frame 0 intra, every later one predicted from those before it
+  for (const Image* frame : frames) {
+    if (frame->width != frames[0]->width || frame->height != frames[0]->height) {
+      throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of frames of different sizes");
+    }
+    const auto yuv = yuv_of(*frame);
+    const avifResult result = avifEncoderAddImage(encoder.get(), yuv.get(), 1, AVIF_ADD_IMAGE_FLAG_NONE);
+    if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+  }
+  AvifBytes bytes;
+  const avifResult result = avifEncoderFinish(encoder.get(), &bytes.data);
+  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+  return std::vector<uint8_t>(bytes.data.data, bytes.data.data + bytes.data.size);
+}
+
+namespace {
+
+// A decoder on an AVIF image sequence of exactly `frames` 8-bit images of size × size, parsed and
+// checked from the container alone (no pixel decoded yet); kCorrupt naming `source` otherwise.
+std::unique_ptr<avifDecoder, AvifDecoderFree> parsed_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size) {
+  std::unique_ptr<avifDecoder, AvifDecoderFree> decoder(avifDecoderCreate());
+  if (!decoder) throw Error(ErrorCode::kInvalidArgument, source + ": AVIF decoding: out of memory");
+  decoder->maxThreads = 1;
+  decoder->ignoreExif = decoder->ignoreXMP = AVIF_TRUE;
+  // The container may claim no more than the file's own counts and size: refused while parsing.
+  decoder->imageCountLimit = std::max<uint32_t>(frames, 1);
+  decoder->imageDimensionLimit = std::max<uint32_t>(size, 1);
+  decoder->imageSizeLimit = std::max<uint32_t>(size * size, 1);
+  // The sequence's track where the file has one; a one-frame sequence is a still image (libavif
+  // writes one image so), and a still where several frames belong is refused by its count below.
+  avifResult result = avifDecoderSetIOMemory(decoder.get(), bytes.data(), bytes.size());
+  if (result == AVIF_RESULT_OK) result = avifDecoderParse(decoder.get());
+  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": not an AVIF image sequence (" + avifResultToString(result) + ")");
+  if (decoder->imageCount != static_cast<int>(frames) || decoder->image->width != size || decoder->image->height != size || decoder->image->depth != 8) {
+    throw Error(ErrorCode::kCorrupt, source + ": an AVIF sequence of " + std::to_string(decoder->imageCount) + " images of " + std::to_string(decoder->image->width) +
+                                         " x " + std::to_string(decoder->image->height) + " at " + std::to_string(decoder->image->depth) + " bits, not " +
+                                         std::to_string(frames) + " of " + std::to_string(size) + " x " + std::to_string(size) + " at 8");
+  }
+  return decoder;
+}
+
+}  // namespace
+
+void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size, uint32_t last,
+                          const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take) {
+  if (last >= frames) throw Error(ErrorCode::kInvalidArgument, source + ": frame " + std::to_string(last) + " of a sequence of " + std::to_string(frames));
+  const auto decoder = parsed_sequence(bytes, source, frames, size);
+  for (uint32_t j = 0; j <= last; ++j) {
+    const avifResult result = avifDecoderNextImage(decoder.get());
+    if (result != AVIF_RESULT_OK) {
+      throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence is damaged (" + avifResultToString(result) + ")");
+    }
+    const avifImage* decoded = decoder->image;
+    if (decoded->width != size || decoded->height != size || decoded->depth != 8) {
+      throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence is " + std::to_string(decoded->width) + " x " +
+                                           std::to_string(decoded->height) + ", not " + std::to_string(size) + " x " + std::to_string(size));
+    }
+    // Every frame is decoded (the later ones are predicted from it); only those wanted are converted.
+    if (wanted(j)) take(j, rgb_of(decoded, 3, source));
+  }
+}
+
+std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size) {
+  const auto decoder = parsed_sequence(bytes, source, frames, size);
+  // The extent frame j needs runs from the sync sample (frame 0) to j's sample: j's own bytes are
+  // how far it reaches past frame j - 1's.
+  std::vector<uint64_t> sizes(frames);
+  uint64_t previous_end = 0;
+  for (uint32_t j = 0; j < frames; ++j) {
+    avifExtent extent{};
+    const avifResult result = avifDecoderNthImageMaxExtent(decoder.get(), j, &extent);
+    if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence: " + avifResultToString(result));
+    const uint64_t end = extent.offset + extent.size;
+    sizes[j] = j == 0 ? extent.size : (end > previous_end ? end - previous_end : 0);
+    previous_end = std::max(previous_end, end);
+  }
+  return sizes;
+}
+
 
 Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int channels, int64_t max_pixels) {
   if (channels != 3 && channels != 4) throw Error(ErrorCode::kInvalidArgument, "decode_avif: channels must be 3 or 4");
@@ -163,20 +280,7 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
     throw Error(ErrorCode::kCorrupt, source + ": the AVIF frame is " + std::to_string(decoded->width) + " x " + std::to_string(decoded->height) +
                                          ", its header says " + std::to_string(width) + " x " + std::to_string(height));
   }
-  Image image(static_cast<int>(decoded->width), static_cast<int>(decoded->height), channels);
-  AvifRgb rgb;
-  avifRGBImageSetDefaults(&rgb.rgb, decoded);
-  rgb.rgb.format = channels == 4 ? AVIF_RGB_FORMAT_RGBA : AVIF_RGB_FORMAT_RGB;
-  rgb.rgb.depth = 8;
-  rgb.rgb.pixels = image.pixels.data();
-  rgb.rgb.rowBytes = static_cast<uint32_t>(image.width * channels);
-  result = avifImageYUVToRGB(decoded, &rgb.rgb);
-  rgb.rgb.pixels = nullptr;  // ours, not libavif's to free
-  if (channels == 4 && decoded->alphaPlane == nullptr) {
-    for (size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;  // no alpha stored: opaque
-  }
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": the AVIF image cannot be converted to RGB (" + avifResultToString(result) + ")");
-  return image;
+  return rgb_of(decoded, channels, source);
 }
 
 const char* texture_codec_name(TextureCodec codec) { return codec == TextureCodec::kAvif ? "avif" : "webp"; }

@@ -20,14 +20,16 @@
 namespace facemorph {
 namespace {
 
+using crafted::grouped_texture_metadata;
 using crafted::predicted_metadata;
 using crafted::rebuild;
 using crafted::small_metadata;
 using crafted::small_sequence;
 
 
-// What a writer can be given: no steps (it takes 16-bit precision itself), or steps.
-std::vector<SequenceFileMetadata> codings() { return {small_metadata(), predicted_metadata()}; }
+// What a writer can be given: no steps (it takes 16-bit precision itself), or steps; lossless
+// textures (TEXR) or lossy ones as one image sequence per group (TGOP, format 2.1).
+std::vector<SequenceFileMetadata> codings() { return {small_metadata(), predicted_metadata(), grouped_texture_metadata()}; }
 
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   EXPECT_EQ(a.size(), b.size());
@@ -333,6 +335,7 @@ TEST(Container, LossyTexturesRoundTripInEitherCodec) {
   for (TextureCodec codec : {TextureCodec::kAvif, TextureCodec::kWebp}) {
     SequenceFileMetadata m = small_metadata();
     m.texture_codec = codec;
+    m.texture_coding = TextureCoding::kStills;  // format 2.0's TEXR (the sequence coding: TextureGroups* below)
     m.texture_quality = 90;
     const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
     SequenceFileInfo info;
@@ -352,6 +355,7 @@ TEST(Container, LossyTexturesRoundTripInEitherCodec) {
   }
   SequenceFileMetadata m = small_metadata();
   m.texture_quality = 60;
+  m.texture_coding = TextureCoding::kStills;
   const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   const auto codec_number = [](uint8_t number) {
     return [number](const std::string& type, std::vector<uint8_t>& payload) {
@@ -365,6 +369,165 @@ TEST(Container, LossyTexturesRoundTripInEitherCodec) {
     if (type == "TEXR") payload.resize(payload.size() / 2);
   };
   testing::expect_error(ErrorCode::kCorrupt, "TEXR", [&] { decode_sequence_file(rebuild(bytes, cut), "x.fmv"); });
+}
+
+// Smooth ramps over `keyframes` keyframes of size x size, drifting from one keyframe to the next:
+// what a face's texture does between keyframes, and what lossy codecs are for.
+Sequence ramp_sequence(int keyframes, int size) {
+  const Sequence three = small_sequence(9, size);
+  Sequence s = three;
+  s.keyframes.clear();
+  for (int k = 0; k < keyframes; ++k) {
+    Keyframe key = three.keyframes[static_cast<size_t>(k % 3)];
+    key.time = 0.2 * k;
+    for (int y = 0; y < size; ++y) {
+      for (int x = 0; x < size; ++x) {
+        uint8_t* p = key.texture.at(x, y);
+        p[0] = static_cast<uint8_t>((3 * x + 2 * k) * 64 / size);
+        p[1] = static_cast<uint8_t>((3 * y + k) * 64 / size);
+        p[2] = static_cast<uint8_t>(96 + ((x + y) * 32 / size));
+      }
+    }
+    s.keyframes.push_back(std::move(key));
+  }
+  s.last_time = s.keyframes.back().time;
+  return s;
+}
+
+double psnr(const Image& a, const Image& b) {
+  double squared = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) squared += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
+  return squared == 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 * static_cast<double>(a.pixels.size()) / squared);
+}
+
+uint64_t chunk_count(const SequenceFileInfo& info, const std::string& type) {
+  for (const auto& c : info.chunks) {
+    if (c.type == type) return static_cast<uint64_t>(c.count);
+  }
+  return 0;
+}
+
+// Format 2.1: lossy AVIF textures as one AV1 image sequence per group of keyframes (TGOP), the
+// writer's default; the same bytes every time; each keyframe within its quality.
+TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
+  const Sequence s = ramp_sequence(5, 64);  // groups of 2, 2 and 1 keyframes
+  const SequenceFileMetadata m = grouped_texture_metadata();
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  SequenceFileInfo info;
+  const Sequence back = decode_sequence_file(bytes, "groups.fmv", &info);
+  EXPECT_EQ(info.minor_version, 1);
+  EXPECT_EQ(info.metadata.texture_coding, TextureCoding::kSequence);
+  EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
+  EXPECT_EQ(chunk_count(info, "TGOP"), 3u);
+  EXPECT_EQ(chunk_count(info, "TEXR"), 0u);
+  uint64_t tgop_bytes = 0, keyframe_bytes = 0;
+  for (const auto& c : info.chunks) tgop_bytes += c.type == "TGOP" ? c.stored_bytes : 0;
+  for (const auto& k : info.keyframes) keyframe_bytes += k.texture;
+  EXPECT_EQ(keyframe_bytes, tgop_bytes);  // the groups' bytes divided among their keyframes, all counted
+  EXPECT_GT(info.keyframes[1].texture, 0u);
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+    ASSERT_EQ(back.keyframes[k].texture.width, 64);
+    EXPECT_GT(psnr(s.keyframes[k].texture, back.keyframes[k].texture), 35) << "keyframe " << k;
+  }
+  EXPECT_EQ(encode_sequence_file(s, m), bytes);  // deterministic
+  // The same textures as stills: TEXR, format 2.0's layout, the same fields.
+  SequenceFileMetadata stills = m;
+  stills.texture_coding = TextureCoding::kStills;
+  SequenceFileInfo still_info;
+  const Sequence still_back = decode_sequence_file(encode_sequence_file(s, stills), "stills.fmv", &still_info);
+  EXPECT_EQ(still_info.metadata.texture_coding, TextureCoding::kStills);
+  EXPECT_EQ(chunk_count(still_info, "TEXR"), 5u);
+  EXPECT_EQ(chunk_count(still_info, "TGOP"), 0u);
+  // Lossless or WebP textures stay stills whatever the coding asked for.
+  for (const auto& [codec, quality] : {std::pair{TextureCodec::kAvif, 101}, std::pair{TextureCodec::kWebp, 80}}) {
+    SequenceFileMetadata other = m;
+    other.texture_codec = codec;
+    other.texture_quality = quality;
+    SequenceFileInfo other_info;
+    decode_sequence_file(encode_sequence_file(s, other), "other.fmv", &other_info);
+    EXPECT_EQ(chunk_count(other_info, "TGOP"), 0u);
+    EXPECT_EQ(other_info.metadata.texture_coding, TextureCoding::kStills);
+  }
+}
+
+// A file written as 2.0 wrote it (stills, the preamble's minor version 0) reads as it did.
+TEST(Container, AFileOfFormat2_0StillReads) {
+  SequenceFileMetadata m = grouped_texture_metadata();
+  m.texture_coding = TextureCoding::kStills;
+  const Sequence s = ramp_sequence(3, 16);
+  std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  const Sequence now = decode_sequence_file(bytes, "now.fmv");
+  bytes[10] = 0;  // minor version 0, its preamble checksum made right
+  const uint32_t crc = format::crc32(std::span(bytes).first(12));
+  for (int i = 0; i < 4; ++i) bytes[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
+  SequenceFileInfo info;
+  const Sequence then = decode_sequence_file(bytes, "then.fmv", &info);
+  EXPECT_EQ(info.minor_version, 0);
+  for (size_t k = 0; k < s.keyframes.size(); ++k) EXPECT_EQ(then.keyframes[k].texture.pixels, now.keyframes[k].texture.pixels);
+  // The same with texture groups is not a 2.0 file: the flag came with 2.1.
+  std::vector<uint8_t> grouped = encode_sequence_file(s, grouped_texture_metadata());
+  grouped[10] = 0;
+  const uint32_t grouped_crc = format::crc32(std::span(grouped).first(12));
+  for (int i = 0; i < 4; ++i) grouped[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(grouped_crc >> (8 * i));
+  testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file", [&] { decode_sequence_file(grouped, "g.fmv"); });
+}
+
+// TGOP chunks that pass their checksums but break §8.1, and texture entries at the wrong kind of
+// chunk: corrupt (or unsupported), naming the chunk, before any pixel of a wrong sequence.
+TEST(Container, CraftedTextureGroupsAreRefusedByName) {
+  const Sequence s = ramp_sequence(3, 16);  // groups: keyframes 0-1 and 2
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, grouped_texture_metadata());
+  ASSERT_NO_THROW(decode_sequence_file(bytes, "good.fmv"));
+  // Group 0's AVIF replaced by `avif` (its preamble, keyframe 0 and codec 3, kept).
+  const auto group0 = [](std::vector<uint8_t> avif) {
+    return [avif](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type != "TGOP" || payload[0] != 0) return;
+      payload.resize(8);
+      payload.insert(payload.end(), avif.begin(), avif.end());
+    };
+  };
+  const Image* one[] = {&s.keyframes[0].texture};
+  const Image* three[] = {&s.keyframes[0].texture, &s.keyframes[1].texture, &s.keyframes[2].texture};
+  testing::expect_error(ErrorCode::kCorrupt, "TGOP", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "TGOP", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(three, 80))), "three.fmv"); });
+  Image small(8, 8, 3);
+  const Image* two_small[] = {&small, &small};
+  testing::expect_error(ErrorCode::kCorrupt, "images of 8 x 8", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(two_small, 80))), "size.fmv"); });
+  // A still where a sequence of two belongs: one image.
+  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif(s.keyframes[0].texture, 80))), "still.fmv"); });
+  // Another first keyframe than the index's place; another codec; a sequence cut short.
+  const auto patch = [](size_t at, uint8_t value) {
+    return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type == "TGOP" && payload[0] == 0) payload[at] = value;
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 1, the index places it at keyframe 0", [&] { decode_sequence_file(rebuild(bytes, patch(0, 1)), "first.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "image codec 2", [&] { decode_sequence_file(rebuild(bytes, patch(4, 2)), "codec.fmv"); });
+  const auto cut = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "TGOP" && payload[0] == 0) payload.resize(payload.size() - 20);
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "TGOP", [&] { decode_sequence_file(rebuild(bytes, cut), "cut.fmv"); });
+  // A TGOP where the index expects a TEXR, and a TEXR where it expects a TGOP.
+  SequenceFileMetadata stills = grouped_texture_metadata();
+  stills.texture_coding = TextureCoding::kStills;
+  const std::vector<uint8_t> still_bytes = encode_sequence_file(s, stills);
+  const auto rename = [](const std::string& from, const std::string& to) {
+    return [from, to](std::string& type, std::vector<uint8_t>& payload) {
+      if (type == from && payload[0] == 0) type = to;
+    };
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture entry points at a TGOP chunk, not TEXR", [&] { decode_sequence_file(rebuild(still_bytes, rename("TEXR", "TGOP")), "t.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture group entry points at a TEXR chunk, not TGOP", [&] { decode_sequence_file(rebuild(bytes, rename("TGOP", "TEXR")), "t.fmv"); });
+  // The flag (header byte 18, bit 2) in a file whose index is 2.0's, one texture offset a
+  // keyframe: its first offsets name TEXR chunks, not TGOP. And without textures.
+  const auto flag = [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "HEAD") payload[18] |= 4;
+  };
+  testing::expect_error(ErrorCode::kCorrupt, "points at a TEXR chunk, not TGOP", [&] { decode_sequence_file(rebuild(still_bytes, flag), "flag.fmv"); });
+  Sequence plain = s;
+  for (Keyframe& key : plain.keyframes) key.texture = {};
+  testing::expect_error(ErrorCode::kCorrupt, "without the textures flag", [&] { decode_sequence_file(rebuild(encode_sequence_file(plain, stills), flag), "plain.fmv"); });
 }
 
 // Values that pass every checksum but are impossible: caught by the header's limits and by the
@@ -441,6 +604,7 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   SequenceFileMetadata alone = predicted_metadata();
   alone.field_coding.intra_period = 1;
   seeds.emplace_back("n17_every_keyframe_alone.fmv", encode_sequence_file(small_sequence(17, 16), alone));
+  seeds.emplace_back("n9_texture_groups.fmv", encode_sequence_file(small_sequence(9, 16), grouped_texture_metadata()));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

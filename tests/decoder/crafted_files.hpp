@@ -60,6 +60,10 @@ inline SequenceFileMetadata small_metadata() {
   return m;
 }
 
+// Lossy AVIF textures at quality 80, one AV1 image sequence per group of two keyframes (TGOP,
+// format 2.1), with predicted_metadata's steps.
+inline SequenceFileMetadata grouped_texture_metadata();
+
 // The same with steps of the caller's choosing: every array on its own step, a group of keyframes
 // every second one.
 inline SequenceFileMetadata predicted_metadata() {
@@ -68,6 +72,14 @@ inline SequenceFileMetadata predicted_metadata() {
   m.field_coding.steps[kScalarArrayCount] = 1e-3;
   m.field_coding.intra_period = 2;
   set_default_pose_steps(m.field_coding, "mm");
+  return m;
+}
+
+inline SequenceFileMetadata grouped_texture_metadata() {
+  SequenceFileMetadata m = predicted_metadata();
+  m.texture_codec = TextureCodec::kAvif;
+  m.texture_coding = TextureCoding::kSequence;
+  m.texture_quality = 80;
   return m;
 }
 
@@ -104,24 +116,28 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
   return w.take();
 }
 
-// Rebuilds a file chunk by chunk, letting `edit` change a payload (decompressed) or drop/add chunks,
-// and keeps the index's offsets right: each offset that named a chunk names it where it now starts
+// Rebuilds a file chunk by chunk, letting `edit(type, payload)` change a payload (decompressed) or
+// a chunk's type (an `edit` taking `std::string&`), and keeps the index's offsets right: each offset that named a chunk names it where it now starts
 // (chunks before it may have grown), the index itself included (compressed, its size moves with its
 // numbers). Times and other index fields are taken from the index as `edit` left it.
 template <typename Edit>
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
-  size_t groups = 0;  // KGOP chunks
-  bool textured = false;
+  size_t groups = 0;          // KGOP chunks
+  size_t texture_groups = 0;  // TGOP chunks (format 2.1: the index has one texture offset per group)
+  bool textured = false;      // TEXR chunks (one texture offset per keyframe)
   std::vector<uint8_t> index_payload;
   for (const format::ChunkView& c : reader.chunks()) {
     std::vector<uint8_t> payload = reader.payload(c);
-    edit(c.type, payload);
+    std::string type = c.type;
+    edit(type, payload);
+    // The index's layout is the file's as written: by the chunks' types before the edit.
     groups += c.type == "KGOP" ? 1 : 0;
+    texture_groups += c.type == "TGOP" ? 1 : 0;
     textured = textured || c.type == "TEXR";
     if (c.type == "KIDX") index_payload = payload;
-    chunks.push_back(format::prepare_chunk(c.type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
+    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
   }
   std::vector<format::PreparedChunk> extra;
   if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
@@ -152,7 +168,7 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     const uint32_t count = index.read<uint32_t>("count");
     shifted.write(count);
     // Times, the pose's six runs of varints (copied as they are), group offsets, texture offsets
-    // (spec/container.md §6).
+    // (one per keyframe, or one per group with texture groups; spec/container.md §6).
     for (uint32_t k = 0; k < count; ++k) shifted.write(index.read<double>("t"));
     for (uint32_t v = 0; v < 6 * count; ++v) {
       uint8_t byte = 0;
@@ -163,6 +179,8 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     }
     for (size_t g = 0; g < groups; ++g) shift();
     for (uint32_t k = 0; textured && k < count; ++k) shift();
+    for (size_t g = 0; g < texture_groups; ++g) shift();
+    shifted.bytes(index.bytes(index.remaining(), "appended runs"));  // what a later minor version appends, or a crafted extra
     return format::prepare_chunk(chunks[1].type, shifted.take(), true, level);
   };
   // Compressed, its size moves with its numbers: laid out until it stays put, else stored (a size

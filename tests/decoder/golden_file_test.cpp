@@ -92,9 +92,30 @@ TEST(GoldenFile, Version2_0DecodesAsItDidWhenWritten) {
   SequenceFileInfo info;
   const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_0.fmv", &info);
   EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
+  EXPECT_EQ(info.metadata.texture_coding, TextureCoding::kStills);
   EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
   ASSERT_TRUE(s.has_texture());
   EXPECT_EQ(s.keyframes.front().texture.width, 64);
+}
+
+// Format 2.1: 2.0 with the keyframe textures as one AV1 image sequence per group of keyframes
+// (TGOP; make_golden.sh's --quality 80 takes the writer's default, the sequence coding).
+TEST(GoldenFile, Version2_1DecodesAsItDidWhenWritten) {
+  expect_golden("2_1", 2, 1, "facemorph 0.8.0");
+  SequenceFileInfo info;
+  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_1.fmv", &info);
+  EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
+  EXPECT_EQ(info.metadata.texture_coding, TextureCoding::kSequence);
+  EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
+  ASSERT_TRUE(s.has_texture());
+  EXPECT_EQ(s.keyframes.front().texture.width, 64);
+  int tgop = 0, texr = 0;
+  for (const auto& c : info.chunks) {
+    tgop += c.type == "TGOP" ? c.count : 0;
+    texr += c.type == "TEXR" ? c.count : 0;
+  }
+  EXPECT_EQ(tgop, static_cast<int>((s.keyframes.size() + 1) / 2));
+  EXPECT_EQ(texr, 0);
 }
 
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.

@@ -26,8 +26,9 @@ constexpr int kKeyframes = 60;
 
 // The crafted small sequence's three surfaces, poses, holes and textures repeated over 60 keyframes
 // (intra every second one: runs of two), so that a file is long next to the budget a test gives it.
-std::vector<uint8_t> long_file(SplineKind spline = SplineKind::kCatmullRom, int keyframes = kKeyframes) {
-  const Sequence three = crafted::small_sequence();
+std::vector<uint8_t> long_file(SplineKind spline = SplineKind::kCatmullRom, int keyframes = kKeyframes,
+                               const SequenceFileMetadata& metadata = crafted::predicted_metadata(), int texture = 16) {
+  const Sequence three = crafted::small_sequence(17, texture);
   Sequence s = three;
   s.spline = spline;
   s.keyframes.clear();
@@ -39,7 +40,14 @@ std::vector<uint8_t> long_file(SplineKind spline = SplineKind::kCatmullRom, int 
     s.keyframes.push_back(std::move(key));
   }
   s.last_time = s.keyframes.back().time;
-  return encode_sequence_file(s, crafted::predicted_metadata());
+  return encode_sequence_file(s, metadata);
+}
+
+// The same with 64² textures as one AV1 sequence per group of 8 keyframes (TGOP, format 2.1).
+std::vector<uint8_t> long_grouped_file() {
+  SequenceFileMetadata m = crafted::grouped_texture_metadata();
+  m.field_coding.intra_period = 8;
+  return long_file(SplineKind::kCatmullRom, kKeyframes, m, 64);
 }
 
 DecoderLimits with_memory(uint64_t bytes) {
@@ -250,6 +258,10 @@ void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t
   uint64_t values = whole.keyframes[0].hole_level.size();
   for (const std::vector<double>& a : scalar_arrays(whole.keyframes[0].fields)) values += a.size();
   const auto m = static_cast<uint64_t>(o.texture_size);
+  SequenceFileInfo info;
+  decode_sequence_file(bytes, "plan", &info);
+  // With texture groups (format 2.1), the AV1 decoder's 8 reference frames and the frame it decodes.
+  const uint64_t av1_decoder = info.metadata.texture_coding == TextureCoding::kSequence && o.texture_size > 0 ? 9 * 3 * m * m : 0;
   const uint64_t f = 8 * values + 4 * n + 1024, s = 24 * n, x = 3 * m * m;
   const KeyframeSpline spline(o.times, o.spline);
   const auto w = static_cast<uint64_t>(spline.max_keys());
@@ -258,9 +270,9 @@ void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t
   uint64_t largest_payload = 0;
   const format::ContainerReader reader(bytes, "plan");
   for (const format::ChunkView& c : reader.chunks()) {
-    if (c.type == "KEYF" || c.type == "KEYP" || c.type == "KGOP" || c.type == "TEXR") largest_payload = std::max(largest_payload, c.raw_size);
+    if (c.type == "KGOP" || c.type == "TEXR" || c.type == "TGOP") largest_payload = std::max(largest_payload, c.raw_size);
   }
-  const uint64_t kept = (budget - fixed - 24 * values - largest_payload) / (f + x + s);
+  const uint64_t kept = (budget - fixed - 24 * values - largest_payload - av1_decoder) / (f + x + s);
   ASSERT_GE(kept, w);
   EXPECT_EQ(source->surfaces_kept(), kept);
   SequenceDecoder decoder(source);
@@ -282,6 +294,50 @@ TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
   // keyframes at N = 5 under a 24 MiB budget, fmdec --null peaked at 82 MB RSS, 49 MB with
   // Catmull-Rom).
   expect_the_plan_of_section_10_1(long_file(SplineKind::kNotAKnot, 200), uint64_t{8} << 20);
+  // Texture groups: the AV1 decoder's frames counted.
+  const std::vector<uint8_t> grouped = long_grouped_file();
+  expect_the_plan_of_section_10_1(grouped, smallest_budget(grouped));
+}
+
+// The whole run of a group's textures is kept only where the cache holds it twice over: under the
+// smallest budget, asking for keyframe 5 keeps keyframe 5's texture (and no more of its group than
+// the cache holds); under a large one, the group's 8.
+TEST(KeyframeSource, AGroupsTexturesAreKeptWholeOnlyWhereTheCacheHoldsThemTwice) {
+  const std::vector<uint8_t> bytes = long_grouped_file();
+  const uint64_t texture = 3 * 64 * 64;
+  const auto small = open_sequence_source(bytes, "grouped", with_memory(smallest_budget(bytes)));
+  small->texture(5);
+  EXPECT_EQ(small->bytes_held(), texture);
+  const auto large = open_sequence_source(bytes, "grouped", with_memory(uint64_t{256} << 20));
+  large->texture(5);
+  EXPECT_EQ(large->bytes_held(), 8 * texture);
+}
+
+// A group's textures decoded on demand: keyframe k from its group's first frame up to k, kept as
+// the cache allows (the whole group where it holds it twice over, else k alone), forwards and
+// backwards, the same pixels as the file decoded whole; and every frame as the whole file's.
+TEST(KeyframeSource, TextureGroupsDecodeOnDemandAsTheWholeFileDoes) {
+  const std::vector<uint8_t> bytes = long_grouped_file();
+  const Sequence whole = decode_sequence_file(bytes, "grouped");
+  ASSERT_TRUE(whole.has_texture());
+  std::vector<size_t> order;
+  for (size_t k = 0; k < static_cast<size_t>(kKeyframes); ++k) order.push_back(k);
+  for (size_t k = static_cast<size_t>(kKeyframes); k-- > 0;) order.push_back(k);
+  for (size_t k = 5; k < static_cast<size_t>(kKeyframes); k += 11) order.push_back(k);  // jumps into groups
+  const uint64_t budget = smallest_budget(bytes);
+  for (uint64_t memory : {budget, uint64_t{256} << 20}) {
+    SCOPED_TRACE(memory);
+    const auto source = open_sequence_source(bytes, "grouped", with_memory(memory));
+    for (size_t k : order) {
+      ASSERT_EQ(source->texture(k)->pixels, whole.keyframes[k].texture.pixels) << "keyframe " << k;
+      ASSERT_LE(source->bytes_held(), memory);
+    }
+  }
+  // Under the smallest budget, frames as a player decodes them.
+  const auto source = open_sequence_source(bytes, "grouped", with_memory(budget));
+  SequenceDecoder lazy(source);
+  SequenceDecoder all(std::make_shared<const Sequence>(whole));
+  for (double t : {0.0, 0.45, 1.25, 3.3, 5.9, 2.0, 0.7}) expect_same(decode_at(lazy, t), decode_at(all, t), t);
 }
 
 // Opening reads the header and index only: a damaged group of keyframes opens, and its keyframes

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -31,6 +32,24 @@ std::vector<uint8_t> encode_avif(const Image& image, int quality);
 // `max_pixels`.
 Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int channels = 3,
                   int64_t max_pixels = int64_t{1} << 26);
+
+// An AV1 image sequence in AVIF (a group's keyframe textures, spec/container.md §8.1): the frames in
+// order, frame 0 intra and every later one predicted from those before it; 8-bit 4:4:4, full-range
+// BT.601, libaom at speed 6 on one thread, as encode_avif (deterministic). `quality` 0..100 as
+// encode_avif's, for the whole sequence: libavif 0.11 applies a changed quantiser to every frame
+// still in libaom's look-ahead, so a per-frame quantiser would not be what the frames get. Throws
+// kInvalidArgument for no frames, frames of different sizes, or an image encode_avif refuses.
+std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality);
+// Decodes frames 0 .. last of an AVIF image sequence that must hold exactly `frames` 8-bit images
+// of size x size: checked from the container (its sample count and image size) before any pixel is
+// decoded (one frame: the still image libavif writes for a sequence of one). Each frame j is decoded (later ones are predicted from it); those for which wanted(j)
+// are converted to RGB and handed to take(j, image). Throws kCorrupt naming `source` for another
+// count (a still where several frames belong), size or depth, or damaged data; kInvalidArgument for last >= frames.
+void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size, uint32_t last,
+                          const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take);
+// The bytes of each frame's AV1 sample in such a sequence (without the AVIF container's own), from
+// its sample table; nothing decoded. Throws as decode_avif_sequence.
+std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size);
 
 // The lossy codecs a keyframe texture may be stored in (spec/container.md §8).
 enum class TextureCodec { kAvif, kWebp };

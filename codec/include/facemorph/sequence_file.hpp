@@ -47,6 +47,15 @@ struct FieldCoding {
 // component in the index where a float32 takes 4 (spec/container.md §6). kInvalidArgument for other units.
 void set_default_pose_steps(FieldCoding& coding, const std::string& units);
 
+// How a file stores lossy AVIF keyframe textures (spec/container.md §8, §8.1). kSequence (format
+// 2.1, the writer's default): one AV1 image sequence per group of keyframes (a TGOP chunk), each
+// texture predicted from the group's earlier ones, 1.8-5x fewer bytes than stills at equal PSNR.
+// kStills: one AVIF still per keyframe (TEXR), as format 2.0. WebP and lossless textures are
+// always stills.
+enum class TextureCoding { kSequence, kStills };
+const char* texture_coding_name(TextureCoding coding);        // "sequence", "stills"
+TextureCoding parse_texture_coding(const std::string& name);  // throws kInvalidArgument
+
 // What a file says about itself besides the sequence.
 struct SequenceFileMetadata {
   std::string encoder;                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
@@ -55,6 +64,7 @@ struct SequenceFileMetadata {
   TextureCodec texture_codec = TextureCodec::kAvif;  // the reader reports keyframe 0's
   int texture_quality = 90;                 // the codec's quality 0..100 (above 100: lossless WebP)
   std::vector<int> keyframe_texture_qualities;  // one per keyframe, in place of texture_quality (the encoder's choice)
+  TextureCoding texture_coding = TextureCoding::kSequence;  // lossy AVIF textures only; the reader reports the file's
   FieldCoding field_coding;                 // the writer's; the reader reports the file's
 };
 
@@ -75,7 +85,10 @@ struct SequenceFileInfo {
   struct KeyframeBytes {
     // Chunk sizes in the file. A group of keyframes shares a chunk: each gets the bytes its part of
     // the stream took (the first also the chunk's framing); 0 until the fields are decoded
-    // (inspect_sequence_file, decode_sequence_file).
+    // (inspect_sequence_file, decode_sequence_file). A group's texture sequence (TGOP) is divided
+    // by its frames' AV1 samples, the first keyframe taking the chunk's framing and the AVIF
+    // container's own bytes too (a sample that only shows a hidden frame coded in an earlier one,
+    // libaom's alternate reference, is a few bytes).
     uint64_t fields = 0, texture = 0;
   };
   std::vector<KeyframeBytes> keyframes;
@@ -88,7 +101,7 @@ struct SequenceFileInfo {
 // that are not finite and positive, or a value more than 2³⁰ steps from 0.
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 
-// The file's bytes (format 2.0). Fields are coded with metadata.field_coding's steps (or, where it
+// The file's bytes (format 2.1; a file without texture groups is what 2.0 wrote). Fields are coded with metadata.field_coding's steps (or, where it
 // has none, a 65535th of each array's range; spec/method.md §5.3), textures encoded in metadata.texture_codec at metadata.texture_quality (or each
 // at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a sequence validate_sequence rejects,
 // a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
