@@ -168,6 +168,38 @@ std::vector<uint8_t> encode_avif(const Image& image, int quality) {
   return std::vector<uint8_t>(bytes.data.data, bytes.data.data + bytes.data.size);
 }
 
+namespace {
+
+// libavif stamps an image sequence's movie, track and media headers (mvhd, tkhd, mdhd) with the
+// wall-clock time of the encode: set to 0 ("unknown" in ISO BMFF), so the same frames give the same
+// bytes (spec/container.md §11). Walks the boxes of `bytes` (the encoder's own output) within
+// [begin, end), descending into moov, trak and mdia.
+void clear_creation_times(std::vector<uint8_t>& bytes, size_t begin, size_t end) {
+  const auto u32 = [&](size_t at) { return (uint32_t{bytes[at]} << 24) | (uint32_t{bytes[at + 1]} << 16) | (uint32_t{bytes[at + 2]} << 8) | bytes[at + 3]; };
+  size_t at = begin;
+  while (at + 8 <= end) {
+    uint64_t size = u32(at);
+    size_t header = 8;
+    if (size == 1 && at + 16 <= end) {
+      size = (uint64_t{u32(at + 8)} << 32) | u32(at + 12);
+      header = 16;
+    } else if (size == 0) {
+      size = end - at;
+    }
+    if (size < header || size > end - at) return;  // not a box we wrote: leave the rest alone
+    const std::string type(bytes.begin() + static_cast<ptrdiff_t>(at + 4), bytes.begin() + static_cast<ptrdiff_t>(at + 8));
+    const size_t body = at + header, box_end = at + static_cast<size_t>(size);
+    if (type == "moov" || type == "trak" || type == "mdia") clear_creation_times(bytes, body, box_end);
+    if ((type == "mvhd" || type == "tkhd" || type == "mdhd") && body + 4 <= box_end) {
+      const size_t times = bytes[body] == 1 ? 16 : 8;  // version 1: two u64, else two u32
+      if (body + 4 + times <= box_end) std::fill(bytes.begin() + static_cast<ptrdiff_t>(body + 4), bytes.begin() + static_cast<ptrdiff_t>(body + 4 + times), 0);
+    }
+    at = box_end;
+  }
+}
+
+}  // namespace
+
 std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality) {
   if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of no frames");
   const auto encoder = avif_encoder(quality);
@@ -184,7 +216,9 @@ std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, 
   AvifBytes bytes;
   const avifResult result = avifEncoderFinish(encoder.get(), &bytes.data);
   if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
-  return std::vector<uint8_t>(bytes.data.data, bytes.data.data + bytes.data.size);
+  std::vector<uint8_t> out(bytes.data.data, bytes.data.data + bytes.data.size);
+  clear_creation_times(out, 0, out.size());
+  return out;
 }
 
 namespace {
