@@ -2,7 +2,7 @@
 // frames equal to the C++ decoder's; buffer sizes in bytes, checked before anything is written.
 #include "facemorph.h"
 
-#include "codec/player/decoder.hpp"
+#include "codec/decoder/player/decoder.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 

@@ -1,4 +1,4 @@
-#include "codec/geometry/exact_delaunay.hpp"
+#include "codec/decoder/geometry/exact_delaunay.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/meshkit/topology.hpp"

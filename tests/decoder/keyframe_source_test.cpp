@@ -1,6 +1,6 @@
 // Decoding on demand (open_sequence_source, spec/container.md §10.1): an opened file holds what the
 // budget allows whatever its length, and decodes every frame exactly as the file decoded whole.
-#include "codec/player/decoder.hpp"
+#include "codec/decoder/player/decoder.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/grid_geometry.hpp"
 #include "facemorph/limits.hpp"

@@ -1,7 +1,7 @@
 // The player's decoder (codec/player/decoder.hpp, behind the C API) on the golden file (N = 33, 3 keyframes, texture
 // 64²) and on a copy of it with holes: file and memory agree, buffers are checked before anything
 // is written, the arrays keep their conventions, and a keyframe decodes as SequenceDecoder does.
-#include "codec/player/decoder.hpp"
+#include "codec/decoder/player/decoder.hpp"
 
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/sequence_file.hpp"

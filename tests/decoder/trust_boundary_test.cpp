@@ -4,7 +4,7 @@
 // memory errors. Every file here is crafted with valid checksums (crafted::rebuild), so each test
 // reaches the check it means.
 #include "facemorph.h"
-#include "codec/player/decoder.hpp"
+#include "codec/decoder/player/decoder.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/image_codec.hpp"
 #include "facemorph/limits.hpp"

@@ -5,8 +5,8 @@
 #include "facemorph/meshkit/topology.hpp"
 #include "facemorph/meshkit/surface_measures.hpp"
 
-#include "codec/conformal/double_cover.hpp"
-#include "codec/conformal/untangle.hpp"
+#include "codec/encoder/conformal/double_cover.hpp"
+#include "codec/encoder/conformal/untangle.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

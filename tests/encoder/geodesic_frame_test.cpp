@@ -6,7 +6,7 @@
 #include "facemorph/error.hpp"
 
 #include "facemorph/meshkit/delaunay.hpp"
-#include "codec/registration/partition_map.hpp"
+#include "codec/encoder/registration/partition_map.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

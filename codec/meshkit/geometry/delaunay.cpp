@@ -1,6 +1,6 @@
 #include "facemorph/meshkit/delaunay.hpp"
 
-#include "codec/geometry/bowyer_watson.hpp"
+#include "codec/decoder/geometry/bowyer_watson.hpp"
 #include "facemorph/meshkit/topology.hpp"
 
 #include <algorithm>

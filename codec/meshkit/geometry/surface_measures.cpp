@@ -1,6 +1,6 @@
 #include "facemorph/meshkit/surface_measures.hpp"
 
-#include "codec/geometry/elementary.hpp"
+#include "codec/decoder/geometry/elementary.hpp"
 #include <algorithm>
 #include <cmath>
 

@@ -1,0 +1,267 @@
+// An opened .fmv file as a KeyframeSource (open_sequence_source, facemorph/sequence_file.hpp):
+// keyframes decoded on demand into a cache bounded by the caller's memory budget, so what a player
+// holds follows what it plays, not the file's length (spec/container.md §10.1).
+#include "facemorph/sequence_file.hpp"
+
+#include "codec/decoder/container/opened_file.hpp"
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/error.hpp"
+#include "format/file_io.hpp"
+
+#include <algorithm>
+#include <list>
+#include <mutex>
+#include <variant>
+
+namespace facemorph {
+
+namespace {
+
+// The most keys one frame of a spline kind blends, whatever the times (spec/container.md §10.3):
+// the local kinds' windows, and for not-a-knot two rows of second-derivative weights, each cut where
+// it has fallen below 2⁻⁶⁰ of its largest, at least 2× a key: at most 61 keys either side.
+uint64_t window_bound(SplineKind kind) {
+  switch (kind) {
+    case SplineKind::kLinear: return 2;
+    case SplineKind::kCatmullRom: return 4;
+    case SplineKind::kLocalCubic: return 6;
+    case SplineKind::kNotAKnot: return 124;
+  }
+  return 124;
+}
+
+// What the source and a decoder on it hold, in bytes (spec/container.md §10.1's terms).
+struct MemoryPlan {
+  uint64_t fields = 0;      // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
+  uint64_t surface = 0;     // one keyframe's reconstructed surface (24 n)
+  uint64_t texture = 0;     // one keyframe's RGB texture (3 M²)
+  uint64_t in_flight = 0;   // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes;
+                            // with texture groups, the AV1 decoder's reference frames
+  uint64_t fixed = 0;       // G, the solver, one frame, the index, the file's bytes where they are copied
+  uint64_t keyframes_kept = 0;  // keyframes the budget holds at once: fields, texture and surface each
+};
+
+// `window`: the keyframes one frame blends, which a decoder holds for the frame even where the cache
+// has dropped them. `spline_bytes`: the rows of the spline a decoder keeps (KeyframeSpline::memory_bytes).
+MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t window, uint64_t spline_bytes, const DecoderLimits& limits) {
+  MemoryPlan plan;
+  const DiskGridShape shape = disk_grid_shape(file.shape().grid_n);
+  const auto nodes = static_cast<uint64_t>(shape.interior_count + shape.rim_count);
+  const uint64_t values = file.values_per_keyframe();
+  const auto m = static_cast<uint64_t>(file.texture_size());
+  plan.fields = 8 * values + 4 * nodes + 1024;
+  plan.surface = 24 * nodes;
+  plan.texture = 3 * m * m;
+  // The payload too: a chunk decompresses to its stated size before it is decoded, and a file may
+  // state any size up to the budget, so the largest one is counted, not assumed small.
+  plan.in_flight = 24 * values + file.largest_payload() + file.texture_decoder_bytes();
+  // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
+  // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
+  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +
+               window * (plan.fields + plan.texture) + limits.max_memory_bytes / 16;
+  const uint64_t per_keyframe = plan.fields + plan.surface + plan.texture;
+  const uint64_t needed = plan.fixed + plan.in_flight;
+  plan.keyframes_kept = limits.max_memory_bytes > needed ? (limits.max_memory_bytes - needed) / per_keyframe : 0;
+  return plan;
+}
+
+class FileSource final : public KeyframeSource {
+ public:
+  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes, const std::string& source, const DecoderLimits& limits,
+             SequenceFileInfo* info)
+      : bytes_(std::move(bytes)),
+        file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }) {
+    const size_t count = file_.keyframe_count();
+    // The header's fields as a sequence in memory gives them (the shape has no keyframes: times,
+    // poses, holes and texture are the file's, below).
+    outline_ = outline_of(file_.shape());
+    outline_.times.reserve(count);
+    for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
+    const KeyframeSpline spline(outline_.times, file_.shape().spline);
+    const auto window = static_cast<uint64_t>(spline.max_keys());
+    const uint64_t owned = std::holds_alternative<std::vector<uint8_t>>(bytes_) ? view().size() : 0;
+    plan_ = plan_memory(file_, owned, window, spline.memory_bytes(), limits);
+    if (plan_.keyframes_kept < window) {
+      const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);
+      throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) + " keyframes, which with G and its solver need about " +
+                                         std::to_string(needed >> 20) + " MiB, over the memory limit of " + std::to_string(limits.max_memory_bytes >> 20) +
+                                         " MiB (max_memory_bytes, --max-memory)");
+    }
+    cache_capacity_ = plan_.keyframes_kept * (plan_.fields + plan_.texture);
+    fields_.resize(count);
+    textures_.resize(count);
+    field_failures_.resize(count);
+    texture_failures_.resize(count);
+    // The index holds every keyframe's time and pose: nothing is decoded until a frame needs it.
+    outline_.has_holes = file_.has_holes();
+    outline_.texture_size = file_.texture_size();
+    outline_.fixed_node_count = file_.fixed_node_count();
+    outline_.poses.reserve(count);
+    for (size_t k = 0; k < count; ++k) outline_.poses.push_back(file_.keyframe_pose(k));
+    if (info) *info = file_.describe();
+    // The walk read every chunk's header from a mapped file; those pages are the page cache's, but
+    // they would count in the process's resident memory (and a cgroup's) until reclaimed.
+    if (const auto* mapped = std::get_if<std::unique_ptr<format::MappedFile>>(&bytes_)) (*mapped)->release_pages();
+  }
+
+  const SequenceOutline& outline() const override { return outline_; }
+  size_t surfaces_kept() const override { return static_cast<size_t>(plan_.keyframes_kept); }
+  uint64_t bytes_held() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return held_bytes_;
+  }
+
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (k >= fields_.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
+    if (fields_[k].value) {
+      touch(fields_[k]);
+      return fields_[k].value;
+    }
+    // A keyframe that did not decode fails at once the next time (§10.3: time follows the frame).
+    if (!field_failures_[k].second.empty()) throw Error(field_failures_[k].first, field_failures_[k].second);
+    // A run decodes from its first keyframe. The whole run is kept where the cache holds it twice
+    // over (playing on needs the next keyframes); else only as far as k, the rest dropped as decoded.
+    const size_t first = file_.run_of(k) * file_.run_length();
+    const size_t run_end = std::min(first + file_.run_length(), fields_.size());
+    const bool whole_run = 2 * (run_end - first) * plan_.fields <= cache_capacity_;
+    std::shared_ptr<const Keyframe> wanted;
+    try {
+      file_.decode_run(first, whole_run ? run_end - 1 : k, [&](size_t j, Keyframe&& key, uint64_t) {
+        if (j != k && (fields_[j].value || !whole_run)) return;
+        auto shared = std::make_shared<const Keyframe>(std::move(key));
+        if (j == k) wanted = shared;
+        remember_fields(j, std::move(shared));
+      });
+    } catch (const Error& e) {
+      // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
+      if (wanted) return wanted;
+      // kLimit too: the same file under the same limits fails the same way.
+      field_failures_[k] = {e.code(), e.what()};
+      throw;
+    }
+    return wanted;
+  }
+
+  std::shared_ptr<const Image> texture(size_t k) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (k >= textures_.size() || !outline_.has_texture()) {
+      throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no texture for keyframe " + std::to_string(k));
+    }
+    if (textures_[k].value) {
+      touch(textures_[k]);
+      return textures_[k].value;
+    }
+    // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
+    if (!texture_failures_[k].second.empty()) throw Error(texture_failures_[k].first, texture_failures_[k].second);
+    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. As
+    // for fields, the whole run is kept where the cache holds it twice over; else only k.
+    const size_t run = file_.texture_run_length();
+    const size_t first = k / run * run;
+    const size_t run_end = std::min(first + run, textures_.size());
+    const bool whole_run = 2 * (run_end - first) * plan_.texture <= cache_capacity_;
+    std::shared_ptr<const Image> wanted;
+    try {
+      file_.decode_textures(
+          first, whole_run ? run_end - 1 : k, [&](size_t j) { return j == k || (whole_run && !textures_[j].value); },
+          [&](size_t j, Image&& image) {
+            auto shared = std::make_shared<const Image>(std::move(image));
+            if (j == k) wanted = shared;
+            remember_texture(j, std::move(shared));
+          });
+    } catch (const Error& e) {
+      // Past k, in the rest of a whole run: k stands; the failing frame fails when asked for.
+      if (wanted) return wanted;
+      texture_failures_[k] = {e.code(), e.what()};
+      throw;
+    }
+    return wanted;
+  }
+
+ private:
+  struct Entry {
+    bool texture = false;
+    size_t keyframe = 0;
+    uint64_t bytes = 0;
+  };
+  template <typename T>
+  struct Slot {
+    std::shared_ptr<const T> value;
+    std::list<Entry>::iterator where;
+  };
+
+  std::span<const uint8_t> view() const {
+    if (const auto* owned = std::get_if<std::vector<uint8_t>>(&bytes_)) return *owned;
+    return std::get<std::unique_ptr<format::MappedFile>>(bytes_)->bytes();
+  }
+
+  template <typename T>
+  void touch(Slot<T>& slot) const {
+    order_.splice(order_.begin(), order_, slot.where);
+  }
+
+  void remember_fields(size_t k, std::shared_ptr<const Keyframe> key) const {
+    Slot<Keyframe>& slot = fields_[k];
+    if (slot.value) return;
+    slot.where = order_.insert(order_.begin(), Entry{false, k, plan_.fields});
+    slot.value = std::move(key);
+    held_bytes_ += plan_.fields;
+    evict();
+  }
+
+  void remember_texture(size_t k, std::shared_ptr<const Image> image) const {
+    Slot<Image>& slot = textures_[k];
+    if (slot.value) return;
+    // The list entry first: if it cannot be allocated, nothing is cached uncounted.
+    slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
+    slot.value = std::move(image);
+    held_bytes_ += plan_.texture;
+    evict();
+  }
+
+  // Drops the least recently used until the cache is within its capacity (a caller may still hold
+  // what is dropped: the decoder, for the frame it is decoding).
+  void evict() const {
+    while (held_bytes_ > cache_capacity_ && !order_.empty()) {
+      const Entry& oldest = order_.back();
+      if (oldest.texture) {
+        textures_[oldest.keyframe].value.reset();
+      } else {
+        fields_[oldest.keyframe].value.reset();
+      }
+      held_bytes_ -= oldest.bytes;
+      order_.pop_back();
+    }
+  }
+
+  std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes_;
+  OpenedFile file_;
+  MemoryPlan plan_;
+  SequenceOutline outline_;
+  uint64_t cache_capacity_ = 0;  // bytes of fields and textures kept
+  mutable std::mutex mutex_;
+  mutable std::vector<Slot<Keyframe>> fields_;
+  mutable std::vector<Slot<Image>> textures_;
+  mutable std::vector<std::pair<ErrorCode, std::string>> field_failures_;    // the error and its message
+  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;
+  mutable std::list<Entry> order_;  // most recently used first
+  mutable uint64_t held_bytes_ = 0;
+};
+
+}  // namespace
+
+std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits, SequenceFileInfo* info) {
+  check_decoder_limits(limits);
+  return std::make_shared<FileSource>(std::make_unique<format::MappedFile>(path), path.string(), limits, info);
+}
+
+std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source, const DecoderLimits& limits,
+                                                           SequenceFileInfo* info) {
+  check_decoder_limits(limits);
+  if (bytes.size() > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
+  return std::make_shared<FileSource>(std::vector<uint8_t>(bytes.begin(), bytes.end()), source, limits, info);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,147 @@
+// The keyframe index, KIDX (spec/container.md §6): every keyframe's time and pose, and where its
+// chunks are. A player reads it with the header and can then place every keyframe in time and
+// space, and fetch any keyframe's chunks, without decoding another (§10.1: opening costs what the
+// index costs).
+#include "codec/decoder/container/file_layout.hpp"
+
+#include "format/byte_writer.hpp"
+
+#include <cmath>
+
+namespace facemorph::file_layout {
+
+namespace {
+
+using format::ByteReader;
+using format::ByteWriter;
+
+// A pose code's change as a zigzag LEB128 varint: 7 bits a byte, low first, the high bit on all
+// but the last. Codes are below 2⁴⁰, so a change is below 2⁴¹ and its zigzag fits 6 bytes.
+constexpr int kMaxVarintBytes = 6;
+
+void write_varint(ByteWriter& w, int64_t value) {
+  uint64_t zigzag = value >= 0 ? static_cast<uint64_t>(value) << 1 : (static_cast<uint64_t>(-(value + 1)) << 1) | 1;
+  while (zigzag >= 0x80) {
+    w.write(static_cast<uint8_t>(zigzag | 0x80));
+    zigzag >>= 7;
+  }
+  w.write(static_cast<uint8_t>(zigzag));
+}
+
+int64_t read_varint(ByteReader& r, const char* what) {
+  uint64_t zigzag = 0;
+  for (int i = 0; i < kMaxVarintBytes; ++i) {
+    const uint8_t byte = r.read<uint8_t>(what);
+    zigzag |= static_cast<uint64_t>(byte & 0x7F) << (7 * i);
+    if ((byte & 0x80) == 0) {
+      const auto magnitude = static_cast<int64_t>(zigzag >> 1);  // below 2⁴¹
+      return (zigzag & 1) != 0 ? -magnitude - 1 : magnitude;
+    }
+  }
+  corrupt(r.source(), std::string(what) + " longer than " + std::to_string(kMaxVarintBytes) + " bytes");
+}
+
+}  // namespace
+
+PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
+  const Vec3 rotation = rotation_log(pose.rotation);
+  PoseCodes codes{};
+  for (int k = 0; k < 3; ++k) {
+    const double r = std::nearbyint(rotation[k] / coding.rotation_step), t = std::nearbyint(pose.translation[k] / coding.translation_step);
+    if (!(std::abs(r) < static_cast<double>(kMaxPoseCode)) || !(std::abs(t) < static_cast<double>(kMaxPoseCode))) {
+      throw Error(ErrorCode::kInvalidArgument, "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
+    }
+    if (std::abs(coding.rotation_step * r) > kMaxRotationComponent) {
+      throw Error(ErrorCode::kInvalidArgument, "a rotation step of " + std::to_string(coding.rotation_step) + " rad rounds a rotation vector beyond 4");
+    }
+    codes[static_cast<size_t>(k)] = static_cast<int64_t>(r);
+    codes[static_cast<size_t>(3 + k)] = static_cast<int64_t>(t);
+  }
+  return codes;
+}
+
+RigidPose pose_of(const PoseCodes& codes, const FieldCoding& coding) {
+  RigidPose pose;
+  const auto c = [&](size_t i) { return static_cast<double>(codes[i]); };
+  pose.rotation = rotation_exp(Vec3(coding.rotation_step * c(0), coding.rotation_step * c(1), coding.rotation_step * c(2)));
+  pose.translation = Vec3(coding.translation_step * c(3), coding.translation_step * c(4), coding.translation_step * c(5));
+  return pose;
+}
+
+// Each kind of number in a run of its own, which the chunk's zstd packs: the times, each pose
+// component's changes from keyframe to keyframe, the group offsets, the texture offsets.
+std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h) {
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(entries.size()));
+  for (const IndexEntry& e : entries) w.write(e.time);
+  for (size_t i = 0; i < kPoseCodes; ++i) {
+    int64_t previous = 0;
+    for (const IndexEntry& e : entries) {
+      write_varint(w, e.pose[i] - previous);
+      previous = e.pose[i];
+    }
+  }
+  for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].group_offset);
+  if (h.texture_groups()) {  // one TGOP per group (format 2.1)
+    for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].texture_offset);
+  } else if (h.has_texture()) {
+    for (const IndexEntry& e : entries) w.write(e.texture_offset);
+  }
+  return w.take();
+}
+
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h) {
+  ByteReader r(payload, source + ": index");
+  const uint32_t count = r.read<uint32_t>("the entry count");
+  if (count != h.keyframe_count) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(h.keyframe_count) + " keyframes");
+  // The smallest index of `count` entries, before they are allocated: the times, a byte for each
+  // pose number, the offsets.
+  const size_t groups = h.group_count();
+  // Texture offsets: one per keyframe (TEXR), or one per group (TGOP, format 2.1).
+  const size_t textures = h.texture_groups() ? groups : h.has_texture() ? count : 0;
+  r.require(size_t{8} * count + kPoseCodes * count + size_t{8} * (groups + textures), "the entries");
+  std::vector<IndexEntry> entries(count);
+  // Times: within ±1e9 s, increasing, and at least 1e-9 of their span apart, so that the spline's
+  // ratios of intervals stay finite (0, 1e-200, 2e-200, 1 would not).
+  for (IndexEntry& e : entries) {
+    e.time = read_finite(r, "a keyframe time");
+    if (std::abs(e.time) > kMaxTime) corrupt(r.source(), "a keyframe time beyond 1e9 s");
+  }
+  const double span = entries.back().time - entries.front().time;
+  for (size_t k = 1; k < count; ++k) {
+    if (!(entries[k].time - entries[k - 1].time >= kMinKeyframeGap * span && entries[k].time > entries[k - 1].time)) {
+      corrupt(r.source(), "keyframe " + std::to_string(k) + "'s time is not at least 1e-9 of the keyframes' span after the previous one");
+    }
+  }
+  // Poses: codes below 2⁴⁰, the rotation vector within 4 (log R has an angle of at most π), the
+  // translation within the bound of every coordinate a file states.
+  const FieldCoding& coding = h.metadata.field_coding;
+  for (size_t i = 0; i < kPoseCodes; ++i) {
+    int64_t code = 0;
+    for (size_t k = 0; k < count; ++k) {
+      code += read_varint(r, "a pose number");  // both below 2⁴²: no overflow
+      if (code <= -kMaxPoseCode || code >= kMaxPoseCode) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a pose code beyond 2^40");
+      const double value = static_cast<double>(code) * (i < 3 ? coding.rotation_step : coding.translation_step);
+      if (i < 3 && !(std::abs(value) <= kMaxRotationComponent)) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a rotation vector component beyond 4");
+      if (i >= 3 && !(std::abs(value) <= kMaxCoordinate)) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a pose translation beyond 1e9");
+      entries[k].pose[i] = code;
+    }
+  }
+  r.require(size_t{8} * (groups + textures), "the chunk offsets");
+  for (size_t g = 0; g < groups; ++g) {
+    const uint64_t offset = r.read<uint64_t>("a group offset");
+    for (size_t k = g * h.group_size(); k < std::min<size_t>(count, (g + 1) * h.group_size()); ++k) entries[k].group_offset = offset;
+  }
+  if (h.texture_groups()) {
+    for (size_t g = 0; g < groups; ++g) {
+      const uint64_t offset = r.read<uint64_t>("a texture group offset");
+      for (size_t k = g * h.group_size(); k < std::min<size_t>(count, (g + 1) * h.group_size()); ++k) entries[k].texture_offset = offset;
+    }
+  } else if (h.has_texture()) {
+    for (IndexEntry& e : entries) e.texture_offset = r.read<uint64_t>("a texture offset");
+  }
+  // Later minor versions append runs here; this reader ignores them.
+  return entries;
+}
+
+}  // namespace facemorph::file_layout

@@ -1,0 +1,253 @@
+// A group of keyframes, KGOP (spec/container.md §7): one intra period's fields in one range-coded
+// stream. Each value is an integer multiple of the header's step for its array; the codes are
+// predicted (from the previous keyframe of the group, and along G's lattice) and only the
+// residuals coded, under adaptive models carried through the group, so every decoder reproduces the
+// encoder's values to the bit.
+#include "codec/decoder/container/file_layout.hpp"
+
+#include "format/byte_writer.hpp"
+#include "format/ranged_residuals.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace facemorph::file_layout {
+
+namespace {
+
+using format::ByteReader;
+using format::ByteWriter;
+
+// Which arrays lie on G's lattice (spatial predictors 2 and 3 allowed): the per-node fields and
+// positions on the interior nodes, the hole level on every node. The band vectors and the rim are
+// sequences only.
+const format::LatticeNeighbours* lattice_of(size_t array, size_t length, const GridFacts& grid) {
+  const format::LatticeNeighbours* lattice = nullptr;
+  if (array <= 3 || (array >= 7 && array <= 9)) lattice = &grid.interior;
+  if (array == kScalarArrayCount) lattice = &grid.all_nodes;
+  return lattice && lattice->size() == length ? lattice : nullptr;  // an empty array has none
+}
+
+// lattice_of for every array of a keyframe, given their lengths.
+std::vector<const format::LatticeNeighbours*> lattices_of(const std::vector<size_t>& lengths, const GridFacts& grid) {
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < lengths.size(); ++a) lattices.push_back(lattice_of(a, lengths[a], grid));
+  return lattices;
+}
+
+template <typename T>
+std::vector<size_t> lengths_of(const std::vector<std::vector<T>>& arrays) {
+  std::vector<size_t> lengths;
+  for (const std::vector<T>& a : arrays) lengths.push_back(a.size());
+  return lengths;
+}
+
+// The models each array's residuals adapt under (§7.3): its own, except that b continues a's and
+// the second and third components of a vector field the first's.
+constexpr std::array<uint8_t, kKeyframeArrays> kRangeModelSets = {0, 1, 2, 2, 4, 4, 4, 7, 7, 7, 10, 10, 10, 13};
+
+// The models a group's stream adapts, fresh at its start and carried through its keyframes.
+struct GroupModels {
+  format::BitModel reference;                                              // 1: from the previous keyframe
+  std::array<std::array<format::BitModel, 3>, kKeyframeArrays> predictor;  // the high bit's, then the low bit's under each high bit
+  std::vector<format::ResidualModels> residuals;
+};
+
+struct CodedArray {
+  format::SpatialPredictor predictor = format::SpatialPredictor::kNone;
+  std::vector<int64_t> residuals;
+  double bits = 0;
+};
+
+// The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models).
+CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice) {
+  CodedArray best;
+  best.bits = std::numeric_limits<double>::infinity();
+  for (uint8_t p = 0; p < format::kSpatialPredictorCount; ++p) {
+    const auto predictor = static_cast<format::SpatialPredictor>(p);
+    if (format::uses_lattice(predictor) && lattice == nullptr) continue;
+    std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
+    const double bits = format::ranged_residual_bits(residuals, lattice);
+    if (bits < best.bits) best = {predictor, std::move(residuals), bits};
+  }
+  return best;
+}
+
+// Array a's spatial predictor p as read, or kCorrupt where it is none this array can have.
+format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, const GridFacts& grid, const std::string& where) {
+  const auto predictor = static_cast<format::SpatialPredictor>(p);
+  if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictor) && lattice_of(a, length, grid) == nullptr)) {
+    corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
+  }
+  return predictor;
+}
+
+// A keyframe's arrays as integer multiples of the coding's steps.
+std::vector<std::vector<int32_t>> field_codes(const Keyframe& key, const FieldCoding& coding) {
+  const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+  std::vector<std::vector<int32_t>> codes(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    for (double v : arrays[a]) codes[a].push_back(field_code(v, coding.steps[a]));
+  }
+  return codes;
+}
+
+// How a keyframe's codes are predicted: from nothing or the previous keyframe's, and each array
+// under its own spatial predictor, with the residuals that leaves.
+struct Prediction {
+  bool from_previous = false;
+  std::vector<CodedArray> arrays;
+};
+
+// `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
+// null where this keyframe is the group's first. Intra and predicted alike: each array's codes, or
+// their change since the previous keyframe, under the spatial predictor that leaves the fewest
+// bits. The reference that costs less wins.
+Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid) {
+  auto code_all = [&](bool from_previous) {
+    std::vector<CodedArray> out;
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      std::vector<int32_t> values = codes[a];
+      if (from_previous) {
+        for (size_t i = 0; i < values.size(); ++i) values[i] -= (*previous)[a][i];  // |codes| < 2^30: no overflow
+      }
+      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid)));
+    }
+    return out;
+  };
+  auto total_bits = [](const std::vector<CodedArray>& arrays) {
+    double bits = 0;
+    for (const CodedArray& a : arrays) bits += a.bits;
+    return bits;
+  };
+  Prediction chosen{false, code_all(false)};
+  if (previous) {
+    std::vector<CodedArray> predicted = code_all(true);
+    if (total_bits(predicted) < total_bits(chosen.arrays)) chosen = {true, std::move(predicted)};
+  }
+  return chosen;
+}
+
+// A decoded keyframe's arrays from its residuals: the spatial predictors undone, then the previous
+// keyframe's `codes` added where it is coded from it. `codes` holds this keyframe's on return.
+std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::vector<int64_t>>& residuals, const std::vector<format::SpatialPredictor>& predictors,
+                                                       bool from_previous, std::vector<std::vector<int32_t>>& codes, const FileHeader& h,
+                                                       const GridFacts& grid, const std::string& where) {
+  const std::vector<double>& steps = h.metadata.field_coding.steps;
+  std::vector<std::vector<double>> arrays(kKeyframeArrays);
+  std::vector<std::vector<int32_t>> these(kKeyframeArrays);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    these[a] = format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
+    for (size_t i = 0; i < these[a].size(); ++i) {
+      const int64_t code = from_previous ? int64_t{these[a][i]} + codes[a][i] : int64_t{these[a][i]};
+      if (code <= -kMaxFieldCode || code >= kMaxFieldCode) corrupt(where, "a field code beyond 2^30");
+      these[a][i] = static_cast<int32_t>(code);
+    }
+    arrays[a].resize(these[a].size());
+    for (size_t i = 0; i < these[a].size(); ++i) arrays[a][i] = steps[a] * these[a][i];
+  }
+  codes = std::move(these);
+  return arrays;
+}
+
+}  // namespace
+
+std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key) {
+  std::vector<std::vector<double>> arrays = scalar_arrays(key.fields);
+  arrays.push_back(key.hole_level);
+  return arrays;
+}
+
+void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, Representation representation, int grid_n,
+                            std::vector<int32_t> fixed_nodes) {
+  key.hole_level = std::move(arrays[kScalarArrayCount]);
+  arrays.resize(kScalarArrayCount);
+  key.fields = fields_from_scalar_arrays(representation, grid_n, std::move(fixed_nodes), arrays);
+}
+
+int32_t field_code(double value, double step) {
+  const double code = std::nearbyint(value / step);
+  if (!(std::abs(code) < static_cast<double>(kMaxFieldCode))) {
+    throw Error(ErrorCode::kInvalidArgument, "a field value " + std::to_string(value) + " lies more than 2^30 steps of " + std::to_string(step) + " from 0");
+  }
+  return static_cast<int32_t>(code);
+}
+
+void check_field_coding(const FieldCoding& coding) {
+  if (coding.steps.size() != kKeyframeArrays) throw Error(ErrorCode::kInvalidArgument, "field coding: one step per keyframe array needed");
+  for (double step : coding.steps) {
+    if (!(step > 0) || !std::isfinite(step)) throw Error(ErrorCode::kInvalidArgument, "field coding: a step that is not finite and positive");
+  }
+  if (coding.intra_period < 1 || static_cast<uint32_t>(coding.intra_period) > kMaxIntraPeriod) {
+    throw Error(ErrorCode::kInvalidArgument, "field coding: intra period outside [1, 2^20]");
+  }
+  if (!(coding.rotation_step > 0 && coding.translation_step > 0 && std::isfinite(coding.rotation_step) && std::isfinite(coding.translation_step))) {
+    throw Error(ErrorCode::kInvalidArgument, "field coding: pose steps that are not finite and positive (set_default_pose_steps)");
+  }
+}
+
+std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_t count, const FieldCoding& coding, const GridFacts& grid) {
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(first));
+  format::RangedStreamWriter stream;
+  GroupModels models;
+  std::vector<std::vector<int32_t>> previous;
+  std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (validate_sequence)
+  for (size_t j = 0; j < count; ++j) {
+    std::vector<std::vector<int32_t>> codes = field_codes(s.keyframes[first + j], coding);
+    if (j == 0) lattices = lattices_of(lengths_of(codes), grid);
+    Prediction prediction = choose_prediction(codes, j > 0 ? &previous : nullptr, grid);
+    if (j > 0) stream.decision(models.reference, prediction.from_previous);
+    std::vector<std::vector<int64_t>> residuals;
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      if (!codes[a].empty()) {
+        const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
+        stream.decision(models.predictor[a][0], (p >> 1) != 0);
+        stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
+      }
+      residuals.push_back(std::move(prediction.arrays[a].residuals));
+    }
+    stream.residual_arrays(residuals, lattices, kRangeModelSets, models.residuals);
+    previous = std::move(codes);
+  }
+  w.bytes(stream.finish());
+  return w.take();
+}
+
+void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
+                         const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take) {
+  ByteReader r(payload, where);
+  if (r.read<uint32_t>("the first keyframe number") != first) corrupt(where, "holds another group of keyframes than the index says");
+  const size_t stream_start = payload.size() - r.remaining();
+  format::RangedStreamReader stream(r.bytes(r.remaining(), "the stream"), where);
+  const std::vector<size_t> expected = expected_lengths(h);
+  const std::shared_ptr<const GridFacts> grid_held = grid_facts(h.shape.grid_n);
+  const GridFacts& grid = *grid_held;
+  const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
+  GroupModels models;
+  std::vector<std::vector<int32_t>> codes;
+  for (uint32_t j = 0; j < decoded; ++j) {
+    const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
+    const bool from_previous = j > 0 && stream.decision(models.reference);
+    std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      if (expected[a] == 0) continue;
+      const bool high = stream.decision(models.predictor[a][0]);
+      const bool low = stream.decision(models.predictor[a][high ? 2 : 1]);
+      predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), expected[a], grid, keyframe_where);
+    }
+    const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
+    Keyframe key;
+    assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, codes, h, grid, keyframe_where), h.shape.representation,
+                           h.shape.grid_n, h.fixed_nodes);
+    try {
+      validate_fields(key.fields);
+    } catch (const Error& e) {
+      corrupt(keyframe_where, e.what());
+    }
+    take(j, std::move(key), stream_start + stream.position());
+  }
+  if (decoded == count) stream.expect_end();
+}
+
+}  // namespace facemorph::file_layout

@@ -1,0 +1,470 @@
+// The .fmv file of a Sequence (spec/container.md, format 2.1): the chunks put together. The outer
+// layer (preamble, chunks, checksums, zstd) is format/container; each chunk's payload has its own
+// reader and writer (header_chunk, index_chunk, keyframe_group_chunk, texture_chunk,
+// texture_group_chunk). This file
+// writes a whole file, and opens one for reading: the header and index read and checked, every
+// index entry at a chunk of its kind; keyframes and textures decoded when asked for.
+#include "facemorph/sequence_file.hpp"
+
+#include "codec/decoder/container/file_layout.hpp"
+#include "codec/decoder/container/opened_file.hpp"
+
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/image_codec.hpp"
+#include "format/container.hpp"
+#include "format/file_io.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+namespace facemorph {
+
+using namespace file_layout;
+
+namespace {
+
+// The coding a writer uses where the caller gave no steps: each array's step a 65535th of its range
+// over the keyframes (the precision of 16-bit fixed point), at least what keeps its largest value
+// within 2²⁹ steps; the intra period and pose steps as given, or facemorph's defaults.
+FieldCoding fixed_point_coding(const Sequence& s, FieldCoding coding) {
+  coding.steps.assign(kKeyframeArrays, 0);
+  std::vector<double> lo(kKeyframeArrays, 0), hi(kKeyframeArrays, 0);
+  for (const Keyframe& key : s.keyframes) {
+    const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      for (double v : arrays[a]) {
+        lo[a] = std::min(lo[a], v);
+        hi[a] = std::max(hi[a], v);
+      }
+    }
+  }
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    const double largest = std::max(std::abs(lo[a]), std::abs(hi[a]));
+    coding.steps[a] = std::max({(hi[a] - lo[a]) / 65535, largest / (1 << 29), std::numeric_limits<double>::min()});
+  }
+  if (coding.rotation_step == 0 && coding.translation_step == 0) set_default_pose_steps(coding, s.units);
+  return coding;
+}
+
+}  // namespace
+
+const char* texture_coding_name(TextureCoding coding) { return coding == TextureCoding::kSequence ? "sequence" : "stills"; }
+
+TextureCoding parse_texture_coding(const std::string& name) {
+  if (name == "sequence") return TextureCoding::kSequence;
+  if (name == "stills") return TextureCoding::kStills;
+  throw Error(ErrorCode::kInvalidArgument, "unknown texture coding '" + name + "' (sequence or stills)");
+}
+
+void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
+  check_field_coding(coding);
+  std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    for (double& v : arrays[a]) v = coding.steps[a] * field_code(v, coding.steps[a]);
+  }
+  assign_keyframe_arrays(key, std::move(arrays), key.fields.representation, key.fields.grid_n, key.fields.fixed_nodes);
+  key.pose = pose_of(pose_codes(key.pose, coding), coding);
+}
+
+void set_default_pose_steps(FieldCoding& coding, const std::string& units) {
+  constexpr double kRotationStep = 1e-5, kTranslationStepMetres = 1e-5;
+  const double metres = units == "m" ? 1 : units == "cm" ? 1e-2 : units == "mm" ? 1e-3 : 0;
+  if (metres == 0) throw Error(ErrorCode::kInvalidArgument, "units '" + units + "' (m, cm or mm)");
+  coding.rotation_step = kRotationStep;
+  coding.translation_step = kTranslationStepMetres / metres;
+}
+
+std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& given) {
+  validate_sequence(sequence);
+  if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
+  SequenceFileMetadata metadata = given;
+  FieldCoding& coding = metadata.field_coding;
+  if (coding.steps.empty()) coding = fixed_point_coding(sequence, coding);
+  check_field_coding(coding);
+  const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
+  if (!qualities.empty()) {
+    if (qualities.size() != sequence.keyframes.size()) {
+      throw Error(ErrorCode::kInvalidArgument, std::to_string(qualities.size()) + " texture qualities for " + std::to_string(sequence.keyframes.size()) + " keyframes");
+    }
+    for (int q : qualities) {
+      if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
+    }
+  }
+  // Format 2.1: lossy AVIF textures as one image sequence per group of keyframes (TGOP).
+  const bool grouped_textures = uses_texture_groups(sequence, metadata);
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata, grouped_textures), true, 19);
+  FileHeader layout;  // what the index's layout depends on
+  layout.keyframe_count = static_cast<uint32_t>(sequence.keyframes.size());
+  layout.flags = static_cast<uint8_t>((sequence.has_texture() ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
+  layout.metadata.field_coding = coding;
+  // Every payload first, so the index can hold the offsets of the chunks after it. `groups[g]`:
+  // group g's chunk; `textures[k]`: keyframe k's (TEXR), or `textures[g]` group g's (TGOP).
+  const size_t count = sequence.keyframes.size();
+  const size_t group = layout.group_size();
+  const std::shared_ptr<const GridFacts> grid = grid_facts(sequence.grid_n);
+  std::vector<format::PreparedChunk> groups, textures;
+  std::vector<IndexEntry> entries(count);
+  for (size_t k = 0; k < count; ++k) {
+    const Keyframe& key = sequence.keyframes[k];
+    entries[k].time = key.time;
+    entries[k].pose = pose_codes(key.pose, coding);
+    if (k % group == 0) {
+      const size_t n = std::min(group, count - k);
+      groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, n, coding, *grid), true));
+      if (grouped_textures) {
+        // One quantiser for the sequence (libavif 0.11 gives a changed one to every frame still in
+        // libaom's look-ahead): the finest its keyframes ask for, so each is at least as fine as
+        // its quality asks.
+        int quality = metadata.texture_quality;
+        if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
+        textures.push_back(format::prepare_chunk(kTextureGroupChunk, write_texture_group(sequence, k, n, quality), true));
+      }
+    }
+    if (sequence.has_texture() && !grouped_textures) {
+      const int quality = qualities.empty() ? metadata.texture_quality : qualities[k];
+      textures.push_back(format::prepare_chunk(kTextureChunk, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_codec, quality), true));
+    }
+  }
+  // The chunks' offsets depend on the index's size, which (compressed) depends on the offsets: the
+  // index is laid out again until its size stays put, and stored uncompressed (a size the offsets
+  // do not change) in the unlikely case it keeps changing.
+  const auto lay_out = [&](uint64_t index_size) {
+    uint64_t offset = format::kPreambleBytes + header.total_size() + index_size;
+    for (size_t k = 0; k < count; ++k) {
+      if (k % group == 0) {
+        entries[k].group_offset = offset;
+        offset += groups[k / group].total_size();
+        if (grouped_textures) {
+          entries[k].texture_offset = offset;
+          offset += textures[k / group].total_size();
+        }
+      } else {
+        entries[k].group_offset = entries[k - 1].group_offset;
+        if (grouped_textures) entries[k].texture_offset = entries[k - 1].texture_offset;
+      }
+      if (!textures.empty() && !grouped_textures) {
+        entries[k].texture_offset = offset;
+        offset += textures[k].total_size();
+      }
+    }
+  };
+  constexpr int kIndexLayouts = 8;
+  format::PreparedChunk index;
+  uint64_t index_size = 0;
+  for (int attempt = 0; attempt <= kIndexLayouts; ++attempt) {
+    lay_out(index_size);
+    const int level = attempt < kIndexLayouts ? 19 : 0;
+    index = format::prepare_chunk(kIndexChunk, write_index(entries, layout), true, level);
+    if (index.total_size() == index_size) break;
+    index_size = index.total_size();
+    if (level == 0) {  // its size does not depend on the offsets: once more with them right
+      lay_out(index_size);
+      index = format::prepare_chunk(kIndexChunk, write_index(entries, layout), true, 0);
+      break;
+    }
+  }
+  format::ContainerWriter writer;
+  writer.add(header);
+  writer.add(index);
+  for (size_t k = 0; k < count; ++k) {
+    if (k % group == 0 && writer.add(groups[k / group]) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+    const bool texture_here = !textures.empty() && (!grouped_textures || k % group == 0);
+    if (texture_here && writer.add(textures[grouped_textures ? k / group : k]) != entries[k].texture_offset) {
+      throw Error(ErrorCode::kNumerical, "container index out of step");
+    }
+  }
+  return writer.finish();
+}
+
+// ---- A file opened for reading (opened_file.hpp) ----
+
+struct OpenedFile::State {
+  // A file of K keyframes has 2 K + 2 chunks at most before its end chunk: the walk stops at twice
+  // that for the largest K allowed (room for chunks a later minor version adds), so that its list
+  // of chunks (about 80 bytes each) does not grow with a file padded with empty ones.
+  State(std::span<const uint8_t> bytes, std::string source_name, const DecoderLimits& limits)
+      : reader(bytes, source_name, 4 * uint64_t{limits.max_keyframes} + 64), source(std::move(source_name)), file_bytes(bytes.size()), limits(limits) {}
+  format::ContainerReader reader;
+  std::string source;
+  uint64_t file_bytes = 0;
+  DecoderLimits limits;
+  std::optional<FileHeader> header;
+  std::vector<IndexEntry> index;
+  std::vector<RigidPose> poses;
+};
+
+OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
+  check_decoder_limits(limits);
+  state_ = std::make_unique<State>(bytes, std::move(source), limits);
+  State& s = *state_;
+  const format::ContainerReader& reader = s.reader;
+  const std::vector<format::ChunkView>& chunks = reader.chunks();
+  if (chunks.size() < 2 || chunks[0].type != kHeaderChunk || chunks[1].type != kIndexChunk) {
+    corrupt(s.source, "the file does not start with its header and index chunks");
+  }
+  for (const format::ChunkView& chunk : chunks) {
+    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk ||
+                       chunk.type == kTextureGroupChunk;
+    if (!known && chunk.critical()) {
+      throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
+    }
+  }
+  s.header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), s.source, limits, keyframes_held);
+  const FileHeader& header = *s.header;
+  // Texture groups came with format 2.1: a file stamped 2.0 cannot hold them.
+  if (header.texture_groups() && reader.minor_version() < 1) {
+    corrupt(s.source, "header: texture groups (flag bit 2) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
+  }
+  s.index = read_index(reader.payload(chunks[1], limits.max_memory_bytes), s.source, header);
+  // Every entry points at a chunk of its kind, before anything is decoded from it.
+  for (size_t k = 0; k < s.index.size(); ++k) {
+    const std::string name = "keyframe " + std::to_string(k);
+    const format::ChunkView& chunk = reader.chunk_at(s.index[k].group_offset, name + "'s index entry");
+    if (chunk.type != kKeyframeGroupChunk) corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
+    // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
+    if (chunk.compressed()) corrupt(s.source, reader.describe(chunk) + " is compressed; a group's chunk never is");
+    if (header.texture_groups()) {
+      if (k % header.group_size() == 0) {  // the group's entry (its later keyframes share it)
+        const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture group entry");
+        if (texture.type != kTextureGroupChunk) corrupt(s.source, name + "'s texture group entry points at a " + texture.type + " chunk, not TGOP");
+        if (texture.compressed()) corrupt(s.source, reader.describe(texture) + " is compressed; a texture group's chunk never is");
+      }
+    } else if (header.has_texture()) {
+      const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture entry");
+      if (texture.type != kTextureChunk) corrupt(s.source, name + "'s texture entry points at a " + texture.type + " chunk, not TEXR");
+    } else if (s.index[k].texture_offset != 0) {
+      corrupt(s.source, name + " has a texture entry in a file without textures");
+    }
+  }
+  s.poses.reserve(s.index.size());
+  for (const IndexEntry& entry : s.index) s.poses.push_back(pose_of(entry.pose, header.metadata.field_coding));
+}
+
+OpenedFile::~OpenedFile() = default;
+
+const std::string& OpenedFile::source() const { return state_->source; }
+const Sequence& OpenedFile::shape() const { return state_->header->shape; }
+size_t OpenedFile::keyframe_count() const { return state_->index.size(); }
+double OpenedFile::keyframe_time(size_t k) const { return state_->index.at(k).time; }
+const RigidPose& OpenedFile::keyframe_pose(size_t k) const { return state_->poses.at(k); }
+size_t OpenedFile::fixed_node_count() const { return state_->header->fixed_nodes.size(); }
+bool OpenedFile::has_texture() const { return state_->header->has_texture(); }
+bool OpenedFile::has_holes() const { return state_->header->has_holes(); }
+int OpenedFile::texture_size() const { return static_cast<int>(state_->header->texture_size); }
+
+uint64_t OpenedFile::values_per_keyframe() const {
+  uint64_t values = 0;
+  for (size_t length : expected_lengths(*state_->header)) values += length;
+  return values;
+}
+
+uint64_t OpenedFile::largest_payload() const {
+  uint64_t largest = 0;
+  for (const format::ChunkView& chunk : state_->reader.chunks()) {
+    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk) largest = std::max(largest, chunk.raw_size);
+  }
+  return largest;
+}
+
+size_t OpenedFile::run_length() const { return state_->header->group_size(); }
+
+size_t OpenedFile::texture_run_length() const { return state_->header->texture_groups() ? state_->header->group_size() : 1; }
+
+uint64_t OpenedFile::texture_decoder_bytes() const { return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0; }
+
+void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
+  const State& s = *state_;
+  const format::ContainerReader& reader = s.reader;
+  if (first % run_length() != 0 || last < first || last >= s.index.size() || run_of(last) != run_of(first)) {
+    throw Error(ErrorCode::kInternal, s.source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  const format::ChunkView& chunk = reader.chunk_at(s.index[first].group_offset, "keyframe " + std::to_string(first) + "'s index entry");
+  const auto count = static_cast<uint32_t>(std::min<size_t>(run_length(), s.index.size() - first));
+  uint64_t previous_end = 0;
+  read_keyframe_group(reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + reader.describe(chunk), *s.header, static_cast<uint32_t>(first), count,
+                      static_cast<uint32_t>(last - first + 1), [&](uint32_t j, Keyframe&& key, uint64_t end) {
+                        const size_t k = first + j;
+                        key.time = s.index[k].time;  // the index holds the time and pose
+                        key.pose = s.poses[k];
+                        // The chunk's framing counts with its first keyframe.
+                        const uint64_t bytes = end - previous_end + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
+                        previous_end = end;
+                        take(k, std::move(key), bytes);
+                      });
+}
+
+const format::ChunkView& OpenedFile::texture_chunk(size_t k) const {
+  return state_->reader.chunk_at(state_->index.at(k).texture_offset, "keyframe " + std::to_string(k) + "'s texture entry");
+}
+
+void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const {
+  const State& s = *state_;
+  const size_t run = texture_run_length();
+  if (first % run != 0 || last < first || last >= s.index.size() || last / run != first / run) {
+    throw Error(ErrorCode::kInternal, s.source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  if (!s.header->texture_groups()) {
+    if (wanted(first)) take(first, decode_texture(first));
+    return;
+  }
+  const format::ChunkView& chunk = texture_chunk(first);
+  const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
+  read_texture_group(s.reader.payload(chunk, s.limits.max_memory_bytes),
+                     s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first) + ".." + std::to_string(first + count - 1) + ")",
+                     static_cast<uint32_t>(first), count, static_cast<uint32_t>(last), s.header->texture_size, [&](uint32_t k) { return wanted(k); },
+                     [&](uint32_t k, Image&& image) { take(k, std::move(image)); });
+}
+
+void OpenedFile::decode_every_texture(const std::function<void(size_t, Image&&)>& take) const {
+  const size_t run = texture_run_length();
+  for (size_t first = 0; first < keyframe_count(); first += run) {
+    decode_textures(first, std::min(first + run, keyframe_count()) - 1, [](size_t) { return true; }, take);
+  }
+}
+
+Image OpenedFile::decode_texture(size_t k) const {
+  const State& s = *state_;
+  if (s.header->texture_groups()) {
+    Image image;
+    const size_t first = k / texture_run_length() * texture_run_length();
+    decode_textures(first, k, [k](size_t j) { return j == k; }, [&](size_t, Image&& decoded) { image = std::move(decoded); });
+    return image;
+  }
+  const format::ChunkView& chunk = texture_chunk(k);
+  return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")",
+                      static_cast<uint32_t>(k), s.header->texture_size);
+}
+
+TextureCodec OpenedFile::texture_codec(size_t k) const {
+  const State& s = *state_;
+  if (s.header->texture_groups()) return TextureCodec::kAvif;  // TGOP's only codec, 3
+  const format::ChunkView& chunk = texture_chunk(k);
+  // The codec's number is in the payload's first bytes, which a TEXR chunk stores uncompressed.
+  const std::string where = s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")";
+  if (chunk.compressed()) return texture_codec_of(s.reader.payload(chunk, s.limits.max_memory_bytes), where, static_cast<uint32_t>(k));
+  return texture_codec_of(chunk.stored, where, static_cast<uint32_t>(k));
+}
+
+void OpenedFile::verify_checksums() const { state_->reader.verify(); }
+
+SequenceFileInfo OpenedFile::describe() const {
+  const State& s = *state_;
+  const FileHeader& header = *s.header;
+  SequenceFileInfo info;
+  info.major_version = s.reader.major_version();
+  info.minor_version = s.reader.minor_version();
+  info.file_bytes = s.file_bytes;
+  info.grid_hash = header.grid_hash;
+  info.grid_rule = static_cast<int>(header.grid_rule);
+  info.texture_size = static_cast<int>(header.texture_size);
+  info.metadata = header.metadata;
+  info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
+  info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
+  info.keyframes.resize(s.index.size());
+  if (header.texture_groups()) {
+    // Each keyframe its frame's AV1 sample; the group's first also the chunk's framing and the AVIF
+    // container. A group whose sequence does not parse (a fault its frames report when decoded)
+    // is given whole to its first keyframe.
+    const size_t run = texture_run_length();
+    for (size_t first = 0; first < s.index.size(); first += run) {
+      const format::ChunkView& chunk = texture_chunk(first);
+      const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
+      std::vector<uint64_t> samples;
+      try {
+        samples = texture_group_sample_bytes(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk),
+                                             static_cast<uint32_t>(first), count, header.texture_size);
+      } catch (const Error&) {
+        samples.clear();
+      }
+      uint64_t shared = chunk.total_size();
+      for (size_t j = 1; j < samples.size(); ++j) {
+        const uint64_t bytes = std::min(samples[j], shared);
+        info.keyframes[first + j].texture = bytes;
+        shared -= bytes;
+      }
+      info.keyframes[first].texture = shared;
+    }
+  } else if (has_texture()) {
+    for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = texture_chunk(k).total_size();
+  }
+  for (const format::ChunkView& chunk : s.reader.chunks()) {
+    auto it = std::find_if(info.chunks.begin(), info.chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
+    if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0});
+    ++it->count;
+    it->stored_bytes += chunk.total_size();
+    it->raw_bytes += chunk.raw_size;
+  }
+  return info;
+}
+
+void OpenedFile::check_every_keyframe(SequenceFileInfo* info) const {
+  std::vector<uint64_t> field_bytes(keyframe_count());
+  for (size_t first = 0; first < keyframe_count(); first += run_length()) {
+    decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, [&](size_t k, Keyframe&&, uint64_t bytes) { field_bytes[k] = bytes; });
+  }
+  if (has_texture()) decode_every_texture([](size_t, Image&&) {});
+  verify_checksums();  // chunks no keyframe refers to too
+  if (info) {
+    *info = describe();
+    for (size_t k = 0; k < field_bytes.size(); ++k) info->keyframes[k].fields = field_bytes[k];
+  }
+}
+
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  if (bytes.size() > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
+  // Decoded whole: every keyframe is held at once.
+  const OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
+  Sequence sequence = file.shape();
+  std::vector<uint64_t> field_bytes(file.keyframe_count());
+  const size_t run = file.run_length();
+  for (size_t first = 0; first < file.keyframe_count(); first += run) {
+    file.decode_run(first, std::min(first + run, file.keyframe_count()) - 1, [&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
+      sequence.keyframes.push_back(std::move(key));
+      field_bytes[k] = bytes_taken;
+    });
+  }
+  if (file.has_texture()) file.decode_every_texture([&](size_t k, Image&& image) { sequence.keyframes[k].texture = std::move(image); });
+  file.verify_checksums();
+  try {
+    validate_sequence(sequence);
+  } catch (const Error& e) {
+    corrupt(source, e.what());
+  }
+  if (info) {
+    *info = file.describe();
+    for (size_t k = 0; k < field_bytes.size(); ++k) info->keyframes[k].fields = field_bytes[k];
+  }
+  return sequence;
+}
+
+SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  format::MappedFile mapped(path);
+  // One keyframe at a time: what a decoder on demand holds for the frame's keyframes, no more.
+  const OpenedFile file(mapped.bytes(), path.string(), limits, [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
+  SequenceFileInfo info;
+  file.check_every_keyframe(&info);
+  return info;
+}
+
+void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
+  format::write_file_atomically(path, encode_sequence_file(sequence, metadata));
+}
+
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info, const DecoderLimits& limits) {
+  // The file's size against the budget before its bytes are read.
+  std::error_code error;
+  const uintmax_t size = std::filesystem::file_size(path, error);
+  if (!error && size > limits.max_memory_bytes) {
+    throw Error(ErrorCode::kLimit, path.string() + ": " + std::to_string(size) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+  }
+  const std::vector<uint8_t> bytes = format::read_file(path);
+  return decode_sequence_file(bytes, path.string(), info, limits);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,51 @@
+// A keyframe's texture, TEXR (spec/container.md §8): an M × M image of the disk in one of the
+// image codecs the format names.
+#include "codec/decoder/container/file_layout.hpp"
+
+#include "facemorph/image_codec.hpp"
+#include "format/byte_writer.hpp"
+
+namespace facemorph::file_layout {
+
+namespace {
+
+constexpr uint32_t kTextureWebp = 1, kTextureAvif = 2;  // the format's numbers for the image codecs
+
+}  // namespace
+
+std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
+  format::ByteWriter w;
+  w.write(number);
+  w.write(stored_texture_codec(codec, quality) == TextureCodec::kAvif ? kTextureAvif : kTextureWebp);
+  w.bytes(encode_texture(codec, texture, quality));
+  return w.take();
+}
+
+TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::string& where, uint32_t number) {
+  format::ByteReader r(payload, where);
+  if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe's texture than the index says");
+  const uint32_t number_of_codec = r.read<uint32_t>("the image codec");
+  if (number_of_codec != kTextureWebp && number_of_codec != kTextureAvif) {
+    throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(number_of_codec) + " (this decoder reads WebP, 1, and AVIF, 2)");
+  }
+  return number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
+}
+
+Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size) {
+  const TextureCodec codec = texture_codec_of(payload, where, number);
+  constexpr size_t kPreambleBytes = 8;  // the number and the codec
+  Image image;
+  try {
+    // At most the header's M² pixels, from the image's own header before its pixels are decoded.
+    image = decode_texture(codec, payload.subspan(kPreambleBytes), where, int64_t{size} * size);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kInvalidArgument) throw;
+    corrupt(where, std::string("an image larger than the header's texture size: ") + e.what());  // the file's fault, not the caller's
+  }
+  if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
+    corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
+  }
+  return image;
+}
+
+}  // namespace facemorph::file_layout

@@ -1,0 +1,61 @@
+// A group's keyframe textures as one AV1 image sequence, TGOP (spec/container.md §8.1, format
+// 2.1): the group's first keyframe, the image codec (3), and one AVIF file holding exactly the
+// group's keyframes' textures in order, each predicted from those before it.
+#include "codec/decoder/container/file_layout.hpp"
+
+#include "facemorph/image_codec.hpp"
+#include "format/byte_writer.hpp"
+
+#include <algorithm>
+
+namespace facemorph::file_layout {
+
+namespace {
+
+constexpr uint32_t kTextureAvifSequence = 3;  // the format's number for an AVIF image sequence
+constexpr size_t kPreambleBytes = 8;          // the first keyframe and the codec
+
+// The chunk's own fields checked against the index's place and the codecs this decoder reads; the
+// AVIF file after them.
+std::span<const uint8_t> sequence_of(std::span<const uint8_t> payload, const std::string& where, uint32_t first) {
+  format::ByteReader r(payload, where);
+  const uint32_t number = r.read<uint32_t>("the group's first keyframe");
+  if (number != first) corrupt(where, "starts at keyframe " + std::to_string(number) + ", the index places it at keyframe " + std::to_string(first));
+  const uint32_t codec = r.read<uint32_t>("the image codec");
+  if (codec != kTextureAvifSequence) {
+    throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(codec) + " (this decoder reads an AVIF image sequence, 3, in TGOP)");
+  }
+  return payload.subspan(kPreambleBytes);
+}
+
+}  // namespace
+
+bool uses_texture_groups(const Sequence& s, const SequenceFileMetadata& metadata) {
+  if (!s.has_texture() || metadata.texture_coding != TextureCoding::kSequence || metadata.texture_codec != TextureCodec::kAvif) return false;
+  const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
+  if (qualities.empty()) return metadata.texture_quality <= 100;
+  return std::all_of(qualities.begin(), qualities.end(), [](int q) { return q <= 100; });
+}
+
+std::vector<uint8_t> write_texture_group(const Sequence& s, size_t first, size_t count, int quality) {
+  std::vector<const Image*> frames;
+  for (size_t k = first; k < first + count; ++k) frames.push_back(&s.keyframes[k].texture);
+  format::ByteWriter w;
+  w.write(static_cast<uint32_t>(first));
+  w.write(kTextureAvifSequence);
+  w.bytes(encode_avif_sequence(frames, quality));
+  return w.take();
+}
+
+void read_texture_group(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t last, uint32_t size,
+                        const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take) {
+  const std::span<const uint8_t> sequence = sequence_of(payload, where, first);
+  decode_avif_sequence(sequence, where, count, size, last - first, [&](uint32_t j) { return wanted(first + j); },
+                       [&](uint32_t j, Image&& image) { take(first + j, std::move(image)); });
+}
+
+std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size) {
+  return avif_sequence_sample_bytes(sequence_of(payload, where, first), where, count, size);
+}
+
+}  // namespace facemorph::file_layout

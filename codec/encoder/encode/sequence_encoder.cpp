@@ -1,0 +1,945 @@
+// The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
+#include "facemorph/encoder/sequence_encoder.hpp"
+
+#include "codec/decoder/geometry/elementary.hpp"
+#include "facemorph/meshkit/distance.hpp"
+#include "facemorph/encoder/face_orientation.hpp"
+#include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/encoder/resample.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/spline.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <numbers>
+#include <cmath>
+#include <numeric>
+#include <optional>
+
+namespace facemorph {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
+// frames by error at a fraction of the cost of G itself.
+constexpr int kSelectionGrid = 65;
+// --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
+// The floor falls as 1/N², so steps of ~1.2-1.5 in N give the rule steps of at most ~2.2 in floor.
+constexpr int kGridCandidates[] = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
+constexpr double kGridFloorTarget = 2e-4;
+constexpr double kGridNoiseShare = 1.0;
+// Half the error the spline makes between keyframes: where bytes spent on a finer grid and on more
+// keyframes buy the same error (equal slopes; measured on Medusa, spec/method.md §7.6).
+constexpr double kGridErrorShare = 0.5;
+
+// The mean of the selection's predicted errors between keyframes (fraction of the diagonal); 0 when
+// none was predicted (every frame a keyframe).
+double mean_predicted_error(const KeyframeSelection& chosen) {
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) {
+      sum += e;
+      ++count;
+    }
+  }
+  return count == 0 ? 0.0 : sum / count;
+}
+
+double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double length2 = ab.squaredNorm();
+  const double s = length2 > 0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * ab)).norm();
+}
+
+// Crossing-number test of a point against a closed polygon.
+bool inside_polygon(const Vec2& p, const std::vector<Vec2>& polygon) {
+  bool inside = false;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Vec2 &a = polygon[i], &b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
+  }
+  return inside;
+}
+
+// --texture auto: the disk texture as sharp as the captured one, not sharper. The face covers
+// `texels` of the captured image (its UV area); the disk shows them on π/4 M² texels, and the
+// conformal map shrinks some regions against others, so M is 1.5 times the equal-area size, rounded
+// up to a multiple of 64, within [128, 1024] (a 1024² disk already holds a 1024² texture's face).
+int auto_texture_size(const TriangleMesh& surface, int width, int height) {
+  constexpr double kMargin = 1.5;
+  constexpr int kLowest = 128, kHighest = 1024;
+  double area = 0;
+  for (const Face& f : surface.uv_faces) {
+    const Vec2 a = surface.uvs[static_cast<size_t>(f[0])], b = surface.uvs[static_cast<size_t>(f[1])], c = surface.uvs[static_cast<size_t>(f[2])];
+    area += std::abs(signed_area(a, b, c));
+  }
+  const double texels = std::min(area, 1.0) * width * height;
+  const double side = kMargin * std::sqrt(texels * 4 / std::numbers::pi);
+  return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
+}
+
+// --texture auto for a frame coloured per vertex: vertex colours hold no detail finer than the
+// triangles, so the disk gets a texel per triangle (about 2 V for V vertices) over its π/4 M²
+// texels, with the same 1.5 margin for the conformal map's crowding, rounding and bounds as above.
+// 20k vertices give 384, 5k give 192 (spec/method.md §7.7).
+int auto_texture_size_for_colours(int vertex_count) {
+  constexpr double kMargin = 1.5, kTexelsPerVertex = 2;
+  constexpr int kLowest = 128, kHighest = 1024;
+  const double side = kMargin * std::sqrt(kTexelsPerVertex * vertex_count * 4 / std::numbers::pi);
+  return std::clamp(64 * static_cast<int>(std::ceil(side / 64)), kLowest, kHighest);
+}
+
+// What of frame k its neighbours' motion does not explain: its surface (selection grid, face frame)
+// against the cubic through the four nearest other frames in time (k−2, k−1, k+1, k+2; one-sided
+// at the ends), RMS by area, over the stencil's noise gain √(1 + Σ w²). For independent noise of
+// RMS σ per frame this is σ; smooth motion leaks in only through its fourth derivative (1.7% of a
+// sinusoid of 11 frames a period). Infinity with fewer than 5 frames.
+double frame_noise(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights, int k) {
+  const int count = static_cast<int>(frames.size());
+  if (count < 5) return std::numeric_limits<double>::infinity();
+  const int first = std::clamp(k - 2, 0, count - 5);
+  std::vector<int> others;
+  for (int j = first; j < first + 5; ++j) {
+    if (j != k) others.push_back(j);
+  }
+  const double t = frames[static_cast<size_t>(k)].time;
+  std::vector<double> w;
+  double gain = 1;
+  for (int a : others) {
+    double l = 1;
+    for (int b : others) {
+      if (b != a) l *= (t - frames[static_cast<size_t>(b)].time) / (frames[static_cast<size_t>(a)].time - frames[static_cast<size_t>(b)].time);
+    }
+    w.push_back(l);
+    gain += l * l;
+  }
+  double sum = 0, total = 0;
+  for (size_t v = 0; v < node_weights.size(); ++v) {
+    Vec3 r = frames[static_cast<size_t>(k)].local[v];
+    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * frames[static_cast<size_t>(others[i])].local[v];
+    sum += node_weights[v] * r.squaredNorm();
+    total += node_weights[v];
+  }
+  return std::sqrt(sum / std::max(total, 1e-300) / gain);
+}
+
+}  // namespace
+
+DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame, const DiskMap& frame_map) {
+  DiskLandmarks landmarks;
+  const PointToMesh on_reference(reference_map.surface), on_frame(frame_map.surface);
+  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+    const Vec3 &p = capture.landmarks[reference][l], &q = capture.landmarks[frame][l];
+    if (!p.allFinite() || !q.allFinite()) continue;
+    Vec2 wp = disk_point(reference_map, on_reference.closest(p)), wq = disk_point(frame_map, on_frame.closest(q));
+    const bool rim = capture.landmark_names[l].rfind("rim_", 0) == 0;
+    if (rim) {
+      // A marker on the rim interpolates along a boundary chord: put it on the circle.
+      wp.normalize();
+      wq.normalize();
+    }
+    landmarks.reference.push_back(wp);
+    landmarks.frame.push_back(wq);
+    landmarks.on_rim.push_back(rim ? 1 : 0);
+  }
+  return landmarks;
+}
+
+std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map, const std::vector<Vec2>& points) {
+  std::vector<double> level(points.size(), kHoleLevelBand);
+  std::vector<std::vector<Vec2>> outlines;
+  Vec2 lo = Vec2::Constant(1e300), hi = -lo;
+  for (const FilledHole& hole : prepared.report.holes) {
+    std::vector<Vec2> outline;
+    for (int v : hole.loop) {
+      outline.push_back(map.disk[static_cast<size_t>(v)]);
+      lo = lo.cwiseMin(outline.back());
+      hi = hi.cwiseMax(outline.back());
+    }
+    if (outline.size() >= 3) outlines.push_back(std::move(outline));
+  }
+  if (outlines.empty()) return level;
+  lo -= Vec2::Constant(kHoleLevelBand);
+  hi += Vec2::Constant(kHoleLevelBand);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2& p = points[i];
+    if (p.x() < lo.x() || p.y() < lo.y() || p.x() > hi.x() || p.y() > hi.y()) continue;  // farther than the band
+    double distance = 1e300;
+    bool inside = false;
+    for (const auto& outline : outlines) {
+      for (size_t k = 0; k < outline.size(); ++k) distance = std::min(distance, distance_to_segment(p, outline[k], outline[(k + 1) % outline.size()]));
+      inside = inside || inside_polygon(p, outline);
+    }
+    if (!inside) distance = std::min(distance, kHoleLevelBand);
+    // Outside, the distance is capped (far from every hole it does not matter); inside it is not, so
+    // a hole that one keyframe has and the next has not opens from its deepest point and grows
+    // smoothly as the blend shifts, instead of appearing at once where a capped inside would meet
+    // the other keyframe's cap.
+    level[i] = inside ? -distance : distance;
+  }
+  return level;
+}
+
+SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options)
+    : capture_(capture), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
+  const int count = frame_count();
+  if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
+  if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
+  if (capture_.landmarks.size() != capture_.frames.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
+                                                 std::to_string(count) + " frames");
+  }
+  source_index_.resize(static_cast<size_t>(count));
+  std::iota(source_index_.begin(), source_index_.end(), 0);
+  first_time_ = capture_.frames.front().time;
+  last_time_ = capture_.frames.back().time;
+  if (!(options_.landmark_tolerance > 0)) throw Error(ErrorCode::kInvalidArgument, "the landmark tolerance must be positive");
+  if (options_.reference_frame < 0 || options_.reference_frame >= count) {
+    throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(options_.reference_frame) + " is not a frame of the capture");
+  }
+  if (!(options_.keyframe_fraction > 0 && options_.keyframe_fraction <= 1) && !(options_.max_error > 0)) {
+    throw Error(ErrorCode::kInvalidArgument, "the keyframe budget must be in (0, 100%]");
+  }
+  if (!(options_.keyframe_error_bound >= 0)) throw Error(ErrorCode::kInvalidArgument, "the keyframe error bound must be >= 0");
+  if (!(options_.keyframe_fit_weight >= 0) || !(options_.keyframe_fit_noise >= 0)) {
+    throw Error(ErrorCode::kInvalidArgument, "the keyframe fit's weight and noise factor must be >= 0");
+  }
+  if (options_.grid != 0 && (options_.grid < kMinGridSize || options_.grid > kMaxGridSize)) {
+    throw Error(ErrorCode::kInvalidArgument, "grid size N must be 0 (auto) or in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
+  }
+  const double strength = options_.density_equalising.strength;
+  if (!(strength >= 0 && strength <= 1)) {
+    throw Error(ErrorCode::kInvalidArgument, "density-equalising strength must be in [0, 1], not " + std::to_string(strength));
+  }
+  if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
+  }
+  if (options_.texture_quality != kAutoTextureQuality && (options_.texture_quality < 0 || options_.texture_quality > 101)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture quality must be auto or in [0, 101], not " + std::to_string(options_.texture_quality));
+  }
+  const TextureQualityOptions& coding = options_.texture_coding;
+  if (!(coding.interpolation_share > 0) || !(coding.min_psnr <= coding.max_psnr) || coding.fallback_quality < 0 || coding.fallback_quality > 101) {
+    throw Error(ErrorCode::kInvalidArgument, "texture coding: the interpolation share must be positive, min_psnr at most max_psnr, the fallback quality in [0, 101]");
+  }
+}
+
+void SequenceEncoder::progress(const std::string& stage, int done, int total) const {
+  if (options_.progress) options_.progress(stage, done, total);
+}
+
+namespace {
+
+std::string length_text(double value, const std::string& units) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.3g %s", value, units.c_str());
+  return text;
+}
+
+}  // namespace
+
+SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const std::string& name) {
+  // Stages name their frame; the report names it once.
+  std::string reason = e.what();
+  if (reason.rfind(name + ": ", 0) == 0) reason.erase(0, name.size() + 2);
+  return {e.code(), reason};
+}
+
+void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings) {
+  // A capture without landmarks (or a frame without any) needs no closest-point structure.
+  const std::vector<Vec3>& points = capture_.landmarks[index];
+  if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return;
+  const PointToMesh surface(mesh);
+  const double diagonal = bounding_box_diagonal(mesh.positions);
+  const std::string& name = capture_.frames[index].mesh.string();
+  for (size_t l = 0; l < capture_.landmark_names.size(); ++l) {
+    Vec3& point = capture_.landmarks[index][l];
+    if (!point.allFinite()) continue;
+    const double distance = surface.distance(point);
+    if (distance <= options_.landmark_tolerance * diagonal) continue;
+    char share[32];
+    std::snprintf(share, sizeof share, "%.3g%%", 100 * distance / diagonal);
+    const std::string what = "landmark '" + capture_.landmark_names[l] + "' lies " + length_text(distance, capture_.units) + " (" + share +
+                             " of the frame's diagonal) off its surface, farther than the " + length_text(100 * options_.landmark_tolerance, "%") +
+                             " allowed";
+    if (options_.strict) throw Error(ErrorCode::kInvalidArgument, name + ": " + what);
+    warnings.push_back(name + ": " + what + "; ignored");
+    point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
+}
+
+void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
+  std::vector<size_t> kept;
+  for (size_t i = 0; i < failures.size(); ++i) {
+    if (failures[i].code == ErrorCode::kOk) {
+      kept.push_back(i);
+      continue;
+    }
+    report_.dropped.push_back({source_index_[i], capture_.frames[i].mesh.string(), capture_.frames[i].time, failures[i].reason});
+  }
+  if (kept.size() == failures.size()) return;
+  if (kept.empty()) {
+    const DroppedFrame& first = report_.dropped.front();
+    const auto it = std::find_if(failures.begin(), failures.end(), [](const FrameFailure& f) { return f.code != ErrorCode::kOk; });
+    throw Error(it->code, "no frame of the capture could be encoded (" + std::to_string(failures.size()) + " dropped); the first, " +
+                              first.name + ": " + first.reason);
+  }
+  // The reference moves to the nearest frame kept (the earlier of two as near).
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  size_t new_reference = 0;
+  for (size_t k = 0; k < kept.size(); ++k) {
+    const double d = std::abs(capture_.frames[kept[k]].time - capture_.frames[reference].time);
+    if (d < std::abs(capture_.frames[kept[new_reference]].time - capture_.frames[reference].time)) new_reference = k;
+  }
+  if (kept[new_reference] != reference) {
+    report_.warnings.push_back(capture_.frames[reference].mesh.string() + ": the reference frame was dropped; " +
+                               capture_.frames[kept[new_reference]].mesh.string() + " is the reference instead");
+  }
+  options_.reference_frame = static_cast<int>(new_reference);
+  auto compact = [&](auto& items) {
+    if (items.size() != failures.size()) return;
+    std::remove_reference_t<decltype(items)> out;
+    out.reserve(kept.size());
+    for (size_t i : kept) out.push_back(std::move(items[i]));
+    items = std::move(out);
+  };
+  compact(capture_.frames);
+  compact(capture_.landmarks);
+  compact(source_index_);
+  compact(summaries_);
+  if (store_ && store_->size() == failures.size()) store_->keep(kept);
+  if (pinned_index_ >= 0) {
+    // The pinned frame keeps its pin under its new index (a dropped one loses it).
+    const auto it = std::find(kept.begin(), kept.end(), static_cast<size_t>(pinned_index_));
+    pinned_index_ = it == kept.end() ? -1 : static_cast<int>(it - kept.begin());
+    if (pinned_index_ < 0) pinned_.reset();
+  }
+  compact(textures_);
+  compact(landmarks_);
+  compact(registrations_);
+}
+
+std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
+  // The first frame from the reference on that lacks its pose landmarks and whose own surface says
+  // clearly which way is up: its up direction settles the frames whose surfaces do not.
+  const int count = frame_count();
+  for (int step = 0; step < count; ++step) {
+    const auto index = static_cast<size_t>((options_.reference_frame + step) % count);
+    const FrameLandmarks given = capture_frame_landmarks(capture_, index);
+    if (given.centre && given.up) continue;
+    try {
+      const FrameStore::Hold held = store_->hold();
+      PrepareOptions prepare;
+      prepare.keep_largest_component = options_.largest_component;
+      const PreparedFrame p = prepare_frame(read_mesh(capture_.mesh_path(index), {.allow_missing_texture = true}), capture_.frames[index].mesh.string(), prepare);
+      return find_face_orientation(p.mesh, capture_.frames[index].mesh.string()).vertical;
+    } catch (const Error&) {
+      // This frame does not say; the next may. Its own mapping reports why.
+    }
+  }
+  return std::nullopt;
+}
+
+void SequenceEncoder::adopt_found_landmarks() {
+  auto name_index = [&](const std::string& name) {
+    int index = capture_.landmark_index(name);
+    if (index >= 0) return static_cast<size_t>(index);
+    capture_.landmark_names.push_back(name);
+    for (auto& points : capture_.landmarks) points.push_back(Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+    return capture_.landmark_names.size() - 1;
+  };
+  const bool given_rim = std::any_of(capture_.landmark_names.begin(), capture_.landmark_names.end(),
+                                     [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
+  for (size_t i = 0; i < summaries_.size(); ++i) {
+    const FrameSummary& f = summaries_[i];
+    if (!f.found) continue;
+    capture_.landmarks[i][name_index("nose_tip")] = f.found->nose_tip;
+    capture_.landmarks[i][name_index("nose_bridge")] = f.found->up;
+    ++report_.orientation_found;
+    report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
+    report_.up_from_hint += f.found->up_from_hint;
+    report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
+  }
+  if (given_rim) return;
+  // No rim markers given: each normalised frame's rim points at the same disk angles.
+  for (size_t i = 0; i < summaries_.size(); ++i) {
+    if (summaries_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
+    for (int k = 0; k < kFoundRimMarkers; ++k) capture_.landmarks[i][name_index("rim_" + std::to_string(k))] = summaries_[i].found_rim[static_cast<size_t>(k)];
+    report_.rim_markers_found = true;
+  }
+}
+
+void SequenceEncoder::map_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  // Each frame is read, mapped, summarised and put in the store by one thread, then released: the
+  // maps in memory at once are one per thread (frame_store.hpp).
+  store_ = std::make_unique<FrameStore>(options_.spill_frames ? FrameStore::Mode::kSpill : FrameStore::Mode::kMemory);
+  store_->reset(static_cast<size_t>(count));
+  pinned_index_ = -1;
+  pinned_.reset();
+  summaries_.assign(static_cast<size_t>(count), {});
+  textures_.assign(static_cast<size_t>(count), {});
+  std::vector<FrameFailure> failures(static_cast<size_t>(count));
+  std::vector<std::vector<std::string>> warnings(static_cast<size_t>(count));
+  const std::optional<Vec3> vertical_hint = options_.find_landmarks ? find_vertical_hint() : std::nullopt;
+  parallel_for(
+      count, options_.threads,
+      [&](int i) {
+        const auto index = static_cast<size_t>(i);
+        const std::string name = capture_.frames[index].mesh.string();
+        const FrameStore::Hold held = store_->hold();
+        MappedFrame mapped;
+        try {
+          const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
+          ignore_far_landmarks(mesh, index, warnings[index]);
+          const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
+          if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
+                                                         " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
+          }
+          textures_[index] = mesh.texture;
+          MapFrameOptions map_options;
+          map_options.keep_largest_component = options_.largest_component;
+          map_options.conformal = options_.conformal;
+          map_options.find_orientation = options_.find_landmarks;
+          map_options.vertical_hint = vertical_hint;
+          mapped = map_frame(mesh, name, landmarks, map_options);
+        } catch (const Error& e) {
+          if (options_.strict) throw;
+          failures[index] = failure_of(e, name);
+          return;
+        }
+        FrameSummary& summary = summaries_[index];
+        summary.name = mapped.name;
+        summary.vertices = mapped.prepared.mesh.vertex_count();
+        summary.holes_filled = static_cast<int>(mapped.prepared.report.holes.size());
+        summary.repair = mapped.prepared.report.summary();
+        summary.conformal_method = mapped.map.report.method;
+        summary.conformal_fallback_reason = mapped.map.report.fallback_reason;
+        summary.has_uvs = mapped.map.surface.has_uvs();
+        summary.has_colours = mapped.map.surface.has_colours();
+        summary.found = mapped.found;
+        summary.found_rim = mapped.found_rim;
+        // Outside the try: a map the store cannot write ends the encode (it is no fault of the frame).
+        store_->put(index, std::move(mapped));
+      },
+      [&](int done, int total) { progress("mapping", done, total); });
+  for (auto& w : warnings) report_.warnings.insert(report_.warnings.end(), w.begin(), w.end());
+  drop_frames(failures);
+  adopt_found_landmarks();
+  pin_reference();
+  report_.reference_frame = source_index_[static_cast<size_t>(options_.reference_frame)];
+  report_.seconds_mapping = seconds_since(start);
+}
+
+std::vector<TrackedPoints> SequenceEncoder::track_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const auto count = static_cast<size_t>(frame_count());
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  report_.tracked_frames = 0;
+  std::vector<TrackedPoints> tracked;
+  bool needed = false;
+  for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked_points(capture_, reference, i);
+  if (!options_.track_landmarks || !needed) return tracked;
+  const int size = options_.tracking.image_size;
+  // Each frame's map read back from the store while its images are drawn (frame() is thread-safe).
+  tracked = track_sequence(
+      count, reference, [&](size_t i) { return disk_features(this->frame(static_cast<int>(i))->map, size); }, options_.tracking, options_.threads);
+  std::vector<double> round_trips;
+  double kept = 0;
+  report_.tracked_points_fewest = std::numeric_limits<int>::max();
+  for (size_t i = 0; i < count; ++i) {
+    if (i == reference || !needs_tracked_points(capture_, reference, i)) continue;
+    ++report_.tracked_frames;
+    kept += static_cast<double>(tracked[i].reference.size());
+    report_.tracked_points_fewest = std::min(report_.tracked_points_fewest, static_cast<int>(tracked[i].reference.size()));
+    round_trips.insert(round_trips.end(), tracked[i].round_trip.begin(), tracked[i].round_trip.end());
+  }
+  report_.tracking_grid_points = tracked[reference].tried;
+  report_.tracked_points_mean = report_.tracked_frames > 0 ? kept / report_.tracked_frames : 0.0;
+  if (report_.tracked_frames == 0) report_.tracked_points_fewest = 0;
+  std::sort(round_trips.begin(), round_trips.end());
+  if (!round_trips.empty()) {
+    report_.tracked_round_trip_median = round_trips[round_trips.size() / 2];
+    report_.tracked_round_trip_p90 = round_trips[round_trips.size() * 9 / 10];
+  }
+  report_.seconds_tracking = seconds_since(start);
+  return tracked;
+}
+
+void SequenceEncoder::register_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  const std::shared_ptr<const MappedFrame> reference_frame = pin_reference();
+  reparametrisation_ = DiskReparametrisation(reference_frame->map, options_.density_equalising);
+  report_.density_equalising = reparametrisation_.report();
+  landmarks_.assign(static_cast<size_t>(count), {});
+  registrations_.assign(static_cast<size_t>(count), {});
+  geodesic_frame_.reset();
+  if (options_.registration.method == RegistrationMethod::kFrame) {
+    // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
+    // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
+    // unconstrained there.
+    const MappedFrame& f = *reference_frame;
+    const DiskLandmarks own = disk_landmarks(capture_, reference, f.map, reference, f.map);
+    try {
+      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(f.map, own.reference, own.on_rim));
+    } catch (const Error& e) {
+      throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
+    }
+  }
+  const std::vector<TrackedPoints> tracked = track_frames();
+  std::vector<FrameFailure> failures(static_cast<size_t>(count));
+  parallel_for(
+      count, options_.threads,
+      [&](int i) {
+        const auto index = static_cast<size_t>(i);
+        const std::shared_ptr<const MappedFrame> frame = this->frame(i);  // a failed read is no fault of the frame: outside the try
+        const std::string& name = frame->name;
+        try {
+          landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
+          if (!tracked.empty() && needs_tracked_points(capture_, reference, index)) add_tracked_points(landmarks_[index], tracked[index]);
+          if (landmarks_[index].reference.size() < 3) {
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
+                                                         std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
+          }
+          try {
+            registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
+          } catch (const Error& e) {
+            throw Error(e.code(), name + ": registration: " + e.what());
+          }
+        } catch (const Error& e) {
+          // The reference cannot be dropped here: every other frame is already registered to it.
+          if (options_.strict || index == reference) throw;
+          failures[index] = failure_of(e, name);
+        }
+      },
+      [&](int done, int total) { progress("registering", done, total); });
+  drop_frames(failures);
+  std::sort(report_.dropped.begin(), report_.dropped.end(), [](const DroppedFrame& a, const DroppedFrame& b) { return a.index < b.index; });
+  report_.seconds_registration = seconds_since(start);
+}
+
+Vec2 SequenceEncoder::sample_point(int i, const Vec2& node) const {
+  return registrations_[static_cast<size_t>(i)](reparametrisation_(node));
+}
+
+std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> nodes) const {
+  std::vector<Vec2> points = reparametrisation_(nodes);
+  const DiskRegistration& registration = registrations_[static_cast<size_t>(i)];
+  for (Vec2& p : points) p = registration(p);
+  return points;
+}
+
+std::shared_ptr<const MappedFrame> SequenceEncoder::frame(int i) const {
+  if (i == pinned_index_) return pinned_;
+  return store_->get(static_cast<size_t>(i));
+}
+
+std::shared_ptr<const MappedFrame> SequenceEncoder::pin_reference() {
+  if (pinned_index_ != options_.reference_frame) {
+    pinned_.reset();  // first: the old one need not be held beside the new
+    pinned_ = store_->get(static_cast<size_t>(options_.reference_frame));
+    pinned_index_ = options_.reference_frame;
+  }
+  return pinned_;
+}
+
+bool SequenceEncoder::has_texture(int i) const {
+  const auto index = static_cast<size_t>(i);
+  const FrameSummary& f = summaries_[index];
+  return (!textures_[index].empty() && f.has_uvs) || f.has_colours;
+}
+
+Image SequenceEncoder::frame_texture(int i, int size) const { return frame_texture(*frame(i), i, size); }
+
+Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) const {
+  Image image;
+  const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
+  if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
+  return resample_texture(InverseDiskMap(f.map), *source, size, [&](const Vec2& w) { return sample_point(i, w); });
+}
+
+std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const { return sample_surface(*frame(i), i, nodes); }
+
+std::vector<Vec3> SequenceEncoder::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const {
+  return resample_positions(InverseDiskMap(frame.map), sample_points(i, nodes));
+}
+
+void SequenceEncoder::sample_frames() {
+  const auto start = std::chrono::steady_clock::now();
+  const int count = frame_count();
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  const GridGeometry geometry(make_disk_grid(kSelectionGrid));
+  const auto nodes = static_cast<size_t>(geometry.interior_count());
+  node_weights_.resize(nodes);
+  for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
+  selection_.assign(static_cast<size_t>(count), {});
+  auto sample = [&](size_t index) {
+    SelectionFrame& s = selection_[index];
+    s.time = capture_.frames[index].time;
+    const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
+    s.diagonal = bounding_box_diagonal(frame->map.surface.positions);
+    std::vector<Vec3> all = sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
+    std::vector<Vec3> tu, tv;
+    geometry.frames(all, tu, tv, s.normal);
+    all.resize(nodes);
+    s.world = std::move(all);
+  };
+  sample(reference);
+  parallel_for(count, options_.threads, [&](int i) {
+    const auto index = static_cast<size_t>(i);
+    if (index != reference) sample(index);
+    // The head pose: the rigid motion taking the reference's registered surface onto this frame's,
+    // fitted over every node (weighted by area). The reference's frame is the face frame.
+    SelectionFrame& s = selection_[index];
+    s.pose = index == reference ? RigidPose{} : fit_rigid_pose(selection_[reference].world, s.world, node_weights_);
+    const RigidPose to_face = s.pose.inverse();
+    s.local.resize(nodes);
+    for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(s.world[v]);
+  });
+  report_.seconds_selection = seconds_since(start);
+}
+
+Vec3 SequenceEncoder::pose_centre() const {
+  const SelectionFrame& reference = selection_[static_cast<size_t>(options_.reference_frame)];
+  Vec3 sum = Vec3::Zero();
+  double total = 0;
+  for (size_t v = 0; v < node_weights_.size(); ++v) {
+    sum += node_weights_[v] * reference.local[v];
+    total += node_weights_[v];
+  }
+  return sum / total;
+}
+
+KeyframeSelection SequenceEncoder::select_keyframes() const {
+  SelectionOptions selection;
+  selection.fraction = options_.keyframe_fraction;
+  selection.max_error = options_.max_error;
+  selection.error_bound = options_.keyframe_error_bound;
+  selection.spline = options_.spline;
+  selection.pose_centre = pose_centre();
+  return facemorph::select_keyframes(selection_, node_weights_, selection);
+}
+
+int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
+  if (options_.grid > 0) return options_.grid;
+  // The smallest N whose resampling floor on the reference frame is within the target; the
+  // largest candidate when none is (a crowded face: spec/method.md §7.6).
+  report_.grid_floors.clear();
+  // A grid fine enough to resolve a capture's per-frame noise spends its nodes on noise the
+  // keyframe fit averages away: the floor need not go below the median frame noise. (A floor
+  // measured against a noisy frame is mostly that frame's unresolved noise: on a 0.16%-noise
+  // capture, N = 193 → 97 left the decoded error against the noise-free surface unchanged while
+  // the fields took a quarter of the bytes; spec/method.md §7.6.)
+  std::vector<double> noise;
+  for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(selection_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
+  std::nth_element(noise.begin(), noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2), noise.end());
+  report_.median_noise = std::isfinite(noise[noise.size() / 2]) ? noise[noise.size() / 2] : 0.0;
+  // Nor below half the error the spline makes between the chosen keyframes: errors add in
+  // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
+  // for the error it removes than more keyframes would (spec/method.md §7.6).
+  const double noise_term = kGridNoiseShare * report_.median_noise, interpolation_term = chosen ? kGridErrorShare * mean_predicted_error(*chosen) : 0.0;
+  report_.grid_target = std::max({kGridFloorTarget, noise_term, interpolation_term});
+  report_.grid_term = report_.grid_target == interpolation_term ? "interpolation" : report_.grid_target == noise_term ? "noise" : "floor";
+  const double target = report_.grid_target;
+  const std::shared_ptr<const MappedFrame> reference = frame(options_.reference_frame);
+  for (int n : kGridCandidates) {
+    const DiskGrid grid = make_disk_grid(n);
+    const std::vector<Vec3> sampled = sample_surface(*reference, options_.reference_frame, grid.nodes);
+    const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
+    report_.grid_floors.emplace_back(n, floor.rms / floor.diagonal);
+    if (floor.rms / floor.diagonal <= target) return n;
+  }
+  return kGridCandidates[std::size(kGridCandidates) - 1];
+}
+
+Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
+  const auto start = std::chrono::steady_clock::now();
+  if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
+  const GridGeometry geometry(make_disk_grid(grid_n));
+  const DiskGrid& grid = geometry.grid();
+  const size_t keys = keyframes.size();
+  bool any_holes = false;
+  for (const FrameSummary& f : summaries_) any_holes = any_holes || f.holes_filled > 0;
+  const bool store_holes = any_holes && !options_.keep_holes_filled;
+  // Textures: every keyframe's, or (a capture without images or vertex colours) none; some but not
+  // all is an error.
+  bool store_texture = options_.texture;
+  for (int k : keyframes) {
+    const bool has = has_texture(k);
+    if (store_texture && !has) {
+      if (k != keyframes.front()) {
+        throw Error(ErrorCode::kMissingTexture,
+                    summaries_[static_cast<size_t>(k)].name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
+      }
+      store_texture = false;
+    }
+  }
+  int texture_size = options_.texture_size;
+  if (store_texture && texture_size == 0) {
+    const auto first = static_cast<size_t>(keyframes.front());
+    if (!textures_[first].empty() && summaries_[first].has_uvs) {
+      const Image image = read_image(textures_[first]);
+      texture_size = auto_texture_size(frame(keyframes.front())->map.surface, image.width, image.height);
+    } else {
+      texture_size = auto_texture_size_for_colours(summaries_[first].vertices);
+    }
+  }
+  report_.texture_size = store_texture ? texture_size : 0;
+  // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
+  // keyframes' folds, since the keyframes are blended together.
+  std::vector<std::vector<Vec3>> local(keys);
+  std::vector<std::vector<int32_t>> folds(keys);
+  Sequence sequence;
+  sequence.grid_n = grid_n;
+  sequence.representation = options_.representation;
+  sequence.spline = options_.spline;
+  sequence.fps = capture_.fps;
+  sequence.first_time = first_time_;
+  sequence.last_time = last_time_;
+  sequence.units = capture_.units;
+  sequence.pose_centre = pose_centre();
+  sequence.keyframes.resize(keys);
+  parallel_for(
+      static_cast<int>(keys), options_.threads,
+      [&](int k) {
+        const auto index = static_cast<size_t>(keyframes[static_cast<size_t>(k)]);
+        const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
+        const MappedFrame& f = *frame;
+        const InverseDiskMap inverse(f.map);
+        const std::vector<Vec2> points = sample_points(static_cast<int>(index), grid.nodes);
+        const RigidPose to_face = selection_[index].pose.inverse();
+        std::vector<Vec3> positions = resample_positions(inverse, points);
+        for (Vec3& p : positions) p = to_face.apply(p);
+        local[static_cast<size_t>(k)] = std::move(positions);
+        Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
+        key.time = capture_.frames[index].time;
+        key.pose = selection_[index].pose;
+        if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
+        if (store_texture) key.texture = frame_texture(f, static_cast<int>(index), texture_size);
+      },
+      [&](int done, int total) { progress("keyframes", done, total); });
+  if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
+  parallel_for(static_cast<int>(keys), options_.threads,
+               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, local[static_cast<size_t>(k)]); });
+  std::vector<int32_t> fixed;
+  for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
+  std::sort(fixed.begin(), fixed.end());
+  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+  parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
+    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
+    local[static_cast<size_t>(k)] = {};  // its fields replace it: memory holds one or the other
+  });
+  validate_sequence(sequence);
+  report_.seconds_keyframes = seconds_since(start);
+  return sequence;
+}
+
+void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const {
+  const std::vector<Vec2>& nodes = geometry.grid().nodes;
+  // Per node of G, the keyframe values P_k minimising
+  //   Σ_j |Σ_k c_k(t_j) P_k − X_j|² + μ Σ_k |P_k − X_k|²
+  // over the frames j within the keyframes' span, X_j frame j's registered surface in the face frame
+  // of the pose the decoder blends at t_j (at a keyframe, its own pose). The weights c_k(t_j) are
+  // shared by every node, so this is one keys × keys normal matrix (banded, positive definite: each
+  // keyframe's own frame has weight 1 + μ) and a right-hand side per node coordinate.
+  const auto keys = static_cast<Eigen::Index>(keyframes.size());
+  const int count = frame_count();
+  if (keys < 2 || keys >= count || local.size() != keyframes.size()) return;
+  const double mu = options_.keyframe_fit_weight;
+  std::vector<double> times;
+  std::vector<RigidPose> poses;
+  for (int k : keyframes) {
+    times.push_back(capture_.frames[static_cast<size_t>(k)].time);
+    poses.push_back(selection_[static_cast<size_t>(k)].pose);
+  }
+  const KeyframeSpline spline(times, options_.spline);
+  const std::vector<Vec3> rotations = unwrap_rotations(poses);
+  const Vec3 centre = pose_centre();
+  const auto n = static_cast<Eigen::Index>(3 * nodes.size());
+  auto flat = [n](std::vector<Vec3>& v) { return Eigen::Map<Eigen::VectorXd>(v.data()->data(), n); };
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(keys, keys);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, keys);  // column k: Σ_j c_k(t_j) X_j + μ X_k
+  for (Eigen::Index k = 0; k < keys; ++k) {
+    normal(k, k) += 1 + mu;
+    rhs.col(k) += (1 + mu) * flat(local[static_cast<size_t>(k)]);
+  }
+  std::vector<int> held;
+  for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
+    if (!std::binary_search(keyframes.begin(), keyframes.end(), j)) held.push_back(j);
+  }
+  // In chunks: a frame on G is 3 doubles a node, and a capture may have thousands.
+  const int chunk = 32;
+  std::vector<std::vector<Vec3>> samples(chunk);
+  std::vector<SplineWeights> weights(chunk);
+  for (size_t begin = 0; begin < held.size(); begin += chunk) {
+    const int size = static_cast<int>(std::min(held.size() - begin, static_cast<size_t>(chunk)));
+    parallel_for(size, options_.threads, [&](int c) {
+      const int j = held[begin + static_cast<size_t>(c)];
+      weights[static_cast<size_t>(c)] = spline.weights(capture_.frames[static_cast<size_t>(j)].time);
+      const RigidPose to_face = blend_poses(poses, rotations, weights[static_cast<size_t>(c)], centre).inverse();
+      std::vector<Vec3> positions = sample_surface(j, nodes);
+      for (Vec3& p : positions) p = to_face.apply(p);
+      samples[static_cast<size_t>(c)] = std::move(positions);
+    });
+    for (int c = 0; c < size; ++c) {
+      const SplineWeights& w = weights[static_cast<size_t>(c)];
+      const auto x = flat(samples[static_cast<size_t>(c)]);
+      for (size_t a = 0; a < w.keys.size(); ++a) {
+        for (size_t b = 0; b < w.keys.size(); ++b) normal(w.keys[a], w.keys[b]) += w.weights[a] * w.weights[b];
+        rhs.col(w.keys[a]) += w.weights[a] * x;
+      }
+    }
+  }
+  const Eigen::MatrixXd inverse = normal.ldlt().solve(Eigen::MatrixXd::Identity(keys, keys));
+  // fitted = rhs * inverse (the normal matrix is symmetric), written over rhs a block of rows at a
+  // time: a 2000-frame capture's rhs is 200 keyframes x 3 N² doubles (300 MB at N = 257), and a
+  // second matrix that size would be the encode's largest. Every block has at least kRows rows
+  // (the last up to twice that), so Eigen multiplies each block as it did the whole matrix (the same
+  // blocking over the keyframes, never its small-matrix path) and the values are the same doubles.
+  constexpr Eigen::Index kRows = 3 * 1024;
+  Eigen::MatrixXd& fitted = rhs;
+  for (Eigen::Index row = 0; row < n;) {
+    const Eigen::Index rows = n - row < 2 * kRows ? n - row : kRows;
+    const Eigen::MatrixXd block = rhs.middleRows(row, rows) * inverse;
+    fitted.middleRows(row, rows) = block;
+    row += rows;
+  }
+  const Eigen::VectorXd& mass = geometry.mass();
+  for (Eigen::Index k = 0; k < keys; ++k) {
+    std::vector<Vec3>& own = local[static_cast<size_t>(k)];
+    double moved = 0, total = 0;
+    for (Eigen::Index v = 0; v < mass.size(); ++v) {
+      moved += mass[v] * (fitted.col(k).segment<3>(3 * v) - own[static_cast<size_t>(v)]).squaredNorm();
+      total += mass[v];
+    }
+    moved = std::sqrt(moved / total);
+    const double noise = frame_noise(selection_, node_weights_, keyframes[static_cast<size_t>(k)]);
+    // A move beyond κ times the frame's own noise would fit the spline's systematic error between
+    // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
+    // stay its frames). Fewer than 5 frames give no estimate of the noise, so nothing bounds the
+    // move: the keyframe stays its frame.
+    const double scale = std::isfinite(noise) ? std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300)) : 0.0;
+    flat(own) += scale * (fitted.col(k) - flat(own));
+  }
+}
+
+namespace {
+
+// --field-error auto, the fields' rounding target: two fifths of the spline's mean predicted error,
+// where rounding error and more keyframes buy held-out error at about the same price in bytes
+// (spec/method.md §5.3). The rounding's node displacement is mostly along the surface and reaches the point-to-surface error at
+// about half its size, so it may be larger than a quadrature rule on displacements would allow.
+double auto_field_error(const KeyframeSelection& chosen) {
+  constexpr double kShare = 0.4, kLowest = 5e-5, kHighest = 2e-3;
+  const double mean = mean_predicted_error(chosen);
+  return mean == 0 ? 1e-4 : std::clamp(kShare * mean, kLowest, kHighest);
+}
+
+}  // namespace
+
+FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
+  const auto start = std::chrono::steady_clock::now();
+  FieldPrecisionOptions precision = options_.field_precision;
+  if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
+  FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
+  report_.seconds_precision = seconds_since(start);
+  return coding;
+}
+
+std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes) {
+  const auto start = std::chrono::steady_clock::now();
+  report_.texture_qualities.clear();
+  report_.texture_interpolation_psnr.clear();
+  if (!sequence.has_texture()) return {};
+  const size_t keys = sequence.keyframes.size();
+  if (keyframes.size() != keys) throw Error(ErrorCode::kInvalidArgument, "choose_texture_qualities: the keyframes are not the sequence's");
+  std::vector<int> qualities(keys, options_.texture_quality);
+  if (options_.texture_quality == kAutoTextureQuality) {
+    // The blend's error at the frame midway between each pair of neighbouring keyframes, against
+    // that frame's own texture on the disk (sampled as a keyframe's would be).
+    std::vector<double> times;
+    for (const Keyframe& key : sequence.keyframes) times.push_back(key.time);
+    const KeyframeSpline spline(times, sequence.spline);
+    const int size = sequence.keyframes.front().texture.width;
+    std::vector<double> interval_mse(keys - 1, -1.0);
+    parallel_for(static_cast<int>(keys) - 1, options_.threads, [&](int k) {
+      const int middle = (keyframes[static_cast<size_t>(k)] + keyframes[static_cast<size_t>(k) + 1]) / 2;
+      const auto m = static_cast<size_t>(middle);
+      if (middle == keyframes[static_cast<size_t>(k)] || !has_texture(middle)) return;
+      const Image own = frame_texture(middle, size);
+      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_textures(sequence, spline.weights(capture_.frames[m].time)));
+    });
+    const std::vector<double> targets = texture_error_targets(interval_mse, options_.texture_coding);
+    parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
+      const double target = targets[static_cast<size_t>(k)];
+      qualities[static_cast<size_t>(k)] = target < 0 ? options_.texture_coding.fallback_quality
+                                                      : texture_quality_for(options_.texture_codec, sequence.keyframes[static_cast<size_t>(k)].texture, target);
+    });
+    for (double mse : interval_mse) report_.texture_interpolation_psnr.push_back(mse < 0 ? 0.0 : psnr_of_mse(mse));
+  }
+  report_.texture_qualities = qualities;
+  report_.seconds_texture = seconds_since(start);
+  return qualities;
+}
+
+Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  EncodeReport& report = encoder.report();
+  report.keyframes = chosen.keyframes;
+  report.selection_history = chosen.history;
+  report.keyframe_budget = chosen.budget;
+  report.budget_mean_error = chosen.budget_mean_error;
+  report.budget_worst_error = chosen.budget_worst_error;
+  report.grid = encoder.choose_grid(&chosen);
+  Sequence sequence = encoder.build(chosen.keyframes, report.grid);
+  if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
+  encoder.choose_texture_qualities(sequence, chosen.keyframes);
+  for (int i = 0; i < encoder.frame_count(); ++i) {
+    const FrameSummary& frame = encoder.frame_summary(i);
+    const DiskRegistration& registration = encoder.registration(i);
+    EncodedFrameReport r;
+    r.name = frame.name;
+    r.time = encoder.capture().frames[static_cast<size_t>(i)].time;
+    r.vertices = frame.vertices;
+    r.holes_filled = frame.holes_filled;
+    r.repair = frame.repair;
+    r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
+    r.fallback = registration.fallback;
+    r.fallback_reason = registration.fallback_reason;
+    r.conformal_fallback_reason = frame.conformal_fallback_reason;
+    r.conformal_method = frame.conformal_method;
+    r.energy_moebius = registration.energy_moebius;
+    r.energy = registration.energy;
+    r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
+    r.diagonal = encoder.selection_frames()[static_cast<size_t>(i)].diagonal;
+    report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
+    report.frames.push_back(std::move(r));
+  }
+  report.peak_frames_in_memory = encoder.frame_store().peak_held();
+  report.spilled_bytes = encoder.frame_store().spilled_bytes();
+  if (report_out) *report_out = std::move(report);
+  return sequence;
+}
+
+}  // namespace facemorph
