@@ -14,7 +14,7 @@
 
 namespace {
 
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v1_0.fmv";
+const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
 
 static_assert(!std::is_copy_constructible_v<fm::File> && std::is_nothrow_move_constructible_v<fm::File>);
 static_assert(!std::is_copy_constructible_v<fm::Decoder> && std::is_nothrow_move_constructible_v<fm::Decoder>);
