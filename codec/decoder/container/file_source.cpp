@@ -98,7 +98,7 @@ class FileSource final : public KeyframeSource {
     outline_.fixed_node_count = file_.fixed_node_count();
     outline_.poses.reserve(count);
     for (size_t k = 0; k < count; ++k) outline_.poses.push_back(file_.keyframe_pose(k));
-    if (info) *info = file_.describe();
+    if (info) *info = file_.describe(false);  // no texture payload read at open
     // The walk read every chunk's header from a mapped file; those pages are the page cache's, but
     // they would count in the process's resident memory (and a cgroup's) until reclaimed.
     if (const auto* mapped = std::get_if<std::unique_ptr<format::MappedFile>>(&bytes_)) (*mapped)->release_pages();

@@ -76,7 +76,10 @@ class OpenedFile {
   void verify_checksums() const;
   // The file's description (versions, grid, metadata, chunk totals, each texture's bytes); the
   // keyframes' field bytes are the caller's, from decode_run.
-  SequenceFileInfo describe() const;
+  // split_texture_groups: a texture group's bytes divided among its keyframes by their AV1 samples
+  // (which parses each group's AVIF); false gives each group's whole chunk to its first keyframe and
+  // reads no texture payload (what opening a file costs: the header and index).
+  SequenceFileInfo describe(bool split_texture_groups = true) const;
   // Decodes every keyframe's fields and texture once, one at a time, and verifies every checksum:
   // throws what the first fault throws. `info`: describe() with every keyframe's field bytes.
   void check_every_keyframe(SequenceFileInfo* info) const;

@@ -349,7 +349,7 @@ TextureCodec OpenedFile::texture_codec(size_t k) const {
 
 void OpenedFile::verify_checksums() const { state_->reader.verify(); }
 
-SequenceFileInfo OpenedFile::describe() const {
+SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   const State& s = *state_;
   const FileHeader& header = *s.header;
   SequenceFileInfo info;
@@ -372,7 +372,7 @@ SequenceFileInfo OpenedFile::describe() const {
       const format::ChunkView& chunk = texture_chunk(first);
       const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
       std::vector<uint64_t> samples;
-      try {
+      if (split_texture_groups) try {
         samples = texture_group_sample_bytes(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk),
                                              static_cast<uint32_t>(first), count, header.texture_size);
       } catch (const Error&) {
