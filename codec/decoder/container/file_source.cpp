@@ -88,10 +88,8 @@ class FileSource final : public KeyframeSource {
                                          " MiB (max_memory_bytes, --max-memory)");
     }
     cache_capacity_ = plan_.keyframes_kept * (plan_.fields + plan_.texture);
-    fields_.resize(count);
-    textures_.resize(count);
-    field_failures_.resize(count);
-    texture_failures_.resize(count);
+    fields_.resize(count, false, plan_.fields);
+    textures_.resize(count, true, plan_.texture);
     // The index holds every keyframe's time and pose: nothing is decoded until a frame needs it.
     outline_.has_holes = file_.has_holes();
     outline_.texture_size = file_.texture_size();
@@ -113,69 +111,23 @@ class FileSource final : public KeyframeSource {
 
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (k >= fields_.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
-    if (fields_[k].value) {
-      touch(fields_[k]);
-      return fields_[k].value;
-    }
-    // A keyframe that did not decode fails at once the next time (§10.3: time follows the frame).
-    if (!field_failures_[k].second.empty()) throw Error(field_failures_[k].first, field_failures_[k].second);
-    // A run decodes from its first keyframe. The whole run is kept where the cache holds it twice
-    // over (playing on needs the next keyframes); else only as far as k, the rest dropped as decoded.
-    const size_t first = file_.run_of(k) * file_.run_length();
-    const size_t run_end = std::min(first + file_.run_length(), fields_.size());
-    const bool whole_run = 2 * (run_end - first) * plan_.fields <= cache_capacity_;
-    std::shared_ptr<const Keyframe> wanted;
-    try {
-      file_.decode_run(first, whole_run ? run_end - 1 : k, [&](size_t j, Keyframe&& key, uint64_t) {
-        if (j != k && (fields_[j].value || !whole_run)) return;
-        auto shared = std::make_shared<const Keyframe>(std::move(key));
-        if (j == k) wanted = shared;
-        remember_fields(j, std::move(shared));
+    if (k >= fields_.slots.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
+    return fetch(fields_, k, file_.run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
+      file_.decode_run(first, last, [&](size_t j, Keyframe&& key, uint64_t) {
+        if (wants(j)) take(j, std::move(key));
       });
-    } catch (const Error& e) {
-      // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
-      if (wanted) return wanted;
-      // kLimit too: the same file under the same limits fails the same way.
-      field_failures_[k] = {e.code(), e.what()};
-      throw;
-    }
-    return wanted;
+    });
   }
 
   std::shared_ptr<const Image> texture(size_t k) const override {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (k >= textures_.size() || !outline_.has_texture()) {
+    if (k >= textures_.slots.size() || !outline_.has_texture()) {
       throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no texture for keyframe " + std::to_string(k));
     }
-    if (textures_[k].value) {
-      touch(textures_[k]);
-      return textures_[k].value;
-    }
-    // A texture that did not decode fails at once the next time (§10.3: time follows the frame).
-    if (!texture_failures_[k].second.empty()) throw Error(texture_failures_[k].first, texture_failures_[k].second);
-    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. As
-    // for fields, the whole run is kept where the cache holds it twice over; else only k.
-    const size_t run = file_.texture_run_length();
-    const size_t first = k / run * run;
-    const size_t run_end = std::min(first + run, textures_.size());
-    const bool whole_run = 2 * (run_end - first) * plan_.texture <= cache_capacity_;
-    std::shared_ptr<const Image> wanted;
-    try {
-      file_.decode_textures(
-          first, whole_run ? run_end - 1 : k, [&](size_t j) { return j == k || (whole_run && !textures_[j].value); },
-          [&](size_t j, Image&& image) {
-            auto shared = std::make_shared<const Image>(std::move(image));
-            if (j == k) wanted = shared;
-            remember_texture(j, std::move(shared));
-          });
-    } catch (const Error& e) {
-      // Past k, in the rest of a whole run: k stands; the failing frame fails when asked for.
-      if (wanted) return wanted;
-      texture_failures_[k] = {e.code(), e.what()};
-      throw;
-    }
-    return wanted;
+    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame.
+    return fetch(textures_, k, file_.texture_run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
+      file_.decode_textures(first, last, wants, take);
+    });
   }
 
  private:
@@ -200,22 +152,63 @@ class FileSource final : public KeyframeSource {
     order_.splice(order_.begin(), order_, slot.where);
   }
 
-  void remember_fields(size_t k, std::shared_ptr<const Keyframe> key) const {
-    Slot<Keyframe>& slot = fields_[k];
-    if (slot.value) return;
-    slot.where = order_.insert(order_.begin(), Entry{false, k, plan_.fields});
-    slot.value = std::move(key);
-    held_bytes_ += plan_.fields;
-    evict();
+  // One kind of thing the cache holds, a slot per keyframe: fields or textures.
+  template <typename T>
+  struct Shelf {
+    std::vector<Slot<T>> slots;
+    std::vector<std::pair<ErrorCode, std::string>> failures;  // the error and its message
+    bool texture = false;
+    uint64_t bytes_each = 0;  // as the plan counts one
+    void resize(size_t count, bool is_texture, uint64_t bytes) {
+      slots.resize(count);
+      failures.resize(count);
+      texture = is_texture;
+      bytes_each = bytes;
+    }
+  };
+
+  // Keyframe k's item from `shelf`, decoded where it is not held. A run (a group of keyframes, or a
+  // keyframe alone) decodes from its first keyframe: the whole run is kept where the cache holds it
+  // twice over (playing on needs the next keyframes), else only as far as k. `decode(first, last,
+  // wants, take)` decodes first .. last and hands take(j, item) each j that wants(j). An item that
+  // did not decode fails at once the next time (§10.3: time follows the frame).
+  template <typename T, typename Decode>
+  std::shared_ptr<const T> fetch(Shelf<T>& shelf, size_t k, size_t run_length, const Decode& decode) const {
+    if (shelf.slots[k].value) {
+      touch(shelf.slots[k]);
+      return shelf.slots[k].value;
+    }
+    if (!shelf.failures[k].second.empty()) throw Error(shelf.failures[k].first, shelf.failures[k].second);
+    const size_t first = k / run_length * run_length;
+    const size_t run_end = std::min(first + run_length, shelf.slots.size());
+    const bool whole_run = 2 * (run_end - first) * shelf.bytes_each <= cache_capacity_;
+    std::shared_ptr<const T> wanted;
+    const auto wants = [&](size_t j) { return j == k || (whole_run && !shelf.slots[j].value); };
+    const auto take = [&](size_t j, T&& item) {
+      auto shared = std::make_shared<const T>(std::move(item));
+      if (j == k) wanted = shared;
+      remember(shelf, j, std::move(shared));
+    };
+    try {
+      decode(first, whole_run ? run_end - 1 : k, wants, take);
+    } catch (const Error& e) {
+      // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
+      if (wanted) return wanted;
+      // kLimit too: the same file under the same limits fails the same way.
+      shelf.failures[k] = {e.code(), e.what()};
+      throw;
+    }
+    return wanted;
   }
 
-  void remember_texture(size_t k, std::shared_ptr<const Image> image) const {
-    Slot<Image>& slot = textures_[k];
+  template <typename T>
+  void remember(Shelf<T>& shelf, size_t k, std::shared_ptr<const T> item) const {
+    Slot<T>& slot = shelf.slots[k];
     if (slot.value) return;
     // The list entry first: if it cannot be allocated, nothing is cached uncounted.
-    slot.where = order_.insert(order_.begin(), Entry{true, k, plan_.texture});
-    slot.value = std::move(image);
-    held_bytes_ += plan_.texture;
+    slot.where = order_.insert(order_.begin(), Entry{shelf.texture, k, shelf.bytes_each});
+    slot.value = std::move(item);
+    held_bytes_ += shelf.bytes_each;
     evict();
   }
 
@@ -225,9 +218,9 @@ class FileSource final : public KeyframeSource {
     while (held_bytes_ > cache_capacity_ && !order_.empty()) {
       const Entry& oldest = order_.back();
       if (oldest.texture) {
-        textures_[oldest.keyframe].value.reset();
+        textures_.slots[oldest.keyframe].value.reset();
       } else {
-        fields_[oldest.keyframe].value.reset();
+        fields_.slots[oldest.keyframe].value.reset();
       }
       held_bytes_ -= oldest.bytes;
       order_.pop_back();
@@ -240,10 +233,8 @@ class FileSource final : public KeyframeSource {
   SequenceOutline outline_;
   uint64_t cache_capacity_ = 0;  // bytes of fields and textures kept
   mutable std::mutex mutex_;
-  mutable std::vector<Slot<Keyframe>> fields_;
-  mutable std::vector<Slot<Image>> textures_;
-  mutable std::vector<std::pair<ErrorCode, std::string>> field_failures_;    // the error and its message
-  mutable std::vector<std::pair<ErrorCode, std::string>> texture_failures_;
+  mutable Shelf<Keyframe> fields_;
+  mutable Shelf<Image> textures_;
   mutable std::list<Entry> order_;  // most recently used first
   mutable uint64_t held_bytes_ = 0;
 };
