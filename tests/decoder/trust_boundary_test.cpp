@@ -33,20 +33,6 @@ using crafted::small_sequence;
 
 const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
 
-// AddressSanitizer keeps freed memory in quarantine (256 MB by default): under it the resident size
-// says nothing about what the code keeps.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kAddressSanitizer = true;
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-
 // Seconds `body` takes.
 template <typename Body>
 double seconds(Body&& body) {
@@ -393,7 +379,7 @@ TEST(TrustBoundary, MemoryAfterAHundredCraftedFilesIsThatAfterTheFirst) {
     if (i == 0) after_first = status_bytes("VmRSS");
   }
   const uint64_t after_all = status_bytes("VmRSS");
-  if (kAddressSanitizer) GTEST_SKIP() << "resident memory under AddressSanitizer's quarantine: " << after_first << " -> " << after_all;
+  if (testing::kAddressSanitizer) GTEST_SKIP() << "resident memory under AddressSanitizer's quarantine: " << after_first << " -> " << after_all;
   if (after_first > 0) {
     EXPECT_LT(after_all, after_first + (uint64_t{8} << 20)) << after_first << " -> " << after_all;
   }
