@@ -65,6 +65,8 @@ class OpenedFile {
   // Decodes the textures of keyframes first_of_run .. last (within one texture run), each checked
   // as §8 / §8.1 say, handing take(k, image) those for which wanted(k), in order.
   void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const;
+  // Every keyframe's fields, run by run, in order (decode_run over the whole file).
+  void decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
   // Every keyframe's texture, run by run (each group's sequence decoded once).
   void decode_every_texture(const std::function<void(size_t, Image&&)>& take) const;
   // Keyframe k's texture, its size checked against the header's (has_texture()); in a file with

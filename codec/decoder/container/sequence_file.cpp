@@ -317,6 +317,10 @@ void OpenedFile::decode_textures(size_t first, size_t last, const std::function<
                      [&](uint32_t k, Image&& image) { take(k, std::move(image)); });
 }
 
+void OpenedFile::decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
+  for (size_t first = 0; first < keyframe_count(); first += run_length()) decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, take);
+}
+
 void OpenedFile::decode_every_texture(const std::function<void(size_t, Image&&)>& take) const {
   const size_t run = texture_run_length();
   for (size_t first = 0; first < keyframe_count(); first += run) {
@@ -401,9 +405,7 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
 
 void OpenedFile::check_every_keyframe(SequenceFileInfo* info) const {
   std::vector<uint64_t> field_bytes(keyframe_count());
-  for (size_t first = 0; first < keyframe_count(); first += run_length()) {
-    decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, [&](size_t k, Keyframe&&, uint64_t bytes) { field_bytes[k] = bytes; });
-  }
+  decode_every_keyframe([&](size_t k, Keyframe&&, uint64_t bytes) { field_bytes[k] = bytes; });
   if (has_texture()) decode_every_texture([](size_t, Image&&) {});
   verify_checksums();  // chunks no keyframe refers to too
   if (info) {
@@ -421,13 +423,10 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
   const OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
   Sequence sequence = file.shape();
   std::vector<uint64_t> field_bytes(file.keyframe_count());
-  const size_t run = file.run_length();
-  for (size_t first = 0; first < file.keyframe_count(); first += run) {
-    file.decode_run(first, std::min(first + run, file.keyframe_count()) - 1, [&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
-      sequence.keyframes.push_back(std::move(key));
-      field_bytes[k] = bytes_taken;
-    });
-  }
+  file.decode_every_keyframe([&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
+    sequence.keyframes.push_back(std::move(key));
+    field_bytes[k] = bytes_taken;
+  });
   if (file.has_texture()) file.decode_every_texture([&](size_t k, Image&& image) { sequence.keyframes[k].texture = std::move(image); });
   file.verify_checksums();
   try {
