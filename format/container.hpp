@@ -15,7 +15,7 @@ namespace facemorph::format {
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
-inline constexpr uint16_t kMinorVersion = 1;  // later minors only append fields, chunk types and codings (2.1: texture groups)
+inline constexpr uint16_t kMinorVersion = 2;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared textures)
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;

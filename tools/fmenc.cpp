@@ -127,6 +127,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"texture_codec", texture_codec_name(o.texture_codec)},
           {"texture_quality", o.texture_quality == kAutoTextureQuality ? nlohmann::json("auto") : nlohmann::json(o.texture_quality)},
           {"texture_qualities_chosen", report.texture_qualities},
+          {"texture_sharing", o.share_textures},
+          {"texture_shared_with", report.texture_shared_with},
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
           {"reference_frame", o.reference_frame},
@@ -164,7 +166,7 @@ int main(int argc, char** argv) {
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
-  bool no_texture = false, track_landmarks = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
+  bool no_texture = false, no_texture_sharing = false, track_landmarks = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
   app.add_option("capture", input,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
       ->required();
@@ -187,6 +189,9 @@ int main(int argc, char** argv) {
                  "sequence | stills: lossy AVIF textures as one AV1 image sequence per group of keyframes (format 2.1; 1.8-5x fewer bytes) "
                  "or one still each (format 2.0's); WebP and lossless textures are stills")
       ->capture_default_str();
+  app.add_flag("--no-texture-sharing", no_texture_sharing,
+               "keep every keyframe's own texture: by default keyframes painted from one captured image show one texture, stored once (format 2.2), "
+               "where it stays within the texture coding's coarsest PSNR (30 dB) of their own");
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
@@ -252,6 +257,7 @@ int main(int argc, char** argv) {
     options.texture_quality = quality;
     options.texture_codec = parse_texture_codec(texture_codec);
     options.texture = !no_texture;
+    options.share_textures = !no_texture_sharing;
     options.track_landmarks = track_landmarks;
     if (texture_size != "auto") {
       try {
@@ -371,9 +377,25 @@ int main(int argc, char** argv) {
       }
       uint64_t texture_bytes = 0;
       for (const auto& c : written.chunks) texture_bytes += c.type == "TEXR" || c.type == "TGOP" ? c.stored_bytes : 0;
+      const std::string layout = written.metadata.texture_coding == TextureCoding::kSequence ? "one AV1 sequence per group"
+                                 : written.distinct_textures < sequence.keyframes.size()
+                                     ? std::to_string(written.distinct_textures) + (written.distinct_textures == 1 ? " still" : " stills") + std::string(" for ") + std::to_string(sequence.keyframes.size()) + " keyframes"
+                                     : "stills";
       std::printf("  textures as decoded: %llu bytes (%s), PSNR on the disk %.2f dB mean, %.2f dB lowest\n", static_cast<unsigned long long>(texture_bytes),
-                  written.metadata.texture_coding == TextureCoding::kSequence ? "one AV1 sequence per group" : "stills",
-                  sum_db / static_cast<double>(sequence.keyframes.size()), low_db);
+                  layout.c_str(), sum_db / static_cast<double>(sequence.keyframes.size()), low_db);
+      // Keyframes showing an earlier keyframe's texture: what that costs against their own.
+      int shared = 0;
+      double lowest_share_db = std::numeric_limits<double>::infinity();
+      for (size_t k = 0; k < report.texture_shared_with.size(); ++k) {
+        if (report.texture_shared_with[k] < 0) continue;
+        ++shared;
+        lowest_share_db = std::min(lowest_share_db, report.texture_share_psnr[k]);
+      }
+      if (shared > 0) {
+        std::printf("  textures shared: %d of %zu keyframes show an earlier keyframe's, painted from the same captured image (against their own: "
+                    "%.1f dB lowest)\n",
+                    shared, sequence.keyframes.size(), lowest_share_db);
+      }
     }
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,

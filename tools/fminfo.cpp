@@ -234,8 +234,11 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
   const bool texture_groups = info.texture_size > 0 && info.metadata.texture_coding == TextureCoding::kSequence;
   const std::string texture_coding = texture_groups ? " AVIF image sequence per group of " + std::to_string(coding.intra_period) +
                                                           " keyframes (format 2.1 TGOP; each keyframe's bytes its AV1 sample, a group's first also the chunk's and AVIF container's)"
-                                     : info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF still per keyframe"
-                                                                                          : " WebP per keyframe";
+                                     : std::string(info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") +
+                                           (info.distinct_textures < sequence.keyframe_count()
+                                                ? " stills, " + std::to_string(info.distinct_textures) + " for " + std::to_string(sequence.keyframe_count()) +
+                                                      " keyframes (format 2.2: keyframes showing one texture name one TEXR; its bytes are the first's)"
+                                                : " still per keyframe");
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str() : "none");
   std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());

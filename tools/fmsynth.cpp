@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   app.add_option("--noise", options.noise, "Scanner noise along the normal, metres (standard deviation)")->capture_default_str();
   app.add_option("--seed", options.seed, "Face identity, texture detail, noise and remeshing seed")->capture_default_str();
   app.add_option("--texture-size", options.texture_size, "Texture pixels per side")->capture_default_str();
+  app.add_flag("--shared-texture", options.shared_texture,
+               "One texture image (texture.jpg) for every frame, as a rig that paints one atlas for the take: only the geometry moves");
   app.add_flag("--vertex-colour", options.vertex_colour,
                "Colour per vertex instead of a texture: binary PLY frames with red/green/blue, no UVs or image (a depth camera's capture)");
   app.add_option("--head-motion", options.head_motion_degrees, "Amplitude of a slow rigid head rotation, degrees")->capture_default_str();

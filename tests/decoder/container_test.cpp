@@ -415,7 +415,7 @@ TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
   const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(bytes, "groups.fmv", &info);
-  EXPECT_EQ(info.minor_version, 1);
+  EXPECT_EQ(info.minor_version, format::kMinorVersion);
   EXPECT_EQ(info.metadata.texture_coding, TextureCoding::kSequence);
   EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
   EXPECT_EQ(chunk_count(info, "TGOP"), 3u);
@@ -470,6 +470,79 @@ TEST(Container, AFileOfFormat2_0StillReads) {
   const uint32_t grouped_crc = format::crc32(std::span(grouped).first(12));
   for (int i = 0; i < 4; ++i) grouped[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(grouped_crc >> (8 * i));
   testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file", [&] { decode_sequence_file(grouped, "g.fmv"); });
+}
+
+// Sets a file's preamble minor version, its preamble checksum made right.
+void stamp_minor_version(std::vector<uint8_t>& bytes, uint8_t minor) {
+  bytes[10] = minor;
+  const uint32_t crc = format::crc32(std::span(bytes).first(12));
+  for (int i = 0; i < 4; ++i) bytes[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
+}
+
+// Format 2.2: keyframes whose textures are the same pixels store one TEXR, which each of them
+// names; the decoder holds it once, and each keyframe decodes to it.
+TEST(Container, KeyframesOfOneTextureStoreItOnce) {
+  Sequence s = ramp_sequence(5, 32);
+  for (size_t k : {2u, 3u}) s.keyframes[k].texture = s.keyframes[0].texture;  // 0, 2, 3 alike; 1, 4 their own
+  SequenceFileMetadata m = grouped_texture_metadata();
+  m.texture_coding = TextureCoding::kStills;
+  m.keyframe_texture_qualities = {70, 80, 90, 60, 80};  // keyframe 0's texture stored at the finest that shows it, 90
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  SequenceFileInfo info;
+  const Sequence back = decode_sequence_file(bytes, "shared.fmv", &info);
+  EXPECT_EQ(info.minor_version, 2);
+  EXPECT_EQ(chunk_count(info, "TEXR"), 3u);
+  EXPECT_EQ(info.distinct_textures, 3u);
+  EXPECT_GT(info.keyframes[0].texture, 0u);
+  EXPECT_EQ(info.keyframes[2].texture, 0u);  // its bytes are keyframe 0's
+  EXPECT_EQ(info.keyframes[3].texture, 0u);
+  EXPECT_GT(info.keyframes[4].texture, 0u);
+  for (size_t k : {2u, 3u}) EXPECT_EQ(back.keyframes[k].texture.pixels, back.keyframes[0].texture.pixels) << k;
+  EXPECT_NE(back.keyframes[1].texture.pixels, back.keyframes[0].texture.pixels);
+  // At quality 90, finer than keyframe 0's own 70 asked for: closer to the source than at 70.
+  SequenceFileMetadata own = m;
+  own.keyframe_texture_qualities = {70, 80, 70, 70, 80};
+  const Sequence coarse = decode_sequence_file(encode_sequence_file(s, own), "own.fmv");
+  EXPECT_GT(psnr(s.keyframes[0].texture, back.keyframes[0].texture), psnr(s.keyframes[0].texture, coarse.keyframes[0].texture));
+  // Played on demand: keyframes 0, 2 and 3 hand out the one image, decoded once.
+  const auto source = open_sequence_source(bytes, "shared.fmv");
+  EXPECT_EQ(source->texture(2).get(), source->texture(0).get());
+  EXPECT_EQ(source->texture(3).get(), source->texture(0).get());
+  EXPECT_NE(source->texture(1).get(), source->texture(0).get());
+  EXPECT_EQ(source->texture(4)->pixels, back.keyframes[4].texture.pixels);
+  // Where groups are allowed too, the writer takes whichever holds the textures in fewer bytes.
+  const auto texture_bytes = [](const SequenceFileInfo& i) {
+    uint64_t b = 0;
+    for (const auto& c : i.chunks) b += c.type == "TEXR" || c.type == "TGOP" ? c.stored_bytes : 0;
+    return b;
+  };
+  SequenceFileMetadata either = m;
+  either.texture_coding = TextureCoding::kSequence;
+  SequenceFileInfo either_info;
+  const Sequence either_back = decode_sequence_file(encode_sequence_file(s, either), "either.fmv", &either_info);
+  EXPECT_LE(texture_bytes(either_info), texture_bytes(info));
+  // Textures all different: one TEXR a keyframe, as 2.0 wrote them.
+  SequenceFileInfo distinct;
+  decode_sequence_file(encode_sequence_file(ramp_sequence(5, 32), m), "own.fmv", &distinct);
+  EXPECT_EQ(chunk_count(distinct, "TEXR"), 5u);
+  EXPECT_EQ(distinct.distinct_textures, 5u);
+}
+
+// A shared texture is format 2.2's: a file stamped 2.1 with the flag is corrupt; so are both
+// texture flags at once.
+TEST(Container, SharedTexturesInAFileBefore2_2AreCorrupt) {
+  Sequence s = ramp_sequence(3, 16);
+  s.keyframes[2].texture = s.keyframes[0].texture;
+  SequenceFileMetadata m = grouped_texture_metadata();
+  m.texture_coding = TextureCoding::kStills;
+  std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  ASSERT_NO_THROW(decode_sequence_file(bytes, "good.fmv"));
+  stamp_minor_version(bytes, 1);
+  testing::expect_error(ErrorCode::kCorrupt, "shared textures (flag bit 3) in a format 2.1 file", [&] { decode_sequence_file(bytes, "old.fmv"); });
+  const std::vector<uint8_t> both = rebuild(encode_sequence_file(s, m), [](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type == "HEAD") payload[18] |= 4;  // the flags byte (after N, rule, hash, representation, spline): groups too
+  });
+  testing::expect_error(ErrorCode::kCorrupt, "both the texture groups flag (bit 2) and the shared textures flag (bit 3)", [&] { decode_sequence_file(both, "both.fmv"); });
 }
 
 // TGOP chunks that pass their checksums but break §8.1, and texture entries at the wrong kind of
@@ -605,6 +678,11 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   alone.field_coding.intra_period = 1;
   seeds.emplace_back("n17_every_keyframe_alone.fmv", encode_sequence_file(small_sequence(17, 16), alone));
   seeds.emplace_back("n9_texture_groups.fmv", encode_sequence_file(small_sequence(9, 16), grouped_texture_metadata()));
+  Sequence shared = small_sequence(9, 16);
+  shared.keyframes[2].texture = shared.keyframes[0].texture;
+  SequenceFileMetadata shared_stills = grouped_texture_metadata();
+  shared_stills.texture_coding = TextureCoding::kStills;
+  seeds.emplace_back("n9_shared_textures.fmv", encode_sequence_file(shared, shared_stills));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

@@ -121,6 +121,16 @@ TEST(GoldenFile, Version2_1DecodesAsItDidWhenWritten) {
   EXPECT_EQ(chunks_of(info, "TEXR"), 0);
 }
 
+// Format 2.2: 2.1 with keyframe textures painted from one captured image stored once, each
+// keyframe's index entry naming the one TEXR (make_golden.sh's capture with --shared-texture; the
+// writer takes the stills, fewer bytes than a sequence per group).
+TEST(GoldenFile, Version2_2DecodesAsItDidWhenWritten) {
+  const SequenceFileInfo info = expect_golden_2("2_2", 2, TextureCoding::kStills);
+  EXPECT_EQ(chunks_of(info, "TEXR"), 1);
+  EXPECT_EQ(info.distinct_textures, 1u);
+  EXPECT_GT(info.keyframes.size(), 1u);
+}
+
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.
 TEST(GoldenFile, AnExperimentalVersion1FileIsRefusedByName) {
   const std::filesystem::path file = std::filesystem::path(FACEMORPH_TEST_DATA) / "experimental_v1_5.fmv";

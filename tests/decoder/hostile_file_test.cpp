@@ -108,6 +108,24 @@ TEST(Hostile, AliasedGroupAndTextureOffsetsFailTheirKeyframesByName) {
   testing::expect_error(ErrorCode::kCorrupt, "holds another keyframe's texture than the index says", [&] { texr->texture(1); });
 }
 
+// A file of shared textures (format 2.2) whose entries name a TEXR that is not the first naming
+// keyframe's: keyframe 0 at keyframe 1's still, keyframe 2 at keyframe 0's. Every keyframe whose
+// still's number is not the first keyframe naming it fails by name, none shows another's texture.
+TEST(Hostile, ASharedTextureNamedFirstByAnotherKeyframeFailsByName) {
+  Sequence s = crafted::small_sequence(9, 16);
+  s.keyframes[2].texture = s.keyframes[0].texture;  // keyframes 0 and 2 share one TEXR
+  SequenceFileMetadata m = crafted::grouped_texture_metadata();
+  m.texture_coding = TextureCoding::kStills;
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  const auto good = open_sequence_source(bytes, "good");
+  ASSERT_EQ(good->texture(2).get(), good->texture(0).get());
+  // Index offset slots: the two KGOP offsets, then a TEXR offset a keyframe (2, 3, 4).
+  const auto crafted = open_sequence_source(rebuild(bytes, alias(2, 3)), "crafted");
+  for (size_t k : {0u, 1u, 2u}) {
+    testing::expect_error(ErrorCode::kCorrupt, "holds another keyframe's texture than the index says", [&] { crafted->texture(k); });
+  }
+}
+
 // AV1 frames of 32² in a TGOP whose AVIF container claims the header's 16²: the AV1 decoder is held
 // to the claimed size (libavif's imageSizeLimit, dav1d's frame size limit), so the frame is refused
 // as it is decoded, not allocated at its own size and compared afterwards (spec/container.md §8.1).

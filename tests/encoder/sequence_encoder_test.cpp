@@ -229,6 +229,70 @@ TEST(SequenceEncoder, AVertexColouredCaptureEncodesAndDecodesWithItsColour) {
   EXPECT_LT(best_grey, 20);   // had the colours been lost, a flat texture would score as well
 }
 
+// A capture whose frames all name one texture image (fmsynth --shared-texture): every keyframe
+// shows one texture, stored once, so the texture bytes do not grow with the keyframe count; each
+// keyframe's texture stays within min_psnr (30 dB) of its own. A frame whose UVs were changed
+// (turned upside down) paints the same image elsewhere on the disk: it keeps its own.
+TEST(SequenceEncoder, KeyframesOfOneCapturedImageStoreOneTexture) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 6;
+  synth.vertices = 3000;
+  synth.texture_size = 128;
+  synth.shared_texture = true;
+  write_synthetic_capture(dir.path(), synth);
+  const auto encode = [&](double fraction, bool share, EncodeReport* report) {
+    EncodeOptions options;
+    options.keyframe_fraction = fraction;
+    options.grid = 33;
+    options.share_textures = share;
+    options.texture_quality = 60;  // one quality whatever the keyframes' spacing (auto follows it)
+    const Capture capture = read_capture(dir.path());
+    const Sequence sequence = encode_capture(capture, options, report);
+    SequenceFileMetadata metadata;
+    metadata.keyframe_texture_qualities = report->texture_qualities;
+    metadata.field_coding = report->field_coding;
+    SequenceFileInfo info;
+    const Sequence back = decode_sequence_file(encode_sequence_file(sequence, metadata), "shared.fmv", &info);
+    return std::pair{info, back};
+  };
+  const auto texture_bytes = [](const SequenceFileInfo& info) {
+    uint64_t bytes = 0;
+    for (const auto& c : info.chunks) bytes += c.type == "TEXR" || c.type == "TGOP" ? c.stored_bytes : 0;
+    return bytes;
+  };
+  EncodeReport all_report, few_report, own_report;
+  const auto [all, all_back] = encode(1.0, true, &all_report);  // every frame a keyframe
+  const auto [few, few_back] = encode(0.34, true, &few_report);
+  const auto [own, own_back] = encode(1.0, false, &own_report);
+  ASSERT_EQ(all.keyframes.size(), 6u);
+  ASSERT_LT(few.keyframes.size(), all.keyframes.size());
+  EXPECT_EQ(all.distinct_textures, 1u);
+  EXPECT_EQ(few.distinct_textures, 1u);
+  EXPECT_EQ(texture_bytes(all), texture_bytes(few));  // the keyframe count does not change them
+  EXPECT_EQ(own.distinct_textures, 6u);
+  EXPECT_GT(texture_bytes(own), texture_bytes(all));
+  for (size_t k = 1; k < all.keyframes.size(); ++k) {
+    EXPECT_EQ(all_report.texture_shared_with[k], 0) << k;
+    EXPECT_GE(all_report.texture_share_psnr[k], 30) << k;
+    EXPECT_EQ(all_back.keyframes[k].texture.pixels, all_back.keyframes[0].texture.pixels);
+  }
+  EXPECT_EQ(all_report.texture_shared_with[0], -1);
+  for (int shared : own_report.texture_shared_with) EXPECT_EQ(shared, -1);
+
+  // Frame 3's UVs upside down (a face is near symmetric left to right, not top to bottom): the
+  // same image, painted elsewhere on its disk.
+  const std::filesystem::path frame3 = dir.path() / "frame_0003.obj";
+  TriangleMesh mesh = read_mesh(frame3);
+  for (Vec2& uv : mesh.uvs) uv.y() = 1 - uv.y();
+  write_mesh(frame3, mesh);
+  EncodeReport mirrored_report;
+  const auto [mirrored, mirrored_back] = encode(1.0, true, &mirrored_report);
+  EXPECT_EQ(mirrored_report.texture_shared_with[3], -1);
+  EXPECT_EQ(mirrored.distinct_textures, 2u);
+  EXPECT_EQ(mirrored_report.texture_shared_with[4], 0);
+}
+
 // A small capture's keyframes with their fields as computed (16-bit: far finer than any rounding
 // target of the field precision tests), without textures.
 Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double keyframe_fraction, int grid) {

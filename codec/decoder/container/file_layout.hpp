@@ -28,8 +28,9 @@ inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", k
                                   kTextureGroupChunk = "TGOP";
 
 // The header's flags. kTextureGroups (format 2.1): the textures are one TGOP chunk per group of
-// keyframes, not one TEXR per keyframe.
-inline constexpr uint8_t kHasTexture = 1, kHasHoles = 2, kTextureGroups = 4;
+// keyframes, not one TEXR per keyframe. kSharedTextures (format 2.2): one TEXR per keyframe, but
+// keyframes that show the same texture name the same TEXR, stored once (never with groups).
+inline constexpr uint8_t kHasTexture = 1, kHasHoles = 2, kTextureGroups = 4, kSharedTextures = 8;
 inline constexpr uint32_t kMaxKeyframes = 1u << 20;
 inline constexpr uint32_t kMaxIntraPeriod = 1u << 20;
 inline constexpr uint32_t kMaxStringBytes = 1u << 20;
@@ -67,6 +68,7 @@ struct FileHeader {
   bool has_texture() const { return (flags & kHasTexture) != 0; }
   bool has_holes() const { return (flags & kHasHoles) != 0; }
   bool texture_groups() const { return (flags & kTextureGroups) != 0; }
+  bool shared_textures() const { return (flags & kSharedTextures) != 0; }
   // One KGOP chunk per intra period.
   size_t group_size() const { return static_cast<size_t>(metadata.field_coding.intra_period); }
   size_t group_count() const { return (keyframe_count + group_size() - 1) / group_size(); }
@@ -84,8 +86,10 @@ inline uint64_t texture_sequence_decoder_bytes(uint64_t texture_size) { return 9
 // estimate checked from the header (§10.1).
 using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spline)>;
 
-// `texture_groups`: the file's textures are TGOP chunks (flag bit 2, format 2.1).
-std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, bool texture_groups);
+// How a file's textures are laid out: one TEXR per keyframe (stills), TEXR chunks that keyframes
+// share (flag bit 3, format 2.2), or one TGOP per group (flag bit 2, format 2.1).
+enum class TextureLayout { kStills, kSharedStills, kGroups };
+std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, TextureLayout textures);
 FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
 
 // ---- The pose as the file stores it: integer multiples of the header's pose steps ----
@@ -102,7 +106,7 @@ struct IndexEntry {
   double time = 0;
   PoseCodes pose{};
   uint64_t group_offset = 0;    // the KGOP chunk of the keyframe's group
-  uint64_t texture_offset = 0;  // its TEXR chunk, or its group's TGOP chunk; 0 in a file without textures
+  uint64_t texture_offset = 0;  // its TEXR chunk (shared with other keyframes where flag bit 3 is set), or its group's TGOP chunk; 0 without textures
 };
 
 std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h);

@@ -124,8 +124,9 @@ class FileSource final : public KeyframeSource {
     if (k >= textures_.slots.size() || !outline_.has_texture()) {
       throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no texture for keyframe " + std::to_string(k));
     }
-    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame.
-    return fetch(textures_, k, file_.texture_run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
+    // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. A
+    // shared still (format 2.2) is held once, in its owner's slot, whichever keyframe asks.
+    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
       file_.decode_textures(first, last, wants, take);
     });
   }

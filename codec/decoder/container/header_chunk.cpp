@@ -86,7 +86,7 @@ std::vector<size_t> expected_lengths(const FileHeader& h) {
   return expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), h.has_holes());
 }
 
-std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, bool texture_groups) {
+std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, TextureLayout textures) {
   const DiskGridShape shape = disk_grid_shape(s.grid_n);
   ByteWriter w;
   w.write(static_cast<uint32_t>(s.grid_n));
@@ -94,7 +94,9 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   w.write(grid_facts(s.grid_n)->hash);
   w.write(code_of(kRepresentationCodes, s.representation));
   w.write(code_of(kSplineCodes, s.spline));
-  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes() ? kHasHoles : 0) | (texture_groups ? kTextureGroups : 0)));
+  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes() ? kHasHoles : 0) |
+                               (s.has_texture() && textures == TextureLayout::kGroups ? kTextureGroups : 0) |
+                               (s.has_texture() && textures == TextureLayout::kSharedStills ? kSharedTextures : 0)));
   w.write(uint8_t{0});
   w.write(static_cast<uint32_t>(s.keyframes.size()));
   w.write(s.fps);
@@ -142,8 +144,10 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   h.shape.representation = enum_of(kRepresentationCodes, r.read<uint8_t>("the representation"), source + ": representation");
   h.shape.spline = enum_of(kSplineCodes, r.read<uint8_t>("the spline"), source + ": spline kind");
   h.flags = r.read<uint8_t>("the flags");
-  if ((h.flags & ~(kHasTexture | kHasHoles | kTextureGroups)) != 0) corrupt(r.source(), "reserved flags are set");
+  if ((h.flags & ~(kHasTexture | kHasHoles | kTextureGroups | kSharedTextures)) != 0) corrupt(r.source(), "reserved flags are set");
   if (h.texture_groups() && !h.has_texture()) corrupt(r.source(), "the texture groups flag (bit 2) without the textures flag (bit 0)");
+  if (h.shared_textures() && !h.has_texture()) corrupt(r.source(), "the shared textures flag (bit 3) without the textures flag (bit 0)");
+  if (h.shared_textures() && h.texture_groups()) corrupt(r.source(), "both the texture groups flag (bit 2) and the shared textures flag (bit 3)");
   r.skip(1, "a reserved byte");
   h.keyframe_count = r.read<uint32_t>("the keyframe count");
   if (h.keyframe_count == 0 || h.keyframe_count > kMaxKeyframes) corrupt(r.source(), "keyframe count " + std::to_string(h.keyframe_count));

@@ -56,6 +56,9 @@ class OpenedFile {
   // §7 says, calling `take(k, key, field_bytes)` for each in order; `key` holds everything but the
   // texture (time and pose from the index). field_bytes: what keyframe k's fields take in the file.
   void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
+  // The keyframe whose stored texture keyframe k shows: k itself, or in a file of shared textures
+  // (format 2.2) the first keyframe naming the same TEXR. decode_texture(k) decodes the owner's.
+  size_t texture_owner(size_t k) const;
   // Textures are decoded in runs too: one keyframe's still (TEXR), or a group's image sequence
   // (TGOP, format 2.1), in which keyframe k is decoded from the group's first up to it.
   size_t texture_run_length() const;
@@ -67,7 +70,8 @@ class OpenedFile {
   void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const;
   // Every keyframe's fields, run by run, in order (decode_run over the whole file).
   void decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
-  // Every keyframe's texture, run by run (each group's sequence decoded once).
+  // Every stored texture once, run by run (each group's sequence decoded once): take(k, image) for
+  // each keyframe k that owns its texture (texture_owner(k) == k); keyframes sharing it get none.
   void decode_every_texture(const std::function<void(size_t, Image&&)>& take) const;
   // Keyframe k's texture, its size checked against the header's (has_texture()); in a file with
   // texture groups, its group's sequence decoded up to k.

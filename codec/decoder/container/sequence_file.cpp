@@ -11,6 +11,7 @@
 
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
+#include "facemorph/image.hpp"
 #include "facemorph/image_codec.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
@@ -18,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <unordered_map>
 
 namespace facemorph {
 
@@ -46,6 +48,30 @@ FieldCoding fixed_point_coding(const Sequence& s, FieldCoding coding) {
   }
   if (coding.rotation_step == 0 && coding.translation_step == 0) set_default_pose_steps(coding, s.units);
   return coding;
+}
+
+// For each keyframe, the first keyframe whose texture is the same pixels (itself where none before
+// is): those keyframes store one TEXR. Compared by a hash, then pixel by pixel.
+std::vector<size_t> texture_owners(const Sequence& s) {
+  std::vector<size_t> owners(s.keyframes.size());
+  std::unordered_multimap<uint64_t, size_t> seen;
+  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+    owners[k] = k;
+    const Image& image = s.keyframes[k].texture;
+    if (image.empty()) continue;
+    const uint64_t hash = image_content_hash(image);
+    const auto [first, last] = seen.equal_range(hash);
+    const auto same = std::find_if(first, last, [&](const auto& entry) {
+      const Image& other = s.keyframes[entry.second].texture;
+      return other.width == image.width && other.height == image.height && other.channels == image.channels && other.pixels == image.pixels;
+    });
+    if (same != last) {
+      owners[k] = same->second;
+    } else {
+      seen.emplace(hash, k);
+    }
+  }
+  return owners;
 }
 
 }  // namespace
@@ -92,41 +118,73 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
     }
   }
-  // Format 2.1: lossy AVIF textures as one image sequence per group of keyframes (TGOP).
-  const bool grouped_textures = uses_texture_groups(sequence, metadata);
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata, grouped_textures), true, 19);
+  const size_t count = sequence.keyframes.size();
+  // How the textures are laid out: one image sequence per group of keyframes (TGOP, format 2.1)
+  // for lossy AVIF, or a still each (TEXR); stills of the same pixels stored once and named by
+  // every keyframe that shows them (format 2.2). Where both apply, the fewer bytes.
+  const std::vector<size_t> owners = texture_owners(sequence);
+  const bool any_shared = std::any_of(owners.begin(), owners.end(), [k = size_t{0}](size_t owner) mutable { return owner != k++; });
+  const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
+  std::vector<format::PreparedChunk> stills;  // one per distinct texture (owner), in keyframe order
+  std::vector<size_t> still_of(count, 0);     // keyframe k's chunk in `stills`
+  if (sequence.has_texture() && (any_shared || !uses_texture_groups(sequence, metadata))) {
+    // An owner's quality is the finest any keyframe showing it asks for.
+    std::vector<int> owner_quality(count, -1);
+    for (size_t k = 0; k < count; ++k) owner_quality[owners[k]] = std::max(owner_quality[owners[k]], quality_of(k));
+    std::vector<size_t> chunk_of_owner(count, 0);
+    for (size_t k = 0; k < count; ++k) {
+      if (owners[k] == k) {
+        chunk_of_owner[k] = stills.size();
+        stills.push_back(format::prepare_chunk(kTextureChunk, write_texture(sequence.keyframes[k].texture, static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true));
+      }
+      still_of[k] = chunk_of_owner[owners[k]];
+    }
+  }
+  const size_t group = metadata.field_coding.intra_period;
+  std::vector<format::PreparedChunk> texture_groups;  // one per group of keyframes
+  if (uses_texture_groups(sequence, metadata)) {
+    for (size_t k = 0; k < count; k += group) {
+      const size_t n = std::min(group, count - k);
+      // One quantiser for the sequence (libavif 0.11 gives a changed one to every frame still in
+      // libaom's look-ahead): the finest its keyframes ask for, so each is at least as fine as its
+      // quality asks.
+      int quality = metadata.texture_quality;
+      if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
+      texture_groups.push_back(format::prepare_chunk(kTextureGroupChunk, write_texture_group(sequence, k, n, quality), true));
+    }
+  }
+  const auto total = [](const std::vector<format::PreparedChunk>& chunks) {
+    uint64_t bytes = 0;
+    for (const format::PreparedChunk& c : chunks) bytes += c.total_size();
+    return bytes;
+  };
+  TextureLayout texture_layout = any_shared ? TextureLayout::kSharedStills : TextureLayout::kStills;
+  if (!texture_groups.empty() && (stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
+  const bool grouped_textures = texture_layout == TextureLayout::kGroups;
+  const std::vector<format::PreparedChunk>& textures = grouped_textures ? texture_groups : stills;
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata, texture_layout), true, 19);
   FileHeader layout;  // what the index's layout depends on
-  layout.keyframe_count = static_cast<uint32_t>(sequence.keyframes.size());
+  layout.keyframe_count = static_cast<uint32_t>(count);
   layout.flags = static_cast<uint8_t>((sequence.has_texture() ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
   layout.metadata.field_coding = coding;
   // Every payload first, so the index can hold the offsets of the chunks after it. `groups[g]`:
-  // group g's chunk; `textures[k]`: keyframe k's (TEXR), or `textures[g]` group g's (TGOP).
-  const size_t count = sequence.keyframes.size();
-  const size_t group = layout.group_size();
+  // group g's chunk; `textures`: the stills (keyframe k's is still_of[k]) or group g's TGOP.
   const std::shared_ptr<const GridFacts> grid = grid_facts(sequence.grid_n);
-  std::vector<format::PreparedChunk> groups, textures;
+  std::vector<format::PreparedChunk> groups;
   std::vector<IndexEntry> entries(count);
   for (size_t k = 0; k < count; ++k) {
     const Keyframe& key = sequence.keyframes[k];
     entries[k].time = key.time;
     entries[k].pose = pose_codes(key.pose, coding);
-    if (k % group == 0) {
-      const size_t n = std::min(group, count - k);
-      groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, n, coding, *grid), true));
-      if (grouped_textures) {
-        // One quantiser for the sequence (libavif 0.11 gives a changed one to every frame still in
-        // libaom's look-ahead): the finest its keyframes ask for, so each is at least as fine as
-        // its quality asks.
-        int quality = metadata.texture_quality;
-        if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
-        textures.push_back(format::prepare_chunk(kTextureGroupChunk, write_texture_group(sequence, k, n, quality), true));
-      }
-    }
-    if (sequence.has_texture() && !grouped_textures) {
-      const int quality = qualities.empty() ? metadata.texture_quality : qualities[k];
-      textures.push_back(format::prepare_chunk(kTextureChunk, write_texture(key.texture, static_cast<uint32_t>(k), metadata.texture_codec, quality), true));
-    }
+    if (k % group == 0) groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, std::min(group, count - k), coding, *grid), true));
   }
+  // Where each chunk goes: a group's KGOP, then its TGOP, or after each keyframe's fields the still
+  // it is the first to show.
+  const auto texture_here = [&](size_t k) -> const format::PreparedChunk* {
+    if (textures.empty()) return nullptr;
+    if (grouped_textures) return k % group == 0 ? &textures[k / group] : nullptr;
+    return owners[k] == k ? &textures[still_of[k]] : nullptr;
+  };
   // The chunks' offsets depend on the index's size, which (compressed) depends on the offsets: the
   // index is laid out again until its size stays put, and stored uncompressed (a size the offsets
   // do not change) in the unlikely case it keeps changing.
@@ -136,17 +194,15 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       if (k % group == 0) {
         entries[k].group_offset = offset;
         offset += groups[k / group].total_size();
-        if (grouped_textures) {
-          entries[k].texture_offset = offset;
-          offset += textures[k / group].total_size();
-        }
       } else {
         entries[k].group_offset = entries[k - 1].group_offset;
-        if (grouped_textures) entries[k].texture_offset = entries[k - 1].texture_offset;
       }
-      if (!textures.empty() && !grouped_textures) {
+      if (textures.empty()) continue;
+      if (const format::PreparedChunk* texture = texture_here(k)) {
         entries[k].texture_offset = offset;
-        offset += textures[k].total_size();
+        offset += texture->total_size();
+      } else {
+        entries[k].texture_offset = entries[grouped_textures ? k - 1 : owners[k]].texture_offset;
       }
     }
   };
@@ -170,10 +226,8 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   writer.add(index);
   for (size_t k = 0; k < count; ++k) {
     if (k % group == 0 && writer.add(groups[k / group]) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
-    const bool texture_here = !textures.empty() && (!grouped_textures || k % group == 0);
-    if (texture_here && writer.add(textures[grouped_textures ? k / group : k]) != entries[k].texture_offset) {
-      throw Error(ErrorCode::kNumerical, "container index out of step");
-    }
+    const format::PreparedChunk* texture = texture_here(k);
+    if (texture && writer.add(*texture) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
   }
   return writer.finish();
 }
@@ -193,6 +247,9 @@ struct OpenedFile::State {
   std::optional<FileHeader> header;
   std::vector<IndexEntry> index;
   std::vector<RigidPose> poses;
+  // Keyframe k shows the texture stored for texture_owner[k]: itself, or in a file of shared
+  // textures (format 2.2) the first keyframe whose entry names the same TEXR.
+  std::vector<uint32_t> texture_owner;
 };
 
 OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
@@ -217,7 +274,19 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   if (header.texture_groups() && reader.minor_version() < 1) {
     corrupt(s.source, "header: texture groups (flag bit 2) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
   }
+  if (header.shared_textures() && reader.minor_version() < 2) {
+    corrupt(s.source, "header: shared textures (flag bit 3) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
+  }
   s.index = read_index(reader.payload(chunks[1], limits.max_memory_bytes), s.source, header);
+  // Shared textures: each TEXR belongs to the first keyframe that names it (its number must say so,
+  // §8), and every later keyframe naming it shows that texture. Elsewhere each keyframe owns its
+  // entry, and one naming another's TEXR fails by that number when decoded.
+  s.texture_owner.resize(s.index.size());
+  std::unordered_map<uint64_t, uint32_t> first_to_name;
+  for (size_t k = 0; k < s.index.size(); ++k) {
+    s.texture_owner[k] = static_cast<uint32_t>(k);
+    if (header.shared_textures()) s.texture_owner[k] = first_to_name.emplace(s.index[k].texture_offset, static_cast<uint32_t>(k)).first->second;
+  }
   // Every entry points at a chunk of its kind, before anything is decoded from it.
   for (size_t k = 0; k < s.index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
@@ -269,6 +338,8 @@ uint64_t OpenedFile::largest_payload() const {
 }
 
 size_t OpenedFile::run_length() const { return state_->header->group_size(); }
+
+size_t OpenedFile::texture_owner(size_t k) const { return state_->texture_owner.at(k); }
 
 size_t OpenedFile::texture_run_length() const { return state_->header->texture_groups() ? state_->header->group_size() : 1; }
 
@@ -324,6 +395,7 @@ void OpenedFile::decode_every_keyframe(const std::function<void(size_t, Keyframe
 void OpenedFile::decode_every_texture(const std::function<void(size_t, Image&&)>& take) const {
   const size_t run = texture_run_length();
   for (size_t first = 0; first < keyframe_count(); first += run) {
+    if (texture_owner(first) != first) continue;  // a shared texture, decoded at its owner
     decode_textures(first, std::min(first + run, keyframe_count()) - 1, [](size_t) { return true; }, take);
   }
 }
@@ -337,8 +409,9 @@ Image OpenedFile::decode_texture(size_t k) const {
     return image;
   }
   const format::ChunkView& chunk = texture_chunk(k);
-  return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")",
-                      static_cast<uint32_t>(k), s.header->texture_size);
+  const uint32_t owner = s.texture_owner.at(k);
+  return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(owner) + ")",
+                      owner, s.header->texture_size);
 }
 
 TextureCodec OpenedFile::texture_codec(size_t k) const {
@@ -346,9 +419,10 @@ TextureCodec OpenedFile::texture_codec(size_t k) const {
   if (s.header->texture_groups()) return TextureCodec::kAvif;  // TGOP's only codec, 3
   const format::ChunkView& chunk = texture_chunk(k);
   // The codec's number is in the payload's first bytes, which a TEXR chunk stores uncompressed.
-  const std::string where = s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(k) + ")";
-  if (chunk.compressed()) return texture_codec_of(s.reader.payload(chunk, s.limits.max_memory_bytes), where, static_cast<uint32_t>(k));
-  return texture_codec_of(chunk.stored, where, static_cast<uint32_t>(k));
+  const uint32_t owner = s.texture_owner.at(k);
+  const std::string where = s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(owner) + ")";
+  if (chunk.compressed()) return texture_codec_of(s.reader.payload(chunk, s.limits.max_memory_bytes), where, owner);
+  return texture_codec_of(chunk.stored, where, owner);
 }
 
 void OpenedFile::verify_checksums() const { state_->reader.verify(); }
@@ -390,9 +464,10 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
       }
       info.keyframes[first].texture = shared;
     }
-  } else if (has_texture()) {
-    for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = texture_chunk(k).total_size();
+  } else if (has_texture()) {  // a shared texture's bytes are its owner's
+    for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = s.texture_owner[k] == k ? texture_chunk(k).total_size() : 0;
   }
+  for (size_t k = 0; k < s.index.size(); ++k) info.distinct_textures += has_texture() && s.texture_owner[k] == k;
   for (const format::ChunkView& chunk : s.reader.chunks()) {
     auto it = std::find_if(info.chunks.begin(), info.chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
     if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0});
@@ -427,7 +502,12 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
     sequence.keyframes.push_back(std::move(key));
     field_bytes[k] = bytes_taken;
   });
-  if (file.has_texture()) file.decode_every_texture([&](size_t k, Image&& image) { sequence.keyframes[k].texture = std::move(image); });
+  if (file.has_texture()) {
+    file.decode_every_texture([&](size_t k, Image&& image) { sequence.keyframes[k].texture = std::move(image); });
+    for (size_t k = 0; k < file.keyframe_count(); ++k) {
+      if (file.texture_owner(k) != k) sequence.keyframes[k].texture = sequence.keyframes[file.texture_owner(k)].texture;
+    }
+  }
   file.verify_checksums();
   try {
     validate_sequence(sequence);

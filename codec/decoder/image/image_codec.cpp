@@ -380,4 +380,12 @@ Image decode_png(std::span<const uint8_t> bytes, const std::string& source, int6
 
 void write_png(const std::filesystem::path& path, const Image& image) { format::write_file_atomically(path, encode_png(image)); }
 
+uint64_t image_content_hash(const Image& image) {
+  uint64_t hash = 1469598103934665603ull;
+  const auto mix = [&hash](uint64_t byte) { hash = (hash ^ byte) * 1099511628211ull; };
+  for (int v : {image.width, image.height, image.channels}) mix(static_cast<uint32_t>(v));
+  for (uint8_t byte : image.pixels) mix(byte);
+  return hash;
+}
+
 }  // namespace facemorph

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <chrono>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <cmath>
 #include <numeric>
@@ -899,6 +900,50 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
   return qualities;
 }
 
+void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>& keyframes) {
+  const size_t keys = sequence.keyframes.size();
+  report_.texture_shared_with.assign(keys, -1);
+  report_.texture_share_psnr.assign(keys, 0.0);
+  if (!options_.share_textures || !sequence.has_texture()) return;
+  if (keyframes.size() != keys) throw Error(ErrorCode::kInvalidArgument, "share_textures: the keyframes are not the sequence's");
+  // Each keyframe's captured image by its pixels (a file read once however many frames name it);
+  // vertex colours have none.
+  std::map<std::filesystem::path, uint64_t> pixels_of_file;
+  std::vector<std::optional<uint64_t>> image(keys);
+  for (size_t k = 0; k < keys; ++k) {
+    const auto i = static_cast<size_t>(keyframes[k]);
+    if (textures_[i].empty() || !summaries_[i].has_uvs) continue;
+    auto it = pixels_of_file.find(textures_[i]);
+    if (it == pixels_of_file.end()) it = pixels_of_file.emplace(textures_[i], image_content_hash(read_image(textures_[i]))).first;
+    image[k] = it->second;
+  }
+  std::map<uint64_t, int> keyframes_of_image;
+  bool any = false;
+  for (const std::optional<uint64_t>& pixels : image) any = any || (pixels && ++keyframes_of_image[*pixels] > 1);
+  if (!any) return;  // no two keyframes were painted from one image
+  std::map<uint64_t, std::vector<size_t>> owners;  // per image, the keyframes showing their own texture of it
+  // What sharing may cost a keyframe: its texture coding's coarsest (min_psnr, 30 dB by default).
+  // Keyframes painted from one image differ only where their registrations place the skin apart
+  // (a slide of a texel or two at feature edges), which PSNR counts as error though the skin is the
+  // same; a frame whose UVs changed, or whose registration failed, differs far more.
+  const double allowed = mse_of_psnr(options_.texture_coding.min_psnr);
+  for (size_t k = 0; k < keys; ++k) {
+    if (!image[k]) continue;
+    std::vector<size_t>& same_image = owners[*image[k]];
+    // The nearest in time first: its registration drifted least from k's.
+    for (auto owner = same_image.rbegin(); owner != same_image.rend(); ++owner) {
+      const double mse = disk_texture_mse(sequence.keyframes[*owner].texture, sequence.keyframes[k].texture);
+      if (mse <= allowed) {
+        sequence.keyframes[k].texture = sequence.keyframes[*owner].texture;
+        report_.texture_shared_with[k] = static_cast<int>(*owner);
+        report_.texture_share_psnr[k] = psnr_of_mse(mse);
+        break;
+      }
+    }
+    if (report_.texture_shared_with[k] < 0) same_image.push_back(k);
+  }
+}
+
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
@@ -915,6 +960,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   encoder.choose_texture_qualities(sequence, chosen.keyframes);
+  encoder.share_textures(sequence, chosen.keyframes);
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const FrameSummary& frame = encoder.frame_summary(i);
     const DiskRegistration& registration = encoder.registration(i);

@@ -63,6 +63,14 @@ class TexturePainter {
   std::vector<std::array<int, 4>> boxes_;
 };
 
+constexpr const char* kSharedTextureName = "texture.jpg";
+
+void write_texture(const fs::path& path, const TexturePainter& painter, double time) {
+  std::vector<uint8_t> jpeg;
+  if (!cv::imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95})) throw Error(ErrorCode::kIo, path.string() + ": JPEG encoding failed");
+  format::write_file_atomically(path, jpeg);
+}
+
 std::string frame_stem(int index, int frames) {
   const int width = std::max(4, static_cast<int>(std::to_string(std::max(frames - 1, 0)).size()));
   std::string digits = std::to_string(index);
@@ -100,12 +108,8 @@ void write_frame(const fs::path& directory, const SynthOptions& options, const S
   }
   mesh.uv_faces = mesh.faces;
 
-  const fs::path texture = directory / (stem + ".jpg");
-  std::vector<uint8_t> jpeg;
-  if (!cv::imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95})) {
-    throw Error(ErrorCode::kIo, texture.string() + ": JPEG encoding failed");
-  }
-  format::write_file_atomically(texture, jpeg);
+  const fs::path texture = directory / (options.shared_texture ? std::string(kSharedTextureName) : stem + ".jpg");
+  if (!options.shared_texture) write_texture(texture, painter, time);
   mesh.texture = texture;
   write_mesh(directory / (stem + ".obj"), mesh, {.significant_digits = 7});
 }
@@ -131,6 +135,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   std::optional<MaterialSampling> fixed;
   if (!options.remesh) fixed = sample_material_ellipse(options.vertices, false, 0);
 
+  if (options.shared_texture && options.vertex_colour) throw Error(ErrorCode::kInvalidArgument, "--shared-texture and --vertex-colour exclude each other");
+  if (options.shared_texture) write_texture(directory / kSharedTextureName, painter, 0.0);
   parallel_for(options.frames, 0, [&](int i) { write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, i); },
                progress);
 
@@ -153,7 +159,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"vertices", std::to_string(options.vertices)},
                        {"remesh", options.remesh ? "true" : "false"},
                        {"noise", std::to_string(options.noise)},
-                       {"colour", options.vertex_colour ? "vertex" : "texture"}};
+                       {"colour", options.vertex_colour ? "vertex" : options.shared_texture ? "one shared texture" : "texture"}};
   write_capture_manifest(capture);
 }
 

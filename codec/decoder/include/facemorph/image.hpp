@@ -26,4 +26,8 @@ struct Image {
 // Returns RGB in 0..255 as doubles.
 std::array<double, 3> sample_bilinear(const Image& image, double u, double v);
 
+// A 64-bit hash (FNV-1a) of the image's size, channels and pixels: images of the same pixels hash
+// alike (compare the pixels to be sure), whichever file or codec they came from.
+uint64_t image_content_hash(const Image& image);
+
 }  // namespace facemorph

@@ -92,6 +92,9 @@ struct SequenceFileInfo {
     uint64_t fields = 0, texture = 0;
   };
   std::vector<KeyframeBytes> keyframes;
+  // Textures stored: the keyframe count, or fewer where keyframes share one (format 2.2, whose
+  // shared texture's bytes are its first keyframe's); 0 without textures.
+  size_t distinct_textures = 0;
 };
 
 // The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose

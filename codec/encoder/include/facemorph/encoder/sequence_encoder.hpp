@@ -55,6 +55,10 @@ struct EncodeOptions {
   // (texture_quality.hpp, spec/method.md §7.12).
   int texture_quality = kAutoTextureQuality;
   TextureQualityOptions texture_coding;
+  // Keyframes painted from one captured image (the same file, or the same pixels) show one texture,
+  // stored once, where it stays within texture_coding.min_psnr of each one's own (share_textures,
+  // spec/method.md §7.16). fmenc --no-texture-sharing turns it off.
+  bool share_textures = true;
   bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
   bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
   int reference_frame = 0;          // the frame every other is registered to
@@ -180,6 +184,10 @@ struct EncodeReport {
   // blend at the frame midway (0 where no frame lies between).
   std::vector<int> texture_qualities;
   std::vector<double> texture_interpolation_psnr;
+  // Per keyframe (share_textures): the earlier keyframe whose texture it shows, or -1 for its own;
+  // where shown, that texture's PSNR against its own over the disk (0 elsewhere).
+  std::vector<int> texture_shared_with;
+  std::vector<double> texture_share_psnr;
   // The most frames' maps in memory at once (FrameStore::peak_held: the reference's, and those
   // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
   int peak_frames_in_memory = 0;
@@ -244,6 +252,12 @@ class SequenceEncoder {
   // what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
   // build. Fills report().texture_qualities; empty for a sequence without texture.
   std::vector<int> choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes);
+  // 9. keyframes whose textures are painted from one captured image (the same file, or the same
+  // pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
+  // keyframe's texture where the two are within options().texture_coding.min_psnr of each other
+  // over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
+  // report().texture_shared_with and texture_share_psnr.
+  void share_textures(Sequence& sequence, const std::vector<int>& keyframes);
 
   EncodeOptions& options() { return options_; }
   const Capture& capture() const { return capture_; }  // the frames kept (all until map_frames drops any)

@@ -48,6 +48,9 @@ struct SynthOptions {
   // Colour per vertex instead of a texture: each frame a binary PLY with red/green/blue (uchar, the
   // skin's colour at the vertex) and neither UVs nor image, as depth cameras write (spec/capture.md).
   bool vertex_colour = false;
+  // One texture image (texture.jpg, the skin at time 0) that every frame's material names, as a
+  // capture whose rig paints one atlas for the whole take: only the geometry moves.
+  bool shared_texture = false;
 };
 
 struct NamedPoint {
