@@ -128,6 +128,8 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"texture_quality", o.texture_quality == kAutoTextureQuality ? nlohmann::json("auto") : nlohmann::json(o.texture_quality)},
           {"texture_qualities_chosen", report.texture_qualities},
           {"texture_sharing", o.share_textures},
+          {"sparse_frame_interval", o.sparse_frame_interval},
+          {"keyframes_every_frame_sparse", report.sparse},
           {"texture_shared_with", report.texture_shared_with},
           {"keep_holes_filled", o.keep_holes_filled},
           {"largest_component", o.largest_component},
@@ -234,7 +236,7 @@ int main(int argc, char** argv) {
     } else {
       options.keyframe_fraction = parse_fraction(keyframes, "--keyframes");
       // A budget given is a budget kept; the default one grows where frames are far apart or fast.
-      if (app.count("--keyframes") > 0) options.keyframe_error_bound = 0;
+      if (app.count("--keyframes") > 0) options.keyframe_error_bound = options.sparse_frame_interval = 0;
     }
     if (grid != "auto") {
       try {
@@ -326,11 +328,16 @@ int main(int argc, char** argv) {
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
                 sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
-    if (report.keyframe_budget > 0 && static_cast<int>(sequence.keyframes.size()) > report.keyframe_budget) {
+    if (!report.sparse && report.keyframe_budget > 0 && static_cast<int>(sequence.keyframes.size()) > report.keyframe_budget) {
       std::printf("  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
                   "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
                   100 * options.keyframe_fraction, report.keyframe_budget, 100 * report.budget_mean_error, 100 * report.budget_worst_error,
                   100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound, sequence.keyframes.size());
+    }
+    if (report.sparse) {
+      std::printf("  keyframes: every frame, as the frames lie %.3f s apart (median), sparser than one every %.2f s: the spline has nothing between "
+                  "them to be checked against, so each is stored, not predicted (--keyframes P keeps a budget exactly)\n",
+                  report.median_frame_interval, options.sparse_frame_interval);
     }
     if (!report.grid_floors.empty()) {
       std::printf("  --grid auto: resampling floor (RMS of the diagonal)");

@@ -802,6 +802,30 @@ double held_out_mean(const std::vector<double>& errors, const std::vector<int>& 
   return held == 0 ? 0.0 : sum / held;
 }
 
+// Frames sparser than SelectionOptions::sparse_interval are all keyframes; the same motion at 30
+// frames a second keeps its budget (the rule looks at the frames' spacing, not at the motion).
+TEST(KeyframeSelection, ASparseCaptureKeepsEveryFrame) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 20; ++k) amplitudes.push_back(0.02 * std::sin(k * 0.9));
+  std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.fraction = 0.2;
+  options.sparse_interval = 0.25;
+  const KeyframeSelection dense = select_keyframes(frames, weights, options);
+  EXPECT_FALSE(dense.sparse);
+  EXPECT_NEAR(dense.median_interval, 1 / 30.0, 1e-12);
+  EXPECT_EQ(dense.keyframes.size(), 4u);
+  for (size_t k = 0; k < frames.size(); ++k) frames[k].time = 0.3 * static_cast<double>(k);  // 3.3 frames a second
+  const KeyframeSelection sparse = select_keyframes(frames, weights, options);
+  EXPECT_TRUE(sparse.sparse);
+  EXPECT_EQ(sparse.keyframes.size(), frames.size());
+  EXPECT_EQ(sparse.budget, 4);
+  for (double e : sparse.predicted_error) EXPECT_EQ(e, 0);
+  options.sparse_interval = 0;  // off: the budget
+  EXPECT_EQ(select_keyframes(frames, weights, options).keyframes.size(), 4u);
+}
+
 // --max-error: every frame within the tolerance, with fewer keyframes than frames.
 TEST(KeyframeSelection, AToleranceHoldsForEveryFrame) {
   std::vector<double> amplitudes;

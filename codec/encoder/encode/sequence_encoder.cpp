@@ -633,6 +633,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   selection.fraction = options_.keyframe_fraction;
   selection.max_error = options_.max_error;
   selection.error_bound = options_.keyframe_error_bound;
+  selection.sparse_interval = options_.sparse_frame_interval;
   selection.spline = options_.spline;
   selection.pose_centre = pose_centre();
   return facemorph::select_keyframes(selection_, node_weights_, selection);
@@ -954,6 +955,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.keyframes = chosen.keyframes;
   report.selection_history = chosen.history;
   report.keyframe_budget = chosen.budget;
+  report.sparse = chosen.sparse;
+  report.median_frame_interval = chosen.median_interval;
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
   report.grid = encoder.choose_grid(&chosen);

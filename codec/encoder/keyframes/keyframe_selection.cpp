@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 namespace facemorph {
 
@@ -192,6 +193,24 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
     selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
     refine(predictor, keys, errors, 0);
     selection.budget = budget;
+    std::vector<double> intervals;
+    for (size_t j = 1; j < frames.size(); ++j) intervals.push_back(frames[j].time - frames[j - 1].time);
+    if (!intervals.empty()) {
+      std::nth_element(intervals.begin(), intervals.begin() + static_cast<std::ptrdiff_t>(intervals.size() / 2), intervals.end());
+      selection.median_interval = intervals[intervals.size() / 2];
+    }
+    if (options.sparse_interval > 0 && selection.median_interval > options.sparse_interval) {
+      // A sparse capture: every frame a keyframe (SelectionOptions::sparse_interval).
+      const Objective spread = objective(errors, keys);
+      selection.budget_mean_error = spread.mean;
+      selection.budget_worst_error = spread.worst;
+      selection.sparse = true;
+      keys.resize(static_cast<size_t>(count));
+      std::iota(keys.begin(), keys.end(), 0);
+      predictor.errors(keys, 0, count - 1, errors);
+      selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
+      return selection;
+    }
     const Objective spread = objective(errors, keys);
     selection.budget_mean_error = spread.mean;
     selection.budget_worst_error = spread.worst;

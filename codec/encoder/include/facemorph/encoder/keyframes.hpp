@@ -28,6 +28,11 @@ struct SelectionOptions {
   // between keyframes above this, or the worst above 3 times this (frames far apart, fast motion):
   // the worst-predicted frame is added until both hold. 0: the budget exactly.
   double error_bound = 0;
+  // With the budget, > 0: a capture whose frames lie on median further apart than this (seconds)
+  // keeps every frame as a keyframe. Frames that sparse (scans at a few a second or fewer) give the
+  // spline nothing between them to be checked against, and are few: each is stored at the grid's
+  // and the field rounding's floor rather than predicted (spec/method.md §7.5).
+  double sparse_interval = 0;
   double max_error = 0;       // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
   SplineKind spline = SplineKind::kCatmullRom;
   Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
@@ -40,6 +45,8 @@ struct KeyframeSelection {
   std::vector<std::pair<int, double>> history;
   int budget = 0;                         // keyframes the budget gave (0 with max_error)
   double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
+  double median_interval = 0;             // between consecutive frames, seconds
+  bool sparse = false;                    // every frame kept: median_interval above SelectionOptions::sparse_interval
 };
 
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.

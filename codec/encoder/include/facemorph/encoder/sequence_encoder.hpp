@@ -41,6 +41,10 @@ struct EncodeOptions {
   // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
   // 0: the budget exactly (fmenc --keyframes P sets 0).
   double keyframe_error_bound = 0.005;
+  // A capture whose frames lie on median more than this apart (seconds; below 4 frames a second)
+  // keeps every frame as a keyframe (SelectionOptions::sparse_interval). 0: off (fmenc --keyframes P
+  // sets 0, as for the bound).
+  double sparse_frame_interval = 0.25;
   double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
   int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
   Representation representation = Representation::kHLT;
@@ -168,6 +172,8 @@ struct EncodeReport {
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
+  bool sparse = false;                                    // every frame a keyframe: frames sparser than sparse_frame_interval
+  double median_frame_interval = 0;                       // seconds
   double budget_mean_error = 0, budget_worst_error = 0;   // the predicted errors it left (fraction of the diagonal)
   int grid = 0;
   int texture_size = 0;                                   // M chosen (0: no texture)
