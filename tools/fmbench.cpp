@@ -3,6 +3,7 @@
 #include "tools/bench_conformal.hpp"
 #include "tools/bench_reconstruct.hpp"
 #include "tools/bench_temporal.hpp"
+#include "tools/bench_tracking.hpp"
 #include "tools/tool_support.hpp"
 
 int main(int argc, char** argv) {
@@ -17,11 +18,14 @@ int main(int argc, char** argv) {
   add_reconstruct_command(app, reconstruct);
   TemporalBenchOptions temporal;
   add_temporal_command(app, temporal);
+  TrackingBenchOptions tracking;
+  add_tracking_command(app, tracking);
   return guarded_main(app, argc, argv, [&] {
     if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
     if (app.got_subcommand("reconstruct")) return run_reconstruct_bench(reconstruct);
     if (app.got_subcommand("temporal")) return run_temporal_bench(temporal);
+    if (app.got_subcommand("tracking")) return run_tracking_bench(tracking);
     if (!capture.captures.empty()) return run_capture_bench(capture);
-    throw facemorph::Error(facemorph::ErrorCode::kInvalidArgument, "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal); --help lists them");
+    throw facemorph::Error(facemorph::ErrorCode::kInvalidArgument, "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal, tracking); --help lists them");
   });
 }
