@@ -171,6 +171,10 @@ FrameInfo Decoder::frame_info(double t, const FrameOptions& options) {
   return impl_->info;
 }
 
+SplineWeights Decoder::texture_weights(double t, const FrameOptions& options) {
+  return impl_->decode(t, options, info_.has_texture, /*any=*/true).weights;
+}
+
 FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions& options) {
   const DecodedFrame& frame = impl_->decode(t, options, !out.texture.empty());
   const FrameInfo& info = impl_->info;
