@@ -1,0 +1,155 @@
+// The player page in a real browser (spec/web.md §5): headless Chromium (Debian's) driven by
+// puppeteer-core. Serves the repository (web/test/serve.mjs, which logs every range it sends), loads
+// web/index.html, opens FILE by URL, and checks:
+//   - opening fetched the header, index and chunk framing, not the file (bytes from the server's log);
+//   - playing 2 s draws frames; a seek to the end fetches only what the last keyframes need;
+//   - the canvas at three times matches fmdec --preview of the same times (mean absolute
+//     difference per channel ≤ TOLERANCE, and the share of pixels off by more than 64 ≤ 3%);
+//   - nothing was written to the console as an error, and no page error was thrown;
+// and reports the decode time per frame inside the browser (the worker's fm_decoder_decode).
+//   node web/test/browser.mjs --fmdec FMDEC --file FILE.fmv [--out DIR] [--tolerance 8] [--speed FILE2.fmv ...]
+// --speed files are only timed: each opened, 60 frames decoded over its range, ms per frame.
+// Exits 77 when chromium or puppeteer-core is missing, naming it.
+import { execFileSync } from 'node:child_process';
+import { existsSync, mkdirSync, readFileSync, statSync, writeFileSync } from 'node:fs';
+import { createRequire } from 'node:module';
+import { dirname, join, relative, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { serve } from './serve.mjs';
+
+const root = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
+const args = process.argv.slice(2);
+const option = (name, fallback = null) => {
+  const i = args.indexOf(name);
+  return i >= 0 ? args[i + 1] : fallback;
+};
+const speedFiles = args.flatMap((a, i) => (args[i - 1] === '--speed' ? [a] : []));
+const fmdec = option('--fmdec');
+const file = resolve(option('--file', join(root, 'tests/data/golden_v2_1.fmv')));
+const out = resolve(option('--out', join(root, 'build-web/browser-test')));
+const tolerance = Number(option('--tolerance', '8'));
+mkdirSync(out, { recursive: true });
+
+const chromium = ['/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => existsSync(p));
+if (!chromium) {
+  console.log('SKIPPED: chromium not found (tools/install-deps.sh installs it)');
+  process.exit(77);
+}
+const npmDir = resolve(root, process.env.FACEMORPH_NPM_DIR || 'build-web/npm');
+let puppeteer;
+try {
+  puppeteer = createRequire(join(npmDir, 'package.json'))('puppeteer-core');
+} catch {
+  console.log(`SKIPPED: puppeteer-core not found in ${npmDir} (web/install-npm.sh installs it)`);
+  process.exit(77);
+}
+
+const failures = [];
+const check = (ok, what) => {
+  console.log(`${ok ? 'ok  ' : 'FAIL'} ${what}`);
+  if (!ok) failures.push(what);
+};
+
+const { server, url, log } = await serve(root);
+const browser = await puppeteer.launch({
+  executablePath: chromium,
+  headless: true,
+  // WebGL without a GPU: SwiftShader, as a CI machine has it.
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
+});
+const consoleErrors = [];
+try {
+  const page = await browser.newPage();
+  await page.setViewport({ width: 800, height: 1000 });
+  page.on('console', (message) => {
+    if (message.type() === 'error') consoleErrors.push(message.text());
+  });
+  page.on('pageerror', (error) => consoleErrors.push(String(error)));
+  await page.goto(`${url}/web/index.html`, { waitUntil: 'load' });
+  await page.waitForFunction(() => window.facemorphPage && window.facemorphPage.ready, { timeout: 30000 });
+
+  const fileUrl = '/' + relative(root, file);
+  const fileBytes = statSync(file).size;
+  const fmvBytes = () => log.filter((e) => e.path === fileUrl).reduce((sum, e) => sum + e.bytes, 0);
+  const info = await page.evaluate((u) => window.facemorphPage.open(u), fileUrl);
+  const stats = await page.evaluate(() => window.facemorphPage.stats());
+  const atOpen = fmvBytes();
+  console.log(`opened ${fileUrl}: N = ${info.gridN}, ${info.keyframeCount} keyframes in ${stats.open.groups} groups, texture ${info.textureSize}; ` +
+              `${stats.open.requests} requests, ${stats.open.bytesFetched} bytes to open, ${atOpen} of ${fileBytes} bytes by the first frame (server's log)`);
+  check(stats.open.bytesFetched < fileBytes || stats.open.groups === 0, `opening fetched ${stats.open.bytesFetched} bytes, less than the file's ${fileBytes}`);
+
+  // Play 2 s.
+  const drawnBefore = stats.drawn;
+  await page.evaluate(() => window.facemorphPage.play());
+  await new Promise((r) => setTimeout(r, 2000));
+  await page.evaluate(() => window.facemorphPage.pause());
+  const played = await page.evaluate(() => window.facemorphPage.stats());
+  check(played.drawn - drawnBefore >= 10, `playing 2 s drew ${played.drawn - drawnBefore} frames`);
+
+  // A seek to the end fetches only the groups the last keyframes need.
+  const beforeSeek = fmvBytes();
+  await page.evaluate((t) => window.facemorphPage.seek(t), info.rangeEnd);
+  console.log(`seek to the end (t = ${info.rangeEnd.toFixed(3)} s) fetched ${fmvBytes() - beforeSeek} bytes more`);
+
+  // Screenshots against fmdec --preview at three times.
+  const times = [info.firstTime + 0.25 * info.duration, info.firstTime + 0.5 * info.duration, info.firstTime + 0.8 * info.duration];
+  for (const t of times) {
+    await page.evaluate((time) => window.facemorphPage.seek(time), t);
+    const shot = join(out, `browser_${t.toFixed(3)}.png`);
+    await (await page.$('#view')).screenshot({ path: shot });
+    const native = join(out, `native_${t.toFixed(3)}.png`);
+    execFileSync(fmdec, [file, '--t', String(t), '--preview', native, '--preview-size', '800', '--quiet'], { stdio: 'inherit' });
+    // Both pictures decoded by the browser itself, compared on a canvas.
+    const difference = await page.evaluate(async (a, b) => {
+      const load = async (data) => createImageBitmap(await (await fetch(data)).blob());
+      const [x, y] = await Promise.all([load(a), load(b)]);
+      const pixels = (bitmap) => {
+        const canvas = new OffscreenCanvas(bitmap.width, bitmap.height);
+        const context = canvas.getContext('2d');
+        context.drawImage(bitmap, 0, 0);
+        return context.getImageData(0, 0, bitmap.width, bitmap.height).data;
+      };
+      if (x.width !== y.width || x.height !== y.height) return { error: `${x.width}x${x.height} against ${y.width}x${y.height}` };
+      const p = pixels(x), q = pixels(y);
+      let sum = 0, far = 0;
+      for (let i = 0; i < p.length; i += 4) {
+        let worst = 0;
+        for (let k = 0; k < 3; ++k) {
+          const d = Math.abs(p[i + k] - q[i + k]);
+          sum += d;
+          worst = Math.max(worst, d);
+        }
+        if (worst > 64) far += 1;
+      }
+      return { mean: sum / (3 * p.length / 4), far: far / (p.length / 4) };
+    }, `data:image/png;base64,${readFileSync(shot).toString('base64')}`, `data:image/png;base64,${readFileSync(native).toString('base64')}`);
+    if (difference.error) check(false, `t = ${t.toFixed(3)} s: ${difference.error}`);
+    else check(difference.mean <= tolerance && difference.far <= 0.03,
+               `t = ${t.toFixed(3)} s: the canvas against fmdec --preview: mean difference ${difference.mean.toFixed(2)} per channel (≤ ${tolerance}), ` +
+               `${(100 * difference.far).toFixed(2)}% of pixels off by more than 64 (≤ 3%)`);
+  }
+
+  // Decode time per frame inside the browser: the worker's fm_decoder_decode, 60 frames over the range.
+  const timeDecoding = async (fileUrl2) => page.evaluate(async (u) => {
+    const fp = window.facemorphPage;
+    const i = await fp.open(u);
+    const times = [];
+    for (let k = 0; k < 60; ++k) {
+      const frame = await fp.seek(i.firstTime + (i.duration * k) / 59);
+      times.push(frame.decodeMs);
+    }
+    times.sort((a, b) => a - b);
+    return { n: i.gridN, mean: times.reduce((a, b) => a + b, 0) / times.length, median: times[30], worst: times[times.length - 1] };
+  }, fileUrl2);
+  for (const f of [file, ...speedFiles.map((s) => resolve(s))]) {
+    const r = await timeDecoding('/' + relative(root, f));
+    console.log(`decode in the browser: ${relative(root, f)}: N = ${r.n}: mean ${r.mean.toFixed(2)} ms, median ${r.median.toFixed(2)} ms, ` +
+                `worst ${r.worst.toFixed(2)} ms a frame (60 frames; ${(1000 / r.mean).toFixed(0)} fps of decoding)`);
+  }
+  check(consoleErrors.length === 0, `no console errors${consoleErrors.length ? ': ' + consoleErrors.join(' | ') : ''}`);
+} finally {
+  await browser.close();
+  server.close();
+}
+writeFileSync(join(out, 'server-log.json'), JSON.stringify(log, null, 1));
+process.exit(failures.length ? 1 : 0);
