@@ -26,9 +26,12 @@ let drawn = 0, lastFrame = null;
 const page = { state: 'idle', error: null, drawn: 0 };
 window.facemorphPage = page;
 
+// Resizing clears the canvas: drawn again at once.
 function resize() {
   const size = Math.round(canvas.clientWidth) || 800;
+  if (canvas.width === size && canvas.height === size) return;
   renderer.setSize(size, size, false);
+  renderer.render(scene, camera);
 }
 window.addEventListener('resize', resize);
 
@@ -152,6 +155,8 @@ page.open = (url) => open(url, url);
 page.seek = (time) => show(time);
 page.play = play;
 page.pause = pause;
+// The canvas as drawn last (a PNG data URL): what the browser test compares with fmdec --preview.
+page.snapshot = () => canvas.toDataURL('image/png');
 page.setYaw = (degrees) => { yaw = degrees * Math.PI / 180; };
 page.stats = () => ({
   info: player?.info(), open: player?.openStats(), lastFrame: lastFrame && { time: lastFrame.time, vertexCount: lastFrame.vertexCount, decodeMs: lastFrame.decodeMs, bytesFetched: lastFrame.bytesFetched, requests: lastFrame.requests, heapBytes: lastFrame.heapBytes },

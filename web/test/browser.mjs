@@ -96,7 +96,9 @@ try {
   for (const t of times) {
     await page.evaluate((time) => window.facemorphPage.seek(time), t);
     const shot = join(out, `browser_${t.toFixed(3)}.png`);
-    await (await page.$('#view')).screenshot({ path: shot });
+    // The canvas's own pixels (not a screenshot of the page, which may resize it).
+    const png = await page.evaluate(() => window.facemorphPage.snapshot());
+    writeFileSync(shot, Buffer.from(png.slice(png.indexOf(',') + 1), 'base64'));
     const native = join(out, `native_${t.toFixed(3)}.png`);
     execFileSync(fmdec, [file, '--t', String(t), '--preview', native, '--preview-size', '800', '--quiet'], { stdio: 'inherit' });
     // Both pictures decoded by the browser itself, compared on a canvas.
