@@ -20,6 +20,7 @@ packages=(
   python3                              # optional real-data tests (ICT capture script)
   draco ffmpeg                         # the rate bench's baselines: draco_encoder per frame, JPEG/H.264 (libx264) textures
   emscripten dpkg-dev nodejs           # the browser's decoder: web/build.sh (emcc; dpkg-source unpacks Debian's zstd source), its tests under node
+  libmeshoptimizer-dev                 # glTF clips for the web: EXT_meshopt_compression (fmdec -o CLIP.glb)
   chromium                             # the player page's test in a real browser (tests/web/browser.sh, headless)
 )
 

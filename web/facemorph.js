@@ -180,11 +180,11 @@ export class FacemorphThree {
   // never queued behind another: playback skips rather than lags). Resolves with the frame's stats.
   update(t, options = {}) {
     if (this.busy) return this.busy;
-    this.busy = this.fetch(t, options).finally(() => { this.busy = null; });
+    this.busy = this.decodeAndApply(t, options).finally(() => { this.busy = null; });
     return this.busy;
   }
 
-  async fetch(t, options) {
+  async decodeAndApply(t, options) {
     const frame = await this.player.decode(t, {
       clamp: options.clamp ?? true, flipV: true, texture: this.info.textureSize > 0,
       haveTextures: [...this.textures.keys()],

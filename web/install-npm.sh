@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:-${FACEMORPH_NPM_DIR:-build-web/npm}}
-packages=(three@0.187.0 puppeteer-core@25.16.0)
+packages=(three@0.187.0 puppeteer-core@25.16.0 gltf-validator@2.0.0-dev.3.10)
 command -v npm >/dev/null || { echo "install-npm: npm not found (tools/install-deps.sh installs it)" >&2; exit 1; }
 have() {  # have NAME@VERSION: installed at that version
   local name=${1%@*} version=${1##*@}

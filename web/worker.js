@@ -54,7 +54,7 @@ async function open(message) {
 
 // The keyframes the frame at t blends are among i - 3 .. i + 3 around t's segment (every local
 // spline of spec/method.md §7 blends at most 6 around it); their groups are fetched first.
-function window(t) {
+function keyframeWindow(t) {
   const times = state.times;
   let i = 0;
   while (i + 1 < times.length && times[i + 1] <= t) ++i;
@@ -108,7 +108,7 @@ async function decode(message) {
   const t = (flags & DecodeFlags.clamp) ? Math.min(Math.max(message.t, state.info.rangeBegin), state.info.rangeEnd) : message.t;
   const fetchedBefore = state.source.bytesFetched;
   if (!state.complete) {
-    const [from, to] = window(t);
+    const [from, to] = keyframeWindow(t);
     await ensureKeyframes(state.source, state.layout, from, to, state.times.length, state.allocate);
   }
   const started = performance.now();
