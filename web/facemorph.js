@@ -122,11 +122,17 @@ const fragmentShader = `
 uniform sampler2D maps[${MAX_BLEND}];
 uniform float weights[${MAX_BLEND}];
 uniform float textured;
+uniform float corrected[${MAX_BLEND}];
+uniform mat3 rangeFix;
+uniform vec3 rangeOffset;
 varying vec2 vUv;
 varying vec3 vViewPosition;
 void main() {
   vec3 colour = vec3(0.0);
-  ${Array.from({ length: MAX_BLEND }, (_, i) => `colour += weights[${i}] * texture2D(maps[${i}], vUv).rgb;`).join('\n  ')}
+  vec3 texel;
+  // corrected: the browser converted that image as limited range (worker.js); undone here.
+  ${Array.from({ length: MAX_BLEND }, (_, i) => `texel = texture2D(maps[${i}], vUv).rgb;
+  colour += weights[${i}] * mix(texel, rangeFix * texel + rangeOffset, corrected[${i}]);`).join('\n  ')}
   colour = clamp(floor(colour * 255.0 + 0.5) / 255.0, 0.0, 1.0);
   colour = mix(vec3(200.0 / 255.0), colour, textured);
   vec3 n = normalize(cross(dFdx(vViewPosition), dFdy(vViewPosition)));
@@ -156,6 +162,9 @@ export class FacemorphThree {
         maps: { value: Array(MAX_BLEND).fill(this.blank) },
         weights: { value: Array(MAX_BLEND).fill(0) },
         textured: { value: info.textureSize > 0 ? 1 : 0 },
+        corrected: { value: Array(MAX_BLEND).fill(0) },
+        rangeFix: { value: new THREE.Matrix3() },
+        rangeOffset: { value: new THREE.Vector3() },
       },
       vertexShader, fragmentShader, side: THREE.DoubleSide,
     });
@@ -212,8 +221,13 @@ export class FacemorphThree {
     }
     g.setDrawRange(0, 3 * frame.triangleCount);
     g.computeBoundingSphere();
-    for (const { keyframe, bitmap } of frame.textures) {
+    for (const { keyframe, bitmap, correction } of frame.textures) {
       const texture = new THREE.Texture(bitmap);
+      texture.userData.corrected = correction ? 1 : 0;
+      if (correction) {
+        this.material.uniforms.rangeFix.value.fromArray(correction.matrix);
+        this.material.uniforms.rangeOffset.value.setScalar(correction.offset);
+      }
       texture.flipY = false;  // decoded with v down (FM_DECODE_FLIP_V): row 0 is v = 0
       texture.colorSpace = THREE.NoColorSpace;
       texture.minFilter = THREE.LinearFilter;
@@ -221,7 +235,7 @@ export class FacemorphThree {
       texture.needsUpdate = true;
       this.textures.set(keyframe, texture);
     }
-    const maps = Array(MAX_BLEND).fill(this.blank), weights = Array(MAX_BLEND).fill(0);
+    const maps = Array(MAX_BLEND).fill(this.blank), weights = Array(MAX_BLEND).fill(0), corrected = Array(MAX_BLEND).fill(0);
     frame.weights.slice(0, MAX_BLEND).forEach(({ keyframe, weight }, i) => {
       const texture = this.textures.get(keyframe);
       if (!texture) return;
@@ -230,9 +244,11 @@ export class FacemorphThree {
       this.textures.set(keyframe, texture);
       maps[i] = texture;
       weights[i] = weight;
+      corrected[i] = texture.userData.corrected;
     });
     this.material.uniforms.maps.value = maps;
     this.material.uniforms.weights.value = weights;
+    this.material.uniforms.corrected.value = corrected;
     while (this.textures.size > this.maxTextures) {
       const [oldest, texture] = this.textures.entries().next().value;
       if (frame.weights.some((w) => w.keyframe === oldest)) break;

@@ -4,10 +4,12 @@
 //   - opening fetched the header, index and chunk framing, not the file (bytes from the server's log);
 //   - playing 2 s draws frames; a seek to the end fetches only what the last keyframes need;
 //   - the canvas at three times matches fmdec --preview of the same times (mean absolute
-//     difference per channel ≤ TOLERANCE, and the share of pixels off by more than 64 ≤ 3%);
+//     difference per channel ≤ TOLERANCE, 1.5 by default, and the share of pixels off by more than
+//     64 ≤ 3%), while the canvas at the first time against the preview of the last differs by more
+//     (the comparison can fail: a control);
 //   - nothing was written to the console as an error, and no page error was thrown;
 // and reports the decode time per frame inside the browser (the worker's fm_decoder_decode).
-//   node web/test/browser.mjs --fmdec FMDEC --file FILE.fmv [--out DIR] [--tolerance 8] [--speed FILE2.fmv ...]
+//   node web/test/browser.mjs --fmdec FMDEC --file FILE.fmv [--out DIR] [--tolerance 1.5] [--speed FILE2.fmv ...]
 // --speed files are only timed: each opened, 60 frames decoded over its range, ms per frame.
 // Exits 77 when chromium or puppeteer-core is missing, naming it.
 import { execFileSync } from 'node:child_process';
@@ -27,7 +29,7 @@ const speedFiles = args.flatMap((a, i) => (args[i - 1] === '--speed' ? [a] : [])
 const fmdec = option('--fmdec');
 const file = resolve(option('--file', join(root, 'tests/data/golden_v2_1.fmv')));
 const out = resolve(option('--out', join(root, 'build-web/browser-test')));
-const tolerance = Number(option('--tolerance', '8'));
+const tolerance = Number(option('--tolerance', '1.5'));
 mkdirSync(out, { recursive: true });
 
 const chromium = ['/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => existsSync(p));
@@ -84,12 +86,41 @@ try {
   await new Promise((r) => setTimeout(r, 2000));
   await page.evaluate(() => window.facemorphPage.pause());
   const played = await page.evaluate(() => window.facemorphPage.stats());
-  check(played.drawn - drawnBefore >= 10, `playing 2 s drew ${played.drawn - drawnBefore} frames`);
+  // The rate is the machine's (headless Chromium draws with SwiftShader, on the CPU): reported, and
+  // only required to have moved.
+  check(played.drawn - drawnBefore >= 2, `playing 2 s drew ${played.drawn - drawnBefore} frames (${((played.drawn - drawnBefore) / 2).toFixed(1)} fps drawn)`);
 
   // A seek to the end fetches only the groups the last keyframes need.
   const beforeSeek = fmvBytes();
   await page.evaluate((t) => window.facemorphPage.seek(t), info.rangeEnd);
   console.log(`seek to the end (t = ${info.rangeEnd.toFixed(3)} s) fetched ${fmvBytes() - beforeSeek} bytes more`);
+
+  // Both pictures decoded by the browser itself, compared on a canvas: the mean absolute
+  // difference per channel over the whole picture, and the share of pixels off by more than 64.
+  const compare = (a, b) => page.evaluate(async (a, b) => {
+    const load = async (data) => createImageBitmap(await (await fetch(data)).blob());
+    const [x, y] = await Promise.all([load(a), load(b)]);
+    const pixels = (bitmap) => {
+      const canvas = new OffscreenCanvas(bitmap.width, bitmap.height);
+      const context = canvas.getContext('2d');
+      context.drawImage(bitmap, 0, 0);
+      return context.getImageData(0, 0, bitmap.width, bitmap.height).data;
+    };
+    if (x.width !== y.width || x.height !== y.height) return { error: `${x.width}x${x.height} against ${y.width}x${y.height}` };
+    const p = pixels(x), q = pixels(y);
+    let sum = 0, far = 0;
+    for (let i = 0; i < p.length; i += 4) {
+      let worst = 0;
+      for (let k = 0; k < 3; ++k) {
+        const d = Math.abs(p[i + k] - q[i + k]);
+        sum += d;
+        worst = Math.max(worst, d);
+      }
+      if (worst > 64) far += 1;
+    }
+    return { mean: sum / (3 * p.length / 4), far: far / (p.length / 4) };
+  }, `data:image/png;base64,${readFileSync(a).toString('base64')}`, `data:image/png;base64,${readFileSync(b).toString('base64')}`);
+  const shots = [];
 
   // Screenshots against fmdec --preview at three times.
   const times = [info.firstTime + 0.25 * info.duration, info.firstTime + 0.5 * info.duration, info.firstTime + 0.8 * info.duration];
@@ -101,35 +132,16 @@ try {
     writeFileSync(shot, Buffer.from(png.slice(png.indexOf(',') + 1), 'base64'));
     const native = join(out, `native_${t.toFixed(3)}.png`);
     execFileSync(fmdec, [file, '--t', String(t), '--preview', native, '--preview-size', '800', '--quiet'], { stdio: 'inherit' });
-    // Both pictures decoded by the browser itself, compared on a canvas.
-    const difference = await page.evaluate(async (a, b) => {
-      const load = async (data) => createImageBitmap(await (await fetch(data)).blob());
-      const [x, y] = await Promise.all([load(a), load(b)]);
-      const pixels = (bitmap) => {
-        const canvas = new OffscreenCanvas(bitmap.width, bitmap.height);
-        const context = canvas.getContext('2d');
-        context.drawImage(bitmap, 0, 0);
-        return context.getImageData(0, 0, bitmap.width, bitmap.height).data;
-      };
-      if (x.width !== y.width || x.height !== y.height) return { error: `${x.width}x${x.height} against ${y.width}x${y.height}` };
-      const p = pixels(x), q = pixels(y);
-      let sum = 0, far = 0;
-      for (let i = 0; i < p.length; i += 4) {
-        let worst = 0;
-        for (let k = 0; k < 3; ++k) {
-          const d = Math.abs(p[i + k] - q[i + k]);
-          sum += d;
-          worst = Math.max(worst, d);
-        }
-        if (worst > 64) far += 1;
-      }
-      return { mean: sum / (3 * p.length / 4), far: far / (p.length / 4) };
-    }, `data:image/png;base64,${readFileSync(shot).toString('base64')}`, `data:image/png;base64,${readFileSync(native).toString('base64')}`);
+    const difference = await compare(shot, native);
     if (difference.error) check(false, `t = ${t.toFixed(3)} s: ${difference.error}`);
     else check(difference.mean <= tolerance && difference.far <= 0.03,
                `t = ${t.toFixed(3)} s: the canvas against fmdec --preview: mean difference ${difference.mean.toFixed(2)} per channel (≤ ${tolerance}), ` +
                `${(100 * difference.far).toFixed(2)}% of pixels off by more than 64 (≤ 3%)`);
+    shots.push({ t, shot, native });
   }
+  const control = await compare(shots[0].shot, shots[shots.length - 1].native);
+  check(control.mean > tolerance, `control: the canvas at t = ${shots[0].t.toFixed(3)} s against the preview of t = ${shots[shots.length - 1].t.toFixed(3)} s ` +
+        `differs by ${control.mean.toFixed(2)} per channel, more than the tolerance`);
 
   // Decode time per frame inside the browser: the worker's fm_decoder_decode, 60 frames over the range.
   const timeDecoding = async (fileUrl2) => page.evaluate(async (u) => {
