@@ -48,6 +48,8 @@ async function open(message) {
   state = { source, layout, file, decoder, info, times, allocate, limits: message.limits || {}, imageDecoders: new Map(), complete: false };
   return {
     info, keyframeTimes: times, version: fm.version(), groups: layout.groups.length,
+    // Each group's first keyframe and its bytes [begin, end): its KGOP through its texture chunks.
+    groupRanges: layout.groups.map((g) => ({ first: g.first, begin: g.kgop.offset, end: g.textures.length ? g.textures[g.textures.length - 1].end : g.kgop.end })),
     bytesFetched: source.bytesFetched, requests: source.requests, fileBytes: source.size, openMs: performance.now() - started,
   };
 }

@@ -79,6 +79,11 @@ try {
   console.log(`opened ${fileUrl}: N = ${info.gridN}, ${info.keyframeCount} keyframes in ${stats.open.groups} groups, texture ${info.textureSize}; ` +
               `${stats.open.requests} requests, ${stats.open.bytesFetched} bytes to open, ${atOpen} of ${fileBytes} bytes by the first frame (server's log)`);
   check(stats.open.bytesFetched < fileBytes || stats.open.groups === 0, `opening fetched ${stats.open.bytesFetched} bytes, less than the file's ${fileBytes}`);
+  // The first frame (keys 0 .. 3 at most) needed only the groups holding them on top of that.
+  const firstGroups = stats.open.groupRanges.filter((g) => g.first <= 3);
+  const firstBytes = firstGroups.reduce((sum, g) => sum + g.end - g.begin, 0);
+  check(atOpen <= stats.open.bytesFetched + firstBytes, `playback started after ${atOpen} bytes: the open's ${stats.open.bytesFetched} and at most ` +
+        `the first frame's ${firstGroups.length} of ${stats.open.groups} groups (${firstBytes} bytes)`);
 
   // Play 2 s.
   const drawnBefore = stats.drawn;
@@ -90,10 +95,17 @@ try {
   // only required to have moved.
   check(played.drawn - drawnBefore >= 2, `playing 2 s drew ${played.drawn - drawnBefore} frames (${((played.drawn - drawnBefore) / 2).toFixed(1)} fps drawn)`);
 
-  // A seek to the end fetches only the groups the last keyframes need.
-  const beforeSeek = fmvBytes();
+  // A seek to the end fetches only the groups of the keyframes the end's frame may blend (the last
+  // four: stream.js fetches keys i - 3 .. i + 3): every range the server sent for it lies in them.
+  const logBefore = log.length;
   await page.evaluate((t) => window.facemorphPage.seek(t), info.rangeEnd);
-  console.log(`seek to the end (t = ${info.rangeEnd.toFixed(3)} s) fetched ${fmvBytes() - beforeSeek} bytes more`);
+  const seekRanges = log.slice(logBefore).filter((e) => e.path === fileUrl && e.range);
+  const groups = stats.open.groupRanges;
+  const needed = groups.filter((g, i) => (i + 1 < groups.length ? groups[i + 1].first : info.keyframeCount) > info.keyframeCount - 4);
+  const inNeeded = seekRanges.every(({ range: [b, e] }) => needed.some((g) => g.begin <= b && e <= g.end));
+  const seekBytes = seekRanges.reduce((sum, e) => sum + e.bytes, 0);
+  check(inNeeded, `a seek to the end (t = ${info.rangeEnd.toFixed(3)} s) fetched ${seekBytes} bytes in ${seekRanges.length} requests, all inside the last ` +
+        `${needed.length} of ${groups.length} groups (${needed.reduce((sum, g) => sum + g.end - g.begin, 0)} bytes)`);
 
   // Both pictures decoded by the browser itself, compared on a canvas: the mean absolute
   // difference per channel over the whole picture, and the share of pixels off by more than 64.
