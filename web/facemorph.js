@@ -40,7 +40,8 @@ export class FacemorphPlayer {
     if (typeof source === 'string' || source instanceof URL) {
       message.url = new URL(source, location.href).href;
     } else {
-      const buffer = source instanceof Blob ? await source.arrayBuffer() : source instanceof ArrayBuffer ? source : source.slice().buffer;
+      // A copy goes to the worker (transferred): the caller's bytes stay the caller's.
+      const buffer = source instanceof Blob ? await source.arrayBuffer() : source instanceof ArrayBuffer ? source.slice(0) : source.slice().buffer;
       message.bytes = buffer;
       transfer = [buffer];
     }
