@@ -16,6 +16,13 @@ const fm = await loadFacemorph(createModule, readFileSync(join(dist, 'facemorph_
 const opened = fm.openBytes(readFileSync(file));
 const info = opened.info();
 const decoder = opened.createDecoder();
+// The texture's weights before any frame was decoded: a module without image codecs must give them
+// without decoding a texture (fm_decoder_get_texture_weights decodes the frame without it).
+if (info.textureSize > 0) {
+  const weights = decoder.textureWeights(info.firstTime + 0.4 * info.duration);
+  const sum = weights.reduce((a, w) => a + w.weight, 0);
+  if (!(weights.length >= 1 && Math.abs(sum - 1) < 1e-6)) throw new Error(`texture weights ${JSON.stringify(weights)} do not sum to 1`);
+}
 
 const native = readFileSync(nativePath);
 const view = new DataView(native.buffer, native.byteOffset, native.byteLength);

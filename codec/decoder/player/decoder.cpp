@@ -172,7 +172,9 @@ FrameInfo Decoder::frame_info(double t, const FrameOptions& options) {
 }
 
 SplineWeights Decoder::texture_weights(double t, const FrameOptions& options) {
-  return impl_->decode(t, options, info_.has_texture, /*any=*/true).weights;
+  // The weights do not depend on the texture: a new frame is decoded without it (a decoder built
+  // without image codecs, whose player blends the images itself, could not make it).
+  return impl_->decode(t, options, /*texture=*/false, /*any=*/true).weights;
 }
 
 FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions& options) {
