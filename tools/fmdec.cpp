@@ -65,7 +65,8 @@ void check_mesh_path(const fs::path& path) {
 // the middle frame (glTF has no animated textures).
 class ClipCollector {
  public:
-  explicit ClipCollector(const DiskGrid& grid) {
+  ClipCollector(const DiskGrid& grid, bool compact) {
+    clip_.compact = compact;
     clip_.faces = grid.faces;
     for (const Vec2& w : grid.nodes) clip_.uvs.push_back(0.5 * (w + Vec2(1, 1)));
   }
@@ -100,7 +101,7 @@ int main(int argc, char** argv) {
   double fps = 0;
   Outputs out;
   std::string mesh_out, preview, out_dir;
-  bool keep_holes = false, clamp = false, quiet = false, no_texture = false;
+  bool keep_holes = false, clamp = false, quiet = false, no_texture = false, glb_float = false;
   int preview_size = 800;
   double tolerance = ReconstructOptions{}.tolerance;
   app.add_option("input", input, "The .fmv file")->required();
@@ -119,6 +120,7 @@ int main(int argc, char** argv) {
   app.add_flag("--keep-holes-filled", keep_holes, "Show eyes and mouth as the encoder's fill instead of cutting them out");
   app.add_flag("--clamp", clamp, "Clamp times past the sane extrapolation range to it instead of failing");
   app.add_flag("--no-texture", no_texture, "Do not blend or write the texture");
+  app.add_flag("--glb-float", glb_float, "A glTF clip in plain floats, without KHR_mesh_quantization and EXT_meshopt_compression (for viewers that lack them)");
   app.add_option("--tolerance", tolerance, "Stop the reconstruction when a step moves no node more than this fraction of the rim's diameter")
       ->capture_default_str();
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
@@ -175,7 +177,7 @@ int main(int argc, char** argv) {
     }
     std::optional<ClipCollector> clip;
     if (glb) {
-      clip.emplace(decoder.geometry().grid());
+      clip.emplace(decoder.geometry().grid(), !glb_float);
       options.cut_holes = false;  // the clip drops the triangles inside a hole throughout instead
     }
     if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");

@@ -19,6 +19,9 @@ packages=(
   abigail-tools                        # the player API's ABI check (abidiff; the test skips without it)
   python3                              # optional real-data tests (ICT capture script)
   draco ffmpeg                         # the rate bench's baselines: draco_encoder per frame, JPEG/H.264 (libx264) textures
+  emscripten dpkg-dev nodejs           # the browser's decoder: web/build.sh (emcc; dpkg-source unpacks Debian's zstd source), its tests under node
+  libmeshoptimizer-dev                 # glTF clips for the web: EXT_meshopt_compression (fmdec -o CLIP.glb)
+  chromium                             # the player page's test in a real browser (tests/web/browser.sh, headless)
 )
 
 missing=()
@@ -27,14 +30,18 @@ for package in "${packages[@]}"; do
     missing+=("$package")
   fi
 done
-if ((${#missing[@]} == 0)); then
-  exit 0
+# npm comes with some builds of nodejs (NodeSource's) and is a package of its own in Debian's.
+if ! command -v npm >/dev/null && ! dpkg-query -W -f='${Status}' npm 2>/dev/null | grep -q "install ok installed"; then
+  missing+=(npm)
 fi
-
-sudo=""
-if [[ "$(id -u)" -ne 0 ]]; then
-  sudo="sudo"
+if ((${#missing[@]} > 0)); then
+  sudo=""
+  if [[ "$(id -u)" -ne 0 ]]; then
+    sudo="sudo"
+  fi
+  echo "install-deps: installing ${missing[*]}" >&2
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
-echo "install-deps: installing ${missing[*]}" >&2
-$sudo apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+# The browser side's npm packages (three, puppeteer-core), pinned, in a folder of the build's.
+"$(dirname "$0")/../web/install-npm.sh"

@@ -67,7 +67,7 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
 
 class FileSource final : public KeyframeSource {
  public:
-  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes, const std::string& source, const DecoderLimits& limits,
+  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>, std::span<const uint8_t>> bytes, const std::string& source, const DecoderLimits& limits,
              SequenceFileInfo* info)
       : bytes_(std::move(bytes)),
         file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }) {
@@ -119,6 +119,11 @@ class FileSource final : public KeyframeSource {
     });
   }
 
+  size_t texture_owner(size_t k) const override {
+    if (k >= textures_.slots.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
+    return file_.texture_owner(k);
+  }
+
   std::shared_ptr<const Image> texture(size_t k) const override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (k >= textures_.slots.size() || !outline_.has_texture()) {
@@ -145,6 +150,7 @@ class FileSource final : public KeyframeSource {
 
   std::span<const uint8_t> view() const {
     if (const auto* owned = std::get_if<std::vector<uint8_t>>(&bytes_)) return *owned;
+    if (const auto* borrowed = std::get_if<std::span<const uint8_t>>(&bytes_)) return *borrowed;
     return std::get<std::unique_ptr<format::MappedFile>>(bytes_)->bytes();
   }
 
@@ -228,7 +234,7 @@ class FileSource final : public KeyframeSource {
     }
   }
 
-  std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>> bytes_;
+  std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>, std::span<const uint8_t>> bytes_;
   OpenedFile file_;
   MemoryPlan plan_;
   SequenceOutline outline_;
@@ -254,6 +260,11 @@ std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8
     throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
   }
   return std::make_shared<FileSource>(std::vector<uint8_t>(bytes.begin(), bytes.end()), source, limits, info);
+}
+
+std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<const uint8_t> bytes, const std::string& source, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  return std::make_shared<FileSource>(bytes, source, limits, nullptr);
 }
 
 }  // namespace facemorph

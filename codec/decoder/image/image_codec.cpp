@@ -1,7 +1,6 @@
 #include "facemorph/image_codec.hpp"
 
 #include "facemorph/error.hpp"
-#include "format/file_io.hpp"
 
 #include <avif/avif.h>
 #include <png.h>
@@ -317,24 +316,6 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
   return rgb_of(decoded, channels, source);
 }
 
-const char* texture_codec_name(TextureCodec codec) { return codec == TextureCodec::kAvif ? "avif" : "webp"; }
-
-TextureCodec parse_texture_codec(const std::string& name) {
-  if (name == "avif") return TextureCodec::kAvif;
-  if (name == "webp") return TextureCodec::kWebp;
-  throw Error(ErrorCode::kInvalidArgument, "unknown texture codec '" + name + "' (avif or webp)");
-}
-
-TextureCodec stored_texture_codec(TextureCodec codec, int quality) { return quality > 100 ? TextureCodec::kWebp : codec; }
-
-std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality) {
-  return stored_texture_codec(codec, quality) == TextureCodec::kAvif ? encode_avif(image, quality) : encode_webp(image, quality);
-}
-
-Image decode_texture(TextureCodec codec, std::span<const uint8_t> bytes, const std::string& source, int64_t max_pixels) {
-  return codec == TextureCodec::kAvif ? decode_avif(bytes, source, 3, max_pixels) : decode_webp(bytes, source, 3, max_pixels);
-}
-
 std::vector<uint8_t> encode_png(const Image& image) {
   require_codable(image, true);
   png_image png;
@@ -376,16 +357,6 @@ Image decode_png(std::span<const uint8_t> bytes, const std::string& source, int6
     throw Error(ErrorCode::kCorrupt, source + ": damaged PNG image (" + message + ")");
   }
   return image;
-}
-
-void write_png(const std::filesystem::path& path, const Image& image) { format::write_file_atomically(path, encode_png(image)); }
-
-uint64_t image_content_hash(const Image& image) {
-  uint64_t hash = 1469598103934665603ull;
-  const auto mix = [&hash](uint64_t byte) { hash = (hash ^ byte) * 1099511628211ull; };
-  for (int v : {image.width, image.height, image.channels}) mix(static_cast<uint32_t>(v));
-  for (uint8_t byte : image.pixels) mix(byte);
-  return hash;
 }
 
 }  // namespace facemorph

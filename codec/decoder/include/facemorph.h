@@ -23,7 +23,8 @@
  * once. An fm_decoder is used by one thread at a time; decoders on one file may decode on
  * different threads at once. A file may be closed while its decoders live (they share it).
  *
- * API and ABI 1.0 (spec/api.md): this header is the only one a C player needs; the library exports
+ * API and ABI 1.1 (spec/api.md; 1.1 appends fm_file_open_memory_borrowed and
+ * fm_decoder_get_texture_weights to 1.0): this header is the only one a C player needs; the library exports
  * exactly the functions below (every one starts with fm_) and nothing else. Within 1.x nothing is
  * removed, renumbered or reordered: functions, enum values, flags and struct fields are only ever
  * appended, and libfacemorph_decoder.so.1 keeps its name; a program built against 1.0 runs on every
@@ -66,10 +67,10 @@
 extern "C" {
 #endif
 
-/* The API (and ABI) this header declares: 1.0. The soname follows the major version only
+/* The API (and ABI) this header declares: 1.1 (1.0 with two functions appended, below). The soname follows the major version only
  * (libfacemorph_decoder.so.1); the library's own version is FACEMORPH_VERSION_*, below. */
 #define FACEMORPH_API_VERSION_MAJOR 1
-#define FACEMORPH_API_VERSION_MINOR 0
+#define FACEMORPH_API_VERSION_MINOR 1
 
 #define FACEMORPH_VERSION_MAJOR 0
 #define FACEMORPH_VERSION_MINOR 8
@@ -281,6 +282,37 @@ static inline void fm_frame_init(fm_frame* frame) {
  * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
  * only copies it. Leaving every buffer NULL decodes and reports the sizes (FM_OK): the count query. */
 FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags, fm_frame* frame);
+
+/* ---- Added in API 1.1 (facemorph 0.8.0): for players that hold the file's bytes themselves and
+ * decode its textures themselves, as the browser player does (spec/web.md). ---- */
+
+/* fm_file_open_memory_with_options without the copy: the file reads the `size` bytes at `data`
+ * where they lie, for as long as it or any decoder on it lives; the caller keeps them there,
+ * unchanged, until the last of them is closed. Opening reads the header's and index's chunks and
+ * each chunk's 24-byte header and 4-byte checksum only; a keyframe group's chunk is read (and its
+ * checksum verified) when a frame first needs one of its keyframes. So a player that streams the
+ * file may allocate all `size` bytes, fill in those parts, open, and fill in a group's chunk before
+ * the first decode that needs it: a chunk read before its bytes arrived fails its checksum
+ * (FM_ERROR_CORRUPT), and that keyframe fails at once ever after. The same statuses as
+ * fm_file_open_memory_with_options. */
+FM_API fm_status fm_file_open_memory_borrowed(const void* data, size_t size, const fm_decoder_options* options, fm_file** file);
+
+/* The texture blend of the frame at t (flags as fm_decoder_decode's) without the texture: the
+ * keyframes whose textures it sums and the weight of each, so that a player that decodes the
+ * keyframes' images itself (each keyframe's image is in its TEXR chunk, or frame k - gP of its
+ * group's TGOP chunk, spec/container.md §8) makes the frame's texture as fm_decoder_decode does.
+ * In a file of shared textures (format 2.2) a keyframe is named by the one whose TEXR it shows
+ * (the chunk's keyframe number), which may then appear twice, each with its own weight:
+ * texel = Σ weights[i] · texel of keyframe keyframes[i], each weight taken as a float, the sum in
+ * float, plus ½, clamped to 0..255 and truncated. Weights may be 0 (that keyframe adds nothing) or
+ * negative (cubic splines), and sum to 1. Decodes the frame as fm_decoder_decode with every buffer
+ * NULL does (and keeps it). *count is the number of keyframes; keyframes and weights are both NULL
+ * with capacity 0 to ask it alone (FM_OK); a capacity below it is FM_ERROR_BUFFER_TOO_SMALL,
+ * writing nothing. A file without texture gives its weights all the same. Statuses: as
+ * fm_decoder_decode, and FM_ERROR_INVALID_ARGUMENT for a NULL count, or NULL keyframes or weights
+ * with capacity > 0. */
+FM_API fm_status fm_decoder_get_texture_weights(fm_decoder* decoder, double t, uint32_t flags, uint32_t* keyframes, double* weights,
+                                                size_t capacity, size_t* count);
 
 #ifdef __cplusplus
 }

@@ -6,6 +6,7 @@
 #include "facemorph.h"
 
 #include "codec/decoder/player/decoder.hpp"
+#include "facemorph/sequence_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -234,13 +235,14 @@ fm_status open_path(const char* function, const char* path, const fm_decoder_opt
   });
 }
 
-fm_status open_bytes(const char* function, const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
+fm_status open_bytes(const char* function, const void* data, size_t size, const fm_decoder_options* options, fm_file** file, bool borrowed = false) {
   return guarded(function, [&] {
     check_pointer(file, "file");
     *file = nullptr;
     if (data == nullptr && size > 0) throw Error(ErrorCode::kInvalidArgument, "data is NULL");
     const facemorph::DecoderLimits limits = limits_of(options);
     const std::span<const uint8_t> bytes(static_cast<const uint8_t*>(data), data == nullptr ? 0 : size);
+    if (borrowed) return open_into(facemorph::open_borrowed_sequence_source(bytes, "memory", limits), file);
     return open_into(facemorph::open_sequence_memory(bytes, "memory", limits), file);
   });
 }
@@ -253,6 +255,17 @@ std::span<T> span_of(T* data, size_t bytes) {
 
 // A buffer field of *frame, or NULL (not wanted) where the caller's struct does not hold it.
 #define FM_FRAME_BUFFER(frame, field) (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes) ? span_of((frame)->field, (frame)->field##_bytes) : decltype(span_of((frame)->field, 0))())
+
+facemorph::FrameOptions frame_options(double t, uint32_t flags) {
+  if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "t is not finite");
+  constexpr uint32_t known = FM_DECODE_CLAMP | FM_DECODE_KEEP_HOLES_FILLED | FM_DECODE_FLIP_V;
+  if ((flags & ~known) != 0) throw Error(ErrorCode::kInvalidArgument, "unknown decode flags " + std::to_string(flags & ~known));
+  facemorph::FrameOptions options;
+  options.clamp = (flags & FM_DECODE_CLAMP) != 0;
+  options.keep_holes_filled = (flags & FM_DECODE_KEEP_HOLES_FILLED) != 0;
+  options.flip_v = (flags & FM_DECODE_FLIP_V) != 0;
+  return options;
+}
 
 void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
   if (FM_COVERS(frame, fm_frame, time)) frame->time = info.time;
@@ -382,13 +395,7 @@ FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags
     facemorph::Decoder& d = *held;
     check_pointer(frame, "frame");
     check_struct_size(frame->struct_size, "frame");
-    if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "t is not finite");
-    constexpr uint32_t known = FM_DECODE_CLAMP | FM_DECODE_KEEP_HOLES_FILLED | FM_DECODE_FLIP_V;
-    if ((flags & ~known) != 0) throw Error(ErrorCode::kInvalidArgument, "unknown decode flags " + std::to_string(flags & ~known));
-    facemorph::FrameOptions options;
-    options.clamp = (flags & FM_DECODE_CLAMP) != 0;
-    options.keep_holes_filled = (flags & FM_DECODE_KEEP_HOLES_FILLED) != 0;
-    options.flip_v = (flags & FM_DECODE_FLIP_V) != 0;
+    const facemorph::FrameOptions options = frame_options(t, flags);
     facemorph::FrameBuffers buffers;
     buffers.positions = FM_FRAME_BUFFER(frame, positions);
     buffers.normals = FM_FRAME_BUFFER(frame, normals);
@@ -413,6 +420,35 @@ FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags
       // The frame was decoded and kept: say what it needs.
       if (e.code() == ErrorCode::kBufferTooSmall) describe(d.frame_info(t, options), frame);
       throw;
+    }
+    return ok();
+  });
+}
+
+// ---- API 1.1 ----
+
+FM_API fm_status fm_file_open_memory_borrowed(const void* data, size_t size, const fm_decoder_options* options, fm_file** file) {
+  return open_bytes("fm_file_open_memory_borrowed", data, size, options, file, /*borrowed=*/true);
+}
+
+FM_API fm_status fm_decoder_get_texture_weights(fm_decoder* decoder, double t, uint32_t flags, uint32_t* keyframes, double* weights,
+                                                size_t capacity, size_t* count) {
+  return guarded("fm_decoder_get_texture_weights", [&] {
+    const std::shared_ptr<facemorph::Decoder> held = check_decoder(decoder);
+    check_pointer(count, "count");
+    if (capacity > 0) {
+      check_pointer(keyframes, "keyframes");
+      check_pointer(weights, "weights");
+    }
+    const facemorph::SplineWeights w = held->texture_weights(t, frame_options(t, flags));
+    *count = w.keys.size();
+    if (keyframes == nullptr && weights == nullptr && capacity == 0) return ok();  // the count alone
+    if (capacity < w.keys.size()) {
+      throw Error(ErrorCode::kBufferTooSmall, std::to_string(w.keys.size()) + " keyframes blend at t, room for " + std::to_string(capacity));
+    }
+    for (size_t i = 0; i < w.keys.size(); ++i) {
+      keyframes[i] = static_cast<uint32_t>(w.keys[i]);
+      weights[i] = w.weights[i];
     }
     return ok();
   });

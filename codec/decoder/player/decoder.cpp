@@ -171,6 +171,17 @@ FrameInfo Decoder::frame_info(double t, const FrameOptions& options) {
   return impl_->info;
 }
 
+SplineWeights Decoder::texture_weights(double t, const FrameOptions& options) {
+  // The weights do not depend on the texture: a new frame is decoded without it (a decoder built
+  // without image codecs, whose player blends the images itself, could not make it).
+  // Each keyframe named by the one whose stored texture it shows (format 2.2's shared textures), so
+  // that a player finds its image in that keyframe's TEXR; one named twice keeps both its weights,
+  // summed in the same order as the decoder sums them.
+  SplineWeights w = impl_->decode(t, options, /*texture=*/false, /*any=*/true).weights;
+  for (int32_t& k : w.keys) k = static_cast<int32_t>(source_->texture_owner(static_cast<size_t>(k)));
+  return w;
+}
+
 FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions& options) {
   const DecodedFrame& frame = impl_->decode(t, options, !out.texture.empty());
   const FrameInfo& info = impl_->info;

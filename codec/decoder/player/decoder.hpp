@@ -157,6 +157,11 @@ class Decoder {
   // Decodes the frame at t (kept for the next decode) and says its sizes without copying anything:
   // the "ask the size, then hand the buffers" pattern for files with holes.
   FrameInfo frame_info(double t, const FrameOptions& options = {});
+  // The keyframes the texture of the frame at t blends and their weights (SplineWeights: keys and
+  // weights, in the blend's order; a weight may be 0 or negative), from the frame decoded (and kept)
+  // as frame_info does: the blend a player that decodes the keyframes' images itself does (the
+  // WebAssembly decoder, spec/web.md). Throws as frame_info.
+  SplineWeights texture_weights(double t, const FrameOptions& options = {});
 
  private:
   struct Impl;

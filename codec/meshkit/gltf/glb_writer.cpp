@@ -8,34 +8,90 @@
 #include "facemorph/image_codec.hpp"
 #include "facemorph/meshkit/surface_measures.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <sstream>
 
+#ifdef FACEMORPH_HAVE_MESHOPT
+#include <meshoptimizer.h>
+#endif
+
 namespace facemorph {
 
 namespace {
 
-constexpr int kFloat = 5126, kUnsignedInt = 5125;
+constexpr int kFloat = 5126, kUnsignedInt = 5125, kShort = 5122, kUnsignedShort = 5123;
 constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
 
 // The binary buffer and the JSON arrays that describe its pieces.
 class GlbBuilder {
  public:
-  // Appends bytes as a buffer view (4-byte aligned); returns its index.
-  int view(const void* data, size_t size, int target) {
-    while (bin_.size() % 4 != 0) bin_.push_back(0);
-    const size_t offset = bin_.size();
-    bin_.resize(offset + size);
-    std::memcpy(bin_.data() + offset, data, size);
+  // Appends bytes as a buffer view (4-byte aligned); returns its index. `stride`: the byteStride
+  // of a vertex stream whose elements are padded to 4 bytes (0: tightly packed).
+  int view(const void* data, size_t size, int target, size_t stride = 0) {
+    const size_t offset = append(data, size);
     std::ostringstream v;
     v << "{\"buffer\":0,\"byteOffset\":" << offset << ",\"byteLength\":" << size;
+    if (stride) v << ",\"byteStride\":" << stride;
     if (target) v << ",\"target\":" << target;
     v << "}";
     views_.push_back(v.str());
     return static_cast<int>(views_.size()) - 1;
   }
+
+  // The same, compressed by meshoptimizer (EXT_meshopt_compression) where that is smaller: `count`
+  // elements of `stride` bytes (a vertex stream, stride a multiple of 4), or with `indices` `count`
+  // uint32 triangle corners. The uncompressed bytes' place is in the fallback buffer (buffer 1, no
+  // data: the extension is required).
+  int view_compressed(const void* data, size_t stride, size_t count, int target, bool indices) {
+    const size_t size = stride * count;
+#ifdef FACEMORPH_HAVE_MESHOPT
+    // Version 0 of the vertex codec and 1 of the index codec: the versions the extension names.
+    meshopt_encodeVertexVersion(0);
+    meshopt_encodeIndexVersion(1);
+    std::vector<unsigned char> packed;
+    if (indices) {
+      const auto* corners = static_cast<const unsigned int*>(data);
+      const size_t vertices = count ? *std::max_element(corners, corners + count) + size_t{1} : 0;
+      packed.resize(meshopt_encodeIndexBufferBound(count, vertices));
+      packed.resize(meshopt_encodeIndexBuffer(packed.data(), packed.size(), corners, count));
+    } else {
+      packed.resize(meshopt_encodeVertexBufferBound(count, stride));
+      packed.resize(meshopt_encodeVertexBuffer(packed.data(), packed.size(), data, count, stride));
+    }
+    if (!packed.empty() && packed.size() < size) {
+      const size_t offset = append(packed.data(), packed.size());
+      while (fallback_ % 4 != 0) ++fallback_;
+      const size_t fallback_offset = fallback_;
+      fallback_ += size;
+      std::ostringstream v;
+      v << "{\"buffer\":1,\"byteOffset\":" << fallback_offset << ",\"byteLength\":" << size;
+      // A vertex stream's view states its stride; an animation's must not (glTF 2.0 §3.6.2.4).
+      if (target == kArrayBuffer) v << ",\"byteStride\":" << stride;
+      if (target) v << ",\"target\":" << target;
+      v << ",\"extensions\":{\"EXT_meshopt_compression\":{\"buffer\":0,\"byteOffset\":" << offset << ",\"byteLength\":" << packed.size()
+        << ",\"byteStride\":" << stride << ",\"count\":" << count << ",\"mode\":\"" << (indices ? "TRIANGLES" : "ATTRIBUTES") << "\"}}}";
+      views_.push_back(v.str());
+      return static_cast<int>(views_.size()) - 1;
+    }
+#endif
+    return view(data, size, target, target == kArrayBuffer ? stride : 0);
+  }
+
+  // An accessor over a view: `components` values of `component_type` per element, `count` elements.
+  int accessor(int view_index, int component_type, bool normalized, size_t count, const char* type, const std::string& bounds = "") {
+    std::ostringstream a;
+    a << "{\"bufferView\":" << view_index << ",\"componentType\":" << component_type;
+    if (normalized) a << ",\"normalized\":true";
+    a << ",\"count\":" << count << ",\"type\":\"" << type << "\"" << bounds << "}";
+    accessors_.push_back(a.str());
+    return static_cast<int>(accessors_.size()) - 1;
+  }
+
+  bool compressed() const { return fallback_ > 0; }
 
   // A float accessor of `type` ("VEC3", "VEC2", "SCALAR") over `values`, with min/max when asked.
   int floats(const std::vector<float>& values, int components, const char* type, int target, bool bounds) {
@@ -86,7 +142,9 @@ class GlbBuilder {
     std::string json = json_without_buffers;
     json.pop_back();  // the closing brace
     json += ",\"bufferViews\":" + join(views_) + ",\"accessors\":" + join(accessors_) + ",\"buffers\":[{\"byteLength\":" +
-            std::to_string(bin_.size()) + "}]}";
+            std::to_string(bin_.size()) + "}";
+    if (fallback_ > 0) json += ",{\"byteLength\":" + std::to_string(fallback_) + ",\"extensions\":{\"EXT_meshopt_compression\":{\"fallback\":true}}}";
+    json += "]}";
     while (json.size() % 4 != 0) json.push_back(' ');
     std::vector<uint8_t> out;
     auto u32 = [&](uint32_t v) {
@@ -108,8 +166,17 @@ class GlbBuilder {
   }
 
  private:
+  size_t append(const void* data, size_t size) {
+    while (bin_.size() % 4 != 0) bin_.push_back(0);
+    const size_t offset = bin_.size();
+    bin_.resize(offset + size);
+    if (size) std::memcpy(bin_.data() + offset, data, size);
+    return offset;
+  }
+
   std::vector<uint8_t> bin_;
   std::vector<std::string> views_, accessors_;
+  size_t fallback_ = 0;  // bytes of the fallback buffer (the compressed views' uncompressed size)
 };
 
 void check_clip(const GltfClip& clip) {
@@ -143,32 +210,35 @@ std::vector<float> flat(const std::vector<Vec3>& values) {
   return out;
 }
 
-}  // namespace
+// The vertex streams, their morph targets and the indices, as accessors of `b`.
+struct Streams {
+  int position = -1, normal = -1, uv = -1, index = -1;
+  std::vector<std::string> targets;  // one {"POSITION":..,"NORMAL":..} per frame after the first
+  std::string node_transform;        // compact: the node's scale and translation that undo the quantisation
+};
 
-std::vector<uint8_t> encode_glb(const GltfClip& clip) {
-  check_clip(clip);
-  GlbBuilder b;
+// Floats as they are.
+Streams float_streams(const GltfClip& clip, GlbBuilder& b) {
+  Streams out;
   const size_t frames = clip.times.size();
   const std::vector<Vec3>& base = clip.positions.front();
   const std::vector<Vec3> base_normals = vertex_normals(base, clip.faces);
-  const int position = b.floats(flat(base), 3, "VEC3", kArrayBuffer, true);
-  const int normal = b.floats(flat(base_normals), 3, "VEC3", kArrayBuffer, false);
-  int uv = -1;
+  out.position = b.floats(flat(base), 3, "VEC3", kArrayBuffer, true);
+  out.normal = b.floats(flat(base_normals), 3, "VEC3", kArrayBuffer, false);
   if (!clip.uvs.empty()) {
     std::vector<float> uvs;
     for (const Vec2& t : clip.uvs) {
       uvs.push_back(static_cast<float>(t.x()));
       uvs.push_back(static_cast<float>(1 - t.y()));  // glTF's v runs down the image
     }
-    uv = b.floats(uvs, 2, "VEC2", kArrayBuffer, false);
+    out.uv = b.floats(uvs, 2, "VEC2", kArrayBuffer, false);
   }
   std::vector<uint32_t> indices;
   for (const Face& f : clip.faces) {
     for (int32_t v : f) indices.push_back(static_cast<uint32_t>(v));
   }
-  const int index = b.indices(indices);
+  out.index = b.indices(indices);
   // Morph targets: every frame after the first, as differences from the base.
-  std::vector<std::string> targets;
   for (size_t f = 1; f < frames; ++f) {
     std::vector<Vec3> dp(base.size()), dn(base.size());
     const std::vector<Vec3> normals = vertex_normals(clip.positions[f], clip.faces);
@@ -178,13 +248,104 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
     }
     const int p = b.floats(flat(dp), 3, "VEC3", kArrayBuffer, true);
     const int n = b.floats(flat(dn), 3, "VEC3", kArrayBuffer, false);
-    targets.push_back("{\"POSITION\":" + std::to_string(p) + ",\"NORMAL\":" + std::to_string(n) + "}");
+    out.targets.push_back("{\"POSITION\":" + std::to_string(p) + ",\"NORMAL\":" + std::to_string(n) + "}");
   }
+  return out;
+}
+
+// KHR_mesh_quantization: positions as int16 codes q = round((p - centre) / step) on one grid for
+// the whole clip (the node's scale `step` and translation `centre` undo it), padded to 4 components
+// (a vertex attribute's elements are 4-byte aligned); morph targets as the code differences. The
+// step is 2⁻¹⁴ of the box's diagonal, so a position moves by at most 0.9 · 2⁻¹⁴ = 5.3·10⁻⁵ of it,
+// twenty times below the decoded frames' own error (spec/method.md), and coarse enough that
+// meshoptimizer packs the differences to a few bits (larger if a vertex moves more than 32766 steps
+// from frame 0, which the codes must hold). No normals: glTF's viewers then shade each triangle
+// flat from its morphed corners (glTF 2.0 §3.7.2.1), which is right in every frame, where morphed
+// normal differences cost 40% of the clip and still lag the surface. UVs as normalised uint16.
+// Each stream compressed by meshoptimizer where that is smaller.
+Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
+  Streams out;
+  const size_t frames = clip.times.size();
+  const std::vector<Vec3>& base = clip.positions.front();
+  const size_t n = base.size();
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  double moved = 0;
+  for (const std::vector<Vec3>& frame : clip.positions) {
+    for (size_t v = 0; v < n; ++v) {
+      lo = lo.cwiseMin(frame[v]);
+      hi = hi.cwiseMax(frame[v]);
+      moved = std::max(moved, (frame[v] - base[v]).cwiseAbs().maxCoeff());
+    }
+  }
+  const Vec3 centre = 0.5 * (lo + hi);
+  const double step = std::max({(hi - lo).norm() / 16384, (hi - lo).maxCoeff() / 65534, moved / 32766, std::numeric_limits<double>::min() * 65536});
+  const auto code = [&](const Vec3& p, int k) {
+    return static_cast<int32_t>(std::clamp(std::lround((p[k] - centre[k]) / step), -32767L, 32767L));
+  };
+  const auto shorts = [&](const std::vector<std::array<int32_t, 3>>& values, bool bounds) {
+    std::vector<int16_t> packed(4 * values.size(), 0);
+    std::array<int32_t, 3> mn{32767, 32767, 32767}, mx{-32767, -32767, -32767};
+    for (size_t v = 0; v < values.size(); ++v) {
+      for (int k = 0; k < 3; ++k) {
+        const int32_t c = std::clamp(values[v][static_cast<size_t>(k)], -32767, 32767);
+        packed[4 * v + static_cast<size_t>(k)] = static_cast<int16_t>(c);
+        mn[static_cast<size_t>(k)] = std::min(mn[static_cast<size_t>(k)], c);
+        mx[static_cast<size_t>(k)] = std::max(mx[static_cast<size_t>(k)], c);
+      }
+    }
+    const int view = b.view_compressed(packed.data(), 8, values.size(), kArrayBuffer, false);
+    std::string range;
+    if (bounds) {
+      range = ",\"min\":[" + std::to_string(mn[0]) + "," + std::to_string(mn[1]) + "," + std::to_string(mn[2]) + "],\"max\":[" + std::to_string(mx[0]) +
+              "," + std::to_string(mx[1]) + "," + std::to_string(mx[2]) + "]";
+    }
+    return b.accessor(view, kShort, false, values.size(), "VEC3", range);
+  };
+  std::vector<std::array<int32_t, 3>> base_codes(n);
+  for (size_t v = 0; v < n; ++v) base_codes[v] = {code(base[v], 0), code(base[v], 1), code(base[v], 2)};
+  out.position = shorts(base_codes, true);
+  if (!clip.uvs.empty()) {
+    std::vector<uint16_t> uvs;
+    for (const Vec2& t : clip.uvs) {
+      uvs.push_back(static_cast<uint16_t>(std::lround(std::clamp(t.x(), 0.0, 1.0) * 65535)));
+      uvs.push_back(static_cast<uint16_t>(std::lround(std::clamp(1 - t.y(), 0.0, 1.0) * 65535)));  // glTF's v runs down
+    }
+    out.uv = b.accessor(b.view_compressed(uvs.data(), 4, n, kArrayBuffer, false), kUnsignedShort, true, n, "VEC2");
+  }
+  std::vector<uint32_t> indices;
+  for (const Face& f : clip.faces) {
+    for (int32_t v : f) indices.push_back(static_cast<uint32_t>(v));
+  }
+  out.index = b.accessor(b.view_compressed(indices.data(), 4, indices.size(), kElementArrayBuffer, true), kUnsignedInt, false, indices.size(), "SCALAR");
+  for (size_t f = 1; f < frames; ++f) {
+    std::vector<std::array<int32_t, 3>> dp(n);
+    for (size_t v = 0; v < n; ++v) {
+      for (int k = 0; k < 3; ++k) dp[v][static_cast<size_t>(k)] = code(clip.positions[f][v], k) - base_codes[v][static_cast<size_t>(k)];
+    }
+    out.targets.push_back("{\"POSITION\":" + std::to_string(shorts(dp, true)) + "}");
+  }
+  std::ostringstream transform;
+  transform.precision(17);
+  transform << ",\"translation\":[" << centre.x() << "," << centre.y() << "," << centre.z() << "],\"scale\":[" << step << "," << step << "," << step << "]";
+  out.node_transform = transform.str();
+  return out;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_glb(const GltfClip& clip) {
+  check_clip(clip);
+  GlbBuilder b;
+  const size_t frames = clip.times.size();
+  const Streams streams = clip.compact ? compact_streams(clip, b) : float_streams(clip, b);
+  const int position = streams.position, normal = streams.normal, uv = streams.uv, index = streams.index;
+  const std::vector<std::string>& targets = streams.targets;
   std::ostringstream json;
   json.precision(9);
   json << "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facemorph fmdec\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
-       << "\"nodes\":[{\"mesh\":0,\"name\":\"" << clip.name << "\"}],";
-  json << "\"meshes\":[{\"name\":\"" << clip.name << "\",\"primitives\":[{\"attributes\":{\"POSITION\":" << position << ",\"NORMAL\":" << normal;
+       << "\"nodes\":[{\"mesh\":0,\"name\":\"" << clip.name << "\"" << streams.node_transform << "}],";
+  json << "\"meshes\":[{\"name\":\"" << clip.name << "\",\"primitives\":[{\"attributes\":{\"POSITION\":" << position;
+  if (normal >= 0) json << ",\"NORMAL\":" << normal;
   if (uv >= 0) json << ",\"TEXCOORD_0\":" << uv;
   json << "},\"indices\":" << index << ",\"material\":0";
   if (!targets.empty()) json << ",\"targets\":" << GlbBuilder::join(targets);
@@ -212,9 +373,15 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
       for (size_t t = 0; t < targets.size(); ++t) weights.push_back(f >= 1 && t == f - 1 ? 1.0f : 0.0f);
     }
     const int input = b.floats(times, 1, "SCALAR", 0, true);
-    const int output = b.floats(weights, 1, "SCALAR", 0, false);
+    // One-hot rows: meshoptimizer packs them to almost nothing.
+    const int output = clip.compact ? b.accessor(b.view_compressed(weights.data(), 4, weights.size(), 0, false), kFloat, false, weights.size(), "SCALAR")
+                                    : b.floats(weights, 1, "SCALAR", 0, false);
     json << "\"animations\":[{\"name\":\"play\",\"samplers\":[{\"input\":" << input << ",\"output\":" << output
          << ",\"interpolation\":\"LINEAR\"}],\"channels\":[{\"sampler\":0,\"target\":{\"node\":0,\"path\":\"weights\"}}]}],";
+  }
+  if (clip.compact) {
+    const std::string extensions = b.compressed() ? "[\"KHR_mesh_quantization\",\"EXT_meshopt_compression\"]" : "[\"KHR_mesh_quantization\"]";
+    json << "\"extensionsUsed\":" << extensions << ",\"extensionsRequired\":" << extensions << ",";
   }
   std::string text = json.str();
   text.back() = '}';  // the last comma closes the object

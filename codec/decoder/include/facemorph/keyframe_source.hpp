@@ -51,6 +51,9 @@ class KeyframeSource {
   virtual std::shared_ptr<const Keyframe> keyframe(size_t k) const = 0;
   // Keyframe k's texture, M × M RGB (outline().has_texture()).
   virtual std::shared_ptr<const Image> texture(size_t k) const = 0;
+  // The keyframe whose stored texture keyframe k shows: k, or in a file of shared textures (format
+  // 2.2) the first keyframe naming the same TEXR chunk (texture(k) is that keyframe's image).
+  virtual size_t texture_owner(size_t k) const { return k; }
   // How many keyframes' reconstructed surfaces one decoder on this source may keep: its share of
   // the memory budget (every keyframe for a sequence in memory).
   virtual size_t surfaces_kept() const = 0;

@@ -133,6 +133,13 @@ std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem
                                                            SequenceFileInfo* info = nullptr);
 std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
                                                            const DecoderLimits& limits = kDefaultDecoderLimits, SequenceFileInfo* info = nullptr);
+// The same over bytes the caller keeps, not copied (fm_file_open_memory_borrowed): they must outlive
+// the source and every decoder on it. Only the header's and index's chunks and every chunk's 24-byte
+// header and 4-byte checksum are read here; a keyframe's chunks when a frame first needs them (and
+// their checksums verified then), so a player streaming the file fills those bytes in later,
+// before the first decode that needs them (spec/web.md).
+std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
+                                                                    const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // Checks a whole file as a player would find it, keyframe by keyframe: every keyframe's fields and
 // texture decoded once and dropped, every checksum verified, within `limits` (one keyframe held at

@@ -20,9 +20,16 @@ struct GltfClip {
   std::vector<Vec2> uvs;                     // per vertex, in [0,1]² (v up, as glTF's is flipped on writing)
   Image texture;                             // RGB or RGBA; empty: untextured grey material
   std::string name = "face";
+  // For the web (issue 29): positions and their morph differences as int16 on one grid of the
+  // clip's box (the node's scale and translation undo it: KHR_mesh_quantization), normals and their
+  // differences as normalised int8, UVs as normalised uint16; then every vertex stream and the
+  // indices compressed with meshoptimizer (EXT_meshopt_compression) where that is smaller. The
+  // positions move by at most half a grid step: the box's largest side / 65534 / 2.
+  bool compact = false;
 };
 
-// The .glb bytes. Throws kInvalidArgument for an empty clip, times not increasing, frames of
+// The .glb bytes (with `compact`, needing KHR_mesh_quantization and, where a stream was compressed,
+// EXT_meshopt_compression: three.js reads both, the latter with its MeshoptDecoder). Throws kInvalidArgument for an empty clip, times not increasing, frames of
 // different sizes, faces out of range, UVs of the wrong count, or non-finite positions.
 std::vector<uint8_t> encode_glb(const GltfClip& clip);
 

@@ -1,0 +1,36 @@
+// The image codecs of a build without libavif, libwebp and libpng (FACEMORPH_IMAGE_CODECS=OFF): the
+// WebAssembly decoder, whose textures the browser decodes itself (createImageBitmap, ImageDecoder),
+// so that the module carries no AV1 decoder twice. Every codec call is kUnsupported, naming why; a
+// player of this build asks for no texture buffer and blends the keyframes' images itself with the
+// weights fm_decoder_get_texture_weights gives (spec/web.md).
+#include "facemorph/image_codec.hpp"
+
+#include "facemorph/error.hpp"
+
+namespace facemorph {
+
+namespace {
+
+[[noreturn]] void no_codec(const char* what, const std::string& source = "") {
+  throw Error(ErrorCode::kUnsupported, (source.empty() ? std::string() : source + ": ") + what +
+                                           ": this decoder was built without image codecs (FACEMORPH_IMAGE_CODECS=OFF); its player decodes the textures");
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_webp(const Image&, int) { no_codec("WebP encoding"); }
+Image decode_webp(std::span<const uint8_t>, const std::string& source, int, int64_t) { no_codec("WebP decoding", source); }
+std::vector<uint8_t> encode_avif(const Image&, int) { no_codec("AVIF encoding"); }
+Image decode_avif(std::span<const uint8_t>, const std::string& source, int, int64_t) { no_codec("AVIF decoding", source); }
+std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const>, int) { no_codec("AVIF sequence encoding"); }
+void decode_avif_sequence(std::span<const uint8_t>, const std::string& source, uint32_t, uint32_t, uint32_t, const std::function<bool(uint32_t)>&,
+                          const std::function<void(uint32_t, Image&&)>&) {
+  no_codec("AVIF sequence decoding", source);
+}
+std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t>, const std::string& source, uint32_t, uint32_t) {
+  no_codec("AVIF sequence parsing", source);
+}
+std::vector<uint8_t> encode_png(const Image&) { no_codec("PNG encoding"); }
+Image decode_png(std::span<const uint8_t>, const std::string& source, int64_t) { no_codec("PNG decoding", source); }
+
+}  // namespace facemorph

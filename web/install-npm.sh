@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs the browser side's npm packages, pinned, into a folder this script manages (never
+# committed): three (the player page's renderer, copied next to the module by web/build.sh) and
+# puppeteer-core (the headless-Chromium test, tests/web/browser.sh; it drives Debian's chromium and
+# downloads no browser). Idempotent: a folder that holds these versions is left as it is, without
+# touching the network. tools/install-deps.sh runs it.
+#   web/install-npm.sh [DIR]     (default: $FACEMORPH_NPM_DIR or build-web/npm)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+dir=${1:-${FACEMORPH_NPM_DIR:-build-web/npm}}
+packages=(three@0.187.0 puppeteer-core@25.16.0 gltf-validator@2.0.0-dev.3.10)
+command -v npm >/dev/null || { echo "install-npm: npm not found (tools/install-deps.sh installs it)" >&2; exit 1; }
+have() {  # have NAME@VERSION: installed at that version
+  local name=${1%@*} version=${1##*@}
+  [[ -f "$dir/node_modules/$name/package.json" ]] && grep -q "\"version\": \"$version\"" "$dir/node_modules/$name/package.json"
+}
+missing=()
+for package in "${packages[@]}"; do have "$package" || missing+=("$package"); done
+((${#missing[@]} == 0)) && exit 0
+mkdir -p "$dir"
+[[ -f "$dir/package.json" ]] || echo '{"name": "facemorph-web-deps", "private": true}' > "$dir/package.json"
+echo "install-npm: installing ${missing[*]} into $dir" >&2
+npm install --prefix "$dir" --no-audit --no-fund --ignore-scripts "${missing[@]}" >&2
