@@ -703,8 +703,10 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   }
   report_.texture_size = store_texture ? texture_size : 0;
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
-  // keyframes' folds, since the keyframes are blended together.
-  std::vector<std::vector<Vec3>> local(keys);
+  // keyframes' folds, since the keyframes are blended together. Each goes to the store as it is
+  // made (1.25 MB at N = 257, and a long capture has hundreds) and is read back for each later use.
+  SurfaceStore local(options_.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
+  local.reset(keys);
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence sequence;
   sequence.grid_n = grid_n;
@@ -727,7 +729,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         const RigidPose to_face = selection_[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
-        local[static_cast<size_t>(k)] = std::move(positions);
+        local.put(static_cast<size_t>(k), std::move(positions));
         Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
         key.time = capture_.frames[index].time;
         key.pose = selection_[index].pose;
@@ -737,21 +739,22 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
       [&](int done, int total) { progress("keyframes", done, total); });
   if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
   parallel_for(static_cast<int>(keys), options_.threads,
-               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, local[static_cast<size_t>(k)]); });
+               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(static_cast<size_t>(k))); });
   std::vector<int32_t> fixed;
   for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
   std::sort(fixed.begin(), fixed.end());
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
-    local[static_cast<size_t>(k)] = {};  // its fields replace it: memory holds one or the other
+    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), options_.representation, fixed);
   });
+  report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
+  report_.keyframes_spilled_bytes += local.spilled_bytes();
   validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
   return sequence;
 }
 
-void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const {
+void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const {
   const std::vector<Vec2>& nodes = geometry.grid().nodes;
   // Per node of G, the keyframe values P_k minimising
   //   Σ_j |Σ_k c_k(t_j) P_k − X_j|² + μ Σ_k |P_k − X_k|²
@@ -774,11 +777,12 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   const Vec3 centre = pose_centre();
   const auto n = static_cast<Eigen::Index>(3 * nodes.size());
   auto flat = [n](std::vector<Vec3>& v) { return Eigen::Map<Eigen::VectorXd>(v.data()->data(), n); };
+  auto flat_const = [n](const std::vector<Vec3>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data()->data(), n); };
   Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(keys, keys);
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, keys);  // column k: Σ_j c_k(t_j) X_j + μ X_k
   for (Eigen::Index k = 0; k < keys; ++k) {
     normal(k, k) += 1 + mu;
-    rhs.col(k) += (1 + mu) * flat(local[static_cast<size_t>(k)]);
+    rhs.col(k) += (1 + mu) * flat_const(*local.get(static_cast<size_t>(k)));
   }
   std::vector<int> held;
   for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
@@ -823,7 +827,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   }
   const Eigen::VectorXd& mass = geometry.mass();
   for (Eigen::Index k = 0; k < keys; ++k) {
-    std::vector<Vec3>& own = local[static_cast<size_t>(k)];
+    std::vector<Vec3> own = *local.get(static_cast<size_t>(k));  // a copy to move: the stored one is read-only
     double moved = 0, total = 0;
     for (Eigen::Index v = 0; v < mass.size(); ++v) {
       moved += mass[v] * (fitted.col(k).segment<3>(3 * v) - own[static_cast<size_t>(v)]).squaredNorm();
@@ -837,6 +841,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
     // move: the keyframe stays its frame.
     const double scale = std::isfinite(noise) ? std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300)) : 0.0;
     flat(own) += scale * (fitted.col(k) - flat(own));
+    local.put(static_cast<size_t>(k), std::move(own));
   }
 }
 
@@ -857,6 +862,7 @@ double auto_field_error(const KeyframeSelection& chosen) {
 FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
   const auto start = std::chrono::steady_clock::now();
   FieldPrecisionOptions precision = options_.field_precision;
+  precision.spill = options_.spill_keyframes;
   if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
   FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
   report_.seconds_precision = seconds_since(start);
@@ -938,6 +944,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   }
   report.peak_frames_in_memory = encoder.frame_store().peak_held();
   report.spilled_bytes = encoder.frame_store().spilled_bytes();
+  report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, report.field_precision.peak_keyframes_in_memory);
+  report.keyframes_spilled_bytes += report.field_precision.spilled_bytes;
   if (report_out) *report_out = std::move(report);
   return sequence;
 }

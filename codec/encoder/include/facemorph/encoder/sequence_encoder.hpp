@@ -15,6 +15,7 @@
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/frame_store.hpp"
+#include "facemorph/encoder/keyframe_store.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
@@ -112,6 +113,11 @@ struct EncodeOptions {
   // one per thread) whatever the capture's length (frame_store.hpp). false: every map stays in
   // memory, ~4 MB a frame of a 10k-vertex capture; the output is the same.
   bool spill_frames = true;
+  // true (the default): the keyframes' surfaces on G while they are fitted, and the field
+  // precision's exact fields and decoded surfaces, go to a temporary file too and are read back one
+  // a thread (keyframe_store.hpp). false: they stay in memory, ~3 MB a keyframe at N = 257 (as
+  // the encoder did before); the output is the same.
+  bool spill_keyframes = true;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -184,6 +190,11 @@ struct EncodeReport {
   // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
   int peak_frames_in_memory = 0;
   uint64_t spilled_bytes = 0;
+  // The same for the keyframes' arrays (KeyframeStore: surfaces on G in build and the fit, exact
+  // fields and decoded surfaces in the field precision's search): the most in memory at once in
+  // either step, and the bytes written.
+  int peak_keyframes_in_memory = 0;
+  uint64_t keyframes_spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0, seconds_texture = 0;
 };
 
@@ -264,9 +275,10 @@ class SequenceEncoder {
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  // Replaces the keyframes' registered surfaces in the face frame (`local[k]`, frame keyframes[k],
-  // sampled at `nodes`) by the least-squares fit of the spline to every frame (options().keyframe_fit).
-  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const;
+  // Replaces the keyframes' registered surfaces in the face frame (item k of `local`, frame
+  // keyframes[k], sampled at G's nodes) by the least-squares fit of the spline to every frame
+  // (options().keyframe_fit). Reads each surface back twice and stores the fitted one in its place.
+  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
