@@ -16,6 +16,10 @@
 
 #include <Eigen/Cholesky>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <limits>
@@ -590,6 +594,8 @@ void SequenceEncoder::sample_frames() {
   node_weights_.resize(nodes);
   for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
   selection_.assign(static_cast<size_t>(count), {});
+  samples_released_ = false;
+  released_noise_.clear();
   auto sample = [&](size_t index) {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
@@ -627,7 +633,27 @@ Vec3 SequenceEncoder::pose_centre() const {
   return sum / total;
 }
 
+void SequenceEncoder::release_selection_samples(const std::vector<int>& keyframes) {
+  for (int k : keyframes) released_noise_[k] = noise_at(k);
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  for (size_t i = 0; i < selection_.size(); ++i) {
+    SelectionFrame& s = selection_[i];
+    if (i != reference) s.local = {};
+    s.world = {};
+    s.normal = {};
+  }
+  samples_released_ = true;
+}
+
+double SequenceEncoder::noise_at(int k) const {
+  if (!samples_released_) return frame_noise(selection_, node_weights_, k);
+  const auto it = released_noise_.find(k);
+  if (it == released_noise_.end()) throw Error(ErrorCode::kInternal, "frame " + std::to_string(k) + " is no keyframe the selection's samples were released for");
+  return it->second;
+}
+
 KeyframeSelection SequenceEncoder::select_keyframes() const {
+  if (samples_released_) throw Error(ErrorCode::kInternal, "select_keyframes: the selection's samples were released (sample_frames again)");
   SelectionOptions selection;
   selection.fraction = options_.keyframe_fraction;
   selection.max_error = options_.max_error;
@@ -639,6 +665,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
 
 int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   if (options_.grid > 0) return options_.grid;
+  if (samples_released_) throw Error(ErrorCode::kInternal, "choose_grid: the selection's samples were released (sample_frames again)");
   // The smallest N whose resampling floor on the reference frame is within the target; the
   // largest candidate when none is (a crowded face: spec/method.md §7.6).
   report_.grid_floors.clear();
@@ -834,7 +861,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
       total += mass[v];
     }
     moved = std::sqrt(moved / total);
-    const double noise = frame_noise(selection_, node_weights_, keyframes[static_cast<size_t>(k)]);
+    const double noise = noise_at(keyframes[static_cast<size_t>(k)]);
     // A move beyond κ times the frame's own noise would fit the spline's systematic error between
     // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
     // stay its frames). Fewer than 5 frames give no estimate of the noise, so nothing bounds the
@@ -918,6 +945,12 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
   report.grid = encoder.choose_grid(&chosen);
+  encoder.release_selection_samples(chosen.keyframes);
+#ifdef __GLIBC__
+  // The samples were thousands of 78 KB blocks across the threads' heaps: handed back to the system
+  // here, so that the keyframe steps' arrays take their place rather than add to them.
+  malloc_trim(0);
+#endif
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   encoder.choose_texture_qualities(sequence, chosen.keyframes);

@@ -25,6 +25,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -244,6 +245,13 @@ class SequenceEncoder {
   // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
   // noise and, given the keyframes `chosen`, the error the spline makes between them.
   int choose_grid(const KeyframeSelection* chosen = nullptr);
+  // 5½ (encode_capture, once the keyframes and N are chosen): frees the selection's samples of every
+  // frame (its local, world and normal vectors on the 65² grid, 230 KB a frame), which the later
+  // steps do not read, keeping what they do: each frame's time, pose and diagonal, the reference's
+  // local vectors (pose_centre) and the fit's noise estimate at `keyframes`. build may then be given
+  // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
+  // again.
+  void release_selection_samples(const std::vector<int>& keyframes);
   // 6. the keyframes on G: fields, poses, holes, textures.
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
@@ -333,6 +341,11 @@ class SequenceEncoder {
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   DiskReparametrisation reparametrisation_;
   std::vector<SelectionFrame> selection_;
+  // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
+  bool samples_released_ = false;
+  std::map<int, double> released_noise_;
+  // frame_noise at frame k, from the samples or, once they are released, as kept for a keyframe.
+  double noise_at(int k) const;
   std::vector<double> node_weights_;
   EncodeReport report_;
 };
