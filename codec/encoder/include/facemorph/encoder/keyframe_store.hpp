@@ -4,8 +4,8 @@
 // selection come back to them: the keyframe fit reads every keyframe's surface twice, the fields
 // are made from the fitted surfaces, and the field precision's search decodes every keyframe's exact
 // fields once and compares each trial rounding with that surface, on every keyframe, at each of its
-// refinements, for each candidate dead zone. Held in memory, these grew the encoder by ~0.9 MB a
-// frame at 10% keyframes (2.1 GB for 2010 ICT frames). Spilled, an array is written to the
+// refinements, for each candidate dead zone. Held in memory, they were ~4 MB a keyframe beside the
+// output, and the search was where a long encode peaked. Spilled, an array is written to the
 // encoder's temporary file when it is made and read back (a copy counted in held() while it lives)
 // when a step needs it: memory holds one a thread.
 #pragma once
