@@ -1,6 +1,7 @@
 #include "facemorph/encoder/field_precision.hpp"
 
 #include "facemorph/disk_grid.hpp"
+#include "facemorph/encoder/keyframe_store.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -9,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace facemorph {
 
@@ -64,12 +66,21 @@ void check_dead_zone(const FieldPrecisionOptions& options) {
   }
 }
 
-double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const Decoded& exact) {
+double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const std::vector<Vec3>& exact, double exact_diagonal) {
   ReconstructOptions o = tight();
-  o.start = &exact.exact;
+  o.start = &exact;
   const std::vector<Vec3> positions = reconstructor.reconstruct(rounded, o).positions;
-  return rms_distance(positions, exact.exact) / exact.diagonal;
+  return rms_distance(positions, exact) / exact_diagonal;
 }
+
+// Where one choose_field_coding keeps its keyframes' arrays (keyframe_store.hpp): the stores' mode,
+// one count for all of them, and the bytes they wrote.
+struct Spill {
+  explicit Spill(bool spill) : mode(spill ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory) {}
+  SurfaceStore::Mode mode;
+  std::shared_ptr<ResidentCount> count = std::make_shared<ResidentCount>();
+  uint64_t bytes = 0;
+};
 
 // Rounds arrays to multiples of their steps. Per-node arrays on G's interior are rounded with error
 // diffusion (Floyd–Steinberg over the lattice, in node order): each node's rounding error is
@@ -186,7 +197,7 @@ int auto_intra_period(const Sequence& sequence) {
 namespace {
 
 // choose_field_coding for one dead zone (options checked).
-FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report, Spill& spill) {
   FieldCoding coding;
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
@@ -197,7 +208,7 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
 
   // Calibrate on keyframe 0: each group alone at a probe step, the rest exact.
   const Keyframe& probe_key = sequence.keyframes.front();
-  const Decoded probe_exact = decode_exact(reconstructor, probe_key);
+  Decoded probe_exact = decode_exact(reconstructor, probe_key);
   const std::vector<std::vector<double>> arrays = scalar_arrays(probe_key.fields);
   std::vector<size_t> present;
   for (size_t g = 0; g < kGroups.size(); ++g) {
@@ -229,7 +240,8 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
     }
     const double spread = std::max(hi - lo, 1e-300);
     const double probe = spread / 4096;
-    const double error = decoded_error(reconstructor, rounder.rounded(probe_key.fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, probe)), probe_exact);
+    const double error = decoded_error(reconstructor, rounder.rounded(probe_key.fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, probe)),
+                                       probe_exact.exact, probe_exact.diagonal);
     // Rounding error grows in proportion to the step while the step is small against the field's
     // variation; the verification below catches where it does not.
     group_steps[g] = error > 0 ? std::min(probe * share / error, spread) : spread;
@@ -246,8 +258,16 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   // noisy capture: 8x the scale, 50x the error, where error diffusion stops hiding the steps), so the
   // next scale follows the power law through the last two measurements, kept inside the bracket
   // of scales known to meet and to miss the target.
-  std::vector<Decoded> exact;
-  for (const Keyframe& key : sequence.keyframes) exact.push_back(&key == &probe_key ? probe_exact : decode_exact(reconstructor, key));
+  // Every keyframe's exact surface, decoded once and compared with each trial's: stored (1.25 MB a
+  // keyframe at N = 257) and read back one at a time.
+  SurfaceStore exact(spill.mode, spill.count);
+  exact.reset(sequence.keyframes.size());
+  std::vector<double> exact_diagonals;
+  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+    Decoded d = k == 0 ? std::move(probe_exact) : decode_exact(reconstructor, sequence.keyframes[k]);  // the probe's is not used again
+    exact_diagonals.push_back(d.diagonal);
+    exact.put(k, std::move(d.exact));
+  }
   const double aim = 0.95 * options.target_error;
   double scale = 1, best_scale = 0, missed_scale = std::numeric_limits<double>::infinity();
   double last_scale = 0, last_worst = 0;
@@ -256,7 +276,7 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   for (;; ++refinements) {
     apply(scale);
     rounder.for_each_rounded(sequence.keyframes, coding,
-                             [&](size_t k, GridFields&& rounded) { errors[k] = decoded_error(reconstructor, rounded, exact[k]); });
+                             [&](size_t k, GridFields&& rounded) { errors[k] = decoded_error(reconstructor, rounded, *exact.get(k), exact_diagonals[k]); });
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {
@@ -279,6 +299,7 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
     throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) + " in " +
                                               std::to_string(kMaxRefinements) + " refinements");
   }
+  spill.bytes += exact.spilled_bytes();
   scale = best_scale;
   errors = best_errors;
   apply(scale);
@@ -293,6 +314,47 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   }
   return coding;
 }
+
+// Moves the keyframes' exact fields out of a sequence into a store while the dead zones are tried,
+// and back: each trial rounds a copy of them, and the file it encodes needs every keyframe's rounded
+// fields at once, but the exact ones need not be in memory beside them (1.7 MB a keyframe at N = 257).
+// restore() puts them back; the destructor tries to, should a trial throw.
+class FieldsSetAside {
+ public:
+  FieldsSetAside(Sequence& sequence, Spill& spill) : sequence_(sequence), spill_(spill), store_(spill.mode, spill.count) {
+    store_.reset(sequence_.keyframes.size());
+    for (size_t k = 0; k < sequence_.keyframes.size(); ++k) {
+      store_.put(k, std::move(sequence_.keyframes[k].fields));
+      sequence_.keyframes[k].fields = {};
+    }
+  }
+  ~FieldsSetAside() {
+    try {
+      restore();
+    } catch (const Error&) {
+      // Only while another error unwinds (restore succeeded before, or it threw to its caller).
+    }
+  }
+  FieldsSetAside(const FieldsSetAside&) = delete;
+  FieldsSetAside& operator=(const FieldsSetAside&) = delete;
+
+  // `trial` (a copy of the sequence without its fields) given every keyframe's exact fields.
+  void fill(Sequence& trial) const {
+    for (size_t k = 0; k < trial.keyframes.size(); ++k) trial.keyframes[k].fields = *store_.get(k);
+  }
+  void restore() {
+    if (restored_) return;
+    restored_ = true;
+    spill_.bytes += store_.spilled_bytes();
+    for (size_t k = 0; k < sequence_.keyframes.size(); ++k) sequence_.keyframes[k].fields = *store_.get(k);
+  }
+
+ private:
+  Sequence& sequence_;
+  Spill& spill_;
+  FieldsStore store_;
+  bool restored_ = false;
+};
 
 // Moves the keyframes' textures out of a sequence for its lifetime and back at its end (also when a
 // trial throws): the trials copy and encode fields, poses and holes only.
@@ -322,6 +384,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options);
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   validate_sequence(sequence);
+  Spill spill(options.spill);
   FieldPrecisionOptions chosen = options;
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins. The
@@ -331,14 +394,17 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
     const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
     const bool predicts = period > 1 && sequence.keyframes.size() > 1;
     const TexturesSetAside aside(sequence);
+    std::optional<FieldsSetAside> fields;
+    if (predicts) fields.emplace(sequence, spill);
     size_t fewest = std::numeric_limits<size_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       FieldPrecisionOptions trial_options = options;
       trial_options.inter_dead_zone = kDeadZoneCandidates[c];
       Sequence trial = sequence;
+      fields->fill(trial);
       SequenceFileMetadata metadata;
       try {
-        metadata.field_coding = choose_steps(trial, trial_options, nullptr);
+        metadata.field_coding = choose_steps(trial, trial_options, nullptr, spill);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
@@ -349,8 +415,14 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
         chosen.inter_dead_zone = kDeadZoneCandidates[c];
       }
     }
+    if (fields) fields->restore();
   }
-  return choose_steps(sequence, chosen, report);
+  const FieldCoding coding = choose_steps(sequence, chosen, report, spill);
+  if (report) {
+    report->peak_keyframes_in_memory = spill.count->peak.load();
+    report->spilled_bytes = spill.bytes;
+  }
+  return coding;
 }
 
 }  // namespace facemorph

@@ -2,93 +2,16 @@
 
 #include "facemorph/error.hpp"
 
-#include <cerrno>
-#include <cstdlib>
-#include <cstring>
-#include <filesystem>
-#include <string>
-#include <type_traits>
+#include "codec/encoder/encode/spill_bytes.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
+#include <string>
 
 namespace facemorph {
 
 namespace {
 
-// Vectors of plain numbers are written as their bytes: the file lives only as long as the process,
-// on the machine that wrote it, and a map read back must be the very same doubles (the encode's
-// output must not depend on whether its frames were spilled).
-static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
-static_assert(sizeof(Complex) == 2 * sizeof(double));
-template <typename T>
-constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex>;
-
-class Writer {
- public:
-  template <typename T>
-  void value(const T& v) {
-    static_assert(kPlain<T>);
-    bytes(&v, sizeof v);
-  }
-  void text(const std::string& s) {
-    value<uint64_t>(s.size());
-    bytes(s.data(), s.size());
-  }
-  template <typename T>
-  void array(const std::vector<T>& v) {
-    static_assert(kPlain<T>);
-    value<uint64_t>(v.size());
-    bytes(v.data(), v.size() * sizeof(T));
-  }
-  std::vector<char> take() { return std::move(out_); }
-
- private:
-  void bytes(const void* data, size_t size) {
-    const auto* p = static_cast<const char*>(data);
-    out_.insert(out_.end(), p, p + size);
-  }
-  std::vector<char> out_;
-};
-
-class Reader {
- public:
-  Reader(const char* data, size_t size) : p_(data), end_(data + size) {}
-  template <typename T>
-  T value() {
-    static_assert(kPlain<T>);
-    T v;
-    bytes(&v, sizeof v);
-    return v;
-  }
-  std::string text() {
-    std::string s(count(1), '\0');
-    bytes(s.data(), s.size());
-    return s;
-  }
-  template <typename T>
-  std::vector<T> array() {
-    std::vector<T> v(count(sizeof(T)));
-    bytes(v.data(), v.size() * sizeof(T));
-    return v;
-  }
-  bool done() const { return p_ == end_; }
-
- private:
-  size_t count(size_t item) {
-    const auto n = value<uint64_t>();
-    if (n > static_cast<uint64_t>(end_ - p_) / item) throw Error(ErrorCode::kInternal, "frame store: a stored frame is cut short");
-    return static_cast<size_t>(n);
-  }
-  void bytes(void* data, size_t size) {
-    if (size > static_cast<size_t>(end_ - p_)) throw Error(ErrorCode::kInternal, "frame store: a stored frame is cut short");
-    if (size == 0) return;  // an empty array's data() may be null, which memcpy must not be given
-    std::memcpy(data, p_, size);
-    p_ += size;
-  }
-  const char* p_;
-  const char* end_;
-};
+using spill::Reader;
+using spill::Writer;
 
 void write_mesh(Writer& w, const TriangleMesh& mesh) {
   w.array(mesh.positions);
@@ -193,7 +116,7 @@ std::vector<char> FrameStore::serialize(const MappedFrame& frame) {
 }
 
 MappedFrame FrameStore::deserialize(const char* bytes, size_t size) {
-  Reader r(bytes, size);
+  Reader r(bytes, size, "frame store: a stored frame");
   MappedFrame frame;
   frame.name = r.text();
   frame.prepared.rim = r.array<int>();
@@ -221,85 +144,35 @@ MappedFrame FrameStore::deserialize(const char* bytes, size_t size) {
   return frame;
 }
 
-FrameStore::Hold::Hold(std::shared_ptr<Counter> counter) : counter_(std::move(counter)) {
-  const int now = ++counter_->now;
-  int peak = counter_->peak.load();
-  while (now > peak && !counter_->peak.compare_exchange_weak(peak, now)) {
-  }
-}
-
-FrameStore::Hold::~Hold() { --counter_->now; }
-
 FrameStore::FrameStore(Mode mode) : mode_(mode), counter_(std::make_shared<Counter>()) {}
 
-FrameStore::~FrameStore() {
-  if (fd_ >= 0) ::close(fd_);
-}
-
-void FrameStore::open_file() {
-  // Unlinked as soon as it is open: the file goes when the process ends, however it ends.
-  const std::filesystem::path folder = std::filesystem::temp_directory_path();
-  std::string name = (folder / "facemorph-frames-XXXXXX").string();
-  fd_ = ::mkstemp(name.data());
-  if (fd_ < 0) {
-    throw Error(ErrorCode::kIo, "cannot create a temporary file for the frames' maps in " + folder.string() + ": " + std::strerror(errno) +
-                                    " (TMPDIR names another folder)");
-  }
-  ::unlink(name.c_str());
-}
+FrameStore::~FrameStore() = default;
 
 void FrameStore::reset(size_t count) {
   std::lock_guard lock(mutex_);
   entries_.assign(count, {});
-  if (fd_ >= 0 && ::ftruncate(fd_, 0) != 0) throw Error(ErrorCode::kIo, std::string("cannot empty the frames' temporary file: ") + std::strerror(errno));
-  end_ = 0;
-  counter_->peak = counter_->now.load();
+  file_.clear();
+  counter_->reset_peak();
 }
-
-namespace {
-
-// A frame handed out counts as held until its last pointer goes.
-std::shared_ptr<const MappedFrame> counted(MappedFrame&& frame, FrameStore::Hold* hold) {
-  struct Held {
-    MappedFrame frame;
-    std::unique_ptr<FrameStore::Hold> hold;
-  };
-  auto held = std::make_shared<Held>(Held{std::move(frame), std::unique_ptr<FrameStore::Hold>(hold)});
-  return {held, &held->frame};
-}
-
-}  // namespace
 
 void FrameStore::put(size_t i, MappedFrame&& frame) {
   if (i >= entries_.size()) throw Error(ErrorCode::kInternal, "frame store: frame " + std::to_string(i) + " is past its size");
   if (mode_ == Mode::kMemory) {
-    auto stored = counted(std::move(frame), new Hold(counter_));
+    auto stored = counted(std::move(frame), std::make_unique<Hold>(counter_));
     std::lock_guard lock(mutex_);
     entries_[i].frame = std::move(stored);
     entries_[i].stored = true;
     return;
   }
   const std::vector<char> bytes = serialize(frame);
-  uint64_t offset = 0;
-  {
-    std::lock_guard lock(mutex_);
-    if (fd_ < 0) open_file();
-    offset = end_;
-    end_ += bytes.size();
-  }
-  // Each frame has its own range of the file: threads write side by side.
-  for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::pwrite(fd_, bytes.data() + done, bytes.size() - done, static_cast<off_t>(offset + done));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      throw Error(ErrorCode::kIo, frame.name + ": cannot write its map to the temporary file in " + std::filesystem::temp_directory_path().string() +
-                                      ": " + std::strerror(errno) + " (a full disk? TMPDIR names another folder)");
-    }
-    done += static_cast<size_t>(n);
+  SpillFile::Record record;
+  try {
+    record = file_.append(bytes.data(), bytes.size());
+  } catch (const Error& e) {
+    throw Error(e.code(), frame.name + ": " + e.what());
   }
   std::lock_guard lock(mutex_);
-  entries_[i].offset = offset;
-  entries_[i].size = bytes.size();
+  entries_[i].record = record;
   entries_[i].stored = true;
 }
 
@@ -312,16 +185,10 @@ std::shared_ptr<const MappedFrame> FrameStore::get(size_t i) const {
   }
   if (entry.frame) return entry.frame;
   auto hold = std::make_unique<Hold>(counter_);  // counts from the read on: the bytes are a frame's worth too
-  std::vector<char> bytes(entry.size);
-  for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::pread(fd_, bytes.data() + done, bytes.size() - done, static_cast<off_t>(entry.offset + done));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw Error(ErrorCode::kIo, "frame store: cannot read frame " + std::to_string(i) + " back: " + (n < 0 ? std::strerror(errno) : "the file is short"));
-    done += static_cast<size_t>(n);
-  }
+  std::vector<char> bytes = file_.read(entry.record);
   MappedFrame frame = deserialize(bytes.data(), bytes.size());
   bytes = {};
-  return counted(std::move(frame), hold.release());
+  return counted(std::move(frame), std::move(hold));
 }
 
 void FrameStore::keep(const std::vector<size_t>& kept) {

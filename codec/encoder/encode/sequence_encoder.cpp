@@ -16,6 +16,10 @@
 
 #include <Eigen/Cholesky>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <limits>
@@ -591,6 +595,8 @@ void SequenceEncoder::sample_frames() {
   node_weights_.resize(nodes);
   for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
   selection_.assign(static_cast<size_t>(count), {});
+  samples_released_ = false;
+  released_noise_.clear();
   auto sample = [&](size_t index) {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
@@ -628,7 +634,27 @@ Vec3 SequenceEncoder::pose_centre() const {
   return sum / total;
 }
 
+void SequenceEncoder::release_selection_samples(const std::vector<int>& keyframes) {
+  for (int k : keyframes) released_noise_[k] = noise_at(k);
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  for (size_t i = 0; i < selection_.size(); ++i) {
+    SelectionFrame& s = selection_[i];
+    if (i != reference) s.local = {};
+    s.world = {};
+    s.normal = {};
+  }
+  samples_released_ = true;
+}
+
+double SequenceEncoder::noise_at(int k) const {
+  if (!samples_released_) return frame_noise(selection_, node_weights_, k);
+  const auto it = released_noise_.find(k);
+  if (it == released_noise_.end()) throw Error(ErrorCode::kInternal, "frame " + std::to_string(k) + " is no keyframe the selection's samples were released for");
+  return it->second;
+}
+
 KeyframeSelection SequenceEncoder::select_keyframes() const {
+  if (samples_released_) throw Error(ErrorCode::kInternal, "select_keyframes: the selection's samples were released (sample_frames again)");
   SelectionOptions selection;
   selection.fraction = options_.keyframe_fraction;
   selection.max_error = options_.max_error;
@@ -641,6 +667,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
 
 int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   if (options_.grid > 0) return options_.grid;
+  if (samples_released_) throw Error(ErrorCode::kInternal, "choose_grid: the selection's samples were released (sample_frames again)");
   // The smallest N whose resampling floor on the reference frame is within the target; the
   // largest candidate when none is (a crowded face: spec/method.md §7.6).
   report_.grid_floors.clear();
@@ -705,8 +732,10 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   }
   report_.texture_size = store_texture ? texture_size : 0;
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
-  // keyframes' folds, since the keyframes are blended together.
-  std::vector<std::vector<Vec3>> local(keys);
+  // keyframes' folds, since the keyframes are blended together. Each goes to the store as it is
+  // made (1.25 MB at N = 257, and a long capture has hundreds) and is read back for each later use.
+  SurfaceStore local(options_.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
+  local.reset(keys);
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence sequence;
   sequence.grid_n = grid_n;
@@ -729,7 +758,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         const RigidPose to_face = selection_[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
-        local[static_cast<size_t>(k)] = std::move(positions);
+        local.put(static_cast<size_t>(k), std::move(positions));
         Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
         key.time = capture_.frames[index].time;
         key.pose = selection_[index].pose;
@@ -739,21 +768,22 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
       [&](int done, int total) { progress("keyframes", done, total); });
   if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
   parallel_for(static_cast<int>(keys), options_.threads,
-               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, local[static_cast<size_t>(k)]); });
+               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(static_cast<size_t>(k))); });
   std::vector<int32_t> fixed;
   for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
   std::sort(fixed.begin(), fixed.end());
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, local[static_cast<size_t>(k)], options_.representation, fixed);
-    local[static_cast<size_t>(k)] = {};  // its fields replace it: memory holds one or the other
+    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), options_.representation, fixed);
   });
+  report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
+  report_.keyframes_spilled_bytes += local.spilled_bytes();
   validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
   return sequence;
 }
 
-void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const {
+void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const {
   const std::vector<Vec2>& nodes = geometry.grid().nodes;
   // Per node of G, the keyframe values P_k minimising
   //   Σ_j |Σ_k c_k(t_j) P_k − X_j|² + μ Σ_k |P_k − X_k|²
@@ -776,11 +806,12 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   const Vec3 centre = pose_centre();
   const auto n = static_cast<Eigen::Index>(3 * nodes.size());
   auto flat = [n](std::vector<Vec3>& v) { return Eigen::Map<Eigen::VectorXd>(v.data()->data(), n); };
+  auto flat_const = [n](const std::vector<Vec3>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data()->data(), n); };
   Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(keys, keys);
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, keys);  // column k: Σ_j c_k(t_j) X_j + μ X_k
   for (Eigen::Index k = 0; k < keys; ++k) {
     normal(k, k) += 1 + mu;
-    rhs.col(k) += (1 + mu) * flat(local[static_cast<size_t>(k)]);
+    rhs.col(k) += (1 + mu) * flat_const(*local.get(static_cast<size_t>(k)));
   }
   std::vector<int> held;
   for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
@@ -825,20 +856,21 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   }
   const Eigen::VectorXd& mass = geometry.mass();
   for (Eigen::Index k = 0; k < keys; ++k) {
-    std::vector<Vec3>& own = local[static_cast<size_t>(k)];
+    std::vector<Vec3> own = *local.get(static_cast<size_t>(k));  // a copy to move: the stored one is read-only
     double moved = 0, total = 0;
     for (Eigen::Index v = 0; v < mass.size(); ++v) {
       moved += mass[v] * (fitted.col(k).segment<3>(3 * v) - own[static_cast<size_t>(v)]).squaredNorm();
       total += mass[v];
     }
     moved = std::sqrt(moved / total);
-    const double noise = frame_noise(selection_, node_weights_, keyframes[static_cast<size_t>(k)]);
+    const double noise = noise_at(keyframes[static_cast<size_t>(k)]);
     // A move beyond κ times the frame's own noise would fit the spline's systematic error between
     // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
     // stay its frames). Fewer than 5 frames give no estimate of the noise, so nothing bounds the
     // move: the keyframe stays its frame.
     const double scale = std::isfinite(noise) ? std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300)) : 0.0;
     flat(own) += scale * (fitted.col(k) - flat(own));
+    local.put(static_cast<size_t>(k), std::move(own));
   }
 }
 
@@ -859,6 +891,7 @@ double auto_field_error(const KeyframeSelection& chosen) {
 FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
   const auto start = std::chrono::steady_clock::now();
   FieldPrecisionOptions precision = options_.field_precision;
+  precision.spill = options_.spill_keyframes;
   if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
   FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
   report_.seconds_precision = seconds_since(start);
@@ -960,6 +993,12 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
   report.grid = encoder.choose_grid(&chosen);
+  encoder.release_selection_samples(chosen.keyframes);
+#ifdef __GLIBC__
+  // The samples were thousands of 78 KB blocks across the threads' heaps: handed back to the system
+  // here, so that the keyframe steps' arrays take their place rather than add to them.
+  malloc_trim(0);
+#endif
   Sequence sequence = encoder.build(chosen.keyframes, report.grid);
   if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
   encoder.choose_texture_qualities(sequence, chosen.keyframes);
@@ -987,6 +1026,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   }
   report.peak_frames_in_memory = encoder.frame_store().peak_held();
   report.spilled_bytes = encoder.frame_store().spilled_bytes();
+  report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, report.field_precision.peak_keyframes_in_memory);
+  report.keyframes_spilled_bytes += report.field_precision.spilled_bytes;
   if (report_out) *report_out = std::move(report);
   return sequence;
 }

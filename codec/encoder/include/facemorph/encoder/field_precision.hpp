@@ -41,6 +41,10 @@ struct FieldPrecisionOptions {
   // mesh and cost 5-28% on a noisy fmsynth capture (spec/method.md §5.3). kAutoDeadZone (the
   // default) tries kDeadZoneCandidates and keeps the one whose file is smallest; else in [0.5, 1).
   double inter_dead_zone = kAutoDeadZone;
+  // true (the default): every keyframe's surface decoded from its exact fields, and the exact
+  // fields while the dead zones are tried, go to a temporary file and are read back one at a time
+  // (keyframe_store.hpp); false: they stay in memory. The steps and rounding are the same.
+  bool spill = true;
 };
 
 struct FieldPrecisionReport {
@@ -49,6 +53,8 @@ struct FieldPrecisionReport {
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
   double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
+  int peak_keyframes_in_memory = 0;     // the most exact fields or decoded surfaces in memory at once (KeyframeStore)
+  uint64_t spilled_bytes = 0;           // written to the temporary file (0 without options.spill)
 };
 
 // The intra period "auto" gives `sequence`: ⌊kAutoIntraSeconds / its mean keyframe interval⌋, at

@@ -10,8 +10,8 @@
 #pragma once
 
 #include "facemorph/encoder/frame_pipeline.hpp"
+#include "facemorph/encoder/spill_file.hpp"
 
-#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -49,23 +49,12 @@ class FrameStore {
   // Accounting, for the report and the tests: how many frames' maps (or meshes being mapped) are in
   // memory now and at most since the last reset. A Hold counts one while it lives: the encoder takes
   // one around a frame it reads and maps before put.
-  struct Counter {
-    std::atomic<int> now{0}, peak{0};
-  };
-  class Hold {
-   public:
-    explicit Hold(std::shared_ptr<Counter> counter);
-    ~Hold();
-    Hold(const Hold&) = delete;
-    Hold& operator=(const Hold&) = delete;
-
-   private:
-    std::shared_ptr<Counter> counter_;
-  };
+  using Counter = ResidentCount;
+  using Hold = ResidentHold;
   [[nodiscard]] Hold hold() const { return Hold(counter_); }
   int held() const { return counter_->now.load(); }
   int peak_held() const { return counter_->peak.load(); }
-  uint64_t spilled_bytes() const { return end_; }  // the file's size (0 in memory)
+  uint64_t spilled_bytes() const { return file_.size(); }  // the file's size (0 in memory)
 
   // The byte form of a frame in the file (no prepared mesh): what put writes and get reads. Public
   // for the round-trip test.
@@ -74,16 +63,14 @@ class FrameStore {
 
  private:
   struct Entry {
-    uint64_t offset = 0, size = 0;
+    SpillFile::Record record;
     std::shared_ptr<const MappedFrame> frame;  // kMemory
     bool stored = false;
   };
-  void open_file();
 
   Mode mode_;
-  int fd_ = -1;
+  SpillFile file_{"the frames' maps"};
   mutable std::mutex mutex_;
-  uint64_t end_ = 0;
   std::vector<Entry> entries_;
   // Shared with the frames handed out, which may outlive the store.
   std::shared_ptr<Counter> counter_;

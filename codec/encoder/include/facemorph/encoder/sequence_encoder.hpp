@@ -15,6 +15,7 @@
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/frame_store.hpp"
+#include "facemorph/encoder/keyframe_store.hpp"
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
@@ -24,6 +25,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -120,6 +122,11 @@ struct EncodeOptions {
   // one per thread) whatever the capture's length (frame_store.hpp). false: every map stays in
   // memory, ~4 MB a frame of a 10k-vertex capture; the output is the same.
   bool spill_frames = true;
+  // true (the default): the keyframes' surfaces on G while they are fitted, and the field
+  // precision's exact fields and decoded surfaces, go to a temporary file too and are read back one
+  // a thread (keyframe_store.hpp). false: they stay in memory, ~3 MB a keyframe at N = 257 (as
+  // the encoder did before); the output is the same.
+  bool spill_keyframes = true;
   // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -198,6 +205,11 @@ struct EncodeReport {
   // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
   int peak_frames_in_memory = 0;
   uint64_t spilled_bytes = 0;
+  // The same for the keyframes' arrays (KeyframeStore: surfaces on G in build and the fit, exact
+  // fields and decoded surfaces in the field precision's search): the most in memory at once in
+  // either step, and the bytes written.
+  int peak_keyframes_in_memory = 0;
+  uint64_t keyframes_spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0, seconds_texture = 0;
 };
 
@@ -247,6 +259,13 @@ class SequenceEncoder {
   // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
   // noise and, given the keyframes `chosen`, the error the spline makes between them.
   int choose_grid(const KeyframeSelection* chosen = nullptr);
+  // 5½ (encode_capture, once the keyframes and N are chosen): frees the selection's samples of every
+  // frame (its local, world and normal vectors on the 65² grid, 230 KB a frame), which the later
+  // steps do not read, keeping what they do: each frame's time, pose and diagonal, the reference's
+  // local vectors (pose_centre) and the fit's noise estimate at `keyframes`. build may then be given
+  // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
+  // again.
+  void release_selection_samples(const std::vector<int>& keyframes);
   // 6. the keyframes on G: fields, poses, holes, textures.
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
@@ -284,9 +303,10 @@ class SequenceEncoder {
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  // Replaces the keyframes' registered surfaces in the face frame (`local[k]`, frame keyframes[k],
-  // sampled at `nodes`) by the least-squares fit of the spline to every frame (options().keyframe_fit).
-  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, std::vector<std::vector<Vec3>>& local) const;
+  // Replaces the keyframes' registered surfaces in the face frame (item k of `local`, frame
+  // keyframes[k], sampled at G's nodes) by the least-squares fit of the spline to every frame
+  // (options().keyframe_fit). Reads each surface back twice and stores the fitted one in its place.
+  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   const std::vector<double>& selection_weights() const { return node_weights_; }
@@ -341,6 +361,11 @@ class SequenceEncoder {
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   DiskReparametrisation reparametrisation_;
   std::vector<SelectionFrame> selection_;
+  // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
+  bool samples_released_ = false;
+  std::map<int, double> released_noise_;
+  // frame_noise at frame k, from the samples or, once they are released, as kept for a keyframe.
+  double noise_at(int k) const;
   std::vector<double> node_weights_;
   EncodeReport report_;
 };

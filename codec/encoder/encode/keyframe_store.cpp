@@ -1,0 +1,118 @@
+#include "facemorph/encoder/keyframe_store.hpp"
+
+#include "facemorph/error.hpp"
+
+#include "codec/encoder/encode/spill_bytes.hpp"
+
+#include <string>
+
+namespace facemorph {
+
+namespace {
+
+using spill::Reader;
+using spill::Writer;
+
+void write_item(Writer& w, const std::vector<Vec3>& surface) { w.array(surface); }
+
+void read_item(Reader& r, std::vector<Vec3>& surface) { surface = r.array<Vec3>(); }
+
+// Field by field: a field added to GridFields must be added here too (the round-trip test compares
+// them all).
+void write_item(Writer& w, const GridFields& f) {
+  w.value(f.representation);
+  w.value(f.grid_n);
+  w.array(f.mean_curvature);
+  w.array(f.log_conformal_factor);
+  w.array(f.tangential_u);
+  w.array(f.tangential_v);
+  w.array(f.fixed_nodes);
+  w.array(f.fixed_laplacian);
+  w.array(f.positions);
+  w.array(f.rim);
+}
+
+void read_item(Reader& r, GridFields& f) {
+  f.representation = r.value<Representation>();
+  f.grid_n = r.value<int>();
+  f.mean_curvature = r.array<double>();
+  f.log_conformal_factor = r.array<double>();
+  f.tangential_u = r.array<double>();
+  f.tangential_v = r.array<double>();
+  f.fixed_nodes = r.array<int32_t>();
+  f.fixed_laplacian = r.array<Vec3>();
+  f.positions = r.array<Vec3>();
+  f.rim = r.array<Vec3>();
+}
+
+const char* kind_name(const std::vector<Vec3>*) { return "the keyframes' surfaces"; }
+const char* kind_name(const GridFields*) { return "the keyframes' fields"; }
+
+}  // namespace
+
+template <typename T>
+KeyframeStore<T>::KeyframeStore(Mode mode, std::shared_ptr<ResidentCount> count)
+    : mode_(mode), file_(kind_name(static_cast<const T*>(nullptr))), count_(count ? std::move(count) : std::make_shared<ResidentCount>()) {}
+
+template <typename T>
+std::vector<char> KeyframeStore<T>::serialize(const T& item) {
+  Writer w;
+  write_item(w, item);
+  return w.take();
+}
+
+template <typename T>
+T KeyframeStore<T>::deserialize(const char* bytes, size_t size) {
+  const std::string what = std::string("keyframe store: one of ") + kind_name(static_cast<const T*>(nullptr));
+  Reader r(bytes, size, what.c_str());
+  T item;
+  read_item(r, item);
+  if (!r.done()) throw Error(ErrorCode::kInternal, what + " has bytes left over");
+  return item;
+}
+
+template <typename T>
+void KeyframeStore<T>::reset(size_t count) {
+  std::lock_guard lock(mutex_);
+  entries_.assign(count, {});
+  file_.clear();
+}
+
+template <typename T>
+void KeyframeStore<T>::put(size_t k, T&& item) {
+  if (k >= entries_.size()) throw Error(ErrorCode::kInternal, "keyframe store: keyframe " + std::to_string(k) + " is past its size");
+  if (mode_ == Mode::kMemory) {
+    auto stored = counted(std::move(item), std::make_unique<ResidentHold>(count_));
+    std::lock_guard lock(mutex_);
+    entries_[k].item = std::move(stored);
+    entries_[k].stored = true;
+    return;
+  }
+  const std::vector<char> bytes = serialize(item);
+  // A replaced item's bytes stay in the file until reset: the fit writes each surface twice.
+  const SpillFile::Record record = file_.append(bytes.data(), bytes.size());
+  std::lock_guard lock(mutex_);
+  entries_[k].record = record;
+  entries_[k].stored = true;
+}
+
+template <typename T>
+std::shared_ptr<const T> KeyframeStore<T>::get(size_t k) const {
+  Entry entry;
+  {
+    std::lock_guard lock(mutex_);
+    if (k >= entries_.size() || !entries_[k].stored) throw Error(ErrorCode::kInternal, "keyframe store: keyframe " + std::to_string(k) + " was never stored");
+    entry = entries_[k];
+  }
+  if (entry.item) return entry.item;
+  auto hold = std::make_unique<ResidentHold>(count_);  // counts from the read on: the bytes are an item's worth too
+  std::vector<char> bytes = file_.read(entry.record);
+  T item = deserialize(bytes.data(), bytes.size());
+  bytes = {};
+  return counted(std::move(item), std::move(hold));
+}
+
+template class KeyframeStore<std::vector<Vec3>>;
+template class KeyframeStore<GridFields>;
+
+}  // namespace facemorph

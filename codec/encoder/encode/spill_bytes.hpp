@@ -1,0 +1,93 @@
+// The byte form of what the encoder spills (frame_store.cpp, keyframe_store.cpp): numbers as their
+// bytes, arrays with their length first. Private to the encoder.
+#pragma once
+
+#include "facemorph/error.hpp"
+#include "facemorph/encoder/moebius.hpp"
+#include "facemorph/mesh.hpp"
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace facemorph::spill {
+
+// Vectors of plain numbers are written as their bytes: the file lives only as long as the process,
+// on the machine that wrote it, and a map read back must be the very same doubles (the encode's
+// output must not depend on whether its frames were spilled).
+static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
+static_assert(sizeof(Complex) == 2 * sizeof(double));
+template <typename T>
+constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex>;
+
+class Writer {
+ public:
+  template <typename T>
+  void value(const T& v) {
+    static_assert(kPlain<T>);
+    bytes(&v, sizeof v);
+  }
+  void text(const std::string& s) {
+    value<uint64_t>(s.size());
+    bytes(s.data(), s.size());
+  }
+  template <typename T>
+  void array(const std::vector<T>& v) {
+    static_assert(kPlain<T>);
+    value<uint64_t>(v.size());
+    bytes(v.data(), v.size() * sizeof(T));
+  }
+  std::vector<char> take() { return std::move(out_); }
+
+ private:
+  void bytes(const void* data, size_t size) {
+    const auto* p = static_cast<const char*>(data);
+    out_.insert(out_.end(), p, p + size);
+  }
+  std::vector<char> out_;
+};
+
+class Reader {
+ public:
+  // `what` names the record in errors ("frame store: a stored frame").
+  Reader(const char* data, size_t size, const char* what) : p_(data), end_(data + size), what_(what) {}
+  template <typename T>
+  T value() {
+    static_assert(kPlain<T>);
+    T v;
+    bytes(&v, sizeof v);
+    return v;
+  }
+  std::string text() {
+    std::string s(count(1), '\0');
+    bytes(s.data(), s.size());
+    return s;
+  }
+  template <typename T>
+  std::vector<T> array() {
+    std::vector<T> v(count(sizeof(T)));
+    bytes(v.data(), v.size() * sizeof(T));
+    return v;
+  }
+  bool done() const { return p_ == end_; }
+
+ private:
+  size_t count(size_t item) {
+    const auto n = value<uint64_t>();
+    if (n > static_cast<uint64_t>(end_ - p_) / item) throw Error(ErrorCode::kInternal, std::string(what_) + " is cut short");
+    return static_cast<size_t>(n);
+  }
+  void bytes(void* data, size_t size) {
+    if (size > static_cast<size_t>(end_ - p_)) throw Error(ErrorCode::kInternal, std::string(what_) + " is cut short");
+    if (size == 0) return;  // an empty array's data() may be null, which memcpy must not be given
+    std::memcpy(data, p_, size);
+    p_ += size;
+  }
+  const char* p_;
+  const char* end_;
+  const char* what_;
+};
+
+}  // namespace facemorph::spill

@@ -1,0 +1,85 @@
+// The encoder's spill: an unlinked temporary file of byte records, and the count of the records'
+// contents in memory (spec/method.md §7.15).
+//
+// What the encoder makes of every frame or keyframe and needs again at a later stage is written here
+// as soon as it is made and read back when a stage asks, so memory holds the few being worked on,
+// not the capture's. FrameStore keeps the frames' maps in one, KeyframeStore the keyframes' arrays.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+// Where a store keeps its items.
+enum class SpillMode {
+  kSpill,   // in an unlinked temporary file (in TMPDIR); memory holds those in use
+  kMemory,  // in memory: memory grows with the items (what the encoder did before)
+};
+
+class SpillFile {
+ public:
+  // `what` names the contents in errors ("the frames' maps"). The file is made on the first append.
+  explicit SpillFile(std::string what);
+  ~SpillFile();
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+
+  struct Record {
+    uint64_t offset = 0, size = 0;  // bytes
+  };
+  // Appends `size` bytes and says where they went. Thread-safe: each record gets its own range of
+  // the file, so threads write side by side. The file is made in TMPDIR and unlinked at once, so it
+  // goes when the process ends, however it ends. Throws kIo when it cannot be made or written (a
+  // full disk: TMPDIR names another folder).
+  Record append(const char* data, size_t size);
+  // A record's bytes, read back. Thread-safe. Throws kIo on a failed or short read.
+  std::vector<char> read(const Record& record) const;
+  // Empties the file (records handed out before are no longer valid).
+  void clear();
+  uint64_t size() const;  // bytes written since the last clear
+
+ private:
+  void open();
+
+  std::string what_;
+  int fd_ = -1;
+  mutable std::mutex mutex_;
+  uint64_t end_ = 0;
+};
+
+// How many items a store has in memory now, and at most since the counter was last reset: the
+// tests' and the report's measure that memory does not grow with the capture. A ResidentHold
+// counts one while it lives.
+struct ResidentCount {
+  std::atomic<int> now{0}, peak{0};
+  void reset_peak() { peak = now.load(); }
+};
+
+class ResidentHold {
+ public:
+  explicit ResidentHold(std::shared_ptr<ResidentCount> count);
+  ~ResidentHold();
+  ResidentHold(const ResidentHold&) = delete;
+  ResidentHold& operator=(const ResidentHold&) = delete;
+
+ private:
+  std::shared_ptr<ResidentCount> count_;
+};
+
+// `item` handed out as a pointer that holds `hold` (counted) until its last copy goes.
+template <typename T>
+std::shared_ptr<const T> counted(T&& item, std::unique_ptr<ResidentHold> hold) {
+  struct Held {
+    T item;
+    std::unique_ptr<ResidentHold> hold;
+  };
+  auto held = std::make_shared<Held>(Held{std::move(item), std::move(hold)});
+  return {held, &held->item};
+}
+
+}  // namespace facemorph

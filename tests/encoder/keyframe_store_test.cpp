@@ -1,0 +1,170 @@
+// The encoder's keyframe store: a spilled surface or set of fields reads back as the same numbers,
+// the encoder holds a few keyframes' arrays at once whatever the number of keyframes, and spilling
+// leaves the output as it was (spec/method.md §7.15).
+#include "facemorph/encoder/keyframe_store.hpp"
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/encoder/field_precision.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace facemorph {
+namespace {
+
+// Every array of GridFields filled (no representation uses them all: the store must not care),
+// with seeded values that no two arrays share.
+GridFields every_field(unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto numbers = [&](size_t n) {
+    std::vector<double> v(n);
+    for (double& x : v) x = u(rng);
+    return v;
+  };
+  auto vectors = [&](size_t n) {
+    std::vector<Vec3> v(n);
+    for (Vec3& x : v) x = Vec3(u(rng), u(rng), u(rng));
+    return v;
+  };
+  GridFields f;
+  f.representation = Representation::kHLT;
+  f.grid_n = 17;
+  f.mean_curvature = numbers(101);
+  f.log_conformal_factor = numbers(102);
+  f.tangential_u = numbers(103);
+  f.tangential_v = numbers(104);
+  f.fixed_nodes = {2, 3, 5, 7, 11};
+  f.fixed_laplacian = vectors(5);
+  f.positions = vectors(106);
+  f.rim = vectors(64);
+  return f;
+}
+
+void expect_same(const GridFields& a, const GridFields& b) {
+  EXPECT_EQ(a.representation, b.representation);
+  EXPECT_EQ(a.grid_n, b.grid_n);
+  EXPECT_EQ(a.mean_curvature, b.mean_curvature);
+  EXPECT_EQ(a.log_conformal_factor, b.log_conformal_factor);
+  EXPECT_EQ(a.tangential_u, b.tangential_u);
+  EXPECT_EQ(a.tangential_v, b.tangential_v);
+  EXPECT_EQ(a.fixed_nodes, b.fixed_nodes);
+  EXPECT_EQ(a.fixed_laplacian, b.fixed_laplacian);
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.rim, b.rim);
+}
+
+TEST(KeyframeStore, SpilledFieldsAndSurfacesReadBackAsTheSameNumbers) {
+  FieldsStore fields(FieldsStore::Mode::kSpill);
+  fields.reset(3);
+  std::vector<GridFields> given;
+  for (unsigned k = 0; k < 3; ++k) {
+    given.push_back(every_field(k));
+    fields.put(k, GridFields(given.back()));
+  }
+  EXPECT_GT(fields.spilled_bytes(), 0u);
+  EXPECT_EQ(fields.held(), 0);  // nothing in memory once written
+  for (size_t k = 3; k-- > 0;) {
+    const auto back = fields.get(k);
+    EXPECT_EQ(fields.held(), 1);
+    expect_same(given[k], *back);
+  }
+  EXPECT_EQ(fields.held(), 0);
+  EXPECT_EQ(fields.peak_held(), 1);
+  // Stored again, an item reads back as its last version.
+  given[1] = every_field(7);
+  fields.put(1, GridFields(given[1]));
+  expect_same(given[1], *fields.get(1));
+  testing::expect_error(ErrorCode::kInternal, "keyframe 3", [&] { fields.get(3); });
+  testing::expect_error(ErrorCode::kInternal, "keyframe 3", [&] { fields.put(3, GridFields(given[0])); });
+  // Bytes cut short are an error, not fields of zeros; bytes left over too.
+  std::vector<char> bytes = FieldsStore::serialize(given[0]);
+  expect_same(given[0], FieldsStore::deserialize(bytes.data(), bytes.size()));
+  testing::expect_error(ErrorCode::kInternal, "cut short", [&] { FieldsStore::deserialize(bytes.data(), bytes.size() - 1); });
+  bytes.push_back(0);
+  testing::expect_error(ErrorCode::kInternal, "left over", [&] { FieldsStore::deserialize(bytes.data(), bytes.size()); });
+
+  // Surfaces, two stores counting together (as one step's stores do).
+  const auto count = std::make_shared<ResidentCount>();
+  SurfaceStore a(SurfaceStore::Mode::kSpill, count), b(SurfaceStore::Mode::kSpill, count);
+  a.reset(1);
+  b.reset(1);
+  const std::vector<Vec3> surface = given[2].positions;
+  a.put(0, std::vector<Vec3>(surface));
+  b.put(0, std::vector<Vec3>(given[2].rim));
+  {
+    const auto x = a.get(0), y = b.get(0);
+    EXPECT_EQ(*x, surface);
+    EXPECT_EQ(*y, given[2].rim);
+    EXPECT_EQ(count->now.load(), 2);
+  }
+  EXPECT_EQ(count->now.load(), 0);
+  EXPECT_EQ(a.peak_held(), 2);
+
+  // In memory: the item itself, counted while stored.
+  SurfaceStore memory(SurfaceStore::Mode::kMemory);
+  memory.reset(2);
+  memory.put(0, std::vector<Vec3>(surface));
+  memory.put(1, std::vector<Vec3>(surface));
+  EXPECT_EQ(memory.held(), 2);
+  EXPECT_EQ(memory.spilled_bytes(), 0u);
+  EXPECT_EQ(memory.get(1).get(), memory.get(1).get());
+  EXPECT_EQ(*memory.get(0), surface);
+}
+
+// A capture of many keyframes: the encoder holds one keyframe array a thread (two threads here)
+// spilled, and every keyframe's arrays in memory; the file is the same bytes either way. Spilled,
+// its arrays went to the file: the fitted surfaces twice each, the field precision's exact surfaces
+// at least twice (a dead zone tried, then the one kept) and its exact fields once.
+TEST(KeyframeStore, TheEncoderHoldsAFewKeyframesAtOnceAndWritesTheSameFile) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 24;
+  synth.vertices = 1000;
+  synth.head_motion_degrees = 10;
+  write_synthetic_capture(dir.path(), synth);
+  const Capture capture = read_capture(dir.path());
+  constexpr int kGrid = 33;
+  std::vector<uint8_t> files[2];
+  int peaks[2] = {0, 0};
+  size_t keys = 0;
+  for (const bool spill : {true, false}) {
+    EncodeOptions options;
+    options.threads = 2;
+    options.keyframe_fraction = 0.5;
+    options.grid = kGrid;
+    options.texture = false;
+    options.spill_keyframes = spill;
+    EncodeReport report;
+    const Sequence sequence = encode_capture(capture, options, &report);
+    keys = sequence.keyframes.size();
+    ASSERT_GE(keys, 12u);
+    SequenceFileMetadata metadata;
+    metadata.field_coding = report.field_coding;
+    files[spill] = encode_sequence_file(sequence, metadata);
+    peaks[spill] = report.peak_keyframes_in_memory;
+    if (spill) {
+      const DiskGrid grid = make_disk_grid(kGrid);
+      const uint64_t on_g = 8 + 24 * grid.nodes.size(), interior = 8 + 24 * static_cast<uint64_t>(grid.interior_count);
+      const uint64_t fields = FieldsStore::serialize(sequence.keyframes[0].fields).size();
+      EXPECT_GE(report.keyframes_spilled_bytes, keys * (2 * on_g + 2 * interior + fields)) << "some keyframe arrays stayed in memory";
+    } else {
+      EXPECT_EQ(report.keyframes_spilled_bytes, 0u);
+    }
+  }
+  EXPECT_LE(peaks[1], 2) << "spilled: one keyframe array a thread";
+  EXPECT_GE(peaks[1], 1);
+  // In memory the field precision holds every keyframe's exact fields and exact surface at once:
+  // both went through its stores (spilled, neither stays beside the trial's rounded fields).
+  EXPECT_GE(peaks[0], 2 * static_cast<int>(keys)) << "in memory: every keyframe's exact fields and surface";
+  ASSERT_FALSE(files[1].empty());
+  EXPECT_TRUE(files[0] == files[1]) << "spilling the keyframes' arrays changed the file";
+}
+
+}  // namespace
+}  // namespace facemorph
