@@ -7,9 +7,6 @@
 set -euo pipefail
 fmdec=$1 file=$2 work=$3
 root=$(cd "$(dirname "$0")/../.." && pwd)
-for tool in emcc node; do
-  command -v "$tool" >/dev/null || { echo "SKIPPED: $tool not found (tools/install-deps.sh installs it)"; exit 77; }
-done
-mkdir -p "$work"
-"$root/web/build.sh" "${FACEMORPH_WEB_BUILD:-$root/build-web}" > "$work/build.log" 2>&1 || { tail -30 "$work/build.log"; exit 1; }
+source "$root/tests/web/web_module.sh"
+web_module "$work"
 node "$root/web/test/browser.mjs" --fmdec "$fmdec" --file "$file" --out "$work"

@@ -9,11 +9,8 @@ set -euo pipefail
 native_frames=$1 work=$2
 shift 2
 root=$(cd "$(dirname "$0")/../.." && pwd)
-for tool in emcc node; do
-  command -v "$tool" >/dev/null || { echo "SKIPPED: $tool not found (tools/install-deps.sh installs it)"; exit 77; }
-done
-mkdir -p "$work"
-"$root/web/build.sh" "${FACEMORPH_WEB_BUILD:-$root/build-web}" > "$work/build.log" 2>&1 || { tail -30 "$work/build.log"; exit 1; }
+source "$root/tests/web/web_module.sh"
+web_module "$work"
 for file in "$@"; do
   "$native_frames" "$file" 20 "$work/native.bin"
   node "$root/web/test/exactness.mjs" "$file" "$work/native.bin" 20 1e-6
