@@ -17,6 +17,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <optional>
 
 namespace {
@@ -61,11 +62,13 @@ void check_mesh_path(const fs::path& path) {
 }
 
 // Collects a range of frames as a glTF clip: G's mesh in every frame (glTF cannot change triangles
-// over time) less the triangles inside a hole in every frame (faces_outside_holes), the texture of
-// the middle frame (glTF has no animated textures).
+// over time) less the triangles inside a hole in every frame (faces_outside_holes). glTF has no
+// animated textures: the clip switches between the textures of the frames nearest each keyframe
+// the range spans (a blink's closed eyes show while that keyframe is nearest), each from midway to
+// the one before; a range within one keyframe's reach carries the middle frame's texture alone.
 class ClipCollector {
  public:
-  ClipCollector(const DiskGrid& grid, bool compact) {
+  ClipCollector(const DiskGrid& grid, bool compact, std::vector<double> keyframe_times) : keyframe_times_(std::move(keyframe_times)) {
     clip_.compact = compact;
     clip_.faces = grid.faces;
     for (const Vec2& w : grid.nodes) clip_.uvs.push_back(0.5 * (w + Vec2(1, 1)));
@@ -75,15 +78,39 @@ class ClipCollector {
     clip_.positions.push_back(frame.grid_positions);
     if (!frame.hole_level.empty()) levels_.push_back(frame.hole_level);
     if (middle) clip_.texture = frame.texture;
+    if (frame.texture.empty() || keyframe_times_.empty()) return;
+    // The keyframe nearest this frame; the frame nearest that keyframe keeps its texture.
+    const auto after = std::lower_bound(keyframe_times_.begin(), keyframe_times_.end(), frame.time);
+    size_t k = static_cast<size_t>(after - keyframe_times_.begin());
+    if (k == keyframe_times_.size() || (k > 0 && frame.time - keyframe_times_[k - 1] < keyframe_times_[k] - frame.time)) --k;
+    const double distance = std::abs(frame.time - keyframe_times_[k]);
+    auto [it, fresh] = nearest_.try_emplace(k, Nearest{frame.time, distance, frame.texture});
+    if (!fresh && distance < it->second.distance) it->second = Nearest{frame.time, distance, frame.texture};
   }
   void write(const fs::path& path) {
     if (!levels_.empty()) clip_.faces = faces_outside_holes(clip_.faces, levels_);
+    if (nearest_.size() > 1) {
+      double previous = clip_.times.front();
+      for (auto& [k, n] : nearest_) {
+        const double start = clip_.switched_textures.empty() ? clip_.times.front() : 0.5 * (previous + n.time);
+        clip_.switched_textures.push_back({start, std::move(n.texture)});
+        previous = n.time;
+      }
+      clip_.texture = {};
+    }
     format::write_file_atomically(path, encode_glb(clip_));
   }
+  size_t textures() const { return clip_.switched_textures.empty() ? !clip_.texture.empty() : clip_.switched_textures.size(); }
 
  private:
+  struct Nearest {
+    double time = 0, distance = 0;
+    Image texture;
+  };
   GltfClip clip_;
   std::vector<std::vector<double>> levels_;
+  std::vector<double> keyframe_times_;
+  std::map<size_t, Nearest> nearest_;  // by keyframe, in time order
 };
 
 void print_frame(const DecodedFrame& frame, const fs::path& where) {
@@ -177,7 +204,7 @@ int main(int argc, char** argv) {
     }
     std::optional<ClipCollector> clip;
     if (glb) {
-      clip.emplace(decoder.geometry().grid(), !glb_float);
+      clip.emplace(decoder.geometry().grid(), !glb_float, sequence->outline().times);
       options.cut_holes = false;  // the clip drops the triangles inside a hole throughout instead
     }
     if (out.format != "obj" && out.format != "ply") throw Error(ErrorCode::kInvalidArgument, "--format must be obj or ply");
@@ -230,7 +257,10 @@ int main(int argc, char** argv) {
                   1000 * seconds_read, fell_back ? (", " + std::to_string(fell_back) + " frames did not converge").c_str() : "");
       if (!out_dir.empty()) std::printf("  meshes in %s\n", out_dir.c_str());
       if (video) std::printf("  video %s\n", preview.c_str());
-      if (clip) std::printf("  glTF clip %s (%llu bytes)\n", mesh_out.c_str(), static_cast<unsigned long long>(fs::file_size(mesh_out)));
+      if (clip) {
+        std::printf("  glTF clip %s (%llu bytes, %zu texture%s)\n", mesh_out.c_str(), static_cast<unsigned long long>(fs::file_size(mesh_out)),
+                    clip->textures(), clip->textures() == 1 ? "" : "s, switched at the keyframes");
+      }
     }
     return 0;
   });

@@ -59,6 +59,40 @@ TEST(Gltf, TheBinaryHasAHeaderAJsonChunkAndABinChunk) {
   EXPECT_NE(json.find("\"count\":" + std::to_string(clip.faces.size() * 3)), std::string::npos);
 }
 
+// The keyframes' textures switched by the animation: a node, mesh and material per texture sharing
+// every accessor, each node's scale STEP-animated to its own while its texture is current and to 0
+// otherwise; WebP (EXT_texture_webp, required) in a compact clip, PNG in a float one.
+TEST(Gltf, SwitchedTexturesAreANodeEachShownInTurn) {
+  GltfClip clip = wave_clip(5);
+  clip.texture = {};
+  for (int i = 0; i < 3; ++i) {
+    Image image(8, 8, 3);
+    std::fill(image.pixels.begin(), image.pixels.end(), static_cast<uint8_t>(60 * i));
+    clip.switched_textures.push_back({i == 0 ? 0.0 : i / 30.0 + 0.01, image});
+  }
+  for (const bool compact : {false, true}) {
+    clip.compact = compact;
+    const std::vector<uint8_t> glb = encode_glb(clip);
+    const std::string json(glb.begin() + 20, glb.begin() + 20 + u32(glb, 12));
+    const auto count = [&](const std::string& what) {
+      size_t n = 0;
+      for (size_t at = json.find(what); at != std::string::npos; at = json.find(what, at + 1)) ++n;
+      return n;
+    };
+    EXPECT_NE(json.find("\"scenes\":[{\"nodes\":[0,1,2]}]"), std::string::npos) << json;
+    EXPECT_EQ(count("\"path\":\"scale\""), 3u);
+    EXPECT_EQ(count("\"path\":\"weights\""), 3u);
+    EXPECT_EQ(count("\"interpolation\":\"STEP\""), 3u);
+    EXPECT_EQ(count("\"baseColorTexture\""), 3u);
+    EXPECT_EQ(count(compact ? "\"mimeType\":\"image/webp\"" : "\"mimeType\":\"image/png\""), 3u);
+    EXPECT_EQ(json.find("EXT_texture_webp") != std::string::npos, compact);
+  }
+  clip.switched_textures[2].start = clip.switched_textures[1].start;
+  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing", [&] { encode_glb(clip); });
+  clip.switched_textures.resize(1);
+  testing::expect_error(ErrorCode::kInvalidArgument, "one switched texture", [&] { encode_glb(clip); });
+}
+
 TEST(Gltf, BadClipsAreNamedErrors) {
   GltfClip clip = wave_clip(3);
   clip.times[2] = clip.times[1];
@@ -105,13 +139,22 @@ TEST(Gltf, TheKhronosValidatorFindsNoError) {
   const std::filesystem::path modules = std::filesystem::path(folder) / "node_modules" / "gltf-validator";
   if (!std::filesystem::exists(modules)) GTEST_SKIP() << "no gltf-validator in " << folder;
   testing::TempDir dir;
-  format::write_file_atomically(dir.path() / "clip.glb", encode_glb(wave_clip(5)));
-  const std::string script = "const v=require('" + modules.string() + "');const b=new Uint8Array(require('fs').readFileSync('" +
-                             (dir.path() / "clip.glb").string() +
-                             "'));v.validateBytes(b).then(r=>{console.log(JSON.stringify(r.issues.messages));process.exit(r.issues.numErrors?1:0)})"
-                             ".catch(e=>{console.error(e);process.exit(2)})";
-  testing::write_text(dir.path() / "validate.js", script);
-  EXPECT_EQ(std::system(("node " + (dir.path() / "validate.js").string()).c_str()), 0);
+  // A plain clip, and one whose keyframes' textures switch, in floats and compact.
+  GltfClip switching = wave_clip(5);
+  for (int i = 0; i < 2; ++i) switching.switched_textures.push_back({i / 15.0, Image(8, 8, 3)});
+  std::vector<std::pair<std::string, GltfClip>> clips = {{"clip.glb", wave_clip(5)}, {"switching.glb", switching}};
+  switching.compact = true;
+  clips.emplace_back("switching_compact.glb", switching);
+  for (const auto& [name, clip] : clips) {
+    SCOPED_TRACE(name);
+    format::write_file_atomically(dir.path() / name, encode_glb(clip));
+    const std::string script = "const v=require('" + modules.string() + "');const b=new Uint8Array(require('fs').readFileSync('" +
+                               (dir.path() / name).string() +
+                               "'));v.validateBytes(b).then(r=>{console.log(JSON.stringify(r.issues.messages));process.exit(r.issues.numErrors?1:0)})"
+                               ".catch(e=>{console.error(e);process.exit(2)})";
+    testing::write_text(dir.path() / "validate.js", script);
+    EXPECT_EQ(std::system(("node " + (dir.path() / "validate.js").string()).c_str()), 0);
+  }
 }
 
 }  // namespace

@@ -199,6 +199,16 @@ void check_clip(const GltfClip& clip) {
     }
   }
   if (!clip.uvs.empty() && clip.uvs.size() != n) fail("one UV per vertex");
+  const auto& switched = clip.switched_textures;
+  if (switched.size() == 1) fail("one switched texture: give it as the texture");
+  for (size_t i = 0; i < switched.size(); ++i) {
+    if (switched[i].image.empty()) fail("switched texture " + std::to_string(i) + " is empty");
+    if (!std::isfinite(switched[i].start) || (i > 0 && !(switched[i].start > switched[i - 1].start))) {
+      fail("switched texture starts not finite and strictly increasing at " + std::to_string(i));
+    }
+  }
+  if (!switched.empty() && !(switched.front().start <= clip.times.front())) fail("the first switched texture starts after the first frame");
+  if (!switched.empty() && clip.uvs.empty()) fail("switched textures without UVs");
 }
 
 std::vector<float> flat(const std::vector<Vec3>& values) {
@@ -215,6 +225,7 @@ struct Streams {
   int position = -1, normal = -1, uv = -1, index = -1;
   std::vector<std::string> targets;  // one {"POSITION":..,"NORMAL":..} per frame after the first
   std::string node_transform;        // compact: the node's scale and translation that undo the quantisation
+  double node_scale = 1;             // the scale in node_transform (1 without)
 };
 
 // Floats as they are.
@@ -328,6 +339,7 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
   transform.precision(17);
   transform << ",\"translation\":[" << centre.x() << "," << centre.y() << "," << centre.z() << "],\"scale\":[" << step << "," << step << "," << step << "]";
   out.node_transform = transform.str();
+  out.node_scale = step;
   return out;
 }
 
@@ -342,31 +354,62 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
   const std::vector<std::string>& targets = streams.targets;
   std::ostringstream json;
   json.precision(9);
-  json << "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facemorph fmdec\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
-       << "\"nodes\":[{\"mesh\":0,\"name\":\"" << clip.name << "\"" << streams.node_transform << "}],";
-  json << "\"meshes\":[{\"name\":\"" << clip.name << "\",\"primitives\":[{\"attributes\":{\"POSITION\":" << position;
-  if (normal >= 0) json << ",\"NORMAL\":" << normal;
-  if (uv >= 0) json << ",\"TEXCOORD_0\":" << uv;
-  json << "},\"indices\":" << index << ",\"material\":0";
-  if (!targets.empty()) json << ",\"targets\":" << GlbBuilder::join(targets);
-  json << "}]";
-  if (!targets.empty()) json << ",\"weights\":" << GlbBuilder::list(std::vector<float>(targets.size(), 0.0f));
-  json << "}],";
+  // One node, mesh and material per texture (switched textures), all sharing every accessor.
+  const bool switching = clip.switched_textures.size() > 1 && uv >= 0;
+  const size_t copies = switching ? clip.switched_textures.size() : 1;
+  const bool webp = switching && clip.compact;
+  std::vector<std::string> nodes, node_indices, meshes;
+  for (size_t i = 0; i < copies; ++i) {
+    nodes.push_back("{\"mesh\":" + std::to_string(i) + ",\"name\":\"" + clip.name + (switching ? "_" + std::to_string(i) : std::string()) + "\"" +
+                    streams.node_transform + "}");
+    node_indices.push_back(std::to_string(i));
+    std::ostringstream mesh;
+    mesh << "{\"name\":\"" << clip.name << "\",\"primitives\":[{\"attributes\":{\"POSITION\":" << position;
+    if (normal >= 0) mesh << ",\"NORMAL\":" << normal;
+    if (uv >= 0) mesh << ",\"TEXCOORD_0\":" << uv;
+    mesh << "},\"indices\":" << index << ",\"material\":" << i;
+    if (!targets.empty()) mesh << ",\"targets\":" << GlbBuilder::join(targets);
+    mesh << "}]";
+    if (!targets.empty()) mesh << ",\"weights\":" << GlbBuilder::list(std::vector<float>(targets.size(), 0.0f));
+    mesh << "}";
+    meshes.push_back(mesh.str());
+  }
+  json << "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facemorph fmdec\"},\"scene\":0,\"scenes\":[{\"nodes\":" << GlbBuilder::join(node_indices)
+       << "}],\"nodes\":" << GlbBuilder::join(nodes) << ",\"meshes\":" << GlbBuilder::join(meshes) << ",";
   // The material: the texture when there is one, a skin-grey otherwise; double-sided, since a face
   // scan is an open surface seen from behind at its rim.
-  if (!clip.texture.empty() && uv >= 0) {
+  const auto textured_material = [](size_t texture) {
+    return "{\"name\":\"skin\",\"doubleSided\":true,\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":" + std::to_string(texture) +
+           "},\"metallicFactor\":0,\"roughnessFactor\":0.8}}";
+  };
+  if (switching) {
+    std::vector<std::string> images, textures, materials;
+    for (size_t i = 0; i < copies; ++i) {
+      const Image& image = clip.switched_textures[i].image;
+      // WebP at quality 90 where the clip is for the web: a PNG of each keyframe's texture would
+      // outweigh the geometry many times over.
+      const std::vector<uint8_t> bytes = webp ? encode_webp(image, 90) : encode_png(image);
+      images.push_back("{\"bufferView\":" + std::to_string(b.view(bytes.data(), bytes.size(), 0)) + ",\"mimeType\":\"image/" + (webp ? "webp" : "png") + "\"}");
+      textures.push_back(webp ? "{\"sampler\":0,\"extensions\":{\"EXT_texture_webp\":{\"source\":" + std::to_string(i) + "}}}"
+                              : "{\"sampler\":0,\"source\":" + std::to_string(i) + "}");
+      materials.push_back(textured_material(i));
+    }
+    json << "\"images\":" << GlbBuilder::join(images) << ",\"samplers\":[{\"magFilter\":9729,\"minFilter\":9729,\"wrapS\":33071,\"wrapT\":33071}],"
+         << "\"textures\":" << GlbBuilder::join(textures) << ",\"materials\":" << GlbBuilder::join(materials) << ",";
+  } else if (!clip.texture.empty() && uv >= 0) {
     const std::vector<uint8_t> png = encode_png(clip.texture);
     const int image = b.view(png.data(), png.size(), 0);
     json << "\"images\":[{\"bufferView\":" << image << ",\"mimeType\":\"image/png\"}],\"samplers\":[{\"magFilter\":9729,\"minFilter\":9729,"
          << "\"wrapS\":33071,\"wrapT\":33071}],\"textures\":[{\"sampler\":0,\"source\":0}],"
-         << "\"materials\":[{\"name\":\"skin\",\"doubleSided\":true,\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0},"
-         << "\"metallicFactor\":0,\"roughnessFactor\":0.8}}],";
+         << "\"materials\":[" << textured_material(0) << "],";
   } else {
     json << "\"materials\":[{\"name\":\"skin\",\"doubleSided\":true,\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.8,0.8,0.8,1],"
          << "\"metallicFactor\":0,\"roughnessFactor\":0.8}}],";
   }
+  std::vector<std::string> samplers, channels;
   if (!targets.empty()) {
-    // Weights one-hot at each frame's time (all zero at frame 0, the base), linear between.
+    // Weights one-hot at each frame's time (all zero at frame 0, the base), linear between; one
+    // sampler for every copy of the node.
     std::vector<float> times, weights;
     for (size_t f = 0; f < frames; ++f) {
       times.push_back(static_cast<float>(clip.times[f] - clip.times.front()));
@@ -376,11 +419,30 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
     // One-hot rows: meshoptimizer packs them to almost nothing.
     const int output = clip.compact ? b.accessor(b.view_compressed(weights.data(), 4, weights.size(), 0, false), kFloat, false, weights.size(), "SCALAR")
                                     : b.floats(weights, 1, "SCALAR", 0, false);
-    json << "\"animations\":[{\"name\":\"play\",\"samplers\":[{\"input\":" << input << ",\"output\":" << output
-         << ",\"interpolation\":\"LINEAR\"}],\"channels\":[{\"sampler\":0,\"target\":{\"node\":0,\"path\":\"weights\"}}]}],";
+    samplers.push_back("{\"input\":" + std::to_string(input) + ",\"output\":" + std::to_string(output) + ",\"interpolation\":\"LINEAR\"}");
+    for (size_t i = 0; i < copies; ++i) channels.push_back("{\"sampler\":0,\"target\":{\"node\":" + std::to_string(i) + ",\"path\":\"weights\"}}");
+  }
+  if (switching) {
+    // Each copy at its own scale while its texture is current, at 0 (nothing drawn) otherwise.
+    std::vector<float> starts;
+    for (const GltfClip::SwitchedTexture& t : clip.switched_textures) starts.push_back(static_cast<float>(std::max(0.0, t.start - clip.times.front())));
+    const int input = b.floats(starts, 1, "SCALAR", 0, true);
+    for (size_t i = 0; i < copies; ++i) {
+      std::vector<float> scales;
+      for (size_t j = 0; j < copies; ++j) {
+        for (int k = 0; k < 3; ++k) scales.push_back(j == i ? static_cast<float>(streams.node_scale) : 0.0f);
+      }
+      const int output = b.floats(scales, 3, "VEC3", 0, false);
+      channels.push_back("{\"sampler\":" + std::to_string(samplers.size()) + ",\"target\":{\"node\":" + std::to_string(i) + ",\"path\":\"scale\"}}");
+      samplers.push_back("{\"input\":" + std::to_string(input) + ",\"output\":" + std::to_string(output) + ",\"interpolation\":\"STEP\"}");
+    }
+  }
+  if (!channels.empty()) {
+    json << "\"animations\":[{\"name\":\"play\",\"samplers\":" << GlbBuilder::join(samplers) << ",\"channels\":" << GlbBuilder::join(channels) << "}],";
   }
   if (clip.compact) {
-    const std::string extensions = b.compressed() ? "[\"KHR_mesh_quantization\",\"EXT_meshopt_compression\"]" : "[\"KHR_mesh_quantization\"]";
+    const std::string extensions = std::string("[\"KHR_mesh_quantization\"") + (b.compressed() ? ",\"EXT_meshopt_compression\"" : "") +
+                                   (webp ? ",\"EXT_texture_webp\"" : "") + "]";
     json << "\"extensionsUsed\":" << extensions << ",\"extensionsRequired\":" << extensions << ",";
   }
   std::string text = json.str();

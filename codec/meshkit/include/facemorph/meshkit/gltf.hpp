@@ -2,7 +2,9 @@
 // (spec/method.md §8). One mesh on G's triangles; frame 0 is the base and every later frame a morph
 // target (positions and normals as differences from frame 0); one animation drives the morph
 // weights, one-hot at each frame's time and linear between, so a player interpolates frames as
-// fmdec would at its own rate. glTF has no animated textures: the clip carries one texture.
+// fmdec would at its own rate. glTF has no animated textures: the clip carries one texture, or
+// (switched_textures) several, each on a copy of the node that the animation shows alone while its
+// texture is the current one.
 #pragma once
 
 #include "facemorph/image.hpp"
@@ -19,6 +21,15 @@ struct GltfClip {
   std::vector<Face> faces;                   // shared by every frame, counter-clockwise
   std::vector<Vec2> uvs;                     // per vertex, in [0,1]² (v up, as glTF's is flipped on writing)
   Image texture;                             // RGB or RGBA; empty: untextured grey material
+  // Two or more: instead of `texture`, texture i is shown from starts[i] (seconds, the clip's times;
+  // the first at or before the first frame) until starts[i + 1]: one node per texture sharing every
+  // accessor, its scale animated (STEP) to the node's own while its texture is current and to 0 else.
+  // Stored as WebP (EXT_texture_webp, which three.js reads) in a compact clip, PNG otherwise.
+  struct SwitchedTexture {
+    double start = 0;
+    Image image;
+  };
+  std::vector<SwitchedTexture> switched_textures;
   std::string name = "face";
   // For the web (issue 29): positions and their morph differences as int16 on one grid of the
   // clip's box (the node's scale and translation undo it: KHR_mesh_quantization), normals and their
