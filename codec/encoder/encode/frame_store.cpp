@@ -184,11 +184,7 @@ std::shared_ptr<const MappedFrame> FrameStore::get(size_t i) const {
     entry = entries_[i];
   }
   if (entry.frame) return entry.frame;
-  auto hold = std::make_unique<Hold>(counter_);  // counts from the read on: the bytes are a frame's worth too
-  std::vector<char> bytes = file_.read(entry.record);
-  MappedFrame frame = deserialize(bytes.data(), bytes.size());
-  bytes = {};
-  return counted(std::move(frame), std::move(hold));
+  return read_counted<MappedFrame>(file_, entry.record, counter_, &FrameStore::deserialize);
 }
 
 void FrameStore::keep(const std::vector<size_t>& kept) {

@@ -105,11 +105,7 @@ std::shared_ptr<const T> KeyframeStore<T>::get(size_t k) const {
     entry = entries_[k];
   }
   if (entry.item) return entry.item;
-  auto hold = std::make_unique<ResidentHold>(count_);  // counts from the read on: the bytes are an item's worth too
-  std::vector<char> bytes = file_.read(entry.record);
-  T item = deserialize(bytes.data(), bytes.size());
-  bytes = {};
-  return counted(std::move(item), std::move(hold));
+  return read_counted<T>(file_, entry.record, count_, &KeyframeStore<T>::deserialize);
 }
 
 template class KeyframeStore<std::vector<Vec3>>;

@@ -82,4 +82,17 @@ std::shared_ptr<const T> counted(T&& item, std::unique_ptr<ResidentHold> hold) {
   return {held, &held->item};
 }
 
+// A record of `file` read back as an item by deserialize(bytes, size), counted in `count` from the
+// read on (the bytes are an item's worth too) until its last pointer goes: what every store's get
+// does with an item that is not in memory.
+template <typename T, typename Deserialize>
+std::shared_ptr<const T> read_counted(const SpillFile& file, const SpillFile::Record& record, const std::shared_ptr<ResidentCount>& count,
+                                      const Deserialize& deserialize) {
+  auto hold = std::make_unique<ResidentHold>(count);
+  std::vector<char> bytes = file.read(record);
+  T item = deserialize(bytes.data(), bytes.size());
+  bytes = {};
+  return counted(std::move(item), std::move(hold));
+}
+
 }  // namespace facemorph
