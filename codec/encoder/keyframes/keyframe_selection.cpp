@@ -199,18 +199,6 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
       std::nth_element(intervals.begin(), intervals.begin() + static_cast<std::ptrdiff_t>(intervals.size() / 2), intervals.end());
       selection.median_interval = intervals[intervals.size() / 2];
     }
-    if (options.sparse_interval > 0 && selection.median_interval > options.sparse_interval) {
-      // A sparse capture: every frame a keyframe (SelectionOptions::sparse_interval).
-      const Objective spread = objective(errors, keys);
-      selection.budget_mean_error = spread.mean;
-      selection.budget_worst_error = spread.worst;
-      selection.sparse = true;
-      keys.resize(static_cast<size_t>(count));
-      std::iota(keys.begin(), keys.end(), 0);
-      predictor.errors(keys, 0, count - 1, errors);
-      selection.history.emplace_back(static_cast<int>(keys.size()), *std::max_element(errors.begin(), errors.end()));
-      return selection;
-    }
     const Objective spread = objective(errors, keys);
     selection.budget_mean_error = spread.mean;
     selection.budget_worst_error = spread.worst;
@@ -218,7 +206,13 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
     // add the worst-predicted frame until the mean and the worst are within the bound (spec/method.md
     // §7.5), then let refinement move them without lifting the worst past its bound.
     const double bound = options.error_bound, worst_bound = 3 * options.error_bound;
-    if (bound > 0 && (spread.mean > bound || spread.worst > worst_bound)) {
+    if (options.sparse_interval > 0 && selection.median_interval > options.sparse_interval) {
+      // A sparse capture: every frame a keyframe (SelectionOptions::sparse_interval).
+      selection.sparse = true;
+      keys.resize(static_cast<size_t>(count));
+      std::iota(keys.begin(), keys.end(), 0);
+      predictor.errors(keys, 0, count - 1, errors);
+    } else if (bound > 0 && (spread.mean > bound || spread.worst > worst_bound)) {
       for (;;) {
         const Objective o = objective(errors, keys);
         if ((o.mean <= bound && o.worst <= worst_bound) || static_cast<int>(keys.size()) >= count) break;
