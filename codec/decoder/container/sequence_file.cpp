@@ -131,13 +131,13 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
     // An owner's quality is the finest any keyframe showing it asks for.
     std::vector<int> owner_quality(count, -1);
     for (size_t k = 0; k < count; ++k) owner_quality[owners[k]] = std::max(owner_quality[owners[k]], quality_of(k));
-    std::vector<size_t> chunk_of_owner(count, 0);
     for (size_t k = 0; k < count; ++k) {
       if (owners[k] == k) {
-        chunk_of_owner[k] = stills.size();
+        still_of[k] = stills.size();
         stills.push_back(format::prepare_chunk(kTextureChunk, write_texture(sequence.keyframes[k].texture, static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true));
+      } else {
+        still_of[k] = still_of[owners[k]];  // an owner comes before the keyframes sharing its texture
       }
-      still_of[k] = chunk_of_owner[owners[k]];
     }
   }
   const size_t group = metadata.field_coding.intra_period;
