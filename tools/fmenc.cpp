@@ -317,7 +317,9 @@ int main(int argc, char** argv) {
     metadata.texture_codec = options.texture_codec;
     metadata.texture_coding = parse_texture_coding(texture_coding);
     metadata.field_coding = report.field_coding;
+    const auto write_start = std::chrono::steady_clock::now();
     write_sequence_file(output, sequence, metadata);
+    const double seconds_writing = tools::seconds_since(write_start);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);
     const auto bytes = std::filesystem::file_size(output);
@@ -404,9 +406,10 @@ int main(int argc, char** argv) {
                     shared, sequence.keyframes.size(), lowest_share_db);
       }
     }
-    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s)\n",
+    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s, "
+                "texture quality %.1f s, writing %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
-                report.seconds_selection, report.seconds_keyframes, report.seconds_precision);
+                report.seconds_selection, report.seconds_keyframes, report.seconds_precision, report.seconds_texture, seconds_writing);
     if (report.spilled_bytes > 0) {
       std::printf("  frames' maps: %.0f MB in a temporary file, at most %d in memory at once\n", static_cast<double>(report.spilled_bytes) / 1e6,
                   report.peak_frames_in_memory);

@@ -97,6 +97,23 @@ TEST(ImageCodec, AvifIsCloseAtHighQualityAndSmallerThanWebpAtEqualError) {
   for (size_t i = 3; i < rgba.pixels.size(); i += 4) ASSERT_EQ(rgba.pixels[i], 255);
 }
 
+// texture_quality_for takes AVIF's error floor from the colour conversion alone: that must be what
+// quality 100 decodes to, texel for texel (a noisy picture too, where a lossy step would show).
+TEST(ImageCodec, AvifAtQuality100DecodesAsItsColourRoundTrip) {
+  Image noisy = test_picture(96, 80, 3);
+  uint32_t state = 12345;
+  for (uint8_t& p : noisy.pixels) {
+    state = state * 1664525u + 1013904223u;
+    p = static_cast<uint8_t>(std::clamp(static_cast<int>(p) + static_cast<int>(state >> 28) - 8, 0, 255));
+  }
+  for (const Image& image : {test_picture(128, 128, 3), noisy}) {
+    const Image round_trip = avif_colour_round_trip(image);
+    EXPECT_EQ(decode_avif(encode_avif(image, 100), "t.avif").pixels, round_trip.pixels);
+    EXPECT_NE(round_trip.pixels, image.pixels);  // the conversion does round: a floor above 0
+    EXPECT_NE(decode_avif(encode_avif(image, 99), "t.avif").pixels, round_trip.pixels);
+  }
+}
+
 TEST(ImageCodec, TextureCodecsDispatchAndLosslessIsWebp) {
   const Image image = test_picture(64, 64, 3);
   EXPECT_EQ(encode_texture(TextureCodec::kAvif, image, 70), encode_avif(image, 70));

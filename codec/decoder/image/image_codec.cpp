@@ -220,6 +220,8 @@ std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, 
   return out;
 }
 
+Image avif_colour_round_trip(const Image& image) { return rgb_of(yuv_of(image).get(), 3, "avif_colour_round_trip"); }
+
 namespace {
 
 // A decoder on an AVIF image sequence of exactly `frames` 8-bit images of size × size, parsed and

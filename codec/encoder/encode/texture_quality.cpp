@@ -43,7 +43,10 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   };
   // A lossy codec cannot go below its floor (chroma rounding, the finest quantiser): a target near
   // or under it would buy bytes and no quality, so the target is at least a quarter above the floor.
-  target_mse = std::max(target_mse, kFloorMargin * error_at(100));
+  // AVIF's floor is its colour conversion alone (quality 100 is lossless AV1), found without the
+  // lossless encode, which costs as much as four lossy ones.
+  const double floor = codec == TextureCodec::kAvif ? disk_texture_mse(texture, avif_colour_round_trip(texture)) : error_at(100);
+  target_mse = std::max(target_mse, kFloorMargin * floor);
   // The lowest quality that meets the target within [lo, hi]: lo fails (or is 0), hi meets.
   int lo = 0, hi = 100;
   if (error_at(lo) <= target_mse) return 0;

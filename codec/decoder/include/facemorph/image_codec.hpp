@@ -23,10 +23,15 @@ Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int
                   int64_t max_pixels = int64_t{1} << 26);
 
 // AVIF (AV1 intra, 8-bit 4:4:4, full-range BT.601) at `quality` 0..100 (100 the finest AV1
-// quantiser, not lossless). At the low qualities keyframe textures take it codes a face in about 30%
+// quantiser, 0, at which libaom codes the YUV losslessly; the RGB still loses the conversion's
+// rounding, as avif_colour_round_trip shows). At the low qualities keyframe textures take it codes a face in about 30%
 // fewer bytes than WebP at the same PSNR (spec/method.md §7.12). Deterministic: one thread.
 // RGB or RGBA in (alpha dropped); throws kInvalidArgument for an empty image or another channel count.
 std::vector<uint8_t> encode_avif(const Image& image, int quality);
+// The image converted as encode_avif converts it (8-bit YUV 4:4:4, full-range BT.601) and back to
+// RGB as the decoder does: what AVIF at quality 100 decodes to, pixel for pixel, without coding it
+// (the error floor of every AVIF quality; texture_quality_for's, 4x faster than the lossless encode).
+Image avif_colour_round_trip(const Image& image);
 // Decodes AVIF bytes to RGB (`channels` 3) or RGBA (4, opaque). Throws kCorrupt naming `source` when
 // the bytes are not an AVIF image or its data is damaged, kInvalidArgument when its size exceeds
 // `max_pixels`.
