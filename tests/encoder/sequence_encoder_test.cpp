@@ -786,7 +786,6 @@ std::vector<SelectionFrame> bump_frames(const std::vector<double>& amplitudes) {
         f.normal.emplace_back(0, 0, 1);
       }
     }
-    f.world = f.local;
   }
   return frames;
 }

@@ -134,8 +134,8 @@ double frame_noise(const std::vector<SelectionFrame>& frames, const std::vector<
   }
   double sum = 0, total = 0;
   for (size_t v = 0; v < node_weights.size(); ++v) {
-    Vec3 r = frames[static_cast<size_t>(k)].local[v];
-    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * frames[static_cast<size_t>(others[i])].local[v];
+    Vec3 r = frames[static_cast<size_t>(k)].local_at(v);
+    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * frames[static_cast<size_t>(others[i])].local_at(v);
     sum += node_weights[v] * r.squaredNorm();
     total += node_weights[v];
   }
@@ -597,28 +597,31 @@ void SequenceEncoder::sample_frames() {
   selection_.assign(static_cast<size_t>(count), {});
   samples_released_ = false;
   released_noise_.clear();
+  // A frame's registered surface on the nodes, in the capture frame, with its normals stored.
   auto sample = [&](size_t index) {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
     const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
     s.diagonal = bounding_box_diagonal(frame->map.surface.positions);
     std::vector<Vec3> all = sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
-    std::vector<Vec3> tu, tv;
-    geometry.frames(all, tu, tv, s.normal);
+    std::vector<Vec3> tu, tv, normals;
+    geometry.frames(all, tu, tv, normals);
+    s.normal.resize(normals.size());
+    for (size_t v = 0; v < normals.size(); ++v) s.normal[v] = normals[v].cast<float>();
     all.resize(nodes);
-    s.world = std::move(all);
+    return all;
   };
-  sample(reference);
+  const std::vector<Vec3> reference_world = sample(reference);
   parallel_for(count, options_.threads, [&](int i) {
     const auto index = static_cast<size_t>(i);
-    if (index != reference) sample(index);
+    const std::vector<Vec3> world = index == reference ? reference_world : sample(index);
     // The head pose: the rigid motion taking the reference's registered surface onto this frame's,
     // fitted over every node (weighted by area). The reference's frame is the face frame.
     SelectionFrame& s = selection_[index];
-    s.pose = index == reference ? RigidPose{} : fit_rigid_pose(selection_[reference].world, s.world, node_weights_);
+    s.pose = index == reference ? RigidPose{} : fit_rigid_pose(reference_world, world, node_weights_);
     const RigidPose to_face = s.pose.inverse();
     s.local.resize(nodes);
-    for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(s.world[v]);
+    for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(world[v]).cast<float>();
   });
   report_.seconds_selection = seconds_since(start);
 }
@@ -628,7 +631,7 @@ Vec3 SequenceEncoder::pose_centre() const {
   Vec3 sum = Vec3::Zero();
   double total = 0;
   for (size_t v = 0; v < node_weights_.size(); ++v) {
-    sum += node_weights_[v] * reference.local[v];
+    sum += node_weights_[v] * reference.local_at(v);
     total += node_weights_[v];
   }
   return sum / total;
@@ -640,7 +643,6 @@ void SequenceEncoder::release_selection_samples(const std::vector<int>& keyframe
   for (size_t i = 0; i < selection_.size(); ++i) {
     SelectionFrame& s = selection_[i];
     if (i != reference) s.local = {};
-    s.world = {};
     s.normal = {};
   }
   samples_released_ = true;

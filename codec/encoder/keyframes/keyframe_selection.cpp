@@ -16,7 +16,7 @@ void check_frames(const std::vector<SelectionFrame>& frames, const std::vector<d
   if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: no frames");
   for (size_t i = 0; i < frames.size(); ++i) {
     const SelectionFrame& f = frames[i];
-    if (f.local.size() != node_weights.size() || f.world.size() != node_weights.size() || f.normal.size() != node_weights.size()) {
+    if (f.local.size() != node_weights.size() || f.normal.size() != node_weights.size()) {
       throw Error(ErrorCode::kInvalidArgument, "keyframe selection: frame " + std::to_string(i) + " has arrays of another size");
     }
     if (i > 0 && !(f.time > frames[i - 1].time)) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: times must increase");
@@ -66,8 +66,8 @@ class Predictor {
     double sum = 0;
     for (size_t v = 0; v < weights_.size(); ++v) {
       Vec3 local = Vec3::Zero();
-      for (size_t i = 0; i < w.keys.size(); ++i) local += w.weights[i] * frames_[static_cast<size_t>(keys[static_cast<size_t>(w.keys[i])])].local[v];
-      const double offset = (pose.apply(local) - frame.world[v]).dot(frame.normal[v]);
+      for (size_t i = 0; i < w.keys.size(); ++i) local += w.weights[i] * frames_[static_cast<size_t>(keys[static_cast<size_t>(w.keys[i])])].local_at(v);
+      const double offset = (pose.apply(local) - frame.world_at(v)).dot(frame.normal_at(v));
       sum += weights_[v] * offset * offset;
     }
     return std::sqrt(sum / std::max(total_weight_, 1e-300)) / frame.diagonal;

@@ -12,14 +12,21 @@
 namespace facemorph {
 
 // One captured frame as the selection sees it: its registered surface sampled on a coarse copy of
-// G, in the face's own frame and in the capture's, with the normals, the head pose and the size.
+// G, in the face's own frame, with the normals, the head pose and the size. Every frame's samples
+// are held until the keyframes are chosen, so they are single precision and the capture frame's
+// positions are not stored but placed by the pose: 24 B a node instead of 72 (ICT: 79 instead of
+// 238 kB a frame). Single precision moves a node by ~1e-7 of the face's size, a thousandth of the
+// smallest error the selection weighs.
 struct SelectionFrame {
   double time = 0;
-  std::vector<Vec3> local;    // face frame (the pose taken out)
-  std::vector<Vec3> world;    // capture frame: pose.apply(local)
-  std::vector<Vec3> normal;   // unit normals of `world`
+  std::vector<Eigen::Vector3f> local;   // face frame (the pose taken out)
+  std::vector<Eigen::Vector3f> normal;  // unit normals in the capture frame
   RigidPose pose;
   double diagonal = 1;        // bounding-box diagonal of the captured frame
+
+  Vec3 local_at(size_t v) const { return local[v].cast<double>(); }
+  Vec3 world_at(size_t v) const { return pose.apply(local_at(v)); }  // capture frame
+  Vec3 normal_at(size_t v) const { return normal[v].cast<double>(); }
 };
 
 struct SelectionOptions {
