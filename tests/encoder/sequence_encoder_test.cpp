@@ -747,6 +747,31 @@ TEST(SequenceEncoder, ACaptureWithoutLandmarksEncodesFromItsGeometry) {
   testing::expect_error(ErrorCode::kInvalidArgument, "lacks the landmarks nose_tip", [&] { encode_capture(bare, options); });
 }
 
+// Frames registered through tracked points take the smoothing thin plate (spec/method.md §7.14,
+// item 5); frames with the capture's own interior landmarks keep the spline through them.
+TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
+  testing::TempDir dir;
+  Capture given = small_capture(dir, 0);
+  given.frames.resize(3);
+  given.landmarks.resize(3);
+  Capture bare = given;
+  bare.landmark_names.clear();
+  bare.landmarks.assign(bare.frames.size(), {});
+  EncodeOptions options;
+  options.texture = false;
+  options.track_landmarks = true;
+  options.tracking.spacing = 0.1;
+  for (const Capture* capture : {&given, &bare}) {
+    SequenceEncoder encoder(*capture, options);
+    encoder.map_frames();
+    encoder.register_frames();
+    const double expected = capture == &bare ? options.tracking.registration_smoothing : 0.0;
+    for (int i = 1; i < encoder.frame_count(); ++i) {
+      if (encoder.registration(i).fallback == RegistrationFallback::kNone) EXPECT_EQ(encoder.registration(i).smoothing, expected) << i;
+    }
+  }
+}
+
 // The reference frame dropped: the nearest frame kept takes its place, and the report says so.
 // Every frame dropped: an error naming the first.
 TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {

@@ -518,13 +518,17 @@ void SequenceEncoder::register_frames() {
         const std::string& name = frame->name;
         try {
           landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
-          if (!tracked.empty() && needs_tracked_points(capture_, reference, index)) add_tracked_points(landmarks_[index], tracked[index]);
+          const bool took_tracked = !tracked.empty() && needs_tracked_points(capture_, reference, index) && !tracked[index].reference.empty();
+          if (took_tracked) add_tracked_points(landmarks_[index], tracked[index]);
           if (landmarks_[index].reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
           }
           try {
-            registrations_[index] = register_disks(landmarks_[index], options_.registration, geodesic_frame_.get());
+            // A frame registered through tracked points: a smoothing thin plate, not one through every point.
+            RegistrationOptions registration = options_.registration;
+            if (took_tracked) registration.smoothing = std::max(registration.smoothing, options_.tracking.registration_smoothing);
+            registrations_[index] = register_disks(landmarks_[index], registration, geodesic_frame_.get());
           } catch (const Error& e) {
             throw Error(e.code(), name + ": registration: " + e.what());
           }

@@ -42,6 +42,11 @@ struct TrackingOptions {
   // MediaPipe mesh has ~2 per window of a 512² image; scans and fmsynth's faces 20-40).
   int min_window_vertices = 8;
   bool check_round_trip = true;  // false: every point Lucas-Kanade converges on is kept (for tests)
+  // A frame registered through tracked points takes a smoothing thin plate (RegistrationOptions::
+  // smoothing, in units of the points' mean squared nearest-neighbour spacing) rather than one
+  // through every point: each point is off by a tracking error of its own, and a spline that bends
+  // through all of them carries those errors into the frame's samples on G (spec/method.md §7.14).
+  double registration_smoothing = 10;
 };
 
 // A frame's geometry drawn on its disk: texel (x, y) of the size × size images shows the disk point
