@@ -767,7 +767,9 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
     encoder.register_frames();
     const double expected = capture == &bare ? options.tracking.registration_smoothing : 0.0;
     for (int i = 1; i < encoder.frame_count(); ++i) {
-      if (encoder.registration(i).fallback == RegistrationFallback::kNone) EXPECT_EQ(encoder.registration(i).smoothing, expected) << i;
+      if (encoder.registration(i).fallback == RegistrationFallback::kNone) {
+        EXPECT_EQ(encoder.registration(i).smoothing, expected) << i;
+      }
     }
   }
 }
