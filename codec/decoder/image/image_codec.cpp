@@ -94,8 +94,6 @@ struct AvifRgb {
   ~AvifRgb() { avifRGBImageFreePixels(&rgb); }
 };
 
-// The AV1 quantiser (0 finest .. 63 coarsest) of a quality 0..100.
-int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std::clamp(quality, 0, 100)) * 63 / 100.0)); }
 
 
 // An image as 8-bit YUV 4:4:4, full-range BT.601 (the matrix WebP and JPEG use; every decoder

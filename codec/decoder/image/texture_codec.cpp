@@ -6,6 +6,9 @@
 #include "facemorph/error.hpp"
 #include "format/file_io.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 namespace facemorph {
 
 const char* texture_codec_name(TextureCodec codec) { return codec == TextureCodec::kAvif ? "avif" : "webp"; }
@@ -15,6 +18,8 @@ TextureCodec parse_texture_codec(const std::string& name) {
   if (name == "webp") return TextureCodec::kWebp;
   throw Error(ErrorCode::kInvalidArgument, "unknown texture codec '" + name + "' (avif or webp)");
 }
+
+int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std::clamp(quality, 0, 100)) * 63 / 100.0)); }
 
 TextureCodec stored_texture_codec(TextureCodec codec, int quality) { return quality > 100 ? TextureCodec::kWebp : codec; }
 

@@ -28,6 +28,9 @@ Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int
 // fewer bytes than WebP at the same PSNR (spec/method.md §7.12). Deterministic: one thread.
 // RGB or RGBA in (alpha dropped); throws kInvalidArgument for an empty image or another channel count.
 std::vector<uint8_t> encode_avif(const Image& image, int quality);
+// The AV1 quantiser (0 finest .. 63 coarsest) encode_avif and encode_avif_sequence code a quality
+// 0..100 at: round((100 − quality) · 63 / 100). Qualities of one quantiser give the same bytes.
+int avif_quantizer(int quality);
 // The image converted as encode_avif converts it (8-bit YUV 4:4:4, full-range BT.601) and back to
 // RGB as the decoder does: what AVIF at quality 100 decodes to, pixel for pixel, without coding it
 // (the error floor of every AVIF quality; texture_quality_for's, 4x faster than the lossless encode).
