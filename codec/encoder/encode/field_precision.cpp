@@ -197,21 +197,22 @@ int auto_intra_period(const Sequence& sequence) {
 
 namespace {
 
-// choose_field_coding for one dead zone (options checked).
-FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report, Spill& spill) {
-  FieldCoding coding;
-  coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
-  coding.steps.assign(kKeyframeArrayCount, 1.0);
-  coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
-  set_default_pose_steps(coding, sequence.units);
-  Reconstructor reconstructor(sequence.grid_n);
-  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, options.inter_dead_zone);
+// Each group's step before the common scale: keyframe 0 rounded one group at a time. The same for
+// every dead zone (keyframe 0 is intra: no dead zone applies to it), so choose_field_coding
+// calibrates once for all its trials.
+struct Calibration {
+  std::vector<size_t> present;     // the groups the fields have
+  std::vector<double> group_steps; // per group (0: absent)
+};
 
-  // Calibrate on keyframe 0: each group alone at a probe step, the rest exact.
+Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& options) {
+  Reconstructor reconstructor(sequence.grid_n);
+  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, 0.5);
   const Keyframe& probe_key = sequence.keyframes.front();
-  Decoded probe_exact = decode_exact(reconstructor, probe_key);
+  const Decoded probe_exact = decode_exact(reconstructor, probe_key);
   const std::vector<std::vector<double>> arrays = scalar_arrays(probe_key.fields);
-  std::vector<size_t> present;
+  Calibration calibration;
+  std::vector<size_t>& present = calibration.present;
   for (size_t g = 0; g < kGroups.size(); ++g) {
     for (size_t a : kGroups[g]) {
       if (!arrays[a].empty()) {
@@ -229,7 +230,8 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
     for (size_t a : kGroups[g]) group_values[g] += arrays[a].size();
     values += group_values[g];
   }
-  std::vector<double> group_steps(kGroups.size(), 0.0);
+  std::vector<double>& group_steps = calibration.group_steps;
+  group_steps.assign(kGroups.size(), 0.0);
   auto probe_error = [&](size_t g, double step) {
     return decoded_error(reconstructor, rounder.rounded(probe_key.fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, step)),
                          probe_exact.exact, probe_exact.diagonal);
@@ -273,6 +275,21 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
     }
     group_steps[g] = step;
   }
+  return calibration;
+}
+
+// choose_field_coding for one dead zone (options checked), from the calibration's steps.
+FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, const Calibration& calibration, FieldPrecisionReport* report,
+                         Spill& spill) {
+  FieldCoding coding;
+  coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
+  coding.steps.assign(kKeyframeArrayCount, 1.0);
+  coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
+  set_default_pose_steps(coding, sequence.units);
+  Reconstructor reconstructor(sequence.grid_n);
+  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, options.inter_dead_zone);
+  const std::vector<size_t>& present = calibration.present;
+  const std::vector<double>& group_steps = calibration.group_steps;
   auto apply = [&](double scale) {
     for (size_t g : present) {
       for (size_t a : kGroups[g]) coding.steps[a] = group_steps[g] * scale;
@@ -291,7 +308,7 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   exact.reset(sequence.keyframes.size());
   std::vector<double> exact_diagonals;
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-    Decoded d = k == 0 ? std::move(probe_exact) : decode_exact(reconstructor, sequence.keyframes[k]);  // the probe's is not used again
+    Decoded d = decode_exact(reconstructor, sequence.keyframes[k]);
     exact_diagonals.push_back(d.diagonal);
     exact.put(k, std::move(d.exact));
   }
@@ -412,6 +429,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   validate_sequence(sequence);
   Spill spill(options.spill);
+  const Calibration calibration = calibrate(sequence, options);
   FieldPrecisionOptions chosen = options;
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins. The
@@ -431,7 +449,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
       fields->fill(trial);
       SequenceFileMetadata metadata;
       try {
-        metadata.field_coding = choose_steps(trial, trial_options, nullptr, spill);
+        metadata.field_coding = choose_steps(trial, trial_options, calibration, nullptr, spill);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
@@ -444,7 +462,7 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
     }
     if (fields) fields->restore();
   }
-  const FieldCoding coding = choose_steps(sequence, chosen, report, spill);
+  const FieldCoding coding = choose_steps(sequence, chosen, calibration, report, spill);
   if (report) {
     report->peak_keyframes_in_memory = spill.count->peak.load();
     report->spilled_bytes = spill.bytes;
