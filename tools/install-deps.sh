@@ -5,6 +5,7 @@ set -euo pipefail
 
 packages=(
   g++ cmake ninja-build pkgconf        # toolchain
+  ccache                               # the test command's builds share their objects (quickstart.sh)
   clang libclang-rt-14-dev             # the sanitizer pass (float-cast-overflow, which g++ lacks)
   libeigen3-dev                        # sparse linear algebra
   libopenexr-dev                       # H and λ fields as EXR images
