@@ -439,6 +439,13 @@ TEST(FieldPrecision, AutoDeadZoneKeepsTheSmallestOfItsCandidates) {
   EXPECT_EQ(report.inter_dead_zone, best);
   EXPECT_EQ(chosen, file_of(best, 8, nullptr));
   for (double e : report.keyframe_errors) EXPECT_LE(e, 1.25 * kTarget);
+  // The keyframes decoded on one thread rather than one per core (the above): the same file.
+  Sequence one_thread = exact;
+  FieldPrecisionOptions serial{kTarget, 8, true, kAutoDeadZone};
+  serial.threads = 1;
+  SequenceFileMetadata serial_metadata;
+  serial_metadata.field_coding = choose_field_coding(one_thread, serial);
+  EXPECT_EQ(encode_sequence_file(one_thread, serial_metadata), chosen);
 
   FieldPrecisionReport intra;
   EXPECT_EQ(file_of(kAutoDeadZone, 1, &intra), file_of(0.5, 1, nullptr));
@@ -520,6 +527,9 @@ TEST(FieldPrecision, AutoIntraPeriodSpacesIntraKeyframesTenSecondsApart) {
   FieldPrecisionOptions negative;
   negative.intra_period = -1;
   testing::expect_error(ErrorCode::kInvalidArgument, "negative intra period", [&] { choose_field_coding(any, negative); });
+  FieldPrecisionOptions no_threads;
+  no_threads.threads = -1;
+  testing::expect_error(ErrorCode::kInvalidArgument, "negative thread count", [&] { choose_field_coding(any, no_threads); });
 }
 
 // An error in one frame's conformal map names that frame (the capture has hundreds): QIEM allowed

@@ -3,6 +3,8 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/encoder/keyframe_store.hpp"
 #include "facemorph/error.hpp"
+#include "facemorph/grid_geometry.hpp"
+#include "facemorph/parallel.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/sequence_file.hpp"
 
@@ -10,7 +12,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <optional>
+#include <thread>
 
 namespace facemorph {
 
@@ -179,6 +183,91 @@ class FieldRounder {
   double dead_zone_;
 };
 
+// One reconstructor per thread, on one G. Each decode here starts from a surface of its own (the
+// harmonic one for an exact decode, the exact surface for a rounded one), never from a warm start,
+// so which reconstructor takes a keyframe changes nothing.
+class ReconstructorPool {
+ public:
+  ReconstructorPool(int grid_n, int threads) : geometry_(std::make_shared<const GridGeometry>(make_disk_grid(grid_n))) {
+    const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    for (int t = 0; t < count; ++t) free_.push_back(std::make_unique<Reconstructor>(geometry_));
+    size_ = free_.size();
+  }
+  size_t size() const { return size_; }
+  const DiskGrid& grid() const { return geometry_->grid(); }
+
+  // body(reconstructor, i) for every i in [0, count), on up to size() threads.
+  template <typename Body>
+  void run(size_t count, const Body& body) {
+    parallel_for(static_cast<int>(count), static_cast<int>(size_), [&](int i) {
+      std::unique_ptr<Reconstructor> mine = take();
+      try {
+        body(*mine, static_cast<size_t>(i));
+      } catch (...) {
+        give_back(std::move(mine));
+        throw;
+      }
+      give_back(std::move(mine));
+    });
+  }
+
+ private:
+  std::unique_ptr<Reconstructor> take() {
+    std::lock_guard lock(mutex_);
+    std::unique_ptr<Reconstructor> r = std::move(free_.back());
+    free_.pop_back();
+    return r;
+  }
+  void give_back(std::unique_ptr<Reconstructor> r) {
+    std::lock_guard lock(mutex_);
+    free_.push_back(std::move(r));
+  }
+
+  std::shared_ptr<const GridGeometry> geometry_;
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Reconstructor>> free_;
+  size_t size_ = 0;
+};
+
+// Every keyframe's surface decoded from its exact fields, what every trial's rounded keyframes are
+// compared with: decoded once per choose_field_coding (they do not depend on the steps or the dead
+// zone), stored (1.25 MB a keyframe at N = 257) and read back one at a time.
+struct ExactSurfaces {
+  ExactSurfaces(const std::vector<Keyframe>& keyframes, ReconstructorPool& pool, Spill& spill) : store(spill.mode, spill.count) {
+    store.reset(keyframes.size());
+    diagonals.assign(keyframes.size(), 0.0);
+    pool.run(keyframes.size(), [&](Reconstructor& reconstructor, size_t k) {
+      Decoded d = decode_exact(reconstructor, keyframes[k]);
+      diagonals[k] = d.diagonal;
+      store.put(k, std::move(d.exact));
+    });
+  }
+  SurfaceStore store;
+  std::vector<double> diagonals;
+};
+
+// Each keyframe's decoded error with `coding`: rounded in order on this thread (a keyframe's
+// rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
+// that no more rounded fields than threads are held.
+std::vector<double> rounded_errors(const std::vector<Keyframe>& keyframes, const FieldCoding& coding, const FieldRounder& rounder, const ExactSurfaces& exact,
+                                   ReconstructorPool& pool) {
+  std::vector<double> errors(keyframes.size(), 0.0);
+  std::vector<std::pair<size_t, GridFields>> batch;
+  const auto decode_batch = [&] {
+    pool.run(batch.size(), [&](Reconstructor& reconstructor, size_t i) {
+      const auto& [k, fields] = batch[i];
+      errors[k] = decoded_error(reconstructor, fields, *exact.store.get(k), exact.diagonals[k]);
+    });
+    batch.clear();
+  };
+  rounder.for_each_rounded(keyframes, coding, [&](size_t k, GridFields&& rounded) {
+    batch.emplace_back(k, std::move(rounded));
+    if (batch.size() == pool.size()) decode_batch();
+  });
+  decode_batch();
+  return errors;
+}
+
 }  // namespace
 
 void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options) {
@@ -205,8 +294,7 @@ struct Calibration {
   std::vector<double> group_steps; // per group (0: absent)
 };
 
-Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& options) {
-  Reconstructor reconstructor(sequence.grid_n);
+Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& options, Reconstructor& reconstructor) {
   const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, 0.5);
   const Keyframe& probe_key = sequence.keyframes.front();
   const Decoded probe_exact = decode_exact(reconstructor, probe_key);
@@ -278,16 +366,24 @@ Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& opt
   return calibration;
 }
 
-// choose_field_coding for one dead zone (options checked), from the calibration's steps.
-FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& options, const Calibration& calibration, FieldPrecisionReport* report,
-                         Spill& spill) {
+// The steps choose_steps found, and what they measured.
+struct StepChoice {
+  FieldCoding coding;          // the steps at the coarsest scale that met the target
+  double scale = 0;            // that scale of the calibration's steps
+  std::vector<double> errors;  // each keyframe's decoded error at it
+  int refinements = 0;
+};
+
+// choose_field_coding's steps for one dead zone (options checked), from the calibration's steps,
+// for the exact fields of `keyframes` (not changed: the caller rounds them).
+StepChoice choose_steps(const Sequence& sequence, const FieldPrecisionOptions& options, const Calibration& calibration, const ExactSurfaces& exact,
+                        ReconstructorPool& pool) {
   FieldCoding coding;
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
   set_default_pose_steps(coding, sequence.units);
-  Reconstructor reconstructor(sequence.grid_n);
-  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, options.inter_dead_zone);
+  const FieldRounder rounder(pool.grid(), options.noise_shaping, options.inter_dead_zone);
   const std::vector<size_t>& present = calibration.present;
   const std::vector<double>& group_steps = calibration.group_steps;
   auto apply = [&](double scale) {
@@ -302,25 +398,14 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
   // noisy capture: 8x the scale, 50x the error, where error diffusion stops hiding the steps), so the
   // next scale follows the power law through the last two measurements, kept inside the bracket
   // of scales known to meet and to miss the target.
-  // Every keyframe's exact surface, decoded once and compared with each trial's: stored (1.25 MB a
-  // keyframe at N = 257) and read back one at a time.
-  SurfaceStore exact(spill.mode, spill.count);
-  exact.reset(sequence.keyframes.size());
-  std::vector<double> exact_diagonals;
-  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-    Decoded d = decode_exact(reconstructor, sequence.keyframes[k]);
-    exact_diagonals.push_back(d.diagonal);
-    exact.put(k, std::move(d.exact));
-  }
   const double aim = 0.95 * options.target_error;
   double scale = 1, best_scale = 0, missed_scale = std::numeric_limits<double>::infinity();
   double last_scale = 0, last_worst = 0;
-  std::vector<double> errors(sequence.keyframes.size()), best_errors;
+  std::vector<double> best_errors;
   int refinements = 0;
   for (;; ++refinements) {
     apply(scale);
-    rounder.for_each_rounded(sequence.keyframes, coding,
-                             [&](size_t k, GridFields&& rounded) { errors[k] = decoded_error(reconstructor, rounded, *exact.get(k), exact_diagonals[k]); });
+    const std::vector<double> errors = rounded_errors(sequence.keyframes, coding, rounder, exact, pool);
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {
@@ -343,20 +428,8 @@ FieldCoding choose_steps(Sequence& sequence, const FieldPrecisionOptions& option
     throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) + " in " +
                                               std::to_string(kMaxRefinements) + " refinements");
   }
-  spill.bytes += exact.spilled_bytes();
-  scale = best_scale;
-  errors = best_errors;
-  apply(scale);
-  rounder.round(sequence.keyframes, coding);
-  if (report) {
-    report->target_error = options.target_error;
-    report->group_steps = group_steps;
-    for (double& s : report->group_steps) s *= scale;
-    report->keyframe_errors = errors;
-    report->refinements = refinements;
-    report->inter_dead_zone = options.inter_dead_zone;
-  }
-  return coding;
+  apply(best_scale);
+  return {coding, best_scale, best_errors, refinements};
 }
 
 // Moves the keyframes' exact fields out of a sequence into a store while the dead zones are tried,
@@ -427,14 +500,20 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   }
   if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options);
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
+  if (options.threads < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative thread count");
   validate_sequence(sequence);
   Spill spill(options.spill);
-  const Calibration calibration = calibrate(sequence, options);
+  ReconstructorPool pool(sequence.grid_n, options.threads);
+  // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
+  // applies to it) and every keyframe's exact surface.
+  Calibration calibration;
+  pool.run(1, [&](Reconstructor& reconstructor, size_t) { calibration = calibrate(sequence, options, reconstructor); });
+  const ExactSurfaces exact(sequence.keyframes, pool, spill);
   FieldPrecisionOptions chosen = options;
+  std::optional<StepChoice> choice;
   if (options.inter_dead_zone == kAutoDeadZone) {
-    // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins. The
-    // trials round a copy of the fields, then the winner is run again on `sequence` (the search is
-    // deterministic).
+    // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins, and
+    // its steps are the result (the search is deterministic: run again, it would find them again).
     chosen.inter_dead_zone = kDeadZoneCandidates.front();
     const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
     const bool predicts = period > 1 && sequence.keyframes.size() > 1;
@@ -447,27 +526,39 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
       trial_options.inter_dead_zone = kDeadZoneCandidates[c];
       Sequence trial = sequence;
       fields->fill(trial);
-      SequenceFileMetadata metadata;
+      std::optional<StepChoice> steps;
       try {
-        metadata.field_coding = choose_steps(trial, trial_options, calibration, nullptr, spill);
+        steps = choose_steps(trial, trial_options, calibration, exact, pool);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
       }
+      FieldRounder(pool.grid(), options.noise_shaping, trial_options.inter_dead_zone).round(trial.keyframes, steps->coding);
+      SequenceFileMetadata metadata;
+      metadata.field_coding = steps->coding;
       const size_t bytes = encode_sequence_file(trial, metadata).size();
       if (bytes < fewest) {
         fewest = bytes;
         chosen.inter_dead_zone = kDeadZoneCandidates[c];
+        choice = std::move(steps);
       }
     }
     if (fields) fields->restore();
   }
-  const FieldCoding coding = choose_steps(sequence, chosen, calibration, report, spill);
+  if (!choice) choice = choose_steps(sequence, chosen, calibration, exact, pool);
+  FieldRounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone).round(sequence.keyframes, choice->coding);
+  spill.bytes += exact.store.spilled_bytes();
   if (report) {
+    report->target_error = options.target_error;
+    report->group_steps = calibration.group_steps;
+    for (double& s : report->group_steps) s *= choice->scale;
+    report->keyframe_errors = choice->errors;
+    report->refinements = choice->refinements;
+    report->inter_dead_zone = chosen.inter_dead_zone;
     report->peak_keyframes_in_memory = spill.count->peak.load();
     report->spilled_bytes = spill.bytes;
   }
-  return coding;
+  return choice->coding;
 }
 
 }  // namespace facemorph

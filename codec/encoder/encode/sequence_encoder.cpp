@@ -898,6 +898,7 @@ FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSele
   const auto start = std::chrono::steady_clock::now();
   FieldPrecisionOptions precision = options_.field_precision;
   precision.spill = options_.spill_keyframes;
+  precision.threads = options_.threads;
   if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
   FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
   report_.seconds_precision = seconds_since(start);

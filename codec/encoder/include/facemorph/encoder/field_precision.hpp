@@ -45,6 +45,9 @@ struct FieldPrecisionOptions {
   // fields while the dead zones are tried, go to a temporary file and are read back one at a time
   // (keyframe_store.hpp); false: they stay in memory. The steps and rounding are the same.
   bool spill = true;
+  // The keyframes decoded at once while the steps are measured (0: one per core). The steps and
+  // rounding are the same for any count.
+  int threads = 0;
 };
 
 struct FieldPrecisionReport {
