@@ -5,6 +5,7 @@
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "tools/tool_support.hpp"
@@ -375,12 +376,14 @@ int main(int argc, char** argv) {
         std::printf(" (auto: the blend between keyframes is at %.1f to %.1f dB)", *low_db, *high_db);
       }
       std::printf("\n");
-      // What the file's textures decode to, against the keyframes' own (on the disk).
+      // What the file's textures decode to, against the keyframes' own (on the disk): one keyframe's
+      // at a time, through a source whose cache the decoder's limits bound (the whole file decoded
+      // at once held every keyframe twice over, the encode's largest allocation on a long capture).
       SequenceFileInfo written;
-      const Sequence decoded = read_sequence_file(output, &written);
+      const std::shared_ptr<const KeyframeSource> decoded = open_sequence_source(output, kDefaultDecoderLimits, &written);
       double sum_db = 0, low_db = std::numeric_limits<double>::infinity();
       for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-        const double db = psnr_of_mse(disk_texture_mse(sequence.keyframes[k].texture, decoded.keyframes[k].texture));
+        const double db = psnr_of_mse(disk_texture_mse(sequence.keyframes[k].texture, *decoded->texture(k)));
         sum_db += db;
         low_db = std::min(low_db, db);
       }
