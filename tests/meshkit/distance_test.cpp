@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 namespace facemorph {
@@ -31,6 +32,35 @@ TEST(Distance, BucketSearchMatchesBruteForceInsideAndFarOutside) {
     EXPECT_NEAR(query.distance(p), brute_force(sphere, p), 1e-12);
   }
   EXPECT_NEAR(query.distance(Vec3(0, 0, 10)), 9.0, 0.01);
+}
+
+// A bounded query: the distance where it is under the bound, something at least the bound where it
+// is not, and it stops early (a search that ignored the bound would pass the first check, one that
+// stopped too soon the second).
+TEST(Distance, ABoundedQueryIsExactUnderItsBoundAndAtLeastItBeyond) {
+  const TriangleMesh sphere = testing::icosphere(1.0, 3);
+  const PointToMesh query(sphere);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-4, 4), bound(0, 3);
+  int under = 0, beyond = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Vec3 p(u(rng), u(rng), u(rng));
+    const double b = bound(rng), exact = query.distance(p), bounded = query.distance_below(p, b);
+    if (exact < b) {
+      EXPECT_EQ(bounded, exact) << i;
+      ++under;
+    } else {
+      EXPECT_GE(bounded, b) << i;
+      ++beyond;
+    }
+  }
+  EXPECT_GT(under, 50);
+  EXPECT_GT(beyond, 50);
+  EXPECT_EQ(query.distance_below(Vec3(0, 0, 10), std::numeric_limits<double>::infinity()), query.distance(Vec3(0, 0, 10)));
+  // At the centre, a bound under the radius ends the search in the empty cells around it: nothing
+  // found there. Above the radius it finds the surface.
+  EXPECT_EQ(query.distance_below(Vec3::Zero(), 0.3), std::numeric_limits<double>::infinity());
+  EXPECT_EQ(query.distance_below(Vec3::Zero(), 2.0), query.distance(Vec3::Zero()));
 }
 
 TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {

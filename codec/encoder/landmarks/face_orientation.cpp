@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <numbers>
 #include <optional>
@@ -120,26 +121,33 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
     for (size_t i = 0; i < near.size(); i += stride) samples.push_back(near[i]);
   }
   const PointToMesh surface(mesh);
-  auto mirror_rms = [&](double theta) {
+  // The sum of squared distances of the samples' mirror images to the surface; infinity once it
+  // passes `give_up`, the best plane's so far: a plane that cannot win is not measured to the end,
+  // and no image is looked for farther than what is left of that sum (the planes far from the
+  // mirror put their images far off the surface, where a nearest-point search visits the most
+  // cells: measuring every plane to the end was half of an ICT frame's encode without landmarks).
+  // The plane chosen and its sum are those of measuring every plane in full.
+  auto mirror_sum = [&](double theta, double give_up) {
     const Vec3 n = std::cos(theta) * e1 + std::sin(theta) * e2;
     double sum = 0;
     for (const Vec3& p : samples) {
-      const double d = surface.distance(p - 2 * (p - o.nose_tip).dot(n) * n);
+      const double d = surface.distance_below(p - 2 * (p - o.nose_tip).dot(n) * n, std::sqrt(give_up - sum));
       sum += d * d;
+      if (sum > give_up) return std::numeric_limits<double>::infinity();
     }
-    return std::sqrt(sum / static_cast<double>(std::max<size_t>(samples.size(), 1)));
+    return sum;
   };
   constexpr double kDegree = std::numbers::pi / 180;
-  double best = 0, best_rms = mirror_rms(0);
+  double best = 0, best_sum = mirror_sum(0, std::numeric_limits<double>::infinity());
   for (int step = 1; step < 60; ++step) {
-    const double rms = mirror_rms(3 * step * kDegree);
-    if (rms < best_rms) best_rms = rms, best = 3 * step * kDegree;
+    const double sum = mirror_sum(3 * step * kDegree, best_sum);
+    if (sum < best_sum) best_sum = sum, best = 3 * step * kDegree;
   }
   for (double offset = -2.5; offset <= 2.5; offset += 0.5) {
-    const double rms = mirror_rms(best + offset * kDegree);
-    if (rms < best_rms) best_rms = rms, best = best + offset * kDegree;
+    const double sum = mirror_sum(best + offset * kDegree, best_sum);
+    if (sum < best_sum) best_sum = sum, best = best + offset * kDegree;
   }
-  o.mirror_error = best_rms / diagonal;
+  o.mirror_error = std::sqrt(best_sum / static_cast<double>(std::max<size_t>(samples.size(), 1))) / diagonal;
   if (o.mirror_error > kMaxMirrorError) {
     fail(name, "no plane maps the surface onto itself (best " + percent(o.mirror_error) + " of its diagonal off)");
   }

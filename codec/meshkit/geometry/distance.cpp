@@ -87,12 +87,18 @@ double PointToMesh::distance(const Vec3& p) const {
   return std::sqrt(squared);
 }
 
+double PointToMesh::distance_below(const Vec3& p, double bound) const {
+  double squared = 0;
+  nearest(p, squared, bound);
+  return std::sqrt(squared);
+}
+
 SurfacePoint PointToMesh::closest(const Vec3& p) const {
   double squared = 0;
   return nearest(p, squared);
 }
 
-SurfacePoint PointToMesh::nearest(const Vec3& p, double& best) const {
+SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound) const {
   SurfacePoint point;
   best = std::numeric_limits<double>::infinity();
   if (mesh_.faces.empty()) return point;
@@ -132,6 +138,7 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best) const {
     const double margin = std::min((p - cell_lo).minCoeff(), (cell_lo + Vec3::Constant(cell_) - p).minCoeff());
     const double reach = shell * cell_ + std::max(margin, 0.0);  // no margin when p is outside the grid
     if (best < std::numeric_limits<double>::infinity() && std::sqrt(best) <= reach) break;
+    if (reach >= bound) break;  // whatever lies beyond is at least `bound` away
   }
   return point;
 }

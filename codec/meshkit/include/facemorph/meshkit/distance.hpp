@@ -6,6 +6,7 @@
 #include "facemorph/mesh.hpp"
 
 #include <span>
+#include <limits>
 #include <vector>
 
 namespace facemorph {
@@ -24,12 +25,16 @@ class PointToMesh {
   explicit PointToMesh(const TriangleMesh& mesh);  // the mesh must outlive this
   // Distance from p to the nearest point of the mesh (infinity for a mesh without faces).
   double distance(const Vec3& p) const;
+  // The same where it is under `bound`; otherwise some value at least `bound` (the search stops
+  // there: a caller that only needs to know "that far or farther" saves the far shells).
+  double distance_below(const Vec3& p, double bound) const;
   // The nearest point of the mesh: its face and barycentric coordinates. Of equally near faces the
   // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces.
   SurfacePoint closest(const Vec3& p) const;
 
  private:
-  SurfacePoint nearest(const Vec3& p, double& best) const;  // best: its squared distance
+  // best: its squared distance; the search ends once nothing nearer than `bound` can be left.
+  SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity()) const;
 
   const TriangleMesh& mesh_;
   Vec3 origin_;
