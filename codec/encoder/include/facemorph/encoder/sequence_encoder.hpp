@@ -102,8 +102,8 @@ struct EncodeOptions {
   // without landmarks, or with --landmarks auto): a grid of the reference's disk points tracked onto
   // it by optical flow on disk images of the geometry, the reliable ones added to its landmarks
   // (landmark_tracking.hpp, spec/method.md §7.14). Off by default (fmenc --track-landmarks): it
-  // lowers the held-out error (ICT 1.40× → 1.22× the landmarked encode's) but costs 23–45% more
-  // bytes and ~0.7 s a frame, which at equal size measures no gain yet. false: the interior follows
+  // lowers the held-out error (two ICT clips: 1.37–1.42× → 1.16–1.17× the landmarked encode's) but
+  // costs 14–18% more bytes and ~0.2 s a frame, not yet "alike rates". false: the interior follows
   // the normalised maps.
   bool track_landmarks = false;
   TrackingOptions tracking;
