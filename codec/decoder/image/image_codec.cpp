@@ -94,8 +94,6 @@ struct AvifRgb {
   ~AvifRgb() { avifRGBImageFreePixels(&rgb); }
 };
 
-
-
 // An image as 8-bit YUV 4:4:4, full-range BT.601 (the matrix WebP and JPEG use; every decoder
 // converts back with the matrix the file signals): what the stills and the sequences code.
 std::unique_ptr<avifImage, AvifImageFree> yuv_of(const Image& image) {

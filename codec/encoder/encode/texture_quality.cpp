@@ -65,29 +65,22 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   int lo = 0, hi = 100;
   double lo_error = error_at(lo), hi_error = floor;
   if (lo_error <= target_mse) return 0;
+  // Probes `quality`: it becomes the bracket's end on its side. Returns whether it met the target.
+  const auto probe = [&](int quality) {
+    const double error = error_at(quality);
+    const bool met = error <= target_mse;
+    (met ? hi : lo) = quality;
+    (met ? hi_error : lo_error) = error;
+    return met;
+  };
   while (hi - lo > 1) {
-    int probe = (lo + hi) / 2;
+    int quality = (lo + hi) / 2;
     if (lo_error > 0 && hi_error > 0 && lo_error > hi_error) {
       const double t = std::log(lo_error / target_mse) / std::log(lo_error / hi_error);
-      probe = lo + static_cast<int>(std::lround(t * (hi - lo)));
+      quality = lo + static_cast<int>(std::lround(t * (hi - lo)));
     }
-    probe = std::clamp(probe, lo + 1, hi - 1);
-    const double error = error_at(probe);
-    if (error <= target_mse) {
-      hi = probe, hi_error = error;
-      if (hi - lo > 1) {
-        const double below = error_at(hi - 1);
-        (below <= target_mse ? hi : lo) = hi - 1;
-        (below <= target_mse ? hi_error : lo_error) = below;
-      }
-    } else {
-      lo = probe, lo_error = error;
-      if (hi - lo > 1) {
-        const double above = error_at(lo + 1);
-        (above <= target_mse ? hi : lo) = lo + 1;
-        (above <= target_mse ? hi_error : lo_error) = above;
-      }
-    }
+    const bool met = probe(std::clamp(quality, lo + 1, hi - 1));
+    if (hi - lo > 1) probe(met ? hi - 1 : lo + 1);  // its neighbour on the other side
   }
   return hi;
 }

@@ -35,9 +35,10 @@ double psnr_of_mse(double mse);
 double mse_of_psnr(double psnr);
 
 // The lowest quality in [0, 100] of `codec` (image_codec.hpp) whose decode of `texture` lies within
-// `target_mse` of it over the disk (probes interpolated in log error, bracketing: the error falls as the quality rises, to a few
-// percent). A target under 1.25 times the error at quality 100 (the lossy codec's floor: chroma
-// rounding, its finest quantiser) is raised to that: closer to the floor costs bytes and shows nothing.
+// `target_mse` of it over the disk (probes interpolated in log error, bracketing: the error falls as
+// the quality rises, to a few percent). A target under 1.25 times the error at quality 100 (the
+// lossy codec's floor: chroma rounding, its finest quantiser) is raised to that: closer to the
+// floor costs bytes and shows nothing.
 int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse);
 
 // Per keyframe, the MSE its coding may add: options.interpolation_share times the smaller of the
