@@ -9,6 +9,7 @@
 #include "tools/bench_capture.hpp"
 
 #include "facemorph/meshkit/distance.hpp"
+#include "facemorph/decoder.hpp"
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
@@ -23,6 +24,7 @@
 #include "tools/tool_support.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -31,6 +33,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <utility>
 
@@ -432,6 +435,65 @@ struct Context {
   fs::path scratch;
   std::string markdown;
 };
+
+// --geometry-only: the given file's geometry error on every frame of its capture, nothing else (no
+// mapping, no baselines): comparing encodes of one capture in seconds rather than minutes.
+json measure_geometry_only(const CaptureBenchOptions& options, const std::string& input) {
+  const Capture capture = read_capture(input);
+  SequenceFileInfo info;
+  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(options.fmv, &info));
+  const int count = static_cast<int>(capture.frames.size());
+  std::vector<int> keyframes;  // the frame nearest each keyframe's time
+  for (const Keyframe& key : sequence->keyframes) {
+    int nearest = 0;
+    for (int i = 1; i < count; ++i) {
+      if (std::abs(capture.frames[static_cast<size_t>(i)].time - key.time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time)) nearest = i;
+    }
+    keyframes.push_back(nearest);
+  }
+  std::sort(keyframes.begin(), keyframes.end());
+  Evaluation e;
+  e.keyframes = static_cast<int>(sequence->keyframes.size());
+  e.grid = sequence->grid_n;
+  e.frames.resize(static_cast<size_t>(count));
+  Progress progress(input, options.quiet);
+  std::atomic<int> done{0};
+  std::mutex decoders_lock;
+  std::vector<std::unique_ptr<SequenceDecoder>> decoders;  // one per thread: a decoder holds its reconstructor
+  parallel_for(count, 0, [&](int i) {
+    std::unique_ptr<SequenceDecoder> decoder;
+    {
+      const std::lock_guard<std::mutex> lock(decoders_lock);
+      if (!decoders.empty()) {
+        decoder = std::move(decoders.back());
+        decoders.pop_back();
+      }
+    }
+    if (!decoder) decoder = std::make_unique<SequenceDecoder>(sequence);
+    DecodeOptions decode;
+    decode.ignore_sane_range = true;
+    decode.reconstruct.throw_on_failure = false;
+    FrameError& f = e.frames[static_cast<size_t>(i)];
+    f.time = capture.frames[static_cast<size_t>(i)].time;
+    f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
+    const DecodedFrame decoded = decoder->decode(f.time, decode);
+    f.converged = decoded.converged;
+    const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
+    f.rms = d.rms / d.diagonal;
+    f.max = d.max / d.diagonal;
+    {
+      const std::lock_guard<std::mutex> lock(decoders_lock);
+      decoders.push_back(std::move(decoder));
+      progress.update(++done, count);
+    }
+  });
+  progress.finish();
+  const Summary s = summarise(e);
+  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%% mean, %.4f%% worst\n",
+              options.fmv.c_str(), static_cast<unsigned long long>(info.file_bytes), e.keyframes, count, e.grid, 100 * s.held_rms_mean,
+              100 * s.held_rms_worst, 100 * s.held_max_worst, 100 * s.key_rms_mean, 100 * s.key_rms_worst);
+  return {{"input", input}, {"fmv", options.fmv}, {"bytes", info.file_bytes}, {"evaluation", evaluation_json(e)}};
+}
 
 json measure_capture(Context& context, const std::string& input) {
   const CaptureBenchOptions& options = context.options;
@@ -878,6 +940,8 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_option("--report", options.report, "With --capture: write a Markdown report here, its curves and pictures beside it");
   app.add_option("--data", options.data, "With --capture: folder of the shared real data")->capture_default_str();
   app.add_flag("--quick", options.quick, "With --capture: the smoke test (20 frames, small texture, few candidates; about a minute)");
+  app.add_flag("--geometry-only", options.geometry_only,
+               "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
   app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
 }
 
@@ -894,6 +958,12 @@ int run_capture_bench(const CaptureBenchOptions& options) {
   for (const std::string& c : captures) {
     std::error_code ec;
     if (c != "synth" && c != "medusa" && c != "ict" && !fs::exists(c, ec)) throw Error(ErrorCode::kIo, "capture '" + c + "' does not exist");
+  }
+  if (options.geometry_only) {
+    if (options.fmv.empty()) throw Error(ErrorCode::kInvalidArgument, "--geometry-only measures a given file: it needs --fmv");
+    const json result = measure_geometry_only(options, captures.front());
+    if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "capture-geometry"}, {"results", json::array({result})}});
+    return 0;
   }
   require_program("draco_encoder", "draco");
   require_program("draco_decoder", "draco");

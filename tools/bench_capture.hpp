@@ -15,6 +15,7 @@ struct CaptureBenchOptions {
   std::string json_out, report;       // report: Markdown; its pictures and curves go beside it
   std::string data = "../shared/data";
   bool quick = false;                 // the smoke test: small capture, few candidates, about a minute
+  bool geometry_only = false;         // with fmv: only its geometry error (no mapping, no baselines)
   bool quiet = false;
 };
 

@@ -46,6 +46,24 @@ done
 grep -q "geometry vs Draco" "$work/stdout" || fail "stdout lacks the targets"
 grep -q "| draco + h264 |" "$work/report/report.md" || fail "the report lacks the baselines table"
 
+# --geometry-only: a file fmenc wrote, measured against its capture without mapping or baselines;
+# its figures are the ones the JSON states, and it refuses to run without a file.
+tools=$(dirname "$fmbench")
+"$tools/fmsynth" -o "$work/cap" --frames 12 --fps 20 --vertices 2000 --noise 0 --texture-size 64 --quiet || fail "fmsynth"
+"$tools/fmenc" "$work/cap" -o "$work/cap.fmv" --keyframes 25% --quiet || fail "fmenc"
+"$fmbench" --capture "$work/cap" --fmv "$work/cap.fmv" --geometry-only --quiet --json "$work/geometry.json" | tee "$work/geometry.out" ||
+  fail "fmbench --geometry-only"
+python3 - "$work/geometry.json" "$(stat -c %s "$work/cap.fmv")" <<'PY' || fail "--geometry-only's figures"
+import json, sys
+r = json.load(open(sys.argv[1]))["results"][0]
+ev = r["evaluation"]
+assert r["bytes"] == int(sys.argv[2]), (r["bytes"], sys.argv[2])
+assert len(ev["frames"]) == 12 and ev["keyframes"] >= 2, ev["keyframes"]
+assert 0 < ev["keyframe_rms_mean"] < ev["held_out_rms_mean"] < 0.02, ev
+PY
+grep -q "held-out RMS" "$work/geometry.out" || fail "--geometry-only printed no summary"
+expect_error "--geometry-only without a file" "it needs --fmv" "$fmbench" --capture "$work/cap" --geometry-only
+
 expect_error "a missing capture" "capture '$work/none' does not exist" "$fmbench" --capture "$work/none" --quick
 mkdir -p "$work/bin"
 ln -s "$(command -v ffmpeg)" "$work/bin/ffmpeg"
