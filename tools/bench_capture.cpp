@@ -569,6 +569,7 @@ json measure_capture(Context& context, const std::string& input) {
   if (!given) timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
   int grid = 0;
   timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(&main_chosen); });
+  if (!given) timed("representation", [&] { encoder.choose_representation(main_chosen, grid); });
   progress.finish();
 
   // Facemorph's texture PSNR per frame (and the baselines' on the sample frames) as frames decode.
@@ -658,7 +659,7 @@ json measure_capture(Context& context, const std::string& input) {
     main_bytes.resize(given_info.file_bytes);
   } else {
     main_keys = main_chosen.keyframes;
-    main_sequence = encode_file(main_chosen, grid, encode.representation, main_bytes, main_info);
+    main_sequence = encode_file(main_chosen, grid, encoder.representation(), main_bytes, main_info);
   }
   const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
     for (int d = 0; d < count; ++d) {
@@ -700,7 +701,7 @@ json measure_capture(Context& context, const std::string& input) {
     const int budget_grid = given ? grid : encoder.choose_grid(&chosen);  // as fmenc would for this budget
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
-    const Sequence sequence = encode_file(chosen, budget_grid, encode.representation, bytes, info);
+    const Sequence sequence = encode_file(chosen, budget_grid, main_sequence.representation, bytes, info);
     curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
     const Sequence xyz_at = encode_file(chosen, budget_grid, Representation::kXYZ, bytes, info);
     xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));

@@ -120,7 +120,12 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
           {"grid", o.grid > 0 ? nlohmann::json(o.grid) : nlohmann::json("auto")},
           {"grid_chosen", report.grid},
-          {"representation", representation_name(o.representation)},
+          {"representation", o.representation ? representation_name(*o.representation) : "auto"},
+          {"representation_chosen", representation_name(report.representation)},
+          {"frames_without_interior_landmarks", report.frames_without_interior_landmarks},
+          {"representation_blend", report.blend.trials > 0 ? nlohmann::json{{"frames", report.blend.trials}, {"fields_error", report.blend.fields_error},
+                                                                              {"positions_error", report.blend.positions_error}, {"fields_not_converged", report.blend.not_converged}}
+                                                           : nlohmann::json(nullptr)},
           {"registration", registration_method_name(o.registration.method)},
           {"spline", spline_kind_name(o.spline)},
           {"texture", o.texture ? (o.texture_size > 0 ? nlohmann::json(o.texture_size) : nlohmann::json("auto")) : nlohmann::json(0)},
@@ -161,7 +166,7 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
 int main(int argc, char** argv) {
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
   std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
-                              representation = "hl+t", landmarks;
+                              representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
@@ -197,7 +202,10 @@ int main(int argc, char** argv) {
                "where it stays within the texture coding's coarsest PSNR (30 dB) of their own");
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
-  app.add_option("--representation", representation, "hl+t | hl | xyz")->capture_default_str();
+  app.add_option("--representation", representation,
+                 "auto | hl+t | hl | xyz. auto: hl+t, or xyz where most frames share no interior landmarks with the reference frame "
+                 "(none given, none tracked)")
+      ->capture_default_str();
   app.add_option("--density-equalising", density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")
       ->capture_default_str();
@@ -271,7 +279,7 @@ int main(int argc, char** argv) {
     }
     options.registration.method = parse_registration_method(registration);
     options.spline = parse_spline_kind(spline);
-    options.representation = parse_representation(representation);
+    if (representation != "auto") options.representation = parse_representation(representation);
     options.keep_holes_filled = keep_holes_filled;
     options.largest_component = largest_component;
     options.threads = threads;
@@ -331,6 +339,13 @@ int main(int argc, char** argv) {
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
                 sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+    if (report.blend.trials > 0) {
+      std::printf("  representation %s (auto): %d of %zu frames share no interior landmarks with the reference; blended at %d frames "
+                  "between keyframes, the fields come out %.3f%% from them, the positions %.3f%%%s\n",
+                  representation_name(report.representation), report.frames_without_interior_landmarks, capture.frames.size() - report.dropped.size() - 1,
+                  report.blend.trials, 100 * report.blend.fields_error, 100 * report.blend.positions_error,
+                  report.representation == Representation::kXYZ ? " (--representation hl+t stores the fields)" : "");
+    }
     if (!report.sparse && report.keyframe_budget > 0 && static_cast<int>(sequence.keyframes.size()) > report.keyframe_budget) {
       std::printf("  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
                   "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
@@ -409,10 +424,11 @@ int main(int argc, char** argv) {
                     shared, sequence.keyframes.size(), lowest_share_db);
       }
     }
-    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, keyframes %.1f s, field precision %.1f s, "
-                "texture quality %.1f s, writing %.1f s)\n",
+    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "
+                "field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
                 seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
-                report.seconds_selection, report.seconds_keyframes, report.seconds_precision, report.seconds_texture, seconds_writing);
+                report.seconds_selection, report.seconds_representation, report.seconds_keyframes, report.seconds_precision, report.seconds_texture,
+                seconds_writing);
     if (report.spilled_bytes > 0) {
       std::printf("  frames' maps: %.0f MB in a temporary file, at most %d in memory at once\n", static_cast<double>(report.spilled_bytes) / 1e6,
                   report.peak_frames_in_memory);

@@ -784,6 +784,93 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
   }
 }
 
+// The representation left to the encoder (spec/method.md §7.14): measured only where most frames
+// share no interior landmarks with the reference and none are tracked; then xyz where the blended
+// fields miss the frames between keyframes by more than kFieldsBlendMargin times the blended
+// positions. One given is kept.
+TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
+  testing::TempDir dir;
+  Capture given = small_capture(dir, 0);
+  given.frames.resize(6);
+  given.landmarks.resize(6);
+  auto without_interior = [&](std::initializer_list<size_t> frames) {  // rim markers and the nose kept
+    Capture capture = given;
+    for (size_t i : frames) {
+      for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+        const std::string& name = capture.landmark_names[l];
+        if (name.rfind("rim_", 0) != 0 && name != "nose_tip" && name != "nose_bridge" && name != "between_eyes") {
+          capture.landmarks[i][l] = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+        }
+      }
+    }
+    return capture;
+  };
+  EncodeOptions options;
+  options.texture = false;
+  options.tracking.spacing = 0.1;
+  KeyframeSelection chosen;
+  chosen.keyframes = {0, 2, 5};
+  auto choose = [&](const Capture& capture, const EncodeOptions& o, int expected_without) {
+    SequenceEncoder encoder(capture, o);
+    encoder.map_frames();
+    encoder.register_frames();
+    encoder.sample_frames();
+    EXPECT_EQ(encoder.report().frames_without_interior_landmarks, expected_without);
+    encoder.choose_representation(chosen, 33);
+    EXPECT_EQ(encoder.report().representation, encoder.representation());
+    return encoder.report().blend;
+  };
+  // Landmarks shared by most frames: nothing measured, hl+t.
+  EXPECT_EQ(choose(given, options, 0).trials, 0);
+  EXPECT_EQ(choose(without_interior({5}), options, 1).trials, 0);
+  EncodeOptions tracked = options;
+  tracked.track_landmarks = true;  // tracked points are interior landmarks
+  const Capture bare = without_interior({0, 1, 2, 3, 4, 5});
+  EXPECT_EQ(choose(bare, tracked, 0).trials, 0);
+  EncodeOptions hl = options;
+  hl.representation = Representation::kHL;
+  EXPECT_EQ(choose(bare, hl, 5).trials, 0);
+  // Without them: both blends measured at the frames midway (1 and 3), and the rule applied.
+  const BlendComparison measured = choose(bare, options, 5);
+  EXPECT_EQ(measured.trials, 2);
+  EXPECT_GT(measured.positions_error, 0);
+  EXPECT_LT(measured.positions_error, 0.01);
+  EXPECT_GT(measured.fields_error, 0);
+  SequenceEncoder encoder(bare, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  encoder.choose_representation(chosen, 33);
+  const Representation expected = measured.fields_error > kFieldsBlendMargin * measured.positions_error ? Representation::kXYZ : Representation::kHLT;
+  EXPECT_EQ(encoder.representation(), expected);
+  EXPECT_EQ(encoder.build({0, 5}, 33).representation, expected);  // what build stores is that choice
+}
+
+// compare_blends against what it must find: a keyframe halfway between two others is matched by
+// both blends at its own time (the linear spline: its blend is the two surfaces' mean, and the
+// surfaces here are one bump at three heights, the middle one their mean); a frame that is no
+// blend of the keyframes is missed by both.
+TEST(RepresentationChoice, BothBlendsMatchAFrameThatIsTheirMean) {
+  const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(33));
+  auto bump = [&](double height) {
+    std::vector<Vec3> surface;
+    for (const Vec2& w : geometry->grid().nodes) surface.push_back({w.x(), w.y(), height * (1 - w.squaredNorm())});
+    return surface;
+  };
+  const std::vector<std::vector<Vec3>> keys = {bump(0.2), bump(0.4)};
+  const BlendComparison mean = compare_blends(geometry, {0, 1}, SplineKind::kLinear, keys, {BlendTrial{0.5, bump(0.3)}}, 1);
+  EXPECT_EQ(mean.trials, 1);
+  EXPECT_EQ(mean.not_converged, 0);
+  EXPECT_LT(mean.positions_error, 1e-12);
+  EXPECT_LT(mean.fields_error, 2e-3);  // the decode's own floor at N = 33
+  const BlendComparison other = compare_blends(geometry, {0, 1}, SplineKind::kLinear, keys, {BlendTrial{0.5, bump(0.6)}}, 1);
+  EXPECT_GT(other.positions_error, 0.05);
+  EXPECT_GT(other.fields_error, 0.05);
+  testing::expect_error(ErrorCode::kInvalidArgument, "needs keyframe 1", [&] {
+    compare_blends(geometry, {0, 1}, SplineKind::kLinear, {keys[0], {}}, {BlendTrial{0.5, bump(0.3)}}, 1);
+  });
+}
+
 // The reference frame dropped: the nearest frame kept takes its place, and the report says so.
 // Every frame dropped: an error naming the first.
 TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {

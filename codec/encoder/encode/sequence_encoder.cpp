@@ -21,6 +21,7 @@
 #endif
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <limits>
 #include <map>
@@ -510,6 +511,7 @@ void SequenceEncoder::register_frames() {
   }
   const std::vector<TrackedPoints> tracked = track_frames();
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
+  std::atomic<int> without_interior{0};
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -520,6 +522,7 @@ void SequenceEncoder::register_frames() {
           landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
           const bool took_tracked = !tracked.empty() && needs_tracked_points(capture_, reference, index) && !tracked[index].reference.empty();
           if (took_tracked) add_tracked_points(landmarks_[index], tracked[index]);
+          if (!took_tracked && index != reference && needs_tracked_points(capture_, reference, index)) ++without_interior;
           if (landmarks_[index].reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
@@ -539,6 +542,10 @@ void SequenceEncoder::register_frames() {
         }
       },
       [&](int done, int total) { progress("registering", done, total); });
+  // Counted before the drop: a frame dropped here still says how the capture's frames register.
+  report_.frames_without_interior_landmarks = without_interior;
+  auto_representation_ = Representation::kHLT;  // until choose_representation measures otherwise
+  report_.representation = representation();
   drop_frames(failures);
   std::sort(report_.dropped.begin(), report_.dropped.end(), [](const DroppedFrame& a, const DroppedFrame& b) { return a.index < b.index; });
   report_.seconds_registration = seconds_since(start);
@@ -628,6 +635,66 @@ void SequenceEncoder::sample_frames() {
     for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(world[v]).cast<float>();
   });
   report_.seconds_selection = seconds_since(start);
+}
+
+void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int grid) {
+  const auto start = std::chrono::steady_clock::now();
+  auto_representation_ = Representation::kHLT;
+  report_.blend = {};
+  const std::vector<int>& keyframes = chosen.keyframes;
+  const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
+  if (!options_.representation && unmatched && keyframes.size() >= 2) {
+    // The frame midway between each pair of keyframes with frames between them, kBlendTrials of
+    // those pairs at most, spread evenly over the capture.
+    std::vector<size_t> pairs;
+    for (size_t k = 0; k + 1 < keyframes.size(); ++k) {
+      if (keyframes[k + 1] - keyframes[k] >= 2) pairs.push_back(k);
+    }
+    if (pairs.size() > static_cast<size_t>(kBlendTrials)) {
+      std::vector<size_t> spread;
+      for (int t = 0; t < kBlendTrials; ++t) spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
+      pairs = std::move(spread);
+    }
+    std::vector<double> times;
+    for (int k : keyframes) times.push_back(capture_.frames[static_cast<size_t>(k)].time);
+    const KeyframeSpline spline(times, options_.spline);
+    std::vector<int> midway, needed_keys;
+    std::vector<char> needed(keyframes.size(), 0);
+    for (size_t k : pairs) {
+      midway.push_back((keyframes[k] + keyframes[k + 1]) / 2);
+      for (int32_t key : spline.weights(capture_.frames[static_cast<size_t>(midway.back())].time).keys) needed[static_cast<size_t>(key)] = 1;
+    }
+    for (size_t k = 0; k < keyframes.size(); ++k) {
+      if (needed[k]) needed_keys.push_back(static_cast<int>(k));
+    }
+    if (!pairs.empty()) {
+      const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(grid));
+      // A frame's registered surface on G in the face frame (as build samples a keyframe).
+      auto local_surface = [&](int i) {
+        std::vector<Vec3> surface = sample_surface(i, geometry->grid().nodes);
+        const RigidPose to_face = selection_[static_cast<size_t>(i)].pose.inverse();
+        for (Vec3& p : surface) p = to_face.apply(p);
+        return surface;
+      };
+      std::vector<std::vector<Vec3>> keys(keyframes.size());
+      std::vector<BlendTrial> trials(pairs.size());
+      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), options_.threads, [&](int j) {
+        const auto index = static_cast<size_t>(j);
+        if (index < needed_keys.size()) {
+          const auto k = static_cast<size_t>(needed_keys[index]);
+          keys[k] = local_surface(keyframes[k]);
+        } else {
+          const size_t t = index - needed_keys.size();
+          trials[t].time = capture_.frames[static_cast<size_t>(midway[t])].time;
+          trials[t].surface = local_surface(midway[t]);
+        }
+      });
+      report_.blend = compare_blends(geometry, times, options_.spline, keys, trials, options_.threads);
+      if (report_.blend.fields_error > kFieldsBlendMargin * report_.blend.positions_error) auto_representation_ = Representation::kXYZ;
+    }
+  }
+  report_.representation = representation();
+  report_.seconds_representation = seconds_since(start);
 }
 
 Vec3 SequenceEncoder::pose_centre() const {
@@ -745,7 +812,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence sequence;
   sequence.grid_n = grid_n;
-  sequence.representation = options_.representation;
+  sequence.representation = representation();
   sequence.spline = options_.spline;
   sequence.fps = capture_.fps;
   sequence.first_time = first_time_;
@@ -780,7 +847,7 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   std::sort(fixed.begin(), fixed.end());
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), options_.representation, fixed);
+    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), sequence.representation, fixed);
   });
   report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
   report_.keyframes_spilled_bytes += local.spilled_bytes();
@@ -1000,6 +1067,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
   report.grid = encoder.choose_grid(&chosen);
+  encoder.choose_representation(chosen, report.grid);
   encoder.release_selection_samples(chosen.keyframes);
 #ifdef __GLIBC__
   // The samples were thousands of 78 KB blocks across the threads' heaps: handed back to the system

@@ -19,6 +19,7 @@
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
+#include "facemorph/encoder/representation_choice.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/sequence.hpp"
@@ -35,6 +36,13 @@
 namespace facemorph {
 
 inline constexpr int kAutoTextureQuality = -1;
+// The representation's automatic choice (EncodeOptions::representation unset): xyz only where the
+// blended fields miss the frames between keyframes by more than this times the blended positions
+// (a margin for the measurement's noise: hl+t keeps its head-rotation behaviour and, on the captures
+// measured, fewer bytes at equal error wherever both blends are alike; spec/method.md §7.14), over
+// at most kBlendTrials frames.
+inline constexpr double kFieldsBlendMargin = 1.1;
+inline constexpr int kBlendTrials = 12;
 
 struct EncodeOptions {
   double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
@@ -49,7 +57,13 @@ struct EncodeOptions {
   double sparse_frame_interval = 0.25;
   double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
   int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
-  Representation representation = Representation::kHLT;
+  // What the keyframes store. Unset (the default; fmenc --representation auto): hl+t, except where
+  // most frames register to the reference without interior landmarks (none shared, none tracked)
+  // and the keyframes' fields, blended at frames between them, come out farther from those frames
+  // than their blended positions (by more than kFieldsBlendMargin): there xyz. The fields of
+  // features that the normalised maps leave apart do not blend into one surface; positions do
+  // (spec/method.md §7.14). SequenceEncoder::choose_representation decides.
+  std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;
   bool texture = true;
@@ -176,6 +190,11 @@ struct EncodeReport {
   int tracked_points_fewest = 0;
   double tracked_round_trip_median = 0, tracked_round_trip_p90 = 0;
   double seconds_tracking = 0;
+  // Frames registered without interior landmarks shared with the reference (the reference excluded),
+  // and the representation the keyframes store (EncodeOptions::representation, or what auto chose).
+  int frames_without_interior_landmarks = 0;
+  Representation representation = Representation::kHLT;
+  BlendComparison blend;  // what choose_representation measured (trials 0: nothing measured)
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
@@ -210,7 +229,8 @@ struct EncodeReport {
   // either step, and the bytes written.
   int peak_keyframes_in_memory = 0;
   uint64_t keyframes_spilled_bytes = 0;
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_keyframes = 0, seconds_precision = 0, seconds_texture = 0;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
+         seconds_texture = 0;
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
@@ -284,6 +304,16 @@ class SequenceEncoder {
   // report().texture_shared_with and texture_share_psnr.
   void share_textures(Sequence& sequence, const std::vector<int>& keyframes);
 
+  // 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
+  // most frames were registered without interior landmarks, the hl+t fields and the positions of
+  // `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
+  // G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
+  // not show them); xyz where the fields come out farther by more than kFieldsBlendMargin. Fills
+  // report().blend and report().representation.
+  void choose_representation(const KeyframeSelection& chosen, int grid);
+  // What build stores: options().representation, or (unset) what choose_representation chose (hl+t
+  // before it runs).
+  Representation representation() const { return options_.representation.value_or(auto_representation_); }
   EncodeOptions& options() { return options_; }
   const Capture& capture() const { return capture_; }  // the frames kept (all until map_frames drops any)
   int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
@@ -359,6 +389,7 @@ class SequenceEncoder {
   std::vector<DiskLandmarks> landmarks_;
   std::vector<DiskRegistration> registrations_;
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
+  Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
   DiskReparametrisation reparametrisation_;
   std::vector<SelectionFrame> selection_;
   // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
