@@ -443,56 +443,75 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   SequenceFileInfo info;
   const auto sequence = std::make_shared<const Sequence>(read_sequence_file(options.fmv, &info));
   const int count = static_cast<int>(capture.frames.size());
-  std::vector<int> keyframes;  // the frame nearest each keyframe's time
+  // The file's span that of the capture, and each keyframe on the frame at its time: a file made
+  // from another capture (or other frames of this one) is refused rather than measured against
+  // frames it never held.
+  const double slack = 0.25 / capture.fps;
+  if (count == 0 || std::abs(sequence->first_time - capture.frames.front().time) > slack || std::abs(sequence->last_time - capture.frames.back().time) > slack) {
+    throw Error(ErrorCode::kInvalidArgument, options.fmv + " spans " + std::to_string(sequence->first_time) + " to " + std::to_string(sequence->last_time) +
+                                                 " s, " + input + " " + (count == 0 ? std::string("has no frames") : std::to_string(capture.frames.front().time) + " to " +
+                                                 std::to_string(capture.frames.back().time) + " s") + ": its keyframes are no frames of it (was the file made from another capture?)");
+  }
+  std::vector<int> keyframes;
   for (const Keyframe& key : sequence->keyframes) {
     int nearest = 0;
     for (int i = 1; i < count; ++i) {
       if (std::abs(capture.frames[static_cast<size_t>(i)].time - key.time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time)) nearest = i;
     }
+    if (std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time) > slack ||
+        (!keyframes.empty() && keyframes.back() == nearest)) {
+      throw Error(ErrorCode::kInvalidArgument, options.fmv + ": its keyframe at " + std::to_string(key.time) + " s is no frame of " + input +
+                                                   " (was the file made from another capture?)");
+    }
     keyframes.push_back(nearest);
   }
-  std::sort(keyframes.begin(), keyframes.end());
   Evaluation e;
   e.keyframes = static_cast<int>(sequence->keyframes.size());
   e.grid = sequence->grid_n;
+  e.registration = "as encoded";
+  e.spline = spline_kind_name(sequence->spline);
   e.frames.resize(static_cast<size_t>(count));
   Progress progress(input, options.quiet);
   std::atomic<int> done{0};
-  std::mutex decoders_lock;
-  std::vector<std::unique_ptr<SequenceDecoder>> decoders;  // one per thread: a decoder holds its reconstructor
-  parallel_for(count, 0, [&](int i) {
-    std::unique_ptr<SequenceDecoder> decoder;
-    {
-      const std::lock_guard<std::mutex> lock(decoders_lock);
-      if (!decoders.empty()) {
-        decoder = std::move(decoders.back());
-        decoders.pop_back();
-      }
-    }
-    if (!decoder) decoder = std::make_unique<SequenceDecoder>(sequence);
+  std::mutex progress_lock;
+  // Runs of frames, each decoded in order by a decoder of its own: a decoder starts a frame from the
+  // ones it decoded before, so fixed runs give the same figures on every run and machine.
+  constexpr int kRun = 16;
+  const int runs = (count + kRun - 1) / kRun;
+  parallel_for(runs, 0, [&](int r) {
+    SequenceDecoder decoder(sequence);
     DecodeOptions decode;
     decode.ignore_sane_range = true;
     decode.reconstruct.throw_on_failure = false;
-    FrameError& f = e.frames[static_cast<size_t>(i)];
-    f.time = capture.frames[static_cast<size_t>(i)].time;
-    f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
-    const DecodedFrame decoded = decoder->decode(f.time, decode);
-    f.converged = decoded.converged;
-    const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
-    f.rms = d.rms / d.diagonal;
-    f.max = d.max / d.diagonal;
-    {
-      const std::lock_guard<std::mutex> lock(decoders_lock);
-      decoders.push_back(std::move(decoder));
+    for (int i = r * kRun; i < std::min(count, (r + 1) * kRun); ++i) {
+      FrameError& f = e.frames[static_cast<size_t>(i)];
+      f.time = capture.frames[static_cast<size_t>(i)].time;
+      f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
+      const DecodedFrame decoded = decoder.decode(f.time, decode);
+      f.converged = decoded.converged;
+      const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
+      f.rms = d.rms / d.diagonal;
+      f.max = d.max / d.diagonal;
+      const std::lock_guard<std::mutex> lock(progress_lock);
       progress.update(++done, count);
     }
   });
   progress.finish();
   const Summary s = summarise(e);
-  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%% mean, %.4f%% worst\n",
-              options.fmv.c_str(), static_cast<unsigned long long>(info.file_bytes), e.keyframes, count, e.grid, 100 * s.held_rms_mean,
-              100 * s.held_rms_worst, 100 * s.held_max_worst, 100 * s.key_rms_mean, 100 * s.key_rms_worst);
-  return {{"input", input}, {"fmv", options.fmv}, {"bytes", info.file_bytes}, {"evaluation", evaluation_json(e)}};
+  const bool held_out = static_cast<int>(keyframes.size()) < count;
+  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; ", options.fmv.c_str(), static_cast<unsigned long long>(info.file_bytes), e.keyframes, count, e.grid);
+  if (held_out) {
+    std::printf("held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; ", 100 * s.held_rms_mean, 100 * s.held_rms_worst, 100 * s.held_max_worst);
+  } else {
+    std::printf("no held-out frames (every frame a keyframe); ");
+  }
+  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst);
+  json evaluation = evaluation_json(e);
+  for (const char* key : {"decode_ms_per_frame", "mean_iterations"}) evaluation.erase(key);  // not measured here
+  if (!held_out) {
+    for (const char* key : {"held_out_rms_mean", "held_out_rms_worst", "held_out_max_worst"}) evaluation[key] = nullptr;
+  }
+  return {{"input", input}, {"fmv", options.fmv}, {"bytes", info.file_bytes}, {"evaluation", evaluation}};
 }
 
 json measure_capture(Context& context, const std::string& input) {
@@ -570,6 +589,7 @@ json measure_capture(Context& context, const std::string& input) {
   int grid = 0;
   timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(&main_chosen); });
   if (!given) timed("representation", [&] { encoder.choose_representation(main_chosen, grid); });
+  const Representation main_representation = given ? given->representation : encoder.representation();
   progress.finish();
 
   // Facemorph's texture PSNR per frame (and the baselines' on the sample frames) as frames decode.
@@ -599,7 +619,7 @@ json measure_capture(Context& context, const std::string& input) {
   // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
   // (fmenc's default), the file written and read back.
   auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
-    const bool xyz_variant = representation == Representation::kXYZ && encode.representation != Representation::kXYZ;
+    const bool xyz_variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ;
     encoder.options().representation = representation;
     Sequence sequence;
     timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, n); });
@@ -659,7 +679,7 @@ json measure_capture(Context& context, const std::string& input) {
     main_bytes.resize(given_info.file_bytes);
   } else {
     main_keys = main_chosen.keyframes;
-    main_sequence = encode_file(main_chosen, grid, encoder.representation(), main_bytes, main_info);
+    main_sequence = encode_file(main_chosen, grid, main_representation, main_bytes, main_info);
   }
   const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
     for (int d = 0; d < count; ++d) {

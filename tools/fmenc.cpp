@@ -203,8 +203,9 @@ int main(int argc, char** argv) {
   app.add_option("--registration", registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", representation,
-                 "auto | hl+t | hl | xyz. auto: hl+t, or xyz where most frames share no interior landmarks with the reference frame "
-                 "(none given, none tracked)")
+                 "auto | hl+t | hl | xyz. auto: hl+t; where most frames share no interior landmarks with the reference frame (none "
+                 "given, none tracked), the keyframes are blended both ways at up to 12 frames between them and xyz is stored where the "
+                 "fields come out more than 1.1x farther than the positions")
       ->capture_default_str();
   app.add_option("--density-equalising", density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")

@@ -823,6 +823,25 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
   // Landmarks shared by most frames: nothing measured, hl+t.
   EXPECT_EQ(choose(given, options, 0).trials, 0);
   EXPECT_EQ(choose(without_interior({5}), options, 1).trials, 0);
+  EXPECT_EQ(choose(without_interior({4, 5}), options, 2).trials, 0);  // two of five: not most
+  EXPECT_EQ(choose(without_interior({3, 4, 5}), options, 3).trials, 2);
+  {
+    // Frames dropped in the registration (the nose alone: two landmarks shared) count neither way:
+    // the three kept share their interior landmarks.
+    Capture capture = given;
+    for (size_t i : {3, 4, 5}) {
+      for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+        if (capture.landmark_names[l] != "nose_tip" && capture.landmark_names[l] != "nose_bridge") {
+          capture.landmarks[i][l] = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+        }
+      }
+    }
+    SequenceEncoder encoder(capture, options);
+    encoder.map_frames();
+    encoder.register_frames();
+    EXPECT_EQ(encoder.report().dropped.size(), 3u);
+    EXPECT_EQ(encoder.report().frames_without_interior_landmarks, 0);
+  }
   EncodeOptions tracked = options;
   tracked.track_landmarks = true;  // tracked points are interior landmarks
   const Capture bare = without_interior({0, 1, 2, 3, 4, 5});
@@ -844,6 +863,38 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
   const Representation expected = measured.fields_error > kFieldsBlendMargin * measured.positions_error ? Representation::kXYZ : Representation::kHLT;
   EXPECT_EQ(encoder.representation(), expected);
   EXPECT_EQ(encoder.build({0, 5}, 33).representation, expected);  // what build stores is that choice
+}
+
+// The rule once measured, and where it measures (kBlendTrials pairs at most, spread over the capture).
+TEST(RepresentationChoice, XyzOnlyWhereTheFieldsBlendFartherByTheMargin) {
+  auto blend = [](double fields, double positions) {
+    BlendComparison b;
+    b.fields_error = fields;
+    b.positions_error = positions;
+    b.trials = 3;
+    return b;
+  };
+  EXPECT_EQ(representation_for(blend(1.0, 1.0)), Representation::kHLT);
+  EXPECT_EQ(representation_for(blend(1.05, 1.0)), Representation::kHLT);  // within the margin
+  EXPECT_EQ(representation_for(blend(1.2, 1.0)), Representation::kXYZ);
+  EXPECT_EQ(representation_for(blend(0.5, 1.0)), Representation::kHLT);
+  EXPECT_EQ(representation_for(blend(std::numeric_limits<double>::infinity(), 1.0)), Representation::kXYZ);  // a blend that diverged
+  BlendComparison none = blend(2.0, 1.0);
+  none.trials = 0;
+  EXPECT_EQ(representation_for(none), Representation::kHLT);  // nothing measured
+
+  EXPECT_EQ(blend_trial_pairs({0, 1, 2}), std::vector<size_t>{});  // keyframes on consecutive frames: nothing between
+  EXPECT_EQ(blend_trial_pairs({0, 1, 3, 4, 9}), (std::vector<size_t>{1, 3}));
+  std::vector<int> many;
+  for (int k = 0; k <= 30; ++k) many.push_back(3 * k);  // 30 pairs
+  const std::vector<size_t> spread = blend_trial_pairs(many);
+  ASSERT_EQ(spread.size(), static_cast<size_t>(kBlendTrials));
+  EXPECT_EQ(spread.front(), 0u);
+  EXPECT_EQ(spread.back(), 29u);
+  for (size_t t = 1; t < spread.size(); ++t) {
+    EXPECT_GT(spread[t], spread[t - 1]);
+    EXPECT_LE(spread[t] - spread[t - 1], 3u);  // evenly: 29 / 11 apart, rounded down
+  }
 }
 
 // compare_blends against what it must find: a keyframe halfway between two others is matched by

@@ -63,6 +63,8 @@ assert 0 < ev["keyframe_rms_mean"] < ev["held_out_rms_mean"] < 0.02, ev
 PY
 grep -q "held-out RMS" "$work/geometry.out" || fail "--geometry-only printed no summary"
 expect_error "--geometry-only without a file" "it needs --fmv" "$fmbench" --capture "$work/cap" --geometry-only
+"$tools/fmsynth" -o "$work/other" --frames 12 --fps 7 --vertices 2000 --noise 0 --texture-size 64 --quiet || fail "fmsynth (another capture)"
+expect_error "--geometry-only with another capture's file" "made from another capture" "$fmbench" --capture "$work/other" --fmv "$work/cap.fmv" --geometry-only --quiet
 
 expect_error "a missing capture" "capture '$work/none' does not exist" "$fmbench" --capture "$work/none" --quick
 mkdir -p "$work/bin"

@@ -21,7 +21,6 @@
 #endif
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <limits>
 #include <map>
@@ -511,7 +510,7 @@ void SequenceEncoder::register_frames() {
   }
   const std::vector<TrackedPoints> tracked = track_frames();
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
-  std::atomic<int> without_interior{0};
+  std::vector<char> without_interior(static_cast<size_t>(count), 0);  // registered without interior landmarks
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -522,7 +521,7 @@ void SequenceEncoder::register_frames() {
           landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
           const bool took_tracked = !tracked.empty() && needs_tracked_points(capture_, reference, index) && !tracked[index].reference.empty();
           if (took_tracked) add_tracked_points(landmarks_[index], tracked[index]);
-          if (!took_tracked && index != reference && needs_tracked_points(capture_, reference, index)) ++without_interior;
+          without_interior[index] = !took_tracked && index != reference && needs_tracked_points(capture_, reference, index);
           if (landmarks_[index].reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
@@ -542,8 +541,9 @@ void SequenceEncoder::register_frames() {
         }
       },
       [&](int done, int total) { progress("registering", done, total); });
-  // Counted before the drop: a frame dropped here still says how the capture's frames register.
-  report_.frames_without_interior_landmarks = without_interior;
+  // Over the frames kept (a frame dropped here is registered neither way).
+  report_.frames_without_interior_landmarks = 0;
+  for (size_t i = 0; i < without_interior.size(); ++i) report_.frames_without_interior_landmarks += failures[i].code == ErrorCode::kOk && without_interior[i];
   auto_representation_ = Representation::kHLT;  // until choose_representation measures otherwise
   report_.representation = representation();
   drop_frames(failures);
@@ -637,6 +637,21 @@ void SequenceEncoder::sample_frames() {
   report_.seconds_selection = seconds_since(start);
 }
 
+std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes) {
+  std::vector<size_t> pairs;
+  for (size_t k = 0; k + 1 < keyframes.size(); ++k) {
+    if (keyframes[k + 1] - keyframes[k] >= 2) pairs.push_back(k);
+  }
+  if (pairs.size() <= static_cast<size_t>(kBlendTrials)) return pairs;
+  std::vector<size_t> spread;
+  for (int t = 0; t < kBlendTrials; ++t) spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
+  return spread;
+}
+
+Representation representation_for(const BlendComparison& blend) {
+  return blend.trials > 0 && blend.fields_error > kFieldsBlendMargin * blend.positions_error ? Representation::kXYZ : Representation::kHLT;
+}
+
 void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int grid) {
   const auto start = std::chrono::steady_clock::now();
   auto_representation_ = Representation::kHLT;
@@ -644,17 +659,8 @@ void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int
   const std::vector<int>& keyframes = chosen.keyframes;
   const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
   if (!options_.representation && unmatched && keyframes.size() >= 2) {
-    // The frame midway between each pair of keyframes with frames between them, kBlendTrials of
-    // those pairs at most, spread evenly over the capture.
-    std::vector<size_t> pairs;
-    for (size_t k = 0; k + 1 < keyframes.size(); ++k) {
-      if (keyframes[k + 1] - keyframes[k] >= 2) pairs.push_back(k);
-    }
-    if (pairs.size() > static_cast<size_t>(kBlendTrials)) {
-      std::vector<size_t> spread;
-      for (int t = 0; t < kBlendTrials; ++t) spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
-      pairs = std::move(spread);
-    }
+    // The frame midway between each pair of keyframes with frames between them (blend_trial_pairs).
+    const std::vector<size_t> pairs = blend_trial_pairs(keyframes);
     std::vector<double> times;
     for (int k : keyframes) times.push_back(capture_.frames[static_cast<size_t>(k)].time);
     const KeyframeSpline spline(times, options_.spline);
@@ -690,7 +696,7 @@ void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int
         }
       });
       report_.blend = compare_blends(geometry, times, options_.spline, keys, trials, options_.threads);
-      if (report_.blend.fields_error > kFieldsBlendMargin * report_.blend.positions_error) auto_representation_ = Representation::kXYZ;
+      auto_representation_ = representation_for(report_.blend);
     }
   }
   report_.representation = representation();

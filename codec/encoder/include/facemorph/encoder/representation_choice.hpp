@@ -30,7 +30,8 @@ struct BlendComparison {
 // `keys[k]`: keyframe k's registered surface on G (face frame, every node), or empty where no trial's
 // spline weights reach it; `key_times` every keyframe's time. Each trial is decoded from the hl+t
 // fields blended with the spline's weights at its time (fixed-frame nodes: the union of the given
-// keyframes' folds, as build makes them) and compared with the positions blended the same way.
+// keyframes' folds, as build takes the union of every keyframe's) and compared with the positions
+// blended the same way.
 // Trials run on up to `threads` threads (0: one per core). Throws kInvalidArgument for sizes that
 // do not match G or a trial that needs a keyframe left empty.
 BlendComparison compare_blends(const std::shared_ptr<const GridGeometry>& geometry, const std::vector<double>& key_times, SplineKind spline,

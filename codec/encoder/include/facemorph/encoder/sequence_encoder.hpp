@@ -44,6 +44,14 @@ inline constexpr int kAutoTextureQuality = -1;
 inline constexpr double kFieldsBlendMargin = 1.1;
 inline constexpr int kBlendTrials = 12;
 
+// The pairs of neighbouring keyframes (k: keyframes[k] and keyframes[k + 1], frame indices) with a
+// frame between them, kBlendTrials of them at most, spread evenly over those pairs (the first and the
+// last kept): where choose_representation blends.
+std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes);
+// What an unset representation becomes after `blend` was measured: xyz where the fields came out
+// farther than kFieldsBlendMargin times the positions (a diverged blend is infinitely far), else hl+t.
+Representation representation_for(const BlendComparison& blend);
+
 struct EncodeOptions {
   double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
   // The budget grows where it would leave the mean error predicted between keyframes above this
