@@ -440,36 +440,37 @@ struct Context {
 // mapping, no baselines): comparing encodes of one capture in seconds rather than minutes.
 json measure_geometry_only(const CaptureBenchOptions& options, const std::string& input) {
   const Capture capture = read_capture(input);
-  SequenceFileInfo info;
-  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(options.fmv, &info));
+  // Opened as a player opens it: keyframes decoded on demand, memory bounded whatever the length.
+  const std::shared_ptr<const KeyframeSource> source = open_sequence_source(options.fmv);
+  const SequenceOutline& sequence = source->outline();
+  const uint64_t file_bytes = std::filesystem::file_size(options.fmv);
   const int count = static_cast<int>(capture.frames.size());
   // The file's span that of the capture, and each keyframe on the frame at its time: a file made
   // from another capture (or other frames of this one) is refused rather than measured against
   // frames it never held.
   const double slack = 0.25 / capture.fps;
-  if (count == 0 || std::abs(sequence->first_time - capture.frames.front().time) > slack || std::abs(sequence->last_time - capture.frames.back().time) > slack) {
-    throw Error(ErrorCode::kInvalidArgument, options.fmv + " spans " + std::to_string(sequence->first_time) + " to " + std::to_string(sequence->last_time) +
+  if (count == 0 || std::abs(sequence.first_time - capture.frames.front().time) > slack || std::abs(sequence.last_time - capture.frames.back().time) > slack) {
+    throw Error(ErrorCode::kInvalidArgument, options.fmv + " spans " + std::to_string(sequence.first_time) + " to " + std::to_string(sequence.last_time) +
                                                  " s, " + input + " " + (count == 0 ? std::string("has no frames") : std::to_string(capture.frames.front().time) + " to " +
                                                  std::to_string(capture.frames.back().time) + " s") + ": its keyframes are no frames of it (was the file made from another capture?)");
   }
   std::vector<int> keyframes;
-  for (const Keyframe& key : sequence->keyframes) {
+  for (double time : sequence.times) {
     int nearest = 0;
     for (int i = 1; i < count; ++i) {
-      if (std::abs(capture.frames[static_cast<size_t>(i)].time - key.time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time)) nearest = i;
+      if (std::abs(capture.frames[static_cast<size_t>(i)].time - time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - time)) nearest = i;
     }
-    if (std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time) > slack ||
-        (!keyframes.empty() && keyframes.back() == nearest)) {
-      throw Error(ErrorCode::kInvalidArgument, options.fmv + ": its keyframe at " + std::to_string(key.time) + " s is no frame of " + input +
+    if (std::abs(capture.frames[static_cast<size_t>(nearest)].time - time) > slack || (!keyframes.empty() && keyframes.back() == nearest)) {
+      throw Error(ErrorCode::kInvalidArgument, options.fmv + ": its keyframe at " + std::to_string(time) + " s is no frame of " + input +
                                                    " (was the file made from another capture?)");
     }
     keyframes.push_back(nearest);
   }
   Evaluation e;
-  e.keyframes = static_cast<int>(sequence->keyframes.size());
-  e.grid = sequence->grid_n;
+  e.keyframes = static_cast<int>(sequence.keyframe_count());
+  e.grid = sequence.grid_n;
   e.registration = "as encoded";
-  e.spline = spline_kind_name(sequence->spline);
+  e.spline = spline_kind_name(sequence.spline);
   e.frames.resize(static_cast<size_t>(count));
   Progress progress(input, options.quiet);
   std::atomic<int> done{0};
@@ -479,7 +480,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   constexpr int kRun = 16;
   const int runs = (count + kRun - 1) / kRun;
   parallel_for(runs, 0, [&](int r) {
-    SequenceDecoder decoder(sequence);
+    SequenceDecoder decoder(source);
     DecodeOptions decode;
     decode.ignore_sane_range = true;
     decode.reconstruct.throw_on_failure = false;
@@ -499,7 +500,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   progress.finish();
   const Summary s = summarise(e);
   const bool held_out = static_cast<int>(keyframes.size()) < count;
-  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; ", options.fmv.c_str(), static_cast<unsigned long long>(info.file_bytes), e.keyframes, count, e.grid);
+  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; ", options.fmv.c_str(), static_cast<unsigned long long>(file_bytes), e.keyframes, count, e.grid);
   if (held_out) {
     std::printf("held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; ", 100 * s.held_rms_mean, 100 * s.held_rms_worst, 100 * s.held_max_worst);
   } else {
@@ -511,7 +512,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   if (!held_out) {
     for (const char* key : {"held_out_rms_mean", "held_out_rms_worst", "held_out_max_worst"}) evaluation[key] = nullptr;
   }
-  return {{"input", input}, {"fmv", options.fmv}, {"bytes", info.file_bytes}, {"evaluation", evaluation}};
+  return {{"input", input}, {"fmv", options.fmv}, {"bytes", file_bytes}, {"evaluation", evaluation}};
 }
 
 json measure_capture(Context& context, const std::string& input) {
