@@ -24,7 +24,6 @@
 #include "tools/tool_support.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -436,6 +435,15 @@ struct Context {
   std::string markdown;
 };
 
+// The frame of `capture` nearest `time` (the earlier of two as near): where a file's keyframe lies.
+int nearest_frame(const Capture& capture, double time) {
+  int nearest = 0;
+  for (int i = 1; i < static_cast<int>(capture.frames.size()); ++i) {
+    if (std::abs(capture.frames[static_cast<size_t>(i)].time - time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - time)) nearest = i;
+  }
+  return nearest;
+}
+
 // --geometry-only: the given file's geometry error on every frame of its capture, nothing else (no
 // mapping, no baselines): comparing encodes of one capture in seconds rather than minutes.
 json measure_geometry_only(const CaptureBenchOptions& options, const std::string& input) {
@@ -456,10 +464,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   }
   std::vector<int> keyframes;
   for (double time : sequence.times) {
-    int nearest = 0;
-    for (int i = 1; i < count; ++i) {
-      if (std::abs(capture.frames[static_cast<size_t>(i)].time - time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - time)) nearest = i;
-    }
+    const int nearest = nearest_frame(capture, time);
     if (std::abs(capture.frames[static_cast<size_t>(nearest)].time - time) > slack || (!keyframes.empty() && keyframes.back() == nearest)) {
       throw Error(ErrorCode::kInvalidArgument, options.fmv + ": its keyframe at " + std::to_string(time) + " s is no frame of " + input +
                                                    " (was the file made from another capture?)");
@@ -473,8 +478,8 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   e.spline = spline_kind_name(sequence.spline);
   e.frames.resize(static_cast<size_t>(count));
   Progress progress(input, options.quiet);
-  std::atomic<int> done{0};
-  std::mutex progress_lock;
+  int done = 0;
+  std::mutex progress_lock;  // guards done and the progress display
   // Runs of frames, each decoded in order by a decoder of its own: a decoder starts a frame from the
   // ones it decoded before, so fixed runs give the same figures on every run and machine.
   constexpr int kRun = 16;
@@ -667,13 +672,7 @@ json measure_capture(Context& context, const std::string& input) {
   Sequence main_sequence;
   std::vector<int> main_keys;
   if (given) {
-    for (const Keyframe& key : given->keyframes) {
-      int nearest = 0;
-      for (int i = 1; i < count; ++i) {
-        if (std::abs(capture.frames[static_cast<size_t>(i)].time - key.time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - key.time)) nearest = i;
-      }
-      main_keys.push_back(nearest);
-    }
+    for (const Keyframe& key : given->keyframes) main_keys.push_back(nearest_frame(capture, key.time));
     main_chosen.keyframes = main_keys;  // without predicted errors the xyz variant gets auto field error's default (1e-4)
     main_sequence = *given;
     main_info = given_info;

@@ -63,7 +63,7 @@ BlendComparison compare_blends(const std::shared_ptr<const GridGeometry>& geomet
       for (size_t v = 0; v < nodes; ++v) positions[v] += w.weights[j] * keys[k][v];
     }
     positions_error[static_cast<size_t>(t)] = relative_distance(geometry->grid().faces, positions, trial.surface);
-    Reconstructor reconstructor(geometry);  // one per trial: a few, at a small N, cheap to set up
+    Reconstructor reconstructor(geometry);  // one per trial (kBlendTrials at most), on the shared G
     ReconstructOptions options;
     options.throw_on_failure = false;
     // From the blended positions, as the decoder starts a frame from the spline of its keyframes'
