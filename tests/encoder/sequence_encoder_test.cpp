@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <random>
 
@@ -810,21 +811,22 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
   options.tracking.spacing = 0.1;
   KeyframeSelection chosen;
   chosen.keyframes = {0, 2, 5};
+  // The encoder after choose_representation, kept for the measured case's build.
   auto choose = [&](const Capture& capture, const EncodeOptions& o, int expected_without) {
-    SequenceEncoder encoder(capture, o);
-    encoder.map_frames();
-    encoder.register_frames();
-    encoder.sample_frames();
-    EXPECT_EQ(encoder.report().frames_without_interior_landmarks, expected_without);
-    encoder.choose_representation(chosen, 33);
-    EXPECT_EQ(encoder.report().representation, encoder.representation());
-    return encoder.report().blend;
+    auto encoder = std::make_unique<SequenceEncoder>(capture, o);
+    encoder->map_frames();
+    encoder->register_frames();
+    encoder->sample_frames();
+    EXPECT_EQ(encoder->report().frames_without_interior_landmarks, expected_without);
+    encoder->choose_representation(chosen, 33);
+    EXPECT_EQ(encoder->report().representation, encoder->representation());
+    return encoder;
   };
   // Landmarks shared by most frames: nothing measured, hl+t.
-  EXPECT_EQ(choose(given, options, 0).trials, 0);
-  EXPECT_EQ(choose(without_interior({5}), options, 1).trials, 0);
-  EXPECT_EQ(choose(without_interior({4, 5}), options, 2).trials, 0);  // two of five: not most
-  EXPECT_EQ(choose(without_interior({3, 4, 5}), options, 3).trials, 2);
+  EXPECT_EQ(choose(given, options, 0)->report().blend.trials, 0);
+  EXPECT_EQ(choose(without_interior({5}), options, 1)->report().blend.trials, 0);
+  EXPECT_EQ(choose(without_interior({4, 5}), options, 2)->report().blend.trials, 0);  // two of five: not most
+  EXPECT_EQ(choose(without_interior({3, 4, 5}), options, 3)->report().blend.trials, 2);
   {
     // Frames dropped in the registration (the nose alone: two landmarks shared) count neither way:
     // the three kept share their interior landmarks.
@@ -845,24 +847,20 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
   EncodeOptions tracked = options;
   tracked.track_landmarks = true;  // tracked points are interior landmarks
   const Capture bare = without_interior({0, 1, 2, 3, 4, 5});
-  EXPECT_EQ(choose(bare, tracked, 0).trials, 0);
+  EXPECT_EQ(choose(bare, tracked, 0)->report().blend.trials, 0);
   EncodeOptions hl = options;
   hl.representation = Representation::kHL;
-  EXPECT_EQ(choose(bare, hl, 5).trials, 0);
+  EXPECT_EQ(choose(bare, hl, 5)->report().blend.trials, 0);
   // Without them: both blends measured at the frames midway (1 and 3), and the rule applied.
-  const BlendComparison measured = choose(bare, options, 5);
+  const std::unique_ptr<SequenceEncoder> encoder = choose(bare, options, 5);
+  const BlendComparison& measured = encoder->report().blend;
   EXPECT_EQ(measured.trials, 2);
   EXPECT_GT(measured.positions_error, 0);
   EXPECT_LT(measured.positions_error, 0.01);
   EXPECT_GT(measured.fields_error, 0);
-  SequenceEncoder encoder(bare, options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
-  encoder.choose_representation(chosen, 33);
-  const Representation expected = measured.fields_error > kFieldsBlendMargin * measured.positions_error ? Representation::kXYZ : Representation::kHLT;
-  EXPECT_EQ(encoder.representation(), expected);
-  EXPECT_EQ(encoder.build({0, 5}, 33).representation, expected);  // what build stores is that choice
+  const Representation expected = representation_for(measured);
+  EXPECT_EQ(encoder->representation(), expected);
+  EXPECT_EQ(encoder->build({0, 5}, 33).representation, expected);  // what build stores is that choice
 }
 
 // The rule once measured, and where it measures (kBlendTrials pairs at most, spread over the capture).

@@ -5,8 +5,8 @@
 #include "facemorph/meshkit/locator.hpp"
 #include "facemorph/mesh.hpp"
 
-#include <span>
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace facemorph {
