@@ -6,6 +6,8 @@
 #pragma once
 
 #include "facemorph/error.hpp"
+#include "facemorph/image_codec.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/sequence.hpp"
@@ -89,7 +91,8 @@ using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spli
 // How a file's textures are laid out: one TEXR per keyframe (stills), TEXR chunks that keyframes
 // share (flag bit 3, format 2.2), or one TGOP per group (flag bit 2, format 2.1).
 enum class TextureLayout { kStills, kSharedStills, kGroups };
-std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, TextureLayout textures);
+// The header of a file of the outline's keyframes, all sharing the fixed-frame nodes `fixed`.
+std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures);
 FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
 
 // ---- The pose as the file stores it: integer multiples of the header's pose steps ----
@@ -138,8 +141,23 @@ int32_t field_code(double value, double step);
 // [1, 2²⁰] and finite positive pose steps.
 void check_field_coding(const FieldCoding& coding);
 
-// Keyframes first .. first + count - 1 of `s` (their fields only: times and poses are the index's).
-std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_t count, const FieldCoding& coding, const GridFacts& grid);
+// A group's payload from its keyframes first, first + 1, … given in order (their fields and hole
+// levels only: times and poses are the index's), one at a time: what is kept between them is the
+// previous keyframe's codes and the range coder's state. `coding` and `grid` outlive the writer;
+// every keyframe's arrays have one set of lengths (the caller checks).
+class KeyframeGroupWriter {
+ public:
+  KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid);
+  ~KeyframeGroupWriter();
+  KeyframeGroupWriter(const KeyframeGroupWriter&) = delete;
+  KeyframeGroupWriter& operator=(const KeyframeGroupWriter&) = delete;
+  void add(const Keyframe& key);
+  std::vector<uint8_t> finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 // Reads the fields of keyframes first .. first + decoded - 1 of a group of `count`, handing each to
 // `take(j, key, end)` as it is decoded (key holds the fields and hole level, checked by
 // validate_fields), `end` where its part of the stream ended from the payload's start. The stream's
@@ -156,11 +174,21 @@ Image read_texture(std::span<const uint8_t> payload, const std::string& where, u
 
 // ---- A group's textures as one AV1 image sequence (TGOP, texture_group_chunk.cpp; format 2.1) ----
 
-// Whether a file of `s` written with `metadata` stores its textures in TGOP chunks: textures,
-// the sequence coding, AVIF, and every keyframe's quality lossy (≤ 100).
-bool uses_texture_groups(const Sequence& s, const SequenceFileMetadata& metadata);
-// The textures of keyframes first .. first + count - 1 of `s`, at the finest of their qualities.
-std::vector<uint8_t> write_texture_group(const Sequence& s, size_t first, size_t count, int quality);
+// Whether a file with textures (or not: `has_texture`) written with `metadata` stores them in TGOP
+// chunks: textures, the sequence coding, AVIF, and every keyframe's quality lossy (≤ 100).
+bool uses_texture_groups(bool has_texture, const SequenceFileMetadata& metadata);
+// The payload of a group of keyframes' textures from keyframe `first` on, at `quality` (the finest
+// of their qualities): the images given in order, one at a time.
+class TextureGroupWriter {
+ public:
+  TextureGroupWriter(size_t first, int quality);
+  void add(const Image& texture) { sequence_.add(texture); }
+  std::vector<uint8_t> finish();
+
+ private:
+  size_t first_;
+  AvifSequenceWriter sequence_;
+};
 // Decodes the textures of keyframes first .. last of the group of `count` starting at `first`,
 // after checking the chunk's first keyframe, codec and its image sequence's count and size against
 // the container's (corrupt, naming `where`, before any pixel); hands take(k, image) each keyframe k

@@ -86,7 +86,7 @@ std::vector<size_t> expected_lengths(const FileHeader& h) {
   return expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), h.has_holes());
 }
 
-std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata& metadata, TextureLayout textures) {
+std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures) {
   const DiskGridShape shape = disk_grid_shape(s.grid_n);
   ByteWriter w;
   w.write(static_cast<uint32_t>(s.grid_n));
@@ -94,18 +94,17 @@ std::vector<uint8_t> write_header(const Sequence& s, const SequenceFileMetadata&
   w.write(grid_facts(s.grid_n)->hash);
   w.write(code_of(kRepresentationCodes, s.representation));
   w.write(code_of(kSplineCodes, s.spline));
-  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes() ? kHasHoles : 0) |
+  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes ? kHasHoles : 0) |
                                (s.has_texture() && textures == TextureLayout::kGroups ? kTextureGroups : 0) |
                                (s.has_texture() && textures == TextureLayout::kSharedStills ? kSharedTextures : 0)));
   w.write(uint8_t{0});
-  w.write(static_cast<uint32_t>(s.keyframes.size()));
+  w.write(static_cast<uint32_t>(s.keyframe_count()));
   w.write(s.fps);
   w.write(s.first_time);
   w.write(s.last_time);
   for (int k = 0; k < 3; ++k) w.write(s.pose_centre[k]);
-  w.write(static_cast<uint32_t>(s.has_texture() ? s.keyframes.front().texture.width : 0));
+  w.write(static_cast<uint32_t>(s.texture_size));
   w.write(static_cast<uint32_t>(shape.rim_count));
-  const std::vector<int32_t>& fixed = s.keyframes.front().fields.fixed_nodes;
   w.write(static_cast<uint32_t>(fixed.size()));
   // As differences from the previous node (the first from 0): sorted nodes give small numbers,
   // which the header's zstd packs (Medusa-like noisy frames mark ~9% of the nodes).

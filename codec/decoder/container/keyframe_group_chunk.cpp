@@ -186,32 +186,48 @@ void check_field_coding(const FieldCoding& coding) {
   }
 }
 
-std::vector<uint8_t> write_keyframe_group(const Sequence& s, size_t first, size_t count, const FieldCoding& coding, const GridFacts& grid) {
+struct KeyframeGroupWriter::State {
+  const FieldCoding& coding;
+  const GridFacts& grid;
   ByteWriter w;
-  w.write(static_cast<uint32_t>(first));
   format::RangedStreamWriter stream;
   GroupModels models;
-  std::vector<std::vector<int32_t>> previous;
-  std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (validate_sequence)
-  for (size_t j = 0; j < count; ++j) {
-    std::vector<std::vector<int32_t>> codes = field_codes(s.keyframes[first + j], coding);
-    if (j == 0) lattices = lattices_of(lengths_of(codes), grid);
-    Prediction prediction = choose_prediction(codes, j > 0 ? &previous : nullptr, grid);
-    if (j > 0) stream.decision(models.reference, prediction.from_previous);
-    std::vector<std::vector<int64_t>> residuals;
-    for (size_t a = 0; a < kKeyframeArrays; ++a) {
-      if (!codes[a].empty()) {
-        const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
-        stream.decision(models.predictor[a][0], (p >> 1) != 0);
-        stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
-      }
-      residuals.push_back(std::move(prediction.arrays[a].residuals));
+  std::vector<std::vector<int32_t>> previous;             // the last keyframe's codes
+  std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (checked by the caller)
+  size_t added = 0;
+};
+
+KeyframeGroupWriter::KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid)
+    : state_(std::make_unique<State>(State{coding, grid, {}, {}, {}, {}, {}, 0})) {
+  state_->w.write(static_cast<uint32_t>(first));
+}
+
+KeyframeGroupWriter::~KeyframeGroupWriter() = default;
+
+void KeyframeGroupWriter::add(const Keyframe& key) {
+  State& s = *state_;
+  std::vector<std::vector<int32_t>> codes = field_codes(key, s.coding);
+  if (s.added == 0) s.lattices = lattices_of(lengths_of(codes), s.grid);
+  Prediction prediction = choose_prediction(codes, s.added > 0 ? &s.previous : nullptr, s.grid);
+  if (s.added > 0) s.stream.decision(s.models.reference, prediction.from_previous);
+  std::vector<std::vector<int64_t>> residuals;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    if (!codes[a].empty()) {
+      const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
+      s.stream.decision(s.models.predictor[a][0], (p >> 1) != 0);
+      s.stream.decision(s.models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
     }
-    stream.residual_arrays(residuals, lattices, kRangeModelSets, models.residuals);
-    previous = std::move(codes);
+    residuals.push_back(std::move(prediction.arrays[a].residuals));
   }
-  w.bytes(stream.finish());
-  return w.take();
+  s.stream.residual_arrays(residuals, s.lattices, kRangeModelSets, s.models.residuals);
+  s.previous = std::move(codes);
+  ++s.added;
+}
+
+std::vector<uint8_t> KeyframeGroupWriter::finish() {
+  State& s = *state_;
+  s.w.bytes(s.stream.finish());
+  return s.w.take();
 }
 
 void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,

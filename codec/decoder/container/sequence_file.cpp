@@ -13,6 +13,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/image.hpp"
 #include "facemorph/image_codec.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
@@ -30,11 +31,11 @@ namespace {
 // The coding a writer uses where the caller gave no steps: each array's step a 65535th of its range
 // over the keyframes (the precision of 16-bit fixed point), at least what keeps its largest value
 // within 2²⁹ steps; the intra period and pose steps as given, or facemorph's defaults.
-FieldCoding fixed_point_coding(const Sequence& s, FieldCoding coding) {
+FieldCoding fixed_point_coding(const KeyframeSource& source, FieldCoding coding) {
   coding.steps.assign(kKeyframeArrays, 0);
   std::vector<double> lo(kKeyframeArrays, 0), hi(kKeyframeArrays, 0);
-  for (const Keyframe& key : s.keyframes) {
-    const std::vector<std::vector<double>> arrays = keyframe_arrays(key);
+  for (size_t k = 0; k < source.outline().keyframe_count(); ++k) {
+    const std::vector<std::vector<double>> arrays = keyframe_arrays(*source.keyframe(k));
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
       for (double v : arrays[a]) {
         lo[a] = std::min(lo[a], v);
@@ -46,24 +47,25 @@ FieldCoding fixed_point_coding(const Sequence& s, FieldCoding coding) {
     const double largest = std::max(std::abs(lo[a]), std::abs(hi[a]));
     coding.steps[a] = std::max({(hi[a] - lo[a]) / 65535, largest / (1 << 29), std::numeric_limits<double>::min()});
   }
-  if (coding.rotation_step == 0 && coding.translation_step == 0) set_default_pose_steps(coding, s.units);
+  if (coding.rotation_step == 0 && coding.translation_step == 0) set_default_pose_steps(coding, source.outline().units);
   return coding;
 }
 
 // For each keyframe, the first keyframe whose texture is the same pixels (itself where none before
-// is): those keyframes store one TEXR. Compared by a hash, then pixel by pixel.
-std::vector<size_t> texture_owners(const Sequence& s) {
-  std::vector<size_t> owners(s.keyframes.size());
+// is): those keyframes store one TEXR. Compared by a hash, then pixel by pixel (the earlier texture
+// read again: one or two are held at a time).
+std::vector<size_t> texture_owners(const KeyframeSource& source) {
+  const size_t count = source.outline().keyframe_count();
+  std::vector<size_t> owners(count);
   std::unordered_multimap<uint64_t, size_t> seen;
-  for (size_t k = 0; k < s.keyframes.size(); ++k) {
+  for (size_t k = 0; k < count; ++k) {
     owners[k] = k;
-    const Image& image = s.keyframes[k].texture;
-    if (image.empty()) continue;
-    const uint64_t hash = image_content_hash(image);
+    const std::shared_ptr<const Image> image = source.texture(k);
+    const uint64_t hash = image_content_hash(*image);
     const auto [first, last] = seen.equal_range(hash);
     const auto same = std::find_if(first, last, [&](const auto& entry) {
-      const Image& other = s.keyframes[entry.second].texture;
-      return other.width == image.width && other.height == image.height && other.channels == image.channels && other.pixels == image.pixels;
+      const std::shared_ptr<const Image> other = source.texture(entry.second);
+      return other->width == image->width && other->height == image->height && other->channels == image->channels && other->pixels == image->pixels;
     });
     if (same != last) {
       owners[k] = same->second;
@@ -72,6 +74,50 @@ std::vector<size_t> texture_owners(const Sequence& s) {
     }
   }
   return owners;
+}
+
+// What validate_sequence checks of each keyframe, for a source's keyframes read one at a time:
+// its time and pose the outline's, fields valid on the outline's grid and representation with
+// keyframe 0's fixed-frame nodes, a finite hole level per node where the outline has holes.
+void check_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key) {
+  const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what); };
+  if (!(key.time == outline.times[k])) fail("its time is not the outline's");
+  try {
+    validate_fields(key.fields);
+  } catch (const Error& e) {
+    fail(e.what());
+  }
+  if (key.fields.grid_n != outline.grid_n || key.fields.representation != outline.representation) fail("fields of another grid or representation");
+  if (key.fields.fixed_nodes != fixed_nodes) fail("fixed-frame nodes differ from keyframe 0's");
+  if (!key.pose.is_proper()) fail("the pose is not a finite proper rotation and translation");
+  const DiskGridShape shape = disk_grid_shape(outline.grid_n);
+  const auto nodes = static_cast<size_t>(shape.interior_count + shape.rim_count);
+  if (key.hole_level.size() != (outline.has_holes ? nodes : 0)) fail(std::to_string(key.hole_level.size()) + " hole levels where the outline says " + (outline.has_holes ? std::to_string(nodes) : "none"));
+  for (double v : key.hole_level) {
+    if (!std::isfinite(v)) fail("a hole level is not finite");
+  }
+}
+
+// What the writer checks of the outline itself (validate_sequence's checks of the whole).
+void check_outline(const SequenceOutline& o) {
+  const auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: " + what); };
+  if (o.times.empty()) fail("no keyframes");
+  if (o.poses.size() != o.times.size()) fail("a pose for every keyframe");
+  if (!(o.fps > 0) || !std::isfinite(o.fps)) fail("frame rate must be finite and positive");
+  if (!std::isfinite(o.first_time) || !std::isfinite(o.last_time) || o.last_time < o.first_time) fail("the capture's time span is not a finite interval");
+  for (size_t k = 0; k < o.times.size(); ++k) {
+    if (!std::isfinite(o.times[k])) fail("keyframe " + std::to_string(k) + ": time is not finite");
+    if (k > 0 && !(o.times[k] > o.times[k - 1])) fail("keyframe " + std::to_string(k) + ": time does not increase");
+  }
+  if (o.texture_size < 0) fail("a negative texture size");
+}
+
+void check_texture(const SequenceOutline& o, size_t k, const Image& texture) {
+  if (texture.width != o.texture_size || texture.height != o.texture_size || texture.channels != 3 ||
+      texture.pixels.size() != static_cast<size_t>(texture.width) * static_cast<size_t>(texture.height) * 3) {
+    throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": the texture is not " + std::to_string(o.texture_size) + " x " +
+                                                 std::to_string(o.texture_size) + " RGB");
+  }
 }
 
 }  // namespace
@@ -102,39 +148,56 @@ void set_default_pose_steps(FieldCoding& coding, const std::string& units) {
   coding.translation_step = kTranslationStepMetres / metres;
 }
 
-std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& given) {
-  validate_sequence(sequence);
+std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
+  // A non-owning pointer: the source lives only in this call, within the sequence's lifetime.
+  return encode_sequence_file(*memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence)), metadata);
+}
+
+std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given) {
+  const SequenceOutline& outline = source.outline();
+  check_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
   SequenceFileMetadata metadata = given;
   FieldCoding& coding = metadata.field_coding;
-  if (coding.steps.empty()) coding = fixed_point_coding(sequence, coding);
+  if (coding.steps.empty()) coding = fixed_point_coding(source, coding);
   check_field_coding(coding);
+  const size_t count = outline.keyframe_count();
   const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
   if (!qualities.empty()) {
-    if (qualities.size() != sequence.keyframes.size()) {
-      throw Error(ErrorCode::kInvalidArgument, std::to_string(qualities.size()) + " texture qualities for " + std::to_string(sequence.keyframes.size()) + " keyframes");
+    if (qualities.size() != count) {
+      throw Error(ErrorCode::kInvalidArgument, std::to_string(qualities.size()) + " texture qualities for " + std::to_string(count) + " keyframes");
     }
     for (int q : qualities) {
       if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
     }
   }
-  const size_t count = sequence.keyframes.size();
+  // Keyframe 0's fixed-frame nodes, which every keyframe shares and the header stores.
+  const std::vector<int32_t> fixed_nodes = source.keyframe(0)->fields.fixed_nodes;
+  // Every keyframe and texture is read from the source one at a time (a group's keyframes in
+  // order), so the writer holds the chunks it has made and one keyframe, not the sequence.
   // How the textures are laid out: one image sequence per group of keyframes (TGOP, format 2.1)
   // for lossy AVIF, or a still each (TEXR); stills of the same pixels stored once and named by
   // every keyframe that shows them (format 2.2). Where both apply, the fewer bytes.
-  const std::vector<size_t> owners = texture_owners(sequence);
+  const bool has_texture = outline.has_texture();
+  if (has_texture) {
+    for (size_t k = 0; k < count; ++k) check_texture(outline, k, *source.texture(k));
+  }
+  std::vector<size_t> owners(count);
+  for (size_t k = 0; k < count; ++k) owners[k] = k;
+  if (has_texture) owners = texture_owners(source);
   const bool any_shared = std::any_of(owners.begin(), owners.end(), [k = size_t{0}](size_t owner) mutable { return owner != k++; });
+  const bool groups_possible = uses_texture_groups(has_texture, metadata);
   const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
   std::vector<format::PreparedChunk> stills;  // one per distinct texture (owner), in keyframe order
   std::vector<size_t> still_of(count, 0);     // keyframe k's chunk in `stills`
-  if (sequence.has_texture() && (any_shared || !uses_texture_groups(sequence, metadata))) {
+  if (has_texture && (any_shared || !groups_possible)) {
     // An owner's quality is the finest any keyframe showing it asks for.
     std::vector<int> owner_quality(count, -1);
     for (size_t k = 0; k < count; ++k) owner_quality[owners[k]] = std::max(owner_quality[owners[k]], quality_of(k));
     for (size_t k = 0; k < count; ++k) {
       if (owners[k] == k) {
         still_of[k] = stills.size();
-        stills.push_back(format::prepare_chunk(kTextureChunk, write_texture(sequence.keyframes[k].texture, static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true));
+        stills.push_back(format::prepare_chunk(kTextureChunk, write_texture(*source.texture(k), static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true));
       } else {
         still_of[k] = still_of[owners[k]];  // an owner comes before the keyframes sharing its texture
       }
@@ -142,7 +205,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   }
   const size_t group = metadata.field_coding.intra_period;
   std::vector<format::PreparedChunk> texture_groups;  // one per group of keyframes
-  if (uses_texture_groups(sequence, metadata)) {
+  if (groups_possible) {
     for (size_t k = 0; k < count; k += group) {
       const size_t n = std::min(group, count - k);
       // One quantiser for the sequence (libavif 0.11 gives a changed one to every frame still in
@@ -150,7 +213,9 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
       // quality asks.
       int quality = metadata.texture_quality;
       if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
-      texture_groups.push_back(format::prepare_chunk(kTextureGroupChunk, write_texture_group(sequence, k, n, quality), true));
+      TextureGroupWriter writer(k, quality);
+      for (size_t j = k; j < k + n; ++j) writer.add(*source.texture(j));
+      texture_groups.push_back(format::prepare_chunk(kTextureGroupChunk, writer.finish(), true));
     }
   }
   const auto total = [](const std::vector<format::PreparedChunk>& chunks) {
@@ -162,21 +227,25 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   if (!texture_groups.empty() && (stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
   const std::vector<format::PreparedChunk>& textures = grouped_textures ? texture_groups : stills;
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(sequence, metadata, texture_layout), true, 19);
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(count);
-  layout.flags = static_cast<uint8_t>((sequence.has_texture() ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
+  layout.flags = static_cast<uint8_t>((has_texture ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
   layout.metadata.field_coding = coding;
   // Every payload first, so the index can hold the offsets of the chunks after it. `groups[g]`:
   // group g's chunk; `textures`: the stills (keyframe k's is still_of[k]) or group g's TGOP.
-  const std::shared_ptr<const GridFacts> grid = grid_facts(sequence.grid_n);
+  const std::shared_ptr<const GridFacts> grid = grid_facts(outline.grid_n);
   std::vector<format::PreparedChunk> groups;
   std::vector<IndexEntry> entries(count);
+  std::optional<KeyframeGroupWriter> group_writer;
   for (size_t k = 0; k < count; ++k) {
-    const Keyframe& key = sequence.keyframes[k];
-    entries[k].time = key.time;
-    entries[k].pose = pose_codes(key.pose, coding);
-    if (k % group == 0) groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, write_keyframe_group(sequence, k, std::min(group, count - k), coding, *grid), true));
+    const std::shared_ptr<const Keyframe> key = source.keyframe(k);
+    check_keyframe(outline, fixed_nodes, k, *key);
+    entries[k].time = key->time;
+    entries[k].pose = pose_codes(key->pose, coding);
+    if (k % group == 0) group_writer.emplace(k, coding, *grid);
+    group_writer->add(*key);
+    if (k % group == group - 1 || k + 1 == count) groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true));
   }
   // Where each chunk goes: a group's KGOP, then its TGOP, or after each keyframe's fields the still
   // it is the first to show.
@@ -533,6 +602,10 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
   format::write_file_atomically(path, encode_sequence_file(sequence, metadata));
+}
+
+void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata) {
+  format::write_file_atomically(path, encode_sequence_file(source, metadata));
 }
 
 Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info, const DecoderLimits& limits) {

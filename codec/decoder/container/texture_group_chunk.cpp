@@ -30,20 +30,20 @@ std::span<const uint8_t> sequence_of(std::span<const uint8_t> payload, const std
 
 }  // namespace
 
-bool uses_texture_groups(const Sequence& s, const SequenceFileMetadata& metadata) {
-  if (!s.has_texture() || metadata.texture_coding != TextureCoding::kSequence || metadata.texture_codec != TextureCodec::kAvif) return false;
+bool uses_texture_groups(bool has_texture, const SequenceFileMetadata& metadata) {
+  if (!has_texture || metadata.texture_coding != TextureCoding::kSequence || metadata.texture_codec != TextureCodec::kAvif) return false;
   const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
   if (qualities.empty()) return metadata.texture_quality <= 100;
   return std::all_of(qualities.begin(), qualities.end(), [](int q) { return q <= 100; });
 }
 
-std::vector<uint8_t> write_texture_group(const Sequence& s, size_t first, size_t count, int quality) {
-  std::vector<const Image*> frames;
-  for (size_t k = first; k < first + count; ++k) frames.push_back(&s.keyframes[k].texture);
+TextureGroupWriter::TextureGroupWriter(size_t first, int quality) : first_(first), sequence_(quality) {}
+
+std::vector<uint8_t> TextureGroupWriter::finish() {
   format::ByteWriter w;
-  w.write(static_cast<uint32_t>(first));
+  w.write(static_cast<uint32_t>(first_));
   w.write(kTextureAvifSequence);
-  w.bytes(encode_avif_sequence(frames, quality));
+  w.bytes(sequence_.finish());
   return w.take();
 }
 

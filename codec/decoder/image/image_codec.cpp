@@ -195,25 +195,52 @@ void clear_creation_times(std::vector<uint8_t>& bytes, size_t begin, size_t end)
 
 }  // namespace
 
-std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality) {
-  if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of no frames");
-  const auto encoder = avif_encoder(quality);
-  encoder->timescale = 30;        // informative: a frame a tick (the file's times are the container's)
-  encoder->keyframeInterval = 0;  // frame 0 intra, every later one predicted from those before it
-  for (const Image* frame : frames) {
-    if (frame->width != frames[0]->width || frame->height != frames[0]->height) {
-      throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of frames of different sizes");
-    }
-    const auto yuv = yuv_of(*frame);
-    const avifResult result = avifEncoderAddImage(encoder.get(), yuv.get(), 1, AVIF_ADD_IMAGE_FLAG_NONE);
-    if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+struct AvifSequenceWriter::State {
+  std::unique_ptr<avifEncoder, AvifEncoderFree> encoder;
+  int width = 0, height = 0;
+  bool finished = false;
+};
+
+AvifSequenceWriter::AvifSequenceWriter(int quality) : state_(std::make_unique<State>()) {
+  state_->encoder = avif_encoder(quality);
+  state_->encoder->timescale = 30;        // informative: a frame a tick (the file's times are the container's)
+  state_->encoder->keyframeInterval = 0;  // frame 0 intra, every later one predicted from those before it
+}
+
+AvifSequenceWriter::~AvifSequenceWriter() = default;
+
+void AvifSequenceWriter::add(const Image& frame) {
+  State& s = *state_;
+  if (s.finished) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence given a frame after it was finished");
+  if (s.width == 0) {
+    s.width = frame.width;
+    s.height = frame.height;
+  } else if (frame.width != s.width || frame.height != s.height) {
+    throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of frames of different sizes");
   }
+  const auto yuv = yuv_of(frame);
+  const avifResult result = avifEncoderAddImage(s.encoder.get(), yuv.get(), 1, AVIF_ADD_IMAGE_FLAG_NONE);
+  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+}
+
+std::vector<uint8_t> AvifSequenceWriter::finish() {
+  State& s = *state_;
+  if (s.width == 0) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of no frames");
+  if (s.finished) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence finished twice");
+  s.finished = true;
   AvifBytes bytes;
-  const avifResult result = avifEncoderFinish(encoder.get(), &bytes.data);
+  const avifResult result = avifEncoderFinish(s.encoder.get(), &bytes.data);
   if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
   std::vector<uint8_t> out(bytes.data.data, bytes.data.data + bytes.data.size);
   clear_creation_times(out, 0, out.size());
   return out;
+}
+
+std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality) {
+  if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "an AVIF image sequence of no frames");
+  AvifSequenceWriter writer(quality);
+  for (const Image* frame : frames) writer.add(*frame);
+  return writer.finish();
 }
 
 Image avif_colour_round_trip(const Image& image) { return rgb_of(yuv_of(image).get(), 3, "avif_colour_round_trip"); }

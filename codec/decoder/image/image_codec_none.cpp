@@ -24,6 +24,11 @@ std::vector<uint8_t> encode_avif(const Image&, int) { no_codec("AVIF encoding");
 Image decode_avif(std::span<const uint8_t>, const std::string& source, int, int64_t) { no_codec("AVIF decoding", source); }
 Image avif_colour_round_trip(const Image&) { no_codec("AVIF colour conversion"); }
 std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const>, int) { no_codec("AVIF sequence encoding"); }
+struct AvifSequenceWriter::State {};
+AvifSequenceWriter::AvifSequenceWriter(int) { no_codec("AVIF sequence encoding"); }
+AvifSequenceWriter::~AvifSequenceWriter() = default;
+void AvifSequenceWriter::add(const Image&) { no_codec("AVIF sequence encoding"); }
+std::vector<uint8_t> AvifSequenceWriter::finish() { no_codec("AVIF sequence encoding"); }
 void decode_avif_sequence(std::span<const uint8_t>, const std::string& source, uint32_t, uint32_t, uint32_t, const std::function<bool(uint32_t)>&,
                           const std::function<void(uint32_t, Image&&)>&) {
   no_codec("AVIF sequence decoding", source);

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -48,6 +49,22 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
 // still in libaom's look-ahead, so a per-frame quantiser would not be what the frames get. Throws
 // kInvalidArgument for no frames, frames of different sizes, or an image encode_avif refuses.
 std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, int quality);
+// The same, a frame at a time (the container writer's: a group's textures are read one by one, so
+// that they need not all be in memory; libaom keeps its own look-ahead of frames).
+class AvifSequenceWriter {
+ public:
+  explicit AvifSequenceWriter(int quality);
+  ~AvifSequenceWriter();
+  AvifSequenceWriter(const AvifSequenceWriter&) = delete;
+  AvifSequenceWriter& operator=(const AvifSequenceWriter&) = delete;
+  void add(const Image& frame);
+  // The sequence's bytes; the writer takes no frame after.
+  std::vector<uint8_t> finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 // Decodes frames 0 .. last of an AVIF image sequence that must hold exactly `frames` 8-bit images
 // of size x size: checked from the container (its sample count and image size) before any pixel is
 // decoded (one frame: the still image libavif writes for a sequence of one). Each frame j is decoded (later ones are predicted from it); those for which wanted(j)

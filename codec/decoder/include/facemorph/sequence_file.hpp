@@ -109,6 +109,11 @@ void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 // at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a sequence validate_sequence rejects,
 // a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
+// The same from a source's keyframes, read one at a time (a group's in order, each texture up to
+// three times), so that the writer holds the chunks it has made, not the sequence: an encoder's
+// keyframes may stay in its temporary file until written. Each keyframe is checked as
+// validate_sequence checks it (kInvalidArgument naming it), and must carry the outline's time.
+std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata);
 
 // Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,
 // the grid's rule and hash against the one this decoder builds, every keyframe's fields by
@@ -150,6 +155,7 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
 // leaves any previous file untouched.
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
+void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata);
 Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr, const DecoderLimits& limits = kDefaultDecoderLimits);
 
 }  // namespace facemorph
