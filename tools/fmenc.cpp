@@ -317,7 +317,8 @@ int main(int argc, char** argv) {
       bar->update(done, total);
     };
     EncodeReport report;
-    const Sequence sequence = encode_capture(capture, options, &report);
+    // The keyframes stay in the encoder's temporary file until the writer reads them, one at a time.
+    const std::unique_ptr<StoredSequence> sequence = encode_capture_stored(capture, options, &report);
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
     nlohmann::json settings = settings_json(options, report);
@@ -328,18 +329,18 @@ int main(int argc, char** argv) {
     metadata.texture_coding = parse_texture_coding(texture_coding);
     metadata.field_coding = report.field_coding;
     const auto write_start = std::chrono::steady_clock::now();
-    write_sequence_file(output, sequence, metadata);
+    write_sequence_file(output, *sequence, metadata);
     const double seconds_writing = tools::seconds_since(write_start);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);
     const auto bytes = std::filesystem::file_size(output);
     const double duration = capture.duration() + 1.0 / capture.fps;
-    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size() - report.dropped.size(), sequence.keyframes.size());
-    for (const Keyframe& key : sequence.keyframes) std::printf(" %.3f", key.time);
+    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size() - report.dropped.size(), sequence->shape().keyframes.size());
+    for (const Keyframe& key : sequence->shape().keyframes) std::printf(" %.3f", key.time);
     std::printf(" s\n");
-    std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence.grid_n, representation_name(sequence.representation),
-                registration_method_name(options.registration.method), spline_kind_name(sequence.spline),
-                sequence.has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence.has_holes() ? ", holes cut on decode" : "");
+    std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence->shape().grid_n, representation_name(sequence->shape().representation),
+                registration_method_name(options.registration.method), spline_kind_name(sequence->shape().spline),
+                sequence->outline().has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence->outline().has_holes ? ", holes cut on decode" : "");
     if (report.blend.trials > 0) {
       std::printf("  representation %s (auto): %d of %zu frames share no interior landmarks with the reference; blended at %d frames "
                   "between keyframes, the fields come out %.3f%% from them, the positions %.3f%%%s\n",
@@ -347,11 +348,11 @@ int main(int argc, char** argv) {
                   report.blend.trials, 100 * report.blend.fields_error, 100 * report.blend.positions_error,
                   report.representation == Representation::kXYZ ? " (--representation hl+t stores the fields)" : "");
     }
-    if (!report.sparse && report.keyframe_budget > 0 && static_cast<int>(sequence.keyframes.size()) > report.keyframe_budget) {
+    if (!report.sparse && report.keyframe_budget > 0 && static_cast<int>(sequence->shape().keyframes.size()) > report.keyframe_budget) {
       std::printf("  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
                   "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
                   100 * options.keyframe_fraction, report.keyframe_budget, 100 * report.budget_mean_error, 100 * report.budget_worst_error,
-                  100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound, sequence.keyframes.size());
+                  100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound, sequence->shape().keyframes.size());
     }
     if (report.sparse) {
       std::printf("  keyframes: every frame, as the frames lie %.3f s apart (median), sparser than one every %.2f s: the spline has nothing between "
@@ -365,7 +366,7 @@ int main(int argc, char** argv) {
       const char* why = report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
                         : report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
-      std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence.grid_n, 100 * report.grid_target, why);
+      std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence->shape().grid_n, 100 * report.grid_target, why);
     }
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);
@@ -398,19 +399,19 @@ int main(int argc, char** argv) {
       SequenceFileInfo written;
       const std::shared_ptr<const KeyframeSource> decoded = open_sequence_source(output, kDefaultDecoderLimits, &written);
       double sum_db = 0, low_db = std::numeric_limits<double>::infinity();
-      for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-        const double db = psnr_of_mse(disk_texture_mse(sequence.keyframes[k].texture, *decoded->texture(k)));
+      for (size_t k = 0; k < sequence->shape().keyframes.size(); ++k) {
+        const double db = psnr_of_mse(disk_texture_mse(*sequence->texture(k), *decoded->texture(k)));
         sum_db += db;
         low_db = std::min(low_db, db);
       }
       uint64_t texture_bytes = 0;
       for (const auto& c : written.chunks) texture_bytes += c.type == "TEXR" || c.type == "TGOP" ? c.stored_bytes : 0;
       const std::string layout = written.metadata.texture_coding == TextureCoding::kSequence ? "one AV1 sequence per group"
-                                 : written.distinct_textures < sequence.keyframes.size()
-                                     ? std::to_string(written.distinct_textures) + (written.distinct_textures == 1 ? " still" : " stills") + std::string(" for ") + std::to_string(sequence.keyframes.size()) + " keyframes"
+                                 : written.distinct_textures < sequence->shape().keyframes.size()
+                                     ? std::to_string(written.distinct_textures) + (written.distinct_textures == 1 ? " still" : " stills") + std::string(" for ") + std::to_string(sequence->shape().keyframes.size()) + " keyframes"
                                      : "stills";
       std::printf("  textures as decoded: %llu bytes (%s), PSNR on the disk %.2f dB mean, %.2f dB lowest\n", static_cast<unsigned long long>(texture_bytes),
-                  layout.c_str(), sum_db / static_cast<double>(sequence.keyframes.size()), low_db);
+                  layout.c_str(), sum_db / static_cast<double>(sequence->shape().keyframes.size()), low_db);
       // Keyframes showing an earlier keyframe's texture: what that costs against their own.
       int shared = 0;
       double lowest_share_db = std::numeric_limits<double>::infinity();
@@ -422,7 +423,7 @@ int main(int argc, char** argv) {
       if (shared > 0) {
         std::printf("  textures shared: %d of %zu keyframes show an earlier keyframe's, painted from the same captured image (against their own: "
                     "%.1f dB lowest)\n",
-                    shared, sequence.keyframes.size(), lowest_share_db);
+                    shared, sequence->shape().keyframes.size(), lowest_share_db);
       }
     }
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "

@@ -1,5 +1,6 @@
 // The .fmv container (spec/container.md): round trips, the checksum's definition, and every way a
 // damaged or foreign file must be refused by name rather than crash or decode wrong.
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 
 namespace facemorph {
 namespace {
@@ -696,6 +698,69 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
     ++found;
   }
   EXPECT_EQ(found, seeds.size());
+}
+
+// A source over a sequence in memory that counts how many of its keyframes and textures are alive
+// at once, and may alter a keyframe as it is read (a source that disagrees with its outline).
+class WatchedSource final : public KeyframeSource {
+ public:
+  explicit WatchedSource(const Sequence& sequence) : inner_(memory_source(std::make_shared<const Sequence>(sequence))) {}
+  std::function<void(size_t, Keyframe&)> alter;
+  mutable int keyframes_alive = 0, keyframes_peak = 0, textures_alive = 0, textures_peak = 0;
+
+  const SequenceOutline& outline() const override { return inner_->outline(); }
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+    auto key = std::make_shared<Keyframe>(*inner_->keyframe(k));
+    key->texture = {};  // a source may leave it empty: texture(k)
+    if (alter) alter(k, *key);
+    return watched(std::move(key), keyframes_alive, keyframes_peak);
+  }
+  std::shared_ptr<const Image> texture(size_t k) const override {
+    return watched(std::make_shared<Image>(*inner_->texture(k)), textures_alive, textures_peak);
+  }
+  size_t surfaces_kept() const override { return 1; }
+  uint64_t bytes_held() const override { return 0; }
+
+ private:
+  template <typename T>
+  static std::shared_ptr<const T> watched(std::shared_ptr<T> item, int& alive, int& peak) {
+    peak = std::max(peak, ++alive);
+    T* raw = item.get();
+    return std::shared_ptr<const T>(raw, [item = std::move(item), &alive](const T*) mutable {
+      --alive;
+      item.reset();
+    });
+  }
+  std::shared_ptr<const KeyframeSource> inner_;
+};
+
+TEST(Container, TheWriterReadsASourceAKeyframeAtATimeAndWritesWhatTheSequenceWrites) {
+  for (const SequenceFileMetadata& metadata : codings()) {
+    const Sequence s = ramp_sequence(7, 16);
+    const WatchedSource source(s);
+    const std::vector<uint8_t> from_source = encode_sequence_file(source, metadata);
+    EXPECT_TRUE(from_source == encode_sequence_file(s, metadata)) << "intra period " << metadata.field_coding.intra_period;
+    EXPECT_EQ(source.keyframes_alive, 0);
+    EXPECT_EQ(source.keyframes_peak, 1) << "the writer held several keyframes at once";
+    EXPECT_LE(source.textures_peak, 2) << "the writer held several textures at once (two while it compares them)";
+    EXPECT_GE(source.textures_peak, 1);
+  }
+}
+
+TEST(Container, TheWriterChecksEveryKeyframeItReadsFromASource) {
+  const Sequence s = small_sequence();
+  const SequenceFileMetadata metadata = predicted_metadata();
+  const auto refused = [&](const std::function<void(size_t, Keyframe&)>& alter, const std::string& message) {
+    WatchedSource source(s);
+    source.alter = alter;
+    testing::expect_error(ErrorCode::kInvalidArgument, message, [&] { encode_sequence_file(source, metadata); });
+  };
+  const size_t last = s.keyframes.size() - 1;
+  refused([&](size_t k, Keyframe& key) { if (k == last) key.time += 1; }, "keyframe " + std::to_string(last) + ": its time is not the outline's");
+  refused([](size_t k, Keyframe& key) { if (k == 1) key.fields.fixed_nodes.push_back(0); }, "keyframe 1");
+  refused([](size_t k, Keyframe& key) { if (k == 1) key.hole_level.pop_back(); }, "keyframe 1: ");
+  refused([](size_t k, Keyframe& key) { if (k == 1) key.pose.translation.x() = std::nan(""); }, "keyframe 1: the pose");
+  refused([](size_t k, Keyframe& key) { if (k == 1) key.fields.grid_n += 2; }, "keyframe 1");
 }
 
 }  // namespace

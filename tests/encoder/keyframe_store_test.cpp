@@ -5,9 +5,11 @@
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/sequence_file.hpp"
 
+#include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -16,6 +18,9 @@
 
 namespace facemorph {
 namespace {
+
+using crafted::small_metadata;
+using crafted::small_sequence;
 
 // Every array of GridFields filled (no representation uses them all: the store must not care),
 // with seeded values that no two arrays share.
@@ -121,47 +126,96 @@ TEST(KeyframeStore, SpilledFieldsAndSurfacesReadBackAsTheSameNumbers) {
 // spilled, and every keyframe's arrays in memory; the file is the same bytes either way. Spilled,
 // its arrays went to the file: the fitted surfaces twice each, the field precision's exact surfaces
 // once (decoded once, shared by every dead zone it tries) and its exact fields once.
+TEST(StoredSequence, GivesBackTheSequencePutInAndWhatReplacedIt) {
+  const Sequence s = small_sequence(17, 16);
+  for (const SpillMode mode : {SpillMode::kSpill, SpillMode::kMemory}) {
+    const std::unique_ptr<StoredSequence> stored = StoredSequence::of(Sequence(s), mode);
+    ASSERT_EQ(stored->size(), s.keyframes.size());
+    const Sequence back = stored->to_sequence();
+    for (size_t k = 0; k < s.keyframes.size(); ++k) {
+      EXPECT_EQ(back.keyframes[k].time, s.keyframes[k].time);
+      EXPECT_TRUE(back.keyframes[k].pose.rotation == s.keyframes[k].pose.rotation);
+      EXPECT_EQ(back.keyframes[k].hole_level, s.keyframes[k].hole_level);
+      EXPECT_EQ(back.keyframes[k].texture.pixels, s.keyframes[k].texture.pixels);
+      EXPECT_EQ(FieldsStore::serialize(back.keyframes[k].fields), FieldsStore::serialize(s.keyframes[k].fields));
+    }
+    const SequenceOutline expected = outline_of(s), outline = stored->outline();
+    EXPECT_EQ(outline.times, expected.times);
+    EXPECT_EQ(outline.fixed_node_count, expected.fixed_node_count);
+    EXPECT_EQ(outline.has_holes, expected.has_holes);
+    EXPECT_EQ(outline.texture_size, expected.texture_size);
+    EXPECT_TRUE(stored->keyframe(1)->texture.empty()) << "the writer reads textures apart";
+    EXPECT_EQ(stored->keyframe(1)->hole_level, s.keyframes[1].hole_level);
+    EXPECT_TRUE(encode_sequence_file(*stored, small_metadata()) == encode_sequence_file(s, small_metadata()));
+    // A put replaces what was there; a pose set is the shape's.
+    stored->put_texture(1, Image(s.keyframes[0].texture));
+    EXPECT_EQ(stored->texture(1)->pixels, s.keyframes[0].texture.pixels);
+    RigidPose moved = s.keyframes[2].pose;
+    moved.translation.x() += 0.5;
+    stored->set_pose(2, moved);
+    EXPECT_EQ(stored->to_sequence().keyframes[2].pose.translation.x(), moved.translation.x());
+  }
+  Sequence unordered = s;
+  unordered.keyframes[1].time = unordered.keyframes[0].time;
+  testing::expect_error(ErrorCode::kInvalidArgument, "time does not increase", [&] { StoredSequence::of(std::move(unordered), SpillMode::kMemory); });
+  const StoredSequence empty(s, SpillMode::kSpill);  // the shape only: nothing put yet
+  testing::expect_error(ErrorCode::kInternal, "never stored", [&] { empty.fields(0); });
+}
+
 TEST(KeyframeStore, TheEncoderHoldsAFewKeyframesAtOnceAndWritesTheSameFile) {
   testing::TempDir dir;
   SynthOptions synth;
   synth.frames = 24;
   synth.vertices = 1000;
   synth.head_motion_degrees = 10;
+  synth.texture_size = 32;
   write_synthetic_capture(dir.path(), synth);
   const Capture capture = read_capture(dir.path());
   constexpr int kGrid = 33;
   std::vector<uint8_t> files[2];
-  int peaks[2] = {0, 0};
+  int peaks[2] = {0, 0}, stored_peaks[2] = {0, 0};
   size_t keys = 0;
   for (const bool spill : {true, false}) {
     EncodeOptions options;
     options.threads = 2;
     options.keyframe_fraction = 0.5;
     options.grid = kGrid;
-    options.texture = false;
+    options.texture_size = 32;
     options.spill_keyframes = spill;
     EncodeReport report;
-    const Sequence sequence = encode_capture(capture, options, &report);
-    keys = sequence.keyframes.size();
+    const std::unique_ptr<StoredSequence> stored = encode_capture_stored(capture, options, &report);
+    keys = stored->size();
     ASSERT_GE(keys, 12u);
     SequenceFileMetadata metadata;
     metadata.field_coding = report.field_coding;
-    files[spill] = encode_sequence_file(sequence, metadata);
+    metadata.keyframe_texture_qualities = report.texture_qualities;
+    // The file as fmenc writes it, from the store a keyframe at a time, and as the in-memory API
+    // writes the same keyframes read back whole.
+    files[spill] = encode_sequence_file(*stored, metadata);
+    const Sequence sequence = stored->to_sequence();
+    EXPECT_TRUE(files[spill] == encode_sequence_file(sequence, metadata)) << "the store's file is not the sequence's";
     peaks[spill] = report.peak_keyframes_in_memory;
+    stored_peaks[spill] = stored->peak_held();
     if (spill) {
       const DiskGrid grid = make_disk_grid(kGrid);
       const uint64_t on_g = 8 + 24 * grid.nodes.size(), interior = 8 + 24 * static_cast<uint64_t>(grid.interior_count);
       const uint64_t fields = FieldsStore::serialize(sequence.keyframes[0].fields).size();
-      EXPECT_GE(report.keyframes_spilled_bytes, keys * (2 * on_g + interior + fields)) << "some keyframe arrays stayed in memory";
+      const uint64_t texture = TextureStore::serialize(sequence.keyframes[0].texture).size();
+      EXPECT_GE(report.keyframes_spilled_bytes, keys * (2 * on_g + interior + 2 * fields + texture)) << "some keyframe arrays stayed in memory";
     } else {
       EXPECT_EQ(report.keyframes_spilled_bytes, 0u);
     }
   }
   EXPECT_LE(peaks[1], 2) << "spilled: one keyframe array a thread";
   EXPECT_GE(peaks[1], 1);
-  // In memory the field precision holds every keyframe's exact fields and exact surface at once:
-  // both went through its stores (spilled, neither stays beside the trial's rounded fields).
-  EXPECT_GE(peaks[0], 2 * static_cast<int>(keys)) << "in memory: every keyframe's exact fields and surface";
+  // Spilled, the output's fields, hole levels and textures come back a few at a time: the texture
+  // quality's blend reads four keyframes' textures on each of two threads, the writer two.
+  EXPECT_LE(stored_peaks[1], 10) << "spilled: the output read back a few arrays at a time";
+  EXPECT_GE(stored_peaks[1], 1);
+  // In memory the field precision holds every keyframe's exact surface at once, and the output
+  // every keyframe's fields, hole level and texture.
+  EXPECT_GE(peaks[0], static_cast<int>(keys)) << "in memory: every keyframe's exact surface";
+  EXPECT_GE(stored_peaks[0], 3 * static_cast<int>(keys)) << "in memory: every keyframe's arrays";
   ASSERT_FALSE(files[1].empty());
   EXPECT_TRUE(files[0] == files[1]) << "spilling the keyframes' arrays changed the file";
 }

@@ -2,8 +2,10 @@
 
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/encoder/keyframe_store.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/grid_geometry.hpp"
+#include "facemorph/keyframe_source.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/reconstruct.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -11,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -57,10 +60,10 @@ struct Decoded {
   double diagonal = 0;
 };
 
-Decoded decode_exact(Reconstructor& reconstructor, const Keyframe& key) {
+Decoded decode_exact(Reconstructor& reconstructor, const GridFields& fields) {
   reconstructor.forget_warm_start();
   Decoded d;
-  d.exact = reconstructor.reconstruct(key.fields, tight()).positions;
+  d.exact = reconstructor.reconstruct(fields, tight()).positions;
   d.diagonal = diagonal(d.exact);
   return d;
 }
@@ -86,6 +89,10 @@ struct Spill {
   std::shared_ptr<ResidentCount> count = std::make_shared<ResidentCount>();
   uint64_t bytes = 0;
 };
+
+// A pointer-like view of what a getter returns: a plain pointer or shared_ptr as it is.
+inline const GridFields* as_pointer(const GridFields* p) { return p; }
+inline const std::shared_ptr<const GridFields>& as_pointer(const std::shared_ptr<const GridFields>& p) { return p; }
 
 // Rounds arrays to multiples of their steps. Per-node arrays on G's interior are rounded with error
 // diffusion (Floyd–Steinberg over the lattice, in node order): each node's rounding error is
@@ -132,25 +139,44 @@ class FieldRounder {
   // Every keyframe's fields as the file will hold them, in order, handed to use(k, fields): those
   // the file may predict from the previous keyframe (not a multiple of the intra period) rounded as
   // their change from it. One keyframe's at a time (a long capture has hundreds): the rounding
-  // carries only the previous keyframe's rounded arrays. Fields only: a texture is not copied.
-  template <typename Use>
-  void for_each_rounded(const std::vector<Keyframe>& keyframes, const FieldCoding& coding, const Use& use) const {
-    std::vector<std::vector<double>> before;  // the previous keyframe's rounded arrays
-    for (size_t k = 0; k < keyframes.size(); ++k) {
-      const GridFields& fields = keyframes[k].fields;
-      const bool intra = coding.intra(k);
-      std::vector<std::vector<double>> arrays = scalar_arrays(fields);
-      for (size_t a = 0; a < arrays.size(); ++a) round(arrays[a], coding.steps[a], intra ? nullptr : &before[a]);
-      GridFields out = fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
-      before = std::move(arrays);
-      use(k, std::move(out));
+  // carries only the previous keyframe's rounded arrays (Chain). `exact(k)` gives keyframe k's exact
+  // fields (a GridFields, or a pointer to one).
+  template <typename Exact, typename Use>
+  void for_each_rounded(size_t count, const Exact& exact, const FieldCoding& coding, const Use& use) const {
+    Chain chain(*this, coding);
+    for (size_t k = 0; k < count; ++k) {
+      GridFields rounded = chain.next(k, *as_pointer(exact(k)));  // the exact fields released before use
+      use(k, std::move(rounded));
     }
   }
+
+  // The rounding of keyframes one after another: keyframe k's rounded fields from its exact ones,
+  // given after keyframe k − 1's unless k is intra (where the chain starts again).
+  class Chain {
+   public:
+    Chain(const FieldRounder& rounder, const FieldCoding& coding) : rounder_(rounder), coding_(coding) {}
+    GridFields next(size_t k, const GridFields& fields) {
+      const bool intra = coding_.intra(k);
+      if (!intra && (before_.empty() || k != last_ + 1)) throw Error(ErrorCode::kInternal, "field rounding: keyframe " + std::to_string(k) + " out of order");
+      std::vector<std::vector<double>> arrays = scalar_arrays(fields);
+      for (size_t a = 0; a < arrays.size(); ++a) rounder_.round(arrays[a], coding_.steps[a], intra ? nullptr : &before_[a]);
+      GridFields out = fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
+      before_ = std::move(arrays);
+      last_ = k;
+      return out;
+    }
+
+   private:
+    const FieldRounder& rounder_;
+    const FieldCoding& coding_;
+    std::vector<std::vector<double>> before_;  // the previous keyframe's rounded arrays
+    size_t last_ = 0;
+  };
 
   // The keyframes as the file will hold them: their fields as above, and the hole level. Keyframe
   // k's exact fields are not read again once k is rounded, so each is replaced in place.
   void round(std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
-    for_each_rounded(keyframes, coding, [&](size_t k, GridFields&& fields) {
+    for_each_rounded(keyframes.size(), [&](size_t k) { return &keyframes[k].fields; }, coding, [&](size_t k, GridFields&& fields) {
       keyframes[k].fields = std::move(fields);
       round_to_field_steps(keyframes[k], coding);
     });
@@ -233,11 +259,11 @@ class ReconstructorPool {
 // compared with: decoded once per choose_field_coding (they do not depend on the steps or the dead
 // zone), stored (1.25 MB a keyframe at N = 257) and read back one at a time.
 struct ExactSurfaces {
-  ExactSurfaces(const std::vector<Keyframe>& keyframes, ReconstructorPool& pool, Spill& spill) : store(spill.mode, spill.count) {
-    store.reset(keyframes.size());
-    diagonals.assign(keyframes.size(), 0.0);
-    pool.run(keyframes.size(), [&](Reconstructor& reconstructor, size_t k) {
-      Decoded d = decode_exact(reconstructor, keyframes[k]);
+  ExactSurfaces(const StoredSequence& keys, ReconstructorPool& pool, Spill& spill) : store(spill.mode, spill.count) {
+    store.reset(keys.size());
+    diagonals.assign(keys.size(), 0.0);
+    pool.run(keys.size(), [&](Reconstructor& reconstructor, size_t k) {
+      Decoded d = decode_exact(reconstructor, *keys.fields(k));
       diagonals[k] = d.diagonal;
       store.put(k, std::move(d.exact));
     });
@@ -249,18 +275,18 @@ struct ExactSurfaces {
 // Each keyframe's decoded error with `coding`: rounded in order on this thread (a keyframe's
 // rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
 // that no more rounded fields than threads are held.
-std::vector<double> rounded_errors(const std::vector<Keyframe>& keyframes, const FieldCoding& coding, const FieldRounder& rounder, const ExactSurfaces& exact,
+std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder, const ExactSurfaces& exact,
                                    ReconstructorPool& pool) {
-  std::vector<double> errors(keyframes.size(), 0.0);
+  std::vector<double> errors(keys.size(), 0.0);
   std::vector<std::pair<size_t, GridFields>> batch;
   const auto decode_batch = [&] {
     pool.run(batch.size(), [&](Reconstructor& reconstructor, size_t i) {
-      const auto& [k, fields] = batch[i];
-      errors[k] = decoded_error(reconstructor, fields, *exact.store.get(k), exact.diagonals[k]);
+      const auto& [k, rounded] = batch[i];
+      errors[k] = decoded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k]);
     });
     batch.clear();
   };
-  rounder.for_each_rounded(keyframes, coding, [&](size_t k, GridFields&& rounded) {
+  rounder.for_each_rounded(keys.size(), [&](size_t k) { return keys.fields(k); }, coding, [&](size_t k, GridFields&& rounded) {
     batch.emplace_back(k, std::move(rounded));
     if (batch.size() == pool.size()) decode_batch();
   });
@@ -294,11 +320,10 @@ struct Calibration {
   std::vector<double> group_steps; // per group (0: absent)
 };
 
-Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& options, Reconstructor& reconstructor) {
+Calibration calibrate(const GridFields& probe_fields, const FieldPrecisionOptions& options, Reconstructor& reconstructor) {
   const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, 0.5);
-  const Keyframe& probe_key = sequence.keyframes.front();
-  const Decoded probe_exact = decode_exact(reconstructor, probe_key);
-  const std::vector<std::vector<double>> arrays = scalar_arrays(probe_key.fields);
+  const Decoded probe_exact = decode_exact(reconstructor, probe_fields);
+  const std::vector<std::vector<double>> arrays = scalar_arrays(probe_fields);
   Calibration calibration;
   std::vector<size_t>& present = calibration.present;
   for (size_t g = 0; g < kGroups.size(); ++g) {
@@ -321,7 +346,7 @@ Calibration calibrate(const Sequence& sequence, const FieldPrecisionOptions& opt
   std::vector<double>& group_steps = calibration.group_steps;
   group_steps.assign(kGroups.size(), 0.0);
   auto probe_error = [&](size_t g, double step) {
-    return decoded_error(reconstructor, rounder.rounded(probe_key.fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, step)),
+    return decoded_error(reconstructor, rounder.rounded(probe_fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, step)),
                          probe_exact.exact, probe_exact.diagonal);
   };
   for (size_t g : present) {
@@ -375,9 +400,10 @@ struct StepChoice {
 };
 
 // choose_field_coding's steps for one dead zone (options checked), from the calibration's steps,
-// for the exact fields of `keyframes` (not changed: the caller rounds them).
-StepChoice choose_steps(const Sequence& sequence, const FieldPrecisionOptions& options, const Calibration& calibration, const ExactSurfaces& exact,
+// for the exact fields of `keys` (not changed: the caller rounds them).
+StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions& options, const Calibration& calibration, const ExactSurfaces& exact,
                         ReconstructorPool& pool) {
+  const Sequence& sequence = keys.shape();
   FieldCoding coding;
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
@@ -405,7 +431,7 @@ StepChoice choose_steps(const Sequence& sequence, const FieldPrecisionOptions& o
   int refinements = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<double> errors = rounded_errors(sequence.keyframes, coding, rounder, exact, pool);
+    const std::vector<double> errors = rounded_errors(keys, coding, rounder, exact, pool);
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
     const bool met = worst <= kTolerance * options.target_error;
     if (met && scale > best_scale) {
@@ -432,121 +458,120 @@ StepChoice choose_steps(const Sequence& sequence, const FieldPrecisionOptions& o
   return {coding, best_scale, best_errors, refinements};
 }
 
-// Moves the keyframes' exact fields out of a sequence into a store while the dead zones are tried,
-// and back: each trial rounds a copy of them, and the file it encodes needs every keyframe's rounded
-// fields at once, but the exact ones need not be in memory beside them (1.7 MB a keyframe at N = 257).
-// restore() puts them back; the destructor tries to, should a trial throw.
-class FieldsSetAside {
+// A trial's keyframes as the file would hold them (fields, hole level and pose rounded; no texture),
+// each made when the file writer asks for it from the exact fields. The writer reads a group's
+// keyframes in order, so each is rounded once, after its predecessor (asked in another order, the
+// chain starts again at the intra keyframe before it): the trial's file is measured holding one
+// rounded keyframe, not a copy of every keyframe's fields.
+class RoundedKeyframes final : public KeyframeSource {
  public:
-  FieldsSetAside(Sequence& sequence, Spill& spill) : sequence_(sequence), spill_(spill), store_(spill.mode, spill.count) {
-    store_.reset(sequence_.keyframes.size());
-    for (size_t k = 0; k < sequence_.keyframes.size(); ++k) {
-      store_.put(k, std::move(sequence_.keyframes[k].fields));
-      sequence_.keyframes[k].fields = {};
+  RoundedKeyframes(const StoredSequence& keys, const FieldRounder& rounder, const FieldCoding& coding)
+      : keys_(keys), rounder_(rounder), coding_(coding), outline_(keys.outline()) {
+    outline_.texture_size = 0;  // the trials measure the fields' bytes
+  }
+  const SequenceOutline& outline() const override { return outline_; }
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+    std::lock_guard lock(mutex_);
+    if (last_ && last_index_ == k) return last_;
+    size_t from = k;
+    if (!(last_ && last_index_ + 1 == k)) {
+      from = k - k % static_cast<size_t>(coding_.intra_period);
+      chain_.emplace(rounder_, coding_);
     }
-  }
-  ~FieldsSetAside() {
-    try {
-      restore();
-    } catch (const Error&) {
-      // Only while another error unwinds (restore succeeded before, or it threw to its caller).
+    for (size_t j = from; j <= k; ++j) {
+      auto key = std::make_shared<Keyframe>();
+      key->time = keys_.shape().keyframes.at(j).time;
+      key->pose = keys_.shape().keyframes[j].pose;
+      key->hole_level = *keys_.hole_level(j);
+      key->fields = chain_->next(j, *keys_.fields(j));
+      round_to_field_steps(*key, coding_);
+      last_ = std::move(key);
+      last_index_ = j;
     }
+    return last_;
   }
-  FieldsSetAside(const FieldsSetAside&) = delete;
-  FieldsSetAside& operator=(const FieldsSetAside&) = delete;
-
-  // `trial` (a copy of the sequence without its fields) given every keyframe's exact fields.
-  void fill(Sequence& trial) const {
-    for (size_t k = 0; k < trial.keyframes.size(); ++k) trial.keyframes[k].fields = *store_.get(k);
-  }
-  void restore() {
-    if (restored_) return;
-    restored_ = true;
-    spill_.bytes += store_.spilled_bytes();
-    for (size_t k = 0; k < sequence_.keyframes.size(); ++k) sequence_.keyframes[k].fields = *store_.get(k);
-  }
+  std::shared_ptr<const Image> texture(size_t) const override { throw Error(ErrorCode::kInternal, "field precision: a trial has no textures"); }
+  size_t surfaces_kept() const override { return 1; }
+  uint64_t bytes_held() const override { return 0; }
 
  private:
-  Sequence& sequence_;
-  Spill& spill_;
-  FieldsStore store_;
-  bool restored_ = false;
+  const StoredSequence& keys_;
+  const FieldRounder& rounder_;
+  const FieldCoding& coding_;
+  SequenceOutline outline_;
+  mutable std::mutex mutex_;
+  mutable std::optional<FieldRounder::Chain> chain_;
+  mutable std::shared_ptr<const Keyframe> last_;
+  mutable size_t last_index_ = 0;
 };
 
-// Moves the keyframes' textures out of a sequence for its lifetime and back at its end (also when a
-// trial throws): the trials copy and encode fields, poses and holes only.
-class TexturesSetAside {
- public:
-  explicit TexturesSetAside(Sequence& sequence) : sequence_(sequence) {
-    for (Keyframe& key : sequence_.keyframes) textures_.push_back(std::move(key.texture));
-    for (Keyframe& key : sequence_.keyframes) key.texture = {};
-  }
-  ~TexturesSetAside() {
-    for (size_t k = 0; k < textures_.size(); ++k) sequence_.keyframes[k].texture = std::move(textures_[k]);
-  }
-  TexturesSetAside(const TexturesSetAside&) = delete;
-  TexturesSetAside& operator=(const TexturesSetAside&) = delete;
-
- private:
-  Sequence& sequence_;
-  std::vector<Image> textures_;
-};
-
-}  // namespace
-
-FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+void check_options(const FieldPrecisionOptions& options) {
   if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
   }
   if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options);
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   if (options.threads < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative thread count");
-  validate_sequence(sequence);
+}
+
+}  // namespace
+
+FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+  check_options(options);
+  const Sequence& shape = keys.shape();
+  if (shape.keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
   Spill spill(options.spill);
-  ReconstructorPool pool(sequence.grid_n, options.threads);
+  ReconstructorPool pool(shape.grid_n, options.threads);
   // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
   // applies to it) and every keyframe's exact surface.
   Calibration calibration;
-  pool.run(1, [&](Reconstructor& reconstructor, size_t) { calibration = calibrate(sequence, options, reconstructor); });
-  const ExactSurfaces exact(sequence.keyframes, pool, spill);
+  pool.run(1, [&](Reconstructor& reconstructor, size_t) { calibration = calibrate(*keys.fields(0), options, reconstructor); });
+  const ExactSurfaces exact(keys, pool, spill);
   FieldPrecisionOptions chosen = options;
   std::optional<StepChoice> choice;
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins, and
     // its steps are the result (the search is deterministic: run again, it would find them again).
     chosen.inter_dead_zone = kDeadZoneCandidates.front();
-    const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
-    const bool predicts = period > 1 && sequence.keyframes.size() > 1;
-    const TexturesSetAside aside(sequence);
-    std::optional<FieldsSetAside> fields;
-    if (predicts) fields.emplace(sequence, spill);
+    const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
+    const bool predicts = period > 1 && shape.keyframes.size() > 1;
     size_t fewest = std::numeric_limits<size_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       FieldPrecisionOptions trial_options = options;
       trial_options.inter_dead_zone = kDeadZoneCandidates[c];
-      Sequence trial = sequence;
-      fields->fill(trial);
       std::optional<StepChoice> steps;
       try {
-        steps = choose_steps(trial, trial_options, calibration, exact, pool);
+        steps = choose_steps(keys, trial_options, calibration, exact, pool);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
       }
-      FieldRounder(pool.grid(), options.noise_shaping, trial_options.inter_dead_zone).round(trial.keyframes, steps->coding);
+      const FieldRounder rounder(pool.grid(), options.noise_shaping, trial_options.inter_dead_zone);
       SequenceFileMetadata metadata;
       metadata.field_coding = steps->coding;
-      const size_t bytes = encode_sequence_file(trial, metadata).size();
+      const size_t bytes = encode_sequence_file(RoundedKeyframes(keys, rounder, steps->coding), metadata).size();
       if (bytes < fewest) {
         fewest = bytes;
         chosen.inter_dead_zone = kDeadZoneCandidates[c];
         choice = std::move(steps);
       }
     }
-    if (fields) fields->restore();
   }
-  if (!choice) choice = choose_steps(sequence, chosen, calibration, exact, pool);
-  FieldRounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone).round(sequence.keyframes, choice->coding);
+  if (!choice) choice = choose_steps(keys, chosen, calibration, exact, pool);
+  // The keyframes as the file will hold them, in order (each rounded after its predecessor), put
+  // back in place of their exact fields.
+  const FieldRounder rounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone);
+  FieldRounder::Chain chain(rounder, choice->coding);
+  for (size_t k = 0; k < keys.size(); ++k) {
+    Keyframe key;
+    key.pose = keys.shape().keyframes[k].pose;
+    key.hole_level = *keys.hole_level(k);
+    key.fields = chain.next(k, *keys.fields(k));
+    round_to_field_steps(key, choice->coding);
+    keys.put_fields(k, std::move(key.fields));
+    keys.put_hole_level(k, std::move(key.hole_level));
+    keys.set_pose(k, key.pose);
+  }
   spill.bytes += exact.store.spilled_bytes();
   if (report) {
     report->target_error = options.target_error;
@@ -559,6 +584,22 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
     report->spilled_bytes = spill.bytes;
   }
   return choice->coding;
+}
+
+FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {
+  check_options(options);
+  validate_sequence(sequence);
+  // The keyframes moved into a store for the search (in the temporary file with options.spill, as
+  // the encoder keeps them) and back, rounded (back also when the search throws).
+  const std::unique_ptr<StoredSequence> keys = StoredSequence::of(std::move(sequence), options.spill ? SpillMode::kSpill : SpillMode::kMemory);
+  try {
+    const FieldCoding coding = choose_field_coding(*keys, options, report);
+    sequence = keys->to_sequence();
+    return coding;
+  } catch (...) {
+    sequence = keys->to_sequence();
+    throw;
+  }
 }
 
 }  // namespace facemorph

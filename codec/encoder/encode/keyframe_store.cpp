@@ -45,8 +45,28 @@ void read_item(Reader& r, GridFields& f) {
   f.rim = r.array<Vec3>();
 }
 
+void write_item(Writer& w, const std::vector<double>& values) { w.array(values); }
+
+void read_item(Reader& r, std::vector<double>& values) { values = r.array<double>(); }
+
+void write_item(Writer& w, const Image& image) {
+  w.value(image.width);
+  w.value(image.height);
+  w.value(image.channels);
+  w.array(image.pixels);
+}
+
+void read_item(Reader& r, Image& image) {
+  image.width = r.value<int>();
+  image.height = r.value<int>();
+  image.channels = r.value<int>();
+  image.pixels = r.array<uint8_t>();
+}
+
 const char* kind_name(const std::vector<Vec3>*) { return "the keyframes' surfaces"; }
 const char* kind_name(const GridFields*) { return "the keyframes' fields"; }
+const char* kind_name(const std::vector<double>*) { return "the keyframes' hole levels"; }
+const char* kind_name(const Image*) { return "the keyframes' textures"; }
 
 }  // namespace
 
@@ -110,5 +130,7 @@ std::shared_ptr<const T> KeyframeStore<T>::get(size_t k) const {
 
 template class KeyframeStore<std::vector<Vec3>>;
 template class KeyframeStore<GridFields>;
+template class KeyframeStore<std::vector<double>>;
+template class KeyframeStore<Image>;
 
 }  // namespace facemorph

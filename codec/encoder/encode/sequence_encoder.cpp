@@ -1,6 +1,8 @@
 // The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
 #include "facemorph/encoder/sequence_encoder.hpp"
 
+#include "facemorph/encoder/stored_sequence.hpp"
+
 #include "codec/decoder/geometry/elementary.hpp"
 #include "facemorph/meshkit/distance.hpp"
 #include "facemorph/encoder/face_orientation.hpp"
@@ -777,7 +779,9 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   return kGridCandidates[std::size(kGridCandidates) - 1];
 }
 
-Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
+Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) { return build_stored(keyframes, grid_n)->to_sequence(); }
+
+std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<int>& keyframes, int grid_n) {
   const auto start = std::chrono::steady_clock::now();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
   const GridGeometry geometry(make_disk_grid(grid_n));
@@ -816,16 +820,24 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   SurfaceStore local(options_.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
   local.reset(keys);
   std::vector<std::vector<int32_t>> folds(keys);
-  Sequence sequence;
-  sequence.grid_n = grid_n;
-  sequence.representation = representation();
-  sequence.spline = options_.spline;
-  sequence.fps = capture_.fps;
-  sequence.first_time = first_time_;
-  sequence.last_time = last_time_;
-  sequence.units = capture_.units;
-  sequence.pose_centre = pose_centre();
-  sequence.keyframes.resize(keys);
+  Sequence shape;
+  shape.grid_n = grid_n;
+  shape.representation = representation();
+  shape.spline = options_.spline;
+  shape.fps = capture_.fps;
+  shape.first_time = first_time_;
+  shape.last_time = last_time_;
+  shape.units = capture_.units;
+  shape.pose_centre = pose_centre();
+  shape.keyframes.resize(keys);
+  for (size_t k = 0; k < keys; ++k) {
+    const auto index = static_cast<size_t>(keyframes[k]);
+    shape.keyframes[k].time = capture_.frames[index].time;
+    shape.keyframes[k].pose = selection_[index].pose;
+  }
+  // The keyframes' arrays go to the store as they are made (options().spill_keyframes): a long
+  // capture's hundreds of keyframes are not held until the file is written.
+  auto stored = std::make_unique<StoredSequence>(std::move(shape), options_.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory);
   parallel_for(
       static_cast<int>(keys), options_.threads,
       [&](int k) {
@@ -838,11 +850,8 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
         local.put(static_cast<size_t>(k), std::move(positions));
-        Keyframe& key = sequence.keyframes[static_cast<size_t>(k)];
-        key.time = capture_.frames[index].time;
-        key.pose = selection_[index].pose;
-        if (store_holes) key.hole_level = hole_level(f.prepared, f.map, points);
-        if (store_texture) key.texture = frame_texture(f, static_cast<int>(index), texture_size);
+        stored->put_hole_level(static_cast<size_t>(k), store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
+        stored->put_texture(static_cast<size_t>(k), store_texture ? frame_texture(f, static_cast<int>(index), texture_size) : Image());
       },
       [&](int done, int total) { progress("keyframes", done, total); });
   if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
@@ -853,13 +862,12 @@ Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) {
   std::sort(fixed.begin(), fixed.end());
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    sequence.keyframes[static_cast<size_t>(k)].fields = keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), sequence.representation, fixed);
+    stored->put_fields(static_cast<size_t>(k), keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), stored->shape().representation, fixed));
   });
   report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
   report_.keyframes_spilled_bytes += local.spilled_bytes();
-  validate_sequence(sequence);
   report_.seconds_keyframes = seconds_since(start);
-  return sequence;
+  return stored;
 }
 
 void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const {
@@ -968,21 +976,33 @@ double auto_field_error(const KeyframeSelection& chosen) {
 }  // namespace
 
 FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
+  const std::unique_ptr<StoredSequence> stored = StoredSequence::of(std::move(sequence), SpillMode::kMemory);
+  const FieldCoding coding = round_fields(*stored, chosen);
+  sequence = stored->to_sequence();
+  return coding;
+}
+
+FieldCoding SequenceEncoder::round_fields(StoredSequence& keys, const KeyframeSelection& chosen) {
   const auto start = std::chrono::steady_clock::now();
   FieldPrecisionOptions precision = options_.field_precision;
   precision.spill = options_.spill_keyframes;
   precision.threads = options_.threads;
   if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
-  FieldCoding coding = choose_field_coding(sequence, precision, &report_.field_precision);
+  FieldCoding coding = choose_field_coding(keys, precision, &report_.field_precision);
   report_.seconds_precision = seconds_since(start);
   return coding;
 }
 
 std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes) {
+  return choose_texture_qualities(*StoredSequence::of(Sequence(sequence), SpillMode::kMemory), keyframes);
+}
+
+std::vector<int> SequenceEncoder::choose_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes) {
   const auto start = std::chrono::steady_clock::now();
   report_.texture_qualities.clear();
   report_.texture_interpolation_psnr.clear();
-  if (!sequence.has_texture()) return {};
+  const Sequence& sequence = stored.shape();
+  if (stored.size() == 0 || stored.texture(0)->empty()) return {};
   const size_t keys = sequence.keyframes.size();
   if (keyframes.size() != keys) throw Error(ErrorCode::kInvalidArgument, "choose_texture_qualities: the keyframes are not the sequence's");
   std::vector<int> qualities(keys, options_.texture_quality);
@@ -992,20 +1012,24 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
     std::vector<double> times;
     for (const Keyframe& key : sequence.keyframes) times.push_back(key.time);
     const KeyframeSpline spline(times, sequence.spline);
-    const int size = sequence.keyframes.front().texture.width;
+    const int size = stored.texture(0)->width;
     std::vector<double> interval_mse(keys - 1, -1.0);
     parallel_for(static_cast<int>(keys) - 1, options_.threads, [&](int k) {
       const int middle = (keyframes[static_cast<size_t>(k)] + keyframes[static_cast<size_t>(k) + 1]) / 2;
       const auto m = static_cast<size_t>(middle);
       if (middle == keyframes[static_cast<size_t>(k)] || !has_texture(middle)) return;
       const Image own = frame_texture(middle, size);
-      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_textures(sequence, spline.weights(capture_.frames[m].time)));
+      const SplineWeights w = spline.weights(capture_.frames[m].time);
+      std::vector<std::shared_ptr<const Image>> held;  // the keyframes' textures the blend reads, one frame's at a time
+      std::vector<const Image*> images;
+      for (int32_t key : w.keys) images.push_back(held.emplace_back(stored.texture(static_cast<size_t>(key))).get());
+      interval_mse[static_cast<size_t>(k)] = disk_texture_mse(own, blend_images(images, w.weights));
     });
     const std::vector<double> targets = texture_error_targets(interval_mse, options_.texture_coding);
     parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
       const double target = targets[static_cast<size_t>(k)];
       qualities[static_cast<size_t>(k)] = target < 0 ? options_.texture_coding.fallback_quality
-                                                      : texture_quality_for(options_.texture_codec, sequence.keyframes[static_cast<size_t>(k)].texture, target);
+                                                      : texture_quality_for(options_.texture_codec, *stored.texture(static_cast<size_t>(k)), target);
     });
     for (double mse : interval_mse) report_.texture_interpolation_psnr.push_back(mse < 0 ? 0.0 : psnr_of_mse(mse));
   }
@@ -1015,10 +1039,16 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& seque
 }
 
 void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>& keyframes) {
-  const size_t keys = sequence.keyframes.size();
+  const std::unique_ptr<StoredSequence> stored = StoredSequence::of(std::move(sequence), SpillMode::kMemory);
+  share_textures(*stored, keyframes);
+  sequence = stored->to_sequence();
+}
+
+void SequenceEncoder::share_textures(StoredSequence& stored, const std::vector<int>& keyframes) {
+  const size_t keys = stored.size();
   report_.texture_shared_with.assign(keys, -1);
   report_.texture_share_psnr.assign(keys, 0.0);
-  if (!options_.share_textures || !sequence.has_texture()) return;
+  if (!options_.share_textures || keys == 0 || stored.texture(0)->empty()) return;
   if (keyframes.size() != keys) throw Error(ErrorCode::kInvalidArgument, "share_textures: the keyframes are not the sequence's");
   // Each keyframe's captured image by its pixels (a file read once however many frames name it);
   // vertex colours have none.
@@ -1046,9 +1076,10 @@ void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>&
     std::vector<size_t>& same_image = owners[*image[k]];
     // The nearest in time first: its registration drifted least from k's.
     for (auto owner = same_image.rbegin(); owner != same_image.rend(); ++owner) {
-      const double mse = disk_texture_mse(sequence.keyframes[*owner].texture, sequence.keyframes[k].texture);
+      const std::shared_ptr<const Image> owner_texture = stored.texture(*owner);
+      const double mse = disk_texture_mse(*owner_texture, *stored.texture(k));
       if (mse <= allowed) {
-        sequence.keyframes[k].texture = sequence.keyframes[*owner].texture;
+        stored.put_texture(k, Image(*owner_texture));
         report_.texture_shared_with[k] = static_cast<int>(*owner);
         report_.texture_share_psnr[k] = psnr_of_mse(mse);
         break;
@@ -1058,7 +1089,11 @@ void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>&
   }
 }
 
-Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
+Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report) {
+  return encode_capture_stored(capture, options, report)->to_sequence();
+}
+
+std::unique_ptr<StoredSequence> encode_capture_stored(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
   encoder.register_frames();
@@ -1080,10 +1115,10 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   // here, so that the keyframe steps' arrays take their place rather than add to them.
   malloc_trim(0);
 #endif
-  Sequence sequence = encoder.build(chosen.keyframes, report.grid);
-  if (options.predicted_fields) report.field_coding = encoder.round_fields(sequence, chosen);
-  encoder.choose_texture_qualities(sequence, chosen.keyframes);
-  encoder.share_textures(sequence, chosen.keyframes);
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
+  if (options.predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
+  encoder.choose_texture_qualities(*sequence, chosen.keyframes);
+  encoder.share_textures(*sequence, chosen.keyframes);
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const FrameSummary& frame = encoder.frame_summary(i);
     const DiskRegistration& registration = encoder.registration(i);
@@ -1109,6 +1144,7 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   report.spilled_bytes = encoder.frame_store().spilled_bytes();
   report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, report.field_precision.peak_keyframes_in_memory);
   report.keyframes_spilled_bytes += report.field_precision.spilled_bytes;
+  report.keyframes_spilled_bytes += sequence->spilled_bytes();
   if (report_out) *report_out = std::move(report);
   return sequence;
 }

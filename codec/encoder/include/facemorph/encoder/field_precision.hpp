@@ -13,6 +13,8 @@
 
 namespace facemorph {
 
+class StoredSequence;
+
 // FieldPrecisionOptions::intra_period's "auto": an intra keyframe at least every 10 s of capture,
 // as video encoders space theirs (x264's default keyint, 250 frames, is 10 s at 25 fps). A player
 // seeking into a stream decodes at most that much; every chain of predicted keyframes is a tenth
@@ -41,9 +43,10 @@ struct FieldPrecisionOptions {
   // mesh and cost 5-28% on a noisy fmsynth capture (spec/method.md §5.3). kAutoDeadZone (the
   // default) tries kDeadZoneCandidates and keeps the one whose file is smallest; else in [0.5, 1).
   double inter_dead_zone = kAutoDeadZone;
-  // true (the default): every keyframe's surface decoded from its exact fields, and the exact
-  // fields while the dead zones are tried, go to a temporary file and are read back one at a time
-  // (keyframe_store.hpp); false: they stay in memory. The steps and rounding are the same.
+  // true (the default): every keyframe's surface decoded from its exact fields (and, given a
+  // Sequence, its fields, hole level and texture while the steps are chosen) go to a temporary file
+  // and are read back one at a time (keyframe_store.hpp); false: they stay in memory. The steps and
+  // rounding are the same.
   bool spill = true;
   // The keyframes decoded at once while the steps are measured (0: one per core). The steps and
   // rounding are the same for any count.
@@ -75,6 +78,10 @@ int auto_intra_period(const Sequence& sequence);
 // Throws kInvalidArgument for a target that is not positive and finite, a dead zone neither auto nor
 // in [0.5, 1) or a negative intra period, and what reconstruction throws for fields it cannot decode.
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
+// The same on keyframes in the encoder's store, read one at a time (each trial's file too, through
+// the writer's source), with the rounded fields, hole levels and poses put back: what the search
+// holds in memory does not grow with the keyframes (spec/method.md §7.15).
+FieldCoding choose_field_coding(StoredSequence& keyframes, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
 
 // Rounds every keyframe's fields to `coding`'s steps as choose_field_coding does (error diffusion
 // per options.noise_shaping; the keyframes the file may predict, those not a multiple of the intra

@@ -12,6 +12,7 @@
 
 #include "facemorph/encoder/spill_file.hpp"
 #include "facemorph/fields.hpp"
+#include "facemorph/image.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <memory>
@@ -20,7 +21,8 @@
 
 namespace facemorph {
 
-// T is std::vector<Vec3> (a surface on G) or GridFields.
+// T is std::vector<Vec3> (a surface on G), GridFields, std::vector<double> (a hole level) or Image
+// (a texture).
 template <typename T>
 class KeyframeStore {
  public:
@@ -68,8 +70,12 @@ class KeyframeStore {
 
 extern template class KeyframeStore<std::vector<Vec3>>;
 extern template class KeyframeStore<GridFields>;
+extern template class KeyframeStore<std::vector<double>>;
+extern template class KeyframeStore<Image>;
 
 using SurfaceStore = KeyframeStore<std::vector<Vec3>>;
 using FieldsStore = KeyframeStore<GridFields>;
+using HoleLevelStore = KeyframeStore<std::vector<double>>;
+using TextureStore = KeyframeStore<Image>;
 
 }  // namespace facemorph

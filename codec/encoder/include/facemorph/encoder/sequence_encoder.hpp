@@ -20,6 +20,7 @@
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/sequence.hpp"
@@ -232,9 +233,10 @@ struct EncodeReport {
   // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
   int peak_frames_in_memory = 0;
   uint64_t spilled_bytes = 0;
-  // The same for the keyframes' arrays (KeyframeStore: surfaces on G in build and the fit, exact
-  // fields and decoded surfaces in the field precision's search): the most in memory at once in
-  // either step, and the bytes written.
+  // The same for the keyframes' arrays (KeyframeStore: surfaces on G in build and the fit, decoded
+  // surfaces in the field precision's search): the most in memory at once in either step; and the
+  // bytes written, with those of the output's fields, hole levels and textures (StoredSequence, whose
+  // own peak_held() counts what the later steps and the writer read back of them).
   int peak_keyframes_in_memory = 0;
   uint64_t keyframes_spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
@@ -249,6 +251,11 @@ struct EncodeReport {
 // stage threw, naming the frame (kInvalidArgument for missing landmarks; what prepare_frame,
 // conformal_disk_map and the image reader throw, e.g. kNotADisk or kMissingTexture).
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
+// The same, the keyframes left where the encoder keeps them (in its temporary file, with
+// options.spill_keyframes): a KeyframeSource the file writer reads a keyframe at a time
+// (write_sequence_file(path, *stored, metadata)), so that encoding to a file holds each keyframe's
+// time and pose rather than its arrays (spec/method.md §7.15). The temporary file goes with it.
+std::unique_ptr<StoredSequence> encode_capture_stored(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
 // What the encoder keeps in memory of every frame once it is mapped (its map goes to the FrameStore):
 // the counts and reasons the report gives, whether it has colour, and the landmarks it found.
@@ -294,22 +301,27 @@ class SequenceEncoder {
   // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
   // again.
   void release_selection_samples(const std::vector<int>& keyframes);
-  // 6. the keyframes on G: fields, poses, holes, textures.
+  // 6. the keyframes on G: fields, poses, holes, textures, each array put in the store as it is
+  // made (options().spill_keyframes). build: the same, read back as a Sequence.
+  std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid);
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
   // auto_field_error two fifths of `chosen`'s mean predicted error): what a file written with the
   // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
+  FieldCoding round_fields(StoredSequence& keyframes, const KeyframeSelection& chosen);
   FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
   // 8. each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
   // at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
   // what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
   // build. Fills report().texture_qualities; empty for a sequence without texture.
+  std::vector<int> choose_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes);
   std::vector<int> choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes);
   // 9. keyframes whose textures are painted from one captured image (the same file, or the same
   // pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
   // keyframe's texture where the two are within options().texture_coding.min_psnr of each other
   // over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
   // report().texture_shared_with and texture_share_psnr.
+  void share_textures(StoredSequence& stored, const std::vector<int>& keyframes);
   void share_textures(Sequence& sequence, const std::vector<int>& keyframes);
 
   // 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where

@@ -1,0 +1,82 @@
+#include "facemorph/encoder/stored_sequence.hpp"
+
+#include "facemorph/error.hpp"
+
+namespace facemorph {
+
+StoredSequence::StoredSequence(Sequence shape, SpillMode mode)
+    : shape_(std::move(shape)), fields_(mode, count_), holes_(mode, count_), textures_(mode, count_) {
+  for (Keyframe& key : shape_.keyframes) {
+    key.fields = {};
+    key.hole_level = {};
+    key.texture = {};
+  }
+  fields_.reset(size());
+  holes_.reset(size());
+  textures_.reset(size());
+}
+
+std::unique_ptr<StoredSequence> StoredSequence::of(Sequence&& sequence, SpillMode mode) {
+  validate_sequence(sequence);
+  std::vector<Keyframe> keyframes = std::move(sequence.keyframes);
+  sequence.keyframes.clear();
+  Sequence shape = std::move(sequence);
+  for (const Keyframe& key : keyframes) {
+    Keyframe& outline = shape.keyframes.emplace_back();
+    outline.time = key.time;
+    outline.pose = key.pose;
+  }
+  auto stored = std::make_unique<StoredSequence>(std::move(shape), mode);
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    stored->put_fields(k, std::move(keyframes[k].fields));
+    stored->put_hole_level(k, std::move(keyframes[k].hole_level));
+    stored->put_texture(k, std::move(keyframes[k].texture));
+    keyframes[k] = {};  // released as it goes
+  }
+  return stored;
+}
+
+Sequence StoredSequence::to_sequence() const {
+  Sequence sequence = shape_;
+  for (size_t k = 0; k < size(); ++k) {
+    Keyframe& key = sequence.keyframes[k];
+    key.fields = *fields_.get(k);
+    key.hole_level = *holes_.get(k);
+    key.texture = *textures_.get(k);
+  }
+  validate_sequence(sequence);
+  return sequence;
+}
+
+void StoredSequence::put_fields(size_t k, GridFields&& fields) { fields_.put(k, std::move(fields)); }
+void StoredSequence::put_hole_level(size_t k, std::vector<double>&& level) { holes_.put(k, std::move(level)); }
+void StoredSequence::put_texture(size_t k, Image&& texture) { textures_.put(k, std::move(texture)); }
+
+void StoredSequence::set_pose(size_t k, const RigidPose& pose) {
+  if (k >= size()) throw Error(ErrorCode::kInternal, "stored sequence: keyframe " + std::to_string(k) + " is past its size");
+  shape_.keyframes[k].pose = pose;
+}
+
+const SequenceOutline& StoredSequence::outline() const {
+  // Made when first asked (the file writer asks once the steps are done), from the shape and
+  // keyframe 0's arrays, which every keyframe shares in size.
+  std::call_once(outline_made_, [this] {
+    outline_ = outline_of(shape_);
+    outline_.fixed_node_count = fields_.get(0)->fixed_nodes.size();
+    outline_.has_holes = !holes_.get(0)->empty();
+    const std::shared_ptr<const Image> texture = textures_.get(0);
+    outline_.texture_size = texture->empty() ? 0 : texture->width;
+  });
+  return outline_;
+}
+
+std::shared_ptr<const Keyframe> StoredSequence::keyframe(size_t k) const {
+  auto key = std::make_shared<Keyframe>();
+  key->time = shape_.keyframes.at(k).time;
+  key->pose = shape_.keyframes[k].pose;
+  key->fields = *fields_.get(k);
+  key->hole_level = *holes_.get(k);
+  return key;
+}
+
+}  // namespace facemorph
