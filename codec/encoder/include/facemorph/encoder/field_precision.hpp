@@ -59,7 +59,7 @@ struct FieldPrecisionReport {
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
   double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
-  int peak_keyframes_in_memory = 0;     // the most exact fields or decoded surfaces in memory at once (KeyframeStore)
+  int peak_keyframes_in_memory = 0;     // the most decoded surfaces in memory at once (KeyframeStore)
   uint64_t spilled_bytes = 0;           // written to the temporary file (0 without options.spill)
 };
 

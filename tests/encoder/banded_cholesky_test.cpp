@@ -1,0 +1,57 @@
+// The keyframe fit's band factor against Eigen's dense one, and its refusals.
+#include "codec/encoder/keyframes/banded_cholesky.hpp"
+
+#include "facemorph/error.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <Eigen/Cholesky>
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace facemorph {
+namespace {
+
+TEST(BandedCholesky, IsTheDenseFactorWithinTheBandAndZeroOutside) {
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> value(-1, 1);
+  for (const auto& [size, band] : {std::pair{1, 0}, std::pair{9, 1}, std::pair{40, 3}, std::pair{12, 11}}) {
+    SymmetricBand a(size, band);
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(size, size);
+    for (int i = 0; i < size; ++i) {
+      for (int j = std::max(0, i - band); j <= i; ++j) {
+        // Diagonally dominant: positive definite.
+        const double v = i == j ? 2.0 * (band + 1) : value(random);
+        a.at(i, j) = v;
+        dense(i, j) = dense(j, i) = v;
+      }
+    }
+    const BandedCholesky factor(a);
+    const Eigen::MatrixXd l = dense.llt().matrixL();
+    for (int i = 0; i < size; ++i) {
+      for (int j = 0; j <= i; ++j) {
+        if (i - j <= band) {
+          EXPECT_NEAR(factor.at(i, j), l(i, j), 1e-12) << size << " " << band << " (" << i << ", " << j << ")";
+        } else {
+          EXPECT_NEAR(l(i, j), 0, 1e-12) << "the dense factor fills outside the band";
+        }
+      }
+    }
+  }
+}
+
+TEST(BandedCholesky, RefusesAMatrixThatIsNotPositiveDefiniteAndReadsOnlyItsBand) {
+  SymmetricBand a(3, 1);
+  a.at(0, 0) = 1;
+  a.at(1, 0) = 2;  // makes the second pivot 1 − 4 < 0
+  a.at(1, 1) = 1;
+  a.at(2, 2) = 1;
+  testing::expect_error(ErrorCode::kNumerical, "not positive definite at row 1", [&] { BandedCholesky factor(a); });
+  testing::expect_error(ErrorCode::kInternal, "outside the band", [&] { a.at(2, 0) = 1; });
+  EXPECT_EQ(a.at(0, 1), 2) << "symmetric";
+  testing::expect_error(ErrorCode::kInvalidArgument, "negative", [] { SymmetricBand(-1, 0); });
+}
+
+}  // namespace
+}  // namespace facemorph
