@@ -88,7 +88,8 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
       if (hit) m.local += (inverse.position(*hit) - q).squaredNorm();
     }
     double sum = 0;
-    for (size_t v = 0; v < weights.size(); ++v) sum += weights[v] * (selection[static_cast<size_t>(i)].local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
+    const std::shared_ptr<const SelectionFrame> sampled = encoder.selection_frame(i);
+    for (size_t v = 0; v < weights.size(); ++v) sum += weights[v] * (sampled->local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
     m.global += sum;
     m.global_relative += std::sqrt(sum / area) / selection[static_cast<size_t>(i)].diagonal;
     ++counted;
@@ -312,7 +313,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     // Table 4: keyframes chosen from all but the last 10 frames, decoded 1, 3 and 10 frames past.
     if (count >= 20) {
       const int last = count - 11;
-      const std::vector<SelectionFrame> head(encoder.selection_frames().begin(), encoder.selection_frames().begin() + last + 1);
+      std::vector<SelectionFrame> head;  // with their samples, read back from the encoder's store
+      for (int i = 0; i <= last; ++i) head.push_back(*encoder.selection_frame(i));
       SelectionOptions so;
       so.fraction = encode.keyframe_fraction;
       so.spline = encoder.options().spline;

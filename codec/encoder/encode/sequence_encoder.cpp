@@ -1,6 +1,7 @@
 // The encoder: every frame mapped and registered, keyframes chosen, keyframes stored on G.
 #include "facemorph/encoder/sequence_encoder.hpp"
 
+#include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
@@ -45,6 +46,9 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 // The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
 // frames by error at a fraction of the cost of G itself.
 constexpr int kSelectionGrid = 65;
+// What the selection's cache of spilled samples may hold: ~830 frames of 79 kB, more than the frames
+// its refinement predicts around one keyframe (six gaps between keyframes) at 10% keyframes.
+constexpr uint64_t kSelectionCacheBytes = uint64_t{64} << 20;
 // --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
 // The floor falls as 1/N², so steps of ~1.2-1.5 in N give the rule steps of at most ~2.2 in floor.
 constexpr int kGridCandidates[] = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
@@ -118,7 +122,7 @@ int auto_texture_size_for_colours(int vertex_count) {
 // at the ends), RMS by area, over the stencil's noise gain √(1 + Σ w²). For independent noise of
 // RMS σ per frame this is σ; smooth motion leaks in only through its fourth derivative (1.7% of a
 // sinusoid of 11 frames a period). Infinity with fewer than 5 frames.
-double frame_noise(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights, int k) {
+double frame_noise(const SelectionFrames& frames, const std::vector<double>& node_weights, int k) {
   const int count = static_cast<int>(frames.size());
   if (count < 5) return std::numeric_limits<double>::infinity();
   const int first = std::clamp(k - 2, 0, count - 5);
@@ -126,21 +130,25 @@ double frame_noise(const std::vector<SelectionFrame>& frames, const std::vector<
   for (int j = first; j < first + 5; ++j) {
     if (j != k) others.push_back(j);
   }
-  const double t = frames[static_cast<size_t>(k)].time;
+  const auto time = [&](int j) { return frames.outline(static_cast<size_t>(j)).time; };
+  const double t = time(k);
   std::vector<double> w;
   double gain = 1;
+  std::vector<std::shared_ptr<const SelectionFrame>> neighbours;  // their samples, held while used
   for (int a : others) {
     double l = 1;
     for (int b : others) {
-      if (b != a) l *= (t - frames[static_cast<size_t>(b)].time) / (frames[static_cast<size_t>(a)].time - frames[static_cast<size_t>(b)].time);
+      if (b != a) l *= (t - time(b)) / (time(a) - time(b));
     }
     w.push_back(l);
     gain += l * l;
+    neighbours.push_back(frames.sampled(static_cast<size_t>(a)));
   }
+  const std::shared_ptr<const SelectionFrame> frame = frames.sampled(static_cast<size_t>(k));
   double sum = 0, total = 0;
   for (size_t v = 0; v < node_weights.size(); ++v) {
-    Vec3 r = frames[static_cast<size_t>(k)].local_at(v);
-    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * frames[static_cast<size_t>(others[i])].local_at(v);
+    Vec3 r = frame->local_at(v);
+    for (size_t i = 0; i < others.size(); ++i) r -= w[i] * neighbours[i]->local_at(v);
     sum += node_weights[v] * r.squaredNorm();
     total += node_weights[v];
   }
@@ -611,10 +619,12 @@ void SequenceEncoder::sample_frames() {
   node_weights_.resize(nodes);
   for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
   selection_.assign(static_cast<size_t>(count), {});
+  samples_.reset();  // before the outlines it reads are replaced
+  samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
   samples_released_ = false;
   released_noise_.clear();
-  // A frame's registered surface on the nodes, in the capture frame, with its normals stored.
-  auto sample = [&](size_t index) {
+  // A frame's registered surface on the nodes, in the capture frame, and its normals.
+  auto sample = [&](size_t index, std::vector<Eigen::Vector3f>& normal) {
     SelectionFrame& s = selection_[index];
     s.time = capture_.frames[index].time;
     const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
@@ -622,23 +632,31 @@ void SequenceEncoder::sample_frames() {
     std::vector<Vec3> all = sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
     std::vector<Vec3> tu, tv, normals;
     geometry.frames(all, tu, tv, normals);
-    s.normal.resize(normals.size());
-    for (size_t v = 0; v < normals.size(); ++v) s.normal[v] = normals[v].cast<float>();
+    normal.resize(normals.size());
+    for (size_t v = 0; v < normals.size(); ++v) normal[v] = normals[v].cast<float>();
     all.resize(nodes);
     return all;
   };
-  const std::vector<Vec3> reference_world = sample(reference);
+  std::vector<Eigen::Vector3f> reference_normal;
+  const std::vector<Vec3> reference_world = sample(reference, reference_normal);
   parallel_for(count, options_.threads, [&](int i) {
     const auto index = static_cast<size_t>(i);
-    const std::vector<Vec3> world = index == reference ? reference_world : sample(index);
+    std::vector<Eigen::Vector3f> normal;
+    const std::vector<Vec3> world = index == reference ? reference_world : sample(index, normal);
+    if (index == reference) normal = reference_normal;
     // The head pose: the rigid motion taking the reference's registered surface onto this frame's,
     // fitted over every node (weighted by area). The reference's frame is the face frame.
     SelectionFrame& s = selection_[index];
     s.pose = index == reference ? RigidPose{} : fit_rigid_pose(reference_world, world, node_weights_);
     const RigidPose to_face = s.pose.inverse();
-    s.local.resize(nodes);
-    for (size_t v = 0; v < nodes; ++v) s.local[v] = to_face.apply(world[v]).cast<float>();
+    std::vector<Eigen::Vector3f> local(nodes);
+    for (size_t v = 0; v < nodes; ++v) local[v] = to_face.apply(world[v]).cast<float>();
+    // The reference's local vectors stay in its outline too: pose_centre reads them after the
+    // samples are released.
+    if (index == reference) s.local = local;
+    samples_->put(index, std::move(local), std::move(normal));
   });
+  report_.peak_selection_samples_in_memory = 0;
   report_.seconds_selection = seconds_since(start);
 }
 
@@ -721,17 +739,24 @@ Vec3 SequenceEncoder::pose_centre() const {
 
 void SequenceEncoder::release_selection_samples(const std::vector<int>& keyframes) {
   for (int k : keyframes) released_noise_[k] = noise_at(k);
-  const auto reference = static_cast<size_t>(options_.reference_frame);
-  for (size_t i = 0; i < selection_.size(); ++i) {
-    SelectionFrame& s = selection_[i];
-    if (i != reference) s.local = {};
-    s.normal = {};
-  }
+  note_selection_samples();
+  samples_.reset();
   samples_released_ = true;
 }
 
+void SequenceEncoder::note_selection_samples() {
+  if (!samples_) return;
+  report_.peak_selection_samples_in_memory = std::max(report_.peak_selection_samples_in_memory, samples_->peak_held());
+  report_.selection_spilled_bytes = samples_->spilled_bytes();
+}
+
+std::shared_ptr<const SelectionFrame> SequenceEncoder::selection_frame(int i) const {
+  if (!samples_) throw Error(ErrorCode::kInternal, "the selection's samples were released (sample_frames again)");
+  return samples_->sampled(static_cast<size_t>(i));
+}
+
 double SequenceEncoder::noise_at(int k) const {
-  if (!samples_released_) return frame_noise(selection_, node_weights_, k);
+  if (!samples_released_) return frame_noise(*samples_, node_weights_, k);
   const auto it = released_noise_.find(k);
   if (it == released_noise_.end()) throw Error(ErrorCode::kInternal, "frame " + std::to_string(k) + " is no keyframe the selection's samples were released for");
   return it->second;
@@ -746,7 +771,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   selection.sparse_interval = options_.sparse_frame_interval;
   selection.spline = options_.spline;
   selection.pose_centre = pose_centre();
-  return facemorph::select_keyframes(selection_, node_weights_, selection);
+  return facemorph::select_keyframes(*samples_, node_weights_, selection);
 }
 
 int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
@@ -761,7 +786,7 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   // capture, N = 193 → 97 left the decoded error against the noise-free surface unchanged while
   // the fields took a quarter of the bytes; spec/method.md §7.6.)
   std::vector<double> noise;
-  for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(selection_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
+  for (int k = 0; k < frame_count(); ++k) noise.push_back(frame_noise(*samples_, node_weights_, k) / selection_[static_cast<size_t>(k)].diagonal);
   std::nth_element(noise.begin(), noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2), noise.end());
   report_.median_noise = std::isfinite(noise[noise.size() / 2]) ? noise[noise.size() / 2] : 0.0;
   // Nor below half the error the spline makes between the chosen keyframes: errors add in

@@ -12,21 +12,21 @@ namespace facemorph {
 
 namespace {
 
-void check_frames(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights) {
-  if (frames.empty()) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: no frames");
+void check_frames(const SelectionFrames& frames, const std::vector<double>& node_weights) {
+  if (frames.size() == 0) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: no frames");
   for (size_t i = 0; i < frames.size(); ++i) {
-    const SelectionFrame& f = frames[i];
-    if (f.local.size() != node_weights.size() || f.normal.size() != node_weights.size()) {
+    const std::shared_ptr<const SelectionFrame> f = frames.sampled(i);
+    if (f->local.size() != node_weights.size() || f->normal.size() != node_weights.size()) {
       throw Error(ErrorCode::kInvalidArgument, "keyframe selection: frame " + std::to_string(i) + " has arrays of another size");
     }
-    if (i > 0 && !(f.time > frames[i - 1].time)) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: times must increase");
+    if (i > 0 && !(frames.outline(i).time > frames.outline(i - 1).time)) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: times must increase");
   }
 }
 
 // Predicts frames from a set of keyframes as the decoder would, and measures the error.
 class Predictor {
  public:
-  Predictor(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights, SplineKind kind, const Vec3& centre)
+  Predictor(const SelectionFrames& frames, const std::vector<double>& node_weights, SplineKind kind, const Vec3& centre)
       : frames_(frames), weights_(node_weights), kind_(kind), centre_(centre) {
     for (double w : node_weights) total_weight_ += w;
   }
@@ -37,8 +37,8 @@ class Predictor {
     std::vector<double> times;
     std::vector<RigidPose> poses;
     for (int k : keys) {
-      times.push_back(frames_[static_cast<size_t>(k)].time);
-      poses.push_back(frames_[static_cast<size_t>(k)].pose);
+      times.push_back(frames_.outline(static_cast<size_t>(k)).time);
+      poses.push_back(frames_.outline(static_cast<size_t>(k)).pose);
     }
     const KeyframeSpline spline(times, kind_);
     const std::vector<Vec3> rotations = unwrap_rotations(poses);
@@ -60,20 +60,23 @@ class Predictor {
  private:
   double error(int j, const std::vector<int>& keys, const KeyframeSpline& spline, const std::vector<RigidPose>& poses,
                const std::vector<Vec3>& rotations) const {
-    const SelectionFrame& frame = frames_[static_cast<size_t>(j)];
+    const std::shared_ptr<const SelectionFrame> held = frames_.sampled(static_cast<size_t>(j));
+    const SelectionFrame& frame = *held;
     const SplineWeights w = spline.weights(frame.time);
     const RigidPose pose = blend_poses(poses, rotations, w, centre_);
+    std::vector<std::shared_ptr<const SelectionFrame>> blended;  // the keyframes the spline blends at t_j
+    for (int32_t key : w.keys) blended.push_back(frames_.sampled(static_cast<size_t>(keys[static_cast<size_t>(key)])));
     double sum = 0;
     for (size_t v = 0; v < weights_.size(); ++v) {
       Vec3 local = Vec3::Zero();
-      for (size_t i = 0; i < w.keys.size(); ++i) local += w.weights[i] * frames_[static_cast<size_t>(keys[static_cast<size_t>(w.keys[i])])].local_at(v);
+      for (size_t i = 0; i < w.keys.size(); ++i) local += w.weights[i] * blended[i]->local_at(v);
       const double offset = (pose.apply(local) - frame.world_at(v)).dot(frame.normal_at(v));
       sum += weights_[v] * offset * offset;
     }
     return std::sqrt(sum / std::max(total_weight_, 1e-300)) / frame.diagonal;
   }
 
-  const std::vector<SelectionFrame>& frames_;
+  const SelectionFrames& frames_;
   const std::vector<double>& weights_;
   SplineKind kind_;
   Vec3 centre_;
@@ -139,6 +142,16 @@ void refine(const Predictor& predictor, std::vector<int>& keys, std::vector<doub
 
 std::vector<double> prediction_errors(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
                                       const std::vector<int>& keyframes, SplineKind kind, const Vec3& pose_centre) {
+  return prediction_errors(SelectionFramesInMemory(frames), node_weights, keyframes, kind, pose_centre);
+}
+
+KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
+                                   const SelectionOptions& options) {
+  return select_keyframes(SelectionFramesInMemory(frames), node_weights, options);
+}
+
+std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights, const std::vector<int>& keyframes,
+                                      SplineKind kind, const Vec3& pose_centre) {
   check_frames(frames, node_weights);
   for (size_t i = 0; i < keyframes.size(); ++i) {
     if (keyframes[i] < 0 || static_cast<size_t>(keyframes[i]) >= frames.size() || (i > 0 && keyframes[i] <= keyframes[i - 1])) {
@@ -150,8 +163,7 @@ std::vector<double> prediction_errors(const std::vector<SelectionFrame>& frames,
   return errors;
 }
 
-KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
-                                   const SelectionOptions& options) {
+KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vector<double>& node_weights, const SelectionOptions& options) {
   check_frames(frames, node_weights);
   const int count = static_cast<int>(frames.size());
   const Predictor predictor(frames, node_weights, options.spline, options.pose_centre);
@@ -181,11 +193,12 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
     // Medusa (232 frames, 23 keyframes, linear): even 0.42% mean / 1.93% worst, greedy by the
     // worst 0.40% / 0.78%, even then moved 0.30% / 0.78% (spec/method.md §7.5).
     const int budget = std::clamp(static_cast<int>(std::lround(options.fraction * count)), 2, count);
-    const double first = frames.front().time, span = frames.back().time - first;
+    const double first = frames.outline(0).time, span = frames.outline(frames.size() - 1).time - first;
+    std::vector<double> times(frames.size());
+    for (size_t j = 0; j < frames.size(); ++j) times[j] = frames.outline(j).time;
     for (int k = 0; k < budget; ++k) {
       const double target = first + span * k / (budget - 1);
-      int index = static_cast<int>(std::lower_bound(frames.begin(), frames.end(), target, [](const SelectionFrame& f, double t) { return f.time < t; }) -
-                                   frames.begin());
+      int index = static_cast<int>(std::lower_bound(times.begin(), times.end(), target) - times.begin());
       index = std::clamp(index, keys.empty() ? 0 : keys.back() + 1, count - (budget - k));
       keys.push_back(index);
     }
@@ -194,7 +207,7 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
     refine(predictor, keys, errors, 0);
     selection.budget = budget;
     std::vector<double> intervals;
-    for (size_t j = 1; j < frames.size(); ++j) intervals.push_back(frames[j].time - frames[j - 1].time);
+    for (size_t j = 1; j < frames.size(); ++j) intervals.push_back(times[j] - times[j - 1]);
     if (!intervals.empty()) {
       std::nth_element(intervals.begin(), intervals.begin() + static_cast<std::ptrdiff_t>(intervals.size() / 2), intervals.end());
       selection.median_interval = intervals[intervals.size() / 2];

@@ -7,6 +7,7 @@
 #include "facemorph/pose.hpp"
 #include "facemorph/spline.hpp"
 
+#include <memory>
 #include <vector>
 
 namespace facemorph {
@@ -27,6 +28,31 @@ struct SelectionFrame {
   Vec3 local_at(size_t v) const { return local[v].cast<double>(); }
   Vec3 world_at(size_t v) const { return pose.apply(local_at(v)); }  // capture frame
   Vec3 normal_at(size_t v) const { return normal[v].cast<double>(); }
+};
+
+// The frames the selection reads: every frame's time, pose and diagonal, and a frame's samples (its
+// local and normal vectors) when asked, which a store may keep outside memory (the encoder keeps
+// them in its temporary file: 79 kB a frame, and a long capture has thousands).
+class SelectionFrames {
+ public:
+  virtual ~SelectionFrames() = default;
+  virtual size_t size() const = 0;
+  // Frame i's time, pose and diagonal (its vectors may be empty here).
+  virtual const SelectionFrame& outline(size_t i) const = 0;
+  // Frame i with its vectors, held while the pointer is. Thread-safe.
+  virtual std::shared_ptr<const SelectionFrame> sampled(size_t i) const = 0;
+};
+
+// Frames in memory, as they are (the vector outlives the view).
+class SelectionFramesInMemory final : public SelectionFrames {
+ public:
+  explicit SelectionFramesInMemory(const std::vector<SelectionFrame>& frames) : frames_(frames) {}
+  size_t size() const override { return frames_.size(); }
+  const SelectionFrame& outline(size_t i) const override { return frames_.at(i); }
+  std::shared_ptr<const SelectionFrame> sampled(size_t i) const override { return {std::shared_ptr<const SelectionFrame>(), &frames_.at(i)}; }
+
+ private:
+  const std::vector<SelectionFrame>& frames_;
 };
 
 struct SelectionOptions {
@@ -63,10 +89,13 @@ struct KeyframeSelection {
 // frame's normal — the point-to-surface distance to first order, blind to sliding along the
 // surface, which costs nothing — divided by the frame's diagonal. Throws kInvalidArgument for
 // fewer than one frame, frames of unequal sizes or times not increasing.
+KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vector<double>& node_weights, const SelectionOptions& options);
 KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
                                    const SelectionOptions& options);
 
 // The predicted error of every frame given the keyframes (frame indices, increasing).
+std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights, const std::vector<int>& keyframes,
+                                      SplineKind spline, const Vec3& pose_centre);
 std::vector<double> prediction_errors(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
                                       const std::vector<int>& keyframes, SplineKind spline, const Vec3& pose_centre);
 

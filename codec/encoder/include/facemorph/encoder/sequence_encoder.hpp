@@ -20,6 +20,7 @@
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/error.hpp"
@@ -239,6 +240,10 @@ struct EncodeReport {
   // own peak_held() counts what the later steps and the writer read back of them).
   int peak_keyframes_in_memory = 0;
   uint64_t keyframes_spilled_bytes = 0;
+  // The same for the selection's samples (SelectionStore, with options.spill_frames): the most
+  // frames' samples in memory at once (its cache's and those in use), and the bytes written.
+  int peak_selection_samples_in_memory = 0;
+  uint64_t selection_spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
          seconds_texture = 0;
 };
@@ -358,7 +363,11 @@ class SequenceEncoder {
   // (options().keyframe_fit). Reads each surface back twice and stores the fitted one in its place.
   void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
+  // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
+  // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
+  // samples, read back from the store (kInternal once release_selection_samples has run).
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
+  std::shared_ptr<const SelectionFrame> selection_frame(int i) const;
   const std::vector<double>& selection_weights() const { return node_weights_; }
   const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
   // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
@@ -370,6 +379,8 @@ class SequenceEncoder {
   EncodeReport& report() { return report_; }
 
  private:
+  // The selection's samples into the report: their store's peak and bytes (release_selection_samples).
+  void note_selection_samples();
   struct FrameFailure {  // why a frame failed; code kOk while it has not
     ErrorCode code = ErrorCode::kOk;
     std::string reason;
@@ -412,6 +423,7 @@ class SequenceEncoder {
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
   DiskReparametrisation reparametrisation_;
   std::vector<SelectionFrame> selection_;
+  std::unique_ptr<SelectionStore> samples_;  // their samples (sample_frames until release_selection_samples)
   // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
   bool samples_released_ = false;
   std::map<int, double> released_noise_;
