@@ -154,6 +154,8 @@ TEST(StoredSequence, GivesBackTheSequencePutInAndWhatReplacedIt) {
     moved.translation.x() += 0.5;
     stored->set_pose(2, moved);
     EXPECT_EQ(stored->to_sequence().keyframes[2].pose.translation.x(), moved.translation.x());
+    EXPECT_EQ(stored->outline().poses[2].translation.x(), moved.translation.x()) << "the outline keeps the pose set";
+    EXPECT_EQ(stored->keyframe(2)->pose.translation.x(), moved.translation.x());
   }
   Sequence unordered = s;
   unordered.keyframes[1].time = unordered.keyframes[0].time;

@@ -14,6 +14,7 @@ StoredSequence::StoredSequence(Sequence shape, SpillMode mode)
   fields_.reset(size());
   holes_.reset(size());
   textures_.reset(size());
+  outline_ = outline_of(shape_);  // its array sizes follow keyframe 0's puts
 }
 
 std::unique_ptr<StoredSequence> StoredSequence::of(Sequence&& sequence, SpillMode mode) {
@@ -48,26 +49,25 @@ Sequence StoredSequence::to_sequence() const {
   return sequence;
 }
 
-void StoredSequence::put_fields(size_t k, GridFields&& fields) { fields_.put(k, std::move(fields)); }
-void StoredSequence::put_hole_level(size_t k, std::vector<double>&& level) { holes_.put(k, std::move(level)); }
-void StoredSequence::put_texture(size_t k, Image&& texture) { textures_.put(k, std::move(texture)); }
+void StoredSequence::put_fields(size_t k, GridFields&& fields) {
+  if (k == 0) outline_.fixed_node_count = fields.fixed_nodes.size();
+  fields_.put(k, std::move(fields));
+}
+
+void StoredSequence::put_hole_level(size_t k, std::vector<double>&& level) {
+  if (k == 0) outline_.has_holes = !level.empty();
+  holes_.put(k, std::move(level));
+}
+
+void StoredSequence::put_texture(size_t k, Image&& texture) {
+  if (k == 0) outline_.texture_size = texture.empty() ? 0 : texture.width;
+  textures_.put(k, std::move(texture));
+}
 
 void StoredSequence::set_pose(size_t k, const RigidPose& pose) {
   if (k >= size()) throw Error(ErrorCode::kInternal, "stored sequence: keyframe " + std::to_string(k) + " is past its size");
   shape_.keyframes[k].pose = pose;
-}
-
-const SequenceOutline& StoredSequence::outline() const {
-  // Made when first asked (the file writer asks once the steps are done), from the shape and
-  // keyframe 0's arrays, which every keyframe shares in size.
-  std::call_once(outline_made_, [this] {
-    outline_ = outline_of(shape_);
-    outline_.fixed_node_count = fields_.get(0)->fixed_nodes.size();
-    outline_.has_holes = !holes_.get(0)->empty();
-    const std::shared_ptr<const Image> texture = textures_.get(0);
-    outline_.texture_size = texture->empty() ? 0 : texture->width;
-  });
-  return outline_;
+  outline_.poses[k] = pose;
 }
 
 std::shared_ptr<const Keyframe> StoredSequence::keyframe(size_t k) const {

@@ -12,7 +12,6 @@
 #include "facemorph/sequence.hpp"
 
 #include <memory>
-#include <mutex>
 
 namespace facemorph {
 
@@ -30,7 +29,8 @@ class StoredSequence final : public KeyframeSource {
   const Sequence& shape() const { return shape_; }
   size_t size() const { return shape_.keyframes.size(); }
 
-  // Keyframe k's arrays, put from any thread (each k by one). A put replaces what was there.
+  // Keyframe k's arrays, put from any thread (each k by one; keyframe 0's sets the outline's array
+  // sizes). A put replaces what was there; a pose set is the shape's and the outline's.
   void put_fields(size_t k, GridFields&& fields);
   void put_hole_level(size_t k, std::vector<double>&& level);  // an empty one: the sequence keeps no holes
   void put_texture(size_t k, Image&& texture);                 // an empty one: none
@@ -39,10 +39,9 @@ class StoredSequence final : public KeyframeSource {
   std::shared_ptr<const GridFields> fields(size_t k) const { return fields_.get(k); }
   std::shared_ptr<const std::vector<double>> hole_level(size_t k) const { return holes_.get(k); }
 
-  // KeyframeSource, for the steps' result: the outline is made on the first call (once every array
-  // and pose is put: later puts do not change it); keyframe(k) holds its time, pose, fields and hole
-  // level (not its texture: texture(k)).
-  const SequenceOutline& outline() const override;
+  // KeyframeSource, for the steps' result (read it once every array is put): keyframe(k) holds its
+  // time, pose, fields and hole level (not its texture: texture(k)).
+  const SequenceOutline& outline() const override { return outline_; }
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override;
   std::shared_ptr<const Image> texture(size_t k) const override { return textures_.get(k); }
   size_t surfaces_kept() const override { return 1; }
@@ -58,8 +57,7 @@ class StoredSequence final : public KeyframeSource {
   FieldsStore fields_;
   HoleLevelStore holes_;
   TextureStore textures_;
-  mutable std::once_flag outline_made_;
-  mutable SequenceOutline outline_;
+  SequenceOutline outline_;
 };
 
 }  // namespace facemorph
