@@ -435,6 +435,11 @@ int main(int argc, char** argv) {
       std::printf("  frames' maps: %.0f MB in a temporary file, at most %d in memory at once\n", static_cast<double>(report.spilled_bytes) / 1e6,
                   report.peak_frames_in_memory);
     }
+    if (report.selection_spilled_bytes > 0 || report.keyframes_spilled_bytes > 0) {
+      std::printf("  the selection's samples: %.0f MB, at most %d frames' in memory; the keyframes' arrays: %.0f MB, at most %d a step in memory\n",
+                  static_cast<double>(report.selection_spilled_bytes) / 1e6, report.peak_selection_samples_in_memory,
+                  static_cast<double>(report.keyframes_spilled_bytes) / 1e6, report.peak_keyframes_in_memory);
+    }
     if (report.registration_fallbacks > 0) {
       std::printf("  %d frames fell back in registration:\n", report.registration_fallbacks);
       for (const EncodedFrameReport& f : report.frames) {

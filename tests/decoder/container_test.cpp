@@ -704,11 +704,13 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
 // at once, and may alter a keyframe as it is read (a source that disagrees with its outline).
 class WatchedSource final : public KeyframeSource {
  public:
-  explicit WatchedSource(const Sequence& sequence) : inner_(memory_source(std::make_shared<const Sequence>(sequence))) {}
+  explicit WatchedSource(const Sequence& sequence) : inner_(memory_source(std::make_shared<const Sequence>(sequence))), outline_(inner_->outline()) {}
   std::function<void(size_t, Keyframe&)> alter;
+  std::function<void(size_t, Image&)> alter_texture;
+  SequenceOutline& outline_to_alter() { return outline_; }
   mutable int keyframes_alive = 0, keyframes_peak = 0, textures_alive = 0, textures_peak = 0;
 
-  const SequenceOutline& outline() const override { return inner_->outline(); }
+  const SequenceOutline& outline() const override { return outline_; }
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
     auto key = std::make_shared<Keyframe>(*inner_->keyframe(k));
     key->texture = {};  // a source may leave it empty: texture(k)
@@ -716,7 +718,9 @@ class WatchedSource final : public KeyframeSource {
     return watched(std::move(key), keyframes_alive, keyframes_peak);
   }
   std::shared_ptr<const Image> texture(size_t k) const override {
-    return watched(std::make_shared<Image>(*inner_->texture(k)), textures_alive, textures_peak);
+    auto image = std::make_shared<Image>(*inner_->texture(k));
+    if (alter_texture) alter_texture(k, *image);
+    return watched(std::move(image), textures_alive, textures_peak);
   }
   size_t surfaces_kept() const override { return 1; }
   uint64_t bytes_held() const override { return 0; }
@@ -732,6 +736,7 @@ class WatchedSource final : public KeyframeSource {
     });
   }
   std::shared_ptr<const KeyframeSource> inner_;
+  SequenceOutline outline_;
 };
 
 TEST(Container, TheWriterReadsASourceAKeyframeAtATimeAndWritesWhatTheSequenceWrites) {
@@ -761,6 +766,29 @@ TEST(Container, TheWriterChecksEveryKeyframeItReadsFromASource) {
   refused([](size_t k, Keyframe& key) { if (k == 1) key.hole_level.pop_back(); }, "keyframe 1: ");
   refused([](size_t k, Keyframe& key) { if (k == 1) key.pose.translation.x() = std::nan(""); }, "keyframe 1: the pose");
   refused([](size_t k, Keyframe& key) { if (k == 1) key.fields.grid_n += 2; }, "keyframe 1");
+  // Fields valid in themselves, but not the sequence's: each would write a file the reader refuses,
+  // or index G's arrays out of range.
+  refused([](size_t k, Keyframe& key) {
+    if (k != 1) return;
+    key.fields.fixed_nodes.pop_back();
+    key.fields.fixed_laplacian.pop_back();
+  }, "keyframe 1: fixed-frame nodes differ from keyframe 0's");
+  const Sequence coarse = small_sequence(9);
+  refused([&](size_t k, Keyframe& key) { if (k == 1) key.fields = coarse.keyframes[1].fields; }, "keyframe 1: fields of another grid or representation");
+  {
+    WatchedSource source(s);
+    source.alter_texture = [](size_t k, Image& image) { if (k == 2) image = Image(image.width, image.height / 2, 3); };
+    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: the texture is not 16 x 16 RGB", [&] { encode_sequence_file(source, metadata); });
+  }
+  {
+    WatchedSource source(s);
+    source.outline_to_alter().times[2] = source.outline_to_alter().times[1];
+    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: time does not increase", [&] { encode_sequence_file(source, metadata); });
+  }
+  for (const SequenceFileMetadata& coding : codings()) {
+    WatchedSource source(s);  // unaltered: written, and read back as the sequence's file
+    EXPECT_TRUE(encode_sequence_file(source, coding) == encode_sequence_file(s, coding));
+  }
 }
 
 }  // namespace

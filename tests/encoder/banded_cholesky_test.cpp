@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <gtest/gtest.h>
 
+#include <deque>
 #include <random>
 
 namespace facemorph {
@@ -37,6 +38,48 @@ TEST(BandedCholesky, IsTheDenseFactorWithinTheBandAndZeroOutside) {
           EXPECT_NEAR(l(i, j), 0, 1e-12) << "the dense factor fills outside the band";
         }
       }
+    }
+  }
+}
+
+// The fit's streamed solve: rows of B in, forward substitution holding `band` rows, then back
+// substitution from the last, against Eigen's dense solve of A X = B.
+TEST(BandedCholesky, StreamedSubstitutionSolvesTheSystemRowByRow) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<double> value(-1, 1);
+  for (const auto& [size, band] : {std::pair{1, 0}, std::pair{2, 1}, std::pair{7, 0}, std::pair{50, 3}, std::pair{30, 5}}) {
+    SymmetricBand a(size, band);
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(size, size);
+    for (int i = 0; i < size; ++i) {
+      for (int j = std::max(0, i - band); j <= i; ++j) {
+        const double v = i == j ? 2.0 * (band + 1) : value(random);
+        a.at(i, j) = v;
+        dense(i, j) = dense(j, i) = v;
+      }
+    }
+    const Eigen::MatrixXd b = Eigen::MatrixXd::Random(size, 4);
+    const BandedCholesky factor(a);
+    std::vector<Eigen::VectorXd> y(static_cast<size_t>(size));
+    std::deque<Eigen::VectorXd> window;
+    for (int k = 0; k < size; ++k) {
+      Eigen::VectorXd row = b.row(k).transpose();
+      factor.forward(k, row, window);
+      y[static_cast<size_t>(k)] = row;
+      window.push_back(row);
+      if (static_cast<int>(window.size()) > band) window.pop_front();
+    }
+    window.clear();
+    const Eigen::MatrixXd x = dense.ldlt().solve(b);
+    for (int k = size - 1; k >= 0; --k) {
+      Eigen::VectorXd row = y[static_cast<size_t>(k)];
+      factor.backward(k, row, window);
+      EXPECT_LT((row - x.row(k).transpose()).cwiseAbs().maxCoeff(), 1e-12) << size << " " << band << " row " << k;
+      window.push_front(row);
+      if (static_cast<int>(window.size()) > band) window.pop_back();
+    }
+    if (size > 2 && band > 0) {
+      Eigen::VectorXd row = b.row(2).transpose();
+      testing::expect_error(ErrorCode::kInternal, "forward step 2", [&] { factor.forward(2, row, {}); });
     }
   }
 }

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 namespace facemorph {
@@ -162,6 +163,38 @@ TEST(StoredSequence, GivesBackTheSequencePutInAndWhatReplacedIt) {
   testing::expect_error(ErrorCode::kInvalidArgument, "time does not increase", [&] { StoredSequence::of(std::move(unordered), SpillMode::kMemory); });
   const StoredSequence empty(s, SpillMode::kSpill);  // the shape only: nothing put yet
   testing::expect_error(ErrorCode::kInternal, "never stored", [&] { empty.fields(0); });
+}
+
+// What choose_field_coding gives back is what the file holds: the hole levels too, in whole steps.
+TEST(StoredSequence, TheFieldPrecisionGivesBackTheHoleLevelsAsTheFileHoldsThem) {
+  Sequence s = small_sequence(17, 16);
+  ASSERT_TRUE(s.has_holes());
+  const FieldCoding coding = choose_field_coding(s, {1e-4, 2});
+  const double step = coding.steps[kScalarArrayCount];
+  for (const Keyframe& key : s.keyframes) {
+    ASSERT_FALSE(key.hole_level.empty());
+    for (double v : key.hole_level) ASSERT_EQ(v, step * std::nearbyint(v / step)) << "a hole level not rounded";
+  }
+}
+
+// The encoder's steps on a Sequence move it into a store and back, also when they throw.
+TEST(StoredSequence, TheStepsOnASequenceGiveItBackWhenTheyThrow) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 6;
+  synth.vertices = 500;
+  synth.texture_size = 16;
+  write_synthetic_capture(dir.path(), synth);
+  SequenceEncoder encoder(read_capture(dir.path()), {});
+  const Sequence original = small_sequence(17, 16);
+  const std::vector<uint8_t> file = encode_sequence_file(original, small_metadata());
+  Sequence s = original;
+  testing::expect_error(ErrorCode::kInvalidArgument, "not the sequence's", [&] { encoder.share_textures(s, {0}); });
+  EXPECT_TRUE(encode_sequence_file(s, small_metadata()) == file) << "share_textures lost the sequence";
+  encoder.options().auto_field_error = false;
+  encoder.options().field_precision.target_error = -1;
+  testing::expect_error(ErrorCode::kInvalidArgument, "target error", [&] { encoder.round_fields(s, KeyframeSelection{}); });
+  EXPECT_TRUE(encode_sequence_file(s, small_metadata()) == file) << "round_fields lost the sequence";
 }
 
 TEST(KeyframeStore, TheEncoderHoldsAFewKeyframesAtOnceAndWritesTheSameFile) {

@@ -591,15 +591,8 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
   validate_sequence(sequence);
   // The keyframes moved into a store for the search (in the temporary file with options.spill, as
   // the encoder keeps them) and back, rounded (back also when the search throws).
-  const std::unique_ptr<StoredSequence> keys = StoredSequence::of(std::move(sequence), options.spill ? SpillMode::kSpill : SpillMode::kMemory);
-  try {
-    const FieldCoding coding = choose_field_coding(*keys, options, report);
-    sequence = keys->to_sequence();
-    return coding;
-  } catch (...) {
-    sequence = keys->to_sequence();
-    throw;
-  }
+  return StoredSequence::around(sequence, options.spill ? SpillMode::kSpill : SpillMode::kMemory,
+                                [&](StoredSequence& keys) { return choose_field_coding(keys, options, report); });
 }
 
 }  // namespace facemorph

@@ -619,7 +619,7 @@ void SequenceEncoder::sample_frames() {
   node_weights_.resize(nodes);
   for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
   selection_.assign(static_cast<size_t>(count), {});
-  samples_.reset();  // before the outlines it reads are replaced
+  samples_.reset();  // the samples of the frames as sampled before, if any
   samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
   samples_released_ = false;
   released_noise_.clear();
@@ -968,9 +968,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
       Eigen::VectorXd y = open.count(next) ? std::move(open[next]) : Eigen::VectorXd::Zero(n);
       open.erase(next);
       y += (1 + mu) * flat_const(*local.get(static_cast<size_t>(next)));
-      const auto before = static_cast<Eigen::Index>(recent.size());
-      for (Eigen::Index i = 0; i < before; ++i) y -= factor.at(static_cast<int>(next), static_cast<int>(next - before + i)) * recent[static_cast<size_t>(i)];
-      y /= factor.at(static_cast<int>(next), static_cast<int>(next));
+      factor.forward(static_cast<int>(next), y, recent);
       std::vector<Vec3> stored(nodes.size());
       flat(stored) = y;
       forward.put(static_cast<size_t>(next), std::move(stored));
@@ -994,6 +992,9 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
       const SplineWeights& w = weights[begin + static_cast<size_t>(c)];
       const auto x = flat(samples[static_cast<size_t>(c)]);
       for (size_t a = 0; a < w.keys.size(); ++a) {
+        // last_use keeps a column open until its last frame is in; a frame reaching one already
+        // solved would be lost from it.
+        if (w.keys[a] < next) throw Error(ErrorCode::kInternal, "keyframe fit: a frame reaches a keyframe already solved");
         Eigen::VectorXd& column = open[w.keys[a]];
         if (column.size() == 0) column = Eigen::VectorXd::Zero(n);
         column += w.weights[a] * x;
@@ -1008,8 +1009,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   std::deque<Eigen::VectorXd> after;  // P_{k + 1} .. P_{k + band}
   for (Eigen::Index k = keys - 1; k >= 0; --k) {
     Eigen::VectorXd fitted = flat_const(*forward.get(static_cast<size_t>(k)));
-    for (size_t i = 0; i < after.size(); ++i) fitted -= factor.at(static_cast<int>(k + 1 + static_cast<Eigen::Index>(i)), static_cast<int>(k)) * after[i];
-    fitted /= factor.at(static_cast<int>(k), static_cast<int>(k));
+    factor.backward(static_cast<int>(k), fitted, after);
     std::vector<Vec3> own = *local.get(static_cast<size_t>(k));  // a copy to move: the stored one is read-only
     double moved = 0, total = 0;
     for (Eigen::Index v = 0; v < mass.size(); ++v) {
@@ -1045,10 +1045,7 @@ double auto_field_error(const KeyframeSelection& chosen) {
 }  // namespace
 
 FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
-  const std::unique_ptr<StoredSequence> stored = StoredSequence::of(std::move(sequence), SpillMode::kMemory);
-  const FieldCoding coding = round_fields(*stored, chosen);
-  sequence = stored->to_sequence();
-  return coding;
+  return StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { return round_fields(stored, chosen); });
 }
 
 FieldCoding SequenceEncoder::round_fields(StoredSequence& keys, const KeyframeSelection& chosen) {
@@ -1108,9 +1105,7 @@ std::vector<int> SequenceEncoder::choose_texture_qualities(const StoredSequence&
 }
 
 void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>& keyframes) {
-  const std::unique_ptr<StoredSequence> stored = StoredSequence::of(std::move(sequence), SpillMode::kMemory);
-  share_textures(*stored, keyframes);
-  sequence = stored->to_sequence();
+  StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { share_textures(stored, keyframes); });
 }
 
 void SequenceEncoder::share_textures(StoredSequence& stored, const std::vector<int>& keyframes) {

@@ -39,4 +39,18 @@ BandedCholesky::BandedCholesky(const SymmetricBand& a) : factor_(a.size(), a.ban
   }
 }
 
+void BandedCholesky::forward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& before) const {
+  const int m = static_cast<int>(before.size());
+  if (k < 0 || k >= size() || m != std::min(k, band())) throw Error(ErrorCode::kInternal, "band solve: forward step " + std::to_string(k) + " given " + std::to_string(m) + " rows before it");
+  for (int i = 0; i < m; ++i) row -= at(k, k - m + i) * before[static_cast<size_t>(i)];
+  row /= at(k, k);
+}
+
+void BandedCholesky::backward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& after) const {
+  const int m = static_cast<int>(after.size());
+  if (k < 0 || k >= size() || m != std::min(size() - 1 - k, band())) throw Error(ErrorCode::kInternal, "band solve: back step " + std::to_string(k) + " given " + std::to_string(m) + " rows after it");
+  for (int i = 0; i < m; ++i) row -= at(k + 1 + i, k) * after[static_cast<size_t>(i)];
+  row /= at(k, k);
+}
+
 }  // namespace facemorph

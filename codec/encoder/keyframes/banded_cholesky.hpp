@@ -6,6 +6,9 @@
 // right-hand sides through forward and back substitution (sequence_encoder.cpp).
 #pragma once
 
+#include <Eigen/Core>
+
+#include <deque>
 #include <vector>
 
 namespace facemorph {
@@ -32,6 +35,13 @@ class BandedCholesky {
   int band() const { return factor_.band(); }
   // L(i, j) for j ≤ i ≤ j + band.
   double at(int i, int j) const { return factor_.at(i, j); }
+  // Solving A X = B a row of B at a time (each row a vector: the fit's rows are surfaces), holding
+  // only the `band` rows next to the one solved. Forward substitution's step k: `row` (B's row k)
+  // becomes y_k of L y = B, given y_{k − m} .. y_{k − 1} in `before` (m = min(k, band), oldest
+  // first). Back substitution's step k: `row` (y_k) becomes X's row k of Lᵀ X = y, given X's rows
+  // k + 1 .. k + m in `after` (nearest first). kInternal for another m.
+  void forward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& before) const;
+  void backward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& after) const;
 
  private:
   SymmetricBand factor_;

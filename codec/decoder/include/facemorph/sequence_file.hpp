@@ -109,8 +109,9 @@ void round_to_field_steps(Keyframe& key, const FieldCoding& coding);
 // at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a sequence validate_sequence rejects,
 // a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
-// The same from a source's keyframes, read one at a time (a group's in order, each texture up to
-// three times), so that the writer holds the chunks it has made, not the sequence: an encoder's
+// The same from a source's keyframes, read one at a time (a group's in order; each texture a few
+// times: checked, hashed, coded, and compared with those of the same hash), so that the writer
+// holds the chunks it has made, not the sequence: an encoder's
 // keyframes may stay in its temporary file until written. Each keyframe is checked as
 // validate_sequence checks it (kInvalidArgument naming it), and must carry the outline's time.
 std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata);

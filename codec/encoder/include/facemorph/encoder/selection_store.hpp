@@ -28,8 +28,9 @@ class SelectionStore final : public SelectionFrames {
   SelectionStore(const SelectionStore&) = delete;
   SelectionStore& operator=(const SelectionStore&) = delete;
 
-  // Frame i's samples (its local and normal vectors; the rest is the outline's). Thread-safe for
-  // different i. Throws kIo when the file cannot be written.
+  // Frame i's samples (its local and normal vectors; the rest is the outline's), once per frame
+  // (a frame already read back would stay cached as it was). Thread-safe for different i. Throws
+  // kIo when the file cannot be written.
   void put(size_t i, std::vector<Eigen::Vector3f>&& local, std::vector<Eigen::Vector3f>&& normal);
 
   size_t size() const override { return outlines_.size(); }

@@ -12,6 +12,7 @@
 #include "facemorph/sequence.hpp"
 
 #include <memory>
+#include <type_traits>
 
 namespace facemorph {
 
@@ -24,6 +25,25 @@ class StoredSequence final : public KeyframeSource {
   static std::unique_ptr<StoredSequence> of(Sequence&& sequence, SpillMode mode);
   // Every keyframe read back, validated: the Sequence a caller of the in-memory API gets.
   Sequence to_sequence() const;
+  // step(stored) on `sequence` moved into a store (`mode`), and the sequence moved back, as the
+  // step left it, also when the step throws: the Sequence overloads of the encoder's steps.
+  template <typename Step>
+  static auto around(Sequence& sequence, SpillMode mode, const Step& step) {
+    const std::unique_ptr<StoredSequence> stored = of(std::move(sequence), mode);
+    try {
+      if constexpr (std::is_void_v<decltype(step(*stored))>) {
+        step(*stored);
+        sequence = stored->to_sequence();
+      } else {
+        auto result = step(*stored);
+        sequence = stored->to_sequence();
+        return result;
+      }
+    } catch (...) {
+      sequence = stored->to_sequence();
+      throw;
+    }
+  }
 
   // The sequence without its arrays: every keyframe's time and pose.
   const Sequence& shape() const { return shape_; }
@@ -44,7 +64,9 @@ class StoredSequence final : public KeyframeSource {
   const SequenceOutline& outline() const override { return outline_; }
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override;
   std::shared_ptr<const Image> texture(size_t k) const override { return textures_.get(k); }
-  size_t surfaces_kept() const override { return 1; }
+  // A decoder on it may keep every keyframe's surface, as on a sequence in memory (fmenc only
+  // writes from it).
+  size_t surfaces_kept() const override { return size(); }
   uint64_t bytes_held() const override { return 0; }
 
   // The most arrays read back and in memory at once, and the bytes written to the temporary file.
