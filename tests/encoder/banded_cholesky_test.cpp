@@ -14,20 +14,26 @@
 namespace facemorph {
 namespace {
 
+// Fills `a` with a random matrix of its band, diagonally dominant (so positive definite), and
+// returns the same matrix dense.
+Eigen::MatrixXd random_band(SymmetricBand& a, std::mt19937& random) {
+  std::uniform_real_distribution<double> value(-1, 1);
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(a.size(), a.size());
+  for (int i = 0; i < a.size(); ++i) {
+    for (int j = std::max(0, i - a.band()); j <= i; ++j) {
+      const double v = i == j ? 2.0 * (a.band() + 1) : value(random);
+      a.at(i, j) = v;
+      dense(i, j) = dense(j, i) = v;
+    }
+  }
+  return dense;
+}
+
 TEST(BandedCholesky, IsTheDenseFactorWithinTheBandAndZeroOutside) {
   std::mt19937 random(7);
-  std::uniform_real_distribution<double> value(-1, 1);
   for (const auto& [size, band] : {std::pair{1, 0}, std::pair{9, 1}, std::pair{40, 3}, std::pair{12, 11}}) {
     SymmetricBand a(size, band);
-    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(size, size);
-    for (int i = 0; i < size; ++i) {
-      for (int j = std::max(0, i - band); j <= i; ++j) {
-        // Diagonally dominant: positive definite.
-        const double v = i == j ? 2.0 * (band + 1) : value(random);
-        a.at(i, j) = v;
-        dense(i, j) = dense(j, i) = v;
-      }
-    }
+    const Eigen::MatrixXd dense = random_band(a, random);
     const BandedCholesky factor(a);
     const Eigen::MatrixXd l = dense.llt().matrixL();
     for (int i = 0; i < size; ++i) {
@@ -46,17 +52,9 @@ TEST(BandedCholesky, IsTheDenseFactorWithinTheBandAndZeroOutside) {
 // substitution from the last, against Eigen's dense solve of A X = B.
 TEST(BandedCholesky, StreamedSubstitutionSolvesTheSystemRowByRow) {
   std::mt19937 random(11);
-  std::uniform_real_distribution<double> value(-1, 1);
   for (const auto& [size, band] : {std::pair{1, 0}, std::pair{2, 1}, std::pair{7, 0}, std::pair{50, 3}, std::pair{30, 5}}) {
     SymmetricBand a(size, band);
-    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(size, size);
-    for (int i = 0; i < size; ++i) {
-      for (int j = std::max(0, i - band); j <= i; ++j) {
-        const double v = i == j ? 2.0 * (band + 1) : value(random);
-        a.at(i, j) = v;
-        dense(i, j) = dense(j, i) = v;
-      }
-    }
+    const Eigen::MatrixXd dense = random_band(a, random);
     const Eigen::MatrixXd b = Eigen::MatrixXd::Random(size, 4);
     const BandedCholesky factor(a);
     std::vector<Eigen::VectorXd> y(static_cast<size_t>(size));
