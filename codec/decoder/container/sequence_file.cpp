@@ -9,7 +9,6 @@
 #include "codec/decoder/container/file_layout.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 
-#include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/image.hpp"
 #include "facemorph/image_codec.hpp"
@@ -76,42 +75,6 @@ std::vector<size_t> texture_owners(const KeyframeSource& source) {
   return owners;
 }
 
-// What validate_sequence checks of each keyframe, for a source's keyframes read one at a time:
-// its time and pose the outline's, fields valid on the outline's grid and representation with
-// keyframe 0's fixed-frame nodes, a finite hole level per node where the outline has holes.
-void check_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key) {
-  const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what); };
-  if (!(key.time == outline.times[k])) fail("its time is not the outline's");
-  try {
-    validate_fields(key.fields);
-  } catch (const Error& e) {
-    fail(e.what());
-  }
-  if (key.fields.grid_n != outline.grid_n || key.fields.representation != outline.representation) fail("fields of another grid or representation");
-  if (key.fields.fixed_nodes != fixed_nodes) fail("fixed-frame nodes differ from keyframe 0's");
-  if (!key.pose.is_proper()) fail("the pose is not a finite proper rotation and translation");
-  const DiskGridShape shape = disk_grid_shape(outline.grid_n);
-  const auto nodes = static_cast<size_t>(shape.interior_count + shape.rim_count);
-  if (key.hole_level.size() != (outline.has_holes ? nodes : 0)) fail(std::to_string(key.hole_level.size()) + " hole levels where the outline says " + (outline.has_holes ? std::to_string(nodes) : "none"));
-  for (double v : key.hole_level) {
-    if (!std::isfinite(v)) fail("a hole level is not finite");
-  }
-}
-
-// What the writer checks of the outline itself (validate_sequence's checks of the whole).
-void check_outline(const SequenceOutline& o) {
-  const auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: " + what); };
-  if (o.times.empty()) fail("no keyframes");
-  if (o.poses.size() != o.times.size()) fail("a pose for every keyframe");
-  if (!(o.fps > 0) || !std::isfinite(o.fps)) fail("frame rate must be finite and positive");
-  if (!std::isfinite(o.first_time) || !std::isfinite(o.last_time) || o.last_time < o.first_time) fail("the capture's time span is not a finite interval");
-  for (size_t k = 0; k < o.times.size(); ++k) {
-    if (!std::isfinite(o.times[k])) fail("keyframe " + std::to_string(k) + ": time is not finite");
-    if (k > 0 && !(o.times[k] > o.times[k - 1])) fail("keyframe " + std::to_string(k) + ": time does not increase");
-  }
-  if (o.texture_size < 0) fail("a negative texture size");
-}
-
 void check_texture(const SequenceOutline& o, size_t k, const Image& texture) {
   if (texture.width != o.texture_size || texture.height != o.texture_size || texture.channels != 3 ||
       texture.pixels.size() != static_cast<size_t>(texture.width) * static_cast<size_t>(texture.height) * 3) {
@@ -155,7 +118,7 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 
 std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given) {
   const SequenceOutline& outline = source.outline();
-  check_outline(outline);
+  validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
   SequenceFileMetadata metadata = given;
   FieldCoding& coding = metadata.field_coding;
@@ -240,7 +203,7 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
   std::optional<KeyframeGroupWriter> group_writer;
   for (size_t k = 0; k < count; ++k) {
     const std::shared_ptr<const Keyframe> key = source.keyframe(k);
-    check_keyframe(outline, fixed_nodes, k, *key);
+    validate_keyframe(outline, fixed_nodes, k, *key);
     entries[k].time = key->time;
     entries[k].pose = pose_codes(key->pose, coding);
     if (k % group == 0) group_writer.emplace(k, coding, *grid);

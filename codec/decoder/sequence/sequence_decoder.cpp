@@ -16,40 +16,18 @@ std::vector<double> Sequence::keyframe_times() const {
 }
 
 void validate_sequence(const Sequence& sequence) {
-  auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: " + what); };
-  if (sequence.keyframes.empty()) fail("no keyframes");
-  if (!(sequence.fps > 0) || !std::isfinite(sequence.fps)) fail("frame rate must be finite and positive");
-  if (!std::isfinite(sequence.first_time) || !std::isfinite(sequence.last_time) || sequence.last_time < sequence.first_time) {
-    fail("the capture's time span is not a finite interval");
-  }
+  if (sequence.keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
+  const SequenceOutline outline = outline_of(sequence);
+  validate_outline(outline);
   const Keyframe& first = sequence.keyframes.front();
-  const auto nodes = static_cast<size_t>(disk_grid_shape(sequence.grid_n).interior_count + disk_grid_shape(sequence.grid_n).rim_count);
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
     const Keyframe& key = sequence.keyframes[k];
-    const std::string name = "keyframe " + std::to_string(k);
-    if (!std::isfinite(key.time)) fail(name + ": time is not finite");
-    if (k > 0 && !(key.time > sequence.keyframes[k - 1].time)) fail(name + ": time does not increase");
-    try {
-      validate_fields(key.fields);
-    } catch (const Error& e) {
-      fail(name + ": " + e.what());
-    }
-    if (key.fields.grid_n != sequence.grid_n || key.fields.representation != sequence.representation) {
-      fail(name + ": fields of another grid or representation");
-    }
-    if (key.fields.fixed_nodes != first.fields.fixed_nodes) fail(name + ": fixed-frame nodes differ from keyframe 0's");
-    if (!key.pose.is_proper()) fail(name + ": the pose is not a finite proper rotation and translation");
-    if (key.hole_level.empty() != first.hole_level.empty()) fail(name + ": hole levels present in some keyframes only");
-    if (!key.hole_level.empty()) {
-      if (key.hole_level.size() != nodes) fail(name + ": " + std::to_string(key.hole_level.size()) + " hole levels for " + std::to_string(nodes) + " nodes");
-      for (double v : key.hole_level) {
-        if (!std::isfinite(v)) fail(name + ": a hole level is not finite");
-      }
-    }
-    if (key.texture.empty() != first.texture.empty()) fail(name + ": textures present in some keyframes only");
+    validate_keyframe(outline, first.fields.fixed_nodes, k, key);
+    const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what); };
+    if (key.texture.empty() != first.texture.empty()) fail("textures present in some keyframes only");
     if (!key.texture.empty() && (key.texture.width != first.texture.width || key.texture.height != first.texture.height ||
                                  key.texture.channels != 3 || key.texture.pixels.size() != static_cast<size_t>(key.texture.width) * key.texture.height * 3)) {
-      fail(name + ": the texture is not " + std::to_string(first.texture.width) + " x " + std::to_string(first.texture.height) + " RGB");
+      fail("the texture is not " + std::to_string(first.texture.width) + " x " + std::to_string(first.texture.height) + " RGB");
     }
   }
 }

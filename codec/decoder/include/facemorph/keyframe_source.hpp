@@ -41,6 +41,16 @@ struct SequenceOutline {
 // The outline of a sequence validate_sequence accepts.
 SequenceOutline outline_of(const Sequence& sequence);
 
+// validate_sequence's checks split for keyframes met one at a time (a writer reading a source):
+// of the outline, at least one keyframe, a finite positive frame rate and time span, finite
+// strictly increasing times, a texture size not negative; of keyframe k, its time the outline's,
+// fields valid on the outline's grid and representation with `fixed_nodes` (keyframe 0's), a
+// finite proper pose, and one finite hole level per node where the outline has holes (none where it
+// has none). Each throws kInvalidArgument naming the keyframe and the defect; the texture is not
+// checked (validate_sequence and the writer check it as each holds it).
+void validate_outline(const SequenceOutline& outline);
+void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key);
+
 // Thread-safe: decoders on several threads may share one source.
 class KeyframeSource {
  public:
