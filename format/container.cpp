@@ -5,10 +5,12 @@
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
+#include "format/spill_file.hpp"
 #include "format/zstd_frame.hpp"
 
 
 #include <algorithm>
+#include <ostream>
 
 namespace facemorph::format {
 
@@ -59,12 +61,26 @@ ContainerWriter::ContainerWriter() {
   w.write(kMinorVersion);
   w.write(crc32(w.data()));
   bytes_ = w.take();
+  size_ = bytes_.size();
+}
+
+ContainerWriter::ContainerWriter(std::ostream& out) : ContainerWriter() {
+  out_ = &out;
+  flush();
+}
+
+void ContainerWriter::flush() {
+  if (out_ == nullptr) return;
+  out_->write(reinterpret_cast<const char*>(bytes_.data()), static_cast<std::streamsize>(bytes_.size()));
+  bytes_.clear();
 }
 
 uint64_t ContainerWriter::add(const PreparedChunk& chunk) {
-  const uint64_t offset = bytes_.size();
+  const uint64_t offset = size_;
   write_chunk(bytes_, chunk.type, chunk.flags, chunk.raw_size, chunk.stored);
+  size_ += chunk.total_size();
   ++chunk_count_;
+  flush();
   return offset;
 }
 
@@ -72,8 +88,50 @@ std::vector<uint8_t> ContainerWriter::finish() {
   ByteWriter count;
   count.write(chunk_count_);
   write_chunk(bytes_, kEndChunk, kChunkCritical, count.size(), count.data());
+  size_ += end_chunk_size();
   chunk_count_ = 0;
+  flush();
   return std::move(bytes_);
+}
+
+uint64_t ContainerWriter::end_chunk_size() { return kChunkHeaderBytes + sizeof(uint32_t) + kChunkTrailerBytes; }
+
+struct ChunkSpool::Kept {
+  std::string type;
+  uint32_t flags = 0;
+  uint64_t raw_size = 0, stored_size = 0;
+  std::vector<uint8_t> stored;  // Keep::kMemory
+  SpillFile::Record record;     // Keep::kSpill
+};
+
+ChunkSpool::ChunkSpool(Keep keep) : keep_(keep) {
+  if (keep == Keep::kSpill) file_ = std::make_unique<SpillFile>("the container's chunks");
+}
+
+ChunkSpool::~ChunkSpool() = default;
+
+size_t ChunkSpool::add(PreparedChunk chunk) {
+  Kept kept{std::move(chunk.type), chunk.flags, chunk.raw_size, chunk.stored.size(), {}, {}};
+  if (keep_ == Keep::kMemory) {
+    bytes_held_ += chunk.stored.size();
+    kept.stored = std::move(chunk.stored);
+  }
+  if (keep_ == Keep::kSpill) kept.record = file_->append(reinterpret_cast<const char*>(chunk.stored.data()), chunk.stored.size());
+  chunks_.push_back(std::move(kept));
+  return chunks_.size() - 1;
+}
+
+uint64_t ChunkSpool::total_size(size_t id) const { return kChunkHeaderBytes + chunks_.at(id).stored_size + kChunkTrailerBytes; }
+
+PreparedChunk ChunkSpool::get(size_t id) const {
+  const Kept& kept = chunks_.at(id);
+  if (keep_ == Keep::kSizes) throw Error(ErrorCode::kInvalidArgument, "chunk spool: only the chunks' sizes are kept");
+  PreparedChunk chunk{kept.type, kept.flags, kept.raw_size, kept.stored};
+  if (keep_ == Keep::kSpill) {
+    const std::vector<char> bytes = file_->read(kept.record);
+    chunk.stored.assign(bytes.begin(), bytes.end());
+  }
+  return chunk;
 }
 
 ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks) : file_(file), source_(std::move(source)) {

@@ -6,12 +6,16 @@
 
 #include <array>
 #include <cstdint>
+#include <iosfwd>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 namespace facemorph::format {
+
+class SpillFile;
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
@@ -55,19 +59,59 @@ struct PreparedChunk {
 // end chunk's type, or a payload over kMaxPayloadBytes.
 PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level = 0);
 
-// Builds a container in memory: the preamble, then chunks in the order added, then the end chunk.
+// Builds a container: the preamble, then chunks in the order added, then the end chunk. In memory,
+// or streamed to `out` as each chunk is added (memory holds one chunk).
 class ContainerWriter {
  public:
   ContainerWriter();
-  // Appends a chunk and returns its offset in the file.
+  explicit ContainerWriter(std::ostream& out);
+  // Appends a chunk and returns its offset in the file. Streamed, the caller checks `out` (a full
+  // disk sets its failbit).
   uint64_t add(const PreparedChunk& chunk);
-  uint64_t size() const { return bytes_.size(); }
-  // Appends the end chunk and returns the file's bytes; the writer is empty afterwards.
+  uint64_t size() const { return size_; }
+  // Appends the end chunk and returns the file's bytes (nothing when streamed); the writer is
+  // empty afterwards.
   std::vector<uint8_t> finish();
+  // What the end chunk adds to a container's size.
+  static uint64_t end_chunk_size();
 
  private:
-  std::vector<uint8_t> bytes_;
+  void flush();
+
+  std::ostream* out_ = nullptr;
+  std::vector<uint8_t> bytes_;  // all of the file in memory; streamed, what is not yet written
+  uint64_t size_ = 0;
   uint32_t chunk_count_ = 0;
+};
+
+// Where a writer keeps the chunks it has prepared until it knows their order and offsets (a
+// container's index comes before the chunks it points at): in memory; in an unlinked temporary
+// file (spill_file.hpp), so that a writer streaming a long file holds one chunk, not the file; or
+// only their sizes, for a writer that measures a file without writing it.
+class ChunkSpool {
+ public:
+  enum class Keep { kMemory, kSpill, kSizes };
+  explicit ChunkSpool(Keep keep);
+  ~ChunkSpool();
+  ChunkSpool(const ChunkSpool&) = delete;
+  ChunkSpool& operator=(const ChunkSpool&) = delete;
+  // Keeps `chunk` and returns its number (0, 1, ... in the order added).
+  size_t add(PreparedChunk chunk);
+  // Chunk `id` as it will be in the file: header, stored payload and trailer.
+  uint64_t total_size(size_t id) const;
+  // Chunk `id` as added. Throws kInvalidArgument where only sizes are kept, kIo where the temporary
+  // file cannot be read back.
+  PreparedChunk get(size_t id) const;
+  Keep keep() const { return keep_; }
+  // The chunks' payload bytes held in memory (0 unless Keep::kMemory).
+  uint64_t bytes_held() const { return bytes_held_; }
+
+ private:
+  struct Kept;
+  Keep keep_;
+  std::vector<Kept> chunks_;
+  std::unique_ptr<SpillFile> file_;
+  uint64_t bytes_held_ = 0;
 };
 
 // Reads a container from its bytes (which must outlive the reader). The constructor checks the

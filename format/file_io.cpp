@@ -90,18 +90,31 @@ void commit_temporary(const fs::path& from, const fs::path& to) {
 }
 
 void write_file_atomically(const fs::path& path, std::span<const uint8_t> data) {
+  write_file_atomically(path, [&](std::ostream& out) { out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size())); });
+}
+
+void write_file_atomically(const fs::path& path, const std::function<void(std::ostream&)>& write) {
   const fs::path tmp = temporary_sibling(path);
+  const auto remove_temporary = [&] {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+  };
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) {
       throw Error(ErrorCode::kIo, path.string() + ": cannot create: " + std::strerror(errno));
     }
-    out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+    try {
+      write(out);
+    } catch (...) {
+      out.close();
+      remove_temporary();
+      throw;
+    }
     out.flush();
     if (!out) {
       out.close();
-      std::error_code ec;
-      fs::remove(tmp, ec);
+      remove_temporary();
       throw Error(ErrorCode::kIo, path.string() + ": write failed (disk full?)");
     }
   }

@@ -4,6 +4,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <iosfwd>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -39,6 +41,9 @@ class MappedFile {
 // Writes `data` to `path` atomically (temporary file + rename). Throws kIo naming the file.
 void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> data);
 void write_file_atomically(const std::filesystem::path& path, std::string_view text);
+// The same for a file written by `write` to the stream it is given (a stream error is kIo); a throw
+// from `write` removes the temporary file and passes on.
+void write_file_atomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write);
 
 // A temporary sibling name for `path` (same folder, so rename is atomic), unique per process+call.
 std::filesystem::path temporary_sibling(const std::filesystem::path& path);

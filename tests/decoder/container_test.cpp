@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <sstream>
 
 namespace facemorph {
 namespace {
@@ -52,6 +53,47 @@ TEST(Checksum, IsTheCrc32OfPngAndZip) {
   // Continuing a CRC is the CRC of the concatenation.
   const std::vector<uint8_t> bytes(check.begin(), check.end());
   EXPECT_EQ(format::crc32(std::span(bytes).subspan(4), format::crc32(std::span(bytes).first(4))), 0xCBF43926u);
+}
+
+// The writer's chunks wait in a spool until the index is laid out: the same chunks back whether
+// kept in memory or in the temporary file, only their sizes where only sizes are kept, and a
+// container streamed to a file is the one built in memory.
+TEST(ChunkSpool, KeepsChunksInMemorySpilledOrAsSizesOnly) {
+  std::vector<format::PreparedChunk> chunks;
+  for (size_t n : {0, 1, 1000, 70000}) {
+    std::vector<uint8_t> payload(n);
+    for (size_t i = 0; i < n; ++i) payload[i] = static_cast<uint8_t>((i * 7919) % 251);
+    chunks.push_back(format::prepare_chunk(n % 2 ? "ODDS" : "EVEN", payload, n > 500, n > 500 ? 3 : 0));
+  }
+  uint64_t payload_bytes = 0;
+  for (const format::PreparedChunk& c : chunks) payload_bytes += c.stored.size();
+  for (const auto keep : {format::ChunkSpool::Keep::kMemory, format::ChunkSpool::Keep::kSpill, format::ChunkSpool::Keep::kSizes}) {
+    SCOPED_TRACE(static_cast<int>(keep));
+    format::ChunkSpool spool(keep);
+    for (size_t i = 0; i < chunks.size(); ++i) EXPECT_EQ(spool.add(chunks[i]), i);
+    EXPECT_EQ(spool.bytes_held(), keep == format::ChunkSpool::Keep::kMemory ? payload_bytes : 0);
+    std::ostringstream streamed;
+    format::ContainerWriter in_memory, to_stream(streamed);
+    for (size_t i = 0; i < chunks.size(); ++i) {
+      EXPECT_EQ(spool.total_size(i), chunks[i].total_size());
+      if (keep == format::ChunkSpool::Keep::kSizes) {
+        EXPECT_THROW(spool.get(i), Error);
+        continue;
+      }
+      const format::PreparedChunk back = spool.get(i);
+      EXPECT_EQ(back.type, chunks[i].type);
+      EXPECT_EQ(back.flags, chunks[i].flags);
+      EXPECT_EQ(back.raw_size, chunks[i].raw_size);
+      EXPECT_TRUE(back.stored == chunks[i].stored);
+      EXPECT_EQ(in_memory.add(back), to_stream.add(back));
+    }
+    EXPECT_EQ(in_memory.size(), to_stream.size());
+    const std::vector<uint8_t> bytes = in_memory.finish();
+    EXPECT_TRUE(to_stream.finish().empty());
+    EXPECT_EQ(bytes.size(), in_memory.size());
+    const std::string text = streamed.str();
+    EXPECT_TRUE(std::vector<uint8_t>(text.begin(), text.end()) == bytes);
+  }
 }
 
 TEST(Container, RoundTripKeepsEveryQuantityWithinItsQuantisation) {
@@ -750,6 +792,33 @@ TEST(Container, TheWriterReadsASourceAKeyframeAtATimeAndWritesWhatTheSequenceWri
     EXPECT_LE(source.textures_peak, 2) << "the writer held several textures at once (two while it compares them)";
     EXPECT_GE(source.textures_peak, 1);
   }
+}
+
+// From a source, a file written is streamed (its chunks spilled until the index is laid out) and a
+// file measured keeps only sizes: both are the file made in memory, read a keyframe at a time. A
+// source that fails part way leaves the previous file and no temporary behind.
+TEST(Container, AStreamedOrMeasuredFileIsTheFileMadeInMemory) {
+  testing::TempDir dir;
+  const auto path = dir.path() / "a.fmv";
+  const Sequence s = ramp_sequence(7, 16);
+  for (const SequenceFileMetadata& metadata : codings()) {
+    SCOPED_TRACE(metadata.field_coding.intra_period);
+    const std::vector<uint8_t> bytes = encode_sequence_file(s, metadata);
+    const WatchedSource measured(s), written(s);
+    EXPECT_EQ(sequence_file_size(measured, metadata), bytes.size());
+    write_sequence_file(path, written, metadata);
+    EXPECT_TRUE(format::read_file(path) == bytes);
+    for (const WatchedSource* source : {&measured, &written}) {
+      EXPECT_EQ(source->keyframes_peak, 1);
+      EXPECT_LE(source->textures_peak, 2);
+    }
+  }
+  const std::vector<uint8_t> before = format::read_file(path);
+  WatchedSource failing(s);
+  failing.alter = [&](size_t k, Keyframe& key) { if (k + 1 == s.keyframes.size()) key.pose.translation.x() = std::nan(""); };
+  testing::expect_error(ErrorCode::kInvalidArgument, "the pose", [&] { write_sequence_file(path, failing, codings().back()); });
+  EXPECT_TRUE(format::read_file(path) == before);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
 }
 
 TEST(Container, TheWriterChecksEveryKeyframeItReadsFromASource) {

@@ -116,7 +116,11 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
   return encode_sequence_file(*memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence)), metadata);
 }
 
-std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given) {
+namespace {
+
+// encode_sequence_file's work: every chunk prepared into `spool` (in memory, spilled, or only its
+// size), then, with a `writer`, added to it in the file's order. Returns the file's size.
+uint64_t write_sequence(const KeyframeSource& source, const SequenceFileMetadata& given, format::ChunkSpool& spool, format::ContainerWriter* writer) {
   const SequenceOutline& outline = source.outline();
   validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
@@ -151,7 +155,7 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
   const bool any_shared = std::any_of(owners.begin(), owners.end(), [k = size_t{0}](size_t owner) mutable { return owner != k++; });
   const bool groups_possible = uses_texture_groups(has_texture, metadata);
   const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
-  std::vector<format::PreparedChunk> stills;  // one per distinct texture (owner), in keyframe order
+  std::vector<size_t> stills;  // the spool's chunks, one per distinct texture (owner), in keyframe order
   std::vector<size_t> still_of(count, 0);     // keyframe k's chunk in `stills`
   if (has_texture && (any_shared || !groups_possible)) {
     // An owner's quality is the finest any keyframe showing it asks for.
@@ -160,14 +164,14 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
     for (size_t k = 0; k < count; ++k) {
       if (owners[k] == k) {
         still_of[k] = stills.size();
-        stills.push_back(format::prepare_chunk(kTextureChunk, write_texture(*source.texture(k), static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true));
+        stills.push_back(spool.add(format::prepare_chunk(kTextureChunk, write_texture(*source.texture(k), static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true)));
       } else {
         still_of[k] = still_of[owners[k]];  // an owner comes before the keyframes sharing its texture
       }
     }
   }
   const size_t group = metadata.field_coding.intra_period;
-  std::vector<format::PreparedChunk> texture_groups;  // one per group of keyframes
+  std::vector<size_t> texture_groups;  // the spool's chunks, one per group of keyframes
   if (groups_possible) {
     for (size_t k = 0; k < count; k += group) {
       const size_t n = std::min(group, count - k);
@@ -176,20 +180,20 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
       // quality asks.
       int quality = metadata.texture_quality;
       if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
-      TextureGroupWriter writer(k, quality);
-      for (size_t j = k; j < k + n; ++j) writer.add(*source.texture(j));
-      texture_groups.push_back(format::prepare_chunk(kTextureGroupChunk, writer.finish(), true));
+      TextureGroupWriter group_textures(k, quality);
+      for (size_t j = k; j < k + n; ++j) group_textures.add(*source.texture(j));
+      texture_groups.push_back(spool.add(format::prepare_chunk(kTextureGroupChunk, group_textures.finish(), true)));
     }
   }
-  const auto total = [](const std::vector<format::PreparedChunk>& chunks) {
+  const auto total = [&](const std::vector<size_t>& chunks) {
     uint64_t bytes = 0;
-    for (const format::PreparedChunk& c : chunks) bytes += c.total_size();
+    for (size_t c : chunks) bytes += spool.total_size(c);
     return bytes;
   };
   TextureLayout texture_layout = any_shared ? TextureLayout::kSharedStills : TextureLayout::kStills;
   if (!texture_groups.empty() && (stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
-  const std::vector<format::PreparedChunk>& textures = grouped_textures ? texture_groups : stills;
+  const std::vector<size_t>& textures = grouped_textures ? texture_groups : stills;
   const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(count);
@@ -198,7 +202,7 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
   // Every payload first, so the index can hold the offsets of the chunks after it. `groups[g]`:
   // group g's chunk; `textures`: the stills (keyframe k's is still_of[k]) or group g's TGOP.
   const std::shared_ptr<const GridFacts> grid = grid_facts(outline.grid_n);
-  std::vector<format::PreparedChunk> groups;
+  std::vector<size_t> groups;  // the spool's chunks
   std::vector<IndexEntry> entries(count);
   std::optional<KeyframeGroupWriter> group_writer;
   for (size_t k = 0; k < count; ++k) {
@@ -208,35 +212,37 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
     entries[k].pose = pose_codes(key->pose, coding);
     if (k % group == 0) group_writer.emplace(k, coding, *grid);
     group_writer->add(*key);
-    if (k % group == group - 1 || k + 1 == count) groups.push_back(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true));
+    if (k % group == group - 1 || k + 1 == count) groups.push_back(spool.add(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true)));
   }
   // Where each chunk goes: a group's KGOP, then its TGOP, or after each keyframe's fields the still
   // it is the first to show.
-  const auto texture_here = [&](size_t k) -> const format::PreparedChunk* {
-    if (textures.empty()) return nullptr;
-    if (grouped_textures) return k % group == 0 ? &textures[k / group] : nullptr;
-    return owners[k] == k ? &textures[still_of[k]] : nullptr;
+  const auto texture_here = [&](size_t k) -> std::optional<size_t> {
+    if (textures.empty()) return std::nullopt;
+    if (grouped_textures) return k % group == 0 ? std::optional(textures[k / group]) : std::nullopt;
+    return owners[k] == k ? std::optional(textures[still_of[k]]) : std::nullopt;
   };
   // The chunks' offsets depend on the index's size, which (compressed) depends on the offsets: the
   // index is laid out again until its size stays put, and stored uncompressed (a size the offsets
   // do not change) in the unlikely case it keeps changing.
+  uint64_t end = 0;  // where the end chunk goes
   const auto lay_out = [&](uint64_t index_size) {
     uint64_t offset = format::kPreambleBytes + header.total_size() + index_size;
     for (size_t k = 0; k < count; ++k) {
       if (k % group == 0) {
         entries[k].group_offset = offset;
-        offset += groups[k / group].total_size();
+        offset += spool.total_size(groups[k / group]);
       } else {
         entries[k].group_offset = entries[k - 1].group_offset;
       }
       if (textures.empty()) continue;
-      if (const format::PreparedChunk* texture = texture_here(k)) {
+      if (const std::optional<size_t> texture = texture_here(k)) {
         entries[k].texture_offset = offset;
-        offset += texture->total_size();
+        offset += spool.total_size(*texture);
       } else {
         entries[k].texture_offset = entries[grouped_textures ? k - 1 : owners[k]].texture_offset;
       }
     }
+    end = offset;
   };
   constexpr int kIndexLayouts = 8;
   format::PreparedChunk index;
@@ -253,15 +259,31 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
       break;
     }
   }
-  format::ContainerWriter writer;
-  writer.add(header);
-  writer.add(index);
-  for (size_t k = 0; k < count; ++k) {
-    if (k % group == 0 && writer.add(groups[k / group]) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
-    const format::PreparedChunk* texture = texture_here(k);
-    if (texture && writer.add(*texture) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+  if (writer != nullptr) {
+    writer->add(header);
+    writer->add(index);
+    for (size_t k = 0; k < count; ++k) {
+      if (k % group == 0 && writer->add(spool.get(groups[k / group])) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+      const std::optional<size_t> texture = texture_here(k);
+      if (texture && writer->add(spool.get(*texture)) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+    }
+    if (writer->size() != end) throw Error(ErrorCode::kNumerical, "container index out of step");
   }
+  return end + format::ContainerWriter::end_chunk_size();
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata) {
+  format::ChunkSpool spool(format::ChunkSpool::Keep::kMemory);
+  format::ContainerWriter writer;
+  write_sequence(source, metadata, spool, &writer);
   return writer.finish();
+}
+
+uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata) {
+  format::ChunkSpool spool(format::ChunkSpool::Keep::kSizes);
+  return write_sequence(source, metadata, spool, nullptr);
 }
 
 // ---- A file opened for reading (opened_file.hpp) ----
@@ -568,7 +590,14 @@ void write_sequence_file(const std::filesystem::path& path, const Sequence& sequ
 }
 
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata) {
-  format::write_file_atomically(path, encode_sequence_file(source, metadata));
+  // Streamed: the chunks wait in a temporary file until the index is laid out, then go one at a
+  // time to the file under its temporary name, renamed when whole (memory holds one chunk).
+  format::ChunkSpool spool(format::ChunkSpool::Keep::kSpill);
+  format::write_file_atomically(path, [&](std::ostream& out) {
+    format::ContainerWriter writer(out);
+    write_sequence(source, metadata, spool, &writer);
+    writer.finish();
+  });
 }
 
 Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info, const DecoderLimits& limits) {

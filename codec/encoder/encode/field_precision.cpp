@@ -535,7 +535,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     chosen.inter_dead_zone = kDeadZoneCandidates.front();
     const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
     const bool predicts = period > 1 && shape.keyframes.size() > 1;
-    size_t fewest = std::numeric_limits<size_t>::max();
+    uint64_t fewest = std::numeric_limits<uint64_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       FieldPrecisionOptions trial_options = options;
       trial_options.inter_dead_zone = kDeadZoneCandidates[c];
@@ -549,7 +549,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
       const FieldRounder rounder(pool.grid(), options.noise_shaping, trial_options.inter_dead_zone);
       SequenceFileMetadata metadata;
       metadata.field_coding = steps->coding;
-      const size_t bytes = encode_sequence_file(RoundedKeyframes(keys, rounder, steps->coding), metadata).size();
+      const uint64_t bytes = sequence_file_size(RoundedKeyframes(keys, rounder, steps->coding), metadata);
       if (bytes < fewest) {
         fewest = bytes;
         chosen.inter_dead_zone = kDeadZoneCandidates[c];

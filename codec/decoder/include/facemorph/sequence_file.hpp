@@ -115,6 +115,9 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 // keyframes may stay in its temporary file until written. Each keyframe is checked as
 // validate_sequence checks it (kInvalidArgument naming it), and must carry the outline's time.
 std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata);
+// The size of the file encode_sequence_file would make, from its chunks' sizes: no chunk is kept,
+// so memory holds one keyframe and one chunk whatever the sequence's length.
+uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata);
 
 // Reads a file's bytes. Everything is checked before use (checksums, sizes against the header,
 // the grid's rule and hash against the one this decoder builds, every keyframe's fields by
@@ -154,7 +157,9 @@ std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<co
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
-// leaves any previous file untouched.
+// leaves any previous file untouched. From a source, the file is streamed: the chunks wait in a
+// temporary file (TMPDIR) until the index is laid out, so memory holds one keyframe and one chunk,
+// not the file.
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata);
 Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr, const DecoderLimits& limits = kDefaultDecoderLimits);

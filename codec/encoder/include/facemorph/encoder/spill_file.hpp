@@ -1,10 +1,13 @@
-// The encoder's spill: an unlinked temporary file of byte records, and the count of the records'
-// contents in memory (spec/method.md §7.15).
+// The encoder's spill: an unlinked temporary file of byte records (format/spill_file.hpp, which the
+// container writer spills to as well), and the count of the records' contents in memory
+// (spec/method.md §7.15).
 //
 // What the encoder makes of every frame or keyframe and needs again at a later stage is written here
 // as soon as it is made and read back when a stage asks, so memory holds the few being worked on,
 // not the capture's. FrameStore keeps the frames' maps in one, KeyframeStore the keyframes' arrays.
 #pragma once
+
+#include "format/spill_file.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -21,36 +24,7 @@ enum class SpillMode {
   kMemory,  // in memory: memory grows with the items (what the encoder did before)
 };
 
-class SpillFile {
- public:
-  // `what` names the contents in errors ("the frames' maps"). The file is made on the first append.
-  explicit SpillFile(std::string what);
-  ~SpillFile();
-  SpillFile(const SpillFile&) = delete;
-  SpillFile& operator=(const SpillFile&) = delete;
-
-  struct Record {
-    uint64_t offset = 0, size = 0;  // bytes
-  };
-  // Appends `size` bytes and says where they went. Thread-safe: each record gets its own range of
-  // the file, so threads write side by side. The file is made in TMPDIR and unlinked at once, so it
-  // goes when the process ends, however it ends. Throws kIo when it cannot be made or written (a
-  // full disk: TMPDIR names another folder).
-  Record append(const char* data, size_t size);
-  // A record's bytes, read back. Thread-safe. Throws kIo on a failed or short read.
-  std::vector<char> read(const Record& record) const;
-  // Empties the file (records handed out before are no longer valid).
-  void clear();
-  uint64_t size() const;  // bytes written since the last clear
-
- private:
-  void open();
-
-  std::string what_;
-  int fd_ = -1;
-  mutable std::mutex mutex_;
-  uint64_t end_ = 0;
-};
+using format::SpillFile;
 
 // How many items a store has in memory now, and at most since the counter was last reset: the
 // tests' and the report's measure that memory does not grow with the capture. A ResidentHold

@@ -1,4 +1,4 @@
-#include "facemorph/encoder/spill_file.hpp"
+#include "format/spill_file.hpp"
 
 #include "facemorph/error.hpp"
 
@@ -9,7 +9,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-namespace facemorph {
+namespace facemorph::format {
 
 SpillFile::SpillFile(std::string what) : what_(std::move(what)) {}
 
@@ -72,13 +72,4 @@ uint64_t SpillFile::size() const {
   return end_;
 }
 
-ResidentHold::ResidentHold(std::shared_ptr<ResidentCount> count) : count_(std::move(count)) {
-  const int now = ++count_->now;
-  int peak = count_->peak.load();
-  while (now > peak && !count_->peak.compare_exchange_weak(peak, now)) {
-  }
-}
-
-ResidentHold::~ResidentHold() { --count_->now; }
-
-}  // namespace facemorph
+}  // namespace facemorph::format

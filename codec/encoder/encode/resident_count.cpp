@@ -1,0 +1,15 @@
+// Counting a store's items in memory (facemorph/encoder/spill_file.hpp).
+#include "facemorph/encoder/spill_file.hpp"
+
+namespace facemorph {
+
+ResidentHold::ResidentHold(std::shared_ptr<ResidentCount> count) : count_(std::move(count)) {
+  const int now = ++count_->now;
+  int peak = count_->peak.load();
+  while (now > peak && !count_->peak.compare_exchange_weak(peak, now)) {
+  }
+}
+
+ResidentHold::~ResidentHold() { --count_->now; }
+
+}  // namespace facemorph
