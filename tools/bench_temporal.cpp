@@ -79,7 +79,7 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
     // E_loc: the reference's landmarks carried through f onto frame i, against frame i's own.
     const std::shared_ptr<const MappedFrame> frame = encoder.frame(i);  // held while `inverse` refers to its map
     const InverseDiskMap inverse(frame->map);
-    const DiskLandmarks& landmarks = encoder.landmarks(i);
+    const DiskLandmarks landmarks = disk_landmarks(capture, static_cast<size_t>(reference), encoder.frame(reference)->map, static_cast<size_t>(i), frame->map);
     size_t j = 0;
     for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
       const Vec3 &p = capture.landmarks[static_cast<size_t>(reference)][l], &q = capture.landmarks[static_cast<size_t>(i)][l];

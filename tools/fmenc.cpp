@@ -318,12 +318,16 @@ int main(int argc, char** argv) {
     };
     EncodeReport report;
     // The keyframes stay in the encoder's temporary file until the writer reads them, one at a time.
-    const std::unique_ptr<StoredSequence> sequence = encode_capture_stored(capture, options, &report);
+    // What the summary needs of the capture, kept: the encoder takes the capture itself.
+    const std::vector<std::string> landmark_names = capture.landmark_names;
+    const double duration = capture.duration() + 1.0 / capture.fps;
+    const size_t frame_count = capture.frames.size();
+    const std::unique_ptr<StoredSequence> sequence = encode_capture_stored(std::move(capture), options, &report);
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
     nlohmann::json settings = settings_json(options, report);
     metadata.settings = settings.dump();
-    metadata.landmark_names = capture.landmark_names;
+    metadata.landmark_names = landmark_names;
     metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.texture_codec = options.texture_codec;
     metadata.texture_coding = parse_texture_coding(texture_coding);
@@ -334,8 +338,7 @@ int main(int argc, char** argv) {
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);
     const auto bytes = std::filesystem::file_size(output);
-    const double duration = capture.duration() + 1.0 / capture.fps;
-    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), capture.frames.size() - report.dropped.size(), sequence->shape().keyframes.size());
+    std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), frame_count - report.dropped.size(), sequence->shape().keyframes.size());
     for (const Keyframe& key : sequence->shape().keyframes) std::printf(" %.3f", key.time);
     std::printf(" s\n");
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence->shape().grid_n, representation_name(sequence->shape().representation),
@@ -344,7 +347,7 @@ int main(int argc, char** argv) {
     if (report.blend.trials > 0) {
       std::printf("  representation %s (auto): %d of %zu frames share no interior landmarks with the reference; blended at %d frames "
                   "between keyframes, the fields come out %.3f%% from them, the positions %.3f%%%s\n",
-                  representation_name(report.representation), report.frames_without_interior_landmarks, capture.frames.size() - report.dropped.size() - 1,
+                  representation_name(report.representation), report.frames_without_interior_landmarks, frame_count - report.dropped.size() - 1,
                   report.blend.trials, 100 * report.blend.fields_error, 100 * report.blend.positions_error,
                   report.representation == Representation::kXYZ ? " (--representation hl+t stores the fields)" : "");
     }
@@ -428,7 +431,7 @@ int main(int argc, char** argv) {
     }
     std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "
                 "field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
-                seconds, seconds / static_cast<double>(capture.frames.size()), report.seconds_mapping, report.seconds_registration,
+                seconds, seconds / static_cast<double>(frame_count), report.seconds_mapping, report.seconds_registration,
                 report.seconds_selection, report.seconds_representation, report.seconds_keyframes, report.seconds_precision, report.seconds_texture,
                 seconds_writing);
     if (report.spilled_bytes > 0) {
@@ -453,7 +456,7 @@ int main(int argc, char** argv) {
     }
     if (!report.dropped.empty()) {
       std::printf("  %zu of %zu frames dropped (the spline covers their times; --strict ends the encode instead):\n", report.dropped.size(),
-                  capture.frames.size());
+                  frame_count);
       for (const DroppedFrame& d : report.dropped) std::printf("    %s (frame %d, %.3f s): %s\n", d.name.c_str(), d.index, d.time, d.reason.c_str());
     }
     for (const std::string& warning : report.warnings) std::printf("  warning: %s\n", warning.c_str());

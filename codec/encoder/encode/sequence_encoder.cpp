@@ -212,8 +212,8 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
   return level;
 }
 
-SequenceEncoder::SequenceEncoder(const Capture& capture, EncodeOptions options)
-    : capture_(capture), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
+SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
+    : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
@@ -346,7 +346,6 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
     if (pinned_index_ < 0) pinned_.reset();
   }
   compact(textures_);
-  compact(landmarks_);
   compact(registrations_);
 }
 
@@ -506,7 +505,6 @@ void SequenceEncoder::register_frames() {
   const std::shared_ptr<const MappedFrame> reference_frame = pin_reference();
   reparametrisation_ = DiskReparametrisation(reference_frame->map, options_.density_equalising);
   report_.density_equalising = reparametrisation_.report();
-  landmarks_.assign(static_cast<size_t>(count), {});
   registrations_.assign(static_cast<size_t>(count), {});
   geodesic_frame_.reset();
   if (options_.registration.method == RegistrationMethod::kFrame) {
@@ -531,19 +529,21 @@ void SequenceEncoder::register_frames() {
         const std::shared_ptr<const MappedFrame> frame = this->frame(i);  // a failed read is no fault of the frame: outside the try
         const std::string& name = frame->name;
         try {
-          landmarks_[index] = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
+          // The frame's landmarks on the two disks, made here and dropped once registered (kept, they
+          // were 2 kB a frame for the whole encode).
+          DiskLandmarks landmarks = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
           const bool took_tracked = !tracked.empty() && needs_tracked_points(capture_, reference, index) && !tracked[index].reference.empty();
-          if (took_tracked) add_tracked_points(landmarks_[index], tracked[index]);
+          if (took_tracked) add_tracked_points(landmarks, tracked[index]);
           without_interior[index] = !took_tracked && index != reference && needs_tracked_points(capture_, reference, index);
-          if (landmarks_[index].reference.size() < 3) {
+          if (landmarks.reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
-                                                         std::to_string(landmarks_[index].reference.size()) + " landmarks with the reference frame (3 needed)");
+                                                         std::to_string(landmarks.reference.size()) + " landmarks with the reference frame (3 needed)");
           }
           try {
             // A frame registered through tracked points: a smoothing thin plate, not one through every point.
             RegistrationOptions registration = options_.registration;
             if (took_tracked) registration.smoothing = std::max(registration.smoothing, options_.tracking.registration_smoothing);
-            registrations_[index] = register_disks(landmarks_[index], registration, geodesic_frame_.get());
+            registrations_[index] = register_disks(landmarks, registration, geodesic_frame_.get());
           } catch (const Error& e) {
             throw Error(e.code(), name + ": registration: " + e.what());
           }
@@ -1157,8 +1157,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
   return encode_capture_stored(capture, options, report)->to_sequence();
 }
 
-std::unique_ptr<StoredSequence> encode_capture_stored(const Capture& capture, const EncodeOptions& options, EncodeReport* report_out) {
-  SequenceEncoder encoder(capture, options);
+std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options, EncodeReport* report_out) {
+  SequenceEncoder encoder(std::move(capture), options);
   encoder.map_frames();
   encoder.register_frames();
   encoder.sample_frames();

@@ -260,7 +260,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {
 // options.spill_keyframes): a KeyframeSource the file writer reads a keyframe at a time
 // (write_sequence_file(path, *stored, metadata)), so that encoding to a file holds each keyframe's
 // time and pose rather than its arrays (spec/method.md §7.15). The temporary file goes with it.
-std::unique_ptr<StoredSequence> encode_capture_stored(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
+// The encoder keeps its own capture: moved in, a long capture's paths and landmarks are not held twice.
+std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
 // What the encoder keeps in memory of every frame once it is mapped (its map goes to the FrameStore):
 // the counts and reasons the report gives, whether it has colour, and the landmarks it found.
@@ -283,8 +284,8 @@ struct FrameSummary {
 // thread), reading each map back from the store and releasing it when done.
 class SequenceEncoder {
  public:
-  // Keeps its own copy of `capture` (paths and landmarks; meshes are read as the stages need them).
-  SequenceEncoder(const Capture& capture, EncodeOptions options);
+  // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
+  SequenceEncoder(Capture capture, EncodeOptions options);
 
   // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
   // options().strict): from here on the encoder's capture() and frame indices are those of the
@@ -349,7 +350,6 @@ class SequenceEncoder {
   const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
   const FrameStore& frame_store() const { return *store_; }
   const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
-  const DiskLandmarks& landmarks(int i) const { return landmarks_[static_cast<size_t>(i)]; }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
   const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
   // Where frame i is sampled for the disk points `nodes` of G (or of the disk texture): the reference's
@@ -417,7 +417,6 @@ class SequenceEncoder {
   int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
   std::shared_ptr<const MappedFrame> pinned_;
   std::vector<std::filesystem::path> textures_;
-  std::vector<DiskLandmarks> landmarks_;
   std::vector<DiskRegistration> registrations_;
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
