@@ -72,6 +72,8 @@ ContainerWriter::ContainerWriter(std::ostream& out) : ContainerWriter() {
 void ContainerWriter::flush() {
   if (out_ == nullptr) return;
   out_->write(reinterpret_cast<const char*>(bytes_.data()), static_cast<std::streamsize>(bytes_.size()));
+  // Failing at once: a full disk would otherwise take every chunk still to come.
+  if (!*out_) throw Error(ErrorCode::kIo, "write failed (disk full?)");
   bytes_.clear();
 }
 
@@ -112,11 +114,9 @@ ChunkSpool::~ChunkSpool() = default;
 
 size_t ChunkSpool::add(PreparedChunk chunk) {
   Kept kept{std::move(chunk.type), chunk.flags, chunk.raw_size, chunk.stored.size(), {}, {}};
-  if (keep_ == Keep::kMemory) {
-    bytes_held_ += chunk.stored.size();
-    kept.stored = std::move(chunk.stored);
-  }
+  if (keep_ == Keep::kMemory) kept.stored = std::move(chunk.stored);
   if (keep_ == Keep::kSpill) kept.record = file_->append(reinterpret_cast<const char*>(chunk.stored.data()), chunk.stored.size());
+  bytes_held_ += kept.stored.size();
   chunks_.push_back(std::move(kept));
   return chunks_.size() - 1;
 }

@@ -65,10 +65,10 @@ class ContainerWriter {
  public:
   ContainerWriter();
   explicit ContainerWriter(std::ostream& out);
-  // Appends a chunk and returns its offset in the file. Streamed, the caller checks `out` (a full
-  // disk sets its failbit).
+  // Appends a chunk and returns its offset in the file. Streamed, throws kIo as soon as `out`
+  // fails (a full disk).
   uint64_t add(const PreparedChunk& chunk);
-  uint64_t size() const { return size_; }
+  uint64_t size() const { return size_; }  // the file's so far (after finish(), all of it)
   // Appends the end chunk and returns the file's bytes (nothing when streamed); the writer is
   // empty afterwards.
   std::vector<uint8_t> finish();
@@ -103,7 +103,7 @@ class ChunkSpool {
   // file cannot be read back.
   PreparedChunk get(size_t id) const;
   Keep keep() const { return keep_; }
-  // The chunks' payload bytes held in memory (0 unless Keep::kMemory).
+  // The chunks' payload bytes the spool holds in memory (0 unless Keep::kMemory).
   uint64_t bytes_held() const { return bytes_held_; }
 
  private:

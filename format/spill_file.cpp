@@ -3,6 +3,7 @@
 #include "facemorph/error.hpp"
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -19,7 +20,13 @@ SpillFile::~SpillFile() {
 
 void SpillFile::open() {
   // Unlinked as soon as it is open: the file goes when the process ends, however it ends.
-  const std::filesystem::path folder = std::filesystem::temp_directory_path();
+  std::error_code error;
+  const std::filesystem::path folder = std::filesystem::temp_directory_path(error);
+  if (error) {
+    const char* named = std::getenv("TMPDIR");
+    throw Error(ErrorCode::kIo, "cannot create a temporary file for " + what_ + ": no temporary folder (TMPDIR" + (named ? " = " + std::string(named) : std::string(" unset")) +
+                                    "): " + error.message());
+  }
   std::string name = (folder / "facemorph-spill-XXXXXX").string();
   fd_ = ::mkstemp(name.data());
   if (fd_ < 0) {

@@ -20,6 +20,9 @@
 #include <functional>
 #include <sstream>
 
+#include <csignal>
+#include <sys/resource.h>
+
 namespace facemorph {
 namespace {
 
@@ -819,6 +822,58 @@ TEST(Container, AStreamedOrMeasuredFileIsTheFileMadeInMemory) {
   testing::expect_error(ErrorCode::kInvalidArgument, "the pose", [&] { write_sequence_file(path, failing, codings().back()); });
   EXPECT_TRUE(format::read_file(path) == before);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
+}
+
+// A write that cannot finish: the disk full (a file-size limit stands in for one: the writes past
+// it fail with EFBIG) or no temporary folder for the streamed writer's spool. Each is an I/O error
+// naming the file, and leaves the previous file and nothing else.
+TEST(Container, AWriteThatCannotFinishLeavesThePreviousFile) {
+  testing::TempDir dir;
+  const auto path = dir.path() / "a.fmv";
+  const Sequence s = ramp_sequence(7, 16);
+  const SequenceFileMetadata metadata = codings().front();
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, metadata);
+  format::write_file_atomically(path, std::vector<uint8_t>(16, 7));
+  const std::vector<uint8_t> before = format::read_file(path);
+  const auto only_the_previous_file = [&] {
+    EXPECT_TRUE(format::read_file(path) == before);
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
+  };
+  {
+    rlimit saved{};
+    ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+    const auto previous_handler = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limited = saved;
+    limited.rlim_cur = bytes.size() - 20;
+    ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limited), 0);
+    const WatchedSource source(s);
+    testing::expect_error(ErrorCode::kIo, path.string() + ": write failed", [&] { write_sequence_file(path, source, metadata); });
+    only_the_previous_file();
+    testing::expect_error(ErrorCode::kIo, path.string() + ": write failed", [&] { write_sequence_file(path, s, metadata); });
+    only_the_previous_file();
+    testing::expect_error(ErrorCode::kIo, path.string() + ": write failed", [&] { format::write_file_atomically(path, bytes); });
+    only_the_previous_file();
+    setrlimit(RLIMIT_FSIZE, &saved);
+    std::signal(SIGXFSZ, previous_handler);
+  }
+  {
+    // The streamed writer spills: without a temporary folder it cannot write, and says so before
+    // it opens the file.
+    const char* saved = std::getenv("TMPDIR");
+    const std::string restore = saved ? saved : "";
+    setenv("TMPDIR", (dir.path() / "no-such-folder").c_str(), 1);
+    const WatchedSource source(s);
+    testing::expect_error(ErrorCode::kIo, path.string() + ": cannot create a temporary file for the container's chunks: no temporary folder (TMPDIR = ",
+                          [&] { write_sequence_file(path, source, metadata); });
+    if (saved) {
+      setenv("TMPDIR", restore.c_str(), 1);
+    } else {
+      unsetenv("TMPDIR");
+    }
+    only_the_previous_file();
+  }
+  write_sequence_file(path, s, metadata);
+  EXPECT_TRUE(format::read_file(path) == bytes);
 }
 
 TEST(Container, TheWriterChecksEveryKeyframeItReadsFromASource) {

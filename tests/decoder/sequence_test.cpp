@@ -238,6 +238,8 @@ TEST(SequenceDecoder, MalformedSequencesAreNamed) {
   check("keyframe 3: the pose", [](Sequence& s) { s.keyframes[3].pose.rotation(0, 0) = 2; });
   check("keyframe 1: hole levels present in some", [](Sequence& s) { s.keyframes[0].hole_level.clear(); });
   check("keyframe 2: 3 hole levels", [](Sequence& s) { s.keyframes[2].hole_level.resize(3); });
+  check("keyframe 2: a hole level is not finite", [](Sequence& s) { s.keyframes[2].hole_level[5] = std::nan(""); });
+  check("keyframe 2: a hole level is not finite", [](Sequence& s) { s.keyframes[2].hole_level.back() = INFINITY; });
   check("fixed-frame nodes differ", [](Sequence& s) {
     const DiskGrid grid = make_disk_grid(33);
     s.keyframes[1].fields = compute_fields(GridGeometry(grid), sample(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }), Representation::kHLT,

@@ -118,9 +118,17 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 
 namespace {
 
-// encode_sequence_file's work: every chunk prepared into `spool` (in memory, spilled, or only its
-// size), then, with a `writer`, added to it in the file's order. Returns the file's size.
-uint64_t write_sequence(const KeyframeSource& source, const SequenceFileMetadata& given, format::ChunkSpool& spool, format::ContainerWriter* writer) {
+// A file laid out: its header and index, and after them the spool's chunks in the file's order,
+// each with the offset the index gives it.
+struct LaidOutFile {
+  format::PreparedChunk header, index;
+  std::vector<std::pair<size_t, uint64_t>> chunks;  // (the spool's chunk, its offset)
+  uint64_t size = 0;                                 // the whole file's, end chunk included
+};
+
+// encode_sequence_file's work, up to the bytes: every keyframe and texture read and its chunk
+// prepared into `spool` (in memory, spilled, or only its size), and the index laid out.
+LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given, format::ChunkSpool& spool) {
   const SequenceOutline& outline = source.outline();
   validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
@@ -259,31 +267,39 @@ uint64_t write_sequence(const KeyframeSource& source, const SequenceFileMetadata
       break;
     }
   }
-  if (writer != nullptr) {
-    writer->add(header);
-    writer->add(index);
-    for (size_t k = 0; k < count; ++k) {
-      if (k % group == 0 && writer->add(spool.get(groups[k / group])) != entries[k].group_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
-      const std::optional<size_t> texture = texture_here(k);
-      if (texture && writer->add(spool.get(*texture)) != entries[k].texture_offset) throw Error(ErrorCode::kNumerical, "container index out of step");
-    }
-    if (writer->size() != end) throw Error(ErrorCode::kNumerical, "container index out of step");
+  LaidOutFile file{header, index, {}, end + format::ContainerWriter::end_chunk_size()};
+  for (size_t k = 0; k < count; ++k) {
+    if (k % group == 0) file.chunks.emplace_back(groups[k / group], entries[k].group_offset);
+    if (const std::optional<size_t> texture = texture_here(k)) file.chunks.emplace_back(*texture, entries[k].texture_offset);
   }
-  return end + format::ContainerWriter::end_chunk_size();
+  return file;
+}
+
+// The laid-out file's bytes to `writer`, each chunk read back from `spool` in turn; returns what
+// the writer's finish() returns (the bytes, or nothing when it streams).
+std::vector<uint8_t> write_laid_out_file(const LaidOutFile& file, const format::ChunkSpool& spool, format::ContainerWriter& writer) {
+  writer.add(file.header);
+  writer.add(file.index);
+  for (const auto& [chunk, offset] : file.chunks) {
+    if (writer.add(spool.get(chunk)) != offset) throw Error(ErrorCode::kNumerical, "container index out of step");
+  }
+  std::vector<uint8_t> bytes = writer.finish();
+  if (writer.size() != file.size) throw Error(ErrorCode::kNumerical, "container index out of step");
+  return bytes;
 }
 
 }  // namespace
 
 std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata) {
   format::ChunkSpool spool(format::ChunkSpool::Keep::kMemory);
+  const LaidOutFile file = lay_out_sequence_file(source, metadata, spool);
   format::ContainerWriter writer;
-  write_sequence(source, metadata, spool, &writer);
-  return writer.finish();
+  return write_laid_out_file(file, spool, writer);
 }
 
 uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata) {
   format::ChunkSpool spool(format::ChunkSpool::Keep::kSizes);
-  return write_sequence(source, metadata, spool, nullptr);
+  return lay_out_sequence_file(source, metadata, spool).size;
 }
 
 // ---- A file opened for reading (opened_file.hpp) ----
@@ -586,17 +602,30 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 }
 
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
-  format::write_file_atomically(path, encode_sequence_file(sequence, metadata));
+  // A non-owning pointer: the source lives only in this call, within the sequence's lifetime.
+  write_sequence_file(path, *memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence)), metadata);
 }
 
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata) {
-  // Streamed: the chunks wait in a temporary file until the index is laid out, then go one at a
-  // time to the file under its temporary name, renamed when whole (memory holds one chunk).
+  // Streamed: the chunks wait in the spool's temporary file until the index is laid out; only then
+  // is the file opened under its temporary name, the chunks copied to it one at a time, and the
+  // file renamed when whole. Memory holds a keyframe and a chunk; an encode killed while the
+  // source is read leaves nothing beside the destination.
+  const auto naming_the_file = [&](const auto& step) {
+    try {
+      step();
+    } catch (const Error& e) {
+      throw Error(e.code(), path.string() + ": " + e.what());
+    }
+  };
   format::ChunkSpool spool(format::ChunkSpool::Keep::kSpill);
+  LaidOutFile file;
+  naming_the_file([&] { file = lay_out_sequence_file(source, metadata, spool); });
   format::write_file_atomically(path, [&](std::ostream& out) {
-    format::ContainerWriter writer(out);
-    write_sequence(source, metadata, spool, &writer);
-    writer.finish();
+    naming_the_file([&] {
+      format::ContainerWriter writer(out);
+      write_laid_out_file(file, spool, writer);
+    });
   });
 }
 

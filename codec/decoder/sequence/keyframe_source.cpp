@@ -56,7 +56,9 @@ void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t
   if (key.fields.grid_n != outline.grid_n || key.fields.representation != outline.representation) fail("fields of another grid or representation");
   if (key.fields.fixed_nodes != fixed_nodes) fail("fixed-frame nodes differ from keyframe 0's");
   if (!key.pose.is_proper()) fail("the pose is not a finite proper rotation and translation");
-  if (key.hole_level.empty() == outline.has_holes) fail("hole levels present in some keyframes only");
+  if (key.hole_level.empty() == outline.has_holes) {
+    fail(std::string("hole levels present in some keyframes only (") + (outline.has_holes ? "none here, where keyframe 0 has them" : "here, where keyframe 0 has none") + ")");
+  }
   if (!key.hole_level.empty()) {
     const DiskGridShape shape = disk_grid_shape(outline.grid_n);
     const auto nodes = static_cast<size_t>(shape.interior_count + shape.rim_count);

@@ -16,9 +16,8 @@ std::vector<double> Sequence::keyframe_times() const {
 }
 
 void validate_sequence(const Sequence& sequence) {
-  if (sequence.keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
   const SequenceOutline outline = outline_of(sequence);
-  validate_outline(outline);
+  validate_outline(outline);  // first: it refuses a sequence without keyframes
   const Keyframe& first = sequence.keyframes.front();
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
     const Keyframe& key = sequence.keyframes[k];

@@ -46,8 +46,8 @@ SequenceOutline outline_of(const Sequence& sequence);
 // strictly increasing times, a texture size not negative; of keyframe k, its time the outline's,
 // fields valid on the outline's grid and representation with `fixed_nodes` (keyframe 0's), a
 // finite proper pose, and one finite hole level per node where the outline has holes (none where it
-// has none). Each throws kInvalidArgument naming the keyframe and the defect; the texture is not
-// checked (validate_sequence and the writer check it as each holds it).
+// has none). Each throws kInvalidArgument naming the defect, and the keyframe where one is at
+// fault; the texture is not checked (validate_sequence and the writer check it as each holds it).
 void validate_outline(const SequenceOutline& outline);
 void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key);
 
