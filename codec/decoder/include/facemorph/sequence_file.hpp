@@ -157,9 +157,10 @@ std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<co
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
-// leaves any previous file untouched. From a source, the file is streamed: the chunks wait in a
-// temporary file (TMPDIR) until the index is laid out, so memory holds one keyframe and one chunk,
-// not the file.
+// leaves any previous file untouched. The file is streamed: the chunks wait in a temporary file
+// (TMPDIR) until the index is laid out, and only then is the destination's temporary name opened,
+// so memory holds one keyframe and one chunk, not the file. Errors name `path` (kIo for a full
+// disk or a missing TMPDIR).
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata);
 Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr, const DecoderLimits& limits = kDefaultDecoderLimits);
