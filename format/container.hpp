@@ -102,7 +102,6 @@ class ChunkSpool {
   // Chunk `id` as added. Throws kInvalidArgument where only sizes are kept, kIo where the temporary
   // file cannot be read back.
   PreparedChunk get(size_t id) const;
-  Keep keep() const { return keep_; }
   // The chunks' payload bytes the spool holds in memory (0 unless Keep::kMemory).
   uint64_t bytes_held() const { return bytes_held_; }
 

@@ -111,9 +111,17 @@ void set_default_pose_steps(FieldCoding& coding, const std::string& units) {
   coding.translation_step = kTranslationStepMetres / metres;
 }
 
+namespace {
+
+// `sequence` as a source that does not own it: for a writer that uses it only within the call.
+std::shared_ptr<const KeyframeSource> borrowed_source(const Sequence& sequence) {
+  return memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence));
+}
+
+}  // namespace
+
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata) {
-  // A non-owning pointer: the source lives only in this call, within the sequence's lifetime.
-  return encode_sequence_file(*memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence)), metadata);
+  return encode_sequence_file(*borrowed_source(sequence), metadata);
 }
 
 namespace {
@@ -602,8 +610,7 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 }
 
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
-  // A non-owning pointer: the source lives only in this call, within the sequence's lifetime.
-  write_sequence_file(path, *memory_source(std::shared_ptr<const Sequence>(std::shared_ptr<const Sequence>(), &sequence)), metadata);
+  write_sequence_file(path, *borrowed_source(sequence), metadata);
 }
 
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata) {
