@@ -144,12 +144,13 @@ DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& c
   t.size = size;
   const std::shared_ptr<const MappedFrame> mapped = encoder.frame(frame);  // held while `inverse` refers to its map
   const InverseDiskMap inverse(mapped->map);
+  const SequenceEncoder::Sampler sample = encoder.sampler(frame);
   std::vector<std::vector<std::pair<int, Vec2>>> rows(static_cast<size_t>(size));
   parallel_for(size, 0, [&](int y) {
     for (int x = 0; x < size; ++x) {
       const Vec2 w(2 * (x + 0.5) / size - 1, 1 - 2 * (y + 0.5) / size);
       if (w.norm() > 1) continue;
-      Vec2 v = encoder.sample_point(frame, w);
+      Vec2 v = sample(w);
       if (v.norm() > 1) v.normalize();
       if (const auto hit = inverse.locate(v)) rows[static_cast<size_t>(y)].emplace_back(y * size + x, inverse.texture_uv(*hit));
     }

@@ -119,7 +119,7 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
                     const std::vector<TriangleMesh>& captured, const std::vector<int>& frames_to_decode, bool textures,
                     const std::function<void(int, const DecodedFrame&)>& on_decoded) {
   Evaluation e;
-  e.registration = registration_method_name(encoder.registration(0).method);
+  e.registration = registration_method_name(encoder.registration(0)->method);
   e.spline = spline_kind_name(sequence.spline);
   e.keyframes = static_cast<int>(keyframes.size());
   e.grid = sequence.grid_n;

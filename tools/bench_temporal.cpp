@@ -73,16 +73,18 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
   int counted = 0;
   for (int i = 0; i < encoder.frame_count(); ++i) {
     if (i == reference) continue;
-    const DiskRegistration& f = encoder.registration(i);
+    const std::shared_ptr<const DiskRegistration> registration = encoder.registration(i);
+    const DiskRegistration& f = *registration;
     m.disk_moebius += f.energy_moebius;
     m.disk += f.energy;
     // E_loc: the reference's landmarks carried through f onto frame i, against frame i's own.
     const std::shared_ptr<const MappedFrame> frame = encoder.frame(i);  // held while `inverse` refers to its map
     const InverseDiskMap inverse(frame->map);
-    const DiskLandmarks landmarks = disk_landmarks(capture, static_cast<size_t>(reference), encoder.frame(reference)->map, static_cast<size_t>(i), frame->map);
+    const DiskLandmarks landmarks = encoder.frame_disk_landmarks(i);
+    const std::vector<Vec3> reference_points = encoder.landmarks(reference), frame_points = encoder.landmarks(i);
     size_t j = 0;
     for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
-      const Vec3 &p = capture.landmarks[static_cast<size_t>(reference)][l], &q = capture.landmarks[static_cast<size_t>(i)][l];
+      const Vec3 &p = reference_points[l], &q = frame_points[l];
       if (!p.allFinite() || !q.allFinite()) continue;
       const auto hit = inverse.locate(f(landmarks.reference[j++]));
       if (hit) m.local += (inverse.position(*hit) - q).squaredNorm();
@@ -236,8 +238,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       }
       int fallbacks = 0, frame_fallbacks = 0;
       for (int i = 0; i < count; ++i) {
-        fallbacks += encoder.registration(i).fallback != RegistrationFallback::kNone;
-        frame_fallbacks += encoder.registration(i).fallback == RegistrationFallback::kGmfInsteadOfFrame;
+        fallbacks += encoder.registration(i)->fallback != RegistrationFallback::kNone;
+        frame_fallbacks += encoder.registration(i)->fallback == RegistrationFallback::kGmfInsteadOfFrame;
       }
       json r = evaluation_json(e);
       if (through_file) r["file_bytes"] = file_bytes, r["file_bytes_per_second"] = file_bytes / file_seconds;
@@ -291,7 +293,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     const RegistrationMethod default_method = RegistrationOptions{}.method;
     const RegistrationMethod main_method =
         std::find(methods.begin(), methods.end(), default_method) != methods.end() ? default_method : methods.back();
-    if (encoder.registration(0).method != main_method) {
+    if (encoder.registration(0)->method != main_method) {
       encoder.options().registration.method = main_method;
       encoder.register_frames();
       encoder.sample_frames();

@@ -50,7 +50,7 @@ void measure_accuracy(const TrackingBenchOptions& o) {
   if (o.round_trip >= 0) tracking.max_round_trip = o.round_trip;
   auto points_of = [&](size_t i) {
     std::vector<Vec2> p;
-    for (size_t l : interior) p.push_back(on_disk(*encoder.frame(static_cast<int>(i)), kept.landmarks[i][l]));
+    for (size_t l : interior) p.push_back(on_disk(*encoder.frame(static_cast<int>(i)), encoder.landmarks(static_cast<int>(i))[l]));
     return p;
   };
   const bool holes = !o.no_holes;
@@ -145,7 +145,7 @@ void measure_selection(const TrackingBenchOptions& o) {
       if (e > 0) sum += e, ++n;
     }
     int fallbacks = 0;
-    for (int i = 0; i < encoder.frame_count(); ++i) fallbacks += encoder.registration(i).fallback != RegistrationFallback::kNone;
+    for (int i = 0; i < encoder.frame_count(); ++i) fallbacks += encoder.registration(i)->fallback != RegistrationFallback::kNone;
     std::printf("gain %.2f spacing %.3f window %.0f round trip %.3f smoothing %.3g: %zu keyframes, predicted mean %.4f%% (budget mean %.4f%%), "
                 "%d fallbacks, %.1f points, %.2f s tracking, %.2f s registration\n",
                 gain, spacing, window, round_trip, smoothing, chosen.keyframes.size(), 100 * sum / std::max(n, 1), 100 * chosen.budget_mean_error, fallbacks,

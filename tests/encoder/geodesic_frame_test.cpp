@@ -1,6 +1,7 @@
 // The geodesic frame (paper §4, method-notes §6): surface geodesics between disk points, the frame of
 // a face's landmarks and its partition mesh, and Φ, the piecewise-affine registration through it.
 #include "facemorph/encoder/registration.hpp"
+#include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/error.hpp"
@@ -582,7 +583,8 @@ TEST_F(FaceFrame, TheEncoderRegistersThroughTheFrame) {
   ASSERT_NE(encoder_->geodesic_frame(), nullptr);
   EXPECT_EQ(encoder_->geodesic_frame()->graph_points, frame_->graph_points);  // the reference's frame, built once
   for (int i = 0; i < encoder_->frame_count(); ++i) {
-    const DiskRegistration& f = encoder_->registration(i);
+    const std::shared_ptr<const DiskRegistration> registration = encoder_->registration(i);
+    const DiskRegistration& f = *registration;
     EXPECT_EQ(f.method, RegistrationMethod::kFrame);
     if (f.fallback == RegistrationFallback::kNone) {
       ASSERT_NE(f.partition_map, nullptr) << "frame " << i;
@@ -590,16 +592,147 @@ TEST_F(FaceFrame, TheEncoderRegistersThroughTheFrame) {
     } else {
       EXPECT_FALSE(f.fallback_reason.empty());
     }
-    const auto reference = static_cast<size_t>(encoder_->options().reference_frame);
-    const DiskLandmarks landmarks = disk_landmarks(encoder_->capture(), reference, encoder_->frame(static_cast<int>(reference))->map, static_cast<size_t>(i), encoder_->frame(i)->map);
+    const DiskLandmarks landmarks = encoder_->frame_disk_landmarks(i);
     EXPECT_LT(max_landmark_error(f, landmarks), f.fallback == RegistrationFallback::kNone ? 1e-9 : 1.0) << "frame " << i;
   }
-  EXPECT_LT((encoder_->registration(0)(Vec2(0.3, -0.2)) - Vec2(0.3, -0.2)).norm(), 1e-9);
+  EXPECT_LT(((*encoder_->registration(0))(Vec2(0.3, -0.2)) - Vec2(0.3, -0.2)).norm(), 1e-9);
   // Other methods do not build a frame.
   encoder_->options().registration.method = RegistrationMethod::kGmf;
   encoder_->register_frames();
   EXPECT_EQ(encoder_->geodesic_frame(), nullptr);
-  EXPECT_EQ(encoder_->registration(1).method, RegistrationMethod::kGmf);
+  EXPECT_EQ(encoder_->registration(1)->method, RegistrationMethod::kGmf);
+}
+
+// ---- The encoder's registration store ----
+
+// Every field RegistrationStore writes, compared exactly, and the map itself at points over the disk
+// and its circle: the same doubles, whether a Möbius map, a GMF or Φ.
+void expect_same_registration(const DiskRegistration& a, const DiskRegistration& b) {
+  EXPECT_EQ(a.method, b.method);
+  EXPECT_EQ(a.form, b.form);
+  EXPECT_EQ(a.moebius.a, b.moebius.a);
+  EXPECT_EQ(a.moebius.theta, b.moebius.theta);
+  ASSERT_EQ(a.steps.size(), b.steps.size());
+  for (size_t k = 0; k < a.steps.size(); ++k) {
+    EXPECT_EQ(a.steps[k].centres, b.steps[k].centres);
+    EXPECT_EQ(a.steps[k].weights, b.steps[k].weights);
+    EXPECT_EQ(a.steps[k].offset, b.steps[k].offset);
+    EXPECT_EQ(a.steps[k].linear, b.steps[k].linear);
+  }
+  EXPECT_EQ(a.energy_moebius, b.energy_moebius);
+  EXPECT_EQ(a.energy, b.energy);
+  EXPECT_EQ(a.moebius_iterations, b.moebius_iterations);
+  EXPECT_EQ(a.moebius_start, b.moebius_start);
+  EXPECT_EQ(a.fallback, b.fallback);
+  EXPECT_EQ(a.fallback_reason, b.fallback_reason);
+  EXPECT_EQ(a.smoothing, b.smoothing);
+  EXPECT_EQ(a.boundary_samples, b.boundary_samples);
+  const BijectionCheck &ca = a.check, &cb = b.check;
+  EXPECT_EQ(ca.grid_points, cb.grid_points);
+  EXPECT_EQ(ca.refined_points, cb.refined_points);
+  EXPECT_EQ(ca.folded_points, cb.folded_points);
+  EXPECT_EQ(ca.min_jacobian, cb.min_jacobian);
+  EXPECT_EQ(ca.min_area_ratio, cb.min_area_ratio);
+  EXPECT_EQ(ca.worst_point, cb.worst_point);
+  EXPECT_EQ(ca.stopped, cb.stopped);
+  EXPECT_EQ(ca.boundary_samples, cb.boundary_samples);
+  EXPECT_EQ(ca.boundary_order_breaks, cb.boundary_order_breaks);
+  EXPECT_EQ(ca.max_boundary_radius_error, cb.max_boundary_radius_error);
+  EXPECT_EQ(ca.clamped_points, cb.clamped_points);
+  ASSERT_EQ(a.partition_map == nullptr, b.partition_map == nullptr);
+  if (a.partition_map) {
+    EXPECT_EQ(a.partition_map->partition, b.partition_map->partition);  // re-attached, not copied
+    EXPECT_EQ(a.partition_map->images, b.partition_map->images);
+    EXPECT_EQ(a.partition_map->jacobians, b.partition_map->jacobians);
+  }
+  for (int i = -20; i <= 20; ++i) {
+    for (int j = -20; j <= 20; ++j) {
+      const Vec2 w(i / 20.0, j / 20.0);
+      if (w.norm() > 1) continue;
+      ASSERT_EQ(a(w), b(w)) << "at (" << w.transpose() << ")";
+      ASSERT_EQ(a.jacobian(w), b.jacobian(w)) << "at (" << w.transpose() << ")";
+    }
+  }
+  for (int k = 0; k < 90; ++k) ASSERT_EQ(a(on_circle(2 * kPi * k / 90)), b(on_circle(2 * kPi * k / 90))) << "circle point " << k;
+}
+
+// Registrations of every kind: the OMT alone, a GMF, Φ, and the GMF that a folded Φ fell back to
+// (with its reason), for an opening mouth after a Möbius motion.
+std::vector<DiskRegistration> registrations_of_every_kind() {
+  const DiskMoebius M{Complex(0.15, -0.1), 0.2};
+  DiskLandmarks l = face();
+  for (size_t j = 0; j < l.frame.size(); ++j) {
+    Vec2 p = l.reference[j];
+    if (j == 7 || j == 8 || j == 4) p.y() -= 0.08;
+    l.frame[j] = M(p);
+  }
+  const GeodesicFrame& frame = flat_frame();
+  std::vector<DiskRegistration> out;
+  out.push_back(register_disks(l, {.method = RegistrationMethod::kMoebius}));
+  out.push_back(register_disks(l));
+  out.push_back(register_disks(l, {.method = RegistrationMethod::kFrame}, &frame));
+  std::vector<Vec2> images = frame.partition->vertices();
+  const auto t = std::find_if(frame.partition->faces().begin(), frame.partition->faces().end(), [](const Face& face) { return face[0] == 0; });
+  std::swap(images[0], images[static_cast<size_t>((*t)[1])]);
+  out.push_back(register_through_partition(frame, out[1], images, l));
+  // Φ with every number it carries away from its default, so that a field the store forgot to
+  // write and read shows.
+  DiskRegistration odd = out[2];
+  odd.form = GmfForm::kPaperGrid;
+  odd.energy_moebius = 1.5, odd.energy = 2.5, odd.smoothing = 3.5;
+  odd.moebius_iterations = 7;
+  odd.moebius_start = MoebiusStart::kAlgebraic;
+  odd.fallback = RegistrationFallback::kSubsteps;
+  odd.fallback_reason = "a reason";
+  odd.boundary_samples = 11;
+  odd.check = {.grid_points = 1, .refined_points = 2, .folded_points = 3, .min_jacobian = 4.5, .min_area_ratio = 5.5, .worst_point = Vec2(0.1, 0.2),
+               .stopped = true, .boundary_samples = 6, .boundary_order_breaks = 7, .max_boundary_radius_error = 8.5, .clamped_points = 9};
+  out.push_back(odd);
+  return out;
+}
+
+TEST(RegistrationStore, ASpilledRegistrationReadsBackAsTheSameMap) {
+  using testing::expect_error;
+  const std::vector<DiskRegistration> made = registrations_of_every_kind();
+  ASSERT_EQ(made.size(), 5u);
+  ASSERT_TRUE(made[0].steps.empty());
+  ASSERT_FALSE(made[1].steps.empty());
+  ASSERT_NE(made[2].partition_map, nullptr);
+  ASSERT_EQ(made[3].fallback, RegistrationFallback::kGmfInsteadOfFrame);
+  ASSERT_FALSE(made[3].fallback_reason.empty());
+  const std::shared_ptr<const PartitionMesh> partition = flat_frame().partition;
+  for (const SpillMode mode : {SpillMode::kSpill, SpillMode::kMemory}) {
+    SCOPED_TRACE(mode == SpillMode::kSpill ? "spilled" : "in memory");
+    RegistrationStore store(mode);
+    store.reset(made.size() + 1, partition);
+    for (size_t i = 0; i < made.size(); ++i) store.put(i, DiskRegistration(made[i]));
+    EXPECT_EQ(store.spilled_bytes() > 0, mode == SpillMode::kSpill);
+    for (size_t i = 0; i < made.size(); ++i) {
+      SCOPED_TRACE("registration " + std::to_string(i));
+      expect_same_registration(made[i], *store.get(i));
+    }
+    expect_error(ErrorCode::kInternal, "never stored", [&] { store.get(made.size()); });
+    expect_error(ErrorCode::kInternal, "past the end", [&] { store.put(made.size() + 1, DiskRegistration(made[0])); });
+    // Kept frames are renumbered in order.
+    store.keep({1, 2});
+    ASSERT_EQ(store.size(), 2u);
+    expect_same_registration(made[1], *store.get(0));
+    expect_same_registration(made[2], *store.get(1));
+    // A store for registrations without a frame refuses Φ rather than lose its partition.
+    store.reset(1, nullptr);
+    expect_error(ErrorCode::kInternal, "another partition", [&] { store.put(0, DiskRegistration(made[2])); });
+  }
+  // The byte form: whole, it reads back; cut short or lengthened, or without the partition for Φ, it is refused.
+  for (const DiskRegistration& f : made) {
+    const std::vector<char> bytes = RegistrationStore::serialize(f);
+    expect_same_registration(f, RegistrationStore::deserialize(bytes.data(), bytes.size(), partition));
+    expect_error(ErrorCode::kInternal, "cut short", [&] { RegistrationStore::deserialize(bytes.data(), bytes.size() - 1, partition); });
+    std::vector<char> longer = bytes;
+    longer.push_back(0);
+    expect_error(ErrorCode::kInternal, "left over", [&] { RegistrationStore::deserialize(longer.data(), longer.size(), partition); });
+  }
+  const std::vector<char> phi = RegistrationStore::serialize(made[2]);
+  expect_error(ErrorCode::kInternal, "no partition", [&] { RegistrationStore::deserialize(phi.data(), phi.size(), nullptr); });
 }
 
 }  // namespace

@@ -703,6 +703,37 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   EXPECT_EQ(found.dropped[0].index, 5);
   EXPECT_EQ(found.orientation_found, 1);
 
+  // The landmarks as the encoder keeps them, out of its capture, spilled or in memory alike: the
+  // frames kept, renumbered; the far ones ignored; frame 8's nose tip and up found from its geometry.
+  const auto bridge = static_cast<size_t>(capture.landmark_index("nose_bridge"));
+  for (const bool spill : {true, false}) {
+    SCOPED_TRACE(spill ? "spilled" : "in memory");
+    options.spill_frames = spill;
+    SequenceEncoder encoder(capture, options);
+    EXPECT_TRUE(encoder.capture().landmarks.empty());
+    encoder.map_frames();
+    ASSERT_EQ(encoder.frame_count(), static_cast<int>(capture.frames.size()) - 1);
+    for (int i = 0; i < encoder.frame_count(); ++i) {
+      const auto source = static_cast<size_t>(encoder.source_index(i));
+      const std::vector<Vec3> points = encoder.landmarks(i);
+      ASSERT_EQ(points.size(), encoder.capture().landmark_names.size());
+      for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
+        const Vec3& given = capture.landmarks[source][l];
+        if (source == 3 && l == chin) {
+          EXPECT_FALSE(points[l].allFinite());
+        } else if (source == 8 && l == nose) {
+          ASSERT_TRUE(points[l].allFinite());
+          EXPECT_GT((points[l] - given).norm(), 0.02);  // found on the surface, not the one 5 cm off it
+        } else if (source == 8 && l == bridge) {
+          EXPECT_TRUE(points[l].allFinite());  // the found up direction's point
+        } else if (given.allFinite()) {
+          EXPECT_EQ(points[l], given) << "frame " << source << ", landmark " << l;
+        }
+      }
+    }
+  }
+  options.spill_frames = true;
+
   // --strict: the first of them ends the encode, named (one thread: frame 3's chin comes first).
   options.strict = true;
   options.threads = 1;
@@ -781,8 +812,8 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
     encoder.register_frames();
     const double expected = capture == &bare ? options.tracking.registration_smoothing : 0.0;
     for (int i = 1; i < encoder.frame_count(); ++i) {
-      if (encoder.registration(i).fallback == RegistrationFallback::kNone) {
-        EXPECT_EQ(encoder.registration(i).smoothing, expected) << i;
+      if (encoder.registration(i)->fallback == RegistrationFallback::kNone) {
+        EXPECT_EQ(encoder.registration(i)->smoothing, expected) << i;
       }
     }
   }

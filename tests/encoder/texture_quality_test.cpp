@@ -135,7 +135,7 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   for (int i = 0; i < encoder.frame_count(); ++i) {
     if (std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i)) continue;
     const Image own = resample_texture(InverseDiskMap(encoder.frame(i)->map), read_image(encoder.texture_path(i)), 128,
-                                       [&](const Vec2& w) { return encoder.sample_point(i, w); });
+                                       encoder.sampler(i));
     const double t = capture.frames[static_cast<size_t>(i)].time;
     auto_mse += disk_texture_mse(own, auto_decoder.decode(t).texture);
     fixed_mse += disk_texture_mse(own, fixed_decoder.decode(t).texture);

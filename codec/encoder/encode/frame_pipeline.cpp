@@ -3,6 +3,7 @@
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/error.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -17,16 +18,18 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
-FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) {
+FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) { return frame_landmarks(capture.landmark_names, capture.landmarks[frame]); }
+
+FrameLandmarks frame_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& points) {
   FrameLandmarks landmarks;
-  const auto& points = capture.landmarks[frame];
   auto point = [&](const std::string& name) -> std::optional<Vec3> {
-    const int index = capture.landmark_index(name);
-    if (index < 0 || !points[static_cast<size_t>(index)].allFinite()) return std::nullopt;
-    return points[static_cast<size_t>(index)];
+    const auto it = std::find(names.begin(), names.end(), name);
+    const auto index = static_cast<size_t>(it - names.begin());
+    if (it == names.end() || !points[index].allFinite()) return std::nullopt;
+    return points[index];
   };
-  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
-    if (capture.landmark_names[l].rfind("rim_", 0) == 0 && points[l].allFinite()) landmarks.rim_markers.push_back(points[l]);
+  for (size_t l = 0; l < names.size(); ++l) {
+    if (names[l].rfind("rim_", 0) == 0 && points[l].allFinite()) landmarks.rim_markers.push_back(points[l]);
   }
   landmarks.centre = point("nose_tip");
   landmarks.up = point("nose_bridge");

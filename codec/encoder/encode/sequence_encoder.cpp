@@ -4,6 +4,7 @@
 #include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 
+#include "codec/encoder/encode/spill_bytes.hpp"
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
 #include "codec/decoder/geometry/elementary.hpp"
@@ -158,13 +159,18 @@ double frame_noise(const SelectionFrames& frames, const std::vector<double>& nod
 }  // namespace
 
 DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame, const DiskMap& frame_map) {
+  return disk_landmarks(capture.landmark_names, capture.landmarks[reference], reference_map, capture.landmarks[frame], frame_map);
+}
+
+DiskLandmarks disk_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const DiskMap& reference_map,
+                             const std::vector<Vec3>& frame, const DiskMap& frame_map) {
   DiskLandmarks landmarks;
   const PointToMesh on_reference(reference_map.surface), on_frame(frame_map.surface);
-  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
-    const Vec3 &p = capture.landmarks[reference][l], &q = capture.landmarks[frame][l];
+  for (size_t l = 0; l < names.size(); ++l) {
+    const Vec3 &p = reference[l], &q = frame[l];
     if (!p.allFinite() || !q.allFinite()) continue;
     Vec2 wp = disk_point(reference_map, on_reference.closest(p)), wq = disk_point(frame_map, on_frame.closest(q));
-    const bool rim = capture.landmark_names[l].rfind("rim_", 0) == 0;
+    const bool rim = names[l].rfind("rim_", 0) == 0;
     if (rim) {
       // A marker on the rim interpolates along a boundary chord: put it on the circle.
       wp.normalize();
@@ -221,6 +227,24 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
     throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
                                                  std::to_string(count) + " frames");
   }
+  // The landmarks leave the capture for a store: 1.8 kB a frame of ICT's 74, which kept in memory
+  // grew with the capture for the whole encode.
+  landmarks_ = std::make_unique<SpilledItems<std::vector<Vec3>>>(
+      options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, "the frames' landmarks",
+      [](const std::vector<Vec3>& points) {
+        spill::Writer w;
+        w.array(points);
+        return w.take();
+      },
+      [](const char* bytes, size_t size) {
+        spill::Reader r(bytes, size, "the frames' landmarks: a stored frame");
+        std::vector<Vec3> points = r.array<Vec3>();
+        if (!r.done()) throw Error(ErrorCode::kInternal, "the frames' landmarks: a stored frame has bytes left over");
+        return points;
+      });
+  landmarks_->reset(capture_.landmarks.size());
+  for (size_t i = 0; i < capture_.landmarks.size(); ++i) landmarks_->put(i, std::move(capture_.landmarks[i]));
+  capture_.landmarks = {};
   source_index_.resize(static_cast<size_t>(count));
   std::iota(source_index_.begin(), source_index_.end(), 0);
   first_time_ = capture_.frames.front().time;
@@ -278,13 +302,14 @@ SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const 
 
 void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings) {
   // A capture without landmarks (or a frame without any) needs no closest-point structure.
-  const std::vector<Vec3>& points = capture_.landmarks[index];
+  std::vector<Vec3> points = landmarks(static_cast<int>(index));
   if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return;
   const PointToMesh surface(mesh);
   const double diagonal = bounding_box_diagonal(mesh.positions);
   const std::string& name = capture_.frames[index].mesh.string();
+  bool ignored = false;
   for (size_t l = 0; l < capture_.landmark_names.size(); ++l) {
-    Vec3& point = capture_.landmarks[index][l];
+    Vec3& point = points[l];
     if (!point.allFinite()) continue;
     const double distance = surface.distance(point);
     if (distance <= options_.landmark_tolerance * diagonal) continue;
@@ -296,7 +321,9 @@ void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t inde
     if (options_.strict) throw Error(ErrorCode::kInvalidArgument, name + ": " + what);
     warnings.push_back(name + ": " + what + "; ignored");
     point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    ignored = true;
   }
+  if (ignored) landmarks_->put(index, std::move(points));
 }
 
 void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
@@ -335,7 +362,7 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
     items = std::move(out);
   };
   compact(capture_.frames);
-  compact(capture_.landmarks);
+  if (landmarks_->size() == failures.size()) landmarks_->keep(kept);
   compact(source_index_);
   compact(summaries_);
   if (store_ && store_->size() == failures.size()) store_->keep(kept);
@@ -346,7 +373,7 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
     if (pinned_index_ < 0) pinned_.reset();
   }
   compact(textures_);
-  compact(registrations_);
+  if (registrations_ && registrations_->size() == failures.size()) registrations_->keep(kept);
 }
 
 std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
@@ -355,7 +382,7 @@ std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
   const int count = frame_count();
   for (int step = 0; step < count; ++step) {
     const auto index = static_cast<size_t>((options_.reference_frame + step) % count);
-    const FrameLandmarks given = capture_frame_landmarks(capture_, index);
+    const FrameLandmarks given = frame_landmarks(capture_.landmark_names, landmarks(static_cast<int>(index)));
     if (given.centre && given.up) continue;
     try {
       const FrameStore::Hold held = store_->hold();
@@ -375,7 +402,6 @@ void SequenceEncoder::adopt_found_landmarks() {
     int index = capture_.landmark_index(name);
     if (index >= 0) return static_cast<size_t>(index);
     capture_.landmark_names.push_back(name);
-    for (auto& points : capture_.landmarks) points.push_back(Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
     return capture_.landmark_names.size() - 1;
   };
   const bool given_rim = std::any_of(capture_.landmark_names.begin(), capture_.landmark_names.end(),
@@ -383,8 +409,11 @@ void SequenceEncoder::adopt_found_landmarks() {
   for (size_t i = 0; i < summaries_.size(); ++i) {
     const FrameSummary& f = summaries_[i];
     if (!f.found) continue;
-    capture_.landmarks[i][name_index("nose_tip")] = f.found->nose_tip;
-    capture_.landmarks[i][name_index("nose_bridge")] = f.found->up;
+    const size_t tip = name_index("nose_tip"), up = name_index("nose_bridge");
+    std::vector<Vec3> points = landmarks(static_cast<int>(i));
+    points[tip] = f.found->nose_tip;
+    points[up] = f.found->up;
+    landmarks_->put(i, std::move(points));
     ++report_.orientation_found;
     report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
     report_.up_from_hint += f.found->up_from_hint;
@@ -394,7 +423,11 @@ void SequenceEncoder::adopt_found_landmarks() {
   // No rim markers given: each normalised frame's rim points at the same disk angles.
   for (size_t i = 0; i < summaries_.size(); ++i) {
     if (summaries_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
-    for (int k = 0; k < kFoundRimMarkers; ++k) capture_.landmarks[i][name_index("rim_" + std::to_string(k))] = summaries_[i].found_rim[static_cast<size_t>(k)];
+    std::vector<size_t> rim(kFoundRimMarkers);
+    for (int k = 0; k < kFoundRimMarkers; ++k) rim[static_cast<size_t>(k)] = name_index("rim_" + std::to_string(k));
+    std::vector<Vec3> points = landmarks(static_cast<int>(i));
+    for (int k = 0; k < kFoundRimMarkers; ++k) points[rim[static_cast<size_t>(k)]] = summaries_[i].found_rim[static_cast<size_t>(k)];
+    landmarks_->put(i, std::move(points));
     report_.rim_markers_found = true;
   }
 }
@@ -423,7 +456,7 @@ void SequenceEncoder::map_frames() {
         try {
           const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
           ignore_far_landmarks(mesh, index, warnings[index]);
-          const FrameLandmarks landmarks = capture_frame_landmarks(capture_, index);
+          const FrameLandmarks landmarks = frame_landmarks(capture_.landmark_names, this->landmarks(i));
           if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
                                                          " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
@@ -470,7 +503,7 @@ std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   report_.tracked_frames = 0;
   std::vector<TrackedPoints> tracked;
   bool needed = false;
-  for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked_points(capture_, reference, i);
+  for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked(reference, i);
   if (!options_.track_landmarks || !needed) return tracked;
   const int size = options_.tracking.image_size;
   // Each frame's map read back from the store while its images are drawn (frame() is thread-safe).
@@ -480,7 +513,7 @@ std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   double kept = 0;
   report_.tracked_points_fewest = std::numeric_limits<int>::max();
   for (size_t i = 0; i < count; ++i) {
-    if (i == reference || !needs_tracked_points(capture_, reference, i)) continue;
+    if (i == reference || !needs_tracked(reference, i)) continue;
     ++report_.tracked_frames;
     kept += static_cast<double>(tracked[i].reference.size());
     report_.tracked_points_fewest = std::min(report_.tracked_points_fewest, static_cast<int>(tracked[i].reference.size()));
@@ -505,21 +538,24 @@ void SequenceEncoder::register_frames() {
   const std::shared_ptr<const MappedFrame> reference_frame = pin_reference();
   reparametrisation_ = DiskReparametrisation(reference_frame->map, options_.density_equalising);
   report_.density_equalising = reparametrisation_.report();
-  registrations_.assign(static_cast<size_t>(count), {});
   geodesic_frame_.reset();
   if (options_.registration.method == RegistrationMethod::kFrame) {
     // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
     // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
     // unconstrained there.
     const MappedFrame& f = *reference_frame;
-    const DiskLandmarks own = disk_landmarks(capture_, reference, f.map, reference, f.map);
+    const std::vector<Vec3> points = landmarks(static_cast<int>(reference));
+    const DiskLandmarks own = facemorph::disk_landmarks(capture_.landmark_names, points, f.map, points, f.map);
     try {
       geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(f.map, own.reference, own.on_rim));
     } catch (const Error& e) {
       throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
     }
   }
+  registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
+  registrations_->reset(static_cast<size_t>(count), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
   const std::vector<TrackedPoints> tracked = track_frames();
+  const std::vector<Vec3> reference_points = landmarks(static_cast<int>(reference));
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
   std::vector<char> without_interior(static_cast<size_t>(count), 0);  // registered without interior landmarks
   parallel_for(
@@ -531,10 +567,11 @@ void SequenceEncoder::register_frames() {
         try {
           // The frame's landmarks on the two disks, made here and dropped once registered (kept, they
           // were 2 kB a frame for the whole encode).
-          DiskLandmarks landmarks = disk_landmarks(capture_, reference, reference_frame->map, index, frame->map);
-          const bool took_tracked = !tracked.empty() && needs_tracked_points(capture_, reference, index) && !tracked[index].reference.empty();
+          DiskLandmarks landmarks = facemorph::disk_landmarks(capture_.landmark_names, reference_points, reference_frame->map, this->landmarks(i), frame->map);
+          const bool needs = needs_tracked(reference, index);
+          const bool took_tracked = !tracked.empty() && needs && !tracked[index].reference.empty();
           if (took_tracked) add_tracked_points(landmarks, tracked[index]);
-          without_interior[index] = !took_tracked && index != reference && needs_tracked_points(capture_, reference, index);
+          without_interior[index] = !took_tracked && index != reference && needs;
           if (landmarks.reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
                                                          std::to_string(landmarks.reference.size()) + " landmarks with the reference frame (3 needed)");
@@ -543,7 +580,7 @@ void SequenceEncoder::register_frames() {
             // A frame registered through tracked points: a smoothing thin plate, not one through every point.
             RegistrationOptions registration = options_.registration;
             if (took_tracked) registration.smoothing = std::max(registration.smoothing, options_.tracking.registration_smoothing);
-            registrations_[index] = register_disks(landmarks, registration, geodesic_frame_.get());
+            registrations_->put(index, register_disks(landmarks, registration, geodesic_frame_.get()));
           } catch (const Error& e) {
             throw Error(e.code(), name + ": registration: " + e.what());
           }
@@ -564,14 +601,31 @@ void SequenceEncoder::register_frames() {
   report_.seconds_registration = seconds_since(start);
 }
 
-Vec2 SequenceEncoder::sample_point(int i, const Vec2& node) const {
-  return registrations_[static_cast<size_t>(i)](reparametrisation_(node));
+std::vector<Vec3> SequenceEncoder::landmarks(int i) const {
+  std::vector<Vec3> points = *landmarks_->get(static_cast<size_t>(i));
+  // Names adopted after the frame's points were stored (adopt_found_landmarks) it lacks.
+  points.resize(capture_.landmark_names.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+  return points;
+}
+
+DiskLandmarks SequenceEncoder::frame_disk_landmarks(int i) const {
+  const int reference = options_.reference_frame;
+  return facemorph::disk_landmarks(capture_.landmark_names, landmarks(reference), frame(reference)->map, landmarks(i), frame(i)->map);
+}
+
+bool SequenceEncoder::needs_tracked(size_t reference, size_t i) const {
+  return needs_tracked_points(capture_.landmark_names, landmarks(static_cast<int>(reference)), landmarks(static_cast<int>(i)));
+}
+
+std::shared_ptr<const DiskRegistration> SequenceEncoder::registration(int i) const {
+  if (!registrations_) throw Error(ErrorCode::kInternal, "the frames are not registered yet");
+  return registrations_->get(static_cast<size_t>(i));
 }
 
 std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> nodes) const {
   std::vector<Vec2> points = reparametrisation_(nodes);
-  const DiskRegistration& registration = registrations_[static_cast<size_t>(i)];
-  for (Vec2& p : points) p = registration(p);
+  const std::shared_ptr<const DiskRegistration> f = registration(i);
+  for (Vec2& p : points) p = (*f)(p);
   return points;
 }
 
@@ -601,7 +655,7 @@ Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) cons
   Image image;
   const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
   if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
-  return resample_texture(InverseDiskMap(f.map), *source, size, [&](const Vec2& w) { return sample_point(i, w); });
+  return resample_texture(InverseDiskMap(f.map), *source, size, sampler(i));
 }
 
 std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const { return sample_surface(*frame(i), i, nodes); }
@@ -1185,7 +1239,8 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   encoder.share_textures(*sequence, chosen.keyframes);
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const FrameSummary& frame = encoder.frame_summary(i);
-    const DiskRegistration& registration = encoder.registration(i);
+    const std::shared_ptr<const DiskRegistration> f = encoder.registration(i);
+    const DiskRegistration& registration = *f;
     EncodedFrameReport r;
     r.name = frame.name;
     r.time = encoder.capture().frames[static_cast<size_t>(i)].time;

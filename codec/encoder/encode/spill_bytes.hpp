@@ -19,10 +19,10 @@ namespace facemorph::spill {
 // output must not depend on whether its frames were spilled).
 static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
 static_assert(sizeof(Complex) == 2 * sizeof(double));
-static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double));
 template <typename T>
 constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex> ||
-                        std::is_same_v<T, Eigen::Vector3f>;
+                        std::is_same_v<T, Eigen::Vector3f> || std::is_same_v<T, Eigen::Matrix2d>;
 
 class Writer {
  public:

@@ -371,14 +371,16 @@ std::vector<TrackedPoints> track_sequence(size_t count, size_t reference, const 
 }
 
 bool needs_tracked_points(const Capture& capture, size_t reference, size_t frame) {
+  if (reference >= capture.landmarks.size() || frame >= capture.landmarks.size()) return true;
+  return needs_tracked_points(capture.landmark_names, capture.landmarks[reference], capture.landmarks[frame]);
+}
+
+bool needs_tracked_points(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const std::vector<Vec3>& frame) {
   int shared = 0;
-  for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
-    const std::string& name = capture.landmark_names[l];
+  for (size_t l = 0; l < names.size(); ++l) {
+    const std::string& name = names[l];
     if (name.rfind("rim_", 0) == 0 || name == "nose_tip" || name == "nose_bridge" || name == "between_eyes") continue;
-    if (reference < capture.landmarks.size() && frame < capture.landmarks.size() && capture.landmarks[reference][l].allFinite() &&
-        capture.landmarks[frame][l].allFinite()) {
-      ++shared;
-    }
+    if (reference[l].allFinite() && frame[l].allFinite()) ++shared;
   }
   return shared < 3;
 }

@@ -30,8 +30,10 @@ struct FrameLandmarks {
   std::optional<Vec3> up;         // nose_bridge (else between_eyes): onto the positive imaginary axis
 };
 
-// The landmarks of frame `frame` of `capture` (those the frame lacks are left out).
+// The landmarks of frame `frame` of `capture` (those the frame lacks are left out); or of one
+// frame's `points`, one per name of `names` (NaN where the frame lacks it).
 FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame);
+FrameLandmarks frame_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& points);
 
 struct MapFrameOptions {
   bool fill_holes = true;

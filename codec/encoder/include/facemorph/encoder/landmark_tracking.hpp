@@ -109,6 +109,8 @@ std::vector<TrackedPoints> track_sequence(size_t count, size_t reference, const 
 // the ones the encoder finds itself. Given interior landmarks, where there are enough, are used as
 // they are.
 bool needs_tracked_points(const Capture& capture, size_t reference, size_t frame);
+// The same for two frames' points, one per name of `names` (NaN where a frame lacks it).
+bool needs_tracked_points(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const std::vector<Vec3>& frame);
 
 // Appends `tracked` to `landmarks` as interior landmarks weighted by their confidence (the given
 // ones keep weight 1).

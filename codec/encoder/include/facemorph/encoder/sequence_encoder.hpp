@@ -19,6 +19,7 @@
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/landmark_tracking.hpp"
 #include "facemorph/encoder/registration.hpp"
+#include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
 #include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
@@ -341,7 +342,16 @@ class SequenceEncoder {
   // before it runs).
   Representation representation() const { return options_.representation.value_or(auto_representation_); }
   EncodeOptions& options() { return options_; }
-  const Capture& capture() const { return capture_; }  // the frames kept (all until map_frames drops any)
+  // The frames kept (all until map_frames drops any), their landmarks' names, without their
+  // landmarks: those are in the encoder's store (landmarks(i)).
+  const Capture& capture() const { return capture_; }
+  // Frame i's landmarks, one per name of capture().landmark_names (NaN where it lacks one), as the
+  // encoder uses them: those farther than the tolerance ignored, those map_frames found added. The
+  // encoder keeps them in a store (with options().spill_frames, its temporary file: 1.8 kB a frame
+  // for ICT's 74, a capture's length in memory otherwise), not in capture().
+  std::vector<Vec3> landmarks(int i) const;
+  // Frame i's landmarks and the reference's on their disks (disk_landmarks), after map_frames.
+  DiskLandmarks frame_disk_landmarks(int i) const;
   int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
   int frame_count() const { return static_cast<int>(capture_.frames.size()); }
   // Frame i's map, read back from the store (options().spill_frames; its prepared mesh left empty,
@@ -349,12 +359,25 @@ class SequenceEncoder {
   std::shared_ptr<const MappedFrame> frame(int i) const;
   const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
   const FrameStore& frame_store() const { return *store_; }
-  const DiskRegistration& registration(int i) const { return registrations_[static_cast<size_t>(i)]; }
+  // Frame i's registration, read back from its store (options().spill_frames) and held as long as
+  // the pointer is. After register_frames.
+  std::shared_ptr<const DiskRegistration> registration(int i) const;
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
   const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
-  // Where frame i is sampled for the disk points `nodes` of G (or of the disk texture): the reference's
-  // reparametrisation, then the frame's registration (after register_frames).
-  Vec2 sample_point(int i, const Vec2& node) const;
+  // Where frame i is sampled for disk points of G (or of the disk texture): the reference's
+  // reparametrisation, then the frame's registration (after register_frames). A sampler holds the
+  // registration it read back; sample_points reads it for one call.
+  class Sampler {
+   public:
+    Sampler(const DiskReparametrisation& reparametrisation, std::shared_ptr<const DiskRegistration> registration)
+        : reparametrisation_(reparametrisation), registration_(std::move(registration)) {}
+    Vec2 operator()(const Vec2& node) const { return (*registration_)(reparametrisation_(node)); }
+
+   private:
+    const DiskReparametrisation& reparametrisation_;
+    std::shared_ptr<const DiskRegistration> registration_;
+  };
+  Sampler sampler(int i) const { return Sampler(reparametrisation_, registration(i)); }
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
@@ -408,7 +431,10 @@ class SequenceEncoder {
   // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
   std::vector<TrackedPoints> track_frames();
 
-  Capture capture_;
+  Capture capture_;  // without its landmarks, which are in landmarks_
+  std::unique_ptr<SpilledItems<std::vector<Vec3>>> landmarks_;
+  // Whether frame i shares too few interior landmarks with the reference (needs_tracked_points).
+  bool needs_tracked(size_t reference, size_t i) const;
   std::vector<int> source_index_;
   double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
@@ -417,7 +443,7 @@ class SequenceEncoder {
   int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
   std::shared_ptr<const MappedFrame> pinned_;
   std::vector<std::filesystem::path> textures_;
-  std::vector<DiskRegistration> registrations_;
+  std::unique_ptr<RegistrationStore> registrations_;
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
   DiskReparametrisation reparametrisation_;
@@ -439,6 +465,9 @@ class SequenceEncoder {
 // and put exactly on the circle.
 DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame,
                              const DiskMap& frame_map);
+// The same for two frames' points, one per name of `names` (NaN where a frame lacks it).
+DiskLandmarks disk_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const DiskMap& reference_map,
+                             const std::vector<Vec3>& frame, const DiskMap& frame_map);
 
 // The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
 // distance to the nearest hole outline inside a filled hole, plus it outside capped at

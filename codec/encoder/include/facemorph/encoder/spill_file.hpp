@@ -9,8 +9,11 @@
 
 #include "format/spill_file.hpp"
 
+#include "facemorph/error.hpp"
+
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -68,5 +71,82 @@ std::shared_ptr<const T> read_counted(const SpillFile& file, const SpillFile::Re
   bytes = {};
   return counted(std::move(item), std::move(hold));
 }
+
+// Items numbered 0..size()-1, each kept in memory or as a record of a spill file: the bookkeeping of
+// a store whose items are read back whole when a stage asks (RegistrationStore, the encoder's
+// landmarks). Thread-safe for different items.
+template <typename T>
+class SpilledItems {
+ public:
+  using Serialize = std::function<std::vector<char>(const T&)>;
+  using Deserialize = std::function<T(const char*, size_t)>;
+  // `what` names the items in errors ("the frames' registrations").
+  SpilledItems(SpillMode mode, std::string what, Serialize serialize, Deserialize deserialize)
+      : mode_(mode), what_(what), file_(std::move(what)), serialize_(std::move(serialize)), deserialize_(std::move(deserialize)) {}
+  SpilledItems(const SpilledItems&) = delete;
+  SpilledItems& operator=(const SpilledItems&) = delete;
+
+  // Forgets every item and makes room for `count` (the file, if any, is emptied).
+  void reset(size_t count) {
+    std::lock_guard lock(mutex_);
+    entries_.assign(count, {});
+    file_.clear();
+  }
+  size_t size() const {
+    std::lock_guard lock(mutex_);
+    return entries_.size();
+  }
+  // Stores item i (i < size()), replacing what it was: spilled, the new bytes are appended and the
+  // old ones stay in the file until reset. Throws kIo when the file cannot be written.
+  void put(size_t i, T&& item) {
+    if (i >= size()) throw Error(ErrorCode::kInternal, what_ + ": item " + std::to_string(i) + " is past the end");
+    Entry entry;
+    entry.stored = true;
+    if (mode_ == SpillMode::kMemory) {
+      entry.item = std::make_shared<const T>(std::move(item));
+    } else {
+      const std::vector<char> bytes = serialize_(item);
+      entry.record = file_.append(bytes.data(), bytes.size());
+    }
+    std::lock_guard lock(mutex_);
+    entries_[i] = std::move(entry);
+  }
+  // Item i: the one in memory, or read back. Throws kInternal for an item never stored, kIo on a
+  // failed read.
+  std::shared_ptr<const T> get(size_t i) const {
+    Entry entry;
+    {
+      std::lock_guard lock(mutex_);
+      if (i >= entries_.size() || !entries_[i].stored) throw Error(ErrorCode::kInternal, what_ + ": item " + std::to_string(i) + " was never stored");
+      entry = entries_[i];
+    }
+    if (entry.item) return entry.item;
+    const std::vector<char> bytes = file_.read(entry.record);
+    return std::make_shared<const T>(deserialize_(bytes.data(), bytes.size()));
+  }
+  // Keeps the items at indices `kept` (increasing), renumbered 0.. in that order.
+  void keep(const std::vector<size_t>& kept) {
+    std::lock_guard lock(mutex_);
+    std::vector<Entry> out;
+    out.reserve(kept.size());
+    for (size_t i : kept) out.push_back(std::move(entries_.at(i)));
+    entries_ = std::move(out);
+  }
+  uint64_t spilled_bytes() const { return file_.size(); }
+
+ private:
+  struct Entry {
+    SpillFile::Record record;
+    std::shared_ptr<const T> item;  // kMemory
+    bool stored = false;
+  };
+  SpillMode mode_;
+  std::string what_;
+  SpillFile file_;
+  Serialize serialize_;
+  Deserialize deserialize_;
+  mutable std::mutex mutex_;
+  std::vector<Entry> entries_;
+};
 
 }  // namespace facemorph
