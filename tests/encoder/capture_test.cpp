@@ -113,6 +113,74 @@ TEST(Capture, BadLandmarkRowsAreNamedErrors) {
   EXPECT_FALSE(ok.landmarks[0][0].allFinite());
 }
 
+// Every frame holds a point per landmark name, so the names and the table are bounded as they come:
+// the row whose new name passes a limit is named, and nothing past it is allocated.
+TEST(Capture, TheLandmarkTableIsBoundedBeforeItGrows) {
+  Capture c;
+  c.frames = {{"a.obj", 0}, {"b.obj", 0.1}, {"c.obj", 0.2}};
+  const std::string rows = "frame,name,x,y,z\n0,a,1,2,3\n1,b,1,2,3\n2,c,1,2,3\n";
+  Capture fits = c;
+  parse_landmarks_csv(rows, "lm.csv", fits, {.names = 3, .points = 9});
+  EXPECT_EQ(fits.landmark_names.size(), 3u);
+  expect_error(ErrorCode::kParse, "lm.csv:4: more than 2 landmark names", [&] {
+    Capture copy = c;
+    parse_landmarks_csv(rows, "lm.csv", copy, {.names = 2, .points = 100});
+  });
+  expect_error(ErrorCode::kParse, "lm.csv:4: 3 landmark names for 3 frames: more than the 8 landmark points", [&] {
+    Capture copy = c;
+    parse_landmarks_csv(rows, "lm.csv", copy, {.names = 100, .points = 8});
+  });
+  // The defaults, from a file: 4097 names for two frames.
+  TempDir dir;
+  std::string many = "frame,name,x,y,z\n";
+  for (int k = 0; k <= 4096; ++k) many += "0,n" + std::to_string(k) + ",0,0,0\n";
+  write_text(dir / "lm.csv", many);
+  write_triangle(dir / "a.obj");
+  write_triangle(dir / "b.obj");
+  expect_error(ErrorCode::kParse, "lm.csv:4098: more than 4096 landmark names", [&] { open_capture(dir.path(), 30, dir / "lm.csv"); });
+}
+
+// A landmarks file is read a block at a time: rows across the blocks' seams, CRLF line ends and a
+// last line without one read as the same text parsed whole; a line too long for a row is refused
+// before it is held whole.
+TEST(Capture, ALandmarksFileReadsAsItsText) {
+  TempDir dir;
+  Capture c;
+  c.root = dir.path();
+  c.fps = 30;
+  for (int i = 0; i < 3; ++i) {
+    write_triangle(dir / ("f" + std::to_string(i) + ".obj"));
+    c.frames.push_back({"f" + std::to_string(i) + ".obj", i / 30.0});
+  }
+  std::string text = "frame,name,x,y,z\r\n";
+  // 3000 rows of 1000 names, made long by digits past a double's precision, so the file spans blocks.
+  const std::string digits(200, '7');
+  for (int k = 0; k < 3000; ++k) {
+    text += std::to_string(k % 3) + ",landmark_" + std::to_string(k / 3) + "," + std::to_string(k) + "." + digits + ",-1.5e-3,7." + digits + "\r\n";
+  }
+  text += "2,last,1,2,3";  // no line end
+  ASSERT_GT(text.size(), size_t{1} << 20);  // past one block
+  write_text(dir / "lm.csv", text);
+  Capture whole = c;
+  parse_landmarks_csv(text, "lm.csv", whole);
+  const Capture streamed = open_capture(dir.path(), 30, dir / "lm.csv");
+  EXPECT_EQ(streamed.landmark_names, whole.landmark_names);
+  ASSERT_EQ(streamed.landmarks.size(), whole.landmarks.size());
+  for (size_t f = 0; f < whole.landmarks.size(); ++f) {
+    ASSERT_EQ(streamed.landmarks[f].size(), whole.landmarks[f].size());
+    for (size_t l = 0; l < whole.landmarks[f].size(); ++l) {
+      const Vec3 &a = streamed.landmarks[f][l], &b = whole.landmarks[f][l];
+      EXPECT_TRUE(a == b || (a.array().isNaN().all() && b.array().isNaN().all())) << "frame " << f << ", landmark " << l;
+    }
+  }
+  EXPECT_EQ(streamed.landmarks[2].back(), Vec3(1, 2, 3));
+  write_text(dir / "long.csv", "frame,name,x,y,z\n0,nose," + std::string(5000, '1') + ",0,0\n");
+  expect_error(ErrorCode::kParse, "long.csv:2: a line longer than 4096 bytes", [&] { open_capture(dir.path(), 30, dir / "long.csv"); });
+  expect_error(ErrorCode::kParse, "lm.csv:2: a line longer than 4096 bytes",
+               [&] { parse_landmarks_csv("frame,name,x,y,z\n0,nose," + std::string(5000, '1') + ",0,0\n", "lm.csv", whole); });
+  expect_error(ErrorCode::kIo, "missing.csv: cannot be opened", [&] { open_capture(dir.path(), 30, dir / "missing.csv"); });
+}
+
 TEST(Capture, PlainFolderIsReadInNaturalOrder) {
   TempDir dir;
   write_triangle(dir / "scan_10.obj");

@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <limits>
 #include <map>
 
 namespace facemorph {
@@ -18,6 +20,7 @@ using nlohmann::json;
 namespace {
 
 constexpr uint64_t kMaxManifestBytes = uint64_t{1} << 28;
+constexpr size_t kMaxLandmarkLineBytes = 4096;
 
 [[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) {
   throw Error(code, source + ": " + why);
@@ -84,19 +87,28 @@ double metres_per_unit(const std::string& units) {
   throw Error(ErrorCode::kInvalidArgument, "unknown units '" + units + "' (m, cm or mm)");
 }
 
-void parse_landmarks_csv(std::string_view text_data, const std::string& source, Capture& capture) {
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  text::LineScanner lines(text_data);
-  std::string_view line;
-  if (!lines.next(line) || text::trim(line) != "frame,name,x,y,z") {
-    fail(ErrorCode::kParse, source, "the first line must be the header 'frame,name,x,y,z'");
+namespace {
+
+// A landmarks file's rows into a capture, one line at a time (the file is read a block at a time:
+// an hour of 74 landmarks at 30 fps is 300 MB of text, which need not be in memory at once).
+class LandmarkRows {
+ public:
+  LandmarkRows(const std::string& source, Capture& capture, const LandmarkLimits& limits) : source_(source), capture_(capture), limits_(limits) {
+    for (size_t i = 0; i < capture.landmark_names.size(); ++i) index_[capture.landmark_names[i]] = static_cast<int>(i);
   }
-  std::map<std::string, int> index;
-  for (size_t i = 0; i < capture.landmark_names.size(); ++i) index[capture.landmark_names[i]] = static_cast<int>(i);
-  std::vector<std::vector<uint8_t>> seen;
-  while (lines.next(line)) {
+
+  void line(std::string_view line, size_t number) {
+    if (line.size() > kMaxLandmarkLineBytes) {
+      fail(ErrorCode::kParse, source_ + ":" + std::to_string(number), "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
+    }
+    if (!header_seen_) {
+      if (text::trim(line) != "frame,name,x,y,z") fail(ErrorCode::kParse, source_, "the first line must be the header 'frame,name,x,y,z'");
+      header_seen_ = true;
+      return;
+    }
     line = text::trim(line);
-    if (line.empty()) continue;
+    if (line.empty()) return;
+    const std::string where = source_ + ":" + std::to_string(number);
     std::string_view fields[5];
     size_t count = 0;
     for (size_t start = 0; count < 5;) {
@@ -104,14 +116,13 @@ void parse_landmarks_csv(std::string_view text_data, const std::string& source, 
       fields[count++] = text::trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
       if (comma == std::string_view::npos) break;
       start = comma + 1;
-      if (count == 5) fail(ErrorCode::kParse, source + ":" + std::to_string(lines.line_number()), "more than 5 fields");
+      if (count == 5) fail(ErrorCode::kParse, where, "more than 5 fields");
     }
-    const std::string where = source + ":" + std::to_string(lines.line_number());
     if (count != 5) fail(ErrorCode::kParse, where, "expected 5 fields frame,name,x,y,z");
     const auto frame = text::parse_int(fields[0]);
-    if (!frame || *frame < 0 || *frame >= static_cast<int64_t>(capture.frames.size())) {
-      fail(ErrorCode::kParse, where, "frame '" + std::string(fields[0]) + "' is not a frame of the capture (0.." +
-                                         std::to_string(capture.frames.size() - 1) + ")");
+    const size_t frames = capture_.frames.size();
+    if (!frame || *frame < 0 || *frame >= static_cast<int64_t>(frames)) {
+      fail(ErrorCode::kParse, where, "frame '" + std::string(fields[0]) + "' is not a frame of the capture (0.." + std::to_string(frames - 1) + ")");
     }
     if (fields[1].empty()) fail(ErrorCode::kParse, where, "empty landmark name");
     Vec3 p;
@@ -120,22 +131,101 @@ void parse_landmarks_csv(std::string_view text_data, const std::string& source, 
       if (!value || !std::isfinite(*value)) fail(ErrorCode::kParse, where, "coordinate '" + std::string(fields[2 + k]) + "' is not a finite number");
       p[k] = *value;
     }
+    const double nan = std::numeric_limits<double>::quiet_NaN();
     const std::string name(fields[1]);
-    auto [it, inserted] = index.emplace(name, static_cast<int>(capture.landmark_names.size()));
-    if (inserted) {
-      capture.landmark_names.push_back(name);
-      for (auto& frame_points : capture.landmarks) frame_points.push_back(Vec3::Constant(nan));
-      for (auto& flags : seen) flags.push_back(0);
+    auto it = index_.find(name);
+    if (it == index_.end()) {
+      // Every frame holds a point per name, given or not: the names and the table are bounded
+      // before they grow, so that a short file cannot ask for a table of any size.
+      const size_t names = capture_.landmark_names.size() + 1;
+      if (names > limits_.names) fail(ErrorCode::kParse, where, "more than " + std::to_string(limits_.names) + " landmark names");
+      if (names * frames > limits_.points) {
+        fail(ErrorCode::kParse, where, std::to_string(names) + " landmark names for " + std::to_string(frames) + " frames: more than the " +
+                                           std::to_string(limits_.points) + " landmark points a capture may hold");
+      }
+      it = index_.emplace(name, static_cast<int>(capture_.landmark_names.size())).first;
+      capture_.landmark_names.push_back(name);
+      for (auto& frame_points : capture_.landmarks) frame_points.push_back(Vec3::Constant(nan));
+      for (auto& flags : seen_) flags.push_back(0);
     }
-    if (capture.landmarks.size() != capture.frames.size()) {
-      capture.landmarks.assign(capture.frames.size(), std::vector<Vec3>(capture.landmark_names.size(), Vec3::Constant(nan)));
-      seen.assign(capture.frames.size(), std::vector<uint8_t>(capture.landmark_names.size(), 0));
+    if (capture_.landmarks.size() != frames) {
+      capture_.landmarks.assign(frames, std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(nan)));
+      seen_.assign(frames, std::vector<uint8_t>(capture_.landmark_names.size(), 0));
     }
-    auto& flag = seen[static_cast<size_t>(*frame)][static_cast<size_t>(it->second)];
+    auto& flag = seen_[static_cast<size_t>(*frame)][static_cast<size_t>(it->second)];
     if (flag) fail(ErrorCode::kParse, where, "landmark '" + name + "' given twice for frame " + std::to_string(*frame));
     flag = 1;
-    capture.landmarks[static_cast<size_t>(*frame)][static_cast<size_t>(it->second)] = p;
+    capture_.landmarks[static_cast<size_t>(*frame)][static_cast<size_t>(it->second)] = p;
   }
+
+  void finish() const {
+    if (!header_seen_) fail(ErrorCode::kParse, source_, "the first line must be the header 'frame,name,x,y,z'");
+  }
+
+ private:
+  const std::string& source_;
+  Capture& capture_;
+  LandmarkLimits limits_;
+  bool header_seen_ = false;
+  std::map<std::string, int> index_;
+  std::vector<std::vector<uint8_t>> seen_;
+};
+
+// Calls `line` with every line of the file (without its "\n" or "\r\n") and its number from 1,
+// reading a block at a time. Throws kIo when the file cannot be read, kParse for a line longer than
+// kMaxLandmarkLineBytes (no landmark row is, and the line is kept whole until its end is read).
+template <typename OnLine>
+void for_each_line(const fs::path& path, const OnLine& on_line) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(ErrorCode::kIo, path.string(), "cannot be opened");
+  std::vector<char> block(size_t{1} << 20);
+  std::string pending;  // a line begun in an earlier block
+  size_t number = 0;
+  auto emit = [&](std::string_view line) {
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    on_line(line, ++number);
+  };
+  for (;;) {
+    in.read(block.data(), static_cast<std::streamsize>(block.size()));
+    if (in.bad()) fail(ErrorCode::kIo, path.string(), "read failed");
+    const auto got = static_cast<size_t>(in.gcount());
+    if (got == 0) break;
+    size_t start = 0;
+    for (size_t i = 0; i < got; ++i) {
+      if (block[i] != '\n') continue;
+      const std::string_view piece(block.data() + start, i - start);
+      if (pending.empty()) {
+        emit(piece);
+      } else {
+        pending.append(piece);
+        emit(pending);
+        pending.clear();
+      }
+      start = i + 1;
+    }
+    pending.append(block.data() + start, got - start);
+    if (pending.size() > kMaxLandmarkLineBytes) {
+      fail(ErrorCode::kParse, path.string() + ":" + std::to_string(number + 1), "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
+    }
+  }
+  if (!pending.empty()) emit(pending);
+}
+
+void read_landmarks_csv(const fs::path& path, Capture& capture) {
+  const std::string source = path.string();
+  LandmarkRows rows(source, capture, {});
+  for_each_line(path, [&](std::string_view line, size_t number) { rows.line(line, number); });
+  rows.finish();
+}
+
+}  // namespace
+
+void parse_landmarks_csv(std::string_view text_data, const std::string& source, Capture& capture, const LandmarkLimits& limits) {
+  LandmarkRows rows(source, capture, limits);
+  text::LineScanner lines(text_data);
+  std::string_view line;
+  while (lines.next(line)) rows.line(line, lines.line_number());
+  rows.finish();
 }
 
 Capture read_capture(const fs::path& path) {
@@ -183,10 +273,7 @@ Capture read_capture(const fs::path& path) {
     check_frames(capture, source);
     const std::string csv = doc.value("landmarks_csv", std::string());
     if (!csv.empty()) {
-      const fs::path csv_path = capture.root / csv;
-      const auto csv_bytes = format::read_file(csv_path, kMaxManifestBytes);
-      parse_landmarks_csv(std::string_view(reinterpret_cast<const char*>(csv_bytes.data()), csv_bytes.size()),
-                          csv_path.string(), capture);
+      read_landmarks_csv(capture.root / csv, capture);
     }
   } catch (const json::exception& e) {
     fail(ErrorCode::kParse, source, std::string("unexpected value: ") + e.what());
@@ -212,9 +299,7 @@ Capture scan_capture_folder(const fs::path& folder, double fps, const fs::path& 
   if (capture.frames.empty()) throw Error(ErrorCode::kParse, folder.string() + ": no .obj or .ply frames");
   check_frames(capture, folder.string());
   if (!landmarks_csv.empty()) {
-    const auto bytes = format::read_file(landmarks_csv, kMaxManifestBytes);
-    parse_landmarks_csv(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-                        landmarks_csv.string(), capture);
+    read_landmarks_csv(landmarks_csv, capture);
   }
   return capture;
 }

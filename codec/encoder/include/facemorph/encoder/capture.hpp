@@ -60,7 +60,18 @@ Capture open_capture(const std::filesystem::path& path, double fps, const std::f
 // Writes capture.json and landmarks.csv into capture.root (atomically, each file).
 void write_capture_manifest(const Capture& capture);
 
+// How large a capture's landmark table may grow: every frame holds a point per name, given or
+// not, so a short file naming many landmarks for many frames could otherwise ask for any amount of
+// memory. The defaults: 4096 names, and frames × names at most 2^25 points (768 MiB; 4 hours of 74
+// landmarks at 30 fps).
+struct LandmarkLimits {
+  size_t names = 4096;
+  size_t points = size_t{1} << 25;
+};
+
 // Parses landmarks CSV text into `capture` (its frames must be set). `source` names the file.
-void parse_landmarks_csv(std::string_view text, const std::string& source, Capture& capture);
+// Throws kParse naming the row for a bad row, and for the row whose new name passes `limits`.
+// read_capture and open_capture read a landmarks file a block at a time, with the default limits.
+void parse_landmarks_csv(std::string_view text, const std::string& source, Capture& capture, const LandmarkLimits& limits = {});
 
 }  // namespace facemorph
