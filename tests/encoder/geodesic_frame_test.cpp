@@ -712,7 +712,7 @@ TEST(RegistrationStore, ASpilledRegistrationReadsBackAsTheSameMap) {
       expect_same_registration(made[i], *store.get(i));
     }
     expect_error(ErrorCode::kInternal, "never stored", [&] { store.get(made.size()); });
-    expect_error(ErrorCode::kInternal, "past the end", [&] { store.put(made.size() + 1, DiskRegistration(made[0])); });
+    expect_error(ErrorCode::kInternal, "past its size", [&] { store.put(made.size() + 1, DiskRegistration(made[0])); });
     // Kept frames are renumbered in order.
     store.keep({1, 2});
     ASSERT_EQ(store.size(), 2u);

@@ -144,55 +144,27 @@ MappedFrame FrameStore::deserialize(const char* bytes, size_t size) {
   return frame;
 }
 
-FrameStore::FrameStore(Mode mode) : mode_(mode), counter_(std::make_shared<Counter>()) {}
+FrameStore::FrameStore(Mode mode)
+    : mode_(mode),
+      counter_(std::make_shared<Counter>()),
+      items_(mode, "the frames' maps", "frame store: frame", &FrameStore::serialize, &FrameStore::deserialize, counter_) {}
 
 FrameStore::~FrameStore() = default;
 
 void FrameStore::reset(size_t count) {
-  std::lock_guard lock(mutex_);
-  entries_.assign(count, {});
-  file_.clear();
+  items_.reset(count);
   counter_->reset_peak();
 }
 
 void FrameStore::put(size_t i, MappedFrame&& frame) {
-  if (i >= entries_.size()) throw Error(ErrorCode::kInternal, "frame store: frame " + std::to_string(i) + " is past its size");
-  if (mode_ == Mode::kMemory) {
-    auto stored = counted(std::move(frame), std::make_unique<Hold>(counter_));
-    std::lock_guard lock(mutex_);
-    entries_[i].frame = std::move(stored);
-    entries_[i].stored = true;
-    return;
-  }
-  const std::vector<char> bytes = serialize(frame);
-  SpillFile::Record record;
+  const std::string name = frame.name;
   try {
-    record = file_.append(bytes.data(), bytes.size());
+    items_.put(i, std::move(frame));
   } catch (const Error& e) {
-    throw Error(e.code(), frame.name + ": " + e.what());
+    // A full disk names the frame whose map could not be written.
+    if (e.code() != ErrorCode::kIo) throw;
+    throw Error(e.code(), name + ": " + e.what());
   }
-  std::lock_guard lock(mutex_);
-  entries_[i].record = record;
-  entries_[i].stored = true;
-}
-
-std::shared_ptr<const MappedFrame> FrameStore::get(size_t i) const {
-  Entry entry;
-  {
-    std::lock_guard lock(mutex_);
-    if (i >= entries_.size() || !entries_[i].stored) throw Error(ErrorCode::kInternal, "frame store: frame " + std::to_string(i) + " was never stored");
-    entry = entries_[i];
-  }
-  if (entry.frame) return entry.frame;
-  return read_counted<MappedFrame>(file_, entry.record, counter_, &FrameStore::deserialize);
-}
-
-void FrameStore::keep(const std::vector<size_t>& kept) {
-  std::lock_guard lock(mutex_);
-  std::vector<Entry> out;
-  out.reserve(kept.size());
-  for (size_t i : kept) out.push_back(std::move(entries_.at(i)));
-  entries_ = std::move(out);
 }
 
 }  // namespace facemorph

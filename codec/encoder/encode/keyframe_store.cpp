@@ -72,7 +72,8 @@ const char* kind_name(const Image*) { return "the keyframes' textures"; }
 
 template <typename T>
 KeyframeStore<T>::KeyframeStore(Mode mode, std::shared_ptr<ResidentCount> count)
-    : mode_(mode), file_(kind_name(static_cast<const T*>(nullptr))), count_(count ? std::move(count) : std::make_shared<ResidentCount>()) {}
+    : count_(count ? std::move(count) : std::make_shared<ResidentCount>()),
+      items_(mode, kind_name(static_cast<const T*>(nullptr)), "keyframe store: keyframe", &KeyframeStore<T>::serialize, &KeyframeStore<T>::deserialize, count_) {}
 
 template <typename T>
 std::vector<char> KeyframeStore<T>::serialize(const T& item) {
@@ -89,43 +90,6 @@ T KeyframeStore<T>::deserialize(const char* bytes, size_t size) {
   read_item(r, item);
   if (!r.done()) throw Error(ErrorCode::kInternal, what + " has bytes left over");
   return item;
-}
-
-template <typename T>
-void KeyframeStore<T>::reset(size_t count) {
-  std::lock_guard lock(mutex_);
-  entries_.assign(count, {});
-  file_.clear();
-}
-
-template <typename T>
-void KeyframeStore<T>::put(size_t k, T&& item) {
-  if (k >= entries_.size()) throw Error(ErrorCode::kInternal, "keyframe store: keyframe " + std::to_string(k) + " is past its size");
-  if (mode_ == Mode::kMemory) {
-    auto stored = counted(std::move(item), std::make_unique<ResidentHold>(count_));
-    std::lock_guard lock(mutex_);
-    entries_[k].item = std::move(stored);
-    entries_[k].stored = true;
-    return;
-  }
-  const std::vector<char> bytes = serialize(item);
-  // A replaced item's bytes stay in the file until reset: the fit writes each surface twice.
-  const SpillFile::Record record = file_.append(bytes.data(), bytes.size());
-  std::lock_guard lock(mutex_);
-  entries_[k].record = record;
-  entries_[k].stored = true;
-}
-
-template <typename T>
-std::shared_ptr<const T> KeyframeStore<T>::get(size_t k) const {
-  Entry entry;
-  {
-    std::lock_guard lock(mutex_);
-    if (k >= entries_.size() || !entries_[k].stored) throw Error(ErrorCode::kInternal, "keyframe store: keyframe " + std::to_string(k) + " was never stored");
-    entry = entries_[k];
-  }
-  if (entry.item) return entry.item;
-  return read_counted<T>(file_, entry.record, count_, &KeyframeStore<T>::deserialize);
 }
 
 template class KeyframeStore<std::vector<Vec3>>;

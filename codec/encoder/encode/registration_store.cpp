@@ -109,7 +109,7 @@ DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, 
 }
 
 RegistrationStore::RegistrationStore(SpillMode mode)
-    : items_(mode, "the frames' registrations", &RegistrationStore::serialize,
+    : items_(mode, "the frames' registrations", "registration store: frame", &RegistrationStore::serialize,
              [this](const char* bytes, size_t size) { return deserialize(bytes, size, partition_); }) {}
 
 void RegistrationStore::reset(size_t count, std::shared_ptr<const PartitionMesh> partition) {

@@ -230,7 +230,7 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
   // The landmarks leave the capture for a store: 1.8 kB a frame of ICT's 74, which kept in memory
   // grew with the capture for the whole encode.
   landmarks_ = std::make_unique<SpilledItems<std::vector<Vec3>>>(
-      options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, "the frames' landmarks",
+      options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, "the frames' landmarks", "landmarks of frame",
       [](const std::vector<Vec3>& points) {
         spill::Writer w;
         w.array(points);

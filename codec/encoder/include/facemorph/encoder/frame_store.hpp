@@ -14,17 +14,15 @@
 
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <vector>
 
 namespace facemorph {
 
 class FrameStore {
  public:
-  enum class Mode {
-    kSpill,   // maps go to an unlinked temporary file (in TMPDIR); memory holds those in use
-    kMemory,  // maps stay in memory (what the encoder did before: memory grows with the capture)
-  };
+  // kSpill: maps go to an unlinked temporary file (in TMPDIR), memory holds those in use; kMemory:
+  // maps stay in memory (what the encoder did before: memory grows with the capture).
+  using Mode = SpillMode;
   explicit FrameStore(Mode mode = Mode::kSpill);
   ~FrameStore();
   FrameStore(const FrameStore&) = delete;
@@ -33,7 +31,7 @@ class FrameStore {
   Mode mode() const { return mode_; }
   // Forgets every frame and makes room for `count` (the file, if any, is emptied).
   void reset(size_t count);
-  size_t size() const { return entries_.size(); }
+  size_t size() const { return items_.size(); }
   // Stores frame i (i < size()); may be called from several threads for different i. Spilled, the
   // frame's prepared mesh is not written: its map's surface is the same surface (a few edges
   // split), and what a later stage needs of the mesh (its counts, its holes) is kept beside it.
@@ -41,10 +39,10 @@ class FrameStore {
   void put(size_t i, MappedFrame&& frame);
   // Frame i as stored: read back from the file (a copy counted in held() until released) or the
   // one in memory. Thread-safe. Throws kInternal for a frame never stored, kIo on a failed read.
-  std::shared_ptr<const MappedFrame> get(size_t i) const;
+  std::shared_ptr<const MappedFrame> get(size_t i) const { return items_.get(i); }
   // Keeps the frames at indices `kept` (increasing), renumbered 0.. in that order (the dropped
   // frames' bytes stay in the file until reset).
-  void keep(const std::vector<size_t>& kept);
+  void keep(const std::vector<size_t>& kept) { items_.keep(kept); }
 
   // Accounting, for the report and the tests: how many frames' maps (or meshes being mapped) are in
   // memory now and at most since the last reset. A Hold counts one while it lives: the encoder takes
@@ -54,7 +52,7 @@ class FrameStore {
   [[nodiscard]] Hold hold() const { return Hold(counter_); }
   int held() const { return counter_->now.load(); }
   int peak_held() const { return counter_->peak.load(); }
-  uint64_t spilled_bytes() const { return file_.size(); }  // the file's size (0 in memory)
+  uint64_t spilled_bytes() const { return items_.spilled_bytes(); }  // the file's size (0 in memory)
 
   // The byte form of a frame in the file (no prepared mesh): what put writes and get reads. Public
   // for the round-trip test.
@@ -62,18 +60,10 @@ class FrameStore {
   static MappedFrame deserialize(const char* bytes, size_t size);
 
  private:
-  struct Entry {
-    SpillFile::Record record;
-    std::shared_ptr<const MappedFrame> frame;  // kMemory
-    bool stored = false;
-  };
-
   Mode mode_;
-  SpillFile file_{"the frames' maps"};
-  mutable std::mutex mutex_;
-  std::vector<Entry> entries_;
   // Shared with the frames handed out, which may outlive the store.
   std::shared_ptr<Counter> counter_;
+  SpilledItems<MappedFrame> items_;
 };
 
 }  // namespace facemorph

@@ -16,7 +16,6 @@
 #include "facemorph/mesh.hpp"
 
 #include <memory>
-#include <mutex>
 #include <vector>
 
 namespace facemorph {
@@ -33,21 +32,21 @@ class KeyframeStore {
   KeyframeStore(const KeyframeStore&) = delete;
   KeyframeStore& operator=(const KeyframeStore&) = delete;
 
-  Mode mode() const { return mode_; }
+  Mode mode() const { return items_.mode(); }
   // Forgets every item and makes room for `count` (the file is emptied; the peak is kept).
-  void reset(size_t count);
-  size_t size() const { return entries_.size(); }
+  void reset(size_t count) { items_.reset(count); }
+  size_t size() const { return items_.size(); }
   // Stores item k (k < size()), replacing what was stored there; may be called from several threads
   // for different k. Throws kInternal for k past the size, kIo when the file cannot be written.
-  void put(size_t k, T&& item);
+  void put(size_t k, T&& item) { items_.put(k, std::move(item)); }
   // Item k as stored: read back from the file (a copy, counted in held() until its last pointer
   // goes) or the one in memory. Thread-safe. Throws kInternal for an item never stored, kIo on a
   // failed read.
-  std::shared_ptr<const T> get(size_t k) const;
+  std::shared_ptr<const T> get(size_t k) const { return items_.get(k); }
 
   int held() const { return count_->now.load(); }
   int peak_held() const { return count_->peak.load(); }
-  uint64_t spilled_bytes() const { return file_.size(); }  // 0 in memory
+  uint64_t spilled_bytes() const { return items_.spilled_bytes(); }  // 0 in memory
 
   // The byte form of an item in the file: what put writes and get reads. Public for the round-trip
   // test; deserialize throws kInternal for bytes cut short or left over.
@@ -55,17 +54,8 @@ class KeyframeStore {
   static T deserialize(const char* bytes, size_t size);
 
  private:
-  struct Entry {
-    SpillFile::Record record;
-    std::shared_ptr<const T> item;  // kMemory
-    bool stored = false;
-  };
-
-  Mode mode_;
-  SpillFile file_;
-  mutable std::mutex mutex_;
-  std::vector<Entry> entries_;
   std::shared_ptr<ResidentCount> count_;  // shared with the items handed out, which may outlive the store
+  SpilledItems<T> items_;
 };
 
 extern template class KeyframeStore<std::vector<Vec3>>;

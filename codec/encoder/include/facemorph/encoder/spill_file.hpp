@@ -72,20 +72,25 @@ std::shared_ptr<const T> read_counted(const SpillFile& file, const SpillFile::Re
   return counted(std::move(item), std::move(hold));
 }
 
-// Items numbered 0..size()-1, each kept in memory or as a record of a spill file: the bookkeeping of
-// a store whose items are read back whole when a stage asks (RegistrationStore, the encoder's
-// landmarks). Thread-safe for different items.
+// Items numbered 0..size()-1, each kept in memory or as a record of a spill file: the bookkeeping
+// every store shares whose items are read back whole when a stage asks (FrameStore, KeyframeStore,
+// RegistrationStore, the encoder's landmarks). Thread-safe for different items. With a count, every
+// item handed out is counted in it while it lives (in memory: from put on).
 template <typename T>
 class SpilledItems {
  public:
   using Serialize = std::function<std::vector<char>(const T&)>;
   using Deserialize = std::function<T(const char*, size_t)>;
-  // `what` names the items in errors ("the frames' registrations").
-  SpilledItems(SpillMode mode, std::string what, Serialize serialize, Deserialize deserialize)
-      : mode_(mode), what_(what), file_(std::move(what)), serialize_(std::move(serialize)), deserialize_(std::move(deserialize)) {}
+  // `contents` names the file's contents in errors ("the frames' maps"), `item` an item in the
+  // store's own errors ("frame store: frame").
+  SpilledItems(SpillMode mode, std::string contents, std::string item, Serialize serialize, Deserialize deserialize,
+               std::shared_ptr<ResidentCount> count = nullptr)
+      : mode_(mode), item_(std::move(item)), file_(std::move(contents)), serialize_(std::move(serialize)), deserialize_(std::move(deserialize)),
+        count_(std::move(count)) {}
   SpilledItems(const SpilledItems&) = delete;
   SpilledItems& operator=(const SpilledItems&) = delete;
 
+  SpillMode mode() const { return mode_; }
   // Forgets every item and makes room for `count` (the file, if any, is emptied).
   void reset(size_t count) {
     std::lock_guard lock(mutex_);
@@ -97,13 +102,14 @@ class SpilledItems {
     return entries_.size();
   }
   // Stores item i (i < size()), replacing what it was: spilled, the new bytes are appended and the
-  // old ones stay in the file until reset. Throws kIo when the file cannot be written.
+  // old ones stay in the file until reset. Throws kInternal for i past the size, kIo when the file
+  // cannot be written.
   void put(size_t i, T&& item) {
-    if (i >= size()) throw Error(ErrorCode::kInternal, what_ + ": item " + std::to_string(i) + " is past the end");
+    if (i >= size()) throw Error(ErrorCode::kInternal, item_ + " " + std::to_string(i) + " is past its size");
     Entry entry;
     entry.stored = true;
     if (mode_ == SpillMode::kMemory) {
-      entry.item = std::make_shared<const T>(std::move(item));
+      entry.item = count_ ? counted(std::move(item), std::make_unique<ResidentHold>(count_)) : std::make_shared<const T>(std::move(item));
     } else {
       const std::vector<char> bytes = serialize_(item);
       entry.record = file_.append(bytes.data(), bytes.size());
@@ -111,16 +117,17 @@ class SpilledItems {
     std::lock_guard lock(mutex_);
     entries_[i] = std::move(entry);
   }
-  // Item i: the one in memory, or read back. Throws kInternal for an item never stored, kIo on a
-  // failed read.
+  // Item i: the one in memory, or read back (a copy). Throws kInternal for an item never stored,
+  // kIo on a failed read.
   std::shared_ptr<const T> get(size_t i) const {
     Entry entry;
     {
       std::lock_guard lock(mutex_);
-      if (i >= entries_.size() || !entries_[i].stored) throw Error(ErrorCode::kInternal, what_ + ": item " + std::to_string(i) + " was never stored");
+      if (i >= entries_.size() || !entries_[i].stored) throw Error(ErrorCode::kInternal, item_ + " " + std::to_string(i) + " was never stored");
       entry = entries_[i];
     }
     if (entry.item) return entry.item;
+    if (count_) return read_counted<T>(file_, entry.record, count_, deserialize_);
     const std::vector<char> bytes = file_.read(entry.record);
     return std::make_shared<const T>(deserialize_(bytes.data(), bytes.size()));
   }
@@ -141,10 +148,11 @@ class SpilledItems {
     bool stored = false;
   };
   SpillMode mode_;
-  std::string what_;
+  std::string item_;
   SpillFile file_;
   Serialize serialize_;
   Deserialize deserialize_;
+  std::shared_ptr<ResidentCount> count_;  // shared with the items handed out, which may outlive the store
   mutable std::mutex mutex_;
   std::vector<Entry> entries_;
 };
