@@ -8,6 +8,9 @@
 
 #include <cstdlib>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 namespace facemorph {
 namespace {
 
@@ -179,6 +182,42 @@ TEST(Capture, ALandmarksFileReadsAsItsText) {
   expect_error(ErrorCode::kParse, "lm.csv:2: a line longer than 4096 bytes",
                [&] { parse_landmarks_csv("frame,name,x,y,z\n0,nose," + std::string(5000, '1') + ",0,0\n", "lm.csv", whole); });
   expect_error(ErrorCode::kIo, "missing.csv: cannot be opened", [&] { open_capture(dir.path(), 30, dir / "missing.csv"); });
+  expect_error(ErrorCode::kIo, "is a directory, not a file", [&] { open_capture(dir.path(), 30, dir.path()); });
+
+  // A 4096-byte row whose CRLF straddles the first block's end: accepted, as anywhere else.
+  const std::string header = "frame,name,x,y,z\n";
+  std::string row = "0,nose,1.";
+  row += std::string(4096 - row.size() - 4, '5') + ",2,3";
+  ASSERT_EQ(row.size(), 4096u);
+  const size_t blank_lines = (size_t{1} << 20) - 1 - header.size() - row.size();  // the "\r" is the block's last byte
+  write_text(dir / "seam.csv", header + std::string(blank_lines, '\n') + row + "\r\n");
+  const Capture seam = open_capture(dir.path(), 30, dir / "seam.csv");
+  EXPECT_NEAR(seam.landmarks[0][0].x(), 1.5555555555555556, 1e-15);
+  EXPECT_EQ(seam.landmarks[0][0].z(), 3);
+}
+
+// A line is refused once more of it is read than a row may hold, not read whole: /dev/zero, which
+// never ends a line, is refused at line 1 (in a child process, so that a reader holding the line
+// whole is stopped by the alarm rather than filling memory).
+TEST(Capture, ALineIsRefusedBeforeItIsHeldWhole) {
+  TempDir dir;
+  write_triangle(dir / "a.obj");
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    alarm(10);
+    try {
+      open_capture(dir.path(), 30, "/dev/zero");
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      _exit(e.code() == ErrorCode::kParse && what.find("/dev/zero:1: a line longer than 4096 bytes") != std::string::npos ? 0 : 2);
+    }
+    _exit(3);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status)) << "the reader did not stop (signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0) << ")";
+  EXPECT_EQ(WEXITSTATUS(status), 0);
 }
 
 TEST(Capture, PlainFolderIsReadInNaturalOrder) {

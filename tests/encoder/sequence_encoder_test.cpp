@@ -742,6 +742,81 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   testing::expect_error(ErrorCode::kNotADisk, capture.frames[5].mesh.string() + ": 2 components", [&] { encode_capture(capture, options); });
 }
 
+// Frames the registration cannot take (two lack every landmark: their nose tip and up are found, but
+// the capture's rim markers are not, so they share 2 landmarks with the reference) are dropped there,
+// and the frames after them keep their own registrations. A temporary file the registrations cannot
+// be written to is no fault of any frame: it ends the encode instead of dropping them all.
+TEST(SequenceEncoder, FramesDroppedAtRegistrationLeaveTheOthersTheirOwn) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 10);
+  for (const size_t f : {3u, 4u}) capture.landmarks[f].assign(capture.landmark_names.size(), Vec3::Constant(std::nan("")));
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.grid = 49;
+  options.texture = false;
+  for (const bool spill : {true, false}) {
+    SCOPED_TRACE(spill ? "spilled" : "in memory");
+    options.spill_frames = spill;
+    SequenceEncoder encoder(capture, options);
+    encoder.map_frames();
+    ASSERT_EQ(encoder.frame_count(), 12);
+    encoder.register_frames();
+    ASSERT_EQ(encoder.report().dropped.size(), 2u);
+    EXPECT_EQ(encoder.report().dropped[0].index, 3);
+    EXPECT_EQ(encoder.report().dropped[1].index, 4);
+    EXPECT_NE(encoder.report().dropped[0].reason.find("shares only 2 landmarks"), std::string::npos) << encoder.report().dropped[0].reason;
+    ASSERT_EQ(encoder.frame_count(), 10);
+    // Frame 5 of the capture is frame 3 now, with its own registration: it matches its landmarks.
+    for (int i = 0; i < encoder.frame_count(); ++i) {
+      const DiskLandmarks l = encoder.frame_disk_landmarks(i);
+      const std::shared_ptr<const DiskRegistration> f = encoder.registration(i);
+      EXPECT_LT(matching_energy(*f, l), 1e-6) << "frame " << encoder.source_index(i);
+    }
+  }
+  options.spill_frames = true;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  const char* saved = std::getenv("TMPDIR");
+  const std::string restore = saved ? saved : "";
+  setenv("TMPDIR", (dir.path() / "no-such-folder").c_str(), 1);
+  testing::expect_error(ErrorCode::kIo, "the frames' registrations", [&] { encoder.register_frames(); });
+  if (saved) {
+    setenv("TMPDIR", restore.c_str(), 1);
+  } else {
+    unsetenv("TMPDIR");
+  }
+}
+
+// Without landmarks and without tracking, every frame gets its nose tip, up and rim markers from its
+// geometry, kept by the encoder (spilled or not) for the registration, which then drops no frame.
+TEST(SequenceEncoder, LandmarksFoundFromTheGeometryAreKeptForTheRegistration) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir, 10);
+  capture.landmark_names.clear();
+  capture.landmarks.assign(capture.frames.size(), {});
+  EncodeOptions options;
+  options.texture = false;
+  for (const bool spill : {true, false}) {
+    SCOPED_TRACE(spill ? "spilled" : "in memory");
+    options.spill_frames = spill;
+    SequenceEncoder encoder(capture, options);
+    encoder.map_frames();
+    const std::vector<std::string>& names = encoder.capture().landmark_names;
+    for (int i = 0; i < encoder.frame_count(); ++i) {
+      const std::vector<Vec3> points = encoder.landmarks(i);
+      ASSERT_EQ(points.size(), names.size());
+      int rim = 0;
+      for (size_t l = 0; l < names.size(); ++l) {
+        EXPECT_TRUE(points[l].allFinite()) << "frame " << i << ": " << names[l];
+        rim += names[l].rfind("rim_", 0) == 0;
+      }
+      EXPECT_EQ(rim, 6) << "frame " << i;
+    }
+    encoder.register_frames();
+    EXPECT_TRUE(encoder.report().dropped.empty()) << encoder.report().dropped.front().reason;
+  }
+}
+
 // A capture without landmarks: the nose tip and up come from each frame's geometry, rim markers
 // from its rim, interior points by tracking, and the encode decodes about as close to every frame as with the capture's own
 // landmarks. Without find_landmarks every frame lacks its pose landmarks and the encode fails.

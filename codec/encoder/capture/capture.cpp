@@ -176,6 +176,8 @@ class LandmarkRows {
 // kMaxLandmarkLineBytes (no landmark row is, and the line is kept whole until its end is read).
 template <typename OnLine>
 void for_each_line(const fs::path& path, const OnLine& on_line) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) fail(ErrorCode::kIo, path.string(), "is a directory, not a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(ErrorCode::kIo, path.string(), "cannot be opened");
   std::vector<char> block(size_t{1} << 20);
@@ -204,7 +206,8 @@ void for_each_line(const fs::path& path, const OnLine& on_line) {
       start = i + 1;
     }
     pending.append(block.data() + start, got - start);
-    if (pending.size() > kMaxLandmarkLineBytes) {
+    // One byte more than a row may hold: the "\r" of a CRLF row whose "\n" is in the next block.
+    if (pending.size() > kMaxLandmarkLineBytes + 1) {
       fail(ErrorCode::kParse, path.string() + ":" + std::to_string(number + 1), "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
     }
   }

@@ -300,10 +300,9 @@ SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const 
   return {e.code(), reason};
 }
 
-void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings) {
+bool SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const {
   // A capture without landmarks (or a frame without any) needs no closest-point structure.
-  std::vector<Vec3> points = landmarks(static_cast<int>(index));
-  if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return;
+  if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return false;
   const PointToMesh surface(mesh);
   const double diagonal = bounding_box_diagonal(mesh.positions);
   const std::string& name = capture_.frames[index].mesh.string();
@@ -323,7 +322,7 @@ void SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t inde
     point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
     ignored = true;
   }
-  if (ignored) landmarks_->put(index, std::move(points));
+  return ignored;
 }
 
 void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
@@ -453,10 +452,14 @@ void SequenceEncoder::map_frames() {
         const std::string name = capture_.frames[index].mesh.string();
         const FrameStore::Hold held = store_->hold();
         MappedFrame mapped;
+        // The frame's landmarks from their store and back: outside the try, as the map's put below
+        // (a full disk is no fault of the frame).
+        std::vector<Vec3> points = this->landmarks(i);
+        bool ignored = false;
         try {
           const TriangleMesh mesh = read_mesh(capture_.mesh_path(index), {.allow_missing_texture = !options_.texture});
-          ignore_far_landmarks(mesh, index, warnings[index]);
-          const FrameLandmarks landmarks = frame_landmarks(capture_.landmark_names, this->landmarks(i));
+          ignored = ignore_far_landmarks(mesh, index, points, warnings[index]);
+          const FrameLandmarks landmarks = frame_landmarks(capture_.landmark_names, points);
           if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
                                                          " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
@@ -485,6 +488,7 @@ void SequenceEncoder::map_frames() {
         summary.found = mapped.found;
         summary.found_rim = mapped.found_rim;
         // Outside the try: a map the store cannot write ends the encode (it is no fault of the frame).
+        if (ignored) landmarks_->put(index, std::move(points));
         store_->put(index, std::move(mapped));
       },
       [&](int done, int total) { progress("mapping", done, total); });
@@ -562,13 +566,17 @@ void SequenceEncoder::register_frames() {
       count, options_.threads,
       [&](int i) {
         const auto index = static_cast<size_t>(i);
-        const std::shared_ptr<const MappedFrame> frame = this->frame(i);  // a failed read is no fault of the frame: outside the try
+        // What the stores give back and take is no fault of the frame (a full disk): outside the try,
+        // so that it ends the encode instead of dropping frames.
+        const std::shared_ptr<const MappedFrame> frame = this->frame(i);
+        const std::vector<Vec3> frame_points = this->landmarks(i);
+        const bool needs = needs_tracked_points(capture_.landmark_names, reference_points, frame_points);
         const std::string& name = frame->name;
+        DiskRegistration registered;
         try {
           // The frame's landmarks on the two disks, made here and dropped once registered (kept, they
           // were 2 kB a frame for the whole encode).
-          DiskLandmarks landmarks = facemorph::disk_landmarks(capture_.landmark_names, reference_points, reference_frame->map, this->landmarks(i), frame->map);
-          const bool needs = needs_tracked(reference, index);
+          DiskLandmarks landmarks = facemorph::disk_landmarks(capture_.landmark_names, reference_points, reference_frame->map, frame_points, frame->map);
           const bool took_tracked = !tracked.empty() && needs && !tracked[index].reference.empty();
           if (took_tracked) add_tracked_points(landmarks, tracked[index]);
           without_interior[index] = !took_tracked && index != reference && needs;
@@ -580,7 +588,7 @@ void SequenceEncoder::register_frames() {
             // A frame registered through tracked points: a smoothing thin plate, not one through every point.
             RegistrationOptions registration = options_.registration;
             if (took_tracked) registration.smoothing = std::max(registration.smoothing, options_.tracking.registration_smoothing);
-            registrations_->put(index, register_disks(landmarks, registration, geodesic_frame_.get()));
+            registered = register_disks(landmarks, registration, geodesic_frame_.get());
           } catch (const Error& e) {
             throw Error(e.code(), name + ": registration: " + e.what());
           }
@@ -588,7 +596,9 @@ void SequenceEncoder::register_frames() {
           // The reference cannot be dropped here: every other frame is already registered to it.
           if (options_.strict || index == reference) throw;
           failures[index] = failure_of(e, name);
+          return;
         }
+        registrations_->put(index, std::move(registered));
       },
       [&](int done, int total) { progress("registering", done, total); });
   // Over the frames kept (a frame dropped here is registered neither way).

@@ -62,11 +62,12 @@ void write_capture_manifest(const Capture& capture);
 
 // How large a capture's landmark table may grow: every frame holds a point per name, given or
 // not, so a short file naming many landmarks for many frames could otherwise ask for any amount of
-// memory. The defaults: 4096 names, and frames × names at most 2^25 points (768 MiB; 4 hours of 74
+// memory. The defaults: 4096 names, and frames × names at most 2^24 points (384 MiB as points, up
+// to twice that while names are added and each frame's vector grows by doubling; 2 hours of 74
 // landmarks at 30 fps).
 struct LandmarkLimits {
   size_t names = 4096;
-  size_t points = size_t{1} << 25;
+  size_t points = size_t{1} << 24;
 };
 
 // Parses landmarks CSV text into `capture` (its frames must be set). `source` names the file.

@@ -23,7 +23,8 @@ class RegistrationStore {
   RegistrationStore(const RegistrationStore&) = delete;
   RegistrationStore& operator=(const RegistrationStore&) = delete;
 
-  // Forgets every registration and makes room for `count`. `partition`: the geodesic frame's
+  // Forgets every registration and makes room for `count` (not while put or get run on other
+  // threads: the partition is read without a lock). `partition`: the geodesic frame's
   // partition that registrations through it (method kFrame) share, null for other methods; Φ's
   // tables are stored without it and re-attached to it when read back.
   void reset(size_t count, std::shared_ptr<const PartitionMesh> partition);

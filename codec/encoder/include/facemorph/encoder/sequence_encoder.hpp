@@ -410,9 +410,10 @@ class SequenceEncoder {
   };
   static FrameFailure failure_of(const Error& e, const std::string& name);
   void progress(const std::string& stage, int done, int total) const;
-  // Sets the landmarks of frame `index` that lie farther from `mesh` than options().landmark_tolerance
-  // to NaN, with a warning each (strict: throws kInvalidArgument).
-  void ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<std::string>& warnings);
+  // Sets those of frame `index`'s landmarks `points` that lie farther from `mesh` than
+  // options().landmark_tolerance to NaN, with a warning each (strict: throws kInvalidArgument); says
+  // whether it set any.
+  bool ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const;
   // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
   // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
   void drop_frames(const std::vector<FrameFailure>& failures);
