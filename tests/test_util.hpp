@@ -9,7 +9,9 @@
 
 #include <filesystem>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -50,6 +52,29 @@ class TempDir {
 
  private:
   std::filesystem::path path_;
+};
+
+// An environment variable set for a scope (TMPDIR naming a folder that does not exist, say) and put
+// back as it was, or unset, at scope exit, whatever fails between.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name)) saved_ = old;
+    setenv(name, value.c_str(), 1);
+  }
+  ~ScopedEnv() {
+    if (saved_) {
+      setenv(name_, saved_->c_str(), 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::optional<std::string> saved_;
 };
 
 inline void write_text(const std::filesystem::path& path, const std::string& text) {

@@ -859,16 +859,11 @@ TEST(Container, AWriteThatCannotFinishLeavesThePreviousFile) {
   {
     // The streamed writer spills: without a temporary folder it cannot write, and says so before
     // it opens the file.
-    const char* saved = std::getenv("TMPDIR");
-    const std::string restore = saved ? saved : "";
-    setenv("TMPDIR", (dir.path() / "no-such-folder").c_str(), 1);
-    const WatchedSource source(s);
-    testing::expect_error(ErrorCode::kIo, path.string() + ": cannot create a temporary file for the container's chunks: no temporary folder (TMPDIR = ",
-                          [&] { write_sequence_file(path, source, metadata); });
-    if (saved) {
-      setenv("TMPDIR", restore.c_str(), 1);
-    } else {
-      unsetenv("TMPDIR");
+    {
+      const testing::ScopedEnv no_temporary_folder("TMPDIR", (dir.path() / "no-such-folder").string());
+      const WatchedSource source(s);
+      testing::expect_error(ErrorCode::kIo, path.string() + ": cannot create a temporary file for the container's chunks: no temporary folder (TMPDIR = ",
+                            [&] { write_sequence_file(path, source, metadata); });
     }
     only_the_previous_file();
   }

@@ -776,15 +776,8 @@ TEST(SequenceEncoder, FramesDroppedAtRegistrationLeaveTheOthersTheirOwn) {
   options.spill_frames = true;
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
-  const char* saved = std::getenv("TMPDIR");
-  const std::string restore = saved ? saved : "";
-  setenv("TMPDIR", (dir.path() / "no-such-folder").c_str(), 1);
+  const testing::ScopedEnv no_temporary_folder("TMPDIR", (dir.path() / "no-such-folder").string());
   testing::expect_error(ErrorCode::kIo, "the frames' registrations", [&] { encoder.register_frames(); });
-  if (saved) {
-    setenv("TMPDIR", restore.c_str(), 1);
-  } else {
-    unsetenv("TMPDIR");
-  }
 }
 
 // Without landmarks and without tracking, every frame gets its nose tip, up and rim markers from its
