@@ -405,29 +405,37 @@ void SequenceEncoder::adopt_found_landmarks() {
   };
   const bool given_rim = std::any_of(capture_.landmark_names.begin(), capture_.landmark_names.end(),
                                      [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
+  // No rim markers given: each normalised frame's rim points at the same disk angles.
+  auto takes_rim = [&](const FrameSummary& f) { return !given_rim && f.found_rim.size() == static_cast<size_t>(kFoundRimMarkers); };
+  // The names first, in the order they always came (the pose's, then the rim's): the registration
+  // takes the landmarks in the names' order.
+  size_t tip = 0, up = 0;
+  if (std::any_of(summaries_.begin(), summaries_.end(), [](const FrameSummary& f) { return f.found.has_value(); })) {
+    tip = name_index("nose_tip");
+    up = name_index("nose_bridge");
+  }
+  std::vector<size_t> rim;
+  if (std::any_of(summaries_.begin(), summaries_.end(), takes_rim)) {
+    for (int k = 0; k < kFoundRimMarkers; ++k) rim.push_back(name_index("rim_" + std::to_string(k)));
+  }
+  // Then each frame's points read, set and stored once.
   for (size_t i = 0; i < summaries_.size(); ++i) {
     const FrameSummary& f = summaries_[i];
-    if (!f.found) continue;
-    const size_t tip = name_index("nose_tip"), up = name_index("nose_bridge");
+    if (!f.found && !takes_rim(f)) continue;
     std::vector<Vec3> points = landmarks(static_cast<int>(i));
-    points[tip] = f.found->nose_tip;
-    points[up] = f.found->up;
+    if (f.found) {
+      points[tip] = f.found->nose_tip;
+      points[up] = f.found->up;
+      ++report_.orientation_found;
+      report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
+      report_.up_from_hint += f.found->up_from_hint;
+      report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
+    }
+    if (takes_rim(f)) {
+      for (size_t k = 0; k < rim.size(); ++k) points[rim[k]] = f.found_rim[k];
+      report_.rim_markers_found = true;
+    }
     landmarks_->put(i, std::move(points));
-    ++report_.orientation_found;
-    report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
-    report_.up_from_hint += f.found->up_from_hint;
-    report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
-  }
-  if (given_rim) return;
-  // No rim markers given: each normalised frame's rim points at the same disk angles.
-  for (size_t i = 0; i < summaries_.size(); ++i) {
-    if (summaries_[i].found_rim.size() != static_cast<size_t>(kFoundRimMarkers)) continue;
-    std::vector<size_t> rim(kFoundRimMarkers);
-    for (int k = 0; k < kFoundRimMarkers; ++k) rim[static_cast<size_t>(k)] = name_index("rim_" + std::to_string(k));
-    std::vector<Vec3> points = landmarks(static_cast<int>(i));
-    for (int k = 0; k < kFoundRimMarkers; ++k) points[rim[static_cast<size_t>(k)]] = summaries_[i].found_rim[static_cast<size_t>(k)];
-    landmarks_->put(i, std::move(points));
-    report_.rim_markers_found = true;
   }
 }
 
@@ -506,8 +514,11 @@ std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   const auto reference = static_cast<size_t>(options_.reference_frame);
   report_.tracked_frames = 0;
   std::vector<TrackedPoints> tracked;
-  bool needed = false;
-  for (size_t i = 0; i < count && !needed; ++i) needed = i != reference && needs_tracked(reference, i);
+  // Which frames share too few interior landmarks with the reference, the reference's read once.
+  const std::vector<Vec3> reference_points = landmarks(static_cast<int>(reference));
+  std::vector<char> needs(count, 0);
+  for (size_t i = 0; i < count; ++i) needs[i] = i != reference && needs_tracked_points(capture_.landmark_names, reference_points, landmarks(static_cast<int>(i)));
+  const bool needed = std::find(needs.begin(), needs.end(), 1) != needs.end();
   if (!options_.track_landmarks || !needed) return tracked;
   const int size = options_.tracking.image_size;
   // Each frame's map read back from the store while its images are drawn (frame() is thread-safe).
@@ -517,7 +528,7 @@ std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   double kept = 0;
   report_.tracked_points_fewest = std::numeric_limits<int>::max();
   for (size_t i = 0; i < count; ++i) {
-    if (i == reference || !needs_tracked(reference, i)) continue;
+    if (!needs[i]) continue;
     ++report_.tracked_frames;
     kept += static_cast<double>(tracked[i].reference.size());
     report_.tracked_points_fewest = std::min(report_.tracked_points_fewest, static_cast<int>(tracked[i].reference.size()));
@@ -621,10 +632,6 @@ std::vector<Vec3> SequenceEncoder::landmarks(int i) const {
 DiskLandmarks SequenceEncoder::frame_disk_landmarks(int i) const {
   const int reference = options_.reference_frame;
   return facemorph::disk_landmarks(capture_.landmark_names, landmarks(reference), frame(reference)->map, landmarks(i), frame(i)->map);
-}
-
-bool SequenceEncoder::needs_tracked(size_t reference, size_t i) const {
-  return needs_tracked_points(capture_.landmark_names, landmarks(static_cast<int>(reference)), landmarks(static_cast<int>(i)));
 }
 
 std::shared_ptr<const DiskRegistration> SequenceEncoder::registration(int i) const {

@@ -434,8 +434,6 @@ class SequenceEncoder {
 
   Capture capture_;  // without its landmarks, which are in landmarks_
   std::unique_ptr<SpilledItems<std::vector<Vec3>>> landmarks_;
-  // Whether frame i shares too few interior landmarks with the reference (needs_tracked_points).
-  bool needs_tracked(size_t reference, size_t i) const;
   std::vector<int> source_index_;
   double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
