@@ -54,17 +54,17 @@ PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload,
   return chunk;
 }
 
-ContainerWriter::ContainerWriter() {
+ContainerWriter::ContainerWriter(const ContainerKind& kind) {
   ByteWriter w;
-  w.bytes(kMagic);
-  w.write(kMajorVersion);
-  w.write(kMinorVersion);
+  w.bytes(kind.magic);
+  w.write(kind.major);
+  w.write(kind.minor);
   w.write(crc32(w.data()));
   bytes_ = w.take();
   size_ = bytes_.size();
 }
 
-ContainerWriter::ContainerWriter(std::ostream& out) : ContainerWriter() {
+ContainerWriter::ContainerWriter(std::ostream& out, const ContainerKind& kind) : ContainerWriter(kind) {
   out_ = &out;
   flush();
 }
@@ -134,24 +134,25 @@ PreparedChunk ChunkSpool::get(size_t id) const {
   return chunk;
 }
 
-ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks) : file_(file), source_(std::move(source)) {
+ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks, const ContainerKind& kind)
+    : file_(file), source_(std::move(source)) {
   ByteReader r(file, source_);
-  if (file.size() >= kMagic.size() && !std::equal(kMagic.begin(), kMagic.end(), file.begin())) {
-    throw Error(ErrorCode::kCorrupt, source_ + ": not a facemorph container (bad magic)");
+  if (file.size() >= kind.magic.size() && !std::equal(kind.magic.begin(), kind.magic.end(), file.begin())) {
+    throw Error(ErrorCode::kCorrupt, source_ + ": not a " + kind.name + " (bad magic)");
   }
-  r.skip(kMagic.size(), "the magic");
+  r.skip(kind.magic.size(), "the magic");
   major_ = r.read<uint16_t>("the major version");
   minor_ = r.read<uint16_t>("the minor version");
   const uint32_t crc = r.read<uint32_t>("the preamble checksum");
   if (crc != crc32(file.first(12))) throw Error(ErrorCode::kCorrupt, source_ + ": preamble checksum mismatch");
-  if (major_ == 1) {
+  if (major_ == 1 && kind.magic == kMagic) {
     // Format 1.x was written by facemorph 0.2-0.7 only, before the format was frozen at 2.0.
     throw Error(ErrorCode::kUnsupported, source_ + ": format version 1." + std::to_string(minor_) +
                                              " is an experimental version this decoder does not read; encode the capture again");
   }
-  if (major_ != kMajorVersion) {
+  if (major_ != kind.major) {
     throw Error(ErrorCode::kUnsupported, source_ + ": format version " + std::to_string(major_) + "." + std::to_string(minor_) +
-                                             " (this decoder reads " + std::to_string(kMajorVersion) + ".x)");
+                                             " (this reader reads " + std::to_string(kind.major) + ".x)");
   }
   while (true) {
     ChunkView chunk;

@@ -26,6 +26,16 @@ inline constexpr size_t kChunkTrailerBytes = 4;
 inline constexpr uint64_t kMaxPayloadBytes = uint64_t{1} << 30;  // stored or decompressed
 inline constexpr std::string_view kEndChunk = "FEND";
 
+// Which file a container is: its magic and the version its writer writes and its reader reads (the
+// same major only). The chunk layer is shared: the facemorph file (.fmv) and the staged encode's
+// part file (.fms, spec/part-file.md) are both containers of this kind, told apart by the magic.
+struct ContainerKind {
+  std::array<uint8_t, 8> magic;
+  uint16_t major = 0, minor = 0;
+  const char* name = "";  // in errors: "facemorph container"
+};
+inline constexpr ContainerKind kSequenceContainer{kMagic, kMajorVersion, kMinorVersion, "facemorph container"};
+
 // Chunk flags (spec/container.md §3). Other bits are reserved: written 0, rejected when set.
 inline constexpr uint32_t kChunkCompressed = 1;  // the payload is one zstd frame
 inline constexpr uint32_t kChunkCritical = 2;    // a reader that does not know the type must refuse the file
@@ -63,8 +73,8 @@ PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload,
 // or streamed to `out` as each chunk is added (memory holds one chunk).
 class ContainerWriter {
  public:
-  ContainerWriter();
-  explicit ContainerWriter(std::ostream& out);
+  explicit ContainerWriter(const ContainerKind& kind = kSequenceContainer);
+  explicit ContainerWriter(std::ostream& out, const ContainerKind& kind = kSequenceContainer);
   // Appends a chunk and returns its offset in the file. Streamed, throws kIo as soon as `out`
   // fails (a full disk).
   uint64_t add(const PreparedChunk& chunk);
@@ -122,7 +132,8 @@ class ChunkSpool {
 // (a file's size alone does not bound it where the file is mapped rather than read).
 class ContainerReader {
  public:
-  ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks = UINT64_MAX);
+  ContainerReader(std::span<const uint8_t> file, std::string source, uint64_t max_chunks = UINT64_MAX,
+                  const ContainerKind& kind = kSequenceContainer);
 
   uint16_t major_version() const { return major_; }
   uint16_t minor_version() const { return minor_; }

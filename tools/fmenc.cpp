@@ -4,6 +4,7 @@
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
 #include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/staged_encode.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/keyframe_source.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -99,6 +100,44 @@ double parse_dead_zone(const std::string& text) {
 }
 
 // What fminfo shows of the frames the encoder dropped or mapped another way (spec/container.md §8).
+// --frames A:B: frames A to B-1 of the capture (0-based, B excluded; B may be past its end).
+FrameRange parse_frames(const std::string& text, int count) {
+  const size_t colon = text.find(':');
+  try {
+    if (colon == std::string::npos) throw std::invalid_argument(text);
+    size_t used_a = 0, used_b = 0;
+    const long a = std::stol(text.substr(0, colon), &used_a), b = std::stol(text.substr(colon + 1), &used_b);
+    if (used_a != colon || used_b != text.size() - colon - 1 || a < 0 || b <= a) throw std::out_of_range(text);
+    if (a >= count) {
+      throw Error(ErrorCode::kInvalidArgument, "--frames " + text + ": the capture has " + std::to_string(count) + " frames (0:" + std::to_string(count) + ")");
+    }
+    return {static_cast<int>(a), static_cast<int>(std::min<long>(b, count))};
+  } catch (const std::logic_error&) {
+    throw Error(ErrorCode::kInvalidArgument, "--frames '" + text + "' is not A:B, frames A to B-1 (0-based, A < B)");
+  }
+}
+
+// --stage check: each part read whole, every record checked (and, with --frames, holding those
+// frames); one line each.
+void check_parts(const std::vector<std::string>& parts, const std::string& frames, bool quiet) {
+  for (const std::string& path : parts) {
+    const PartReader reader(path);
+    reader.verify();
+    if (!frames.empty()) {
+      const FrameRange want = parse_frames(frames, reader.header().capture.frame_count);
+      const FrameRange have = reader.header().range;
+      if (have.first != want.first || have.end != want.end) {
+        throw Error(ErrorCode::kInvalidArgument, path + ": holds frames " + std::to_string(have.first) + ":" + std::to_string(have.end) + ", not " + frames);
+      }
+    }
+    if (quiet) continue;
+    const PartHeader& h = reader.header();
+    std::printf("%s: part %u.%u of capture %s (%s): frames %d:%d of %d, reference frame %d, %llu bytes, written by %s\n", path.c_str(), kPartMajorVersion,
+                h.minor_version, h.capture_id.c_str(), h.capture.root.c_str(), h.range.first, h.range.end, h.capture.frame_count, h.capture.reference,
+                static_cast<unsigned long long>(reader.file_bytes()), h.encoder.c_str());
+  }
+}
+
 nlohmann::json dropped_json(const EncodeReport& report) {
   nlohmann::json list = nlohmann::json::array();
   for (const DroppedFrame& d : report.dropped) list.push_back({{"frame", d.index}, {"name", d.name}, {"time", d.time}, {"reason", d.reason}});
@@ -165,20 +204,29 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
 
 int main(int argc, char** argv) {
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
-  std::string input, output, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
+  std::vector<std::string> inputs;
+  std::string output, stage = "all", frames, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
-  int threads = 0, reference = 0;
+  int threads = 0, reference = 0, frames_per_part = 200;
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   bool no_texture = false, no_texture_sharing = false, track_landmarks = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
-  app.add_option("capture", input,
-                 "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code")
+  app.add_option("capture", inputs,
+                 "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code; "
+                 "with --stage assemble or check, the part files")
       ->required();
-  app.add_option("-o,--output", output, "The .fmv file to write")->required();
+  app.add_option("-o,--output", output, "The .fmv file to write (with --stage sample, the part file)");
+  app.add_option("--stage", stage,
+                 "all | sample | assemble | check | ranges. sample: map, register and sample --frames A:B into a part file (.fms); assemble: the "
+                 "parts covering the capture into the .fmv, given the options the parts were sampled with; check: read and check part "
+                 "files (spec/part-file.md)")
+      ->capture_default_str();
+  app.add_option("--frames", frames, "With --stage sample: frames A to B-1 of the capture (A:B, 0-based; B may be past the end); with --stage check: the frames the part must hold");
+  app.add_option("--frames-per-part", frames_per_part, "With --stage ranges: print the ranges A:B of this many frames the capture splits into")->capture_default_str();
   app.add_option("--fps", fps, "Frame rate of a plain folder of meshes");
   app.add_option("--landmarks", landmarks,
                  "Landmarks CSV of a plain folder (frame,name,x,y,z), or auto: ignore the capture's landmarks and find the nose tip, "
@@ -298,31 +346,74 @@ int main(int argc, char** argv) {
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
     options.field_precision.inter_dead_zone = inter_dead_zone == "auto" ? kAutoDeadZone : parse_dead_zone(inter_dead_zone);
-    if (std::filesystem::path(input).extension() == ".fmv") {
+    if (stage != "all" && stage != "sample" && stage != "assemble" && stage != "check" && stage != "ranges") {
+      throw Error(ErrorCode::kInvalidArgument, "--stage '" + stage + "' is none of all, sample, assemble, check, ranges");
+    }
+    if (stage == "check") {
+      check_parts(inputs, frames, quiet);
+      return 0;
+    }
+    if (stage != "assemble" && inputs.size() != 1) throw Error(ErrorCode::kInvalidArgument, "one capture to encode, not " + std::to_string(inputs.size()));
+    if (stage == "ranges") {
+      // What a cluster encode splits the capture into (tools/slurm/fmenc-slurm): the capture read as
+      // the encode reads it.
+      if (inputs.size() != 1) throw Error(ErrorCode::kInvalidArgument, "--stage ranges reads one capture");
+      const Capture capture = open_capture(inputs.front(), fps, landmarks == "auto" ? "" : landmarks);
+      for (const FrameRange& r : part_ranges(static_cast<int>(capture.frames.size()), frames_per_part)) std::printf("%d:%d\n", r.first, r.end);
+      return 0;
+    }
+    if (output.empty()) throw Error(ErrorCode::kInvalidArgument, "--output is required");
+    if (stage == "sample" && frames.empty()) throw Error(ErrorCode::kInvalidArgument, "--stage sample needs --frames A:B");
+    if (stage != "sample" && stage != "check" && !frames.empty()) throw Error(ErrorCode::kInvalidArgument, "--frames is for --stage sample");
+    const std::string input = inputs.front();
+    if (stage == "all" && std::filesystem::path(input).extension() == ".fmv") {
       recode(input, output, options, quality, parse_texture_coding(texture_coding), quiet);
       return 0;
     }
-    Capture capture = open_capture(input, fps, landmarks == "auto" ? "" : landmarks);
-    if (landmarks == "auto") {
-      capture.landmark_names.clear();
-      capture.landmarks.assign(capture.frames.size(), {});
-    }
     std::map<std::string, std::unique_ptr<tools::Progress>> stages;
     std::string current;
-    options.progress = [&](const std::string& stage, int done, int total) {
-      if (stage != current && stages.count(current)) stages[current]->finish();
-      current = stage;
-      auto& bar = stages[stage];
-      if (!bar) bar = std::make_unique<tools::Progress>("fmenc " + stage, quiet);
+    options.progress = [&](const std::string& step, int done, int total) {
+      if (step != current && stages.count(current)) stages[current]->finish();
+      current = step;
+      auto& bar = stages[step];
+      if (!bar) bar = std::make_unique<tools::Progress>("fmenc " + step, quiet);
       bar->update(done, total);
     };
     EncodeReport report;
     // The keyframes stay in the encoder's temporary file until the writer reads them, one at a time.
     // What the summary needs of the capture, kept: the encoder takes the capture itself.
-    const std::vector<std::string> landmark_names = capture.landmark_names;
-    const double duration = capture.duration() + 1.0 / capture.fps;
-    const size_t frame_count = capture.frames.size();
-    const std::unique_ptr<StoredSequence> sequence = encode_capture_stored(std::move(capture), options, &report);
+    std::vector<std::string> landmark_names;
+    double duration = 0;
+    size_t frame_count = 0;
+    std::unique_ptr<StoredSequence> sequence;
+    if (stage == "assemble") {
+      PartHeader header;
+      sequence = assemble_parts(std::vector<std::filesystem::path>(inputs.begin(), inputs.end()), options, &report, &header);
+      landmark_names = header.capture.given_landmark_names;
+      duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
+      frame_count = static_cast<size_t>(header.capture.frame_count);
+    } else {
+      Capture capture = open_capture(input, fps, landmarks == "auto" ? "" : landmarks);
+      if (landmarks == "auto") {
+        capture.landmark_names.clear();
+        capture.landmarks.assign(capture.frames.size(), {});
+      }
+      if (stage == "sample") {
+        const FrameRange range = parse_frames(frames, static_cast<int>(capture.frames.size()));
+        const PartHeader header = encode_part(capture, options, range, output);
+        if (stages.count(current)) stages[current]->finish();
+        if (!quiet) {
+          std::printf("fmenc: %s: frames %d:%d of %zu sampled (reference frame %d), %llu bytes, %.1f s\n", output.c_str(), range.first, range.end,
+                      capture.frames.size(), header.capture.reference, static_cast<unsigned long long>(std::filesystem::file_size(output)),
+                      tools::seconds_since(start));
+        }
+        return 0;
+      }
+      landmark_names = capture.landmark_names;
+      duration = capture.duration() + 1.0 / capture.fps;
+      frame_count = capture.frames.size();
+      sequence = encode_capture_stored(std::move(capture), options, &report);
+    }
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
     nlohmann::json settings = settings_json(options, report);

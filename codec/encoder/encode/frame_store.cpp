@@ -76,7 +76,8 @@ RepairReport read_repair_report(Reader& r) {
                  &report.dropped_unreferenced_vertices, &report.reoriented_faces, &report.dropped_components, &report.dropped_component_faces}) {
     *v = r.value<int>();
   }
-  report.holes.resize(r.value<uint64_t>());
+  // At least a loop's length and nine numbers a hole.
+  report.holes.resize(r.items(sizeof(uint64_t) + 5 * sizeof(int) + 4 * sizeof(double)));
   for (FilledHole& h : report.holes) {
     h.loop = r.array<int>();
     for (int* v : {&h.first_vertex, &h.vertex_count, &h.first_face, &h.face_count, &h.folded_faces}) *v = r.value<int>();

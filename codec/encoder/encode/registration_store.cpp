@@ -5,6 +5,8 @@
 #include "codec/encoder/encode/spill_bytes.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 namespace facemorph {
@@ -106,6 +108,34 @@ DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, 
   }
   if (!r.done()) throw Error(ErrorCode::kInternal, "registration store: a stored registration has bytes left over");
   return f;
+}
+
+namespace {
+
+template <typename V>
+bool finite_all(const std::vector<V>& values) {
+  return std::all_of(values.begin(), values.end(), [](const V& v) { return v.allFinite(); });
+}
+
+bool step_finite(const ThinPlateDisplacement& step) {
+  return finite_all(step.centres) && step.weights.allFinite() && step.offset.allFinite() && step.linear.allFinite();
+}
+
+}  // namespace
+
+void RegistrationStore::check(const DiskRegistration& f) {
+  const auto bad = [](const std::string& what) { throw Error(ErrorCode::kCorrupt, what); };
+  const auto method = static_cast<int>(f.method), form = static_cast<int>(f.form), fallback = static_cast<int>(f.fallback),
+             start = static_cast<int>(f.moebius_start);
+  if (method < 0 || method > static_cast<int>(RegistrationMethod::kFrame) || form < 0 || form > static_cast<int>(GmfForm::kPaperGrid) ||
+      fallback < 0 || fallback > static_cast<int>(RegistrationFallback::kSubsteps) || start < 0 || start > static_cast<int>(MoebiusStart::kAlgebraic)) {
+    bad("its registration names an unknown method");
+  }
+  if (!std::isfinite(f.moebius.a.real()) || !std::isfinite(f.moebius.a.imag()) || !(std::abs(f.moebius.a) < 1) || !std::isfinite(f.moebius.theta)) {
+    bad("its registration's Möbius map is not one of the disk");
+  }
+  if (!std::all_of(f.steps.begin(), f.steps.end(), step_finite)) bad("its registration has a number not finite");
+  if (f.partition_map && (!finite_all(f.partition_map->images) || !finite_all(f.partition_map->jacobians))) bad("its registration has a number not finite");
 }
 
 RegistrationStore::RegistrationStore(SpillMode mode)

@@ -44,12 +44,6 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
-// frames by error at a fraction of the cost of G itself.
-constexpr int kSelectionGrid = 65;
-// What the selection's cache of spilled samples may hold: ~830 frames of 79 kB, more than the frames
-// its refinement predicts around one keyframe (six gaps between keyframes) at 10% keyframes.
-constexpr uint64_t kSelectionCacheBytes = uint64_t{64} << 20;
 // --grid auto: the sizes tried, and the resampling floor a keyframe may add (spec/method.md §7.6).
 // The floor falls as 1/N², so steps of ~1.2-1.5 in N give the rule steps of at most ~2.2 in floor.
 constexpr int kGridCandidates[] = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
@@ -218,18 +212,8 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
   return level;
 }
 
-SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
-    : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
-  const int count = frame_count();
-  if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
-  if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
-  if (capture_.landmarks.size() != capture_.frames.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
-                                                 std::to_string(count) + " frames");
-  }
-  // The landmarks leave the capture for a store: 1.8 kB a frame of ICT's 74, which kept in memory
-  // grew with the capture for the whole encode.
-  landmarks_ = std::make_unique<SpilledItems<std::vector<Vec3>>>(
+std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_store() const {
+  return std::make_unique<SpilledItems<std::vector<Vec3>>>(
       options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, "the frames' landmarks", "landmarks of frame",
       [](const std::vector<Vec3>& points) {
         spill::Writer w;
@@ -242,6 +226,20 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
         if (!r.done()) throw Error(ErrorCode::kInternal, "the frames' landmarks: a stored frame has bytes left over");
         return points;
       });
+}
+
+SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
+    : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
+  const int count = frame_count();
+  if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
+  if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
+  if (capture_.landmarks.size() != capture_.frames.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
+                                                 std::to_string(count) + " frames");
+  }
+  // The landmarks leave the capture for a store: 1.8 kB a frame of ICT's 74, which kept in memory
+  // grew with the capture for the whole encode.
+  landmarks_ = make_landmark_store();
   landmarks_->reset(capture_.landmarks.size());
   for (size_t i = 0; i < capture_.landmarks.size(); ++i) landmarks_->put(i, std::move(capture_.landmarks[i]));
   capture_.landmarks = {};
@@ -249,6 +247,11 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
   std::iota(source_index_.begin(), source_index_.end(), 0);
   first_time_ = capture_.frames.front().time;
   last_time_ = capture_.frames.back().time;
+  given_reference_ = options_.reference_frame;
+  check_options(count);
+}
+
+void SequenceEncoder::check_options(int count) const {
   if (!(options_.landmark_tolerance > 0)) throw Error(ErrorCode::kInvalidArgument, "the landmark tolerance must be positive");
   if (options_.reference_frame < 0 || options_.reference_frame >= count) {
     throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(options_.reference_frame) + " is not a frame of the capture");
@@ -333,6 +336,8 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
       continue;
     }
     report_.dropped.push_back({source_index_[i], capture_.frames[i].mesh.string(), capture_.frames[i].time, failures[i].reason});
+    // Dropped at registration, the frame was mapped: its summary still counts in what was found.
+    if (summaries_.size() == failures.size() && !summaries_[i].name.empty()) dropped_summaries_[source_index_[i]] = summaries_[i];
   }
   if (kept.size() == failures.size()) return;
   if (kept.empty()) {
@@ -372,28 +377,39 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
     if (pinned_index_ < 0) pinned_.reset();
   }
   compact(textures_);
+  compact(without_interior_);
   if (registrations_ && registrations_->size() == failures.size()) registrations_->keep(kept);
 }
 
-std::optional<Vec3> SequenceEncoder::find_vertical_hint() const {
+std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks) {
   // The first frame from the reference on that lacks its pose landmarks and whose own surface says
   // clearly which way is up: its up direction settles the frames whose surfaces do not.
-  const int count = frame_count();
-  for (int step = 0; step < count; ++step) {
-    const auto index = static_cast<size_t>((options_.reference_frame + step) % count);
-    const FrameLandmarks given = frame_landmarks(capture_.landmark_names, landmarks(static_cast<int>(index)));
+  const size_t count = capture.frames.size();
+  for (size_t step = 0; step < count; ++step) {
+    const size_t index = (static_cast<size_t>(reference) + step) % count;
+    const FrameLandmarks given = frame_landmarks(capture.landmark_names, landmarks(index));
     if (given.centre && given.up) continue;
     try {
-      const FrameStore::Hold held = store_->hold();
       PrepareOptions prepare;
-      prepare.keep_largest_component = options_.largest_component;
-      const PreparedFrame p = prepare_frame(read_mesh(capture_.mesh_path(index), {.allow_missing_texture = true}), capture_.frames[index].mesh.string(), prepare);
-      return find_face_orientation(p.mesh, capture_.frames[index].mesh.string()).vertical;
+      prepare.keep_largest_component = largest_component;
+      const PreparedFrame p = prepare_frame(read_mesh(capture.mesh_path(index), {.allow_missing_texture = true}), capture.frames[index].mesh.string(), prepare);
+      return find_face_orientation(p.mesh, capture.frames[index].mesh.string()).vertical;
     } catch (const Error&) {
       // This frame does not say; the next may. Its own mapping reports why.
     }
   }
   return std::nullopt;
+}
+
+void SequenceEncoder::count_found_landmarks(const FrameSummary& f, bool given_rim) {
+  if (f.found) {
+    ++report_.orientation_found;
+    report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
+    report_.up_from_hint += f.found->up_from_hint;
+    report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
+  }
+  if (!given_rim && f.found_rim.size() == static_cast<size_t>(kFoundRimMarkers)) report_.rim_markers_found = true;
 }
 
 void SequenceEncoder::adopt_found_landmarks() {
@@ -426,15 +442,11 @@ void SequenceEncoder::adopt_found_landmarks() {
     if (f.found) {
       points[tip] = f.found->nose_tip;
       points[up] = f.found->up;
-      ++report_.orientation_found;
-      report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
-      report_.up_from_hint += f.found->up_from_hint;
-      report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
     }
     if (takes_rim(f)) {
       for (size_t k = 0; k < rim.size(); ++k) points[rim[k]] = f.found_rim[k];
-      report_.rim_markers_found = true;
     }
+    count_found_landmarks(f, given_rim);
     landmarks_->put(i, std::move(points));
   }
 }
@@ -452,7 +464,13 @@ void SequenceEncoder::map_frames() {
   textures_.assign(static_cast<size_t>(count), {});
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
   std::vector<std::vector<std::string>> warnings(static_cast<size_t>(count));
-  const std::optional<Vec3> vertical_hint = options_.find_landmarks ? find_vertical_hint() : std::nullopt;
+  std::optional<Vec3> vertical_hint = vertical_hint_;
+  if (options_.find_landmarks && !vertical_hint_set_) {
+    const FrameStore::Hold held = store_->hold();  // the frame being prepared
+    vertical_hint = find_vertical_hint(capture_, options_.reference_frame, options_.largest_component,
+                                       [&](size_t i) { return landmarks(static_cast<int>(i)); });
+  }
+  if (!options_.find_landmarks) vertical_hint.reset();
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -500,7 +518,10 @@ void SequenceEncoder::map_frames() {
         store_->put(index, std::move(mapped));
       },
       [&](int done, int total) { progress("mapping", done, total); });
-  for (auto& w : warnings) report_.warnings.insert(report_.warnings.end(), w.begin(), w.end());
+  for (size_t i = 0; i < warnings.size(); ++i) {
+    report_.warnings.insert(report_.warnings.end(), warnings[i].begin(), warnings[i].end());
+    if (!warnings[i].empty()) warnings_by_frame_[source_index_[i]] = std::move(warnings[i]);
+  }
   drop_frames(failures);
   adopt_found_landmarks();
   pin_reference();
@@ -572,7 +593,8 @@ void SequenceEncoder::register_frames() {
   const std::vector<TrackedPoints> tracked = track_frames();
   const std::vector<Vec3> reference_points = landmarks(static_cast<int>(reference));
   std::vector<FrameFailure> failures(static_cast<size_t>(count));
-  std::vector<char> without_interior(static_cast<size_t>(count), 0);  // registered without interior landmarks
+  std::vector<char>& without_interior = without_interior_;
+  without_interior.assign(static_cast<size_t>(count), 0);
   parallel_for(
       count, options_.threads,
       [&](int i) {
@@ -681,14 +703,20 @@ std::vector<Vec3> SequenceEncoder::sample_surface(const MappedFrame& frame, int 
   return resample_positions(InverseDiskMap(frame.map), sample_points(i, nodes));
 }
 
+GridGeometry SequenceEncoder::set_selection_weights() {
+  GridGeometry geometry(make_disk_grid(kSelectionGrid));
+  const auto nodes = static_cast<size_t>(geometry.interior_count());
+  node_weights_.resize(nodes);
+  for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
+  return geometry;
+}
+
 void SequenceEncoder::sample_frames() {
   const auto start = std::chrono::steady_clock::now();
   const int count = frame_count();
   const auto reference = static_cast<size_t>(options_.reference_frame);
-  const GridGeometry geometry(make_disk_grid(kSelectionGrid));
-  const auto nodes = static_cast<size_t>(geometry.interior_count());
-  node_weights_.resize(nodes);
-  for (size_t v = 0; v < nodes; ++v) node_weights_[v] = geometry.mass()[static_cast<Eigen::Index>(v)];
+  const GridGeometry geometry = set_selection_weights();
+  const size_t nodes = node_weights_.size();
   selection_.assign(static_cast<size_t>(count), {});
   samples_.reset();  // the samples of the frames as sampled before, if any
   samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
@@ -1233,6 +1261,11 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   encoder.map_frames();
   encoder.register_frames();
   encoder.sample_frames();
+  return encode_sampled(encoder, report_out);
+}
+
+std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
+  const EncodeOptions& options = encoder.options();
   const KeyframeSelection chosen = encoder.select_keyframes();
   EncodeReport& report = encoder.report();
   report.keyframes = chosen.keyframes;

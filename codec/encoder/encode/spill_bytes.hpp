@@ -19,10 +19,10 @@ namespace facemorph::spill {
 // output must not depend on whether its frames were spilled).
 static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
 static_assert(sizeof(Complex) == 2 * sizeof(double));
-static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double));
+static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double) && sizeof(Eigen::Matrix3d) == 9 * sizeof(double));
 template <typename T>
 constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex> ||
-                        std::is_same_v<T, Eigen::Vector3f> || std::is_same_v<T, Eigen::Matrix2d>;
+                        std::is_same_v<T, Eigen::Vector3f> || std::is_same_v<T, Eigen::Matrix2d> || std::is_same_v<T, Eigen::Matrix3d>;
 
 class Writer {
  public:
@@ -74,6 +74,9 @@ class Reader {
     return v;
   }
   bool done() const { return p_ == end_; }
+  // A count of items to come, each at least `item_bytes` long: checked against the bytes left
+  // before the caller allocates for them (a record read from a file is untrusted).
+  size_t items(size_t item_bytes) { return count(item_bytes); }
 
  private:
   size_t count(size_t item) {

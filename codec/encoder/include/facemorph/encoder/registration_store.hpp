@@ -43,6 +43,9 @@ class RegistrationStore {
   // Public for the round-trip test: every field and the map at every point come back the same.
   static std::vector<char> serialize(const DiskRegistration& registration);
   static DiskRegistration deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition);
+  // Throws kCorrupt where a registration read from a file (a part file, spec/part-file.md) is not
+  // one the encoder could have made: an unknown method, a Möbius map off the disk, a number not finite.
+  static void check(const DiskRegistration& registration);
 
  private:
   std::shared_ptr<const PartitionMesh> partition_;

@@ -278,6 +278,41 @@ struct FrameSummary {
   std::vector<Vec3> found_rim;                // MappedFrame::found_rim
 };
 
+// One frame of the capture as the staged encode's sample stage leaves it for assembling
+// (staged_encode.hpp; a part file's record, spec/part-file.md): dropped, with why, or kept, with
+// everything the steps after the selection's sampling read of it.
+struct SampledFrame {
+  int index = 0;     // in the capture as given
+  std::string name;  // its mesh, as the capture names it
+  double time = 0;
+  std::vector<std::string> warnings;  // its landmarks ignored, each naming the frame
+  // Why the frame was dropped; empty for a frame kept. A frame dropped at registration was mapped
+  // first: `mapped` is set and its summary counts in the landmarks the report says were found.
+  std::string dropped;
+  bool mapped = false;
+  FrameSummary summary;  // a frame mapped
+  // A frame kept:
+  std::filesystem::path texture;              // its texture image (absolute), if any
+  std::vector<Vec3> landmarks;                // one per name of the part's landmark names
+  std::vector<char> map;                      // FrameStore::serialize
+  std::vector<char> registration;             // RegistrationStore::serialize
+  bool without_interior_landmarks = false;    // registered without interior landmarks shared with the reference
+  SelectionFrame selection;                   // its time, pose, diagonal and samples on the selection grid
+};
+
+// What the assembling encoder is told of the capture besides its frames (staged_encode.cpp).
+struct SampledCapture {
+  std::filesystem::path root;
+  double fps = 0;
+  std::string units = "m";
+  double first_time = 0, last_time = 0;      // the capture's as given
+  int frame_count = 0;                       // as given
+  std::vector<std::string> landmark_names;   // the names the frames' landmarks follow (with those found added)
+  std::vector<std::string> given_landmark_names;  // the capture's own
+  int given_reference = 0;                   // EncodeOptions::reference_frame as given
+  int reference = 0;                         // the frame registered to (capture index): given_reference unless that one was dropped
+};
+
 // The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
 // encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
 // mapping. Stages run in order; a later stage may be re-run with other options (registering again
@@ -287,6 +322,20 @@ class SequenceEncoder {
  public:
   // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
   SequenceEncoder(Capture capture, EncodeOptions options);
+  // The staged encode's assembling encoder: `capture`'s frames come through add_sampled_frame, in
+  // capture order, each frame once; finish_sampled_frames then leaves the encoder as
+  // map_frames, register_frames and sample_frames would have on the whole capture (spec/part-file.md).
+  SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
+  void add_sampled_frame(SampledFrame&& frame);
+  void finish_sampled_frames();
+  // After sample_frames: every frame of this encoder's capture as given, kept or dropped, in order,
+  // handed to `take` (indices and names this encoder's; staged_encode.cpp renumbers them).
+  void for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const;
+  // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
+  // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
+  void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
+  // N of the grid every frame is sampled on for the keyframe selection (SampledFrame::selection).
+  static int selection_grid() { return kSelectionGrid; }
 
   // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
   // options().strict): from here on the encoder's capture() and frame indices are those of the
@@ -402,6 +451,14 @@ class SequenceEncoder {
   EncodeReport& report() { return report_; }
 
  private:
+  // The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
+  // frames by error at a fraction of the cost of G itself.
+  static constexpr int kSelectionGrid = 65;
+  // What the selection's cache of spilled samples may hold: ~830 frames of 79 kB, more than the frames
+  // its refinement predicts around one keyframe (six gaps between keyframes) at 10% keyframes.
+  static constexpr uint64_t kSelectionCacheBytes = uint64_t{64} << 20;
+  // The selection grid's node weights (its interior nodes' areas) into node_weights_; the grid.
+  GridGeometry set_selection_weights();
   // The selection's samples into the report: their store's peak and bytes (release_selection_samples).
   void note_selection_samples();
   struct FrameFailure {  // why a frame failed; code kOk while it has not
@@ -425,13 +482,33 @@ class SequenceEncoder {
   Image frame_texture(const MappedFrame& frame, int i, int size) const;
   // The reference's map, kept in memory while it is the reference: every stage uses it.
   std::shared_ptr<const MappedFrame> pin_reference();
-  // The up direction of the first frame (from the reference on) without pose landmarks whose
-  // surface says which way is up; none when there is none.
-  std::optional<Vec3> find_vertical_hint() const;
+  // Throws kInvalidArgument for options out of their ranges (`count`: the capture's frames).
+  void check_options(int count) const;
+  std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store() const;
+  // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
+  // has one; kCorrupt naming the frame where the bytes are not one.
+  DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
+  // Adds a mapped frame's found nose tip, up and rim markers to the report's counts.
+  void count_found_landmarks(const FrameSummary& frame, bool given_rim);
   // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
   // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
   std::vector<TrackedPoints> track_frames();
 
+  bool vertical_hint_set_ = false;
+  std::optional<Vec3> vertical_hint_;
+  // Per frame of the capture as given, the landmarks ignored on it; and the summaries of frames
+  // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.
+  std::map<int, std::vector<std::string>> warnings_by_frame_;
+  std::map<int, FrameSummary> dropped_summaries_;
+  std::vector<char> without_interior_;  // per frame kept: registered without interior landmarks shared with the reference
+  int given_reference_ = 0;  // as options().reference_frame came, in the capture as given
+  // The assembling encoder (add_sampled_frame): the reference in the capture as given, whether the
+  // capture gave rim markers, the next frame due, and the registrations that came before the
+  // reference's frame (with kFrame they need its geodesic frame's partition to be read).
+  int sampled_reference_ = -1;
+  bool given_rim_ = false;
+  int next_sampled_ = 0;
+  std::vector<std::pair<size_t, std::vector<char>>> pending_registrations_;
   Capture capture_;  // without its landmarks, which are in landmarks_
   std::unique_ptr<SpilledItems<std::vector<Vec3>>> landmarks_;
   std::vector<int> source_index_;
@@ -456,6 +533,19 @@ class SequenceEncoder {
   std::vector<double> node_weights_;
   EncodeReport report_;
 };
+
+// The up direction of the first frame of `capture` from `reference` on (cyclically) that lacks its
+// pose landmarks and whose surface says which way is up (find_face_orientation); none when none
+// does. `landmarks(i)`: frame i's points, one per name of capture.landmark_names. What map_frames
+// gives frames whose surfaces do not say.
+std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks);
+
+// The steps after the selection's sampling: keyframes, N, representation, the keyframes on G,
+// field precision, texture qualities and sharing, and the report's per-frame lines. What
+// encode_capture_stored runs once `encoder` has mapped, registered and sampled every frame, and the
+// staged encode's assemble stage once its frames came from the parts (staged_encode.hpp).
+std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report = nullptr);
 
 // ---- The pieces, for tests and the bench ----
 

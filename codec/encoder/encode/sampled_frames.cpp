@@ -1,0 +1,178 @@
+// The encoder's frames handed out after sampling, and taken back in: the staged encode's seam
+// (staged_encode.hpp, spec/part-file.md). A frame handed out by one encoder and added to another
+// leaves the second where map_frames, register_frames and sample_frames would have left it.
+#include "facemorph/encoder/sequence_encoder.hpp"
+
+#include "facemorph/encoder/registration_store.hpp"
+#include "facemorph/encoder/selection_store.hpp"
+#include "facemorph/error.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace facemorph {
+
+SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions options)
+    : options_(std::move(options)), store_(std::make_unique<FrameStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory)) {
+  if (capture.frame_count <= 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
+  if (capture.reference < 0 || capture.reference >= capture.frame_count || capture.given_reference < 0 || capture.given_reference >= capture.frame_count) {
+    throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(capture.reference) + " is not a frame of the capture");
+  }
+  capture_.root = capture.root;
+  capture_.fps = capture.fps;
+  capture_.units = capture.units;
+  capture_.landmark_names = capture.landmark_names;
+  first_time_ = capture.first_time;
+  last_time_ = capture.last_time;
+  given_reference_ = capture.given_reference;
+  sampled_reference_ = capture.reference;
+  given_rim_ = std::any_of(capture.given_landmark_names.begin(), capture.given_landmark_names.end(),
+                           [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
+  options_.reference_frame = 0;  // until the reference's frame comes (add_sampled_frame)
+  check_options(capture.frame_count);
+  const auto count = static_cast<size_t>(capture.frame_count);
+  store_->reset(count);
+  landmarks_ = make_landmark_store();
+  landmarks_->reset(count);
+  registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
+  set_selection_weights();
+  selection_.assign(count, {});
+  samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
+  report_.reference_frame = capture.reference;
+}
+
+void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
+  if (f.index != next_sampled_) {
+    throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " came where frame " + std::to_string(next_sampled_) + " was due");
+  }
+  if (f.index >= static_cast<int>(store_->size())) throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " is past the capture");
+  ++next_sampled_;
+  report_.warnings.insert(report_.warnings.end(), f.warnings.begin(), f.warnings.end());
+  if (!f.warnings.empty()) warnings_by_frame_[f.index] = f.warnings;
+  if (f.mapped) count_found_landmarks(f.summary, given_rim_);
+  if (!f.dropped.empty()) {
+    if (f.index == sampled_reference_) throw Error(ErrorCode::kInvalidArgument, f.name + ": the reference frame is given as dropped");
+    report_.dropped.push_back({f.index, f.name, f.time, f.dropped});
+    if (f.mapped) dropped_summaries_[f.index] = std::move(f.summary);
+    return;
+  }
+  if (f.landmarks.size() != capture_.landmark_names.size()) {
+    throw Error(ErrorCode::kInvalidArgument, f.name + ": " + std::to_string(f.landmarks.size()) + " landmarks for " +
+                                                 std::to_string(capture_.landmark_names.size()) + " names");
+  }
+  const size_t nodes = node_weights_.size();
+  if (f.selection.local.size() != nodes || f.selection.normal.size() != nodes) {
+    throw Error(ErrorCode::kInvalidArgument, f.name + ": its selection samples are not the selection grid's " + std::to_string(nodes) + " nodes");
+  }
+  const size_t i = capture_.frames.size();
+  MappedFrame mapped = FrameStore::deserialize(f.map.data(), f.map.size());
+  if (f.index == sampled_reference_) {
+    // Every stage reads the reference: its map is pinned, its disk reparametrised, and (kFrame)
+    // its geodesic frame built again from its disk and landmarks, as register_frames built it.
+    options_.reference_frame = static_cast<int>(i);
+    pinned_index_ = static_cast<int>(i);
+    pinned_ = std::make_shared<const MappedFrame>(mapped);
+    reparametrisation_ = DiskReparametrisation(pinned_->map, options_.density_equalising);
+    report_.density_equalising = reparametrisation_.report();
+    if (options_.registration.method == RegistrationMethod::kFrame) {
+      const DiskLandmarks own = facemorph::disk_landmarks(capture_.landmark_names, f.landmarks, pinned_->map, f.landmarks, pinned_->map);
+      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(pinned_->map, own.reference, own.on_rim));
+    }
+    registrations_->reset(store_->size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
+    for (auto& [k, bytes] : pending_registrations_) registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), bytes));
+    pending_registrations_.clear();
+    selection_[i].local = f.selection.local;  // pose_centre reads them after the samples are released
+  }
+  if (registrations_->size() == store_->size()) {
+    registrations_->put(i, read_sampled_registration(f.name, f.registration));
+  } else {
+    // Before the reference came, a registration through its geodesic frame has no partition yet.
+    pending_registrations_.emplace_back(i, std::move(f.registration));
+  }
+  store_->put(i, std::move(mapped));
+  capture_.frames.push_back({f.name, f.time});
+  source_index_.push_back(f.index);
+  summaries_.push_back(std::move(f.summary));
+  textures_.push_back(std::move(f.texture));
+  without_interior_.push_back(f.without_interior_landmarks ? 1 : 0);
+  landmarks_->put(i, std::move(f.landmarks));
+  selection_[i].time = f.selection.time;
+  selection_[i].pose = f.selection.pose;
+  selection_[i].diagonal = f.selection.diagonal;
+  samples_->put(i, std::move(f.selection.local), std::move(f.selection.normal));
+}
+
+DiskRegistration SequenceEncoder::read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const {
+  // From a part file: bytes the stores never wrote themselves, so read as untrusted.
+  try {
+    DiskRegistration f = RegistrationStore::deserialize(bytes.data(), bytes.size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
+    RegistrationStore::check(f);
+    return f;
+  } catch (const Error& e) {
+    throw Error(ErrorCode::kCorrupt, name + ": its registration: " + e.what());
+  }
+}
+
+void SequenceEncoder::finish_sampled_frames() {
+  if (next_sampled_ != static_cast<int>(store_->size())) {
+    throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(next_sampled_) + " to " + std::to_string(store_->size() - 1) + " never came");
+  }
+  if (pinned_index_ < 0) throw Error(ErrorCode::kInvalidArgument, "the reference frame never came");
+  const size_t kept = capture_.frames.size();
+  std::vector<size_t> indices(kept);
+  std::iota(indices.begin(), indices.end(), 0);
+  store_->keep(indices);
+  landmarks_->keep(indices);
+  registrations_->keep(indices);
+  selection_.resize(kept);
+  if (given_reference_ != sampled_reference_) {
+    // As drop_frames says it: after every frame's own warnings.
+    const auto given = std::find_if(report_.dropped.begin(), report_.dropped.end(), [&](const DroppedFrame& d) { return d.index == given_reference_; });
+    if (given == report_.dropped.end()) throw Error(ErrorCode::kInvalidArgument, "the reference frame moved from a frame that was not dropped");
+    report_.warnings.push_back(given->name + ": the reference frame was dropped; " + capture_.frames[static_cast<size_t>(options_.reference_frame)].mesh.string() +
+                               " is the reference instead");
+  }
+  report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior_.begin(), without_interior_.end(), 1));
+  auto_representation_ = Representation::kHLT;
+  report_.representation = representation();
+  report_.peak_selection_samples_in_memory = 0;
+}
+
+void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const {
+  if (!samples_) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames are not sampled (sample_frames first)");
+  const size_t total = capture_.frames.size() + report_.dropped.size();
+  auto dropped = report_.dropped.begin();
+  size_t kept = 0;
+  for (size_t source = 0; source < total; ++source) {
+    SampledFrame f;
+    f.index = static_cast<int>(source);
+    if (const auto w = warnings_by_frame_.find(f.index); w != warnings_by_frame_.end()) f.warnings = w->second;
+    if (dropped != report_.dropped.end() && dropped->index == f.index) {
+      f.name = dropped->name;
+      f.time = dropped->time;
+      f.dropped = dropped->reason;
+      if (const auto s = dropped_summaries_.find(f.index); s != dropped_summaries_.end()) {
+        f.mapped = true;
+        f.summary = s->second;
+      }
+      ++dropped;
+      take(std::move(f));
+      continue;
+    }
+    const auto i = static_cast<int>(kept++);
+    if (source_index_[static_cast<size_t>(i)] != f.index) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames kept and dropped do not interleave");
+    f.name = capture_.frames[static_cast<size_t>(i)].mesh.string();
+    f.time = capture_.frames[static_cast<size_t>(i)].time;
+    f.mapped = true;
+    f.summary = summaries_[static_cast<size_t>(i)];
+    f.texture = textures_[static_cast<size_t>(i)];
+    f.landmarks = landmarks(i);
+    f.map = FrameStore::serialize(*frame(i));
+    f.registration = RegistrationStore::serialize(*registration(i));
+    f.without_interior_landmarks = without_interior_[static_cast<size_t>(i)] != 0;
+    f.selection = *samples_->sampled(static_cast<size_t>(i));
+    take(std::move(f));
+  }
+}
+
+}  // namespace facemorph

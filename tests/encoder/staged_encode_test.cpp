@@ -1,0 +1,280 @@
+// The staged encode (spec/part-file.md): parts sampled apart and assembled give the one-process
+// encode's file, byte for byte; parts that do not make up one capture, or that were damaged or
+// crafted, are refused with the file and the frame named.
+#include "facemorph/encoder/part_file.hpp"
+#include "facemorph/encoder/registration_store.hpp"
+#include "facemorph/encoder/staged_encode.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "format/file_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+
+namespace facemorph {
+namespace {
+
+Capture small_capture(const std::filesystem::path& dir, int frames = 12) {
+  SynthOptions options;
+  options.frames = frames;
+  options.vertices = 2500;
+  options.remesh = true;
+  options.noise = 0.0005;
+  options.texture_size = 64;
+  options.head_motion_degrees = 15;
+  write_synthetic_capture(dir, options);
+  return read_capture(dir);
+}
+
+EncodeOptions small_options() {
+  EncodeOptions options;
+  options.keyframe_fraction = 0.25;
+  options.texture_size = 64;
+  options.threads = 2;
+  return options;
+}
+
+std::vector<uint8_t> file_of(const StoredSequence& sequence, const std::filesystem::path& path) {
+  SequenceFileMetadata metadata;
+  metadata.encoder = "test";
+  write_sequence_file(path, sequence, metadata);
+  return format::read_file(path);
+}
+
+// Samples `capture` in the parts `ranges` (each on its own encoder) and assembles them, the parts
+// given in reverse: the file, and the report through `report`.
+std::vector<uint8_t> staged_file(const Capture& capture, const EncodeOptions& options, const std::vector<FrameRange>& ranges, const testing::TempDir& dir,
+                                 EncodeReport* report) {
+  std::vector<std::filesystem::path> parts;
+  for (const FrameRange& range : ranges) {
+    parts.push_back(dir.path() / ("part_" + std::to_string(range.first) + ".fms"));
+    encode_part(capture, options, range, parts.back());
+  }
+  std::reverse(parts.begin(), parts.end());
+  return file_of(*assemble_parts(parts, options, report), dir.path() / "staged.fmv");
+}
+
+void expect_same_report(const EncodeReport& one, const EncodeReport& staged) {
+  EXPECT_EQ(one.keyframes, staged.keyframes);
+  EXPECT_EQ(one.grid, staged.grid);
+  EXPECT_EQ(one.reference_frame, staged.reference_frame);
+  EXPECT_EQ(one.warnings, staged.warnings);
+  ASSERT_EQ(one.dropped.size(), staged.dropped.size());
+  for (size_t k = 0; k < one.dropped.size(); ++k) {
+    EXPECT_EQ(one.dropped[k].index, staged.dropped[k].index);
+    EXPECT_EQ(one.dropped[k].reason, staged.dropped[k].reason);
+  }
+  EXPECT_EQ(one.orientation_found, staged.orientation_found);
+  EXPECT_EQ(one.rim_markers_found, staged.rim_markers_found);
+  EXPECT_EQ(one.frames_without_interior_landmarks, staged.frames_without_interior_landmarks);
+  ASSERT_EQ(one.frames.size(), staged.frames.size());
+  for (size_t i = 0; i < one.frames.size(); ++i) {
+    EXPECT_EQ(one.frames[i].name, staged.frames[i].name);
+    EXPECT_EQ(one.frames[i].energy, staged.frames[i].energy);
+    EXPECT_EQ(one.frames[i].predicted_error, staged.frames[i].predicted_error);
+  }
+}
+
+TEST(StagedEncode, PartsAssembleToTheOneProcessFile) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir.path() / "capture");
+  // The reference in the middle part, registered through its geodesic frame: the frames before it
+  // come to the assembling encoder before the partition their registrations need.
+  EncodeOptions options = small_options();
+  options.reference_frame = 6;
+  options.registration.method = RegistrationMethod::kFrame;
+  EncodeReport one_report, staged_report;
+  const std::vector<uint8_t> one = file_of(*encode_capture_stored(capture, options, &one_report), dir.path() / "one.fmv");
+  const std::vector<uint8_t> staged = staged_file(capture, options, {{0, 4}, {4, 9}, {9, 12}}, dir, &staged_report);
+  EXPECT_TRUE(one == staged) << "the assembled file differs from the one-process file";
+  expect_same_report(one_report, staged_report);
+}
+
+TEST(StagedEncode, AFrameDroppedAndAReferenceMovedAreSettledAlikeInEveryPart) {
+  testing::TempDir dir;
+  Capture capture = small_capture(dir.path() / "capture");
+  // Frame 5, the reference, and frame 9 cannot be read: every part must register to frame 4 (as
+  // near as 6, earlier), and the landmarks are found from the geometry (rim markers on every frame).
+  for (int k : {5, 9}) {
+    std::ofstream(capture.mesh_path(static_cast<size_t>(k))) << "v 0 0 0\n";
+  }
+  capture.landmark_names.clear();
+  capture.landmarks.assign(capture.frames.size(), {});
+  EncodeOptions options = small_options();
+  options.reference_frame = 5;
+  EncodeReport one_report, staged_report;
+  const std::vector<uint8_t> one = file_of(*encode_capture_stored(capture, options, &one_report), dir.path() / "one.fmv");
+  ASSERT_EQ(one_report.reference_frame, 4);
+  ASSERT_EQ(one_report.dropped.size(), 2u);
+  ASSERT_TRUE(one_report.rim_markers_found);
+  const std::vector<uint8_t> staged = staged_file(capture, options, {{0, 3}, {3, 7}, {7, 12}}, dir, &staged_report);
+  EXPECT_TRUE(one == staged) << "the assembled file differs from the one-process file";
+  expect_same_report(one_report, staged_report);
+}
+
+TEST(StagedEncode, PartsThatAreNotOneCaptureOnceAreRefused) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir.path() / "capture", 8);
+  const EncodeOptions options = small_options();
+  const auto part = [&](int first, int end, const EncodeOptions& o = small_options()) {
+    const std::filesystem::path path = dir.path() / ("p" + std::to_string(first) + "_" + std::to_string(end) + "_" + std::to_string(o.reference_frame) + ".fms");
+    if (!std::filesystem::exists(path)) encode_part(capture, o, {first, end}, path);
+    return path;
+  };
+  const auto refused = [&](const std::vector<std::filesystem::path>& parts, const std::string& says) {
+    try {
+      assemble_parts(parts, options);
+      ADD_FAILURE() << "assembled parts that should be refused (" << says << ")";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  refused({part(0, 3), part(5, 8)}, "frames 3:5 are in no part");
+  refused({part(0, 3), part(3, 5)}, "frames 5:8 are in no part");
+  refused({part(0, 5), part(3, 8)}, "frames 3:5 are in two parts");
+  EncodeOptions other = small_options();
+  other.reference_frame = 2;
+  refused({part(0, 3), part(3, 8, other)}, "other settings");
+  // A part of another capture (another frame count).
+  const Capture longer = small_capture(dir.path() / "longer", 9);
+  encode_part(longer, options, {3, 9}, dir.path() / "longer.fms");
+  refused({part(0, 3), dir.path() / "longer.fms"}, "different captures");
+  // The part stage's own refusals.
+  EXPECT_THROW(encode_part(capture, options, {5, 9}, dir.path() / "x.fms"), Error);
+  EncodeOptions tracking = small_options();
+  tracking.track_landmarks = true;
+  try {
+    encode_part(capture, tracking, {0, 8}, dir.path() / "x.fms");
+    ADD_FAILURE() << "sampled a part with tracking";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "x.fms"));
+  // Every frame once, in any order: assembles.
+  EXPECT_NO_THROW(assemble_parts({part(3, 5), part(5, 8), part(0, 3)}, options));
+}
+
+// A part written by the writer from `frames` as read from a good part, with `edit` applied to
+// record k: what a crafted file with every checksum right looks like.
+std::filesystem::path crafted(const std::filesystem::path& good, const std::filesystem::path& out, size_t k,
+                              const std::function<void(SampledFrame&)>& edit) {
+  const PartReader reader(good);
+  PartWriter writer(out, reader.header());
+  for (size_t j = 0; j < static_cast<size_t>(reader.header().range.size()); ++j) {
+    SampledFrame f = reader.frame(j);
+    if (j == k) edit(f);
+    writer.add(f);
+  }
+  writer.finish();
+  return out;
+}
+
+TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir.path() / "capture", 6);
+  const std::filesystem::path good = dir.path() / "good.fms";
+  encode_part(capture, small_options(), {0, 6}, good);
+  EXPECT_NO_THROW(PartReader(good).verify());
+  const std::vector<uint8_t> bytes = format::read_file(good);
+  const auto refused = [&](const std::filesystem::path& path, ErrorCode code, const std::string& says) {
+    try {
+      PartReader(path).verify();
+      ADD_FAILURE() << path << " was read as a part (" << says << ")";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), code) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  // Damaged: cut short, a byte flipped inside a record, another file's magic.
+  const auto write = [&](const std::string& name, std::vector<uint8_t> content) {
+    const std::filesystem::path path = dir.path() / name;
+    format::write_file_atomically(path, content);
+    return path;
+  };
+  refused(write("cut.fms", std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2))), ErrorCode::kTruncated, "truncated");
+  std::vector<uint8_t> flipped = bytes;
+  flipped[bytes.size() * 3 / 4] ^= 0x20;
+  refused(write("flipped.fms", flipped), ErrorCode::kCorrupt, "checksum");
+  std::vector<uint8_t> other = bytes;
+  other[3] = 'V';
+  refused(write("magic.fms", other), ErrorCode::kCorrupt, "not a facemorph part file");
+  // Crafted, every checksum right: each check the assembling encoder relies on.
+  refused(crafted(good, dir.path() / "face.fms", 2,
+                  [](SampledFrame& f) {
+                    MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
+                    m.map.surface.faces[7][1] = static_cast<int32_t>(m.map.surface.positions.size());
+                    f.map = FrameStore::serialize(m);
+                  }),
+          ErrorCode::kCorrupt, "frame 2: its map's surface has a coordinate not finite or a face outside its vertices");
+  refused(crafted(good, dir.path() / "disk.fms", 1,
+                  [](SampledFrame& f) {
+                    MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
+                    m.map.disk.pop_back();
+                    f.map = FrameStore::serialize(m);
+                  }),
+          ErrorCode::kCorrupt, "frame 1: its map's disk does not fit its surface");
+  refused(crafted(good, dir.path() / "hole.fms", 3,
+                  [](SampledFrame& f) {
+                    MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
+                    m.prepared.report.holes.push_back({});
+                    m.prepared.report.holes.back().loop = {0, 1, -4};
+                    f.map = FrameStore::serialize(m);
+                  }),
+          ErrorCode::kCorrupt, "frame 3: a hole's outline lies outside");
+  // A count that would allocate far more than the record holds: refused before it is allocated.
+  refused(crafted(good, dir.path() / "holes.fms", 3,
+                  [](SampledFrame& f) {
+                    const MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
+                    const size_t at = 8 + m.name.size() + 8 + 4 * m.prepared.rim.size() + 8 + 4 * m.prepared.source_vertex.size() + 8 * 4;
+                    const uint64_t holes = uint64_t{1} << 58;
+                    std::memcpy(f.map.data() + at, &holes, sizeof holes);
+                  }),
+          ErrorCode::kCorrupt, "frame 3: its map: ");
+  refused(crafted(good, dir.path() / "moebius.fms", 4,
+                  [](SampledFrame& f) {
+                    DiskRegistration r = RegistrationStore::deserialize(f.registration.data(), f.registration.size(), nullptr);
+                    r.moebius.a = Complex(1.5, 0);
+                    f.registration = RegistrationStore::serialize(r);
+                  }),
+          ErrorCode::kCorrupt, "frame 4: its registration's Möbius map is not one of the disk");
+  refused(crafted(good, dir.path() / "samples.fms", 0, [](SampledFrame& f) { f.selection.local[10].x() = std::numeric_limits<float>::quiet_NaN(); }),
+          ErrorCode::kCorrupt, "frame 0: its selection samples have a number not finite");
+  refused(crafted(good, dir.path() / "names.fms", 5, [](SampledFrame& f) { f.landmarks.push_back(Vec3::Zero()); }), ErrorCode::kCorrupt,
+          "frame 5: it holds");
+  refused(crafted(good, dir.path() / "nodes.fms", 5, [](SampledFrame& f) { f.selection.normal.pop_back(); }), ErrorCode::kCorrupt,
+          "frame 5: its selection samples are not the selection grid's");
+  // A writer that does not finish leaves nothing; one that finishes replaces the file whole.
+  {
+    const PartReader reader(good);
+    PartWriter writer(dir.path() / "unfinished.fms", reader.header());
+    writer.add(reader.frame(0));
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "unfinished.fms"));
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << "a temporary file was left: " << entry.path();
+  }
+}
+
+TEST(StagedEncode, PartRangesCoverACaptureOnce) {
+  const std::vector<FrameRange> ranges = part_ranges(10, 4);
+  ASSERT_EQ(ranges.size(), 3u);
+  EXPECT_EQ(ranges[0].first, 0);
+  EXPECT_EQ(ranges[1].first, 4);
+  EXPECT_EQ(ranges[2].first, 8);
+  EXPECT_EQ(ranges[2].end, 10);
+  EXPECT_EQ(part_ranges(3, 10).size(), 1u);
+  EXPECT_THROW(part_ranges(3, 0), Error);
+}
+
+}  // namespace
+}  // namespace facemorph
