@@ -23,6 +23,7 @@ packages=(
   emscripten dpkg-dev nodejs           # the browser's decoder: web/build.sh (emcc; dpkg-source unpacks Debian's zstd source), its tests under node
   libmeshoptimizer-dev                 # glTF clips for the web: EXT_meshopt_compression (fmdec -o CLIP.glb)
   chromium                             # the player page's test in a real browser (tests/web/browser.sh, headless)
+  slurm-wlm munge                      # the cluster encode's test: a one-node Slurm cluster (tests/tools/slurm_test.sh)
 )
 
 missing=()
