@@ -520,11 +520,19 @@ int main(int argc, char** argv) {
                     shared, sequence->shape().keyframes.size(), lowest_share_db);
       }
     }
-    std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "
-                "field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
-                seconds, seconds / static_cast<double>(frame_count), report.seconds_mapping, report.seconds_registration,
-                report.seconds_selection, report.seconds_representation, report.seconds_keyframes, report.seconds_precision, report.seconds_texture,
-                seconds_writing);
+    if (report.parts > 0) {
+      std::printf("  %d parts: mapping %.1f s, registration %.1f s, selection %.1f s in the sample stage (summed over the parts); here %.1f s, %.3f s per "
+                  "frame (reading the parts %.1f s, representation %.1f s, keyframes %.1f s, field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
+                  report.parts, report.seconds_mapping, report.seconds_registration, report.seconds_selection, seconds,
+                  seconds / static_cast<double>(frame_count), report.seconds_reading_parts, report.seconds_representation, report.seconds_keyframes,
+                  report.seconds_precision, report.seconds_texture, seconds_writing);
+    } else {
+      std::printf("  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "
+                  "field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
+                  seconds, seconds / static_cast<double>(frame_count), report.seconds_mapping, report.seconds_registration,
+                  report.seconds_selection, report.seconds_representation, report.seconds_keyframes, report.seconds_precision, report.seconds_texture,
+                  seconds_writing);
+    }
     if (report.spilled_bytes > 0) {
       std::printf("  frames' maps: %.0f MB in a temporary file, at most %d in memory at once\n", static_cast<double>(report.spilled_bytes) / 1e6,
                   report.peak_frames_in_memory);

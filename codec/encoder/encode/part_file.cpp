@@ -439,6 +439,18 @@ SampledFrame PartReader::frame(size_t k) const {
   }
 }
 
+std::function<std::vector<char>()> PartReader::map_source(size_t k) const {
+  if (k >= records_.size()) throw Error(ErrorCode::kInternal, source_ + ": no record " + std::to_string(k));
+  return [this, k] {
+    try {
+      const std::vector<uint8_t> bytes = reader_->payload(reader_->chunks()[records_[k]], kMaxPartRecordBytes);
+      return read_record(reinterpret_cast<const char*>(bytes.data()), bytes.size()).map;
+    } catch (const Error& e) {
+      throw Error(e.code(), source_ + ": frame " + std::to_string(header_.range.first + static_cast<int>(k)) + ": " + e.what());
+    }
+  };
+}
+
 void PartReader::verify() const {
   for (size_t k = 0; k < records_.size(); ++k) (void)frame(k);
 }

@@ -65,8 +65,9 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     throw Error(ErrorCode::kInvalidArgument, f.name + ": its selection samples are not the selection grid's " + std::to_string(nodes) + " nodes");
   }
   const size_t i = capture_.frames.size();
-  MappedFrame mapped = FrameStore::deserialize(f.map.data(), f.map.size());
   if (f.index == sampled_reference_) {
+    const std::vector<char> bytes = f.map_source ? f.map_source() : f.map;
+    const MappedFrame mapped = FrameStore::deserialize(bytes.data(), bytes.size());
     // Every stage reads the reference: its map is pinned, its disk reparametrised, and (kFrame)
     // its geodesic frame built again from its disk and landmarks, as register_frames built it.
     options_.reference_frame = static_cast<int>(i);
@@ -79,7 +80,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
       geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(pinned_->map, own.reference, own.on_rim));
     }
     registrations_->reset(store_->size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
-    for (auto& [k, bytes] : pending_registrations_) registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), bytes));
+    for (auto& [k, pending] : pending_registrations_) registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
     pending_registrations_.clear();
     selection_[i].local = f.selection.local;  // pose_centre reads them after the samples are released
   }
@@ -89,7 +90,11 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     // Before the reference came, a registration through its geodesic frame has no partition yet.
     pending_registrations_.emplace_back(i, std::move(f.registration));
   }
-  store_->put(i, std::move(mapped));
+  if (f.map_source) {
+    store_->put_source(i, std::move(f.map_source));
+  } else {
+    store_->put(i, FrameStore::deserialize(f.map.data(), f.map.size()));
+  }
   capture_.frames.push_back({f.name, f.time});
   source_index_.push_back(f.index);
   summaries_.push_back(std::move(f.summary));

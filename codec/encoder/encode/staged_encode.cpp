@@ -4,6 +4,7 @@
 #include "facemorph/error.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -161,6 +162,7 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, EncodeReport* report,
                                                PartHeader* header_out) {
   if (parts.empty()) throw Error(ErrorCode::kInvalidArgument, "no parts to assemble");
+  const auto start = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<PartReader>> readers;
   for (const std::filesystem::path& part : parts) readers.push_back(std::make_unique<PartReader>(part));
   std::stable_sort(readers.begin(), readers.end(), [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
@@ -219,6 +221,10 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
         std::vector<Vec3> points(capture.landmark_names.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
         for (size_t l = 0; l < position.size(); ++l) points[static_cast<size_t>(position[l])] = f.landmarks[l];
         f.landmarks = std::move(points);
+        // The map stays in its part (checked as read just now) and is read from there when a
+        // step needs it: the maps are most of a part's bytes, not to be copied again.
+        f.map = {};
+        f.map_source = readers[p]->map_source(static_cast<size_t>(k));
       }
       encoder.add_sampled_frame(std::move(f));
       if (options.progress) options.progress("assembling", ++done, capture.frame_count);
@@ -228,6 +234,8 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
   encoder.report().seconds_mapping = seconds_mapping;
   encoder.report().seconds_registration = seconds_registration;
   encoder.report().seconds_selection = seconds_selection;
+  encoder.report().seconds_reading_parts = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encoder.report().parts = static_cast<int>(readers.size());
   if (header_out) *header_out = first;
   return encode_sampled(encoder, report);
 }

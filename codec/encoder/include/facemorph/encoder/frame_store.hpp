@@ -37,6 +37,9 @@ class FrameStore {
   // split), and what a later stage needs of the mesh (its counts, its holes) is kept beside it.
   // Throws kIo when the temporary file cannot be written (a full disk: TMPDIR names another).
   void put(size_t i, MappedFrame&& frame);
+  // Stores frame i as the bytes (serialize's form) `source` gives whenever the frame is asked for:
+  // a map kept in a part file is read from there (staged_encode.hpp), not copied into the store.
+  void put_source(size_t i, SpilledItems<MappedFrame>::Source source) { items_.put_source(i, std::move(source)); }
   // Frame i as stored: read back from the file (a copy counted in held() until released) or the
   // one in memory. Thread-safe. Throws kInternal for a frame never stored, kIo on a failed read.
   std::shared_ptr<const MappedFrame> get(size_t i) const { return items_.get(i); }

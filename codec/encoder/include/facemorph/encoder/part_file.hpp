@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -83,6 +84,9 @@ class PartReader {
   PartReader& operator=(const PartReader&) = delete;
   const PartHeader& header() const { return header_; }
   SampledFrame frame(size_t k) const;
+  // What gives record k's map bytes again when asked (SampledFrame::map_source), read from the file
+  // each time, its checksum checked: the reader must outlive it. For a record frame(k) checked.
+  std::function<std::vector<char>()> map_source(size_t k) const;
   // Every record read and checked (what `fmenc --stage check` and a resumed cluster encode ask).
   void verify() const;
   uint64_t file_bytes() const;

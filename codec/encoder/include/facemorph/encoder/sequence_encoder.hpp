@@ -247,6 +247,10 @@ struct EncodeReport {
   uint64_t selection_spilled_bytes = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
          seconds_texture = 0;
+  // The staged encode's assemble stage (staged_encode.hpp): the parts read and checked. Its
+  // seconds_mapping, _registration and _selection are then the parts' own, summed.
+  double seconds_reading_parts = 0;
+  int parts = 0;
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
@@ -295,6 +299,9 @@ struct SampledFrame {
   std::filesystem::path texture;              // its texture image (absolute), if any
   std::vector<Vec3> landmarks;                // one per name of the part's landmark names
   std::vector<char> map;                      // FrameStore::serialize
+  // Or, where set, what gives those bytes when asked (map left empty): the assembling encoder reads
+  // the map from there each time a step needs it rather than keeping a copy (a part file's record).
+  std::function<std::vector<char>()> map_source;
   std::vector<char> registration;             // RegistrationStore::serialize
   bool without_interior_landmarks = false;    // registered without interior landmarks shared with the reference
   SelectionFrame selection;                   // its time, pose, diagonal and samples on the selection grid

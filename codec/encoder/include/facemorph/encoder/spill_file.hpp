@@ -117,6 +117,17 @@ class SpilledItems {
     std::lock_guard lock(mutex_);
     entries_[i] = std::move(entry);
   }
+  // Stores item i as bytes that `source` gives when asked (each get asks again), in the byte form
+  // deserialize reads: an item already kept elsewhere (a part file's record) is not copied here.
+  using Source = std::function<std::vector<char>()>;
+  void put_source(size_t i, Source source) {
+    if (i >= size()) throw Error(ErrorCode::kInternal, item_ + " " + std::to_string(i) + " is past its size");
+    Entry entry;
+    entry.stored = true;
+    entry.source = std::move(source);
+    std::lock_guard lock(mutex_);
+    entries_[i] = std::move(entry);
+  }
   // Item i: the one in memory, or read back (a copy). Throws kInternal for an item never stored,
   // kIo on a failed read.
   std::shared_ptr<const T> get(size_t i) const {
@@ -127,6 +138,13 @@ class SpilledItems {
       entry = entries_[i];
     }
     if (entry.item) return entry.item;
+    if (entry.source) {
+      auto hold = count_ ? std::make_unique<ResidentHold>(count_) : nullptr;
+      std::vector<char> bytes = entry.source();
+      T item = deserialize_(bytes.data(), bytes.size());
+      bytes = {};
+      return hold ? counted(std::move(item), std::move(hold)) : std::make_shared<const T>(std::move(item));
+    }
     if (count_) return read_counted<T>(file_, entry.record, count_, deserialize_);
     const std::vector<char> bytes = file_.read(entry.record);
     return std::make_shared<const T>(deserialize_(bytes.data(), bytes.size()));
@@ -145,6 +163,7 @@ class SpilledItems {
   struct Entry {
     SpillFile::Record record;
     std::shared_ptr<const T> item;  // kMemory
+    Source source;                  // put_source
     bool stored = false;
   };
   SpillMode mode_;
