@@ -2,6 +2,7 @@
 
 #include "facemorph/error.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -67,6 +68,13 @@ MappedFile::MappedFile(const fs::path& path) {
 
 void MappedFile::release_pages() const {
   if (data_) ::madvise(const_cast<uint8_t*>(data_), size_, MADV_DONTNEED);  // advice: a failure changes nothing read
+}
+
+void MappedFile::release_pages(uint64_t offset, uint64_t size) const {
+  const auto page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+  const uint64_t end = std::min<uint64_t>(offset + size, size_);
+  const uint64_t first = (offset + page - 1) / page * page, last = end / page * page;
+  if (data_ && first < last) ::madvise(const_cast<uint8_t*>(data_) + first, last - first, MADV_DONTNEED);
 }
 
 MappedFile::~MappedFile() {

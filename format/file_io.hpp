@@ -32,6 +32,9 @@ class MappedFile {
   // Tells the system the pages read so far are not needed soon (madvise MADV_DONTNEED): they leave
   // the process's resident set and are read again from the file when next touched.
   void release_pages() const;
+  // The same for the pages wholly inside bytes [offset, offset + size): a reader done with one part
+  // of a long file (a part file's record) keeps its resident set to what it reads next.
+  void release_pages(uint64_t offset, uint64_t size) const;
 
  private:
   const uint8_t* data_ = nullptr;

@@ -407,7 +407,7 @@ SampledFrame PartReader::frame(size_t k) const {
   const int index = header_.range.first + static_cast<int>(k);
   if (k >= records_.size()) throw Error(ErrorCode::kInternal, source_ + ": no record " + std::to_string(k));
   try {
-    const std::vector<uint8_t> bytes = reader_->payload(reader_->chunks()[records_[k]], kMaxPartRecordBytes);
+    const std::vector<uint8_t> bytes = payload(k);
     SampledFrame f;
     try {
       f = read_record(reinterpret_cast<const char*>(bytes.data()), bytes.size());
@@ -443,12 +443,21 @@ std::function<std::vector<char>()> PartReader::map_source(size_t k) const {
   if (k >= records_.size()) throw Error(ErrorCode::kInternal, source_ + ": no record " + std::to_string(k));
   return [this, k] {
     try {
-      const std::vector<uint8_t> bytes = reader_->payload(reader_->chunks()[records_[k]], kMaxPartRecordBytes);
+      const std::vector<uint8_t> bytes = payload(k);
       return read_record(reinterpret_cast<const char*>(bytes.data()), bytes.size()).map;
     } catch (const Error& e) {
       throw Error(e.code(), source_ + ": frame " + std::to_string(header_.range.first + static_cast<int>(k)) + ": " + e.what());
     }
   };
+}
+
+std::vector<uint8_t> PartReader::payload(size_t k) const {
+  const format::ChunkView& chunk = reader_->chunks()[records_[k]];
+  std::vector<uint8_t> bytes = reader_->payload(chunk, kMaxPartRecordBytes);
+  // Its pages leave the resident set once copied out: a long capture's parts are read through,
+  // most records once, and would otherwise all stay mapped in (page cache, but counted as ours).
+  file_->release_pages(chunk.offset, chunk.total_size());
+  return bytes;
 }
 
 void PartReader::verify() const {

@@ -92,6 +92,8 @@ class PartReader {
   uint64_t file_bytes() const;
 
  private:
+  std::vector<uint8_t> payload(size_t k) const;  // record k's bytes, checked against its CRC
+
   std::string source_;
   std::unique_ptr<format::MappedFile> file_;
   std::unique_ptr<format::ContainerReader> reader_;
