@@ -16,6 +16,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace {
 
@@ -119,10 +120,17 @@ FrameRange parse_frames(const std::string& text, int count) {
 
 // --stage check: each part read whole, every record checked (and, with --frames, holding those
 // frames); one line each.
-void check_parts(const std::vector<std::string>& parts, const std::string& frames, bool quiet) {
+void check_parts(const std::vector<std::string>& parts, const std::string& frames, const Capture* capture, const EncodeOptions& options, bool quiet) {
+  const std::string fingerprint = capture ? capture_fingerprint(*capture) : "", settings = sample_settings(options);
   for (const std::string& path : parts) {
     const PartReader reader(path);
     reader.verify();
+    if (capture && (reader.header().capture_id != fingerprint || reader.header().capture.root != std::filesystem::absolute(capture->root))) {
+      throw Error(ErrorCode::kInvalidArgument, path + ": was sampled from another capture than " + capture->root.string());
+    }
+    if (capture && reader.header().settings != settings) {
+      throw Error(ErrorCode::kInvalidArgument, path + ": was sampled with other settings: " + reader.header().settings + " (these: " + settings + ")");
+    }
     if (!frames.empty()) {
       const FrameRange want = parse_frames(frames, reader.header().capture.frame_count);
       const FrameRange have = reader.header().range;
@@ -205,7 +213,7 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
 int main(int argc, char** argv) {
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
   std::vector<std::string> inputs;
-  std::string output, stage = "all", frames, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
+  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, grid = "auto", registration = "gmf", spline = "catmull-rom",
                               representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
@@ -226,6 +234,7 @@ int main(int argc, char** argv) {
                  "files (spec/part-file.md)")
       ->capture_default_str();
   app.add_option("--frames", frames, "With --stage sample: frames A to B-1 of the capture (A:B, 0-based; B may be past the end); with --stage check: the frames the part must hold");
+  app.add_option("--capture", check_capture, "With --stage check: the capture the parts must come from, sampled with these options");
   app.add_option("--frames-per-part", frames_per_part, "With --stage ranges: print the ranges A:B of this many frames the capture splits into")->capture_default_str();
   app.add_option("--fps", fps, "Frame rate of a plain folder of meshes");
   app.add_option("--landmarks", landmarks,
@@ -349,8 +358,19 @@ int main(int argc, char** argv) {
     if (stage != "all" && stage != "sample" && stage != "assemble" && stage != "check" && stage != "ranges") {
       throw Error(ErrorCode::kInvalidArgument, "--stage '" + stage + "' is none of all, sample, assemble, check, ranges");
     }
+    // The capture as the encode reads it (--landmarks auto: without the capture's landmarks).
+    const auto open_for_encode = [&](const std::string& path) {
+      Capture capture = open_capture(path, fps, landmarks == "auto" ? "" : landmarks);
+      if (landmarks == "auto") {
+        capture.landmark_names.clear();
+        capture.landmarks.assign(capture.frames.size(), {});
+      }
+      return capture;
+    };
     if (stage == "check") {
-      check_parts(inputs, frames, quiet);
+      std::optional<Capture> capture;
+      if (!check_capture.empty()) capture = open_for_encode(check_capture);
+      check_parts(inputs, frames, capture ? &*capture : nullptr, options, quiet);
       return 0;
     }
     if (stage != "assemble" && inputs.size() != 1) throw Error(ErrorCode::kInvalidArgument, "one capture to encode, not " + std::to_string(inputs.size()));
@@ -393,11 +413,7 @@ int main(int argc, char** argv) {
       duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
       frame_count = static_cast<size_t>(header.capture.frame_count);
     } else {
-      Capture capture = open_capture(input, fps, landmarks == "auto" ? "" : landmarks);
-      if (landmarks == "auto") {
-        capture.landmark_names.clear();
-        capture.landmarks.assign(capture.frames.size(), {});
-      }
+      Capture capture = open_for_encode(input);
       if (stage == "sample") {
         const FrameRange range = parse_frames(frames, static_cast<int>(capture.frames.size()));
         const PartHeader header = encode_part(capture, options, range, output);

@@ -13,6 +13,8 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <numbers>
 
 namespace facemorph {
 
@@ -25,6 +27,8 @@ static_assert(std::endian::native == std::endian::little, "part files are little
 constexpr format::ContainerKind kPartContainer{{0x89, 'F', 'M', 'S', '\r', '\n', 0x1A, '\n'}, kPartMajorVersion, kPartMinorVersion, "facemorph part file"};
 constexpr std::string_view kHeaderChunk = "PHDR", kFrameChunk = "PFRM";
 constexpr int kRecordZstdLevel = 3;  // a map's doubles gain little from more
+constexpr size_t kMaxLandmarkNames = 4096;  // spec/capture.md §4
+constexpr size_t kMaxTextBytes = 4096;      // a frame's name, path, a warning, a reason
 
 using spill::Reader;
 using spill::Writer;
@@ -107,8 +111,9 @@ SampledFrame read_record(const char* bytes, size_t size) {
   f.index = r.value<int32_t>();
   f.name = r.text();
   f.time = r.value<double>();
+  // A warning is about one of the capture's landmarks (at most kMaxLandmarkNames).
   const auto warnings = r.value<uint64_t>();
-  if (warnings > size) throw Error(ErrorCode::kCorrupt, "its warnings' count is larger than the record");
+  if (warnings > kMaxLandmarkNames) throw Error(ErrorCode::kCorrupt, "it holds more warnings than a frame has landmarks");
   for (uint64_t k = 0; k < warnings; ++k) f.warnings.push_back(r.text());
   const auto flags = r.value<uint8_t>();
   if ((flags & ~(kMapped | kKept | kWithoutInterior)) != 0) throw Error(ErrorCode::kCorrupt, "it sets unknown flags");
@@ -151,6 +156,15 @@ bool finite_all(const std::vector<V>& values) {
   return true;
 }
 
+// What a coordinate of a record may be, in the capture's units: a mesh ten thousand kilometres
+// across in metres. Beyond it, squares and sums overflow to infinity downstream.
+constexpr double kMaxCoordinate = 1e9;
+
+template <typename V>
+bool within(const std::vector<V>& values, double bound) {
+  return std::all_of(values.begin(), values.end(), [&](const V& v) { return v.allFinite() && v.cwiseAbs().maxCoeff() <= bound; });
+}
+
 bool indices_within(const std::vector<int>& indices, size_t size) {
   return std::all_of(indices.begin(), indices.end(), [&](int i) { return i >= 0 && static_cast<size_t>(i) < size; });
 }
@@ -168,16 +182,29 @@ void check_map(const MappedFrame& m) {
   const size_t vertices = s.positions.size();
   if (vertices < 3 || s.faces.empty()) bad("its map has no surface");
   if (!finite_all(s.positions) || !faces_within(s.faces, vertices)) bad("its map's surface has a coordinate not finite or a face outside its vertices");
+  if (!within(s.positions, kMaxCoordinate)) bad("its map's surface has a coordinate past " + std::to_string(kMaxCoordinate));
   if (m.map.disk.size() != vertices || !finite_all(m.map.disk)) bad("its map's disk does not fit its surface");
   for (const Vec2& w : m.map.disk) {
     if (w.squaredNorm() > 1 + 1e-9) bad("its map's disk has a point outside the unit disk");
   }
   if (m.map.rim.size() < 3 || !indices_within(m.map.rim, vertices)) bad("its map's rim is not a loop of its vertices");
+  for (int v : m.map.rim) {
+    if (std::abs(m.map.disk[static_cast<size_t>(v)].norm() - 1) > 1e-6) bad("its map's rim does not lie on the unit circle");
+  }
+  // The disk's triangles cover the unit disk once (a map may leave a few flipped, which subtract):
+  // their signed areas add up to the rim polygon's area, a little under π. A disk collapsed to a
+  // point or a line, or folded over itself, does not.
+  double area = 0;
+  for (const Face& f : s.faces) {
+    const Vec2 &a = m.map.disk[static_cast<size_t>(f[0])], &b = m.map.disk[static_cast<size_t>(f[1])], &c = m.map.disk[static_cast<size_t>(f[2])];
+    area += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+  }
+  if (!(area > 0.5 * std::numbers::pi && area < 1.01 * std::numbers::pi)) bad("its map's disk does not cover the unit disk once");
   if (!s.uvs.empty() && (s.uv_faces.size() != s.faces.size() || !faces_within(s.uv_faces, s.uvs.size()) || !finite_all(s.uvs))) {
     bad("its map's texture coordinates do not fit its faces");
   }
   if (s.uvs.empty() && !s.uv_faces.empty()) bad("its map has texture faces without texture coordinates");
-  if (!s.colours.empty() && (s.colours.size() != vertices || !finite_all(s.colours))) bad("its map's colours do not fit its vertices");
+  if (!s.colours.empty() && (s.colours.size() != vertices || !within(s.colours, kMaxCoordinate))) bad("its map's colours do not fit its vertices");
   for (const FilledHole& hole : m.prepared.report.holes) {
     if (!indices_within(hole.loop, vertices)) bad("a hole's outline lies outside its map's vertices");
   }
@@ -185,7 +212,11 @@ void check_map(const MappedFrame& m) {
 
 void check_record(const SampledFrame& f, const PartHeader& header, int expected_index, size_t selection_nodes) {
   if (f.index != expected_index) bad("it is frame " + std::to_string(f.index) + ", where frame " + std::to_string(expected_index) + " was due");
-  if (!std::isfinite(f.time)) bad("its time is not finite");
+  if (!(f.time >= header.capture.first_time && f.time <= header.capture.last_time)) bad("its time is outside the capture's");
+  for (const std::string& warning : f.warnings) {
+    if (warning.size() > kMaxTextBytes) bad("a warning is longer than " + std::to_string(kMaxTextBytes) + " bytes");
+  }
+  if (f.name.size() > kMaxTextBytes || f.dropped.size() > kMaxTextBytes || f.texture.string().size() > kMaxTextBytes) bad("a name is too long");
   if (f.mapped) {
     const FrameSummary& s = f.summary;
     const auto method = static_cast<int>(s.conformal_method);
@@ -194,11 +225,28 @@ void check_record(const SampledFrame& f, const PartHeader& header, int expected_
   if (!f.dropped.empty()) return;
   if (f.landmarks.size() != header.capture.landmark_names.size()) bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +
                                                                       std::to_string(header.capture.landmark_names.size()) + " names");
+  for (const Vec3& p : f.landmarks) {
+    // NaN where the frame lacks the landmark; else a point.
+    if (!p.hasNaN() && !(p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) bad("a landmark is neither a point nor missing");
+  }
   const SelectionFrame& s = f.selection;
   if (s.local.size() != selection_nodes || s.normal.size() != selection_nodes) bad("its selection samples are not the selection grid's");
-  if (!std::isfinite(s.time) || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() || !(s.diagonal > 0) || !std::isfinite(s.diagonal) ||
+  if (s.time != f.time || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() || !(s.diagonal > 1e-12 && s.diagonal <= kMaxCoordinate) ||
       !finite_all(s.local) || !finite_all(s.normal)) {
     bad("its selection samples have a number not finite");
+  }
+  if (!(s.pose.rotation.transpose() * s.pose.rotation - Eigen::Matrix3d::Identity()).isZero(1e-6) || !(s.pose.rotation.determinant() > 0) ||
+      !(s.pose.translation.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+    bad("its head pose is not a rigid motion");
+  }
+  for (const Eigen::Vector3f& v : s.local) {
+    if (!(v.cwiseAbs().maxCoeff() <= kMaxCoordinate)) bad("its selection samples have a coordinate past " + std::to_string(kMaxCoordinate));
+  }
+  if (!f.texture.empty()) {
+    // Read by the assemble stage: a file, never a pipe or a device that would block or not end.
+    if (!f.texture.is_absolute()) bad("its texture's path is not absolute");
+    std::error_code error;
+    if (std::filesystem::status(f.texture, error).type() != std::filesystem::file_type::regular) bad("its texture " + f.texture.string() + " is not a file");
   }
 }
 
@@ -234,10 +282,26 @@ T field(const nlohmann::json& doc, const char* name) {
   }
 }
 
+int integer_field(const nlohmann::json& doc, const char* name) {
+  if (!doc.contains(name)) bad(std::string("its header lacks \"") + name + "\"");
+  const nlohmann::json& value = doc.at(name);
+  if (!value.is_number_integer()) bad(std::string("its header's \"") + name + "\" is not a whole number");
+  const auto number = value.get<int64_t>();
+  if (value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(std::numeric_limits<int>::max())) bad(std::string("its header's \"") + name + "\" is out of range");
+  if (number < std::numeric_limits<int>::min() || number > std::numeric_limits<int>::max()) bad(std::string("its header's \"") + name + "\" is out of range");
+  return static_cast<int>(number);
+}
+
+// How deep the header's JSON may nest: the settings are two levels; a reader (and dump) recurses.
+constexpr int kMaxHeaderDepth = 8;
+
 PartHeader parse_header(const std::vector<uint8_t>& bytes) {
   nlohmann::json doc;
   try {
-    doc = nlohmann::json::parse(bytes.begin(), bytes.end());
+    doc = nlohmann::json::parse(bytes.begin(), bytes.end(), [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+      if (depth > kMaxHeaderDepth) throw Error(ErrorCode::kCorrupt, "its header nests deeper than " + std::to_string(kMaxHeaderDepth));
+      return true;
+    });
   } catch (const nlohmann::json::exception& e) {
     bad(std::string("its header is not JSON: ") + e.what());
   }
@@ -246,30 +310,35 @@ PartHeader parse_header(const std::vector<uint8_t>& bytes) {
   SampledCapture& c = h.capture;
   h.capture_id = field<std::string>(doc, "capture");
   c.root = field<std::string>(doc, "root");
-  c.frame_count = field<int>(doc, "frames");
-  h.range = {field<int>(doc, "first"), field<int>(doc, "end")};
+  c.frame_count = integer_field(doc, "frames");
+  h.range = {integer_field(doc, "first"), integer_field(doc, "end")};
   c.fps = field<double>(doc, "fps");
   c.units = field<std::string>(doc, "units");
   c.first_time = field<double>(doc, "first_time");
   c.last_time = field<double>(doc, "last_time");
   c.landmark_names = field<std::vector<std::string>>(doc, "landmark_names");
   c.given_landmark_names = field<std::vector<std::string>>(doc, "given_landmark_names");
-  c.given_reference = field<int>(doc, "given_reference");
-  c.reference = field<int>(doc, "reference");
+  c.given_reference = integer_field(doc, "given_reference");
+  c.reference = integer_field(doc, "reference");
   if (!doc.contains("settings") || !doc["settings"].is_object()) bad("its header lacks its settings");
   h.settings = doc["settings"].dump();
   h.encoder = field<std::string>(doc, "encoder");
   const nlohmann::json seconds = field<nlohmann::json>(doc, "seconds");
-  h.seconds_mapping = seconds.value("mapping", 0.0);
-  h.seconds_registration = seconds.value("registration", 0.0);
-  h.seconds_selection = seconds.value("selection", 0.0);
+  if (!seconds.is_object()) bad("its header's \"seconds\" is not an object");
+  h.seconds_mapping = field<double>(seconds, "mapping");
+  h.seconds_registration = field<double>(seconds, "registration");
+  h.seconds_selection = field<double>(seconds, "selection");
   if (c.frame_count < 1 || c.frame_count > kMaxPartCaptureFrames) {
     throw Error(ErrorCode::kLimit, "its capture has " + std::to_string(c.frame_count) + " frames, outside 1.." + std::to_string(kMaxPartCaptureFrames));
   }
   if (h.range.first < 0 || h.range.end > c.frame_count || h.range.first >= h.range.end) bad("its frames are not a range of its capture's");
   if (c.reference < 0 || c.reference >= c.frame_count || c.given_reference < 0 || c.given_reference >= c.frame_count) bad("its reference frame is not one of its capture's");
   if (!(c.fps > 0) || !std::isfinite(c.fps) || !std::isfinite(c.first_time) || !std::isfinite(c.last_time)) bad("its capture's frame rate or times are not finite");
-  if (c.landmark_names.size() > 4096 || c.given_landmark_names.size() > c.landmark_names.size()) bad("its landmark names are over the capture's limit");
+  if (c.landmark_names.size() > kMaxLandmarkNames) bad("it names more than " + std::to_string(kMaxLandmarkNames) + " landmarks");
+  if (c.given_landmark_names.size() > c.landmark_names.size() || !std::equal(c.given_landmark_names.begin(), c.given_landmark_names.end(), c.landmark_names.begin())) {
+    bad("its landmark names do not begin with the capture's own");
+  }
+  if (!c.root.is_absolute()) bad("its capture's folder is not an absolute path");
   return h;
 }
 
@@ -427,9 +496,9 @@ SampledFrame PartReader::frame(size_t k) const {
       try {
         // A registration through a partition is checked against it when the assembling encoder
         // reads it (the partition is the reference's); here, its numbers.
-        registration = RegistrationStore::deserialize(f.registration.data(), f.registration.size(), nullptr);
+        registration = RegistrationStore::deserialize(f.registration.data(), f.registration.size(), nullptr, true);
       } catch (const Error& e) {
-        if (std::string(e.what()).find("no partition") == std::string::npos) bad(std::string("its registration: ") + e.what());
+        bad(std::string("its registration: ") + e.what());
       }
       RegistrationStore::check(registration);
     }

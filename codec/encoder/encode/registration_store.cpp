@@ -78,7 +78,8 @@ std::vector<char> RegistrationStore::serialize(const DiskRegistration& f) {
   return w.take();
 }
 
-DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition) {
+DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition,
+                                                bool for_check) {
   Reader r(bytes, size, "registration store: a stored registration");
   DiskRegistration f;
   f.method = r.value<RegistrationMethod>();
@@ -96,12 +97,12 @@ DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, 
   f.boundary_samples = r.value<int>();
   f.check = read_check(r);
   if (r.value<bool>()) {
-    if (!partition) throw Error(ErrorCode::kInternal, "registration store: a stored registration through a partition, and no partition to attach it to");
+    if (!partition && !for_check) throw Error(ErrorCode::kInternal, "registration store: a stored registration through a partition, and no partition to attach it to");
     auto map = std::make_shared<PiecewiseAffineMap>();
     map->partition = partition;
     map->images = r.array<Vec2>();
     map->jacobians = r.array<Eigen::Matrix2d>();
-    if (map->images.size() != partition->vertices().size() || map->jacobians.size() != partition->faces().size()) {
+    if (partition && (map->images.size() != partition->vertices().size() || map->jacobians.size() != partition->faces().size())) {
       throw Error(ErrorCode::kInternal, "registration store: a stored registration does not fit the partition");
     }
     f.partition_map = std::move(map);

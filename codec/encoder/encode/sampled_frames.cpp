@@ -47,6 +47,9 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   }
   if (f.index >= static_cast<int>(store_->size())) throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " is past the capture");
   ++next_sampled_;
+  if (!capture_.frames.empty() && !(f.time > capture_.frames.back().time)) {
+    throw Error(ErrorCode::kInvalidArgument, f.name + ": its time " + std::to_string(f.time) + " s does not follow the frame before it");
+  }
   report_.warnings.insert(report_.warnings.end(), f.warnings.begin(), f.warnings.end());
   if (!f.warnings.empty()) warnings_by_frame_[f.index] = f.warnings;
   if (f.mapped) count_found_landmarks(f.summary, given_rim_);
@@ -143,16 +146,26 @@ void SequenceEncoder::finish_sampled_frames() {
   report_.peak_selection_samples_in_memory = 0;
 }
 
+void SequenceEncoder::set_source_indices(std::vector<int> indices) {
+  if (indices.size() != capture_.frames.size() || !std::is_sorted(indices.begin(), indices.end()) ||
+      std::adjacent_find(indices.begin(), indices.end()) != indices.end() || (!indices.empty() && indices.front() < 0)) {
+    throw Error(ErrorCode::kInvalidArgument, "set_source_indices: not an increasing index for each frame");
+  }
+  if (store_->size() != 0) throw Error(ErrorCode::kInternal, "set_source_indices: the frames are mapped already");
+  source_index_ = std::move(indices);
+}
+
 void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const {
   if (!samples_) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames are not sampled (sample_frames first)");
-  const size_t total = capture_.frames.size() + report_.dropped.size();
+  // The frames kept (in source_index_) and dropped (report_.dropped), both increasing: merged.
   auto dropped = report_.dropped.begin();
   size_t kept = 0;
-  for (size_t source = 0; source < total; ++source) {
+  while (kept < capture_.frames.size() || dropped != report_.dropped.end()) {
     SampledFrame f;
-    f.index = static_cast<int>(source);
+    const bool next_dropped = dropped != report_.dropped.end() && (kept == capture_.frames.size() || dropped->index < source_index_[kept]);
+    f.index = next_dropped ? dropped->index : source_index_[kept];
     if (const auto w = warnings_by_frame_.find(f.index); w != warnings_by_frame_.end()) f.warnings = w->second;
-    if (dropped != report_.dropped.end() && dropped->index == f.index) {
+    if (next_dropped) {
       f.name = dropped->name;
       f.time = dropped->time;
       f.dropped = dropped->reason;
@@ -165,7 +178,6 @@ void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFra
       continue;
     }
     const auto i = static_cast<int>(kept++);
-    if (source_index_[static_cast<size_t>(i)] != f.index) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames kept and dropped do not interleave");
     f.name = capture_.frames[static_cast<size_t>(i)].mesh.string();
     f.time = capture_.frames[static_cast<size_t>(i)].time;
     f.mapped = true;

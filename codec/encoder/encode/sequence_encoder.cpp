@@ -487,7 +487,7 @@ void SequenceEncoder::map_frames() {
           ignored = ignore_far_landmarks(mesh, index, points, warnings[index]);
           const FrameLandmarks landmarks = frame_landmarks(capture_.landmark_names, points);
           if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
-            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) +
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(source_index_[index]) +
                                                          " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
           }
           textures_[index] = mesh.texture;
@@ -614,7 +614,7 @@ void SequenceEncoder::register_frames() {
           if (took_tracked) add_tracked_points(landmarks, tracked[index]);
           without_interior[index] = !took_tracked && index != reference && needs;
           if (landmarks.reference.size() < 3) {
-            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(i) + " shares only " +
+            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(source_index_[index]) + " shares only " +
                                                          std::to_string(landmarks.reference.size()) + " landmarks with the reference frame (3 needed)");
           }
           try {

@@ -18,7 +18,7 @@ namespace facemorph::spill {
 // on the machine that wrote it, and a map read back must be the very same doubles (the encode's
 // output must not depend on whether its frames were spilled).
 static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
-static_assert(sizeof(Complex) == 2 * sizeof(double));
+static_assert(sizeof(Complex) == 2 * sizeof(double) && sizeof(bool) == 1);
 static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double) && sizeof(Eigen::Matrix3d) == 9 * sizeof(double));
 template <typename T>
 constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex> ||
@@ -58,9 +58,18 @@ class Reader {
   template <typename T>
   T value() {
     static_assert(kPlain<T>);
-    T v;
-    bytes(&v, sizeof v);
-    return v;
+    if constexpr (std::is_same_v<T, bool>) {
+      // A byte that is neither 0 nor 1 is no bool (loading it as one is undefined): a record read
+      // from a file may hold any byte there.
+      uint8_t byte = 0;
+      bytes(&byte, 1);
+      if (byte > 1) throw Error(ErrorCode::kInternal, std::string(what_) + " holds " + std::to_string(byte) + " where a truth value belongs");
+      return byte == 1;
+    } else {
+      T v;
+      bytes(&v, sizeof v);
+      return v;
+    }
   }
   std::string text() {
     std::string s(count(1), '\0');

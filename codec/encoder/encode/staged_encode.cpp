@@ -124,6 +124,7 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   EncodeOptions part_options = options;
   part_options.reference_frame = static_cast<int>(std::find(indices.begin(), indices.end(), reference) - indices.begin());
   SequenceEncoder encoder(sub_capture(capture, indices), part_options);
+  encoder.set_source_indices(indices);
   encoder.set_vertical_hint(hint);
   encoder.map_frames();
   encoder.register_frames();
@@ -150,7 +151,6 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   header.seconds_selection = encoder.report().seconds_selection;
   PartWriter writer(path, header);
   encoder.for_each_sampled_frame([&](SampledFrame&& f) {
-    f.index = indices[static_cast<size_t>(f.index)];
     if (!range.contains(f.index)) return;  // the reference, registered to here, is its own part's
     if (!f.texture.empty()) f.texture = std::filesystem::absolute(f.texture);
     writer.add(f);
@@ -174,14 +174,14 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
   for (const auto& reader : readers) {
     const PartHeader& h = reader->header();
     const SampledCapture &a = first.capture, &b = h.capture;
-    if (h.capture_id != first.capture_id || b.frame_count != a.frame_count || b.fps != a.fps || b.units != a.units || b.first_time != a.first_time ||
+    if (h.capture_id != first.capture_id || b.root != a.root || b.frame_count != a.frame_count || b.fps != a.fps || b.units != a.units || b.first_time != a.first_time ||
         b.last_time != a.last_time || b.given_landmark_names != a.given_landmark_names) {
-      throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures (" + std::string(parts.front().string()) + " and a part of frames " +
-                                                   std::to_string(h.range.first) + ":" + std::to_string(h.range.end) + ")");
+      throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" + a.root.string() + ") and " +
+                                                   reader->source() + " (" + b.root.string() + ")");
     }
     if (h.settings != settings) {
-      throw Error(ErrorCode::kInvalidArgument, "the part of frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
-                                                   " was sampled with other settings than these: " + h.settings + " (these: " + settings + ")");
+      throw Error(ErrorCode::kInvalidArgument, reader->source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
+                                                   ") was sampled with other settings than these: " + h.settings + " (these: " + settings + ")");
     }
     if (b.reference != a.reference || b.given_reference != a.given_reference) {
       throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) + " and " + std::to_string(b.reference) + ")");
@@ -190,7 +190,8 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
       throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(next) + ":" + std::to_string(h.range.first) + " are in no part");
     }
     if (h.range.first < next) {
-      throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(h.range.first) + ":" + std::to_string(std::min(next, h.range.end)) + " are in two parts");
+      throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(h.range.first) + ":" + std::to_string(std::min(next, h.range.end)) +
+                                                   " are in two parts (" + reader->source() + " and the part before it)");
     }
     next = h.range.end;
     headers.push_back(h);
@@ -212,7 +213,7 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
     std::vector<int> position;
     for (const std::string& n : h.capture.landmark_names) {
       const auto it = std::find(capture.landmark_names.begin(), capture.landmark_names.end(), n);
-      if (it == capture.landmark_names.end()) throw Error(ErrorCode::kCorrupt, parts[p].string() + ": landmark '" + n + "' is neither the capture's nor one found");
+      if (it == capture.landmark_names.end()) throw Error(ErrorCode::kCorrupt, readers[p]->source() + ": landmark '" + n + "' is neither the capture's nor one found");
       position.push_back(static_cast<int>(it - capture.landmark_names.begin()));
     }
     for (int k = 0; k < h.range.size(); ++k) {
@@ -226,7 +227,11 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
         f.map = {};
         f.map_source = readers[p]->map_source(static_cast<size_t>(k));
       }
-      encoder.add_sampled_frame(std::move(f));
+      try {
+        encoder.add_sampled_frame(std::move(f));
+      } catch (const Error& e) {
+        throw Error(e.code(), readers[p]->source() + ": frame " + std::to_string(h.range.first + k) + ": " + e.what());
+      }
       if (options.progress) options.progress("assembling", ++done, capture.frame_count);
     }
   }

@@ -83,6 +83,7 @@ class PartReader {
   PartReader(const PartReader&) = delete;
   PartReader& operator=(const PartReader&) = delete;
   const PartHeader& header() const { return header_; }
+  const std::string& source() const { return source_; }  // the file, as errors name it
   SampledFrame frame(size_t k) const;
   // What gives record k's map bytes again when asked (SampledFrame::map_source), read from the file
   // each time, its checksum checked: the reader must outlive it. For a record frame(k) checked.

@@ -42,7 +42,9 @@ class RegistrationStore {
   // The byte form of a registration (its Φ without the partition): what put writes and get reads.
   // Public for the round-trip test: every field and the map at every point come back the same.
   static std::vector<char> serialize(const DiskRegistration& registration);
-  static DiskRegistration deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition);
+  // for_check: a registration through a partition may come without it, its Φ unattached (not to
+  // be evaluated: to be checked, check below, before the partition is there).
+  static DiskRegistration deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition, bool for_check = false);
   // Throws kCorrupt where a registration read from a file (a part file, spec/part-file.md) is not
   // one the encoder could have made: an unknown method, a Möbius map off the disk, a number not finite.
   static void check(const DiskRegistration& registration);

@@ -336,8 +336,12 @@ class SequenceEncoder {
   void add_sampled_frame(SampledFrame&& frame);
   void finish_sampled_frames();
   // After sample_frames: every frame of this encoder's capture as given, kept or dropped, in order,
-  // handed to `take` (indices and names this encoder's; staged_encode.cpp renumbers them).
+  // handed to `take` (numbered as set_source_indices says).
   void for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const;
+  // Numbers this encoder's frames as frames `indices` (increasing) of a larger capture, in its
+  // report, its messages and for_each_sampled_frame: a part's encoder holds some of the capture's
+  // frames. Before map_frames.
+  void set_source_indices(std::vector<int> indices);
   // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
   // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
   void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
