@@ -73,9 +73,24 @@ for c in talk smile; do
 done
 [[ $(grep -c "sample" "$work/libout/.slurm/jobs") -eq 1 ]] || fail "the library was not one array: $(cat "$work/libout/.slurm/jobs")"
 
-# 4. What fmenc-slurm refuses before submitting anything.
+# 4. A task that always fails: retried --retries times, then named and given up, exit 1.
+cat >"$work/failing-fmenc" <<SCRIPT
+#!/usr/bin/env bash
+[[ " \$* " == *" --stage sample "* && " \$* " == *" 0:5 "* ]] && { echo "no disk left (simulated)"; exit 3; }
+exec "$tools/fmenc" "\$@"
+SCRIPT
+chmod +x "$work/failing-fmenc"
+"$slurm" "$work/lib/smile" -o "$work/fails.fmv" --frames-per-task 5 --retries 1 --fmenc "$work/failing-fmenc" --wait --quiet -- "${options[@]}" 2>"$work/fails.err"
+[[ $? -eq 1 ]] || fail "a task that always fails did not end fmenc-slurm with exit 1"
+[[ $(grep -c "frames 0:5 .*last said: no disk left (simulated)" "$work/fails.fmv.slurm/failures.log") -eq 2 ]] ||
+  fail "the failing task was not named once per round (2 rounds with --retries 1): $(cat "$work/fails.fmv.slurm/failures.log")"
+grep -q "gave up" "$work/fails.err" || fail "fmenc-slurm --wait did not say it gave up: $(cat "$work/fails.err")"
+[[ ! -e $work/fails.fmv ]] || fail "a file was written though a part is missing"
+
+# 5. What fmenc-slurm refuses before submitting anything.
 expect_error "a missing capture" "not a folder" "$slurm" "$work/none" -o "$work/x.fmv"
 expect_error "a bad task size" "--frames-per-task" "$slurm" "$work/lib/talk" -o "$work/x.fmv" --frames-per-task 0
+expect_error "threads among the fmenc options" "--threads is set per task" "$slurm" "$work/lib/talk" -o "$work/x.fmv" -- --threads 2
 expect_error "tracking" "track" "$tools/fmenc" "$work/lib/talk" --stage sample --frames 0:4 -o "$work/x.fms" --track-landmarks
 [[ ! -e $work/x.fms ]] || fail "a refused sample stage left a part"
 
