@@ -76,12 +76,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     options_.reference_frame = static_cast<int>(i);
     pinned_index_ = static_cast<int>(i);
     pinned_ = std::make_shared<const MappedFrame>(mapped);
-    reparametrisation_ = DiskReparametrisation(pinned_->map, options_.density_equalising);
-    report_.density_equalising = reparametrisation_.report();
-    if (options_.registration.method == RegistrationMethod::kFrame) {
-      const DiskLandmarks own = facemorph::disk_landmarks(capture_.landmark_names, f.landmarks, pinned_->map, f.landmarks, pinned_->map);
-      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(pinned_->map, own.reference, own.on_rim));
-    }
+    set_reference_geometry(*pinned_, f.landmarks);
     registrations_->reset(store_->size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
     for (auto& [k, pending] : pending_registrations_) registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
     pending_registrations_.clear();

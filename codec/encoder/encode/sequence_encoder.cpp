@@ -572,22 +572,7 @@ void SequenceEncoder::register_frames() {
   const int count = frame_count();
   const auto reference = static_cast<size_t>(options_.reference_frame);
   const std::shared_ptr<const MappedFrame> reference_frame = pin_reference();
-  reparametrisation_ = DiskReparametrisation(reference_frame->map, options_.density_equalising);
-  report_.density_equalising = reparametrisation_.report();
-  geodesic_frame_.reset();
-  if (options_.registration.method == RegistrationMethod::kFrame) {
-    // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
-    // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
-    // unconstrained there.
-    const MappedFrame& f = *reference_frame;
-    const std::vector<Vec3> points = landmarks(static_cast<int>(reference));
-    const DiskLandmarks own = facemorph::disk_landmarks(capture_.landmark_names, points, f.map, points, f.map);
-    try {
-      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(f.map, own.reference, own.on_rim));
-    } catch (const Error& e) {
-      throw Error(e.code(), f.name + ": the reference frame's geodesic frame: " + e.what());
-    }
-  }
+  set_reference_geometry(*reference_frame, landmarks(static_cast<int>(reference)));
   registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   registrations_->reset(static_cast<size_t>(count), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
   const std::vector<TrackedPoints> tracked = track_frames();
@@ -642,6 +627,23 @@ void SequenceEncoder::register_frames() {
   drop_frames(failures);
   std::sort(report_.dropped.begin(), report_.dropped.end(), [](const DroppedFrame& a, const DroppedFrame& b) { return a.index < b.index; });
   report_.seconds_registration = seconds_since(start);
+}
+
+void SequenceEncoder::set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points) {
+  reparametrisation_ = DiskReparametrisation(reference.map, options_.density_equalising);
+  report_.density_equalising = reparametrisation_.report();
+  geodesic_frame_.reset();
+  if (options_.registration.method == RegistrationMethod::kFrame) {
+    // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
+    // frame's Φ maps that frame's partition (paper §5). Frames lacking a landmark simply leave f̄
+    // unconstrained there.
+    const DiskLandmarks own = facemorph::disk_landmarks(capture_.landmark_names, points, reference.map, points, reference.map);
+    try {
+      geodesic_frame_ = std::make_shared<const GeodesicFrame>(make_geodesic_frame(reference.map, own.reference, own.on_rim));
+    } catch (const Error& e) {
+      throw Error(e.code(), reference.name + ": the reference frame's geodesic frame: " + e.what());
+    }
+  }
 }
 
 std::vector<Vec3> SequenceEncoder::landmarks(int i) const {

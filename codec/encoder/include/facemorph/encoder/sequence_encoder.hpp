@@ -499,6 +499,9 @@ class SequenceEncoder {
   // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
   // has one; kCorrupt naming the frame where the bytes are not one.
   DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
+  // What every stage after mapping reads of the reference (its map and landmarks `points`): its disk
+  // reparametrised (options().density_equalising) and, for kFrame, its geodesic frame.
+  void set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points);
   // Adds a mapped frame's found nose tip, up and rim markers to the report's counts.
   void count_found_landmarks(const FrameSummary& frame, bool given_rim);
   // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
