@@ -144,18 +144,6 @@ SampledFrame read_record(const char* bytes, size_t size) {
 
 [[noreturn]] void bad(const std::string& what) { throw Error(ErrorCode::kCorrupt, what); }
 
-template <typename V>
-bool finite_all(const std::vector<V>& values) {
-  for (const V& v : values) {
-    if constexpr (std::is_arithmetic_v<V>) {
-      if (!std::isfinite(v)) return false;
-    } else if (!v.allFinite()) {
-      return false;
-    }
-  }
-  return true;
-}
-
 // What a coordinate of a record may be, in the capture's units: a mesh ten thousand kilometres
 // across in metres. Beyond it, squares and sums overflow to infinity downstream.
 constexpr double kMaxCoordinate = 1e9;
@@ -181,9 +169,9 @@ void check_map(const MappedFrame& m) {
   const TriangleMesh& s = m.map.surface;
   const size_t vertices = s.positions.size();
   if (vertices < 3 || s.faces.empty()) bad("its map has no surface");
-  if (!finite_all(s.positions) || !faces_within(s.faces, vertices)) bad("its map's surface has a coordinate not finite or a face outside its vertices");
+  if (!spill::all_finite(s.positions) || !faces_within(s.faces, vertices)) bad("its map's surface has a coordinate not finite or a face outside its vertices");
   if (!within(s.positions, kMaxCoordinate)) bad("its map's surface has a coordinate past " + std::to_string(kMaxCoordinate));
-  if (m.map.disk.size() != vertices || !finite_all(m.map.disk)) bad("its map's disk does not fit its surface");
+  if (m.map.disk.size() != vertices || !spill::all_finite(m.map.disk)) bad("its map's disk does not fit its surface");
   for (const Vec2& w : m.map.disk) {
     if (w.squaredNorm() > 1 + 1e-9) bad("its map's disk has a point outside the unit disk");
   }
@@ -200,7 +188,7 @@ void check_map(const MappedFrame& m) {
     area += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
   }
   if (!(area > 0.5 * std::numbers::pi && area < 1.01 * std::numbers::pi)) bad("its map's disk does not cover the unit disk once");
-  if (!s.uvs.empty() && (s.uv_faces.size() != s.faces.size() || !faces_within(s.uv_faces, s.uvs.size()) || !finite_all(s.uvs))) {
+  if (!s.uvs.empty() && (s.uv_faces.size() != s.faces.size() || !faces_within(s.uv_faces, s.uvs.size()) || !spill::all_finite(s.uvs))) {
     bad("its map's texture coordinates do not fit its faces");
   }
   if (s.uvs.empty() && !s.uv_faces.empty()) bad("its map has texture faces without texture coordinates");
@@ -232,7 +220,7 @@ void check_record(const SampledFrame& f, const PartHeader& header, int expected_
   const SelectionFrame& s = f.selection;
   if (s.local.size() != selection_nodes || s.normal.size() != selection_nodes) bad("its selection samples are not the selection grid's");
   if (s.time != f.time || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() || !(s.diagonal > 1e-12 && s.diagonal <= kMaxCoordinate) ||
-      !finite_all(s.local) || !finite_all(s.normal)) {
+      !spill::all_finite(s.local) || !spill::all_finite(s.normal)) {
     bad("its selection samples have a number not finite");
   }
   if (!(s.pose.rotation.transpose() * s.pose.rotation - Eigen::Matrix3d::Identity()).isZero(1e-6) || !(s.pose.rotation.determinant() > 0) ||

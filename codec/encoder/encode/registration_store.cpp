@@ -113,13 +113,8 @@ DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, 
 
 namespace {
 
-template <typename V>
-bool finite_all(const std::vector<V>& values) {
-  return std::all_of(values.begin(), values.end(), [](const V& v) { return v.allFinite(); });
-}
-
 bool step_finite(const ThinPlateDisplacement& step) {
-  return finite_all(step.centres) && step.weights.allFinite() && step.offset.allFinite() && step.linear.allFinite();
+  return spill::all_finite(step.centres) && step.weights.allFinite() && step.offset.allFinite() && step.linear.allFinite();
 }
 
 }  // namespace
@@ -136,7 +131,7 @@ void RegistrationStore::check(const DiskRegistration& f) {
     bad("its registration's Möbius map is not one of the disk");
   }
   if (!std::all_of(f.steps.begin(), f.steps.end(), step_finite)) bad("its registration has a number not finite");
-  if (f.partition_map && (!finite_all(f.partition_map->images) || !finite_all(f.partition_map->jacobians))) bad("its registration has a number not finite");
+  if (f.partition_map && (!spill::all_finite(f.partition_map->images) || !spill::all_finite(f.partition_map->jacobians))) bad("its registration has a number not finite");
 }
 
 RegistrationStore::RegistrationStore(SpillMode mode)

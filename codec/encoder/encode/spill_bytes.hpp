@@ -6,6 +6,7 @@
 #include "facemorph/encoder/moebius.hpp"
 #include "facemorph/mesh.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -103,5 +104,12 @@ class Reader {
   const char* end_;
   const char* what_;
 };
+
+// Whether every vector of `values` is finite: what a record read from a file (a part file, spec/
+// part-file.md) is checked for before its numbers are used (part_file.cpp, registration_store.cpp).
+template <typename V>
+bool all_finite(const std::vector<V>& values) {
+  return std::all_of(values.begin(), values.end(), [](const V& v) { return v.allFinite(); });
+}
 
 }  // namespace facemorph::spill
