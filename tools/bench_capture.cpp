@@ -33,6 +33,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -478,6 +479,10 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   e.registration = "as encoded";
   e.spline = spline_kind_name(sequence.spline);
   e.frames.resize(static_cast<size_t>(count));
+  // --against: the other file's surface at every frame, RMS distance of G's nodes / the diagonal.
+  const std::shared_ptr<const KeyframeSource> other = options.against.empty() ? nullptr : open_sequence_source(options.against);
+  if (other && other->outline().grid_n != sequence.grid_n) throw Error(ErrorCode::kInvalidArgument, options.against + ": another grid than " + options.fmv + "'s");
+  std::vector<double> apart(static_cast<size_t>(count), 0.0);
   Progress progress(input, options.quiet);
   int done = 0;
   std::mutex progress_lock;  // guards done and the progress display
@@ -487,6 +492,8 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   const int runs = (count + kRun - 1) / kRun;
   parallel_for(runs, 0, [&](int r) {
     SequenceDecoder decoder(source);
+    std::optional<SequenceDecoder> other_decoder;
+    if (other) other_decoder.emplace(other);
     DecodeOptions decode;
     decode.ignore_sane_range = true;
     decode.reconstruct.throw_on_failure = false;
@@ -499,6 +506,13 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
       const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
       f.rms = d.rms / d.diagonal;
       f.max = d.max / d.diagonal;
+      if (other_decoder) {
+        const std::vector<Vec3>& p = decoded.grid_positions;
+        const std::vector<Vec3> q = other_decoder->decode(f.time, decode).grid_positions;
+        double sum = 0;
+        for (size_t n = 0; n < p.size(); ++n) sum += (p[n] - q[n]).squaredNorm();
+        apart[static_cast<size_t>(i)] = std::sqrt(sum / static_cast<double>(p.size())) / d.diagonal;
+      }
       const std::lock_guard<std::mutex> lock(progress_lock);
       progress.update(++done, count);
     }
@@ -514,6 +528,13 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   }
   std::printf("keyframes RMS %.4f%% mean, %.4f%% worst\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst);
   json evaluation = evaluation_json(e);
+  if (other) {
+    double mean = 0;
+    for (double a : apart) mean += a / static_cast<double>(count);
+    const double worst = *std::max_element(apart.begin(), apart.end());
+    std::printf("  decoded apart from %s: RMS %.4f%% mean, %.4f%% worst of the diagonal\n", options.against.c_str(), 100 * mean, 100 * worst);
+    evaluation["against"] = {{"fmv", options.against}, {"rms_mean", mean}, {"rms_worst", worst}};
+  }
   for (const char* key : {"decode_ms_per_frame", "mean_iterations"}) evaluation.erase(key);  // not measured here
   if (!held_out) {
     for (const char* key : {"held_out_rms_mean", "held_out_rms_worst", "held_out_max_worst"}) evaluation[key] = nullptr;
@@ -961,6 +982,9 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_option("--json", options.json_out, "With --capture: also write the results as JSON ('-': standard output)");
   app.add_option("--report", options.report, "With --capture: write a Markdown report here, its curves and pictures beside it");
   app.add_option("--data", options.data, "With --capture: folder of the shared real data")->capture_default_str();
+  app.add_option("--against", options.against,
+                 "With --geometry-only: also how far the file decodes from this one, made from the same capture (a joined file against the "
+                 "one-process encode), RMS over G's nodes at every frame");
   app.add_flag("--quick", options.quick, "With --capture: the smoke test (20 frames, small texture, few candidates; about a minute)");
   app.add_flag("--geometry-only", options.geometry_only,
                "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
@@ -981,6 +1005,7 @@ int run_capture_bench(const CaptureBenchOptions& options) {
     std::error_code ec;
     if (c != "synth" && c != "medusa" && c != "ict" && !fs::exists(c, ec)) throw Error(ErrorCode::kIo, "capture '" + c + "' does not exist");
   }
+  if (!options.against.empty() && !options.geometry_only) throw Error(ErrorCode::kInvalidArgument, "--against is for --geometry-only");
   if (options.geometry_only) {
     if (options.fmv.empty()) throw Error(ErrorCode::kInvalidArgument, "--geometry-only measures a given file: it needs --fmv");
     const json result = measure_geometry_only(options, captures.front());

@@ -16,6 +16,7 @@ struct CaptureBenchOptions {
   std::string data = "../shared/data";
   bool quick = false;                 // the smoke test: small capture, few candidates, about a minute
   bool geometry_only = false;         // with fmv: only its geometry error (no mapping, no baselines)
+  std::string against;                // with geometry_only: also how far fmv decodes from this file of the same capture, frame by frame
   bool quiet = false;
 };
 

@@ -4,6 +4,8 @@
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
 #include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/segment_join.hpp"
+#include "facemorph/encoder/segmented_encode.hpp"
 #include "facemorph/encoder/staged_encode.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
 #include "facemorph/keyframe_source.hpp"
@@ -219,6 +221,8 @@ int main(int argc, char** argv) {
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
   int threads = 0, reference = 0, frames_per_part = 200;
+  std::string segment;
+  std::vector<std::string> measures;
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
@@ -229,10 +233,15 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("-o,--output", output, "The .fmv file to write (with --stage sample, the part file)");
   app.add_option("--stage", stage,
-                 "all | sample | assemble | check | ranges. sample: map, register and sample --frames A:B into a part file (.fms); assemble: the "
-                 "parts covering the capture into the .fmv, given the options the parts were sampled with; check: read and check part "
+                 "all | sample | assemble | measure | check | ranges. sample: map, register and sample --frames A:B into a part file (.fms); assemble: the "
+                 "parts covering the capture into the .fmv, given the options the parts were sampled with (with --segment S/N and --measures, "
+                 "segment S's file); measure: what segment --segment S/N settles with the others (a measure file); check: read and check part "
                  "files (spec/part-file.md)")
       ->capture_default_str();
+  app.add_option("--segment", segment,
+                 "S/N: with --stage measure, measure segment S of N (0-based) of the keyframes' groups; with --stage assemble and --measures, "
+                 "code segment S into a segment file that fmcat joins with the others (spec/method.md 7.17)");
+  app.add_option("--measures", measures, "With --stage assemble --segment: every segment's measure file (comma-separated)")->delimiter(',');
   app.add_option("--frames", frames, "With --stage sample: frames A to B-1 of the capture (A:B, 0-based; B may be past the end); with --stage check: the frames the part must hold");
   app.add_option("--capture", check_capture, "With --stage check: the capture the parts must come from, sampled with these options");
   app.add_option("--frames-per-part", frames_per_part, "With --stage ranges: print the ranges A:B of this many frames the capture splits into")->capture_default_str();
@@ -355,9 +364,15 @@ int main(int argc, char** argv) {
     }
     options.field_precision.noise_shaping = field_rounding == "shaped";
     options.field_precision.inter_dead_zone = inter_dead_zone == "auto" ? kAutoDeadZone : parse_dead_zone(inter_dead_zone);
-    if (stage != "all" && stage != "sample" && stage != "assemble" && stage != "check" && stage != "ranges") {
-      throw Error(ErrorCode::kInvalidArgument, "--stage '" + stage + "' is none of all, sample, assemble, check, ranges");
+    if (stage != "all" && stage != "sample" && stage != "assemble" && stage != "measure" && stage != "check" && stage != "ranges") {
+      throw Error(ErrorCode::kInvalidArgument, "--stage '" + stage + "' is none of all, sample, assemble, measure, check, ranges");
     }
+    if (!segment.empty() && stage != "assemble" && stage != "measure") throw Error(ErrorCode::kInvalidArgument, "--segment is for --stage measure and assemble");
+    if (stage == "measure" && segment.empty()) throw Error(ErrorCode::kInvalidArgument, "--stage measure needs --segment S/N");
+    if (!segment.empty() && stage == "assemble" && measures.empty()) {
+      throw Error(ErrorCode::kInvalidArgument, "--stage assemble --segment needs --measures: every segment's measure file (--stage measure)");
+    }
+    if (!measures.empty() && (stage != "assemble" || segment.empty())) throw Error(ErrorCode::kInvalidArgument, "--measures is for --stage assemble --segment");
     // The capture as the encode reads it (--landmarks auto: without the capture's landmarks).
     const auto open_for_encode = [&](const std::string& path) {
       Capture capture = open_capture(path, fps, landmarks == "auto" ? "" : landmarks);
@@ -373,7 +388,7 @@ int main(int argc, char** argv) {
       check_parts(inputs, frames, capture ? &*capture : nullptr, options, quiet);
       return 0;
     }
-    if (stage != "assemble" && inputs.size() != 1) throw Error(ErrorCode::kInvalidArgument, "one capture to encode, not " + std::to_string(inputs.size()));
+    if (stage != "assemble" && stage != "measure" && inputs.size() != 1) throw Error(ErrorCode::kInvalidArgument, "one capture to encode, not " + std::to_string(inputs.size()));
     if (stage == "ranges") {
       // What a cluster encode splits the capture into (tools/slurm/fmenc-slurm): the capture read as
       // the encode reads it.
@@ -406,9 +421,31 @@ int main(int argc, char** argv) {
     double duration = 0;
     size_t frame_count = 0;
     std::unique_ptr<StoredSequence> sequence;
-    if (stage == "assemble") {
+    std::optional<SegmentPlacement> placement;
+    const std::vector<std::filesystem::path> parts(inputs.begin(), inputs.end());
+    if (stage == "measure") {
+      const SegmentMeasure measure = measure_segment(parts, options, parse_segment(segment), &report);
+      write_segment_measure(output, measure);
+      if (stages.count(current)) stages[current]->finish();
+      if (!quiet) {
+        std::printf("fmenc: %s: segment %s, keyframes %d:%d of %d (intra period %d), %zu folds, worst keyframe %.3g%% at its own steps, %.1f s\n",
+                    output.c_str(), segment.c_str(), measure.first, measure.end, measure.keyframes, measure.intra_period, measure.folds.size(),
+                    100 * *std::max_element(measure.keyframe_errors.begin(), measure.keyframe_errors.end()), tools::seconds_since(start));
+      }
+      return 0;
+    }
+    if (stage == "assemble" && !segment.empty()) {
+      std::vector<SegmentMeasure> read;
+      for (const std::string& m : measures) read.push_back(read_segment_measure(m));
       PartHeader header;
-      sequence = assemble_parts(std::vector<std::filesystem::path>(inputs.begin(), inputs.end()), options, &report, &header);
+      placement.emplace();
+      sequence = assemble_segment(parts, options, parse_segment(segment), read, &*placement, &report, &header);
+      landmark_names = header.capture.given_landmark_names;
+      duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
+      frame_count = static_cast<size_t>(header.capture.frame_count);
+    } else if (stage == "assemble") {
+      PartHeader header;
+      sequence = assemble_parts(parts, options, &report, &header);
       landmark_names = header.capture.given_landmark_names;
       duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
       frame_count = static_cast<size_t>(header.capture.frame_count);
@@ -440,7 +477,11 @@ int main(int argc, char** argv) {
     metadata.texture_coding = parse_texture_coding(texture_coding);
     metadata.field_coding = report.field_coding;
     const auto write_start = std::chrono::steady_clock::now();
-    write_sequence_file(output, *sequence, metadata);
+    if (placement) {
+      write_segment_file(output, *sequence, metadata, *placement);
+    } else {
+      write_sequence_file(output, *sequence, metadata);
+    }
     const double seconds_writing = tools::seconds_since(write_start);
     if (quiet) return 0;
     const double seconds = tools::seconds_since(start);

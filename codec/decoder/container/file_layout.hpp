@@ -13,6 +13,7 @@
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/byte_reader.hpp"
+#include "format/container.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <array>
@@ -116,6 +117,28 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
 // Checks the times (bounds, separation) and pose codes (bounds) as it reads; the offsets are the
 // caller's to check against the chunks.
 std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h);
+
+// ---- Where the chunks after the index go (index_layout.cpp) ----
+
+// A chunk after the index, in file order: its size in the file (header, payload and checksum), and
+// the keyframes whose index entries name it, as their group's KGOP or as their texture (a TEXR or
+// their group's TGOP).
+struct PlacedChunk {
+  uint64_t size = 0;
+  std::vector<uint32_t> group_of, texture_of;
+};
+struct IndexLayout {
+  format::PreparedChunk index;    // the KIDX chunk, its entries' offsets set
+  std::vector<uint64_t> offsets;  // each placed chunk's
+  uint64_t end = 0;               // where the end chunk goes
+};
+// The index of `entries` (their times and poses as given) over `chunks` placed in order after the
+// preamble, a header chunk of `header_size` bytes and the index itself. The index's size depends
+// on the offsets it holds (it is compressed), so it is laid out again until its size stays put,
+// and stored uncompressed (a size the offsets do not change) in the unlikely case it keeps
+// changing. kInvalidArgument where a keyframe is named by no group or, in a file with textures, by
+// no texture chunk.
+IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h, const std::vector<PlacedChunk>& chunks);
 
 // ---- G's lattice, along which the keyframe coding predicts (grid_facts.cpp) ----
 

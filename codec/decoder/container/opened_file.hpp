@@ -4,6 +4,7 @@
 // (file_source.cpp) share. Internal to the decoder library.
 #pragma once
 
+#include "codec/decoder/container/file_layout.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
@@ -89,6 +90,11 @@ class OpenedFile {
   // Decodes every keyframe's fields and texture once, one at a time, and verifies every checksum:
   // throws what the first fault throws. `info`: describe() with every keyframe's field bytes.
   void check_every_keyframe(SequenceFileInfo* info) const;
+  // The header and index as read and checked, and the chunks: for a tool that copies chunks from
+  // file to file without decoding them (the segment joiner).
+  const file_layout::FileHeader& header() const;
+  const std::vector<file_layout::IndexEntry>& index() const;
+  const format::ContainerReader& container() const;
 
  private:
   const format::ChunkView& texture_chunk(size_t k) const;

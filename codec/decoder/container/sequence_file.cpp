@@ -173,7 +173,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
   std::vector<size_t> stills;  // the spool's chunks, one per distinct texture (owner), in keyframe order
   std::vector<size_t> still_of(count, 0);     // keyframe k's chunk in `stills`
-  if (has_texture && (any_shared || !groups_possible)) {
+  const bool groups_by_settings = metadata.texture_layout_from_settings && groups_possible;
+  if (has_texture && !groups_by_settings && (any_shared || !groups_possible)) {
     // An owner's quality is the finest any keyframe showing it asks for.
     std::vector<int> owner_quality(count, -1);
     for (size_t k = 0; k < count; ++k) owner_quality[owners[k]] = std::max(owner_quality[owners[k]], quality_of(k));
@@ -207,7 +208,7 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     return bytes;
   };
   TextureLayout texture_layout = any_shared ? TextureLayout::kSharedStills : TextureLayout::kStills;
-  if (!texture_groups.empty() && (stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
+  if (!texture_groups.empty() && (groups_by_settings || stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
   const std::vector<size_t>& textures = grouped_textures ? texture_groups : stills;
   const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
@@ -232,54 +233,34 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   }
   // Where each chunk goes: a group's KGOP, then its TGOP, or after each keyframe's fields the still
   // it is the first to show.
-  const auto texture_here = [&](size_t k) -> std::optional<size_t> {
-    if (textures.empty()) return std::nullopt;
-    if (grouped_textures) return k % group == 0 ? std::optional(textures[k / group]) : std::nullopt;
-    return owners[k] == k ? std::optional(textures[still_of[k]]) : std::nullopt;
-  };
-  // The chunks' offsets depend on the index's size, which (compressed) depends on the offsets: the
-  // index is laid out again until its size stays put, and stored uncompressed (a size the offsets
-  // do not change) in the unlikely case it keeps changing.
-  uint64_t end = 0;  // where the end chunk goes
-  const auto lay_out = [&](uint64_t index_size) {
-    uint64_t offset = format::kPreambleBytes + header.total_size() + index_size;
-    for (size_t k = 0; k < count; ++k) {
-      if (k % group == 0) {
-        entries[k].group_offset = offset;
-        offset += spool.total_size(groups[k / group]);
-      } else {
-        entries[k].group_offset = entries[k - 1].group_offset;
-      }
-      if (textures.empty()) continue;
-      if (const std::optional<size_t> texture = texture_here(k)) {
-        entries[k].texture_offset = offset;
-        offset += spool.total_size(*texture);
-      } else {
-        entries[k].texture_offset = entries[grouped_textures ? k - 1 : owners[k]].texture_offset;
-      }
-    }
-    end = offset;
-  };
-  constexpr int kIndexLayouts = 8;
-  format::PreparedChunk index;
-  uint64_t index_size = 0;
-  for (int attempt = 0; attempt <= kIndexLayouts; ++attempt) {
-    lay_out(index_size);
-    const int level = attempt < kIndexLayouts ? 19 : 0;
-    index = format::prepare_chunk(kIndexChunk, write_index(entries, layout), true, level);
-    if (index.total_size() == index_size) break;
-    index_size = index.total_size();
-    if (level == 0) {  // its size does not depend on the offsets: once more with them right
-      lay_out(index_size);
-      index = format::prepare_chunk(kIndexChunk, write_index(entries, layout), true, 0);
-      break;
-    }
-  }
-  LaidOutFile file{header, index, {}, end + format::ContainerWriter::end_chunk_size()};
+  std::vector<PlacedChunk> placed;
+  std::vector<size_t> spooled;                  // each placed chunk's in the spool
+  std::vector<size_t> placed_still(count, 0);   // an owner's still among the placed
   for (size_t k = 0; k < count; ++k) {
-    if (k % group == 0) file.chunks.emplace_back(groups[k / group], entries[k].group_offset);
-    if (const std::optional<size_t> texture = texture_here(k)) file.chunks.emplace_back(*texture, entries[k].texture_offset);
+    if (k % group == 0) {
+      PlacedChunk& c = placed.emplace_back();
+      c.size = spool.total_size(groups[k / group]);
+      for (size_t j = k; j < std::min(count, k + group); ++j) c.group_of.push_back(static_cast<uint32_t>(j));
+      spooled.push_back(groups[k / group]);
+    }
+    if (textures.empty()) continue;
+    if (grouped_textures && k % group == 0) {
+      PlacedChunk& c = placed.emplace_back();
+      c.size = spool.total_size(textures[k / group]);
+      c.texture_of = placed[placed.size() - 2].group_of;
+      spooled.push_back(textures[k / group]);
+    } else if (!grouped_textures) {
+      if (owners[k] == k) {
+        placed_still[k] = placed.size();
+        placed.emplace_back().size = spool.total_size(textures[still_of[k]]);
+        spooled.push_back(textures[still_of[k]]);
+      }
+      placed[placed_still[owners[k]]].texture_of.push_back(static_cast<uint32_t>(k));  // an owner comes first
+    }
   }
+  const IndexLayout laid = lay_out_index(header.total_size(), entries, layout, placed);
+  LaidOutFile file{header, laid.index, {}, laid.end + format::ContainerWriter::end_chunk_size()};
+  for (size_t c = 0; c < placed.size(); ++c) file.chunks.emplace_back(spooled[c], laid.offsets[c]);
   return file;
 }
 
@@ -393,6 +374,9 @@ OpenedFile::~OpenedFile() = default;
 
 const std::string& OpenedFile::source() const { return state_->source; }
 const Sequence& OpenedFile::shape() const { return state_->header->shape; }
+const FileHeader& OpenedFile::header() const { return *state_->header; }
+const std::vector<IndexEntry>& OpenedFile::index() const { return state_->index; }
+const format::ContainerReader& OpenedFile::container() const { return state_->reader; }
 size_t OpenedFile::keyframe_count() const { return state_->index.size(); }
 double OpenedFile::keyframe_time(size_t k) const { return state_->index.at(k).time; }
 const RigidPose& OpenedFile::keyframe_pose(size_t k) const { return state_->poses.at(k); }

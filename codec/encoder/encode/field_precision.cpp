@@ -505,6 +505,22 @@ class RoundedKeyframes final : public KeyframeSource {
   mutable size_t last_index_ = 0;
 };
 
+// The keyframes as the file will hold them, in order (each rounded after its predecessor), put
+// back in place of their exact fields.
+void put_rounded(StoredSequence& keys, const FieldRounder& rounder, const FieldCoding& coding) {
+  FieldRounder::Chain chain(rounder, coding);
+  for (size_t k = 0; k < keys.size(); ++k) {
+    Keyframe key;
+    key.pose = keys.shape().keyframes[k].pose;
+    key.hole_level = *keys.hole_level(k);
+    key.fields = chain.next(k, *keys.fields(k));
+    round_to_field_steps(key, coding);
+    keys.put_fields(k, std::move(key.fields));
+    keys.put_hole_level(k, std::move(key.hole_level));
+    keys.set_pose(k, key.pose);
+  }
+}
+
 void check_options(const FieldPrecisionOptions& options) {
   if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
@@ -558,20 +574,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     }
   }
   if (!choice) choice = choose_steps(keys, chosen, calibration, exact, pool);
-  // The keyframes as the file will hold them, in order (each rounded after its predecessor), put
-  // back in place of their exact fields.
-  const FieldRounder rounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone);
-  FieldRounder::Chain chain(rounder, choice->coding);
-  for (size_t k = 0; k < keys.size(); ++k) {
-    Keyframe key;
-    key.pose = keys.shape().keyframes[k].pose;
-    key.hole_level = *keys.hole_level(k);
-    key.fields = chain.next(k, *keys.fields(k));
-    round_to_field_steps(key, choice->coding);
-    keys.put_fields(k, std::move(key.fields));
-    keys.put_hole_level(k, std::move(key.hole_level));
-    keys.set_pose(k, key.pose);
-  }
+  put_rounded(keys, FieldRounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone), choice->coding);
   spill.bytes += exact.store.spilled_bytes();
   if (report) {
     report->target_error = options.target_error;
@@ -584,6 +587,19 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     report->spilled_bytes = spill.bytes;
   }
   return choice->coding;
+}
+
+std::vector<double> apply_field_coding(StoredSequence& keys, const FieldCoding& coding, const FieldPrecisionOptions& options) {
+  check_options(options);
+  check_dead_zone(options);
+  if (keys.size() == 0) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
+  Spill spill(options.spill);
+  ReconstructorPool pool(keys.shape().grid_n, options.threads);
+  const ExactSurfaces exact(keys, pool, spill);
+  const FieldRounder rounder(pool.grid(), options.noise_shaping, options.inter_dead_zone);
+  std::vector<double> errors = rounded_errors(keys, coding, rounder, exact, pool);
+  put_rounded(keys, rounder, coding);
+  return errors;
 }
 
 FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions& options, FieldPrecisionReport* report) {

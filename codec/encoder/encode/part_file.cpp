@@ -4,6 +4,7 @@
 #include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/error.hpp"
 
+#include "codec/encoder/encode/json_fields.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
@@ -261,39 +262,14 @@ nlohmann::json header_json(const PartHeader& h) {
 }
 
 template <typename T>
-T field(const nlohmann::json& doc, const char* name) {
-  if (!doc.contains(name)) bad(std::string("its header lacks \"") + name + "\"");
-  try {
-    return doc.at(name).get<T>();
-  } catch (const nlohmann::json::exception&) {
-    bad(std::string("its header's \"") + name + "\" is not what it should be");
-  }
-}
-
-int integer_field(const nlohmann::json& doc, const char* name) {
-  if (!doc.contains(name)) bad(std::string("its header lacks \"") + name + "\"");
-  const nlohmann::json& value = doc.at(name);
-  if (!value.is_number_integer()) bad(std::string("its header's \"") + name + "\" is not a whole number");
-  const auto number = value.get<int64_t>();
-  if (value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(std::numeric_limits<int>::max())) bad(std::string("its header's \"") + name + "\" is out of range");
-  if (number < std::numeric_limits<int>::min() || number > std::numeric_limits<int>::max()) bad(std::string("its header's \"") + name + "\" is out of range");
-  return static_cast<int>(number);
-}
+T field(const nlohmann::json& doc, const char* name) { return json_fields::field<T>(doc, name, "its header"); }
+int integer_field(const nlohmann::json& doc, const char* name) { return json_fields::integer_field(doc, name, "its header"); }
 
 // How deep the header's JSON may nest: the settings are two levels; a reader (and dump) recurses.
 constexpr int kMaxHeaderDepth = 8;
 
 PartHeader parse_header(const std::vector<uint8_t>& bytes) {
-  nlohmann::json doc;
-  try {
-    doc = nlohmann::json::parse(bytes.begin(), bytes.end(), [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
-      if (depth > kMaxHeaderDepth) throw Error(ErrorCode::kCorrupt, "its header nests deeper than " + std::to_string(kMaxHeaderDepth));
-      return true;
-    });
-  } catch (const nlohmann::json::exception& e) {
-    bad(std::string("its header is not JSON: ") + e.what());
-  }
-  if (!doc.is_object()) bad("its header is not a JSON object");
+  const nlohmann::json doc = json_fields::parse_object(bytes, kMaxHeaderDepth, "its header");
   PartHeader h;
   SampledCapture& c = h.capture;
   h.capture_id = field<std::string>(doc, "capture");

@@ -910,18 +910,26 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
 
 Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) { return build_stored(keyframes, grid_n)->to_sequence(); }
 
-std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<int>& keyframes, int grid_n) {
+std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<int>& keyframes, int grid_n, const KeyframeSegment* segment) {
   const auto start = std::chrono::steady_clock::now();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
   const GridGeometry geometry(make_disk_grid(grid_n));
   const DiskGrid& grid = geometry.grid();
-  const size_t keys = keyframes.size();
+  // The keyframes this build codes (`own`, of `keyframes`) and those its fit solves over (`fit`):
+  // all of them, or a segment's and its margins.
+  const size_t own_first = segment ? segment->first : 0, own_end = segment ? segment->end : keyframes.size();
+  const size_t fit_first = segment ? segment->fit_first : 0, fit_end = segment ? segment->fit_end : keyframes.size();
+  if (!(fit_first <= own_first && own_first < own_end && own_end <= fit_end && fit_end <= keyframes.size())) {
+    throw Error(ErrorCode::kInvalidArgument, "build: a segment's keyframes outside its fit's or the capture's");
+  }
+  const std::vector<int> fitted(keyframes.begin() + static_cast<long>(fit_first), keyframes.begin() + static_cast<long>(fit_end));
+  const size_t keys = own_end - own_first, fit_keys = fitted.size(), own_offset = own_first - fit_first;
   bool any_holes = false;
   for (const FrameSummary& f : summaries_) any_holes = any_holes || f.holes_filled > 0;
   const bool store_holes = any_holes && !options_.keep_holes_filled;
   // Textures: every keyframe's, or (a capture without images or vertex colours) none; some but not
   // all is an error.
-  bool store_texture = options_.texture;
+  bool store_texture = options_.texture && (!segment || segment->textures);
   for (int k : keyframes) {
     const bool has = has_texture(k);
     if (store_texture && !has) {
@@ -947,7 +955,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
   // keyframes' folds, since the keyframes are blended together. Each goes to the store as it is
   // made (1.25 MB at N = 257, and a long capture has hundreds) and is read back for each later use.
   SurfaceStore local(options_.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
-  local.reset(keys);
+  local.reset(fit_keys);
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence shape;
   shape.grid_n = grid_n;
@@ -960,7 +968,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
   shape.pose_centre = pose_centre();
   shape.keyframes.resize(keys);
   for (size_t k = 0; k < keys; ++k) {
-    const auto index = static_cast<size_t>(keyframes[k]);
+    const auto index = static_cast<size_t>(keyframes[own_first + k]);
     shape.keyframes[k].time = capture_.frames[index].time;
     shape.keyframes[k].pose = selection_[index].pose;
   }
@@ -968,9 +976,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
   // capture's hundreds of keyframes are not held until the file is written.
   auto stored = std::make_unique<StoredSequence>(std::move(shape), options_.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory);
   parallel_for(
-      static_cast<int>(keys), options_.threads,
+      static_cast<int>(fit_keys), options_.threads,
       [&](int k) {
-        const auto index = static_cast<size_t>(keyframes[static_cast<size_t>(k)]);
+        const auto index = static_cast<size_t>(fitted[static_cast<size_t>(k)]);
         const std::shared_ptr<const MappedFrame> frame = this->frame(static_cast<int>(index));
         const MappedFrame& f = *frame;
         const InverseDiskMap inverse(f.map);
@@ -979,19 +987,27 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
         local.put(static_cast<size_t>(k), std::move(positions));
-        stored->put_hole_level(static_cast<size_t>(k), store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
-        stored->put_texture(static_cast<size_t>(k), store_texture ? frame_texture(f, static_cast<int>(index), texture_size) : Image());
+        const auto own = static_cast<size_t>(k) - own_offset;  // wraps past keys for a margin's keyframe
+        if (own >= keys) return;
+        stored->put_hole_level(own, store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
+        stored->put_texture(own, store_texture ? frame_texture(f, static_cast<int>(index), texture_size) : Image());
       },
       [&](int done, int total) { progress("keyframes", done, total); });
-  if (options_.keyframe_fit) fit_keyframes(keyframes, geometry, local);
+  if (options_.keyframe_fit) fit_keyframes(fitted, geometry, local);
   parallel_for(static_cast<int>(keys), options_.threads,
-               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(static_cast<size_t>(k))); });
-  std::vector<int32_t> fixed;
-  for (const auto& f : folds) fixed.insert(fixed.end(), f.begin(), f.end());
-  std::sort(fixed.begin(), fixed.end());
-  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+               [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(own_offset + static_cast<size_t>(k))); });
+  std::vector<int32_t> own_folds;
+  for (const auto& f : folds) own_folds.insert(own_folds.end(), f.begin(), f.end());
+  std::sort(own_folds.begin(), own_folds.end());
+  own_folds.erase(std::unique(own_folds.begin(), own_folds.end()), own_folds.end());
+  // A segment codes with the fixed nodes of the whole capture, which its folds are part of.
+  const std::vector<int32_t>& fixed = segment && segment->fixed_nodes ? *segment->fixed_nodes : own_folds;
+  if (!std::includes(fixed.begin(), fixed.end(), own_folds.begin(), own_folds.end())) {
+    throw Error(ErrorCode::kInvalidArgument, "build: the fixed nodes given miss folds of this segment's keyframes");
+  }
+  report_.keyframe_folds = own_folds;
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    stored->put_fields(static_cast<size_t>(k), keyframe_fields(geometry, *local.get(static_cast<size_t>(k)), stored->shape().representation, fixed));
+    stored->put_fields(static_cast<size_t>(k), keyframe_fields(geometry, *local.get(own_offset + static_cast<size_t>(k)), stored->shape().representation, fixed));
   });
   report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
   report_.keyframes_spilled_bytes += local.spilled_bytes();
@@ -1149,13 +1165,17 @@ FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSele
   return StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { return round_fields(stored, chosen); });
 }
 
-FieldCoding SequenceEncoder::round_fields(StoredSequence& keys, const KeyframeSelection& chosen) {
-  const auto start = std::chrono::steady_clock::now();
+FieldPrecisionOptions SequenceEncoder::field_precision(const KeyframeSelection& chosen) const {
   FieldPrecisionOptions precision = options_.field_precision;
   precision.spill = options_.spill_keyframes;
   precision.threads = options_.threads;
   if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
-  FieldCoding coding = choose_field_coding(keys, precision, &report_.field_precision);
+  return precision;
+}
+
+FieldCoding SequenceEncoder::round_fields(StoredSequence& keys, const KeyframeSelection& chosen) {
+  const auto start = std::chrono::steady_clock::now();
+  FieldCoding coding = choose_field_coding(keys, field_precision(chosen), &report_.field_precision);
   report_.seconds_precision = seconds_since(start);
   return coding;
 }
@@ -1266,8 +1286,7 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   return encode_sampled(encoder, report_out);
 }
 
-std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
-  const EncodeOptions& options = encoder.options();
+KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   const KeyframeSelection chosen = encoder.select_keyframes();
   EncodeReport& report = encoder.report();
   report.keyframes = chosen.keyframes;
@@ -1285,10 +1304,11 @@ std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeR
   // here, so that the keyframe steps' arrays take their place rather than add to them.
   malloc_trim(0);
 #endif
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
-  if (options.predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
-  encoder.choose_texture_qualities(*sequence, chosen.keyframes);
-  encoder.share_textures(*sequence, chosen.keyframes);
+  return chosen;
+}
+
+void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report_out) {
+  EncodeReport& report = encoder.report();
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const FrameSummary& frame = encoder.frame_summary(i);
     const std::shared_ptr<const DiskRegistration> f = encoder.registration(i);
@@ -1315,8 +1335,18 @@ std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeR
   report.spilled_bytes = encoder.frame_store().spilled_bytes();
   report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, report.field_precision.peak_keyframes_in_memory);
   report.keyframes_spilled_bytes += report.field_precision.spilled_bytes;
-  report.keyframes_spilled_bytes += sequence->spilled_bytes();
+  report.keyframes_spilled_bytes += sequence.spilled_bytes();
   if (report_out) *report_out = std::move(report);
+}
+
+std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
+  const KeyframeSelection chosen = plan_keyframes(encoder);
+  EncodeReport& report = encoder.report();
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
+  if (encoder.options().predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
+  encoder.choose_texture_qualities(*sequence, chosen.keyframes);
+  encoder.share_textures(*sequence, chosen.keyframes);
+  finish_report(encoder, chosen, *sequence, report_out);
   return sequence;
 }
 

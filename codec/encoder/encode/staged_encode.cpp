@@ -159,8 +159,12 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   return header;
 }
 
-std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, EncodeReport* report,
-                                               PartHeader* header_out) {
+PartsEncoder::PartsEncoder() = default;
+PartsEncoder::PartsEncoder(PartsEncoder&&) noexcept = default;
+PartsEncoder& PartsEncoder::operator=(PartsEncoder&&) noexcept = default;
+PartsEncoder::~PartsEncoder() = default;
+
+PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, PartHeader* header_out) {
   if (parts.empty()) throw Error(ErrorCode::kInvalidArgument, "no parts to assemble");
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<PartReader>> readers;
@@ -201,7 +205,8 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
   }
   SampledCapture capture = first.capture;
   capture.landmark_names = assembled_names(headers);
-  SequenceEncoder encoder(capture, options);
+  auto encoder_made = std::make_unique<SequenceEncoder>(capture, options);
+  SequenceEncoder& encoder = *encoder_made;
   int done = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
   for (size_t p = 0; p < readers.size(); ++p) {
@@ -242,7 +247,15 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
   encoder.report().seconds_reading_parts = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   encoder.report().parts = static_cast<int>(readers.size());
   if (header_out) *header_out = first;
-  return encode_sampled(encoder, report);
+  PartsEncoder made;
+  made.encoder = std::move(encoder_made);
+  made.parts = std::move(readers);
+  return made;
+}
+
+std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, EncodeReport* report,
+                                               PartHeader* header) {
+  return encode_sampled(*encoder_of_parts(parts, options, header).encoder, report);
 }
 
 }  // namespace facemorph

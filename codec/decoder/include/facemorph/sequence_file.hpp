@@ -66,6 +66,10 @@ struct SequenceFileMetadata {
   std::vector<int> keyframe_texture_qualities;  // one per keyframe, in place of texture_quality (the encoder's choice)
   TextureCoding texture_coding = TextureCoding::kSequence;  // lossy AVIF textures only; the reader reports the file's
   FieldCoding field_coding;                 // the writer's; the reader reports the file's
+  // The writer's texture layout from these settings alone, not from the bytes each takes: texture
+  // groups wherever they apply (lossy AVIF, kSequence), else stills, shared where keyframes show the
+  // same pixels. The segments of one encode lay theirs out alike, so that they join (file_join.hpp).
+  bool texture_layout_from_settings = false;
 };
 
 struct SequenceFileInfo {

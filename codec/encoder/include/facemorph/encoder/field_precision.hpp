@@ -90,4 +90,11 @@ FieldCoding choose_field_coding(StoredSequence& keyframes, const FieldPrecisionO
 // applied) or a sequence that fails validation.
 void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options);
 
+// Rounds the stored keyframes to `coding`'s steps and intra period as choose_field_coding rounds
+// them to its own (options.inter_dead_zone applied, not chosen), putting the rounded fields, hole
+// levels and poses back, and returns each keyframe's decoded error (RMS displacement / diagonal) at
+// those steps. A segment of a long encode (spec/method.md §7.17) codes its keyframes so, with the
+// steps its capture's segments settled together. Throws kInvalidArgument as round_keyframes.
+std::vector<double> apply_field_coding(StoredSequence& keyframes, const FieldCoding& coding, const FieldPrecisionOptions& options);
+
 }  // namespace facemorph

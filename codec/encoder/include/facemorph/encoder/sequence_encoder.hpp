@@ -182,6 +182,17 @@ struct DroppedFrame {
   std::string reason;
 };
 
+// One segment of a long capture's keyframes, coded apart from the others (fmenc --stage measure,
+// --stage assemble --segment S/N; spec/method.md §7.17). Positions are in the capture's list of
+// keyframes (KeyframeSelection::keyframes).
+struct KeyframeSegment {
+  size_t first = 0, end = 0;          // the keyframes it codes: whole groups of the intra period
+  size_t fit_first = 0, fit_end = 0;  // those the keyframe fit solves over: the segment and a margin each side
+  // The fixed nodes of the whole capture (every segment's folds); none: the segment's own folds.
+  std::optional<std::vector<int32_t>> fixed_nodes;
+  bool textures = true;  // false: none sampled (a stage that writes no file)
+};
+
 struct EncodeReport {
   std::vector<EncodedFrameReport> frames;  // the frames encoded (without the dropped ones)
   std::vector<DroppedFrame> dropped;       // in capture order
@@ -220,6 +231,7 @@ struct EncodeReport {
   std::string grid_term;                                  // which term set it: "floor", "noise" or "interpolation"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
+  std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;
   // Per keyframe, the quality of its texture in options().texture_codec (SequenceFileMetadata::keyframe_texture_qualities;
@@ -370,12 +382,17 @@ class SequenceEncoder {
   void release_selection_samples(const std::vector<int>& keyframes);
   // 6. the keyframes on G: fields, poses, holes, textures, each array put in the store as it is
   // made (options().spill_keyframes). build: the same, read back as a Sequence.
-  std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid);
+  // With `segment`: only its keyframes, fitted over its fit range of `keyframes` (spec/method.md
+  // §7.17), with its fixed nodes where given.
+  std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid, const KeyframeSegment* segment = nullptr);
   Sequence build(const std::vector<int>& keyframes, int grid);
   // 7. the fields rounded as the file will store them (options().field_precision, or with
   // auto_field_error two fifths of `chosen`'s mean predicted error): what a file written with the
   // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
   FieldCoding round_fields(StoredSequence& keyframes, const KeyframeSelection& chosen);
+  // The field precision's options round_fields uses: options().field_precision with the encoder's
+  // spill and threads, and with auto_field_error the target `chosen` gives.
+  FieldPrecisionOptions field_precision(const KeyframeSelection& chosen) const;
   FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
   // 8. each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
   // at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
@@ -560,6 +577,12 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
 // encode_capture_stored runs once `encoder` has mapped, registered and sampled every frame, and the
 // staged encode's assemble stage once its frames came from the parts (staged_encode.hpp).
 std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report = nullptr);
+// encode_sampled's first and last steps, for an encode that builds and codes its keyframes another
+// way (a segment: segmented_encode.hpp). plan_keyframes: the keyframes, N and the representation
+// chosen (the report's lines for them filled), the selection's samples released. finish_report:
+// the report's per-frame lines and memory figures, moved to `report` where given.
+KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
+void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
 
 // ---- The pieces, for tests and the bench ----
 

@@ -37,6 +37,19 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
                                                EncodeReport* report = nullptr, PartHeader* header = nullptr);
 
+// assemble_parts's first step: the parts read and checked as it says, and an encoder holding their
+// frames as sample_frames leaves them (encode_sampled's input). The encoder reads each frame's map
+// from its part when a step needs it, so the parts stay open while it lives.
+struct PartsEncoder {
+  PartsEncoder();
+  PartsEncoder(PartsEncoder&&) noexcept;
+  PartsEncoder& operator=(PartsEncoder&&) noexcept;
+  ~PartsEncoder();
+  std::vector<std::unique_ptr<PartReader>> parts;  // declared first: destroyed after the encoder
+  std::unique_ptr<SequenceEncoder> encoder;
+};
+PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, PartHeader* header = nullptr);
+
 // The ranges a capture of `frames` frames splits into, `per_part` frames each (the last may hold fewer).
 std::vector<FrameRange> part_ranges(int frames, int per_part);
 

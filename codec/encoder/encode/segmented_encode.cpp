@@ -1,0 +1,306 @@
+#include "facemorph/encoder/segmented_encode.hpp"
+
+#include "facemorph/encoder/field_precision.hpp"
+#include "facemorph/encoder/staged_encode.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/disk_grid.hpp"
+
+#include "codec/encoder/encode/json_fields.hpp"
+#include "format/file_io.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace facemorph {
+
+namespace {
+
+constexpr int kMaxSegments = 4096;
+constexpr uint64_t kMaxMeasureBytes = uint64_t{64} << 20;
+constexpr int kMaxMeasureDepth = 4;  // the settings nest three levels
+constexpr const char* kMeasureFormat = "facemorph segment measure";
+constexpr int kMeasureVersion = 1;
+
+// The intra period of the whole capture's keyframes, as choose_field_coding would choose it from
+// them: every segment's groups are the whole encode's.
+int capture_intra_period(const EncodeOptions& options, const SequenceEncoder& encoder, const KeyframeSelection& chosen) {
+  if (options.field_precision.intra_period != kAutoIntraPeriod) return options.field_precision.intra_period;
+  Sequence times;
+  for (int k : chosen.keyframes) times.keyframes.emplace_back().time = encoder.capture().frames[static_cast<size_t>(k)].time;
+  return auto_intra_period(times);
+}
+
+// What both stages do first: the parts read, the keyframes, N and representation chosen, this
+// segment's keyframes found.
+struct SegmentStart {
+  PartsEncoder parts;
+  SequenceEncoder* encoder = nullptr;  // the parts'
+
+  KeyframeSelection chosen;
+  int intra_period = 0;
+  KeyframeSegment keyframes;
+  PartHeader header;
+};
+
+SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id) {
+  if (!options.predicted_fields) {
+    throw Error(ErrorCode::kUnsupported, "segments need predicted fields: without them each file takes steps from its own keyframes' range, and files "
+                                         "with other steps do not join");
+  }
+  if (id.index < 0 || id.index >= id.count || id.count > kMaxSegments) throw Error(ErrorCode::kInvalidArgument, "no segment " + std::to_string(id.index) + " of " + std::to_string(id.count));
+  SegmentStart s;
+  s.parts = encoder_of_parts(parts, options, &s.header);
+  s.encoder = s.parts.encoder.get();
+  s.chosen = plan_keyframes(*s.encoder);
+  s.intra_period = capture_intra_period(options, *s.encoder, s.chosen);
+  s.keyframes = segment_keyframes(s.chosen.keyframes.size(), s.intra_period, id);
+  return s;
+}
+
+void check_steps(const std::vector<double>& steps, const std::string& where) {
+  if (steps.size() != kKeyframeArrayCount) json_fields::bad(where + " holds " + std::to_string(steps.size()) + " field steps, not " + std::to_string(kKeyframeArrayCount));
+  for (double s : steps) {
+    if (!(s > 0) || !std::isfinite(s)) json_fields::bad(where + " holds a field step that is not finite and positive");
+  }
+}
+
+}  // namespace
+
+SegmentId parse_segment(const std::string& text) {
+  SegmentId id;
+  int consumed = 0;
+  if (std::sscanf(text.c_str(), "%d/%d%n", &id.index, &id.count, &consumed) != 2 || consumed != static_cast<int>(text.size()) || id.index < 0 ||
+      id.index >= id.count || id.count > kMaxSegments) {
+    throw Error(ErrorCode::kInvalidArgument, "--segment '" + text + "': S/N with 0 <= S < N <= " + std::to_string(kMaxSegments));
+  }
+  return id;
+}
+
+std::string segment_settings(const EncodeOptions& o) {
+  const FieldPrecisionOptions& f = o.field_precision;
+  const TextureQualityOptions& t = o.texture_coding;
+  const nlohmann::json settings = {
+      {"sample", nlohmann::json::parse(sample_settings(o))},
+      {"keyframes", o.keyframe_fraction},
+      {"keyframe_error_bound", o.keyframe_error_bound},
+      {"sparse_frame_interval", o.sparse_frame_interval},
+      {"max_error", o.max_error},
+      {"grid", o.grid},
+      {"representation", o.representation ? representation_name(*o.representation) : "auto"},
+      {"spline", static_cast<int>(o.spline)},
+      {"texture", {{"size", o.texture_size}, {"codec", static_cast<int>(o.texture_codec)}, {"quality", o.texture_quality}, {"share", o.share_textures},
+                   {"interpolation_share", t.interpolation_share}, {"min_psnr", t.min_psnr}, {"max_psnr", t.max_psnr}, {"fallback", t.fallback_quality}}},
+      {"keep_holes_filled", o.keep_holes_filled},
+      {"fields", {{"predicted", o.predicted_fields}, {"auto_error", o.auto_field_error}, {"target_error", f.target_error}, {"intra_period", f.intra_period},
+                  {"noise_shaping", f.noise_shaping}, {"inter_dead_zone", f.inter_dead_zone}}},
+      {"keyframe_fit", {{"on", o.keyframe_fit}, {"weight", o.keyframe_fit_weight}, {"noise", o.keyframe_fit_noise}}}};
+  return settings.dump();
+}
+
+KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId id) {
+  if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "segments: an intra period below 1");
+  const size_t period = static_cast<size_t>(intra_period), groups = (keyframes + period - 1) / period;
+  const auto count = static_cast<size_t>(id.count), index = static_cast<size_t>(id.index);
+  if (groups < count) {
+    throw Error(ErrorCode::kInvalidArgument, std::to_string(id.count) + " segments for " + std::to_string(groups) + " groups of keyframes (" +
+                                                 std::to_string(keyframes) + " keyframes, intra period " + std::to_string(intra_period) +
+                                                 "): at most one segment a group");
+  }
+  KeyframeSegment s;
+  s.first = index * groups / count * period;
+  s.end = std::min(keyframes, (index + 1) * groups / count * period);
+  s.fit_first = s.first > kSegmentFitMargin ? s.first - kSegmentFitMargin : 0;
+  s.fit_end = std::min(keyframes, s.end + kSegmentFitMargin);
+  return s;
+}
+
+SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id, EncodeReport* report) {
+  SegmentStart s = start_segment(parts, options, id);
+  SequenceEncoder& encoder = *s.encoder;
+  s.keyframes.textures = false;  // nothing here is written but the measure
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, encoder.report().grid, &s.keyframes);
+  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
+  precision.intra_period = s.intra_period;
+  const auto start = std::chrono::steady_clock::now();
+  encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
+  encoder.report().seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  SegmentMeasure m;
+  m.segment = id;
+  m.capture_id = s.header.capture_id;
+  m.settings = segment_settings(options);
+  m.keyframes = static_cast<int>(s.chosen.keyframes.size());
+  m.intra_period = s.intra_period;
+  m.grid = encoder.report().grid;
+  m.representation = encoder.representation();
+  m.first = static_cast<int>(s.keyframes.first);
+  m.end = static_cast<int>(s.keyframes.end);
+  m.folds = encoder.report().keyframe_folds;
+  m.steps = encoder.report().field_coding.steps;
+  m.target_error = encoder.report().field_precision.target_error;
+  m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
+  m.keyframe_errors = encoder.report().field_precision.keyframe_errors;
+  finish_report(encoder, s.chosen, *sequence, report);
+  return m;
+}
+
+void write_segment_measure(const std::filesystem::path& path, const SegmentMeasure& m) {
+  const nlohmann::json doc = {{"format", kMeasureFormat},
+                              {"version", kMeasureVersion},
+                              {"segment", m.segment.index},
+                              {"segments", m.segment.count},
+                              {"capture", m.capture_id},
+                              {"settings", nlohmann::json::parse(m.settings)},
+                              {"keyframes", m.keyframes},
+                              {"intra_period", m.intra_period},
+                              {"grid", m.grid},
+                              {"representation", representation_name(m.representation)},
+                              {"first", m.first},
+                              {"end", m.end},
+                              {"folds", m.folds},
+                              {"steps", m.steps},
+                              {"target_error", m.target_error},
+                              {"inter_dead_zone", m.inter_dead_zone},
+                              {"keyframe_errors", m.keyframe_errors}};
+  format::write_file_atomically(path, doc.dump() + "\n");
+}
+
+SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
+  const std::string where = path.string();
+  const std::vector<uint8_t> bytes = [&] {
+    try {
+      return format::read_file(path, kMaxMeasureBytes);
+    } catch (const Error& e) {
+      throw Error(e.code() == ErrorCode::kInvalidArgument ? ErrorCode::kLimit : e.code(), e.what());
+    }
+  }();
+  try {
+    using json_fields::bad;
+    using json_fields::field;
+    using json_fields::integer_field;
+    const std::string it = "the measure";
+    const nlohmann::json doc = json_fields::parse_object(bytes, kMaxMeasureDepth, it);
+    if (field<std::string>(doc, "format", it) != kMeasureFormat) bad("it is not a segment measure");
+    if (integer_field(doc, "version", it) != kMeasureVersion) throw Error(ErrorCode::kUnsupported, "measure version " + doc["version"].dump() + " (this fmenc reads 1)");
+    SegmentMeasure m;
+    m.segment = {integer_field(doc, "segment", it), integer_field(doc, "segments", it)};
+    m.capture_id = field<std::string>(doc, "capture", it);
+    if (!doc.contains("settings") || !doc["settings"].is_object()) bad("it lacks its settings");
+    m.settings = doc["settings"].dump();
+    m.keyframes = integer_field(doc, "keyframes", it);
+    m.intra_period = integer_field(doc, "intra_period", it);
+    m.grid = integer_field(doc, "grid", it);
+    try {
+      m.representation = parse_representation(field<std::string>(doc, "representation", it));
+    } catch (const Error&) {
+      bad("its representation is none of hl, hl+t, xyz");
+    }
+    m.first = integer_field(doc, "first", it);
+    m.end = integer_field(doc, "end", it);
+    if (m.segment.index < 0 || m.segment.index >= m.segment.count || m.segment.count > kMaxSegments) bad("its segment number is out of range");
+    if (m.keyframes < 1 || m.intra_period < 1 || m.first < 0 || m.first >= m.end || m.end > m.keyframes || m.first % m.intra_period != 0) {
+      bad("its keyframes are not whole groups of the capture's");
+    }
+    if (m.grid < kMinGridSize || m.grid > kMaxGridSize) bad("its grid N = " + std::to_string(m.grid) + " is outside " + std::to_string(kMinGridSize) + ".." + std::to_string(kMaxGridSize));
+    const auto interior = static_cast<size_t>(disk_grid_shape(m.grid).interior_count);
+    const nlohmann::json& folds = doc.contains("folds") ? doc["folds"] : nlohmann::json();
+    if (!folds.is_array() || folds.size() > interior) bad("its folds are not a list of at most G's interior nodes");
+    for (const nlohmann::json& node : folds) {
+      if (!node.is_number_integer() || node.get<int64_t>() < 0 || node.get<int64_t>() >= static_cast<int64_t>(interior)) bad("a fold is not an interior node of G");
+      if (!m.folds.empty() && node.get<int32_t>() <= m.folds.back()) bad("its folds are not ascending");
+      m.folds.push_back(node.get<int32_t>());
+    }
+    m.steps = field<std::vector<double>>(doc, "steps", it);
+    check_steps(m.steps, "it");
+    m.target_error = field<double>(doc, "target_error", it);
+    m.inter_dead_zone = field<double>(doc, "inter_dead_zone", it);
+    if (!(m.target_error > 0) || !std::isfinite(m.target_error)) bad("its target error is not finite and positive");
+    if (!(m.inter_dead_zone >= 0.5 && m.inter_dead_zone < 1)) bad("its dead zone is outside [0.5, 1)");
+    m.keyframe_errors = field<std::vector<double>>(doc, "keyframe_errors", it);
+    if (m.keyframe_errors.size() != static_cast<size_t>(m.end - m.first)) bad("it holds an error for other than each of its keyframes");
+    return m;
+  } catch (const Error& e) {
+    throw Error(e.code(), where + ": " + e.what());
+  }
+}
+
+std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
+                                                 const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement, EncodeReport* report,
+                                                 PartHeader* header) {
+  // The measures first (cheap): one encode's N segments, each once.
+  std::vector<const SegmentMeasure*> by_index(static_cast<size_t>(id.count), nullptr);
+  const std::string settings = segment_settings(options);
+  for (const SegmentMeasure& m : measures) {
+    const std::string which = "the measure of segment " + std::to_string(m.segment.index) + "/" + std::to_string(m.segment.count);
+    if (m.segment.count != id.count) throw Error(ErrorCode::kInvalidArgument, which + " is of " + std::to_string(m.segment.count) + " segments, not " + std::to_string(id.count));
+    if (by_index[static_cast<size_t>(m.segment.index)]) throw Error(ErrorCode::kInvalidArgument, which + " is given twice");
+    if (m.settings != settings) throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
+    const SegmentMeasure& first = measures.front();
+    if (m.capture_id != first.capture_id || m.keyframes != first.keyframes || m.intra_period != first.intra_period || m.grid != first.grid ||
+        m.representation != first.representation) {
+      throw Error(ErrorCode::kInvalidArgument, which + " is of another encode than the first measure's (capture, keyframes, intra period, grid or representation)");
+    }
+    by_index[static_cast<size_t>(m.segment.index)] = &m;
+  }
+  for (size_t s = 0; s < by_index.size(); ++s) {
+    if (!by_index[s]) throw Error(ErrorCode::kInvalidArgument, "no measure of segment " + std::to_string(s) + "/" + std::to_string(id.count));
+  }
+  SegmentStart s = start_segment(parts, options, id);
+  SequenceEncoder& encoder = *s.encoder;
+  EncodeReport& r = encoder.report();
+  const SegmentMeasure& own = *by_index[static_cast<size_t>(id.index)];
+  if (own.capture_id != s.header.capture_id || own.keyframes != static_cast<int>(s.chosen.keyframes.size()) || own.intra_period != s.intra_period ||
+      own.grid != r.grid || own.representation != encoder.representation() || own.first != static_cast<int>(s.keyframes.first) ||
+      own.end != static_cast<int>(s.keyframes.end)) {
+    throw Error(ErrorCode::kInvalidArgument, "the measures are not of these parts: they chose other keyframes, N, representation or intra period");
+  }
+  // Settled across the segments: the fixed nodes, every segment's folds; each step the finest any
+  // segment needs (a finer step than a segment's own search chose keeps its keyframes within the target).
+  FieldCoding coding;
+  coding.intra_period = s.intra_period;
+  coding.steps = own.steps;
+  std::vector<int32_t> fixed;
+  uint64_t encode_hash = 1469598103934665603ull;  // FNV-1a over what the segments settle
+  const auto mix = [&](const void* data, size_t bytes) {
+    for (size_t i = 0; i < bytes; ++i) encode_hash = (encode_hash ^ static_cast<const uint8_t*>(data)[i]) * 1099511628211ull;
+  };
+  mix(own.capture_id.data(), own.capture_id.size());
+  mix(settings.data(), settings.size());
+  for (const SegmentMeasure* m : by_index) {
+    for (size_t a = 0; a < coding.steps.size(); ++a) coding.steps[a] = std::min(coding.steps[a], m->steps[a]);
+    fixed.insert(fixed.end(), m->folds.begin(), m->folds.end());
+    mix(m->steps.data(), m->steps.size() * sizeof(double));
+    mix(m->folds.data(), m->folds.size() * sizeof(int32_t));
+  }
+  std::sort(fixed.begin(), fixed.end());
+  fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
+  set_default_pose_steps(coding, s.header.capture.units);
+  s.keyframes.fixed_nodes = fixed;
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, r.grid, &s.keyframes);
+  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
+  precision.intra_period = s.intra_period;
+  precision.inter_dead_zone = own.inter_dead_zone;
+  const auto start = std::chrono::steady_clock::now();
+  r.field_precision = {};
+  r.field_precision.target_error = own.target_error;
+  r.field_precision.inter_dead_zone = own.inter_dead_zone;
+  r.field_precision.keyframe_errors = apply_field_coding(*sequence, coding, precision);
+  r.field_coding = coding;
+  r.seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first), s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
+  encoder.choose_texture_qualities(*sequence, keyframes);
+  encoder.share_textures(*sequence, keyframes);
+  if (placement) {
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(encode_hash));
+    *placement = {id, static_cast<int>(s.keyframes.first), static_cast<int>(s.chosen.keyframes.size()), hex};
+  }
+  if (header) *header = s.header;
+  finish_report(encoder, s.chosen, *sequence, report);
+  return sequence;
+}
+
+}  // namespace facemorph

@@ -1,0 +1,309 @@
+// Segments of a long encode (spec/method.md §7.17): measured, assembled apart and joined without
+// decoding, they make one file that decodes close to the one-process encode; measures, segments
+// and joins that do not make up one encode, or that were damaged or crafted, are refused by name.
+#include "facemorph/encoder/segment_join.hpp"
+#include "facemorph/encoder/segmented_encode.hpp"
+#include "facemorph/encoder/staged_encode.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/sequence.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "format/file_io.hpp"
+
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+namespace facemorph {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::expect_error;
+using testing::write_text;
+
+// 24 frames with 6 keyframes in groups of 2: three groups, so up to three segments.
+struct Encode {
+  testing::TempDir dir;
+  Capture capture;
+  EncodeOptions options;
+  std::vector<fs::path> parts;
+
+  Encode() {
+    SynthOptions synth;
+    synth.frames = 24;
+    synth.vertices = 2500;
+    synth.remesh = true;
+    synth.noise = 0.0005;
+    synth.texture_size = 64;
+    synth.head_motion_degrees = 15;
+    write_synthetic_capture(dir.path() / "capture", synth);
+    capture = read_capture(dir.path() / "capture");
+    options.keyframe_fraction = 0.25;
+    options.keyframe_error_bound = 0;
+    options.texture_size = 64;
+    options.threads = 2;
+    options.field_precision.intra_period = 2;
+    for (const FrameRange& range : std::vector<FrameRange>{{0, 10}, {10, 24}}) {
+      parts.push_back(dir.path() / ("part_" + std::to_string(range.first) + ".fms"));
+      encode_part(capture, options, range, parts.back());
+    }
+  }
+
+  std::vector<SegmentMeasure> measures(int count) const {
+    std::vector<SegmentMeasure> all;
+    for (int s = 0; s < count; ++s) {
+      const fs::path path = dir.path() / ("measure_" + std::to_string(s) + "_" + std::to_string(count) + ".json");
+      write_segment_measure(path, measure_segment(parts, options, {s, count}));
+      all.push_back(read_segment_measure(path));
+    }
+    return all;
+  }
+
+  // Segment s of the measures' count, written as its file.
+  fs::path segment_file(int s, const std::vector<SegmentMeasure>& measures, const std::string& name = "") const {
+    const SegmentId id{s, measures.front().segment.count};
+    SegmentPlacement placement;
+    EncodeReport report;
+    const std::unique_ptr<StoredSequence> sequence = assemble_segment(parts, options, id, measures, &placement, &report);
+    const fs::path path = dir.path() / (name.empty() ? "segment_" + std::to_string(s) + ".fmv" : name);
+    write_segment_file(path, *sequence, metadata_of(report), placement);
+    return path;
+  }
+
+  // What fmenc writes with an encode: its field coding and texture qualities.
+  static SequenceFileMetadata metadata_of(const EncodeReport& report) {
+    SequenceFileMetadata metadata;
+    metadata.encoder = "test";
+    metadata.field_coding = report.field_coding;
+    metadata.keyframe_texture_qualities = report.texture_qualities;
+    metadata.settings = nlohmann::json{{"texture_qualities_chosen", report.texture_qualities}, {"texture_shared_with", report.texture_shared_with},
+                                       {"inter_dead_zone_chosen", report.field_precision.inter_dead_zone}}.dump();
+    return metadata;
+  }
+  void write_one(const fs::path& path) const {
+    EncodeReport report;
+    const std::unique_ptr<StoredSequence> sequence = assemble_parts(parts, options, &report);
+    write_sequence_file(path, *sequence, metadata_of(report));
+  }
+};
+
+// The largest RMS distance between the two files' decoded surfaces over the capture's frame times,
+// as a fraction of the first file's bounding box diagonal there.
+double largest_decoded_difference(const fs::path& a, const fs::path& b, const Capture& capture) {
+  SequenceDecoder x(open_sequence_source(a)), y(open_sequence_source(b));
+  double worst = 0;
+  for (const CaptureFrame& frame : capture.frames) {
+    const DecodedFrame p = x.decode(frame.time), q = y.decode(frame.time);
+    Vec3 lo = p.grid_positions.front(), hi = lo;
+    double sum = 0;
+    for (size_t n = 0; n < p.grid_positions.size(); ++n) {
+      lo = lo.cwiseMin(p.grid_positions[n]);
+      hi = hi.cwiseMax(p.grid_positions[n]);
+      sum += (p.grid_positions[n] - q.grid_positions[n]).squaredNorm();
+    }
+    worst = std::max(worst, std::sqrt(sum / static_cast<double>(p.grid_positions.size())) / (hi - lo).norm());
+  }
+  return worst;
+}
+
+// What the file's settings say, as JSON.
+nlohmann::json settings_of(const fs::path& path) {
+  SequenceFileInfo info;
+  read_sequence_file(path, &info);
+  return nlohmann::json::parse(info.metadata.settings);
+}
+
+TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode) {
+  const Encode e;
+  const fs::path one = e.dir.path() / "one.fmv";
+  e.write_one(one);
+  const std::vector<SegmentMeasure> measures = e.measures(3);
+  // The segments code whole groups, 2 keyframes each, and every segment settles the same encode.
+  for (int s = 0; s < 3; ++s) {
+    EXPECT_EQ(measures[static_cast<size_t>(s)].first, 2 * s);
+    EXPECT_EQ(measures[static_cast<size_t>(s)].end, 2 * s + 2);
+    EXPECT_EQ(measures[static_cast<size_t>(s)].keyframes, 6);
+  }
+  std::vector<fs::path> segments;
+  for (int s : {2, 0, 1}) segments.push_back(e.segment_file(s, measures));
+  const fs::path joined = e.dir.path() / "joined.fmv";
+  const JoinReport report = join_segment_files(segments, joined);
+  EXPECT_EQ(report.segments, 3);
+  EXPECT_EQ(report.keyframes, 6u);
+  // A file a player takes: every chunk, keyframe and texture checked.
+  const SequenceFileInfo info = inspect_sequence_file(joined);
+  const SequenceFileInfo one_info = inspect_sequence_file(one);
+  EXPECT_EQ(info.keyframes.size(), one_info.keyframes.size());
+  // Each step the finest any segment needed; the fixed nodes hold every segment's folds.
+  const std::vector<double>& steps = info.metadata.field_coding.steps;
+  for (size_t a = 0; a < steps.size(); ++a) {
+    double finest = measures[0].steps[a];
+    for (const SegmentMeasure& m : measures) finest = std::min(finest, m.steps[a]);
+    EXPECT_EQ(steps[a], finest) << "array " << a;
+  }
+  EXPECT_EQ(info.metadata.field_coding.intra_period, 2);
+  // The segments' own keyframes, times and poses are the one-process file's.
+  const Sequence a = read_sequence_file(joined), b = read_sequence_file(one);
+  ASSERT_EQ(a.keyframes.size(), b.keyframes.size());
+  for (size_t k = 0; k < a.keyframes.size(); ++k) {
+    EXPECT_EQ(a.keyframes[k].time, b.keyframes[k].time);
+    EXPECT_TRUE(a.keyframes[k].pose.rotation.isApprox(b.keyframes[k].pose.rotation, 1e-9));
+  }
+  // Decoded: within the field precision's target of the one-process file (both round their fields
+  // to about that error, each its own way) at every frame; measured 0.03% here (spec/method.md §7.17).
+  const double target = measures.front().target_error;
+  const double difference = largest_decoded_difference(joined, one, e.capture);
+  EXPECT_LT(difference, 2 * target) << "the joined file decodes " << difference << " of the diagonal from the one-process file";
+  // The settings say what each segment chose, and every keyframe's texture quality.
+  const nlohmann::json settings = settings_of(joined);
+  EXPECT_FALSE(settings.contains("segment"));
+  ASSERT_EQ(settings["segments"].size(), 3u);
+  EXPECT_EQ(settings["segments"][2]["first_keyframe"], 4);
+  EXPECT_EQ(settings["texture_qualities_chosen"].size(), 6u);
+  EXPECT_EQ(settings["texture_shared_with"].size(), 6u);
+  EXPECT_EQ(settings["segments"][1]["inter_dead_zone_chosen"], measures[1].inter_dead_zone);
+  // Segments alone play too: each is a file of its own keyframes.
+  EXPECT_EQ(read_sequence_file(segments[0]).keyframes.size(), 2u);
+}
+
+TEST(SegmentedEncode, OneSegmentIsTheWholeEncodeWithItsOwnSteps) {
+  const Encode e;
+  const std::vector<SegmentMeasure> measures = e.measures(1);
+  const fs::path joined = e.dir.path() / "joined.fmv";
+  join_segment_files({e.segment_file(0, measures)}, joined);
+  EncodeReport report;
+  const std::unique_ptr<StoredSequence> one = assemble_parts(e.parts, e.options, &report);
+  // One segment measures what the one-process encode chooses: the same steps, the same keyframes.
+  const SequenceFileInfo info = inspect_sequence_file(joined);
+  EXPECT_EQ(info.metadata.field_coding.steps, report.field_coding.steps);
+  const Sequence a = read_sequence_file(joined), b = one->to_sequence();
+  ASSERT_EQ(a.keyframes.size(), b.keyframes.size());
+  for (size_t k = 0; k < a.keyframes.size(); ++k) {
+    const auto x = scalar_arrays(a.keyframes[k].fields), y = scalar_arrays(b.keyframes[k].fields);
+    EXPECT_EQ(x, y) << "keyframe " << k;
+  }
+}
+
+TEST(SegmentedEncode, MeasuresThatAreNotOneEncodesSegmentsAreRefused) {
+  const Encode e;
+  std::vector<SegmentMeasure> measures = e.measures(3);
+  std::vector<SegmentMeasure> missing(measures.begin(), measures.begin() + 2);
+  expect_error(ErrorCode::kInvalidArgument, "no measure of segment 2/3", [&] { e.segment_file(0, missing); });
+  std::vector<SegmentMeasure> twice = measures;
+  twice[2] = twice[1];
+  expect_error(ErrorCode::kInvalidArgument, "given twice", [&] { e.segment_file(0, twice); });
+  EncodeOptions other = e.options;
+  other.keyframe_fit_weight = 2;
+  expect_error(ErrorCode::kInvalidArgument, "other settings", [&] { assemble_segment(e.parts, other, {0, 3}, measures, nullptr); });
+  std::vector<SegmentMeasure> moved = measures;
+  moved[0].first = 2;
+  moved[0].end = 4;
+  expect_error(ErrorCode::kInvalidArgument, "not of these parts", [&] { e.segment_file(0, moved); });
+  // More segments than groups.
+  expect_error(ErrorCode::kInvalidArgument, "at most one segment a group", [&] { measure_segment(e.parts, e.options, {0, 4}); });
+  EncodeOptions unpredicted = e.options;
+  unpredicted.predicted_fields = false;
+  expect_error(ErrorCode::kUnsupported, "predicted fields", [&] { measure_segment(e.parts, unpredicted, {0, 3}); });
+}
+
+TEST(SegmentedEncode, ADamagedOrCraftedMeasureIsRefusedByName) {
+  testing::TempDir dir;
+  SegmentMeasure m;
+  m.segment = {1, 3};
+  m.capture_id = "0123456789abcdef";
+  m.settings = "{\"a\":1}";
+  m.keyframes = 6;
+  m.intra_period = 2;
+  m.grid = 17;
+  m.first = 2;
+  m.end = 4;
+  m.folds = {3, 40};
+  m.steps.assign(kKeyframeArrayCount, 0.5);
+  m.target_error = 1e-3;
+  m.keyframe_errors = {1e-3, 2e-3};
+  const fs::path good = dir.path() / "good.json";
+  write_segment_measure(good, m);
+  const SegmentMeasure back = read_segment_measure(good);
+  EXPECT_EQ(back.folds, m.folds);
+  EXPECT_EQ(back.steps, m.steps);
+  EXPECT_EQ(back.first, 2);
+  const std::string text = std::string(reinterpret_cast<const char*>(format::read_file(good).data()), fs::file_size(good));
+  const auto crafted = [&](const std::string& from, const std::string& to, ErrorCode code, const std::string& fragment) {
+    std::string changed = text;
+    const size_t at = changed.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    changed.replace(at, from.size(), to);
+    const fs::path path = dir.path() / "crafted.json";
+    write_text(path, changed);
+    expect_error(code, fragment, [&] { read_segment_measure(path); });
+    expect_error(code, path.string(), [&] { read_segment_measure(path); });
+  };
+  crafted("\"folds\":[3,40]", "\"folds\":[40,3]", ErrorCode::kCorrupt, "not ascending");
+  crafted("\"folds\":[3,40]", "\"folds\":[3,1000000]", ErrorCode::kCorrupt, "not an interior node");
+  crafted("\"folds\":[3,40]", "\"folds\":[-1,40]", ErrorCode::kCorrupt, "not an interior node");
+  crafted("\"grid\":17", "\"grid\":4098", ErrorCode::kCorrupt, "outside");
+  crafted("\"steps\":[0.5,", "\"steps\":[-0.5,", ErrorCode::kCorrupt, "not finite and positive");
+  crafted("\"steps\":[0.5,", "\"steps\":[", ErrorCode::kCorrupt, "field steps");
+  crafted("\"first\":2", "\"first\":1", ErrorCode::kCorrupt, "whole groups");
+  crafted("\"end\":4", "\"end\":7", ErrorCode::kCorrupt, "whole groups");
+  crafted("\"segment\":1", "\"segment\":3", ErrorCode::kCorrupt, "segment number");
+  crafted("\"segment\":1", "\"segment\":1.5", ErrorCode::kCorrupt, "whole number");
+  crafted("\"inter_dead_zone\":0.5", "\"inter_dead_zone\":2", ErrorCode::kCorrupt, "dead zone");
+  crafted("\"keyframe_errors\":[0.001,0.002]", "\"keyframe_errors\":[0.001]", ErrorCode::kCorrupt, "each of its keyframes");
+  crafted("\"version\":1", "\"version\":2", ErrorCode::kUnsupported, "measure version");
+  crafted("\"settings\":{\"a\":1}", "\"settings\":{\"a\":[[[[[[1]]]]]]}", ErrorCode::kCorrupt, "nests deeper");
+  crafted("{", "[", ErrorCode::kCorrupt, "not JSON");
+  crafted("segment measure", "part", ErrorCode::kCorrupt, "not a segment measure");
+  // Past the size limit: refused before it is read.
+  const fs::path huge = dir.path() / "huge.json";
+  { std::ofstream(huge) << std::string((64u << 20) + 1, ' '); }
+  expect_error(ErrorCode::kLimit, "huge.json", [&] { read_segment_measure(huge); });
+}
+
+TEST(SegmentJoin, SegmentsThatDoNotMakeUpOneEncodeAreRefusedByName) {
+  const Encode e;
+  const std::vector<SegmentMeasure> three = e.measures(3);
+  const fs::path s0 = e.segment_file(0, three), s1 = e.segment_file(1, three), s2 = e.segment_file(2, three);
+  const fs::path out = e.dir.path() / "joined.fmv";
+  expect_error(ErrorCode::kInvalidArgument, "segment 2 of 3 is missing", [&] { join_segment_files({s0, s1}, out); });
+  expect_error(ErrorCode::kInvalidArgument, "segment 1 of 3 is missing", [&] { join_segment_files({s0, s2}, out); });
+  expect_error(ErrorCode::kInvalidArgument, "given twice", [&] { join_segment_files({s0, s1, s1, s2}, out); });
+  // A segment of the same capture cut in two: another encode.
+  const std::vector<SegmentMeasure> two = e.measures(2);
+  const fs::path other = e.segment_file(1, two, "other.fmv");
+  expect_error(ErrorCode::kInvalidArgument, "another encode", [&] { join_segment_files({s0, s1, other}, out); });
+  // A file that is no segment.
+  const fs::path plain = e.dir.path() / "plain.fmv";
+  e.write_one(plain);
+  expect_error(ErrorCode::kInvalidArgument, "not a segment", [&] { join_segment_files({s0, plain, s2}, out); });
+  // A damaged segment: a player would refuse it, and so does the join, naming it.
+  std::vector<uint8_t> bytes = format::read_file(s1);
+  bytes[bytes.size() / 2] ^= 0x40;
+  const fs::path damaged = e.dir.path() / "damaged.fmv";
+  format::write_file_atomically(damaged, bytes);
+  expect_error(ErrorCode::kCorrupt, "damaged.fmv", [&] { join_segment_files({s0, damaged, s2}, out); });
+  EXPECT_FALSE(fs::exists(out)) << "a refused join wrote a file";
+  // A segment that says it starts elsewhere than where the one before it ends.
+  SegmentPlacement placement;
+  EncodeReport report;
+  const std::unique_ptr<StoredSequence> middle = assemble_segment(e.parts, e.options, {1, 3}, three, &placement, &report);
+  placement.first_keyframe = 3;
+  const fs::path shifted = e.dir.path() / "shifted.fmv";
+  write_segment_file(shifted, *middle, Encode::metadata_of(report), placement);
+  expect_error(ErrorCode::kInvalidArgument, "starts at keyframe 3, where 2 was due", [&] { join_segment_files({s0, shifted, s2}, out); });
+  // The good three join, in any order.
+  join_segment_files({s1, s2, s0}, out);
+  EXPECT_EQ(inspect_sequence_file(out).keyframes.size(), 6u);
+}
+
+}  // namespace
+}  // namespace facemorph
