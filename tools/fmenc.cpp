@@ -164,6 +164,13 @@ nlohmann::json conformal_fallbacks_json(const EncodeReport& report) {
   return list;
 }
 
+// Where a segment stage's time went: what every segment repeats (the parts read, the choices made
+// from all of them) and its own share.
+void print_segment_seconds(const EncodeReport& r) {
+  std::printf("  reading the parts %.1f s, keyframes, N and representation %.1f s (every segment); the keyframes on G and their fit %.1f s, "
+              "field precision %.1f s\n", r.seconds_reading_parts, r.seconds_planning, r.seconds_keyframes, r.seconds_precision);
+}
+
 nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
   return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
           {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
@@ -427,11 +434,15 @@ int main(int argc, char** argv) {
       const SegmentMeasure measure = measure_segment(parts, options, parse_segment(segment), &report);
       write_segment_measure(output, measure);
       if (stages.count(current)) stages[current]->finish();
-      if (!quiet) {
+      if (!quiet && measure.first == measure.end) {
+        std::printf("fmenc: %s: segment %s is empty: the capture's %d keyframes make fewer groups of %d\n", output.c_str(), segment.c_str(),
+                    measure.keyframes, measure.intra_period);
+      } else if (!quiet) {
         std::printf("fmenc: %s: segment %s, keyframes %d:%d of %d (intra period %d), %zu folds, worst keyframe %.3g%% at its own steps, %.1f s\n",
                     output.c_str(), segment.c_str(), measure.first, measure.end, measure.keyframes, measure.intra_period, measure.folds.size(),
                     100 * *std::max_element(measure.keyframe_errors.begin(), measure.keyframe_errors.end()), tools::seconds_since(start));
       }
+      if (!quiet) print_segment_seconds(report);
       return 0;
     }
     if (stage == "assemble" && !segment.empty()) {
@@ -440,6 +451,11 @@ int main(int argc, char** argv) {
       PartHeader header;
       placement.emplace();
       sequence = assemble_segment(parts, options, parse_segment(segment), read, &*placement, &report, &header);
+      if (!sequence) {
+        if (!quiet) std::printf("fmenc: segment %s is empty (the capture has fewer groups of keyframes): no file written\n", segment.c_str());
+        return 0;
+      }
+      if (!quiet) print_segment_seconds(report);
       landmark_names = header.capture.given_landmark_names;
       duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
       frame_count = static_cast<size_t>(header.capture.frame_count);

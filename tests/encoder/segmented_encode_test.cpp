@@ -158,11 +158,12 @@ TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode
     EXPECT_EQ(a.keyframes[k].time, b.keyframes[k].time);
     EXPECT_TRUE(a.keyframes[k].pose.rotation.isApprox(b.keyframes[k].pose.rotation, 1e-9));
   }
-  // Decoded: within the field precision's target of the one-process file (both round their fields
-  // to about that error, each its own way) at every frame; measured 0.03% here (spec/method.md §7.17).
+  // Decoded: within 2.5 times the field precision's target of the one-process file at every frame
+  // (each file's keyframes are within 1.25 times the target of their exact fields, each rounded its
+  // own way; spec/method.md §7.17).
   const double target = measures.front().target_error;
   const double difference = largest_decoded_difference(joined, one, e.capture);
-  EXPECT_LT(difference, 2 * target) << "the joined file decodes " << difference << " of the diagonal from the one-process file";
+  EXPECT_LT(difference, 2.5 * target) << "the joined file decodes " << difference << " of the diagonal from the one-process file, the target " << target;
   // The settings say what each segment chose, and every keyframe's texture quality.
   const nlohmann::json settings = settings_of(joined);
   EXPECT_FALSE(settings.contains("segment"));
@@ -173,6 +174,15 @@ TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode
   EXPECT_EQ(settings["segments"][1]["inter_dead_zone_chosen"], measures[1].inter_dead_zone);
   // Segments alone play too: each is a file of its own keyframes.
   EXPECT_EQ(read_sequence_file(segments[0]).keyframes.size(), 2u);
+  // N is a bound: asked for 5 segments, the capture's 3 groups make 3, and the 2 past them are
+  // empty (no file); the join is the 3 segments' to the byte.
+  const std::vector<SegmentMeasure> five = e.measures(5);
+  EXPECT_EQ(five[3].first, 6);
+  EXPECT_EQ(five[4].end, 6);
+  EXPECT_EQ(assemble_segment(e.parts, e.options, {4, 5}, five, nullptr), nullptr);
+  const fs::path bounded = e.dir.path() / "bounded.fmv";
+  join_segment_files({e.segment_file(0, five, "b0.fmv"), e.segment_file(1, five, "b1.fmv"), e.segment_file(2, five, "b2.fmv")}, bounded);
+  EXPECT_TRUE(format::read_file(bounded) == format::read_file(joined)) << "5 segments of 3 groups joined into another file than 3 segments";
 }
 
 TEST(SegmentedEncode, OneSegmentIsTheWholeEncodeWithItsOwnSteps) {
@@ -208,8 +218,7 @@ TEST(SegmentedEncode, MeasuresThatAreNotOneEncodesSegmentsAreRefused) {
   moved[0].first = 2;
   moved[0].end = 4;
   expect_error(ErrorCode::kInvalidArgument, "not of these parts", [&] { e.segment_file(0, moved); });
-  // More segments than groups.
-  expect_error(ErrorCode::kInvalidArgument, "at most one segment a group", [&] { measure_segment(e.parts, e.options, {0, 4}); });
+
   EncodeOptions unpredicted = e.options;
   unpredicted.predicted_fields = false;
   expect_error(ErrorCode::kUnsupported, "predicted fields", [&] { measure_segment(e.parts, unpredicted, {0, 3}); });

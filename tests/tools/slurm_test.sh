@@ -3,7 +3,8 @@
 # encodes a small fmsynth capture as an array of sample tasks and an assemble job, one task is
 # killed while it runs and must be named and retried, a rerun after a part was lost and another
 # damaged submits those two only, and a library of two captures is one array. Every file must be the
-# one-process encode's bytes. Skips (77) by name where Slurm is not installed.
+# one-process encode's bytes; assembled as segments (--segments 3), the file must be the segmented
+# encode's run here. Skips (77) by name where Slurm is not installed.
 #   slurm_test.sh TOOLS_DIR
 set -uo pipefail
 tools=${1:?usage: slurm_test.sh TOOLS_DIR}
@@ -73,7 +74,27 @@ for c in talk smile; do
 done
 [[ $(grep -c "sample" "$work/libout/.slurm/jobs") -eq 1 ]] || fail "the library was not one array: $(cat "$work/libout/.slurm/jobs")"
 
-# 4. A task that always fails: retried --retries times, then named and given up, exit 1.
+# 4. Segments: the capture assembled as 3 segments (a measure array, a segment array, the join),
+# which must be what the same stages make on this machine, byte for byte.
+segmented=("${options[@]}" --intra-period 2)
+"$tools/fmenc" "$work/lib/talk" --stage sample --frames 0:30 -o "$work/talk.fms" "${segmented[@]}" --quiet || fail "local sample stage"
+for s in 0 1 2; do
+  "$tools/fmenc" --stage measure "$work/talk.fms" --segment "$s/3" -o "$work/measure_$s.json" "${segmented[@]}" --quiet || fail "local measure $s"
+done
+for s in 0 1 2; do
+  "$tools/fmenc" --stage assemble "$work/talk.fms" --segment "$s/3" --measures "$work/measure_0.json,$work/measure_1.json,$work/measure_2.json" \
+    -o "$work/segment_$s.fmv" "${segmented[@]}" --quiet || fail "local segment $s"
+done
+"$tools/fmcat" "$work"/segment_*.fmv -o "$work/talk.segmented.fmv" --quiet || fail "local fmcat"
+"$slurm" "$work/lib/talk" -o "$work/talk3.fmv" --frames-per-task 10 --segments 3 --fmenc "$tools/fmenc" --wait --quiet -- "${segmented[@]}" ||
+  fail "the segmented cluster encode failed: $(tail -3 "$work"/talk3.fmv.slurm/logs/*.log)"
+cmp -s "$work/talk3.fmv" "$work/talk.segmented.fmv" || fail "the cluster's segmented encode differs from the same stages run here"
+for stage in measure segment join; do
+  grep -q "^1 $stage " "$work/talk3.fmv.slurm/jobs" || fail "no $stage job: $(cat "$work/talk3.fmv.slurm/jobs")"
+done
+[[ $(ls "$work"/talk3.fmv.slurm/segments/0/segment_*.fmv | wc -l) -eq 3 ]] || fail "not 3 segment files"
+
+# 5. A task that always fails: retried --retries times, then named and given up, exit 1.
 cat >"$work/failing-fmenc" <<SCRIPT
 #!/usr/bin/env bash
 [[ " \$* " == *" --stage sample "* && " \$* " == *" 0:5 "* ]] && { echo "no disk left (simulated)"; exit 3; }
@@ -87,10 +108,12 @@ chmod +x "$work/failing-fmenc"
 grep -q "gave up" "$work/fails.err" || fail "fmenc-slurm --wait did not say it gave up: $(cat "$work/fails.err")"
 [[ ! -e $work/fails.fmv ]] || fail "a file was written though a part is missing"
 
-# 5. What fmenc-slurm refuses before submitting anything.
+# 6. What fmenc-slurm refuses before submitting anything.
 expect_error "a missing capture" "not a folder" "$slurm" "$work/none" -o "$work/x.fmv"
 expect_error "a bad task size" "--frames-per-task" "$slurm" "$work/lib/talk" -o "$work/x.fmv" --frames-per-task 0
 expect_error "threads among the fmenc options" "--threads is set per task" "$slurm" "$work/lib/talk" -o "$work/x.fmv" -- --threads 2
+expect_error "a segment among the fmenc options" "fmenc-slurm's to set" "$slurm" "$work/lib/talk" -o "$work/x.fmv" -- --segment 0/2
+expect_error "a bad segment count" "--segments" "$slurm" "$work/lib/talk" -o "$work/x.fmv" --segments 0
 expect_error "tracking" "track" "$tools/fmenc" "$work/lib/talk" --stage sample --frames 0:4 -o "$work/x.fms" --track-landmarks
 [[ ! -e $work/x.fms ]] || fail "a refused sample stage left a part"
 

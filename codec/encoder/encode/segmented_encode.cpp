@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace facemorph {
 
@@ -105,14 +106,14 @@ KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId 
   if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "segments: an intra period below 1");
   const size_t period = static_cast<size_t>(intra_period), groups = (keyframes + period - 1) / period;
   const auto count = static_cast<size_t>(id.count), index = static_cast<size_t>(id.index);
-  if (groups < count) {
-    throw Error(ErrorCode::kInvalidArgument, std::to_string(id.count) + " segments for " + std::to_string(groups) + " groups of keyframes (" +
-                                                 std::to_string(keyframes) + " keyframes, intra period " + std::to_string(intra_period) +
-                                                 "): at most one segment a group");
-  }
   KeyframeSegment s;
-  s.first = index * groups / count * period;
-  s.end = std::min(keyframes, (index + 1) * groups / count * period);
+  if (index >= groups) {  // N is a bound: a capture of fewer groups has one segment a group
+    s.first = s.end = s.fit_first = s.fit_end = keyframes;
+    return s;
+  }
+  const size_t used = std::min(count, groups);
+  s.first = index * groups / used * period;
+  s.end = std::min(keyframes, (index + 1) * groups / used * period);
   s.fit_first = s.first > kSegmentFitMargin ? s.first - kSegmentFitMargin : 0;
   s.fit_end = std::min(keyframes, s.end + kSegmentFitMargin);
   return s;
@@ -121,13 +122,6 @@ KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId 
 SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id, EncodeReport* report) {
   SegmentStart s = start_segment(parts, options, id);
   SequenceEncoder& encoder = *s.encoder;
-  s.keyframes.textures = false;  // nothing here is written but the measure
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, encoder.report().grid, &s.keyframes);
-  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
-  precision.intra_period = s.intra_period;
-  const auto start = std::chrono::steady_clock::now();
-  encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
-  encoder.report().seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   SegmentMeasure m;
   m.segment = id;
   m.capture_id = s.header.capture_id;
@@ -138,9 +132,20 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.representation = encoder.representation();
   m.first = static_cast<int>(s.keyframes.first);
   m.end = static_cast<int>(s.keyframes.end);
+  m.target_error = encoder.field_precision(s.chosen).target_error;
+  if (m.first == m.end) {  // past the capture's groups: nothing to measure
+    if (report) *report = std::move(encoder.report());
+    return m;
+  }
+  s.keyframes.textures = false;  // nothing here is written but the measure
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, encoder.report().grid, &s.keyframes);
+  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
+  precision.intra_period = s.intra_period;
+  const auto start = std::chrono::steady_clock::now();
+  encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
+  encoder.report().seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   m.folds = encoder.report().keyframe_folds;
   m.steps = encoder.report().field_coding.steps;
-  m.target_error = encoder.report().field_precision.target_error;
   m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
   m.keyframe_errors = encoder.report().field_precision.keyframe_errors;
   finish_report(encoder, s.chosen, *sequence, report);
@@ -201,7 +206,8 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     m.first = integer_field(doc, "first", it);
     m.end = integer_field(doc, "end", it);
     if (m.segment.index < 0 || m.segment.index >= m.segment.count || m.segment.count > kMaxSegments) bad("its segment number is out of range");
-    if (m.keyframes < 1 || m.intra_period < 1 || m.first < 0 || m.first >= m.end || m.end > m.keyframes || m.first % m.intra_period != 0) {
+    const bool empty = m.first == m.keyframes && m.end == m.keyframes;  // a segment past the capture's groups
+    if (m.keyframes < 1 || m.intra_period < 1 || (!empty && (m.first < 0 || m.first >= m.end || m.end > m.keyframes || m.first % m.intra_period != 0))) {
       bad("its keyframes are not whole groups of the capture's");
     }
     if (m.grid < kMinGridSize || m.grid > kMaxGridSize) bad("its grid N = " + std::to_string(m.grid) + " is outside " + std::to_string(kMinGridSize) + ".." + std::to_string(kMaxGridSize));
@@ -214,7 +220,8 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
       m.folds.push_back(node.get<int32_t>());
     }
     m.steps = field<std::vector<double>>(doc, "steps", it);
-    check_steps(m.steps, "it");
+    if (!empty || !m.steps.empty()) check_steps(m.steps, "it");
+    if (empty && !m.folds.empty()) bad("it folds where it has no keyframes");
     m.target_error = field<double>(doc, "target_error", it);
     m.inter_dead_zone = field<double>(doc, "inter_dead_zone", it);
     if (!(m.target_error > 0) || !std::isfinite(m.target_error)) bad("its target error is not finite and positive");
@@ -261,7 +268,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   // segment needs (a finer step than a segment's own search chose keeps its keyframes within the target).
   FieldCoding coding;
   coding.intra_period = s.intra_period;
-  coding.steps = own.steps;
+  coding.steps.assign(kKeyframeArrayCount, std::numeric_limits<double>::infinity());
   std::vector<int32_t> fixed;
   uint64_t encode_hash = 1469598103934665603ull;  // FNV-1a over what the segments settle
   const auto mix = [&](const void* data, size_t bytes) {
@@ -269,7 +276,10 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   };
   mix(own.capture_id.data(), own.capture_id.size());
   mix(settings.data(), settings.size());
+  int used = 0;  // the segments that code keyframes: N, or the capture's groups where fewer
   for (const SegmentMeasure* m : by_index) {
+    if (m->first == m->end) continue;
+    ++used;
     for (size_t a = 0; a < coding.steps.size(); ++a) coding.steps[a] = std::min(coding.steps[a], m->steps[a]);
     fixed.insert(fixed.end(), m->folds.begin(), m->folds.end());
     mix(m->steps.data(), m->steps.size() * sizeof(double));
@@ -278,6 +288,10 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   std::sort(fixed.begin(), fixed.end());
   fixed.erase(std::unique(fixed.begin(), fixed.end()), fixed.end());
   set_default_pose_steps(coding, s.header.capture.units);
+  if (own.first == own.end) {
+    if (report) *report = std::move(r);
+    return nullptr;
+  }
   s.keyframes.fixed_nodes = fixed;
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, r.grid, &s.keyframes);
   FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
@@ -296,7 +310,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   if (placement) {
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(encode_hash));
-    *placement = {id, static_cast<int>(s.keyframes.first), static_cast<int>(s.chosen.keyframes.size()), hex};
+    *placement = {{id.index, used}, static_cast<int>(s.keyframes.first), static_cast<int>(s.chosen.keyframes.size()), hex};
   }
   if (header) *header = s.header;
   finish_report(encoder, s.chosen, *sequence, report);

@@ -1287,6 +1287,7 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
 }
 
 KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
+  const auto start = std::chrono::steady_clock::now();
   const KeyframeSelection chosen = encoder.select_keyframes();
   EncodeReport& report = encoder.report();
   report.keyframes = chosen.keyframes;
@@ -1304,6 +1305,7 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   // here, so that the keyframe steps' arrays take their place rather than add to them.
   malloc_trim(0);
 #endif
+  report.seconds_planning = seconds_since(start);
   return chosen;
 }
 

@@ -54,11 +54,13 @@ struct SegmentMeasure {
 std::string segment_settings(const EncodeOptions& options);
 
 // Segment `id`'s keyframes of `keyframes` in groups of `intra_period`: groups split as evenly as
-// they go. kInvalidArgument where there are fewer groups than segments.
+// they go. N is a bound: a capture of G < N groups has one segment a group, and segments G..N-1
+// are empty (first = end = keyframes), so one N serves a library of captures of any length.
 KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId id);
 
-// The measure stage: the parts (as assemble_parts reads them) and segment `id`. kUnsupported
-// without predicted fields (options.predicted_fields: steps of each file's own range cannot join).
+// The measure stage: the parts (as assemble_parts reads them) and segment `id` (empty past the
+// capture's groups: no steps, no folds). kUnsupported without predicted fields
+// (options.predicted_fields: steps of each file's own range cannot join).
 SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
                                EncodeReport* report = nullptr);
 // Written whole or not at all (a temporary name, then a rename).
@@ -76,8 +78,9 @@ struct SegmentPlacement {
 };
 
 // The assemble stage of segment `id`: its keyframes coded with what the measures (every segment's,
-// any order) settle. kInvalidArgument where the measures are not one encode's N segments, each
-// once, or not this capture's and options' (naming the measure at fault).
+// any order) settle; null for an empty segment (no file to write). kInvalidArgument where the
+// measures are not one encode's N segments, each once, or not this capture's and options' (naming
+// the measure at fault). The placement's count is that of the segments that code keyframes.
 std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
                                                  const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement,
                                                  EncodeReport* report = nullptr, PartHeader* header = nullptr);
