@@ -92,8 +92,9 @@ void commit_temporary(const fs::path& from, const fs::path& to) {
   std::error_code ec;
   fs::rename(from, to, ec);
   if (ec) {
+    const std::string why = ec.message();  // the rename's, before the clean-up's status replaces it
     fs::remove(from, ec);
-    throw Error(ErrorCode::kIo, to.string() + ": cannot replace the file: " + ec.message());
+    throw Error(ErrorCode::kIo, to.string() + ": cannot replace the file: " + why);
   }
 }
 

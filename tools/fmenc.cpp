@@ -166,9 +166,14 @@ nlohmann::json conformal_fallbacks_json(const EncodeReport& report) {
 
 // Where a segment stage's time went: what every segment repeats (the parts read, the choices made
 // from all of them) and its own share.
-void print_segment_seconds(const EncodeReport& r) {
-  std::printf("  reading the parts %.1f s, keyframes, N and representation %.1f s (every segment); the keyframes on G and their fit %.1f s, "
-              "field precision %.1f s\n", r.seconds_reading_parts, r.seconds_planning, r.seconds_keyframes, r.seconds_precision);
+void print_segment_seconds(const EncodeReport& r, bool measure) {
+  if (measure) {
+    std::printf("  reading the parts %.1f s and choosing the keyframes, N and representation %.1f s (every measure); the keyframes on G and "
+                "their fit %.1f s, field precision %.1f s (this segment's)\n", r.seconds_reading_parts, r.seconds_planning, r.seconds_keyframes, r.seconds_precision);
+  } else {
+    std::printf("  reading the parts %.1f s (every segment; the keyframes, N and representation are the measures'); the keyframes on G and their "
+                "fit %.1f s, rounding to the settled steps %.1f s (this segment's)\n", r.seconds_reading_parts, r.seconds_keyframes, r.seconds_precision);
+  }
 }
 
 nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
@@ -442,7 +447,7 @@ int main(int argc, char** argv) {
                     output.c_str(), segment.c_str(), measure.first, measure.end, measure.keyframes, measure.intra_period, measure.folds.size(),
                     100 * *std::max_element(measure.keyframe_errors.begin(), measure.keyframe_errors.end()), tools::seconds_since(start));
       }
-      if (!quiet) print_segment_seconds(report);
+      if (!quiet) print_segment_seconds(report, true);
       return 0;
     }
     if (stage == "assemble" && !segment.empty()) {
@@ -455,7 +460,7 @@ int main(int argc, char** argv) {
         if (!quiet) std::printf("fmenc: segment %s is empty (the capture has fewer groups of keyframes): no file written\n", segment.c_str());
         return 0;
       }
-      if (!quiet) print_segment_seconds(report);
+      if (!quiet) print_segment_seconds(report, false);
       landmark_names = header.capture.given_landmark_names;
       duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
       frame_count = static_cast<size_t>(header.capture.frame_count);

@@ -9,6 +9,7 @@
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 
+#include "format/container.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"
@@ -22,6 +23,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 namespace facemorph {
 namespace {
@@ -211,14 +213,26 @@ TEST(SegmentedEncode, MeasuresThatAreNotOneEncodesSegmentsAreRefused) {
   std::vector<SegmentMeasure> twice = measures;
   twice[2] = twice[1];
   expect_error(ErrorCode::kInvalidArgument, "given twice", [&] { e.segment_file(0, twice); });
+  expect_error(ErrorCode::kInvalidArgument, "measure_1_3.json", [&] { e.segment_file(0, twice); });
+  // A measure that says its segment is empty though its number has keyframes.
+  std::vector<SegmentMeasure> emptied = measures;
+  emptied[0].first = emptied[0].end = 6;
+  expect_error(ErrorCode::kInvalidArgument, "holds keyframes 6:6, not its segment's 0:2", [&] { e.segment_file(2, emptied); });
   EncodeOptions other = e.options;
   other.keyframe_fit_weight = 2;
   expect_error(ErrorCode::kInvalidArgument, "other settings", [&] { assemble_segment(e.parts, other, {0, 3}, measures, nullptr); });
   std::vector<SegmentMeasure> moved = measures;
   moved[0].first = 2;
   moved[0].end = 4;
-  expect_error(ErrorCode::kInvalidArgument, "not of these parts", [&] { e.segment_file(0, moved); });
+  expect_error(ErrorCode::kInvalidArgument, "holds keyframes 2:4, not its segment's 0:2", [&] { e.segment_file(0, moved); });
+  std::vector<SegmentMeasure> elsewhere = measures;
+  for (SegmentMeasure& m : elsewhere) m.capture_id = "0123456789abcdef";
+  expect_error(ErrorCode::kInvalidArgument, "not of these parts", [&] { e.segment_file(0, elsewhere); });
 
+  // A plan of other frames: keyframes past the capture's end.
+  std::vector<SegmentMeasure> replanned = measures;
+  for (SegmentMeasure& m : replanned) m.plan.keyframes.back() += 5;
+  expect_error(ErrorCode::kInvalidArgument, "not a selection of this encode's 24 frames", [&] { e.segment_file(0, replanned); });
   EncodeOptions unpredicted = e.options;
   unpredicted.predicted_fields = false;
   expect_error(ErrorCode::kUnsupported, "predicted fields", [&] { measure_segment(e.parts, unpredicted, {0, 3}); });
@@ -239,12 +253,16 @@ TEST(SegmentedEncode, ADamagedOrCraftedMeasureIsRefusedByName) {
   m.steps.assign(kKeyframeArrayCount, 0.5);
   m.target_error = 1e-3;
   m.keyframe_errors = {1e-3, 2e-3};
+  m.plan.keyframes = {0, 3, 5, 8, 10, 11};
+  m.plan.predicted_error.assign(12, 1e-3);
   const fs::path good = dir.path() / "good.json";
   write_segment_measure(good, m);
   const SegmentMeasure back = read_segment_measure(good);
   EXPECT_EQ(back.folds, m.folds);
   EXPECT_EQ(back.steps, m.steps);
   EXPECT_EQ(back.first, 2);
+  EXPECT_EQ(back.plan.keyframes, m.plan.keyframes);
+  EXPECT_EQ(back.plan.predicted_error, m.plan.predicted_error);
   const std::string text = std::string(reinterpret_cast<const char*>(format::read_file(good).data()), fs::file_size(good));
   const auto crafted = [&](const std::string& from, const std::string& to, ErrorCode code, const std::string& fragment) {
     std::string changed = text;
@@ -271,6 +289,9 @@ TEST(SegmentedEncode, ADamagedOrCraftedMeasureIsRefusedByName) {
   crafted("\"version\":1", "\"version\":2", ErrorCode::kUnsupported, "measure version");
   crafted("\"settings\":{\"a\":1}", "\"settings\":{\"a\":[[[[[[1]]]]]]}", ErrorCode::kCorrupt, "nests deeper");
   crafted("{", "[", ErrorCode::kCorrupt, "not JSON");
+  crafted("\"keyframes\":[0,3,5,8,10,11]", "\"keyframes\":[0,3,5,8,10]", ErrorCode::kCorrupt, "its plan holds 5 keyframes");
+  crafted("\"predicted_error\":[0.001,", "\"predicted_error\":[-0.001,", ErrorCode::kCorrupt, "predicted errors");
+  crafted("\"keyframe_errors\":[0.001,0.002]", "\"keyframe_errors\":[0.001,-1]", ErrorCode::kCorrupt, "a keyframe's error");
   crafted("segment measure", "part", ErrorCode::kCorrupt, "not a segment measure");
   // Past the size limit: refused before it is read.
   const fs::path huge = dir.path() / "huge.json";
@@ -309,6 +330,43 @@ TEST(SegmentJoin, SegmentsThatDoNotMakeUpOneEncodeAreRefusedByName) {
   const fs::path shifted = e.dir.path() / "shifted.fmv";
   write_segment_file(shifted, *middle, Encode::metadata_of(report), placement);
   expect_error(ErrorCode::kInvalidArgument, "starts at keyframe 3, where 2 was due", [&] { join_segment_files({s0, shifted, s2}, out); });
+  // Segments whose whole breaks a limit each kept alone: settings over 1 MiB together.
+  {
+    EncodeReport r0, r2;
+    SegmentPlacement p0, p2;
+    const std::unique_ptr<StoredSequence> a = assemble_segment(e.parts, e.options, {0, 3}, three, &p0, &r0);
+    const std::unique_ptr<StoredSequence> c = assemble_segment(e.parts, e.options, {2, 3}, three, &p2, &r2);
+    SequenceFileMetadata m0 = Encode::metadata_of(r0), m2 = Encode::metadata_of(r2);
+    // Each 800 kB (a file's settings may take 1 MiB); the joined settings hold both lists.
+    m0.settings = m2.settings = nlohmann::json{{"texture_qualities_chosen", std::vector<int>(200000, 100)}}.dump();
+    write_segment_file(e.dir.path() / "big0.fmv", *a, m0, p0);
+    write_segment_file(e.dir.path() / "big2.fmv", *c, m2, p2);
+    expect_error(ErrorCode::kInvalidArgument, "do not join into a file a player takes", [&] {
+      join_segment_files({e.dir.path() / "big0.fmv", s1, e.dir.path() / "big2.fmv"}, out);
+    });
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // A segment whose checksums hold but whose keyframe stream is damaged: refused with --check
+  // (the join alone copies chunks without decoding them).
+  {
+    const std::vector<uint8_t> original = format::read_file(s1);
+    const format::ContainerReader reader(original, s1.string());
+    std::ostringstream crafted;
+    {
+      format::ContainerWriter writer(crafted);
+      for (const format::ChunkView& chunk : reader.chunks()) {
+        format::PreparedChunk copy{chunk.type, chunk.flags, chunk.raw_size, std::vector<uint8_t>(chunk.stored.begin(), chunk.stored.end())};
+        if (chunk.type == "KGOP") copy.stored[copy.stored.size() / 2] ^= 0x5a;
+        writer.add(copy);
+      }
+      writer.finish();
+    }
+    const std::string text = crafted.str();
+    const fs::path damaged_stream = e.dir.path() / "stream.fmv";
+    format::write_file_atomically(damaged_stream, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    expect_error(ErrorCode::kCorrupt, "stream.fmv", [&] { join_segment_files({s0, damaged_stream, s2}, out, true); });
+    EXPECT_FALSE(fs::exists(out));
+  }
   // The good three join, in any order.
   join_segment_files({s1, s2, s0}, out);
   EXPECT_EQ(inspect_sequence_file(out).keyframes.size(), 6u);

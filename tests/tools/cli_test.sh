@@ -23,6 +23,27 @@ grep -q "texture coding 'films'" "$work/err" || fail "fmenc does not name a wron
 python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
   fail "fminfo --json is not the file's description"
 
+# Segments (spec/part-file.md §7): measured, assembled and joined by fmcat into a file fminfo takes;
+# what a user gets wrong is refused by name, and a refused join writes nothing.
+seg=(--grid 33 --texture 64 --keyframes 30% --intra-period 1 --quiet)
+"$tools/fmenc" "$work/cap" --stage sample --frames 0:8 -o "$work/all.fms" "${seg[@]}" || fail "fmenc --stage sample"
+for s in 0 1; do
+  "$tools/fmenc" --stage measure "$work/all.fms" --segment "$s/2" -o "$work/m$s.json" "${seg[@]}" || fail "fmenc --stage measure $s/2"
+done
+for s in 0 1; do
+  "$tools/fmenc" --stage assemble "$work/all.fms" --segment "$s/2" --measures "$work/m0.json,$work/m1.json" -o "$work/seg$s.fmv" "${seg[@]}" ||
+    fail "fmenc --stage assemble --segment $s/2"
+done
+"$tools/fmcat" "$work/seg1.fmv" "$work/seg0.fmv" -o "$work/joined.fmv" --check --quiet || fail "fmcat"
+"$tools/fminfo" "$work/joined.fmv" >/dev/null || fail "fminfo does not take the joined file"
+expect_error "a segment missing" "segment 1 of 2 is missing" "$tools/fmcat" "$work/seg0.fmv" -o "$work/half.fmv"
+[[ ! -e $work/half.fmv ]] || fail "a refused join wrote a file"
+expect_error "a file that is no segment" "a.fmv: it is not a segment" "$tools/fmcat" "$work/seg0.fmv" "$work/a.fmv" -o "$work/half.fmv"
+expect_error "measure without a segment" "--stage measure needs --segment" "$tools/fmenc" --stage measure "$work/all.fms" -o "$work/m.json"
+expect_error "a segment without measures" "needs --measures" "$tools/fmenc" --stage assemble "$work/all.fms" --segment 0/2 -o "$work/s.fmv"
+expect_error "a bad segment" "S/N" "$tools/fmenc" --stage measure "$work/all.fms" --segment 2/2 -o "$work/m.json"
+expect_error "a measure missing" "no measure of segment 1/2" "$tools/fmenc" --stage assemble "$work/all.fms" --segment 0/2 --measures "$work/m0.json" -o "$work/s.fmv" "${seg[@]}"
+
 # One frame: mesh, material, texture, picture.
 "$tools/fmdec" "$work/a.fmv" --t 0.17 -o "$work/f.obj" --preview "$work/f_view.png" --quiet || fail "fmdec --t"
 for f in f.obj f.mtl f.png f_view.png; do [[ -s "$work/$f" ]] || fail "fmdec did not write $f"; done

@@ -35,13 +35,17 @@ struct Segment {
 
 [[noreturn]] void refuse(const Segment& s, const std::string& why) { throw Error(ErrorCode::kInvalidArgument, s.path.string() + ": " + why); }
 
-Segment open_segment(const std::filesystem::path& path) {
+Segment open_segment(const std::filesystem::path& path, bool check_every_keyframe) {
   Segment s;
   s.path = path;
   s.mapped = std::make_unique<format::MappedFile>(path);
   // The joiner holds no keyframe: the header and index alone, as opening a file for playing does.
   s.file = std::make_unique<OpenedFile>(s.mapped->bytes(), path.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; });
   s.file->verify_checksums();
+  if (check_every_keyframe) {
+    SequenceFileInfo ignored;
+    s.file->check_every_keyframe(&ignored);
+  }
   const std::string& text = s.file->header().metadata.settings;
   try {
     s.settings = json_fields::parse_object(text, kMaxSettingsDepth, "its settings");
@@ -90,7 +94,11 @@ std::string joined_settings(const std::vector<Segment>& segments) {
     const nlohmann::json& q = s.settings.contains("texture_qualities_chosen") ? s.settings["texture_qualities_chosen"] : nlohmann::json::array();
     const nlohmann::json& w = s.settings.contains("texture_shared_with") ? s.settings["texture_shared_with"] : nlohmann::json::array();
     for (const nlohmann::json& v : q) qualities.push_back(v);
-    for (const nlohmann::json& v : w) shared.push_back(v.is_number_integer() && v.get<int64_t>() >= 0 ? nlohmann::json(v.get<int64_t>() + s.first_keyframe) : v);
+    // An earlier keyframe of the segment moves with it; anything else (-1: its own) stays as it is.
+    for (const nlohmann::json& v : w) {
+      const bool keyframe = v.is_number_integer() && v.get<int64_t>() >= 0 && v.get<int64_t>() < s.keyframes;
+      shared.push_back(keyframe ? nlohmann::json(v.get<int64_t>() + s.first_keyframe) : v);
+    }
     each.push_back({{"first_keyframe", s.first_keyframe},
                     {"keyframes", s.file->keyframe_count()},
                     {"inter_dead_zone_chosen", s.settings.contains("inter_dead_zone_chosen") ? s.settings["inter_dead_zone_chosen"] : nlohmann::json(nullptr)}});
@@ -135,20 +143,25 @@ void write_segment_file(const std::filesystem::path& path, const KeyframeSource&
   write_sequence_file(path, segment, metadata);
 }
 
-JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, const std::filesystem::path& output) {
+JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, const std::filesystem::path& output, bool check_every_keyframe) {
   static_assert(std::endian::native == std::endian::little, "the container is little-endian");
   if (paths.empty()) throw Error(ErrorCode::kInvalidArgument, "no segments to join");
   std::vector<Segment> segments;
-  for (const std::filesystem::path& path : paths) segments.push_back(open_segment(path));
+  for (const std::filesystem::path& path : paths) segments.push_back(open_segment(path, check_every_keyframe));
   std::stable_sort(segments.begin(), segments.end(), [](const Segment& a, const Segment& b) { return a.index < b.index; });
   const Segment& first = segments.front();
   size_t next = 0;
+  for (const Segment& s : segments) {
+    if (s.count != first.count || s.encode != first.encode || s.keyframes != first.keyframes) refuse(s, "it is a segment of another encode than " + first.path.string());
+  }
+  for (size_t i = 1; i < segments.size(); ++i) {
+    if (segments[i].index == segments[i - 1].index) refuse(segments[i], "segment " + std::to_string(segments[i].index) + " is given twice (also " + segments[i - 1].path.string() + ")");
+  }
   for (size_t i = 0; i < segments.size(); ++i) {
     const Segment& s = segments[i];
-    if (s.count != first.count || s.encode != first.encode || s.keyframes != first.keyframes) refuse(s, "it is a segment of another encode than " + first.path.string());
     if (s.index != static_cast<int>(i)) {
-      if (s.index < static_cast<int>(i)) refuse(s, "segment " + std::to_string(s.index) + " is given twice (also " + segments[i - 1].path.string() + ")");
-      throw Error(ErrorCode::kInvalidArgument, "segment " + std::to_string(i) + " of " + std::to_string(first.count) + " is missing");
+      throw Error(ErrorCode::kInvalidArgument, "segment " + std::to_string(i) + " of " + std::to_string(first.count) + " is missing (" + s.path.string() + " is segment " +
+                                                   std::to_string(s.index) + ")");
     }
     check_same_header(first, s);
     const size_t period = first.file->header().group_size(), count = s.file->keyframe_count();
@@ -188,7 +201,9 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
     }
   }
   const TextureLayout layout = joined.texture_groups() ? TextureLayout::kGroups : joined.shared_textures() ? TextureLayout::kSharedStills : TextureLayout::kStills;
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, joined.fixed_nodes, joined.metadata, layout), true, 19);
+  std::vector<uint8_t> header_payload = write_header(outline, joined.fixed_nodes, joined.metadata, layout);
+  const std::vector<uint8_t> header_read_back = header_payload;
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, std::move(header_payload), true, 19);
 
   // Every group's and texture's chunk in the segments' order, with the keyframes naming it.
   struct Source {
@@ -226,6 +241,15 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
     if (placed[c].group_of.empty() && placed[c].texture_of.empty()) refuse(*sources[c].segment, "a chunk no keyframe names");
   }
   const IndexLayout laid = lay_out_index(header.total_size(), entries, joined, placed);
+  // The joined header and index read back as a player reads them: what each segment satisfied alone
+  // may not hold of the whole (the settings' size, the keyframe count, times too close across a
+  // seam), and a file a player refuses is not written.
+  try {
+    const FileHeader read = read_header(header_read_back, output.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; });
+    read_index(write_index(entries, joined), output.string(), read);
+  } catch (const Error& e) {
+    throw Error(ErrorCode::kInvalidArgument, std::string("the segments do not join into a file a player takes: ") + e.what());
+  }
   format::write_file_atomically(output, [&](std::ostream& out) {
     format::ContainerWriter writer(out);
     writer.add(header);

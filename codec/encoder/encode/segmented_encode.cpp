@@ -21,7 +21,9 @@ namespace facemorph {
 namespace {
 
 constexpr int kMaxSegments = 4096;
-constexpr uint64_t kMaxMeasureBytes = uint64_t{64} << 20;
+// A measure of an hour at 30 fps is about 3 MB (a predicted error a frame); parsed, a JSON text
+// takes about 20 times its size.
+constexpr uint64_t kMaxMeasureBytes = uint64_t{16} << 20;
 constexpr int kMaxMeasureDepth = 4;  // the settings nest three levels
 constexpr const char* kMeasureFormat = "facemorph segment measure";
 constexpr int kMeasureVersion = 1;
@@ -47,7 +49,9 @@ struct SegmentStart {
   PartHeader header;
 };
 
-SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id) {
+// `planned`: a measure whose choices of keyframes, N and representation are taken (the assemble
+// stage); none: they are made here (the measure stage).
+SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id, const SegmentMeasure* planned = nullptr) {
   if (!options.predicted_fields) {
     throw Error(ErrorCode::kUnsupported, "segments need predicted fields: without them each file takes steps from its own keyframes' range, and files "
                                          "with other steps do not join");
@@ -56,7 +60,16 @@ SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, cons
   SegmentStart s;
   s.parts = encoder_of_parts(parts, options, &s.header);
   s.encoder = s.parts.encoder.get();
-  s.chosen = plan_keyframes(*s.encoder);
+  if (planned) {
+    s.chosen = planned->plan;
+    try {
+      adopt_keyframe_plan(*s.encoder, s.chosen, planned->grid, planned->representation, planned->blend);
+    } catch (const Error& e) {
+      throw Error(e.code(), std::string("the measures are not of these parts: ") + e.what());
+    }
+  } else {
+    s.chosen = plan_keyframes(*s.encoder);
+  }
   s.intra_period = capture_intra_period(options, *s.encoder, s.chosen);
   s.keyframes = segment_keyframes(s.chosen.keyframes.size(), s.intra_period, id);
   return s;
@@ -74,7 +87,8 @@ void check_steps(const std::vector<double>& steps, const std::string& where) {
 SegmentId parse_segment(const std::string& text) {
   SegmentId id;
   int consumed = 0;
-  if (std::sscanf(text.c_str(), "%d/%d%n", &id.index, &id.count, &consumed) != 2 || consumed != static_cast<int>(text.size()) || id.index < 0 ||
+  const bool digits = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) { return (c >= '0' && c <= '9') || c == '/'; });
+  if (!digits || std::sscanf(text.c_str(), "%d/%d%n", &id.index, &id.count, &consumed) != 2 || consumed != static_cast<int>(text.size()) || id.index < 0 ||
       id.index >= id.count || id.count > kMaxSegments) {
     throw Error(ErrorCode::kInvalidArgument, "--segment '" + text + "': S/N with 0 <= S < N <= " + std::to_string(kMaxSegments));
   }
@@ -132,6 +146,9 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.representation = encoder.representation();
   m.first = static_cast<int>(s.keyframes.first);
   m.end = static_cast<int>(s.keyframes.end);
+  m.plan = s.chosen;
+  m.plan.history.clear();
+  m.blend = encoder.report().blend;
   m.target_error = encoder.field_precision(s.chosen).target_error;
   if (m.first == m.end) {  // past the capture's groups: nothing to measure
     if (report) *report = std::move(encoder.report());
@@ -169,7 +186,16 @@ void write_segment_measure(const std::filesystem::path& path, const SegmentMeasu
                               {"steps", m.steps},
                               {"target_error", m.target_error},
                               {"inter_dead_zone", m.inter_dead_zone},
-                              {"keyframe_errors", m.keyframe_errors}};
+                              {"keyframe_errors", m.keyframe_errors},
+                              {"plan", {{"keyframes", m.plan.keyframes},
+                                        {"predicted_error", m.plan.predicted_error},
+                                        {"budget", m.plan.budget},
+                                        {"budget_mean_error", m.plan.budget_mean_error},
+                                        {"budget_worst_error", m.plan.budget_worst_error},
+                                        {"median_interval", m.plan.median_interval},
+                                        {"sparse", m.plan.sparse},
+                                        {"blend", {{"trials", m.blend.trials}, {"fields_error", m.blend.fields_error},
+                                                   {"positions_error", m.blend.positions_error}, {"not_converged", m.blend.not_converged}}}}}};
   format::write_file_atomically(path, doc.dump() + "\n");
 }
 
@@ -191,6 +217,7 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     if (field<std::string>(doc, "format", it) != kMeasureFormat) bad("it is not a segment measure");
     if (integer_field(doc, "version", it) != kMeasureVersion) throw Error(ErrorCode::kUnsupported, "measure version " + doc["version"].dump() + " (this fmenc reads 1)");
     SegmentMeasure m;
+    m.source = where;
     m.segment = {integer_field(doc, "segment", it), integer_field(doc, "segments", it)};
     m.capture_id = field<std::string>(doc, "capture", it);
     if (!doc.contains("settings") || !doc["settings"].is_object()) bad("it lacks its settings");
@@ -228,6 +255,30 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     if (!(m.inter_dead_zone >= 0.5 && m.inter_dead_zone < 1)) bad("its dead zone is outside [0.5, 1)");
     m.keyframe_errors = field<std::vector<double>>(doc, "keyframe_errors", it);
     if (m.keyframe_errors.size() != static_cast<size_t>(m.end - m.first)) bad("it holds an error for other than each of its keyframes");
+    for (double e : m.keyframe_errors) {
+      if (!(e >= 0) || !std::isfinite(e)) bad("a keyframe's error is not finite and at least 0");
+    }
+    const nlohmann::json plan = field<nlohmann::json>(doc, "plan", it);
+    if (!plan.is_object()) bad("its plan is not an object");
+    const std::string its_plan = "its plan";
+    m.plan.keyframes = field<std::vector<int>>(plan, "keyframes", its_plan);
+    m.plan.predicted_error = field<std::vector<double>>(plan, "predicted_error", its_plan);
+    m.plan.budget = integer_field(plan, "budget", its_plan);
+    m.plan.budget_mean_error = field<double>(plan, "budget_mean_error", its_plan);
+    m.plan.budget_worst_error = field<double>(plan, "budget_worst_error", its_plan);
+    m.plan.median_interval = field<double>(plan, "median_interval", its_plan);
+    m.plan.sparse = field<bool>(plan, "sparse", its_plan);
+    const nlohmann::json blend = field<nlohmann::json>(plan, "blend", its_plan);
+    if (!blend.is_object()) bad("its plan's blend is not an object");
+    m.blend.trials = integer_field(blend, "trials", "its plan's blend");
+    m.blend.fields_error = field<double>(blend, "fields_error", "its plan's blend");
+    m.blend.positions_error = field<double>(blend, "positions_error", "its plan's blend");
+    m.blend.not_converged = integer_field(blend, "not_converged", "its plan's blend");
+    // The frames the plan covers are checked against the parts when it is taken (adopt_keyframe_plan).
+    if (m.plan.keyframes.size() != static_cast<size_t>(m.keyframes)) bad("its plan holds " + std::to_string(m.plan.keyframes.size()) + " keyframes, not " + std::to_string(m.keyframes));
+    for (double e : m.plan.predicted_error) {
+      if (!(e >= 0) || !std::isfinite(e)) bad("its plan's predicted errors are not finite and at least 0");
+    }
     return m;
   } catch (const Error& e) {
     throw Error(e.code(), where + ": " + e.what());
@@ -241,28 +292,34 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   std::vector<const SegmentMeasure*> by_index(static_cast<size_t>(id.count), nullptr);
   const std::string settings = segment_settings(options);
   for (const SegmentMeasure& m : measures) {
-    const std::string which = "the measure of segment " + std::to_string(m.segment.index) + "/" + std::to_string(m.segment.count);
+    const std::string which = (m.source.empty() ? "" : m.source + ": ") + "the measure of segment " + std::to_string(m.segment.index) + "/" + std::to_string(m.segment.count);
     if (m.segment.count != id.count) throw Error(ErrorCode::kInvalidArgument, which + " is of " + std::to_string(m.segment.count) + " segments, not " + std::to_string(id.count));
     if (by_index[static_cast<size_t>(m.segment.index)]) throw Error(ErrorCode::kInvalidArgument, which + " is given twice");
     if (m.settings != settings) throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
     const SegmentMeasure& first = measures.front();
     if (m.capture_id != first.capture_id || m.keyframes != first.keyframes || m.intra_period != first.intra_period || m.grid != first.grid ||
-        m.representation != first.representation) {
+        m.representation != first.representation || m.plan.keyframes != first.plan.keyframes || m.plan.predicted_error != first.plan.predicted_error) {
       throw Error(ErrorCode::kInvalidArgument, which + " is of another encode than the first measure's (capture, keyframes, intra period, grid or representation)");
+    }
+    // Its keyframes those its number gives (an empty segment past the capture's groups included).
+    const KeyframeSegment range = segment_keyframes(static_cast<size_t>(m.keyframes), m.intra_period, m.segment);
+    if (m.first != static_cast<int>(range.first) || m.end != static_cast<int>(range.end)) {
+      throw Error(ErrorCode::kInvalidArgument, which + " holds keyframes " + std::to_string(m.first) + ":" + std::to_string(m.end) + ", not its segment's " +
+                                                   std::to_string(range.first) + ":" + std::to_string(range.end));
     }
     by_index[static_cast<size_t>(m.segment.index)] = &m;
   }
   for (size_t s = 0; s < by_index.size(); ++s) {
     if (!by_index[s]) throw Error(ErrorCode::kInvalidArgument, "no measure of segment " + std::to_string(s) + "/" + std::to_string(id.count));
   }
-  SegmentStart s = start_segment(parts, options, id);
+  const SegmentMeasure& own = *by_index[static_cast<size_t>(id.index)];
+  SegmentStart s = start_segment(parts, options, id, &own);
   SequenceEncoder& encoder = *s.encoder;
   EncodeReport& r = encoder.report();
-  const SegmentMeasure& own = *by_index[static_cast<size_t>(id.index)];
   if (own.capture_id != s.header.capture_id || own.keyframes != static_cast<int>(s.chosen.keyframes.size()) || own.intra_period != s.intra_period ||
       own.grid != r.grid || own.representation != encoder.representation() || own.first != static_cast<int>(s.keyframes.first) ||
       own.end != static_cast<int>(s.keyframes.end)) {
-    throw Error(ErrorCode::kInvalidArgument, "the measures are not of these parts: they chose other keyframes, N, representation or intra period");
+    throw Error(ErrorCode::kInvalidArgument, own.source + ": the measures are not of these parts: another capture, or another intra period or range of keyframes");
   }
   // Settled across the segments: the fixed nodes, every segment's folds; each step the finest any
   // segment needs (a finer step than a segment's own search chose keeps its keyframes within the target).
@@ -276,6 +333,10 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   };
   mix(own.capture_id.data(), own.capture_id.size());
   mix(settings.data(), settings.size());
+  // The plan's predicted errors depend on every frame's geometry, which the capture's fingerprint
+  // (names, times, landmarks) does not read.
+  mix(own.plan.keyframes.data(), own.plan.keyframes.size() * sizeof(int));
+  mix(own.plan.predicted_error.data(), own.plan.predicted_error.size() * sizeof(double));
   int used = 0;  // the segments that code keyframes: N, or the capture's groups where fewer
   for (const SegmentMeasure* m : by_index) {
     if (m->first == m->end) continue;
@@ -301,7 +362,11 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   r.field_precision = {};
   r.field_precision.target_error = own.target_error;
   r.field_precision.inter_dead_zone = own.inter_dead_zone;
-  r.field_precision.keyframe_errors = apply_field_coding(*sequence, coding, precision);
+  try {
+    r.field_precision.keyframe_errors = apply_field_coding(*sequence, coding, precision);
+  } catch (const Error& e) {
+    throw Error(e.code(), std::string("coding the keyframes with the steps the measures settled: ") + e.what());
+  }
   r.field_coding = coding;
   r.seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first), s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));

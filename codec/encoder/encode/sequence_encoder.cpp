@@ -27,6 +27,7 @@
 #endif
 
 #include <algorithm>
+#include <functional>
 #include <chrono>
 #include <deque>
 #include <limits>
@@ -776,6 +777,12 @@ Representation representation_for(const BlendComparison& blend) {
   return blend.trials > 0 && blend.fields_error > kFieldsBlendMargin * blend.positions_error ? Representation::kXYZ : Representation::kHLT;
 }
 
+void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
+  auto_representation_ = representation;
+  report_.blend = blend;
+  report_.representation = this->representation();
+}
+
 void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int grid) {
   const auto start = std::chrono::steady_clock::now();
   auto_representation_ = Representation::kHLT;
@@ -1286,10 +1293,9 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   return encode_sampled(encoder, report_out);
 }
 
-KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
-  const auto start = std::chrono::steady_clock::now();
-  const KeyframeSelection chosen = encoder.select_keyframes();
-  EncodeReport& report = encoder.report();
+namespace {
+
+void report_selection(EncodeReport& report, const KeyframeSelection& chosen) {
   report.keyframes = chosen.keyframes;
   report.selection_history = chosen.history;
   report.keyframe_budget = chosen.budget;
@@ -1297,16 +1303,42 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   report.median_frame_interval = chosen.median_interval;
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
-  report.grid = encoder.choose_grid(&chosen);
-  encoder.choose_representation(chosen, report.grid);
-  encoder.release_selection_samples(chosen.keyframes);
+}
+
+void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes) {
+  encoder.release_selection_samples(keyframes);
 #ifdef __GLIBC__
   // The samples were thousands of 78 KB blocks across the threads' heaps: handed back to the system
   // here, so that the keyframe steps' arrays take their place rather than add to them.
   malloc_trim(0);
 #endif
+}
+
+}  // namespace
+
+KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
+  const auto start = std::chrono::steady_clock::now();
+  const KeyframeSelection chosen = encoder.select_keyframes();
+  EncodeReport& report = encoder.report();
+  report_selection(report, chosen);
+  report.grid = encoder.choose_grid(&chosen);
+  encoder.choose_representation(chosen, report.grid);
+  release_samples(encoder, chosen.keyframes);
   report.seconds_planning = seconds_since(start);
   return chosen;
+}
+
+void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend) {
+  const std::vector<int>& keys = chosen.keyframes;
+  const int frames = encoder.frame_count();
+  const bool increasing = std::adjacent_find(keys.begin(), keys.end(), std::greater_equal<int>()) == keys.end();
+  if (keys.empty() || keys.front() != 0 || keys.back() != frames - 1 || !increasing || chosen.predicted_error.size() != static_cast<size_t>(frames)) {
+    throw Error(ErrorCode::kInvalidArgument, "the keyframes planned are not a selection of this encode's " + std::to_string(frames) + " frames");
+  }
+  report_selection(encoder.report(), chosen);
+  encoder.report().grid = grid;
+  encoder.adopt_representation(representation, blend);
+  release_samples(encoder, keys);
 }
 
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report_out) {

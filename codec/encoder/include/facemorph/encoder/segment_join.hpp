@@ -33,6 +33,11 @@ struct JoinReport {
 // file that is no segment, another encode's, a segment missing or given twice), or where their
 // headers differ in anything but what the joined file's makes again; kCorrupt, kTruncated,
 // kUnsupported as a player would refuse the file.
-JoinReport join_segment_files(const std::vector<std::filesystem::path>& segments, const std::filesystem::path& output);
+// `check_every_keyframe`: also decode every segment's keyframes and textures first, as fminfo
+// does (a chunk whose checksum holds but whose stream is damaged is refused; the join itself never
+// decodes). The joined header and index are read back as a player reads them before anything is
+// written (kInvalidArgument where the whole breaks a limit its segments kept alone: the settings'
+// size, the keyframe count, keyframe times too close across a seam).
+JoinReport join_segment_files(const std::vector<std::filesystem::path>& segments, const std::filesystem::path& output, bool check_every_keyframe = false);
 
 }  // namespace facemorph

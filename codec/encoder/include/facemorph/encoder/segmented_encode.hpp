@@ -10,11 +10,14 @@
 //             step the finest any segment needs; the segment builds its keyframes again, rounds
 //             them to those steps and writes them as a .fmv of its own groups
 //
-// Every segment reads all the parts and makes the same choices of keyframes, N, representation
-// and intra period (deterministic, as the one-process encode makes them).
+// Every measure stage reads all the parts and makes the same choices of keyframes, N,
+// representation and intra period (deterministic, as the one-process encode makes them); the
+// assemble stage takes them from the measures.
 #pragma once
 
+#include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/part_file.hpp"
+#include "facemorph/encoder/representation_choice.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 
 #include <filesystem>
@@ -37,6 +40,7 @@ SegmentId parse_segment(const std::string& text);
 
 // What a segment's measure stage found (a JSON file, spec/part-file.md §8).
 struct SegmentMeasure {
+  std::string source;  // the file it was read from, for messages (read_segment_measure)
   SegmentId segment;
   std::string capture_id;  // the parts' capture (capture_fingerprint)
   std::string settings;    // segment_settings of the options: the same in every segment of an encode
@@ -48,6 +52,11 @@ struct SegmentMeasure {
   double target_error = 0;         // the field precision's target
   double inter_dead_zone = 0.5;    // the dead zone its search kept
   std::vector<double> keyframe_errors;  // its keyframes' decoded errors at its steps
+  // The keyframes (frame indices), N and representation it chose from every frame
+  // (plan_keyframes), the same in every measure of an encode: the assemble stage takes them rather
+  // than choosing again. The selection's history is not kept.
+  KeyframeSelection plan;
+  BlendComparison blend;
 };
 
 // The options every segment of one encode must share: the sample settings and the assemble stage's.

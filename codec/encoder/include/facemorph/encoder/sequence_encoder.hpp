@@ -381,6 +381,10 @@ class SequenceEncoder {
   // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
   // again.
   void release_selection_samples(const std::vector<int>& keyframes);
+  // 4-5½ as an earlier stage of this encode chose them (a segment's measure, segmented_encode.hpp):
+  // the representation and what choose_representation measured taken as given, and the
+  // selection's samples released but for `keyframes`.
+  void adopt_representation(Representation representation, const BlendComparison& blend);
   // 6. the keyframes on G: fields, poses, holes, textures, each array put in the store as it is
   // made (options().spill_keyframes). build: the same, read back as a Sequence.
   // With `segment`: only its keyframes, fitted over its fit range of `keyframes` (spec/method.md
@@ -583,6 +587,11 @@ std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeR
 // chosen (the report's lines for them filled), the selection's samples released. finish_report:
 // the report's per-frame lines and memory figures, moved to `report` where given.
 KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
+// plan_keyframes's choices made by an earlier stage of the same encode, taken as they are: the
+// report's lines for them filled, the representation adopted, the selection's samples released.
+// kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
+// increasing from the first frame to the last, a predicted error a frame).
+void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
 
 // ---- The pieces, for tests and the bench ----
