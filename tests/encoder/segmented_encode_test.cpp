@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 using testing::expect_error;
 using testing::write_text;
 
-// 24 frames with 6 keyframes in groups of 2: three groups, so up to three segments.
+// 16 frames with 6 keyframes in groups of 2: three groups, so up to three segments.
 struct Encode {
   testing::TempDir dir;
   Capture capture;
@@ -41,20 +41,20 @@ struct Encode {
 
   Encode() {
     SynthOptions synth;
-    synth.frames = 24;
-    synth.vertices = 2500;
+    synth.frames = 16;
+    synth.vertices = 1200;
     synth.remesh = true;
     synth.noise = 0.0005;
     synth.texture_size = 64;
     synth.head_motion_degrees = 15;
     write_synthetic_capture(dir.path() / "capture", synth);
     capture = read_capture(dir.path() / "capture");
-    options.keyframe_fraction = 0.25;
+    options.keyframe_fraction = 0.375;
     options.keyframe_error_bound = 0;
     options.texture_size = 64;
     options.threads = 2;
     options.field_precision.intra_period = 2;
-    for (const FrameRange& range : std::vector<FrameRange>{{0, 10}, {10, 24}}) {
+    for (const FrameRange& range : std::vector<FrameRange>{{0, 7}, {7, 16}}) {
       parts.push_back(dir.path() / ("part_" + std::to_string(range.first) + ".fms"));
       encode_part(capture, options, range, parts.back());
     }
@@ -232,7 +232,7 @@ TEST(SegmentedEncode, MeasuresThatAreNotOneEncodesSegmentsAreRefused) {
   // A plan of other frames: keyframes past the capture's end.
   std::vector<SegmentMeasure> replanned = measures;
   for (SegmentMeasure& m : replanned) m.plan.keyframes.back() += 5;
-  expect_error(ErrorCode::kInvalidArgument, "not a selection of this encode's 24 frames", [&] { e.segment_file(0, replanned); });
+  expect_error(ErrorCode::kInvalidArgument, "not a selection of this encode's 16 frames", [&] { e.segment_file(0, replanned); });
   EncodeOptions unpredicted = e.options;
   unpredicted.predicted_fields = false;
   expect_error(ErrorCode::kUnsupported, "predicted fields", [&] { measure_segment(e.parts, unpredicted, {0, 3}); });
