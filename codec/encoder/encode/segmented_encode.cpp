@@ -37,12 +37,11 @@ int capture_intra_period(const EncodeOptions& options, const SequenceEncoder& en
   return auto_intra_period(times);
 }
 
-// What both stages do first: the parts read, the keyframes, N and representation chosen, this
-// segment's keyframes found.
+// What both stages do first: the parts read, the keyframes, N and representation chosen (or
+// taken from a measure), this segment's keyframes found.
 struct SegmentStart {
   PartsEncoder parts;
   SequenceEncoder* encoder = nullptr;  // the parts'
-
   KeyframeSelection chosen;
   int intra_period = 0;
   KeyframeSegment keyframes;
