@@ -330,6 +330,19 @@ TEST(Container, UnknownChunksAreSkippedUnlessCritical) {
   testing::expect_error(ErrorCode::kUnsupported, "ZZZ1", [&] { decode_sequence_file(rebuild(bytes, same, true, true), "critical.fmv"); });
 }
 
+TEST(Container, TheWriterRefusesStringsAReaderWouldRefuse) {
+  // A reader takes header strings of at most 1 MiB (spec/container.md §5, §10.1): the writer
+  // refuses longer ones rather than write a file no player opens; at the limit, the file reads.
+  SequenceFileMetadata metadata = small_metadata();
+  metadata.settings = "\"" + std::string((1u << 20) - 2, 'x') + "\"";
+  EXPECT_EQ(decode_sequence_file(encode_sequence_file(small_sequence(9, 8), metadata), "settings.fmv").keyframes.size(), 3u);
+  metadata.settings += " ";
+  testing::expect_error(ErrorCode::kInvalidArgument, "settings of 1048577 bytes", [&] { encode_sequence_file(small_sequence(9, 8), metadata); });
+  metadata = small_metadata();
+  metadata.landmark_names = {"nose_tip", std::string((1u << 20) + 1, 'n')};
+  testing::expect_error(ErrorCode::kInvalidArgument, "a landmark name", [&] { encode_sequence_file(small_sequence(9, 8), metadata); });
+}
+
 TEST(Container, FieldsAppendedByALaterMinorVersionAreIgnored) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   const auto append = [](const std::string& type, std::vector<uint8_t>& payload) {

@@ -140,6 +140,14 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   const SequenceOutline& outline = source.outline();
   validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
+  // The header's strings within what a reader takes (spec/container.md §5), or no file a player refuses.
+  const auto check_string = [](const std::string& text, const std::string& what) {
+    if (text.size() > kMaxStringBytes) throw Error(ErrorCode::kInvalidArgument, what + " of " + std::to_string(text.size()) + " bytes (a file's strings take at most 1 MiB)");
+  };
+  check_string(given.settings, "settings");
+  check_string(given.encoder, "an encoder name");
+  check_string(outline.units, "units");
+  for (const std::string& name : given.landmark_names) check_string(name, "a landmark name");
   SequenceFileMetadata metadata = given;
   FieldCoding& coding = metadata.field_coding;
   if (coding.steps.empty()) coding = fixed_point_coding(source, coding);
