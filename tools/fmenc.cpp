@@ -450,23 +450,21 @@ int main(int argc, char** argv) {
       if (!quiet) print_segment_seconds(report, true);
       return 0;
     }
-    if (stage == "assemble" && !segment.empty()) {
-      std::vector<SegmentMeasure> read;
-      for (const std::string& m : measures) read.push_back(read_segment_measure(m));
+    if (stage == "assemble") {
       PartHeader header;
-      placement.emplace();
-      sequence = assemble_segment(parts, options, parse_segment(segment), read, &*placement, &report, &header);
-      if (!sequence) {
-        if (!quiet) std::printf("fmenc: segment %s is empty (the capture has fewer groups of keyframes): no file written\n", segment.c_str());
-        return 0;
+      if (!segment.empty()) {
+        std::vector<SegmentMeasure> read;
+        for (const std::string& m : measures) read.push_back(read_segment_measure(m));
+        placement.emplace();
+        sequence = assemble_segment(parts, options, parse_segment(segment), read, &*placement, &report, &header);
+        if (!sequence) {
+          if (!quiet) std::printf("fmenc: segment %s is empty (the capture has fewer groups of keyframes): no file written\n", segment.c_str());
+          return 0;
+        }
+        if (!quiet) print_segment_seconds(report, false);
+      } else {
+        sequence = assemble_parts(parts, options, &report, &header);
       }
-      if (!quiet) print_segment_seconds(report, false);
-      landmark_names = header.capture.given_landmark_names;
-      duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
-      frame_count = static_cast<size_t>(header.capture.frame_count);
-    } else if (stage == "assemble") {
-      PartHeader header;
-      sequence = assemble_parts(parts, options, &report, &header);
       landmark_names = header.capture.given_landmark_names;
       duration = header.capture.last_time - header.capture.first_time + 1.0 / header.capture.fps;
       frame_count = static_cast<size_t>(header.capture.frame_count);

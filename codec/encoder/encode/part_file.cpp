@@ -6,6 +6,7 @@
 
 #include "codec/encoder/encode/json_fields.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"
+#include "format/checksum.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
@@ -306,16 +307,11 @@ PartHeader parse_header(const std::vector<uint8_t>& bytes) {
   return h;
 }
 
-uint64_t fnv1a(uint64_t hash, const void* data, size_t size) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < size; ++i) hash = (hash ^ p[i]) * 0x100000001b3ULL;
-  return hash;
-}
-
 }  // namespace
 
 std::string capture_fingerprint(const Capture& capture) {
-  uint64_t h = 0xcbf29ce484222325ULL;
+  using format::fnv1a;
+  uint64_t h = format::kFnv1aStart;
   const auto text = [&](const std::string& s) {
     const uint64_t size = s.size();
     h = fnv1a(h, &size, sizeof size);

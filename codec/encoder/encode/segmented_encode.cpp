@@ -7,6 +7,7 @@
 #include "facemorph/disk_grid.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
+#include "format/checksum.hpp"
 #include "format/file_io.hpp"
 
 #include <nlohmann/json.hpp>
@@ -164,7 +165,9 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.steps = encoder.report().field_coding.steps;
   m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
   m.keyframe_errors = encoder.report().field_precision.keyframe_errors;
-  finish_report(encoder, s.chosen, *sequence, report);
+  // Not finish_report: its per-frame lines read every frame's registration back for a file this
+  // stage does not write.
+  if (report) *report = std::move(encoder.report());
   return m;
 }
 
@@ -326,10 +329,8 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   coding.intra_period = s.intra_period;
   coding.steps.assign(kKeyframeArrayCount, std::numeric_limits<double>::infinity());
   std::vector<int32_t> fixed;
-  uint64_t encode_hash = 1469598103934665603ull;  // FNV-1a over what the segments settle
-  const auto mix = [&](const void* data, size_t bytes) {
-    for (size_t i = 0; i < bytes; ++i) encode_hash = (encode_hash ^ static_cast<const uint8_t*>(data)[i]) * 1099511628211ull;
-  };
+  uint64_t encode_hash = format::kFnv1aStart;  // over what the segments settle
+  const auto mix = [&](const void* data, size_t bytes) { encode_hash = format::fnv1a(encode_hash, data, bytes); };
   mix(own.capture_id.data(), own.capture_id.size());
   mix(settings.data(), settings.size());
   // The plan's predicted errors depend on every frame's geometry, which the capture's fingerprint

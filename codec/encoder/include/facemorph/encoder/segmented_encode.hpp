@@ -68,7 +68,7 @@ std::string segment_settings(const EncodeOptions& options);
 KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId id);
 
 // The measure stage: the parts (as assemble_parts reads them) and segment `id` (empty past the
-// capture's groups: no steps, no folds). kUnsupported without predicted fields
+// capture's groups: no steps, no folds). `report`: the choices and times, without per-frame lines. kUnsupported without predicted fields
 // (options.predicted_fields: steps of each file's own range cannot join).
 SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
                                EncodeReport* report = nullptr);
