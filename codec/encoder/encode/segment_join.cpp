@@ -179,16 +179,8 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
   joined.keyframe_count = static_cast<uint32_t>(next);
   for (const Segment& s : segments) joined.flags |= s.file->header().flags & kSharedTextures;
   joined.metadata.settings = joined_settings(segments);
-  SequenceOutline outline;
-  const Sequence& shape = joined.shape;
-  outline.grid_n = shape.grid_n;
-  outline.representation = shape.representation;
-  outline.spline = shape.spline;
-  outline.fps = shape.fps;
-  outline.first_time = shape.first_time;
-  outline.last_time = shape.last_time;
-  outline.units = shape.units;
-  outline.pose_centre = shape.pose_centre;
+  // The header's shape, and what the header states of the keyframes (as an opened file's source makes its outline).
+  SequenceOutline outline = outline_of(joined.shape);
   outline.fixed_node_count = joined.fixed_nodes.size();
   outline.has_holes = joined.has_holes();
   outline.texture_size = joined.has_texture() ? static_cast<int>(joined.texture_size) : 0;

@@ -318,9 +318,9 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   SegmentStart s = start_segment(parts, options, id, &own);
   SequenceEncoder& encoder = *s.encoder;
   EncodeReport& r = encoder.report();
-  if (own.capture_id != s.header.capture_id || own.keyframes != static_cast<int>(s.chosen.keyframes.size()) || own.intra_period != s.intra_period ||
-      own.grid != r.grid || own.representation != encoder.representation() || own.first != static_cast<int>(s.keyframes.first) ||
-      own.end != static_cast<int>(s.keyframes.end)) {
+  // The keyframes, N and representation are the measure's own (adopted), and its range was checked
+  // against its number above: what the parts decide besides is the capture and the intra period.
+  if (own.capture_id != s.header.capture_id || own.intra_period != s.intra_period) {
     throw Error(ErrorCode::kInvalidArgument, own.source + ": the measures are not of these parts: another capture, or another intra period or range of keyframes");
   }
   // Settled across the segments: the fixed nodes, every segment's folds; each step the finest any
