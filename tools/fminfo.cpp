@@ -103,7 +103,7 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
                            {"holes", frames[i].holes.size()}, {"report", frames[i].report}});
     }
     doc["per_frame"] = std::move(per_frame);
-    std::printf("%s\n", doc.dump(1).c_str());
+    std::printf("%s\n", doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     return 0;
   }
   std::printf("capture     %s\n", capture.root.string().c_str());
@@ -139,19 +139,68 @@ bool is_container(const fs::path& path) {
 
 // A .fmv file: what it holds, how the bytes divide among its parts, and how it was made.
 
+// The settings are the file's to choose (informative JSON, spec/container.md §5), and nlohmann's
+// walks over a parsed value (dump, copy, comparison) recurse once per level: settings nested
+// 524,288 levels deep (1 MiB of brackets) crashed fminfo --json. fminfo reads settings nested at
+// most kMaxSettingsDepth levels: fmenc's and fmcat's nest 3 (arrays of objects in the top object),
+// so 64 leaves room for any encoder's, and 64 recursive calls take a few kB of stack anywhere.
+constexpr int kMaxSettingsDepth = 64;
+// The header reader refuses longer strings; bounded here too so that the parse below stays bounded
+// whatever a reader lets through.
+constexpr size_t kMaxSettingsBytes = size_t{1} << 20;
+
+// The file's settings as JSON, or why fminfo did not read them.
+struct Settings {
+  nlohmann::json value;  // null when not read
+  std::string problem;   // empty when read
+};
+
+Settings read_settings(const std::string& text) {
+  Settings settings;
+  if (text.empty()) {  // files written before fmenc stored settings
+    settings.value = nlohmann::json::object();
+    return settings;
+  }
+  if (text.size() > kMaxSettingsBytes) {
+    settings.problem = std::to_string(text.size()) + " bytes, more than the " + std::to_string(kMaxSettingsBytes) + " fminfo reads";
+    return settings;
+  }
+  // nlohmann's parser keeps its own stack (no recursion); the callback stops it at the first array
+  // or object that would open level kMaxSettingsDepth + 1 (the outermost one opens at depth 0).
+  struct TooDeep {};
+  try {
+    settings.value = nlohmann::json::parse(text, [](int depth, nlohmann::json::parse_event_t event, nlohmann::json&) {
+      const bool opens = event == nlohmann::json::parse_event_t::object_start || event == nlohmann::json::parse_event_t::array_start;
+      if (opens && depth >= kMaxSettingsDepth) throw TooDeep{};
+      return true;
+    });
+  } catch (const TooDeep&) {
+    settings.value = nullptr;
+    settings.problem = "nested deeper than " + std::to_string(kMaxSettingsDepth) + " levels, the most fminfo reads";
+  } catch (const nlohmann::json::exception& e) {
+    settings.value = nullptr;
+    settings.problem = std::string("not JSON (") + e.what() + ")";
+  }
+  return settings;
+}
+
 // What the encoder dropped, mapped another way or warned about, from the settings it stored
 // (spec/container.md §8): written by fmenc 0.8 on, absent before.
-void print_encoder_notes(const std::string& settings_text) {
-  const nlohmann::json settings = nlohmann::json::parse(settings_text.empty() ? "{}" : settings_text, nullptr, false);
+void print_encoder_notes(const nlohmann::json& settings) {
   if (!settings.is_object()) return;
-  auto list = [&](const char* key) { return settings.contains(key) && settings[key].is_array() ? settings[key] : nlohmann::json::array(); };
+  // References into the settings, never copies: a copy is another walk of the whole value.
+  static const nlohmann::json kNone = nlohmann::json::array();
+  auto list = [&](const char* key) -> const nlohmann::json& {
+    const auto it = settings.find(key);
+    return it != settings.end() && it->is_array() ? *it : kNone;
+  };
   auto text = [](const nlohmann::json& item, const char* key) {
     return item.is_object() && item.contains(key) && item[key].is_string() ? item[key].get<std::string>() : std::string("?");
   };
   auto number = [](const nlohmann::json& item, const char* key) {
     return item.is_object() && item.contains(key) && item[key].is_number() ? item[key].get<double>() : 0.0;
   };
-  const nlohmann::json dropped = list("dropped_frames"), fallbacks = list("conformal_fallbacks"), warnings = list("warnings");
+  const nlohmann::json &dropped = list("dropped_frames"), &fallbacks = list("conformal_fallbacks"), &warnings = list("warnings");
   if (!dropped.empty()) {
     std::printf("dropped     %zu frames, not encoded (the spline covers their times):\n", dropped.size());
     for (const auto& d : dropped) std::printf("            %s at %.3f s: %s\n", text(d, "name").c_str(), number(d, "time"), text(d, "reason").c_str());
@@ -178,6 +227,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
   const double bytes_per_second = static_cast<double>(info.file_bytes) / duration;
   const size_t fixed = sequence.fixed_node_count;
+  // Settings fminfo will not walk are left out (null in --json), said on stderr: the rest of the
+  // description stands, as the settings are informative.
+  const Settings settings = read_settings(info.metadata.settings);
+  if (!settings.problem.empty()) {
+    std::fprintf(stderr, "fminfo: warning: %s: the settings are %s; left out\n", path.string().c_str(), settings.problem.c_str());
+  }
   if (json_out) {
     nlohmann::json doc;
     doc["file"] = path.string();
@@ -211,8 +266,11 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
     nlohmann::json chunks = nlohmann::json::array();
     for (const auto& c : info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
     doc["chunks"] = std::move(chunks);
-    doc["settings"] = nlohmann::json::parse(info.metadata.settings.empty() ? "{}" : info.metadata.settings, nullptr, false);
-    std::printf("%s\n", doc.dump(1).c_str());
+    doc["settings"] = settings.value;
+    if (!settings.problem.empty()) doc["settings_error"] = settings.problem;
+    // The file's strings (encoder, units, landmark names) are the file's bytes: invalid UTF-8
+    // shows as U+FFFD, where dump would throw without naming the file.
+    std::printf("%s\n", doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     return 0;
   }
   std::printf("file        %s: %llu bytes, format %d.%d, written by %s\n", path.string().c_str(), static_cast<unsigned long long>(info.file_bytes),
@@ -253,8 +311,12 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
     std::printf("            %s %6d %10llu  (%llu)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
                 static_cast<unsigned long long>(c.raw_bytes));
   }
-  if (!info.metadata.settings.empty()) std::printf("settings    %s\n", info.metadata.settings.c_str());
-  print_encoder_notes(info.metadata.settings);
+  if (!settings.problem.empty()) {
+    std::printf("settings    left out: %s\n", settings.problem.c_str());
+  } else if (!info.metadata.settings.empty()) {
+    std::printf("settings    %s\n", info.metadata.settings.c_str());
+  }
+  print_encoder_notes(settings.value);
   return 0;
 }
 

@@ -17,6 +17,7 @@
 #include <new>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 // fm_version() is the library's version (CMake's project version); the header must say the same.
@@ -253,8 +254,23 @@ std::span<T> span_of(T* data, size_t bytes) {
   return data == nullptr ? std::span<T>() : std::span<T>(data, bytes / sizeof(T));
 }
 
-// A buffer field of *frame, or NULL (not wanted) where the caller's struct does not hold it.
-#define FM_FRAME_BUFFER(frame, field) (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes) ? span_of((frame)->field, (frame)->field##_bytes) : decltype(span_of((frame)->field, 0))())
+// A caller's buffer as *frame gives it: its pointer and its size in bytes.
+template <typename T>
+struct CallerBuffer {
+  T* data = nullptr;
+  size_t bytes = 0;
+  // A buffer given (not NULL) but smaller than one element: too small, not "not wanted".
+  bool tiny() const { return data != nullptr && bytes < sizeof(T); }
+  std::span<T> span() const { return span_of(data, bytes); }
+};
+
+// The buffer `field` of *frame with its size `field`_bytes, read only where the caller's struct
+// holds both (spec/api.md §3); NULL (not wanted) otherwise. Every use of a buffer goes through
+// what this read, so no field beyond struct_size is ever loaded, not even for a check.
+#define FM_FRAME_BUFFER(frame, field)                                                       \
+  (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes)           \
+       ? CallerBuffer<std::remove_pointer_t<decltype((frame)->field)>>{(frame)->field, (frame)->field##_bytes} \
+       : CallerBuffer<std::remove_pointer_t<decltype((frame)->field)>>{})
 
 facemorph::FrameOptions frame_options(double t, uint32_t flags) {
   if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "t is not finite");
@@ -396,19 +412,20 @@ FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags
     check_pointer(frame, "frame");
     check_struct_size(frame->struct_size, "frame");
     const facemorph::FrameOptions options = frame_options(t, flags);
+    // Each buffer read once, as far as struct_size reaches (the check for a tiny buffer used to
+    // load every pointer and size, those beyond struct_size too: a read past an older caller's struct).
+    const auto positions = FM_FRAME_BUFFER(frame, positions);
+    const auto normals = FM_FRAME_BUFFER(frame, normals);
+    const auto uvs = FM_FRAME_BUFFER(frame, uvs);
+    const auto indices = FM_FRAME_BUFFER(frame, indices);
+    const auto texture = FM_FRAME_BUFFER(frame, texture);
     facemorph::FrameBuffers buffers;
-    buffers.positions = FM_FRAME_BUFFER(frame, positions);
-    buffers.normals = FM_FRAME_BUFFER(frame, normals);
-    buffers.uvs = FM_FRAME_BUFFER(frame, uvs);
-    buffers.indices = FM_FRAME_BUFFER(frame, indices);
-    buffers.texture = FM_FRAME_BUFFER(frame, texture);
-    // A non-NULL buffer smaller than one element is too small, not "not wanted".
-    auto tiny = [](bool present, const void* p, size_t bytes, size_t element) { return present && p != nullptr && bytes < element; };
-    if (tiny(FM_COVERS(frame, fm_frame, positions_bytes), frame->positions, frame->positions_bytes, sizeof(float)) ||
-        tiny(FM_COVERS(frame, fm_frame, normals_bytes), frame->normals, frame->normals_bytes, sizeof(float)) ||
-        tiny(FM_COVERS(frame, fm_frame, uvs_bytes), frame->uvs, frame->uvs_bytes, sizeof(float)) ||
-        tiny(FM_COVERS(frame, fm_frame, indices_bytes), frame->indices, frame->indices_bytes, sizeof(uint32_t)) ||
-        tiny(FM_COVERS(frame, fm_frame, texture_bytes), frame->texture, frame->texture_bytes, 1)) {
+    buffers.positions = positions.span();
+    buffers.normals = normals.span();
+    buffers.uvs = uvs.span();
+    buffers.indices = indices.span();
+    buffers.texture = texture.span();
+    if (positions.tiny() || normals.tiny() || uvs.tiny() || indices.tiny() || texture.tiny()) {
       describe(d.frame_info(t, options), frame);
       throw Error(ErrorCode::kBufferTooSmall, "a buffer smaller than one element (sizes are in bytes)");
     }

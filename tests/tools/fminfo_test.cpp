@@ -1,0 +1,127 @@
+// fminfo on files whose settings (informative JSON the file chooses, spec/container.md §5) it must
+// not walk: nested deeper than its limit of 64 levels, 1 MiB of brackets (which crashed
+// fminfo --json: SIGSEGV after 35 s and 3.9 GB), or not JSON at all. fminfo describes the rest of
+// the file, leaves the settings out and says so naming the file; it never crashes.
+#include "tests/decoder/crafted_files.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+#ifndef FACEMORPH_FMINFO
+#error "FACEMORPH_FMINFO must name the fminfo program"
+#endif
+
+namespace {
+
+using facemorph::testing::TempDir;
+
+// A small valid file with these settings.
+std::filesystem::path file_with_settings(const TempDir& dir, const std::string& settings) {
+  facemorph::SequenceFileMetadata metadata = facemorph::crafted::small_metadata();
+  metadata.settings = settings;
+  const std::filesystem::path path = dir / "settings.fmv";
+  facemorph::write_sequence_file(path, facemorph::crafted::small_sequence(), metadata);
+  return path;
+}
+
+// `levels` arrays, one inside the other, in an object: {"nest": [[...]]} nests levels + 1 deep.
+std::string nested(size_t levels) { return "{\"nest\":" + std::string(levels, '[') + std::string(levels, ']') + "}"; }
+
+struct FminfoRun {
+  int status = -1;  // the exit status, or -1 when fminfo did not exit (a signal)
+  std::string out, err;
+};
+
+std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+FminfoRun fminfo(const TempDir& dir, const std::filesystem::path& file, bool json) {
+  const std::string command = std::string("\"") + FACEMORPH_FMINFO + "\" " + (json ? "--json " : "") + "\"" + file.string() + "\" > \"" +
+                              (dir / "out").string() + "\" 2> \"" + (dir / "err").string() + "\"";
+  const int raw = std::system(command.c_str());
+  FminfoRun run;
+  run.status = raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  run.out = slurp(dir / "out");
+  run.err = slurp(dir / "err");
+  return run;
+}
+
+// The description fminfo --json printed, or a failure saying why it is not JSON.
+nlohmann::json described(const FminfoRun& run) {
+  nlohmann::json doc = nlohmann::json::parse(run.out, nullptr, false);
+  EXPECT_FALSE(doc.is_discarded()) << "fminfo --json printed no JSON:\n" << run.out.substr(0, 2000);
+  return doc;
+}
+
+TEST(Fminfo, SettingsNestedAtTheLimitAreShown) {
+  TempDir dir;
+  const std::string settings = nested(63);  // 64 levels: the object and 63 arrays
+  const auto file = file_with_settings(dir, settings);
+  const FminfoRun run = fminfo(dir, file, true);
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_EQ(run.err, "");
+  const nlohmann::json doc = described(run);
+  EXPECT_EQ(doc["settings"], nlohmann::json::parse(settings));
+  EXPECT_FALSE(doc.contains("settings_error"));
+}
+
+TEST(Fminfo, SettingsNestedDeeperAreLeftOutNamingTheFile) {
+  TempDir dir;
+  const auto file = file_with_settings(dir, nested(64));  // 65 levels
+  for (const bool json : {true, false}) {
+    SCOPED_TRACE(json ? "--json" : "text");
+    const FminfoRun run = fminfo(dir, file, json);
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_NE(run.err.find("fminfo: warning: " + file.string() + ": the settings are nested deeper than 64 levels"), std::string::npos) << run.err;
+    if (json) {
+      const nlohmann::json doc = described(run);
+      EXPECT_TRUE(doc["settings"].is_null());
+      EXPECT_NE(doc.value("settings_error", "").find("nested deeper than 64 levels"), std::string::npos) << doc.dump();
+      EXPECT_EQ(doc["keyframes"].size(), 3u);  // the rest of the description stands
+    } else {
+      EXPECT_NE(run.out.find("settings    left out: nested deeper than 64 levels"), std::string::npos) << run.out.substr(0, 2000);
+      EXPECT_NE(run.out.find("keyframes   3"), std::string::npos);
+    }
+  }
+}
+
+// The review's file: 524,288 levels, the 1 MiB a header string may take (the writer's and the
+// reader's bound). Without the limit fminfo --json ran 35 s into 3.9 GB and died of its stack.
+TEST(Fminfo, SettingsOfOneMebibyteOfBracketsDoNotCrashIt) {
+  TempDir dir;
+  const std::string settings = std::string(size_t{1} << 19, '[') + std::string(size_t{1} << 19, ']');
+  ASSERT_EQ(settings.size(), size_t{1} << 20);
+  const auto file = file_with_settings(dir, settings);
+  for (const bool json : {true, false}) {
+    SCOPED_TRACE(json ? "--json" : "text");
+    const FminfoRun run = fminfo(dir, file, json);
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_NE(run.err.find(file.string() + ": the settings are nested deeper than 64 levels"), std::string::npos) << run.err;
+    if (json) {
+      EXPECT_TRUE(described(run)["settings"].is_null());
+    }
+  }
+}
+
+// Settings that do not parse were printed as `"settings": <discarded>`, which is not JSON.
+TEST(Fminfo, SettingsThatAreNotJsonAreLeftOutAndTheOutputStaysJson) {
+  TempDir dir;
+  const auto file = file_with_settings(dir, "{\"keyframes\": ");
+  const FminfoRun run = fminfo(dir, file, true);
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.err.find(file.string() + ": the settings are not JSON"), std::string::npos) << run.err;
+  const nlohmann::json doc = described(run);
+  EXPECT_TRUE(doc["settings"].is_null());
+}
+
+}  // namespace
