@@ -1,0 +1,52 @@
+# Shared by the hostile-file scripts (tests/tools/hostile_files_test.sh, tests/web/hostile.sh),
+# sourced after expect.sh and after they set `work` (a scratch folder), `max_seconds` and `max_mb`:
+#   bounded_run FILE TOOL COMMAND...   runs COMMAND under timeout and /usr/bin/time and adds a row
+#     (file, tool, status, seconds, MB, first line of stderr) to $runs. `fail`s where the run was
+#     killed (a signal, or a timeout: a hang), failed without naming FILE on stderr, succeeded with
+#     "nan" or "inf" in its output, or took more than max_seconds or max_mb of peak resident memory.
+#     Returns the command's status. Its stdout and stderr stay in $work/out and $work/err.
+#   report_runs TOOL...                prints every row, then the worst time and memory of each
+#     TOOL (its rows: those of that tool, or of it with --t T and more).
+runs=$work/runs.tsv
+: >"$runs"
+bounded_run() {
+  local file=$1 tool=$2
+  shift 2
+  local name status seconds kb mb message
+  name=$(basename "$file")
+  # Killed well past the bound, so that a hang shows as a timeout, not as a stuck test.
+  /usr/bin/time -f "%e %M" -o "$work/time" timeout -k 2 $((4 * max_seconds + 5)) "$@" >"$work/out" 2>"$work/err"
+  status=$?
+  read -r seconds kb < <(tail -1 "$work/time")
+  mb=$(awk -v kb="${kb:-0}" 'BEGIN { printf "%.1f", kb / 1024 }')
+  message=$(grep -v '^$' "$work/err" | head -1)
+  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$tool" "$status" "$seconds" "$mb" "$message" >>"$runs"
+  if ((status == 124 || status >= 128)); then
+    fail "$name: $tool: killed (status $status, $( ((status == 124)) && echo "a timeout" || echo "signal $((status - 128))")): $(head -c 600 "$work/err")"
+  elif ((status != 0)); then
+    grep -qF -- "$name" "$work/err" || fail "$name: $tool: exit $status without naming the file: $(head -c 600 "$work/err")"
+  elif grep -qiwE 'nan|-?inf(inity)?' "$work/out"; then
+    fail "$name: $tool: succeeded with a number that is not finite: $(grep -iwE -m1 'nan|-?inf(inity)?' "$work/out" | cut -c1-200)"
+  fi
+  if awk -v s="${seconds:-0}" -v max="$max_seconds" 'BEGIN { exit !(s > max) }'; then fail "$name: $tool: $seconds s, over $max_seconds s"; fi
+  if awk -v m="$mb" -v max="$max_mb" 'BEGIN { exit !(m > max) }'; then fail "$name: $tool: $mb MB, over $max_mb MB"; fi
+  return "$status"
+}
+
+report_runs() {
+  {
+    printf 'file\ttool\tstatus\tseconds\tMB\tmessage\n'
+    cat "$runs"
+  } | column -t -s $'\t' | cut -c1-250
+  echo
+  echo "worst per tool, of $(wc -l <"$runs") runs (bounds $max_seconds s, $max_mb MB):"
+  local tool
+  for tool in "$@"; do
+    awk -F'\t' -v tool="$tool" '
+      $2 == tool || index($2, tool " --t ") == 1 {
+        if ($4 + 0 >= s) { s = $4 + 0; sf = $1 }
+        if ($5 + 0 >= m) { m = $5 + 0; mf = $1 }
+      }
+      END { printf "  %-14s %6.2f s (%s)   %7.1f MB (%s)\n", tool, s, sf, m, mf }' "$runs"
+  done
+}

@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Hostile.ToolsHoldTheirLimitsOnEveryFile (issue 46): our own hostile set (hostile_corpus: one file
+# per row of the outside review's table and more, every checksum valid) through the tools at their
+# default limits: `fminfo FILE`, `fminfo --json FILE` and fmdec at each of the manifest's times (the
+# first written to a mesh, the others to --null; the last near the end of the range). Every run must
+# exit 0 with finite output (JSON that parses, a mesh without nan or inf), or non-zero with an error
+# on stderr naming the file (and saying what the manifest says, for a file every run must refuse);
+# never by a signal or a timeout; within MAX_SECONDS (3) and MAX_MB
+# (256 MB of peak resident memory, /usr/bin/time's "Maximum resident set size"). Prints a table of
+# every run and the worst time and memory per tool. Exits 77 (skipped) without /usr/bin/time,
+# timeout or python3, naming which.
+#   hostile_files_test.sh HOSTILE_CORPUS FMINFO FMDEC WORK_DIR
+# HOSTILE_MAX_SECONDS and HOSTILE_MAX_MB override the bounds (to measure on a slower machine).
+set -uo pipefail
+corpus=${1:?usage: hostile_files_test.sh HOSTILE_CORPUS FMINFO FMDEC WORK_DIR} fminfo=${2:?} fmdec=${3:?} work=${4:?}
+max_seconds=${HOSTILE_MAX_SECONDS:-3} max_mb=${HOSTILE_MAX_MB:-256}
+for tool in /usr/bin/time timeout python3; do
+  command -v "$tool" >/dev/null || { echo "SKIPPED: $tool not found"; exit 77; }
+done
+rm -rf "$work"
+mkdir -p "$work/files"
+source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/bounded_run.sh"
+
+"$corpus" "$work/files" >"$work/corpus.log" 2>&1 || { cat "$work/corpus.log"; echo "FAIL: hostile_corpus"; exit 1; }
+tail -1 "$work/corpus.log"
+
+while IFS=$'\t' read -r name times what refused; do
+  file=$work/files/$name
+  [[ -f $file ]] || { fail "$name: listed in the manifest, not written"; continue; }
+  bounded_run "$file" fminfo "$fminfo" "$file"
+  if bounded_run "$file" "fminfo --json" "$fminfo" --json "$file"; then
+    python3 -c 'import json, sys
+def finite(text): raise ValueError(text + " in the JSON")
+json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_err" || fail "$name: fminfo --json: not JSON: $(tail -1 "$work/json_err")"
+  fi
+  first=1
+  for t in ${times//,/ }; do
+    if ((first)); then
+      rm -f "$work/frame.obj"
+      bounded_run "$file" "fmdec --t $t -o" "$fmdec" "$file" --t "$t" -o "$work/frame.obj" --no-texture
+      first=0
+    else
+      bounded_run "$file" "fmdec --t $t --null" "$fmdec" "$file" --fps 30 --from "$t" --to "$t" --null
+    fi
+    # The mesh's numbers (the run's output checked its own stdout): finite where it was written.
+    if [[ -f $work/frame.obj ]] && grep -qiwE 'nan|-?inf(inity)?' "$work/frame.obj"; then
+      fail "$name: fmdec --t $t wrote a mesh with a number that is not finite"
+    fi
+    rm -f "$work/frame.obj"
+  done
+  # A file refused for what it is (the manifest's fourth column) is refused so by every run.
+  if [[ -n $refused ]]; then
+    grep -P "^\Q$name\E\t" "$runs" | awk -F'\t' -v what="$refused" '$3 == 0 || index($6, what) == 0 { print $2 ": " ($3 == 0 ? "succeeded" : $6) }' >"$work/unrefused"
+    [[ -s $work/unrefused ]] && fail "$name: not refused with '$refused': $(head -1 "$work/unrefused")"
+  fi
+  # Every control decodes.
+  if [[ $name == control_* ]] && grep -P "^\Q$name\E\t" "$runs" | cut -f3 | grep -qv '^0$'; then
+    fail "$name: a valid file failed: $(grep -P "^\Q$name\E\t" "$runs" | grep -vP '\t0\t' | head -1 | cut -f2,6)"
+  fi
+done <"$work/files/manifest.tsv"
+
+report_runs "fminfo" "fminfo --json" "fmdec"
+((failures == 0)) || { echo "$failures failures"; exit 1; }
+echo "every run within $max_seconds s and $max_mb MB, refused by name or finite"

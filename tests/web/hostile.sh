@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Web.HostileFilesHoldTheirLimits (issue 46): our own hostile set (hostile_corpus) through the
+# WebAssembly decoder under node at its default limits (web/test/hostile.mjs: open, info, keyframe
+# times, a decoder, one decode call at one of the manifest's times, a process a time). Every file must decode to
+# finite positions or be refused by a FacemorphError (its status name and the library's message,
+# saying what the manifest says for a file every run must refuse); never a trap, an abort or a hang;
+# each node process within 3 s and 256 MB of peak resident memory (its own ~50 MB included), as the
+# tools are held (tests/tools/hostile_files_test.sh). Builds the module first (web/build.sh,
+# incremental). Exits 77 (skipped) without emcc, node, /usr/bin/time or timeout, naming which.
+#   tests/web/hostile.sh HOSTILE_CORPUS WORK_DIR
+# HOSTILE_MAX_SECONDS and HOSTILE_MAX_MB override the bounds.
+set -uo pipefail
+corpus=${1:?usage: hostile.sh HOSTILE_CORPUS WORK_DIR} work=${2:?}
+max_seconds=${HOSTILE_MAX_SECONDS:-3} max_mb=${HOSTILE_MAX_MB:-256}
+root=$(cd "$(dirname "$0")/../.." && pwd)
+for tool in /usr/bin/time timeout; do
+  command -v "$tool" >/dev/null || { echo "SKIPPED: $tool not found"; exit 77; }
+done
+source "$root/tests/web/web_module.sh"
+web_module "$work"
+rm -rf "$work/files"
+mkdir -p "$work/files"
+source "$root/tests/tools/expect.sh"
+source "$root/tests/tools/bounded_run.sh"
+
+"$corpus" "$work/files" >"$work/corpus.log" 2>&1 || { cat "$work/corpus.log"; echo "FAIL: hostile_corpus"; exit 1; }
+tail -1 "$work/corpus.log"
+
+while IFS=$'\t' read -r name times what refused; do
+  file=$work/files/$name
+  [[ -f $file ]] || { fail "$name: listed in the manifest, not written"; continue; }
+  # One process a time, as the tools run (tests/tools/hostile_files_test.sh): the module's memory
+  # never shrinks, so each call's peak is its own.
+  for t in ${times//,/ }; do
+    bounded_run "$file" "wasm --t $t" node "$root/web/test/hostile.mjs" "$file" "$t"
+    status=$?
+    ((status == 2)) && fail "$name: t = $t s: the module crashed: $(grep -m1 CRASH "$work/err" | cut -c1-300)"
+    if [[ -n $refused ]] && { ((status == 0)) || ! grep -qF -- "$refused" "$work/err"; }; then
+      fail "$name: t = $t s: not refused with '$refused': $(head -c 300 "$work/err")"
+    fi
+    if [[ $name == control_* ]] && ((status != 0)); then fail "$name: a valid file failed: $(head -c 300 "$work/err")"; fi
+  done
+done <"$work/files/manifest.tsv"
+
+report_runs wasm
+((failures == 0)) || { echo "$failures failures"; exit 1; }
+echo "every file within $max_seconds s and $max_mb MB in the WebAssembly decoder, refused by name or finite"
