@@ -181,6 +181,7 @@ int main(int argc, char** argv) {
       options.max_keyframes = checked.max_keyframes;
       options.max_texture_size = static_cast<uint32_t>(checked.max_texture_size);
       options.max_memory_bytes = checked.max_memory_bytes;
+      options.max_work = checked.max_work;
     } catch (const facemorph::Error& e) {
       throw Failure{FM_ERROR_INVALID_ARGUMENT, e.what()};
     }

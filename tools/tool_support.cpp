@@ -55,6 +55,9 @@ void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_me
   app.add_option("--max-grid", limits.max_grid_n, "Refuse files whose grid N is larger")->capture_default_str();
   app.add_option("--max-keyframes", limits.max_keyframes, "Refuse files with more keyframes")->capture_default_str();
   app.add_option("--max-texture", limits.max_texture_size, "Refuse files whose texture has more texels per side")->capture_default_str();
+  app.add_option("--max-work", limits.max_work,
+                 "Stop a frame whose decode would do more work than this, in work units (about a second on one core at the default; 0: no bound)")
+      ->capture_default_str();
 }
 
 DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory) {

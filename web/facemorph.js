@@ -30,7 +30,7 @@ export class FacemorphPlayer {
 
   // Opens `source`: a URL (string or URL) or the file's bytes (ArrayBuffer, Uint8Array, Blob/File).
   // options: {base: where web/ is served (default: beside this module), limits: fm_decoder_options
-  // fields as {maxGridN, maxKeyframes, maxTextureSize, maxMemoryBytes}}.
+  // fields as {maxGridN, maxKeyframes, maxTextureSize, maxMemoryBytes, maxWork}}.
   static async open(source, options = {}) {
     const base = new URL(options.base || here, location.href);
     const worker = new Worker(new URL('worker.js', base), { type: 'module' });

@@ -9,7 +9,7 @@
 
 const FM_INFO_SIZE = 96;
 const FM_FRAME_SIZE = 80;
-const FM_OPTIONS_SIZE = 24;
+const FM_OPTIONS_SIZE = 32;  // fm_decoder_options as API 1.2 lays it out (max_work at 24)
 
 export const DecodeFlags = Object.freeze({ clamp: 1, keepHolesFilled: 2, flipV: 4 });
 
@@ -86,6 +86,10 @@ export class Facemorph {
       m.HEAPU32[(options + 12) >> 2] = limits.maxTextureSize ?? 4096;
       const memory = BigInt(limits.maxMemoryBytes ?? 512 * 1024 * 1024);
       new BigUint64Array(m.HEAPU8.buffer, options + 16, 1)[0] = memory;
+      // The work of one decode call (spec/container.md §10.3), the caller's or about a second here:
+      // a unit is calibrated natively (about 75 ns), and WebAssembly runs about 2.5 times slower
+      // (the not-a-knot file of the hostile set: 3.7 s a call in node at the native 16,000,000).
+      new BigUint64Array(m.HEAPU8.buffer, options + 24, 1)[0] = BigInt(limits.maxWork ?? 6000000);
       const open = borrowed ? m._fm_file_open_memory_borrowed : m._fm_file_open_memory_with_options;
       this.check(open(data, size, options, out));
       return new File(this, m.HEAPU32[out >> 2]);

@@ -121,7 +121,9 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
 // (chunks before it may have grown), the index itself included (compressed, its size moves with its
 // numbers). Times and other index fields are taken from the index as `edit` left it.
 template <typename Edit>
-std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false) {
+// `compress`: chunk types stored compressed (where zstd makes them smaller) even if they were not.
+std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false,
+                             const std::vector<std::string>& compress = {}) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
   size_t groups = 0;          // KGOP chunks
@@ -137,7 +139,8 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     texture_groups += c.type == "TGOP" ? 1 : 0;
     textured = textured || c.type == "TEXR";
     if (c.type == "KIDX") index_payload = payload;
-    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), c.compressed() ? 19 : 0));
+    const bool compressed = c.compressed() || std::find(compress.begin(), compress.end(), type) != compress.end();
+    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0));
   }
   std::vector<format::PreparedChunk> extra;
   if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));

@@ -40,6 +40,13 @@ uint64_t index_memory_bytes(uint64_t keyframes) {
   return mul(keyframes, kBytesPerKeyframe);
 }
 
+void WorkMeter::refuse(const std::string& what) {
+  stopped_ = true;
+  throw Error(ErrorCode::kLimit, (where_.empty() ? std::string() : where_ + ": ") + what + " would take the call past its work limit of " +
+                                     std::to_string(limit_) + " units (max_work, --max-work; " + std::to_string(spent_) +
+                                     " spent): call again to go on from here, or raise the limit");
+}
+
 void check_decoder_limits(const DecoderLimits& limits, const std::string& what) {
   if (limits.max_grid_n < kMinGridSize) throw Error(ErrorCode::kInvalidArgument, what + ": the largest grid must be at least " + std::to_string(kMinGridSize));
   if (limits.max_keyframes < 1) throw Error(ErrorCode::kInvalidArgument, what + ": at least one keyframe must be allowed");

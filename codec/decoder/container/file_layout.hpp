@@ -38,6 +38,12 @@ inline constexpr uint32_t kMaxKeyframes = 1u << 20;
 inline constexpr uint32_t kMaxIntraPeriod = 1u << 20;
 inline constexpr uint32_t kMaxStringBytes = 1u << 20;
 inline constexpr uint32_t kMaxLandmarks = 1u << 16;
+// Every string of the header together (units, encoder, settings, landmark names; §5): each within
+// kMaxStringBytes, all within this, so that 65536 names of 1 MiB cannot ask for 64 GiB.
+inline constexpr uint64_t kMaxHeaderStringBytes = uint64_t{4} << 20;
+// What a later minor version may append to the header or the index (§12.1) and this decoder skips:
+// bounded, so that a chunk cannot make a reader decompress bytes it then ignores.
+inline constexpr uint64_t kMaxAppendedBytes = uint64_t{64} << 10;
 inline constexpr int kMaxTextureSize = 16384;
 inline constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
 inline constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
@@ -48,7 +54,10 @@ inline constexpr int64_t kMaxPoseCode = int64_t{1} << 40;        // pose codes: 
 inline constexpr double kMaxCoordinate = 1e9;  // |pose centre|, |translation| in the file's units (1000 km in mm)
 inline constexpr double kMaxTime = 1e9;        // |a time|, seconds (31 years)
 inline constexpr double kMinFrameRate = 1e-6, kMaxFrameRate = 1e6;
-inline constexpr double kMinKeyframeGap = 1e-9;  // keyframe times at least this fraction of their span apart
+inline constexpr double kMinKeyframeGap = 1e-9;
+// |a hole level| (§7.1, array 13): a distance on the unit disk, which the encoder caps at
+// kHoleLevelBand outside the holes; 8 disk diameters leave room and keep every blend of them finite.
+inline constexpr double kMaxHoleLevel = 16;  // keyframe times at least this fraction of their span apart
 
 [[noreturn]] inline void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
 [[noreturn]] inline void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
@@ -94,7 +103,21 @@ using KeyframesHeld = std::function<uint64_t(uint32_t keyframes, SplineKind spli
 enum class TextureLayout { kStills, kSharedStills, kGroups };
 // The header of a file of the outline's keyframes, all sharing the fixed-frame nodes `fixed`.
 std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures);
-FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held);
+// Reads and checks a header. `minor_version`: the file's; one this decoder knows (kMinorVersion or
+// older) defines every byte of its header, and a byte past its last field is corrupt; a later one
+// may append up to kMaxAppendedBytes, which are skipped.
+FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held,
+                       uint16_t minor_version);
+// The most bytes a header chunk may decompress to (§5, §10.2): its fixed fields, the fixed nodes of
+// the largest G that `max_grid_n` allows, the strings within kMaxHeaderStringBytes and the appended
+// fields of a later minor version. Checked against the chunk's stated size before it is decompressed.
+uint64_t max_header_bytes(int max_grid_n);
+// The same for the index of the header's keyframes (§6): times, the pose varints at their longest,
+// the offsets, and what a later minor version may append.
+uint64_t max_index_bytes(const FileHeader& h);
+// A payload that held `remaining` bytes after the fields of its version: corrupt in a file of a
+// minor version this decoder knows, skipped up to kMaxAppendedBytes in a later one.
+void check_appended_bytes(size_t remaining, uint16_t minor_version, const std::string& where);
 
 // ---- The pose as the file stores it: integer multiples of the header's pose steps ----
 
@@ -116,7 +139,7 @@ struct IndexEntry {
 std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h);
 // Checks the times (bounds, separation) and pose codes (bounds) as it reads; the offsets are the
 // caller's to check against the chunks.
-std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h);
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h, uint16_t minor_version);
 
 // ---- Where the chunks after the index go (index_layout.cpp) ----
 
@@ -185,8 +208,11 @@ class KeyframeGroupWriter {
 // `take(j, key, end)` as it is decoded (key holds the fields and hole level, checked by
 // validate_fields), `end` where its part of the stream ended from the payload's start. The stream's
 // end is checked when decoded == count. One keyframe is held at a time.
+// `work` (null: unbounded) is charged each keyframe's values before it is decoded. Each keyframe's
+// fields pass validate_fields and its hole levels are finite and within kMaxHoleLevel (corrupt,
+// naming the keyframe and the node).
 void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
-                         const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take);
+                         WorkMeter* work, const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take);
 
 // ---- A texture (TEXR, texture_chunk.cpp) ----
 

@@ -58,6 +58,7 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
   // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
   // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
   plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +
+               file.header_bytes() +
                window * (plan.fields + plan.texture) + limits.max_memory_bytes / 16;
   const uint64_t per_keyframe = plan.fields + plan.surface + plan.texture;
   const uint64_t needed = plan.fixed + plan.in_flight;
@@ -70,7 +71,8 @@ class FileSource final : public KeyframeSource {
   FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>, std::span<const uint8_t>> bytes, const std::string& source, const DecoderLimits& limits,
              SequenceFileInfo* info)
       : bytes_(std::move(bytes)),
-        file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }) {
+        file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }),
+        work_limit_(limits.max_work) {
     const size_t count = file_.keyframe_count();
     // The header's fields as a sequence in memory gives them (the shape has no keyframes: times,
     // poses, holes and texture are the file's, below).
@@ -109,13 +111,24 @@ class FileSource final : public KeyframeSource {
     return held_bytes_;
   }
 
-  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override { return keyframe(k, nullptr); }
+  std::shared_ptr<const Keyframe> keyframe(size_t k, WorkMeter& work) const override { return keyframe(k, &work); }
+  std::shared_ptr<const Image> texture(size_t k) const override { return texture(k, nullptr); }
+  std::shared_ptr<const Image> texture(size_t k, WorkMeter& work) const override { return texture(k, &work); }
+  uint64_t work_limit() const override { return work_limit_; }
+  std::string name() const override { return file_.source(); }
+
+ private:
+  std::shared_ptr<const Keyframe> keyframe(size_t k, WorkMeter* work) const {
     std::lock_guard<std::mutex> lock(mutex_);
     if (k >= fields_.slots.size()) throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no keyframe " + std::to_string(k));
-    return fetch(fields_, k, file_.run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
+    // A group's stream is read to its exact end (§7) before any of its keyframes is shown: a
+    // stream that does not end where its chunk does is not the encoder's, whichever keyframe a
+    // frame asks for first. Once it has, a keyframe dropped from the cache decodes only as far as itself.
+    return fetch(fields_, k, file_.run_length(), work, true, [&](size_t first, size_t last, const auto& wants, const auto& take) {
       file_.decode_run(first, last, [&](size_t j, Keyframe&& key, uint64_t) {
         if (wants(j)) take(j, std::move(key));
-      });
+      }, work);
     });
   }
 
@@ -124,19 +137,17 @@ class FileSource final : public KeyframeSource {
     return file_.texture_owner(k);
   }
 
-  std::shared_ptr<const Image> texture(size_t k) const override {
+  std::shared_ptr<const Image> texture(size_t k, WorkMeter* work) const {
     std::lock_guard<std::mutex> lock(mutex_);
     if (k >= textures_.slots.size() || !outline_.has_texture()) {
       throw Error(ErrorCode::kInvalidArgument, file_.source() + ": no texture for keyframe " + std::to_string(k));
     }
     // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. A
     // shared still (format 2.2) is held once, in its owner's slot, whichever keyframe asks.
-    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), [&](size_t first, size_t last, const auto& wants, const auto& take) {
-      file_.decode_textures(first, last, wants, take);
-    });
+    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), work, false,
+                 [&](size_t first, size_t last, const auto& wants, const auto& take) { file_.decode_textures(first, last, wants, take, work); });
   }
 
- private:
   struct Entry {
     bool texture = false;
     size_t keyframe = 0;
@@ -164,11 +175,13 @@ class FileSource final : public KeyframeSource {
   struct Shelf {
     std::vector<Slot<T>> slots;
     std::vector<std::pair<ErrorCode, std::string>> failures;  // the error and its message
+    std::vector<bool> run_read_whole;  // per run: decoded to its end once, without a fault
     bool texture = false;
     uint64_t bytes_each = 0;  // as the plan counts one
     void resize(size_t count, bool is_texture, uint64_t bytes) {
       slots.resize(count);
       failures.resize(count);
+      run_read_whole.resize(count);  // indexed by a run's first keyframe
       texture = is_texture;
       bytes_each = bytes;
     }
@@ -179,8 +192,13 @@ class FileSource final : public KeyframeSource {
   // twice over (playing on needs the next keyframes), else only as far as k. `decode(first, last,
   // wants, take)` decodes first .. last and hands take(j, item) each j that wants(j). An item that
   // did not decode fails at once the next time (§10.3: time follows the frame).
+  // `read_whole`: the run is decoded to its end the first time (keyframes' streams, whose end is
+  // checked), and what it hands over is kept only once all of it decoded; a fault anywhere in it
+  // then fails every keyframe of the run. Otherwise (textures) a fault past k leaves k standing.
+  // A stop by the call's work meter is no fault of the file: nothing is remembered, and the next
+  // call decodes again.
   template <typename T, typename Decode>
-  std::shared_ptr<const T> fetch(Shelf<T>& shelf, size_t k, size_t run_length, const Decode& decode) const {
+  std::shared_ptr<const T> fetch(Shelf<T>& shelf, size_t k, size_t run_length, WorkMeter* work, bool read_whole, const Decode& decode) const {
     if (shelf.slots[k].value) {
       touch(shelf.slots[k]);
       return shelf.slots[k].value;
@@ -189,22 +207,37 @@ class FileSource final : public KeyframeSource {
     const size_t first = k / run_length * run_length;
     const size_t run_end = std::min(first + run_length, shelf.slots.size());
     const bool whole_run = 2 * (run_end - first) * shelf.bytes_each <= cache_capacity_;
+    const bool to_the_end = whole_run || (read_whole && !shelf.run_read_whole[first]);
     std::shared_ptr<const T> wanted;
+    std::vector<std::pair<size_t, std::shared_ptr<const T>>> held;  // until the run has decoded (read_whole)
     const auto wants = [&](size_t j) { return j == k || (whole_run && !shelf.slots[j].value); };
     const auto take = [&](size_t j, T&& item) {
       auto shared = std::make_shared<const T>(std::move(item));
       if (j == k) wanted = shared;
-      remember(shelf, j, std::move(shared));
+      if (read_whole) {
+        held.emplace_back(j, std::move(shared));
+      } else {
+        remember(shelf, j, std::move(shared));
+      }
     };
     try {
-      decode(first, whole_run ? run_end - 1 : k, wants, take);
+      decode(first, to_the_end ? run_end - 1 : k, wants, take);
     } catch (const Error& e) {
-      // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
-      if (wanted) return wanted;
-      // kLimit too: the same file under the same limits fails the same way.
-      shelf.failures[k] = {e.code(), e.what()};
+      if (work != nullptr && work->stopped()) throw;
+      if (!read_whole) {
+        // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
+        if (wanted) return wanted;
+        // kLimit too: the same file under the same limits fails the same way.
+        shelf.failures[k] = {e.code(), e.what()};
+        throw;
+      }
+      for (size_t j = first; j < run_end; ++j) {
+        if (!shelf.slots[j].value) shelf.failures[j] = {e.code(), e.what()};
+      }
       throw;
     }
+    if (to_the_end) shelf.run_read_whole[first] = true;
+    for (auto& [j, item] : held) remember(shelf, j, std::move(item));
     return wanted;
   }
 
@@ -239,6 +272,7 @@ class FileSource final : public KeyframeSource {
   MemoryPlan plan_;
   SequenceOutline outline_;
   uint64_t cache_capacity_ = 0;  // bytes of fields and textures kept
+  uint64_t work_limit_ = 0;      // per decode call (DecoderLimits::max_work)
   mutable std::mutex mutex_;
   mutable Shelf<Keyframe> fields_;
   mutable Shelf<Image> textures_;

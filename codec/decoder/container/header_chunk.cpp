@@ -5,7 +5,9 @@
 
 #include "facemorph/disk_grid.hpp"
 #include "format/byte_writer.hpp"
+#include "format/container.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -43,9 +45,15 @@ Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std
   throw Error(ErrorCode::kUnsupported, what + " " + std::to_string(code) + " is not one this decoder knows");
 }
 
-std::string read_string(ByteReader& r, const char* what) {
+// A string of at most 1 MiB; `total` counts the header's strings, which together take at most
+// kMaxHeaderStringBytes (checked before the string is copied).
+std::string read_string(ByteReader& r, const char* what, uint64_t& total) {
   const uint32_t size = r.read<uint32_t>(what);
   if (size > kMaxStringBytes) corrupt(r.source(), std::string(what) + " announces " + std::to_string(size) + " bytes (at most 1 MiB)");
+  total += size;
+  if (total > kMaxHeaderStringBytes) {
+    corrupt(r.source(), std::string(what) + " brings the header's strings to " + std::to_string(total) + " bytes (at most 4 MiB together)");
+  }
   const auto bytes = r.bytes(size, what);
   return {bytes.begin(), bytes.end()};
 }
@@ -126,7 +134,27 @@ std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<in
   return w.take();
 }
 
-FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
+uint64_t max_header_bytes(int max_grid_n) {
+  // grid size, rule, hash, representation, spline, flags, reserved, keyframe count, fps, times, pose
+  // centre, texture size, rim count, fixed count, landmark count, intra period, steps, pose steps.
+  constexpr uint64_t kFixedFields = 4 + 4 + 8 + 4 + 4 + 3 * 8 + 3 * 8 + 4 + 4 + 4 + 4 + 4 + 8 * kKeyframeArrays + 2 * 8;
+  const uint64_t strings = 4 * (3 + uint64_t{kMaxLandmarks}) + kMaxHeaderStringBytes;  // their lengths and bytes
+  const auto interior = static_cast<uint64_t>(disk_grid_shape(std::clamp(max_grid_n, kMinGridSize, kMaxGridSize)).interior_count);
+  return kFixedFields + 4 * interior + strings + kMaxAppendedBytes;
+}
+
+void check_appended_bytes(size_t remaining, uint16_t minor_version, const std::string& where) {
+  if (remaining == 0) return;
+  if (minor_version <= format::kMinorVersion) {
+    corrupt(where, std::to_string(remaining) + " bytes after its last field, which format 2." + std::to_string(minor_version) + " does not define");
+  }
+  if (remaining > kMaxAppendedBytes) {
+    corrupt(where, std::to_string(remaining) + " bytes after the fields this decoder knows; a later minor version appends at most 64 KiB");
+  }
+}
+
+FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held,
+                       uint16_t minor_version) {
   ByteReader r(payload, source + ": header");
   FileHeader h;
   h.limits = limits;
@@ -203,13 +231,16 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
                                "² textures need about " + mebibytes(memory) + ", over the memory limit of " + mebibytes(limits.max_memory_bytes) +
                                " (max_memory_bytes, --max-memory)");
   }
-  h.shape.units = read_string(r, "the units");
+  uint64_t string_bytes = 0;
+  h.shape.units = read_string(r, "the units", string_bytes);
   if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm") corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");
-  h.metadata.encoder = read_string(r, "the encoder");
-  h.metadata.settings = read_string(r, "the settings");
+  h.metadata.encoder = read_string(r, "the encoder", string_bytes);
+  h.metadata.settings = read_string(r, "the settings", string_bytes);
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");
   if (landmarks > kMaxLandmarks) corrupt(r.source(), std::to_string(landmarks) + " landmark names");
-  for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name"));
+  r.require(size_t{4} * landmarks, "the landmark names");  // each one's length, before the list is allocated
+  h.metadata.landmark_names.reserve(landmarks);
+  for (uint32_t i = 0; i < landmarks; ++i) h.metadata.landmark_names.push_back(read_string(r, "a landmark name", string_bytes));
   FieldCoding& c = h.metadata.field_coding;
   const uint32_t period = r.read<uint32_t>("the intra period");
   if (period == 0 || period > kMaxIntraPeriod) corrupt(r.source(), "intra period " + std::to_string(period));
@@ -222,7 +253,8 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   c.rotation_step = read_finite(r, "the rotation step");
   c.translation_step = read_finite(r, "the translation step");
   if (!(c.rotation_step > 0) || !(c.translation_step > 0)) corrupt(r.source(), "a pose step that is not positive");
-  // Later minor versions append fields here; this reader ignores them.
+  // Later minor versions append fields here; this reader skips them (a bounded number of bytes).
+  check_appended_bytes(r.remaining(), minor_version, r.source());
   // The hash from the table where N has one (no G built for a header that is refused), else from
   // G built within the caller's limit.
   const uint64_t known = known_disk_grid_hash(h.shape.grid_n);

@@ -90,7 +90,13 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
   return w.take();
 }
 
-std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h) {
+uint64_t max_index_bytes(const FileHeader& h) {
+  const uint64_t count = h.keyframe_count, groups = h.group_count();
+  const uint64_t textures = h.texture_groups() ? groups : h.has_texture() ? count : 0;
+  return 4 + 8 * count + kPoseCodes * uint64_t{kMaxVarintBytes} * count + 8 * (groups + textures) + kMaxAppendedBytes;
+}
+
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h, uint16_t minor_version) {
   ByteReader r(payload, source + ": index");
   const uint32_t count = r.read<uint32_t>("the entry count");
   if (count != h.keyframe_count) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(h.keyframe_count) + " keyframes");
@@ -140,7 +146,8 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
   } else if (h.has_texture()) {
     for (IndexEntry& e : entries) e.texture_offset = r.read<uint64_t>("a texture offset");
   }
-  // Later minor versions append runs here; this reader ignores them.
+  // Later minor versions append runs here; this reader skips them (a bounded number of bytes).
+  check_appended_bytes(r.remaining(), minor_version, r.source());
   return entries;
 }
 

@@ -231,7 +231,7 @@ std::vector<uint8_t> KeyframeGroupWriter::finish() {
 }
 
 void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
-                         const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take) {
+                         WorkMeter* work, const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take) {
   ByteReader r(payload, where);
   if (r.read<uint32_t>("the first keyframe number") != first) corrupt(where, "holds another group of keyframes than the index says");
   const size_t stream_start = payload.size() - r.remaining();
@@ -242,8 +242,11 @@ void read_keyframe_group(std::span<const uint8_t> payload, const std::string& wh
   const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
   GroupModels models;
   std::vector<std::vector<int32_t>> codes;
+  uint64_t values = 0;
+  for (size_t length : expected) values += length;
   for (uint32_t j = 0; j < decoded; ++j) {
     const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
+    if (work != nullptr) work->charge(values * WorkMeter::kPerValue, "decoding keyframe " + std::to_string(first + j) + "'s " + std::to_string(values) + " values");
     const bool from_previous = j > 0 && stream.decision(models.reference);
     std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -260,6 +263,13 @@ void read_keyframe_group(std::span<const uint8_t> payload, const std::string& wh
       validate_fields(key.fields);
     } catch (const Error& e) {
       corrupt(keyframe_where, e.what());
+    }
+    // The hole levels are blended and cut along their zero level (hole_cut.cpp): a level that is
+    // not finite, or so large that a blend of them overflows, is the file's fault and named here.
+    for (size_t v = 0; v < key.hole_level.size(); ++v) {
+      if (!(std::abs(key.hole_level[v]) <= kMaxHoleLevel)) {
+        corrupt(keyframe_where, "hole level " + std::to_string(key.hole_level[v]) + " at node " + std::to_string(v) + " (at most 16 in magnitude)");
+      }
     }
     take(j, std::move(key), stream_start + stream.position());
   }

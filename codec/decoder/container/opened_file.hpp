@@ -47,6 +47,9 @@ class OpenedFile {
   uint64_t values_per_keyframe() const;
   // The largest payload, once decompressed, of any keyframe or texture chunk: what decoding one
   // holds besides its product.
+  // What the header holds for as long as the file is open: its strings and fixed nodes (at most
+  // 4 MiB and 4 bytes a node of G), counted against the budget (spec/container.md §10.1).
+  uint64_t header_bytes() const;
   uint64_t largest_payload() const;
   // Keyframes are decoded in runs: a run's first keyframe stands alone, each later one needs the one
   // before it (an intra period; a single keyframe where every keyframe is coded alone).
@@ -56,7 +59,8 @@ class OpenedFile {
   // Decodes keyframes first_of_run .. last (last within the run of first_of_run), each checked as
   // §7 says, calling `take(k, key, field_bytes)` for each in order; `key` holds everything but the
   // texture (time and pose from the index). field_bytes: what keyframe k's fields take in the file.
-  void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
+  // `work` (null: unbounded) is charged each keyframe's values before it is decoded.
+  void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work = nullptr) const;
   // The keyframe whose stored texture keyframe k shows: k itself, or in a file of shared textures
   // (format 2.2) the first keyframe naming the same TEXR. decode_texture(k) decodes the owner's.
   size_t texture_owner(size_t k) const;
@@ -68,7 +72,9 @@ class OpenedFile {
   uint64_t texture_decoder_bytes() const;
   // Decodes the textures of keyframes first_of_run .. last (within one texture run), each checked
   // as §8 / §8.1 say, handing take(k, image) those for which wanted(k), in order.
-  void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const;
+  // `work` (null: unbounded) is charged the pixels of every frame decoded, before the first.
+  void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
+                       WorkMeter* work = nullptr) const;
   // Every keyframe's fields, run by run, in order (decode_run over the whole file).
   void decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
   // Every stored texture once, run by run (each group's sequence decoded once): take(k, image) for

@@ -141,8 +141,13 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
   // The header's strings within what a reader takes (spec/container.md §5), or no file a player refuses.
-  const auto check_string = [](const std::string& text, const std::string& what) {
+  uint64_t string_bytes = 0;
+  const auto check_string = [&string_bytes](const std::string& text, const std::string& what) {
     if (text.size() > kMaxStringBytes) throw Error(ErrorCode::kInvalidArgument, what + " of " + std::to_string(text.size()) + " bytes (a file's strings take at most 1 MiB)");
+    string_bytes += text.size();
+    if (string_bytes > kMaxHeaderStringBytes) {
+      throw Error(ErrorCode::kInvalidArgument, what + " brings the header's strings to " + std::to_string(string_bytes) + " bytes (at most 4 MiB together)");
+    }
   };
   check_string(given.settings, "settings");
   check_string(given.encoder, "an encoder name");
@@ -335,7 +340,20 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
       throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
-  s.header = read_header(reader.payload(chunks[0], limits.max_memory_bytes), s.source, limits, keyframes_held);
+  // The header and the index decompress to no more than the format lets them hold (§10.2 steps 2
+  // and 5): a chunk stating more is corrupt before a byte is decompressed, whatever the budget.
+  const uint16_t minor = reader.minor_version();
+  const auto bounded_payload = [&](const format::ChunkView& chunk, uint64_t bound, const std::string& what) {
+    if (chunk.raw_size > bound) {
+      corrupt(s.source, reader.describe(chunk) + " states " + std::to_string(chunk.raw_size) + " bytes; " + what + " holds at most " + std::to_string(bound));
+    }
+    return reader.payload(chunk, limits.max_memory_bytes);
+  };
+  if (chunks[0].raw_size > max_header_bytes(limits.max_grid_n) && chunks[0].raw_size <= max_header_bytes(kMaxGridSize)) {
+    over_limit(s.source, reader.describe(chunks[0]) + " states " + std::to_string(chunks[0].raw_size) + " bytes, more than a header of a grid within " +
+                             std::to_string(limits.max_grid_n) + " holds (max_grid_n, --max-grid)");
+  }
+  s.header = read_header(bounded_payload(chunks[0], max_header_bytes(kMaxGridSize), "a header"), s.source, limits, keyframes_held, minor);
   const FileHeader& header = *s.header;
   // Texture groups came with format 2.1: a file stamped 2.0 cannot hold them.
   if (header.texture_groups() && reader.minor_version() < 1) {
@@ -344,7 +362,8 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   if (header.shared_textures() && reader.minor_version() < 2) {
     corrupt(s.source, "header: shared textures (flag bit 3) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
   }
-  s.index = read_index(reader.payload(chunks[1], limits.max_memory_bytes), s.source, header);
+  s.index = read_index(bounded_payload(chunks[1], max_index_bytes(header), "an index of " + std::to_string(header.keyframe_count) + " keyframes"), s.source,
+                       header, minor);
   // Shared textures: each TEXR belongs to the first keyframe that names it (its number must say so,
   // §8), and every later keyframe naming it shows that texture. Elsewhere each keyframe owns its
   // entry, and one naming another's TEXR fails by that number when decoded.
@@ -370,6 +389,9 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
     } else if (header.has_texture()) {
       const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture entry");
       if (texture.type != kTextureChunk) corrupt(s.source, name + "'s texture entry points at a " + texture.type + " chunk, not TEXR");
+      // §8: an image codec's bytes, stored as they are (zstd would only make a small file decompress
+      // to a large one: 17 kB holding 300 MB).
+      if (texture.compressed()) corrupt(s.source, reader.describe(texture) + " is compressed; a texture's chunk never is");
     } else if (s.index[k].texture_offset != 0) {
       corrupt(s.source, name + " has a texture entry in a file without textures");
     }
@@ -399,6 +421,13 @@ uint64_t OpenedFile::values_per_keyframe() const {
   return values;
 }
 
+uint64_t OpenedFile::header_bytes() const {
+  const FileHeader& h = *state_->header;
+  uint64_t bytes = h.shape.units.size() + h.metadata.encoder.size() + h.metadata.settings.size() + 4 * uint64_t{h.fixed_nodes.size()};
+  for (const std::string& name : h.metadata.landmark_names) bytes += name.size() + sizeof name;
+  return bytes;
+}
+
 uint64_t OpenedFile::largest_payload() const {
   uint64_t largest = 0;
   for (const format::ChunkView& chunk : state_->reader.chunks()) {
@@ -415,7 +444,7 @@ size_t OpenedFile::texture_run_length() const { return state_->header->texture_g
 
 uint64_t OpenedFile::texture_decoder_bytes() const { return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0; }
 
-void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
+void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work) const {
   const State& s = *state_;
   const format::ContainerReader& reader = s.reader;
   if (first % run_length() != 0 || last < first || last >= s.index.size() || run_of(last) != run_of(first)) {
@@ -425,7 +454,7 @@ void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(
   const auto count = static_cast<uint32_t>(std::min<size_t>(run_length(), s.index.size() - first));
   uint64_t previous_end = 0;
   read_keyframe_group(reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + reader.describe(chunk), *s.header, static_cast<uint32_t>(first), count,
-                      static_cast<uint32_t>(last - first + 1), [&](uint32_t j, Keyframe&& key, uint64_t end) {
+                      static_cast<uint32_t>(last - first + 1), work, [&](uint32_t j, Keyframe&& key, uint64_t end) {
                         const size_t k = first + j;
                         key.time = s.index[k].time;  // the index holds the time and pose
                         key.pose = s.poses[k];
@@ -440,11 +469,21 @@ const format::ChunkView& OpenedFile::texture_chunk(size_t k) const {
   return state_->reader.chunk_at(state_->index.at(k).texture_offset, "keyframe " + std::to_string(k) + "'s texture entry");
 }
 
-void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take) const {
+void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
+                                 WorkMeter* work) const {
   const State& s = *state_;
   const size_t run = texture_run_length();
   if (first % run != 0 || last < first || last >= s.index.size() || last / run != first / run) {
     throw Error(ErrorCode::kInternal, s.source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  // Every frame up to `last` is decoded (a group's later frames are predicted from its earlier
+  // ones), each of M² pixels: paid before the first, as an image decoder cannot be stopped midway.
+  if (work != nullptr) {
+    const auto m = static_cast<uint64_t>(s.header->texture_size);
+    const uint64_t frames = s.header->texture_groups() ? last - first + 1 : 1;
+    const uint64_t per_pixel = texture_codec(first) == TextureCodec::kWebp ? WorkMeter::kPerWebpPixel : WorkMeter::kPerPixel;
+    work->charge(frames * m * m * per_pixel, "decoding " + std::to_string(frames) + " texture frame" + (frames == 1 ? "" : "s") + " of " +
+                                                            std::to_string(m) + "² pixels (keyframes " + std::to_string(first) + ".." + std::to_string(last) + ")");
   }
   if (!s.header->texture_groups()) {
     if (wanted(first)) take(first, decode_texture(first));
@@ -491,8 +530,7 @@ TextureCodec OpenedFile::texture_codec(size_t k) const {
   // The codec's number is in the payload's first bytes, which a TEXR chunk stores uncompressed.
   const uint32_t owner = s.texture_owner.at(k);
   const std::string where = s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(owner) + ")";
-  if (chunk.compressed()) return texture_codec_of(s.reader.payload(chunk, s.limits.max_memory_bytes), where, owner);
-  return texture_codec_of(chunk.stored, where, owner);
+  return texture_codec_of(chunk.stored, where, owner);  // never compressed (refused at open)
 }
 
 void OpenedFile::verify_checksums() const { state_->reader.verify(); }

@@ -67,10 +67,11 @@
 extern "C" {
 #endif
 
-/* The API (and ABI) this header declares: 1.1 (1.0 with two functions appended, below). The soname follows the major version only
+/* The API (and ABI) this header declares: 1.2 (1.0 with two functions appended in 1.1, and
+ * fm_decoder_options.max_work appended in 1.2, below). The soname follows the major version only
  * (libfacemorph_decoder.so.1); the library's own version is FACEMORPH_VERSION_*, below. */
 #define FACEMORPH_API_VERSION_MAJOR 1
-#define FACEMORPH_API_VERSION_MINOR 1
+#define FACEMORPH_API_VERSION_MINOR 2
 
 #define FACEMORPH_VERSION_MAJOR 0
 #define FACEMORPH_VERSION_MINOR 8
@@ -136,13 +137,19 @@ typedef struct fm_decoder_options {
   uint32_t max_keyframes;      /* most keyframes (default 65536) */
   uint32_t max_texture_size;   /* largest texture M, texels per side (default 4096; the format allows 16384) */
   uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 512 MiB) */
+  /* 1.2: what one fm_decoder_decode (or fm_decoder_get_texture_weights) call may do, in work units
+   * (spec/container.md §10.3: about a second on one core at the default; 0: no bound). A call that
+   * would pass it returns FM_ERROR_LIMIT naming max_work and keeps what it finished, so that calling
+   * again with the same t goes on from there. */
+  uint64_t max_work;
 } fm_decoder_options;
 
-/* The defaults fm_decoder_options_init sets (those of API 1.0). */
+/* The defaults fm_decoder_options_init sets (those of API 1.0, and max_work's of 1.2). */
 #define FM_DEFAULT_MAX_GRID_N 1025u
 #define FM_DEFAULT_MAX_KEYFRAMES 65536u
 #define FM_DEFAULT_MAX_TEXTURE_SIZE 4096u
 #define FM_DEFAULT_MAX_MEMORY_BYTES (UINT64_C(512) << 20)
+#define FM_DEFAULT_MAX_WORK UINT64_C(16000000) /* 1.2 */
 
 /* Sets struct_size to sizeof(fm_decoder_options) and every field to its default. NULL is ignored.
  * Inline, not in the library: struct_size is then the size of the struct as the caller compiled it,
@@ -155,6 +162,7 @@ static inline void fm_decoder_options_init(fm_decoder_options* options) {
   options->max_keyframes = FM_DEFAULT_MAX_KEYFRAMES;
   options->max_texture_size = FM_DEFAULT_MAX_TEXTURE_SIZE;
   options->max_memory_bytes = FM_DEFAULT_MAX_MEMORY_BYTES;
+  options->max_work = FM_DEFAULT_MAX_WORK;
 }
 
 /* Opens a file under the default limits: its header and index read and checked (every keyframe's

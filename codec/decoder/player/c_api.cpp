@@ -30,6 +30,7 @@ static_assert(FM_DEFAULT_MAX_GRID_N == facemorph::kDefaultDecoderLimits.max_grid
 static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_keyframes);
 static_assert(FM_DEFAULT_MAX_TEXTURE_SIZE == facemorph::kDefaultDecoderLimits.max_texture_size);
 static_assert(FM_DEFAULT_MAX_MEMORY_BYTES == facemorph::kDefaultDecoderLimits.max_memory_bytes);
+static_assert(FM_DEFAULT_MAX_WORK == facemorph::kDefaultDecoderLimits.max_work);
 
 // The C enum mirrors facemorph::ErrorCode value for value.
 static_assert(FM_OK == static_cast<int>(facemorph::ErrorCode::kOk));
@@ -210,6 +211,7 @@ facemorph::DecoderLimits limits_of(const fm_decoder_options* options) {
     limits.max_texture_size = static_cast<int>(std::min<uint32_t>(options->max_texture_size, 1u << 20));
   }
   if (FM_COVERS(options, fm_decoder_options, max_memory_bytes)) limits.max_memory_bytes = options->max_memory_bytes;
+  if (FM_COVERS(options, fm_decoder_options, max_work)) limits.max_work = options->max_work;  // 1.2
   facemorph::check_decoder_limits(limits, "options");
   return limits;
 }

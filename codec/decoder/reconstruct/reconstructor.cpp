@@ -133,6 +133,23 @@ class AndersonMixer {
 
 }  // namespace
 
+// What the iteration loop carries from one iteration to the next.
+struct ReconstructSuspension::State {
+  std::vector<Vec3> positions;  // the iterate, every node of G
+  AndersonMixer anderson;       // moved out of the reconstructor, and back on resuming
+  std::vector<Vec3> previous_n;
+  int next_iteration = 1;
+  int lowest_at = 0;
+  double lowest_change = 0;
+  double change = 0;
+};
+
+ReconstructSuspension::ReconstructSuspension() = default;
+ReconstructSuspension::~ReconstructSuspension() = default;
+ReconstructSuspension::ReconstructSuspension(ReconstructSuspension&&) noexcept = default;
+ReconstructSuspension& ReconstructSuspension::operator=(ReconstructSuspension&&) noexcept = default;
+void ReconstructSuspension::clear() { state_.reset(); }
+
 struct Reconstructor::Impl {
   SparseMatrix K_II, K_IB;  // interior-interior and interior-rim blocks of the stiffness matrix
   std::unique_ptr<LatticeMultigrid> multigrid;  // once per grid: K_II is SPD (Dirichlet on the rim)
@@ -234,7 +251,14 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   const LatticeMultigrid& multigrid = *impl_->multigrid;
   // The iterate lives in result.positions (interior nodes first, then the rim), as frames() reads it.
   std::vector<Vec3>& S = result.positions;
-  if (options.start != nullptr) {
+  // Going on from a stop: the iterate and the loop's state as they were (the right-hand side's
+  // coefficients below are the same fields' again).
+  std::unique_ptr<ReconstructSuspension::State> resumed;
+  if (options.suspended != nullptr && options.suspended->held()) {
+    resumed = std::move(options.suspended->state_);
+    if (resumed->positions.size() != S.size()) throw Error(ErrorCode::kInternal, "reconstruction resumed on another grid");
+    std::copy(resumed->positions.begin(), resumed->positions.begin() + static_cast<long>(interior), S.begin());
+  } else if (options.start != nullptr) {
     if (options.start->size() != grid.nodes.size()) {
       throw Error(ErrorCode::kInvalidArgument, "reconstruction start has " + std::to_string(options.start->size()) + " positions for a grid of " +
                                                    std::to_string(grid.nodes.size()) + " nodes");
@@ -297,12 +321,39 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   next.resize(interior);
   previous_n.clear();
   AndersonMixer& anderson = work.anderson;
-  anderson.restart(options.anderson_depth, 3 * n_int);
   auto flat = [&](std::vector<Vec3>& points) { return AndersonMixer::Vector(points.data()->data(), 3 * n_int); };
   const bool damped = options.damping < 1;
   double lowest_change = std::numeric_limits<double>::infinity();
   int lowest_at = 0;
-  for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
+  int first_iteration = 1;
+  if (resumed) {
+    std::swap(anderson, resumed->anderson);
+    previous_n = std::move(resumed->previous_n);
+    first_iteration = resumed->next_iteration;
+    lowest_at = resumed->lowest_at;
+    lowest_change = resumed->lowest_change;
+    result.change = resumed->change;
+    result.iterations = first_iteration - 1;
+  } else {
+    anderson.restart(options.anderson_depth, 3 * n_int);
+  }
+  // Stops before `iteration` where the meter cannot pay for it, keeping the loop's state.
+  const auto stop = [&](int iteration) {
+    if (options.suspended != nullptr) {
+      auto state = resumed ? std::move(resumed) : std::make_unique<ReconstructSuspension::State>();
+      state->positions = S;
+      std::swap(state->anderson, anderson);
+      state->previous_n = previous_n;
+      state->next_iteration = iteration;
+      state->lowest_at = lowest_at;
+      state->lowest_change = lowest_change;
+      state->change = result.change;
+      options.suspended->state_ = std::move(state);
+    }
+    options.work->refuse("reconstruction iteration " + std::to_string(iteration) + " on " + std::to_string(interior) + " nodes");
+  };
+  for (int iteration = first_iteration; iteration <= options.max_iterations; ++iteration) {
+    if (options.work != nullptr && !options.work->afford(interior * WorkMeter::kPerNodeIteration)) stop(iteration);
     if (damped) {
       geometry.frames(S, tu, tv, n);
       if (!previous_n.empty()) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace facemorph {
 
@@ -130,7 +131,25 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const KeyframeSource> source)
   }
 }
 
-std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options) {
+ReconstructSuspension& SequenceDecoder::suspension_for(bool keyframe, size_t k, double t, const ReconstructOptions& o) {
+  Pending& p = pending_;
+  const bool same = p.keyframe == keyframe && (keyframe ? p.k == k : p.t == t) && p.max_iterations == o.max_iterations &&
+                    p.anderson_depth == o.anderson_depth && p.stall_iterations == o.stall_iterations && p.tolerance == o.tolerance && p.damping == o.damping;
+  if (!same) {
+    p.state.clear();  // another reconstruction's: it starts over when next needed
+    p.keyframe = keyframe;
+    p.k = k;
+    p.t = t;
+    p.max_iterations = o.max_iterations;
+    p.anderson_depth = o.anderson_depth;
+    p.stall_iterations = o.stall_iterations;
+    p.tolerance = o.tolerance;
+    p.damping = o.damping;
+  }
+  return p.state;
+}
+
+std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options, WorkMeter& work) {
   if (!keyframe_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
   std::shared_ptr<const std::vector<Vec3>>& surface = keyframe_surfaces_[k];
   if (surface) {
@@ -142,14 +161,16 @@ std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_
   // surface dropped and made again is the same surface).
   ReconstructOptions cold = options;
   cold.start = nullptr;
+  cold.work = &work;
+  cold.suspended = &suspension_for(true, k, 0, options);
   reconstructor_.forget_warm_start();
-  ++keyframe_reconstructions_;
+  if (!cold.suspended->held()) ++keyframe_reconstructions_;  // one going on is counted once
   try {
     surface = std::make_shared<const std::vector<Vec3>>(reconstructor_.reconstruct(fields, cold).positions);
   } catch (const Error& e) {
-    if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
+    if (work.stopped() || (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical)) throw;
     // The encoder reconstructed every keyframe it wrote: one that does not is a corrupt file.
-    keyframe_failures_[k] = "keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
+    keyframe_failures_[k] = source_->name() + ": keyframe " + std::to_string(k) + " cannot be reconstructed (a corrupt file): " + e.what();
     throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
   }
   surface_order_.insert(surface_order_.begin(), k);
@@ -194,8 +215,39 @@ void SequenceDecoder::remember_correction(double t, const ReconstructResult& res
   history_.count = std::min(history_.count + 1, 2);
 }
 
+ReconstructResult SequenceDecoder::reconstruct_frame(double t, const GridFields& fields, ReconstructOptions options, WorkMeter& work) {
+  options.work = &work;
+  options.suspended = &suspension_for(false, 0, t, options);
+  return reconstructor_.reconstruct(fields, options);
+}
+
+namespace {
+
+// "t = 1.45 s" for messages.
+std::string time_text(double t) {
+  char text[48];
+  std::snprintf(text, sizeof text, "t = %.6g s", t);
+  return text;
+}
+
+}  // namespace
+
 DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "decode: t is not finite");
+  WorkMeter work(options.max_work.value_or(source_->work_limit()), source_->name() + ": " + time_text(t));
+  try {
+    return decode_metered(t, options, work);
+  } catch (const Error& e) {
+    // A failure names the file and t (the work meter's and the range's already do); what the
+    // source threw names the file and the chunk, and gets t after the file's name.
+    if (work.stopped() || e.code() == ErrorCode::kOutOfRange) throw;
+    const std::string name = source_->name(), message = e.what();
+    if (message.rfind(name + ": ", 0) == 0) throw Error(e.code(), name + ": " + time_text(t) + ": " + message.substr(name.size() + 2));
+    throw Error(e.code(), name + ": " + time_text(t) + ": " + message);
+  }
+}
+
+DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& options, WorkMeter& work) {
   const auto [lo, hi] = spline_.sane_range();  // TimeRange
   if ((t < lo || t > hi) && !options.ignore_sane_range) {
     if (!options.clamp_to_sane_range) {
@@ -216,14 +268,14 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   std::vector<std::shared_ptr<const Keyframe>> held;
   std::vector<const GridFields*> keys;
   for (int32_t k : w.keys) {
-    held.push_back(source_->keyframe(static_cast<size_t>(k)));
+    held.push_back(source_->keyframe(static_cast<size_t>(k), work));
     keys.push_back(&held.back()->fields);
   }
   const GridFields fields = combine_fields(keys, w.weights);
   // Start from the spline of the keyframes' own surfaces: they are the fixed points of their
   // fields, so the blend is close wherever t lies.
   std::vector<std::shared_ptr<const std::vector<Vec3>>> surfaces;
-  for (size_t i = 0; i < w.keys.size(); ++i) surfaces.push_back(keyframe_surface(static_cast<size_t>(w.keys[i]), held[i]->fields, options.reconstruct));
+  for (size_t i = 0; i < w.keys.size(); ++i) surfaces.push_back(keyframe_surface(static_cast<size_t>(w.keys[i]), held[i]->fields, options.reconstruct, work));
   const std::vector<Vec3> start = blend<Vec3>(w, Vec3::Zero(), [&](size_t i) -> const std::vector<Vec3>& { return *surfaces[i]; });
   // Playing a clip, the previous frames tell how far the reconstruction lands from that spline:
   // the correction δ = S − start is smooth in t (and zero at keyframes), so continuing it from the
@@ -232,7 +284,7 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   ReconstructOptions ro = options.reconstruct;
   ro.start = guess.empty() ? &start : &guess;
   ro.throw_on_failure = false;
-  ReconstructResult result = reconstructor_.reconstruct(fields, ro);
+  ReconstructResult result = reconstruct_frame(t, fields, ro, work);
   remember_correction(t, result, start);
   frame.iterations = result.iterations;
   frame.converged = result.converged;
@@ -244,7 +296,7 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
     // ~1% of the face — its iterate is no surface to show. The spline of the keyframes' own
     // surfaces is: the start, which the encoder's keyframe selection measured.
     if (options.reconstruct.throw_on_failure && !options.fall_back_to_start) {
-      throw Error(ErrorCode::kNotConverged, "t = " + std::to_string(t) + ": the reconstruction did not converge (last change " +
+      throw Error(ErrorCode::kNotConverged, "the reconstruction did not converge (last change " +
                                                 std::to_string(result.change) + " of the rim diameter)");
     }
     if (options.fall_back_to_start) {
@@ -262,9 +314,7 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
   constexpr double kFloatMax = 3.4028234663852886e38;
   for (const Vec3& p : frame.grid_positions) {
     if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) {
-      char text[160];
-      std::snprintf(text, sizeof text, "t = %.6g s: the file decodes to positions beyond float range or not finite (a corrupt file)", t);
-      throw Error(ErrorCode::kCorrupt, text);
+      throw Error(ErrorCode::kCorrupt, "the file decodes to positions beyond float range or not finite (a corrupt file)");  // decode() adds t
     }
   }
 
@@ -281,7 +331,7 @@ DecodedFrame SequenceDecoder::decode(double t, const DecodeOptions& options) {
     std::vector<std::shared_ptr<const Image>> textures;
     std::vector<const Image*> images;
     for (int32_t k : w.keys) {
-      textures.push_back(source_->texture(static_cast<size_t>(k)));
+      textures.push_back(source_->texture(static_cast<size_t>(k), work));
       images.push_back(textures.back().get());
     }
     frame.texture = blend_images(images, w.weights);

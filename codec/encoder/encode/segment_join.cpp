@@ -237,8 +237,9 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
   // may not hold of the whole (the settings' size, the keyframe count, times too close across a
   // seam), and a file a player refuses is not written.
   try {
-    const FileHeader read = read_header(header_read_back, output.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; });
-    read_index(write_index(entries, joined), output.string(), read);
+    const FileHeader read =
+        read_header(header_read_back, output.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; }, format::kMinorVersion);
+    read_index(write_index(entries, joined), output.string(), read, format::kMinorVersion);
   } catch (const Error& e) {
     throw Error(ErrorCode::kInvalidArgument, std::string("the segments do not join into a file a player takes: ") + e.what());
   }

@@ -7,6 +7,7 @@
 
 #include "facemorph/fields.hpp"
 #include "facemorph/image.hpp"
+#include "facemorph/limits.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/spline.hpp"
 
@@ -61,6 +62,15 @@ class KeyframeSource {
   virtual std::shared_ptr<const Keyframe> keyframe(size_t k) const = 0;
   // Keyframe k's texture, M × M RGB (outline().has_texture()).
   virtual std::shared_ptr<const Image> texture(size_t k) const = 0;
+  // The same, charging what is decoded to `work` (a decode call's meter; spec/container.md §10.3):
+  // kLimit where it would pass the call's limit, after which the next call goes on. A sequence in
+  // memory decodes nothing and charges nothing.
+  virtual std::shared_ptr<const Keyframe> keyframe(size_t k, WorkMeter&) const { return keyframe(k); }
+  virtual std::shared_ptr<const Image> texture(size_t k, WorkMeter&) const { return texture(k); }
+  // What one decode call on this source may do (DecoderLimits::max_work of an opened file; 0, no
+  // bound, for a sequence in memory), and what errors name it by.
+  virtual uint64_t work_limit() const { return 0; }
+  virtual std::string name() const { return "sequence"; }
   // The keyframe whose stored texture keyframe k shows: k, or in a file of shared textures (format
   // 2.2) the first keyframe naming the same TEXR chunk (texture(k) is that keyframe's image).
   virtual size_t texture_owner(size_t k) const { return k; }

@@ -19,9 +19,50 @@ struct DecoderLimits {
   uint32_t max_keyframes = 65536;      // keyframes in one file (the format allows up to 2^20)
   int max_texture_size = 4096;         // M, texels per side (the format allows up to 16384)
   uint64_t max_memory_bytes = uint64_t{512} << 20;  // what an opened file and one decoder on it may hold, bytes
+  // What one decode call may do, in work units (WorkMeter; spec/container.md §10.3): about a second
+  // on one core of the reference machine. 0: no bound.
+  uint64_t max_work = kDefaultMaxWork;
+  static constexpr uint64_t kDefaultMaxWork = 16'000'000;
 };
 
 inline constexpr DecoderLimits kDefaultDecoderLimits{};
+
+// The work of one decode call, counted as it is done (spec/container.md §10.3). A unit is about
+// 75 ns on one core of the reference machine: a node of G in one reconstruction iteration (a
+// multigrid V-cycle and the frames of the right-hand side, 0.25-0.4 µs) is 4, a keyframe's value
+// decoded from its group's stream (about 27 ns) 1, a texture pixel decoded 1 from AVIF (about
+// 90 ns, in sequences of 1024²) and 3 from WebP (lossless: about 300 ns). A call that would pass its limit stops before
+// the step that would, with kLimit naming max_work; what it finished (keyframes decoded, surfaces
+// reconstructed, an interrupted reconstruction's iterate) is kept, so the next call goes on from there.
+class WorkMeter {
+ public:
+  // `limit` 0: no bound. `where` opens the message of the kLimit thrown (the file, t).
+  explicit WorkMeter(uint64_t limit, std::string where = {}) : limit_(limit), where_(std::move(where)) {}
+  // Units per node and iteration, per decoded array value, per decoded texture pixel.
+  static constexpr uint64_t kPerNodeIteration = 4, kPerValue = 1, kPerPixel = 1, kPerWebpPixel = 3;
+  // Charges `units` for the step about to be done and returns true, or returns false (charging
+  // nothing) where they would take the call past its limit.
+  bool afford(uint64_t units) {
+    if (limit_ != 0 && (units > limit_ || spent_ > limit_ - units)) return false;
+    spent_ += units;
+    return true;
+  }
+  // kLimit: `what` (the step not done) would pass the call's limit. Remembered (stopped()), so
+  // that a caller tells this kLimit, after which the next call goes on, from the file's own.
+  [[noreturn]] void refuse(const std::string& what);
+  bool stopped() const { return stopped_; }
+  // afford, or refuse.
+  void charge(uint64_t units, const std::string& what) {
+    if (!afford(units)) refuse(what);
+  }
+  uint64_t spent() const { return spent_; }
+  uint64_t limit() const { return limit_; }
+
+ private:
+  uint64_t limit_ = 0, spent_ = 0;
+  std::string where_;
+  bool stopped_ = false;
+};
 
 // What decoding from a file holds at most, in bytes, from what its header states, with `keyframes`
 // keyframes held at once: their fields (`values_per_keyframe` float64 values), textures (RGB8) and

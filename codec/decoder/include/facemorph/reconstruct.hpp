@@ -7,12 +7,32 @@
 
 #include "facemorph/fields.hpp"
 #include "facemorph/grid_geometry.hpp"
+#include "facemorph/limits.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <memory>
 #include <vector>
 
 namespace facemorph {
+
+// A reconstruction stopped by its work meter (ReconstructOptions::work): its iterate and the
+// iteration's state, so that the next reconstruct given it goes on to the result the reconstruction
+// would have reached without the stop, to the bit. Held by the caller, who gives it back only with
+// the same fields and options (the decoder keys it by keyframe or by t).
+class ReconstructSuspension {
+ public:
+  ReconstructSuspension();
+  ~ReconstructSuspension();
+  ReconstructSuspension(ReconstructSuspension&&) noexcept;
+  ReconstructSuspension& operator=(ReconstructSuspension&&) noexcept;
+  bool held() const { return state_ != nullptr; }
+  void clear();
+
+ private:
+  friend class Reconstructor;
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 struct ReconstructOptions {
   int max_iterations = 200;
@@ -37,6 +57,11 @@ struct ReconstructOptions {
   // max_iterations): an iteration that stops falling does not converge, and a file whose fields
   // never settle then costs this many steps a call instead of max_iterations (spec/container.md §10.3).
   int stall_iterations = 40;
+  // The call's work meter (not owned; null: unbounded): each iteration is charged G's interior nodes
+  // before it runs. Where the meter refuses one, the iteration's state goes to `suspended` (when
+  // given: resumed from there by the next reconstruct given it) and kLimit is thrown.
+  WorkMeter* work = nullptr;
+  ReconstructSuspension* suspended = nullptr;
 };
 
 struct ReconstructResult {

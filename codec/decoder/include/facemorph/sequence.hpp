@@ -13,6 +13,7 @@
 #include "facemorph/spline.hpp"
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -82,6 +83,11 @@ struct DecodeOptions {
   // takes fewer steps. The result then depends on the frames decoded before it, within the
   // reconstruction's tolerance; false makes every frame a function of t alone.
   bool continue_correction = true;
+  // What this call may do, in work units (WorkMeter, spec/container.md §10.3); unset: the source's
+  // limit (DecoderLimits::max_work of an opened file, none for a sequence in memory), 0: no bound.
+  // Past it the call throws kLimit naming max_work, and keeps what it finished — keyframes decoded,
+  // surfaces reconstructed, the reconstruction it stopped in — so that calling again goes on.
+  std::optional<uint64_t> max_work = std::nullopt;
 };
 
 struct DecodedFrame {
@@ -128,7 +134,13 @@ class SequenceDecoder {
   DecodedFrame decode(double t, const DecodeOptions& options = {});
 
  private:
-  std::shared_ptr<const std::vector<Vec3>> keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options);
+  DecodedFrame decode_metered(double t, const DecodeOptions& options, WorkMeter& work);
+  std::shared_ptr<const std::vector<Vec3>> keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options, WorkMeter& work);
+  // The frame's reconstruction, going on from where the work limit stopped the last call at t.
+  ReconstructResult reconstruct_frame(double t, const GridFields& fields, ReconstructOptions options, WorkMeter& work);
+  // The suspension for keyframe k's surface (keyframe) or the frame at t: the pending one where it
+  // is that reconstruction's with the same options, else emptied for it.
+  ReconstructSuspension& suspension_for(bool keyframe, size_t k, double t, const ReconstructOptions& options);
   // The start for t from the spline `start` and the corrections of the last frames (empty: none).
   std::vector<Vec3> predicted_start(double t, const std::vector<Vec3>& start, const DecodeOptions& options) const;
   void remember_correction(double t, const ReconstructResult& result, const std::vector<Vec3>& start);
@@ -145,6 +157,16 @@ class SequenceDecoder {
   // fails once fails at once ever after, instead of running its iteration again on every call.
   std::vector<std::string> keyframe_failures_;
   size_t keyframe_reconstructions_ = 0;
+  // A reconstruction the work limit stopped (at most one: a call stops at its first refusal, and the
+  // next call that needs it meets it first), with what it reconstructs.
+  struct Pending {
+    bool keyframe = false;
+    size_t k = 0;
+    double t = 0;
+    int max_iterations = 0, anderson_depth = 0, stall_iterations = 0;
+    double tolerance = 0, damping = 0;
+    ReconstructSuspension state;
+  } pending_;
   // The last frames' corrections (reconstruction − spline start, face frame), newest first.
   struct History {
     int count = 0;
