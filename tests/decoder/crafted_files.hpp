@@ -204,4 +204,19 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
   return writer.finish();
 }
 
+// The smallest memory budget (in 16 KiB steps) under which `bytes` opens on demand: the cache then
+// keeps the fewest keyframes a frame needs (spec/container.md §10.1).
+inline uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
+  for (uint64_t budget = 16 << 10;; budget += 16 << 10) {
+    try {
+      DecoderLimits limits;
+      limits.max_memory_bytes = budget;
+      open_sequence_source(bytes, "smallest", limits);
+      return budget;
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kLimit) throw;
+    }
+  }
+}
+
 }  // namespace facemorph::crafted

@@ -112,7 +112,6 @@ std::vector<uint8_t> with_header_announcing(const std::vector<uint8_t>& good, ui
   const format::ContainerReader reader(good, "good");
   std::vector<uint8_t> header = reader.payload(reader.chunks()[0]);
   header.resize(static_cast<size_t>(announced), 0);
-  std::vector<uint8_t> file;
   bool first = true;
   return rebuild(good, [&](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "HEAD" && first) payload = header;
@@ -180,20 +179,6 @@ TEST(DecodeLimits, AHoleLevelBeyondItsBoundIsCorruptNamingTheKeyframeAndTheFile)
 
 // ---- A group's stream is read to its end before any keyframe of it is shown ----
 
-// The smallest budget (in 16 KiB steps) under which `bytes` opens on demand.
-uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
-  for (uint64_t budget = 16 << 10;; budget += 16 << 10) {
-    try {
-      DecoderLimits limits;
-      limits.max_memory_bytes = budget;
-      open_sequence_source(bytes, "smallest", limits);
-      return budget;
-    } catch (const Error& e) {
-      if (e.code() != ErrorCode::kLimit) throw;
-    }
-  }
-}
-
 TEST(DecodeLimits, AByteAfterAGroupsStreamFailsEveryFrameOfTheGroup) {
   // Groups of two keyframes (predicted_metadata), each stream followed by one byte.
   const std::vector<uint8_t> bytes = rebuild(encode_sequence_file(small_sequence(), crafted::predicted_metadata()), appending("KGOP", 1, 0x5A));
@@ -201,7 +186,7 @@ TEST(DecodeLimits, AByteAfterAGroupsStreamFailsEveryFrameOfTheGroup) {
   // Playing: at the default budget (the whole run kept) and under the smallest that opens the file,
   // which keeps too few keyframes for a whole run (decoded only as far as the keyframe asked for,
   // which skipped this check), every time fails.
-  for (const uint64_t budget : {kDefaultDecoderLimits.max_memory_bytes, smallest_budget(bytes)}) {
+  for (const uint64_t budget : {kDefaultDecoderLimits.max_memory_bytes, crafted::smallest_budget(bytes)}) {
     DecoderLimits limits;
     limits.max_memory_bytes = budget;
     const auto source = open_sequence_source(bytes, "tail.fmv", limits);

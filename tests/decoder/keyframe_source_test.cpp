@@ -11,6 +11,7 @@
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"
+#include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -56,18 +57,6 @@ DecoderLimits with_memory(uint64_t bytes) {
   return limits;
 }
 
-// The smallest budget (in 16 KiB steps) under which the file opens on demand.
-uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
-  for (uint64_t budget = 16 << 10;; budget += 16 << 10) {
-    try {
-      open_sequence_source(bytes, "long", with_memory(budget));
-      return budget;
-    } catch (const Error& e) {
-      if (e.code() != ErrorCode::kLimit) throw;
-    }
-  }
-}
-
 struct Decoded {
   std::vector<Vec3> positions;
   std::vector<uint8_t> texture;
@@ -88,7 +77,7 @@ void expect_same(const Decoded& a, const Decoded& b, double t) {
 
 TEST(KeyframeSource, ALongFileDecodesOnDemandWithinABudgetItsWholeDecodeExceeds) {
   const std::vector<uint8_t> bytes = long_file();
-  const uint64_t budget = smallest_budget(bytes);
+  const uint64_t budget = crafted::smallest_budget(bytes);
   // Decoded whole, the same file needs more than that budget holds.
   testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { decode_sequence_file(bytes, "long", nullptr, with_memory(budget)); });
   // One step less and a frame's four keyframes no longer fit: refused by name, at open.
@@ -119,7 +108,7 @@ TEST(KeyframeSource, ALongFileDecodesOnDemandWithinABudgetItsWholeDecodeExceeds)
 
 TEST(KeyframeSource, DecodersOnThreadsShareOneSmallCache) {
   const std::vector<uint8_t> bytes = long_file();
-  const uint64_t budget = smallest_budget(bytes);
+  const uint64_t budget = crafted::smallest_budget(bytes);
   const auto source = open_sequence_source(bytes, "long", with_memory(budget));
   SequenceDecoder whole(std::make_shared<const Sequence>(decode_sequence_file(bytes, "long")));
   std::vector<double> times;
@@ -287,8 +276,8 @@ void expect_the_plan_of_section_10_1(const std::vector<uint8_t>& bytes, uint64_t
 
 TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
   const std::vector<uint8_t> bytes = long_file();
-  expect_the_plan_of_section_10_1(bytes, smallest_budget(bytes));
-  expect_the_plan_of_section_10_1(bytes, smallest_budget(bytes) + (256 << 10));
+  expect_the_plan_of_section_10_1(bytes, crafted::smallest_budget(bytes));
+  expect_the_plan_of_section_10_1(bytes, crafted::smallest_budget(bytes) + (256 << 10));
   // Not-a-knot: each keyframe's row of second-derivative weights is up to 124 values, held by a
   // decoder: with many keyframes, more than the index (measured before it was counted: 65536
   // keyframes at N = 5 under a 24 MiB budget, fmdec --null peaked at 82 MB RSS, 49 MB with
@@ -296,7 +285,7 @@ TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
   expect_the_plan_of_section_10_1(long_file(SplineKind::kNotAKnot, 200), uint64_t{8} << 20);
   // Texture groups: the AV1 decoder's frames counted.
   const std::vector<uint8_t> grouped = long_grouped_file();
-  expect_the_plan_of_section_10_1(grouped, smallest_budget(grouped));
+  expect_the_plan_of_section_10_1(grouped, crafted::smallest_budget(grouped));
 }
 
 // The whole run of a group's textures is kept only where the cache holds it twice over: under the
@@ -305,7 +294,7 @@ TEST(KeyframeSource, TheBudgetIsSplitAsSection10_1Says) {
 TEST(KeyframeSource, AGroupsTexturesAreKeptWholeOnlyWhereTheCacheHoldsThemTwice) {
   const std::vector<uint8_t> bytes = long_grouped_file();
   const uint64_t texture = 3 * 64 * 64;
-  const auto small = open_sequence_source(bytes, "grouped", with_memory(smallest_budget(bytes)));
+  const auto small = open_sequence_source(bytes, "grouped", with_memory(crafted::smallest_budget(bytes)));
   small->texture(5);
   EXPECT_EQ(small->bytes_held(), texture);
   const auto large = open_sequence_source(bytes, "grouped", with_memory(uint64_t{256} << 20));
@@ -324,7 +313,7 @@ TEST(KeyframeSource, TextureGroupsDecodeOnDemandAsTheWholeFileDoes) {
   for (size_t k = 0; k < static_cast<size_t>(kKeyframes); ++k) order.push_back(k);
   for (size_t k = static_cast<size_t>(kKeyframes); k-- > 0;) order.push_back(k);
   for (size_t k = 5; k < static_cast<size_t>(kKeyframes); k += 11) order.push_back(k);  // jumps into groups
-  const uint64_t budget = smallest_budget(bytes);
+  const uint64_t budget = crafted::smallest_budget(bytes);
   for (uint64_t memory : {budget, uint64_t{256} << 20}) {
     SCOPED_TRACE(memory);
     const auto source = open_sequence_source(bytes, "grouped", with_memory(memory));
@@ -369,7 +358,7 @@ TEST(KeyframeSource, TheLargestChunkIsCountedAtOpen) {
   // that the plain file needs, in a file on disk: mapped, its size counts nowhere else. Decoding
   // that texture copies the payload on top of a full cache, so the file is refused at open.
   const std::vector<uint8_t> plain = encode_sequence_file(crafted::small_sequence(), crafted::small_metadata());
-  const uint64_t budget = smallest_budget(plain);
+  const uint64_t budget = crafted::smallest_budget(plain);
   const std::vector<uint8_t> padded = crafted::rebuild(plain, [&](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "TEXR" && payload.size() > 12 && payload[0] == 1) payload.resize(payload.size() + budget / 2, 0);
   });
