@@ -51,7 +51,7 @@ std::string hex64(uint64_t value) {
 }
 
 void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory) {
-  app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")->default_str("512M");
+  app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")->default_str("256M");
   app.add_option("--max-grid", limits.max_grid_n, "Refuse files whose grid N is larger")->capture_default_str();
   app.add_option("--max-keyframes", limits.max_keyframes, "Refuse files with more keyframes")->capture_default_str();
   app.add_option("--max-texture", limits.max_texture_size, "Refuse files whose texture has more texels per side")->capture_default_str();

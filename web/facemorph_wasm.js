@@ -84,7 +84,7 @@ export class Facemorph {
       m.HEAPU32[(options + 4) >> 2] = limits.maxGridN ?? 1025;
       m.HEAPU32[(options + 8) >> 2] = limits.maxKeyframes ?? 65536;
       m.HEAPU32[(options + 12) >> 2] = limits.maxTextureSize ?? 4096;
-      const memory = BigInt(limits.maxMemoryBytes ?? 512 * 1024 * 1024);
+      const memory = BigInt(limits.maxMemoryBytes ?? 256 * 1024 * 1024);
       new BigUint64Array(m.HEAPU8.buffer, options + 16, 1)[0] = memory;
       // The work of one decode call (spec/container.md §10.3), the caller's or about a second here:
       // a unit is calibrated natively (about 75 ns), and WebAssembly runs about 2.5 times slower

@@ -358,16 +358,19 @@ void write_set(Corpus& corpus) {
     corpus.add("b_later_minor_64KiB_plus_1.fmv", later, three, "format 2.3 appending 64 KiB + 1 to the header", "a later minor version appends at most 64 KiB");
   }
 
-  // (c), (g) A 4096² texture: a lossless WebP of one colour (a few hundred bytes for 16.7 Mpixels),
+  // (c), (g) A 3072² texture, near the largest the default budget admits where a frame blends three
+  // keyframes (about 25 M² bytes and a sixteenth of the budget: 3840² needs 368 MiB), as a lossless
+  // WebP of one colour (a few hundred bytes for 9.4 Mpixels),
   // stored as it should be, and one stored compressed (padded with 64 KiB of zeros that zstd shrinks).
-  Image solid(4096, 4096, 3);
+  constexpr uint32_t kBigTexture = 3072;
+  Image solid(kBigTexture, kBigTexture, 3);
   for (size_t i = 0; i < solid.pixels.size(); i += 3) solid.pixels[i] = 200, solid.pixels[i + 1] = 120, solid.pixels[i + 2] = 90;
   const Bytes webp = encode_webp(solid, 101);
   solid = Image();
   const auto big_texture = [&](size_t padding) {
     return [&webp, padding](const std::string& t, Bytes& p) {
       if (t == "HEAD") {
-        const uint32_t m = 4096;
+        const uint32_t m = kBigTexture;
         std::memcpy(p.data() + 72, &m, sizeof m);
       }
       if (t == "TEXR") {
@@ -377,10 +380,10 @@ void write_set(Corpus& corpus) {
       }
     };
   };
-  corpus.add("g_texture_4096_webp.fmv", rebuild(plain, big_texture(0)), three,
-             "a 4096² texture from a " + std::to_string(webp.size()) + "-byte lossless WebP per keyframe");
-  corpus.add("c_compressed_texr_4096.fmv", rebuild(plain, big_texture(64 << 10), false, false, {"TEXR"}), three,
-             "a compressed TEXR holding a 4096² lossless WebP", "a texture's chunk never is");
+  corpus.add("g_texture_3072_webp.fmv", rebuild(plain, big_texture(0)), three,
+             "a 3072² texture from a " + std::to_string(webp.size()) + "-byte lossless WebP per keyframe");
+  corpus.add("c_compressed_texr_3072.fmv", rebuild(plain, big_texture(64 << 10), false, false, {"TEXR"}), three,
+             "a compressed TEXR holding a 3072² lossless WebP", "a texture's chunk never is");
 
   // (d) One group of 4096 keyframes at N = 17 (intra period = K), frames asked near its end:
   // reaching the last keyframe decodes the whole run.
@@ -406,15 +409,15 @@ void write_set(Corpus& corpus) {
   corpus.add("l_65536_keyframes_n5.fmv", keyframes_repeated(5, 65536, SplineKind::kCatmullRom), {1, 65535.0 / 30 - 0.01},
              "65536 keyframes (the default limit) at N = 5");
 
-  // (f) N = 566, the largest grid the default memory budget admits (567 needs 512.x MiB), with fields of no
-  // surface (slow or never converging).
+  // (f) N = 400, the largest grid the default memory budget of 256 MiB admits (401 needs 256.x MiB),
+  // with fields of no surface (slow or never converging).
   {
-    Sequence s = crafted::small_sequence(566, 16);
+    Sequence s = crafted::small_sequence(400, 16);
     for (Keyframe& key : s.keyframes) key.texture = Image();
     roughen(s);
     SequenceFileMetadata m = crafted::small_metadata();
     m.field_coding.intra_period = 1;
-    corpus.add("f_n566_rough_fields.fmv", encode_sequence_file(s, m), {0.25, 0.97}, "N = 566 (the largest the default budget admits) with rough fields");
+    corpus.add("f_n400_rough_fields.fmv", encode_sequence_file(s, m), {0.25, 0.97}, "N = 400 (the largest the default budget admits) with rough fields");
   }
 
   // (h) Hole levels ±inf and ±1.5e308: the hole level's step scaled so that its codes decode to them.

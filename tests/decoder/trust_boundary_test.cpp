@@ -141,12 +141,13 @@ TEST(TrustBoundary, KeyframesTexturesAndMemoryOverTheLimitsAreRefusedFromTheHead
   // 5000 keyframes of 4096² textures: 250 GB decoded from a file of a few kB. Refused from the
   // header, before the index is read, in well under 0.1 s.
   const std::vector<uint8_t> huge = rebuild(rebuild(bytes, patch_header<uint32_t>(20, 5000)), patch_header<uint32_t>(72, 4096));
-  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "over the memory limit of 512.0 MiB", [&] { decode_sequence_file(huge, "m.fmv"); }); });
+  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "over the memory limit of 256.0 MiB", [&] { decode_sequence_file(huge, "m.fmv"); }); });
   EXPECT_LT(s, 0.1);
   // The estimate counts every keyframe's fields and texture (all are decoded at open): the default
-  // budget holds 40 keyframes of 1024² on a grid of 257, not 200 of 4096², nor a grid of 1025.
+  // budget holds 20 keyframes of 1024² on a grid of 257, not 40, nor 200 of 4096², nor a grid of 1025.
   const uint64_t fields = 5 * 52000;
-  EXPECT_LT(estimated_memory_bytes(257, 40, 1024, fields), kDefaultDecoderLimits.max_memory_bytes);
+  EXPECT_LT(estimated_memory_bytes(257, 20, 1024, fields), kDefaultDecoderLimits.max_memory_bytes);
+  EXPECT_GT(estimated_memory_bytes(257, 40, 1024, fields), kDefaultDecoderLimits.max_memory_bytes);
   EXPECT_GT(estimated_memory_bytes(257, 200, 4096, fields), kDefaultDecoderLimits.max_memory_bytes);
   EXPECT_GT(estimated_memory_bytes(1025, 1, 0, 5 * 830000), kDefaultDecoderLimits.max_memory_bytes);
   EXPECT_EQ(estimated_memory_bytes(4097, uint64_t{1} << 62, 16384, fields), std::numeric_limits<uint64_t>::max());  // saturates
@@ -329,7 +330,7 @@ TEST(TrustBoundary, OptionsSetTheLimitsThroughTheCApi) {
   EXPECT_EQ(options.max_grid_n, 1025u);
   EXPECT_EQ(options.max_keyframes, 65536u);
   EXPECT_EQ(options.max_texture_size, 4096u);
-  EXPECT_EQ(options.max_memory_bytes, uint64_t{512} << 20);
+  EXPECT_EQ(options.max_memory_bytes, uint64_t{256} << 20);  // 512 MiB before API 1.2
   fm_file* file = nullptr;
   options.max_grid_n = 17;  // the golden file's grid is 33
   EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_ERROR_LIMIT);

@@ -136,7 +136,7 @@ typedef struct fm_decoder_options {
   uint32_t max_grid_n;         /* largest grid N (default 1025; the format allows 4097) */
   uint32_t max_keyframes;      /* most keyframes (default 65536) */
   uint32_t max_texture_size;   /* largest texture M, texels per side (default 4096; the format allows 16384) */
-  uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 512 MiB) */
+  uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 256 MiB) */
   /* 1.2: what one fm_decoder_decode (or fm_decoder_get_texture_weights) call may do, in work units
    * (spec/container.md §10.3: about a second on one core at the default; 0: no bound). A call that
    * would pass it returns FM_ERROR_LIMIT naming max_work and keeps what it finished, so that calling
@@ -148,7 +148,7 @@ typedef struct fm_decoder_options {
 #define FM_DEFAULT_MAX_GRID_N 1025u
 #define FM_DEFAULT_MAX_KEYFRAMES 65536u
 #define FM_DEFAULT_MAX_TEXTURE_SIZE 4096u
-#define FM_DEFAULT_MAX_MEMORY_BYTES (UINT64_C(512) << 20)
+#define FM_DEFAULT_MAX_MEMORY_BYTES (UINT64_C(256) << 20)
 #define FM_DEFAULT_MAX_WORK UINT64_C(16000000) /* 1.2 */
 
 /* Sets struct_size to sizeof(fm_decoder_options) and every field to its default. NULL is ignored.
