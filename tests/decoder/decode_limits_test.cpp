@@ -8,6 +8,7 @@
 #include "codec/decoder/container/file_layout.hpp"
 #include "facemorph/disk_grid.hpp"
 #include "facemorph/error.hpp"
+#include "facemorph/fields.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
@@ -266,10 +267,86 @@ TEST(DecodeLimits, TheWorkLimitComesFromTheLimitsTheFileWasOpenedWith) {
   // A texture of M² pixels is paid before it is decoded, and a stop leaves it to the next call.
   const auto textured = open_sequence_source(bytes, "f.fmv");
   WorkMeter short_of_a_texture(16 * 16 * WorkMeter::kPerPixel - 1, "f.fmv");
-  testing::expect_error(ErrorCode::kLimit, "decoding 1 texture frame of 16² pixels", [&] { textured->texture(1, short_of_a_texture); });
+  testing::expect_error(ErrorCode::kLimit, "decoding keyframe 1's texture of 16² pixels", [&] { textured->texture(1, short_of_a_texture); });
   EXPECT_TRUE(short_of_a_texture.stopped());
   WorkMeter enough(16 * 16 * WorkMeter::kPerWebpPixel, "f.fmv");  // lossless stills: WebP
   EXPECT_EQ(textured->texture(1, enough)->width, 16);
+}
+
+// Calls source.keyframe(k) or source.texture(k) (`get`) with a fresh meter of `limit` until one
+// returns; the number of calls (-1: none returned in 100, or a failure other than the meter's).
+template <typename Get>
+int fetch_in_calls(const Get& get, uint64_t limit) {
+  for (int calls = 1; calls <= 100; ++calls) {
+    WorkMeter meter(limit, "g.fmv");
+    try {
+      get(meter);
+      return calls;
+    } catch (const Error& e) {
+      EXPECT_TRUE(meter.stopped()) << e.what();
+      if (!meter.stopped()) return -1;
+    }
+  }
+  return -1;
+}
+
+TEST(DecodeLimits, ARunCostingMoreThanOneCallDecodesOverSeveral) {
+  // One group of three keyframes (fields and an AV1 texture sequence), each call affording one
+  // keyframe's values or one texture frame's pixels: the last keyframe takes three calls, each
+  // going on where the one before stopped (before, every call began the run again and none ended).
+  SequenceFileMetadata grouped = crafted::grouped_texture_metadata();
+  grouped.field_coding.intra_period = 3;
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(17, 16), grouped);
+  const auto whole = open_sequence_source(bytes, "g.fmv");
+  WorkMeter counted(0);
+  const std::shared_ptr<const Keyframe> expected = whole->keyframe(2, counted);
+  const std::shared_ptr<const Image> expected_texture = whole->texture(2);
+  const uint64_t one_keyframe = counted.spent() / 3;  // the run was read to its end: three keyframes
+  ASSERT_GT(one_keyframe, 0u);
+
+  const auto source = open_sequence_source(bytes, "g.fmv");
+  std::shared_ptr<const Keyframe> key;
+  EXPECT_EQ(fetch_in_calls([&](WorkMeter& meter) { key = source->keyframe(2, meter); }, one_keyframe), 3);
+  ASSERT_TRUE(key);
+  EXPECT_EQ(scalar_arrays(key->fields), scalar_arrays(expected->fields));
+  EXPECT_EQ(key->hole_level, expected->hole_level);
+  std::shared_ptr<const Image> texture;
+  EXPECT_EQ(fetch_in_calls([&](WorkMeter& meter) { texture = source->texture(2, meter); }, 16 * 16 * WorkMeter::kPerPixel), 3);
+  ASSERT_TRUE(texture);
+  EXPECT_EQ(texture->pixels, expected_texture->pixels);
+
+  // A stopped run is another keyframe's too: asking for keyframe 1 after a stop at keyframe 1 of
+  // the run for keyframe 2 goes on, and a fault of the file still fails the whole group.
+  const auto other = open_sequence_source(bytes, "g.fmv");
+  WorkMeter one(one_keyframe, "g.fmv");
+  EXPECT_THROW(other->keyframe(2, one), Error);
+  EXPECT_EQ(fetch_in_calls([&](WorkMeter& meter) { key = other->keyframe(1, meter); }, 2 * one_keyframe), 1);
+  EXPECT_EQ(scalar_arrays(key->fields), scalar_arrays(whole->keyframe(1)->fields));
+  const auto damaged = open_sequence_source(rebuild(bytes, appending("KGOP", 1)), "g.fmv");
+  WorkMeter stop(one_keyframe, "g.fmv");
+  EXPECT_THROW(damaged->keyframe(0, stop), Error);
+  EXPECT_TRUE(stop.stopped());
+  testing::expect_error(ErrorCode::kCorrupt, "g.fmv", [&] { damaged->keyframe(0); });
+  testing::expect_error(ErrorCode::kCorrupt, "g.fmv", [&] { damaged->keyframe(2); });
+}
+
+TEST(DecodeLimits, AFrameOfALongGroupDecodesOverSeveralCallsToTheSameBits) {
+  // The decoder's view: a frame whose keyframes lie late in a group that costs more than a call.
+  SequenceFileMetadata grouped = crafted::grouped_texture_metadata();
+  grouped.field_coding.intra_period = 3;
+  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(33, 16), grouped);
+  SequenceDecoder unbounded(open_sequence_source(bytes, "g.fmv"));
+  DecodeOptions no_limit;
+  no_limit.max_work = 0;
+  const DecodedFrame expected = unbounded.decode(0.9, no_limit);
+  SequenceDecoder decoder(open_sequence_source(bytes, "g.fmv"));
+  DecodedFrame frame;
+  const auto interior = static_cast<uint64_t>(disk_grid_shape(33).interior_count);
+  const int calls = decode_in_calls(decoder, 0.9, 8 * interior, frame);  // under two keyframes' values
+  EXPECT_GT(calls, 2);
+  ASSERT_EQ(frame.grid_positions.size(), expected.grid_positions.size());
+  for (size_t v = 0; v < frame.grid_positions.size(); ++v) ASSERT_EQ(frame.grid_positions[v], expected.grid_positions[v]) << "node " << v;
+  EXPECT_EQ(frame.texture.pixels, expected.texture.pixels);
 }
 
 }  // namespace

@@ -204,15 +204,30 @@ class KeyframeGroupWriter {
   struct State;
   std::unique_ptr<State> state_;
 };
-// Reads the fields of keyframes first .. first + decoded - 1 of a group of `count`, handing each to
-// `take(j, key, end)` as it is decoded (key holds the fields and hole level, checked by
-// validate_fields), `end` where its part of the stream ended from the payload's start. The stream's
-// end is checked when decoded == count. One keyframe is held at a time.
-// `work` (null: unbounded) is charged each keyframe's values before it is decoded. Each keyframe's
-// fields pass validate_fields and its hole levels are finite and within kMaxHoleLevel (corrupt,
-// naming the keyframe and the node).
-void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
-                         WorkMeter* work, const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take);
+// Reads the fields of a group of `count` keyframes from keyframe `first` on, one keyframe at a
+// time, in order, so that a caller may stop between two (a decode call's work limit, §10.3) and go
+// on later with the same reader: it holds the payload, the stream's place and models, and the last
+// keyframe's codes. `h` must outlive it.
+class KeyframeGroupReader {
+ public:
+  KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first, uint32_t count);
+  ~KeyframeGroupReader();
+  KeyframeGroupReader(const KeyframeGroupReader&) = delete;
+  KeyframeGroupReader& operator=(const KeyframeGroupReader&) = delete;
+  // The keyframe of the group read() decodes next (count: none left).
+  uint32_t next() const;
+  // Decodes keyframe first + next(), charging `work` (null: unbounded) its values first, so that a
+  // stop leaves the reader where it was. The key holds the fields and hole level: its fields pass
+  // validate_fields and its hole levels are finite and within kMaxHoleLevel (corrupt, naming the
+  // keyframe and the node). `end`: where its part of the stream ended from the payload's start.
+  Keyframe read(WorkMeter* work, uint64_t& end);
+  // After the group's last keyframe: kCorrupt unless the stream ends exactly there.
+  void expect_end() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 // ---- A texture (TEXR, texture_chunk.cpp) ----
 
@@ -238,13 +253,24 @@ class TextureGroupWriter {
   size_t first_;
   AvifSequenceWriter sequence_;
 };
-// Decodes the textures of keyframes first .. last of the group of `count` starting at `first`,
-// after checking the chunk's first keyframe, codec and its image sequence's count and size against
-// the container's (corrupt, naming `where`, before any pixel); hands take(k, image) each keyframe k
-// for which wanted(k).
-void read_texture_group(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t last, uint32_t size,
-                        const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take);
-// The bytes of each of the group's keyframes' AV1 samples, in order (fminfo). Throws as read_texture_group.
+// Reads the textures of the group of `count` keyframes starting at `first` one frame at a time, in
+// order (KeyframeGroupReader's counterpart: it holds the payload and the AV1 decoder's state), after
+// checking the chunk's first keyframe, codec and its image sequence's count and size against the
+// container's (corrupt, naming `where`, before any pixel).
+class TextureGroupReader {
+ public:
+  TextureGroupReader(std::vector<uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size);
+  // The frame of the group read() decodes next (count: none left).
+  uint32_t next() const { return sequence_->next(); }
+  // Decodes frame next(): its RGB image where `convert`, else an empty one (every frame is decoded,
+  // as later ones are predicted from it).
+  Image read(bool convert) { return sequence_->read(convert); }
+
+ private:
+  std::vector<uint8_t> payload_;  // the sequence reads it where it lies
+  std::unique_ptr<AvifSequenceReader> sequence_;
+};
+// The bytes of each of the group's keyframes' AV1 samples, in order (fminfo). Throws as TextureGroupReader.
 std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size);
 
 }  // namespace facemorph::file_layout

@@ -125,11 +125,7 @@ class FileSource final : public KeyframeSource {
     // A group's stream is read to its exact end (§7) before any of its keyframes is shown: a
     // stream that does not end where its chunk does is not the encoder's, whichever keyframe a
     // frame asks for first. Once it has, a keyframe dropped from the cache decodes only as far as itself.
-    return fetch(fields_, k, file_.run_length(), work, true, [&](size_t first, size_t last, const auto& wants, const auto& take) {
-      file_.decode_run(first, last, [&](size_t j, Keyframe&& key, uint64_t) {
-        if (wants(j)) take(j, std::move(key));
-      }, work);
-    });
+    return fetch(fields_, k, file_.run_length(), work, true, [&](size_t first) { return file_.read_fields(first); });
   }
 
   size_t texture_owner(size_t k) const override {
@@ -144,8 +140,7 @@ class FileSource final : public KeyframeSource {
     }
     // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. A
     // shared still (format 2.2) is held once, in its owner's slot, whichever keyframe asks.
-    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), work, false,
-                 [&](size_t first, size_t last, const auto& wants, const auto& take) { file_.decode_textures(first, last, wants, take, work); });
+    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), work, false, [&](size_t first) { return file_.read_textures(first); });
   }
 
   struct Entry {
@@ -170,12 +165,22 @@ class FileSource final : public KeyframeSource {
     order_.splice(order_.begin(), order_, slot.where);
   }
 
+  // A run a call's work limit stopped: its reader, where the next call goes on, and what it decoded
+  // that is to be kept once the run has been read whole (fetch's `held`).
+  template <typename T>
+  struct Suspended {
+    size_t first = 0;
+    std::unique_ptr<OpenedFile::RunReader<T>> reader;
+    std::vector<std::pair<size_t, std::shared_ptr<const T>>> held;
+  };
+
   // One kind of thing the cache holds, a slot per keyframe: fields or textures.
   template <typename T>
   struct Shelf {
     std::vector<Slot<T>> slots;
     std::vector<std::pair<ErrorCode, std::string>> failures;  // the error and its message
     std::vector<bool> run_read_whole;  // per run: decoded to its end once, without a fault
+    Suspended<T> suspended;            // at most one run, the one a stopped call was decoding
     bool texture = false;
     uint64_t bytes_each = 0;  // as the plan counts one
     void resize(size_t count, bool is_texture, uint64_t bytes) {
@@ -188,17 +193,18 @@ class FileSource final : public KeyframeSource {
   };
 
   // Keyframe k's item from `shelf`, decoded where it is not held. A run (a group of keyframes, or a
-  // keyframe alone) decodes from its first keyframe: the whole run is kept where the cache holds it
-  // twice over (playing on needs the next keyframes), else only as far as k. `decode(first, last,
-  // wants, take)` decodes first .. last and hands take(j, item) each j that wants(j). An item that
-  // did not decode fails at once the next time (§10.3: time follows the frame).
+  // keyframe alone) decodes from its first keyframe (`open(first)` gives its reader): the whole run
+  // is kept where the cache holds it twice over (playing on needs the next keyframes), else only as
+  // far as k. An item that did not decode fails at once the next time (§10.3: time follows the frame).
   // `read_whole`: the run is decoded to its end the first time (keyframes' streams, whose end is
   // checked), and what it hands over is kept only once all of it decoded; a fault anywhere in it
   // then fails every keyframe of the run. Otherwise (textures) a fault past k leaves k standing.
-  // A stop by the call's work meter is no fault of the file: nothing is remembered, and the next
-  // call decodes again.
-  template <typename T, typename Decode>
-  std::shared_ptr<const T> fetch(Shelf<T>& shelf, size_t k, size_t run_length, WorkMeter* work, bool read_whole, const Decode& decode) const {
+  // A stop by the call's work meter is no fault of the file: the run's reader is kept where it
+  // stopped, with what it decoded, and the next call that needs the run goes on from there, so that
+  // a run costing more than one call may do still decodes over several. One run is kept so, for
+  // both shelves together (what §10.1 counts in flight: one payload and one image decoder's frames).
+  template <typename T, typename Open>
+  std::shared_ptr<const T> fetch(Shelf<T>& shelf, size_t k, size_t run_length, WorkMeter* work, bool read_whole, const Open& open) const {
     if (shelf.slots[k].value) {
       touch(shelf.slots[k]);
       return shelf.slots[k].value;
@@ -208,22 +214,45 @@ class FileSource final : public KeyframeSource {
     const size_t run_end = std::min(first + run_length, shelf.slots.size());
     const bool whole_run = 2 * (run_end - first) * shelf.bytes_each <= cache_capacity_;
     const bool to_the_end = whole_run || (read_whole && !shelf.run_read_whole[first]);
-    std::shared_ptr<const T> wanted;
-    std::vector<std::pair<size_t, std::shared_ptr<const T>>> held;  // until the run has decoded (read_whole)
-    const auto wants = [&](size_t j) { return j == k || (whole_run && !shelf.slots[j].value); };
-    const auto take = [&](size_t j, T&& item) {
-      auto shared = std::make_shared<const T>(std::move(item));
-      if (j == k) wanted = shared;
-      if (read_whole) {
-        held.emplace_back(j, std::move(shared));
-      } else {
-        remember(shelf, j, std::move(shared));
-      }
+    const size_t last = to_the_end ? run_end - 1 : k;
+    Suspended<T>& run = shelf.suspended;
+    const auto holds = [&](size_t j) {
+      return std::any_of(run.held.begin(), run.held.end(), [j](const auto& item) { return item.first == j; });
     };
+    // Another run's, or one that has passed k without keeping it: started again.
+    if (run.reader && (run.first != first || (run.reader->next() > k && !holds(k)))) run = {};
+    drop_suspended(fields_, &shelf);
+    drop_suspended(textures_, &shelf);
+    const auto wants = [&](size_t j) { return j == k || (whole_run && !shelf.slots[j].value); };
+    // What an earlier call kept for itself is dropped: a run's held items are one call's, as ever.
+    std::erase_if(run.held, [&](const auto& item) { return !wants(item.first); });
+    std::shared_ptr<const T> wanted;
+    for (const auto& [j, item] : run.held) {
+      if (j == k) wanted = item;
+    }
     try {
-      decode(first, to_the_end ? run_end - 1 : k, wants, take);
+      if (!run.reader) {
+        run.first = first;
+        run.reader = open(first);
+      }
+      while (run.reader->next() <= last) {
+        const size_t j = run.reader->next();
+        uint64_t bytes = 0;
+        std::optional<T> item = run.reader->read(work, wants(j), bytes);
+        if (!item || !wants(j)) continue;
+        auto shared = std::make_shared<const T>(std::move(*item));
+        if (j == k) wanted = shared;
+        if (read_whole) {
+          run.held.emplace_back(j, std::move(shared));
+        } else {
+          remember(shelf, j, std::move(shared));
+        }
+      }
+      if (last + 1 == run.reader->end()) run.reader->finish();
     } catch (const Error& e) {
-      if (work != nullptr && work->stopped()) throw;
+      if (work != nullptr && work->stopped()) throw;  // the run stays where it stopped
+      std::vector<std::pair<size_t, std::shared_ptr<const T>>> held = std::move(run.held);
+      run = {};
       if (!read_whole) {
         // Past k, in the rest of a whole run: k stands; the failing keyframe fails when asked for.
         if (wanted) return wanted;
@@ -237,8 +266,15 @@ class FileSource final : public KeyframeSource {
       throw;
     }
     if (to_the_end) shelf.run_read_whole[first] = true;
-    for (auto& [j, item] : held) remember(shelf, j, std::move(item));
+    for (auto& [j, item] : run.held) remember(shelf, j, std::move(item));
+    run = {};
     return wanted;
+  }
+
+  // Forgets the run a stopped call left on `shelf` unless it is `keep` (fetch: one kept at a time).
+  template <typename T, typename Keep>
+  void drop_suspended(Shelf<T>& shelf, const Keep* keep) const {
+    if (static_cast<const void*>(&shelf) != static_cast<const void*>(keep)) shelf.suspended = {};
   }
 
   template <typename T>

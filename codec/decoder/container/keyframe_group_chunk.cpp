@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace facemorph::file_layout {
 
@@ -230,50 +231,79 @@ std::vector<uint8_t> KeyframeGroupWriter::finish() {
   return s.w.take();
 }
 
-void read_keyframe_group(std::span<const uint8_t> payload, const std::string& where, const FileHeader& h, uint32_t first, uint32_t count, uint32_t decoded,
-                         WorkMeter* work, const std::function<void(uint32_t, Keyframe&&, uint64_t)>& take) {
-  ByteReader r(payload, where);
-  if (r.read<uint32_t>("the first keyframe number") != first) corrupt(where, "holds another group of keyframes than the index says");
-  const size_t stream_start = payload.size() - r.remaining();
-  format::RangedStreamReader stream(r.bytes(r.remaining(), "the stream"), where);
-  const std::vector<size_t> expected = expected_lengths(h);
-  const std::shared_ptr<const GridFacts> grid_held = grid_facts(h.shape.grid_n);
-  const GridFacts& grid = *grid_held;
-  const std::vector<const format::LatticeNeighbours*> lattices = lattices_of(expected, grid);
-  GroupModels models;
-  std::vector<std::vector<int32_t>> codes;
+struct KeyframeGroupReader::State {
+  State(std::vector<uint8_t> bytes, std::string place, const FileHeader& header, uint32_t first_keyframe, uint32_t keyframes)
+      : payload(std::move(bytes)), where(std::move(place)), h(header), first(first_keyframe), count(keyframes) {}
+  std::vector<uint8_t> payload;  // the stream reads it where it lies
+  std::string where;
+  const FileHeader& h;
+  uint32_t first = 0, count = 0, next = 0;
+  size_t stream_start = 0;
+  std::optional<format::RangedStreamReader> stream;
+  std::vector<size_t> expected;
   uint64_t values = 0;
-  for (size_t length : expected) values += length;
-  for (uint32_t j = 0; j < decoded; ++j) {
-    const std::string keyframe_where = where + " (keyframe " + std::to_string(first + j) + ")";
-    if (work != nullptr) work->charge(values * WorkMeter::kPerValue, "decoding keyframe " + std::to_string(first + j) + "'s " + std::to_string(values) + " values");
-    const bool from_previous = j > 0 && stream.decision(models.reference);
-    std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
-    for (size_t a = 0; a < kKeyframeArrays; ++a) {
-      if (expected[a] == 0) continue;
-      const bool high = stream.decision(models.predictor[a][0]);
-      const bool low = stream.decision(models.predictor[a][high ? 2 : 1]);
-      predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), expected[a], grid, keyframe_where);
-    }
-    const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(expected, lattices, kRangeModelSets, models.residuals);
-    Keyframe key;
-    assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, codes, h, grid, keyframe_where), h.shape.representation,
-                           h.shape.grid_n, h.fixed_nodes);
-    try {
-      validate_fields(key.fields);
-    } catch (const Error& e) {
-      corrupt(keyframe_where, e.what());
-    }
-    // The hole levels are blended and cut along their zero level (hole_cut.cpp): a level that is
-    // not finite, or so large that a blend of them overflows, is the file's fault and named here.
-    for (size_t v = 0; v < key.hole_level.size(); ++v) {
-      if (!(std::abs(key.hole_level[v]) <= kMaxHoleLevel)) {
-        corrupt(keyframe_where, "hole level " + std::to_string(key.hole_level[v]) + " at node " + std::to_string(v) + " (at most 16 in magnitude)");
-      }
-    }
-    take(j, std::move(key), stream_start + stream.position());
-  }
-  if (decoded == count) stream.expect_end();
+  std::shared_ptr<const GridFacts> grid;
+  std::vector<const format::LatticeNeighbours*> lattices;
+  GroupModels models;
+  std::vector<std::vector<int32_t>> codes;  // the last keyframe's
+};
+
+KeyframeGroupReader::KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first, uint32_t count)
+    : state_(std::make_unique<State>(std::move(payload), std::move(where), h, first, count)) {
+  State& s = *state_;
+  ByteReader r(s.payload, s.where);
+  if (r.read<uint32_t>("the first keyframe number") != first) corrupt(s.where, "holds another group of keyframes than the index says");
+  s.stream_start = s.payload.size() - r.remaining();
+  s.stream.emplace(r.bytes(r.remaining(), "the stream"), s.where);
+  s.expected = expected_lengths(h);
+  for (size_t length : s.expected) s.values += length;
+  s.grid = grid_facts(h.shape.grid_n);
+  s.lattices = lattices_of(s.expected, *s.grid);
 }
+
+KeyframeGroupReader::~KeyframeGroupReader() = default;
+
+uint32_t KeyframeGroupReader::next() const { return state_->next; }
+
+Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
+  State& s = *state_;
+  const uint32_t j = s.next;
+  if (j >= s.count) throw Error(ErrorCode::kInternal, s.where + ": keyframe " + std::to_string(s.first + j) + " past the group's " + std::to_string(s.count));
+  const std::string keyframe_where = s.where + " (keyframe " + std::to_string(s.first + j) + ")";
+  if (work != nullptr) work->charge(s.values * WorkMeter::kPerValue, "decoding keyframe " + std::to_string(s.first + j) + "'s " + std::to_string(s.values) + " values");
+  // From here on a failure leaves the stream where no later keyframe can be read: the caller drops
+  // the reader (a fault of the file fails the whole group).
+  const GridFacts& grid = *s.grid;
+  format::RangedStreamReader& stream = *s.stream;
+  const bool from_previous = j > 0 && stream.decision(s.models.reference);
+  std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
+  for (size_t a = 0; a < kKeyframeArrays; ++a) {
+    if (s.expected[a] == 0) continue;
+    const bool high = stream.decision(s.models.predictor[a][0]);
+    const bool low = stream.decision(s.models.predictor[a][high ? 2 : 1]);
+    predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), s.expected[a], grid, keyframe_where);
+  }
+  const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, s.lattices, kRangeModelSets, s.models.residuals);
+  Keyframe key;
+  assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, s.codes, s.h, grid, keyframe_where), s.h.shape.representation,
+                         s.h.shape.grid_n, s.h.fixed_nodes);
+  try {
+    validate_fields(key.fields);
+  } catch (const Error& e) {
+    corrupt(keyframe_where, e.what());
+  }
+  // The hole levels are blended and cut along their zero level (hole_cut.cpp): a level that is
+  // not finite, or so large that a blend of them overflows, is the file's fault and named here.
+  for (size_t v = 0; v < key.hole_level.size(); ++v) {
+    if (!(std::abs(key.hole_level[v]) <= kMaxHoleLevel)) {
+      corrupt(keyframe_where, "hole level " + std::to_string(key.hole_level[v]) + " at node " + std::to_string(v) + " (at most 16 in magnitude)");
+    }
+  }
+  end = s.stream_start + stream.position();
+  ++s.next;
+  return key;
+}
+
+void KeyframeGroupReader::expect_end() const { state_->stream->expect_end(); }
 
 }  // namespace facemorph::file_layout

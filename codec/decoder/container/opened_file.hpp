@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -56,10 +57,35 @@ class OpenedFile {
   size_t run_length() const;
   size_t run_of(size_t k) const { return k / run_length(); }
 
-  // Decodes keyframes first_of_run .. last (last within the run of first_of_run), each checked as
-  // §7 says, calling `take(k, key, field_bytes)` for each in order; `key` holds everything but the
-  // texture (time and pose from the index). field_bytes: what keyframe k's fields take in the file.
-  // `work` (null: unbounded) is charged each keyframe's values before it is decoded.
+  // A run decoded one keyframe at a time, in order, so that a caller may stop between two (a decode
+  // call's work limit, spec/container.md §10.3) and go on later with the same reader, which holds
+  // what the run's decoding needs (the payload, a stream's place, an image decoder's frames).
+  template <typename T>
+  class RunReader {
+   public:
+    virtual ~RunReader() = default;
+    // The keyframe read() decodes next; end(): one past the run's last.
+    virtual size_t next() const = 0;
+    virtual size_t end() const = 0;
+    // Decodes keyframe next(), charging `work` (null: unbounded) first, so that a stop leaves the
+    // reader where it was; after any other failure the reader is not to be used again. Returns the
+    // item, or nothing where it is not `wanted` and need not be made (a texture frame is decoded,
+    // as later ones are predicted from it, but not converted). `bytes`: what it takes in the file
+    // (a keyframe's fields; 0 for textures).
+    virtual std::optional<T> read(WorkMeter* work, bool wanted, uint64_t& bytes) = 0;
+    // After the run's last keyframe: the checks of its end (a group's stream ends exactly there).
+    virtual void finish() const = 0;
+  };
+  // The run of keyframes' fields from first_of_run, each checked as §7 says; an item holds
+  // everything but the texture (time and pose from the index). Charged its values.
+  std::unique_ptr<RunReader<Keyframe>> read_fields(size_t first_of_run) const;
+  // The run of textures from first_of_run (a still, or a group's sequence), each checked as §8 /
+  // §8.1 say. Charged each frame's pixels.
+  std::unique_ptr<RunReader<Image>> read_textures(size_t first_of_run) const;
+
+  // Decodes keyframes first_of_run .. last (last within the run of first_of_run; read_fields),
+  // calling `take(k, key, field_bytes)` for each in order; the stream's end is checked where last
+  // is the run's last. field_bytes: what keyframe k's fields take in the file.
   void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work = nullptr) const;
   // The keyframe whose stored texture keyframe k shows: k itself, or in a file of shared textures
   // (format 2.2) the first keyframe naming the same TEXR. decode_texture(k) decodes the owner's.
@@ -70,9 +96,8 @@ class OpenedFile {
   // What decoding a texture run holds besides its payload and product: the AV1 decoder's frames
   // for a group's sequence (§10.1), 0 for stills.
   uint64_t texture_decoder_bytes() const;
-  // Decodes the textures of keyframes first_of_run .. last (within one texture run), each checked
-  // as §8 / §8.1 say, handing take(k, image) those for which wanted(k), in order.
-  // `work` (null: unbounded) is charged the pixels of every frame decoded, before the first.
+  // Decodes the textures of keyframes first_of_run .. last (within one texture run; read_textures),
+  // handing take(k, image) those for which wanted(k), in order.
   void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
                        WorkMeter* work = nullptr) const;
   // Every keyframe's fields, run by run, in order (decode_run over the whole file).

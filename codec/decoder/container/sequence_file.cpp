@@ -444,57 +444,124 @@ size_t OpenedFile::texture_run_length() const { return state_->header->texture_g
 
 uint64_t OpenedFile::texture_decoder_bytes() const { return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0; }
 
-void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work) const {
+std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t first) const {
+  class FieldRun final : public RunReader<Keyframe> {
+   public:
+    FieldRun(const State& s, size_t first, size_t count, const format::ChunkView& chunk)
+        : s_(s),
+          first_(first),
+          count_(count),
+          framing_(chunk.total_size() - chunk.raw_size),
+          group_(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk), *s.header, static_cast<uint32_t>(first),
+                 static_cast<uint32_t>(count)) {}
+    size_t next() const override { return first_ + group_.next(); }
+    size_t end() const override { return first_ + count_; }
+    std::optional<Keyframe> read(WorkMeter* work, bool, uint64_t& bytes) override {
+      const size_t k = next();
+      uint64_t end = 0;
+      Keyframe key = group_.read(work, end);
+      key.time = s_.index[k].time;  // the index holds the time and pose
+      key.pose = s_.poses[k];
+      // The chunk's framing counts with its first keyframe.
+      bytes = end - previous_end_ + (k == first_ ? framing_ : 0);
+      previous_end_ = end;
+      return key;
+    }
+    void finish() const override { group_.expect_end(); }
+
+   private:
+    const State& s_;
+    size_t first_, count_;
+    uint64_t framing_, previous_end_ = 0;
+    KeyframeGroupReader group_;
+  };
   const State& s = *state_;
-  const format::ContainerReader& reader = s.reader;
-  if (first % run_length() != 0 || last < first || last >= s.index.size() || run_of(last) != run_of(first)) {
-    throw Error(ErrorCode::kInternal, s.source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  if (first % run_length() != 0 || first >= s.index.size()) {
+    throw Error(ErrorCode::kInternal, s.source + ": keyframe " + std::to_string(first) + " does not start a run");
   }
-  const format::ChunkView& chunk = reader.chunk_at(s.index[first].group_offset, "keyframe " + std::to_string(first) + "'s index entry");
-  const auto count = static_cast<uint32_t>(std::min<size_t>(run_length(), s.index.size() - first));
-  uint64_t previous_end = 0;
-  read_keyframe_group(reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + reader.describe(chunk), *s.header, static_cast<uint32_t>(first), count,
-                      static_cast<uint32_t>(last - first + 1), work, [&](uint32_t j, Keyframe&& key, uint64_t end) {
-                        const size_t k = first + j;
-                        key.time = s.index[k].time;  // the index holds the time and pose
-                        key.pose = s.poses[k];
-                        // The chunk's framing counts with its first keyframe.
-                        const uint64_t bytes = end - previous_end + (j == 0 ? chunk.total_size() - chunk.raw_size : 0);
-                        previous_end = end;
-                        take(k, std::move(key), bytes);
-                      });
+  const format::ChunkView& chunk = s.reader.chunk_at(s.index[first].group_offset, "keyframe " + std::to_string(first) + "'s index entry");
+  return std::make_unique<FieldRun>(s, first, std::min(run_length(), s.index.size() - first), chunk);
+}
+
+void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work) const {
+  const std::unique_ptr<RunReader<Keyframe>> run = read_fields(first);
+  if (last < first || last >= run->end()) {
+    throw Error(ErrorCode::kInternal, state_->source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  }
+  while (run->next() <= last) {
+    const size_t k = run->next();
+    uint64_t bytes = 0;
+    std::optional<Keyframe> key = run->read(work, true, bytes);  // before take's arguments: bytes is set here
+    take(k, std::move(*key), bytes);
+  }
+  if (last + 1 == run->end()) run->finish();
 }
 
 const format::ChunkView& OpenedFile::texture_chunk(size_t k) const {
   return state_->reader.chunk_at(state_->index.at(k).texture_offset, "keyframe " + std::to_string(k) + "'s texture entry");
 }
 
-void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
-                                 WorkMeter* work) const {
+std::unique_ptr<OpenedFile::RunReader<Image>> OpenedFile::read_textures(size_t first) const {
+  // Each frame's M² pixels are charged before it is decoded (an image decoder cannot be stopped
+  // midway), at the cost of its codec (§10.3).
+  class TextureRun final : public RunReader<Image> {
+   public:
+    TextureRun(const OpenedFile& file, size_t first, size_t count, uint64_t pixel_cost)
+        : file_(file), first_(first), count_(count), pixels_(uint64_t(file.texture_size()) * uint64_t(file.texture_size())), pixel_cost_(pixel_cost) {}
+    size_t next() const override { return group_ ? first_ + group_->next() : first_ + (still_read_ ? 1 : 0); }
+    size_t end() const override { return first_ + count_; }
+    std::optional<Image> read(WorkMeter* work, bool wanted, uint64_t& bytes) override {
+      const size_t k = next();
+      if (k >= end()) throw Error(ErrorCode::kInternal, file_.source() + ": texture " + std::to_string(k) + " past its run");
+      bytes = 0;
+      if (work != nullptr) {
+        work->charge(pixels_ * pixel_cost_, "decoding keyframe " + std::to_string(k) + "'s texture of " + std::to_string(file_.texture_size()) + "² pixels");
+      }
+      const State& s = *file_.state_;
+      if (!s.header->texture_groups()) {
+        still_read_ = true;
+        return wanted ? std::optional<Image>(file_.decode_texture(k)) : std::nullopt;
+      }
+      if (!group_) {
+        const format::ChunkView& chunk = file_.texture_chunk(first_);
+        group_ = std::make_unique<TextureGroupReader>(s.reader.payload(chunk, s.limits.max_memory_bytes),
+                                                      s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first_) + ".." +
+                                                          std::to_string(first_ + count_ - 1) + ")",
+                                                      static_cast<uint32_t>(first_), static_cast<uint32_t>(count_), static_cast<uint32_t>(s.header->texture_size));
+      }
+      Image image = group_->read(wanted);
+      return wanted ? std::optional<Image>(std::move(image)) : std::nullopt;
+    }
+    void finish() const override {}
+
+   private:
+    const OpenedFile& file_;
+    size_t first_, count_;
+    uint64_t pixels_, pixel_cost_;
+    bool still_read_ = false;
+    std::unique_ptr<TextureGroupReader> group_;  // made at the first frame (a still reads its own chunk)
+  };
   const State& s = *state_;
   const size_t run = texture_run_length();
-  if (first % run != 0 || last < first || last >= s.index.size() || last / run != first / run) {
-    throw Error(ErrorCode::kInternal, s.source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+  if (first % run != 0 || first >= s.index.size()) {
+    throw Error(ErrorCode::kInternal, s.source + ": texture " + std::to_string(first) + " does not start a run");
   }
-  // Every frame up to `last` is decoded (a group's later frames are predicted from its earlier
-  // ones), each of M² pixels: paid before the first, as an image decoder cannot be stopped midway.
-  if (work != nullptr) {
-    const auto m = static_cast<uint64_t>(s.header->texture_size);
-    const uint64_t frames = s.header->texture_groups() ? last - first + 1 : 1;
-    const uint64_t per_pixel = texture_codec(first) == TextureCodec::kWebp ? WorkMeter::kPerWebpPixel : WorkMeter::kPerPixel;
-    work->charge(frames * m * m * per_pixel, "decoding " + std::to_string(frames) + " texture frame" + (frames == 1 ? "" : "s") + " of " +
-                                                            std::to_string(m) + "² pixels (keyframes " + std::to_string(first) + ".." + std::to_string(last) + ")");
+  const uint64_t pixel_cost = texture_codec(first) == TextureCodec::kWebp ? WorkMeter::kPerWebpPixel : WorkMeter::kPerPixel;
+  return std::make_unique<TextureRun>(*this, first, std::min(run, s.index.size() - first), pixel_cost);
+}
+
+void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
+                                 WorkMeter* work) const {
+  const std::unique_ptr<RunReader<Image>> run = read_textures(first);
+  if (last < first || last >= run->end()) {
+    throw Error(ErrorCode::kInternal, state_->source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
   }
-  if (!s.header->texture_groups()) {
-    if (wanted(first)) take(first, decode_texture(first));
-    return;
+  while (run->next() <= last) {
+    const size_t k = run->next();
+    uint64_t bytes = 0;
+    std::optional<Image> image = run->read(work, wanted(k), bytes);
+    if (image) take(k, std::move(*image));
   }
-  const format::ChunkView& chunk = texture_chunk(first);
-  const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
-  read_texture_group(s.reader.payload(chunk, s.limits.max_memory_bytes),
-                     s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first) + ".." + std::to_string(first + count - 1) + ")",
-                     static_cast<uint32_t>(first), count, static_cast<uint32_t>(last), s.header->texture_size, [&](uint32_t k) { return wanted(k); },
-                     [&](uint32_t k, Image&& image) { take(k, std::move(image)); });
 }
 
 void OpenedFile::decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {

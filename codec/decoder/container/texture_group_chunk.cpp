@@ -47,12 +47,8 @@ std::vector<uint8_t> TextureGroupWriter::finish() {
   return w.take();
 }
 
-void read_texture_group(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t last, uint32_t size,
-                        const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take) {
-  const std::span<const uint8_t> sequence = sequence_of(payload, where, first);
-  decode_avif_sequence(sequence, where, count, size, last - first, [&](uint32_t j) { return wanted(first + j); },
-                       [&](uint32_t j, Image&& image) { take(first + j, std::move(image)); });
-}
+TextureGroupReader::TextureGroupReader(std::vector<uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size)
+    : payload_(std::move(payload)), sequence_(std::make_unique<AvifSequenceReader>(sequence_of(payload_, where, first), where, count, size)) {}
 
 std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size) {
   return avif_sequence_sample_bytes(sequence_of(payload, where, first), where, count, size);

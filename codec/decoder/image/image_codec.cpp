@@ -273,22 +273,49 @@ std::unique_ptr<avifDecoder, AvifDecoderFree> parsed_sequence(std::span<const ui
 
 }  // namespace
 
+struct AvifSequenceReader::State {
+  std::string source;
+  uint32_t frames = 0, size = 0, next = 0;
+  std::unique_ptr<avifDecoder, AvifDecoderFree> decoder;
+};
+
+AvifSequenceReader::AvifSequenceReader(std::span<const uint8_t> bytes, std::string source, uint32_t frames, uint32_t size)
+    : state_(std::make_unique<State>()) {
+  state_->decoder = parsed_sequence(bytes, source, frames, size);
+  state_->source = std::move(source);
+  state_->frames = frames;
+  state_->size = size;
+}
+
+AvifSequenceReader::~AvifSequenceReader() = default;
+
+uint32_t AvifSequenceReader::next() const { return state_->next; }
+
+Image AvifSequenceReader::read(bool convert) {
+  State& s = *state_;
+  const uint32_t j = s.next;
+  if (j >= s.frames) throw Error(ErrorCode::kInvalidArgument, s.source + ": frame " + std::to_string(j) + " of a sequence of " + std::to_string(s.frames));
+  const avifResult result = avifDecoderNextImage(s.decoder.get());
+  if (result != AVIF_RESULT_OK) {
+    throw Error(ErrorCode::kCorrupt, s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is damaged (" + avifResultToString(result) + ")");
+  }
+  const avifImage* decoded = s.decoder->image;
+  if (decoded->width != s.size || decoded->height != s.size || decoded->depth != 8) {
+    throw Error(ErrorCode::kCorrupt, s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is " + std::to_string(decoded->width) + " x " +
+                                         std::to_string(decoded->height) + ", not " + std::to_string(s.size) + " x " + std::to_string(s.size));
+  }
+  ++s.next;
+  return convert ? rgb_of(decoded, 3, s.source) : Image();
+}
+
 void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size, uint32_t last,
                           const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take) {
   if (last >= frames) throw Error(ErrorCode::kInvalidArgument, source + ": frame " + std::to_string(last) + " of a sequence of " + std::to_string(frames));
-  const auto decoder = parsed_sequence(bytes, source, frames, size);
+  AvifSequenceReader reader(bytes, source, frames, size);
   for (uint32_t j = 0; j <= last; ++j) {
-    const avifResult result = avifDecoderNextImage(decoder.get());
-    if (result != AVIF_RESULT_OK) {
-      throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence is damaged (" + avifResultToString(result) + ")");
-    }
-    const avifImage* decoded = decoder->image;
-    if (decoded->width != size || decoded->height != size || decoded->depth != 8) {
-      throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence is " + std::to_string(decoded->width) + " x " +
-                                           std::to_string(decoded->height) + ", not " + std::to_string(size) + " x " + std::to_string(size));
-    }
-    // Every frame is decoded (the later ones are predicted from it); only those wanted are converted.
-    if (wanted(j)) take(j, rgb_of(decoded, 3, source));
+    const bool convert = wanted(j);
+    Image image = reader.read(convert);
+    if (convert) take(j, std::move(image));
   }
 }
 

@@ -29,6 +29,11 @@ AvifSequenceWriter::AvifSequenceWriter(int) { no_codec("AVIF sequence encoding")
 AvifSequenceWriter::~AvifSequenceWriter() = default;
 void AvifSequenceWriter::add(const Image&) { no_codec("AVIF sequence encoding"); }
 std::vector<uint8_t> AvifSequenceWriter::finish() { no_codec("AVIF sequence encoding"); }
+struct AvifSequenceReader::State {};
+AvifSequenceReader::AvifSequenceReader(std::span<const uint8_t>, std::string source, uint32_t, uint32_t) { no_codec("AVIF sequence decoding", source); }
+AvifSequenceReader::~AvifSequenceReader() = default;
+uint32_t AvifSequenceReader::next() const { return 0; }
+Image AvifSequenceReader::read(bool) { no_codec("AVIF sequence decoding"); }
 void decode_avif_sequence(std::span<const uint8_t>, const std::string& source, uint32_t, uint32_t, uint32_t, const std::function<bool(uint32_t)>&,
                           const std::function<void(uint32_t, Image&&)>&) {
   no_codec("AVIF sequence decoding", source);

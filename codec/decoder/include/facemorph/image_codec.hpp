@@ -65,11 +65,30 @@ class AvifSequenceWriter {
   struct State;
   std::unique_ptr<State> state_;
 };
-// Decodes frames 0 .. last of an AVIF image sequence that must hold exactly `frames` 8-bit images
-// of size x size: checked from the container (its sample count and image size) before any pixel is
-// decoded (one frame: the still image libavif writes for a sequence of one). Each frame j is decoded (later ones are predicted from it); those for which wanted(j)
-// are converted to RGB and handed to take(j, image). Throws kCorrupt naming `source` for another
-// count (a still where several frames belong), size or depth, or damaged data; kInvalidArgument for last >= frames.
+// Reads an AVIF image sequence that must hold exactly `frames` 8-bit images of size x size frame
+// by frame, in order, so that a caller may stop between two frames and go on later with the same
+// reader (a decode call's work limit). Checked from the container (its sample count and image size)
+// when made, before any pixel is decoded (one frame: the still image libavif writes for a sequence
+// of one). `bytes` must outlive the reader. Throws kCorrupt naming `source` for another count (a
+// still where several frames belong), size or depth, or damaged data.
+class AvifSequenceReader {
+ public:
+  AvifSequenceReader(std::span<const uint8_t> bytes, std::string source, uint32_t frames, uint32_t size);
+  ~AvifSequenceReader();
+  AvifSequenceReader(const AvifSequenceReader&) = delete;
+  AvifSequenceReader& operator=(const AvifSequenceReader&) = delete;
+  // The frame read() decodes next (frames: none left).
+  uint32_t next() const;
+  // Decodes frame next() (every frame is decoded: later ones are predicted from it); returns it in
+  // RGB where `convert`, else an empty image. kInvalidArgument past the last frame.
+  Image read(bool convert);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+// Decodes frames 0 .. last of such a sequence (an AvifSequenceReader's frames): those for which
+// wanted(j) are converted to RGB and handed to take(j, image). kInvalidArgument for last >= frames.
 void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size, uint32_t last,
                           const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take);
 // The bytes of each frame's AV1 sample in such a sequence (without the AVIF container's own), from
