@@ -164,6 +164,27 @@ nlohmann::json conformal_fallbacks_json(const EncodeReport& report) {
   return list;
 }
 
+// Every frame's repairs (spec/method.md §2.1): the totals over the frames, and the first frames'
+// own lines (a long capture repairs every frame alike; the header's settings stay small).
+constexpr size_t kRepairedFramesListed = 16;
+nlohmann::json repairs_json(const EncodeReport& report) {
+  int frames = 0, faces = 0, vertices = 0;
+  double move = 0, relative = 0;
+  nlohmann::json listed = nlohmann::json::array();
+  for (const EncodedFrameReport& f : report.frames) {
+    const RepairTotals& t = f.repair_totals;
+    if (f.repair == "valid as captured") continue;
+    ++frames;
+    faces += t.faces_changed;
+    vertices += t.vertices_changed;
+    move = std::max(move, t.largest_move);
+    if (t.diagonal > 0) relative = std::max(relative, t.largest_move / t.diagonal);
+    if (listed.size() < kRepairedFramesListed) listed.push_back({{"name", f.name}, {"repair", f.repair}});
+  }
+  return {{"frames_repaired", frames}, {"faces_changed", faces}, {"vertices_changed", vertices}, {"largest_move", move},
+          {"largest_move_of_diagonal", relative}, {"frames", listed}};
+}
+
 // Where a segment stage's time went: what every segment repeats (the parts read, the choices made
 // from all of them) and its own share.
 void print_segment_seconds(const EncodeReport& r, bool measure) {
@@ -219,6 +240,7 @@ nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report)
           {"reference_frame_chosen", report.reference_frame},
           {"dropped_frames", dropped_json(report)},
           {"conformal_fallbacks", conformal_fallbacks_json(report)},
+          {"repairs", repairs_json(report)},
           {"warnings", report.warnings}};
 }
 
@@ -649,12 +671,28 @@ int main(int argc, char** argv) {
                   report.tracking_grid_points, report.tracked_frames, report.seconds_tracking, report.tracked_points_mean, report.tracked_points_fewest,
                   100 * report.tracked_round_trip_median, 100 * report.tracked_round_trip_p90);
     }
+    const nlohmann::json repairs = settings["repairs"];
+    if (repairs["frames_repaired"].get<int>() > 0) {
+      std::printf("  repairs: %d of %zu frames repaired, %d faces and %d vertices changed in all, the surface moved at most %.3g (%.3g%% of the "
+                  "diagonal)%s\n",
+                  repairs["frames_repaired"].get<int>(), report.frames.size(), repairs["faces_changed"].get<int>(), repairs["vertices_changed"].get<int>(),
+                  repairs["largest_move"].get<double>(), 100 * repairs["largest_move_of_diagonal"].get<double>(),
+                  options.strict ? "" : " (--strict refuses a frame with bow ties, edges of 3+ faces or islands)");
+    }
+    // Each frame's own repairs, as many lines as a reader takes in; the settings hold the totals.
+    constexpr int kRepairLinesShown = 8;
     std::string last;
+    int shown = 0, more = 0;
     for (const EncodedFrameReport& f : report.frames) {
       if (f.repair == "valid as captured" || f.repair == last) continue;
-      std::printf("  %s: %s\n", f.name.c_str(), f.repair.c_str());
       last = f.repair;
+      if (shown++ < kRepairLinesShown) {
+        std::printf("  %s: %s\n", f.name.c_str(), f.repair.c_str());
+      } else {
+        ++more;
+      }
     }
+    if (more > 0) std::printf("  ... and %d more frames repaired (fminfo lists the first %zu)\n", more, kRepairedFramesListed);
     return 0;
   });
 }

@@ -214,6 +214,17 @@ void print_encoder_notes(const nlohmann::json& settings) {
   for (const auto& w : warnings) {
     if (w.is_string()) std::printf("warning     %s\n", w.get<std::string>().c_str());
   }
+  // The encoder's repairs of the captured meshes (spec/method.md §2.1); absent in files older than issue 47.
+  const auto repairs = settings.find("repairs");
+  if (repairs != settings.end() && repairs->is_object() && number(*repairs, "frames_repaired") > 0) {
+    std::printf("repairs     %.0f frames repaired: %.0f faces and %.0f vertices changed, the surface moved at most %.3g (%.3g%% of the diagonal)\n",
+                number(*repairs, "frames_repaired"), number(*repairs, "faces_changed"), number(*repairs, "vertices_changed"),
+                number(*repairs, "largest_move"), 100 * number(*repairs, "largest_move_of_diagonal"));
+    const auto frames = repairs->find("frames");
+    if (frames != repairs->end() && frames->is_array()) {
+      for (const auto& f : *frames) std::printf("            %s: %s\n", text(f, "name").c_str(), text(f, "repair").c_str());
+    }
+  }
 }
 
 int describe_container(const fs::path& path, bool json_out, const DecoderLimits& limits) {

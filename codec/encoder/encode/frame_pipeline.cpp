@@ -73,6 +73,11 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   prepare.fill_holes = options.fill_holes;
   prepare.rim_markers = landmarks.rim_markers;
   prepare.keep_largest_component = options.keep_largest_component;
+  prepare.repair_non_manifold = options.repair_non_manifold;
+  // The landmarks on the face pick the sheet and component that hold it (the rim markers go with
+  // rim_markers).
+  if (landmarks.centre) prepare.face_points.push_back(*landmarks.centre);
+  if (landmarks.up) prepare.face_points.push_back(*landmarks.up);
   frame.prepared = prepare_frame(mesh, name, prepare);
   frame.seconds_prepare = seconds_since(start);
   start = std::chrono::steady_clock::now();

@@ -59,9 +59,13 @@ ConformalReport read_conformal_report(Reader& r) {
 
 void write_repair_report(Writer& w, const RepairReport& report) {
   for (int v : {report.merged_vertices, report.dropped_degenerate_faces, report.split_faces, report.dropped_duplicate_faces,
-                report.dropped_unreferenced_vertices, report.reoriented_faces, report.dropped_components, report.dropped_component_faces}) {
+                report.dropped_unreferenced_vertices, report.reoriented_faces, report.dropped_components, report.dropped_component_faces,
+                report.non_manifold_edges, report.dropped_sheet_faces, report.dropped_sheets, report.split_vertices, report.added_vertices,
+                report.rewired_faces, report.dropped_specks, report.dropped_speck_faces, report.faces_changed, report.vertices_changed}) {
     w.value(v);
   }
+  w.value(report.largest_move);
+  w.value(report.diagonal);
   w.value<uint64_t>(report.holes.size());
   for (const FilledHole& h : report.holes) {
     w.array(h.loop);
@@ -73,9 +77,13 @@ void write_repair_report(Writer& w, const RepairReport& report) {
 RepairReport read_repair_report(Reader& r) {
   RepairReport report;
   for (int* v : {&report.merged_vertices, &report.dropped_degenerate_faces, &report.split_faces, &report.dropped_duplicate_faces,
-                 &report.dropped_unreferenced_vertices, &report.reoriented_faces, &report.dropped_components, &report.dropped_component_faces}) {
+                 &report.dropped_unreferenced_vertices, &report.reoriented_faces, &report.dropped_components, &report.dropped_component_faces,
+                 &report.non_manifold_edges, &report.dropped_sheet_faces, &report.dropped_sheets, &report.split_vertices, &report.added_vertices,
+                 &report.rewired_faces, &report.dropped_specks, &report.dropped_speck_faces, &report.faces_changed, &report.vertices_changed}) {
     *v = r.value<int>();
   }
+  report.largest_move = r.value<double>();
+  report.diagonal = r.value<double>();
   // At least a loop's length and nine numbers a hole.
   report.holes.resize(r.items(sizeof(uint64_t) + 5 * sizeof(int) + 4 * sizeof(double)));
   for (FilledHole& h : report.holes) {

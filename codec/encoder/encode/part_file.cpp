@@ -58,6 +58,10 @@ void write_summary(Writer& w, const FrameSummary& s) {
   w.value<int32_t>(s.vertices);
   w.value<int32_t>(s.holes_filled);
   w.text(s.repair);
+  w.value<int32_t>(s.repair_totals.faces_changed);
+  w.value<int32_t>(s.repair_totals.vertices_changed);
+  w.value(s.repair_totals.largest_move);
+  w.value(s.repair_totals.diagonal);
   w.value<int32_t>(static_cast<int32_t>(s.conformal_method));
   w.text(s.conformal_fallback_reason);
   w.value<uint8_t>(s.has_uvs ? 1 : 0);
@@ -73,6 +77,10 @@ FrameSummary read_summary(Reader& r) {
   s.vertices = r.value<int32_t>();
   s.holes_filled = r.value<int32_t>();
   s.repair = r.text();
+  s.repair_totals.faces_changed = r.value<int32_t>();
+  s.repair_totals.vertices_changed = r.value<int32_t>();
+  s.repair_totals.largest_move = r.value<double>();
+  s.repair_totals.diagonal = r.value<double>();
   s.conformal_method = static_cast<ConformalMethod>(r.value<int32_t>());
   s.conformal_fallback_reason = r.text();
   s.has_uvs = r.value<uint8_t>() != 0;
@@ -211,6 +219,11 @@ void check_record(const SampledFrame& f, const PartHeader& header, int expected_
     const FrameSummary& s = f.summary;
     const auto method = static_cast<int>(s.conformal_method);
     if (s.vertices < 0 || s.holes_filled < 0 || method < 0 || method > static_cast<int>(ConformalMethod::kTutte)) bad("its summary is out of range");
+    const RepairTotals& t = s.repair_totals;
+    if (t.faces_changed < 0 || t.vertices_changed < 0 || !(t.largest_move >= 0 && t.largest_move <= kMaxCoordinate) ||
+        !(t.diagonal >= 0 && t.diagonal <= kMaxCoordinate)) {
+      bad("its repair totals are out of range");
+    }
   }
   if (!f.dropped.empty()) return;
   if (f.landmarks.size() != header.capture.landmark_names.size()) bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +

@@ -494,6 +494,7 @@ void SequenceEncoder::map_frames() {
           textures_[index] = mesh.texture;
           MapFrameOptions map_options;
           map_options.keep_largest_component = options_.largest_component;
+          map_options.repair_non_manifold = !options_.strict;  // --strict refuses what repairs would change
           map_options.conformal = options_.conformal;
           map_options.find_orientation = options_.find_landmarks;
           map_options.vertical_hint = vertical_hint;
@@ -508,6 +509,7 @@ void SequenceEncoder::map_frames() {
         summary.vertices = mapped.prepared.mesh.vertex_count();
         summary.holes_filled = static_cast<int>(mapped.prepared.report.holes.size());
         summary.repair = mapped.prepared.report.summary();
+        summary.repair_totals = mapped.prepared.report.totals();
         summary.conformal_method = mapped.map.report.method;
         summary.conformal_fallback_reason = mapped.map.report.fallback_reason;
         summary.has_uvs = mapped.map.surface.has_uvs();
@@ -1353,6 +1355,7 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
     r.vertices = frame.vertices;
     r.holes_filled = frame.holes_filled;
     r.repair = frame.repair;
+    r.repair_totals = frame.repair_totals;
     r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;

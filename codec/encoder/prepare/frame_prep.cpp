@@ -2,9 +2,13 @@
 #include "facemorph/error.hpp"
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/meshkit/topology.hpp"
 
+#include "codec/encoder/prepare/manifold_repair.hpp"
+
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -17,7 +21,10 @@ namespace {
 class FramePreparer {
  public:
   FramePreparer(const TriangleMesh& input, const std::string& name, const PrepareOptions& options)
-      : name_(name), options_(options), mesh_(input) {}
+      : name_(name), options_(options), input_(input), mesh_(input) {
+    face_points_ = options.face_points;
+    face_points_.insert(face_points_.end(), options.rim_markers.begin(), options.rim_markers.end());
+  }
 
   PreparedFrame run() {
     check_values();
@@ -26,11 +33,16 @@ class FramePreparer {
     weld_duplicate_vertices();
     drop_degenerate_faces();
     drop_duplicate_faces();
-    drop_unreferenced_vertices();
+    report_.dropped_unreferenced_vertices = compact_vertices() - report_.merged_vertices;
     if (mesh_.faces.empty()) fail(ErrorCode::kInvalidMesh, "no faces left after removing degenerate ones");
-    if (options_.keep_largest_component) keep_largest_component();
+    if (options_.repair_non_manifold) {
+      resolve_non_manifold_edges();
+      split_bow_ties();
+    }
+    keep_face_component();
     orient_consistently();
     std::vector<std::vector<int>> loops = check_topology();
+    count_changes();
     const size_t rim = choose_rim(loops);
     for (size_t i = 0; i < loops.size(); ++i) {
       if (i != rim) fill(loops[i]);
@@ -121,40 +133,65 @@ class FramePreparer {
     }
   }
 
-  void remove_faces(const std::vector<uint8_t>& drop) {
-    size_t out = 0;
-    for (size_t f = 0; f < mesh_.faces.size(); ++f) {
-      if (drop[f]) continue;
-      mesh_.faces[out] = mesh_.faces[f];
-      if (mesh_.has_uvs()) mesh_.uv_faces[out] = mesh_.uv_faces[f];
-      ++out;
-    }
-    mesh_.faces.resize(out);
-    if (!mesh_.uv_faces.empty()) mesh_.uv_faces.resize(out);
+  void remove_faces(const std::vector<uint8_t>& drop) { facemorph::remove_faces(mesh_, drop); }
+
+  // Edges with three or more faces: the sheet that holds the face keeps them (manifold_repair.hpp).
+  void resolve_non_manifold_edges() {
+    NonManifoldEdgeRepair counts;
+    const std::vector<uint8_t> drop = non_manifold_edge_drops(mesh_, face_points_, &counts);
+    if (counts.edges == 0) return;
+    report_.non_manifold_edges += counts.edges;
+    report_.dropped_sheet_faces += counts.dropped_faces;
+    report_.dropped_sheets += counts.dropped_sheets;
+    remove_faces(drop);
+    compact_vertices();  // the sheets' vertices go with them, counted in the totals
+    if (mesh_.faces.empty()) fail(ErrorCode::kInvalidMesh, "no faces left after resolving the non-manifold edges");
   }
 
-  // Real scans carry eyeballs, teeth or stray shells as separate surfaces: the face is the
-  // component of largest area (not of most faces: a dense eyeball can outnumber a coarse face).
-  void keep_largest_component() {
+  void split_bow_ties() {
+    const BowTieRepair split = split_bow_tie_vertices(mesh_, source_);
+    report_.split_vertices += split.vertices;
+    report_.added_vertices += split.added_vertices;
+    report_.rewired_faces += split.rewired_faces;
+    largest_vertex_move_ = std::max(largest_vertex_move_, split.largest_move);
+  }
+
+  // Real scans carry eyeballs, teeth, stray shells and specks as separate surfaces. The face is the
+  // component the landmarks lie on, else the one of largest area (not of most faces: a dense
+  // eyeball can outnumber a coarse face). Specks (under kSpeckAreaFraction of its area) are dropped
+  // whenever repairs are on; the rest only with keep_largest_component (else check_topology names
+  // the count).
+  void keep_face_component() {
     const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
-    if (topology.component_count() <= 1) return;
-    std::vector<double> area(static_cast<size_t>(topology.component_count()), 0.0);
+    if (topology.component_count() <= 1 || (!options_.repair_non_manifold && !options_.keep_largest_component)) return;
     const std::vector<int>& component = topology.face_components();
+    std::vector<double> area(static_cast<size_t>(topology.component_count()), 0.0);
     for (size_t f = 0; f < mesh_.faces.size(); ++f) {
       const Face& t = mesh_.faces[f];
-      const Vec3 &a = mesh_.positions[static_cast<size_t>(t[0])], &b = mesh_.positions[static_cast<size_t>(t[1])],
-                 &c = mesh_.positions[static_cast<size_t>(t[2])];
-      area[static_cast<size_t>(component[f])] += triangle_area(a, b, c);
+      area[static_cast<size_t>(component[f])] += triangle_area(mesh_.positions[static_cast<size_t>(t[0])], mesh_.positions[static_cast<size_t>(t[1])],
+                                                                mesh_.positions[static_cast<size_t>(t[2])]);
     }
-    const int keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
+    const int keep = choose_face_group(mesh_, component, topology.component_count(), area, face_points_);
+    std::vector<uint8_t> speck(area.size(), 0), other(area.size(), 0);
+    for (size_t c = 0; c < area.size(); ++c) {
+      if (static_cast<int>(c) == keep) continue;
+      if (options_.repair_non_manifold && area[c] < kSpeckAreaFraction * area[static_cast<size_t>(keep)]) {
+        speck[c] = 1;
+        ++report_.dropped_specks;
+      } else if (options_.keep_largest_component) {
+        other[c] = 1;
+        ++report_.dropped_components;
+      }
+    }
     std::vector<uint8_t> drop(mesh_.faces.size(), 0);
-    for (size_t f = 0; f < mesh_.faces.size(); ++f) drop[f] = component[f] != keep;
-    report_.dropped_components += topology.component_count() - 1;
-    report_.dropped_component_faces += static_cast<int>(std::count(drop.begin(), drop.end(), uint8_t{1}));
+    for (size_t f = 0; f < mesh_.faces.size(); ++f) {
+      const auto c = static_cast<size_t>(component[f]);
+      drop[f] = speck[c] | other[c];
+      report_.dropped_speck_faces += speck[c];
+      report_.dropped_component_faces += other[c];
+    }
     remove_faces(drop);
-    const int unreferenced_before = report_.dropped_unreferenced_vertices;
-    drop_unreferenced_vertices();
-    report_.dropped_unreferenced_vertices = unreferenced_before;  // the components' vertices are not a repair of their own
+    compact_vertices();  // the components' vertices are not a repair of their own
   }
 
   // Faces with a repeated vertex are dropped. A zero-area face with three distinct vertices has
@@ -236,7 +273,8 @@ class FramePreparer {
     if (report_.dropped_duplicate_faces > 0) remove_faces(drop);
   }
 
-  void drop_unreferenced_vertices() {
+  // Drops the vertices no face uses; returns how many.
+  int compact_vertices() {
     std::vector<int32_t> remap(mesh_.positions.size(), -1);
     for (const Face& f : mesh_.faces) {
       for (int32_t v : f) remap[static_cast<size_t>(v)] = 0;
@@ -245,7 +283,7 @@ class FramePreparer {
     for (int32_t& r : remap) {
       if (r == 0) r = next++;
     }
-    report_.dropped_unreferenced_vertices = static_cast<int>(mesh_.positions.size()) - next - report_.merged_vertices;
+    const int dropped = static_cast<int>(mesh_.positions.size()) - next;
     std::vector<Vec3> positions(static_cast<size_t>(next));
     std::vector<Vec3> colours(mesh_.has_colours() ? static_cast<size_t>(next) : 0);
     std::vector<int> source(static_cast<size_t>(next));
@@ -261,6 +299,29 @@ class FramePreparer {
     }
     mesh_.positions = std::move(positions);
     source_ = std::move(source);
+    return dropped;
+  }
+
+  // The totals every repair adds to (spec/method.md §2.1), before holes are filled: what changed,
+  // and how far the repaired surface lies from the captured vertices it no longer holds.
+  void count_changes() {
+    RepairReport& r = report_;
+    r.faces_changed = r.dropped_degenerate_faces + 2 * r.split_faces + r.dropped_duplicate_faces + r.reoriented_faces + r.dropped_sheet_faces +
+                      r.rewired_faces + r.dropped_component_faces + r.dropped_speck_faces;
+    std::vector<uint8_t> kept(input_.positions.size(), 0), used(input_.positions.size(), 0);
+    for (int s : source_) kept[static_cast<size_t>(s)] = 1;
+    for (const Face& f : input_.faces) {
+      for (int32_t v : f) used[static_cast<size_t>(v)] = 1;
+    }
+    const auto kept_count = static_cast<int>(std::count(kept.begin(), kept.end(), uint8_t{1}));
+    r.vertices_changed = static_cast<int>(input_.positions.size()) - kept_count + r.added_vertices;
+    r.diagonal = bounding_box_diagonal(input_.positions);
+    r.largest_move = largest_vertex_move_;
+    if (kept_count == static_cast<int>(input_.positions.size())) return;
+    const PointToMesh surface(mesh_);
+    for (size_t v = 0; v < input_.positions.size(); ++v) {
+      if (used[v] && !kept[v]) r.largest_move = std::max(r.largest_move, surface.distance(input_.positions[v]));
+    }
   }
 
   // Flips faces so that every interior edge is traversed once each way (fewest flips per
@@ -454,6 +515,9 @@ class FramePreparer {
 
   std::string name_;
   const PrepareOptions& options_;
+  const TriangleMesh& input_;
+  std::vector<Vec3> face_points_;  // the landmarks, rim markers included
+  double largest_vertex_move_ = 0;
   TriangleMesh mesh_;
   std::vector<int> source_;
   RepairReport report_;
@@ -462,8 +526,8 @@ class FramePreparer {
 }  // namespace
 
 bool RepairReport::changed() const {
-  return merged_vertices || dropped_degenerate_faces || split_faces || dropped_duplicate_faces ||
-         dropped_unreferenced_vertices || reoriented_faces || dropped_components || !holes.empty();
+  return merged_vertices || dropped_degenerate_faces || split_faces || dropped_duplicate_faces || dropped_unreferenced_vertices ||
+         reoriented_faces || dropped_components || non_manifold_edges || split_vertices || dropped_specks || !holes.empty();
 }
 
 std::string RepairReport::summary() const {
@@ -494,10 +558,30 @@ std::string RepairReport::summary() const {
   item(dropped_duplicate_faces, "dropped duplicate faces:");
   item(dropped_unreferenced_vertices, "dropped unreferenced vertices:");
   item(reoriented_faces, "reoriented faces:");
+  if (non_manifold_edges > 0) {
+    out << separator << "resolved " << non_manifold_edges << " edge" << (non_manifold_edges > 1 ? "s" : "") << " with 3+ faces (dropped "
+        << dropped_sheet_faces << " faces, " << dropped_sheets << " whole sheet" << (dropped_sheets != 1 ? "s" : "") << ")";
+    separator = "; ";
+  }
+  if (split_vertices > 0) {
+    out << separator << "split " << split_vertices << " bow-tie vert" << (split_vertices > 1 ? "ices" : "ex") << " (" << added_vertices
+        << " added, " << rewired_faces << " faces re-attached)";
+    separator = "; ";
+  }
+  if (dropped_specks > 0) {
+    out << separator << "dropped " << dropped_specks << " speck" << (dropped_specks > 1 ? "s" : "") << " (" << dropped_speck_faces
+        << " faces, each under " << 100 * kSpeckAreaFraction << "% of the face's area)";
+    separator = "; ";
+  }
   if (dropped_components > 0) {
     out << separator << "dropped " << dropped_components << " other component" << (dropped_components > 1 ? "s" : "") << " ("
         << dropped_component_faces << " faces)";
     separator = "; ";
+  }
+  if (faces_changed > 0 || vertices_changed > 0) {
+    char moved[96];
+    std::snprintf(moved, sizeof moved, "%.3g (%.3g%% of the diagonal)", largest_move, diagonal > 0 ? 100 * largest_move / diagonal : 0.0);
+    out << separator << "in all " << faces_changed << " faces and " << vertices_changed << " vertices changed, the surface moved at most " << moved;
   }
   const std::string text = out.str();
   return text.empty() ? "valid as captured" : text;

@@ -24,6 +24,15 @@ struct FilledHole {
   int folded_faces = 0;      // fill faces folded back: > 120 deg from the surrounding surface
 };
 
+// What a frame's repairs changed in all (RepairReport's totals): what the encoder keeps of a frame
+// for its summary and the file's settings.
+struct RepairTotals {
+  int faces_changed = 0;
+  int vertices_changed = 0;
+  double largest_move = 0;  // capture units
+  double diagonal = 0;      // of the captured frame
+};
+
 struct RepairReport {
   int merged_vertices = 0;             // exact duplicate positions welded
   int dropped_degenerate_faces = 0;    // repeated vertex or zero area
@@ -33,11 +42,33 @@ struct RepairReport {
   int reoriented_faces = 0;            // flipped to agree with their neighbours
   int dropped_components = 0;          // separate surfaces (eyeballs, teeth) dropped by keep_largest_component
   int dropped_component_faces = 0;     // and their faces
+  // The non-manifold repairs (PrepareOptions::repair_non_manifold; spec/method.md §2.1).
+  int non_manifold_edges = 0;          // edges with three or more faces, resolved
+  int dropped_sheet_faces = 0;         // faces dropped to resolve them
+  int dropped_sheets = 0;              // of which whole sheets (fins, a fused hair or torso surface)
+  int split_vertices = 0;              // bow-tie vertices split
+  int added_vertices = 0;              // copies they made
+  int rewired_faces = 0;               // faces moved onto a copy
+  int dropped_specks = 0;              // islands under kSpeckAreaFraction of the face's area
+  int dropped_speck_faces = 0;
+  // Totals over every repair above (hole filling apart): faces dropped, added, re-attached or
+  // flipped; vertices dropped (welded included), added or moved; and the largest distance from a
+  // captured vertex to the repaired surface or moved by a repair (capture units; diagonal: the
+  // captured frame's bounding-box diagonal, for relative figures).
+  int faces_changed = 0;
+  int vertices_changed = 0;
+  double largest_move = 0;
+  double diagonal = 0;
   std::vector<FilledHole> holes;
 
   bool changed() const;
   std::string summary() const;  // one line, e.g. "filled 3 holes (118 faces); merged 2 vertices"
+  RepairTotals totals() const { return {faces_changed, vertices_changed, largest_move, diagonal}; }
 };
+
+// An island of less than this fraction of the face component's area is a speck: dropped by default,
+// without --largest-component (spec/method.md §2.1).
+inline constexpr double kSpeckAreaFraction = 0.01;
 
 struct PrepareOptions {
   bool fill_holes = true;  // false: a frame with holes is an error
@@ -47,6 +78,13 @@ struct PrepareOptions {
   // Keep only the component of largest area and drop the others (eyeballs, teeth, stray shells),
   // saying so in the report; false: several components are an error naming their count.
   bool keep_largest_component = false;
+  // Repair what scanners write (true, the default): edges with three or more faces resolved to the
+  // sheet that holds the face, bow-tie vertices split, specks dropped. false (fmenc --strict): each
+  // is an error naming it, as kInvalidMesh / kNotADisk below.
+  bool repair_non_manifold = true;
+  // Points on the face (the frame's landmarks, any of them): they pick the sheet and the component
+  // that hold the face. Without them the larger (by area) is the face.
+  std::vector<Vec3> face_points;
 };
 
 struct PreparedFrame {
@@ -57,9 +95,10 @@ struct PreparedFrame {
 };
 
 // Validates and repairs `mesh` (named `name` in messages). Throws facemorph::Error:
-//   kInvalidMesh  no faces, non-finite coordinates, out-of-range indices, non-manifold edges or
-//                 vertices, a non-orientable surface;
-//   kNotADisk     several components, a closed surface, handles, or holes with fill_holes off.
+//   kInvalidMesh  no faces, non-finite coordinates, out-of-range indices, a non-orientable surface;
+//                 with repair_non_manifold off, non-manifold edges or vertices;
+//   kNotADisk     several components (beyond specks, without keep_largest_component; with
+//                 repair_non_manifold off, any), a closed surface, handles, or holes with fill_holes off.
 // Each message names the frame and the defect, e.g. "frame_0012.obj: 2 components; a face capture
 // must be one open surface".
 PreparedFrame prepare_frame(const TriangleMesh& mesh, const std::string& name, const PrepareOptions& options = {});

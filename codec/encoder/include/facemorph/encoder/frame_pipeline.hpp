@@ -38,6 +38,7 @@ FrameLandmarks frame_landmarks(const std::vector<std::string>& names, const std:
 struct MapFrameOptions {
   bool fill_holes = true;
   bool keep_largest_component = false;  // see PrepareOptions
+  bool repair_non_manifold = true;      // see PrepareOptions (false: fmenc --strict)
   ConformalOptions conformal;
   // A frame without centre or up landmarks: find them from its geometry (find_face_orientation)
   // and put its disk in the pose they give, instead of leaving it unnormalised.

@@ -163,6 +163,7 @@ struct EncodedFrameReport {
   int vertices = 0;
   int holes_filled = 0;
   std::string repair;  // what preparation changed ("valid as captured", "dropped 2 other components (812 faces)", ...)
+  RepairTotals repair_totals;  // faces and vertices it changed, how far the surface moved
   bool keyframe = false;
   RegistrationFallback fallback = RegistrationFallback::kNone;
   std::string fallback_reason;
@@ -288,6 +289,7 @@ struct FrameSummary {
   int vertices = 0;      // of the prepared mesh
   int holes_filled = 0;
   std::string repair;    // RepairReport::summary()
+  RepairTotals repair_totals;  // RepairReport::totals()
   ConformalMethod conformal_method = ConformalMethod::kQiem;
   std::string conformal_fallback_reason;
   bool has_uvs = false, has_colours = false;  // of the mapped surface
