@@ -30,10 +30,15 @@ int main(int argc, char** argv) {
   app.add_option("--head-motion", options.head_motion_degrees, "Amplitude of a slow rigid head rotation, degrees")->capture_default_str();
   app.add_option("--truth-at", truth_times, "Also write the exact noise-free surface at these times as truth_T.obj");
   app.add_option("--truth-vertices", truth_vertices, "Vertices of the truth meshes")->capture_default_str();
+  std::string defects;
+  app.add_option("--defects", defects,
+                 "Write what scanners write into every frame, for the encoder's repairs: all, or a comma-separated list of bow-ties, "
+                 "three-face-edges, duplicates, degenerate, flipped, islands, torso (spec/capture.md)");
   app.add_flag("-q,--quiet", quiet, "No progress display");
 
   return tools::guarded_main(app, argc, argv, [&] {
     options.expression = parse_expression(expression);
+    if (!defects.empty()) options.defects = parse_defects(defects);
     const auto start = std::chrono::steady_clock::now();
     tools::Progress progress("fmsynth", quiet);
     write_synthetic_capture(out, options, [&](int done, int total) { progress.update(done, total); });

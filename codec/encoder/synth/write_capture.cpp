@@ -101,12 +101,13 @@ void write_frame(const fs::path& directory, const SynthOptions& options, const S
       mesh.uvs.push_back(SyntheticFace::texture_coordinate(m));
     }
   }
+  if (!options.vertex_colour) mesh.uv_faces = mesh.faces;
+  if (options.defects != 0) add_defects(mesh, sampling.points, sampling.boundary_count, options.defects);
   if (options.vertex_colour) {
     // A depth camera's frame: colour per vertex, no image.
     write_mesh(directory / (stem + ".ply"), mesh);
     return;
   }
-  mesh.uv_faces = mesh.faces;
 
   const fs::path texture = directory / (options.shared_texture ? std::string(kSharedTextureName) : stem + ".jpg");
   if (!options.shared_texture) write_texture(texture, painter, time);
@@ -160,6 +161,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"remesh", options.remesh ? "true" : "false"},
                        {"noise", std::to_string(options.noise)},
                        {"colour", options.vertex_colour ? "vertex" : options.shared_texture ? "one shared texture" : "texture"}};
+  if (options.defects != 0) capture.generator.emplace_back("defects", defect_names(options.defects));
   write_capture_manifest(capture);
 }
 

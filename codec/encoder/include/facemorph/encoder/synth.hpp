@@ -35,6 +35,44 @@ struct ExpressionWeights {
   double pucker = 0;  // corners drawn in
 };
 
+// Scanner defects fmsynth --defects writes into every frame, each a kind the encoder's preparation
+// repairs (spec/method.md §2.1). Placed at fixed material points, so every frame has the same ones.
+enum DefectKind : uint32_t {
+  kDefectBowTies = 1,          // two wedges cut out at a vertex (a pinched hole) and a flap touching at one vertex
+  kDefectThreeFaceEdges = 2,   // fins: a face standing on an interior edge
+  kDefectDuplicateFaces = 4,   // faces repeated (as written, rotated, reversed)
+  kDefectDegenerateFaces = 8,  // faces with a repeated vertex
+  kDefectFlippedPatch = 16,    // a patch of faces wound the other way
+  kDefectIslands = 32,         // specks floating beside the face
+  kDefectTorso = 64,           // a hair/torso surface fused to the face along a seam of edges
+  kDefectAll = 127,
+};
+
+// "all", or names separated by commas: bow-ties, three-face-edges, duplicates, degenerate, flipped,
+// islands, torso. Throws kInvalidArgument naming an unknown one.
+uint32_t parse_defects(const std::string& list);
+std::string defect_names(uint32_t defects);  // the comma-separated names, in the order above
+
+// What add_defects wrote: the counts a repair of the frame must find.
+struct DefectCounts {
+  int bow_ties = 0;           // bow-tie vertices (pinched holes and flaps)
+  int flaps = 0;              // of which flaps: one face touching the face at a vertex (a speck once split)
+  int three_face_edges = 0;   // fins' edges plus the torso's seam edges
+  int fins = 0;
+  int duplicate_faces = 0;
+  int degenerate_faces = 0;
+  int flipped_faces = 0;
+  int islands = 0;
+  int island_faces = 0;
+  int torso_faces = 0;
+  int seam_edges = 0;
+};
+
+// Writes the `defects` into `mesh`, a frame of a SyntheticFace whose vertex i sits at material point
+// `material[i]` (the first `boundary_count` on the rim). Texture coordinates and colours, where the
+// mesh has them, stay one per vertex (uv_faces equal to faces). Returns what it wrote.
+DefectCounts add_defects(TriangleMesh& mesh, const std::vector<Vec2>& material, int boundary_count, uint32_t defects);
+
 struct SynthOptions {
   int frames = 60;
   double fps = 30;
@@ -51,6 +89,7 @@ struct SynthOptions {
   // One texture image (texture.jpg, the skin at time 0) that every frame's material names, as a
   // capture whose rig paints one atlas for the whole take: only the geometry moves.
   bool shared_texture = false;
+  uint32_t defects = 0;  // DefectKind flags written into every frame (fmsynth --defects)
 };
 
 struct NamedPoint {
