@@ -19,6 +19,9 @@ packages=(
   libgtest-dev                         # tests
   abigail-tools                        # the player API's ABI check (abidiff; the test skips without it)
   python3                              # optional real-data tests (ICT capture script)
+  python3-dev python3-numpy            # the Python package (python/): its modules' headers, its arrays
+  pybind11-dev python3-pybind11        # ... its bindings (CMake package; pip install --no-build-isolation ./python)
+  python3-setuptools python3-pip python3-venv  # ... its offline pip install (setup.py), into a venv
   draco ffmpeg                         # the rate bench's baselines: draco_encoder per frame, JPEG/H.264 (libx264) textures
   emscripten dpkg-dev nodejs           # the browser's decoder: web/build.sh (emcc; dpkg-source unpacks Debian's zstd source), its tests under node
   libmeshoptimizer-dev                 # glTF clips for the web: EXT_meshopt_compression (fmdec -o CLIP.glb)
