@@ -1,5 +1,8 @@
 #include "facemorph/encoder/frame.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
 #include "facemorph/geometry.hpp"
+#include "facemorph/meshkit/distance.hpp"
 #include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/meshkit/topology.hpp"
 #include "facemorph/meshkit/surface_measures.hpp"
@@ -11,6 +14,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <span>
 
 namespace facemorph {
 namespace {
@@ -202,6 +206,7 @@ TEST(PrepareFrame, TheLargestComponentIsTheFace) {
   const PreparedFrame alone = prepare_frame(face, "face.obj");
   PrepareOptions options;
   options.keep_largest_component = true;
+  options.repair_non_manifold = false;  // with repairs on, the ball is a speck (SpecksAreDropped... below)
   const PreparedFrame kept = prepare_frame(both, "both.obj", options);
   EXPECT_EQ(kept.mesh.vertex_count(), alone.mesh.vertex_count());
   EXPECT_EQ(kept.mesh.face_count(), alone.mesh.face_count());
@@ -236,19 +241,207 @@ TEST(PrepareFrame, BadFramesAreNamedErrors) {
   TriangleMesh fin = disk;  // a third face on an interior edge
   fin.positions.emplace_back(0, 0, 3);
   fin.faces.push_back({fin.faces[0][0], fin.faces[0][1], fin.vertex_count() - 1});
-  expect_error(ErrorCode::kInvalidMesh, "fin.obj: 1 non-manifold edges", [&] { prepare_frame(fin, "fin.obj"); });
+  // With repairs off (fmenc --strict) the fin and the bow tie are refused, named; with them on, repaired.
+  PrepareOptions strict;
+  strict.repair_non_manifold = false;
+  expect_error(ErrorCode::kInvalidMesh, "fin.obj: 1 non-manifold edges (edge", [&] { prepare_frame(fin, "fin.obj", strict); });
+  EXPECT_EQ(prepare_frame(fin, "fin.obj").report.non_manifold_edges, 1);
 
   TriangleMesh bow = disk;  // a second disk touching the first at one vertex
   const int32_t apex = 0, base = bow.vertex_count();
   bow.positions.emplace_back(0.1, 0.1, 2);
   bow.positions.emplace_back(-0.1, 0.1, 2);
   bow.faces.push_back({apex, base, base + 1});
-  expect_error(ErrorCode::kInvalidMesh, "non-manifold vertices", [&] { prepare_frame(bow, "bow.obj"); });
+  expect_error(ErrorCode::kInvalidMesh, "bow.obj: 1 non-manifold vertices where separate fans of faces touch (vertex 0)",
+               [&] { prepare_frame(bow, "bow.obj", strict); });
+  // Split, the second disk is an island of its own, too large for a speck: --largest-component drops it.
+  expect_error(ErrorCode::kNotADisk, "bow.obj: 2 components", [&] { prepare_frame(bow, "bow.obj"); });
+  PrepareOptions largest;
+  largest.keep_largest_component = true;
+  const RepairReport split = prepare_frame(bow, "bow.obj", largest).report;
+  EXPECT_EQ(split.split_vertices, 1);
+  EXPECT_EQ(split.dropped_components, 1);
 
   const TriangleMesh holes = dome(20, 60, {{{0.0, 0.0}, 0.3}});
   expect_error(ErrorCode::kNotADisk, "1 holes besides the outer rim", [&] { prepare_frame(holes, "h.obj", {.fill_holes = false, .rim_markers = {}}); });
 
   expect_error(ErrorCode::kInvalidMesh, "empty.obj: the mesh has no faces", [&] { prepare_frame(TriangleMesh{}, "empty.obj"); });
+}
+
+// A frame of fmsynth's face (3000 vertices) as written, with `defects` added; its landmarks, for
+// the repairs' choice of the face's sheet and component.
+struct DefectFrame {
+  TriangleMesh clean, mesh;
+  DefectCounts counts;
+  PrepareOptions options;
+};
+
+DefectFrame defect_frame(uint32_t defects) {
+  const SyntheticFace face(Expression::kMixed, 1);
+  const MaterialSampling sampling = sample_material_ellipse(3000, false, 0);
+  DefectFrame out;
+  out.clean.faces = sampling.faces;
+  for (const Vec2& m : sampling.points) {
+    out.clean.positions.push_back(face.position(m, 0.5));
+    out.clean.uvs.push_back(SyntheticFace::texture_coordinate(m));
+  }
+  out.clean.uv_faces = out.clean.faces;
+  out.mesh = out.clean;
+  out.counts = add_defects(out.mesh, sampling.points, sampling.boundary_count, defects);
+  for (const NamedPoint& l : face.landmarks()) {
+    (l.name.rfind("rim_", 0) == 0 ? out.options.rim_markers : out.options.face_points).push_back(face.position(l.material, 0.5));
+  }
+  return out;
+}
+
+// What fmsynth --defects writes, kind by kind: each repaired, counted as written, named in the
+// summary, and the frame a disk whose surface is the clean frame's (the dropped sheets, specks and
+// duplicates leave nothing behind). Repairs off (fmenc --strict): the topological kinds are refused
+// with their named errors.
+TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
+  const PreparedFrame clean = prepare_frame(defect_frame(0).clean, "clean.obj", defect_frame(0).options);
+  ASSERT_FALSE(clean.report.changed()) << clean.report.summary();
+  const double edge = std::sqrt(total_area(clean.mesh.positions, clean.mesh.faces) / clean.mesh.face_count());
+  for (uint32_t kind : std::vector<uint32_t>{kDefectBowTies, kDefectThreeFaceEdges, kDefectDuplicateFaces, kDefectDegenerateFaces, kDefectFlippedPatch,
+                                            kDefectIslands, kDefectTorso, kDefectAll}) {
+    SCOPED_TRACE(defect_names(kind));
+    const DefectFrame frame = defect_frame(kind);
+    const DefectCounts& c = frame.counts;
+    const PreparedFrame p = prepare_frame(frame.mesh, "defects.obj", frame.options);
+    const RepairReport& r = p.report;
+    const std::string summary = r.summary();
+    EXPECT_TRUE(is_disk(p.mesh)) << summary;
+    EXPECT_EQ(r.split_vertices, c.bow_ties);
+    EXPECT_EQ(r.added_vertices, c.bow_ties);
+    EXPECT_EQ(r.non_manifold_edges, c.three_face_edges);
+    EXPECT_EQ(r.dropped_sheets, c.fins + (c.torso_faces > 0 ? 1 : 0));
+    EXPECT_EQ(r.dropped_sheet_faces, c.fins + c.torso_faces);
+    EXPECT_EQ(r.dropped_duplicate_faces, c.duplicate_faces);
+    EXPECT_EQ(r.dropped_degenerate_faces, c.degenerate_faces);
+    EXPECT_EQ(r.reoriented_faces, c.flipped_faces);
+    EXPECT_EQ(r.dropped_specks, c.islands + c.flaps);
+    EXPECT_EQ(r.dropped_speck_faces, c.island_faces + c.flaps);
+    EXPECT_EQ(r.dropped_components, 0);
+    EXPECT_EQ(r.holes.size(), c.bow_ties > c.flaps ? 1u : 0u);  // the pinched hole, filled
+    EXPECT_GT(r.faces_changed, 0);
+    // Named, with the totals: never silently.
+    if (c.bow_ties) {
+      EXPECT_NE(summary.find("split " + std::to_string(c.bow_ties) + " bow-tie vertices"), std::string::npos) << summary;
+    }
+    if (c.three_face_edges) {
+      EXPECT_NE(summary.find("resolved " + std::to_string(c.three_face_edges) + " edges with 3+ faces"), std::string::npos) << summary;
+    }
+    if (c.islands) {
+      EXPECT_NE(summary.find("specks"), std::string::npos) << summary;
+    }
+    EXPECT_NE(summary.find("in all " + std::to_string(r.faces_changed) + " faces and " + std::to_string(r.vertices_changed) + " vertices changed"),
+              std::string::npos) << summary;
+    // Added surface is gone: every prepared vertex lies on the clean frame's surface, but for the
+    // pinched hole's fill and the split copies, which stay within an edge of it.
+    const PointToMesh on_clean(clean.mesh);
+    double farthest = 0;
+    for (const Vec3& q : p.mesh.positions) farthest = std::max(farthest, on_clean.distance(q));
+    EXPECT_LT(farthest, (c.bow_ties > 0 ? 0.5 : 1e-12) * edge);
+    // The largest distance moved: the farthest dropped point (a fin's tip, the torso's last row, a
+    // speck) or a split copy's move; zero where only faces were dropped or flipped.
+    if (c.torso_faces > 0) {
+      EXPECT_GT(r.largest_move, 0.04);  // five rows 12 mm apart
+    } else if (c.fins > 0 || c.islands > 0 || c.bow_ties > 0) {
+      EXPECT_GT(r.largest_move, 0.2 * edge);
+    } else {
+      EXPECT_EQ(r.largest_move, 0);
+    }
+    EXPECT_GT(r.diagonal, 0.1);
+
+    PrepareOptions strict = frame.options;
+    strict.repair_non_manifold = false;
+    if (c.three_face_edges) {
+      expect_error(ErrorCode::kInvalidMesh, "non-manifold edges (edge", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
+    } else if (c.bow_ties) {
+      expect_error(ErrorCode::kInvalidMesh, "non-manifold vertices where separate fans of faces touch", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
+    } else if (c.islands) {
+      expect_error(ErrorCode::kNotADisk, std::to_string(c.islands + 1) + " components", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
+    } else {
+      EXPECT_NO_THROW(prepare_frame(frame.mesh, "defects.obj", strict));  // duplicates, degenerate faces and orientation: repaired as ever
+    }
+  }
+}
+
+// Without landmarks the sheet kept at an edge of three faces is the one passing through it (two
+// faces there), even where the sheet fused to the face is larger than the face.
+TEST(PrepareFrame, TheSheetThroughTheEdgeIsKeptOverALargerFin) {
+  const TriangleMesh disk = dome(6, 16);
+  TriangleMesh m = disk;
+  // A large flat sheet standing on one interior edge of the dome: a single-face fan of wide faces.
+  const Face on = m.faces[20];
+  const int32_t a = on[0], b = on[1], base = m.vertex_count();
+  m.positions.push_back(m.positions[static_cast<size_t>(a)] + Vec3(0, 0, 60));
+  m.positions.push_back(m.positions[static_cast<size_t>(b)] + Vec3(0, 0, 60));
+  m.faces.push_back({a, b, base});
+  m.faces.push_back({b, base + 1, base});
+  ASSERT_GT(total_area(m.positions, std::span<const Face>(m.faces.end() - 2, m.faces.end())), total_area(disk.positions, disk.faces));
+  const PreparedFrame p = prepare_frame(m, "fin.obj");
+  EXPECT_EQ(p.mesh.face_count(), disk.face_count());
+  EXPECT_EQ(p.report.dropped_sheets, 1);
+  EXPECT_EQ(p.report.dropped_sheet_faces, 2);
+  EXPECT_GT(p.report.largest_move, 55);  // the sheet's far edge, 60 above the dome
+}
+
+// A component is a speck below 1% of the face's area: one just under is dropped by default, one
+// just over is still an error naming the count (--largest-component drops it).
+TEST(PrepareFrame, SpecksAreDroppedAndLargerIslandsNeedLargestComponent) {
+  const TriangleMesh disk = dome(6, 16);
+  const double area = total_area(disk.positions, disk.faces);
+  for (double fraction : {0.9 * kSpeckAreaFraction, 1.1 * kSpeckAreaFraction}) {
+    TriangleMesh m = disk;
+    const double side = std::sqrt(2 * fraction * area);  // a right triangle of this area
+    const int32_t base = m.vertex_count();
+    m.positions.push_back({3, 0, 0});
+    m.positions.push_back({3 + side, 0, 0});
+    m.positions.push_back({3, side, 0});
+    m.faces.push_back({base, base + 1, base + 2});
+    if (fraction < kSpeckAreaFraction) {
+      const PreparedFrame p = prepare_frame(m, "speck.obj");
+      EXPECT_EQ(p.report.dropped_specks, 1);
+      EXPECT_EQ(p.mesh.face_count(), disk.face_count());
+      EXPECT_NE(p.report.summary().find("dropped 1 speck (1 faces"), std::string::npos) << p.report.summary();
+    } else {
+      expect_error(ErrorCode::kNotADisk, "island.obj: 2 components", [&] { prepare_frame(m, "island.obj"); });
+      PrepareOptions largest;
+      largest.keep_largest_component = true;
+      EXPECT_EQ(prepare_frame(m, "island.obj", largest).report.dropped_components, 1);
+    }
+  }
+}
+
+// End to end: a capture with every defect in every frame encodes at the default settings, each
+// frame's repairs named in the report with its totals; --strict refuses the first frame, named.
+TEST(SequenceEncoder, ACaptureWithEveryDefectEncodesAndNamesItsRepairs) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 6;
+  synth.vertices = 3000;
+  synth.texture_size = 64;
+  synth.defects = kDefectAll;
+  write_synthetic_capture(dir.path(), synth);
+  const Capture capture = read_capture(dir.path());
+  EXPECT_EQ(capture.generator_value("defects"), defect_names(kDefectAll));
+  EncodeOptions options;
+  options.texture = false;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(capture, options, &report);
+  EXPECT_TRUE(report.dropped.empty());
+  ASSERT_EQ(report.frames.size(), 6u);
+  for (const EncodedFrameReport& f : report.frames) {
+    EXPECT_NE(f.repair.find("resolved"), std::string::npos) << f.repair;
+    EXPECT_NE(f.repair.find("bow-tie"), std::string::npos) << f.repair;
+    EXPECT_NE(f.repair.find("specks"), std::string::npos) << f.repair;
+    EXPECT_GT(f.repair_totals.faces_changed, 100);
+    EXPECT_GT(f.repair_totals.largest_move, 0.04);
+  }
+  options.strict = true;
+  options.threads = 1;
+  expect_error(ErrorCode::kInvalidMesh, "frame_0000.obj: ", [&] { encode_capture(capture, options); });
 }
 
 TEST(PrepareFrame, TorusWithABoundaryIsRejectedForItsHandle) {

@@ -171,7 +171,8 @@ class FramePreparer {
       area[static_cast<size_t>(component[f])] += triangle_area(mesh_.positions[static_cast<size_t>(t[0])], mesh_.positions[static_cast<size_t>(t[1])],
                                                                 mesh_.positions[static_cast<size_t>(t[2])]);
     }
-    const int keep = choose_face_group(mesh_, component, topology.component_count(), area, face_points_);
+    int keep = choose_face_group(mesh_, component, topology.component_count(), area, face_points_);
+    if (keep < 0) keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
     std::vector<uint8_t> speck(area.size(), 0), other(area.size(), 0);
     for (size_t c = 0; c < area.size(); ++c) {
       if (static_cast<int>(c) == keep) continue;

@@ -50,6 +50,7 @@ int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of
     }
     if (best_group >= 0) ++votes[static_cast<size_t>(best_group)];
   }
+  if (std::all_of(votes.begin(), votes.end(), [](int v) { return v == 0; })) return -1;
   int chosen = 0;
   for (int g = 1; g < group_count; ++g) {
     const auto i = static_cast<size_t>(g), c = static_cast<size_t>(chosen);

@@ -15,8 +15,8 @@ namespace facemorph {
 void remove_faces(TriangleMesh& mesh, const std::vector<uint8_t>& drop);
 
 // Which of `group_count` groups of faces holds the face: the group of the face nearest to most of
-// `face_points` (the frame's landmarks), ties and no points settled by the larger area.
-// `group_of_face[f]` in [0, group_count). Returns the group's index.
+// `face_points` (the frame's landmarks), ties settled by the larger area. `group_of_face[f]` in
+// [0, group_count). Returns the group's index, or -1 where no point is given (the caller decides).
 int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<double>& group_area,
                       const std::vector<Vec3>& face_points);
 
@@ -27,9 +27,9 @@ struct NonManifoldEdgeRepair {
 };
 
 // Resolves every edge with three or more faces. Faces join into sheets across edges with exactly
-// two faces; at each such edge the two faces kept are those of the sheet that holds the face
-// (choose_face_group) or, failing that, of the sheet that passes through the edge (two faces there),
-// then of the larger sheet. A sheet that keeps no face at any such edge is dropped whole (a fin, a
+// two faces; at each such edge the two faces kept are those of the sheet the landmarks lie on
+// (choose_face_group), else of the sheet that passes through the edge (two faces there: a fin
+// ends at it), else of the larger sheet. A sheet that keeps no face at any such edge is dropped whole (a fin, a
 // hair or torso surface fused to the face along a seam). Marks the faces to drop; `mesh` unchanged.
 std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points, NonManifoldEdgeRepair* counts);
 

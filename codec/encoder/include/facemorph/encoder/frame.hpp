@@ -84,7 +84,7 @@ struct PrepareOptions {
   bool repair_non_manifold = true;
   // Points on the face (the frame's landmarks, any of them): they pick the sheet and the component
   // that hold the face. Without them the larger (by area) is the face.
-  std::vector<Vec3> face_points;
+  std::vector<Vec3> face_points = {};
 };
 
 struct PreparedFrame {
