@@ -156,6 +156,7 @@ struct SweepFrame {
   std::string name;
   std::string outcome;  // "qiem", "linear", "tutte" or "failed"
   std::string reason;   // why QIEM was not used, or why the frame failed
+  std::string repair;   // what preparation repaired (RepairReport::summary)
   int caps_left = 0, obtuse_left = 0, vertices = 0;
   double seconds = 0;
 };
@@ -185,6 +186,7 @@ int run_conformal_sweep(const ConformalBenchOptions& options) {
             r.caps_left = c.caps_left;
             r.obtuse_left = c.obtuse_boundary_left;
             r.vertices = mapped.map.surface.vertex_count();
+            r.repair = mapped.prepared.report.summary();
           } catch (const Error& e) {
             r.outcome = "failed";
             r.reason = e.what();
@@ -204,7 +206,7 @@ int run_conformal_sweep(const ConformalBenchOptions& options) {
       caps += f.caps_left > 0;
       obtuse += f.obtuse_left > 0;
       per_frame.push_back({{"frame", f.name}, {"outcome", f.outcome}, {"reason", f.reason}, {"caps_left", f.caps_left},
-                           {"obtuse_boundary_left", f.obtuse_left}, {"vertices", f.vertices}, {"seconds", f.seconds}});
+                           {"obtuse_boundary_left", f.obtuse_left}, {"vertices", f.vertices}, {"seconds", f.seconds}, {"repair", f.repair}});
     }
     const std::string label = input.size() > 40 ? "..." + input.substr(input.size() - 37) : input;
     std::printf("%-40s %6zu %6d %6d %6d %6d %9d %9d %8.3f %8.3f\n", label.c_str(), frames.size(), count("qiem"), count("linear"),
@@ -212,8 +214,12 @@ int run_conformal_sweep(const ConformalBenchOptions& options) {
     for (const SweepFrame& f : frames) {
       if (f.outcome != "qiem") std::printf("    %s: %s: %s\n", f.name.c_str(), f.outcome.c_str(), f.reason.c_str());
     }
+    // Scans with defects (fmsynth --defects, real scans): repaired before the map, said once.
+    const auto repaired = std::count_if(frames.begin(), frames.end(), [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
+    const auto first = std::find_if(frames.begin(), frames.end(), [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
+    if (repaired > 0) std::printf("    %td frames repaired, e.g. %s: %s\n", repaired, first->name.c_str(), first->repair.c_str());
     results.push_back({{"input", input}, {"frames", frames.size()}, {"qiem", count("qiem")}, {"linear", count("linear")}, {"tutte", count("tutte")},
-                       {"failed", count("failed")}, {"frames_with_caps_left", caps}, {"frames_with_obtuse_boundary_left", obtuse},
+                       {"failed", count("failed")}, {"frames_repaired", repaired}, {"frames_with_caps_left", caps}, {"frames_with_obtuse_boundary_left", obtuse},
                        {"median_seconds", percentile(seconds, 0.5)}, {"worst_seconds", percentile(seconds, 1.0)}, {"per_frame", per_frame}});
   }
   if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "conformal-sweep"}, {"results", results}});

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The conformal map's robustness sweep (issue 26): every frame of the Medusa capture, of the whole
-# 67 s ICT capture, and of fmsynth captures over seeds, expressions, remeshing and noise, through
+# 67 s ICT capture, and of fmsynth captures over seeds, expressions, remeshing, noise and scanner
+# defects (--defects all: repaired before the map), through
 # the encoder's map (fmbench conformal --sweep: counts of QIEM, linear and Tutte maps, failures,
 # preconditioning left-overs, time). A benchmark, not a test: it takes tens of minutes.
 # Captures are made once into CACHE and reused.
@@ -25,6 +26,9 @@ settings=(
   "--seed 8 --expression mixed --remesh --vertices 40000"
   "--seed 9 --expression mouth --vertices 3000 --noise 0.001"
   "--seed 10 --expression smile --remesh --vertices 5000"
+  # What scanners write (issue 47): every defect the encoder repairs, in every frame.
+  "--seed 11 --expression mixed --defects all"
+  "--seed 12 --expression talk --remesh --noise 0.001 --defects all"
 )
 for s in "${settings[@]}"; do
   name=synth_$(echo "$s" | tr -c 'a-z0-9' '_' | tr -s '_')

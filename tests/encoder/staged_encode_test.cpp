@@ -291,7 +291,8 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
   refused(crafted(good, dir.path() / "holes.fms", 3,
                   [](SampledFrame& f) {
                     const MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
-                    const size_t at = 8 + m.name.size() + 8 + 4 * m.prepared.rim.size() + 8 + 4 * m.prepared.source_vertex.size() + 8 * 4;
+                    const size_t at = 8 + m.name.size() + 8 + 4 * m.prepared.rim.size() + 8 + 4 * m.prepared.source_vertex.size() +
+                                      18 * 4 + 2 * 8;  // the repair report's counts and totals (spec/part-file.md §4), then the hole count
                     const uint64_t holes = uint64_t{1} << 58;
                     std::memcpy(f.map.data() + at, &holes, sizeof holes);
                   }),
