@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -323,6 +325,12 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
     EXPECT_EQ(r.dropped_speck_faces, c.island_faces + c.flaps);
     EXPECT_EQ(r.dropped_components, 0);
     EXPECT_EQ(r.holes.size(), c.bow_ties > c.flaps ? 1u : 0u);  // the pinched hole, filled
+    // A split copy is moved off its twin, so the pinched hole's fill has no needle at the waist.
+    for (const FilledHole& hole : r.holes) EXPECT_GT(hole.min_angle_degrees, 2);
+    std::vector<std::array<double, 3>> at;
+    for (const Vec3& q : p.mesh.positions) at.push_back({q.x(), q.y(), q.z()});
+    std::sort(at.begin(), at.end());
+    EXPECT_EQ(std::adjacent_find(at.begin(), at.end()), at.end()) << "two vertices at one point";
     EXPECT_GT(r.faces_changed, 0);
     // Named, with the totals: never silently.
     if (c.bow_ties) {
@@ -385,6 +393,47 @@ TEST(PrepareFrame, TheSheetThroughTheEdgeIsKeptOverALargerFin) {
   EXPECT_EQ(p.report.dropped_sheets, 1);
   EXPECT_EQ(p.report.dropped_sheet_faces, 2);
   EXPECT_GT(p.report.largest_move, 55);  // the sheet's far edge, 60 above the dome
+}
+
+// A surface fused to the face along a closed seam (ring 4 of the dome) cuts the face into an inner
+// part and an outer band, each ending at the seam as the fused surface does, which is larger than
+// either: the landmarks (the centre; rim markers on the band) keep both parts, the fused one goes.
+TEST(PrepareFrame, LandmarksKeepBothPartsOfAFaceCutByAClosedSeam) {
+  const int sectors = 16, seam_ring = 4;
+  const TriangleMesh disk = dome(6, sectors);
+  TriangleMesh m = disk;
+  const int32_t first = 1 + (seam_ring - 1) * sectors, base = m.vertex_count();
+  for (int s = 0; s < sectors; ++s) m.positions.push_back(m.positions[static_cast<size_t>(first + s)] + Vec3(0, 0, -5));
+  for (int s = 0; s < sectors; ++s) {
+    const int32_t a = first + s, b = first + (s + 1) % sectors;
+    m.faces.push_back({b, a, base + s});
+    m.faces.push_back({b, base + s, base + (s + 1) % sectors});
+  }
+  PrepareOptions options;
+  options.face_points = {Vec3(0, 0, 1)};
+  for (int k = 0; k < 4; ++k) options.rim_markers.emplace_back(std::cos(k * std::numbers::pi / 2), std::sin(k * std::numbers::pi / 2), 0);
+  const PreparedFrame p = prepare_frame(m, "collar.obj", options);
+  EXPECT_EQ(p.mesh.face_count(), disk.face_count());
+  EXPECT_EQ(p.report.non_manifold_edges, sectors);
+  EXPECT_EQ(p.report.dropped_sheets, 1);
+  EXPECT_EQ(p.report.dropped_sheet_faces, 2 * sectors);
+  EXPECT_GT(p.report.largest_move, 4);  // the fused surface's far edge, 4.5 from the dome's rim
+}
+
+// Where the landmarks lie on a smaller component (a face beside a larger torso shell), that one is
+// the face: --largest-component keeps it, and what counts as a speck is measured against it.
+TEST(PrepareFrame, LandmarksPickTheFaceComponent) {
+  const TriangleMesh face = dome(6, 16);
+  TriangleMesh both = face;
+  for (const Vec3& q : face.positions) both.positions.push_back(3 * q + Vec3(10, 0, 0));  // nine times the area
+  for (const Face& f : face.faces) both.faces.push_back({f[0] + face.vertex_count(), f[1] + face.vertex_count(), f[2] + face.vertex_count()});
+  PrepareOptions options;
+  options.keep_largest_component = true;
+  options.face_points = {Vec3(0, 0, 1), Vec3(0.5, 0, 0.75)};
+  const PreparedFrame kept = prepare_frame(both, "shell.obj", options);
+  EXPECT_EQ(kept.mesh.face_count(), face.face_count());
+  EXPECT_NEAR(total_area(kept.mesh.positions, kept.mesh.faces), total_area(face.positions, face.faces), 1e-12);
+  EXPECT_EQ(kept.report.dropped_components, 1);
 }
 
 // A component is a speck below 1% of the face's area: one just under is dropped by default, one

@@ -32,8 +32,7 @@ void remove_faces(TriangleMesh& mesh, const std::vector<uint8_t>& drop) {
   if (!mesh.uv_faces.empty()) mesh.uv_faces.resize(out);
 }
 
-int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<double>& group_area,
-                      const std::vector<Vec3>& face_points) {
+std::vector<int> landmark_votes(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<Vec3>& face_points) {
   std::vector<int> votes(static_cast<size_t>(group_count), 0);
   // A frame has a few dozen landmarks: a scan over the faces' centres per point is cheap, and this
   // runs only on frames that need a choice.
@@ -50,6 +49,12 @@ int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of
     }
     if (best_group >= 0) ++votes[static_cast<size_t>(best_group)];
   }
+  return votes;
+}
+
+int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<double>& group_area,
+                      const std::vector<Vec3>& face_points) {
+  const std::vector<int> votes = landmark_votes(mesh, group_of_face, group_count, face_points);
   if (std::all_of(votes.begin(), votes.end(), [](int v) { return v == 0; })) return -1;
   int chosen = 0;
   for (int g = 1; g < group_count; ++g) {
@@ -80,6 +85,9 @@ std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std
   }
   std::vector<double> area(static_cast<size_t>(sheets), 0.0);
   for (size_t f = 0; f < face_total; ++f) area[static_cast<size_t>(sheet_of[f])] += face_area(mesh, mesh.faces[f]);
+  // The landmarks' sheets first: where a seam closes round the face, the face's inner part and
+  // its outer band (the rim markers') both end at the seam, and the fused sheet may be larger.
+  const std::vector<int> votes = landmark_votes(mesh, sheet_of, sheets, face_points);
   const int face_sheet = choose_face_group(mesh, sheet_of, sheets, area, face_points);
 
   std::vector<uint8_t> kept(static_cast<size_t>(sheets), 0), lost(static_cast<size_t>(sheets), 0);
@@ -88,10 +96,10 @@ std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std
     auto at_edge = [&](int sheet) {
       return std::count_if(incident.begin(), incident.end(), [&](int32_t f) { return sheet_of[static_cast<size_t>(f)] == sheet; });
     };
-    // The face's sheet first; then a sheet that passes through the edge (a fin ends there); then area.
+    // The landmarks' sheets first; then a sheet that passes through the edge (a fin ends there); then area.
     auto rank = [&](int32_t f) {
-      const int s = sheet_of[static_cast<size_t>(f)];
-      return std::make_tuple(s == face_sheet, at_edge(s) >= 2, area[static_cast<size_t>(s)], -f);
+      const auto s = static_cast<size_t>(sheet_of[static_cast<size_t>(f)]);
+      return std::make_tuple(votes[s], at_edge(static_cast<int>(s)) >= 2, area[s], -f);
     };
     std::sort(incident.begin(), incident.end(), [&](int32_t a, int32_t b) { return rank(a) > rank(b); });
     const int32_t first = incident[0];

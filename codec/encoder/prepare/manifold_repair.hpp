@@ -14,9 +14,13 @@ namespace facemorph {
 // Removes the faces marked in `drop` (one flag a face), with their texture-coordinate faces.
 void remove_faces(TriangleMesh& mesh, const std::vector<uint8_t>& drop);
 
-// Which of `group_count` groups of faces holds the face: the group of the face nearest to most of
-// `face_points` (the frame's landmarks), ties settled by the larger area. `group_of_face[f]` in
-// [0, group_count). Returns the group's index, or -1 where no point is given (the caller decides).
+// How many of `face_points` (the frame's landmarks) each of `group_count` groups of faces holds: a
+// point counts for the group of the face whose centroid is nearest. `group_of_face[f]` in
+// [0, group_count).
+std::vector<int> landmark_votes(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<Vec3>& face_points);
+
+// Which group holds the face: the one of most landmark_votes, ties settled by the larger area.
+// Returns its index, or -1 where no point is given (the caller decides).
 int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<double>& group_area,
                       const std::vector<Vec3>& face_points);
 
@@ -27,9 +31,9 @@ struct NonManifoldEdgeRepair {
 };
 
 // Resolves every edge with three or more faces. Faces join into sheets across edges with exactly
-// two faces; at each such edge the two faces kept are those of the sheet the landmarks lie on
-// (choose_face_group), else of the sheet that passes through the edge (two faces there: a fin
-// ends at it), else of the larger sheet. A sheet that keeps no face at any such edge is dropped whole (a fin, a
+// two faces; at each such edge the faces are ranked by their sheet's landmark_votes, then by
+// whether the sheet passes through the edge (two faces there: a fin ends at it), then by its area;
+// the first is kept with another face of its sheet if it has one, else with the second. A sheet that keeps no face at any such edge is dropped whole (a fin, a
 // hair or torso surface fused to the face along a seam). Marks the faces to drop; `mesh` unchanged.
 std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points, NonManifoldEdgeRepair* counts);
 
