@@ -18,6 +18,7 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -346,7 +347,13 @@ PYBIND11_MODULE(_decoder, m) {
       .def_readonly("normals", &Frame::normals)
       .def_readonly("uv", &Frame::uv)
       .def_readonly("faces", &Frame::faces)
-      .def_readonly("texture", &Frame::texture);
+      .def_readonly("texture", &Frame::texture)
+      .def("__repr__", [](const Frame& f) {
+        char text[160];
+        std::snprintf(text, sizeof text, "<facemorph.Frame t = %.4f s: %u vertices, %u triangles, texture %u, %u iterations%s>", f.time,
+                      f.vertex_count, f.triangle_count, f.texture_size, f.iterations, f.fell_back ? ", fell back" : "");
+        return std::string(text);
+      });
 
   py::class_<File>(m, "File", "An opened .fmv file and its decoder (facemorph.File).")
       .def_static("open_path", &File::open_path, py::arg("path"), py::arg("limits"))
