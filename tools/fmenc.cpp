@@ -3,6 +3,7 @@
 // each keyframe's fields, pose, holes and texture written. The file is written under a temporary
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
+#include "facemorph/encoder/encode_settings.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/segment_join.hpp"
 #include "facemorph/encoder/segmented_encode.hpp"
@@ -148,43 +149,6 @@ void check_parts(const std::vector<std::string>& parts, const std::string& frame
   }
 }
 
-nlohmann::json dropped_json(const EncodeReport& report) {
-  nlohmann::json list = nlohmann::json::array();
-  for (const DroppedFrame& d : report.dropped) list.push_back({{"frame", d.index}, {"name", d.name}, {"time", d.time}, {"reason", d.reason}});
-  return list;
-}
-
-nlohmann::json conformal_fallbacks_json(const EncodeReport& report) {
-  nlohmann::json list = nlohmann::json::array();
-  for (const EncodedFrameReport& f : report.frames) {
-    if (!f.conformal_fallback_reason.empty()) {
-      list.push_back({{"name", f.name}, {"time", f.time}, {"method", conformal_method_name(f.conformal_method)}, {"reason", f.conformal_fallback_reason}});
-    }
-  }
-  return list;
-}
-
-// Every frame's repairs (spec/method.md §2.1): the totals over the frames, and the first frames'
-// own lines (a long capture repairs every frame alike; the header's settings stay small).
-constexpr size_t kRepairedFramesListed = 16;
-nlohmann::json repairs_json(const EncodeReport& report) {
-  int frames = 0, faces = 0, vertices = 0;
-  double move = 0, relative = 0;
-  nlohmann::json listed = nlohmann::json::array();
-  for (const EncodedFrameReport& f : report.frames) {
-    const RepairTotals& t = f.repair_totals;
-    if (f.repair == "valid as captured") continue;
-    ++frames;
-    faces += t.faces_changed;
-    vertices += t.vertices_changed;
-    move = std::max(move, t.largest_move);
-    if (t.diagonal > 0) relative = std::max(relative, t.largest_move / t.diagonal);
-    if (listed.size() < kRepairedFramesListed) listed.push_back({{"name", f.name}, {"repair", f.repair}});
-  }
-  return {{"frames_repaired", frames}, {"faces_changed", faces}, {"vertices_changed", vertices}, {"largest_move", move},
-          {"largest_move_of_diagonal", relative}, {"frames", listed}};
-}
-
 // Where a segment stage's time went: what every segment repeats (the parts read, the choices made
 // from all of them) and its own share.
 void print_segment_seconds(const EncodeReport& r, bool measure) {
@@ -197,52 +161,6 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
   }
 }
 
-nlohmann::json settings_json(const EncodeOptions& o, const EncodeReport& report) {
-  return {{"keyframes", o.max_error > 0 ? nlohmann::json(nullptr) : nlohmann::json(o.keyframe_fraction)},
-          {"max_error", o.max_error > 0 ? nlohmann::json(o.max_error) : nlohmann::json(nullptr)},
-          {"grid", o.grid > 0 ? nlohmann::json(o.grid) : nlohmann::json("auto")},
-          {"grid_chosen", report.grid},
-          {"representation", o.representation ? representation_name(*o.representation) : "auto"},
-          {"representation_chosen", representation_name(report.representation)},
-          {"frames_without_interior_landmarks", report.frames_without_interior_landmarks},
-          {"representation_blend", report.blend.trials > 0 ? nlohmann::json{{"frames", report.blend.trials}, {"fields_error", report.blend.fields_error},
-                                                                              {"positions_error", report.blend.positions_error}, {"fields_not_converged", report.blend.not_converged}}
-                                                           : nlohmann::json(nullptr)},
-          {"registration", registration_method_name(o.registration.method)},
-          {"spline", spline_kind_name(o.spline)},
-          {"texture", o.texture ? (o.texture_size > 0 ? nlohmann::json(o.texture_size) : nlohmann::json("auto")) : nlohmann::json(0)},
-          {"texture_chosen", report.texture_size},
-          {"texture_codec", texture_codec_name(o.texture_codec)},
-          {"texture_quality", o.texture_quality == kAutoTextureQuality ? nlohmann::json("auto") : nlohmann::json(o.texture_quality)},
-          {"texture_qualities_chosen", report.texture_qualities},
-          {"texture_sharing", o.share_textures},
-          {"sparse_frame_interval", o.sparse_frame_interval},
-          {"keyframes_every_frame_sparse", report.sparse},
-          {"texture_shared_with", report.texture_shared_with},
-          {"keep_holes_filled", o.keep_holes_filled},
-          {"largest_component", o.largest_component},
-          {"reference_frame", o.reference_frame},
-          {"density_equalising", o.density_equalising.strength},
-          {"keyframe_fit", o.keyframe_fit},
-          {"field_error", o.predicted_fields ? nlohmann::json(report.field_precision.target_error) : nlohmann::json(nullptr)},
-          {"field_error_auto", o.predicted_fields && o.auto_field_error},
-          {"intra_period", o.field_precision.intra_period == kAutoIntraPeriod ? nlohmann::json("auto") : nlohmann::json(o.field_precision.intra_period)},
-          {"intra_period_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_coding.intra_period) : nlohmann::json(nullptr)},
-          {"field_rounding", o.field_precision.noise_shaping ? "shaped" : "nearest"},
-          {"inter_dead_zone", o.field_precision.inter_dead_zone == kAutoDeadZone ? nlohmann::json("auto") : nlohmann::json(o.field_precision.inter_dead_zone)},
-          {"inter_dead_zone_chosen", report.field_coding.predicted() ? nlohmann::json(report.field_precision.inter_dead_zone) : nlohmann::json(nullptr)},
-          {"strict", o.strict},
-          {"landmarks_found", {{"orientation_frames", report.orientation_found}, {"rim_markers", report.rim_markers_found},
-                               {"weakest_up_evidence", report.orientation_found > 0 ? nlohmann::json(report.weakest_up_evidence) : nlohmann::json(nullptr)}}},
-          {"landmarks_tracked", {{"frames", report.tracked_frames}, {"grid_points", report.tracking_grid_points},
-                                 {"points_mean", report.tracked_points_mean}, {"points_fewest", report.tracked_points_fewest},
-                                 {"round_trip_median", report.tracked_round_trip_median}, {"round_trip_p90", report.tracked_round_trip_p90}}},
-          {"reference_frame_chosen", report.reference_frame},
-          {"dropped_frames", dropped_json(report)},
-          {"conformal_fallbacks", conformal_fallbacks_json(report)},
-          {"repairs", repairs_json(report)},
-          {"warnings", report.warnings}};
-}
 
 }  // namespace
 
@@ -510,8 +428,7 @@ int main(int argc, char** argv) {
     }
     if (stages.count(current)) stages[current]->finish();
     SequenceFileMetadata metadata;
-    nlohmann::json settings = settings_json(options, report);
-    metadata.settings = settings.dump();
+    metadata.settings = encode_settings_json(options, report);
     metadata.landmark_names = landmark_names;
     metadata.keyframe_texture_qualities = report.texture_qualities;
     metadata.texture_codec = options.texture_codec;
@@ -671,7 +588,7 @@ int main(int argc, char** argv) {
                   report.tracking_grid_points, report.tracked_frames, report.seconds_tracking, report.tracked_points_mean, report.tracked_points_fewest,
                   100 * report.tracked_round_trip_median, 100 * report.tracked_round_trip_p90);
     }
-    const nlohmann::json repairs = settings["repairs"];
+    const nlohmann::json repairs = nlohmann::json::parse(metadata.settings)["repairs"];  // the totals, as the file states them
     if (repairs["frames_repaired"].get<int>() > 0) {
       std::printf("  repairs: %d of %zu frames repaired, %d faces and %d vertices changed in all, the surface moved at most %.3g (%.3g%% of the "
                   "diagonal)%s\n",
