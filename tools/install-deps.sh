@@ -27,6 +27,7 @@ packages=(
   libmeshoptimizer-dev                 # glTF clips for the web: EXT_meshopt_compression (fmdec -o CLIP.glb)
   chromium                             # the player page's test in a real browser (tests/web/browser.sh, headless)
   slurm-wlm munge                      # the cluster encode's test: a one-node Slurm cluster (tests/tools/slurm_test.sh)
+  blender                              # the Blender add-on's test (python/blender, tests/blender: Blender 3.4 on the system Python 3.11)
 )
 
 missing=()

@@ -1,0 +1,32 @@
+#!/bin/sh
+# Runs the Blender add-on's test: run.sh PYTHON PACKAGE_DIR FMDEC DATA_DIR WORK_DIR. Skips (exit 77,
+# ctest's SKIP_RETURN_CODE) naming what is missing: blender, python3 or its numpy, the facemorph
+# modules, or numpy inside Blender. Makes the add-on's zip from python/blender as a user would, and
+# installs it into a scripts folder of the test's own (BLENDER_USER_SCRIPTS), never the user's.
+python=$1 package=$2 fmdec=$3 data=$4 work=$5
+here=$(cd "$(dirname "$0")" && pwd)
+if ! command -v blender >/dev/null 2>&1; then
+  echo "SKIP: no blender on PATH (Debian: blender; tools/install-deps.sh installs it)"
+  exit 77
+fi
+if [ -z "$python" ] || ! command -v "$python" >/dev/null 2>&1; then
+  echo "SKIP: no python3 (the Python package was not configured: see cmake's 'facemorph: the Python package' line)"
+  exit 77
+fi
+if ! "$python" -c "import numpy" >/dev/null 2>&1; then
+  echo "SKIP: $python cannot import numpy (Debian: python3-numpy)"
+  exit 77
+fi
+if ! ls "$package"/facemorph/_decoder*.so >/dev/null 2>&1; then
+  echo "SKIP: the facemorph Python modules are not built in $package (FACEMORPH_PYTHON; pybind11-dev, python3-pybind11)"
+  exit 77
+fi
+rm -rf "$work" && mkdir -p "$work/scripts" || exit 1
+if ! blender -b --factory-startup --python-exit-code 1 --python-expr "import numpy" >"$work/numpy_check.log" 2>&1; then
+  echo "SKIP: Blender's Python cannot import numpy (Debian's blender depends on python3-numpy)"
+  exit 77
+fi
+"$python" "$here/../../python/blender/make_addon_zip.py" "$work/facemorph_blender.zip" >/dev/null || exit 1
+# Cycles prints a line per render step; the checks' lines ("ok", "FAIL") are what to read.
+BLENDER_USER_SCRIPTS="$work/scripts" exec blender -b --factory-startup --python-exit-code 1 \
+  --python "$here/test_addon.py" -- "$work/facemorph_blender.zip" "$package" "$fmdec" "$data" "$work"
