@@ -27,7 +27,12 @@ import sys
 import time
 
 import bpy
-import numpy as np
+
+try:
+    import numpy as np
+except ImportError:
+    print("SKIP: Blender's Python cannot import numpy (Debian's blender depends on python3-numpy)")
+    sys.exit(77)
 from mathutils import Matrix, Vector
 
 ADDON_ZIP, PACKAGE_DIR, FMDEC, DATA_DIR, WORK = sys.argv[sys.argv.index("--") + 1:]
