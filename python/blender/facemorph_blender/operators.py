@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
-from bpy_extras.io_utils import ImportHelper
+from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from . import importer, module_locator, player, settings
+from . import exporter, importer, module_locator, player, settings
 
 
 class IMPORT_SCENE_OT_facemorph(bpy.types.Operator, ImportHelper):
@@ -63,6 +63,59 @@ class IMPORT_SCENE_OT_facemorph(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
+class EXPORT_SCENE_OT_facemorph(bpy.types.Operator, ExportHelper):
+    """Export the active mesh's animation (one topology) to a facemorph file (.fmv)"""
+
+    bl_idname = "export_scene.facemorph"
+    bl_label = "Export facemorph"
+
+    filename_ext = ".fmv"
+    filter_glob: StringProperty(default="*.fmv", options={"HIDDEN"})
+    frame_start: IntProperty(name="From frame", default=0)
+    frame_end: IntProperty(name="To frame", default=-1, description="Below 'From frame': the scene's range")
+    frame_step: IntProperty(name="Every", default=1, min=1, description="Export every n-th frame")
+    texture: BoolProperty(name="Texture", default=True, description="The material's first image, through the UVs")
+    keyframes: StringProperty(name="Keyframes", default="",
+                              description="The share of frames kept as keyframes (fmenc's --keyframes, e.g. 10%); empty: the encoder's default")
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def execute(self, context):
+        try:
+            facemorph = player.facemorph_module()
+        except module_locator.ModuleNotFound as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        scene = context.scene
+        start, end = self.frame_start, self.frame_end
+        if end < start:
+            start, end = scene.frame_start, scene.frame_end
+        options = exporter.ExportOptions(start, end, self.frame_step, self.texture, self.keyframes or None)
+        window_manager = context.window_manager
+        window_manager.progress_begin(0, 100)
+        stages = {"writing": 0, "mapping": 1, "registering": 2, "keyframes": 3}
+
+        def progress(stage, done, total):
+            window_manager.progress_update(25 * stages.get(stage, 3) + (25 * done // max(1, total)))
+
+        try:
+            report = exporter.export(context, context.active_object, self.filepath, options, progress)
+        except (exporter.ExportError, facemorph.Error) as error:
+            self.report({"ERROR"}, f"facemorph export: {type(error).__name__}: {error}")
+            return {"CANCELLED"}
+        except Exception as error:  # noqa: BLE001 - a report, never a traceback
+            self.report({"ERROR"}, f"facemorph export: {type(error).__name__}: {error}")
+            return {"CANCELLED"}
+        finally:
+            window_manager.progress_end()
+        dropped = f", {len(report['dropped'])} frames dropped" if report["dropped"] else ""
+        self.report({"INFO"}, f"facemorph: {report['output']}: {report['frames']} frames, "
+                              f"{len(report['keyframe_times'])} keyframes, {report['bytes']} bytes{dropped}")
+        return {"FINISHED"}
+
+
 class OBJECT_PT_facemorph(bpy.types.Panel):
     """What a facemorph object plays (Properties > Object)"""
 
@@ -92,16 +145,22 @@ def menu_import(self, context):
     self.layout.operator(IMPORT_SCENE_OT_facemorph.bl_idname, text="facemorph (.fmv)")
 
 
-classes = (IMPORT_SCENE_OT_facemorph, OBJECT_PT_facemorph)
+def menu_export(self, context):
+    self.layout.operator(EXPORT_SCENE_OT_facemorph.bl_idname, text="facemorph (.fmv)")
+
+
+classes = (IMPORT_SCENE_OT_facemorph, EXPORT_SCENE_OT_facemorph, OBJECT_PT_facemorph)
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
     bpy.types.TOPBAR_MT_file_import.append(menu_import)
+    bpy.types.TOPBAR_MT_file_export.append(menu_export)
 
 
 def unregister():
+    bpy.types.TOPBAR_MT_file_export.remove(menu_export)
     bpy.types.TOPBAR_MT_file_import.remove(menu_import)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
