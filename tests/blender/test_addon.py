@@ -15,7 +15,9 @@ module calls:
    sets its own (orthographic, yaw 20°, the box fitted with 5% margin): the face covers more than
    10% of it, its silhouette (alpha > 0.5) against `fmdec --preview`'s (not white) has IoU >= 0.98,
    and its colours are the texture's (chromaticity within 0.03 of the preview's on average);
-4. holes.fmv (eyes and mouth cut per frame, counts changing between frames): followed, each frame's
+4. File > Export: the followed golden face encoded again (facemorph.encode) and decoded by fmdec
+   is the same surface within the codec's error, in the same place, with the same colours;
+5. holes.fmv (eyes and mouth cut per frame, counts changing between frames): followed, each frame's
    vertices and triangles equal fmdec's; baked to shape keys, each baked frame shows fmdec's
    --keep-holes-filled frame.
 """
@@ -42,6 +44,8 @@ POSITION_TOLERANCE = 1e-5  # of the bounding-box diagonal
 IOU_BOUND = 0.98
 CHROMA_BOUND = 0.03
 PREVIEW_SIZE = 160
+EXPORT_MEAN_BOUND, EXPORT_MAX_BOUND = 0.01, 0.03  # re-encoded: measured 0.002-0.005 and 0.004-0.014
+EXPORT_COLOUR_BOUND = 6.0
 failures = []
 started = time.monotonic()
 
@@ -66,6 +70,25 @@ def read_obj(path):
             elif line.startswith("f "):
                 faces.append([int(token.split("/")[0]) - 1 for token in line.split()[1:4]])
     return np.array(vertices), np.array(faces, dtype=np.int64)
+
+
+def vertex_colours(path):
+    """Each vertex's colour (0..255) in fmdec's OBJ: its texture (the PNG beside it) at its UV."""
+    uvs, corner_uv = [], {}
+    with open(path) as handle:
+        for line in handle:
+            if line.startswith("vt "):
+                uvs.append([float(x) for x in line.split()[1:3]])
+            elif line.startswith("f "):
+                for token in line.split()[1:4]:
+                    vertex, uv = token.split("/")[:2]
+                    corner_uv[int(vertex) - 1] = int(uv) - 1
+    uv = np.array(uvs)[[corner_uv[v] for v in range(len(corner_uv))]]
+    texture = image_array(path.replace(".obj", ".png"))[..., :3] * 255  # bottom row first: v up
+    height, width = texture.shape[:2]
+    rows = np.clip((uv[:, 1] * height).astype(int), 0, height - 1)
+    columns = np.clip((uv[:, 0] * width).astype(int), 0, width - 1)
+    return texture[rows, columns]
 
 
 def image_array(path):
@@ -262,6 +285,33 @@ def check_render(obj, frame, fps):
     return picture
 
 
+def check_export(obj, fps):
+    """The followed golden face exported through facemorph.encode and decoded again by fmdec: the
+    same surface within the codec's error (nearest vertices, of the diagonal), in the same place
+    (the importer's transform undone), with the same texture colours."""
+    exported = os.path.join(WORK, "exported.fmv")
+    started_export = time.perf_counter()
+    result = bpy.ops.export_scene.facemorph(filepath=exported)
+    check(result == {"FINISHED"} and os.path.getsize(exported) > 0,
+          f"exported to .fmv in {time.perf_counter() - started_export:.2f} s ({os.path.getsize(exported)} bytes)")
+    for frame in (0, 5, 11):
+        original = os.path.join(WORK, f"golden_{frame}.obj")  # fmdec's frames of golden_v2_1
+        again = os.path.join(WORK, f"exported_{frame}.obj")
+        fmdec(exported, "--t", repr(frame / fps), "-o", again)
+        want, got = read_obj(original)[0], read_obj(again)[0]
+        diagonal = float(np.linalg.norm(want.max(0) - want.min(0)))
+        distance = np.sqrt(((got[:, None, :] - want[None, :, :]) ** 2).sum(-1))
+        there, back = distance.min(axis=1) / diagonal, distance.min(axis=0) / diagonal
+        check(max(there.mean(), back.mean()) <= EXPORT_MEAN_BOUND and max(there.max(), back.max()) <= EXPORT_MAX_BOUND,
+              f"export frame {frame}: nearest vertices {max(there.mean(), back.mean()):.4f} of the diagonal on average, "
+              f"{max(there.max(), back.max()):.4f} at most (bounds {EXPORT_MEAN_BOUND}, {EXPORT_MAX_BOUND})")
+        # Colours where the surfaces meet: each vertex's texel against its nearest original vertex's.
+        nearest = distance.argmin(axis=1)
+        difference = float(np.abs(vertex_colours(again) - vertex_colours(original)[nearest]).mean())
+        check(difference <= EXPORT_COLOUR_BOUND, f"export frame {frame}: a vertex's colour within {difference:.2f} of 255 of its "
+                                                 f"nearest original's on average (bound {EXPORT_COLOUR_BOUND})")
+
+
 def main():
     os.makedirs(WORK, exist_ok=True)
     preferences = enable_addon()
@@ -288,6 +338,7 @@ def main():
         check_texture(obj, frame, "golden")
     picture = check_render(obj, 6, fps)
     print(f"     picture: {picture}")
+    check_export(obj, fps)
     bpy.data.objects.remove(obj)
 
     result, made = import_fmv(HOLES)
