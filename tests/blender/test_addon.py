@@ -18,7 +18,7 @@ module calls:
 4. File > Export: the followed golden face encoded again (facemorph.encode) and decoded by fmdec
    is the same surface within the codec's error, in the same place, with the same colours;
 5. holes.fmv (eyes and mouth cut per frame, counts changing between frames): followed, each frame's
-   vertices and triangles equal fmdec's; baked to shape keys, each baked frame shows fmdec's
+   vertices and triangles equal fmdec's, and its export is refused by a report; baked to shape keys, each baked frame shows fmdec's
    --keep-holes-filled frame.
 """
 
@@ -344,6 +344,14 @@ def main():
     result, made = import_fmv(HOLES)
     check(result == {"FINISHED"} and len(made) == 1, "holes.fmv imported to follow time")
     check_follows_time(made[0], HOLES, [0, 3, 7], fps, "holes")
+    # Its topology changes between frames: the exporter refuses by a report, writing nothing.
+    refused = os.path.join(WORK, "holes_exported.fmv")
+    try:
+        bpy.ops.export_scene.facemorph(filepath=refused)
+        check(False, "exporting a mesh whose topology changes should fail with a report")
+    except RuntimeError as report:
+        check("topology changed" in str(report) and not os.path.exists(refused),
+              f"export of holes.fmv refused: {str(report).strip()!r}, no file")
     bpy.data.objects.remove(made[0])
 
     result, made = import_fmv(HOLES, geometry="SHAPE_KEYS", texture="STILL")
