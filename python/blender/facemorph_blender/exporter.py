@@ -7,6 +7,8 @@ transform, so an imported face exports where it came from. The topology must be 
 frame (the encoder itself accepts any, but a Blender animation of one mesh has one). UVs are per
 corner; the texture is the material's first image, one array for every frame (the encoder stores
 it once) unless it is a facemorph object's image updated every frame, which is copied per frame.
+The face is expected in Blender's front view (facing -Y, up +Z), as the importer poses it: the
+nose tip and bridge passed as landmarks come from that pose (view_landmarks).
 """
 
 from __future__ import annotations
@@ -80,6 +82,22 @@ def evaluated_frame(obj, depsgraph):
         evaluated.to_mesh_clear()
 
 
+def view_landmarks(vertices: np.ndarray) -> dict:
+    """nose_tip and nose_bridge of a face posed as Blender's front view shows it (the importer's
+    pose: y up, facing +z in capture coordinates): the tip is the vertex farthest along +z; the
+    bridge the farthest along +z of those a tenth to a fifth of the face's height above it, near
+    its midline. They tell the encoder which way is up where the geometry alone may not (a smooth
+    decoded face: fmenc's --landmarks auto found no orientation on the decoded sample)."""
+    low, high = vertices.min(0), vertices.max(0)
+    width, height = high[0] - low[0], high[1] - low[1]
+    tip = vertices[np.argmax(vertices[:, 2])]
+    above = vertices[(vertices[:, 1] > tip[1] + 0.1 * height) & (vertices[:, 1] < tip[1] + 0.2 * height)
+                     & (np.abs(vertices[:, 0] - tip[0]) < 0.05 * width)]
+    if len(above) == 0:
+        return {}
+    return {"nose_tip": tip, "nose_bridge": above[np.argmax(above[:, 2])]}
+
+
 def collect_frames(context, obj, options: ExportOptions) -> tuple:
     """The frames as facemorph.encode takes them, and their times (seconds)."""
     scene = context.scene
@@ -102,7 +120,7 @@ def collect_frames(context, obj, options: ExportOptions) -> tuple:
             elif not np.array_equal(topology, triangles):
                 raise ExportError(f"frame {number}: the mesh's topology changed ({len(vertices)} vertices, "
                                   f"{len(triangles)} triangles); export needs one topology for every frame")
-            frame = {"vertices": vertices, "faces": triangles}
+            frame = {"vertices": vertices, "faces": triangles, "landmarks": view_landmarks(vertices)}
             if uv is not None and image is not None:
                 frame["uv"] = uv
                 frame["uv_faces"] = np.arange(3 * len(triangles), dtype=np.int32).reshape(-1, 3)
