@@ -131,6 +131,27 @@ TEST(Gltf, OnlyTrianglesInsideAHoleThroughoutAreDropped) {
   EXPECT_EQ(faces_outside_holes(grid.faces, {}).size(), grid.faces.size());
 }
 
+// Normals (issue 48 part 4): in the base and every morph target of both kinds of clip, so a viewer
+// shades the face smoothly; none with `normals` off (fmdec --glb-flat), which then flat-shades.
+// Their values against the decoder's are web/test/gltf_check.mjs's (Web.CompactGltfClipMatchesFloats).
+TEST(Gltf, ClipsCarryNormalsUnlessAskedNot) {
+  const auto count = [](const std::vector<uint8_t>& glb, const std::string& what) {
+    const std::string json(glb.begin() + 20, glb.begin() + 20 + u32(glb, 12));
+    size_t n = 0;
+    for (size_t at = json.find(what); at != std::string::npos; at = json.find(what, at + 1)) ++n;
+    return n;
+  };
+  for (bool compact : {false, true}) {
+    SCOPED_TRACE(compact ? "compact" : "float");
+    GltfClip clip = wave_clip(4);
+    clip.compact = compact;
+    EXPECT_EQ(count(encode_glb(clip), "\"NORMAL\""), 1u + 3u);
+    clip.normals = false;
+    EXPECT_EQ(count(encode_glb(clip), "\"NORMAL\""), 0u);
+    EXPECT_EQ(count(encode_glb(clip), "\"POSITION\""), 1u + 3u);
+  }
+}
+
 // The Khronos glTF validator (npm gltf-validator) finds no error; skipped without node or the
 // validator (in build-web/npm, where tools/install-deps.sh puts it; FACEMORPH_GLTF_VALIDATOR may
 // name another folder whose node_modules holds it).

@@ -3,10 +3,10 @@
 // decoder a player links.
 #include "facemorph/meshkit/gltf.hpp"
 
+#include "codec/decoder/player/decoder.hpp"  // area_weighted_normals: the decoder's one normal rule
 #include "facemorph/error.hpp"
 #include "facemorph/geometry.hpp"
 #include "facemorph/image_codec.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
 
 #include <algorithm>
 #include <array>
@@ -23,7 +23,7 @@ namespace facemorph {
 
 namespace {
 
-constexpr int kFloat = 5126, kUnsignedInt = 5125, kShort = 5122, kUnsignedShort = 5123;
+constexpr int kFloat = 5126, kUnsignedInt = 5125, kShort = 5122, kUnsignedShort = 5123, kByte = 5120;
 constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
 
 // The binary buffer and the JSON arrays that describe its pieces.
@@ -220,6 +220,56 @@ std::vector<float> flat(const std::vector<Vec3>& values) {
   return out;
 }
 
+// A frame's vertex normals as the decoder gives them (fm_frame.normals: area-weighted, unit) over
+// the clip's triangles. A vertex on no triangle of non-zero area (one only a dropped hole's
+// triangles held) gets +z: the decoder's zero is no direction, and glTF wants unit normals.
+std::vector<Vec3> decoder_normals(const std::vector<Vec3>& positions, const std::vector<Face>& faces) {
+  std::vector<float> packed(3 * positions.size());
+  area_weighted_normals(positions, faces, packed);
+  std::vector<Vec3> normals(positions.size());
+  for (size_t v = 0; v < normals.size(); ++v) {
+    const Vec3 n(packed[3 * v], packed[3 * v + 1], packed[3 * v + 2]);
+    normals[v] = n.squaredNorm() > 0 ? n : Vec3::UnitZ();
+  }
+  return normals;
+}
+
+// A unit normal as normalised int8 codes c (read as c / 127). Of the eight codes next to 127 · n
+// (each component rounded down or up), the one nearest n in angle whose length is within 0.005 of
+// 1: plain rounding can miss unit length by up to √3 · 0.5 / 127 = 0.0068, past the Khronos
+// validator's 0.00674 (ACCESSOR_VECTOR3_NON_UNIT), where some neighbour always keeps within it.
+std::array<int32_t, 3> normal_code(const Vec3& n) {
+  std::array<int32_t, 3> nearest{}, most_unit{};
+  double nearest_cosine = -2, smallest_miss = std::numeric_limits<double>::infinity();
+  for (int corner = 0; corner < 8; ++corner) {
+    std::array<int32_t, 3> c{};
+    for (int k = 0; k < 3; ++k) {
+      const double scaled = 127 * std::clamp(n[k], -1.0, 1.0);
+      c[static_cast<size_t>(k)] = static_cast<int32_t>((corner >> k) & 1 ? std::ceil(scaled) : std::floor(scaled));
+    }
+    const Vec3 q(c[0], c[1], c[2]);
+    if (q.squaredNorm() == 0) continue;
+    const double miss = std::abs(q.norm() / 127 - 1), cosine = q.normalized().dot(n);
+    if (miss <= 0.005 && cosine > nearest_cosine) nearest_cosine = cosine, nearest = c;
+    if (miss < smallest_miss) smallest_miss = miss, most_unit = c;
+  }
+  return nearest_cosine > -2 ? nearest : most_unit;
+}
+
+// A later frame's normal as codes for its morph target: of each component's two codes next to
+// 127 · n (rounded down and up), the one nearer frame 0's code `base`, so the difference stays 0
+// while a normal turns by less than a step: within 1/127 a component, like the nearest code, but
+// the differences of a face that barely turns are zeros that meshoptimizer packs to almost
+// nothing, where rounding to nearest flips codes by ±1 at random from frame to frame.
+std::array<int32_t, 3> code_near(const Vec3& n, const std::array<int32_t, 3>& base) {
+  std::array<int32_t, 3> c{};
+  for (size_t k = 0; k < 3; ++k) {
+    const double scaled = 127 * std::clamp(n[static_cast<int>(k)], -1.0, 1.0);
+    c[k] = std::clamp(base[k], static_cast<int32_t>(std::floor(scaled)), static_cast<int32_t>(std::ceil(scaled)));
+  }
+  return c;
+}
+
 // The vertex streams, their morph targets and the indices, as accessors of `b`.
 struct Streams {
   int position = -1, normal = -1, uv = -1, index = -1;
@@ -233,9 +283,9 @@ Streams float_streams(const GltfClip& clip, GlbBuilder& b) {
   Streams out;
   const size_t frames = clip.times.size();
   const std::vector<Vec3>& base = clip.positions.front();
-  const std::vector<Vec3> base_normals = vertex_normals(base, clip.faces);
+  const std::vector<Vec3> base_normals = decoder_normals(base, clip.faces);
   out.position = b.floats(flat(base), 3, "VEC3", kArrayBuffer, true);
-  out.normal = b.floats(flat(base_normals), 3, "VEC3", kArrayBuffer, false);
+  if (clip.normals) out.normal = b.floats(flat(base_normals), 3, "VEC3", kArrayBuffer, false);
   if (!clip.uvs.empty()) {
     std::vector<float> uvs;
     for (const Vec2& t : clip.uvs) {
@@ -251,13 +301,16 @@ Streams float_streams(const GltfClip& clip, GlbBuilder& b) {
   out.index = b.indices(indices);
   // Morph targets: every frame after the first, as differences from the base.
   for (size_t f = 1; f < frames; ++f) {
-    std::vector<Vec3> dp(base.size()), dn(base.size());
-    const std::vector<Vec3> normals = vertex_normals(clip.positions[f], clip.faces);
-    for (size_t v = 0; v < base.size(); ++v) {
-      dp[v] = clip.positions[f][v] - base[v];
-      dn[v] = normals[v] - base_normals[v];
-    }
+    std::vector<Vec3> dp(base.size());
+    for (size_t v = 0; v < base.size(); ++v) dp[v] = clip.positions[f][v] - base[v];
     const int p = b.floats(flat(dp), 3, "VEC3", kArrayBuffer, true);
+    if (!clip.normals) {
+      out.targets.push_back("{\"POSITION\":" + std::to_string(p) + "}");
+      continue;
+    }
+    const std::vector<Vec3> normals = decoder_normals(clip.positions[f], clip.faces);
+    std::vector<Vec3> dn(base.size());
+    for (size_t v = 0; v < base.size(); ++v) dn[v] = normals[v] - base_normals[v];
     const int n = b.floats(flat(dn), 3, "VEC3", kArrayBuffer, false);
     out.targets.push_back("{\"POSITION\":" + std::to_string(p) + ",\"NORMAL\":" + std::to_string(n) + "}");
   }
@@ -270,10 +323,13 @@ Streams float_streams(const GltfClip& clip, GlbBuilder& b) {
 // step is 2⁻¹⁴ of the box's diagonal, so a position moves by at most 0.9 · 2⁻¹⁴ = 5.3·10⁻⁵ of it,
 // twenty times below the decoded frames' own error (spec/method.md), and coarse enough that
 // meshoptimizer packs the differences to a few bits (larger if a vertex moves more than 32766 steps
-// from frame 0, which the codes must hold). No normals: glTF's viewers then shade each triangle
-// flat from its morphed corners (glTF 2.0 §3.7.2.1), which is right in every frame, where morphed
-// normal differences cost 40% of the clip and still lag the surface. UVs as normalised uint16.
-// Each stream compressed by meshoptimizer where that is smaller.
+// from frame 0, which the codes must hold). Normals: the decoder's (decoder_normals) as normalised
+// int8 codes (normal_code), and each morph target's as the code differences, so that frame f reads
+// exactly its own codes, within 1/127 a component of the decoder's normals; a target whose
+// differences pass ±127 (a normal that turned more than about 60 degrees from frame 0's) holds them
+// as floats d / 127, the same values. Without normals a viewer shades each triangle flat (glTF 2.0
+// §3.7.2.1): the stair-stepped cheeks of issue 48. UVs as normalised uint16. Each stream compressed
+// by meshoptimizer where that is smaller.
 Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
   Streams out;
   const size_t frames = clip.times.size();
@@ -315,6 +371,20 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
   std::vector<std::array<int32_t, 3>> base_codes(n);
   for (size_t v = 0; v < n; ++v) base_codes[v] = {code(base[v], 0), code(base[v], 1), code(base[v], 2)};
   out.position = shorts(base_codes, true);
+  // int8 VEC3 padded to 4 bytes a vertex: a vertex attribute's elements are 4-byte aligned.
+  const auto bytes = [&](const std::vector<std::array<int32_t, 3>>& values) {
+    std::vector<int8_t> packed(4 * values.size(), 0);
+    for (size_t v = 0; v < values.size(); ++v) {
+      for (size_t k = 0; k < 3; ++k) packed[4 * v + k] = static_cast<int8_t>(values[v][k]);
+    }
+    return b.accessor(b.view_compressed(packed.data(), 4, values.size(), kArrayBuffer, false), kByte, true, values.size(), "VEC3");
+  };
+  std::vector<std::array<int32_t, 3>> base_normal_codes(n);
+  if (clip.normals) {
+    const std::vector<Vec3> normals = decoder_normals(base, clip.faces);
+    for (size_t v = 0; v < n; ++v) base_normal_codes[v] = normal_code(normals[v]);
+    out.normal = bytes(base_normal_codes);
+  }
   if (!clip.uvs.empty()) {
     std::vector<uint16_t> uvs;
     for (const Vec2& t : clip.uvs) {
@@ -333,7 +403,31 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
     for (size_t v = 0; v < n; ++v) {
       for (int k = 0; k < 3; ++k) dp[v][static_cast<size_t>(k)] = code(clip.positions[f][v], k) - base_codes[v][static_cast<size_t>(k)];
     }
-    out.targets.push_back("{\"POSITION\":" + std::to_string(shorts(dp, true)) + "}");
+    if (!clip.normals) {
+      out.targets.push_back("{\"POSITION\":" + std::to_string(shorts(dp, true)) + "}");
+      continue;
+    }
+    const std::vector<Vec3> normals = decoder_normals(clip.positions[f], clip.faces);
+    std::vector<std::array<int32_t, 3>> dn(n);
+    bool fits = true;
+    for (size_t v = 0; v < n; ++v) {
+      const std::array<int32_t, 3> c = code_near(normals[v], base_normal_codes[v]);
+      for (size_t k = 0; k < 3; ++k) {
+        dn[v][k] = c[k] - base_normal_codes[v][k];
+        fits = fits && std::abs(dn[v][k]) <= 127;
+      }
+    }
+    int normal_target;
+    if (fits) {
+      normal_target = bytes(dn);
+    } else {
+      std::vector<float> wide(3 * n);
+      for (size_t v = 0; v < n; ++v) {
+        for (size_t k = 0; k < 3; ++k) wide[3 * v + k] = static_cast<float>(dn[v][k] / 127.0);
+      }
+      normal_target = b.accessor(b.view_compressed(wide.data(), 12, n, kArrayBuffer, false), kFloat, false, n, "VEC3");
+    }
+    out.targets.push_back("{\"POSITION\":" + std::to_string(shorts(dp, true)) + ",\"NORMAL\":" + std::to_string(normal_target) + "}");
   }
   std::ostringstream transform;
   transform.precision(17);

@@ -1,5 +1,8 @@
 #include "facemorph/meshkit/render.hpp"
 
+#include "codec/decoder/player/decoder.hpp"  // area_weighted_normals: the decoder's one normal rule
+#include "facemorph/error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -56,7 +59,19 @@ SurfaceShader checkerboard_shader(const TriangleMesh& mesh, double squares) {
   };
 }
 
-Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options) {
+std::vector<Vec3> shading_normals(const TriangleMesh& mesh) {
+  std::vector<float> packed(3 * mesh.positions.size());
+  area_weighted_normals(mesh.positions, mesh.faces, packed);
+  std::vector<Vec3> normals(mesh.positions.size());
+  for (size_t v = 0; v < normals.size(); ++v) normals[v] = Vec3(packed[3 * v], packed[3 * v + 1], packed[3 * v + 2]);
+  return normals;
+}
+
+Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options, std::span<const Vec3> vertex_normals) {
+  if (!vertex_normals.empty() && vertex_normals.size() != mesh.positions.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "render: " + std::to_string(vertex_normals.size()) + " normals for " +
+                                                 std::to_string(mesh.positions.size()) + " vertices");
+  }
   Image image(options.width, options.height, 3);
   for (int y = 0; y < image.height; ++y) {
     for (int x = 0; x < image.width; ++x) std::copy(options.background.begin(), options.background.end(), image.at(x, y));
@@ -70,6 +85,10 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
   std::vector<Vec3> p(mesh.positions.size());
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (size_t i = 0; i < p.size(); ++i) p[i] = R * mesh.positions[i];
+  // The normals turned as the mesh is (the headlight looks down -z after the turn).
+  std::vector<Vec3> turned_normals(vertex_normals.size());
+  for (size_t i = 0; i < turned_normals.size(); ++i) turned_normals[i] = R * vertex_normals[i];
+  const bool smooth = options.shading && !turned_normals.empty();
   // Fit what is drawn: vertices referenced by faces.
   for (const Face& face : mesh.faces) {
     for (int32_t v : face) {
@@ -119,9 +138,16 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
         if (z <= stored) continue;
         stored = z;
         const auto rgb = shader(static_cast<int>(f), Vec3(w0, w1, w2));
+        double lit = light;
+        if (smooth) {
+          const Vec3 n = w0 * turned_normals[static_cast<size_t>(face[0])] + w1 * turned_normals[static_cast<size_t>(face[1])] +
+                         w2 * turned_normals[static_cast<size_t>(face[2])];
+          const double length = n.norm();
+          if (length > 1e-12) lit = 0.25 + 0.75 * std::abs(n.z()) / length;
+        }
         uint8_t* out = image.at(x, y);
         for (int k = 0; k < 3; ++k) {
-          out[k] = static_cast<uint8_t>(std::clamp(rgb[static_cast<size_t>(k)] * light, 0.0, 255.0));
+          out[k] = static_cast<uint8_t>(std::clamp(rgb[static_cast<size_t>(k)] * lit, 0.0, 255.0));
         }
       }
     }

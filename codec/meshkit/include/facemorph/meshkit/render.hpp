@@ -1,11 +1,13 @@
 // A small software rasterizer for previews and diagnostic pictures (orthographic, z-buffered,
-// headlight Lambert shading). Deliberately dependency-free so the decoder can embed it.
+// headlight Lambert shading, flat or smooth). Deliberately dependency-free so the decoder can embed it.
 #pragma once
 
 #include "facemorph/image.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <functional>
+#include <span>
+#include <vector>
 
 namespace facemorph {
 
@@ -25,7 +27,19 @@ struct RenderOptions {
 };
 
 // Renders `mesh` looking down -z (after the yaw/pitch rotation), fitting its bounding box.
-Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options = {});
+// `vertex_normals`, one per position (shading_normals), shade smoothly: the headlight term
+// 0.25 + 0.75 |n · z| takes the normal interpolated across the triangle at each pixel, as a GPU
+// interpolates a vertex attribute (web/facemorph.js draws the same); where that interpolation
+// vanishes, or without normals, the triangle is lit flat by its own normal. A size other than
+// positions.size() throws kInvalidArgument.
+Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options = {},
+             std::span<const Vec3> vertex_normals = {});
+
+// The decoder's vertex normals of `mesh` (area-weighted, unit, zero for a vertex on no triangle of
+// non-zero area: what fm_decoder_decode gives as fm_frame.normals for a decoded frame), for
+// render's smooth shading of any mesh, decoded or read from a file. Throws kInvalidArgument for a
+// face index out of range.
+std::vector<Vec3> shading_normals(const TriangleMesh& mesh);
 
 // Shaders.
 SurfaceShader constant_shader(std::array<double, 3> rgb);
