@@ -69,7 +69,7 @@ def import_file(context, path: str, options: ImportOptions):
         obj.scale = (METRES_PER_UNIT.get(info["units"], 1.0),) * 3
 
     if settings.texture != "NONE":
-        settings.image = texture.ensure_image(f"{name} texture", info["texture_size"])
+        settings.image = texture.new_image(f"{name} texture", info["texture_size"])
         if settings.texture == "STILL":
             # The capture's first frame, kept in the .blend: plays without the module or the file.
             frame = opened.decode(info["first_time"], clamp=True, outputs=["texture"])
@@ -88,5 +88,6 @@ def import_file(context, path: str, options: ImportOptions):
     obj.select_set(True)
     context.view_layer.objects.active = obj
     # What the handler shows at the scene's frame: the mesh (following time), the texture.
+    player.forget(obj)
     player.show_time(obj, player.scene_time(scene, settings.frame_offset))
     return obj

@@ -63,7 +63,7 @@ def show_time(obj, t: float) -> None:
     settings = obj.facemorph
     path = settings.filepath
     shown = _shown.get(obj.name)
-    if shown == (path, t):
+    if shown == (path, t) and len(obj.data.vertices) > 0:
         return  # the same frame again (a render after the frame change, a redraw): nothing to do
     opened = open_file(path)
     info = opened.info
@@ -111,6 +111,11 @@ def on_frame_change(scene, depsgraph=None) -> None:
     update_objects(scene)
 
 
+def forget(obj) -> None:
+    """obj shows nothing yet (a new object may take a deleted one's name)."""
+    _shown.pop(obj.name, None)
+
+
 @persistent
 def on_load(_dummy=None) -> None:
     # Objects of the loaded .blend show what their files say at the scene's frame.
@@ -118,13 +123,25 @@ def on_load(_dummy=None) -> None:
     update_objects(bpy.context.scene)
 
 
+@persistent
+def on_undo(_dummy=None) -> None:
+    # Undo restores meshes and images as they were at that step, whatever frame they showed: show
+    # the scene's frame again.
+    _shown.clear()
+    update_objects(bpy.context.scene)
+
+
+HANDLERS = ((bpy.app.handlers.frame_change_post, on_frame_change), (bpy.app.handlers.load_post, on_load),
+            (bpy.app.handlers.undo_post, on_undo), (bpy.app.handlers.redo_post, on_undo))
+
+
 def register() -> None:
-    bpy.app.handlers.frame_change_post.append(on_frame_change)
-    bpy.app.handlers.load_post.append(on_load)
+    for handlers, function in HANDLERS:
+        handlers.append(function)
 
 
 def unregister() -> None:
-    for handlers, function in ((bpy.app.handlers.frame_change_post, on_frame_change), (bpy.app.handlers.load_post, on_load)):
+    for handlers, function in HANDLERS:
         while function in handlers:
             handlers.remove(function)
     close_files()

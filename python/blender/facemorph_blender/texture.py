@@ -25,15 +25,10 @@ def texture_pixels(texture: np.ndarray) -> np.ndarray:
     return pixels.ravel()
 
 
-def ensure_image(name: str, size: int):
-    """The object's texture image, made (or remade at another size) as an 8-bit sRGB image."""
-    image = bpy.data.images.get(name)
-    if image is not None and tuple(image.size) != (size, size):
-        bpy.data.images.remove(image)
-        image = None
-    if image is None:
-        image = bpy.data.images.new(name, size, size, alpha=False)
-    return image
+def new_image(name: str, size: int):
+    """A new 8-bit sRGB image for one object (Blender makes the name unique: two imports of a file
+    never share, and overwrite, one image)."""
+    return bpy.data.images.new(name, size, size, alpha=False)
 
 
 def set_image_pixels(image, texture: np.ndarray) -> None:
