@@ -12,7 +12,6 @@ landmarks, so a mouth that opens opens its hole), and fmenc encodes the result w
 import csv
 import json
 import pathlib
-import shutil
 import subprocess
 import sys
 import tempfile

@@ -14,9 +14,8 @@ nose tip and bridge passed as landmarks come from that pose (view_landmarks).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
-import bpy
 import numpy as np
 
 # Blender world (X, Y, Z) -> capture (x, y, z) = (X, Z, -Y).

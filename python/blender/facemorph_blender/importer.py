@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import bpy
 
-from . import mesh_data, player, shape_keys, texture
+from . import player, shape_keys, texture
 
 # The capture's units to Blender's metres (spec/capture.md: m, cm or mm).
 METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}

@@ -1,7 +1,5 @@
 """File > Import > facemorph (.fmv), and the object panel that says what an object plays."""
 
-from __future__ import annotations
-
 import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper

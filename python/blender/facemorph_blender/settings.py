@@ -1,7 +1,5 @@
 """What an imported object remembers (Object.facemorph, saved in the .blend)."""
 
-from __future__ import annotations
-
 import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
 
