@@ -1,4 +1,5 @@
-// fmview: renders a mesh to a PNG picture (textured, checkerboard over its UVs, or plain shaded).
+// fmview: renders a mesh to a PNG picture (textured, checkerboard over its UVs, or plain shaded),
+// shaded smoothly by the decoder's vertex normals (--flat: each triangle by its own).
 #include "facemorph/encoder/image_io.hpp"
 #include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/meshkit/render.hpp"
@@ -11,12 +12,14 @@ int main(int argc, char** argv) {
   std::string input, output, mode = "texture";
   RenderOptions options;
   double squares = 20;
+  bool flat = false;
   app.add_option("mesh", input, "Mesh file (.obj or .ply)")->required();
   app.add_option("-o,--out", output, "Picture to write (.png or .jpg)")->required();
   app.add_option("--mode", mode, "texture | checker | plain")->capture_default_str();
   app.add_option("--squares", squares, "Checkerboard squares per unit of UV")->capture_default_str();
   app.add_option("--yaw", options.yaw_degrees, "Rotation about the vertical axis, degrees")->capture_default_str();
   app.add_option("--pitch", options.pitch_degrees, "Rotation about the horizontal axis, degrees")->capture_default_str();
+  app.add_flag("--flat", flat, "Light each triangle by its own normal (shows the facets), not by the interpolated vertex normals");
   app.add_option("--size", options.width, "Picture width and height, pixels")->capture_default_str()->check(CLI::Range(16, 8192));
   return tools::guarded_main(app, argc, argv, [&] {
     options.height = options.width;
@@ -33,7 +36,7 @@ int main(int argc, char** argv) {
     } else {
       throw Error(ErrorCode::kInvalidArgument, "--mode must be texture, checker or plain");
     }
-    write_image(output, render(mesh, shader, options));
+    write_image(output, flat ? render(mesh, shader, options) : render(mesh, shader, options, shading_normals(mesh)));
     return 0;
   });
 }
