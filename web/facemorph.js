@@ -5,8 +5,10 @@
 //   const player = await FacemorphPlayer.open('face.fmv');          // a URL (range requests) or bytes
 //   player.info();                                                  // fps, range, counts, texture size, units
 //   const frame = await player.decode(1.45);                        // typed arrays: positions, normals, uvs, indices
-//   const face = new FacemorphThree(THREE, player);                 // a THREE.Mesh kept up to date
+//   const face = new FacemorphThree(THREE, player, { camera });     // a THREE.Mesh kept up to date; camera framed on it
 //   scene.add(face.mesh); await face.update(t);                     // per animation frame
+//
+// web/examples/minimal.html is a whole page that plays a file this way.
 //
 // Decoding runs in a Web Worker (web/worker.js) with the WebAssembly decoder: the page's thread
 // only uploads arrays and images. A URL is read by HTTP range requests: the header, the index and
@@ -30,12 +32,17 @@ export class FacemorphPlayer {
 
   // Opens `source`: a URL (string or URL) or the file's bytes (ArrayBuffer, Uint8Array, Blob/File).
   // options: {base: where web/ is served (default: beside this module), limits: fm_decoder_options
-  // fields as {maxGridN, maxKeyframes, maxTextureSize, maxMemoryBytes, maxWork}}.
+  // fields as {maxGridN, maxKeyframes, maxTextureSize, maxMemoryBytes, maxWork}, name: what errors
+  // call the file (default: the URL as given, or the File's name)}.
+  // A file the decoder refuses rejects with an Error whose statusName is the C API's (fm_status_name:
+  // 'truncated', 'corrupt', ...) and whose message reads as fmdec's does: "error (truncated): NAME:
+  // truncated: chunk TGOP at offset 2928 needs 1571 bytes, only 48 left".
   static async open(source, options = {}) {
     const base = new URL(options.base || here, location.href);
     const worker = new Worker(new URL('worker.js', base), { type: 'module' });
     const player = new FacemorphPlayer(worker, null);
-    const message = { type: 'open', moduleUrl: new URL('dist/facemorph_wasm.mjs', base).href, wasmUrl: new URL('dist/facemorph_wasm.wasm', base).href, limits: options.limits };
+    const name = options.name ?? (typeof source === 'string' ? source : source instanceof URL ? source.href : source.name ?? 'the bytes given');
+    const message = { type: 'open', name, moduleUrl: new URL('dist/facemorph_wasm.mjs', base).href, wasmUrl: new URL('dist/facemorph_wasm.wasm', base).href, limits: options.limits };
     let transfer = [];
     if (typeof source === 'string' || source instanceof URL) {
       message.url = new URL(source, location.href).href;
@@ -107,14 +114,17 @@ export class FacemorphPlayer {
 
 // The texture as the native decoder makes it: Σ wᵢ · texture of keyframe kᵢ, up to six keyframes
 // (every local spline blends at most six), rounded to the byte as fm_decoder_decode rounds
-// (floor(sum · 255 + ½) / 255); lit as fmdec --preview lights it (codec/meshkit/render): a headlight
-// on each flat triangle, 0.25 + 0.75 |n · z| in the camera's frame.
+// (floor(sum · 255 + ½) / 255); lit as fmdec --preview lights it (codec/meshkit/render): a headlight,
+// 0.25 + 0.75 |n · z| in the camera's frame, n the decoder's vertex normals interpolated across the
+// triangle (smooth), or the triangle's own where that interpolation vanishes.
 const MAX_BLEND = 6;
 const vertexShader = `
 varying vec2 vUv;
 varying vec3 vViewPosition;
+varying vec3 vNormal;
 void main() {
   vUv = uv;
+  vNormal = normalMatrix * normal;
   vec4 view = modelViewMatrix * vec4(position, 1.0);
   vViewPosition = view.xyz;
   gl_Position = projectionMatrix * view;
@@ -128,6 +138,7 @@ uniform mat3 rangeFix;
 uniform vec3 rangeOffset;
 varying vec2 vUv;
 varying vec3 vViewPosition;
+varying vec3 vNormal;
 void main() {
   vec3 colour = vec3(0.0);
   vec3 texel;
@@ -136,13 +147,17 @@ void main() {
   colour += weights[${i}] * mix(texel, rangeFix * texel + rangeOffset, corrected[${i}]);`).join('\n  ')}
   colour = clamp(floor(colour * 255.0 + 0.5) / 255.0, 0.0, 1.0);
   colour = mix(vec3(200.0 / 255.0), colour, textured);
-  vec3 n = normalize(cross(dFdx(vViewPosition), dFdy(vViewPosition)));
+  float normalLength = length(vNormal);
+  vec3 n = normalLength > 1e-12 ? vNormal / normalLength : normalize(cross(dFdx(vViewPosition), dFdy(vViewPosition)));
   gl_FragColor = vec4(colour * (0.25 + 0.75 * abs(n.z)), 1.0);
 }`;
 
 export class FacemorphThree {
   // THREE: the page's three.js module. Keeps `mesh` (a THREE.Mesh whose BufferGeometry has room for
   // every frame of the file) and its textures up to date with update(t).
+  // options: {camera: a THREE.PerspectiveCamera or OrthographicCamera that the first frame decoded
+  // frames (fitCamera), so a face in metres or millimetres, wherever the capture put it, is in view;
+  // margin: fitCamera's (1.15); maxTextures: textures kept (12)}.
   constructor(THREE, player, options = {}) {
     this.THREE = THREE;
     this.player = player;
@@ -176,6 +191,48 @@ export class FacemorphThree {
     this.indicesFixed = false;
     this.busy = null;
     this.last = null;
+    this.camera = options.camera || null;
+    this.margin = options.margin ?? 1.15;
+  }
+
+  // The sphere around the face as last drawn, in world coordinates (the mesh's own transform
+  // applied): a THREE.Sphere, or null before the first frame.
+  boundingSphere() {
+    if (!this.geometry.boundingSphere) return null;
+    this.mesh.updateWorldMatrix(true, false);
+    return this.geometry.boundingSphere.clone().applyMatrix4(this.mesh.matrixWorld);
+  }
+
+  // Aims `camera` at the face and fits the bounding sphere, times `margin`, inside its view: a
+  // perspective camera keeps its direction and moves to the distance where the sphere fits both
+  // field-of-view angles; an orthographic one gets a frustum of the sphere's size (its aspect kept).
+  // near and far are set around the sphere. Does nothing before the first frame; returns the sphere.
+  fitCamera(camera, margin = this.margin) {
+    const sphere = this.boundingSphere();
+    if (!sphere || !(sphere.radius > 0)) return sphere;
+    const THREE = this.THREE;
+    const radius = sphere.radius * margin;
+    const direction = camera.getWorldDirection(new THREE.Vector3());
+    if (camera.isPerspectiveCamera) {
+      const vertical = THREE.MathUtils.degToRad(camera.fov) / 2;
+      const horizontal = Math.atan(Math.tan(vertical) * camera.aspect);
+      const distance = radius / Math.sin(Math.min(vertical, horizontal));
+      camera.position.copy(sphere.center).addScaledVector(direction, -distance);
+      camera.near = Math.max(distance - 2 * radius, distance / 1000);
+      camera.far = distance + 2 * radius;
+    } else {
+      const aspect = (camera.right - camera.left) / (camera.top - camera.bottom) || 1;
+      const half = aspect >= 1 ? radius : radius / aspect;
+      camera.left = -half * aspect; camera.right = half * aspect;
+      camera.top = half; camera.bottom = -half;
+      camera.zoom = 1;
+      camera.position.copy(sphere.center).addScaledVector(direction, -2 * radius);
+      camera.near = 0;
+      camera.far = 4 * radius;
+    }
+    camera.lookAt(sphere.center);
+    camera.updateProjectionMatrix();
+    return sphere;
   }
 
   set wireframe(on) { this.material.wireframe = on; }
@@ -200,7 +257,9 @@ export class FacemorphThree {
       haveTextures: [...this.textures.keys()],
     });
     this.apply(frame);
+    const first = !this.last;
     this.last = frame;
+    if (first && this.camera) this.fitCamera(this.camera);
     return frame;
   }
 

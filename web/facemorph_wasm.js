@@ -18,6 +18,10 @@ export class FacemorphError extends Error {
     super(`${name}: ${message}`);
     this.status = status;
     this.statusName = name;
+    // What the tools print after the file's name: the library's message less the function's name
+    // and the name it gives bytes it is handed ("memory"), e.g. "truncated: chunk TGOP at offset
+    // 2928 needs 1571 bytes, only 48 left" (fmdec: "error (truncated): FILE: " and this).
+    this.detail = message.replace(/^fm_[a-z0-9_]+: /, '').replace(/^memory: /, '');
   }
 }
 

@@ -94,7 +94,7 @@ async function show(time) {
 }
 
 function tick(now) {
-  if (!playing) return;
+  if (!playing || !face) return;
   const info = player.info();
   const dt = lastTick ? (now - lastTick) / 1000 : 0;
   lastTick = now;
@@ -124,14 +124,29 @@ function fail(error) {
   console.error(error);
 }
 
-async function open(source, name) {
+// No file: nothing drawn, nothing to play or scrub. Where every open starts, so a failed one leaves
+// its error on an empty view, not the last file's face under it with live controls.
+function clear() {
   pause();
-  page.state = 'opening';
   if (face) { scene.remove(face.mesh); face.dispose(); }
   player?.close();
   player = null;
+  face = null;
+  lastFrame = null;
+  $('play').disabled = true;
+  $('time').disabled = true;
+  $('clock').value = '–';
+  $('stats').textContent = '';
+  renderer.render(scene, camera);
+}
+
+async function open(source, name) {
+  clear();
+  page.state = 'opening';
+  page.error = null;
   $('drop').textContent = `Opening ${name}…`;
-  player = await FacemorphPlayer.open(source);
+  $('drop').style.display = '';
+  player = await FacemorphPlayer.open(source, { name });
   face = new FacemorphThree(THREE, player);
   face.wireframe = $('wireframe').checked;
   face.textured = $('texture').checked;
@@ -151,20 +166,23 @@ async function open(source, name) {
   return info;
 }
 
-page.open = (url) => open(url, url);
+// Rejects as the page's own open does, after showing the error.
+page.open = (url) => open(url, url).catch((error) => { fail(error); throw error; });
 page.seek = (time) => show(time);
 page.play = play;
 page.pause = pause;
 // The canvas as drawn last (a PNG data URL): what the browser test compares with fmdec --preview.
 page.snapshot = () => canvas.toDataURL('image/png');
 page.setYaw = (degrees) => { yaw = degrees * Math.PI / 180; };
+// What a person sees of the controls: whether Play and the time slider take input.
+page.controls = () => ({ play: !$('play').disabled, time: !$('time').disabled });
 page.stats = () => ({
   info: player?.info(), open: player?.openStats(), lastFrame: lastFrame && { time: lastFrame.time, vertexCount: lastFrame.vertexCount, decodeMs: lastFrame.decodeMs, bytesFetched: lastFrame.bytesFetched, requests: lastFrame.requests, heapBytes: lastFrame.heapBytes },
   decodeMs: [...decodeTimes], drawn,
 });
 
 $('play').onclick = () => (playing ? pause() : play());
-$('time').oninput = () => { pause(); if (!face.busy) show(Number($('time').value)).catch(fail); };
+$('time').oninput = () => { pause(); if (face && !face.busy) show(Number($('time').value)).catch(fail); };
 $('speed').onchange = () => { speed = Number($('speed').value); };
 $('wireframe').onchange = () => { if (face) { face.wireframe = $('wireframe').checked; show(t).catch(fail); } };
 $('texture').onchange = () => { if (face) { face.textured = $('texture').checked; show(t).catch(fail); } };

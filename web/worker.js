@@ -11,6 +11,7 @@ import { ByteSource, openLayout, ensureKeyframes, textureOf } from './stream.js'
 
 let fm = null;
 let state = null;  // {source, layout, file, decoder, info, times, complete}
+let fileName = '';  // what errors call the file being opened or played
 
 async function loadModule(moduleUrl, wasmUrl) {
   if (fm) return fm;
@@ -34,14 +35,42 @@ function close() {
   state = null;
 }
 
+// The decoder's own verdict on bytes the chunk walk refused (a PNG, a truncated or damaged file):
+// the C API opened over what has arrived, which the walk fetched up to the chunk it refused, so the
+// page names the error as fmdec and fminfo do ('truncated', 'corrupt', with the library's message)
+// rather than the walk's. Should the decoder take the bytes, the walk's error stands.
+function nativeVerdict(source, walkError, limits) {
+  if (!source.file) return walkError;  // nothing arrived: the transport's error (an HTTP status)
+  try {
+    fm.openBorrowed(source.file, limits).close();
+    return walkError;
+  } catch (error) {
+    return error;
+  } finally {
+    source.file.free();
+  }
+}
+
 async function open(message) {
   await loadModule(message.moduleUrl, message.wasmUrl);
   close();
+  fileName = message.name || message.url || 'the bytes given';
   const source = message.bytes ? ByteSource.fromBytes(new Uint8Array(message.bytes)) : ByteSource.fromUrl(message.url);
   const allocate = (size) => fm.allocateFile(size);
   const started = performance.now();
-  const layout = await openLayout(source, allocate);
-  const file = fm.openBorrowed(source.file, message.limits || {});
+  let layout;
+  try {
+    layout = await openLayout(source, allocate);
+  } catch (error) {
+    throw nativeVerdict(source, error, message.limits || {});
+  }
+  let file;
+  try {
+    file = fm.openBorrowed(source.file, message.limits || {});
+  } catch (error) {
+    source.file.free();
+    throw error;
+  }
   const info = file.info();
   const times = file.keyframeTimes();
   const decoder = file.createDecoder();
@@ -222,6 +251,8 @@ self.onmessage = async (event) => {
       self.postMessage({ type: 'reply', id: message.id, result: null });
     }
   } catch (error) {
-    self.postMessage({ type: 'error', id: message.id, message: String(error.message || error), status: error.statusName || null });
+    // The decoder's errors read as fmdec's: "error (STATUS): FILE: what the library says".
+    const text = error.detail !== undefined ? `error (${error.statusName}): ${fileName}: ${error.detail}` : String(error.message || error);
+    self.postMessage({ type: 'error', id: message.id, message: text, status: error.statusName || null });
   }
 };
