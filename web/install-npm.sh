@@ -2,13 +2,14 @@
 # Installs the browser side's npm packages, pinned, into a folder this script manages (never
 # committed): three (the player page's renderer, copied next to the module by web/build.sh) and
 # puppeteer-core (the headless-Chromium test, tests/web/browser.sh; it drives Debian's chromium and
-# downloads no browser). Idempotent: a folder that holds these versions is left as it is, without
+# downloads no browser), gltf-validator (the clips' tests) and esbuild (web/build.sh bundles three.js
+# into one minified module with it; its binary comes in its npm package @esbuild/linux-x64). Idempotent: a folder that holds these versions is left as it is, without
 # touching the network. tools/install-deps.sh runs it.
 #   web/install-npm.sh [DIR]     (default: $FACEMORPH_NPM_DIR or build-web/npm)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:-${FACEMORPH_NPM_DIR:-build-web/npm}}
-packages=(three@0.187.0 puppeteer-core@25.16.0 gltf-validator@2.0.0-dev.3.10)
+packages=(three@0.187.0 puppeteer-core@25.16.0 gltf-validator@2.0.0-dev.3.10 esbuild@0.28.2)
 command -v npm >/dev/null || { echo "install-npm: npm not found (tools/install-deps.sh installs it)" >&2; exit 1; }
 have() {  # have NAME@VERSION: installed at that version
   local name=${1%@*} version=${1##*@}
