@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Web.PlayerPageInChromium: builds the WebAssembly decoder (web/build.sh, incremental), then runs
 # web/test/browser.mjs: the player page in headless Chromium driven by puppeteer-core, on FILE,
-# against FMDEC's previews. Exits 77 (skipped) without emcc, node, chromium or puppeteer-core,
+# against FMDEC's previews, with files FMDEC refuses (named errors, controls disabled), and the
+# shipped web/examples/minimal.html in a second tab of the same browser. Exits 77 (skipped) without emcc, node, chromium or puppeteer-core,
 # naming which.
 #   tests/web/browser.sh FMDEC FILE.fmv WORK_DIR
 set -euo pipefail

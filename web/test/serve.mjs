@@ -2,7 +2,8 @@
 // (206 and Content-Range; what facemorph.js streams with), and a log of every response's path,
 // range and bytes, so a test can count what playback fetched.
 //   node web/test/serve.mjs ROOT [PORT=0] [LOG.jsonl]   prints "listening on http://127.0.0.1:PORT"
-// Also importable: serve(root, port) -> {server, url, log}.
+// Also importable: serve(root, port, logPath, mounts) -> {server, url, log}; mounts {'/prefix/': folder}
+// serve another folder under a path (a test's own files, wherever its work folder is).
 import { createServer } from 'node:http';
 import { createReadStream, statSync, appendFileSync } from 'node:fs';
 import { extname, join, normalize, resolve, sep } from 'node:path';
@@ -12,12 +13,14 @@ const types = {
   '.wasm': 'application/wasm', '.json': 'application/json', '.png': 'image/png', '.fmv': 'application/octet-stream',
 };
 
-export function serve(root, port = 0, logPath = null) {
-  root = resolve(root);
+export function serve(root, port = 0, logPath = null, mounts = {}) {
   const log = [];
   const server = createServer((request, response) => {
     const path = decodeURIComponent(new URL(request.url, 'http://x').pathname);
-    const file = normalize(join(root, path.endsWith('/') ? path + 'index.html' : path));
+    const mount = Object.keys(mounts).find((prefix) => path.startsWith(prefix));
+    const base = resolve(mount ? mounts[mount] : root);
+    const rest = mount ? path.slice(mount.length - 1) : path;
+    const file = normalize(join(base, rest.endsWith('/') ? rest + 'index.html' : rest));
     const record = (status, bytes, range) => {
       const entry = { path, status, bytes, range };
       log.push(entry);
@@ -25,7 +28,7 @@ export function serve(root, port = 0, logPath = null) {
     };
     let stat;
     try {
-      if (file !== root && !file.startsWith(root + sep)) throw new Error('outside');
+      if (file !== base && !file.startsWith(base + sep)) throw new Error('outside');
       stat = statSync(file);
       if (!stat.isFile()) throw new Error('not a file');
     } catch {
