@@ -10,7 +10,7 @@
 //   - a truncated copy of FILE and a PNG, opened on the page, show the error fmdec gives for them
 //     ("error (truncated): NAME: ..." with the library's message), leave the view empty (white)
 //     and Play and the time slider disabled (issue 48 part 3);
-//   - web/examples/minimal.html, as shipped, in a second tab of the same browser: it plays FILE
+//   - web/examples/minimal.html, as shipped (and as the README shows it), in a second tab of the same browser: it plays FILE
 //     (two pictures a second apart differ), the face is inside the frame (drawn pixels, none on the
 //     border, spanning a fifth of the picture or more), and it names the PNG's error as fmdec does;
 //   - FacemorphThree.fitCamera (under node, no browser) frames a face in metres 5 m from the origin;
@@ -90,8 +90,12 @@ const drawnPixels = (page, png) => page.evaluate(async (data) => {
   return { drawn, x0, y0, x1, y1, width: bitmap.width, height: bitmap.height };
 }, typeof png === 'string' ? png : `data:image/png;base64,${Buffer.from(png).toString('base64')}`);
 
-// web/examples/minimal.html as shipped (?file= only): plays, frames the face, names an error.
+// web/examples/minimal.html as shipped (?file= only): plays, frames the face, names an error. The
+// README's html example is this file, whole (issue 48: the snippet a web developer pastes).
 async function minimalPage(browser, fileUrl, png, expectedErrors) {
+  const shipped = readFileSync(join(root, 'web/examples/minimal.html'), 'utf8').trimEnd();
+  const snippet = /```html\n([\s\S]*?)\n```/.exec(readFileSync(join(root, 'README.md'), 'utf8'));
+  check(snippet && snippet[1] === shipped, `the README's html example is web/examples/minimal.html, whole`);
   const tab = await browser.newPage();
   await tab.setViewport({ width: 480, height: 360 });
   const errors = [];
