@@ -140,10 +140,10 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
         const auto rgb = shader(static_cast<int>(f), Vec3(w0, w1, w2));
         double lit = light;
         if (smooth) {
-          const Vec3 n = w0 * turned_normals[static_cast<size_t>(face[0])] + w1 * turned_normals[static_cast<size_t>(face[1])] +
-                         w2 * turned_normals[static_cast<size_t>(face[2])];
-          const double length = n.norm();
-          if (length > 1e-12) lit = 0.25 + 0.75 * std::abs(n.z()) / length;
+          const Vec3 interpolated = w0 * turned_normals[static_cast<size_t>(face[0])] + w1 * turned_normals[static_cast<size_t>(face[1])] +
+                                    w2 * turned_normals[static_cast<size_t>(face[2])];
+          const double length = interpolated.norm();
+          if (length > 1e-12) lit = 0.25 + 0.75 * std::abs(interpolated.z()) / length;
         }
         uint8_t* out = image.at(x, y);
         for (int k = 0; k < 3; ++k) {
