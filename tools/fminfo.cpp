@@ -227,11 +227,14 @@ void print_encoder_notes(const nlohmann::json& settings) {
   }
 }
 
-int describe_container(const fs::path& path, bool json_out, const DecoderLimits& limits) {
-  // Every keyframe decoded once, one at a time, and every checksum verified (the bytes each takes);
-  // then opened as a player opens it.
-  const SequenceFileInfo info = inspect_sequence_file(path, limits);
+// By default the file is described from its header and index, every checksum verified, nothing
+// decoded: a few ms a MB, so that fminfo stays within the decoder's time bound on any file
+// (spec/container.md §10.5). --verify decodes every keyframe once, one at a time, as a player would
+// meet it (about 0.4 s a MB at N = 257), and gives each keyframe the bytes its fields took.
+int describe_container(const fs::path& path, bool json_out, bool verify, const DecoderLimits& limits) {
+  // Opened as a player opens it first: a file no player may open is refused before anything is decoded.
   const std::shared_ptr<const KeyframeSource> source = open_sequence_source(path, limits);
+  const SequenceFileInfo info = verify ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
   const SequenceOutline& sequence = source->outline();
   const KeyframeSpline spline(sequence.times, sequence.spline);
   const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
@@ -269,11 +272,17 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
     doc["holes"] = sequence.has_holes;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
+    doc["verified"] = verify;  // every keyframe decoded (--verify), or checksums only
     nlohmann::json keys = nlohmann::json::array();
     for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
-      keys.push_back({{"time", sequence.times[k]}, {"fields_bytes", info.keyframes[k].fields}, {"texture_bytes", info.keyframes[k].texture}});
+      nlohmann::json key = {{"time", sequence.times[k]}, {"texture_bytes", info.keyframes[k].texture}};
+      if (verify) key["fields_bytes"] = info.keyframes[k].fields;
+      keys.push_back(std::move(key));
     }
     doc["keyframes"] = std::move(keys);
+    nlohmann::json groups = nlohmann::json::array();
+    for (const auto& g : info.field_groups) groups.push_back({{"first", g.first}, {"count", g.count}, {"bytes", g.bytes}});
+    doc["field_groups"] = std::move(groups);
     nlohmann::json chunks = nlohmann::json::array();
     for (const auto& c : info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
     doc["chunks"] = std::move(chunks);
@@ -311,11 +320,25 @@ int describe_container(const fs::path& path, bool json_out, const DecoderLimits&
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str() : "none");
   std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
-  std::printf("keyframes   %zu\n", sequence.keyframe_count());
-  std::printf("    #     time   fields B  texture B\n");
-  for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
-    std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.times[k], static_cast<unsigned long long>(info.keyframes[k].fields),
-                static_cast<unsigned long long>(info.keyframes[k].texture));
+  if (verify) {
+    std::printf("keyframes   %zu, every one decoded and checked\n", sequence.keyframe_count());
+    std::printf("    #     time   fields B  texture B\n");
+    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
+      std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.times[k], static_cast<unsigned long long>(info.keyframes[k].fields),
+                  static_cast<unsigned long long>(info.keyframes[k].texture));
+    }
+  } else {
+    // A group's stream is divided among its keyframes only by decoding it: the group's bytes stand
+    // on its first keyframe's line.
+    std::printf("keyframes   %zu, checksums verified (fminfo --verify decodes each and gives its fields' bytes)\n", sequence.keyframe_count());
+    std::printf("    #     time  group's fields B  texture B\n");
+    size_t group = 0;
+    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
+      const bool first = group < info.field_groups.size() && info.field_groups[group].first == k;
+      const std::string fields = first ? std::to_string(info.field_groups[group].bytes) + " (" + std::to_string(info.field_groups[group].count) + ")" : "";
+      group += first;
+      std::printf("  %3zu %8.3f %17s %10llu\n", k, sequence.times[k], fields.c_str(), static_cast<unsigned long long>(info.keyframes[k].texture));
+    }
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");
   for (const auto& c : info.chunks) {
@@ -337,18 +360,19 @@ int main(int argc, char** argv) {
   CLI::App app("Describe a capture (validating every frame as the encoder will) or a facemorph file.", "fminfo");
   std::string input, landmarks, prepared;
   double fps = 0;
-  bool json_out = false, quiet = false;
+  bool json_out = false, quiet = false, verify = false;
   app.add_option("input", input, "A .fmv file, a capture folder, capture.json, or a plain folder of meshes (with --fps)")->required();
   app.add_option("--fps", fps, "Frame rate for a plain folder of meshes");
   app.add_option("--landmarks", landmarks, "Landmarks CSV for a plain folder (frame,name,x,y,z)");
   app.add_option("--prepared", prepared, "Write each validated, hole-filled frame into this folder");
   app.add_flag("--json", json_out, "Print JSON");
+  app.add_flag("--verify", verify, "For a .fmv file: decode every keyframe once (as a player would), not only verify the checksums, and give each keyframe its fields' bytes");
   app.add_flag("-q,--quiet", quiet, "No progress display");
   DecoderLimits limits;
   std::string max_memory;
   tools::add_limit_options(app, limits, max_memory);
   return tools::guarded_main(app, argc, argv, [&] {
-    if (is_container(input)) return describe_container(input, json_out, tools::parsed_limits(limits, max_memory));
+    if (is_container(input)) return describe_container(input, json_out, verify, tools::parsed_limits(limits, max_memory));
     const Capture capture = open_capture(input, fps, landmarks);
     std::error_code ec;
     if (!prepared.empty()) fs::create_directories(prepared, ec);

@@ -1,7 +1,8 @@
 // Hostile.LibraryHoldsOnEveryFile (issue 46): hostile_corpus's files through the library in one
 // process, as a player embeds it, so that the sanitizer build (which builds no tools) runs the
-// whole hostile set too: for each file of the manifest, fminfo's check (inspect_sequence_file: every
-// keyframe decoded once, every checksum verified), then the player C API at its defaults
+// whole hostile set too: for each file of the manifest, fminfo's description (describe_sequence_file:
+// header, index and checksums) and check (inspect_sequence_file, fminfo --verify: every keyframe
+// decoded once, every checksum verified), then the player C API at its defaults
 // (fm_file_open_with_options, fm_file_get_info, fm_decoder_create, and fm_decoder_decode at each of
 // the manifest's times into buffers for every output: positions, normals, uvs, indices, texture).
 // Each step must succeed with finite numbers, or fail with an error naming the file (the C API's
@@ -121,6 +122,13 @@ void decode_at(fm_decoder* decoder, double t, const ManifestEntry& entry, Verdic
 }
 
 void check_file(const fs::path& path, const ManifestEntry& entry, Verdict& verdict) {
+  // fminfo's description decodes no keyframe, so a file refused for a keyframe's content may pass
+  // it: it must describe the file or refuse it by name, whatever the manifest says.
+  try {
+    facemorph::describe_sequence_file(path);
+  } catch (const facemorph::Error& e) {
+    verdict.refused_by("describe_sequence_file", e.what(), "");
+  }
   try {
     facemorph::inspect_sequence_file(path);
     verdict.succeeded("inspect_sequence_file", entry.refused);

@@ -164,6 +164,25 @@ TEST(KeyframeSource, OpeningDescribesTheFileAsTheWholeDecodeDoes) {
     EXPECT_EQ(inspected.keyframes[k].texture, whole_info.keyframes[k].texture);
   }
   EXPECT_EQ(file_info(*source).keyframe_times, file_info(whole).keyframe_times);
+  // fminfo's description (no keyframe decoded): each group's bytes are the sum of its keyframes'
+  // shares, which only a decode divides, and the groups cover every keyframe once, in order.
+  const SequenceFileInfo described = describe_sequence_file(dir.path() / "long.fmv");
+  ASSERT_EQ(described.keyframes.size(), whole_info.keyframes.size());
+  ASSERT_GT(described.field_groups.size(), 1u);
+  size_t next = 0;
+  for (const SequenceFileInfo::FieldGroup& group : described.field_groups) {
+    EXPECT_EQ(group.first, next);
+    uint64_t shares = 0;
+    for (size_t k = group.first; k < group.first + group.count; ++k) {
+      EXPECT_EQ(described.keyframes[k].fields, 0u);
+      EXPECT_EQ(described.keyframes[k].texture, whole_info.keyframes[k].texture);
+      shares += whole_info.keyframes[k].fields;
+    }
+    EXPECT_EQ(group.bytes, shares) << "the group from keyframe " << group.first;
+    next = group.first + group.count;
+  }
+  EXPECT_EQ(next, whole_info.keyframes.size());
+  EXPECT_EQ(described.chunks.size(), whole_info.chunks.size());
 }
 
 TEST(KeyframeSource, ATextureThatDoesNotDecodeFailsTheFramesThatShowItNotTheFile) {
@@ -386,6 +405,8 @@ TEST(KeyframeSource, ATextureWithABadChecksumFailsWhenFirstShown) {
   testing::TempDir dir;
   format::write_file_atomically(dir.path() / "bad.fmv", bytes);
   testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk TEXR", [&] { inspect_sequence_file(dir.path() / "bad.fmv"); });
+  // fminfo's description decodes nothing, and verifies every checksum all the same.
+  testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk TEXR", [&] { describe_sequence_file(dir.path() / "bad.fmv"); });
 }
 
 // G is built once per opened file: every decoder on a source shares its grid geometry.

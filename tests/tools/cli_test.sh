@@ -22,6 +22,19 @@ grep -q "texture coding 'films'" "$work/err" || fail "fmenc does not name a wron
 "$tools/fminfo" "$work/a.fmv" --json >"$work/info.json" || fail "fminfo --json"
 python3 -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['grid']['n']==33 and len(d['keyframes'])>=2" "$work/info.json" ||
   fail "fminfo --json is not the file's description"
+# fminfo decodes nothing (each group's fields bytes, from the index); --verify decodes every keyframe
+# and divides each group's bytes among its keyframes.
+grep -q "checksums verified (fminfo --verify decodes" "$work/info" || fail "fminfo does not say it decoded nothing"
+"$tools/fminfo" "$work/a.fmv" --json --verify >"$work/verified.json" || fail "fminfo --json --verify"
+python3 -c "import json,sys
+d, v = (json.load(open(p)) for p in sys.argv[1:3])
+assert not d['verified'] and v['verified'], 'verified'
+assert all('fields_bytes' not in k for k in d['keyframes']), 'fields bytes without --verify'
+assert d['field_groups'] == v['field_groups'] and d['field_groups'], 'groups'
+for g in v['field_groups']:
+    assert sum(k['fields_bytes'] for k in v['keyframes'][g['first']:g['first'] + g['count']]) == g['bytes'], g
+assert sum(g['bytes'] for g in d['field_groups']) == sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP'), 'KGOP'" \
+  "$work/info.json" "$work/verified.json" || fail "fminfo --verify's bytes per keyframe do not add up to its groups'"
 
 # Segments (spec/part-file.md §7): measured, assembled and joined by fmcat into a file fminfo takes;
 # what a user gets wrong is refused by name, and a refused join writes nothing.

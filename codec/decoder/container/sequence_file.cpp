@@ -643,6 +643,10 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
     for (size_t k = 0; k < s.index.size(); ++k) info.keyframes[k].texture = s.texture_owner[k] == k ? texture_chunk(k).total_size() : 0;
   }
   for (size_t k = 0; k < s.index.size(); ++k) info.distinct_textures += has_texture() && s.texture_owner[k] == k;
+  for (size_t first = 0; first < s.index.size(); first += run_length()) {
+    const format::ChunkView& chunk = s.reader.chunk_at(s.index[first].group_offset, "keyframe " + std::to_string(first) + "'s index entry");
+    info.field_groups.push_back({first, std::min(run_length(), s.index.size() - first), chunk.total_size()});
+  }
   for (const format::ChunkView& chunk : s.reader.chunks()) {
     auto it = std::find_if(info.chunks.begin(), info.chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
     if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0});
@@ -704,6 +708,14 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
   SequenceFileInfo info;
   file.check_every_keyframe(&info);
   return info;
+}
+
+SequenceFileInfo describe_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  check_decoder_limits(limits);
+  format::MappedFile mapped(path);
+  const OpenedFile file(mapped.bytes(), path.string(), limits, [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
+  file.verify_checksums();
+  return file.describe();
 }
 
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
