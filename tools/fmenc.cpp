@@ -579,6 +579,9 @@ int main(int argc, char** argv) {
                   "least %.2f of 1; %d frames took up from another frame)%s\n",
                   report.orientation_found, 100 * report.worst_mirror_error, report.weakest_up_evidence, report.up_from_hint,
                   report.rim_markers_found ? "; rim markers placed on each frame's rim" : "");
+      std::printf("  face found by %s (frames: %d whole surface, %d texture, %d face region), confidence at least %.2f of 1\n",
+                  report.main_orientation_method(), report.orientation_methods[0], report.orientation_methods[1], report.orientation_methods[2],
+                  report.lowest_face_confidence);
     } else if (report.rim_markers_found) {
       std::printf("  landmarks: rim markers placed on each frame's rim (the capture has none)\n");
     }

@@ -12,6 +12,7 @@ packages=(
   libzstd-dev                          # container payloads
   libavif-dev libwebp-dev libpng-dev   # the decoder's images: textures (AVIF, WebP), pictures (PNG)
   libopencv-dev                        # texture images (encoder and tools only)
+  opencv-data                          # the frontal-face cascade --landmarks auto runs on rendered views of a textured scan
   libsuitesparse-dev                   # CHOLMOD: the conformal map's sparse Cholesky
   libopenblas0-pthread                 # the BLAS CHOLMOD runs on (4x faster than reference BLAS)
   libcli11-dev                         # command lines

@@ -86,6 +86,13 @@ Json settings_json(const EncodeOptions& o, const EncodeReport& report) {
           {"strict", o.strict},
           {"landmarks_found", {{"orientation_frames", report.orientation_found}, {"rim_markers", report.rim_markers_found},
                                {"weakest_up_evidence", report.orientation_found > 0 ? Json(report.weakest_up_evidence) : Json(nullptr)}}},
+          // How the frames' orientation was found (find_face) and the least sure finding, in [0, 1].
+          {"face_orientation", report.orientation_found > 0
+                                   ? Json{{"method", report.main_orientation_method()},
+                                          {"confidence", report.lowest_face_confidence},
+                                          {"frames", {{"whole surface", report.orientation_methods[0]}, {"texture", report.orientation_methods[1]},
+                                                      {"face region", report.orientation_methods[2]}}}}
+                                   : Json(nullptr)},
           {"landmarks_tracked", {{"frames", report.tracked_frames}, {"grid_points", report.tracking_grid_points},
                                  {"points_mean", report.tracked_points_mean}, {"points_fewest", report.tracked_points_fewest},
                                  {"round_trip_median", report.tracked_round_trip_median}, {"round_trip_p90", report.tracked_round_trip_p90}}},

@@ -83,7 +83,7 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   start = std::chrono::steady_clock::now();
   std::optional<Vec3> centre = landmarks.centre, up = landmarks.up;
   if ((!centre || !up) && options.find_orientation) {
-    frame.found = find_face_orientation(frame.prepared.mesh, name, options.vertical_hint ? &*options.vertical_hint : nullptr);  // names the frame
+    frame.found = find_face(frame.prepared.mesh, nullptr, name, options.vertical_hint ? &*options.vertical_hint : nullptr);  // names the frame
     centre = frame.found->nose_tip;
     up = frame.found->up;
   }

@@ -395,12 +395,17 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
       PrepareOptions prepare;
       prepare.keep_largest_component = largest_component;
       const PreparedFrame p = prepare_frame(read_mesh(capture.mesh_path(index), {.allow_missing_texture = true}), capture.frames[index].mesh.string(), prepare);
-      return find_face_orientation(p.mesh, capture.frames[index].mesh.string()).vertical;
+      return find_face(p.mesh, nullptr, capture.frames[index].mesh.string()).vertical;
     } catch (const Error&) {
       // This frame does not say; the next may. Its own mapping reports why.
     }
   }
   return std::nullopt;
+}
+
+const char* EncodeReport::main_orientation_method() const {
+  const auto most = std::max_element(orientation_methods.begin(), orientation_methods.end());
+  return face_finding_method_name(static_cast<FaceFindingMethod>(most - orientation_methods.begin()));
 }
 
 void SequenceEncoder::count_found_landmarks(const FrameSummary& f, bool given_rim) {
@@ -409,6 +414,8 @@ void SequenceEncoder::count_found_landmarks(const FrameSummary& f, bool given_ri
     report_.weakest_up_evidence = std::min(report_.weakest_up_evidence, f.found->up_evidence);
     report_.up_from_hint += f.found->up_from_hint;
     report_.worst_mirror_error = std::max(report_.worst_mirror_error, f.found->mirror_error);
+    ++report_.orientation_methods[static_cast<size_t>(f.found->method)];
+    report_.lowest_face_confidence = std::min(report_.lowest_face_confidence, f.found->confidence);
   }
   if (!given_rim && f.found_rim.size() == static_cast<size_t>(kFoundRimMarkers)) report_.rim_markers_found = true;
 }

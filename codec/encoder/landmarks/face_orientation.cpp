@@ -25,9 +25,6 @@ constexpr double kMinFacingShare = 0.25;
 // (the middle of the face: a scan's cut edge need not be symmetric).
 constexpr int kMirrorSamples = 600;
 constexpr double kMirrorReach = 0.35;
-// A face mirrored in its best plane lands within this share of the diagonal of itself (expressions
-// included); a surface that does not is no face.
-constexpr double kMaxMirrorError = 0.03;
 // The nose's profile along the midline, between kProfileNear and kProfileFar of the tip (fractions
 // of the diagonal; ~0.5 to 1.5 cm on a face).
 constexpr double kProfileNear = 0.02, kProfileFar = 0.06;
@@ -148,7 +145,7 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
     if (sum < best_sum) best_sum = sum, best = best + offset * kDegree;
   }
   o.mirror_error = std::sqrt(best_sum / static_cast<double>(std::max<size_t>(samples.size(), 1))) / diagonal;
-  if (o.mirror_error > kMaxMirrorError) {
+  if (o.mirror_error > kMaxFaceMirrorError) {
     fail(name, "no plane maps the surface onto itself (best " + percent(o.mirror_error) + " of its diagonal off)");
   }
   const Vec3 lateral = std::cos(best) * e1 + std::sin(best) * e2;

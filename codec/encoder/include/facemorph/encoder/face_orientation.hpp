@@ -2,11 +2,25 @@
 // encoder uses in place of the nose_tip and nose_bridge landmarks when a capture has none.
 #pragma once
 
+#include "facemorph/image.hpp"
 #include "facemorph/mesh.hpp"
 
+#include <cstdint>
 #include <string>
 
 namespace facemorph {
+
+// A face mirrored in its best plane lands within this share of its bounding-box diagonal of itself
+// (expressions included); a surface that does not is no face.
+inline constexpr double kMaxFaceMirrorError = 0.03;
+
+// How a frame's orientation was found (find_face): the order in which find_face tries them.
+enum class FaceFindingMethod : uint8_t {
+  kWholeSurface = 0,  // the mirror plane of the whole surface
+  kTexture = 1,       // a face detected in a rendered view of the textured surface, its region read as a face
+  kFaceRegion = 2,    // the mirror plane of the region around the most protruding point (no texture, or none detected)
+};
+const char* face_finding_method_name(FaceFindingMethod method);  // "whole surface", "texture", "face region"
 
 struct FaceOrientation {
   Vec3 nose_tip = Vec3::Zero();  // a vertex of the surface: the most protruding, smoothed
@@ -17,6 +31,11 @@ struct FaceOrientation {
   double mirror_error = 0;       // RMS distance of the mirrored surface to itself / diagonal, at the plane chosen
   double up_evidence = 0;        // in [0, 1]: how clearly the surface says which way is up
   bool up_from_hint = false;     // the surface did not say; the hint's side was taken
+  FaceFindingMethod method = FaceFindingMethod::kWholeSurface;
+  // In [0, 1]: how sure the finding is. Geometry: 1 - mirror_error / 3% (the largest accepted);
+  // texture: half the detector's neighbour count / 12, capped at 1 (a detection alone is coarse);
+  // both readings, where both hold, combined as independent ones (1 - (1 - g)(1 - t)).
+  double confidence = 0;
 };
 
 // Finds the orientation of `mesh` (a prepared frame: one open surface, faces oriented out of the
@@ -31,5 +50,23 @@ struct FaceOrientation {
 // whole-head surface), has no mirror plane, or neither the readings nor a hint say which way is
 // up: give such a capture its landmarks.
 FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint = nullptr);
+
+struct FaceFindingOptions {
+  bool whole_surface = true;  // each step may be turned off (the tests show what each finds alone)
+  bool texture = true;
+  bool face_region = true;
+};
+
+// Finds the face in a scan that may hold more than a face (hair, ears, shoulders), spec/method.md
+// §7.14: first the whole surface (find_face_orientation); where that finds no face, a face
+// detected by OpenCV's frontal-face cascade in rendered views of the surface coloured by `texture`
+// (the mesh's per-corner UVs) or by its vertex colours, its region read by find_face_orientation
+// with the detection's up as the hint; then, without a texture or a detection, the mirror plane of
+// ever smaller regions around the most protruding point. Throws kInvalidArgument naming `name`
+// ("no face orientation found: ...", each step's reason) where neither geometry nor texture shows
+// a face. Where `texture` is null or empty the image the mesh names (mesh.texture) is read, only
+// if the texture step is reached.
+FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint = nullptr,
+                          const FaceFindingOptions& options = {});
 
 }  // namespace facemorph

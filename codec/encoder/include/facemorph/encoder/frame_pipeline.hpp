@@ -40,10 +40,10 @@ struct MapFrameOptions {
   bool keep_largest_component = false;  // see PrepareOptions
   bool repair_non_manifold = true;      // see PrepareOptions (false: fmenc --strict)
   ConformalOptions conformal;
-  // A frame without centre or up landmarks: find them from its geometry (find_face_orientation)
+  // A frame without centre or up landmarks: find them from its geometry or texture (find_face)
   // and put its disk in the pose they give, instead of leaving it unnormalised.
   bool find_orientation = false;
-  std::optional<Vec3> vertical_hint;  // see find_face_orientation
+  std::optional<Vec3> vertical_hint;  // see find_face
 };
 
 // Rim markers found on a normalised disk: the rim points at these disk angles, the first straight
@@ -66,7 +66,7 @@ struct MappedFrame {
 };
 
 // Stages 1-3. Throws what prepare_frame, conformal_disk_map and (with options.find_orientation)
-// find_face_orientation throw, naming `name`.
+// find_face throw, naming `name`.
 MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options = {});
 
 // Stage 4: the mapped surface at every node of G (interior nodes, then rim nodes).

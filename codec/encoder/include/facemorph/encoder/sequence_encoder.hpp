@@ -31,6 +31,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <array>
 #include <optional>
 #include <span>
 #include <string>
@@ -203,6 +204,13 @@ struct EncodeReport {
   double weakest_up_evidence = 1;          // the least clear of their up readings (FaceOrientation::up_evidence)
   int up_from_hint = 0;                    // of them, frames whose surface did not say and another frame's up was taken
   double worst_mirror_error = 0;           // the least symmetric of them (FaceOrientation::mirror_error)
+  // How they were found (FaceFindingMethod: whole surface, texture, face region), frames each, and
+  // the least sure finding (FaceOrientation::confidence). A staged encode's part files do not carry
+  // these: frames read from them count as found on the whole surface with confidence 0.
+  std::array<int, 3> orientation_methods = {0, 0, 0};
+  double lowest_face_confidence = 1;
+  // The method that found the most frames ("whole surface", "texture", "face region").
+  const char* main_orientation_method() const;
   bool rim_markers_found = false;          // rim markers placed on the rims (the capture had none)
   // Tracking (EncodeOptions::track_landmarks), over the frames that took tracked points (the
   // reference excluded): how many, the reference's grid, the points kept per frame (mean, fewest),

@@ -1,0 +1,390 @@
+// Finding the face in a scan that holds more than a face (spec/method.md §7.14): the whole surface's
+// mirror plane, then a face detected in rendered views of the textured surface, then the mirror
+// plane of the region around the most protruding point.
+#include "facemorph/encoder/face_orientation.hpp"
+
+#include "codec/decoder/geometry/elementary.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/meshkit/distance.hpp"
+#include "facemorph/meshkit/render.hpp"
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/objdetect.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+namespace {
+
+// Pixels per side of each rendered view: a face a fifth of a scan's width is ~60 px, twice the
+// cascade's 24 px window.
+constexpr int kViewSize = 320;
+constexpr int kMinFacePixels = 28;
+// The cascade's neighbour count at which a detection is taken as certain (fmsynth's faces read
+// 11-19, a random texture's false detections 1-3); below kMinNeighbours none is taken.
+constexpr int kConfidentNeighbours = 12;
+constexpr int kMinNeighbours = 4;
+// Where in the cascade's box the face's parts lie (fractions of its side, from its top-left): the
+// box runs from the brows to below the mouth.
+constexpr double kBoxCentreY = 0.58, kBoxEyesY = 0.38, kBoxChinY = 0.9;
+// The region read as the face: the detected box grown by this factor about its centre (the box
+// crops the forehead and chin).
+constexpr double kRegionGrowth = 1.3;
+// A texture's up and the region's geometric up must agree within 60° for the geometry to confirm.
+constexpr double kMinAgreementCosine = 0.5;
+// The face regions tried without a texture: balls about the most protruding point, as shares of the
+// scan's diagonal, largest first (a face is a third to a sixth of a head-and-shoulders scan).
+constexpr std::array<double, 3> kRegionReaches = {0.19, 0.15, 0.12};
+// A whole-surface finding at least this sure (mirror error under 1% of the diagonal) is taken as
+// it is; a less sure one competes with the texture's and the face region's, the surest winning (a
+// scan's hair and shoulders can make a slanted plane the best one, and up then reads wrong).
+constexpr double kSureConfidence = 2.0 / 3;
+
+const std::filesystem::path kCascadeFile = FACEMORPH_FACE_CASCADE;
+
+[[noreturn]] void fail(const std::string& name, const std::string& why) {
+  throw Error(ErrorCode::kInvalidArgument,
+              name + ": no face orientation found: " + why + " (give the capture its landmarks nose_tip and nose_bridge)");
+}
+
+// find_face_orientation's reason, without the frame's name and the advice (find_face names them once).
+std::string reason_of(const Error& e, const std::string& name) {
+  std::string what = e.what();
+  const std::string head = name + ": no face orientation found: ", tail = " (give the capture its landmarks nose_tip and nose_bridge)";
+  if (what.rfind(head, 0) == 0) what.erase(0, head.size());
+  if (what.size() >= tail.size() && what.compare(what.size() - tail.size(), tail.size(), tail) == 0) what.erase(what.size() - tail.size());
+  return what;
+}
+
+double geometry_confidence(const FaceOrientation& o) { return std::clamp(1 - o.mirror_error / kMaxFaceMirrorError, 0.0, 1.0); }
+
+// The faces `keep` of `mesh` as a mesh of their own (positions only: orientation reads geometry).
+TriangleMesh sub_mesh(const TriangleMesh& mesh, const std::vector<bool>& keep) {
+  TriangleMesh out;
+  std::vector<int32_t> index(mesh.positions.size(), -1);
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    if (!keep[f]) continue;
+    Face g;
+    for (int k = 0; k < 3; ++k) {
+      int32_t& i = index[static_cast<size_t>(mesh.faces[f][k])];
+      if (i < 0) {
+        i = static_cast<int32_t>(out.positions.size());
+        out.positions.push_back(mesh.positions[static_cast<size_t>(mesh.faces[f][k])]);
+      }
+      g[k] = i;
+    }
+    out.faces.push_back(g);
+  }
+  return out;
+}
+
+Vec3 area_weighted_normal(const TriangleMesh& mesh) {
+  Vec3 sum = Vec3::Zero();
+  for (const Face& f : mesh.faces) {
+    const Vec3 &a = mesh.positions[static_cast<size_t>(f[0])], &b = mesh.positions[static_cast<size_t>(f[1])], &c = mesh.positions[static_cast<size_t>(f[2])];
+    sum += (b - a).cross(c - a);
+  }
+  return sum;
+}
+
+// ---- The texture: a face detected in rendered views ----
+
+struct Detection {
+  Eigen::Matrix3d turn;  // the view: mesh points turned so the camera looks down -z, image up +y
+  cv::Rect box;
+  int neighbours = 0;
+};
+
+class TextureFaceFinder {
+ public:
+  TextureFaceFinder(const TriangleMesh& mesh, const Image* texture) : mesh_(mesh) {
+    if (mesh.has_uvs() && texture && !texture->empty()) {
+      colour_ = texture_shader(mesh, *texture);
+    } else if (mesh.has_colours()) {
+      colour_ = [&mesh](int f, const Vec3& bary) {
+        Vec3 c = Vec3::Zero();
+        for (int k = 0; k < 3; ++k) c += bary[k] * mesh.colours[static_cast<size_t>(mesh.faces[static_cast<size_t>(f)][k])];
+        return std::array<double, 3>{255 * c.x(), 255 * c.y(), 255 * c.z()};
+      };
+    }
+  }
+
+  // Why no texture can be read; empty when one can.
+  std::string unavailable() const {
+    if (!colour_) return "the surface has no texture";
+    if (!std::filesystem::exists(kCascadeFile)) return "OpenCV's face cascade " + kCascadeFile.string() + " is not installed (Debian: opencv-data)";
+    return {};
+  }
+
+  // The detection with the most neighbours over views from the mean normal and the six axes, each
+  // turned by 0, 90, 180 and 270° about the view (the cascade finds upright faces only).
+  std::optional<Detection> detect() const {
+    cv::CascadeClassifier cascade(kCascadeFile.string());
+    if (cascade.empty()) return std::nullopt;
+    std::vector<Vec3> directions = {Vec3::UnitZ(), -Vec3::UnitZ(), Vec3::UnitX(), -Vec3::UnitX(), Vec3::UnitY(), -Vec3::UnitY()};
+    const Vec3 mean = area_weighted_normal(mesh_);
+    if (mean.norm() > 0) directions.insert(directions.begin(), mean.normalized());
+    std::optional<Detection> best;
+    for (const Vec3& towards : directions) {
+      const Eigen::Matrix3d facing = Eigen::Quaterniond::FromTwoVectors(towards, Vec3::UnitZ()).toRotationMatrix();
+      for (int roll = 0; roll < 4; ++roll) {
+        const Eigen::Matrix3d turn = Eigen::AngleAxisd(roll * std::numbers::pi / 2, Vec3::UnitZ()).toRotationMatrix() * facing;
+        const Image view = render_view(turn, colour_);
+        cv::Mat rgb(view.height, view.width, CV_8UC3, const_cast<uint8_t*>(view.pixels.data())), gray;
+        cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+        cv::equalizeHist(gray, gray);
+        std::vector<cv::Rect> boxes;
+        std::vector<int> neighbours;
+        cascade.detectMultiScale(gray, boxes, neighbours, 1.1, kMinNeighbours, 0, cv::Size(kMinFacePixels, kMinFacePixels));
+        for (size_t i = 0; i < boxes.size(); ++i) {
+          if (!best || neighbours[i] > best->neighbours) best = Detection{turn, boxes[i], neighbours[i]};
+        }
+      }
+    }
+    return best;
+  }
+
+  // The faces seen in `d`'s box grown by kRegionGrowth, and the surface points at its centre, eyes
+  // and chin line (the box's vertical midline).
+  struct Seen {
+    std::vector<bool> faces;
+    std::optional<Vec3> centre, eyes, chin;
+  };
+  Seen seen(const Detection& d) const {
+    const Image ids = render_view(d.turn, [](int f, const Vec3&) {
+      return std::array<double, 3>{double(f & 255), double((f >> 8) & 255), double((f >> 16) & 255)};
+    });
+    auto face_at = [&](double x, double y) -> int {
+      const int px = std::clamp(static_cast<int>(x), 0, ids.width - 1), py = std::clamp(static_cast<int>(y), 0, ids.height - 1);
+      const uint8_t* p = ids.at(px, py);
+      const int f = p[0] | (p[1] << 8) | (p[2] << 16);
+      return f == kNoFace ? -1 : f;
+    };
+    Seen s;
+    s.faces.assign(mesh_.faces.size(), false);
+    const double cx = d.box.x + 0.5 * d.box.width, cy = d.box.y + 0.5 * d.box.height, half = 0.5 * kRegionGrowth * d.box.width;
+    for (int y = static_cast<int>(cy - half); y <= static_cast<int>(cy + half); ++y) {
+      for (int x = static_cast<int>(cx - half); x <= static_cast<int>(cx + half); ++x) {
+        if (x < 0 || y < 0 || x >= ids.width || y >= ids.height) continue;
+        if (const int f = face_at(x, y); f >= 0) s.faces[static_cast<size_t>(f)] = true;
+      }
+    }
+    auto point_at = [&](double y_share) -> std::optional<Vec3> {
+      const int f = face_at(cx, d.box.y + y_share * d.box.height);
+      if (f < 0) return std::nullopt;
+      const Face& t = mesh_.faces[static_cast<size_t>(f)];
+      return (mesh_.positions[static_cast<size_t>(t[0])] + mesh_.positions[static_cast<size_t>(t[1])] + mesh_.positions[static_cast<size_t>(t[2])]) / 3;
+    };
+    s.centre = point_at(kBoxCentreY);
+    s.eyes = point_at(kBoxEyesY);
+    s.chin = point_at(kBoxChinY);
+    return s;
+  }
+
+ private:
+  static constexpr int kNoFace = 0xFFFFFF;  // the id buffer's background (white)
+
+  // The mesh turned by `turn`, drawn unlit by `shader`; triangles facing away from the camera are
+  // drawn as background (the back of an open face is a mirrored face to a detector).
+  Image render_view(const Eigen::Matrix3d& turn, const SurfaceShader& shader) const {
+    TriangleMesh turned;
+    turned.faces = mesh_.faces;
+    turned.positions.reserve(mesh_.positions.size());
+    for (const Vec3& p : mesh_.positions) turned.positions.push_back(turn * p);
+    RenderOptions options;
+    options.width = options.height = kViewSize;
+    options.margin = 0.02;
+    options.shading = false;
+    options.background = {255, 255, 255};
+    auto front_only = [&turned, &shader](int f, const Vec3& bary) {
+      const Face& t = turned.faces[static_cast<size_t>(f)];
+      const Vec3 &a = turned.positions[static_cast<size_t>(t[0])], &b = turned.positions[static_cast<size_t>(t[1])], &c = turned.positions[static_cast<size_t>(t[2])];
+      if ((b - a).cross(c - a).z() <= 0) return std::array<double, 3>{255, 255, 255};
+      return shader(f, bary);
+    };
+    return render(turned, front_only, options);
+  }
+
+  const TriangleMesh& mesh_;
+  SurfaceShader colour_;
+};
+
+// The face in the texture, its region read by the geometry where it can be; nullopt (and `why`)
+// where no face is detected.
+std::optional<FaceOrientation> find_by_texture(const TriangleMesh& mesh, const Image* texture, const std::string& name, std::string* why) {
+  Image named;  // the mesh's own texture file, read only when no image was given and this step is reached
+  if ((!texture || texture->empty()) && mesh.has_uvs() && !mesh.texture.empty()) {
+    try {
+      named = read_image(mesh.texture);
+      texture = &named;
+    } catch (const Error& e) {
+      *why = std::string("its texture could not be read: ") + e.what();
+      return std::nullopt;
+    }
+  }
+  const TextureFaceFinder finder(mesh, texture);
+  if (*why = finder.unavailable(); !why->empty()) return std::nullopt;
+  const std::optional<Detection> d = finder.detect();
+  if (!d) {
+    *why = "no face detected in views of the textured surface";
+    return std::nullopt;
+  }
+  const TextureFaceFinder::Seen seen = finder.seen(*d);
+  if (!seen.centre || !seen.eyes || !seen.chin) {
+    *why = "the face detected in the texture is not on the surface";
+    return std::nullopt;
+  }
+  // A detection alone is at most half-sure: the box places the face, but its up and tip are coarse
+  // (3-20° and up to 3.5% of the diagonal off on the test's scans).
+  const double texture_confidence = 0.5 * std::min(1.0, static_cast<double>(d->neighbours) / kConfidentNeighbours);
+  const Vec3 towards = d->turn.transpose() * Vec3::UnitZ();   // out of the face, towards the camera
+  Vec3 vertical = *seen.eyes - *seen.chin;
+  vertical = (vertical - vertical.dot(towards) * towards).normalized();
+  // The region read as the face: the surface within 1.5 eyes-to-chin of the box's centre (the
+  // detector's box, grown, takes hair beside the face that spoils the mirror plane).
+  const double reach = 1.5 * (*seen.eyes - *seen.chin).norm();
+  std::vector<bool> near(mesh.faces.size(), false);
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    near[f] = true;
+    for (int k = 0; k < 3; ++k) near[f] = near[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - *seen.centre).norm() < reach;
+  }
+  const TriangleMesh region = sub_mesh(mesh, near);
+  try {
+    FaceOrientation o = find_face_orientation(region, name, &vertical);
+    if (o.vertical.dot(vertical) >= kMinAgreementCosine) {
+      o.method = FaceFindingMethod::kTexture;
+      o.confidence = 1 - (1 - texture_confidence) * (1 - geometry_confidence(o));
+      return o;
+    }
+  } catch (const Error&) {
+    // The region is no face to the geometry; the texture alone says where it is.
+  }
+  FaceOrientation o;
+  o.method = FaceFindingMethod::kTexture;
+  o.confidence = texture_confidence;
+  o.facing = towards;
+  o.vertical = vertical;
+  o.facing_share = area_weighted_normal(region).norm();
+  // The nose tip: the region's most protruding point towards the camera near the box's centre.
+  const PointToMesh surface(region);
+  const SurfacePoint c = surface.closest(*seen.centre);
+  const Face& f = region.faces[static_cast<size_t>(c.face)];
+  o.nose_tip = c.bary[0] * region.positions[static_cast<size_t>(f[0])] + c.bary[1] * region.positions[static_cast<size_t>(f[1])] +
+               c.bary[2] * region.positions[static_cast<size_t>(f[2])];
+  o.up = *seen.eyes;
+  o.up_evidence = 0;
+  return o;
+}
+
+// ---- The face region: the mirror plane of balls about the most protruding point ----
+
+std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, std::string* why) {
+  const Vec3 mean = area_weighted_normal(mesh);
+  if (!(mean.norm() > 0)) {
+    *why = "no region faces one way";
+    return std::nullopt;
+  }
+  const double diagonal = bounding_box_diagonal(mesh.positions);
+  std::optional<FaceOrientation> best;
+  std::string last = "no region was tried";
+  for (double reach : kRegionReaches) {
+    // About the most protruding vertex along the facing of the region itself (the shoulders turn the
+    // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
+    Vec3 facing = mean.normalized();
+    std::vector<bool> keep(mesh.faces.size(), false);
+    for (int round = 0; round < 2; ++round) {
+      size_t tip = 0;
+      for (size_t v = 1; v < mesh.positions.size(); ++v) {
+        if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
+      }
+      for (size_t f = 0; f < mesh.faces.size(); ++f) {
+        keep[f] = true;
+        for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
+      }
+      const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
+      if (!(n.norm() > 0)) break;
+      facing = n.normalized();
+    }
+    try {
+      FaceOrientation o = find_face_orientation(sub_mesh(mesh, keep), name, vertical_hint);
+      o.method = FaceFindingMethod::kFaceRegion;
+      o.confidence = geometry_confidence(o);
+      if (!best || o.confidence > best->confidence) best = o;
+    } catch (const Error& e) {
+      last = reason_of(e, name);
+    }
+  }
+  if (!best) *why = last + " (in regions of " + std::to_string(static_cast<int>(100 * kRegionReaches.back())) + "-" +
+                    std::to_string(static_cast<int>(100 * kRegionReaches.front())) + "% of the diagonal about the most protruding point)";
+  return best;
+}
+
+}  // namespace
+
+const char* face_finding_method_name(FaceFindingMethod method) {
+  switch (method) {
+    case FaceFindingMethod::kWholeSurface: return "whole surface";
+    case FaceFindingMethod::kTexture: return "texture";
+    case FaceFindingMethod::kFaceRegion: return "face region";
+  }
+  return "unknown";
+}
+
+FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
+                          const FaceFindingOptions& options) {
+  std::vector<std::string> reasons;
+  std::optional<FaceOrientation> best;
+  auto consider = [&best](FaceOrientation o) {
+    if (!best || o.confidence > best->confidence) best = o;
+  };
+  if (options.whole_surface) {
+    try {
+      FaceOrientation o = find_face_orientation(mesh, name, vertical_hint);
+      o.method = FaceFindingMethod::kWholeSurface;
+      o.confidence = geometry_confidence(o);
+      if (o.confidence >= kSureConfidence) return o;
+      consider(o);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kInvalidArgument) throw;
+      reasons.push_back(reason_of(e, name));
+    }
+  }
+  if (mesh.faces.empty()) fail(name, "the surface has no faces");
+  std::string why;
+  std::optional<FaceOrientation> by_texture;
+  if (options.texture) {
+    by_texture = find_by_texture(mesh, texture, name, &why);
+    if (by_texture) {
+      consider(*by_texture);
+    } else {
+      reasons.push_back("texture: " + why);
+    }
+  }
+  if (options.face_region) {
+    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, &why)) {
+      // The texture's face, where it agrees, confirms the region's: two independent readings.
+      if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine && o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
+        o->confidence = 1 - (1 - o->confidence) * (1 - by_texture->confidence);
+      }
+      consider(*o);
+    } else {
+      reasons.push_back("face region: " + why);
+    }
+  }
+  if (best) return *best;
+  std::string all;
+  for (const std::string& r : reasons) all += (all.empty() ? "" : "; ") + r;
+  fail(name, all.empty() ? "every way of finding a face was turned off" : all);
+}
+
+}  // namespace facemorph
