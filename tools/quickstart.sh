@@ -56,13 +56,16 @@ case "${1:-}" in
     build build all
     ctest --test-dir build --output-on-failure -j "$jobs"
     echo "== the decoder side alone, as a player builds it: encoder off, OpenCV not even looked for"
-    build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON
+    # Neither this pass nor the sanitizer one builds the Python modules: their tests ran above, on
+    # the same library (under the sanitizers they skip: Python cannot load an ASan library).
+    build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON -DFACEMORPH_PYTHON=OFF
     ctest --test-dir build-decoder --output-on-failure -j "$jobs"
-    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too), and"
-    echo "   the libFuzzer targets (container reader, OBJ/PLY parsers: 45 s each; the decode path: 40 s)"
+    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too), but the"
+    echo "   whole-capture encodes of tests/sanitizer_long_tests.txt, and the libFuzzer targets (container"
+    echo "   reader, OBJ/PLY parsers: 45 s each; the decode path: 40 s)"
     # Only what ctest runs, at -O1 -g1: the sanitizers need line tables, not full debug info.
     CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DFACEMORPH_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF -DFACEMORPH_PYTHON=OFF
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir build-asan --output-on-failure -j "$jobs"
     ;;
