@@ -7,6 +7,15 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from . import exporter, importer, module_locator, player, settings
 
 
+def _module_or_report(operator):
+    """The facemorph module, or None after saying in Blender's report why it was not found."""
+    try:
+        return player.facemorph_module()
+    except module_locator.ModuleNotFound as error:
+        operator.report({"ERROR"}, str(error))
+        return None
+
+
 class IMPORT_SCENE_OT_facemorph(bpy.types.Operator, ImportHelper):
     """Import a facemorph file (.fmv): a face mesh that follows the scene's time"""
 
@@ -39,10 +48,8 @@ class IMPORT_SCENE_OT_facemorph(bpy.types.Operator, ImportHelper):
                 column.prop(self, name)
 
     def execute(self, context):
-        try:
-            facemorph = player.facemorph_module()
-        except module_locator.ModuleNotFound as error:
-            self.report({"ERROR"}, str(error))
+        facemorph = _module_or_report(self)
+        if facemorph is None:
             return {"CANCELLED"}
         options = importer.ImportOptions(
             geometry=self.geometry, texture=self.texture, keep_holes_filled=self.keep_holes_filled,
@@ -81,10 +88,8 @@ class EXPORT_SCENE_OT_facemorph(bpy.types.Operator, ExportHelper):
         return context.active_object is not None and context.active_object.type == "MESH"
 
     def execute(self, context):
-        try:
-            facemorph = player.facemorph_module()
-        except module_locator.ModuleNotFound as error:
-            self.report({"ERROR"}, str(error))
+        facemorph = _module_or_report(self)
+        if facemorph is None:
             return {"CANCELLED"}
         scene = context.scene
         start, end = self.frame_start, self.frame_end
