@@ -10,18 +10,7 @@ if ! command -v blender >/dev/null 2>&1; then
   echo "SKIP: no blender on PATH (Debian: blender; tools/install-deps.sh installs it)"
   exit 77
 fi
-if [ -z "$python" ] || ! command -v "$python" >/dev/null 2>&1; then
-  echo "SKIP: no python3 (the Python package was not configured: see cmake's 'facemorph: the Python package' line)"
-  exit 77
-fi
-if ! "$python" -c "import numpy" >/dev/null 2>&1; then
-  echo "SKIP: $python cannot import numpy (Debian: python3-numpy)"
-  exit 77
-fi
-if ! ls "$package"/facemorph/_decoder*.so >/dev/null 2>&1; then
-  echo "SKIP: the facemorph Python modules are not built in $package (FACEMORPH_PYTHON; pybind11-dev, python3-pybind11)"
-  exit 77
-fi
+. "$here/../python/skip_without_package.sh"
 rm -rf "$work" && mkdir -p "$work/scripts" || exit 1
 "$python" "$here/../../python/blender/make_addon_zip.py" "$work/facemorph_blender.zip" >/dev/null || exit 1
 # Cycles prints a line per render step; the checks' lines ("ok", "FAIL") are what to read.
