@@ -31,7 +31,7 @@ struct Outputs {
   fs::path out_dir;   // a range: one mesh per frame
   std::string format = "obj";
   bool null = false;
-  double yaw = 20;
+  double yaw = kPreviewYawDegrees;
 };
 
 // The picture a person looks at: the textured face (or a grey one), turned a little, shaded smoothly

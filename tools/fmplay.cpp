@@ -84,18 +84,20 @@ facemorph::Image render_frame(const Buffers& b, const fm_frame& frame, int size)
     mesh.faces.push_back({static_cast<int32_t>(b.indices[3 * f]), static_cast<int32_t>(b.indices[3 * f + 1]), static_cast<int32_t>(b.indices[3 * f + 2])});
   }
   mesh.uv_faces = mesh.faces;
+  // Shaded smoothly by the normals the C API decoded with the frame, as fmdec --preview and the web
+  // page shade it (the video was flat-shaded until the previews turned smooth).
+  std::vector<facemorph::Vec3> normals;
+  normals.reserve(frame.vertex_count);
+  for (uint32_t v = 0; v < frame.vertex_count; ++v) normals.emplace_back(b.normals[3 * v], b.normals[3 * v + 1], b.normals[3 * v + 2]);
   facemorph::RenderOptions options;
   options.width = options.height = size;
-  options.yaw_degrees = 20;
-  facemorph::Image picture;
+  options.yaw_degrees = facemorph::kPreviewYawDegrees;
   if (frame.texture_size > 0) {
     facemorph::Image texture(static_cast<int>(frame.texture_size), static_cast<int>(frame.texture_size), 3);
     for (size_t p = 0; p < texture.pixels.size() / 3; ++p) std::copy_n(&b.texture[4 * p], 3, &texture.pixels[3 * p]);
-    picture = facemorph::render(mesh, facemorph::texture_shader(mesh, texture), options);
-  } else {
-    picture = facemorph::render(mesh, facemorph::constant_shader({200, 200, 200}), options);
+    return facemorph::render(mesh, facemorph::texture_shader(mesh, texture), options, normals);
   }
-  return picture;
+  return facemorph::render(mesh, facemorph::constant_shader({200, 200, 200}), options, normals);
 }
 
 // --threads N: N players in one process, each its own decoder on the shared file and its own

@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   RenderOptions options;
   double squares = 20;
   bool flat = false;
+  options.yaw_degrees = kPreviewYawDegrees;  // as fmdec --preview turns the decoded frame
   app.add_option("mesh", input, "Mesh file (.obj or .ply)")->required();
   app.add_option("-o,--out", output, "Picture to write (.png or .jpg)")->required();
   app.add_option("--mode", mode, "texture | checker | plain")->capture_default_str();

@@ -14,6 +14,11 @@ namespace facemorph {
 // Surface colour at a point of face `face` with barycentric coordinates `bary` (RGB 0..255).
 using SurfaceShader = std::function<std::array<double, 3>(int face, const Vec3& bary)>;
 
+// How the tools show a face to a person (fmdec --preview, fmview, fmplay's video): turned 20 degrees
+// about the vertical axis, so the nose and cheeks read as relief. One value, so that a decoded frame's
+// preview and the captured frame's picture are seen from the same camera and can be set side by side.
+inline constexpr double kPreviewYawDegrees = 20;
+
 struct RenderOptions {
   int width = 800;
   int height = 800;
