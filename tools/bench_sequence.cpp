@@ -34,21 +34,6 @@ ScratchFolder::~ScratchFolder() {
   fs::remove_all(path, ec);
 }
 
-double parse_fraction(const std::string& text, const char* what) {
-  std::string t = text;
-  double scale = 1;
-  if (!t.empty() && t.back() == '%') {
-    t.pop_back();
-    scale = 0.01;
-  }
-  char* end = nullptr;
-  const double v = std::strtod(t.c_str(), &end);
-  if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v) || v <= 0) {
-    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " must be a positive number or percentage, got '" + text + "'");
-  }
-  return v * scale;
-}
-
 std::optional<fs::path> make_bench_capture(const std::string& input, const std::string& data, const fs::path& scratch, const SynthOptions& synth,
                                            const char* bench, bool quiet) {
   if (input == "synth" || input.rfind("synth:head", 0) == 0) {

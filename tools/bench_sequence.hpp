@@ -28,8 +28,6 @@ struct ScratchFolder {
   std::filesystem::path path;
 };
 
-// "10%" or "0.1" -> 0.1. Throws kInvalidArgument naming `what` unless positive and finite.
-double parse_fraction(const std::string& text, const char* what);
 
 // A capture to measure: a folder as given, or one the bench makes or finds: synth (fmsynth
 // --frames 60 --expression mixed --remesh with `synth`'s noise and texture), synth:head30 (the

@@ -157,6 +157,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
   } else {
     splines = {parse_spline_kind(options.spline)};
   }
+  // Read before any capture is made: a bad fraction is refused at once, not after a synthesis.
+  const double keyframe_fraction = parse_fraction(options.keyframes, "--keyframes");
   const ScratchFolder scratch_folder("fmbench-temporal");
   const fs::path& scratch = scratch_folder.path;
 
@@ -178,7 +180,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     }
     const int count = static_cast<int>(capture.frames.size());
     EncodeOptions encode;
-    encode.keyframe_fraction = parse_fraction(options.keyframes, "--keyframes");
+    encode.keyframe_fraction = keyframe_fraction;
     encode.representation = parse_representation(options.representation);
     encode.grid = options.grid == "auto" ? 0 : std::stoi(options.grid);
     encode.texture_size = options.texture_size;

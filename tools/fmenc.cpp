@@ -25,24 +25,6 @@ namespace {
 
 using namespace facemorph;
 
-// "10%" or "0.1" -> 0.1: a fraction given either way.
-double parse_fraction(const std::string& text, const char* what) {
-  try {
-    size_t used = 0;
-    double value = std::stod(text, &used);
-    const std::string rest = text.substr(used);
-    if (rest == "%") {
-      value /= 100;
-    } else if (!rest.empty()) {
-      throw std::invalid_argument(text);
-    }
-    if (!(value > 0) || value > 1) throw std::out_of_range(text);
-    return value;
-  } catch (const std::exception&) {
-    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " '" + text + "' is not a fraction in (0, 1] (e.g. 10% or 0.1)");
-  }
-}
-
 // "--intra-period N": a whole number of keyframes from 1 to 2^20 (the container's bound).
 int parse_intra_period(const std::string& text) {
   try {
@@ -260,9 +242,9 @@ int main(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     EncodeOptions options;
     if (!max_error.empty()) {
-      options.max_error = parse_fraction(max_error, "--max-error");
+      options.max_error = tools::parse_fraction(max_error, "--max-error");
     } else {
-      options.keyframe_fraction = parse_fraction(keyframes, "--keyframes");
+      options.keyframe_fraction = tools::parse_fraction(keyframes, "--keyframes");
       // A budget given is a budget kept; the default one grows where frames are far apart or fast.
       if (app.count("--keyframes") > 0) options.keyframe_error_bound = options.sparse_frame_interval = 0;
     }
@@ -309,7 +291,7 @@ int main(int argc, char** argv) {
     options.keyframe_fit = keyframe_fit == "on";
     options.predicted_fields = field_error != "0";
     options.auto_field_error = field_error == "auto";
-    if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = parse_fraction(field_error, "--field-error");
+    if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = tools::parse_fraction(field_error, "--field-error");
     options.field_precision.intra_period = intra_period == "auto" ? kAutoIntraPeriod : parse_intra_period(intra_period);
     if (field_rounding != "shaped" && field_rounding != "nearest") {
       throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + field_rounding + "' is neither shaped nor nearest");

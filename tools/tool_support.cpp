@@ -50,6 +50,23 @@ std::string hex64(uint64_t value) {
   return text;
 }
 
+double parse_fraction(const std::string& text, const char* what) {
+  try {
+    size_t used = 0;
+    double value = std::stod(text, &used);
+    const std::string rest = text.substr(used);
+    if (rest == "%") {
+      value /= 100;
+    } else if (!rest.empty()) {
+      throw std::invalid_argument(text);
+    }
+    if (!(value > 0) || value > 1) throw std::out_of_range(text);
+    return value;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " '" + text + "' is not a fraction in (0, 1] (e.g. 10% or 0.1)");
+  }
+}
+
 void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory) {
   app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")->default_str("256M");
   app.add_option("--max-grid", limits.max_grid_n, "Refuse files whose grid N is larger")->capture_default_str();

@@ -52,6 +52,11 @@ class Progress {
 // "0x" and 16 hex digits.
 std::string hex64(uint64_t value);
 
+// "10%" or "0.1" -> 0.1: a fraction given either way, in (0, 1]; kInvalidArgument naming `what` for
+// anything else. The one parser of --keyframes, --max-error and --field-error, so fmenc and fmbench
+// read them alike (the bench's own took any positive number: --keyframes 2 meant 200% there).
+double parse_fraction(const std::string& text, const char* what);
+
 double seconds_since(std::chrono::steady_clock::time_point start);
 
 // The decoder's limits as options (--max-memory 512M, --max-grid, --max-keyframes, --max-texture):

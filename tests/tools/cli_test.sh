@@ -109,6 +109,8 @@ grep -q "frame_0003.obj at 0.150 s" "$work/dropped.info" || fail "fminfo does no
 mv "$work/hidden.jpg" "$work/cap/frame_0003.jpg"
 expect_error "unwritable output" "missing" "$tools/fmenc" "$work/cap" -o "$work/missing/b.fmv" --grid 33 --texture 64 --quiet
 expect_error "bad option" "--keyframes" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframes 150%
+# fmbench reads a fraction as fmenc does (one parser): 2 is not a keyframe budget there either.
+expect_error "fmbench's keyframe budget" "--keyframes '2' is not a fraction in (0, 1]" "$tools/fmbench" temporal synth --keyframes 2 --quiet
 expect_error "plain folder without fps" "--fps" "$tools/fmenc" "$work/seq" -o "$work/c.fmv"
 expect_error "density-equalising strength" "density-equalising strength must be" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --density-equalising 2
 # The density-equalising reparametrisation is the encoder's business: the file decodes as any other.
