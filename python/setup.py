@@ -26,12 +26,17 @@ ROOT = os.path.dirname(HERE)
 
 
 def version():
-    # The project's version, from the top-level CMakeLists.txt (one version number, the build's).
-    with open(os.path.join(ROOT, "CMakeLists.txt")) as f:
+    # The project's version, where the build reads it: facemorph.h's FACEMORPH_VERSION_* (one number).
+    parts = {}
+    with open(os.path.join(ROOT, "codec", "decoder", "include", "facemorph.h")) as f:
         for line in f:
-            if line.startswith("project(facemorph VERSION "):
-                return line.split()[2]
-    raise RuntimeError("facemorph: no project version in CMakeLists.txt")
+            words = line.split()
+            if len(words) == 3 and words[0] == "#define" and words[1] in (
+                    "FACEMORPH_VERSION_MAJOR", "FACEMORPH_VERSION_MINOR", "FACEMORPH_VERSION_PATCH"):
+                parts[words[1]] = words[2]
+    if len(parts) != 3:
+        raise RuntimeError("facemorph: facemorph.h lacks FACEMORPH_VERSION_MAJOR, _MINOR or _PATCH")
+    return ".".join(parts["FACEMORPH_VERSION_" + p] for p in ("MAJOR", "MINOR", "PATCH"))
 
 
 class CMakeBuild(build_ext):

@@ -20,11 +20,6 @@
 #include <type_traits>
 #include <vector>
 
-// fm_version() is the library's version (CMake's project version); the header must say the same.
-static_assert(FACEMORPH_VERSION_NUMBER == FACEMORPH_VERSION_NUMBER_BUILT, "bump FACEMORPH_VERSION_* in facemorph.h with the project's version");
-// The soname's major version (codec/player/CMakeLists.txt) is the header's API major version.
-static_assert(FACEMORPH_API_VERSION_MAJOR == FACEMORPH_API_VERSION_MAJOR_BUILT, "the soname follows FACEMORPH_API_VERSION_MAJOR");
-
 // fm_decoder_options_init (inline in the header) sets the library's own defaults.
 static_assert(FM_DEFAULT_MAX_GRID_N == facemorph::kDefaultDecoderLimits.max_grid_n);
 static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_keyframes);
@@ -307,7 +302,7 @@ FM_API const char* fm_last_error_message(void) { return last_message().c_str(); 
 
 FM_API const char* fm_version(void) { return FACEMORPH_VERSION; }
 
-FM_API uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER_BUILT; }
+FM_API uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER; }
 
 FM_API fm_status fm_file_open(const char* path, fm_file** file) { return open_path("fm_file_open", path, nullptr, file); }
 
