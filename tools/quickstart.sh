@@ -1,39 +1,56 @@
 #!/usr/bin/env bash
-# The README's two commands.
-#   tools/quickstart.sh sample   install what is missing, build, and run the main job on a built-in
-#                                synthetic capture: fmsynth -> fmenc -> fmdec --t 1.45 (out/sample/)
-#   tools/quickstart.sh test     install what is missing, build, and run every test; build and test
-#                                the decoder alone (no encoder, no OpenCV); then every test again
-#                                under AddressSanitizer + UndefinedBehaviorSanitizer (clang), with
-#                                the fuzz targets run for a bounded time
+# The README's two commands, and the developers' third.
+#   tools/quickstart.sh sample    install what is missing, build what the main job runs, and run it on a
+#                                 built-in synthetic capture: fmsynth -> fmenc -> fminfo -> fmdec --t 1.45
+#                                 (out/sample/)
+#   tools/quickstart.sh test      install what is missing, build everything (reusing sample's build), run
+#                                 every test; then build the decoder side alone (no encoder, no OpenCV), as
+#                                 a player builds it, under AddressSanitizer + UndefinedBehaviorSanitizer
+#                                 (clang) and run its tests and the fuzz targets for a bounded time
+#   tools/quickstart.sh sanitize  every library and test under the sanitizers, the encoder included
+#                                 (build-asan/): what `test` ran until CI's time asked for less (README)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
 
-# Compiles go through ccache where it is installed (install-deps.sh installs it): the decoder-only
-# build below compiles the same sources with the same flags as the full build, and would otherwise
-# take 3-5 of CI's minutes to make the same objects again. The cache is the build's own (build-ccache/,
-# unless CCACHE_DIR says otherwise); paths are taken relative to the checkout so that the build
-# folders share it; the precompiled headers need the sloppiness (ccache's manual, "Precompiled headers").
+# Compiles go through ccache where it is installed: the build folders then share objects made with
+# the same flags, and a rebuild after a small change is quick. Chosen only after install-deps.sh has
+# run (it installs ccache): choosing before meant a fresh machine's `sample` built without the launcher
+# and `test` then compiled every object again under it. The cache is the checkout's own (build-ccache/,
+# unless CCACHE_DIR says otherwise), with paths taken relative to the checkout.
 launcher=()
-if command -v ccache >/dev/null; then
-  export CCACHE_DIR=${CCACHE_DIR:-$PWD/build-ccache}
-  export CCACHE_BASEDIR=$PWD
-  export CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime
-  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
-fi
+choose_launcher() {
+  if command -v ccache >/dev/null; then
+    export CCACHE_DIR=${CCACHE_DIR:-$PWD/build-ccache}
+    export CCACHE_BASEDIR=$PWD
+    export CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime
+    launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+  fi
+}
 
-build() {  # build DIR TARGET [cmake options...]   (TARGET "all" builds everything)
-  local dir=$1 target=$2
+build() {  # build DIR "TARGET..." [cmake options...]   (TARGET "all" builds everything)
+  local dir=$1 targets=$2
   shift 2
   cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" "$@" >/dev/null
-  cmake --build "$dir" -j "$jobs" --target "$target"
+  # shellcheck disable=SC2086  # the targets are words
+  cmake --build "$dir" -j "$jobs" --target $targets
 }
+
+sanitized_tests() {  # sanitized_tests DIR
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    ctest --test-dir "$1" --output-on-failure -j "$jobs"
+}
+
+# The sanitizer builds: clang (float-cast-overflow too) at -O1; FACEMORPH_SANITIZE adds the line
+# tables the reports print (-g1). The Python modules are not built: Python cannot load an ASan library.
+sanitizer_options=(-DFACEMORPH_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo
+                   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -DFACEMORPH_PYTHON=OFF)
 
 case "${1:-}" in
   sample)
     tools/install-deps.sh
-    build build all
+    choose_launcher
+    build build "fmsynth fmenc fminfo fmdec"
     out=out/sample
     rm -rf "$out"
     mkdir -p "$out"
@@ -53,24 +70,26 @@ case "${1:-}" in
     ;;
   test)
     tools/install-deps.sh
+    choose_launcher
     build build all
     ctest --test-dir build --output-on-failure -j "$jobs"
-    echo "== the decoder side alone, as a player builds it: encoder off, OpenCV not even looked for"
-    # Neither this pass nor the sanitizer one builds the Python modules: their tests ran above, on
-    # the same library (under the sanitizers they skip: Python cannot load an ASan library).
-    build build-decoder all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON -DFACEMORPH_PYTHON=OFF
-    ctest --test-dir build-decoder --output-on-failure -j "$jobs"
-    echo "== again under AddressSanitizer + UndefinedBehaviorSanitizer (clang: float-cast-overflow too), but the"
-    echo "   whole-capture encodes of tests/sanitizer_long_tests.txt, and the libFuzzer targets (container"
-    echo "   reader, OBJ/PLY parsers: 45 s each; the decode path: 40 s)"
-    # Only what ctest runs, at -O1 -g1: the sanitizers need line tables, not full debug info.
-    CC=clang CXX=clang++ build build-asan all -DFACEMORPH_SANITIZE=ON -DFACEMORPH_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFACEMORPH_BUILD_TOOLS=OFF -DFACEMORPH_PYTHON=OFF
-    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-      ctest --test-dir build-asan --output-on-failure -j "$jobs"
+    echo "== the decoder side alone, as a player builds it (encoder off, OpenCV not even looked for), under"
+    echo "   AddressSanitizer + UndefinedBehaviorSanitizer: every reader of a file a player is given (container,"
+    echo "   decode path, player API, OBJ/PLY parsers), the hostile set, and the libFuzzer targets (45 s and 40 s)"
+    CC=clang CXX=clang++ build build-decoder-asan all -DFACEMORPH_BUILD_ENCODER=OFF -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON \
+      -DFACEMORPH_FUZZ=ON -DFACEMORPH_BUILD_TOOLS=OFF "${sanitizer_options[@]}"
+    sanitized_tests build-decoder-asan
+    ;;
+  sanitize)
+    tools/install-deps.sh
+    choose_launcher
+    echo "== every library and test under AddressSanitizer + UndefinedBehaviorSanitizer (clang), the encoder's"
+    echo "   included, but the whole-capture encodes of tests/sanitizer_long_tests.txt"
+    CC=clang CXX=clang++ build build-asan all -DFACEMORPH_FUZZ=ON -DFACEMORPH_BUILD_TOOLS=OFF "${sanitizer_options[@]}" "${@:2}"
+    sanitized_tests build-asan
     ;;
   *)
-    echo "usage: tools/quickstart.sh sample | test" >&2
+    echo "usage: tools/quickstart.sh sample | test | sanitize [cmake options]" >&2
     exit 2
     ;;
 esac
