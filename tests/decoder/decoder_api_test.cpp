@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -121,6 +122,56 @@ TEST(DecoderApi, DecodersOutliveTheirFileAndDecodeOnThreads) {
   }
   for (std::thread& thread : threads) thread.join();
   EXPECT_EQ(counts, (std::vector<uint32_t>{850, 850}));
+}
+
+// API 1.1 through the wrapper: a File on borrowed bytes decodes as one on the path, bit for bit; the
+// texture weights, blended as facemorph.h documents over the keyframes' own textures, are the
+// decoded texture byte for byte.
+TEST(DecoderApi, BorrowedBytesAndTextureWeightsAsTheCApi) {
+  std::ifstream in(kGolden, std::ios::binary);
+  const std::vector<char> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const fm::File borrowed = fm::File::open_memory_borrowed(bytes.data(), bytes.size());
+  const fm::File opened = fm::File::open(kGolden);
+  fm::Decoder on_bytes(borrowed), on_path(opened);
+  fm::Frame a, b;
+  on_bytes.decode(0.25, a);
+  on_path.decode(0.25, b);
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.texture, b.texture);
+
+  const std::vector<double> times = opened.keyframe_times();
+  ASSERT_GE(times.size(), 2u);
+  ASSERT_GT(b.texture_size, 0u);
+  std::vector<std::vector<uint8_t>> keyframe_textures;
+  for (size_t k = 0; k < times.size(); ++k) {
+    const fm::Decoder::TextureWeights alone = on_path.texture_weights(times[k]);
+    ASSERT_EQ(alone.keyframes, std::vector<uint32_t>{static_cast<uint32_t>(k)});
+    EXPECT_EQ(alone.weights, std::vector<double>{1.0});
+    fm::Frame frame;
+    on_path.decode(times[k], frame, fm::kTexture);
+    keyframe_textures.push_back(frame.texture);
+  }
+  const double t = times.front() + 0.4 * (times.back() - times.front());
+  const fm::Decoder::TextureWeights blend = on_path.texture_weights(t);
+  ASSERT_GE(blend.keyframes.size(), 2u);
+  ASSERT_EQ(blend.weights.size(), blend.keyframes.size());
+  fm::Frame frame;
+  on_path.decode(t, frame, fm::kTexture);
+  for (size_t i = 0; i < frame.texture.size(); ++i) {
+    float texel = 0;
+    for (size_t j = 0; j < blend.keyframes.size(); ++j) {
+      texel += static_cast<float>(blend.weights[j]) * static_cast<float>(keyframe_textures.at(blend.keyframes[j])[i]);
+    }
+    const float rounded = std::min(255.0f, std::max(0.0f, texel + 0.5f));
+    ASSERT_EQ(frame.texture[i], static_cast<uint8_t>(rounded)) << "texel byte " << i;
+  }
+  // Past the file without kClamp: the wrapper throws the C API's status.
+  try {
+    on_bytes.texture_weights(1e9);
+    FAIL() << "t = 1e9 s gave texture weights";
+  } catch (const fm::Error& e) {
+    EXPECT_EQ(e.status(), FM_ERROR_OUT_OF_RANGE);
+  }
 }
 
 }  // namespace

@@ -1,8 +1,8 @@
 // facemorph/decoder.hpp: the C++ player API, a header-only wrapper over the C API (facemorph.h),
 // as libjxl's decode_cxx.h is over decode.h. It adds only what C++ gives: handles closed by their
 // destructors, exceptions for statuses, frames into std::vectors. It includes facemorph.h and the
-// standard library only, compiles as C++17 or later, and is part of API 1.0 (spec/api.md): every
-// function is inline, so its ABI is the C API's.
+// standard library only, compiles as C++17 or later, and covers API 1.2 (spec/api.md; 1.1's
+// borrowed open and texture weights included): every function is inline, so its ABI is the C API's.
 //
 //   fm::File file = fm::File::open("face.fmv");                  // throws fm::Error
 //   fm::Decoder decoder(file);
@@ -91,6 +91,14 @@ class File {
   static File open_memory(const void* data, std::size_t size, const fm_decoder_options& options = default_options()) {
     fm_file* file = nullptr;
     check(fm_file_open_memory_with_options(data, size, &options, &file));
+    return File(file);
+  }
+  // fm_file_open_memory_borrowed (API 1.1): the bytes are read where they lie, so they must stay
+  // there, unchanged, until this File and every Decoder on it are gone. A group's chunk is read when
+  // a frame first needs it: a streaming player may fill it in before then (facemorph.h).
+  static File open_memory_borrowed(const void* data, std::size_t size, const fm_decoder_options& options = default_options()) {
+    fm_file* file = nullptr;
+    check(fm_file_open_memory_borrowed(data, size, &options, &file));
     return File(file);
   }
 
@@ -189,6 +197,21 @@ class Decoder {
   // for every status but FM_OK (FM_ERROR_BUFFER_TOO_SMALL too: frame's counts then say what is
   // needed). frame.struct_size must be set (sizeof(fm_frame)).
   void decode_into(double t, fm_frame& frame, uint32_t flags = 0) { check(fm_decoder_decode(decoder_, t, flags, &frame)); }
+
+  // The frame at t's texture blend without the texture (fm_decoder_get_texture_weights, API 1.1):
+  // the keyframes whose images it sums and the weight of each, for a player that decodes the
+  // keyframes' images itself. Count first, then copy.
+  struct TextureWeights {
+    std::vector<uint32_t> keyframes;
+    std::vector<double> weights;
+  };
+  TextureWeights texture_weights(double t, uint32_t flags = 0) {
+    std::size_t count = 0;
+    check(fm_decoder_get_texture_weights(decoder_, t, flags, nullptr, nullptr, 0, &count));
+    TextureWeights blend{std::vector<uint32_t>(count), std::vector<double>(count)};
+    check(fm_decoder_get_texture_weights(decoder_, t, flags, blend.keyframes.data(), blend.weights.data(), count, &count));
+    return blend;
+  }
 
   // The C handle, for the C API; still owned by this Decoder.
   fm_decoder* get() const noexcept { return decoder_; }
