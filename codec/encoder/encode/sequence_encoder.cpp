@@ -271,6 +271,10 @@ void SequenceEncoder::check_options(int count) const {
   if (!(strength >= 0 && strength <= 1)) {
     throw Error(ErrorCode::kInvalidArgument, "density-equalising strength must be in [0, 1], not " + std::to_string(strength));
   }
+  const double radial = options_.density_equalising.radial;
+  if (radial != kAutoRadial && !(radial >= 0 && radial <= 1)) {
+    throw Error(ErrorCode::kInvalidArgument, "radial-equalising strength must be auto or in [0, 1], not " + std::to_string(radial));
+  }
   if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
     throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
   }
@@ -640,8 +644,14 @@ void SequenceEncoder::register_frames() {
 }
 
 void SequenceEncoder::set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points) {
-  reparametrisation_ = DiskReparametrisation(reference.map, options_.density_equalising);
+  const DensityEqualisingOptions& equalising = options_.density_equalising;
+  const double half = half_area_radius(reference.map);
+  double radial = equalising.radial == kAutoRadial ? (half < kCrowdedHalfAreaRadius ? 1.0 : 0.0) : equalising.radial;
+  if (equalising.strength > 0) radial = 0;  // the flow, as asked
+  reparametrisation_ = radial > 0 ? DiskReparametrisation::radial(reference.map, radial) : DiskReparametrisation(reference.map, equalising);
   report_.density_equalising = reparametrisation_.report();
+  report_.density_equalising.half_area_radius_before = half;
+  report_.radial_equalising = radial;
   geodesic_frame_.reset();
   if (options_.registration.method == RegistrationMethod::kFrame) {
     // The reference's frame, once: its landmarks on its own disk are the graph's points, and every
@@ -798,7 +808,13 @@ void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int
   report_.blend = {};
   const std::vector<int>& keyframes = chosen.keyframes;
   const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
-  if (!options_.representation && unmatched && keyframes.size() >= 2) {
+  // On a radially reparametrised disk (a whole head) hl+t's fixed-point iteration diverges: the
+  // tangential part of Δ_h S, large where the map stretches the disk unevenly, turns with the frame
+  // it is carried in (measured on fmsynth --head at radial strengths 0.25 to 1: no keyframe converged).
+  // Positions decode without iterating, and the container holds them (spec/method.md §7.11).
+  if (!options_.representation && report_.radial_equalising > 0) {
+    auto_representation_ = Representation::kXYZ;
+  } else if (!options_.representation && unmatched && keyframes.size() >= 2) {
     // The frame midway between each pair of keyframes with frames between them (blend_trial_pairs).
     const std::vector<size_t> pairs = blend_trial_pairs(keyframes);
     std::vector<double> times;
