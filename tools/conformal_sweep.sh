@@ -29,6 +29,9 @@ settings=(
   # What scanners write (issue 47): every defect the encoder repairs, in every frame.
   "--seed 11 --expression mixed --defects all"
   "--seed 12 --expression talk --remesh --noise 0.001 --defects all"
+  # Whole heads whose rim is the neck, eyes, mouth and nostrils open (issue 47 part 2).
+  "--seed 13 --expression mixed --head --holes --vertices 6000"
+  "--seed 14 --expression talk --head --holes --noise 0.001 --vertices 6000"
 )
 for s in "${settings[@]}"; do
   name=synth_$(echo "$s" | tr -c 'a-z0-9' '_' | tr -s '_')
@@ -50,6 +53,12 @@ if [[ -f "$data/ict-facekit/tools/make_capture.py" ]]; then
     python3 "$data/ict-facekit/tools/make_capture.py" "$cache/ict_all" --start-seconds 0 --seconds 67
   fi
   inputs+=("$cache/ict_all")
+  # ICT's whole head to the neck, eyes and mouth open (issue 47 part 2; its separate eyeballs, teeth,
+  # gums and lashes, tools/ict_whole_head.py --pieces, are what fmenc --largest-component drops).
+  if [[ ! -f "$cache/ict_whole_head/capture.json" ]]; then
+    python3 tools/ict_whole_head.py "$cache/ict_whole_head" --frames 20 --data "$data"
+  fi
+  inputs+=("$cache/ict_whole_head")
 else
   echo "conformal_sweep: skipping ICT ($data/ict-facekit not found)" >&2
 fi

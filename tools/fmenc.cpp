@@ -85,6 +85,18 @@ double parse_dead_zone(const std::string& text) {
   }
 }
 
+double parse_radial(const std::string& text) {
+  if (text == "auto") return kAutoRadial;
+  try {
+    size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used != text.size() || !(value >= 0 && value <= 1)) throw std::out_of_range(text);
+    return value;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, "--radial-equalising '" + text + "' is neither auto nor a number in [0, 1]");
+  }
+}
+
 // What fminfo shows of the frames the encoder dropped or mapped another way (spec/container.md §8).
 // --frames A:B: frames A to B-1 of the capture (0-based, B excluded; B may be past its end).
 FrameRange parse_frames(const std::string& text, int count) {
@@ -160,6 +172,7 @@ int main(int argc, char** argv) {
   std::string intra_period = "auto";
   std::string inter_dead_zone = "auto";
   double density_equalising = EncodeOptions{}.density_equalising.strength;
+  std::string radial_equalising = "auto";
   bool no_texture = false, no_texture_sharing = false, track_landmarks = false, largest_component = false, keep_holes_filled = false, quiet = false, strict = false;
   app.add_option("capture", inputs,
                  "Capture folder (capture.json), a plain folder of OBJ/PLY frames (with --fps, --landmarks), or a .fmv file to re-code; "
@@ -209,6 +222,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--density-equalising", density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")
+      ->capture_default_str();
+  app.add_option("--radial-equalising", radial_equalising,
+                 "auto, or 0 to 1: how far the disk grid spreads over the surface by area along the disk's radius (auto: fully where the "
+                 "conformal disk holds half the surface within a quarter of its radius, as a whole head whose rim is the neck; else not)")
       ->capture_default_str();
   app.add_option("--keyframe-fit", keyframe_fit,
                  "on | off: keyframes store the spline's least-squares fit to every frame (on: a capture's per-frame noise is averaged "
@@ -287,6 +304,7 @@ int main(int argc, char** argv) {
     options.strict = strict;
     options.reference_frame = reference;
     options.density_equalising.strength = density_equalising;
+    options.density_equalising.radial = parse_radial(radial_equalising);
     if (keyframe_fit != "on" && keyframe_fit != "off") throw Error(ErrorCode::kInvalidArgument, "--keyframe-fit '" + keyframe_fit + "' is neither on nor off");
     options.keyframe_fit = keyframe_fit == "on";
     options.predicted_fields = field_error != "0";
@@ -458,6 +476,25 @@ int main(int argc, char** argv) {
                         : report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
       std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence->shape().grid_n, 100 * report.grid_target, why);
+    }
+    if (report.radial_equalising > 0) {
+      // A whole head (spec/method.md §7.11): the reparametrisation, the representation it forces and
+      // what a keyframe then differs from its frame by (G's resampling floor, then the rounding).
+      double floor = -1;
+      for (const auto& [n, f] : report.grid_floors) {
+        if (n == sequence->shape().grid_n) floor = f;
+      }
+      const std::vector<double>& rounding = report.field_precision.keyframe_errors;
+      const double rounded = rounding.empty() ? 0 : *std::max_element(rounding.begin(), rounding.end());
+      std::printf("  whole head: the conformal disk held half the surface within %.3f of its centre (the neck rim crowds the face); spread "
+                  "radially (strength %.2g) to %.3f; keyframes stored as positions (%s)",
+                  report.density_equalising.half_area_radius_before, report.radial_equalising, report.density_equalising.half_area_radius_after,
+                  sequence->shape().representation == Representation::kXYZ ? "hl+t does not converge on the spread disk" : "as asked: hl+t may not converge");
+      if (floor >= 0) {
+        std::printf("; keyframe error %.3f%% RMS of the diagonal (resampling at N = %d %.3f%%, rounding %.3f%% worst)", 100 * std::hypot(floor, rounded),
+                    sequence->shape().grid_n, 100 * floor, 100 * rounded);
+      }
+      std::printf("\n");
     }
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);

@@ -34,6 +34,10 @@ int main(int argc, char** argv) {
   app.add_option("--defects", defects,
                  "Write what scanners write into every frame, for the encoder's repairs: all, or a comma-separated list of bow-ties, "
                  "three-face-edges, duplicates, degenerate, flipped, islands, torso (spec/capture.md)");
+  app.add_flag("--holes", options.holes, "Leave the eyes, mouth and nostrils open, as scanners do (holes the encoder fills and cuts back out)");
+  app.add_flag("--head", options.whole_head,
+               "The whole head: the face closed round the back of the head down to a neck, whose rim is the outer boundary (rim_* markers on it); "
+               "not with --remesh, --defects or --vertex-colour");
   app.add_flag("-q,--quiet", quiet, "No progress display");
 
   return tools::guarded_main(app, argc, argv, [&] {

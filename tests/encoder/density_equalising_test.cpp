@@ -98,5 +98,57 @@ TEST(DensityEqualising, StrengthOutsideTheUnitIntervalIsRefused) {
   testing::expect_error(ErrorCode::kInvalidArgument, "strength", [&] { DiskReparametrisation(map, {.strength = -0.1}); });
 }
 
+// The radial reparametrisation (whole heads, spec/method.md §7.11): the disk's radius holding half
+// the surface goes to sqrt(1/2) at strength 1, the circle stays the circle, radii keep their order,
+// and an evenly mapped disk is left alone.
+TEST(RadialEqualising, AnEvenlyMappedDiskIsLeftAlone) {
+  const DiskMap map = conformal_disk_map(testing::polar_disk(24, 96, [](const Vec2& p) { return Vec3(p.x(), p.y(), 0); }));
+  EXPECT_NEAR(half_area_radius(map), std::sqrt(0.5), 0.01);
+  const DiskReparametrisation radial = DiskReparametrisation::radial(map, 1);
+  EXPECT_FALSE(radial.identity());
+  double moved = 0;
+  for (const Vec2& node : make_disk_grid(33).nodes) moved = std::max(moved, (radial(node) - node).norm());
+  EXPECT_LT(moved, 0.01);
+}
+
+TEST(RadialEqualising, ACrowdedCentreIsSpreadByRadius) {
+  // A tall narrow bump: most of the surface crowds the disk's centre, as a whole head's face does.
+  const DiskMap map = conformal_disk_map(bump(3.0));
+  const double before = half_area_radius(map);
+  EXPECT_LT(before, 0.3);
+  const DiskReparametrisation radial = DiskReparametrisation::radial(map, 1);
+  EXPECT_NEAR(radial.report().half_area_radius_before, before, 1e-12);
+  EXPECT_NEAR(radial.report().half_area_radius_after, std::sqrt(0.5), 0.01);
+  // G sampled through it: the surface half of the grid's area holds (by radius) is half the surface.
+  const DiskGrid grid = make_disk_grid(65);
+  const std::vector<double> areas = surface_areas_of_grid(map, radial, grid);
+  double inside = 0, total = 0;
+  for (size_t f = 0; f < grid.faces.size(); ++f) {
+    Vec2 centroid = Vec2::Zero();
+    for (int32_t v : grid.faces[f]) centroid += grid.nodes[static_cast<size_t>(v)] / 3.0;
+    total += areas[f];
+    if (centroid.norm() < std::sqrt(0.5)) inside += areas[f];
+  }
+  EXPECT_NEAR(inside / total, 0.5, 0.03);
+  EXPECT_LT(coefficient_of_variation(areas), coefficient_of_variation(surface_areas_of_grid(map, DiskReparametrisation(), grid)));
+  // Radial, monotone, the circle onto itself, the centre fixed.
+  EXPECT_EQ(radial(Vec2(0, 0)), Vec2(0, 0));
+  double previous = 0;
+  for (int k = 1; k <= 200; ++k) {
+    const double R = k / 200.0, theta = 0.7 * k;
+    const Vec2 g = R * Vec2(std::cos(theta), std::sin(theta)), w = radial(g);
+    EXPECT_NEAR(std::atan2(w.y(), w.x()), std::atan2(g.y(), g.x()), 1e-12);
+    EXPECT_GT(w.norm(), previous);
+    previous = w.norm();
+  }
+  EXPECT_NEAR(previous, 1.0, 1e-12);
+}
+
+TEST(RadialEqualising, StrengthOutsideItsIntervalIsRefused) {
+  const DiskMap map = conformal_disk_map(bump(0.5));
+  testing::expect_error(ErrorCode::kInvalidArgument, "strength", [&] { DiskReparametrisation::radial(map, 0); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "strength", [&] { DiskReparametrisation::radial(map, 1.5); });
+}
+
 }  // namespace
 }  // namespace facemorph

@@ -73,6 +73,11 @@ void expect_same_report(const EncodeReport& one, const EncodeReport& staged) {
     EXPECT_EQ(one.dropped[k].reason, staged.dropped[k].reason);
   }
   EXPECT_EQ(one.orientation_found, staged.orientation_found);
+  // How each face was found and how sure, carried by the parts (part file 3.0; 2.0 read back every
+  // one as "whole surface" at confidence 0).
+  EXPECT_EQ(one.orientation_methods, staged.orientation_methods);
+  EXPECT_EQ(one.lowest_face_confidence, staged.lowest_face_confidence);
+  EXPECT_EQ(one.radial_equalising, staged.radial_equalising);
   EXPECT_EQ(one.rim_markers_found, staged.rim_markers_found);
   EXPECT_EQ(one.frames_without_interior_landmarks, staged.frames_without_interior_landmarks);
   ASSERT_EQ(one.frames.size(), staged.frames.size());
@@ -117,6 +122,7 @@ TEST(StagedEncode, AFrameDroppedAndAReferenceMovedAreSettledAlikeInEveryPart) {
   ASSERT_EQ(one_report.reference_frame, 4);
   ASSERT_EQ(one_report.dropped.size(), 2u);
   ASSERT_TRUE(one_report.rim_markers_found);
+  ASSERT_GT(one_report.lowest_face_confidence, 0);
   const std::vector<uint8_t> staged = staged_file(capture, options, {{0, 3}, {3, 7}, {7, 10}}, dir, &staged_report);
   EXPECT_TRUE(one == staged) << "the assembled file differs from the one-process file";
   expect_same_report(one_report, staged_report);

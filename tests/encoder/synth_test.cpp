@@ -154,5 +154,52 @@ TEST(Synth, TruthMeshAndBadOptions) {
   expect_error(ErrorCode::kInvalidArgument, "unknown expression 'grin'", [] { parse_expression("grin"); });
 }
 
+// fmsynth --head --holes (issue 47 part 2's input): one surface whose outer rim is the neck, with
+// five holes (eyes, mouth, nostrils), manifold and consistently wound (the encoder's preparation
+// changes nothing but fills the holes), the face part sampling the exact face and the rim markers
+// on the neck.
+TEST(Synth, WholeHeadIsOneSurfaceWithTheNeckAsRimAndFiveHoles) {
+  TempDir dir;
+  SynthOptions o = small(2);
+  o.vertices = 3000;  // at 1500 a nostril is one missing triangle touching another: a bow tie
+  o.holes = true;
+  o.whole_head = true;
+  write_synthetic_capture(dir.path(), o);
+  const Capture c = read_capture(dir.path());
+  EXPECT_EQ(c.generator_value("surface"), "whole head to the neck");
+  const SyntheticFace face(o.expression, o.seed);
+  const HeadSampling head = sample_head(o.vertices, face, true, true);
+  for (size_t i = 0; i < c.frames.size(); ++i) {
+    const TriangleMesh m = read_mesh(c.mesh_path(i));
+    ASSERT_EQ(m.vertex_count(), head.face_vertices + static_cast<int>(head.back.size()));
+    const MeshTopology topology(m.faces, m.vertex_count());
+    EXPECT_TRUE(topology.is_manifold());
+    EXPECT_EQ(topology.component_count(), 1);
+    ASSERT_EQ(topology.boundary_loops().size(), 6u);
+    // The face's vertices are the exact face; the neck reaches 0.09-0.13 m below the chin.
+    for (size_t v = 0; v < head.face.points.size(); v += 97) {
+      EXPECT_LT((m.positions[v] - face.position(head.face.points[v], c.frames[i].time)).norm(), 1e-6);
+    }
+    double lowest = 0;
+    for (const Vec3& p : m.positions) lowest = std::min(lowest, p.y());
+    EXPECT_GT(-lowest, 0.19);
+    EXPECT_LT(-lowest, 0.24);
+    const PreparedFrame p = prepare_frame(m, c.frames[i].mesh.string());
+    EXPECT_EQ(p.report.holes.size(), 5u) << p.report.summary();
+    EXPECT_EQ(p.report.faces_changed, 0) << p.report.summary();
+    EXPECT_EQ(p.report.vertices_changed, 0) << p.report.summary();
+    // The rim the encoder keeps is the neck: every neck vertex is on it, and so are the markers.
+    EXPECT_EQ(p.rim.size(), static_cast<size_t>(head.neck_count));
+    for (size_t l = 0; l < c.landmark_names.size(); ++l) {
+      if (!c.landmark_names[l].starts_with("rim_")) continue;
+      double nearest = 1e9;
+      for (int v : p.rim) nearest = std::min(nearest, (p.mesh.positions[static_cast<size_t>(v)] - c.landmarks[i][l]).norm());
+      EXPECT_LT(nearest, 1e-6) << c.landmark_names[l];
+    }
+  }
+  o.remesh = true;
+  expect_error(ErrorCode::kInvalidArgument, "--head", [&] { write_synthetic_capture(dir.path() / "x", o); });
+}
+
 }  // namespace
 }  // namespace facemorph

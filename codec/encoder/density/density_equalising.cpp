@@ -230,7 +230,104 @@ DiskReparametrisation::DiskReparametrisation(const DiskMap& reference, const Den
   mesh_ = std::move(mesh);
 }
 
+namespace {
+
+constexpr int kRadialBins = 1024;
+
+// The surface's area in kRadialBins rings of equal width in disk radius: each face's area spread
+// evenly over the span of its vertices' radii (a face's centroid alone leaves rings empty where the
+// faces are wider than a ring, near a whole head's rim).
+std::vector<double> radial_area(const DiskMap& map) {
+  std::vector<double> bins(kRadialBins, 0.0);
+  const std::vector<double> surface = face_areas(map.surface.positions, map.surface.faces);
+  for (size_t f = 0; f < surface.size(); ++f) {
+    double lo = 1, hi = 0;
+    for (int32_t v : map.surface.faces[f]) {
+      const double r = std::min(map.disk[static_cast<size_t>(v)].norm(), 1.0);
+      lo = std::min(lo, r), hi = std::max(hi, r);
+    }
+    const double a = lo * kRadialBins, b = hi * kRadialBins;
+    const int first = std::min(static_cast<int>(a), kRadialBins - 1), last = std::min(static_cast<int>(b), kRadialBins - 1);
+    if (first == last || b - a < 1e-12) {
+      bins[static_cast<size_t>(first)] += surface[f];
+      continue;
+    }
+    for (int k = first; k <= last; ++k) {
+      const double overlap = std::min<double>(k + 1, b) - std::max<double>(k, a);
+      bins[static_cast<size_t>(k)] += surface[f] * std::max(overlap, 0.0) / (b - a);
+    }
+  }
+  return bins;
+}
+
+}  // namespace
+
+double half_area_radius(const DiskMap& map) {
+  const std::vector<double> bins = radial_area(map);
+  const double total = std::accumulate(bins.begin(), bins.end(), 0.0);
+  if (!(total > 0)) throw Error(ErrorCode::kNumerical, "half_area_radius: the surface has no area");
+  double sum = 0;
+  for (int k = 0; k < kRadialBins; ++k) {
+    const double next = sum + bins[static_cast<size_t>(k)];
+    if (next >= 0.5 * total) return (k + (0.5 * total - sum) / std::max(bins[static_cast<size_t>(k)], 1e-300)) / kRadialBins;
+    sum = next;
+  }
+  return 1;
+}
+
+DiskReparametrisation DiskReparametrisation::radial(const DiskMap& reference, double strength) {
+  if (!(strength > 0 && strength <= 1)) throw Error(ErrorCode::kInvalidArgument, "radial reparametrisation: strength must be in (0, 1]");
+  const std::vector<double> bins = radial_area(reference);
+  const double total = std::accumulate(bins.begin(), bins.end(), 0.0);
+  if (!(total > 0)) throw Error(ErrorCode::kNumerical, "radial reparametrisation: the reference has no area");
+  // Each ring's population: its disk area times (surface share / disk share)^strength, plus a
+  // trace of its disk area so the cumulative share rises strictly; P at the ring edges.
+  std::vector<double> P(kRadialBins + 1, 0.0);
+  for (int k = 0; k < kRadialBins; ++k) {
+    const double room = (std::pow(k + 1.0, 2) - std::pow(k, 2.0)) / (static_cast<double>(kRadialBins) * kRadialBins);
+    const double ratio = std::clamp(bins[static_cast<size_t>(k)] / total / room, 0.0, 1e6);
+    P[static_cast<size_t>(k) + 1] = P[static_cast<size_t>(k)] + room * (std::pow(ratio, strength) + 1e-9);
+  }
+  for (double& p : P) p /= P.back();
+  // Equal population, equal area of the new disk: R² = P(r). Tabulated as r at R = k / (size - 1).
+  constexpr int kTable = 4096;
+  auto table = std::make_shared<std::vector<double>>(kTable + 1);
+  size_t ring = 0;
+  for (int k = 0; k <= kTable; ++k) {
+    const double R = static_cast<double>(k) / kTable, target = R * R;
+    while (ring + 1 < P.size() - 1 && P[ring + 1] < target) ++ring;
+    const double span = P[ring + 1] - P[ring];
+    const double f = span > 0 ? std::clamp((target - P[ring]) / span, 0.0, 1.0) : 0.0;
+    (*table)[static_cast<size_t>(k)] = (static_cast<double>(ring) + f) / kRadialBins;
+  }
+  (*table)[0] = 0;
+  (*table)[kTable] = 1;
+  DiskReparametrisation out;
+  out.radial_ = std::move(table);
+  // What it does to the half-area radius: R holding P = 1/2 of the population... of the surface.
+  out.report_.half_area_radius_before = half_area_radius(reference);
+  double sum = 0;
+  for (int k = 0; k < kRadialBins; ++k) {
+    sum += bins[static_cast<size_t>(k)];
+    if (sum >= 0.5 * total) {
+      out.report_.half_area_radius_after = std::sqrt(P[static_cast<size_t>(k) + 1]);
+      break;
+    }
+  }
+  return out;
+}
+
 Vec2 DiskReparametrisation::operator()(const Vec2& g) const {
+  if (radial_) {
+    const double R = std::min(g.norm(), 1.0);
+    if (R == 0) return g;
+    const std::vector<double>& table = *radial_;
+    const double x = R * static_cast<double>(table.size() - 1);
+    const auto k = std::min(static_cast<size_t>(x), table.size() - 2);
+    const double f = x - static_cast<double>(k);
+    const double r = (1 - f) * table[k] + f * table[k + 1];
+    return g * (r / g.norm());
+  }
   if (!mesh_) return g;
   const Mesh& m = *mesh_;
   // Within 10⁻⁶ of the circle (inside the rim chords' slivers) by angle, so the circle maps onto itself.

@@ -75,6 +75,12 @@ Json settings_json(const EncodeOptions& o, const EncodeReport& report) {
           {"largest_component", o.largest_component},
           {"reference_frame", o.reference_frame},
           {"density_equalising", o.density_equalising.strength},
+          // The radial reparametrisation of a whole head (spec/method.md §7.11): asked ("auto" or a
+          // strength), used, and the disk radius holding half the surface before and after.
+          {"radial_equalising", {{"asked", o.density_equalising.radial == kAutoRadial ? Json("auto") : Json(o.density_equalising.radial)},
+                                 {"strength", report.radial_equalising},
+                                 {"half_area_radius", report.density_equalising.half_area_radius_before},
+                                 {"half_area_radius_after", report.radial_equalising > 0 ? Json(report.density_equalising.half_area_radius_after) : Json(nullptr)}}},
           {"keyframe_fit", o.keyframe_fit},
           {"field_error", o.predicted_fields ? Json(report.field_precision.target_error) : Json(nullptr)},
           {"field_error_auto", o.predicted_fields && o.auto_field_error},

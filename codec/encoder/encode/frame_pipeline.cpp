@@ -1,5 +1,7 @@
 #include "facemorph/encoder/frame_pipeline.hpp"
 
+#include "codec/encoder/landmarks/face_facing.hpp"
+
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/error.hpp"
 
@@ -83,7 +85,18 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   start = std::chrono::steady_clock::now();
   std::optional<Vec3> centre = landmarks.centre, up = landmarks.up;
   if ((!centre || !up) && options.find_orientation) {
-    frame.found = find_face(frame.prepared.mesh, nullptr, name, options.vertical_hint ? &*options.vertical_hint : nullptr);  // names the frame
+    // The filled holes' area-weighted normal: eyes, mouth and nostrils look out of the face, which
+    // is how a whole head (no one facing) shows where its face is.
+    Vec3 holes = Vec3::Zero();
+    for (const FilledHole& h : frame.prepared.report.holes) {
+      for (int f = h.first_face; f < h.first_face + h.face_count; ++f) {
+        const Face& t = frame.prepared.mesh.faces[static_cast<size_t>(f)];
+        const std::vector<Vec3>& p = frame.prepared.mesh.positions;
+        holes += (p[static_cast<size_t>(t[1])] - p[static_cast<size_t>(t[0])]).cross(p[static_cast<size_t>(t[2])] - p[static_cast<size_t>(t[0])]);
+      }
+    }
+    frame.found = find_face_facing(frame.prepared.mesh, nullptr, name, options.vertical_hint ? &*options.vertical_hint : nullptr,
+                                   holes.norm() > 0 ? &holes : nullptr);  // names the frame
     centre = frame.found->nose_tip;
     up = frame.found->up;
   }

@@ -117,6 +117,8 @@ std::vector<char> FrameStore::serialize(const MappedFrame& frame) {
     for (const Vec3& v : {o.nose_tip, o.up, o.facing, o.vertical}) w.value(v);
     for (double v : {o.facing_share, o.mirror_error, o.up_evidence}) w.value(v);
     w.value(o.up_from_hint);
+    w.value(static_cast<uint8_t>(o.method));
+    w.value(o.confidence);
   }
   w.array(frame.found_rim);
   w.value(frame.seconds_prepare);
@@ -144,6 +146,8 @@ MappedFrame FrameStore::deserialize(const char* bytes, size_t size) {
     for (Vec3* v : {&o.nose_tip, &o.up, &o.facing, &o.vertical}) *v = r.value<Vec3>();
     for (double* v : {&o.facing_share, &o.mirror_error, &o.up_evidence}) *v = r.value<double>();
     o.up_from_hint = r.value<bool>();
+    o.method = static_cast<FaceFindingMethod>(r.value<uint8_t>());
+    o.confidence = r.value<double>();
     frame.found = o;
   }
   frame.found_rim = r.array<Vec3>();

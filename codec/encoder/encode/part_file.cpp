@@ -43,6 +43,8 @@ void write_orientation(Writer& w, const FaceOrientation& o) {
   for (const Vec3& v : {o.nose_tip, o.up, o.facing, o.vertical}) w.value(v);
   for (double v : {o.facing_share, o.mirror_error, o.up_evidence}) w.value(v);
   w.value<uint8_t>(o.up_from_hint ? 1 : 0);
+  w.value<uint8_t>(static_cast<uint8_t>(o.method));  // how it was found, and how sure (version 3)
+  w.value(o.confidence);
 }
 
 FaceOrientation read_orientation(Reader& r) {
@@ -50,6 +52,11 @@ FaceOrientation read_orientation(Reader& r) {
   for (Vec3* v : {&o.nose_tip, &o.up, &o.facing, &o.vertical}) *v = r.value<Vec3>();
   for (double* v : {&o.facing_share, &o.mirror_error, &o.up_evidence}) *v = r.value<double>();
   o.up_from_hint = r.value<uint8_t>() != 0;
+  const uint8_t method = r.value<uint8_t>();
+  if (method > static_cast<uint8_t>(FaceFindingMethod::kFaceRegion)) throw Error(ErrorCode::kCorrupt, "a found orientation's method " + std::to_string(method) + " is unknown");
+  o.method = static_cast<FaceFindingMethod>(method);
+  o.confidence = r.value<double>();
+  if (!(o.confidence >= 0 && o.confidence <= 1)) throw Error(ErrorCode::kCorrupt, "a found orientation's confidence is outside [0, 1]");
   return o;
 }
 
@@ -364,7 +371,8 @@ std::string sample_settings(const EncodeOptions& o) {
                         {"fold_grid", r.fold_grid}, {"min_area_ratio", r.min_area_ratio}, {"smoothing_tries", r.smoothing_tries},
                         {"max_substeps", r.max_substeps}, {"allow_fallback", r.allow_fallback}}},
       {"density_equalising", {{"strength", o.density_equalising.strength}, {"step", o.density_equalising.step},
-                              {"max_steps", o.density_equalising.max_steps}, {"tolerance", o.density_equalising.tolerance}}}};
+                              {"max_steps", o.density_equalising.max_steps}, {"tolerance", o.density_equalising.tolerance},
+                              {"radial", o.density_equalising.radial}}}};
   return settings.dump();
 }
 

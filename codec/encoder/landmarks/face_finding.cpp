@@ -2,6 +2,7 @@
 // mirror plane, then a face detected in rendered views of the textured surface, then the mirror
 // plane of the region around the most protruding point.
 #include "facemorph/encoder/face_orientation.hpp"
+#include "codec/encoder/landmarks/face_facing.hpp"
 
 #include "codec/decoder/geometry/elementary.hpp"
 #include "facemorph/encoder/image_io.hpp"
@@ -45,6 +46,10 @@ constexpr double kMinAgreementCosine = 0.5;
 // The face regions tried without a texture: balls about the most protruding point, as shares of the
 // scan's diagonal, largest first (a face is a third to a sixth of a head-and-shoulders scan).
 constexpr std::array<double, 3> kRegionReaches = {0.19, 0.15, 0.12};
+// Below this share of its area in its mean normal a surface faces no one way (a whole head):
+// find_face_orientation's own bound.
+constexpr double kWholeHeadFacingShare = 0.25;
+constexpr double kWholeHeadSure = 0.5;  // mirror error under 1.5% of the diagonal
 // A whole-surface finding at least this sure (mirror error under 1% of the diagonal) is taken as
 // it is; a less sure one competes with the texture's and the face region's, the surest winning (a
 // scan's hair and shoulders can make a slanted plane the best one, and up then reads wrong).
@@ -288,40 +293,87 @@ std::optional<FaceOrientation> find_by_texture(const TriangleMesh& mesh, const I
 
 // ---- The face region: the mirror plane of balls about the most protruding point ----
 
-std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, std::string* why) {
+// The directions a whole head's face region is looked for along: the 26 of a cube's faces, edges
+// and corners (at most 35 degrees from any direction).
+std::vector<Vec3> search_directions() {
+  std::vector<Vec3> out;
+  for (int x = -1; x <= 1; ++x) {
+    for (int y = -1; y <= 1; ++y) {
+      for (int z = -1; z <= 1; ++z) {
+        if (x != 0 || y != 0 || z != 0) out.push_back(Vec3(x, y, z).normalized());
+      }
+    }
+  }
+  return out;
+}
+
+std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, const Vec3* facing_hint,
+                                              std::string* why) {
   const Vec3 mean = area_weighted_normal(mesh);
-  if (!(mean.norm() > 0)) {
+  double area = 0;
+  for (const Face& f : mesh.faces) {
+    area += (mesh.positions[static_cast<size_t>(f[1])] - mesh.positions[static_cast<size_t>(f[0])])
+                .cross(mesh.positions[static_cast<size_t>(f[2])] - mesh.positions[static_cast<size_t>(f[0])])
+                .norm();
+  }
+  // A whole head faces no one way (its mean normal is the neck's opening's, pointing up): its face
+  // is looked for about the most protruding point along each of 26 directions, the surest region
+  // winning (a face's nose, sockets and symmetry against a dome's or the back of the head's).
+  // Where the scan's holes say where the face looks (the filled eyes' and mouth's normals, from
+  // find_face_facing), that direction alone.
+  std::vector<Vec3> starts;
+  if (mean.norm() >= kWholeHeadFacingShare * area) {
+    starts.push_back(mean.normalized());
+  } else if (facing_hint != nullptr) {
+    starts.push_back(facing_hint->normalized());
+  } else {
+    starts = search_directions();
+  }
+  if (!(area > 0)) {
     *why = "no region faces one way";
     return std::nullopt;
   }
   const double diagonal = bounding_box_diagonal(mesh.positions);
   std::optional<FaceOrientation> best;
   std::string last = "no region was tried";
-  for (double reach : kRegionReaches) {
-    // About the most protruding vertex along the facing of the region itself (the shoulders turn the
-    // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
-    Vec3 facing = mean.normalized();
-    std::vector<bool> keep(mesh.faces.size(), false);
-    for (int round = 0; round < 2; ++round) {
-      size_t tip = 0;
-      for (size_t v = 1; v < mesh.positions.size(); ++v) {
-        if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
-      }
-      for (size_t f = 0; f < mesh.faces.size(); ++f) {
-        keep[f] = true;
-        for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
-      }
-      const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
-      if (!(n.norm() > 0)) break;
-      facing = n.normalized();
+  // Around a whole head, the back and the crown are domes as symmetric as a face: what tells the
+  // face is that it says which way is up by itself (the nose's profile, the eye sockets), where a
+  // dome takes up from the hint or barely reads it. Among regions sure of their mirror plane
+  // (kWholeHeadSure), the one whose up evidence is the strongest; otherwise the surest.
+  const auto better = [whole_head = starts.size() > 1](const FaceOrientation& a, const FaceOrientation& b) {
+    if (whole_head) {
+      const auto evidence = [](const FaceOrientation& o) { return o.confidence >= kWholeHeadSure && !o.up_from_hint ? o.up_evidence : -1.0; };
+      if (evidence(a) != evidence(b)) return evidence(a) > evidence(b);
     }
-    try {
-      FaceOrientation o = find_face_orientation(sub_mesh(mesh, keep), name, vertical_hint);
-      o.method = FaceFindingMethod::kFaceRegion;
-      o.confidence = geometry_confidence(o);
-      if (!best || o.confidence > best->confidence) best = o;
-    } catch (const Error& e) {
-      last = reason_of(e, name);
+    return a.confidence > b.confidence;
+  };
+  for (double reach : kRegionReaches) {
+    for (const Vec3& start : starts) {
+      // About the most protruding vertex along the facing of the region itself (the shoulders turn the
+      // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
+      Vec3 facing = start;
+      std::vector<bool> keep(mesh.faces.size(), false);
+      for (int round = 0; round < 2; ++round) {
+        size_t tip = 0;
+        for (size_t v = 1; v < mesh.positions.size(); ++v) {
+          if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
+        }
+        for (size_t f = 0; f < mesh.faces.size(); ++f) {
+          keep[f] = true;
+          for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
+        }
+        const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
+        if (!(n.norm() > 0)) break;
+        facing = n.normalized();
+      }
+      try {
+        FaceOrientation o = find_face_orientation(sub_mesh(mesh, keep), name, vertical_hint);
+        o.method = FaceFindingMethod::kFaceRegion;
+        o.confidence = geometry_confidence(o);
+        if (!best || better(o, *best)) best = o;
+      } catch (const Error& e) {
+        last = reason_of(e, name);
+      }
     }
   }
   if (!best) *why = last + " (in regions of " + std::to_string(static_cast<int>(100 * kRegionReaches.back())) + "-" +
@@ -342,6 +394,11 @@ const char* face_finding_method_name(FaceFindingMethod method) {
 
 FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
                           const FaceFindingOptions& options) {
+  return find_face_facing(mesh, texture, name, vertical_hint, nullptr, options);
+}
+
+FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
+                                 const Vec3* facing_hint, const FaceFindingOptions& options) {
   std::vector<std::string> reasons;
   std::optional<FaceOrientation> best;
   auto consider = [&best](FaceOrientation o) {
@@ -371,7 +428,7 @@ FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const 
     }
   }
   if (options.face_region) {
-    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, &why)) {
+    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, &why)) {
       // The texture's face, where it agrees, confirms the region's: two independent readings.
       if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine && o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
         o->confidence = 1 - (1 - o->confidence) * (1 - by_texture->confidence);

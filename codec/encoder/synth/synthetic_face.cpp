@@ -240,11 +240,13 @@ Vec3 SyntheticFace::head_pose(const Vec3& p, double time) const {
   return R * (p - pivot) + pivot;
 }
 
-Vec3 SyntheticFace::position(const Vec2& material, double time) const {
+Vec3 SyntheticFace::unposed_position(const Vec2& material, double time) const {
   const ExpressionWeights w = weights(time);
   const Vec2 xy = material + displacement(material, w);
-  return head_pose(Vec3(xy.x(), xy.y(), height(material, w)), time);
+  return Vec3(xy.x(), xy.y(), height(material, w));
 }
+
+Vec3 SyntheticFace::position(const Vec2& material, double time) const { return head_pose(unposed_position(material, time), time); }
 
 Vec3 SyntheticFace::normal(const Vec2& material, double time) const {
   const double h = 1e-6;

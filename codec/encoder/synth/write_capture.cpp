@@ -77,11 +77,60 @@ std::string frame_stem(int index, int frames) {
   return "frame_" + std::string(static_cast<size_t>(std::max(0, width - static_cast<int>(digits.size()))), '0') + digits;
 }
 
+// The back of the head's texture coordinates: its stereographic plane (within about ±2.5) squeezed
+// into the texture's lower left corner, outside the face's ellipse, where the skin's colour is
+// painted without features.
+Vec2 back_texture_coordinate(const Vec2& plane) { return Vec2(0.01, 0.01) + 0.02 * (plane.cwiseMax(Vec2(-2.5, -2.5)).cwiseMin(Vec2(2.5, 2.5)) + Vec2(2.5, 2.5)); }
+
+// The whole head's frame: the face's vertices, then the back's; the rim vertices take a second
+// texture coordinate for the back's triangles (a seam), so no triangle spans the texture.
+TriangleMesh head_frame(const SynthOptions& options, const SyntheticFace& face, const HeadSampling& head, double time, std::mt19937_64& rng) {
+  std::normal_distribution<double> gaussian(0.0, 1.0);
+  const MaterialSampling& sampling = head.face;
+  TriangleMesh mesh;
+  mesh.faces = head.faces;
+  for (const Vec2& m : sampling.points) {
+    Vec3 p = face.position(m, time);
+    if (options.noise > 0) p += options.noise * gaussian(rng) * face.normal(m, time);
+    mesh.positions.push_back(p);
+    mesh.uvs.push_back(SyntheticFace::texture_coordinate(m));
+  }
+  for (const HeadVertex& v : head.back) {
+    Vec3 p = face.head_point(v, time);
+    if (options.noise > 0) p += options.noise * gaussian(rng) * v.normal;  // the rays are near the normals: noise, not geometry
+    mesh.positions.push_back(p);
+    mesh.uvs.push_back(back_texture_coordinate(v.plane));
+  }
+  const auto rim_uv = static_cast<int32_t>(mesh.uvs.size());
+  for (const Vec2& plane : head.rim_plane) mesh.uvs.push_back(back_texture_coordinate(plane));
+  mesh.uv_faces = mesh.faces;
+  for (size_t f = head.face_faces; f < mesh.uv_faces.size(); ++f) {
+    for (int32_t& v : mesh.uv_faces[f]) {
+      if (v < sampling.boundary_count) v += rim_uv;
+    }
+  }
+  return mesh;
+}
+
 void write_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face,
-                 const TexturePainter& painter, const MaterialSampling* fixed, int index) {
+                 const TexturePainter& painter, const MaterialSampling* fixed, const HeadSampling* head, int index) {
   const double time = index / options.fps;
   const std::string stem = frame_stem(index, options.frames);
-  const MaterialSampling own = fixed ? MaterialSampling{} : sample_material_ellipse(options.vertices, true, options.seed * 1000003 + static_cast<uint64_t>(index));
+  if (head != nullptr && options.whole_head) {
+    std::mt19937_64 rng(options.seed * 7919 + static_cast<uint64_t>(index) * 104729 + 1);
+    TriangleMesh mesh = head_frame(options, face, *head, time, rng);
+    const fs::path texture = directory / (options.shared_texture ? std::string(kSharedTextureName) : stem + ".jpg");
+    if (!options.shared_texture) write_texture(texture, painter, time);
+    mesh.texture = texture;
+    write_mesh(directory / (stem + ".obj"), mesh, {.significant_digits = 7});
+    return;
+  }
+  MaterialSampling own = fixed ? MaterialSampling{} : sample_material_ellipse(options.vertices, true, options.seed * 1000003 + static_cast<uint64_t>(index));
+  if (!fixed && options.holes) {
+    std::erase_if(own.faces, [&](const Face& f) {
+      return SyntheticFace::in_hole((own.points[static_cast<size_t>(f[0])] + own.points[static_cast<size_t>(f[1])] + own.points[static_cast<size_t>(f[2])]) / 3.0);
+    });
+  }
   const MaterialSampling& sampling = fixed ? *fixed : own;
 
   TriangleMesh mesh;
@@ -133,25 +182,46 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
 
   const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees);
   const TexturePainter painter(face, options.vertex_colour ? 16 : options.texture_size);  // no image to paint with vertex colours
+  if (options.whole_head && (options.remesh || options.defects != 0 || options.vertex_colour)) {
+    throw Error(ErrorCode::kInvalidArgument, "--head takes neither --remesh, --defects nor --vertex-colour");
+  }
   std::optional<MaterialSampling> fixed;
-  if (!options.remesh) fixed = sample_material_ellipse(options.vertices, false, 0);
+  std::optional<HeadSampling> head;
+  if (!options.remesh) {
+    head = sample_head(options.vertices, face, options.holes, options.whole_head);
+    fixed = head->face;
+    fixed->faces.assign(head->faces.begin(), head->faces.begin() + static_cast<long>(head->face_faces));
+  }
 
   if (options.shared_texture && options.vertex_colour) throw Error(ErrorCode::kInvalidArgument, "--shared-texture and --vertex-colour exclude each other");
   if (options.shared_texture) write_texture(directory / kSharedTextureName, painter, 0.0);
-  parallel_for(options.frames, 0, [&](int i) { write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, i); },
+  parallel_for(options.frames, 0, [&](int i) { write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, head ? &*head : nullptr, i); },
                progress);
 
   Capture capture;
   capture.root = directory;
-  capture.description = std::string("fmsynth synthetic face, expression ") + expression_name(options.expression);
+  capture.description = std::string(options.whole_head ? "fmsynth synthetic whole head, expression " : "fmsynth synthetic face, expression ") + expression_name(options.expression);
   capture.fps = options.fps;
   capture.units = "m";
   const std::string extension = options.vertex_colour ? ".ply" : ".obj";
   for (int i = 0; i < options.frames; ++i) capture.frames.push_back({frame_stem(i, options.frames) + extension, i / options.fps});
-  for (const NamedPoint& l : face.landmarks()) capture.landmark_names.push_back(l.name);
+  // The whole head's rim markers lie on the neck's rim (its vertices, evenly spaced), not the face's.
+  std::vector<const NamedPoint*> named;
+  for (const NamedPoint& l : face.landmarks()) {
+    if (!options.whole_head || l.name.rfind("rim_", 0) != 0) named.push_back(&l);
+  }
+  constexpr int kNeckMarkers = 8;
+  for (const NamedPoint* l : named) capture.landmark_names.push_back(l->name);
+  if (options.whole_head) {
+    for (int k = 0; k < kNeckMarkers; ++k) capture.landmark_names.push_back("rim_" + std::to_string(k));
+  }
   capture.landmarks.resize(capture.frames.size());
   for (size_t i = 0; i < capture.frames.size(); ++i) {
-    for (const NamedPoint& l : face.landmarks()) capture.landmarks[i].push_back(face.position(l.material, capture.frames[i].time));
+    const double time = capture.frames[i].time;
+    for (const NamedPoint* l : named) capture.landmarks[i].push_back(face.position(l->material, time));
+    if (options.whole_head) {
+      for (int k = 0; k < kNeckMarkers; ++k) capture.landmarks[i].push_back(face.head_point(head->back[static_cast<size_t>(k * head->neck_count / kNeckMarkers)], time));
+    }
   }
   capture.generator = {{"name", "fmsynth"},
                        {"expression", expression_name(options.expression)},
@@ -162,6 +232,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"noise", std::to_string(options.noise)},
                        {"colour", options.vertex_colour ? "vertex" : options.shared_texture ? "one shared texture" : "texture"}};
   if (options.defects != 0) capture.generator.emplace_back("defects", defect_names(options.defects));
+  if (options.holes) capture.generator.emplace_back("holes", "eyes, mouth, nostrils");
+  if (options.whole_head) capture.generator.emplace_back("surface", "whole head to the neck");
   write_capture_manifest(capture);
 }
 

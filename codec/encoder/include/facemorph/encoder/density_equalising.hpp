@@ -24,11 +24,19 @@
 
 namespace facemorph {
 
+// Radial strength "auto": 1 where the reference's conformal disk holds half the surface within
+// kCrowdedHalfAreaRadius of its centre (a whole head whose rim is the neck), else 0.
+constexpr double kAutoRadial = -1;
+constexpr double kCrowdedHalfAreaRadius = 0.25;
+
 struct DensityEqualisingOptions {
   double strength = 0.5;      // exponent of the density equalised, in [0, 1]; 0: the identity
   double step = 0.05;         // diffusion time step (disk of area π)
   int max_steps = 100;
   double tolerance = 1e-2;    // stop when the vertex density's coefficient of variation is below this
+  // The radial reparametrisation's strength (DiskReparametrisation::radial) where `strength` is 0:
+  // in [0, 1] (0: none), or kAutoRadial (fmenc --radial-equalising).
+  double radial = kAutoRadial;
 };
 
 struct DensityEqualisingReport {
@@ -36,7 +44,15 @@ struct DensityEqualisingReport {
   // Coefficient of variation of the area density (to the power strength) over the flow grid's triangles.
   double variation_before = 0, variation_after = 0;
   bool stopped_early = false;                         // a step could not keep every triangle well shaped
+  // The radial reparametrisation (DiskReparametrisation::radial): the conformal disk's radius that
+  // holds half the surface's area, and after it (sqrt(1/2) for an equal-area one). 0: not radial.
+  double half_area_radius_before = 0, half_area_radius_after = 0;
 };
+
+// The radius of the disk about its centre that holds half the surface's area in `map` (each face's
+// area spread evenly over the span of its vertices' radii). About 0.5-0.7 for a face with its nose at
+// the centre; a whole head, whose rim is the neck, holds half its area within a few hundredths.
+double half_area_radius(const DiskMap& map);
 
 // D⁻¹: points of the equalised disk (where G's nodes are) to points of the reference's conformal
 // disk. The identity when default-constructed or built with strength 0.
@@ -46,8 +62,15 @@ class DiskReparametrisation {
   // Throws kInvalidArgument for a strength outside [0, 1].
   DiskReparametrisation(const DiskMap& reference, const DensityEqualisingOptions& options);
 
-  bool identity() const { return !mesh_; }
+  bool identity() const { return !mesh_ && !radial_; }
   const DensityEqualisingReport& report() const { return report_; }
+
+  // A radial map g -> g r(|g|)/|g| that equalises the surface's area by radius, to the power
+  // `strength` in (0, 1] (as the flow's density): the crowding of a whole head is radial (the face
+  // at the centre, the neck a tube that the conformal map shrinks towards the rim by about e per
+  // radius of its length), and a radial map removes it without the flow's shear or slivers.
+  // spec/method.md §7.11.
+  static DiskReparametrisation radial(const DiskMap& reference, double strength);
 
   // Any |g| <= 1 (+1e-9); the circle onto the circle.
   Vec2 operator()(const Vec2& g) const;
@@ -62,6 +85,7 @@ class DiskReparametrisation {
     std::unique_ptr<TriangleLocator> locator;
   };
   std::shared_ptr<const Mesh> mesh_;
+  std::shared_ptr<const std::vector<double>> radial_;  // conformal radius at equalised radius k/(size-1)
   DensityEqualisingReport report_;
 };
 

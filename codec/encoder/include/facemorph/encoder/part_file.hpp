@@ -25,7 +25,7 @@ class ContainerWriter;
 class MappedFile;
 }  // namespace format
 
-inline constexpr uint16_t kPartMajorVersion = 2;  // 2: frames carry the non-manifold repairs (spec/part-file.md)
+inline constexpr uint16_t kPartMajorVersion = 3;  // 2: frames carry the non-manifold repairs; 3: a found orientation's method and confidence (spec/part-file.md)
 inline constexpr uint16_t kPartMinorVersion = 0;
 // What a part may hold: frames of a capture (2^24: 155 hours at 30 fps), a header, one frame's record
 // (a 256 MiB record is a mesh of ~5M vertices).

@@ -240,6 +240,7 @@ struct EncodeReport {
   std::string grid_term;                                  // which term set it: "floor", "noise" or "interpolation"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
+  double radial_equalising = 0;  // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
   std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending
   FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;

@@ -12,6 +12,7 @@
 
 #include "facemorph/mesh.hpp"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -90,7 +91,16 @@ struct SynthOptions {
   // capture whose rig paints one atlas for the whole take: only the geometry moves.
   bool shared_texture = false;
   uint32_t defects = 0;  // DefectKind flags written into every frame (fmsynth --defects)
+  // Eyes, mouth and nostrils left open, as a scanner leaves them (fmsynth --holes): the faces whose
+  // material centroid lies in one of five fixed ellipses are not written.
+  bool holes = false;
+  // The whole head (fmsynth --head): the face closed round the back of the head down to a neck,
+  // whose rim is the surface's outer boundary (rim_* markers lie on it). Not with --remesh,
+  // --defects or --vertex-colour.
+  bool whole_head = false;
 };
+
+struct HeadVertex;
 
 struct NamedPoint {
   std::string name;
@@ -122,6 +132,15 @@ class SyntheticFace {
   // Exact, noise-free surface at τ on a fixed dense lattice of about `vertices` vertices.
   TriangleMesh truth_mesh(double time, int vertices) const;
 
+  // The face before the head's rigid motion (the whole head's back follows its rim from it).
+  Vec3 unposed_position(const Vec2& material, double time) const;
+  // A vertex of the back of the head (sample_head) at time τ.
+  Vec3 head_point(const HeadVertex& vertex, double time) const;
+  // Whether a material point lies in one of the holes fmsynth --holes leaves (eyes, mouth, nostrils).
+  static bool in_hole(const Vec2& material);
+  // The neck rim of the whole head: unit directions from the head's centre, θ in radians.
+  static Vec3 neck_rim_direction(double theta);
+
   Expression expression() const { return expression_; }
   uint64_t seed() const { return seed_; }
   double head_motion_degrees() const { return head_motion_degrees_; }
@@ -147,6 +166,32 @@ struct MaterialSampling {
   int boundary_count = 0;
 };
 MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, uint64_t frame_seed);
+
+// A vertex of the back of the synthetic head: where it is at rest (unposed, time 0) and the two
+// face rim points (material angles) whose motion it follows, by weight join_weight (1 on the rim,
+// 0 from 25 degrees beyond it).
+struct HeadVertex {
+  Vec3 rest = Vec3::Zero();
+  std::array<double, 2> rim_theta = {0, 0};
+  double rim_mix = 0;      // 0: the first rim point, 1: the second
+  double join_weight = 0;
+  Vec3 normal = Vec3::UnitZ();  // outward, about (the ray from the head's centre): scanner noise goes along it
+  Vec2 plane = Vec2::Zero();    // its stereographic image (the back's texture coordinates are made from it)
+};
+
+// A frame's connectivity for --holes and --head: the face's fixed lattice (its first face_vertices
+// vertices, face.points in order) and, for the whole head, the back's vertices after them (the neck
+// rim's neck_count first). `faces` index that vertex list.
+struct HeadSampling {
+  MaterialSampling face;
+  int face_vertices = 0;
+  std::vector<HeadVertex> back;
+  int neck_count = 0;
+  std::vector<Vec2> rim_plane;  // the stereographic images of the face's rim vertices
+  std::vector<Face> faces;      // the face's (face_faces of them), then the back's
+  size_t face_faces = 0;
+};
+HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool holes, bool whole_head);
 
 // Progress callback: (frames done, frames total).
 using ProgressCallback = std::function<void(int, int)>;
