@@ -594,6 +594,7 @@ json measure_capture(Context& context, const std::string& input) {
   EncodeOptions encode;
   encode.texture = textured;
   encode.texture_size = plan.texture_size;
+  encode.residual_frames = options.residual_frames;
   Progress progress(label, options.quiet);
   encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
   SequenceFileInfo given_info;
@@ -654,6 +655,7 @@ json measure_capture(Context& context, const std::string& input) {
     encoder.options().representation = representation;
     Sequence sequence;
     timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, n); });
+    sequence.residuals = encoder.residual_frames(chosen);
     FieldCoding coding;
     if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
@@ -820,9 +822,9 @@ json measure_capture(Context& context, const std::string& input) {
                   summarise(xyz.evaluation).held_rms_mean, summarise(xyz.evaluation).held_rms_worst, -1, summarise(xyz.evaluation).p99_worst});
 
   const double fm_total = static_cast<double>(main.bytes), fm_geometry = static_cast<double>(main.geometry_bytes());
-  std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, N = %d\n",
+  std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, residual frames %zu, N = %d\n",
               static_cast<unsigned long long>(main.bytes), fm_total / duration, 8 * fm_total / double(vertex_frames),
-              8 * fm_geometry / double(vertex_frames), main_keys.size(), grid);
+              8 * fm_geometry / double(vertex_frames), main_keys.size(), main_sequence.residuals.size(), grid);
   std::printf("  chunks:");
   for (const auto& c : main.info.chunks) std::printf(" %s %llu", c.type.c_str(), static_cast<unsigned long long>(c.stored_bytes));
   std::printf("\n  held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%%; 99th percentile %.4f%% worst frame; D1 PSNR held-out %.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
@@ -998,6 +1000,7 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_flag("--geometry-only", options.geometry_only,
                "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
   app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
+  app.add_flag("--residual-frames", options.residual_frames, "With --capture: encode with residual frames (fmenc --residual-frames, format 2.3)");
 }
 
 int run_capture_bench(const CaptureBenchOptions& options) {
