@@ -200,7 +200,7 @@ double psnr_of_copy(const DiskTexels& t, const Image& copy) {
 struct DracoPoint {
   int qp = 0;
   uint64_t bytes = 0;           // .drc bytes of the frames measured
-  std::vector<double> rms, max;  // relative to the captured frame's diagonal
+  std::vector<double> rms, max, p99;  // relative to the captured frame's diagonal
   int frames = 0;
 };
 
@@ -212,6 +212,7 @@ DracoPoint draco_point(const Capture& capture, const std::vector<TriangleMesh>& 
   std::vector<uint64_t> bytes(frames.size());
   p.rms.resize(frames.size());
   p.max.resize(frames.size());
+  p.p99.resize(frames.size());
   parallel_for(static_cast<int>(frames.size()), 0, [&](int k) {
     const int i = frames[static_cast<size_t>(k)];
     const fs::path drc = scratch / ("draco_" + std::to_string(i) + ".drc"), obj = scratch / ("draco_" + std::to_string(i) + ".obj");
@@ -224,6 +225,7 @@ DracoPoint draco_point(const Capture& capture, const std::vector<TriangleMesh>& 
     const SurfaceDistance d = surface_distance(captured[static_cast<size_t>(i)], decoded);
     p.rms[static_cast<size_t>(k)] = d.rms / d.diagonal;
     p.max[static_cast<size_t>(k)] = d.max / d.diagonal;
+    p.p99[static_cast<size_t>(k)] = d.p99 / d.diagonal;
     if (k == 0 && decoded_of_first) *decoded_of_first = std::move(decoded);
     std::error_code ec;
     fs::remove(drc, ec);
@@ -506,6 +508,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
       const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
       f.rms = d.rms / d.diagonal;
       f.max = d.max / d.diagonal;
+      f.p99 = d.p99 / d.diagonal;
       if (other_decoder) {
         const std::vector<Vec3>& p = decoded.grid_positions;
         const std::vector<Vec3> q = other_decoder->decode(f.time, decode).grid_positions;
@@ -526,7 +529,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   } else {
     std::printf("no held-out frames (every frame a keyframe); ");
   }
-  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst);
+  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst frame\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst, 100 * s.p99_worst);
   json evaluation = evaluation_json(e);
   if (other) {
     double mean = 0;
@@ -591,6 +594,7 @@ json measure_capture(Context& context, const std::string& input) {
   EncodeOptions encode;
   encode.texture = textured;
   encode.texture_size = plan.texture_size;
+  encode.residual_frames = options.residual_frames;
   Progress progress(label, options.quiet);
   encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
   SequenceFileInfo given_info;
@@ -651,6 +655,7 @@ json measure_capture(Context& context, const std::string& input) {
     encoder.options().representation = representation;
     Sequence sequence;
     timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, n); });
+    sequence.residuals = encoder.residual_frames(chosen);
     FieldCoding coding;
     if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
     Sequence back;
@@ -798,42 +803,43 @@ json measure_capture(Context& context, const std::string& input) {
     std::string name, setting;
     double geometry = 0, texture = 0;  // bytes
     double rms = -1, rms_worst = -1, psnr = -1;
+    double p99 = -1;  // the worst frame's 99th-percentile point error
   };
   std::vector<Row> rows = {
       {"facemorph", "keyframes " + std::to_string(main_keys.size()) + ", N = " + std::to_string(grid), double(main.geometry_bytes()),
-       double(main.texture_bytes), target_rms, summary.held_rms_worst, target_psnr},
+       double(main.texture_bytes), target_rms, summary.held_rms_worst, target_psnr, summary.p99_worst},
       {"raw capture", "OBJ + MTL + images as captured", double(raw_mesh), double(raw_texture), -1, -1, -1},
       {"draco", "-qp " + std::to_string(draco.qp) + " -cl 7" + note(draco_met, draco_pick == draco_first_pick ? draco_pick : 1, "error"), double(draco.bytes), 0,
-       mean(draco.rms), worst(draco.rms), -1},
+       mean(draco.rms), worst(draco.rms), -1, worst(draco.p99)},
   };
   if (textured) {
     rows.push_back({"draco + jpeg", "-qp " + std::to_string(draco.qp) + ", JPEG q" + std::to_string(jpeg_quality) + jpeg_note,
-                    double(draco.bytes), double(jpeg_bytes), mean(draco.rms), worst(draco.rms), mean(jpeg_psnr[jpeg_quality])});
+                    double(draco.bytes), double(jpeg_bytes), mean(draco.rms), worst(draco.rms), mean(jpeg_psnr[jpeg_quality]), worst(draco.p99)});
     rows.push_back({"draco + h264", "-qp " + std::to_string(draco.qp) + ", x264 crf " + std::to_string(h264_crf) + h264_note,
-                    double(draco.bytes), double(h264_total), mean(draco.rms), worst(draco.rms), mean(h264_psnr[h264_crf])});
+                    double(draco.bytes), double(h264_total), mean(draco.rms), worst(draco.rms), mean(h264_psnr[h264_crf]), worst(draco.p99)});
   }
   rows.push_back({"facemorph xyz", "same keyframes and spline", double(xyz.geometry_bytes()), double(xyz.texture_bytes),
-                  summarise(xyz.evaluation).held_rms_mean, summarise(xyz.evaluation).held_rms_worst, -1});
+                  summarise(xyz.evaluation).held_rms_mean, summarise(xyz.evaluation).held_rms_worst, -1, summarise(xyz.evaluation).p99_worst});
 
   const double fm_total = static_cast<double>(main.bytes), fm_geometry = static_cast<double>(main.geometry_bytes());
-  std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, N = %d\n",
+  std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, residual frames %zu, N = %d\n",
               static_cast<unsigned long long>(main.bytes), fm_total / duration, 8 * fm_total / double(vertex_frames),
-              8 * fm_geometry / double(vertex_frames), main_keys.size(), grid);
+              8 * fm_geometry / double(vertex_frames), main_keys.size(), main_sequence.residuals.size(), grid);
   std::printf("  chunks:");
   for (const auto& c : main.info.chunks) std::printf(" %s %llu", c.type.c_str(), static_cast<unsigned long long>(c.stored_bytes));
-  std::printf("\n  held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%%; D1 PSNR held-out %.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
-              100 * target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean,
+  std::printf("\n  held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%%; 99th percentile %.4f%% worst frame; D1 PSNR held-out %.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
+              100 * target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean, 100 * summary.p99_worst,
               d1_psnr(relative_rms(main.evaluation, false)), target_psnr, main.key_psnr());
-  std::printf("  %-16s %12s %12s %12s %10s %10s %9s %9s %9s  %s\n", "", "geometry B", "texture B", "total B", "rms mn%", "rms wst%", "tex dB",
+  std::printf("  %-16s %12s %12s %12s %10s %10s %10s %9s %9s %9s  %s\n", "", "geometry B", "texture B", "total B", "rms mn%", "rms wst%", "p99 wst%", "tex dB",
               "geo x", "total x", "setting");
   json baselines = json::array();
   for (const Row& r : rows) {
     const double total = r.geometry + r.texture;
-    std::printf("  %-16s %12.0f %12.0f %12.0f %10s %10s %9s %9.2f %9.2f  %s\n", r.name.c_str(), r.geometry, r.texture, total,
+    std::printf("  %-16s %12.0f %12.0f %12.0f %10s %10s %10s %9s %9.2f %9.2f  %s\n", r.name.c_str(), r.geometry, r.texture, total,
                 r.rms >= 0 ? fixed(100 * r.rms, 4).c_str() : "-", r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4).c_str() : "-",
-                r.psnr >= 0 ? fixed(r.psnr, 2).c_str() : "-", r.geometry / fm_geometry, total / fm_total, r.setting.c_str());
+                r.p99 >= 0 ? fixed(100 * r.p99, 4).c_str() : "-",                r.psnr >= 0 ? fixed(r.psnr, 2).c_str() : "-", r.geometry / fm_geometry, total / fm_total, r.setting.c_str());
     baselines.push_back({{"name", r.name}, {"setting", r.setting}, {"geometry_bytes", r.geometry}, {"texture_bytes", r.texture}, {"total_bytes", total},
-                         {"rms_mean_relative", r.rms}, {"rms_worst_relative", r.rms_worst}, {"texture_psnr_db", r.psnr},
+                         {"rms_mean_relative", r.rms}, {"rms_worst_relative", r.rms_worst}, {"p99_worst_relative", r.p99}, {"texture_psnr_db", r.psnr},
                          {"geometry_ratio", r.geometry / fm_geometry}, {"total_ratio", total / fm_total}});
   }
   const double draco_ratio = double(draco.bytes) / fm_geometry;
@@ -847,6 +853,8 @@ json measure_capture(Context& context, const std::string& input) {
   }
   targets.push_back("bits per captured vertex per frame incl. texture: " + fixed(bits, 3) + " (target <= 1 at held-out RMS <= 0.5%: " +
                     (bits <= 1 && target_rms <= 0.005 ? std::string("met") : "missed" + (bits > 1 ? " by " + fixed(bits, 1) + "x" : std::string())) + ")");
+  targets.push_back("99th-percentile point error, worst decoded frame: " + fixed(100 * summary.p99_worst, 3) + "% of the diagonal (target <= 1%: " +
+                    (summary.p99_worst <= 0.01 ? std::string("met") : "missed by " + fixed(summary.p99_worst / 0.01, 2) + "x") + ")");
   for (const std::string& t : targets) std::printf("  %s\n", t.c_str());
 
   double encode_seconds = 0;
@@ -913,23 +921,26 @@ json measure_capture(Context& context, const std::string& input) {
          << "| bits per captured vertex per frame | " << fixed(bits, 3) << " with texture, " << fixed(8 * fm_geometry / double(vertex_frames), 3)
          << " without |\n";
   for (const auto& c : main.info.chunks) report << "| chunk " << c.type << " | " << c.count << " x, " << c.stored_bytes << " bytes |\n";
-  report << "\n### Distortion (every frame decoded at its own time)\n\n| frames | RMS mean | RMS worst | max worst | D1 PSNR | texture PSNR |\n"
-         << "| --- | --- | --- | --- | --- | --- |\n";
-  std::vector<double> key_max, held_max;
-  for (const FrameError& f : main.evaluation.frames) (f.keyframe ? key_max : held_max).push_back(f.max);
-  report << "| keyframes | " << fixed(100 * summary.key_rms_mean, 4) << "% | " << fixed(100 * summary.key_rms_worst, 4) << "% | "
+  report << "\n### Distortion (every frame decoded at its own time)\n\n| frames | RMS mean | RMS worst | p99 worst | max worst | D1 PSNR | texture PSNR |\n"
+         << "| --- | --- | --- | --- | --- | --- | --- |\n";
+  std::vector<double> key_max, held_max, key_p99, held_p99;
+  for (const FrameError& f : main.evaluation.frames) {
+    (f.keyframe ? key_max : held_max).push_back(f.max);
+    (f.keyframe ? key_p99 : held_p99).push_back(f.p99);
+  }
+  report << "| keyframes | " << fixed(100 * summary.key_rms_mean, 4) << "% | " << fixed(100 * summary.key_rms_worst, 4) << "% | " << fixed(100 * worst(key_p99), 4) << "% | "
          << fixed(100 * worst(key_max), 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, true)), 2) << " dB | "
          << fixed(main.key_psnr(), 2) << " dB |\n";
-  report << "| held out | " << fixed(100 * summary.held_rms_mean, 4) << "% | " << fixed(100 * summary.held_rms_worst, 4) << "% | "
+  report << "| held out | " << fixed(100 * summary.held_rms_mean, 4) << "% | " << fixed(100 * summary.held_rms_worst, 4) << "% | " << fixed(100 * worst(held_p99), 4) << "% | "
          << fixed(100 * summary.held_max_worst, 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, false)), 2) << " dB | "
          << fixed(target_psnr, 2) << " dB |\n\n";
   report << "### Baselines (geometry matched to facemorph's held-out mean RMS, texture to its held-out PSNR)\n\n"
-         << "| | setting | geometry | texture | total | RMS mean | RMS worst | texture PSNR | geometry / facemorph | total / facemorph |\n"
-         << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+         << "| | setting | geometry | texture | total | RMS mean | RMS worst | p99 worst | texture PSNR | geometry / facemorph | total / facemorph |\n"
+         << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
   for (const Row& r : rows) {
     report << "| " << r.name << " | " << r.setting << " | " << kilobytes(r.geometry) << " | " << kilobytes(r.texture) << " | "
            << kilobytes(r.geometry + r.texture) << " | " << (r.rms >= 0 ? fixed(100 * r.rms, 4) + "%" : "") << " | "
-           << (r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4) + "%" : "") << " | " << (r.psnr >= 0 ? fixed(r.psnr, 2) + " dB" : "") << " | "
+           << (r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4) + "%" : "") << " | " << (r.p99 >= 0 ? fixed(100 * r.p99, 4) + "%" : "") << " | " << (r.psnr >= 0 ? fixed(r.psnr, 2) + " dB" : "") << " | "
            << fixed(r.geometry / fm_geometry, 2) << "x | " << fixed((r.geometry + r.texture) / fm_total, 2) << "x |\n";
   }
   report << "\nTargets (`../shared/design.md` §7):\n\n";
@@ -948,7 +959,7 @@ json measure_capture(Context& context, const std::string& input) {
                        {"xyz_held_out_rms_mean", summarise(xyz_curve[k].evaluation).held_rms_mean}});
   }
   json draco_json = json::array();
-  for (const DracoPoint& p : draco_curve) draco_json.push_back({{"qp", p.qp}, {"bytes_per_frame", p.bytes / double(p.frames)}, {"rms_mean", mean(p.rms)}});
+  for (const DracoPoint& p : draco_curve) draco_json.push_back({{"qp", p.qp}, {"bytes_per_frame", p.bytes / double(p.frames)}, {"rms_mean", mean(p.rms)}, {"p99_worst", worst(p.p99)}});
   json jpeg_json = json::array(), h264_json = json::array();
   for (int q : plan.jpeg_quality) jpeg_json.push_back({{"quality", q}, {"bytes_per_frame", jpeg_sample_bytes[q] / double(sample.size())}, {"psnr", mean(jpeg_psnr[q])}});
   for (size_t k = 0; k < h264_bytes.size(); ++k) h264_json.push_back({{"crf", plan.h264_crf[k]}, {"bytes", h264_bytes[k]}, {"psnr", mean(h264_psnr[plan.h264_crf[k]])}});
@@ -989,6 +1000,7 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_flag("--geometry-only", options.geometry_only,
                "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
   app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
+  app.add_flag("--residual-frames", options.residual_frames, "With --capture: encode with residual frames (fmenc --residual-frames, format 2.3)");
 }
 
 int run_capture_bench(const CaptureBenchOptions& options) {

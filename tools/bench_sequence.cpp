@@ -84,6 +84,7 @@ Summary summarise(const Evaluation& e) {
   double psnr_sum = 0;
   s.psnr_worst = 1e300;
   for (const FrameError& f : e.frames) {
+    s.p99_worst = std::max(s.p99_worst, f.p99);
     if (f.keyframe) {
       s.key_rms_mean += f.rms, s.key_rms_worst = std::max(s.key_rms_worst, f.rms), ++keys;
     } else {
@@ -126,6 +127,7 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
     const SurfaceDistance d = surface_distance(captured[static_cast<size_t>(i)], decoded.mesh);
     f.rms = d.rms / d.diagonal;
     f.max = d.max / d.diagonal;
+    f.p99 = d.p99 / d.diagonal;
     if (textures && !f.keyframe && !decoded.texture.empty()) {
       const Image truth = encoder.frame_texture(i, decoded.texture.width);
       f.psnr = disk_psnr(truth, decoded.texture);
@@ -141,10 +143,10 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
 json evaluation_json(const Evaluation& e) {
   const Summary s = summarise(e);
   json frames = json::array();
-  for (const FrameError& f : e.frames) frames.push_back({{"time", f.time}, {"keyframe", f.keyframe}, {"rms_relative", f.rms}, {"max_relative", f.max}, {"texture_psnr_db", f.psnr}, {"converged", f.converged}});
+  for (const FrameError& f : e.frames) frames.push_back({{"time", f.time}, {"keyframe", f.keyframe}, {"rms_relative", f.rms}, {"max_relative", f.max}, {"p99_relative", f.p99}, {"texture_psnr_db", f.psnr}, {"converged", f.converged}});
   return {{"registration", e.registration}, {"spline", e.spline}, {"keyframes", e.keyframes}, {"grid", e.grid},
           {"keyframe_rms_mean", s.key_rms_mean}, {"keyframe_rms_worst", s.key_rms_worst}, {"held_out_rms_mean", s.held_rms_mean},
-          {"held_out_rms_worst", s.held_rms_worst}, {"held_out_max_worst", s.held_max_worst}, {"held_out_texture_psnr_mean", s.psnr_mean},
+          {"held_out_rms_worst", s.held_rms_worst}, {"held_out_max_worst", s.held_max_worst}, {"p99_worst", s.p99_worst}, {"held_out_texture_psnr_mean", s.psnr_mean},
           {"held_out_texture_psnr_worst", s.psnr_worst}, {"decode_ms_per_frame", e.decode_ms}, {"mean_iterations", e.iterations}, {"frames", frames}};
 }
 

@@ -46,6 +46,7 @@ Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& textu
 
 struct FrameError {
   double rms = 0, max = 0;   // symmetric point-to-surface, relative to the captured frame's diagonal
+  double p99 = 0;            // its 99th percentile (the worst region), relative to the same diagonal
   double psnr = -1;          // decoded texture against the captured one on the disk (dB); -1 without
   bool keyframe = false;
   bool converged = true;
@@ -62,6 +63,7 @@ struct Evaluation {
 
 struct Summary {
   double key_rms_mean = 0, key_rms_worst = 0, held_rms_mean = 0, held_rms_worst = 0, held_max_worst = 0, psnr_mean = -1, psnr_worst = -1;
+  double p99_worst = 0;  // over every decoded frame, keyframes and held-out: design §7's worst-region target
 };
 
 // Means and worsts over keyframes and held-out frames (texture PSNR over held-out frames).

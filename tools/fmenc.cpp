@@ -210,6 +210,10 @@ int main(int argc, char** argv) {
                  "sequence | stills: lossy AVIF textures as one AV1 image sequence per group of keyframes (format 2.1; 1.8-5x fewer bytes) "
                  "or one still each (format 2.0's); WebP and lossless textures are stills")
       ->capture_default_str();
+  bool residual_frames = false;
+  app.add_flag("--residual-frames", residual_frames,
+               "frames between keyframes carry a correction of the spline's blend where it lowers their predicted error by a tenth or more "
+               "(format 2.3's RSDW), so fast motion needs fewer keyframes; off by default (spec/method.md §7.18: not yet better on every capture)");
   app.add_flag("--no-texture-sharing", no_texture_sharing,
                "keep every keyframe's own texture: by default keyframes painted from one captured image show one texture, stored once (format 2.2), "
                "where it stays within the texture coding's coarsest PSNR (30 dB) of their own");
@@ -307,6 +311,7 @@ int main(int argc, char** argv) {
     options.density_equalising.radial = parse_radial(radial_equalising);
     if (keyframe_fit != "on" && keyframe_fit != "off") throw Error(ErrorCode::kInvalidArgument, "--keyframe-fit '" + keyframe_fit + "' is neither on nor off");
     options.keyframe_fit = keyframe_fit == "on";
+    options.residual_frames = residual_frames;
     options.predicted_fields = field_error != "0";
     options.auto_field_error = field_error == "auto";
     if (options.predicted_fields && !options.auto_field_error) options.field_precision.target_error = tools::parse_fraction(field_error, "--field-error");
@@ -447,6 +452,7 @@ int main(int argc, char** argv) {
     std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), frame_count - report.dropped.size(), sequence->shape().keyframes.size());
     for (const Keyframe& key : sequence->shape().keyframes) std::printf(" %.3f", key.time);
     std::printf(" s\n");
+    if (!sequence->shape().residuals.empty()) std::printf("  residual frames: %zu\n", sequence->shape().residuals.size());
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence->shape().grid_n, representation_name(sequence->shape().representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence->shape().spline),
                 sequence->outline().has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence->outline().has_holes ? ", holes cut on decode" : "");

@@ -270,6 +270,7 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     doc["texture_size"] = info.texture_size;
     if (info.texture_size > 0) doc["texture_coding"] = texture_coding_name(info.metadata.texture_coding);
     doc["holes"] = sequence.has_holes;
+    doc["residual_frames"] = info.residual_frames;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
     doc["verified"] = verify;  // every keyframe decoded (--verify), or checksums only
@@ -319,6 +320,7 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
                                                 : " still per keyframe");
   std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str() : "none");
   std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
+  if (info.residual_frames > 0) std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (verify) {
     std::printf("keyframes   %zu, every one decoded and checked\n", sequence.keyframe_count());

@@ -28,6 +28,9 @@ int main(int argc, char** argv) {
   app.add_flag("--vertex-colour", options.vertex_colour,
                "Colour per vertex instead of a texture: binary PLY frames with red/green/blue, no UVs or image (a depth camera's capture)");
   app.add_option("--head-motion", options.head_motion_degrees, "Amplitude of a slow rigid head rotation, degrees")->capture_default_str();
+  app.add_option("--speech-rate", options.speech_rate, "Mouth speed in talk and mixed, times the normal pace (fast speech: 2-3)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
   app.add_option("--truth-at", truth_times, "Also write the exact noise-free surface at these times as truth_T.obj");
   app.add_option("--truth-vertices", truth_vertices, "Vertices of the truth meshes")->capture_default_str();
   std::string defects;
@@ -47,7 +50,7 @@ int main(int argc, char** argv) {
     tools::Progress progress("fmsynth", quiet);
     write_synthetic_capture(out, options, [&](int done, int total) { progress.update(done, total); });
     progress.finish();
-    const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees);
+    const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees, options.speech_rate);
     for (double t : truth_times) {
       char name[64];
       std::snprintf(name, sizeof name, "truth_%.4f.obj", t);

@@ -4,7 +4,9 @@
 # replace an old golden file (later versions must keep decoding every earlier file identically).
 #   tests/data/make_golden.sh BUILD_DIR VERSION [FMSYNTH OPTIONS...]   e.g. VERSION = 2_0
 # The fmsynth options give the capture what the version adds (2.2: --shared-texture, one texture
-# image for every frame, which the keyframes share).
+# image for every frame, which the keyframes share; 2.3: --speech-rate 3, a mouth faster than the
+# spline of the keyframes follows, which residual frames serve, with FMENC_OPTIONS=--residual-frames).
+#   FMENC_OPTIONS="--residual-frames" tests/data/make_golden.sh build 2_3 --speech-rate 3
 set -euo pipefail
 build=${1:?usage: make_golden.sh BUILD_DIR VERSION}
 version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 2_0)}
@@ -15,5 +17,5 @@ trap 'rm -rf "$work"' EXIT
 "$build/tools/fmsynth" -o "$work/capture" --frames 12 --fps 30 --expression mixed --vertices 3000 --remesh --noise 0 \
   --texture-size 128 --head-motion 10 --quiet "$@"
 # Intra period 2: two groups of keyframes, one coded from the other within it.
-"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet
+"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet ${FMENC_OPTIONS:-}
 FACEMORPH_WRITE_GOLDEN="$here/golden_v$version.csv" "$build/tests/facemorph_decoder_tests" --gtest_filter="GoldenFile.Version${version}*"

@@ -156,6 +156,12 @@ TEST(CApi11, TextureWeightsNameTheKeyframeWhoseSharedTextureTheyShow) {
   expect_weights_rebuild_the_texture(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_2.fmv", [](size_t) { return 0u; });
 }
 
+// Format 2.3: between keyframes the weights are the spline's corrected by the residual frames, and
+// still rebuild the decoder's texture (a player blending the images itself shows what it shows).
+TEST(CApi11, TextureWeightsIncludeTheResidualFramesCorrection) {
+  expect_weights_rebuild_the_texture(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_3.fmv", [](size_t k) { return static_cast<uint32_t>(k); });
+}
+
 TEST(CApi11, BorrowedBytesFilledInAfterOpeningDecodeAsACopy) {
   const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
   Opened copied(bytes, false);

@@ -557,7 +557,7 @@ TEST(Container, KeyframesOfOneTextureStoreItOnce) {
   const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(bytes, "shared.fmv", &info);
-  EXPECT_EQ(info.minor_version, 2);
+  EXPECT_EQ(info.minor_version, format::kMinorVersion);  // written as 2.2 added it, stamped with the writer's version
   EXPECT_EQ(chunk_count(info, "TEXR"), 3u);
   EXPECT_EQ(info.distinct_textures, 3u);
   EXPECT_GT(info.keyframes[0].texture, 0u);
@@ -752,6 +752,10 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   SequenceFileMetadata shared_stills = grouped_texture_metadata();
   shared_stills.texture_coding = TextureCoding::kStills;
   seeds.emplace_back("n9_shared_textures.fmv", encode_sequence_file(shared, shared_stills));
+  // Residual frames (format 2.3): a correction of the blend in each keyframe interval.
+  Sequence residuals = small_sequence(9, 8);
+  residuals.residuals = {{0.25, {0.25, -0.125, -0.125}}, {0.75, {-0.0625, -0.0625, 0.125}}};
+  seeds.emplace_back("n9_residual_frames.fmv", encode_sequence_file(residuals, predicted_metadata()));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

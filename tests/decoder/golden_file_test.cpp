@@ -131,6 +131,15 @@ TEST(GoldenFile, Version2_2DecodesAsItDidWhenWritten) {
   EXPECT_GT(info.keyframes.size(), 1u);
 }
 
+// Format 2.3: 2.2 with residual frames (RSDW), corrections of the blend between keyframes
+// (make_golden.sh's capture with --speech-rate 3): the golden sample's times between keyframes
+// decode with them.
+TEST(GoldenFile, Version2_3DecodesAsItDidWhenWritten) {
+  const SequenceFileInfo info = expect_golden_2("2_3", 3, TextureCoding::kSequence);
+  EXPECT_EQ(chunks_of(info, "RSDW"), 1);
+  EXPECT_GT(info.residual_frames, 0u);
+}
+
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.
 TEST(GoldenFile, AnExperimentalVersion1FileIsRefusedByName) {
   const std::filesystem::path file = std::filesystem::path(FACEMORPH_TEST_DATA) / "experimental_v1_5.fmv";

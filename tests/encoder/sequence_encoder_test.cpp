@@ -1202,6 +1202,52 @@ TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
   EXPECT_EQ(select_keyframes(frames, weights, options).keyframes.size(), 4u);
 }
 
+// Fast motion a spline cannot follow, but every frame another blend of its keyframes (one bump
+// shape at amplitudes drawn at random): with residual frames (format 2.3) each frame between
+// keyframes is served by a correction of the blend, so the selection meets the bound with far
+// fewer keyframes than without; each residual is at a held-out frame's time, in steps of 2^-7
+// summing to exactly 0, never raises that frame's predicted error, and most lower it by a tenth.
+TEST(KeyframeSelection, FastMotionGetsResidualFramesInsteadOfKeyframes) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 40; ++k) amplitudes.push_back(amplitude(rng));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.error_bound = 0.005;
+  const KeyframeSelection without = select_keyframes(frames, weights, options);
+  EXPECT_TRUE(without.residuals.empty());
+  options.residuals = true;
+  const KeyframeSelection with = select_keyframes(frames, weights, options);
+  EXPECT_LT(2 * with.keyframes.size(), without.keyframes.size()) << with.keyframes.size() << " keyframes with residuals, " << without.keyframes.size() << " without";
+  ASSERT_GT(with.residuals.size(), 10u);
+  ASSERT_EQ(with.residual_frames.size(), with.residuals.size());
+  const std::vector<double> spline_only = prediction_errors(frames, weights, with.keyframes, options.spline, Vec3::Zero());
+  size_t lowered = 0;
+  for (size_t r = 0; r < with.residuals.size(); ++r) {
+    const int j = with.residual_frames[r];
+    EXPECT_FALSE(std::binary_search(with.keyframes.begin(), with.keyframes.end(), j));
+    EXPECT_EQ(with.residuals[r].time, frames[static_cast<size_t>(j)].time);
+    double sum = 0;
+    for (double d : with.residuals[r].delta) {
+      EXPECT_EQ(d * 128, std::round(d * 128));
+      sum += d;
+    }
+    EXPECT_EQ(sum, 0.0);
+    EXPECT_LE(with.predicted_error[static_cast<size_t>(j)], spline_only[static_cast<size_t>(j)] + 1e-12);
+    lowered += with.predicted_error[static_cast<size_t>(j)] <= 0.9 * spline_only[static_cast<size_t>(j)];
+  }
+  EXPECT_GT(lowered, with.residuals.size() / 2);
+  EXPECT_NO_THROW(validate_residuals([&] {
+    std::vector<double> times;
+    for (int k : with.keyframes) times.push_back(frames[static_cast<size_t>(k)].time);
+    return times;
+  }(), with.residuals));
+  options.residual_step = 0;
+  testing::expect_error(ErrorCode::kInvalidArgument, "residual step", [&] { select_keyframes(frames, weights, options); });
+}
+
 // Given the keyframes, --grid auto also stops at half the error the spline makes between them:
 // with few keyframes for a changing expression that error is large, and a grid finer than half of
 // it buys less error per byte than keyframes would (spec/method.md §7.6).

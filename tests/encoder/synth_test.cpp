@@ -105,6 +105,24 @@ TEST(Synth, ExpressionsAnimateSmoothly) {
   EXPECT_NE(blink.color({0.032, 0.025}, open_t), blink.color({0.032, 0.025}, closed_t));
 }
 
+// --speech-rate r: the mouth at time t is the normal face's mouth at r t; blinks, brows and smiles
+// keep their own time, and r = 1 is the face as it always was.
+TEST(Synth, SpeechRateSpeedsUpOnlyTheMouth) {
+  for (Expression e : {Expression::kTalk, Expression::kMixed}) {
+    const SyntheticFace normal(e, 1), fast(e, 1, 0, 2.5), same(e, 1, 0, 1.0);
+    for (double t : {0.0, 0.13, 0.41, 0.9, 1.7}) {
+      const ExpressionWeights w = fast.weights(t), at = normal.weights(2.5 * t), now = normal.weights(t);
+      EXPECT_DOUBLE_EQ(w.jaw, at.jaw) << t;
+      EXPECT_DOUBLE_EQ(w.pucker, at.pucker) << t;
+      EXPECT_DOUBLE_EQ(w.blink, now.blink) << t;
+      EXPECT_DOUBLE_EQ(w.brow, now.brow) << t;
+      EXPECT_DOUBLE_EQ(w.smile, now.smile) << t;
+      EXPECT_DOUBLE_EQ(same.weights(t).jaw, now.jaw) << t;
+    }
+    EXPECT_NE(fast.weights(0.13).jaw, normal.weights(0.13).jaw);
+  }
+}
+
 TEST(Synth, RemeshGivesEveryFrameItsOwnConnectivity) {
   TempDir dir;
   SynthOptions o = small(3);

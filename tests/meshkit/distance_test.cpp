@@ -95,7 +95,26 @@ TEST(Distance, SymmetricDistanceOfAnOffsetSurfaceIsTheOffset) {
   const SurfaceDistance d = surface_distance(a, b);
   EXPECT_NEAR(d.rms, 0.01, 1e-12);
   EXPECT_NEAR(d.max, 0.01, 1e-12);
+  EXPECT_NEAR(d.p99, 0.01, 1e-12);
   EXPECT_NEAR(d.diagonal, std::sqrt(2.0), 1e-12);
+}
+
+// One spike on an otherwise exact copy: the Hausdorff distance is the spike, the 99th percentile is
+// not (fewer than 1% of the 2 x 441 distances leave 0: the spike's vertex and the reference's
+// vertices under its steep faces), and 1% of the vertices raised sets it to their height.
+TEST(Distance, The99thPercentileIgnoresOneStrayVertexButNotOnePercentOfThem) {
+  const auto flat = [](double x, double y) { return Vec3(x, y, 0); };
+  const TriangleMesh a = testing::grid_mesh(20, flat);
+  TriangleMesh b = a;
+  b.positions[220] += Vec3(0, 0, 1);  // the centre node (10, 10)
+  const SurfaceDistance spike = surface_distance(a, b);
+  EXPECT_NEAR(spike.max, 1.0, 1e-12);
+  EXPECT_NEAR(spike.p99, 0.0, 1e-12);
+  EXPECT_GT(spike.rms, 0.03);
+  // Raise the whole surface by 0.02 except along a strip: then over 1% of the distances are 0.02.
+  TriangleMesh c = testing::grid_mesh(20, [](double x, double y) { return Vec3(x, y, y > 0.9 ? 0.02 : 0.0); });
+  const SurfaceDistance strip = surface_distance(a, c);
+  EXPECT_NEAR(strip.p99, 0.02, 1e-12);
 }
 
 }  // namespace

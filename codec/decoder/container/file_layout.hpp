@@ -13,6 +13,7 @@
 #include "facemorph/sequence.hpp"
 #include "facemorph/sequence_file.hpp"
 #include "format/byte_reader.hpp"
+#include "format/byte_writer.hpp"
 #include "format/container.hpp"
 #include "format/spatial_predictor.hpp"
 
@@ -28,7 +29,7 @@
 namespace facemorph::file_layout {
 
 inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR",
-                                  kTextureGroupChunk = "TGOP";
+                                  kTextureGroupChunk = "TGOP", kResidualChunk = "RSDW";
 
 // The header's flags. kTextureGroups (format 2.1): the textures are one TGOP chunk per group of
 // keyframes, not one TEXR per keyframe. kSharedTextures (format 2.2): one TEXR per keyframe, but
@@ -58,6 +59,13 @@ inline constexpr double kMinKeyframeGap = 1e-9;
 // |a hole level| (§7.1, array 13): a distance on the unit disk, which the encoder caps at
 // kHoleLevelBand outside the holes; 8 disk diameters leave room and keep every blend of them finite.
 inline constexpr double kMaxHoleLevel = 16;  // keyframe times at least this fraction of their span apart
+
+// A signed integer as a zigzag LEB128 varint (v >= 0 -> 2v, v < 0 -> -2v - 1; 7 bits a byte, low
+// first, the high bit on all but the last): the index's pose changes (§6) and the residual frames
+// (§7.4). At most kMaxVarintBytes bytes, so |value| < 2^41; a longer one is corrupt.
+inline constexpr int kMaxVarintBytes = 6;
+void write_varint(format::ByteWriter& w, int64_t value);
+int64_t read_varint(format::ByteReader& r, const char* what);
 
 [[noreturn]] inline void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
 [[noreturn]] inline void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
@@ -140,6 +148,25 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
 // Checks the times (bounds, separation) and pose codes (bounds) as it reads; the offsets are the
 // caller's to check against the chunks.
 std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h, uint16_t minor_version);
+
+// ---- Residual frames (RSDW, residual_chunk.cpp; format 2.3) ----
+
+// The most residual frames a file may state: more than any capture has frames between keyframes
+// (a day at 120 fps), so that their count bounds what reading them allocates.
+inline constexpr uint32_t kMaxResiduals = 1u << 24;
+// Corrections are multiples of 2^-e, e <= this.
+inline constexpr int kMaxResidualStepExponent = 30;
+// What one residual frame holds in memory (its time, the vector and up to 4 corrections): the
+// budget's count of them (§10.1).
+inline constexpr uint64_t kResidualMemoryBytes = sizeof(ResidualFrame) + 4 * sizeof(double);
+// The payload of the outline's residual frames (not empty): times on the file's lattice
+// (residual_time), corrections multiples of a power of two 2^-e (e <= kMaxResidualStepExponent)
+// summing to 0 exactly; kInvalidArgument otherwise.
+std::vector<uint8_t> write_residuals(const SequenceOutline& outline);
+// Reads and checks a payload against the header (first time, fps) and the keyframes' times: every
+// check of §7.4, kCorrupt naming the residual; kLimit where their memory passes `max_memory_bytes`.
+std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
+                                          const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version);
 
 // ---- Where the chunks after the index go (index_layout.cpp) ----
 

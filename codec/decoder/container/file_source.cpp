@@ -80,9 +80,12 @@ class FileSource final : public KeyframeSource {
     outline_.times.reserve(count);
     for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
     const KeyframeSpline spline(outline_.times, file_.shape().spline);
-    const auto window = static_cast<uint64_t>(spline.max_keys());
+    // With residual frames (format 2.3) a frame may blend a few keys more than the spline alone.
+    const auto window = static_cast<uint64_t>(residual_max_keys(spline, outline_.residuals));
     const uint64_t owned = std::holds_alternative<std::vector<uint8_t>>(bytes_) ? view().size() : 0;
-    plan_ = plan_memory(file_, owned, window, spline.memory_bytes(), limits);
+    // The spline's rows and the residual frames: what a decoder keeps of the file's timing.
+    const uint64_t timing = spline.memory_bytes() + outline_.residuals.size() * file_layout::kResidualMemoryBytes;
+    plan_ = plan_memory(file_, owned, window, timing, limits);
     if (plan_.keyframes_kept < window) {
       const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);
       throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) + " keyframes, which with G and its solver need about " +

@@ -10,14 +10,8 @@
 
 namespace facemorph::file_layout {
 
-namespace {
-
 using format::ByteReader;
 using format::ByteWriter;
-
-// A pose code's change as a zigzag LEB128 varint: 7 bits a byte, low first, the high bit on all
-// but the last. Codes are below 2⁴⁰, so a change is below 2⁴¹ and its zigzag fits 6 bytes.
-constexpr int kMaxVarintBytes = 6;
 
 void write_varint(ByteWriter& w, int64_t value) {
   uint64_t zigzag = value >= 0 ? static_cast<uint64_t>(value) << 1 : (static_cast<uint64_t>(-(value + 1)) << 1) | 1;
@@ -40,8 +34,6 @@ int64_t read_varint(ByteReader& r, const char* what) {
   }
   corrupt(r.source(), std::string(what) + " longer than " + std::to_string(kMaxVarintBytes) + " bytes");
 }
-
-}  // namespace
 
 PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
   const Vec3 rotation = rotation_log(pose.rotation);

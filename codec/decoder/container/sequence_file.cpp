@@ -244,10 +244,16 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     group_writer->add(*key);
     if (k % group == group - 1 || k + 1 == count) groups.push_back(spool.add(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true)));
   }
-  // Where each chunk goes: a group's KGOP, then its TGOP, or after each keyframe's fields the still
-  // it is the first to show.
+  // Where each chunk goes: the residual frames first (format 2.3: a player reads them at open, with
+  // the header and index), then a group's KGOP, then its TGOP, or after each keyframe's fields the
+  // still it is the first to show.
   std::vector<PlacedChunk> placed;
   std::vector<size_t> spooled;                  // each placed chunk's in the spool
+  if (!outline.residuals.empty()) {
+    // Not critical: a 2.2 decoder skips it and shows the spline alone (§12.1).
+    spooled.push_back(spool.add(format::prepare_chunk(kResidualChunk, write_residuals(outline), false, 19)));
+    placed.emplace_back().size = spool.total_size(spooled.back());
+  }
   std::vector<size_t> placed_still(count, 0);   // an owner's still among the placed
   for (size_t k = 0; k < count; ++k) {
     if (k % group == 0) {
@@ -260,7 +266,7 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     if (grouped_textures && k % group == 0) {
       PlacedChunk& c = placed.emplace_back();
       c.size = spool.total_size(textures[k / group]);
-      c.texture_of = placed[placed.size() - 2].group_of;
+      c.texture_of = placed[placed.size() - 2].group_of;  // the group's KGOP, just placed
       spooled.push_back(textures[k / group]);
     } else if (!grouped_textures) {
       if (owners[k] == k) {
@@ -335,7 +341,7 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   }
   for (const format::ChunkView& chunk : chunks) {
     const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk ||
-                       chunk.type == kTextureGroupChunk;
+                       chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
@@ -398,6 +404,23 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   }
   s.poses.reserve(s.index.size());
   for (const IndexEntry& entry : s.index) s.poses.push_back(pose_of(entry.pose, header.metadata.field_coding));
+  // Residual frames (format 2.3, §7.4): one chunk at most. In a file of an earlier minor version a
+  // chunk of that name is skipped, as the decoders of that version skip it.
+  if (minor >= 3) {
+    const format::ChunkView* residual_chunk = nullptr;
+    for (const format::ChunkView& chunk : chunks) {
+      if (chunk.type != kResidualChunk) continue;
+      if (residual_chunk) corrupt(s.source, "two " + std::string(kResidualChunk) + " chunks; a file holds its residual frames in one");
+      residual_chunk = &chunk;
+    }
+    if (residual_chunk) {
+      std::vector<double> key_times;
+      key_times.reserve(s.index.size());
+      for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
+      s.header->shape.residuals = read_residuals(reader.payload(*residual_chunk, limits.max_memory_bytes), s.source, header.shape, key_times,
+                                                 limits.max_memory_bytes, minor);
+    }
+  }
 }
 
 OpenedFile::~OpenedFile() = default;
@@ -613,6 +636,7 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   info.grid_rule = static_cast<int>(header.grid_rule);
   info.texture_size = static_cast<int>(header.texture_size);
   info.metadata = header.metadata;
+  info.residual_frames = header.shape.residuals.size();
   info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
   info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
   info.keyframes.resize(s.index.size());

@@ -29,6 +29,7 @@ SequenceOutline outline_of(const Sequence& sequence) {
   o.fixed_node_count = sequence.keyframes.empty() ? 0 : sequence.keyframes.front().fields.fixed_nodes.size();
   o.has_holes = sequence.has_holes();
   o.texture_size = sequence.has_texture() ? sequence.keyframes.front().texture.width : 0;
+  o.residuals = sequence.residuals;
   return o;
 }
 
@@ -43,6 +44,11 @@ void validate_outline(const SequenceOutline& o) {
     if (k > 0 && !(o.times[k] > o.times[k - 1])) fail("keyframe " + std::to_string(k) + ": time does not increase");
   }
   if (o.texture_size < 0) fail("a negative texture size");
+  try {
+    validate_residuals(o.times, o.residuals);
+  } catch (const Error& e) {
+    fail(e.what());
+  }
 }
 
 void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key) {

@@ -125,9 +125,10 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const KeyframeSource> source)
       rotation_vectors_(unwrap_rotations(source_->outline().poses)),
       keyframe_surfaces_(source_->outline().keyframe_count()),
       keyframe_failures_(source_->outline().keyframe_count()) {
-  if (source_->surfaces_kept() < static_cast<size_t>(spline_.max_keys())) {
+  const int keys = residual_max_keys(spline_, source_->outline().residuals);
+  if (source_->surfaces_kept() < static_cast<size_t>(keys)) {
     throw Error(ErrorCode::kLimit, "sequence decoder: the source lets a decoder keep " + std::to_string(source_->surfaces_kept()) +
-                                       " keyframe surfaces; a frame of its spline needs up to " + std::to_string(spline_.max_keys()));
+                                       " keyframe surfaces; a frame of its spline needs up to " + std::to_string(keys));
   }
 }
 
@@ -261,7 +262,10 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
   const SequenceOutline& outline = source_->outline();
   DecodedFrame frame;
   frame.time = t;
-  frame.weights = spline_.weights(t);
+  // The shape blends with the residuals' correction (format 2.3); the head pose with the spline's
+  // own weights, so that a residual reshapes the face without moving the head.
+  const SplineWeights spline_weights = spline_.weights(t);
+  frame.weights = outline.residuals.empty() ? spline_weights : residual_weights(spline_, outline.residuals, t);
   const SplineWeights& w = frame.weights;
 
   // The keyframes this frame blends, held for the call (the source may drop them from its cache).
@@ -305,7 +309,7 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
     }
   }
 
-  frame.pose = blend_poses(outline.poses, rotation_vectors_, w, outline.pose_centre);
+  frame.pose = blend_poses(outline.poses, rotation_vectors_, spline_weights, outline.pose_centre);
   frame.grid_positions.resize(result.positions.size());
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
   // A file can pass every check of its own numbers and still decode to overflow (a λ that grows

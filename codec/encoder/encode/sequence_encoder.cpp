@@ -904,7 +904,15 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   selection.sparse_interval = options_.sparse_frame_interval;
   selection.spline = options_.spline;
   selection.pose_centre = pose_centre();
+  selection.residuals = options_.residual_frames;
   return facemorph::select_keyframes(*samples_, node_weights_, selection);
+}
+
+std::vector<ResidualFrame> SequenceEncoder::residual_frames(const KeyframeSelection& chosen) const {
+  if (!options_.residual_frames) return {};
+  std::vector<double> key_times;
+  for (int k : chosen.keyframes) key_times.push_back(capture_.frames.at(static_cast<size_t>(k)).time);
+  return residuals_on_file_times(chosen.residuals, key_times, first_time_, capture_.fps);
 }
 
 int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
@@ -1409,6 +1417,7 @@ std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeR
   const KeyframeSelection chosen = plan_keyframes(encoder);
   EncodeReport& report = encoder.report();
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
+  sequence->set_residuals(encoder.residual_frames(chosen));
   if (encoder.options().predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
   encoder.choose_texture_qualities(*sequence, chosen.keyframes);
   encoder.share_textures(*sequence, chosen.keyframes);

@@ -70,6 +70,12 @@ void StoredSequence::set_pose(size_t k, const RigidPose& pose) {
   outline_.poses[k] = pose;
 }
 
+void StoredSequence::set_residuals(std::vector<ResidualFrame> residuals) {
+  validate_residuals(outline_.times, residuals);
+  shape_.residuals = residuals;
+  outline_.residuals = std::move(residuals);
+}
+
 std::shared_ptr<const Keyframe> StoredSequence::keyframe(size_t k) const {
   auto key = std::make_shared<Keyframe>();
   key->time = shape_.keyframes.at(k).time;

@@ -109,8 +109,8 @@ Vec2 SyntheticFace::rim_point(double theta) { return {kA * std::cos(theta), kB *
 
 Vec2 SyntheticFace::texture_coordinate(const Vec2& m) { return {0.5 + 0.5 * m.x() / kA, 0.5 + 0.5 * m.y() / kB}; }
 
-SyntheticFace::SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees)
-    : expression_(expression), seed_(seed), head_motion_degrees_(head_motion_degrees) {
+SyntheticFace::SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees, double speech_rate)
+    : expression_(expression), seed_(seed), head_motion_degrees_(head_motion_degrees), speech_rate_(speech_rate) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> spread(-1.0, 1.0);
   for (double& f : identity_) f = 1.0 + 0.1 * spread(rng);
@@ -179,8 +179,9 @@ ExpressionWeights SyntheticFace::weights(double time) const {
     case Expression::kTalk:
     case Expression::kMixed: {
       const double scale = expression_ == Expression::kMixed ? 0.8 : 1.0;
-      w.jaw = scale * (0.35 + 0.22 * std::sin(2 * kPi * 2.7 * time) + 0.12 * std::sin(2 * kPi * 4.1 * time + 1.3));
-      w.pucker = scale * 0.6 * wave(time, 0.77, 0.4);
+      const double mouth_time = speech_rate_ * time;  // only the mouth speeds up: blinks and brows keep their pace
+      w.jaw = scale * (0.35 + 0.22 * std::sin(2 * kPi * 2.7 * mouth_time) + 0.12 * std::sin(2 * kPi * 4.1 * mouth_time + 1.3));
+      w.pucker = scale * 0.6 * wave(mouth_time, 0.77, 0.4);
       w.brow = 0.25 * (1 + std::sin(2 * kPi * 0.6 * time));
       if (expression_ == Expression::kMixed) {
         w.blink = blink(time);

@@ -180,7 +180,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   fs::create_directories(directory, ec);
   if (ec || !fs::is_directory(directory)) throw Error(ErrorCode::kIo, directory.string() + ": cannot create the folder");
 
-  const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees);
+  const SyntheticFace face(options.expression, options.seed, options.head_motion_degrees, options.speech_rate);
   const TexturePainter painter(face, options.vertex_colour ? 16 : options.texture_size);  // no image to paint with vertex colours
   if (options.whole_head && (options.remesh || options.defects != 0 || options.vertex_colour)) {
     throw Error(ErrorCode::kInvalidArgument, "--head takes neither --remesh, --defects nor --vertex-colour");
@@ -231,6 +231,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"remesh", options.remesh ? "true" : "false"},
                        {"noise", std::to_string(options.noise)},
                        {"colour", options.vertex_colour ? "vertex" : options.shared_texture ? "one shared texture" : "texture"}};
+  if (options.speech_rate != 1) capture.generator.emplace_back("speech_rate", std::to_string(options.speech_rate));  // 1: manifests as before
   if (options.defects != 0) capture.generator.emplace_back("defects", defect_names(options.defects));
   if (options.holes) capture.generator.emplace_back("holes", "eyes, mouth, nostrils");
   if (options.whole_head) capture.generator.emplace_back("surface", "whole head to the neck");

@@ -158,7 +158,7 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
   d.diagonal = bounding_box_diagonal(reference.positions);
   const PointToMesh to_reference(reference), to_test(test);
   double sum = 0;
-  size_t count = 0;
+  std::vector<double> distances;
   auto accumulate = [&](const std::vector<Vec3>& points, const PointToMesh& other, const TriangleMesh& owner) {
     std::vector<uint8_t> used(points.size(), 0);
     for (const Face& f : owner.faces) {
@@ -169,12 +169,19 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
       const double e = other.distance(points[i]);
       sum += e * e;
       d.max = std::max(d.max, e);
-      ++count;
+      distances.push_back(e);
     }
   };
   accumulate(test.positions, to_reference, test);
   accumulate(reference.positions, to_test, reference);
+  const size_t count = distances.size();
   d.rms = count ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
+  if (count) {
+    // Nearest rank: the ceil(0.99 n)-th smallest (1-based).
+    const size_t rank = (99 * count + 99) / 100 - 1;
+    std::nth_element(distances.begin(), distances.begin() + static_cast<std::ptrdiff_t>(rank), distances.end());
+    d.p99 = distances[rank];
+  }
   return d;
 }
 

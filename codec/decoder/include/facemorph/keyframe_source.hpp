@@ -9,6 +9,7 @@
 #include "facemorph/image.hpp"
 #include "facemorph/limits.hpp"
 #include "facemorph/pose.hpp"
+#include "facemorph/residual_weights.hpp"
 #include "facemorph/spline.hpp"
 
 #include <cstddef>
@@ -35,6 +36,7 @@ struct SequenceOutline {
   size_t fixed_node_count = 0;     // nodes in the boundary frames (GridFields::fixed_nodes)
   bool has_holes = false;
   int texture_size = 0;            // M; 0: no texture
+  std::vector<ResidualFrame> residuals;  // as Sequence's (format 2.3)
   bool has_texture() const { return texture_size > 0; }
   size_t keyframe_count() const { return times.size(); }
 };

@@ -10,6 +10,7 @@
 #include "facemorph/mesh.hpp"
 #include "facemorph/pose.hpp"
 #include "facemorph/reconstruct.hpp"
+#include "facemorph/residual_weights.hpp"
 #include "facemorph/spline.hpp"
 
 #include <memory>
@@ -44,6 +45,9 @@ struct Sequence {
   // so a head turning about itself turns in place between keyframes.
   Vec3 pose_centre = Vec3::Zero();
   std::vector<Keyframe> keyframes;  // strictly increasing times
+  // Residual frames (format 2.3, residual_weights.hpp): corrections of the blend between keyframes,
+  // increasing, each strictly between two keyframes; none: the spline alone, as before 2.3.
+  std::vector<ResidualFrame> residuals;
 
   bool has_holes() const { return !keyframes.empty() && !keyframes.front().hole_level.empty(); }
   bool has_texture() const { return !keyframes.empty() && !keyframes.front().texture.empty(); }
@@ -97,7 +101,7 @@ struct DecodedFrame {
   Image texture;                   // blended, clamped to 0..255; empty without texture
   std::vector<double> hole_level;  // the blended level set per node of G (< 0 inside a hole); empty without holes
   RigidPose pose;
-  SplineWeights weights;           // the keyframes that made it and their weights
+  SplineWeights weights;           // the keyframes that made it and their weights (with the residuals' correction)
   int iterations = 0;              // reconstruction steps
   bool converged = true;           // false only when the caller asked for the best effort
   double change = 0;               // the reconstruction's last step, relative to the rim's diameter

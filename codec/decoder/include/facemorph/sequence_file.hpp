@@ -107,6 +107,7 @@ struct SequenceFileInfo {
   // Textures stored: the keyframe count, or fewer where keyframes share one (format 2.2, whose
   // shared texture's bytes are its first keyframe's); 0 without textures.
   size_t distinct_textures = 0;
+  size_t residual_frames = 0;  // format 2.3's RSDW (spec/container.md §7.4); 0 without
 };
 
 // The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose

@@ -5,6 +5,7 @@
 
 #include "facemorph/mesh.hpp"
 #include "facemorph/pose.hpp"
+#include "facemorph/residual_weights.hpp"
 #include "facemorph/spline.hpp"
 
 #include <memory>
@@ -69,7 +70,20 @@ struct SelectionOptions {
   double max_error = 0;       // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
   SplineKind spline = SplineKind::kCatmullRom;
   Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
+  // Residual frames (residual_weights.hpp): each frame between keyframes is predicted with the
+  // correction of its blend weights that fits it best (least squares on the same normal offsets,
+  // rounded to residual_step, within ±1), where that lowers its error by kResidualMinGain or more.
+  // Where the error bound grows the budget, the selection weighs those errors, so a frame a residual
+  // serves needs no keyframe (KeyframeSelection::residuals).
+  bool residuals = false;
+  double residual_step = 1.0 / 128;  // the corrections' quantum (spec/container.md §7.4)
 };
+
+// A residual is kept only where it lowers its frame's predicted error by this fraction (a residual
+// costs a few bytes; one that buys less than a tenth of its frame's error is not worth them), and
+// only on frames predicted worse than kResidualFloor of the diagonal (below it nothing shows).
+inline constexpr double kResidualMinGain = 0.1;
+inline constexpr double kResidualFloor = 5e-5;
 
 struct KeyframeSelection {
   std::vector<int> keyframes;             // frame indices, increasing; always the first and the last frame
@@ -80,6 +94,13 @@ struct KeyframeSelection {
   double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
   double median_interval = 0;             // between consecutive frames, seconds
   bool sparse = false;                    // every frame kept: median_interval above SelectionOptions::sparse_interval
+  // With SelectionOptions::residuals: the residual frames at the frames they serve (times the
+  // frames' own; ResidualFrame::delta multiples of residual_step), increasing. Where they took the
+  // place of keyframes (the error bound grew the budget, or a tolerance, and with them fewer
+  // keyframes met it), predicted_error is each frame's error with its residual; elsewhere the
+  // keyframes and predicted_error are those without residuals, to which the residuals are added.
+  std::vector<ResidualFrame> residuals;
+  std::vector<int> residual_frames;       // the frame index of each
 };
 
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.

@@ -78,6 +78,13 @@ struct EncodeOptions {
   std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;
+  // Residual frames (format 2.3, spec/method.md §7.18): frames between keyframes carry a correction
+  // of the spline's blend where it lowers their predicted error enough (SelectionOptions::residuals).
+  // Off by default (fmenc --residual-frames turns it on): the fit is made against the keyframes'
+  // own frames, not the keyframe fit's values the decoder blends, and on Medusa it made half the
+  // held-out frames worse (mean +3.6%, worst -11%); on noise-free fast speech it helps (mean -15%,
+  // 99th percentile -23%).
+  bool residual_frames = false;
   bool texture = true;
   int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
   // --texture-codec: how keyframe textures are stored (AVIF: ~30% smaller than WebP at equal PSNR).
@@ -381,6 +388,9 @@ class SequenceEncoder {
   void register_frames();
   void sample_frames();     // 3. registered surfaces on the selection grid, head poses
   KeyframeSelection select_keyframes() const;  // 4. by predicted error
+  // `chosen`'s residual frames (none without options().residual_frames) at the times a file holds
+  // (residuals_on_file_times): what the sequence built on its keyframes carries.
+  std::vector<ResidualFrame> residual_frames(const KeyframeSelection& chosen) const;
   Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
   // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
   // noise and, given the keyframes `chosen`, the error the spline makes between them.

@@ -55,6 +55,9 @@ class StoredSequence final : public KeyframeSource {
   void put_hole_level(size_t k, std::vector<double>&& level);  // an empty one: the sequence keeps no holes
   void put_texture(size_t k, Image&& texture);                 // an empty one: none
   void set_pose(size_t k, const RigidPose& pose);
+  // The residual frames (validate_residuals against the keyframes' times: kInvalidArgument), the
+  // shape's and the outline's.
+  void set_residuals(std::vector<ResidualFrame> residuals);
   // Keyframe k's arrays as put (kInternal for one never put).
   std::shared_ptr<const GridFields> fields(size_t k) const { return fields_.get(k); }
   std::shared_ptr<const std::vector<double>> hole_level(size_t k) const { return holes_.get(k); }

@@ -84,6 +84,9 @@ struct SynthOptions {
   uint64_t seed = 1;        // face identity, texture detail, noise, remeshing
   int texture_size = 1024;  // pixels per side of each frame's texture
   double head_motion_degrees = 0;  // amplitude of a slow rigid head rotation (0: none)
+  // The mouth's speed in `talk` and `mixed`: its jaw and lip motion at speech_rate times the normal
+  // pace (fast speech for the rate bench, issue 44); 1 leaves every capture as it was.
+  double speech_rate = 1;
   // Colour per vertex instead of a texture: each frame a binary PLY with red/green/blue (uchar, the
   // skin's colour at the vertex) and neither UVs nor image, as depth cameras write (spec/capture.md).
   bool vertex_colour = false;
@@ -109,7 +112,7 @@ struct NamedPoint {
 
 class SyntheticFace {
  public:
-  SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees = 0);
+  SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees = 0, double speech_rate = 1);
 
   static constexpr double kHalfWidth = 0.08;    // a: material ellipse semi-axis along x (m)
   static constexpr double kHalfHeight = 0.10;   // b: along y (m)
@@ -144,6 +147,7 @@ class SyntheticFace {
   Expression expression() const { return expression_; }
   uint64_t seed() const { return seed_; }
   double head_motion_degrees() const { return head_motion_degrees_; }
+  double speech_rate() const { return speech_rate_; }
 
  private:
   double height(const Vec2& m, const ExpressionWeights& w) const;
@@ -153,6 +157,7 @@ class SyntheticFace {
   Expression expression_;
   uint64_t seed_;
   double head_motion_degrees_;
+  double speech_rate_;
   double identity_[6];  // per-seed feature scale factors
   std::vector<NamedPoint> landmarks_;
   std::vector<std::array<double, 4>> freckles_;  // (s, t, radius, darkness)

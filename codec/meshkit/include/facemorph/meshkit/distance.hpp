@@ -46,6 +46,9 @@ class PointToMesh {
 struct SurfaceDistance {
   double rms = 0;         // over the vertices of both meshes, each to the other surface
   double max = 0;         // Hausdorff distance (at vertices)
+  // 99th percentile of the same distances (nearest rank: the smallest distance that at least 99% of
+  // them do not exceed): the worst region's error, which one stray vertex cannot set as it sets max.
+  double p99 = 0;
   double diagonal = 0;    // bounding-box diagonal of the reference
 };
 

@@ -1,0 +1,115 @@
+// Residual frames, RSDW (spec/container.md §7.4, format 2.3): corrections of the spline's blend at
+// frames between keyframes (residual_weights.hpp). A few bytes a frame: each time as its change in
+// 64ths of a frame period, each correction but the last as an integer multiple of 2^-e (the last is
+// minus their sum, so they sum to 0 exactly), all zigzag varints; the chunk is zstd-compressed where
+// that is smaller.
+#include "codec/decoder/container/file_layout.hpp"
+
+#include <cmath>
+
+namespace facemorph::file_layout {
+
+using format::ByteReader;
+using format::ByteWriter;
+
+namespace {
+
+// Times are whole 64ths of a frame period from the capture's first frame; below 2^52 a double holds
+// every such count exactly.
+constexpr int64_t kMaxTimeCode = int64_t{1} << 52;
+
+// The largest correction code for step 2^-e: kMaxResidualDelta / 2^-e.
+int64_t max_code(int e) { return static_cast<int64_t>(std::ldexp(kMaxResidualDelta, e)); }
+
+}  // namespace
+
+std::vector<uint8_t> write_residuals(const SequenceOutline& o) {
+  const std::vector<ResidualFrame>& residuals = o.residuals;
+  const auto fail = [](size_t r, const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what); };
+  if (residuals.empty() || residuals.size() > kMaxResiduals) throw Error(ErrorCode::kInvalidArgument, "residual frames: 1 to 2^24 of them");
+  validate_residuals(o.times, residuals);
+  // The coarsest step 2^-e that holds every correction exactly.
+  int e = 0;
+  for (; e <= kMaxResidualStepExponent; ++e) {
+    bool exact = true;
+    for (const ResidualFrame& f : residuals) {
+      for (double d : f.delta) exact = exact && std::ldexp(d, e) == std::nearbyint(std::ldexp(d, e));
+    }
+    if (exact) break;
+  }
+  if (e > kMaxResidualStepExponent) throw Error(ErrorCode::kInvalidArgument, "residual frames: corrections are not multiples of 2^-30");
+  ByteWriter w;
+  w.write(static_cast<uint32_t>(residuals.size()));
+  w.write(static_cast<uint8_t>(e));
+  int64_t previous = 0;
+  for (size_t r = 0; r < residuals.size(); ++r) {
+    const ResidualFrame& f = residuals[r];
+    const int64_t q = residual_time_code(f.time, o.first_time, o.fps);
+    if (residual_time(q, o.first_time, o.fps) != f.time || q <= previous || q >= kMaxTimeCode) {
+      fail(r, "its time is not a 64th of a frame period after the previous one's (residuals_on_file_times)");
+    }
+    write_varint(w, q - previous);
+    previous = q;
+    int64_t sum = 0;
+    for (size_t m = 0; m + 1 < f.delta.size(); ++m) {
+      const auto code = static_cast<int64_t>(std::ldexp(f.delta[m], e));
+      sum += code;
+      write_varint(w, code);
+    }
+    if (static_cast<int64_t>(std::ldexp(f.delta.back(), e)) != -sum) fail(r, "its corrections do not sum to 0 exactly");
+  }
+  return w.take();
+}
+
+std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
+                                          const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version) {
+  ByteReader r(payload, source + ": residual frames");
+  const uint32_t count = r.read<uint32_t>("the residual count");
+  // Each residual takes at least two bytes (its time's change and one correction): a count the
+  // payload cannot hold is refused before anything is allocated.
+  if (count == 0 || count > kMaxResiduals || count > r.remaining() / 2) {
+    corrupt(r.source(), "states " + std::to_string(count) + " residual frames; its " + std::to_string(r.remaining()) + " bytes hold 1 to " +
+                            std::to_string(std::min<uint64_t>(kMaxResiduals, r.remaining() / 2)));
+  }
+  if (uint64_t{count} * kResidualMemoryBytes > max_memory_bytes) {
+    over_limit(r.source(), std::to_string(count) + " residual frames need " + std::to_string(uint64_t{count} * kResidualMemoryBytes) +
+                               " bytes, more than max_memory_bytes (" + std::to_string(max_memory_bytes) + ")");
+  }
+  const int e = r.read<uint8_t>("the step exponent");
+  if (e > kMaxResidualStepExponent) corrupt(r.source(), "step exponent " + std::to_string(e) + " beyond " + std::to_string(kMaxResidualStepExponent));
+  const int64_t bound = max_code(e);
+  const int keys = static_cast<int>(key_times.size());
+  std::vector<ResidualFrame> residuals(count);
+  int64_t q = 0;
+  for (uint32_t n = 0; n < count; ++n) {
+    const std::string name = "residual frame " + std::to_string(n);
+    const int64_t change = read_varint(r, "a residual time's change");
+    if (change < 1 || change >= kMaxTimeCode - q) corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
+    q += change;
+    ResidualFrame& f = residuals[n];
+    f.time = residual_time(q, shape.first_time, shape.fps);
+    const int interval = residual_interval(key_times, f.time);
+    if (interval < 0) corrupt(r.source(), name + ": its time " + std::to_string(f.time) + " s is not strictly between two keyframes");
+    const KeyWindow window = residual_window(interval, keys);
+    f.delta.resize(static_cast<size_t>(window.count));
+    int64_t sum = 0;
+    for (int m = 0; m + 1 < window.count; ++m) {
+      const int64_t code = read_varint(r, "a residual correction");
+      if (code < -bound || code > bound) corrupt(r.source(), name + ": a correction beyond ±" + std::to_string(kMaxResidualDelta));
+      sum += code;
+      f.delta[static_cast<size_t>(m)] = std::ldexp(static_cast<double>(code), -e);
+    }
+    if (sum < -bound || sum > bound) corrupt(r.source(), name + ": its last correction (minus the others' sum) beyond ±" + std::to_string(kMaxResidualDelta));
+    f.delta.back() = std::ldexp(static_cast<double>(-sum), -e);
+  }
+  // Later minor versions may append here; this reader skips them (a bounded number of bytes).
+  check_appended_bytes(r.remaining(), minor_version, r.source());
+  try {
+    validate_residuals(key_times, residuals);  // what the decoder relies on, each already checked above
+  } catch (const Error& error) {
+    corrupt(r.source(), error.what());
+  }
+  return residuals;
+}
+
+}  // namespace facemorph::file_layout
