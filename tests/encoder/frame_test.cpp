@@ -320,6 +320,8 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
     EXPECT_EQ(r.dropped_sheet_faces, c.fins + c.torso_faces);
     EXPECT_EQ(r.dropped_duplicate_faces, c.duplicate_faces);
     EXPECT_EQ(r.dropped_degenerate_faces, c.degenerate_faces);
+    if (kind & kDefectDegenerateFaces) EXPECT_EQ(c.slivers, 1);
+    EXPECT_EQ(r.split_faces, c.slivers);  // the T-junction closed again, no slit left open
     EXPECT_EQ(r.reoriented_faces, c.flipped_faces);
     EXPECT_EQ(r.dropped_specks, c.islands + c.flaps);
     EXPECT_EQ(r.dropped_speck_faces, c.island_faces + c.flaps);

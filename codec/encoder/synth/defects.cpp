@@ -28,6 +28,7 @@ const Vec2 kPinchAt(-0.05, -0.02), kFlapAt(0.05, -0.03);
 const std::array<Vec2, 3> kFinsAt = {Vec2(-0.045, -0.06), Vec2(0.045, -0.06), Vec2(0.0, 0.05)};
 const std::array<Vec2, 5> kDuplicatesAt = {Vec2(-0.02, -0.075), Vec2(0.02, -0.075), Vec2(-0.06, 0.0), Vec2(0.06, 0.0), Vec2(0.0, -0.02)};
 const std::array<Vec2, 2> kDegenerateAt = {Vec2(-0.03, 0.07), Vec2(0.03, 0.07)};
+const Vec2 kSliverAt(0.035, -0.005);
 const Vec2 kFlippedAt(0.05, 0.015);
 constexpr double kFlippedRadius = 0.012;
 constexpr int kIslands = 4;
@@ -101,6 +102,30 @@ class DefectWriter {
       count += 2;
     }
     return count;
+  }
+
+  // Where a scanner zips two patches, one side's edge a-b meets the other side's two edges a-m, m-b
+  // (m on the segment): the face across a-b is split at m, and the crack is closed by the sliver
+  // (b, a, m), three distinct vertices in a line, zero area. Still a closed manifold: only the sliver
+  // is wrong, and the repair drops it and splits the face on a-b's other side at m.
+  int sliver() {
+    const Face f = mesh_.faces[nearest_face(kSliverAt)];
+    const int32_t a = f[0], b = f[1];
+    for (size_t g : faces_around(a)) {
+      const Face across = mesh_.faces[g];
+      for (int k = 0; k < 3; ++k) {
+        if (across[k] != b || across[(k + 1) % 3] != a) continue;
+        const int32_t d = across[(k + 2) % 3];
+        const int32_t m = add_vertex(0.5 * (position(a) + position(b)), a);
+        if (!mesh_.uvs.empty()) mesh_.uvs.back() = 0.5 * (mesh_.uvs[static_cast<size_t>(a)] + mesh_.uvs[static_cast<size_t>(b)]);
+        drop_.push_back(g);
+        added_.push_back({b, m, d});
+        added_.push_back({m, a, d});
+        added_.push_back({b, a, m});
+        return 1;
+      }
+    }
+    return 0;  // a-b on the rim: no face across (nearest_face keeps off the rim, so not at these points)
   }
 
   int flip_patch() {
@@ -319,7 +344,10 @@ DefectCounts add_defects(TriangleMesh& mesh, const std::vector<Vec2>& material, 
   }
   if (defects & kDefectThreeFaceEdges) counts.fins = counts.three_face_edges = writer.fins();
   if (defects & kDefectDuplicateFaces) counts.duplicate_faces = writer.duplicates();
-  if (defects & kDefectDegenerateFaces) counts.degenerate_faces = writer.degenerate();
+  if (defects & kDefectDegenerateFaces) {
+    counts.slivers = writer.sliver();
+    counts.degenerate_faces = writer.degenerate() + counts.slivers;
+  }
   if (defects & kDefectIslands) counts.islands = writer.islands(&counts.island_faces);
   if (defects & kDefectTorso) {
     counts.torso_faces = writer.torso(&counts.seam_edges);

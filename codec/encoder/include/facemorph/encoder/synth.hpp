@@ -42,7 +42,7 @@ enum DefectKind : uint32_t {
   kDefectBowTies = 1,          // two wedges cut out at a vertex (a pinched hole) and a flap touching at one vertex
   kDefectThreeFaceEdges = 2,   // fins: a face standing on an interior edge
   kDefectDuplicateFaces = 4,   // faces repeated (as written, rotated, reversed)
-  kDefectDegenerateFaces = 8,  // faces with a repeated vertex
+  kDefectDegenerateFaces = 8,  // faces with a repeated vertex, and a zero-area sliver of three distinct vertices in a line
   kDefectFlippedPatch = 16,    // a patch of faces wound the other way
   kDefectIslands = 32,         // specks floating beside the face
   kDefectTorso = 64,           // a hair/torso surface fused to the face along a seam of edges
@@ -62,6 +62,7 @@ struct DefectCounts {
   int fins = 0;
   int duplicate_faces = 0;
   int degenerate_faces = 0;
+  int slivers = 0;             // of which slivers: each closes a T-junction, so the repair splits the face across it
   int flipped_faces = 0;
   int islands = 0;
   int island_faces = 0;
