@@ -103,10 +103,13 @@ export async function openLayout(source, allocate) {
       throw new Error(`not a facemorph file, or a damaged one: chunk at ${offset}`);
     }
     const chunk = { type, offset, payload: offset + HEADER, stored, end: offset + HEADER + stored + TRAILER };
-    // The header and index whole; the end chunk whole; of the others, their framing and first numbers.
-    if (type === 'HEAD' || type === 'KIDX' || type === 'FEND') await source.ensure(offset, chunk.end, allocate);
+    // A keyframe group's chunks (KGOP, TGOP, TEXR) are fetched when a frame needs them: of these, the
+    // framing and first numbers now. Every other chunk whole, as the open reads it: the header, the
+    // index, 2.3's residual frames (RSDW, read at open), the end, and chunks of later minors.
+    const inGroup = type === 'KGOP' || type === 'TGOP' || type === 'TEXR';
+    if (!inGroup) await source.ensure(offset, chunk.end, allocate);
     else await source.ensure(chunk.end - TRAILER, chunk.end + HEADER + 8, allocate);
-    if (stored >= 8 && type !== 'HEAD' && type !== 'KIDX' && type !== 'FEND') {
+    if (stored >= 8 && inGroup) {
       chunk.first = source.u32(chunk.payload);
       chunk.codec = source.u32(chunk.payload + 4);
     }
