@@ -12,4 +12,6 @@ source "$root/tests/web/web_module.sh"
 web_module "$work"
 for file in "$@"; do
   node "$root/web/test/stream.mjs" "$file" 16
+  # And with a first request of one byte: every chunk the open reads must be fetched for itself.
+  node "$root/web/test/stream.mjs" "$file" 8 1
 done

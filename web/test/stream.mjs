@@ -11,7 +11,9 @@ import { loadFacemorph } from '../facemorph_wasm.js';
 import { ByteSource, openLayout, ensureKeyframes } from '../stream.js';
 import { serve } from './serve.mjs';
 
-const [file, countText = '16'] = process.argv.slice(2);
+// FIRST_REQUEST: the open's first request in bytes (default: the player's); 1 (the preamble alone) makes every chunk the
+// open needs come by its own request, not inside the first 4 KiB by chance.
+const [file, countText = '16', firstRequestText] = process.argv.slice(2);
 const count = Number(countText);
 const dist = join(dirname(fileURLToPath(import.meta.url)), '..', 'dist');
 const { default: createModule } = await import(join(dist, 'facemorph_wasm.mjs'));
@@ -26,7 +28,7 @@ try {
 
   const source = ByteSource.fromUrl(`${url}/${basename(file)}`);
   const allocate = (size) => fm.allocateFile(size);
-  const layout = await openLayout(source, allocate);
+  const layout = await openLayout(source, allocate, firstRequestText ? Number(firstRequestText) : undefined);
   const streamed = fm.openBorrowed(source.file);
   const decoder = streamed.createDecoder();
   const times = streamed.keyframeTimes();
