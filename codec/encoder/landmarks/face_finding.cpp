@@ -9,6 +9,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/meshkit/distance.hpp"
 #include "facemorph/meshkit/render.hpp"
+#include "facemorph/meshkit/topology.hpp"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
@@ -293,6 +294,14 @@ std::optional<FaceOrientation> find_by_texture(const TriangleMesh& mesh, const I
 
 // ---- The face region: the mirror plane of balls about the most protruding point ----
 
+bool has_rim(const TriangleMesh& mesh) {
+  const MeshTopology topology(mesh.faces, static_cast<int>(mesh.positions.size()));
+  for (int e = 0; e < topology.edge_count(); ++e) {
+    if (topology.is_boundary_edge(e)) return true;
+  }
+  return false;
+}
+
 // The directions a whole head's face region is looked for along: the 26 of a cube's faces, edges
 // and corners (at most 35 degrees from any direction).
 std::vector<Vec3> search_directions() {
@@ -324,6 +333,11 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
   std::vector<Vec3> starts;
   if (mean.norm() >= kWholeHeadFacingShare * area) {
     starts.push_back(mean.normalized());
+  } else if (!has_rim(mesh)) {
+    // A head scan has a rim (the neck's, at least); a closed surface (a ball) is no head, and a
+    // region of it is symmetric every way, so it would pass for a face.
+    *why = "no region faces one way, and a closed surface has no neck rim to be a whole head";
+    return std::nullopt;
   } else if (facing_hint != nullptr) {
     starts.push_back(facing_hint->normalized());
   } else {
