@@ -492,9 +492,13 @@ int main(int argc, char** argv) {
       }
       const std::vector<double>& rounding = report.field_precision.keyframe_errors;
       const double rounded = rounding.empty() ? 0 : *std::max_element(rounding.begin(), rounding.end());
-      std::printf("  whole head: the conformal disk held half the surface within %.3f of its centre (the neck rim crowds the face); spread "
+      // "whole head" only where the rule found one; a strength asked for on a face says so.
+      const bool crowded = report.density_equalising.half_area_radius_before < kCrowdedHalfAreaRadius;
+      std::printf("  %s: the conformal disk held half the surface within %.3f of its centre (%s); spread "
                   "radially (strength %.2g) to %.3f; keyframes stored as positions (%s)",
-                  report.density_equalising.half_area_radius_before, report.radial_equalising, report.density_equalising.half_area_radius_after,
+                  crowded ? "whole head" : "radial equalising", report.density_equalising.half_area_radius_before,
+                  crowded ? "the neck rim crowds the face" : "not crowded: asked for", report.radial_equalising,
+                  report.density_equalising.half_area_radius_after,
                   sequence->shape().representation == Representation::kXYZ ? "hl+t does not converge on the spread disk" : "as asked: hl+t may not converge");
       if (floor >= 0) {
         std::printf("; keyframe error %.3f%% RMS of the diagonal (resampling at N = %d %.3f%%, rounding %.3f%% worst)", 100 * std::hypot(floor, rounded),

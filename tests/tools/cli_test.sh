@@ -109,6 +109,9 @@ grep -q "frame_0003.obj at 0.150 s" "$work/dropped.info" || fail "fminfo does no
 mv "$work/hidden.jpg" "$work/cap/frame_0003.jpg"
 expect_error "unwritable output" "missing" "$tools/fmenc" "$work/cap" -o "$work/missing/b.fmv" --grid 33 --texture 64 --quiet
 expect_error "bad option" "--keyframes" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframes 150%
+# Two reparametrisations asked for at once: one would be dropped silently.
+expect_error "radial and density equalising" "are two reparametrisations of the disk" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --radial-equalising 1 --density-equalising 0.5
+[[ ! -e "$work/c.fmv" ]] || fail "a refused encode wrote c.fmv"
 # fmbench reads a fraction as fmenc does (one parser): 2 is not a keyframe budget there either.
 expect_error "fmbench's keyframe budget" "--keyframes '2' is not a fraction in (0, 1]" "$tools/fmbench" temporal synth --keyframes 2 --quiet
 expect_error "plain folder without fps" "--fps" "$tools/fmenc" "$work/seq" -o "$work/c.fmv"

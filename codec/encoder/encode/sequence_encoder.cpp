@@ -275,6 +275,12 @@ void SequenceEncoder::check_options(int count) const {
   if (radial != kAutoRadial && !(radial >= 0 && radial <= 1)) {
     throw Error(ErrorCode::kInvalidArgument, "radial-equalising strength must be auto or in [0, 1], not " + std::to_string(radial));
   }
+  // Two reparametrisations of the disk; the flow, asked for, turns the radial map off, so asking for
+  // both would silently drop one (a whole head then fails to converge with nothing saying why).
+  if (radial != kAutoRadial && radial > 0 && strength > 0) {
+    throw Error(ErrorCode::kInvalidArgument, "radial equalising (" + std::to_string(radial) + ") and density equalising (" + std::to_string(strength) +
+                                                 ") are two reparametrisations of the disk: ask for one");
+  }
   if (options_.texture && options_.texture_size != 0 && (options_.texture_size < 16 || options_.texture_size > 16383)) {
     throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
   }
