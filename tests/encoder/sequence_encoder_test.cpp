@@ -1171,16 +1171,22 @@ TEST(KeyframeSelection, TheBudgetsKeyframesMoveToTheMotion) {
   EXPECT_GE(std::count_if(chosen.keyframes.begin(), chosen.keyframes.end(), [](int k) { return k > 30; }), 5);
 }
 
+// 40 frames of one bump at amplitudes drawn at random, up to 3% of the diagonal: motion far faster
+// than a spline through a few keyframes follows.
+std::vector<SelectionFrame> fast_bump_frames() {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 40; ++k) amplitudes.push_back(amplitude(rng));
+  return bump_frames(amplitudes);
+}
+
 // Frames far apart or fast: the frames' surfaces move by amounts the spline cannot follow (an
 // independent bump of up to 3% of the diagonal per frame), so the 10% budget spread thin leaves the
 // mean predicted error far above the default bound. The selection adds keyframes until the mean is
 // within the bound and the worst within 3 times it; a bound of 0 keeps the budget exactly.
 TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
-  std::mt19937 rng(4);
-  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
-  std::vector<double> amplitudes;
-  for (int k = 0; k < 40; ++k) amplitudes.push_back(amplitude(rng));
-  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<SelectionFrame> frames = fast_bump_frames();
   const std::vector<double> weights(frames.front().local.size(), 1.0);
   SelectionOptions options;
   options.error_bound = 0.005;
@@ -1208,11 +1214,7 @@ TEST(KeyframeSelection, FramesFarApartGetKeyframesNotABudgetSpreadThin) {
 // fewer keyframes than without; each residual is at a held-out frame's time, in steps of 2^-7
 // summing to exactly 0, never raises that frame's predicted error, and most lower it by a tenth.
 TEST(KeyframeSelection, FastMotionGetsResidualFramesInsteadOfKeyframes) {
-  std::mt19937 rng(4);
-  std::uniform_real_distribution<double> amplitude(-0.03, 0.03);
-  std::vector<double> amplitudes;
-  for (int k = 0; k < 40; ++k) amplitudes.push_back(amplitude(rng));
-  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<SelectionFrame> frames = fast_bump_frames();
   const std::vector<double> weights(frames.front().local.size(), 1.0);
   SelectionOptions options;
   options.error_bound = 0.005;
