@@ -9,6 +9,7 @@
 #include "facemorph/error.hpp"
 #include "facemorph/meshkit/distance.hpp"
 #include "facemorph/meshkit/render.hpp"
+#include "facemorph/meshkit/surface_measures.hpp"
 #include "facemorph/meshkit/topology.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -318,13 +319,8 @@ std::vector<Vec3> search_directions() {
 
 std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, const Vec3* facing_hint,
                                               std::string* why) {
-  const Vec3 mean = area_weighted_normal(mesh);
-  double area = 0;
-  for (const Face& f : mesh.faces) {
-    area += (mesh.positions[static_cast<size_t>(f[1])] - mesh.positions[static_cast<size_t>(f[0])])
-                .cross(mesh.positions[static_cast<size_t>(f[2])] - mesh.positions[static_cast<size_t>(f[0])])
-                .norm();
-  }
+  const Vec3 mean = area_weighted_normal(mesh);  // a sum of cross products: twice the area-weighted normal
+  const double area = 2 * total_area(mesh.positions, mesh.faces);  // on the same scale
   // A whole head faces no one way (its mean normal is the neck's opening's, pointing up): its face
   // is looked for about the most protruding point along each of 26 directions, the surest region
   // winning (a face's nose, sockets and symmetry against a dome's or the back of the head's).
