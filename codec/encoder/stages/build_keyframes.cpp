@@ -4,6 +4,7 @@
 #include "facemorph/encoder/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
+#include "codec/encoder/stages/fit_keyframes.hpp"
 
 #include "codec/decoder/geometry/elementary.hpp"
 #include "facemorph/encoder/image_io.hpp"
@@ -15,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <span>
 #include <vector>
 
 namespace facemorph {
@@ -188,7 +190,21 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
         stored->put_texture(own, store_texture ? frame_texture(f, static_cast<int>(index), texture_size) : Image());
       },
       [&](int done, int total) { progress("keyframes", done, total); });
-  if (options_.keyframe_fit) fit_keyframes(fitted, geometry, local);
+  if (options_.keyframe_fit) {
+    // The keyframes' surfaces replaced by the spline's least-squares fit to every frame.
+    KeyframeFitInput fit;
+    fit.keyframes = fitted;
+    for (const CaptureFrame& f : capture_.frames) fit.times.push_back(f.time);
+    for (int k : fitted) fit.poses.push_back(selection_[static_cast<size_t>(k)].pose);
+    fit.spline = options_.spline;
+    fit.pose_centre = pose_centre();
+    fit.weight = options_.keyframe_fit_weight;
+    fit.noise_factor = options_.keyframe_fit_noise;
+    fit.threads = options_.threads;
+    fit.surface = [&](int i, std::span<const Vec2> nodes) { return sample_surface(i, nodes); };
+    fit.noise = [&](int i) { return noise_at(i); };
+    fit_keyframes(fit, geometry, local);
+  }
   parallel_for(static_cast<int>(keys), options_.threads,
                [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(own_offset + static_cast<size_t>(k))); });
   std::vector<int32_t> own_folds;

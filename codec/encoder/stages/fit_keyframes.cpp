@@ -1,7 +1,7 @@
 // The keyframe fit (--keyframe-fit): the keyframes' values whose spline best matches every frame
 // of the capture, a banded least-squares solve per node of G, each keyframe's move bounded by its
 // frame's noise (spec/method.md §7.5).
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/stages/fit_keyframes.hpp"
 
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
@@ -20,7 +20,8 @@
 
 namespace facemorph {
 
-void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const {
+void fit_keyframes(const KeyframeFitInput& input, const GridGeometry& geometry, SurfaceStore& local) {
+  const std::vector<int>& keyframes = input.keyframes;
   const std::vector<Vec2>& nodes = geometry.grid().nodes;
   // Per node of G, the keyframe values P_k minimising
   //   Σ_j |Σ_k c_k(t_j) P_k − X_j|² + μ Σ_k |P_k − X_k|²
@@ -29,18 +30,15 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   // shared by every node, so this is one keys × keys normal matrix (banded, positive definite: each
   // keyframe's own frame has weight 1 + μ) and a right-hand side per node coordinate.
   const auto keys = static_cast<Eigen::Index>(keyframes.size());
-  const int count = frame_count();
+  const auto count = static_cast<Eigen::Index>(input.times.size());
   if (keys < 2 || keys >= count || local.size() != keyframes.size()) return;
-  const double mu = options_.keyframe_fit_weight;
+  const double mu = input.weight;
   std::vector<double> times;
-  std::vector<RigidPose> poses;
-  for (int k : keyframes) {
-    times.push_back(capture_.frames[static_cast<size_t>(k)].time);
-    poses.push_back(selection_[static_cast<size_t>(k)].pose);
-  }
-  const KeyframeSpline spline(times, options_.spline);
+  for (int k : keyframes) times.push_back(input.times[static_cast<size_t>(k)]);
+  const std::vector<RigidPose>& poses = input.poses;
+  const KeyframeSpline spline(times, input.spline);
   const std::vector<Vec3> rotations = unwrap_rotations(poses);
-  const Vec3 centre = pose_centre();
+  const Vec3& centre = input.pose_centre;
   const auto n = static_cast<Eigen::Index>(3 * nodes.size());
   auto flat = [n](std::vector<Vec3>& v) { return Eigen::Map<Eigen::VectorXd>(v.data()->data(), n); };
   auto flat_const = [n](const std::vector<Vec3>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data()->data(), n); };
@@ -54,7 +52,7 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   std::vector<SplineWeights> weights(held.size());
   int band = 0;
   for (size_t h = 0; h < held.size(); ++h) {
-    weights[h] = spline.weights(capture_.frames[static_cast<size_t>(held[h])].time);
+    weights[h] = spline.weights(input.times[static_cast<size_t>(held[h])]);
     for (int32_t a : weights[h].keys) {
       for (int32_t b : weights[h].keys) band = std::max(band, std::abs(a - b));
     }
@@ -103,10 +101,10 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
   std::vector<std::vector<Vec3>> samples(chunk);
   for (size_t begin = 0; begin < held.size(); begin += chunk) {
     const int size = static_cast<int>(std::min(held.size() - begin, static_cast<size_t>(chunk)));
-    parallel_for(size, options_.threads, [&](int c) {
+    parallel_for(size, input.threads, [&](int c) {
       const size_t h = begin + static_cast<size_t>(c);
       const RigidPose to_face = blend_poses(poses, rotations, weights[h], centre).inverse();
-      std::vector<Vec3> positions = sample_surface(held[h], nodes);
+      std::vector<Vec3> positions = input.surface(held[h], nodes);
       for (Vec3& p : positions) p = to_face.apply(p);
       samples[static_cast<size_t>(c)] = std::move(positions);
     });
@@ -139,12 +137,12 @@ void SequenceEncoder::fit_keyframes(const std::vector<int>& keyframes, const Gri
       total += mass[v];
     }
     moved = std::sqrt(moved / total);
-    const double noise = noise_at(keyframes[static_cast<size_t>(k)]);
+    const double noise = input.noise(keyframes[static_cast<size_t>(k)]);
     // A move beyond κ times the frame's own noise would fit the spline's systematic error between
     // keyframes rather than the capture's noise: shrink it back to that (a clean capture's keyframes
     // stay its frames). Fewer than 5 frames give no estimate of the noise, so nothing bounds the
     // move: the keyframe stays its frame.
-    const double scale = std::isfinite(noise) ? std::min(1.0, options_.keyframe_fit_noise * noise / std::max(moved, 1e-300)) : 0.0;
+    const double scale = std::isfinite(noise) ? std::min(1.0, input.noise_factor * noise / std::max(moved, 1e-300)) : 0.0;
     flat(own) += scale * (fitted - flat(own));
     local.put(static_cast<size_t>(k), std::move(own));
     after.push_front(std::move(fitted));

@@ -200,10 +200,6 @@ class SequenceEncoder {
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  // Replaces the keyframes' registered surfaces in the face frame (item k of `local`, frame
-  // keyframes[k], sampled at G's nodes) by the least-squares fit of the spline to every frame
-  // (options().keyframe_fit). Reads each surface back twice and stores the fitted one in its place.
-  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
   // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
