@@ -1,10 +1,12 @@
 // The staged encode (spec/part-file.md): parts sampled apart and assembled give the one-process
 // encode's file, byte for byte; parts that do not make up one capture, or that were damaged or
 // crafted, are refused with the file and the frame named.
+#include "facemorph/encoder/options_json.hpp"
 #include "facemorph/encoder/part_file.hpp"
 #include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/encoder/staged_encode.hpp"
 #include "facemorph/encoder/synth.hpp"
+#include "facemorph/error.hpp"
 #include "facemorph/sequence_file.hpp"
 
 #include "format/file_io.hpp"
@@ -390,6 +392,82 @@ TEST(StagedEncode, PartRangesCoverACaptureOnce) {
   EXPECT_EQ(ranges[2].end, 10);
   EXPECT_EQ(part_ranges(3, 10).size(), 1u);
   EXPECT_THROW(part_ranges(3, 0), Error);
+}
+
+// The options' one schema (options_json.hpp): the bytes part files have always held, read back
+// field by field, and what cannot be read refused by name.
+TEST(EncodeOptionsSchema, TheSampleOptionsAreTheBytesPartFilesHold) {
+  // A part file's header as facemorph wrote it before the schema (default options).
+  const std::string stored =
+      R"({"conformal":{"energy_tolerance":1e-07,"fallback":true,"max_iterations":100,"method":0},"density_equalising":{"max_steps":100,"radial":-1.0,)"
+      R"("step":0.05,"strength":0.0,"tolerance":0.01},"find_landmarks":true,"landmark_tolerance":0.02,"largest_component":false,"reference_frame":0,)"
+      R"("registration":{"allow_fallback":true,"boundary_spacing_degrees":5.0,"fold_grid":129,"form":0,"max_substeps":8,"method":1,"min_area_ratio":0.02,)"
+      R"("moebius_start":0,"paper_grid_n":8,"smoothing":0.0,"smoothing_tries":4},"strict":false,"texture":true,"track_landmarks":false})";
+  EXPECT_EQ(write_options(EncodeOptions{}, OptionsScope::kSample), stored);
+  EXPECT_TRUE(same_options(stored, EncodeOptions{}, OptionsScope::kSample));
+  // Compared as values: spaces and a number's form do not matter; a key the schema lacks does.
+  std::string spaced = stored;
+  spaced.replace(spaced.find("\"max_iterations\":100"), 20, "\"max_iterations\" : 100.0");
+  EXPECT_TRUE(same_options(spaced, EncodeOptions{}, OptionsScope::kSample));
+  std::string more = stored;
+  more.insert(1, "\"later_option\":1,");
+  EXPECT_FALSE(same_options(more, EncodeOptions{}, OptionsScope::kSample));
+}
+
+TEST(EncodeOptionsSchema, WhatIsWrittenReadsBackAsTheSameOptions) {
+  EncodeOptions options;
+  options.reference_frame = 3;
+  options.conformal.method = ConformalMethod::kTutte;
+  options.registration.method = RegistrationMethod::kFrame;
+  options.density_equalising.radial = 0.25;
+  options.keyframe_fraction = 0.3;
+  options.representation = Representation::kXYZ;
+  options.spline = SplineKind::kLinear;
+  options.texture_codec = TextureCodec::kWebp;
+  options.field_precision.intra_period = 4;
+  options.keyframe_fit = false;
+  for (const OptionsScope scope : {OptionsScope::kSample, OptionsScope::kSegment}) {
+    const std::string text = write_options(options, scope);
+    EXPECT_EQ(write_options(read_options(text, scope), scope), text);
+    EXPECT_TRUE(same_options(text, options, scope));
+    EXPECT_FALSE(same_options(text, EncodeOptions{}, scope));
+  }
+  const EncodeOptions read = read_options(write_options(options, OptionsScope::kSegment), OptionsScope::kSegment);
+  EXPECT_EQ(read.reference_frame, 3);
+  EXPECT_EQ(read.conformal.method, ConformalMethod::kTutte);
+  EXPECT_EQ(read.registration.method, RegistrationMethod::kFrame);
+  EXPECT_EQ(read.density_equalising.radial, 0.25);
+  EXPECT_EQ(read.representation, Representation::kXYZ);
+  EXPECT_EQ(read.spline, SplineKind::kLinear);
+  EXPECT_EQ(read.texture_codec, TextureCodec::kWebp);
+  EXPECT_EQ(read.field_precision.intra_period, 4);
+  EXPECT_FALSE(read.keyframe_fit);
+  // A sample scope's text holds none of the assemble stage's options: those stay as given.
+  EXPECT_EQ(read_options(write_options(options, OptionsScope::kSample), OptionsScope::kSample).spline, EncodeOptions{}.spline);
+}
+
+TEST(EncodeOptionsSchema, OptionsThatCannotBeReadAreRefusedByName) {
+  const std::string good = write_options(EncodeOptions{}, OptionsScope::kSample);
+  auto refused = [](const std::string& text, const std::string& what) {
+    try {
+      read_options(text, OptionsScope::kSample);
+      ADD_FAILURE() << "read: " << text;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kCorrupt);
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(same_options(text, EncodeOptions{}, OptionsScope::kSample));
+  };
+  std::string text = good;
+  text.replace(text.find("\"strict\":false"), 14, "\"strict\":0");
+  refused(text, "\"strict\"");
+  text = good;
+  text.replace(text.find("\"method\":1"), 10, "\"method\":7");
+  refused(text, "the options (registration)'s \"method\" is no choice of its kind (7)");
+  text = good;
+  text.erase(text.find("\"texture\":true,"), 15);
+  refused(text, "lacks \"texture\"");
+  refused("[1]", "not a JSON object");
 }
 
 }  // namespace

@@ -354,28 +354,6 @@ std::string capture_fingerprint(const Capture& capture) {
   return hex;
 }
 
-std::string sample_settings(const EncodeOptions& o) {
-  const RegistrationOptions& r = o.registration;
-  const nlohmann::json settings = {
-      {"reference_frame", o.reference_frame},
-      {"strict", o.strict},
-      {"texture", o.texture},
-      {"largest_component", o.largest_component},
-      {"find_landmarks", o.find_landmarks},
-      {"track_landmarks", o.track_landmarks},
-      {"landmark_tolerance", o.landmark_tolerance},
-      {"conformal", {{"method", static_cast<int>(o.conformal.method)}, {"fallback", o.conformal.fallback}, {"max_iterations", o.conformal.max_iterations},
-                     {"energy_tolerance", o.conformal.energy_tolerance}}},
-      {"registration", {{"method", static_cast<int>(r.method)}, {"form", static_cast<int>(r.form)}, {"moebius_start", static_cast<int>(r.moebius.start)},
-                        {"smoothing", r.smoothing}, {"paper_grid_n", r.paper_grid_n}, {"boundary_spacing_degrees", r.boundary_spacing_degrees},
-                        {"fold_grid", r.fold_grid}, {"min_area_ratio", r.min_area_ratio}, {"smoothing_tries", r.smoothing_tries},
-                        {"max_substeps", r.max_substeps}, {"allow_fallback", r.allow_fallback}}},
-      {"density_equalising", {{"strength", o.density_equalising.strength}, {"step", o.density_equalising.step},
-                              {"max_steps", o.density_equalising.max_steps}, {"tolerance", o.density_equalising.tolerance},
-                              {"radial", o.density_equalising.radial}}}};
-  return settings.dump();
-}
-
 // ---- Writing ----
 
 PartWriter::PartWriter(std::filesystem::path path, const PartHeader& header)

@@ -29,7 +29,7 @@ SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions op
   given_rim_ = std::any_of(capture.given_landmark_names.begin(), capture.given_landmark_names.end(),
                            [](const std::string& name) { return name.rfind("rim_", 0) == 0; });
   options_.reference_frame = 0;  // until the reference's frame comes (add_sampled_frame)
-  check_options(capture.frame_count);
+  check_encode_options(options_, capture.frame_count);
   const auto count = static_cast<size_t>(capture.frame_count);
   store_->reset(count);
   landmarks_ = make_landmark_store();

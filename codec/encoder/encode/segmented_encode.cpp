@@ -1,6 +1,7 @@
 #include "facemorph/encoder/segmented_encode.hpp"
 
 #include "facemorph/encoder/field_precision.hpp"
+#include "facemorph/encoder/options_json.hpp"
 #include "facemorph/encoder/staged_encode.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/error.hpp"
@@ -95,27 +96,6 @@ SegmentId parse_segment(const std::string& text) {
   return id;
 }
 
-std::string segment_settings(const EncodeOptions& o) {
-  const FieldPrecisionOptions& f = o.field_precision;
-  const TextureQualityOptions& t = o.texture_coding;
-  const nlohmann::json settings = {
-      {"sample", nlohmann::json::parse(sample_settings(o))},
-      {"keyframes", o.keyframe_fraction},
-      {"keyframe_error_bound", o.keyframe_error_bound},
-      {"sparse_frame_interval", o.sparse_frame_interval},
-      {"max_error", o.max_error},
-      {"grid", o.grid},
-      {"representation", o.representation ? representation_name(*o.representation) : "auto"},
-      {"spline", static_cast<int>(o.spline)},
-      {"texture", {{"size", o.texture_size}, {"codec", static_cast<int>(o.texture_codec)}, {"quality", o.texture_quality}, {"share", o.share_textures},
-                   {"interpolation_share", t.interpolation_share}, {"min_psnr", t.min_psnr}, {"max_psnr", t.max_psnr}, {"fallback", t.fallback_quality}}},
-      {"keep_holes_filled", o.keep_holes_filled},
-      {"fields", {{"predicted", o.predicted_fields}, {"auto_error", o.auto_field_error}, {"target_error", f.target_error}, {"intra_period", f.intra_period},
-                  {"noise_shaping", f.noise_shaping}, {"inter_dead_zone", f.inter_dead_zone}}},
-      {"keyframe_fit", {{"on", o.keyframe_fit}, {"weight", o.keyframe_fit_weight}, {"noise", o.keyframe_fit_noise}}}};
-  return settings.dump();
-}
-
 KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId id) {
   if (intra_period < 1) throw Error(ErrorCode::kInvalidArgument, "segments: an intra period below 1");
   const size_t period = static_cast<size_t>(intra_period), groups = (keyframes + period - 1) / period;
@@ -139,7 +119,7 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   SegmentMeasure m;
   m.segment = id;
   m.capture_id = s.header.capture_id;
-  m.settings = segment_settings(options);
+  m.settings = write_options(options, OptionsScope::kSegment);
   m.keyframes = static_cast<int>(s.chosen.keyframes.size());
   m.intra_period = s.intra_period;
   m.grid = encoder.report().grid;
@@ -292,12 +272,12 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
                                                  PartHeader* header) {
   // The measures first (cheap): one encode's N segments, each once.
   std::vector<const SegmentMeasure*> by_index(static_cast<size_t>(id.count), nullptr);
-  const std::string settings = segment_settings(options);
+  const std::string settings = write_options(options, OptionsScope::kSegment);
   for (const SegmentMeasure& m : measures) {
     const std::string which = (m.source.empty() ? "" : m.source + ": ") + "the measure of segment " + std::to_string(m.segment.index) + "/" + std::to_string(m.segment.count);
     if (m.segment.count != id.count) throw Error(ErrorCode::kInvalidArgument, which + " is of " + std::to_string(m.segment.count) + " segments, not " + std::to_string(id.count));
     if (by_index[static_cast<size_t>(m.segment.index)]) throw Error(ErrorCode::kInvalidArgument, which + " is given twice");
-    if (m.settings != settings) throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
+    if (!same_options(m.settings, options, OptionsScope::kSegment)) throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
     const SegmentMeasure& first = measures.front();
     if (m.capture_id != first.capture_id || m.keyframes != first.keyframes || m.intra_period != first.intra_period || m.grid != first.grid ||
         m.representation != first.representation || m.plan.keyframes != first.plan.keyframes || m.plan.predicted_error != first.plan.predicted_error) {

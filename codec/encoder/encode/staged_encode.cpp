@@ -1,6 +1,7 @@
 // The staged encode: the sample stage (one part) and the assemble stage (spec/part-file.md).
 #include "facemorph/encoder/staged_encode.hpp"
 
+#include "facemorph/encoder/options_json.hpp"
 #include "facemorph/error.hpp"
 
 #include <algorithm>
@@ -144,7 +145,7 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   c.given_reference = options.reference_frame;
   c.reference = reference;
   header.range = range;
-  header.settings = sample_settings(options);
+  header.settings = write_options(options, OptionsScope::kSample);
   header.encoder = std::string("facemorph ") + FACEMORPH_VERSION;
   header.seconds_mapping = encoder.report().seconds_mapping;
   header.seconds_registration = encoder.report().seconds_registration;
@@ -172,7 +173,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   std::stable_sort(readers.begin(), readers.end(), [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
   // One capture, one setting, every frame once.
   const PartHeader& first = readers.front()->header();
-  const std::string settings = sample_settings(options);
+  const std::string settings = write_options(options, OptionsScope::kSample);
   std::vector<PartHeader> headers;
   int next = 0;
   for (const auto& reader : readers) {
@@ -183,7 +184,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
       throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" + a.root.string() + ") and " +
                                                    reader->source() + " (" + b.root.string() + ")");
     }
-    if (h.settings != settings) {
+    if (!same_options(h.settings, options, OptionsScope::kSample)) {
       throw Error(ErrorCode::kInvalidArgument, reader->source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
                                                    ") was sampled with other settings than these: " + h.settings + " (these: " + settings + ")");
     }

@@ -371,4 +371,16 @@ KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vec
   return plain;
 }
 
+double mean_predicted_error(const KeyframeSelection& chosen) {
+  double sum = 0;
+  int count = 0;
+  for (double e : chosen.predicted_error) {
+    if (e > 0) {
+      sum += e;
+      ++count;
+    }
+  }
+  return count == 0 ? 0.0 : sum / count;
+}
+
 }  // namespace facemorph

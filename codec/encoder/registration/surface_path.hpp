@@ -97,4 +97,23 @@ struct TracedPath {
 // Throws what pull_back throws.
 TracedPath trace_path(const SurfacePaths& paths, const Vec2& from, const Vec2& to, const GeodesicFrameOptions& options);
 
+// ---- What the pull-back and the correction share: points at a vertex or on an edge ----
+namespace path_points {
+
+// A crossing this close to an edge's end (in the edge's own parameter) is taken as the vertex: the
+// two-triangle unfolding of a point that near a vertex says nothing reliable.
+inline constexpr double kSnap = 1e-12;
+
+inline int corner_of(const Face& f, int v) {
+  for (int k = 0; k < 3; ++k) {
+    if (f[k] == v) return k;
+  }
+  return -1;
+}
+
+inline PathPoint vertex_point(int v) { return {PathPoint::kVertex, v, -1, 0, Vec3::Zero()}; }
+inline PathPoint edge_point(int a, int b, double t) { return {PathPoint::kEdge, a, b, t, Vec3::Zero()}; }
+
+}  // namespace path_points
+
 }  // namespace facemorph

@@ -103,6 +103,10 @@ struct KeyframeSelection {
   std::vector<int> residual_frames;       // the frame index of each
 };
 
+// The mean of `chosen`'s predicted errors between keyframes (fraction of the diagonal); 0 when
+// none was predicted (every frame a keyframe): what the grid's and the field precision's targets scale with.
+double mean_predicted_error(const KeyframeSelection& chosen);
+
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.
 // A frame's prediction is the spline (`options.spline`) of the keyframes' face-frame surfaces
 // placed by the spline of their poses, exactly as the decoder blends; its error is the RMS over the

@@ -44,7 +44,7 @@ struct PartHeader {
   std::string capture_id;   // capture_fingerprint of the capture sampled
   SampledCapture capture;   // what the assembling encoder is told of it
   FrameRange range;         // the frames this part holds, one record each
-  std::string settings;     // sample_settings of the options sampled with (JSON)
+  std::string settings;     // the options sampled with: write_options(options, OptionsScope::kSample)
   std::string encoder;      // the writer ("facemorph 1.5.0")
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
   uint16_t minor_version = kPartMinorVersion;  // on read, the file's
@@ -107,8 +107,5 @@ class PartReader {
 // rate, units and landmarks (names and points), hashed (FNV-1a, 64 bits, as 16 hex digits). Parts of
 // one capture agree; a capture edited between stages does not.
 std::string capture_fingerprint(const Capture& capture);
-// The options the sample stage's output depends on (mapping, landmarks, registration, the reference),
-// as JSON text: parts sampled with other settings than the assemble stage's are refused.
-std::string sample_settings(const EncodeOptions& options);
 
 }  // namespace facemorph

@@ -6,9 +6,11 @@
 // a few frames between keyframes instead of assuming either.
 #pragma once
 
+#include "facemorph/fields.hpp"
 #include "facemorph/grid_geometry.hpp"
 #include "facemorph/spline.hpp"
 
+#include <cstddef>
 #include <memory>
 #include <vector>
 
@@ -36,5 +38,21 @@ struct BlendComparison {
 // do not match G or a trial that needs a keyframe left empty.
 BlendComparison compare_blends(const std::shared_ptr<const GridGeometry>& geometry, const std::vector<double>& key_times, SplineKind spline,
                                const std::vector<std::vector<Vec3>>& keys, const std::vector<BlendTrial>& trials, int threads);
+
+// The representation's automatic choice (EncodeOptions::representation unset): xyz only where the
+// blended fields miss the frames between keyframes by more than this times the blended positions
+// (a margin for the measurement's noise: hl+t keeps its head-rotation behaviour and, on the captures
+// measured, fewer bytes at equal error wherever both blends are alike; spec/method.md §7.14), over
+// at most kBlendTrials frames.
+inline constexpr double kFieldsBlendMargin = 1.1;
+inline constexpr int kBlendTrials = 12;
+
+// The pairs of neighbouring keyframes (k: keyframes[k] and keyframes[k + 1], frame indices) with a
+// frame between them, kBlendTrials of them at most, spread evenly over those pairs (the first and the
+// last kept): where choose_representation blends.
+std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes);
+// What an unset representation becomes after `blend` was measured: xyz where the fields came out
+// farther than kFieldsBlendMargin times the positions (a diverged blend is infinitely far), else hl+t.
+Representation representation_for(const BlendComparison& blend);
 
 }  // namespace facemorph

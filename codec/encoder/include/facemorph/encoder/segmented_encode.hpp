@@ -43,7 +43,7 @@ struct SegmentMeasure {
   std::string source;  // the file it was read from, for messages (read_segment_measure)
   SegmentId segment;
   std::string capture_id;  // the parts' capture (capture_fingerprint)
-  std::string settings;    // segment_settings of the options: the same in every segment of an encode
+  std::string settings;    // the options, write_options(options, OptionsScope::kSegment): the same in every segment of an encode
   int keyframes = 0, intra_period = 0, grid = 0;
   Representation representation = Representation::kHL;
   int first = 0, end = 0;          // the keyframes the segment codes
@@ -58,9 +58,6 @@ struct SegmentMeasure {
   KeyframeSelection plan;
   BlendComparison blend;
 };
-
-// The options every segment of one encode must share: the sample settings and the assemble stage's.
-std::string segment_settings(const EncodeOptions& options);
 
 // Segment `id`'s keyframes of `keyframes` in groups of `intra_period`: groups split as evenly as
 // they go. N is a bound: a capture of G < N groups has one segment a group, and segments G..N-1

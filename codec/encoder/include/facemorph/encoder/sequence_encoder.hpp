@@ -12,6 +12,8 @@
 #include "facemorph/encoder/capture.hpp"
 #include "facemorph/encoder/conformal.hpp"
 #include "facemorph/encoder/density_equalising.hpp"
+#include "facemorph/encoder/encode_options.hpp"
+#include "facemorph/encoder/encode_report.hpp"
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/frame_pipeline.hpp"
 #include "facemorph/encoder/frame_store.hpp"
@@ -21,6 +23,7 @@
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/encoder/sampled_frame.hpp"
 #include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
@@ -31,165 +34,12 @@
 #include <functional>
 #include <map>
 #include <memory>
-#include <array>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 namespace facemorph {
-
-inline constexpr int kAutoTextureQuality = -1;
-// The representation's automatic choice (EncodeOptions::representation unset): xyz only where the
-// blended fields miss the frames between keyframes by more than this times the blended positions
-// (a margin for the measurement's noise: hl+t keeps its head-rotation behaviour and, on the captures
-// measured, fewer bytes at equal error wherever both blends are alike; spec/method.md §7.14), over
-// at most kBlendTrials frames.
-inline constexpr double kFieldsBlendMargin = 1.1;
-inline constexpr int kBlendTrials = 12;
-
-// The pairs of neighbouring keyframes (k: keyframes[k] and keyframes[k + 1], frame indices) with a
-// frame between them, kBlendTrials of them at most, spread evenly over those pairs (the first and the
-// last kept): where choose_representation blends.
-std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes);
-// What an unset representation becomes after `blend` was measured: xyz where the fields came out
-// farther than kFieldsBlendMargin times the positions (a diverged blend is infinitely far), else hl+t.
-Representation representation_for(const BlendComparison& blend);
-
-struct EncodeOptions {
-  double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
-  // The budget grows where it would leave the mean error predicted between keyframes above this
-  // (fraction of the diagonal), or the worst above 3 times it: frames far apart or fast motion get
-  // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
-  // 0: the budget exactly (fmenc --keyframes P sets 0).
-  double keyframe_error_bound = 0.005;
-  // A capture whose frames lie on median more than this apart (seconds; below 4 frames a second)
-  // keeps every frame as a keyframe (SelectionOptions::sparse_interval). 0: off (fmenc --keyframes P
-  // sets 0, as for the bound).
-  double sparse_frame_interval = 0.25;
-  double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
-  int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
-  // What the keyframes store. Unset (the default; fmenc --representation auto): hl+t, except where
-  // most frames register to the reference without interior landmarks (none shared, none tracked)
-  // and the keyframes' fields, blended at frames between them, come out farther from those frames
-  // than their blended positions (by more than kFieldsBlendMargin): there xyz. The fields of
-  // features that the normalised maps leave apart do not blend into one surface; positions do
-  // (spec/method.md §7.14). SequenceEncoder::choose_representation decides.
-  std::optional<Representation> representation;
-  RegistrationOptions registration;
-  SplineKind spline = SplineKind::kCatmullRom;
-  // Residual frames (format 2.3, spec/method.md §7.18): frames between keyframes carry a correction
-  // of the spline's blend where it lowers their predicted error enough (SelectionOptions::residuals).
-  // Off by default (fmenc --residual-frames turns it on): the fit is made against the keyframes'
-  // own frames, not the keyframe fit's values the decoder blends, and on Medusa it made half the
-  // held-out frames worse (mean +3.6%, worst -11%); on noise-free fast speech it helps (mean -15%,
-  // 99th percentile -23%).
-  bool residual_frames = false;
-  bool texture = true;
-  int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
-  // --texture-codec: how keyframe textures are stored (AVIF: ~30% smaller than WebP at equal PSNR).
-  TextureCodec texture_codec = TextureCodec::kAvif;
-  // --quality: every keyframe's texture at this quality of the codec (0..100, above 100 lossless WebP), or
-  // kAutoTextureQuality (the default): each keyframe's from the interpolation error beside it
-  // (texture_quality.hpp, spec/method.md §7.12).
-  int texture_quality = kAutoTextureQuality;
-  TextureQualityOptions texture_coding;
-  // Keyframes painted from one captured image (the same file, or the same pixels) show one texture,
-  // stored once, where it stays within texture_coding.min_psnr of each one's own (share_textures,
-  // spec/method.md §7.16). fmenc --no-texture-sharing turns it off.
-  bool share_textures = true;
-  bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
-  bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
-  int reference_frame = 0;          // the frame every other is registered to
-  int threads = 0;                  // 0: one per core
-  ConformalOptions conformal;
-  // --density-equalising: how far G's nodes spread over the reference's surface by area instead of
-  // conformally (density_equalising.hpp); strength 0 (the default) keeps the conformal disk: measured,
-  // equalising lowers the floor at equal N but costs elsewhere (spec/method.md §7.11).
-  DensityEqualisingOptions density_equalising{.strength = 0};
-  // --field-error: the RMS displacement of a decoded keyframe that rounding its fields may cause
-  // (fraction of the diagonal; field_precision.hpp). predicted_fields false (--field-error 0): no
-  // search, each array at a 65535th of its range (16-bit precision, spec/container.md §7.1).
-  FieldPrecisionOptions field_precision;
-  bool predicted_fields = true;
-  // --field-error auto (the default): the target is two fifths of the mean error the spline is
-  // predicted to make between keyframes, within [0.005%, 0.2%] of the diagonal, where rounding
-  // error and more keyframes buy held-out error at about the same price in bytes, whether the
-  // capture is clean or noisy (spec/method.md §5.3); false: field_precision's target.
-  bool auto_field_error = true;
-  // --keyframe-fit: store at each keyframe the values whose spline best matches every frame of the
-  // capture (least squares over all frames, in the face frame of the pose the decoder blends),
-  // instead of the keyframe's own frame: a noisy capture's noise is averaged away instead of
-  // interpolated (spec/method.md §7.5). keyframe_fit_weight μ is the extra weight of a keyframe's
-  // own frame (it already counts once). keyframe_fit_noise κ: a keyframe moves at most κ times its
-  // frame's estimated noise (RMS), so a clean capture's keyframes stay its frames.
-  bool keyframe_fit = true;
-  double keyframe_fit_weight = 1.0;
-  double keyframe_fit_noise = 3.0;
-  // A frame without nose_tip and nose_bridge (or between_eyes): find them from its geometry
-  // (find_face_orientation) instead of dropping it; and where the capture has no rim_* markers at
-  // all, place rim_0..rim_5 on each frame's rim at fixed angles of its normalised disk
-  // (spec/method.md §7.14). false: such a frame is dropped (or, strict, ends the encode).
-  bool find_landmarks = true;
-  // A frame that shares fewer than 3 interior landmarks with the reference (every frame of a capture
-  // without landmarks, or with --landmarks auto): a grid of the reference's disk points tracked onto
-  // it by optical flow on disk images of the geometry, the reliable ones added to its landmarks
-  // (landmark_tracking.hpp, spec/method.md §7.14). Off by default (fmenc --track-landmarks): it
-  // lowers the held-out error (two ICT clips: 1.37–1.42× → 1.16–1.17× the landmarked encode's) but
-  // costs 14–18% more bytes and ~0.2 s a frame, not yet "alike rates". false: the interior follows
-  // the normalised maps.
-  bool track_landmarks = false;
-  TrackingOptions tracking;
-  // --strict: a frame that cannot be read, prepared or mapped, or a landmark farther from its frame
-  // than landmark_tolerance, ends the encode with its error. Otherwise (the default) such a frame is
-  // dropped and named in the report, a far landmark is ignored and named, and the spline covers the
-  // dropped frame's time.
-  bool strict = false;
-  // How far from its frame's surface a landmark may lie, as a fraction of the frame's bounding-box
-  // diagonal (2%: 4-6 mm on a face). A landmark from a detector or a hand lies on the surface up
-  // to its noise; one farther off is a mistake (another frame's, another unit), and snapping it to
-  // the closest point would pass the mistake on to the registration.
-  double landmark_tolerance = 0.02;
-  // true (the default): each frame's map goes to a temporary file (TMPDIR) once it is made and is
-  // read back by the stages that need it, so memory holds only the frames being worked on (about
-  // one per thread) whatever the capture's length (frame_store.hpp). false: every map stays in
-  // memory, ~4 MB a frame of a 10k-vertex capture; the output is the same.
-  bool spill_frames = true;
-  // true (the default): the keyframes' surfaces on G while they are fitted, and the field
-  // precision's exact fields and decoded surfaces, go to a temporary file too and are read back one
-  // a thread (keyframe_store.hpp). false: they stay in memory, ~3 MB a keyframe at N = 257 (as
-  // the encoder did before); the output is the same.
-  bool spill_keyframes = true;
-  // Progress: (stage, done, total); stages "mapping", "registering", "keyframes".
-  std::function<void(const std::string&, int, int)> progress;
-};
-
-// What the encoder did, frame by frame: for the tools' summaries and the bench.
-struct EncodedFrameReport {
-  std::string name;
-  double time = 0;
-  int vertices = 0;
-  int holes_filled = 0;
-  std::string repair;  // what preparation changed ("valid as captured", "dropped 2 other components (812 faces)", ...)
-  RepairTotals repair_totals;  // faces and vertices it changed, how far the surface moved
-  bool keyframe = false;
-  RegistrationFallback fallback = RegistrationFallback::kNone;
-  std::string fallback_reason;
-  std::string conformal_fallback_reason;  // non-empty when QIEM failed and the frame took another map...
-  ConformalMethod conformal_method = ConformalMethod::kQiem;  // ...this one
-  double energy_moebius = 0, energy = 0;  // E_D of the OMT and of the registration (disk units²)
-  double predicted_error = 0;             // the selection's predicted error (fraction of the diagonal)
-  double diagonal = 0;                    // of the captured frame
-};
-
-// A frame the encoder left out (EncodeOptions::strict is false), with the error that would have
-// ended the encode.
-struct DroppedFrame {
-  int index = 0;  // in the capture as given
-  std::string name;
-  double time = 0;
-  std::string reason;
-};
 
 // One segment of a long capture's keyframes, coded apart from the others (fmenc --stage measure,
 // --stage assemble --segment S/N; spec/method.md §7.17). Positions are in the capture's list of
@@ -200,87 +50,6 @@ struct KeyframeSegment {
   // The fixed nodes of the whole capture (every segment's folds); none: the segment's own folds.
   std::optional<std::vector<int32_t>> fixed_nodes;
   bool textures = true;  // false: none sampled (a stage that writes no file)
-};
-
-struct EncodeReport {
-  std::vector<EncodedFrameReport> frames;  // the frames encoded (without the dropped ones)
-  std::vector<DroppedFrame> dropped;       // in capture order
-  std::vector<std::string> warnings;       // landmarks ignored, a reference frame moved; each names its frame
-  int reference_frame = 0;                 // the frame registered to, in the capture as given
-  int orientation_found = 0;               // frames whose nose tip and up were found from the geometry
-  double weakest_up_evidence = 1;          // the least clear of their up readings (FaceOrientation::up_evidence)
-  int up_from_hint = 0;                    // of them, frames whose surface did not say and another frame's up was taken
-  double worst_mirror_error = 0;           // the least symmetric of them (FaceOrientation::mirror_error)
-  // How they were found (FaceFindingMethod: whole surface, texture, face region), frames each, and
-  // the least sure finding (FaceOrientation::confidence). A staged encode's part files do not carry
-  // these: frames read from them count as found on the whole surface with confidence 0.
-  std::array<int, 3> orientation_methods = {0, 0, 0};
-  double lowest_face_confidence = 1;
-  // The method that found the most frames ("whole surface", "texture", "face region").
-  const char* main_orientation_method() const;
-  bool rim_markers_found = false;          // rim markers placed on the rims (the capture had none)
-  // Tracking (EncodeOptions::track_landmarks), over the frames that took tracked points (the
-  // reference excluded): how many, the reference's grid, the points kept per frame (mean, fewest),
-  // the median and 90th percentile of their round-trip errors (disk units; the disk's radius is 1).
-  int tracked_frames = 0;
-  int tracking_grid_points = 0;
-  double tracked_points_mean = 0;
-  int tracked_points_fewest = 0;
-  double tracked_round_trip_median = 0, tracked_round_trip_p90 = 0;
-  double seconds_tracking = 0;
-  // Frames registered without interior landmarks shared with the reference (the reference excluded),
-  // and the representation the keyframes store (EncodeOptions::representation, or what auto chose).
-  int frames_without_interior_landmarks = 0;
-  Representation representation = Representation::kHLT;
-  BlendComparison blend;  // what choose_representation measured (trials 0: nothing measured)
-  std::vector<int> keyframes;
-  std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
-  int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)
-  bool sparse = false;                                    // every frame a keyframe: frames sparser than sparse_frame_interval
-  double median_frame_interval = 0;                       // seconds
-  double budget_mean_error = 0, budget_worst_error = 0;   // the predicted errors it left (fraction of the diagonal)
-  int grid = 0;
-  int texture_size = 0;                                   // M chosen (0: no texture)
-  std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
-  double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
-  double grid_target = 0;                                 // the floor --grid auto asked for / diagonal
-  std::string grid_term;                                  // which term set it: "floor", "noise" or "interpolation"
-  int registration_fallbacks = 0;
-  DensityEqualisingReport density_equalising;
-  double radial_equalising = 0;  // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
-  std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending
-  FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
-  FieldPrecisionReport field_precision;
-  // Per keyframe, the quality of its texture in options().texture_codec (SequenceFileMetadata::keyframe_texture_qualities;
-  // empty without texture); with auto quality, per interval between keyframes the PSNR of the texture
-  // blend at the frame midway (0 where no frame lies between).
-  std::vector<int> texture_qualities;
-  std::vector<double> texture_interpolation_psnr;
-  // Per keyframe (share_textures): the earlier keyframe whose texture it shows, or -1 for its own;
-  // where shown, that texture's PSNR against its own over the disk (0 elsewhere).
-  std::vector<int> texture_shared_with;
-  std::vector<double> texture_share_psnr;
-  // The most frames' maps in memory at once (FrameStore::peak_held: the reference's, and those
-  // being mapped, registered or sampled), and the bytes of the maps written to the temporary file.
-  int peak_frames_in_memory = 0;
-  uint64_t spilled_bytes = 0;
-  // The same for the keyframes' arrays (KeyframeStore: surfaces on G in build and the fit, decoded
-  // surfaces in the field precision's search): the most in memory at once in either step; and the
-  // bytes written, with those of the output's fields, hole levels and textures (StoredSequence, whose
-  // own peak_held() counts what the later steps and the writer read back of them).
-  int peak_keyframes_in_memory = 0;
-  uint64_t keyframes_spilled_bytes = 0;
-  // The same for the selection's samples (SelectionStore, with options.spill_frames): the most
-  // frames' samples in memory at once (its cache's and those in use), and the bytes written.
-  int peak_selection_samples_in_memory = 0;
-  uint64_t selection_spilled_bytes = 0;
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
-         seconds_texture = 0;
-  // The staged encode's assemble stage (staged_encode.hpp): the parts read and checked. Its
-  // seconds_mapping, _registration and _selection are then the parts' own, summed.
-  double seconds_reading_parts = 0;
-  double seconds_planning = 0;  // plan_keyframes: the keyframes, N and representation chosen
-  int parts = 0;
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
@@ -297,59 +66,6 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {
 // time and pose rather than its arrays (spec/method.md §7.15). The temporary file goes with it.
 // The encoder keeps its own capture: moved in, a long capture's paths and landmarks are not held twice.
 std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
-
-// What the encoder keeps in memory of every frame once it is mapped (its map goes to the FrameStore):
-// the counts and reasons the report gives, whether it has colour, and the landmarks it found.
-struct FrameSummary {
-  std::string name;
-  int vertices = 0;      // of the prepared mesh
-  int holes_filled = 0;
-  std::string repair;    // RepairReport::summary()
-  RepairTotals repair_totals;  // RepairReport::totals()
-  ConformalMethod conformal_method = ConformalMethod::kQiem;
-  std::string conformal_fallback_reason;
-  bool has_uvs = false, has_colours = false;  // of the mapped surface
-  std::optional<FaceOrientation> found;       // MappedFrame::found
-  std::vector<Vec3> found_rim;                // MappedFrame::found_rim
-};
-
-// One frame of the capture as the staged encode's sample stage leaves it for assembling
-// (staged_encode.hpp; a part file's record, spec/part-file.md): dropped, with why, or kept, with
-// everything the steps after the selection's sampling read of it.
-struct SampledFrame {
-  int index = 0;     // in the capture as given
-  std::string name;  // its mesh, as the capture names it
-  double time = 0;
-  std::vector<std::string> warnings;  // its landmarks ignored, each naming the frame
-  // Why the frame was dropped; empty for a frame kept. A frame dropped at registration was mapped
-  // first: `mapped` is set and its summary counts in the landmarks the report says were found.
-  std::string dropped;
-  bool mapped = false;
-  FrameSummary summary;  // a frame mapped
-  // A frame kept:
-  std::filesystem::path texture;              // its texture image (absolute), if any
-  std::vector<Vec3> landmarks;                // one per name of the part's landmark names
-  std::vector<char> map;                      // FrameStore::serialize
-  // Or, where set, what gives those bytes when asked (map left empty): the assembling encoder reads
-  // the map from there each time a step needs it rather than keeping a copy (a part file's record).
-  std::function<std::vector<char>()> map_source;
-  std::vector<char> registration;             // RegistrationStore::serialize
-  bool without_interior_landmarks = false;    // registered without interior landmarks shared with the reference
-  SelectionFrame selection;                   // its time, pose, diagonal and samples on the selection grid
-};
-
-// What the assembling encoder is told of the capture besides its frames (staged_encode.cpp).
-struct SampledCapture {
-  std::filesystem::path root;
-  double fps = 0;
-  std::string units = "m";
-  double first_time = 0, last_time = 0;      // the capture's as given
-  int frame_count = 0;                       // as given
-  std::vector<std::string> landmark_names;   // the names the frames' landmarks follow (with those found added)
-  std::vector<std::string> given_landmark_names;  // the capture's own
-  int given_reference = 0;                   // EncodeOptions::reference_frame as given
-  int reference = 0;                         // the frame registered to (capture index): given_reference unless that one was dropped
-};
 
 // The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
 // encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
@@ -484,10 +200,6 @@ class SequenceEncoder {
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  // Replaces the keyframes' registered surfaces in the face frame (item k of `local`, frame
-  // keyframes[k], sampled at G's nodes) by the least-squares fit of the spline to every frame
-  // (options().keyframe_fit). Reads each surface back twice and stores the fitted one in its place.
-  void fit_keyframes(const std::vector<int>& keyframes, const GridGeometry& geometry, SurfaceStore& local) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
   // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
@@ -536,8 +248,6 @@ class SequenceEncoder {
   Image frame_texture(const MappedFrame& frame, int i, int size) const;
   // The reference's map, kept in memory while it is the reference: every stage uses it.
   std::shared_ptr<const MappedFrame> pin_reference();
-  // Throws kInvalidArgument for options out of their ranges (`count`: the capture's frames).
-  void check_options(int count) const;
   std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store() const;
   // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
   // has one; kCorrupt naming the frame where the bytes are not one.

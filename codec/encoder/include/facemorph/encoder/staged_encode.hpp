@@ -31,7 +31,7 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
 
 // Assembles the parts (any order) into the encoded sequence, as encode_capture_stored does from the
 // capture. The parts must come from one capture, with the sample settings `options` has
-// (sample_settings), and hold each of its frames once: otherwise kInvalidArgument naming the parts
+// (same_options of OptionsScope::kSample), and hold each of its frames once: otherwise kInvalidArgument naming the parts
 // or the frames missing. The capture's texture images are read from where the parts name them.
 // `header`: the first part's header (the capture's fps, units, landmark names).
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,

@@ -1,0 +1,96 @@
+// What the keyframes store when the options leave it open: hl+t, or xyz where the fields blended
+// between keyframes come out farther from the frames than the blended positions
+// (spec/method.md §7.14).
+#include "facemorph/encoder/sequence_encoder.hpp"
+
+#include "codec/encoder/stages/elapsed.hpp"
+
+#include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/parallel.hpp"
+#include "facemorph/pose.hpp"
+#include "facemorph/spline.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace facemorph {
+
+std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes) {
+  std::vector<size_t> pairs;
+  for (size_t k = 0; k + 1 < keyframes.size(); ++k) {
+    if (keyframes[k + 1] - keyframes[k] >= 2) pairs.push_back(k);
+  }
+  if (pairs.size() <= static_cast<size_t>(kBlendTrials)) return pairs;
+  std::vector<size_t> spread;
+  for (int t = 0; t < kBlendTrials; ++t) spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
+  return spread;
+}
+
+Representation representation_for(const BlendComparison& blend) {
+  return blend.trials > 0 && blend.fields_error > kFieldsBlendMargin * blend.positions_error ? Representation::kXYZ : Representation::kHLT;
+}
+
+void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
+  auto_representation_ = representation;
+  report_.blend = blend;
+  report_.representation = this->representation();
+}
+
+void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int grid) {
+  const auto start = std::chrono::steady_clock::now();
+  auto_representation_ = Representation::kHLT;
+  report_.blend = {};
+  const std::vector<int>& keyframes = chosen.keyframes;
+  const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
+  // On a radially reparametrised disk (a whole head) hl+t's fixed-point iteration diverges: the
+  // tangential part of Δ_h S, large where the map stretches the disk unevenly, turns with the frame
+  // it is carried in (measured on fmsynth --head at radial strengths 0.25 to 1: no keyframe converged).
+  // Positions decode without iterating, and the container holds them (spec/method.md §7.11).
+  if (!options_.representation && report_.radial_equalising > 0) {
+    auto_representation_ = Representation::kXYZ;
+  } else if (!options_.representation && unmatched && keyframes.size() >= 2) {
+    // The frame midway between each pair of keyframes with frames between them (blend_trial_pairs).
+    const std::vector<size_t> pairs = blend_trial_pairs(keyframes);
+    std::vector<double> times;
+    for (int k : keyframes) times.push_back(capture_.frames[static_cast<size_t>(k)].time);
+    const KeyframeSpline spline(times, options_.spline);
+    std::vector<int> midway, needed_keys;
+    std::vector<char> needed(keyframes.size(), 0);
+    for (size_t k : pairs) {
+      midway.push_back((keyframes[k] + keyframes[k + 1]) / 2);
+      for (int32_t key : spline.weights(capture_.frames[static_cast<size_t>(midway.back())].time).keys) needed[static_cast<size_t>(key)] = 1;
+    }
+    for (size_t k = 0; k < keyframes.size(); ++k) {
+      if (needed[k]) needed_keys.push_back(static_cast<int>(k));
+    }
+    if (!pairs.empty()) {
+      const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(grid));
+      // A frame's registered surface on G in the face frame (as build samples a keyframe).
+      auto local_surface = [&](int i) {
+        std::vector<Vec3> surface = sample_surface(i, geometry->grid().nodes);
+        const RigidPose to_face = selection_[static_cast<size_t>(i)].pose.inverse();
+        for (Vec3& p : surface) p = to_face.apply(p);
+        return surface;
+      };
+      std::vector<std::vector<Vec3>> keys(keyframes.size());
+      std::vector<BlendTrial> trials(pairs.size());
+      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), options_.threads, [&](int j) {
+        const auto index = static_cast<size_t>(j);
+        if (index < needed_keys.size()) {
+          const auto k = static_cast<size_t>(needed_keys[index]);
+          keys[k] = local_surface(keyframes[k]);
+        } else {
+          const size_t t = index - needed_keys.size();
+          trials[t].time = capture_.frames[static_cast<size_t>(midway[t])].time;
+          trials[t].surface = local_surface(midway[t]);
+        }
+      });
+      report_.blend = compare_blends(geometry, times, options_.spline, keys, trials, options_.threads);
+      auto_representation_ = representation_for(report_.blend);
+    }
+  }
+  report_.representation = representation();
+  report_.seconds_representation = seconds_since(start);
+}
+
+}  // namespace facemorph

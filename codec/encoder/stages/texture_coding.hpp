@@ -1,0 +1,45 @@
+// The texture stage: each keyframe's texture quality (from the texture blend's error beside it,
+// spec/method.md §7.12), and keyframes painted from one captured image showing one texture
+// (spec/method.md §7.16).
+#pragma once
+
+#include "facemorph/encoder/stored_sequence.hpp"
+#include "facemorph/encoder/texture_quality.hpp"
+#include "facemorph/image.hpp"
+#include "facemorph/image_codec.hpp"
+
+#include <filesystem>
+#include <functional>
+#include <vector>
+
+namespace facemorph {
+
+// What the texture stage reads of the capture's frames (by frame index); called from the threads.
+struct FrameTextures {
+  std::function<double(int)> time;         // seconds
+  std::function<bool(int)> has_texture;    // whether the frame has colour to store
+  std::function<Image(int, int)> texture;  // its own colour on the size × size disk texture, sampled as a keyframe's
+};
+
+struct TextureQualities {
+  std::vector<int> qualities;               // per keyframe; empty for a sequence without texture
+  std::vector<double> interpolation_psnr;   // auto quality: per interval, the blend's PSNR at the frame midway (0: none between)
+};
+
+// Each keyframe of `stored` (frames `keyframes`) coded at `quality` of `codec`, or with
+// kAutoTextureQuality at the quality that keeps its coding error within `coding`'s share of the
+// interpolation error measured beside it. kInvalidArgument where `keyframes` are not the sequence's.
+TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames, int quality,
+                                            TextureCodec codec, const TextureQualityOptions& coding, int threads);
+
+struct TextureSharing {
+  std::vector<int> shared_with;  // per keyframe: the earlier keyframe whose texture it shows, or -1
+  std::vector<double> psnr;      // where shown, that texture's PSNR against its own (0 elsewhere)
+};
+
+// Keyframe k of `stored` takes the nearest earlier keyframe's texture painted from the same pixels
+// (`images[k]`: its captured image; empty for vertex colours) where the two are within `min_psnr`
+// dB of each other over the disk. Reads each image once.
+TextureSharing share_keyframe_textures(StoredSequence& stored, const std::vector<std::filesystem::path>& images, double min_psnr);
+
+}  // namespace facemorph
