@@ -2,7 +2,9 @@
 #pragma once
 
 #include "facemorph/error.hpp"
+#include "facemorph/image.hpp"
 #include "facemorph/mesh.hpp"
+#include "facemorph/sequence_file.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <gtest/gtest.h>
@@ -11,6 +13,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <string>
@@ -83,6 +86,34 @@ inline void write_text(const std::filesystem::path& path, const std::string& tex
 }
 
 // ../shared/data when the checkout sits beside it; empty when absent (tests then skip).
+constexpr double kPi = std::numbers::pi;
+
+// The golden files (tests/data, one per format version), by the name every test uses.
+inline const std::string kGoldenV2_0 = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
+inline const std::string kGoldenV2_1 = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_1.fmv";
+
+// Peak signal-to-noise ratio of `b` against `a` (8-bit samples), in dB; 99 where they are equal.
+inline double psnr(const Image& a, const Image& b) {
+  double squared = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) squared += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
+  return squared == 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 * static_cast<double>(a.pixels.size()) / squared);
+}
+
+// How many chunks of `type` (a four-letter tag) a file's walk found.
+inline int chunk_count(const SequenceFileInfo& info, const std::string& type) {
+  int count = 0;
+  for (const auto& c : info.chunks) count += c.type == type ? c.count : 0;
+  return count;
+}
+
+// A surface given on the disk (a function of w), sampled at every node of a grid (rim nodes included).
+template <typename Grid, typename Surface>
+std::vector<Vec3> sample_nodes(const Grid& grid, Surface&& surface) {
+  std::vector<Vec3> out;
+  for (const Vec2& w : grid.nodes) out.push_back(surface(w));
+  return out;
+}
+
 inline std::filesystem::path shared_data() {
   const std::filesystem::path path = FACEMORPH_SHARED_DATA;
   std::error_code ec;

@@ -545,57 +545,91 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   return {{"input", input}, {"fmv", options.fmv}, {"bytes", file_bytes}, {"evaluation", evaluation}};
 }
 
-json measure_capture(Context& context, const std::string& input) {
-  const CaptureBenchOptions& options = context.options;
+// ---- the capture as it lies on disk ------------------------------------------------------------
+
+struct CapturedFrames {
+  Capture capture;
+  std::string label;
+  fs::path scratch;  // the baselines' files
+  int count = 0;
+  double duration = 0;  // seconds, the last frame's included
+  std::vector<TriangleMesh> meshes;
+  uint64_t raw_mesh = 0, raw_texture = 0;  // bytes of the OBJ + MTL files, and of their images
+  int64_t vertex_frames = 0;
+  std::vector<fs::path> textures;
+  bool textured = false;  // every frame has its image
+  std::vector<int> every, sample;  // every frame; the frames the baselines' sweeps are measured on
+};
+
+CapturedFrames read_captured_frames(const Context& context, const fs::path& folder, const std::string& input) {
   const Plan& plan = context.plan;
-  const auto folder = make_bench_capture(input, options.data, context.scratch, plan.synth, "fmbench --capture", options.quiet);
-  if (!folder) {
-    std::printf("\n%s: skipped (the shared data or python3 is absent)\n", input.c_str());
-    context.markdown += "## " + input + "\n\nSkipped: the shared data (or python3) is absent.\n\n";
-    return {{"input", input}, {"skipped", true}};
-  }
-  std::error_code ec;
-  if (!fs::exists(*folder, ec)) throw Error(ErrorCode::kIo, "capture '" + folder->string() + "' does not exist");
-  Capture capture = read_capture(*folder);
+  CapturedFrames c;
+  c.capture = read_capture(folder);
+  Capture& capture = c.capture;
   if (plan.frame_limit > 0 && capture.frames.size() > static_cast<size_t>(plan.frame_limit)) {
     capture.frames.resize(static_cast<size_t>(plan.frame_limit));
     capture.landmarks.resize(static_cast<size_t>(plan.frame_limit));
   }
-  const int count = static_cast<int>(capture.frames.size());
-  const double duration = capture.duration() + 1.0 / capture.fps;
-  const std::string label = fs::path(input).filename().string().empty() ? "capture" : fs::path(input).filename().string();
-  const fs::path scratch = context.scratch / (label + "_work");
-  fs::create_directories(scratch);
-
-  // The raw capture: its meshes, their materials and textures as they lie on disk.
-  std::vector<TriangleMesh> captured;
-  uint64_t raw_mesh = 0, raw_texture = 0;
-  int64_t vertex_frames = 0;
-  std::vector<fs::path> textures;
-  for (int i = 0; i < count; ++i) {
+  c.count = static_cast<int>(capture.frames.size());
+  c.duration = capture.duration() + 1.0 / capture.fps;
+  c.label = fs::path(input).filename().string().empty() ? "capture" : fs::path(input).filename().string();
+  c.scratch = context.scratch / (c.label + "_work");
+  fs::create_directories(c.scratch);
+  for (int i = 0; i < c.count; ++i) {
     const fs::path path = capture.mesh_path(static_cast<size_t>(i));
-    captured.push_back(read_mesh(path, {.allow_missing_texture = true}));
-    raw_mesh += file_bytes(path) + file_bytes(fs::path(path).replace_extension(".mtl"));
-    vertex_frames += captured.back().vertex_count();
-    if (!captured.back().texture.empty()) {
-      textures.push_back(captured.back().texture);
-      raw_texture += file_bytes(captured.back().texture);
+    c.meshes.push_back(read_mesh(path, {.allow_missing_texture = true}));
+    c.raw_mesh += file_bytes(path) + file_bytes(fs::path(path).replace_extension(".mtl"));
+    c.vertex_frames += c.meshes.back().vertex_count();
+    if (!c.meshes.back().texture.empty()) {
+      c.textures.push_back(c.meshes.back().texture);
+      c.raw_texture += file_bytes(c.meshes.back().texture);
     }
   }
-  const bool textured = static_cast<int>(textures.size()) == count;
-  std::vector<int> every(static_cast<size_t>(count)), sample;
-  for (int i = 0; i < count; ++i) every[static_cast<size_t>(i)] = i;
-  const int stride = std::max(1, (count + plan.sample_frames - 1) / plan.sample_frames);
-  for (int i = 0; i < count; i += stride) sample.push_back(i);
-  std::printf("\n%s: %d frames at %.3g fps (%.2f s), %.0f vertices per frame, %s\n", label.c_str(), count, capture.fps, duration,
-              static_cast<double>(vertex_frames) / count, textured ? "textured" : "no texture");
+  c.textured = static_cast<int>(c.textures.size()) == c.count;
+  c.every.resize(static_cast<size_t>(c.count));
+  for (int i = 0; i < c.count; ++i) c.every[static_cast<size_t>(i)] = i;
+  const int stride = std::max(1, (c.count + plan.sample_frames - 1) / plan.sample_frames);
+  for (int i = 0; i < c.count; i += stride) c.sample.push_back(i);
+  std::printf("\n%s: %d frames at %.3g fps (%.2f s), %.0f vertices per frame, %s\n", c.label.c_str(), c.count, capture.fps, c.duration,
+              static_cast<double>(c.vertex_frames) / c.count, c.textured ? "textured" : "no texture");
+  return c;
+}
 
+// ---- facemorph's points, and the texture baselines measured as they decode ---------------------
+
+// JPEG at every quality and H.264 at every CRF, on the sample frames.
+struct TextureBaselines {
+  std::map<int, std::vector<double>> jpeg_psnr, h264_psnr;
+  std::map<int, uint64_t> jpeg_sample_bytes;
+  std::vector<uint64_t> h264_bytes;
+};
+
+// The mean of the values under `key`; 0 where none was measured.
+double mean_at(const std::map<int, std::vector<double>>& values, int key) {
+  const auto found = values.find(key);
+  return found == values.end() ? 0 : mean(found->second);
+}
+
+struct FacemorphPoints {
+  int grid = 0;
+  std::vector<int> main_keys;
+  Encoded main, xyz;  // fmenc's default budget (or the file given), and its xyz variant
+  size_t residual_frames = 0;
+  std::vector<Encoded> curve, xyz_curve;  // by keyframe budget
+  int shown = 0;  // the held-out frame nearest the middle, for the pictures
+  DecodedFrame shown_decoded;
+};
+
+FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& c, StageSeconds& stage_seconds, TextureBaselines& texture) {
+  const CaptureBenchOptions& options = context.options;
+  const Plan& plan = context.plan;
+  const int count = c.count;
   // facemorph, stage by stage, with fmenc's defaults (the texture smaller with --quick).
   EncodeOptions encode;
-  encode.texture = textured;
+  encode.texture = c.textured;
   encode.texture_size = plan.texture_size;
   encode.residual_frames = options.residual_frames;
-  Progress progress(label, options.quiet);
+  Progress progress(c.label, options.quiet);
   encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
   SequenceFileInfo given_info;
   std::optional<Sequence> given;
@@ -605,8 +639,7 @@ json measure_capture(Context& context, const std::string& input) {
     if (settings.is_object() && settings.contains("registration")) encode.registration.method = parse_registration_method(settings["registration"]);
     encode.representation = given->representation;
   }
-  SequenceEncoder encoder(capture, encode);
-  StageSeconds stage_seconds;
+  SequenceEncoder encoder(c.capture, encode);
   auto timed = [&](const char* stage, auto&& body) {
     const auto start = std::chrono::steady_clock::now();
     body();
@@ -616,9 +649,10 @@ json measure_capture(Context& context, const std::string& input) {
   timed("registration", [&] { encoder.register_frames(); });
   timed("sampling", [&] { encoder.sample_frames(); });
   // fmenc's order: the keyframes first, then the grid their predicted error allows.
+  FacemorphPoints points;
   KeyframeSelection main_chosen;
   if (!given) timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
-  int grid = 0;
+  int& grid = points.grid;
   timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(&main_chosen); });
   if (!given) timed("representation", [&] { encoder.choose_representation(main_chosen, grid); });
   const Representation main_representation = given ? given->representation : encoder.representation();
@@ -635,11 +669,11 @@ json measure_capture(Context& context, const std::string& input) {
     out.bytes = bytes;
     out.info = info;
     out.texture_bytes = chunk_bytes(info, "TEXR") + chunk_bytes(info, "TGOP");  // stills, or one sequence per group (2.1)
-    out.evaluation = evaluate(encoder, sequence, keyframes, captured, every, false, [&](int i, const DecodedFrame& decoded) {
-      const bool measured = textured && !decoded.texture.empty() && (all_textures || std::binary_search(sample.begin(), sample.end(), i));
+    out.evaluation = evaluate(encoder, sequence, keyframes, c.meshes, c.every, false, [&](int i, const DecodedFrame& decoded) {
+      const bool measured = c.textured && !decoded.texture.empty() && (all_textures || std::binary_search(c.sample.begin(), c.sample.end(), i));
       if (!measured && !also) return;
       if (!measured) return also(i, DiskTexels{}, decoded);
-      const Image source = read_image(textures[static_cast<size_t>(i)]);
+      const Image source = read_image(c.textures[static_cast<size_t>(i)]);
       const DiskTexels texels = disk_texels(encoder, i, source, decoded.texture.width);
       out.psnr[i] = psnr_of_disk(texels, decoded.texture);
       if (also) also(i, texels, decoded);
@@ -668,28 +702,25 @@ json measure_capture(Context& context, const std::string& input) {
 
   // The texture baselines are measured while facemorph's main encode decodes (one pass over the
   // captured textures): JPEG at every quality, and H.264 at every CRF.
-  std::map<int, std::vector<double>> jpeg_psnr, h264_psnr;
-  std::map<int, uint64_t> jpeg_sample_bytes;
-  std::vector<uint64_t> h264_bytes;
   std::unique_ptr<H264Readers> h264;
-  if (textured) {
-    Progress h264_progress(label + " h264", true);
+  if (c.textured) {
+    Progress h264_progress(c.label + " h264", true);
     int width = 0, height = 0;
     const auto start = std::chrono::steady_clock::now();
-    h264_bytes = encode_h264(textures, capture.fps, plan.h264_crf, scratch, width, height);
+    texture.h264_bytes = encode_h264(c.textures, c.capture.fps, plan.h264_crf, c.scratch, width, height);
     stage_seconds["baseline h264 encode"] = seconds_since(start);
-    h264 = std::make_unique<H264Readers>(plan.h264_crf, scratch, width, height);
+    h264 = std::make_unique<H264Readers>(plan.h264_crf, c.scratch, width, height);
   }
   auto baselines_at = [&](int i, const DiskTexels& texels, const DecodedFrame&) {
     if (!h264) return;
     const std::vector<Image> videos = h264->next();  // every frame is read, the sample ones measured
-    if (texels.texel.empty() || !std::binary_search(sample.begin(), sample.end(), i)) return;
-    for (size_t k = 0; k < plan.h264_crf.size(); ++k) h264_psnr[plan.h264_crf[k]].push_back(psnr_of_copy(texels, videos[k]));
-    const Image source = rgb_of(read_image(textures[static_cast<size_t>(i)]));
+    if (texels.texel.empty() || !std::binary_search(c.sample.begin(), c.sample.end(), i)) return;
+    for (size_t k = 0; k < plan.h264_crf.size(); ++k) texture.h264_psnr[plan.h264_crf[k]].push_back(psnr_of_copy(texels, videos[k]));
+    const Image source = rgb_of(read_image(c.textures[static_cast<size_t>(i)]));
     for (int q : plan.jpeg_quality) {
       const std::vector<uint8_t> jpeg = encode_image(source, ".jpg", q);
-      jpeg_sample_bytes[q] += jpeg.size();
-      jpeg_psnr[q].push_back(psnr_of_copy(texels, decode_image(jpeg, "jpeg")));
+      texture.jpeg_sample_bytes[q] += jpeg.size();
+      texture.jpeg_psnr[q].push_back(psnr_of_copy(texels, decode_image(jpeg, "jpeg")));
     }
   };
 
@@ -697,9 +728,9 @@ json measure_capture(Context& context, const std::string& input) {
   std::vector<uint8_t> main_bytes;
   SequenceFileInfo main_info;
   Sequence main_sequence;
-  std::vector<int> main_keys;
+  std::vector<int>& main_keys = points.main_keys;
   if (given) {
-    for (const Keyframe& key : given->keyframes) main_keys.push_back(nearest_frame(capture, key.time));
+    for (const Keyframe& key : given->keyframes) main_keys.push_back(nearest_frame(c.capture, key.time));
     main_chosen.keyframes = main_keys;  // without predicted errors the xyz variant gets auto field error's default (1e-4)
     main_sequence = *given;
     main_info = given_info;
@@ -708,7 +739,8 @@ json measure_capture(Context& context, const std::string& input) {
     main_keys = main_chosen.keyframes;
     main_sequence = encode_file(main_chosen, grid, main_representation, main_bytes, main_info);
   }
-  const int shown = [&] {  // the held-out frame nearest the middle, for the pictures
+  points.residual_frames = main_sequence.residuals.size();
+  points.shown = [&] {
     for (int d = 0; d < count; ++d) {
       for (int i : {count / 2 - d, count / 2 + d}) {
         if (i >= 0 && i < count && !std::binary_search(main_keys.begin(), main_keys.end(), i)) return i;
@@ -716,31 +748,27 @@ json measure_capture(Context& context, const std::string& input) {
     }
     return count / 2;
   }();
-  DecodedFrame shown_decoded;
   const auto decode_start = std::chrono::steady_clock::now();
-  Encoded main = measure(given ? "facemorph (" + options.fmv + ")" : "facemorph", encode.keyframe_fraction, main_keys, main_sequence,
-                         main_bytes.size(), main_info, true, [&](int i, const DiskTexels& texels, const DecodedFrame& decoded) {
-                           baselines_at(i, texels, decoded);
-                           if (i == shown) shown_decoded = decoded;
-                         });
+  points.main = measure(given ? "facemorph (" + options.fmv + ")" : "facemorph", encode.keyframe_fraction, main_keys, main_sequence,
+                        main_bytes.size(), main_info, true, [&](int i, const DiskTexels& texels, const DecodedFrame& decoded) {
+                          baselines_at(i, texels, decoded);
+                          if (i == points.shown) points.shown_decoded = decoded;
+                        });
   stage_seconds["measuring facemorph and the texture baselines"] = seconds_since(decode_start);
   h264.reset();
-  const Summary summary = summarise(main.evaluation);
-  const double target_rms = summary.held_rms_mean, target_psnr = main.held_psnr();
 
   // Facemorph's xyz variant: the same keyframes, grid and spline.
   std::vector<uint8_t> xyz_bytes;
   SequenceFileInfo xyz_info;
   const Sequence xyz_sequence = encode_file(main_chosen, grid, Representation::kXYZ, xyz_bytes, xyz_info);
-  const Encoded xyz = measure("facemorph xyz", main.budget, main_keys, xyz_sequence, xyz_bytes.size(), xyz_info, false);
+  points.xyz = measure("facemorph xyz", points.main.budget, main_keys, xyz_sequence, xyz_bytes.size(), xyz_info, false);
   encoder.options().representation = encode.representation;
 
   // Keyframe budgets: facemorph's rate-distortion curve (and xyz's), texture on the sample frames.
-  std::vector<Encoded> curve, xyz_curve;
   for (double budget : plan.budgets) {
     if (!given && std::abs(budget - encode.keyframe_fraction) < 1e-9) {
-      curve.push_back(main);
-      xyz_curve.push_back(xyz);
+      points.curve.push_back(points.main);
+      points.xyz_curve.push_back(points.xyz);
       continue;
     }
     encoder.options().keyframe_fraction = budget;
@@ -749,238 +777,343 @@ json measure_capture(Context& context, const std::string& input) {
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
     const Sequence sequence = encode_file(chosen, budget_grid, main_sequence.representation, bytes, info);
-    curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
+    points.curve.push_back(measure("facemorph", budget, chosen.keyframes, sequence, bytes.size(), info, false));
     const Sequence xyz_at = encode_file(chosen, budget_grid, Representation::kXYZ, bytes, info);
-    xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));
+    points.xyz_curve.push_back(measure("facemorph xyz", budget, chosen.keyframes, xyz_at, bytes.size(), info, false));
     encoder.options().representation = encode.representation;
-    if (!options.quiet) std::fprintf(stderr, "fmbench --capture: %s: keyframe budget %g%% measured\n", label.c_str(), 100 * budget);
+    if (!options.quiet) std::fprintf(stderr, "fmbench --capture: %s: keyframe budget %g%% measured\n", c.label.c_str(), 100 * budget);
   }
   encoder.options().keyframe_fraction = encode.keyframe_fraction;
+  return points;
+}
 
-  // Draco on the sample frames at every qp, the coarsest meeting facemorph's held-out RMS then on
-  // every frame (one finer while the whole capture misses it).
-  const auto draco_start = std::chrono::steady_clock::now();
-  std::vector<DracoPoint> draco_curve;
-  for (int qp : plan.draco_qp) draco_curve.push_back(draco_point(capture, captured, sample, qp, scratch));
+// ---- the baselines at facemorph's error --------------------------------------------------------
+
+struct MatchedBaselines {
+  std::vector<DracoPoint> draco_curve;  // on the sample frames, at every qp
+  DracoPoint draco;                     // on every frame, at the qp chosen
   bool draco_met = false;
-  auto note = [](bool met, size_t pick, const char* missed) {
-    return !met ? std::string(" (") + missed + " not matched at the finest tried)" : pick == 0 ? std::string(" (the coarsest tried: an upper bound)") : std::string();
-  };
-  size_t draco_pick = coarsest_meeting(draco_curve.size(), [&](size_t k) { return mean(draco_curve[k].rms) <= target_rms; }, draco_met);
-  const size_t draco_first_pick = draco_pick;
-  DracoPoint draco;
+  size_t draco_pick = 0, draco_first_pick = 0;
   TriangleMesh draco_shown;
-  for (;;) {
-    draco = draco_point(capture, captured, every, plan.draco_qp[draco_pick], scratch);
-    draco_met = mean(draco.rms) <= target_rms;
-    if (draco_met || draco_pick + 1 == plan.draco_qp.size()) break;
-    ++draco_pick;
-  }
-  draco_point(capture, captured, {shown}, draco.qp, scratch, &draco_shown);
-  stage_seconds["baseline draco"] = seconds_since(draco_start);
-
-  // JPEG and H.264 at the quality that meets facemorph's held-out texture PSNR on the sample frames.
   bool jpeg_met = false, h264_met = false;
   int jpeg_quality = 0, h264_crf = 0;
   std::string jpeg_note, h264_note;
   uint64_t jpeg_bytes = 0, h264_total = 0;
-  if (textured) {
-    const size_t q = coarsest_meeting(plan.jpeg_quality.size(), [&](size_t k) { return mean(jpeg_psnr[plan.jpeg_quality[k]]) >= target_psnr; }, jpeg_met);
-    jpeg_quality = plan.jpeg_quality[q];
-    jpeg_note = note(jpeg_met, q, "PSNR");
-    for (const fs::path& path : textures) jpeg_bytes += encode_image(rgb_of(read_image(path)), ".jpg", jpeg_quality).size();
+};
+
+// " (... not matched ...)" where a baseline missed facemorph's figure at its finest setting, or "an
+// upper bound" where its coarsest setting met it already.
+std::string match_note(bool met, size_t pick, const char* missed) {
+  return !met ? std::string(" (") + missed + " not matched at the finest tried)" : pick == 0 ? std::string(" (the coarsest tried: an upper bound)") : std::string();
+}
+
+MatchedBaselines match_baselines(const Plan& plan, const CapturedFrames& c, int shown, const TextureBaselines& texture, double target_rms,
+                                 double target_psnr, StageSeconds& stage_seconds) {
+  MatchedBaselines m;
+  // Draco on the sample frames at every qp, the coarsest meeting facemorph's held-out RMS then on
+  // every frame (one finer while the whole capture misses it).
+  const auto draco_start = std::chrono::steady_clock::now();
+  for (int qp : plan.draco_qp) m.draco_curve.push_back(draco_point(c.capture, c.meshes, c.sample, qp, c.scratch));
+  m.draco_pick = coarsest_meeting(m.draco_curve.size(), [&](size_t k) { return mean(m.draco_curve[k].rms) <= target_rms; }, m.draco_met);
+  m.draco_first_pick = m.draco_pick;
+  for (;;) {
+    m.draco = draco_point(c.capture, c.meshes, c.every, plan.draco_qp[m.draco_pick], c.scratch);
+    m.draco_met = mean(m.draco.rms) <= target_rms;
+    if (m.draco_met || m.draco_pick + 1 == plan.draco_qp.size()) break;
+    ++m.draco_pick;
+  }
+  draco_point(c.capture, c.meshes, {shown}, m.draco.qp, c.scratch, &m.draco_shown);
+  stage_seconds["baseline draco"] = seconds_since(draco_start);
+
+  // JPEG and H.264 at the quality that meets facemorph's held-out texture PSNR on the sample frames.
+  if (c.textured) {
+    const auto jpeg_psnr = [&](int quality) { return mean_at(texture.jpeg_psnr, quality); };
+    const auto h264_psnr = [&](int crf) { return mean_at(texture.h264_psnr, crf); };
+    const size_t q = coarsest_meeting(plan.jpeg_quality.size(), [&](size_t k) { return jpeg_psnr(plan.jpeg_quality[k]) >= target_psnr; }, m.jpeg_met);
+    m.jpeg_quality = plan.jpeg_quality[q];
+    m.jpeg_note = match_note(m.jpeg_met, q, "PSNR");
+    for (const fs::path& path : c.textures) m.jpeg_bytes += encode_image(rgb_of(read_image(path)), ".jpg", m.jpeg_quality).size();
     // CRFs fine to coarse in the plan: the coarsest meeting is the last that does.
     const size_t n = plan.h264_crf.size();
-    const size_t c = coarsest_meeting(n, [&](size_t k) { return mean(h264_psnr[plan.h264_crf[n - 1 - k]]) >= target_psnr; }, h264_met);
-    h264_crf = plan.h264_crf[n - 1 - c];
-    h264_note = note(h264_met, c, "PSNR");
-    h264_total = h264_bytes[n - 1 - c];
+    const size_t crf = coarsest_meeting(n, [&](size_t k) { return h264_psnr(plan.h264_crf[n - 1 - k]) >= target_psnr; }, m.h264_met);
+    m.h264_crf = plan.h264_crf[n - 1 - crf];
+    m.h264_note = match_note(m.h264_met, crf, "PSNR");
+    m.h264_total = texture.h264_bytes[n - 1 - crf];
   }
+  return m;
+}
 
-  // ---- figures ---------------------------------------------------------------------------------
-  const double frames = count;
-  struct Row {
-    std::string name, setting;
-    double geometry = 0, texture = 0;  // bytes
-    double rms = -1, rms_worst = -1, psnr = -1;
-    double p99 = -1;  // the worst frame's 99th-percentile point error
+// ---- figures -----------------------------------------------------------------------------------
+
+struct FigureRow {
+  std::string name, setting;
+  double geometry = 0, texture = 0;  // bytes
+  double rms = -1, rms_worst = -1, psnr = -1;
+  double p99 = -1;  // the worst frame's 99th-percentile point error
+};
+
+// What one capture measured, for the table, the report and the JSON.
+struct CaptureFigures {
+  const CapturedFrames& c;
+  const FacemorphPoints& fm;
+  const TextureBaselines& texture;
+  const MatchedBaselines& baselines;
+  const StageSeconds& stage_seconds;
+  Summary summary;
+  double target_rms = 0, target_psnr = 0;  // facemorph's held-out RMS and texture PSNR, the baselines' targets
+  std::vector<FigureRow> rows;
+  std::vector<std::string> targets;
+  double draco_ratio = 0, jpeg_ratio = 0, h264_ratio = 0, bits = 0, encode_seconds = 0;
+  double fm_total() const { return static_cast<double>(fm.main.bytes); }
+  double fm_geometry() const { return static_cast<double>(fm.main.geometry_bytes()); }
+};
+
+void add_rows_and_targets(CaptureFigures& f) {
+  const MatchedBaselines& b = f.baselines;
+  const FacemorphPoints& fm = f.fm;
+  f.rows = {
+      {"facemorph", "keyframes " + std::to_string(fm.main_keys.size()) + ", N = " + std::to_string(fm.grid), double(fm.main.geometry_bytes()),
+       double(fm.main.texture_bytes), f.target_rms, f.summary.held_rms_worst, f.target_psnr, f.summary.p99_worst},
+      {"raw capture", "OBJ + MTL + images as captured", double(f.c.raw_mesh), double(f.c.raw_texture), -1, -1, -1},
+      {"draco", "-qp " + std::to_string(b.draco.qp) + " -cl 7" + match_note(b.draco_met, b.draco_pick == b.draco_first_pick ? b.draco_pick : 1, "error"),
+       double(b.draco.bytes), 0, mean(b.draco.rms), worst(b.draco.rms), -1, worst(b.draco.p99)},
   };
-  std::vector<Row> rows = {
-      {"facemorph", "keyframes " + std::to_string(main_keys.size()) + ", N = " + std::to_string(grid), double(main.geometry_bytes()),
-       double(main.texture_bytes), target_rms, summary.held_rms_worst, target_psnr, summary.p99_worst},
-      {"raw capture", "OBJ + MTL + images as captured", double(raw_mesh), double(raw_texture), -1, -1, -1},
-      {"draco", "-qp " + std::to_string(draco.qp) + " -cl 7" + note(draco_met, draco_pick == draco_first_pick ? draco_pick : 1, "error"), double(draco.bytes), 0,
-       mean(draco.rms), worst(draco.rms), -1, worst(draco.p99)},
-  };
-  if (textured) {
-    rows.push_back({"draco + jpeg", "-qp " + std::to_string(draco.qp) + ", JPEG q" + std::to_string(jpeg_quality) + jpeg_note,
-                    double(draco.bytes), double(jpeg_bytes), mean(draco.rms), worst(draco.rms), mean(jpeg_psnr[jpeg_quality]), worst(draco.p99)});
-    rows.push_back({"draco + h264", "-qp " + std::to_string(draco.qp) + ", x264 crf " + std::to_string(h264_crf) + h264_note,
-                    double(draco.bytes), double(h264_total), mean(draco.rms), worst(draco.rms), mean(h264_psnr[h264_crf]), worst(draco.p99)});
+  if (f.c.textured) {
+    f.rows.push_back({"draco + jpeg", "-qp " + std::to_string(b.draco.qp) + ", JPEG q" + std::to_string(b.jpeg_quality) + b.jpeg_note, double(b.draco.bytes),
+                      double(b.jpeg_bytes), mean(b.draco.rms), worst(b.draco.rms), mean_at(f.texture.jpeg_psnr, b.jpeg_quality), worst(b.draco.p99)});
+    f.rows.push_back({"draco + h264", "-qp " + std::to_string(b.draco.qp) + ", x264 crf " + std::to_string(b.h264_crf) + b.h264_note, double(b.draco.bytes),
+                      double(b.h264_total), mean(b.draco.rms), worst(b.draco.rms), mean_at(f.texture.h264_psnr, b.h264_crf), worst(b.draco.p99)});
   }
-  rows.push_back({"facemorph xyz", "same keyframes and spline", double(xyz.geometry_bytes()), double(xyz.texture_bytes),
-                  summarise(xyz.evaluation).held_rms_mean, summarise(xyz.evaluation).held_rms_worst, -1, summarise(xyz.evaluation).p99_worst});
+  const Summary xyz = summarise(fm.xyz.evaluation);
+  f.rows.push_back({"facemorph xyz", "same keyframes and spline", double(fm.xyz.geometry_bytes()), double(fm.xyz.texture_bytes), xyz.held_rms_mean,
+                    xyz.held_rms_worst, -1, xyz.p99_worst});
 
-  const double fm_total = static_cast<double>(main.bytes), fm_geometry = static_cast<double>(main.geometry_bytes());
+  f.draco_ratio = double(b.draco.bytes) / f.fm_geometry();
+  f.jpeg_ratio = f.c.textured ? (double(b.draco.bytes) + double(b.jpeg_bytes)) / f.fm_total() : 0;
+  f.h264_ratio = f.c.textured ? (double(b.draco.bytes) + double(b.h264_total)) / f.fm_total() : 0;
+  f.bits = 8 * f.fm_total() / double(f.c.vertex_frames);
+  f.targets = {target_line("geometry vs Draco", f.draco_ratio, 20)};
+  if (f.c.textured) {
+    f.targets.push_back(target_line("total vs Draco + JPEG", f.jpeg_ratio, 20));
+    f.targets.push_back(target_line("total vs Draco + H.264", f.h264_ratio, 3));
+  }
+  f.targets.push_back("bits per captured vertex per frame incl. texture: " + fixed(f.bits, 3) + " (target <= 1 at held-out RMS <= 0.5%: " +
+                      (f.bits <= 1 && f.target_rms <= 0.005 ? std::string("met") : "missed" + (f.bits > 1 ? " by " + fixed(f.bits, 1) + "x" : std::string())) + ")");
+  f.targets.push_back("99th-percentile point error, worst decoded frame: " + fixed(100 * f.summary.p99_worst, 3) + "% of the diagonal (target <= 1%: " +
+                      (f.summary.p99_worst <= 0.01 ? std::string("met") : "missed by " + fixed(f.summary.p99_worst / 0.01, 2) + "x") + ")");
+}
+
+void print_figures(const CaptureFigures& f) {
+  const FacemorphPoints& fm = f.fm;
+  const Summary& summary = f.summary;
   std::printf("  facemorph: %llu bytes (%.0f B/s, %.3f bits per captured vertex per frame, %.3f without texture), keyframes %zu, residual frames %zu, N = %d\n",
-              static_cast<unsigned long long>(main.bytes), fm_total / duration, 8 * fm_total / double(vertex_frames),
-              8 * fm_geometry / double(vertex_frames), main_keys.size(), main_sequence.residuals.size(), grid);
+              static_cast<unsigned long long>(fm.main.bytes), f.fm_total() / f.c.duration, f.bits, 8 * f.fm_geometry() / double(f.c.vertex_frames),
+              fm.main_keys.size(), fm.residual_frames, fm.grid);
   std::printf("  chunks:");
-  for (const auto& c : main.info.chunks) std::printf(" %s %llu", c.type.c_str(), static_cast<unsigned long long>(c.stored_bytes));
+  for (const auto& c : fm.main.info.chunks) std::printf(" %s %llu", c.type.c_str(), static_cast<unsigned long long>(c.stored_bytes));
   std::printf("\n  held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; keyframes RMS %.4f%%; 99th percentile %.4f%% worst frame; D1 PSNR held-out %.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
-              100 * target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean, 100 * summary.p99_worst,
-              d1_psnr(relative_rms(main.evaluation, false)), target_psnr, main.key_psnr());
+              100 * f.target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean, 100 * summary.p99_worst,
+              d1_psnr(relative_rms(fm.main.evaluation, false)), f.target_psnr, fm.main.key_psnr());
   std::printf("  %-16s %12s %12s %12s %10s %10s %10s %9s %9s %9s  %s\n", "", "geometry B", "texture B", "total B", "rms mn%", "rms wst%", "p99 wst%", "tex dB",
               "geo x", "total x", "setting");
-  json baselines = json::array();
-  for (const Row& r : rows) {
+  for (const FigureRow& r : f.rows) {
     const double total = r.geometry + r.texture;
     std::printf("  %-16s %12.0f %12.0f %12.0f %10s %10s %10s %9s %9.2f %9.2f  %s\n", r.name.c_str(), r.geometry, r.texture, total,
                 r.rms >= 0 ? fixed(100 * r.rms, 4).c_str() : "-", r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4).c_str() : "-",
-                r.p99 >= 0 ? fixed(100 * r.p99, 4).c_str() : "-",                r.psnr >= 0 ? fixed(r.psnr, 2).c_str() : "-", r.geometry / fm_geometry, total / fm_total, r.setting.c_str());
-    baselines.push_back({{"name", r.name}, {"setting", r.setting}, {"geometry_bytes", r.geometry}, {"texture_bytes", r.texture}, {"total_bytes", total},
-                         {"rms_mean_relative", r.rms}, {"rms_worst_relative", r.rms_worst}, {"p99_worst_relative", r.p99}, {"texture_psnr_db", r.psnr},
-                         {"geometry_ratio", r.geometry / fm_geometry}, {"total_ratio", total / fm_total}});
+                r.p99 >= 0 ? fixed(100 * r.p99, 4).c_str() : "-", r.psnr >= 0 ? fixed(r.psnr, 2).c_str() : "-", r.geometry / f.fm_geometry(),
+                total / f.fm_total(), r.setting.c_str());
   }
-  const double draco_ratio = double(draco.bytes) / fm_geometry;
-  const double jpeg_ratio = textured ? (double(draco.bytes) + double(jpeg_bytes)) / fm_total : 0;
-  const double h264_ratio = textured ? (double(draco.bytes) + double(h264_total)) / fm_total : 0;
-  const double bits = 8 * fm_total / double(vertex_frames);
-  std::vector<std::string> targets = {target_line("geometry vs Draco", draco_ratio, 20)};
-  if (textured) {
-    targets.push_back(target_line("total vs Draco + JPEG", jpeg_ratio, 20));
-    targets.push_back(target_line("total vs Draco + H.264", h264_ratio, 3));
-  }
-  targets.push_back("bits per captured vertex per frame incl. texture: " + fixed(bits, 3) + " (target <= 1 at held-out RMS <= 0.5%: " +
-                    (bits <= 1 && target_rms <= 0.005 ? std::string("met") : "missed" + (bits > 1 ? " by " + fixed(bits, 1) + "x" : std::string())) + ")");
-  targets.push_back("99th-percentile point error, worst decoded frame: " + fixed(100 * summary.p99_worst, 3) + "% of the diagonal (target <= 1%: " +
-                    (summary.p99_worst <= 0.01 ? std::string("met") : "missed by " + fixed(summary.p99_worst / 0.01, 2) + "x") + ")");
-  for (const std::string& t : targets) std::printf("  %s\n", t.c_str());
-
-  double encode_seconds = 0;
-  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "field precision", "file"}) encode_seconds += stage_seconds[stage];
-  std::printf("  speed: encode %.2f s per frame (", encode_seconds / frames);
+  for (const std::string& t : f.targets) std::printf("  %s\n", t.c_str());
+  std::printf("  speed: encode %.2f s per frame (", f.encode_seconds / f.c.count);
   const char* separator = "";
-  for (const auto& [stage, seconds] : stage_seconds) std::printf("%s%s %.2f s", std::exchange(separator, "; "), stage.c_str(), seconds);
-  std::printf("), decode %.1f ms per frame, peak memory %.0f MiB\n", main.evaluation.decode_ms, peak_rss_mib());
+  for (const auto& [stage, seconds] : f.stage_seconds) std::printf("%s%s %.2f s", std::exchange(separator, "; "), stage.c_str(), seconds);
+  std::printf("), decode %.1f ms per frame, peak memory %.0f MiB\n", fm.main.evaluation.decode_ms, peak_rss_mib());
+}
 
-  // ---- report: curves, pictures, Markdown ------------------------------------------------------
+// ---- report: curves, pictures, Markdown --------------------------------------------------------
+
+// The curves and pictures beside the report; returns the Markdown that shows them.
+std::string write_report_pictures(const fs::path& report, const Plan& plan, const CaptureFigures& f) {
+  const CapturedFrames& c = f.c;
+  const FacemorphPoints& fm = f.fm;
+  const double frames = c.count;
+  const fs::path dir = fs::absolute(report).parent_path();
+  fs::create_directories(dir);
+  auto series = [](const char* name, std::array<uint8_t, 3> color) {
+    PlotSeries s;
+    s.label = name;
+    s.color = color;
+    s.markers = true;
+    return s;
+  };
   std::string md;
-  if (!options.report.empty()) {
-    const fs::path dir = fs::absolute(options.report).parent_path();
-    fs::create_directories(dir);
-    auto series = [](const char* name, std::array<uint8_t, 3> color) {
-      PlotSeries s;
-      s.label = name;
-      s.color = color;
-      s.markers = true;
-      return s;
-    };
-    PlotSeries fm = series("facemorph", {200, 40, 40}), fx = series("facemorph xyz", {230, 140, 30}), dr = series("draco", {40, 90, 200});
-    for (const Encoded& e : curve) fm.x.push_back(std::log10(e.geometry_bytes() / frames)), fm.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
-    for (const Encoded& e : xyz_curve) fx.x.push_back(std::log10(e.geometry_bytes() / frames)), fx.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
-    for (const DracoPoint& p : draco_curve) dr.x.push_back(std::log10(p.bytes / double(p.frames))), dr.y.push_back(100 * mean(p.rms));
-    PlotOptions geometry_plot;
-    geometry_plot.x_label = "log10 geometry bytes per frame";
-    geometry_plot.y_label = "held-out rms (% of diagonal)";
-    write_image(dir / (label + "_rd_geometry.png"), line_plot({fm, fx, dr}, geometry_plot));
-    md += "![geometry rate-distortion](" + label + "_rd_geometry.png)\n\n";
-    if (textured) {
-      PlotSeries ft = series("facemorph (keyframe budget)", {200, 40, 40}), jp = series("jpeg (quality)", {40, 150, 60}),
-                 hv = series("h264 (crf)", {120, 60, 180});
-      for (const Encoded& e : curve) ft.x.push_back(std::log10(e.texture_bytes / frames)), ft.y.push_back(e.held_psnr());
-      for (int q : plan.jpeg_quality) jp.x.push_back(std::log10(jpeg_sample_bytes[q] / double(sample.size()))), jp.y.push_back(mean(jpeg_psnr[q]));
-      for (size_t k = 0; k < plan.h264_crf.size(); ++k) hv.x.push_back(std::log10(h264_bytes[k] / frames)), hv.y.push_back(mean(h264_psnr[plan.h264_crf[k]]));
-      PlotOptions texture_plot;
-      texture_plot.x_label = "log10 texture bytes per frame";
-      texture_plot.y_label = "texture psnr on the disk (db)";
-      texture_plot.y_from_zero = false;
-      write_image(dir / (label + "_rd_texture.png"), line_plot({ft, jp, hv}, texture_plot));
-      md += "![texture rate-distortion](" + label + "_rd_texture.png)\n\n";
+  PlotSeries fmc = series("facemorph", {200, 40, 40}), fx = series("facemorph xyz", {230, 140, 30}), dr = series("draco", {40, 90, 200});
+  for (const Encoded& e : fm.curve) fmc.x.push_back(std::log10(e.geometry_bytes() / frames)), fmc.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
+  for (const Encoded& e : fm.xyz_curve) fx.x.push_back(std::log10(e.geometry_bytes() / frames)), fx.y.push_back(100 * summarise(e.evaluation).held_rms_mean);
+  for (const DracoPoint& p : f.baselines.draco_curve) dr.x.push_back(std::log10(p.bytes / double(p.frames))), dr.y.push_back(100 * mean(p.rms));
+  PlotOptions geometry_plot;
+  geometry_plot.x_label = "log10 geometry bytes per frame";
+  geometry_plot.y_label = "held-out rms (% of diagonal)";
+  write_image(dir / (c.label + "_rd_geometry.png"), line_plot({fmc, fx, dr}, geometry_plot));
+  md += "![geometry rate-distortion](" + c.label + "_rd_geometry.png)\n\n";
+  if (c.textured) {
+    PlotSeries ft = series("facemorph (keyframe budget)", {200, 40, 40}), jp = series("jpeg (quality)", {40, 150, 60}), hv = series("h264 (crf)", {120, 60, 180});
+    for (const Encoded& e : fm.curve) ft.x.push_back(std::log10(e.texture_bytes / frames)), ft.y.push_back(e.held_psnr());
+    for (int q : plan.jpeg_quality) {
+      const auto bytes = f.texture.jpeg_sample_bytes.find(q);
+      jp.x.push_back(std::log10((bytes == f.texture.jpeg_sample_bytes.end() ? 0 : bytes->second) / double(c.sample.size())));
+      jp.y.push_back(mean_at(f.texture.jpeg_psnr, q));
     }
-    write_error_plot(dir / (label + "_error.png"), main.evaluation);
-    const TriangleMesh& truth = captured[static_cast<size_t>(shown)];
-    const Image truth_texture = textured ? rgb_of(read_image(textures[static_cast<size_t>(shown)])) : Image();
-    write_image(dir / (label + "_frames.png"), side_by_side({picture(truth, truth_texture), picture(shown_decoded.mesh, shown_decoded.texture),
-                                                             picture(draco_shown, truth_texture)}));
-    md += "Frame " + std::to_string(shown) + " (t = " + fixed(capture.frames[static_cast<size_t>(shown)].time, 3) +
-          " s, held out): captured, facemorph, Draco -qp " + std::to_string(draco.qp) + "\n\n![frames](" + label + "_frames.png)\n\n";
-    md += "Error against time (keyframes marked):\n\n![error](" + label + "_error.png)\n\n";
+    for (size_t k = 0; k < plan.h264_crf.size(); ++k) {
+      hv.x.push_back(std::log10(f.texture.h264_bytes[k] / frames)), hv.y.push_back(mean_at(f.texture.h264_psnr, plan.h264_crf[k]));
+    }
+    PlotOptions texture_plot;
+    texture_plot.x_label = "log10 texture bytes per frame";
+    texture_plot.y_label = "texture psnr on the disk (db)";
+    texture_plot.y_from_zero = false;
+    write_image(dir / (c.label + "_rd_texture.png"), line_plot({ft, jp, hv}, texture_plot));
+    md += "![texture rate-distortion](" + c.label + "_rd_texture.png)\n\n";
   }
+  write_error_plot(dir / (c.label + "_error.png"), fm.main.evaluation);
+  const TriangleMesh& truth = c.meshes[static_cast<size_t>(fm.shown)];
+  const Image truth_texture = c.textured ? rgb_of(read_image(c.textures[static_cast<size_t>(fm.shown)])) : Image();
+  write_image(dir / (c.label + "_frames.png"), side_by_side({picture(truth, truth_texture), picture(fm.shown_decoded.mesh, fm.shown_decoded.texture),
+                                                             picture(f.baselines.draco_shown, truth_texture)}));
+  md += "Frame " + std::to_string(fm.shown) + " (t = " + fixed(c.capture.frames[static_cast<size_t>(fm.shown)].time, 3) + " s, held out): captured, facemorph, Draco -qp " +
+        std::to_string(f.baselines.draco.qp) + "\n\n![frames](" + c.label + "_frames.png)\n\n";
+  md += "Error against time (keyframes marked):\n\n![error](" + c.label + "_error.png)\n\n";
+  return md;
+}
 
+std::string markdown_report(const std::string& input, const fs::path& folder, const Plan& plan, const CaptureFigures& f) {
+  const CapturedFrames& c = f.c;
+  const FacemorphPoints& fm = f.fm;
+  const Summary& summary = f.summary;
+  const double frames = c.count;
   std::ostringstream report;
   const bool synthetic = input == "synth" || input.rfind("synth:", 0) == 0;
   const std::string source = synthetic ? "made by fmsynth --frames " + std::to_string(plan.synth.frames) + " --vertices " + std::to_string(plan.synth.vertices) +
                                              " --remesh --expression mixed (noise " + fixed(plan.synth.noise, 4) + " m, texture " +
                                              std::to_string(plan.synth.texture_size) + ")"
-                                       : folder->string();
-  report << "## " << label << "\n\n" << source << ": " << count << " frames at " << fixed(capture.fps, 3) << " fps (" << fixed(duration, 2)
-         << " s), " << fixed(double(vertex_frames) / frames, 0) << " vertices per frame" << (textured ? ", textured" : ", no texture") << ".\n\n";
-  report << "### Rate\n\n| | |\n| --- | --- |\n| file | " << main.bytes << " bytes (" << main_keys.size() << " keyframes of " << count << ", N = " << grid
-         << ") |\n| per second | " << fixed(fm_total / duration, 0) << " B/s (" << fixed(8 * fm_total / duration / 1000, 1) << " kbit/s) |\n"
-         << "| bits per captured vertex per frame | " << fixed(bits, 3) << " with texture, " << fixed(8 * fm_geometry / double(vertex_frames), 3)
+                                       : folder.string();
+  report << "## " << c.label << "\n\n" << source << ": " << c.count << " frames at " << fixed(c.capture.fps, 3) << " fps (" << fixed(c.duration, 2)
+         << " s), " << fixed(double(c.vertex_frames) / frames, 0) << " vertices per frame" << (c.textured ? ", textured" : ", no texture") << ".\n\n";
+  report << "### Rate\n\n| | |\n| --- | --- |\n| file | " << fm.main.bytes << " bytes (" << fm.main_keys.size() << " keyframes of " << c.count << ", N = " << fm.grid
+         << ") |\n| per second | " << fixed(f.fm_total() / c.duration, 0) << " B/s (" << fixed(8 * f.fm_total() / c.duration / 1000, 1) << " kbit/s) |\n"
+         << "| bits per captured vertex per frame | " << fixed(f.bits, 3) << " with texture, " << fixed(8 * f.fm_geometry() / double(c.vertex_frames), 3)
          << " without |\n";
-  for (const auto& c : main.info.chunks) report << "| chunk " << c.type << " | " << c.count << " x, " << c.stored_bytes << " bytes |\n";
+  for (const auto& chunk : fm.main.info.chunks) report << "| chunk " << chunk.type << " | " << chunk.count << " x, " << chunk.stored_bytes << " bytes |\n";
   report << "\n### Distortion (every frame decoded at its own time)\n\n| frames | RMS mean | RMS worst | p99 worst | max worst | D1 PSNR | texture PSNR |\n"
          << "| --- | --- | --- | --- | --- | --- | --- |\n";
   std::vector<double> key_max, held_max, key_p99, held_p99;
-  for (const FrameError& f : main.evaluation.frames) {
-    (f.keyframe ? key_max : held_max).push_back(f.max);
-    (f.keyframe ? key_p99 : held_p99).push_back(f.p99);
+  for (const FrameError& e : fm.main.evaluation.frames) {
+    (e.keyframe ? key_max : held_max).push_back(e.max);
+    (e.keyframe ? key_p99 : held_p99).push_back(e.p99);
   }
   report << "| keyframes | " << fixed(100 * summary.key_rms_mean, 4) << "% | " << fixed(100 * summary.key_rms_worst, 4) << "% | " << fixed(100 * worst(key_p99), 4) << "% | "
-         << fixed(100 * worst(key_max), 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, true)), 2) << " dB | "
-         << fixed(main.key_psnr(), 2) << " dB |\n";
+         << fixed(100 * worst(key_max), 4) << "% | " << fixed(d1_psnr(relative_rms(fm.main.evaluation, true)), 2) << " dB | " << fixed(fm.main.key_psnr(), 2) << " dB |\n";
   report << "| held out | " << fixed(100 * summary.held_rms_mean, 4) << "% | " << fixed(100 * summary.held_rms_worst, 4) << "% | " << fixed(100 * worst(held_p99), 4) << "% | "
-         << fixed(100 * summary.held_max_worst, 4) << "% | " << fixed(d1_psnr(relative_rms(main.evaluation, false)), 2) << " dB | "
-         << fixed(target_psnr, 2) << " dB |\n\n";
+         << fixed(100 * summary.held_max_worst, 4) << "% | " << fixed(d1_psnr(relative_rms(fm.main.evaluation, false)), 2) << " dB | " << fixed(f.target_psnr, 2)
+         << " dB |\n\n";
   report << "### Baselines (geometry matched to facemorph's held-out mean RMS, texture to its held-out PSNR)\n\n"
          << "| | setting | geometry | texture | total | RMS mean | RMS worst | p99 worst | texture PSNR | geometry / facemorph | total / facemorph |\n"
          << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
-  for (const Row& r : rows) {
-    report << "| " << r.name << " | " << r.setting << " | " << kilobytes(r.geometry) << " | " << kilobytes(r.texture) << " | "
-           << kilobytes(r.geometry + r.texture) << " | " << (r.rms >= 0 ? fixed(100 * r.rms, 4) + "%" : "") << " | "
-           << (r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4) + "%" : "") << " | " << (r.p99 >= 0 ? fixed(100 * r.p99, 4) + "%" : "") << " | " << (r.psnr >= 0 ? fixed(r.psnr, 2) + " dB" : "") << " | "
-           << fixed(r.geometry / fm_geometry, 2) << "x | " << fixed((r.geometry + r.texture) / fm_total, 2) << "x |\n";
+  for (const FigureRow& r : f.rows) {
+    report << "| " << r.name << " | " << r.setting << " | " << kilobytes(r.geometry) << " | " << kilobytes(r.texture) << " | " << kilobytes(r.geometry + r.texture)
+           << " | " << (r.rms >= 0 ? fixed(100 * r.rms, 4) + "%" : "") << " | " << (r.rms_worst >= 0 ? fixed(100 * r.rms_worst, 4) + "%" : "") << " | "
+           << (r.p99 >= 0 ? fixed(100 * r.p99, 4) + "%" : "") << " | " << (r.psnr >= 0 ? fixed(r.psnr, 2) + " dB" : "") << " | " << fixed(r.geometry / f.fm_geometry(), 2)
+           << "x | " << fixed((r.geometry + r.texture) / f.fm_total(), 2) << "x |\n";
   }
   report << "\nTargets (`../shared/design.md` §7):\n\n";
-  for (const std::string& t : targets) report << "- " << t << "\n";
+  for (const std::string& t : f.targets) report << "- " << t << "\n";
   report << "\n### Speed\n\n| stage | seconds | per frame |\n| --- | --- | --- |\n";
-  for (const auto& [stage, seconds] : stage_seconds) report << "| " << stage << " | " << fixed(seconds, 2) << " | " << fixed(seconds / frames, 3) << " |\n";
-  report << "\nEncode " << fixed(encode_seconds / frames, 2) << " s per frame (mapping to file); decode " << fixed(main.evaluation.decode_ms, 1)
+  for (const auto& [stage, seconds] : f.stage_seconds) report << "| " << stage << " | " << fixed(seconds, 2) << " | " << fixed(seconds / frames, 3) << " |\n";
+  report << "\nEncode " << fixed(f.encode_seconds / frames, 2) << " s per frame (mapping to file); decode " << fixed(fm.main.evaluation.decode_ms, 1)
          << " ms per frame; peak memory of the bench " << fixed(peak_rss_mib(), 0) << " MiB.\n\n";
-  context.markdown += report.str() + md;
+  return report.str();
+}
 
+json capture_json(const std::string& input, const fs::path& folder, const Plan& plan, const CaptureFigures& f) {
+  const CapturedFrames& c = f.c;
+  const FacemorphPoints& fm = f.fm;
+  const TextureBaselines& texture = f.texture;
+  json baselines = json::array();
+  for (const FigureRow& r : f.rows) {
+    const double total = r.geometry + r.texture;
+    baselines.push_back({{"name", r.name}, {"setting", r.setting}, {"geometry_bytes", r.geometry}, {"texture_bytes", r.texture}, {"total_bytes", total},
+                         {"rms_mean_relative", r.rms}, {"rms_worst_relative", r.rms_worst}, {"p99_worst_relative", r.p99}, {"texture_psnr_db", r.psnr},
+                         {"geometry_ratio", r.geometry / f.fm_geometry()}, {"total_ratio", total / f.fm_total()}});
+  }
   json budgets = json::array();
-  for (size_t k = 0; k < curve.size(); ++k) {
-    budgets.push_back({{"budget", curve[k].budget}, {"keyframes", curve[k].keyframes.size()}, {"bytes", curve[k].bytes},
-                       {"geometry_bytes", curve[k].geometry_bytes()}, {"held_out_rms_mean", summarise(curve[k].evaluation).held_rms_mean},
-                       {"held_out_texture_psnr_sample", curve[k].held_psnr()}, {"xyz_geometry_bytes", xyz_curve[k].geometry_bytes()},
-                       {"xyz_held_out_rms_mean", summarise(xyz_curve[k].evaluation).held_rms_mean}});
+  for (size_t k = 0; k < fm.curve.size(); ++k) {
+    budgets.push_back({{"budget", fm.curve[k].budget}, {"keyframes", fm.curve[k].keyframes.size()}, {"bytes", fm.curve[k].bytes},
+                       {"geometry_bytes", fm.curve[k].geometry_bytes()}, {"held_out_rms_mean", summarise(fm.curve[k].evaluation).held_rms_mean},
+                       {"held_out_texture_psnr_sample", fm.curve[k].held_psnr()}, {"xyz_geometry_bytes", fm.xyz_curve[k].geometry_bytes()},
+                       {"xyz_held_out_rms_mean", summarise(fm.xyz_curve[k].evaluation).held_rms_mean}});
   }
   json draco_json = json::array();
-  for (const DracoPoint& p : draco_curve) draco_json.push_back({{"qp", p.qp}, {"bytes_per_frame", p.bytes / double(p.frames)}, {"rms_mean", mean(p.rms)}, {"p99_worst", worst(p.p99)}});
+  for (const DracoPoint& p : f.baselines.draco_curve) {
+    draco_json.push_back({{"qp", p.qp}, {"bytes_per_frame", p.bytes / double(p.frames)}, {"rms_mean", mean(p.rms)}, {"p99_worst", worst(p.p99)}});
+  }
   json jpeg_json = json::array(), h264_json = json::array();
-  for (int q : plan.jpeg_quality) jpeg_json.push_back({{"quality", q}, {"bytes_per_frame", jpeg_sample_bytes[q] / double(sample.size())}, {"psnr", mean(jpeg_psnr[q])}});
-  for (size_t k = 0; k < h264_bytes.size(); ++k) h264_json.push_back({{"crf", plan.h264_crf[k]}, {"bytes", h264_bytes[k]}, {"psnr", mean(h264_psnr[plan.h264_crf[k]])}});
+  for (int q : plan.jpeg_quality) {
+    const auto bytes = texture.jpeg_sample_bytes.find(q);
+    jpeg_json.push_back({{"quality", q}, {"bytes_per_frame", (bytes == texture.jpeg_sample_bytes.end() ? 0 : bytes->second) / double(c.sample.size())},
+                         {"psnr", mean_at(texture.jpeg_psnr, q)}});
+  }
+  for (size_t k = 0; k < texture.h264_bytes.size(); ++k) {
+    h264_json.push_back({{"crf", plan.h264_crf[k]}, {"bytes", texture.h264_bytes[k]}, {"psnr", mean_at(texture.h264_psnr, plan.h264_crf[k])}});
+  }
   json chunks = json::array();
-  for (const auto& c : main.info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}});
+  for (const auto& chunk : fm.main.info.chunks) chunks.push_back({{"type", chunk.type}, {"count", chunk.count}, {"bytes", chunk.stored_bytes}});
   return {{"input", input},
-          {"capture", folder->string()},
-          {"frames", count},
-          {"fps", capture.fps},
-          {"vertex_frames", vertex_frames},
+          {"capture", folder.string()},
+          {"frames", c.count},
+          {"fps", c.capture.fps},
+          {"vertex_frames", c.vertex_frames},
           {"facemorph",
-           {{"bytes", main.bytes}, {"bytes_per_second", fm_total / duration}, {"bits_per_vertex_frame", bits},
-            {"bits_per_vertex_frame_geometry", 8 * fm_geometry / double(vertex_frames)}, {"chunks", chunks}, {"keyframes", main_keys},
-            {"grid", grid}, {"evaluation", evaluation_json(main.evaluation)}, {"held_out_texture_psnr", target_psnr},
-            {"keyframe_texture_psnr", main.key_psnr()}, {"held_out_d1_psnr", d1_psnr(relative_rms(main.evaluation, false))},
-            {"keyframe_d1_psnr", d1_psnr(relative_rms(main.evaluation, true))}}},
+           {{"bytes", fm.main.bytes}, {"bytes_per_second", f.fm_total() / c.duration}, {"bits_per_vertex_frame", f.bits},
+            {"bits_per_vertex_frame_geometry", 8 * f.fm_geometry() / double(c.vertex_frames)}, {"chunks", chunks}, {"keyframes", fm.main_keys},
+            {"grid", fm.grid}, {"evaluation", evaluation_json(fm.main.evaluation)}, {"held_out_texture_psnr", f.target_psnr},
+            {"keyframe_texture_psnr", fm.main.key_psnr()}, {"held_out_d1_psnr", d1_psnr(relative_rms(fm.main.evaluation, false))},
+            {"keyframe_d1_psnr", d1_psnr(relative_rms(fm.main.evaluation, true))}}},
           {"baselines", baselines},
-          {"ratios", {{"geometry_vs_draco", draco_ratio}, {"total_vs_draco_jpeg", jpeg_ratio}, {"total_vs_draco_h264", h264_ratio}}},
+          {"ratios", {{"geometry_vs_draco", f.draco_ratio}, {"total_vs_draco_jpeg", f.jpeg_ratio}, {"total_vs_draco_h264", f.h264_ratio}}},
           {"curves", {{"keyframe_budgets", budgets}, {"draco_sample", draco_json}, {"jpeg_sample", jpeg_json}, {"h264", h264_json}}},
-          {"speed", {{"stage_seconds", json(std::map<std::string, double>(stage_seconds.begin(), stage_seconds.end()))}, {"encode_seconds_per_frame", encode_seconds / frames},
-                     {"decode_ms_per_frame", main.evaluation.decode_ms}, {"peak_memory_mib", peak_rss_mib()}}}};
+          {"speed", {{"stage_seconds", json(std::map<std::string, double>(f.stage_seconds.begin(), f.stage_seconds.end()))},
+                     {"encode_seconds_per_frame", f.encode_seconds / c.count}, {"decode_ms_per_frame", fm.main.evaluation.decode_ms},
+                     {"peak_memory_mib", peak_rss_mib()}}}};
+}
+
+// ---- one capture -------------------------------------------------------------------------------
+
+json measure_capture(Context& context, const std::string& input) {
+  const CaptureBenchOptions& options = context.options;
+  const auto folder = make_bench_capture(input, options.data, context.scratch, context.plan.synth, "fmbench --capture", options.quiet);
+  if (!folder) {
+    std::printf("\n%s: skipped (the shared data or python3 is absent)\n", input.c_str());
+    context.markdown += "## " + input + "\n\nSkipped: the shared data (or python3) is absent.\n\n";
+    return {{"input", input}, {"skipped", true}};
+  }
+  std::error_code ec;
+  if (!fs::exists(*folder, ec)) throw Error(ErrorCode::kIo, "capture '" + folder->string() + "' does not exist");
+  const CapturedFrames captured = read_captured_frames(context, *folder, input);
+  StageSeconds stage_seconds;
+  TextureBaselines texture;
+  const FacemorphPoints fm = measure_facemorph(context, captured, stage_seconds, texture);
+  const Summary summary = summarise(fm.main.evaluation);
+  const double target_rms = summary.held_rms_mean, target_psnr = fm.main.held_psnr();
+  const MatchedBaselines baselines = match_baselines(context.plan, captured, fm.shown, texture, target_rms, target_psnr, stage_seconds);
+  CaptureFigures figures{captured, fm, texture, baselines, stage_seconds, summary, target_rms, target_psnr, {}, {}};
+  // Mapping to file; a stage that did not run is listed with 0 s.
+  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "field precision", "file"}) {
+    figures.encode_seconds += stage_seconds[stage];
+  }
+  add_rows_and_targets(figures);
+  print_figures(figures);
+  const std::string pictures = options.report.empty() ? std::string() : write_report_pictures(options.report, context.plan, figures);
+  context.markdown += markdown_report(input, *folder, context.plan, figures) + pictures;
+  return capture_json(input, *folder, context.plan, figures);
 }
 
 }  // namespace

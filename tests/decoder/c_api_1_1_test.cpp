@@ -3,6 +3,9 @@
 // after opening, and the texture blended by the player from the keyframes' images.
 #include "facemorph.h"
 
+#include "tests/decoder/c_api_opened.hpp"
+#include "tests/test_util.hpp"
+
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
@@ -23,7 +26,8 @@
 namespace {
 
 // 2.1: textures as one AV1 sequence per group, the default the browser meets.
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_1.fmv";
+using facemorph::testing::CApiOpened;
+using facemorph::testing::kGoldenV2_1;
 
 struct Decoded {
   std::vector<float> positions;
@@ -47,24 +51,6 @@ Decoded decode(fm_decoder* decoder, const fm_info& info, double t, bool texture)
   out.positions.resize(3 * size_t{frame.vertex_count});
   return out;
 }
-
-struct Opened {
-  fm_file* file = nullptr;
-  fm_decoder* decoder = nullptr;
-  fm_info info;
-  fm_status status = FM_OK;
-  explicit Opened(const std::vector<uint8_t>& bytes, bool borrowed) {
-    fm_info_init(&info);
-    status = borrowed ? fm_file_open_memory_borrowed(bytes.data(), bytes.size(), nullptr, &file) : fm_file_open_memory(bytes.data(), bytes.size(), &file);
-    if (status != FM_OK) return;
-    EXPECT_EQ(fm_file_get_info(file, &info), FM_OK);
-    EXPECT_EQ(fm_decoder_create(file, &decoder), FM_OK) << fm_last_error_message();
-  }
-  ~Opened() {
-    fm_decoder_destroy(decoder);
-    fm_file_close(file);
-  }
-};
 
 std::vector<double> keyframe_times(fm_file* file) {
   size_t count = 0;
@@ -95,7 +81,7 @@ std::vector<uint8_t> skeleton_of(const std::vector<uint8_t>& bytes) {
 // `owner(k)`: the keyframe whose TEXR keyframe k shows (itself but in a file of shared textures).
 void expect_weights_rebuild_the_texture(const std::filesystem::path& path, const std::function<uint32_t(size_t)>& owner) {
   const std::vector<uint8_t> bytes = facemorph::format::read_file(path);
-  Opened o(bytes, false);
+  CApiOpened o(bytes, false);
   ASSERT_EQ(o.status, FM_OK) << fm_last_error_message();
   ASSERT_GT(o.info.texture_size, 0u);
   const std::vector<double> times = keyframe_times(o.file);
@@ -148,7 +134,7 @@ void expect_weights_rebuild_the_texture(const std::filesystem::path& path, const
 }
 
 TEST(CApi11, TextureWeightsRebuildTheDecodersTexture) {
-  expect_weights_rebuild_the_texture(kGolden, [](size_t k) { return static_cast<uint32_t>(k); });
+  expect_weights_rebuild_the_texture(kGoldenV2_1, [](size_t k) { return static_cast<uint32_t>(k); });
 }
 
 // Format 2.2: the golden file's three keyframes show one TEXR, keyframe 0's; each is named by it.
@@ -163,11 +149,11 @@ TEST(CApi11, TextureWeightsIncludeTheResidualFramesCorrection) {
 }
 
 TEST(CApi11, BorrowedBytesFilledInAfterOpeningDecodeAsACopy) {
-  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
-  Opened copied(bytes, false);
+  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGoldenV2_1);
+  CApiOpened copied(bytes, false);
   ASSERT_EQ(copied.status, FM_OK) << fm_last_error_message();
   std::vector<uint8_t> streamed = skeleton_of(bytes);
-  Opened borrowed(streamed, true);
+  CApiOpened borrowed(streamed, true);
   ASSERT_EQ(borrowed.status, FM_OK) << fm_last_error_message();
   EXPECT_EQ(borrowed.info.keyframe_count, copied.info.keyframe_count);
   EXPECT_EQ(keyframe_times(borrowed.file), keyframe_times(copied.file));
@@ -182,9 +168,9 @@ TEST(CApi11, BorrowedBytesFilledInAfterOpeningDecodeAsACopy) {
 }
 
 TEST(CApi11, ABorrowedGroupReadBeforeItsBytesArriveIsCorrupt) {
-  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
+  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGoldenV2_1);
   std::vector<uint8_t> streamed = skeleton_of(bytes);
-  Opened borrowed(streamed, true);
+  CApiOpened borrowed(streamed, true);
   ASSERT_EQ(borrowed.status, FM_OK) << fm_last_error_message();
   EXPECT_EQ(decode(borrowed.decoder, borrowed.info, keyframe_times(borrowed.file).front(), false).status, FM_ERROR_CORRUPT);
   EXPECT_NE(std::string(fm_last_error_message()).find("checksum"), std::string::npos) << fm_last_error_message();

@@ -5,6 +5,9 @@
 // 16-byte struct (valgrind: 5 invalid reads of 8 bytes); these tests fail on that.
 #include "facemorph.h"
 
+#include "tests/decoder/c_api_opened.hpp"
+#include "tests/test_util.hpp"
+
 #include "format/file_io.hpp"
 
 #include <gtest/gtest.h>
@@ -29,7 +32,8 @@
 
 namespace {
 
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
+using facemorph::testing::CApiOpened;
+using facemorph::testing::kGoldenV2_0;
 
 // A field of a struct of the API: where it lies.
 struct Field {
@@ -158,22 +162,6 @@ std::string first_difference(const std::vector<unsigned char>& got, const std::v
   return got.size() == want.size() ? "" : "sizes differ";
 }
 
-struct Opened {
-  fm_file* file = nullptr;
-  fm_decoder* decoder = nullptr;
-  fm_info info;
-  Opened() {
-    fm_info_init(&info);
-    EXPECT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK) << fm_last_error_message();
-    EXPECT_EQ(fm_file_get_info(file, &info), FM_OK);
-    EXPECT_EQ(fm_decoder_create(file, &decoder), FM_OK) << fm_last_error_message();
-  }
-  ~Opened() {
-    fm_decoder_destroy(decoder);
-    fm_file_close(file);
-  }
-};
-
 const std::vector<Field> kFrameFields = {
     FM_FIELD(fm_frame, positions),    FM_FIELD(fm_frame, positions_bytes), FM_FIELD(fm_frame, normals),
     FM_FIELD(fm_frame, normals_bytes), FM_FIELD(fm_frame, uvs),            FM_FIELD(fm_frame, uvs_bytes),
@@ -226,7 +214,7 @@ struct Buffers {
 // was), an output beyond keeps the caller's bytes; and in a struct cut anywhere, nothing past it is
 // read or written. Also with a buffer smaller than one element, the FM_ERROR_BUFFER_TOO_SMALL path.
 TEST(CApi, FrameIsReadAndWrittenOnlyWithinStructSizeAtEverySize) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   ASSERT_NE(o.decoder, nullptr);
   ASSERT_GT(o.info.texture_size, 0u) << "the golden file has a texture: every buffer is exercised";
   const double t = 0.2;
@@ -292,7 +280,7 @@ const std::vector<Field> kInfoFields = {
 // fm_file_get_info fills the fields wholly inside struct_size with the file's values and leaves
 // every other byte (a field cut by struct_size, and all past it) as the caller left it.
 TEST(CApi, InfoIsWrittenOnlyWithinStructSizeAtEverySize) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   ASSERT_NE(o.file, nullptr);
   ASSERT_EQ(o.info.max_vertex_count, 850u);
   fm_info prototype;
@@ -312,12 +300,12 @@ TEST(CApi, InfoIsWrittenOnlyWithinStructSizeAtEverySize) {
 // where it does not (the guarded placement holds the refusing value beyond struct_size: read, it
 // would refuse the file), through all three calls that take options; the options are never written.
 TEST(CApi, OptionsAreReadOnlyWithinStructSizeAtEverySize) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   ASSERT_NE(o.file, nullptr);
   ASSERT_GE(o.info.keyframe_count, 2u);
   ASSERT_GE(o.info.grid_n, 6u);
   ASSERT_GE(o.info.texture_size, 2u);
-  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
+  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGoldenV2_0);
   const std::vector<Field> fields = {FM_FIELD(fm_decoder_options, max_grid_n), FM_FIELD(fm_decoder_options, max_keyframes),
                                      FM_FIELD(fm_decoder_options, max_texture_size), FM_FIELD(fm_decoder_options, max_memory_bytes)};
   struct Opener {
@@ -345,7 +333,7 @@ TEST(CApi, OptionsAreReadOnlyWithinStructSizeAtEverySize) {
         SCOPED_TRACE(std::string(opener.name) + ", " + limit.name + " below the file's need, struct_size " + std::to_string(size));
         const std::vector<Outcome> outcomes = run_placed(prototype, size, [&](fm_decoder_options* options) {
           fm_file* file = nullptr;
-          const fm_status status = opener.open(kGolden, bytes, options, &file);
+          const fm_status status = opener.open(kGoldenV2_0, bytes, options, &file);
           fm_file_close(file);
           return status;
         });

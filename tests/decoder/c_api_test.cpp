@@ -2,11 +2,13 @@
 // frames equal to the C++ decoder's; buffer sizes in bytes, checked before anything is written.
 #include "facemorph.h"
 
+#include "tests/decoder/c_api_opened.hpp"
+#include "tests/test_util.hpp"
+
 #include "codec/decoder/player/decoder.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
-#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -21,27 +23,12 @@
 
 namespace {
 
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
+using facemorph::testing::CApiOpened;
+using facemorph::testing::kGoldenV2_0;
 
 bool message_has(const std::string& fragment) { return std::string(fm_last_error_message()).find(fragment) != std::string::npos; }
 
 // Owns a file and a decoder on it for one test.
-struct Opened {
-  fm_file* file = nullptr;
-  fm_decoder* decoder = nullptr;
-  fm_info info;
-  Opened() {
-    fm_info_init(&info);
-    EXPECT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK) << fm_last_error_message();
-    EXPECT_EQ(fm_file_get_info(file, &info), FM_OK);
-    EXPECT_EQ(fm_decoder_create(file, &decoder), FM_OK);
-  }
-  ~Opened() {
-    fm_decoder_destroy(decoder);
-    fm_file_close(file);
-  }
-};
-
 TEST(CApi, VersionAndStatusNames) {
   EXPECT_STREQ(fm_version(), "0.8.0");
   EXPECT_EQ(fm_version_number(), static_cast<uint32_t>(FACEMORPH_VERSION_NUMBER));
@@ -57,7 +44,7 @@ TEST(CApi, VersionAndStatusNames) {
 }
 
 TEST(CApi, OpensAndDescribesTheGoldenFile) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   EXPECT_STREQ(fm_last_error_message(), "");
   EXPECT_EQ(o.info.grid_n, 33u);
   EXPECT_EQ(o.info.keyframe_count, 3u);
@@ -86,7 +73,7 @@ TEST(CApi, NullArgumentsAndBadHandles) {
   EXPECT_EQ(fm_file_open(nullptr, &file), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(file, nullptr);  // cleared on failure
   EXPECT_TRUE(message_has("fm_file_open: path is NULL")) << fm_last_error_message();
-  EXPECT_EQ(fm_file_open(kGolden.c_str(), nullptr), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_file_open(kGoldenV2_0.c_str(), nullptr), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(fm_file_open_memory(nullptr, 10, &file), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("data is NULL"));
   fm_info info;
@@ -101,7 +88,7 @@ TEST(CApi, NullArgumentsAndBadHandles) {
   EXPECT_EQ(fm_decoder_decode(nullptr, 0.1, 0, &frame), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(message_has("decoder is NULL"));
 
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   EXPECT_EQ(fm_file_get_info(o.file, nullptr), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(fm_decoder_create(o.file, nullptr), FM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(fm_decoder_decode(o.decoder, 0.1, 0, nullptr), FM_ERROR_INVALID_ARGUMENT);
@@ -131,7 +118,7 @@ TEST(CApi, BadFilesReturnTheirStatus) {
   fm_file* file = nullptr;
   EXPECT_EQ(fm_file_open("/nonexistent/face.fmv", &file), FM_ERROR_IO);
   EXPECT_TRUE(message_has("/nonexistent/face.fmv")) << fm_last_error_message();
-  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGolden);
+  const std::vector<uint8_t> bytes = facemorph::format::read_file(kGoldenV2_0);
   EXPECT_EQ(fm_file_open_memory(bytes.data(), bytes.size() / 2, &file), FM_ERROR_TRUNCATED);
   EXPECT_EQ(file, nullptr);
   EXPECT_NE(std::string(fm_last_error_message()), "");
@@ -153,8 +140,8 @@ TEST(CApi, BadFilesReturnTheirStatus) {
 }
 
 TEST(CApi, DecodesAsTheCppDecoder) {
-  Opened o;
-  facemorph::Decoder cpp = facemorph::Decoder::open(kGolden);
+  CApiOpened o(kGoldenV2_0);
+  facemorph::Decoder cpp = facemorph::Decoder::open(kGoldenV2_0);
   const size_t v = o.info.max_vertex_count, f = o.info.max_triangle_count, texels = size_t{o.info.texture_size} * o.info.texture_size;
   std::vector<float> positions(3 * v), normals(3 * v), uvs(2 * v), cpp_positions(3 * v), cpp_normals(3 * v), cpp_uvs(2 * v);
   std::vector<uint32_t> indices(3 * f), cpp_indices(3 * f);
@@ -189,7 +176,7 @@ TEST(CApi, DecodesAsTheCppDecoder) {
 }
 
 TEST(CApi, BufferTooSmallSaysWhatIsNeededAndWritesNothing) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   const size_t v = o.info.max_vertex_count;
   std::vector<float> positions(3 * v + 16, -7.0f);
   fm_frame frame;
@@ -216,7 +203,7 @@ TEST(CApi, BufferTooSmallSaysWhatIsNeededAndWritesNothing) {
 
 TEST(CApi, FileMayCloseBeforeItsDecoders) {
   fm_file* file = nullptr;
-  ASSERT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK);
+  ASSERT_EQ(fm_file_open(kGoldenV2_0.c_str(), &file), FM_OK);
   fm_decoder* decoder = nullptr;
   ASSERT_EQ(fm_decoder_create(file, &decoder), FM_OK);
   fm_file_close(file);
@@ -230,7 +217,7 @@ TEST(CApi, FileMayCloseBeforeItsDecoders) {
 // The growth rule of API 1.0 (spec/api.md §3): struct_size 0 is the caller's error; a caller
 // compiled against a shorter struct (an older header) has only its own fields read and written.
 TEST(CApi, StructsAreReadAndWrittenOnlyAsFarAsTheirStructSize) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   fm_info info;
   fm_info_init(&info);
   info.struct_size = 0;
@@ -277,7 +264,7 @@ TEST(CApi, StructsAreReadAndWrittenOnlyAsFarAsTheirStructSize) {
 
 // Every call that fills a caller's buffer answers the count query with NULL buffers, as FM_OK.
 TEST(CApi, CountQueriesSucceedWithNullBuffers) {
-  Opened o;
+  CApiOpened o(kGoldenV2_0);
   size_t count = 0;
   EXPECT_EQ(fm_file_get_keyframe_times(o.file, nullptr, 0, &count), FM_OK);
   EXPECT_EQ(count, o.info.keyframe_count);

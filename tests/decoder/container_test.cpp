@@ -413,10 +413,7 @@ TEST(Container, LossyTexturesRoundTripInEitherCodec) {
       const Image& a = s.keyframes[k].texture;
       const Image& b = back.keyframes[k].texture;
       ASSERT_EQ(b.width, 64);
-      double squared = 0;
-      for (size_t i = 0; i < a.pixels.size(); ++i) squared += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
-      const double psnr = 10 * std::log10(255.0 * 255.0 * static_cast<double>(a.pixels.size()) / squared);
-      EXPECT_GT(psnr, 35) << texture_codec_name(codec) << " keyframe " << k;
+      EXPECT_GT(testing::psnr(a, b), 35) << texture_codec_name(codec) << " keyframe " << k;
     }
     EXPECT_EQ(encode_sequence_file(s, m), bytes);  // deterministic in either codec
   }
@@ -461,18 +458,9 @@ Sequence ramp_sequence(int keyframes, int size) {
   return s;
 }
 
-double psnr(const Image& a, const Image& b) {
-  double squared = 0;
-  for (size_t i = 0; i < a.pixels.size(); ++i) squared += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
-  return squared == 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 * static_cast<double>(a.pixels.size()) / squared);
-}
+using testing::psnr;
 
-uint64_t chunk_count(const SequenceFileInfo& info, const std::string& type) {
-  for (const auto& c : info.chunks) {
-    if (c.type == type) return static_cast<uint64_t>(c.count);
-  }
-  return 0;
-}
+using testing::chunk_count;
 
 // Format 2.1: lossy AVIF textures as one AV1 image sequence per group of keyframes (TGOP), the
 // writer's default; the same bytes every time; each keyframe within its quality.
@@ -485,8 +473,8 @@ TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
   EXPECT_EQ(info.minor_version, format::kMinorVersion);
   EXPECT_EQ(info.metadata.texture_coding, TextureCoding::kSequence);
   EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
-  EXPECT_EQ(chunk_count(info, "TGOP"), 3u);
-  EXPECT_EQ(chunk_count(info, "TEXR"), 0u);
+  EXPECT_EQ(chunk_count(info, "TGOP"), 3);
+  EXPECT_EQ(chunk_count(info, "TEXR"), 0);
   uint64_t tgop_bytes = 0, keyframe_bytes = 0;
   for (const auto& c : info.chunks) tgop_bytes += c.type == "TGOP" ? c.stored_bytes : 0;
   for (const auto& k : info.keyframes) keyframe_bytes += k.texture;
@@ -503,8 +491,8 @@ TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
   SequenceFileInfo still_info;
   const Sequence still_back = decode_sequence_file(encode_sequence_file(s, stills), "stills.fmv", &still_info);
   EXPECT_EQ(still_info.metadata.texture_coding, TextureCoding::kStills);
-  EXPECT_EQ(chunk_count(still_info, "TEXR"), 5u);
-  EXPECT_EQ(chunk_count(still_info, "TGOP"), 0u);
+  EXPECT_EQ(chunk_count(still_info, "TEXR"), 5);
+  EXPECT_EQ(chunk_count(still_info, "TGOP"), 0);
   // Lossless or WebP textures stay stills whatever the coding asked for.
   for (const auto& [codec, quality] : {std::pair{TextureCodec::kAvif, 101}, std::pair{TextureCodec::kWebp, 80}}) {
     SequenceFileMetadata other = m;
@@ -512,7 +500,7 @@ TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
     other.texture_quality = quality;
     SequenceFileInfo other_info;
     decode_sequence_file(encode_sequence_file(s, other), "other.fmv", &other_info);
-    EXPECT_EQ(chunk_count(other_info, "TGOP"), 0u);
+    EXPECT_EQ(chunk_count(other_info, "TGOP"), 0);
     EXPECT_EQ(other_info.metadata.texture_coding, TextureCoding::kStills);
   }
 }
@@ -558,7 +546,7 @@ TEST(Container, KeyframesOfOneTextureStoreItOnce) {
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(bytes, "shared.fmv", &info);
   EXPECT_EQ(info.minor_version, format::kMinorVersion);  // written as 2.2 added it, stamped with the writer's version
-  EXPECT_EQ(chunk_count(info, "TEXR"), 3u);
+  EXPECT_EQ(chunk_count(info, "TEXR"), 3);
   EXPECT_EQ(info.distinct_textures, 3u);
   EXPECT_GT(info.keyframes[0].texture, 0u);
   EXPECT_EQ(info.keyframes[2].texture, 0u);  // its bytes are keyframe 0's
@@ -591,7 +579,7 @@ TEST(Container, KeyframesOfOneTextureStoreItOnce) {
   // Textures all different: one TEXR a keyframe, as 2.0 wrote them.
   SequenceFileInfo distinct;
   decode_sequence_file(encode_sequence_file(ramp_sequence(5, 32), m), "own.fmv", &distinct);
-  EXPECT_EQ(chunk_count(distinct, "TEXR"), 5u);
+  EXPECT_EQ(chunk_count(distinct, "TEXR"), 5);
   EXPECT_EQ(distinct.distinct_textures, 5u);
 }
 

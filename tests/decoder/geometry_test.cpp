@@ -13,7 +13,7 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 
 std::vector<bool> boundary_flags(const TriangleMesh& m) {
   const MeshTopology topo(m.faces, m.vertex_count());

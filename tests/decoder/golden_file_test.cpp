@@ -99,26 +99,22 @@ SequenceFileInfo expect_golden_2(const std::string& version, uint16_t minor_vers
   return info;
 }
 
-int chunks_of(const SequenceFileInfo& info, const std::string& type) {
-  int count = 0;
-  for (const auto& c : info.chunks) count += c.type == type ? c.count : 0;
-  return count;
-}
+using testing::chunk_count;
 
 // Format 2.0: the header, the index with every keyframe's time and pose, one KGOP chunk per group
 // of keyframes, a TEXR chunk per keyframe.
 TEST(GoldenFile, Version2_0DecodesAsItDidWhenWritten) {
   const SequenceFileInfo info = expect_golden_2("2_0", 0, TextureCoding::kStills);
-  EXPECT_EQ(chunks_of(info, "TEXR"), static_cast<int>(info.keyframes.size()));
-  EXPECT_EQ(chunks_of(info, "TGOP"), 0);
+  EXPECT_EQ(chunk_count(info, "TEXR"), static_cast<int>(info.keyframes.size()));
+  EXPECT_EQ(chunk_count(info, "TGOP"), 0);
 }
 
 // Format 2.1: 2.0 with the keyframe textures as one AV1 image sequence per group of keyframes
 // (TGOP; make_golden.sh's --quality 80 takes the writer's default, the sequence coding).
 TEST(GoldenFile, Version2_1DecodesAsItDidWhenWritten) {
   const SequenceFileInfo info = expect_golden_2("2_1", 1, TextureCoding::kSequence);
-  EXPECT_EQ(chunks_of(info, "TGOP"), static_cast<int>((info.keyframes.size() + 1) / 2));
-  EXPECT_EQ(chunks_of(info, "TEXR"), 0);
+  EXPECT_EQ(chunk_count(info, "TGOP"), static_cast<int>((info.keyframes.size() + 1) / 2));
+  EXPECT_EQ(chunk_count(info, "TEXR"), 0);
 }
 
 // Format 2.2: 2.1 with keyframe textures painted from one captured image stored once, each
@@ -126,7 +122,7 @@ TEST(GoldenFile, Version2_1DecodesAsItDidWhenWritten) {
 // writer takes the stills, fewer bytes than a sequence per group).
 TEST(GoldenFile, Version2_2DecodesAsItDidWhenWritten) {
   const SequenceFileInfo info = expect_golden_2("2_2", 2, TextureCoding::kStills);
-  EXPECT_EQ(chunks_of(info, "TEXR"), 1);
+  EXPECT_EQ(chunk_count(info, "TEXR"), 1);
   EXPECT_EQ(info.distinct_textures, 1u);
   EXPECT_GT(info.keyframes.size(), 1u);
 }
@@ -136,7 +132,7 @@ TEST(GoldenFile, Version2_2DecodesAsItDidWhenWritten) {
 // decode with them.
 TEST(GoldenFile, Version2_3DecodesAsItDidWhenWritten) {
   const SequenceFileInfo info = expect_golden_2("2_3", 3, TextureCoding::kSequence);
-  EXPECT_EQ(chunks_of(info, "RSDW"), 1);
+  EXPECT_EQ(chunk_count(info, "RSDW"), 1);
   EXPECT_GT(info.residual_frames, 0u);
 }
 

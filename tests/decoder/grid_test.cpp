@@ -16,7 +16,7 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 
 // The nodes of G on its integer lattice (spec/method.md §4): units of 1 / (Q M), Q = floor(2^30 / M).
 std::vector<IntPoint> lattice_of(const DiskGrid& g) {

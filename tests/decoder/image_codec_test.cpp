@@ -29,12 +29,7 @@ Image test_picture(int width, int height, int channels) {
   return image;
 }
 
-double psnr(const Image& a, const Image& b) {
-  double sum = 0;
-  for (size_t i = 0; i < a.pixels.size(); ++i) sum += std::pow(double(a.pixels[i]) - double(b.pixels[i]), 2);
-  const double mse = sum / static_cast<double>(a.pixels.size());
-  return 10 * std::log10(255.0 * 255.0 / std::max(mse, 1e-12));
-}
+using testing::psnr;
 
 TEST(ImageCodec, PngAndLosslessWebpRoundTripExactly) {
   for (int channels : {3, 4}) {

@@ -22,7 +22,7 @@
 namespace facemorph {
 namespace {
 
-const std::filesystem::path kGolden = std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_0.fmv";
+using testing::kGoldenV2_0;
 
 // Every array of one frame, sized for the file's largest frame.
 struct Arrays {
@@ -42,7 +42,7 @@ struct Arrays {
 };
 
 TEST(Decoder, DescribesTheGoldenFile) {
-  const Decoder decoder = Decoder::open(kGolden);
+  const Decoder decoder = Decoder::open(kGoldenV2_0);
   const FileInfo& info = decoder.info();
   EXPECT_EQ(info.grid_n, 33);
   ASSERT_EQ(info.keyframe_times.size(), 3u);
@@ -70,8 +70,8 @@ TEST(Decoder, DescribesTheGoldenFile) {
 }
 
 TEST(Decoder, FileAndMemoryDecodeTheSame) {
-  Decoder from_file = Decoder::open(kGolden);
-  std::vector<uint8_t> bytes = format::read_file(kGolden);
+  Decoder from_file = Decoder::open(kGoldenV2_0);
+  std::vector<uint8_t> bytes = format::read_file(kGoldenV2_0);
   Decoder from_memory = Decoder::open_memory(bytes, "golden in memory");
   std::fill(bytes.begin(), bytes.end(), uint8_t{0});  // the decoder keeps nothing of them
   bytes.clear();
@@ -91,7 +91,7 @@ TEST(Decoder, FileAndMemoryDecodeTheSame) {
 }
 
 TEST(Decoder, FramesKeepTheirConventions) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   Arrays a(decoder.info());
   for (double t : {-0.1, 0.0, 0.2, 0.45}) {
     const FrameInfo frame = decoder.decode(t, a.buffers());
@@ -114,7 +114,7 @@ TEST(Decoder, FramesKeepTheirConventions) {
 }
 
 TEST(Decoder, NormalsPointToTheCounterClockwiseSide) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   Arrays a(decoder.info());
   const FrameInfo frame = decoder.decode(0.2, a.buffers());
   // Each triangle's own normal agrees with its corners' vertex normals (a smooth surface).
@@ -132,7 +132,7 @@ TEST(Decoder, NormalsPointToTheCounterClockwiseSide) {
 }
 
 TEST(Decoder, FlipVMirrorsTheUVs) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   Arrays up(decoder.info()), down(decoder.info());
   decoder.decode(0.1, up.buffers());
   FrameOptions options;
@@ -145,7 +145,7 @@ TEST(Decoder, FlipVMirrorsTheUVs) {
 }
 
 TEST(Decoder, TooSmallBuffersAreNamedAndNothingIsWritten) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   const FileInfo& info = decoder.info();
   constexpr float kCanary = -12345.0f;
   constexpr size_t kSlack = 64;  // canaries past the capacity the decoder is told
@@ -181,7 +181,7 @@ TEST(Decoder, TooSmallBuffersAreNamedAndNothingIsWritten) {
 }
 
 TEST(Decoder, KeyframeTimeDecodesAsTheSequenceDecoder) {
-  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(kGolden));
+  const auto sequence = std::make_shared<const Sequence>(read_sequence_file(kGoldenV2_0));
   SequenceDecoder reference(sequence);
   Decoder decoder(sequence);
   Arrays a(decoder.info());
@@ -205,7 +205,7 @@ TEST(Decoder, KeyframeTimeDecodesAsTheSequenceDecoder) {
 }
 
 TEST(Decoder, OutOfRangeUnlessClamped) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   Arrays a(decoder.info());
   testing::expect_error(ErrorCode::kOutOfRange, "outside the range", [&] { decoder.decode(5.0, a.buffers()); });
   testing::expect_error(ErrorCode::kInvalidArgument, "not finite", [&] { decoder.decode(std::nan(""), a.buffers()); });
@@ -215,7 +215,7 @@ TEST(Decoder, OutOfRangeUnlessClamped) {
 }
 
 TEST(Decoder, FrameInfoKeepsTheFrameForTheDecode) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   const FrameInfo asked = decoder.frame_info(0.25);
   EXPECT_EQ(asked.vertex_count, decoder.info().grid_vertex_count);
   std::vector<float> positions(asked.positions_size());
@@ -225,7 +225,7 @@ TEST(Decoder, FrameInfoKeepsTheFrameForTheDecode) {
 }
 
 TEST(Decoder, DecodersShareOneFileAcrossThreads) {
-  const auto sequence = open_sequence_file(kGolden);
+  const auto sequence = open_sequence_file(kGoldenV2_0);
   std::vector<std::vector<float>> results(2);
   std::vector<std::thread> threads;
   for (size_t i = 0; i < results.size(); ++i) {
@@ -246,7 +246,7 @@ TEST(Decoder, DecodersShareOneFileAcrossThreads) {
 // The golden sequence with a hole (an opening eye) whose radius changes between keyframes, through
 // the container: the cut mesh changes from frame to frame.
 std::shared_ptr<const KeyframeSource> with_holes() {
-  Sequence sequence = read_sequence_file(kGolden);
+  Sequence sequence = read_sequence_file(kGoldenV2_0);
   const DiskGrid grid = make_disk_grid(sequence.grid_n);
   const double radii[] = {0.12, 0.25, 0.05};
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {

@@ -14,13 +14,7 @@ namespace facemorph {
 namespace {
 
 
-// A surface given on the disk, sampled at every node of G (rim nodes included).
-template <typename Surface>
-std::vector<Vec3> sample(const DiskGrid& grid, Surface&& surface) {
-  std::vector<Vec3> out;
-  for (const Vec2& w : grid.nodes) out.push_back(surface(w));
-  return out;
-}
+using testing::sample_nodes;
 
 // A spherical cap of radius R and polar angle θ0 in its conformal (stereographic) parametrisation:
 // λ(w) = 2 R t0 / (1 + t0² |w|²), H = -1/R with the outward normal S_u × S_v.
@@ -39,7 +33,7 @@ double max_error(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
 TEST(Reconstruct, AFlatDiskHasZeroCurvatureAndReconstructsThePlane) {
   Reconstructor reconstructor(33);
   const auto& grid = reconstructor.geometry().grid();
-  const auto plane = sample(grid, [](const Vec2& w) { return Vec3(2 * w.x() + 1, 2 * w.y(), 0.5); });
+  const auto plane = sample_nodes(grid, [](const Vec2& w) { return Vec3(2 * w.x() + 1, 2 * w.y(), 0.5); });
   for (Representation rep : {Representation::kHL, Representation::kHLT}) {
     const GridFields fields = compute_fields(reconstructor.geometry(), plane, rep);
     for (double H : fields.mean_curvature) EXPECT_NEAR(H, 0.0, 1e-12);
@@ -55,7 +49,7 @@ TEST(Reconstruct, SphericalCapFromHAndLambdaConvergesUnderRefinement) {
   double previous = 1e9;
   for (int n : {17, 33, 65, 129}) {
     Reconstructor reconstructor(n);
-    const auto truth = sample(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });
+    const auto truth = sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });
     const GridFields fields = compute_fields(reconstructor.geometry(), truth, Representation::kHL);
     // H = -1/R away from the rim (where the rim's one-sided frame is coarser).
     for (int v = 0; v < reconstructor.geometry().interior_count(); ++v) {
@@ -79,14 +73,14 @@ TEST(Reconstruct, TangentialFieldsMakeTheSampledSurfaceTheFixedPointOnAnyGrid) {
   for (int n : {33, 65}) {
     Reconstructor reconstructor(n);
     const auto& grid = reconstructor.geometry().grid();
-    for (const auto& truth : {sample(grid, paraboloid), sample(grid, saddle)}) {
+    for (const auto& truth : {sample_nodes(grid, paraboloid), sample_nodes(grid, saddle)}) {
       reconstructor.forget_warm_start();
       const ReconstructResult r = reconstructor.reconstruct(compute_fields(reconstructor.geometry(), truth, Representation::kHLT), {.tolerance = 1e-10});
       EXPECT_LT(max_error(r.positions, truth), 1e-7) << "N = " << n;
     }
     // The paraboloid's Δ S = (0, 0, 1.6) is vertical, not normal: the paper's (H, λ) loses its
     // tangential part and lands on another surface. (The saddle is harmonic, Δ S = 0: nothing lost.)
-    const auto truth = sample(grid, paraboloid);
+    const auto truth = sample_nodes(grid, paraboloid);
     reconstructor.forget_warm_start();
     const ReconstructResult normal_only = reconstructor.reconstruct(compute_fields(reconstructor.geometry(), truth, Representation::kHL),
                                                                     {.tolerance = 1e-10, .throw_on_failure = false});
@@ -96,7 +90,7 @@ TEST(Reconstruct, TangentialFieldsMakeTheSampledSurfaceTheFixedPointOnAnyGrid) {
 
 TEST(Reconstruct, ARigidMotionOfTheBoundaryMovesTheSurfaceRigidly) {
   Reconstructor reconstructor(65);
-  const auto truth = sample(reconstructor.geometry().grid(), [](const Vec2& w) {
+  const auto truth = sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) {
     return Vec3(w.x(), w.y(), 0.3 * std::exp(-3 * w.squaredNorm()) + 0.1 * w.x() * w.y());
   });
   const Eigen::Matrix3d R = Eigen::AngleAxisd(1.1, Vec3(0.3, -1, 0.5).normalized()).toRotationMatrix();
@@ -117,7 +111,7 @@ TEST(Reconstruct, ARigidMotionOfTheBoundaryMovesTheSurfaceRigidly) {
 
 TEST(Reconstruct, SixteenBitFieldsStayWithinHalfAStep) {
   Reconstructor reconstructor(33);
-  const auto truth = sample(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w, 2.0, 1.2); });
+  const auto truth = sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w, 2.0, 1.2); });
   const GridFields f = compute_fields(reconstructor.geometry(), truth, Representation::kHLT);
   const GridFields q = quantize_fields(f);
   auto check = [](const std::vector<double>& a, const std::vector<double>& b) {
@@ -136,8 +130,8 @@ TEST(Reconstruct, FieldsCombineLinearlyInEveryArrayAndRefuseMismatches) {
   Reconstructor reconstructor(33);
   const GridGeometry& geometry = reconstructor.geometry();
   const auto& grid = geometry.grid();
-  const auto one = sample(grid, [](const Vec2& w) { return cap(w, 1.0, 0.8); });
-  const auto two = sample(grid, [](const Vec2& w) { return Vec3(cap(w, 2.0, 1.2) + Vec3(0.1 * w.x() * w.y(), 0, 0.3)); });
+  const auto one = sample_nodes(grid, [](const Vec2& w) { return cap(w, 1.0, 0.8); });
+  const auto two = sample_nodes(grid, [](const Vec2& w) { return Vec3(cap(w, 2.0, 1.2) + Vec3(0.1 * w.x() * w.y(), 0, 0.3)); });
   const std::vector<int32_t> extra = {0, 17, 200};  // fixed-frame nodes beyond the band: their vectors blend too
   for (Representation rep : {Representation::kHL, Representation::kHLT, Representation::kXYZ}) {
     const GridFields a = compute_fields(geometry, one, rep, rep == Representation::kHLT ? extra : std::vector<int32_t>{});
@@ -178,7 +172,7 @@ TEST(Reconstruct, FieldsCombineLinearlyInEveryArrayAndRefuseMismatches) {
 
 TEST(Reconstruct, MalformedFieldsAreNamedByEveryConsumer) {
   Reconstructor reconstructor(17);
-  const GridFields good = compute_fields(reconstructor.geometry(), sample(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); }),
+  const GridFields good = compute_fields(reconstructor.geometry(), sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); }),
                                          Representation::kHLT, {3});
   EXPECT_NO_THROW(validate_fields(good));
   struct Case {
@@ -216,7 +210,7 @@ TEST(Reconstruct, AndersonAccelerationCutsTheIterationsAndNeverLosesConvergence)
   // Bumps of height h and sharpness s on an elongated disk (a nose on a face, roughly).
   Reconstructor reconstructor(65);
   auto decode = [&](double h, double s, int depth) {
-    const auto truth = sample(reconstructor.geometry().grid(), [h, s](const Vec2& w) {
+    const auto truth = sample_nodes(reconstructor.geometry().grid(), [h, s](const Vec2& w) {
       return Vec3(w.x(), 1.2 * w.y(), h * std::exp(-s * w.squaredNorm()) + 0.2 * w.x() * w.x());
     });
     reconstructor.forget_warm_start();
@@ -243,7 +237,7 @@ TEST(Reconstruct, OneReconstructorDecodesEachCallAsAFreshOneWould) {
   // may reach the next (after forget_warm_start), whatever the representation or depth before.
   Reconstructor shared(33);
   const GridGeometry& geometry = shared.geometry();
-  const auto truth = sample(geometry.grid(), [](const Vec2& w) { return Vec3(w.x(), 1.1 * w.y(), 0.5 * std::exp(-3 * w.squaredNorm())); });
+  const auto truth = sample_nodes(geometry.grid(), [](const Vec2& w) { return Vec3(w.x(), 1.1 * w.y(), 0.5 * std::exp(-3 * w.squaredNorm())); });
   const struct {
     Representation representation;
     int depth;
@@ -268,7 +262,7 @@ TEST(Reconstruct, WarmStartedSequenceDecodesEveryFrameLikeAColdStart) {
   const GridGeometry& geometry = reconstructor.geometry();
   auto frame = [&](int i) {
     const double s = i / 7.0;
-    return sample(geometry.grid(), [s](const Vec2& w) {
+    return sample_nodes(geometry.grid(), [s](const Vec2& w) {
       const Vec2 c(0.2 * s - 0.1, 0.05 * s);
       return Vec3(w.x(), w.y(), (0.3 + 0.2 * s) * std::exp(-5 * (w - c).squaredNorm()) + 0.1 * s * w.x());
     });
@@ -294,9 +288,9 @@ TEST(Reconstruct, FoldsAtGridResolutionAreFoundWithTwoRingsAroundThem) {
   Reconstructor reconstructor(33);
   const GridGeometry& geometry = reconstructor.geometry();
   const auto& grid = geometry.grid();
-  EXPECT_TRUE(folded_nodes(geometry, sample(grid, [](const Vec2& w) { return cap(w); })).empty());
+  EXPECT_TRUE(folded_nodes(geometry, sample_nodes(grid, [](const Vec2& w) { return cap(w); })).empty());
   // (x, y) -> (|x|, y, 0) folds the disk over along x = 0: the normals flip there.
-  const auto folds = folded_nodes(geometry, sample(grid, [](const Vec2& w) { return Vec3(std::abs(w.x()) + 0.01 * w.y(), w.y(), 0.1 * w.x()); }));
+  const auto folds = folded_nodes(geometry, sample_nodes(grid, [](const Vec2& w) { return Vec3(std::abs(w.x()) + 0.01 * w.y(), w.y(), 0.1 * w.x()); }));
   ASSERT_FALSE(folds.empty());
   for (int32_t v : folds) EXPECT_LE(std::abs(grid.nodes[static_cast<size_t>(v)].x()), 3.01 * grid.h);
   int near_fold = 0;
@@ -306,7 +300,7 @@ TEST(Reconstruct, FoldsAtGridResolutionAreFoundWithTwoRingsAroundThem) {
 
 TEST(Reconstruct, NonConvergenceAndNonFiniteIteratesAreNamedNeverReturnedSilently) {
   Reconstructor reconstructor(33);
-  const auto truth = sample(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });
+  const auto truth = sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });
   GridFields wild = compute_fields(reconstructor.geometry(), truth, Representation::kHL);
   for (double& H : wild.mean_curvature) H *= 40;  // no surface with this boundary has it
   testing::expect_error(ErrorCode::kNotConverged, "did not converge in 60 iterations", [&] { reconstructor.reconstruct(wild, {.max_iterations = 60}); });

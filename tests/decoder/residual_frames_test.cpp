@@ -133,11 +133,7 @@ Sequence with_residuals() {
 
 std::vector<uint8_t> residual_file() { return encode_sequence_file(with_residuals(), small_metadata()); }
 
-int chunks_of(const SequenceFileInfo& info, const std::string& type) {
-  int count = 0;
-  for (const auto& c : info.chunks) count += c.type == type ? c.count : 0;
-  return count;
-}
+using testing::chunk_count;
 
 TEST(ResidualFrames, AFileHoldsThemToTheBitAndADecoderShowsThem) {
   const Sequence s = with_residuals();
@@ -151,7 +147,7 @@ TEST(ResidualFrames, AFileHoldsThemToTheBitAndADecoderShowsThem) {
   }
   EXPECT_EQ(info.minor_version, 3);
   EXPECT_EQ(info.residual_frames, 2u);
-  EXPECT_EQ(chunks_of(info, "RSDW"), 1);
+  EXPECT_EQ(chunk_count(info, "RSDW"), 1);
   // The file's frame at a residual's time is the sequence's, and not the spline's alone.
   const auto from_file = open_sequence_source(residual_file(), "residuals.fmv");
   ASSERT_EQ(from_file->outline().residuals.size(), 2u);
@@ -179,7 +175,7 @@ TEST(ResidualFrames, AFileHoldsThemToTheBitAndADecoderShowsThem) {
   // Without residual frames no RSDW is written.
   SequenceFileInfo plain_info;
   decode_sequence_file(encode_sequence_file(plain, small_metadata()), "plain.fmv", &plain_info);
-  EXPECT_EQ(chunks_of(plain_info, "RSDW"), 0);
+  EXPECT_EQ(chunk_count(plain_info, "RSDW"), 0);
   EXPECT_EQ(plain_info.residual_frames, 0u);
 }
 

@@ -15,14 +15,9 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 
-template <typename Surface>
-std::vector<Vec3> sample(const DiskGrid& grid, Surface&& surface) {
-  std::vector<Vec3> out;
-  for (const Vec2& w : grid.nodes) out.push_back(surface(w));
-  return out;
-}
+using testing::sample_nodes;
 
 double area(const TriangleMesh& mesh) {
   double a = 0;
@@ -36,7 +31,7 @@ double area(const TriangleMesh& mesh) {
 
 TEST(HoleCut, KeepsThePositiveSideAndClipsAlongTheZeroLevel) {
   const DiskGrid grid = make_disk_grid(65);
-  const auto flat = sample(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); });
+  const auto flat = sample_nodes(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); });
   // A round hole of radius 0.3 at (0.2, -0.1): level = distance to its outline, negative inside.
   const Vec2 centre(0.2, -0.1);
   std::vector<double> level;
@@ -80,7 +75,7 @@ std::shared_ptr<Sequence> turning_bump(SplineKind spline, bool hole) {
     Keyframe key;
     key.time = times[k];
     const double s = key.time;
-    key.fields = compute_fields(geometry, sample(geometry.grid(), [s](const Vec2& w) {
+    key.fields = compute_fields(geometry, sample_nodes(geometry.grid(), [s](const Vec2& w) {
                                   return Vec3(w.x(), w.y(), (0.2 + 0.2 * s) * std::exp(-3 * w.squaredNorm()));
                                 }),
                                 Representation::kHLT);
@@ -242,7 +237,7 @@ TEST(SequenceDecoder, MalformedSequencesAreNamed) {
   check("keyframe 2: a hole level is not finite", [](Sequence& s) { s.keyframes[2].hole_level.back() = INFINITY; });
   check("fixed-frame nodes differ", [](Sequence& s) {
     const DiskGrid grid = make_disk_grid(33);
-    s.keyframes[1].fields = compute_fields(GridGeometry(grid), sample(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }), Representation::kHLT,
+    s.keyframes[1].fields = compute_fields(GridGeometry(grid), sample_nodes(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }), Representation::kHLT,
                                            {grid.node(16, 16)});
   });
 }

@@ -19,7 +19,7 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 constexpr SplineKind kAllKinds[] = {SplineKind::kLocalCubic, SplineKind::kCatmullRom, SplineKind::kNotAKnot, SplineKind::kLinear};
 
 // Non-uniform, strictly increasing times starting at `start`, intervals in [lo, hi] (seconds).

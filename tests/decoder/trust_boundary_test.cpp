@@ -31,7 +31,7 @@ using crafted::rebuild;
 using crafted::small_metadata;
 using crafted::small_sequence;
 
-const std::string kGolden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_0.fmv";
+using testing::kGoldenV2_0;
 
 // Seconds `body` takes.
 template <typename Body>
@@ -288,7 +288,7 @@ TEST(TrustBoundary, AnIterationThatStopsFallingIsAbandoned) {
 
 TEST(TrustBoundary, HandlesAfterCloseAreNamedErrors) {
   fm_file* a = nullptr;
-  ASSERT_EQ(fm_file_open(kGolden.c_str(), &a), FM_OK) << fm_last_error_message();
+  ASSERT_EQ(fm_file_open(kGoldenV2_0.c_str(), &a), FM_OK) << fm_last_error_message();
   fm_decoder* decoder = nullptr;
   ASSERT_EQ(fm_decoder_create(a, &decoder), FM_OK);
   ASSERT_EQ(fm_decoder_release(decoder), FM_OK);
@@ -308,7 +308,7 @@ TEST(TrustBoundary, HandlesAfterCloseAreNamedErrors) {
   EXPECT_EQ(fm_decoder_create(a, &decoder), FM_ERROR_CLOSED_HANDLE);
   EXPECT_EQ(decoder, nullptr);
   fm_file* b = nullptr;
-  ASSERT_EQ(fm_file_open(kGolden.c_str(), &b), FM_OK);
+  ASSERT_EQ(fm_file_open(kGoldenV2_0.c_str(), &b), FM_OK);
   EXPECT_EQ(fm_file_release(a), FM_ERROR_CLOSED_HANDLE);
   fm_file_close(a);
   EXPECT_EQ(fm_file_get_info(b, &info), FM_OK) << fm_last_error_message();
@@ -333,26 +333,26 @@ TEST(TrustBoundary, OptionsSetTheLimitsThroughTheCApi) {
   EXPECT_EQ(options.max_memory_bytes, uint64_t{256} << 20);  // 512 MiB before API 1.2
   fm_file* file = nullptr;
   options.max_grid_n = 17;  // the golden file's grid is 33
-  EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_ERROR_LIMIT);
+  EXPECT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_ERROR_LIMIT);
   EXPECT_NE(std::string(fm_last_error_message()).find("grid size 33 over the limit of 17"), std::string::npos) << fm_last_error_message();
   EXPECT_EQ(file, nullptr);
   options.max_grid_n = 33;
   options.max_memory_bytes = 16 << 10;
-  EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_ERROR_LIMIT);
+  EXPECT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_ERROR_LIMIT);
   fm_decoder_options_init(&options);
-  ASSERT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_OK);
+  ASSERT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_OK);
   fm_file_close(file);
   // Unusable limits are the caller's error.
   options.max_keyframes = 0;
-  EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_ERROR_INVALID_ARGUMENT);
   fm_decoder_options_init(&options);
   options.struct_size = 0;
-  EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_ERROR_INVALID_ARGUMENT);
   // A caller compiled against a shorter struct (only the grid limit) keeps the other defaults.
   fm_decoder_options_init(&options);
   options.struct_size = offsetof(fm_decoder_options, max_keyframes);
   options.max_keyframes = 0;  // not read
-  EXPECT_EQ(fm_file_open_with_options(kGolden.c_str(), &options, &file), FM_OK) << fm_last_error_message();
+  EXPECT_EQ(fm_file_open_with_options(kGoldenV2_0.c_str(), &options, &file), FM_OK) << fm_last_error_message();
   fm_file_close(file);
 }
 
@@ -453,7 +453,7 @@ TEST(TrustBoundary, AFixedNodeListedTwiceIsRefused) {
 // An indices buffer one triangle short, every other buffer right: refused, nothing written.
 // (Mutation: the decoder accepting it — a heap overflow.)
 TEST(TrustBoundary, AnIndicesBufferOneTriangleShortIsRefused) {
-  Decoder decoder = Decoder::open(kGolden);
+  Decoder decoder = Decoder::open(kGoldenV2_0);
   const FileInfo& info = decoder.info();
   const size_t needed = 3 * static_cast<size_t>(info.max_triangle_count);
   std::vector<uint32_t> indices(needed, 0xdeadbeef);
@@ -465,7 +465,7 @@ TEST(TrustBoundary, AnIndicesBufferOneTriangleShortIsRefused) {
   EXPECT_TRUE(std::all_of(indices.begin(), indices.end(), [](uint32_t x) { return x == 0xdeadbeef; }));
   fm_file* file = nullptr;
   fm_decoder* d = nullptr;
-  ASSERT_EQ(fm_file_open(kGolden.c_str(), &file), FM_OK);
+  ASSERT_EQ(fm_file_open(kGoldenV2_0.c_str(), &file), FM_OK);
   ASSERT_EQ(fm_decoder_create(file, &d), FM_OK);
   fm_frame frame;
   fm_frame_init(&frame);

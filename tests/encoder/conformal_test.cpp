@@ -19,7 +19,7 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 
 TriangleMesh flat_disk(int rings, int sectors) {
   return testing::polar_disk(rings, sectors, [](const Vec2& p) { return Vec3(p.x(), p.y(), 0); });

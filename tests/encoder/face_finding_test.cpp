@@ -8,6 +8,7 @@
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/meshkit/delaunay.hpp"
 
+#include "facemorph/meshkit/distance.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -112,12 +113,6 @@ double degrees_between(const Vec3& a, const Vec3& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / std::numbers::pi;
 }
 
-double diagonal_of(const TriangleMesh& mesh) {
-  Vec3 lo = mesh.positions.front(), hi = lo;
-  for (const Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-  return (hi - lo).norm();
-}
-
 struct Agreement {
   double up_degrees, facing_degrees, tip_error;
 };
@@ -128,7 +123,7 @@ Agreement agreement(const FaceOrientation& o, const Scan& scan, const Eigen::Mat
   const Vec3 facing = pose * Vec3::UnitZ();
   auto flat = [&](const Vec3& v) { return Vec3(v - v.dot(facing) * facing); };
   const Agreement a{degrees_between(flat(o.up - o.nose_tip), flat(scan.nose_bridge - scan.nose_tip)), degrees_between(o.facing, facing),
-                    (o.nose_tip - scan.nose_tip).norm() / diagonal_of(scan.mesh)};
+                    (o.nose_tip - scan.nose_tip).norm() / bounding_box_diagonal(scan.mesh.positions)};
   std::printf("%s: by %s, confidence %.2f: up %.1f° off, facing %.1f° off, tip %.2f%% of the diagonal off (mirror %.2f%%, up evidence %.2f)\n",
               label.c_str(), face_finding_method_name(o.method), o.confidence, a.up_degrees, a.facing_degrees, 100 * a.tip_error,
               100 * o.mirror_error, o.up_evidence);

@@ -6,6 +6,7 @@
 #include "facemorph/encoder/synth.hpp"
 #include "facemorph/meshkit/mesh_io.hpp"
 
+#include "facemorph/meshkit/distance.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -21,19 +22,13 @@ struct Found {
   double up_degrees = 0;     // angle between the found up direction and nose_tip -> nose_bridge
 };
 
-double diagonal_of(const TriangleMesh& mesh) {
-  Vec3 lo = mesh.positions.front(), hi = lo;
-  for (const Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-  return (hi - lo).norm();
-}
-
 Found compare(const TriangleMesh& mesh, const Vec3& nose_tip, const Vec3& nose_bridge, const std::string& name) {
   PrepareOptions options;
   options.keep_largest_component = true;
   const PreparedFrame prepared = prepare_frame(mesh, name, options);
   const FaceOrientation o = find_face_orientation(prepared.mesh, name);
   Found f;
-  f.tip_error = (o.nose_tip - nose_tip).norm() / diagonal_of(prepared.mesh);
+  f.tip_error = (o.nose_tip - nose_tip).norm() / bounding_box_diagonal(prepared.mesh.positions);
   const Vec3 found = (o.up - o.nose_tip).normalized(), given = (nose_bridge - nose_tip).normalized();
   // The landmarks' up direction projected off the facing direction, like the found one.
   const Vec3 given_flat = (given - given.dot(o.facing) * o.facing).normalized();

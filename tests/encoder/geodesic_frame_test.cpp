@@ -8,6 +8,7 @@
 
 #include "facemorph/meshkit/delaunay.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
+#include "tests/encoder/disk_face_landmarks.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -21,9 +22,13 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
+using testing::expect_circle_onto_circle;
+using testing::face;
+using testing::face_points;
+using testing::max_landmark_error;
+using testing::on_circle;
 
-Vec2 on_circle(double angle) { return {std::cos(angle), std::sin(angle)}; }
 
 // A disk map whose disk is the polar grid itself and whose surface is `lift` of it: the surface is
 // parametrised over the disk exactly (no conformal map involved), so its geodesics are known.
@@ -213,61 +218,19 @@ TEST(GeodesicPath, BadInputIsANamedError) {
 
 // ---- The frame of a flat disk, with the face's landmarks (registration_test.cpp's layout) ----
 
-std::vector<Vec2> face_points() {
-  return {{0, 0},          {0, 0.217},      {0, 0.35},        {0, 0.783},      {0, -0.583},     {0, -0.183},
-          {0, -0.23},      {0, -0.30},      {0, -0.367},      {-0.192, -0.267}, {0.192, -0.267}, {-0.367, 0.325},
-          {-0.167, 0.325}, {-0.267, 0.371}, {-0.267, 0.279},  {0.167, 0.325},  {0.367, 0.325},  {0.267, 0.371},
-          {0.267, 0.279},  {-0.133, 0.5},   {-0.417, 0.5},    {0.133, 0.5},    {0.417, 0.5},    {-0.583, 0.117},
-          {0.583, 0.117},  {-0.35, -0.1},   {0.35, -0.1},     {-0.4, -0.45},   {0.4, -0.45},    {-0.6, 0.45},
-          {0.6, 0.45}};
-}
-
-// The face's points and eight rim markers from the top; frame = reference.
-DiskLandmarks face() {
-  DiskLandmarks l;
-  l.reference = face_points();
-  l.on_rim.assign(l.reference.size(), 0);
-  for (int k = 0; k < 8; ++k) {
-    l.reference.push_back(on_circle(kPi / 2 + k * kPi / 4));
-    l.on_rim.push_back(1);
-  }
-  l.frame = l.reference;
-  return l;
-}
-
 // The flat disk's frame for the face's landmarks: built once (the tests only read it).
 const GeodesicFrame& flat_frame() {
   static const GeodesicFrame frame = [] {
     static const DiskMap map = polar_map(24, 96, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); });
-    const DiskLandmarks l = face();
+    const DiskLandmarks l = face(true);
     return make_geodesic_frame(map, l.reference, l.on_rim);
   }();
   return frame;
 }
 
-double max_landmark_error(const DiskRegistration& f, const DiskLandmarks& l) {
-  double error = 0;
-  for (size_t j = 0; j < l.reference.size(); ++j) error = std::max(error, (f(l.reference[j]) - l.frame[j]).norm());
-  return error;
-}
-
-void expect_circle_onto_circle(const DiskRegistration& f, int samples) {
-  double turn = 0;
-  Vec2 previous = f(on_circle(0));
-  for (int k = 1; k <= samples; ++k) {
-    const Vec2 y = f(on_circle(2 * kPi * k / samples));
-    EXPECT_NEAR(y.norm(), 1.0, 1e-12);
-    const double step = std::atan2(previous.x() * y.y() - previous.y() * y.x(), previous.dot(y));
-    EXPECT_GT(step, 0) << "at sample " << k;
-    turn += step;
-    previous = y;
-  }
-  EXPECT_NEAR(turn, 2 * kPi, 1e-9);
-}
-
 TEST(GeodesicFrame, OnAFlatDiskEveryCurveIsItsStraightSegment) {
   const GeodesicFrame& frame = flat_frame();
-  const DiskLandmarks l = face();
+  const DiskLandmarks l = face(true);
   ASSERT_EQ(frame.landmark_count, static_cast<int>(l.reference.size()));
   for (size_t j = 0; j < l.reference.size(); ++j) EXPECT_LT((frame.graph_points[j] - l.reference[j]).norm(), 1e-15);
   EXPECT_GT(frame.paths.size(), l.reference.size());
@@ -287,7 +250,7 @@ TEST(GeodesicFrame, OnAFlatDiskEveryCurveIsItsStraightSegment) {
 
 TEST(FrameRegistration, AFrameRegisteredToItselfIsTheIdentity) {
   const GeodesicFrame& frame = flat_frame();
-  const DiskLandmarks l = face();
+  const DiskLandmarks l = face(true);
   const DiskRegistration f = register_disks(l, {.method = RegistrationMethod::kFrame}, &frame);
   EXPECT_EQ(f.method, RegistrationMethod::kFrame);
   EXPECT_EQ(f.fallback, RegistrationFallback::kNone) << f.fallback_reason;
@@ -304,14 +267,14 @@ TEST(FrameRegistration, AFrameRegisteredToItselfIsTheIdentity) {
       EXPECT_LT((f.jacobian(w) - Eigen::Matrix2d::Identity()).cwiseAbs().maxCoeff(), 1e-9) << "at (" << w.transpose() << ")";
     }
   }
-  expect_circle_onto_circle(f, 720);
+  expect_circle_onto_circle(f, 720, 1e-12);
 }
 
 TEST(FrameRegistration, MatchesTheLandmarksExactlyAndFollowsTheGmf) {
   // An opening mouth after a Möbius motion: Φ interpolates f̄ on the partition, so it hits every
   // landmark (all are partition vertices) as exactly as f̄ does and stays near f̄ between them.
   const DiskMoebius M{Complex(0.15, -0.1), 0.2};
-  DiskLandmarks l = face();
+  DiskLandmarks l = face(true);
   for (size_t j = 0; j < l.frame.size(); ++j) {
     Vec2 p = l.reference[j];
     if (j == 7 || j == 8 || j == 4) p.y() -= 0.08;  // lower lip and chin down
@@ -354,12 +317,12 @@ TEST(FrameRegistration, MatchesTheLandmarksExactlyAndFollowsTheGmf) {
     J.col(1) = (f(c + Vec2(0, h)) - f(c - Vec2(0, h))) / (2 * h);
     EXPECT_LT((f.jacobian(c) - J).cwiseAbs().maxCoeff(), 1e-6);
   }
-  expect_circle_onto_circle(f, 720);
+  expect_circle_onto_circle(f, 720, 1e-12);
 }
 
 TEST(FrameRegistration, AForcedFoldFallsBackToTheGmfWithAReason) {
   const GeodesicFrame& frame = flat_frame();
-  const DiskLandmarks l = face();
+  const DiskLandmarks l = face(true);
   const DiskRegistration gmf = register_disks(l);
   const PartitionMesh& mesh = *frame.partition;
   std::vector<Vec2> images = mesh.vertices();
@@ -398,7 +361,7 @@ TEST(FrameRegistration, AForcedFoldFallsBackToTheGmfWithAReason) {
 TEST(FrameRegistration, BadInputIsANamedError) {
   using testing::expect_error;
   const GeodesicFrame& frame = flat_frame();
-  const DiskLandmarks l = face();
+  const DiskLandmarks l = face(true);
   const DiskRegistration gmf = register_disks(l);
   expect_error(ErrorCode::kInvalidArgument, "geodesic frame", [&] { register_disks(l, {.method = RegistrationMethod::kFrame}); });
   expect_error(ErrorCode::kInvalidArgument, "geodesic frame", [&] { register_disks(l, {.method = RegistrationMethod::kFrame}, nullptr); });
@@ -420,7 +383,7 @@ TEST(FrameRegistration, BadInputIsANamedError) {
 TEST(GeodesicFrame, BadInputIsANamedError) {
   using testing::expect_error;
   const DiskMap map = polar_map(12, 48, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); });
-  const DiskLandmarks good = face();
+  const DiskLandmarks good = face(true);
   auto expect_bad = [&](const std::vector<Vec2>& points, const std::vector<uint8_t>& rim, const std::string& fragment) {
     expect_error(ErrorCode::kInvalidArgument, fragment, [&] { make_geodesic_frame(map, points, rim); });
   };
@@ -660,7 +623,7 @@ void expect_same_registration(const DiskRegistration& a, const DiskRegistration&
 // (with its reason), for an opening mouth after a Möbius motion.
 std::vector<DiskRegistration> registrations_of_every_kind() {
   const DiskMoebius M{Complex(0.15, -0.1), 0.2};
-  DiskLandmarks l = face();
+  DiskLandmarks l = face(true);
   for (size_t j = 0; j < l.frame.size(); ++j) {
     Vec2 p = l.reference[j];
     if (j == 7 || j == 8 || j == 4) p.y() -= 0.08;

@@ -32,13 +32,13 @@ Capture synthetic_capture(const testing::TempDir& dir, double noise) {
   return read_capture(dir.path());
 }
 
-struct Encoded {
+struct BothFits {
   std::vector<int> keyframes;
   std::shared_ptr<const Sequence> fitted, interpolating;
 };
 
 // One mapping, registration and selection; the keyframes built with and without the fit.
-Encoded encode_both(const Capture& capture) {
+BothFits encode_both(const Capture& capture) {
   EncodeOptions options;
   options.keyframe_fraction = 0.25;
   options.grid = kGrid;
@@ -47,7 +47,7 @@ Encoded encode_both(const Capture& capture) {
   encoder.map_frames();
   encoder.register_frames();
   encoder.sample_frames();
-  Encoded e;
+  BothFits e;
   e.keyframes = encoder.select_keyframes().keyframes;
   encoder.options().keyframe_fit = true;
   e.fitted = std::make_shared<const Sequence>(encoder.build(e.keyframes, kGrid));
@@ -56,7 +56,7 @@ Encoded encode_both(const Capture& capture) {
   return e;
 }
 
-bool is_key(const Encoded& e, size_t i) { return std::binary_search(e.keyframes.begin(), e.keyframes.end(), static_cast<int>(i)); }
+bool is_key(const BothFits& e, size_t i) { return std::binary_search(e.keyframes.begin(), e.keyframes.end(), static_cast<int>(i)); }
 
 double relative_rms(const TriangleMesh& reference, const TriangleMesh& test) {
   const SurfaceDistance d = surface_distance(reference, test);
@@ -69,7 +69,7 @@ double relative_rms(const TriangleMesh& reference, const TriangleMesh& test) {
 TEST(KeyframeFit, AveragesPerFrameNoiseAwayAndBeatsInterpolatingTheKeyframes) {
   testing::TempDir dir;
   const Capture capture = synthetic_capture(dir, 0.001);  // 1 mm: ~0.4% of the face's diagonal
-  const Encoded e = encode_both(capture);
+  const BothFits e = encode_both(capture);
   ASSERT_EQ(e.keyframes.size(), 6u);
   const SyntheticFace face(Expression::kMixed, 1);
   SequenceDecoder fitted(e.fitted), interpolating(e.interpolating);
@@ -105,7 +105,7 @@ TEST(KeyframeFit, AveragesPerFrameNoiseAwayAndBeatsInterpolatingTheKeyframes) {
 TEST(KeyframeFit, BarelyMovesTheKeyframesOfACleanCapture) {
   testing::TempDir dir;
   const Capture capture = synthetic_capture(dir, 0);
-  const Encoded e = encode_both(capture);
+  const BothFits e = encode_both(capture);
   SequenceDecoder fitted(e.fitted), interpolating(e.interpolating);
   double worst_moved = 0;
   for (int k : e.keyframes) {

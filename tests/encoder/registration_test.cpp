@@ -2,6 +2,7 @@
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/error.hpp"
 
+#include "tests/encoder/disk_face_landmarks.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -14,37 +15,14 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
+using testing::expect_circle_onto_circle;
+using testing::face;
+using testing::face_points;
+using testing::max_landmark_error;
+using testing::on_circle;
 
-// A face's landmarks on the reference disk (nose tip at 0, forehead up), about as the conformal map
-// places them: midline, lips, mouth corners, eyes and lids, brows, cheeks, jaw, temples. The inner
-// lips are 0.07 apart, the eyelids 0.09.
-std::vector<Vec2> face_points() {
-  return {{0, 0},          {0, 0.217},      {0, 0.35},        {0, 0.783},      {0, -0.583},     {0, -0.183},
-          {0, -0.23},      {0, -0.30},      {0, -0.367},      {-0.192, -0.267}, {0.192, -0.267}, {-0.367, 0.325},
-          {-0.167, 0.325}, {-0.267, 0.371}, {-0.267, 0.279},  {0.167, 0.325},  {0.367, 0.325},  {0.267, 0.371},
-          {0.267, 0.279},  {-0.133, 0.5},   {-0.417, 0.5},    {0.133, 0.5},    {0.417, 0.5},    {-0.583, 0.117},
-          {0.583, 0.117},  {-0.35, -0.1},   {0.35, -0.1},     {-0.4, -0.45},   {0.4, -0.45},    {-0.6, 0.45},
-          {0.6, 0.45}};
-}
 constexpr int kLowerLipInner = 7, kLowerLipBottom = 8, kChin = 4, kMouthRight = 9, kMouthLeft = 10;
-
-Vec2 on_circle(double angle) { return {std::cos(angle), std::sin(angle)}; }
-
-// The face's points and, with `rim`, eight boundary markers rim_0..rim_7 from the top; frame = reference.
-DiskLandmarks face(bool rim) {
-  DiskLandmarks l;
-  l.reference = face_points();
-  l.on_rim.assign(l.reference.size(), 0);
-  if (rim) {
-    for (int k = 0; k < 8; ++k) {
-      l.reference.push_back(on_circle(kPi / 2 + k * kPi / 4));
-      l.on_rim.push_back(1);
-    }
-  }
-  l.frame = l.reference;
-  return l;
-}
 
 // Frame landmarks: the reference's through `M`, interior ones first jittered by Gaussian noise of
 // `sigma` and moved by `mouth` like an opening jaw (lower lip and chin down by `mouth`, the corners
@@ -71,27 +49,6 @@ DiskLandmarks expression(bool rim, const DiskMoebius& M, double sigma, double mo
 DiskLandmarks mapped(bool rim, const DiskMoebius& M) { return expression(rim, M, 0, 0, 1); }
 
 double angle_distance(double a, double b) { return std::abs(std::remainder(a - b, 2 * kPi)); }
-
-// The circle's images under the final map: exactly on the circle and strictly counter-clockwise.
-void expect_circle_onto_circle(const DiskRegistration& f, int samples) {
-  double turn = 0;
-  Vec2 previous = f(on_circle(0));
-  for (int k = 1; k <= samples; ++k) {
-    const Vec2 y = f(on_circle(2 * kPi * k / samples));
-    EXPECT_NEAR(y.norm(), 1.0, 1e-15);
-    const double step = std::atan2(previous.x() * y.y() - previous.y() * y.x(), previous.dot(y));
-    EXPECT_GT(step, 0) << "at sample " << k;
-    turn += step;
-    previous = y;
-  }
-  EXPECT_NEAR(turn, 2 * kPi, 1e-9);
-}
-
-double max_landmark_error(const DiskRegistration& f, const DiskLandmarks& l) {
-  double error = 0;
-  for (size_t j = 0; j < l.reference.size(); ++j) error = std::max(error, (f(l.reference[j]) - l.frame[j]).norm());
-  return error;
-}
 
 // The derivative of a map of the plane by central differences (step 1e-6).
 template <typename Map>
@@ -288,7 +245,7 @@ TEST(Registration, TheGmfInterpolatesItsLandmarks) {
     EXPECT_LT(f.energy, 1e-18);
     EXPECT_TRUE(f.check.ok());
     EXPECT_GT(f.boundary_samples, 50);
-    expect_circle_onto_circle(f, 720);
+    expect_circle_onto_circle(f, 720, 1e-15);
   }
 }
 
@@ -327,7 +284,7 @@ TEST(Registration, JitteredFacesWithAnOpeningMouthStayBijective) {
       if (seed == 1 || sigma > 0.02) {
         const BijectionCheck finer = check_bijection(f, 181);
         EXPECT_TRUE(finer.ok()) << finer.folded_points << " folded, " << finer.boundary_order_breaks << " out of order";
-        expect_circle_onto_circle(f, 360);
+        expect_circle_onto_circle(f, 360, 1e-15);
       }
     }
   }
@@ -358,7 +315,7 @@ TEST(Registration, AForcedFoldIsDetectedAndFallsBackToABijection) {
   EXPECT_TRUE(f.check.ok());
   EXPECT_TRUE(check_bijection(f, 181).ok());
   EXPECT_LT(f.energy, f.energy_moebius);
-  expect_circle_onto_circle(f, 360);
+  expect_circle_onto_circle(f, 360, 1e-15);
 
   // Without smoothing, sub-steps cannot untwist a swap either: the OMT alone.
   const DiskRegistration m = register_disks(l, {.smoothing_tries = 0});
@@ -380,7 +337,7 @@ TEST(Registration, SubstepsCarryALargeMoveThatOneStepFolds) {
   EXPECT_EQ(f.steps.size(), 2u);
   EXPECT_TRUE(f.check.ok());
   EXPECT_LT(max_landmark_error(f, l), 1e-9);
-  expect_circle_onto_circle(f, 360);
+  expect_circle_onto_circle(f, 360, 1e-15);
 }
 
 TEST(Registration, TheBoundaryFollowsTheRimMarkers) {
@@ -395,7 +352,7 @@ TEST(Registration, TheBoundaryFollowsTheRimMarkers) {
   }
   const DiskRegistration f = register_disks(l);
   EXPECT_EQ(f.fallback, RegistrationFallback::kNone) << f.fallback_reason;
-  expect_circle_onto_circle(f, 1440);
+  expect_circle_onto_circle(f, 1440, 1e-15);
   for (size_t j = 0; j < l.frame.size(); ++j) {
     if (l.on_rim[j]) {
       EXPECT_LT((f(l.reference[j]) - l.frame[j]).norm(), 1e-9);
@@ -430,7 +387,7 @@ TEST(Registration, PaperGridFormLowersTheEnergyAndStaysBijective) {
     EXPECT_TRUE(f.check.ok());
     ASSERT_FALSE(f.steps.empty());
     EXPECT_EQ(f.steps.front().centres.size(), static_cast<size_t>(n * n));
-    expect_circle_onto_circle(f, 360);
+    expect_circle_onto_circle(f, 360, 1e-15);
   }
 }
 

@@ -13,7 +13,7 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using testing::kPi;
 
 TEST(Resample, AFlatDiskResamplesToTheGridItself) {
   // The linear map of a polar-grid disk is the identity, so the resampled surface is the grid.
