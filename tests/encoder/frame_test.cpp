@@ -320,7 +320,9 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
     EXPECT_EQ(r.dropped_sheet_faces, c.fins + c.torso_faces);
     EXPECT_EQ(r.dropped_duplicate_faces, c.duplicate_faces);
     EXPECT_EQ(r.dropped_degenerate_faces, c.degenerate_faces);
-    if (kind & kDefectDegenerateFaces) EXPECT_EQ(c.slivers, 1);
+    if (kind & kDefectDegenerateFaces) {
+      EXPECT_EQ(c.slivers, 1);
+    }
     EXPECT_EQ(r.split_faces, c.slivers);  // the T-junction closed again, no slit left open
     EXPECT_EQ(r.reoriented_faces, c.flipped_faces);
     EXPECT_EQ(r.dropped_specks, c.islands + c.flaps);
