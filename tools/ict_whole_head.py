@@ -6,7 +6,10 @@ encoder drops with --largest-component). Frames blend the neutral with jawOpen, 
 mouthSmile; landmarks are ICT's 68 Multi-PIE points and rim_0..5 on the neck rim. Standard library
 only; it reads the data where it lies and writes a capture folder (nothing is copied into the project).
 
-usage: ict_whole_head.py OUT_DIR [--frames 6] [--pieces] [--data ../shared/data]
+With --face-only, the face area alone (the same frames cropped to the face, rim_0..5 on its outer
+rim): the cropped face a whole head's error is compared with (spec/method.md §7.11).
+
+usage: ict_whole_head.py OUT_DIR [--frames 6] [--pieces | --face-only] [--data ../shared/data]
 """
 import argparse, collections, json, lzma, math, os
 
@@ -31,6 +34,7 @@ def main():
     ap.add_argument('out')
     ap.add_argument('--frames', type=int, default=6)
     ap.add_argument('--pieces', action='store_true', help='also the eyeballs, teeth, gums and lashes, separate surfaces')
+    ap.add_argument('--face-only', action='store_true', help='the face area alone: the whole head cropped to its face')
     ap.add_argument('--data', default=os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', 'shared', 'data'))
     a = ap.parse_args()
     model = os.path.join(a.data, 'ict-facekit', 'originals', 'FaceXModel')
@@ -67,11 +71,13 @@ def main():
         for j in faces[1:]:
             parent[find(j)] = find(faces[0])
     neck = find(min(range(len(back)), key=lambda i: min(neutral[v][1] for v in back[i])))
-    polygons += [poly for i, poly in enumerate(back) if find(i) == neck]
+    if not a.face_only:
+        polygons += [poly for i, poly in enumerate(back) if find(i) == neck]
     triangles = [(p[0], p[k], p[k + 1]) for p in polygons for k in range(1, len(p) - 1)]
     used = sorted({v for t in triangles for v in t})
     number = {v: i + 1 for i, v in enumerate(used)}
-    # The neck rim: the boundary loop through the lowest vertex; rim_0..5 evenly along it.
+    # The neck rim (the face area's outer rim with --face-only): the boundary loop through the lowest
+    # vertex; rim_0..5 evenly along it.
     directed = collections.Counter((t[k], t[(k + 1) % 3]) for t in triangles for k in range(3))
     following = {u: v for (u, v) in directed if (v, u) not in directed}
     start = min(following, key=lambda v: neutral[v][1])
@@ -108,13 +114,14 @@ def main():
             rows.append('%d,%s,%.6g,%.6g,%.6g' % (k, lname, *V[v]))
     with open(os.path.join(a.out, 'landmarks.csv'), 'w') as f:
         f.write('frame,name,x,y,z\n' + '\n'.join(rows) + '\n')
-    manifest = {'description': 'ICT-FaceKit whole head to the neck%s, eyes and mouth open; %d frames'
-                               % (' with its eyes, teeth, gums and lashes' if a.pieces else '', len(names)),
+    what = 'face area' if a.face_only else 'whole head to the neck'
+    manifest = {'description': 'ICT-FaceKit %s%s, eyes and mouth open; %d frames'
+                               % (what, ' with its eyes, teeth, gums and lashes' if a.pieces else '', len(names)),
                 'fps': 10, 'units': 'cm', 'frames': [{'mesh': n, 'time': k / 10} for k, n in enumerate(names)],
                 'landmarks_csv': 'landmarks.csv'}
     with open(os.path.join(a.out, 'capture.json'), 'w') as f:
         json.dump(manifest, f, indent=1)
-    print('%s: %d frames, %d vertices, %d triangles, neck rim of %d vertices' % (a.out, len(names), len(used), len(triangles), len(rim)))
+    print('%s: %d frames, %d vertices, %d triangles, rim of %d vertices' % (a.out, len(names), len(used), len(triangles), len(rim)))
 
 
 if __name__ == '__main__':

@@ -20,6 +20,8 @@
 #include <cstdio>
 #include <numbers>
 #include <random>
+#include <utility>
+#include <vector>
 
 namespace facemorph {
 namespace {
@@ -166,6 +168,21 @@ TEST(FaceFinding, HeadAndShouldersFoundByFaceRegionConfirmedByTexture) {
     }
     EXPECT_LT(agreement(by_texture, scan, pose, name + " (texture alone)").up_degrees, 25.0);
   }
+}
+
+// The face region step says how far it is (fmenc shows it before the mapping: around a whole head
+// without holes it reads 78 regions, tens of seconds): one call per region to read, then the total.
+TEST(FaceFinding, TheRegionSearchReportsItsProgress) {
+  const Scan scan = head_and_shoulders(1, kPoses[0]);
+  std::vector<std::pair<int, int>> calls;
+  FaceFindingOptions options;
+  options.whole_surface = false;
+  options.texture = false;
+  options.progress = [&](int done, int total) { calls.emplace_back(done, total); };
+  find_face(scan.mesh, nullptr, "scan.obj", nullptr, options);
+  // The scan faces one way: one start, three reaches.
+  const std::vector<std::pair<int, int>> expected = {{0, 3}, {1, 3}, {2, 3}, {3, 3}};
+  EXPECT_EQ(calls, expected);
 }
 
 // Without the texture and region steps nothing is refused but the answer is the whole surface's

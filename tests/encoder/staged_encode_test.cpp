@@ -79,6 +79,10 @@ void expect_same_report(const EncodeReport& one, const EncodeReport& staged) {
   // one as "whole surface" at confidence 0).
   EXPECT_EQ(one.orientation_methods, staged.orientation_methods);
   EXPECT_EQ(one.lowest_face_confidence, staged.lowest_face_confidence);
+  // The disk's crowding, measured on the reference by every part and by the assembler alike, and the
+  // radial map it decides (radial_equalising is 0 on these faces: the half-area radii are what can differ).
+  EXPECT_EQ(one.density_equalising.half_area_radius_before, staged.density_equalising.half_area_radius_before);
+  EXPECT_EQ(one.density_equalising.half_area_radius_after, staged.density_equalising.half_area_radius_after);
   EXPECT_EQ(one.radial_equalising, staged.radial_equalising);
   EXPECT_EQ(one.rim_markers_found, staged.rim_markers_found);
   EXPECT_EQ(one.frames_without_interior_landmarks, staged.frames_without_interior_landmarks);
@@ -125,6 +129,7 @@ TEST(StagedEncode, AFrameDroppedAndAReferenceMovedAreSettledAlikeInEveryPart) {
   ASSERT_EQ(one_report.dropped.size(), 2u);
   ASSERT_TRUE(one_report.rim_markers_found);
   ASSERT_GT(one_report.lowest_face_confidence, 0);
+  ASSERT_GT(one_report.density_equalising.half_area_radius_before, 0.3);  // not a 0 compared with a 0
   const std::vector<uint8_t> staged = staged_file(capture, options, {{0, 3}, {3, 7}, {7, 10}}, dir, &staged_report);
   EXPECT_TRUE(one == staged) << "the assembled file differs from the one-process file";
   expect_same_report(one_report, staged_report);

@@ -67,6 +67,25 @@ std::vector<Vec3> rim_points_at_angles(const DiskMap& map, int count) {
 
 }  // namespace
 
+Vec3 filled_holes_facing(const PreparedFrame& prepared) {
+  // Each hole's centroid counts once: the fills' normals (used first) followed the mouth's as the jaw
+  // opened, and on ICT's blinking frame (eyes shut, mouth open) pointed 29 degrees up, to a tip on
+  // the forehead.
+  const std::vector<Vec3>& p = prepared.mesh.positions;
+  if (prepared.report.holes.empty() || p.empty()) return Vec3::Zero();
+  Vec3 holes = Vec3::Zero();
+  for (const FilledHole& h : prepared.report.holes) {
+    Vec3 centroid = Vec3::Zero();
+    for (int f = h.first_face; f < h.first_face + h.face_count; ++f) {
+      for (int32_t v : prepared.mesh.faces[static_cast<size_t>(f)]) centroid += p[static_cast<size_t>(v)];
+    }
+    holes += centroid / (3.0 * std::max(h.face_count, 1));
+  }
+  Vec3 all = Vec3::Zero();
+  for (const Vec3& q : p) all += q;
+  return holes / static_cast<double>(prepared.report.holes.size()) - all / static_cast<double>(p.size());
+}
+
 MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options) {
   MappedFrame frame;
   frame.name = name;
@@ -85,16 +104,7 @@ MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const F
   start = std::chrono::steady_clock::now();
   std::optional<Vec3> centre = landmarks.centre, up = landmarks.up;
   if ((!centre || !up) && options.find_orientation) {
-    // The filled holes' area-weighted normal: eyes, mouth and nostrils look out of the face, which
-    // is how a whole head (no one facing) shows where its face is.
-    Vec3 holes = Vec3::Zero();
-    for (const FilledHole& h : frame.prepared.report.holes) {
-      for (int f = h.first_face; f < h.first_face + h.face_count; ++f) {
-        const Face& t = frame.prepared.mesh.faces[static_cast<size_t>(f)];
-        const std::vector<Vec3>& p = frame.prepared.mesh.positions;
-        holes += (p[static_cast<size_t>(t[1])] - p[static_cast<size_t>(t[0])]).cross(p[static_cast<size_t>(t[2])] - p[static_cast<size_t>(t[0])]);
-      }
-    }
+    const Vec3 holes = filled_holes_facing(frame.prepared);
     frame.found = find_face_facing(frame.prepared.mesh, nullptr, name, options.vertical_hint ? &*options.vertical_hint : nullptr,
                                    holes.norm() > 0 ? &holes : nullptr);  // names the frame
     centre = frame.found->nose_tip;

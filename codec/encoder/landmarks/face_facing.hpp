@@ -11,4 +11,12 @@ namespace facemorph {
 FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
                                  const Vec3* facing_hint, const FaceFindingOptions& options = {});
 
+// find_face_orientation, but up is the side of the midline `up_side` points to (when not null and
+// within 60° of the midline), whatever the surface's readings say: a whole head's neck lies below
+// its face. In a region of a whole head the readings are taken at the region's small scale, on the
+// nose rather than the sockets, and ICT's head read up the wrong way on 5 of 12 frames (evidence
+// 0.71-0.76) while the others read it right: the registration then turned the face over between them.
+FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale,
+                                              const Vec3* up_side);
+
 }  // namespace facemorph

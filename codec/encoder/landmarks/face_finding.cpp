@@ -59,6 +59,13 @@ constexpr double kSureConfidence = 2.0 / 3;
 
 const std::filesystem::path kCascadeFile = FACEMORPH_FACE_CASCADE;
 
+// How far up the midline a region's `up` point is placed (find_face_orientation's up_scale): from the
+// diameter of the largest region tried, a share of the whole scan's diagonal. The region's own
+// diagonal follows which region won and its cut, and varied the point from 11 to 17 mm from the tip
+// across 12 frames of fmsynth --head --holes; the registration then stretched the face between the
+// frames by that difference.
+double region_up_scale(const TriangleMesh& mesh) { return 2 * kRegionReaches.front() * bounding_box_diagonal(mesh.positions); }
+
 [[noreturn]] void fail(const std::string& name, const std::string& why) {
   throw Error(ErrorCode::kInvalidArgument,
               name + ": no face orientation found: " + why + " (give the capture its landmarks nose_tip and nose_bridge)");
@@ -267,7 +274,7 @@ std::optional<FaceOrientation> find_by_texture(const TriangleMesh& mesh, const I
   }
   const TriangleMesh region = sub_mesh(mesh, near);
   try {
-    FaceOrientation o = find_face_orientation(region, name, &vertical);
+    FaceOrientation o = find_face_orientation(region, name, &vertical, region_up_scale(mesh));
     if (o.vertical.dot(vertical) >= kMinAgreementCosine) {
       o.method = FaceFindingMethod::kTexture;
       o.confidence = 1 - (1 - texture_confidence) * (1 - geometry_confidence(o));
@@ -303,6 +310,20 @@ bool has_rim(const TriangleMesh& mesh) {
   return false;
 }
 
+// From the centroid of the rim's vertices (a whole head's neck) to that of all vertices: up, for a
+// head whose rim is its neck. Zero without a rim.
+Vec3 away_from_rim(const TriangleMesh& mesh) {
+  const MeshTopology topology(mesh.faces, static_cast<int>(mesh.positions.size()));
+  Vec3 rim = Vec3::Zero(), all = Vec3::Zero();
+  int on_rim = 0;
+  for (int v = 0; v < mesh.vertex_count(); ++v) {
+    all += mesh.positions[static_cast<size_t>(v)];
+    if (topology.is_boundary_vertex(v)) rim += mesh.positions[static_cast<size_t>(v)], ++on_rim;
+  }
+  if (on_rim == 0) return Vec3::Zero();
+  return all / mesh.vertex_count() - rim / on_rim;
+}
+
 // The directions a whole head's face region is looked for along: the 26 of a cube's faces, edges
 // and corners (at most 35 degrees from any direction).
 std::vector<Vec3> search_directions() {
@@ -318,15 +339,16 @@ std::vector<Vec3> search_directions() {
 }
 
 std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, const Vec3* facing_hint,
-                                              std::string* why) {
+                                              const std::function<void(int, int)>& progress, std::string* why) {
   const Vec3 mean = area_weighted_normal(mesh);  // a sum of cross products: twice the area-weighted normal
   const double area = 2 * total_area(mesh.positions, mesh.faces);  // on the same scale
   // A whole head faces no one way (its mean normal is the neck's opening's, pointing up): its face
   // is looked for about the most protruding point along each of 26 directions, the surest region
   // winning (a face's nose, sockets and symmetry against a dome's or the back of the head's).
-  // Where the scan's holes say where the face looks (the filled eyes' and mouth's normals, from
-  // find_face_facing), that direction alone.
+  // Where the scan's holes say where the face is (the filled eyes', mouth's and nostrils' centroids,
+  // from find_face_facing), that direction alone. Either way up is the side away from the neck rim.
   std::vector<Vec3> starts;
+  Vec3 up_side = Vec3::Zero();  // a whole head's: away from its neck rim
   if (mean.norm() >= kWholeHeadFacingShare * area) {
     starts.push_back(mean.normalized());
   } else if (!has_rim(mesh)) {
@@ -336,8 +358,10 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
     return std::nullopt;
   } else if (facing_hint != nullptr) {
     starts.push_back(facing_hint->normalized());
+    up_side = away_from_rim(mesh);
   } else {
     starts = search_directions();
+    up_side = away_from_rim(mesh);
   }
   if (!(area > 0)) {
     *why = "no region faces one way";
@@ -357,16 +381,28 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
     }
     return a.confidence > b.confidence;
   };
+  // Nearby directions often end at the same tip, and the region is the tip's: each region (reach,
+  // tip) is read once; the answer is the same, as a region read again cannot win over itself.
+  std::vector<std::pair<double, size_t>> read;  // (reach, tip) of the regions read
+  const int total = static_cast<int>(kRegionReaches.size() * starts.size());
+  int done = 0;
   for (double reach : kRegionReaches) {
     for (const Vec3& start : starts) {
+      if (progress) progress(done++, total);
       // About the most protruding vertex along the facing of the region itself (the shoulders turn the
       // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
       Vec3 facing = start;
       std::vector<bool> keep(mesh.faces.size(), false);
+      bool seen = false;
       for (int round = 0; round < 2; ++round) {
         size_t tip = 0;
         for (size_t v = 1; v < mesh.positions.size(); ++v) {
           if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
+        }
+        if (round == 1) {
+          seen = std::find(read.begin(), read.end(), std::make_pair(reach, tip)) != read.end();
+          if (seen) break;
+          read.emplace_back(reach, tip);
         }
         for (size_t f = 0; f < mesh.faces.size(); ++f) {
           keep[f] = true;
@@ -376,8 +412,10 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
         if (!(n.norm() > 0)) break;
         facing = n.normalized();
       }
+      if (seen) continue;
       try {
-        FaceOrientation o = find_face_orientation(sub_mesh(mesh, keep), name, vertical_hint);
+        FaceOrientation o = find_face_orientation_up_side(sub_mesh(mesh, keep), name, vertical_hint, region_up_scale(mesh),
+                                                          up_side.norm() > 0 ? &up_side : nullptr);
         o.method = FaceFindingMethod::kFaceRegion;
         o.confidence = geometry_confidence(o);
         if (!best || better(o, *best)) best = o;
@@ -386,6 +424,7 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
       }
     }
   }
+  if (progress) progress(total, total);
   if (!best) *why = last + " (in regions of " + std::to_string(static_cast<int>(100 * kRegionReaches.back())) + "-" +
                     std::to_string(static_cast<int>(100 * kRegionReaches.front())) + "% of the diagonal about the most protruding point)";
   return best;
@@ -438,7 +477,7 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
     }
   }
   if (options.face_region) {
-    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, &why)) {
+    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, options.progress, &why)) {
       // The texture's face, where it agrees, confirms the region's: two independent readings.
       if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine && o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
         o->confidence = 1 - (1 - o->confidence) * (1 - by_texture->confidence);

@@ -1,5 +1,6 @@
 // The face's orientation from its geometry: facing direction, nose tip, mirror plane, up.
 #include "facemorph/encoder/face_orientation.hpp"
+#include "codec/encoder/landmarks/face_facing.hpp"
 
 #include "codec/decoder/geometry/elementary.hpp"
 #include "facemorph/meshkit/distance.hpp"
@@ -68,9 +69,49 @@ std::vector<double> smoothed(const TriangleMesh& mesh, std::vector<double> value
   return values;
 }
 
+// The point of the face's midline (the mirror plane's section of the surface) at straight-line
+// distance `distance` from the tip that lies farthest up the face (up: the sign `up_sign` of the
+// first coordinate); nullopt where the section does not reach that far. `projected` holds each
+// face's corners as (along the midline, across it, out of the face) from the tip. Measured along
+// the midline and not as the surface point nearest to tip + distance · vertical: that point lies
+// off a sloping nose, and its nearest point slid along the bridge as the vertical tilted by a few degrees between frames (9.5-14.7 mm from the tip
+// over 12 frames of fmsynth --head at one probe distance), which the registration took for motion.
+std::optional<Vec3> midline_point(const std::vector<std::array<Vec3, 3>>& projected, double distance, double up_sign) {
+  std::optional<Vec3> best;
+  for (const auto& t : projected) {
+    // The section of the triangle by the plane across = 0: a segment between two edge crossings.
+    std::array<Vec3, 2> ends;
+    int found = 0;
+    for (int k = 0; k < 3 && found < 2; ++k) {
+      const Vec3 &a = t[static_cast<size_t>(k)], &b = t[static_cast<size_t>((k + 1) % 3)];
+      if ((a.y() < 0) == (b.y() < 0)) continue;
+      const double s = a.y() / (a.y() - b.y());
+      ends[static_cast<size_t>(found++)] = a + s * (b - a);
+    }
+    if (found < 2) continue;
+    // |ends[0] + u (ends[1] - ends[0])| = distance for u in [0, 1].
+    const Vec3 d = ends[1] - ends[0];
+    const double qa = d.squaredNorm(), qb = 2 * ends[0].dot(d), qc = ends[0].squaredNorm() - distance * distance;
+    const double disc = qb * qb - 4 * qa * qc;
+    if (!(qa > 0) || disc < 0) continue;
+    for (double sign : {-1.0, 1.0}) {
+      const double u = (-qb + sign * std::sqrt(disc)) / (2 * qa);
+      if (u < 0 || u > 1) continue;
+      const Vec3 p = ends[0] + u * d;
+      if (up_sign * p.x() > 0 && (!best || up_sign * p.x() > up_sign * best->x())) best = p;
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
-FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint) {
+FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale) {
+  return find_face_orientation_up_side(mesh, name, vertical_hint, up_scale, nullptr);
+}
+
+FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale,
+                                              const Vec3* up_side) {
   FaceOrientation o;
   if (mesh.faces.empty()) fail(name, "the surface has no faces");
   // 1. Facing: the area-weighted mean normal, about the area-weighted centroid.
@@ -150,6 +191,7 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
   }
   const Vec3 lateral = std::cos(best) * e1 + std::sin(best) * e2;
   o.vertical = o.facing.cross(lateral).normalized();
+  const Vec3 midline_axis = o.vertical;  // the axis the readings below are taken on, before up's sign is known
 
   // 4. Up. Two readings of the surface in the face's plane, each signed towards +vertical, summed:
   // the nose's profile (above the tip the bridge rises to the forehead, below it the nose ends
@@ -212,7 +254,9 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
   // up to 0.30); on a face without marked sockets (fmsynth's) they read ~0 and the profile decides.
   const double evidence = from_profile + 2 * from_sockets;
   o.up_evidence = std::min(1.0, std::abs(evidence));
-  if (o.up_evidence >= kMinUpEvidence) {
+  if (up_side && std::abs(up_side->normalized().dot(o.vertical)) > kMinHintCosine) {
+    if (up_side->dot(o.vertical) < 0) o.vertical = -o.vertical;
+  } else if (o.up_evidence >= kMinUpEvidence) {
     if (evidence < 0) o.vertical = -o.vertical;
   } else if (vertical_hint && std::abs(vertical_hint->dot(o.vertical)) > kMinHintCosine) {
     if (vertical_hint->dot(o.vertical) < 0) o.vertical = -o.vertical;
@@ -220,7 +264,14 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
   } else {
     fail(name, "neither the nose's profile nor the eye sockets say which way is up");
   }
-  const SurfacePoint up = surface.closest(o.nose_tip + kUpDistance * diagonal * o.vertical);
+  // 5. The up point, up the midline.
+  const double up_distance = kUpDistance * (up_scale > 0 ? up_scale : diagonal);
+  if (const std::optional<Vec3> m = midline_point(projected, up_distance, o.vertical.dot(midline_axis) > 0 ? 1.0 : -1.0)) {
+    o.up = o.nose_tip + m->x() * midline_axis + m->y() * lateral + m->z() * o.facing;
+    return o;
+  }
+  // The midline ends before that distance (a small region): the surface point nearest to it.
+  const SurfacePoint up = surface.closest(o.nose_tip + up_distance * o.vertical);
   const Face& f = mesh.faces[static_cast<size_t>(up.face)];
   o.up = up.bary[0] * mesh.positions[static_cast<size_t>(f[0])] + up.bary[1] * mesh.positions[static_cast<size_t>(f[1])] +
          up.bary[2] * mesh.positions[static_cast<size_t>(f[2])];

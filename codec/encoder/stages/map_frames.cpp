@@ -3,6 +3,7 @@
 // landmarks found on the frames (nose tip, up, rim markers) adopted under their names.
 #include "facemorph/encoder/sequence_encoder.hpp"
 
+#include "codec/encoder/landmarks/face_facing.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/decoder/geometry/elementary.hpp"
@@ -119,7 +120,7 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
 }
 
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
-                                       const std::function<std::vector<Vec3>(size_t)>& landmarks) {
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress) {
   // The first frame from the reference on that lacks its pose landmarks and whose own surface says
   // clearly which way is up: its up direction settles the frames whose surfaces do not.
   const size_t count = capture.frames.size();
@@ -131,7 +132,11 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
       PrepareOptions prepare;
       prepare.keep_largest_component = largest_component;
       const PreparedFrame p = prepare_frame(read_mesh(capture.mesh_path(index), {.allow_missing_texture = true}), capture.frames[index].mesh.string(), prepare);
-      return find_face(p.mesh, nullptr, capture.frames[index].mesh.string()).vertical;
+      FaceFindingOptions options;
+      options.progress = progress;
+      // Read as the frame's own mapping reads it: a whole head's face along its filled holes.
+      const Vec3 holes = filled_holes_facing(p);
+      return find_face_facing(p.mesh, nullptr, capture.frames[index].mesh.string(), nullptr, holes.norm() > 0 ? &holes : nullptr, options).vertical;
     } catch (const Error&) {
       // This frame does not say; the next may. Its own mapping reports why.
     }
@@ -212,7 +217,8 @@ void SequenceEncoder::map_frames() {
   if (options_.find_landmarks && !vertical_hint_set_) {
     const FrameStore::Hold held = store_->hold();  // the frame being prepared
     vertical_hint = find_vertical_hint(capture_, options_.reference_frame, options_.largest_component,
-                                       [&](size_t i) { return landmarks(static_cast<int>(i)); });
+                                       [&](size_t i) { return landmarks(static_cast<int>(i)); },
+                                       [&](int done, int total) { progress("finding the face's up", done, total); });
   }
   if (!options_.find_landmarks) vertical_hint.reset();
   parallel_for(

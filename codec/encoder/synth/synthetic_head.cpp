@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 namespace facemorph {
 namespace {
@@ -86,6 +87,57 @@ bool inside_polygon(const std::vector<Vec2>& polygon, const Vec2& p) {
   return inside;
 }
 
+// A hole cut by the triangles' centroids can leave two cut pieces touching at one vertex, a bow tie
+// (at --vertices 1500 and 2000 a nostril was two triangles meeting at a corner), which no scanner
+// writes for an eye or a nostril and which the encoder's preparation would have to split. At such a
+// vertex the cut faces about it form more than one fan (faces joined through an edge at the
+// vertex); every face about it is cut too, joining the pieces into one hole through it, until no
+// vertex has two. (Putting the smaller fan back instead left the rest of its piece a hole of its
+// own: seven or eight boundary loops where the head has six.) Each pass cuts at least one face, so
+// it ends.
+void close_bow_ties(const std::vector<Face>& faces, int vertex_count, std::vector<char>& cut) {
+  std::vector<std::vector<int>> around(static_cast<size_t>(vertex_count));
+  for (size_t f = 0; f < faces.size(); ++f) {
+    for (int32_t v : faces[f]) around[static_cast<size_t>(v)].push_back(static_cast<int>(f));
+  }
+  // Whether faces a and b (both about v) share an edge at v: a second vertex in common.
+  auto share_edge = [&](int a, int b, size_t v) {
+    for (int32_t x : faces[static_cast<size_t>(a)]) {
+      for (int32_t y : faces[static_cast<size_t>(b)]) {
+        if (x == y && static_cast<size_t>(x) != v) return true;
+      }
+    }
+    return false;
+  };
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (size_t v = 0; v < around.size(); ++v) {
+      std::vector<int> cut_here;
+      for (int f : around[v]) {
+        if (cut[static_cast<size_t>(f)]) cut_here.push_back(f);
+      }
+      if (cut_here.size() < 2 || cut_here.size() == around[v].size()) continue;
+      // Fans by union over shared edges.
+      std::vector<size_t> fan(cut_here.size());
+      for (size_t i = 0; i < fan.size(); ++i) fan[i] = i;
+      auto root = [&](size_t i) {
+        while (fan[i] != i) i = fan[i] = fan[fan[i]];
+        return i;
+      };
+      for (size_t i = 0; i < cut_here.size(); ++i) {
+        for (size_t j = 0; j < i; ++j) {
+          if (share_edge(cut_here[i], cut_here[j], v)) fan[root(i)] = root(j);
+        }
+      }
+      bool one_fan = true;
+      for (size_t i = 1; i < fan.size(); ++i) one_fan = one_fan && root(i) == root(0);
+      if (one_fan) continue;
+      for (int f : around[v]) cut[static_cast<size_t>(f)] = 1;
+      changed = true;
+    }
+  }
+}
+
 }  // namespace
 
 bool SyntheticFace::in_hole(const Vec2& material) { return facemorph::in_hole(material); }
@@ -110,10 +162,15 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   double spacing = 0;
   for (const Face& f : s.faces) spacing += (s.points[static_cast<size_t>(f[0])] - s.points[static_cast<size_t>(f[1])]).norm();
   spacing /= static_cast<double>(std::max<size_t>(s.faces.size(), 1));
-  for (const Face& f : s.faces) {
-    const Vec2 centroid = (s.points[static_cast<size_t>(f[0])] + s.points[static_cast<size_t>(f[1])] + s.points[static_cast<size_t>(f[2])]) / 3.0;
-    if (holes && SyntheticFace::in_hole(centroid)) continue;
-    out.faces.push_back(f);
+  std::vector<char> cut(s.faces.size(), 0);
+  for (size_t f = 0; f < s.faces.size(); ++f) {
+    const Face& t = s.faces[f];
+    const Vec2 centroid = (s.points[static_cast<size_t>(t[0])] + s.points[static_cast<size_t>(t[1])] + s.points[static_cast<size_t>(t[2])]) / 3.0;
+    cut[f] = holes && SyntheticFace::in_hole(centroid);
+  }
+  if (holes) close_bow_ties(s.faces, static_cast<int>(s.points.size()), cut);
+  for (size_t f = 0; f < s.faces.size(); ++f) {
+    if (!cut[f]) out.faces.push_back(s.faces[f]);
   }
   // The lattice points inside the holes go with their faces (a scanner writes no vertex there).
   std::vector<int32_t> index(s.points.size(), -1);

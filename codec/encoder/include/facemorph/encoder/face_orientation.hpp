@@ -6,6 +6,7 @@
 #include "facemorph/mesh.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 namespace facemorph {
@@ -48,13 +49,19 @@ struct FaceOrientation {
 // face does not turn upside down between frames) decides, if it is not nearly perpendicular.
 // Throws kInvalidArgument naming `name` when the surface faces no single direction (a closed or
 // whole-head surface), has no mirror plane, or neither the readings nor a hint say which way is
-// up: give such a capture its landmarks.
-FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint = nullptr);
+// up: give such a capture its landmarks. `up` is taken 8% of `up_scale` (metres; 0: the mesh's
+// diagonal) up the midline: a region of a larger scan gives the scan's measure, so that every frame
+// of a capture places it at one distance whichever region was read.
+FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint = nullptr,
+                                      double up_scale = 0);
 
 struct FaceFindingOptions {
   bool whole_surface = true;  // each step may be turned off (the tests show what each finds alone)
   bool texture = true;
   bool face_region = true;
+  // Called with (regions read, regions to read) as the face region step reads its regions: around a
+  // whole head without holes that is 26 directions at three reaches, tens of seconds a frame.
+  std::function<void(int, int)> progress = nullptr;
 };
 
 // Finds the face in a scan that may hold more than a face (hair, ears, shoulders), spec/method.md

@@ -67,6 +67,11 @@ struct MappedFrame {
 
 // Stages 1-3. Throws what prepare_frame, conformal_disk_map and (with options.find_orientation)
 // find_face throw, naming `name`.
+// From the centroid of `prepared`'s vertices to the mean of its filled holes' centroids (zero
+// without holes): eyes, mouth and nostrils lie on the face, which is how a whole head (no one
+// facing) shows where its face is (find_face_facing's hint).
+Vec3 filled_holes_facing(const PreparedFrame& prepared);
+
 MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options = {});
 
 // Stage 4: the mapped surface at every node of G (interior nodes, then rim nodes).

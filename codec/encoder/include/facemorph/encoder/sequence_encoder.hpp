@@ -304,9 +304,10 @@ class SequenceEncoder {
 // The up direction of the first frame of `capture` from `reference` on (cyclically) that lacks its
 // pose landmarks and whose surface says which way is up (find_face_orientation); none when none
 // does. `landmarks(i)`: frame i's points, one per name of capture.landmark_names. What map_frames
-// gives frames whose surfaces do not say.
+// gives frames whose surfaces do not say. `progress`: (regions read, regions to read) of the frame
+// being read (find_face's, FaceFindingOptions::progress).
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
-                                       const std::function<std::vector<Vec3>(size_t)>& landmarks);
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress = {});
 
 // The steps after the selection's sampling: keyframes, N, representation, the keyframes on G,
 // field precision, texture qualities and sharing, and the report's per-frame lines. What
