@@ -21,6 +21,7 @@
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/registration_store.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/encoder/residual_fit.hpp"
 #include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/encoder/texture_quality.hpp"
@@ -281,6 +282,7 @@ struct EncodeReport {
   double seconds_reading_parts = 0;
   double seconds_planning = 0;  // plan_keyframes: the keyframes, N and representation chosen
   int parts = 0;
+  ResidualFitReport residual_fit;  // options.residual_frames: the residuals fitted to the stored keyframes
 };
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
