@@ -212,8 +212,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bool residual_frames = false;
   app.add_flag("--residual-frames", residual_frames,
-               "frames between keyframes carry a correction of the spline's blend where it lowers their predicted error by a tenth or more "
-               "(format 2.3's RSDW), so fast motion needs fewer keyframes; off by default (spec/method.md §7.18: not yet better on every capture)");
+               "frames between keyframes carry a correction of the spline's blend, fitted to the stored keyframes and kept where the frame decodes "
+               "closer with it (format 2.3's RSDW), and fast motion takes fewer keyframes; off by default (spec/method.md §7.18: on Medusa it adds bytes)");
   app.add_flag("--no-texture-sharing", no_texture_sharing,
                "keep every keyframe's own texture: by default keyframes painted from one captured image show one texture, stored once (format 2.2), "
                "where it stays within the texture coding's coarsest PSNR (30 dB) of their own");
