@@ -213,8 +213,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bool residual_frames = false;
   app.add_flag("--residual-frames", residual_frames,
-               "frames between keyframes carry a correction of the spline's blend where it lowers their predicted error by a tenth or more "
-               "(format 2.3's RSDW), so fast motion needs fewer keyframes; off by default (spec/method.md §7.18: not yet better on every capture)");
+               "frames between keyframes carry a correction of the spline's blend, fitted to the stored keyframes and kept where the frame decodes "
+               "closer with it (format 2.3's RSDW), and fast motion takes fewer keyframes; off by default (spec/method.md §7.18: on Medusa it adds bytes)");
   app.add_flag("--no-texture-sharing", no_texture_sharing,
                "keep every keyframe's own texture: by default keyframes painted from one captured image show one texture, stored once (format 2.2), "
                "where it stays within the texture coding's coarsest PSNR (30 dB) of their own");
@@ -453,7 +453,13 @@ int main(int argc, char** argv) {
     std::printf("fmenc: %s: %zu frames, %zu keyframes at", output.c_str(), frame_count - report.dropped.size(), sequence->shape().keyframes.size());
     for (const Keyframe& key : sequence->shape().keyframes) std::printf(" %.3f", key.time);
     std::printf(" s\n");
-    if (!sequence->shape().residuals.empty()) std::printf("  residual frames: %zu\n", sequence->shape().residuals.size());
+    if (options.residual_frames) {
+      const ResidualFitReport& r = report.residual_fit;
+      std::printf("  residual frames: %zu (fitted to the stored keyframes on %d frames between them: %d decode %.0f%% better or more, %d no better; "
+                  "their decoded error mean %.4f%% -> %.4f%%, worst %.4f%% -> %.4f%% of the diagonal; %.1f s)\n",
+                  sequence->shape().residuals.size(), r.frames_fitted, r.frames_improved, 100 * kDecodedResidualMinGain, r.frames_worse, 100 * r.mean_before,
+                  100 * r.mean_after, 100 * r.worst_before, 100 * r.worst_after, r.seconds);
+    }
     std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", sequence->shape().grid_n, representation_name(sequence->shape().representation),
                 registration_method_name(options.registration.method), spline_kind_name(sequence->shape().spline),
                 sequence->outline().has_texture() ? (", " + std::to_string(report.texture_size) + "x" + std::to_string(report.texture_size) + " texture").c_str() : ", no texture", sequence->outline().has_holes ? ", holes cut on decode" : "");

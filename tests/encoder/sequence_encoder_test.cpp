@@ -1250,6 +1250,27 @@ TEST(KeyframeSelection, FastMotionGetsResidualFramesInsteadOfKeyframes) {
   testing::expect_error(ErrorCode::kInvalidArgument, "residual step", [&] { select_keyframes(frames, weights, options); });
 }
 
+// A budget the error bound leaves as it is (here kept exactly) on the same fast motion: with residual
+// frames the selection takes fewer keyframes, as many as keep every frame, with its residual, within
+// what the budget's keyframes left without (spec/method.md §7.18); their predicted errors stay the
+// spline's alone (they set N and the field rounding), and the residuals are added to them.
+TEST(KeyframeSelection, WithinItsBudgetResidualsTakeThePlaceOfKeyframes) {
+  const std::vector<SelectionFrame> frames = fast_bump_frames();
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.fraction = 0.25;
+  const KeyframeSelection plain = select_keyframes(frames, weights, options);
+  ASSERT_EQ(plain.keyframes.size(), 10u);
+  options.residuals = true;
+  const KeyframeSelection with = select_keyframes(frames, weights, options);
+  EXPECT_LT(with.keyframes.size(), plain.keyframes.size());
+  EXPECT_GE(with.keyframes.size(), 2u);
+  EXPECT_EQ(with.keyframes.front(), 0);
+  EXPECT_EQ(with.keyframes.back(), 39);
+  EXPECT_EQ(with.predicted_error, prediction_errors(frames, weights, with.keyframes, options.spline, Vec3::Zero()));
+  EXPECT_GT(with.residuals.size(), 20u);
+}
+
 // Given the keyframes, --grid auto also stops at half the error the spline makes between them:
 // with few keyframes for a changing expression that error is large, and a grid finer than half of
 // it buys less error per byte than keyframes would (spec/method.md §7.6).

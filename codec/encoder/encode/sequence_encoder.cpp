@@ -10,6 +10,7 @@
 #include "codec/encoder/stages/elapsed.hpp"
 
 #include "facemorph/encoder/resample.hpp"
+#include "facemorph/encoder/residual_fit.hpp"
 #include "facemorph/encoder/selection_store.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
 #include "facemorph/error.hpp"
@@ -221,8 +222,9 @@ std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeR
   const KeyframeSelection chosen = plan_keyframes(encoder);
   EncodeReport& report = encoder.report();
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
-  sequence->set_residuals(encoder.residual_frames(chosen));
   if (encoder.options().predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
+  // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
+  if (encoder.options().residual_frames) sequence->set_residuals(fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
   encoder.choose_texture_qualities(*sequence, chosen.keyframes);
   encoder.share_textures(*sequence, chosen.keyframes);
   finish_report(encoder, chosen, *sequence, report_out);

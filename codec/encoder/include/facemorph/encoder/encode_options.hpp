@@ -43,12 +43,13 @@ struct EncodeOptions {
   std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;
-  // Residual frames (format 2.3, spec/method.md §7.18): frames between keyframes carry a correction
-  // of the spline's blend where it lowers their predicted error enough (SelectionOptions::residuals).
-  // Off by default (fmenc --residual-frames turns it on): the fit is made against the keyframes'
-  // own frames, not the keyframe fit's values the decoder blends, and on Medusa it made half the
-  // held-out frames worse (mean +3.6%, worst -11%); on noise-free fast speech it helps (mean -15%,
-  // 99th percentile -23%).
+  // Residual frames (format 2.3, spec/method.md §7.18): the selection takes fewer keyframes where
+  // residuals keep the frames within what the budget's left (SelectionOptions::residuals), and each
+  // frame between keyframes carries a correction of the spline's blend fitted to the stored
+  // keyframes and kept where the frame decodes closer with it (fit_decoded_residuals). Off by
+  // default (fmenc --residual-frames turns it on): it lowers the error on every capture measured and
+  // the bytes on fast speech, the 60-frame sample and ICT, but on Medusa adds 1.7% of bytes (its
+  // budget keeps its keyframes), and the fit decodes every frame between keyframes twice.
   bool residual_frames = false;
   bool texture = true;
   int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)

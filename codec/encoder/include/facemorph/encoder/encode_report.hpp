@@ -8,6 +8,7 @@
 #include "facemorph/encoder/frame.hpp"
 #include "facemorph/encoder/registration.hpp"
 #include "facemorph/encoder/representation_choice.hpp"
+#include "facemorph/encoder/residual_fit.hpp"
 #include "facemorph/fields.hpp"
 #include "facemorph/sequence_file.hpp"
 
@@ -125,6 +126,7 @@ struct EncodeReport {
   double seconds_reading_parts = 0;
   double seconds_planning = 0;  // plan_keyframes: the keyframes, N and representation chosen
   int parts = 0;
+  ResidualFitReport residual_fit;  // options.residual_frames: the residuals fitted to the stored keyframes
 };
 
 }  // namespace facemorph

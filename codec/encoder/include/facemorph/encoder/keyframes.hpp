@@ -74,7 +74,9 @@ struct SelectionOptions {
   // correction of its blend weights that fits it best (least squares on the same normal offsets,
   // rounded to residual_step, within ±1), where that lowers its error by kResidualMinGain or more.
   // Where the error bound grows the budget, the selection weighs those errors, so a frame a residual
-  // serves needs no keyframe (KeyframeSelection::residuals).
+  // serves needs no keyframe (KeyframeSelection::residuals); where it does not, the selection takes
+  // the fewest keyframes whose frames with residuals are predicted within what the budget's leave
+  // without (mean and worst).
   bool residuals = false;
   double residual_step = 1.0 / 128;  // the corrections' quantum (spec/container.md §7.4)
 };
@@ -96,9 +98,10 @@ struct KeyframeSelection {
   bool sparse = false;                    // every frame kept: median_interval above SelectionOptions::sparse_interval
   // With SelectionOptions::residuals: the residual frames at the frames they serve (times the
   // frames' own; ResidualFrame::delta multiples of residual_step), increasing. Where they took the
-  // place of keyframes (the error bound grew the budget, or a tolerance, and with them fewer
-  // keyframes met it), predicted_error is each frame's error with its residual; elsewhere the
-  // keyframes and predicted_error are those without residuals, to which the residuals are added.
+  // place of keyframes where the error bound grew the budget, or under a tolerance (and with them
+  // fewer keyframes met it), predicted_error is each frame's error with its residual; elsewhere
+  // (the budget, or fewer keyframes than it where residuals keep the frames within what it left)
+  // predicted_error is the spline's alone, to which the residuals are added.
   std::vector<ResidualFrame> residuals;
   std::vector<int> residual_frames;       // the frame index of each
 };

@@ -1,0 +1,227 @@
+// Residual frames fitted to what the decoder shows (spec/method.md §7.18).
+#include "facemorph/encoder/residual_fit.hpp"
+
+#include "facemorph/encoder/keyframes.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/stored_sequence.hpp"
+#include "facemorph/error.hpp"
+#include "facemorph/parallel.hpp"
+#include "facemorph/sequence.hpp"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace facemorph {
+
+double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns, std::span<const double> weights,
+                            double step, std::vector<double>& delta) {
+  const int n = static_cast<int>(columns.size());
+  delta.clear();
+  if (n < 2) return std::numeric_limits<double>::infinity();
+  const size_t nodes = offsets.size();
+  for (const auto& a : columns) {
+    if (a.size() != nodes) throw Error(ErrorCode::kInvalidArgument, "fit_blend_correction: a column of another size than the offsets");
+  }
+  if (weights.size() != nodes) throw Error(ErrorCode::kInvalidArgument, "fit_blend_correction: weights of another size than the offsets");
+  const int free = n - 1;
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(free, free);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(free);
+  Eigen::VectorXd b(free);
+  for (size_t v = 0; v < nodes; ++v) {
+    for (int m = 0; m < free; ++m) b[m] = columns[static_cast<size_t>(m)][v] - columns[static_cast<size_t>(free)][v];
+    normal.noalias() += weights[v] * b * b.transpose();
+    rhs.noalias() -= weights[v] * offsets[v] * b;
+  }
+  normal.diagonal().array() += 1e-9 * std::max(normal.trace() / free, 1e-300);
+  const Eigen::VectorXd x = normal.ldlt().solve(rhs);
+  const double bound = 1.0;
+  delta.assign(static_cast<size_t>(n), 0.0);
+  int64_t total = 0;
+  for (int m = 0; m < free; ++m) {
+    const double value = std::isfinite(x[m]) ? std::clamp(x[m], -bound, bound) : 0.0;
+    const int64_t code = std::llround(value / step);
+    total += code;
+    delta[static_cast<size_t>(m)] = static_cast<double>(code) * step;
+  }
+  delta[static_cast<size_t>(free)] = static_cast<double>(-total) * step;
+  double sum = 0;
+  for (size_t v = 0; v < nodes; ++v) {
+    double offset = offsets[v];
+    for (int m = 0; m < n; ++m) offset += delta[static_cast<size_t>(m)] * columns[static_cast<size_t>(m)][v];
+    sum += weights[v] * offset * offset;
+  }
+  return sum;
+}
+
+namespace {
+
+// A frame between keyframes as G samples it: its registered surface's normals and area weights at
+// G's interior nodes, and its bbox diagonal.
+struct CapturedOnGrid {
+  std::vector<Vec3> positions;  // every node of G, capture frame
+  std::vector<Vec3> normals;    // interior nodes
+  std::vector<double> weights;  // interior nodes: lumped disk mass × λ², the surface area about each
+  double total_weight = 0;
+  double diagonal = 1;
+};
+
+CapturedOnGrid captured_on_grid(const SequenceEncoder& encoder, const GridGeometry& geometry, int frame) {
+  CapturedOnGrid c;
+  c.positions = encoder.sample_surface(frame, geometry.grid().nodes);
+  std::vector<Vec3> tu, tv;
+  geometry.frames(c.positions, tu, tv, c.normals);
+  const std::vector<double> lambda2 = geometry.conformal_factor_squared(c.positions);
+  c.weights.resize(lambda2.size());
+  for (size_t v = 0; v < lambda2.size(); ++v) {
+    c.weights[v] = geometry.mass()[static_cast<Eigen::Index>(v)] * lambda2[v];
+    c.total_weight += c.weights[v];
+  }
+  c.diagonal = encoder.selection_frames()[static_cast<size_t>(frame)].diagonal;
+  return c;
+}
+
+// The decoded surface's offsets from the captured one along its normals, at the interior nodes.
+std::vector<double> normal_offsets(const std::vector<Vec3>& decoded, const CapturedOnGrid& c) {
+  std::vector<double> o(c.normals.size());
+  for (size_t v = 0; v < o.size(); ++v) o[v] = (decoded[v] - c.positions[v]).dot(c.normals[v]);
+  return o;
+}
+
+double relative_rms(double weighted_squares, const CapturedOnGrid& c) {
+  return std::sqrt(weighted_squares / std::max(c.total_weight, 1e-300)) / c.diagonal;
+}
+
+double relative_rms(const std::vector<double>& offsets, const CapturedOnGrid& c) {
+  double sum = 0;
+  for (size_t v = 0; v < offsets.size(); ++v) sum += c.weights[v] * offsets[v] * offsets[v];
+  return relative_rms(sum, c);
+}
+
+DecodeOptions shape_only() {
+  DecodeOptions o;
+  o.texture = false;
+  o.cut_holes = false;
+  o.continue_correction = false;  // each frame a function of t alone, as measured
+  return o;
+}
+
+}  // namespace
+
+std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes, double step,
+                                                 ResidualFitReport* report_out) {
+  const auto start = std::chrono::steady_clock::now();
+  ResidualFitReport report;
+  stored.set_residuals({});
+  const std::vector<double>& key_times = stored.outline().times;
+  if (key_times.size() != keyframes.size()) throw Error(ErrorCode::kInvalidArgument, "fit_decoded_residuals: the keyframes are not the stored sequence's");
+  const std::vector<CaptureFrame>& frames = encoder.capture().frames;
+  // Frames strictly between the first and last keyframe, not keyframes themselves: interval i of each.
+  std::vector<int> held, interval;
+  for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
+    const int i = residual_interval(key_times, frames[static_cast<size_t>(j)].time);
+    if (i < 0) continue;
+    held.push_back(j);
+    interval.push_back(i);
+  }
+  if (held.empty() || keyframes.size() < 2) {
+    if (report_out) *report_out = report;
+    return {};
+  }
+  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
+  SequenceDecoder plain(source);
+  const GridGeometry& geometry = plain.geometry();
+  const DecodeOptions options = shape_only();
+  // The keyframes' decoded surfaces in their face frames: what the decoder blends.
+  std::vector<std::vector<Vec3>> local(keyframes.size());
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    const DecodedFrame f = plain.decode(key_times[k], options);
+    const RigidPose to_face = f.pose.inverse();
+    local[k].reserve(f.grid_positions.size());
+    for (const Vec3& p : f.grid_positions) local[k].push_back(to_face.apply(p));
+  }
+  // Pass 1: each frame decoded with the spline alone, its correction fitted.
+  std::vector<ResidualFrame> candidates;
+  std::vector<double> before(held.size(), 0.0);
+  std::vector<char> fitted(held.size(), 0);
+  for (size_t h = 0; h < held.size(); ++h) {
+    const int j = held[h];
+    const double t = frames[static_cast<size_t>(j)].time;
+    const DecodedFrame decoded = plain.decode(t, options);
+    const CapturedOnGrid captured = captured_on_grid(encoder, geometry, j);
+    const std::vector<double> offsets = normal_offsets(decoded.grid_positions, captured);
+    before[h] = relative_rms(offsets, captured);
+    const KeyWindow window = residual_window(interval[h], static_cast<int>(keyframes.size()));
+    std::vector<double> delta(static_cast<size_t>(window.count), 0.0);
+    if (before[h] > kResidualFloor && window.count >= 2) {
+      std::vector<std::vector<double>> columns(static_cast<size_t>(window.count), std::vector<double>(offsets.size()));
+      for (int m = 0; m < window.count; ++m) {
+        const std::vector<Vec3>& key = local[static_cast<size_t>(window.first + m)];
+        for (size_t v = 0; v < offsets.size(); ++v) columns[static_cast<size_t>(m)][v] = (decoded.pose.rotation * key[v]).dot(captured.normals[v]);
+      }
+      const double predicted = relative_rms(fit_blend_correction(offsets, columns, captured.weights, step, delta), captured);
+      ++report.frames_fitted;
+      if (!(predicted <= (1 - kDecodedResidualMinGain) * before[h])) std::fill(delta.begin(), delta.end(), 0.0);
+      fitted[h] = std::any_of(delta.begin(), delta.end(), [](double d) { return d != 0; });
+    }
+    candidates.push_back({t, std::move(delta)});
+  }
+  // Pass 2: the frames decoded with their corrections, at the times the file holds.
+  const double first_time = stored.shape().first_time, fps = stored.shape().fps;
+  std::vector<ResidualFrame> on_file;
+  std::vector<size_t> node_of(held.size(), SIZE_MAX);  // frame h's residual in `on_file`
+  {
+    std::vector<ResidualFrame> moved = residuals_on_file_times(candidates, key_times, first_time, fps);
+    size_t r = 0;
+    for (size_t h = 0; h < held.size() && r < moved.size(); ++h) {
+      if (std::abs(moved[r].time - candidates[h].time) * fps * kResidualTimeSteps <= 0.5 + 1e-9) node_of[h] = r++;
+    }
+    on_file = std::move(moved);
+  }
+  std::vector<double> after = before;
+  if (std::any_of(fitted.begin(), fitted.end(), [](char c) { return c != 0; })) {
+    stored.set_residuals(on_file);
+    SequenceDecoder corrected(source);
+    for (size_t h = 0; h < held.size(); ++h) {
+      if (!fitted[h]) continue;
+      const int j = held[h];
+      const DecodedFrame decoded = corrected.decode(frames[static_cast<size_t>(j)].time, options);
+      const CapturedOnGrid captured = captured_on_grid(encoder, geometry, j);
+      const double error = relative_rms(normal_offsets(decoded.grid_positions, captured), captured);
+      if (error <= (1 - kDecodedResidualMinGain) * before[h]) {
+        after[h] = error;
+        ++report.frames_improved;
+      } else {
+        ++report.frames_worse;
+        fitted[h] = 0;
+      }
+    }
+    stored.set_residuals({});
+  }
+  // Corrections decoded worse set to 0; an interval keeps its residuals only where one is kept.
+  std::vector<char> interval_kept(keyframes.size(), 0);
+  for (size_t h = 0; h < held.size(); ++h) interval_kept[static_cast<size_t>(interval[h])] |= fitted[h];
+  std::vector<ResidualFrame> out;
+  for (size_t h = 0; h < held.size(); ++h) {
+    if (node_of[h] == SIZE_MAX || !interval_kept[static_cast<size_t>(interval[h])]) continue;
+    ResidualFrame f = on_file[node_of[h]];
+    if (!fitted[h]) std::fill(f.delta.begin(), f.delta.end(), 0.0);
+    out.push_back(std::move(f));
+  }
+  report.residuals = static_cast<int>(out.size());
+  for (size_t h = 0; h < held.size(); ++h) {
+    report.mean_before += before[h] / static_cast<double>(held.size());
+    report.mean_after += after[h] / static_cast<double>(held.size());
+    report.worst_before = std::max(report.worst_before, before[h]);
+    report.worst_after = std::max(report.worst_after, after[h]);
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (report_out) *report_out = report;
+  return out;
+}
+
+}  // namespace facemorph
