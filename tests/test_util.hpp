@@ -120,6 +120,23 @@ inline std::filesystem::path shared_data() {
   return std::filesystem::is_directory(path, ec) ? path : std::filesystem::path();
 }
 
+// A stretch of ICT speech as a capture folder, made by the data's own script (make_capture.py:
+// START_SECONDS, SECONDS long, at FPS). The test run's fixture (tests/tools/ict_captures.py) makes
+// the stretches the tests ask for in one process, under FACEMORPH_ICT_CAPTURES; a stretch it did not
+// make (or a test run outside ctest) is made here, into `scratch`. Empty where ../shared/data or
+// python3 is absent, or the script failed: the test then skips.
+inline std::filesystem::path ict_capture(const std::string& start_seconds, const std::string& seconds, const std::string& fps,
+                                         const std::filesystem::path& scratch) {
+  const std::filesystem::path data = shared_data();
+  if (data.empty()) return {};
+  const std::filesystem::path made =
+      std::filesystem::path(FACEMORPH_ICT_CAPTURES) / ("ict_" + start_seconds + "_" + seconds + "_" + fps);
+  if (std::filesystem::is_regular_file(made / "capture.json")) return made;
+  const std::string command = "python3 '" + (data / "ict-facekit/tools/make_capture.py").string() + "' '" + scratch.string() +
+                              "' --start-seconds " + start_seconds + " --seconds " + seconds + " --fps " + fps + " > /dev/null 2>&1";
+  return std::system(command.c_str()) == 0 ? scratch : std::filesystem::path();
+}
+
 // Runs `body` and checks that it throws facemorph::Error with `code` and a message containing
 // `fragment` (so errors name the file / defect).
 template <typename Body>

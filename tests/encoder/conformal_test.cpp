@@ -205,10 +205,9 @@ TEST(ConformalMap, TheIctFrameThatOnceStoppedTheEncoderMaps) {
   const auto data = testing::shared_data();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   testing::TempDir dir;
-  const std::string command = "python3 '" + (data / "ict-facekit/tools/make_capture.py").string() + "' '" + dir.path().string() +
-                              "' --start-seconds 21.4 --seconds 0.02 > /dev/null 2>&1";
-  if (std::system(command.c_str()) != 0) GTEST_SKIP() << "make_capture.py did not run (python3?)";
-  const TriangleMesh mesh = read_mesh(dir.path() / "frame_00000.obj", {.allow_missing_texture = true});
+  const std::filesystem::path ict = testing::ict_capture("21.4", "0.02", "30", dir / "ict");
+  if (ict.empty()) GTEST_SKIP() << "make_capture.py did not run (python3?)";
+  const TriangleMesh mesh = read_mesh(ict / "frame_00000.obj", {.allow_missing_texture = true});
   const PreparedFrame prepared = prepare_frame(mesh, "ict 21.4 s");
   std::vector<int> source(prepared.mesh.positions.size());
   TriangleMesh copy = prepared.mesh;
