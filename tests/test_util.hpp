@@ -125,7 +125,7 @@ inline std::filesystem::path shared_data() {
 // the stretches the tests ask for in one process, under FACEMORPH_ICT_CAPTURES; a stretch it did not
 // make (or a test run outside ctest) is made here, into `scratch`. Empty where ../shared/data or
 // python3 is absent, or the script failed: the test then skips.
-inline std::filesystem::path ict_capture(const std::string& start_seconds, const std::string& seconds, const std::string& fps,
+inline std::filesystem::path ict_speech_capture(const std::string& start_seconds, const std::string& seconds, const std::string& fps,
                                          const std::filesystem::path& scratch) {
   const std::filesystem::path data = shared_data();
   if (data.empty()) return {};

@@ -259,7 +259,7 @@ TEST(RealCaptures, IctFramesBecomeDisksByHoleFilling) {
   const auto data = testing::shared_data();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   TempDir dir;
-  const std::filesystem::path ict = testing::ict_capture("59.2", "0.2", "15", dir / "ict");
+  const std::filesystem::path ict = testing::ict_speech_capture("59.2", "0.2", "15", dir / "ict");
   if (ict.empty()) GTEST_SKIP() << "make_capture.py did not run (python3?)";
   const Capture c = read_capture(ict);
   ASSERT_EQ(c.frames.size(), 3u);

@@ -205,7 +205,7 @@ TEST(ConformalMap, TheIctFrameThatOnceStoppedTheEncoderMaps) {
   const auto data = testing::shared_data();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   testing::TempDir dir;
-  const std::filesystem::path ict = testing::ict_capture("21.4", "0.02", "30", dir / "ict");
+  const std::filesystem::path ict = testing::ict_speech_capture("21.4", "0.02", "30", dir / "ict");
   if (ict.empty()) GTEST_SKIP() << "make_capture.py did not run (python3?)";
   const TriangleMesh mesh = read_mesh(ict / "frame_00000.obj", {.allow_missing_texture = true});
   const PreparedFrame prepared = prepare_frame(mesh, "ict 21.4 s");

@@ -59,7 +59,7 @@ TEST(KeyframeRoundTrip, RealFacesDecodeToTheirResamplingFloor) {
   // ICT with the lips pressed together (56.07 s of the BEAT track): without the folded nodes the
   // decoder lands on another solution, 2% RMS away.
   testing::TempDir dir;
-  const std::filesystem::path ict = testing::ict_capture("56.0", "0.1", "30", dir / "ict");
+  const std::filesystem::path ict = testing::ict_speech_capture("56.0", "0.1", "30", dir / "ict");
   if (ict.empty()) GTEST_SKIP() << "make_capture.py did not run (python3?)";
   const auto [ict_floor, ict_decoded] = round_trip(read_mesh(ict / "frame_00002.obj", {.allow_missing_texture = true}), "ict 2");
   EXPECT_LT(ict_decoded.rms, 1.2 * ict_floor.rms);
