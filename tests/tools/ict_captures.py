@@ -6,7 +6,7 @@ real-data tests that each ran it spent most of their time there. Here the shapes
 every stretch is made from them, byte for byte what the script writes alone.
 
 usage: ict_captures.py ICT_TOOLS_DIR OUT_DIR START,SECONDS,FPS ...
-   OUT_DIR/ict_START_SECONDS_FPS/ per stretch (the name tests/test_util.hpp's ict_capture looks for),
+   OUT_DIR/ict_START_SECONDS_FPS/ per stretch (the name tests/test_util.hpp's ict_speech_capture looks for),
    written under a temporary name and renamed. Writes nothing, and succeeds, where the data is absent.
 """
 import functools, os, shutil, sys
