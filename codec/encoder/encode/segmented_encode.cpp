@@ -1,5 +1,7 @@
 #include "facemorph/encoder/segmented_encode.hpp"
 
+#include "codec/encoder/stages/elapsed.hpp"
+
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/options_json.hpp"
 #include "facemorph/encoder/staged_encode.hpp"
@@ -140,7 +142,7 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   precision.intra_period = s.intra_period;
   const auto start = std::chrono::steady_clock::now();
   encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
-  encoder.report().seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encoder.report().seconds_precision = seconds_since(start);
   m.folds = encoder.report().keyframe_folds;
   m.steps = encoder.report().field_coding.steps;
   m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
@@ -348,7 +350,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
     throw Error(e.code(), std::string("coding the keyframes with the steps the measures settled: ") + e.what());
   }
   r.field_coding = coding;
-  r.seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds_precision = seconds_since(start);
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first), s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
   encoder.choose_texture_qualities(*sequence, keyframes);
   encoder.share_textures(*sequence, keyframes);

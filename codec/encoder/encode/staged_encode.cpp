@@ -1,6 +1,8 @@
 // The staged encode: the sample stage (one part) and the assemble stage (spec/part-file.md).
 #include "facemorph/encoder/staged_encode.hpp"
 
+#include "codec/encoder/stages/elapsed.hpp"
+
 #include "facemorph/encoder/options_json.hpp"
 #include "facemorph/error.hpp"
 
@@ -160,6 +162,14 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   return header;
 }
 
+void check_part_settings(const PartReader& part, const EncodeOptions& options) {
+  const PartHeader& h = part.header();
+  if (same_options(h.settings, options, OptionsScope::kSample)) return;
+  throw Error(ErrorCode::kInvalidArgument, part.source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
+                                               ") was sampled with other settings than these: " + h.settings + " (these: " +
+                                               write_options(options, OptionsScope::kSample) + ")");
+}
+
 PartsEncoder::PartsEncoder() = default;
 PartsEncoder::PartsEncoder(PartsEncoder&&) noexcept = default;
 PartsEncoder& PartsEncoder::operator=(PartsEncoder&&) noexcept = default;
@@ -173,7 +183,6 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   std::stable_sort(readers.begin(), readers.end(), [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
   // One capture, one setting, every frame once.
   const PartHeader& first = readers.front()->header();
-  const std::string settings = write_options(options, OptionsScope::kSample);
   std::vector<PartHeader> headers;
   int next = 0;
   for (const auto& reader : readers) {
@@ -184,10 +193,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
       throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" + a.root.string() + ") and " +
                                                    reader->source() + " (" + b.root.string() + ")");
     }
-    if (!same_options(h.settings, options, OptionsScope::kSample)) {
-      throw Error(ErrorCode::kInvalidArgument, reader->source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
-                                                   ") was sampled with other settings than these: " + h.settings + " (these: " + settings + ")");
-    }
+    check_part_settings(*reader, options);
     if (b.reference != a.reference || b.given_reference != a.given_reference) {
       throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) + " and " + std::to_string(b.reference) + ")");
     }
@@ -245,7 +251,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   encoder.report().seconds_mapping = seconds_mapping;
   encoder.report().seconds_registration = seconds_registration;
   encoder.report().seconds_selection = seconds_selection;
-  encoder.report().seconds_reading_parts = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encoder.report().seconds_reading_parts = seconds_since(start);
   encoder.report().parts = static_cast<int>(readers.size());
   if (header_out) *header_out = first;
   PartsEncoder made;
