@@ -681,22 +681,20 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame
     return out;
   };
-  std::map<std::vector<int>, std::vector<int>> texture_qualities;  // per keyframe set, as encode_file chose them
-  // As fmenc stores it: the keyframes built, their fields rounded to the steps their error allows
-  // (fmenc's default), the file written and read back.
+  // As fmenc stores it: the driver's steps once the keyframes are chosen (code_keyframes: the
+  // keyframes built, their fields rounded, the residual frames fitted to them as stored, the
+  // textures' qualities and sharing), the file written with the coding they chose and read back.
   auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
-    const bool xyz_variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ;
+    const std::string variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ ? " (xyz)" : "";
     encoder.options().representation = representation;
-    Sequence sequence;
-    timed(xyz_variant ? "keyframes (xyz)" : "keyframes", [&] { sequence = encoder.build(chosen.keyframes, n); });
-    sequence.residuals = encoder.residual_frames(chosen);
-    FieldCoding coding;
-    if (encoder.options().predicted_fields) timed(xyz_variant ? "field precision (xyz)" : "field precision", [&] { coding = encoder.round_fields(sequence, chosen); });
+    const std::unique_ptr<StoredSequence> stored = code_keyframes(encoder, chosen, n);
+    const EncodeReport& r = encoder.report();
+    stage_seconds["keyframes" + variant] += r.seconds_keyframes;
+    if (encoder.options().predicted_fields) stage_seconds["field precision" + variant] += r.seconds_precision;
+    if (encoder.options().residual_frames) stage_seconds["residual frames" + variant] += r.residual_fit.seconds;
+    stage_seconds["texture quality" + variant] += r.seconds_texture;
     Sequence back;
-    // The textures depend on the keyframes only (not on the representation or N): chosen once for each set.
-    std::vector<int>& qualities = texture_qualities[chosen.keyframes];
-    if (qualities.empty()) timed("texture quality", [&] { qualities = encoder.choose_texture_qualities(sequence, chosen.keyframes); });
-    timed(xyz_variant ? "file (xyz)" : "file", [&] { back = file_round_trip(sequence, qualities, &bytes, &info, coding); });
+    timed(("file" + variant).c_str(), [&] { back = file_round_trip(stored->to_sequence(), r.texture_qualities, &bytes, &info, r.field_coding); });
     return back;
   };
 
@@ -1105,8 +1103,9 @@ json measure_capture(Context& context, const std::string& input) {
   const double target_rms = summary.held_rms_mean, target_psnr = fm.main.held_psnr();
   const MatchedBaselines baselines = match_baselines(context.plan, captured, fm.shown, texture, target_rms, target_psnr, stage_seconds);
   CaptureFigures figures{captured, fm, texture, baselines, stage_seconds, summary, target_rms, target_psnr, {}, {}};
-  // Mapping to file; a stage that did not run is listed with 0 s.
-  for (const char* stage : {"mapping", "registration", "sampling", "grid", "selection", "keyframes", "field precision", "file"}) {
+  // The main encode, mapping to file; a stage that did not run is listed with 0 s.
+  for (const char* stage : {"mapping", "registration", "sampling", "selection", "grid", "representation", "keyframes", "field precision",
+                            "residual frames", "texture quality", "file"}) {
     figures.encode_seconds += stage_seconds[stage];
   }
   add_rows_and_targets(figures);
