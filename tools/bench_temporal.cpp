@@ -40,9 +40,9 @@ bool through_file = false;
 
 Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelection& chosen, size_t* file_bytes = nullptr) {
   if (!through_file) return sequence;
-  const FieldCoding coding = encoder.round_fields(sequence, chosen);
+  const FieldCoding coding = round_fields(encoder, sequence, chosen);
   std::vector<uint8_t> file;
-  Sequence back = file_round_trip(sequence, encoder.choose_texture_qualities(sequence, chosen.keyframes), &file, nullptr, coding);
+  Sequence back = file_round_trip(sequence, choose_texture_qualities(encoder, sequence, chosen.keyframes), &file, nullptr, coding);
   if (file_bytes) *file_bytes = file.size();
   return back;
 }

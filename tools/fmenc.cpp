@@ -119,16 +119,14 @@ FrameRange parse_frames(const std::string& text, int count) {
 // --stage check: each part read whole, every record checked (and, with --frames, holding those
 // frames); one line each.
 void check_parts(const std::vector<std::string>& parts, const std::string& frames, const Capture* capture, const EncodeOptions& options, bool quiet) {
-  const std::string fingerprint = capture ? capture_fingerprint(*capture) : "", settings = write_options(options, OptionsScope::kSample);
+  const std::string fingerprint = capture ? capture_fingerprint(*capture) : "";
   for (const std::string& path : parts) {
     const PartReader reader(path);
     reader.verify();
     if (capture && (reader.header().capture_id != fingerprint || reader.header().capture.root != std::filesystem::absolute(capture->root))) {
       throw Error(ErrorCode::kInvalidArgument, path + ": was sampled from another capture than " + capture->root.string());
     }
-    if (capture && !same_options(reader.header().settings, options, OptionsScope::kSample)) {
-      throw Error(ErrorCode::kInvalidArgument, path + ": was sampled with other settings: " + reader.header().settings + " (these: " + settings + ")");
-    }
+    if (capture) check_part_settings(reader, options);
     if (!frames.empty()) {
       const FrameRange want = parse_frames(frames, reader.header().capture.frame_count);
       const FrameRange have = reader.header().range;

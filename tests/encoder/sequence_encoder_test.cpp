@@ -204,7 +204,7 @@ TEST(SequenceEncoder, AVertexColouredCaptureEncodesAndDecodesWithItsColour) {
   // --texture auto from the vertex density (spec/method.md §7.7): 1.5 √(2 V · 4/π) for V ≈ 4000
   // vertices is ~151, rounded up to 192 (any V from 2860 to 5090 gives 192).
   EXPECT_EQ(encoder.report().texture_size, 192);
-  const std::vector<int> qualities = encoder.choose_texture_qualities(sequence, chosen.keyframes);
+  const std::vector<int> qualities = choose_texture_qualities(encoder, sequence, chosen.keyframes);
   SequenceFileMetadata metadata;
   metadata.landmark_names = capture.landmark_names;
   metadata.keyframe_texture_qualities = qualities;
@@ -1322,7 +1322,7 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   encoder.sample_frames();
   const KeyframeSelection chosen = encoder.select_keyframes();
   Sequence sequence = encoder.build(chosen.keyframes, encoder.choose_grid(&chosen));
-  encoder.round_fields(sequence, chosen);
+  round_fields(encoder, sequence, chosen);
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {

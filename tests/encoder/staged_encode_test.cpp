@@ -355,6 +355,11 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
   for (size_t c = 0; c < records.size(); ++c) {
     refused(crafted(good, dir.path() / ("record_" + std::to_string(c) + ".fms"), 1, records[c].first), ErrorCode::kCorrupt, "frame 1: " + records[c].second);
   }
+  // What only the assembling encoder sees (a frame's time not after the one before it, which the
+  // part's records cannot tell alone) is named by the part and the frame as well.
+  const std::filesystem::path early = crafted(good, dir.path() / "early.fms", 3, [&](SampledFrame& f) { f.time = f.selection.time = capture.frames[2].time; });
+  EXPECT_NO_THROW(PartReader(early).verify());
+  testing::expect_error(ErrorCode::kInvalidArgument, early.string() + ": frame 3: ", [&] { assemble_parts({early}, small_options()); });
   // And the header's.
   const auto header_of = [&](const std::function<void(PartHeader&)>& change, const std::string& name) {
     PartHeader header = PartReader(good).header();

@@ -106,11 +106,11 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   encoder.sample_frames();
   const KeyframeSelection chosen = encoder.select_keyframes();
   const Sequence sequence = encoder.build(chosen.keyframes, options.grid);
-  const std::vector<int> automatic = encoder.choose_texture_qualities(sequence, chosen.keyframes);
+  const std::vector<int> automatic = choose_texture_qualities(encoder, sequence, chosen.keyframes);
   ASSERT_EQ(automatic.size(), sequence.keyframes.size());
   for (double db : encoder.report().texture_interpolation_psnr) EXPECT_GT(db, 20);
   encoder.options().texture_quality = 90;
-  EXPECT_EQ(encoder.choose_texture_qualities(sequence, chosen.keyframes), std::vector<int>(sequence.keyframes.size(), 90));
+  EXPECT_EQ(choose_texture_qualities(encoder, sequence, chosen.keyframes), std::vector<int>(sequence.keyframes.size(), 90));
 
   auto through_file = [&](const std::vector<int>& qualities, uint64_t& texture_bytes) {
     SequenceFileMetadata metadata;

@@ -56,6 +56,10 @@ expect_error "measure without a segment" "--stage measure needs --segment" "$too
 expect_error "a segment without measures" "needs --measures" "$tools/fmenc" --stage assemble "$work/all.fms" --segment 0/2 -o "$work/s.fmv"
 expect_error "a bad segment" "S/N" "$tools/fmenc" --stage measure "$work/all.fms" --segment 2/2 -o "$work/m.json"
 expect_error "a measure missing" "no measure of segment 1/2" "$tools/fmenc" --stage assemble "$work/all.fms" --segment 0/2 --measures "$work/m0.json" -o "$work/s.fmv" "${seg[@]}"
+# --stage check refuses a part sampled with other settings by the assemble's own check (check_part_settings).
+"$tools/fmenc" --stage check "$work/all.fms" --capture "$work/cap" "${seg[@]}" || fail "fmenc --stage check"
+expect_error "a part checked against other settings" "was sampled with other settings than these" \
+  "$tools/fmenc" --stage check "$work/all.fms" --capture "$work/cap" "${seg[@]}" --registration moebius
 
 # One frame: mesh, material, texture, picture.
 "$tools/fmdec" "$work/a.fmv" --t 0.17 -o "$work/f.obj" --preview "$work/f_view.png" --quiet || fail "fmdec --t"

@@ -9,6 +9,7 @@
 #include "codec/encoder/conformal/linear_map.hpp"
 #include "codec/encoder/conformal/qiem.hpp"
 #include "codec/encoder/conformal/untangle.hpp"
+#include "codec/encoder/stages/elapsed.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -17,13 +18,6 @@
 #include <utility>
 
 namespace facemorph {
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-}  // namespace
 
 const char* conformal_method_name(ConformalMethod method) {
   switch (method) {

@@ -1,6 +1,7 @@
 #include "facemorph/encoder/frame_pipeline.hpp"
 
 #include "codec/encoder/landmarks/face_facing.hpp"
+#include "codec/encoder/stages/elapsed.hpp"
 
 #include "facemorph/encoder/resample.hpp"
 #include "facemorph/error.hpp"
@@ -11,14 +12,6 @@
 #include <numbers>
 
 namespace facemorph {
-
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-}  // namespace
 
 FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) { return frame_landmarks(capture.landmark_names, capture.landmarks[frame]); }
 

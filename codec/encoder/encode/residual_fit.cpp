@@ -1,6 +1,8 @@
 // Residual frames fitted to what the decoder shows (spec/method.md §7.18).
 #include "facemorph/encoder/residual_fit.hpp"
 
+#include "codec/encoder/stages/elapsed.hpp"
+
 #include "facemorph/encoder/keyframes.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/encoder/stored_sequence.hpp"
@@ -219,7 +221,7 @@ std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder,
     report.worst_before = std::max(report.worst_before, before[h]);
     report.worst_after = std::max(report.worst_after, after[h]);
   }
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  report.seconds = seconds_since(start);
   if (report_out) *report_out = report;
   return out;
 }

@@ -32,13 +32,29 @@ SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions op
   check_encode_options(options_, capture.frame_count);
   const auto count = static_cast<size_t>(capture.frame_count);
   store_->reset(count);
-  landmarks_ = make_landmark_store();
+  landmarks_ = make_landmark_store(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   landmarks_->reset(count);
   registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   set_selection_weights();
   selection_.assign(count, {});
   samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
   report_.reference_frame = capture.reference;
+}
+
+std::unique_ptr<SequenceEncoder> SequenceEncoder::of_sampled_frames(const SampledCapture& capture, EncodeOptions options,
+                                                                   const std::function<SampledFrame(int)>& frame,
+                                                                   const std::function<std::string(int)>& where) {
+  std::unique_ptr<SequenceEncoder> encoder(new SequenceEncoder(capture, std::move(options)));
+  for (int k = 0; k < capture.frame_count; ++k) {
+    SampledFrame f = frame(k);
+    try {
+      encoder->add_sampled_frame(std::move(f));
+    } catch (const Error& e) {
+      throw Error(e.code(), where(k) + ": " + e.what());
+    }
+  }
+  encoder->finish_sampled_frames();
+  return encoder;
 }
 
 void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {

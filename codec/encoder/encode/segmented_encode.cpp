@@ -1,5 +1,7 @@
 #include "facemorph/encoder/segmented_encode.hpp"
 
+#include "codec/encoder/stages/elapsed.hpp"
+
 #include "facemorph/encoder/field_precision.hpp"
 #include "facemorph/encoder/options_json.hpp"
 #include "facemorph/encoder/staged_encode.hpp"
@@ -129,18 +131,18 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.plan = s.chosen;
   m.plan.history.clear();
   m.blend = encoder.report().blend;
-  m.target_error = encoder.field_precision(s.chosen).target_error;
+  m.target_error = field_precision_options(encoder.options(), s.chosen).target_error;
   if (m.first == m.end) {  // past the capture's groups: nothing to measure
     if (report) *report = std::move(encoder.report());
     return m;
   }
   s.keyframes.textures = false;  // nothing here is written but the measure
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, encoder.report().grid, &s.keyframes);
-  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
+  FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
   precision.intra_period = s.intra_period;
   const auto start = std::chrono::steady_clock::now();
   encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
-  encoder.report().seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encoder.report().seconds_precision = seconds_since(start);
   m.folds = encoder.report().keyframe_folds;
   m.steps = encoder.report().field_coding.steps;
   m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
@@ -335,7 +337,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   }
   s.keyframes.fixed_nodes = fixed;
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, r.grid, &s.keyframes);
-  FieldPrecisionOptions precision = encoder.field_precision(s.chosen);
+  FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
   precision.intra_period = s.intra_period;
   precision.inter_dead_zone = own.inter_dead_zone;
   const auto start = std::chrono::steady_clock::now();
@@ -348,10 +350,9 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
     throw Error(e.code(), std::string("coding the keyframes with the steps the measures settled: ") + e.what());
   }
   r.field_coding = coding;
-  r.seconds_precision = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds_precision = seconds_since(start);
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first), s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
-  encoder.choose_texture_qualities(*sequence, keyframes);
-  encoder.share_textures(*sequence, keyframes);
+  code_textures(encoder, *sequence, keyframes);
   if (placement) {
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(encode_hash));

@@ -28,9 +28,9 @@
 
 namespace facemorph {
 
-std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_store() const {
+std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_store(SpillMode mode) {
   return std::make_unique<SpilledItems<std::vector<Vec3>>>(
-      options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, "the frames' landmarks", "landmarks of frame",
+      mode, "the frames' landmarks", "landmarks of frame",
       [](const std::vector<Vec3>& points) {
         spill::Writer w;
         w.array(points);
@@ -55,7 +55,7 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
   }
   // The landmarks leave the capture for a store: 1.8 kB a frame of ICT's 74, which kept in memory
   // grew with the capture for the whole encode.
-  landmarks_ = make_landmark_store();
+  landmarks_ = make_landmark_store(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   landmarks_->reset(capture_.landmarks.size());
   for (size_t i = 0; i < capture_.landmarks.size(); ++i) landmarks_->put(i, std::move(capture_.landmarks[i]));
   capture_.landmarks = {};
@@ -65,10 +65,6 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
   last_time_ = capture_.frames.back().time;
   given_reference_ = options_.reference_frame;
   check_encode_options(options_, count);
-}
-
-void SequenceEncoder::progress(const std::string& stage, int done, int total) const {
-  if (options_.progress) options_.progress(stage, done, total);
 }
 
 std::vector<Vec3> SequenceEncoder::landmarks(int i) const {
@@ -218,15 +214,19 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
   if (report_out) *report_out = std::move(report);
 }
 
-std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
-  const KeyframeSelection chosen = plan_keyframes(encoder);
+std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   EncodeReport& report = encoder.report();
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, report.grid);
-  if (encoder.options().predicted_fields) report.field_coding = encoder.round_fields(*sequence, chosen);
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, grid);
+  report.field_coding = encoder.options().predicted_fields ? round_fields(encoder, *sequence, chosen) : FieldCoding{};
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
   if (encoder.options().residual_frames) sequence->set_residuals(fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
-  encoder.choose_texture_qualities(*sequence, chosen.keyframes);
-  encoder.share_textures(*sequence, chosen.keyframes);
+  code_textures(encoder, *sequence, chosen.keyframes);
+  return sequence;
+}
+
+std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
+  const KeyframeSelection chosen = plan_keyframes(encoder);
+  std::unique_ptr<StoredSequence> sequence = code_keyframes(encoder, chosen, encoder.report().grid);
   finish_report(encoder, chosen, *sequence, report_out);
   return sequence;
 }

@@ -1,6 +1,8 @@
 // The staged encode: the sample stage (one part) and the assemble stage (spec/part-file.md).
 #include "facemorph/encoder/staged_encode.hpp"
 
+#include "codec/encoder/stages/elapsed.hpp"
+
 #include "facemorph/encoder/options_json.hpp"
 #include "facemorph/error.hpp"
 
@@ -160,6 +162,14 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   return header;
 }
 
+void check_part_settings(const PartReader& part, const EncodeOptions& options) {
+  const PartHeader& h = part.header();
+  if (same_options(h.settings, options, OptionsScope::kSample)) return;
+  throw Error(ErrorCode::kInvalidArgument, part.source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
+                                               ") was sampled with other settings than these: " + h.settings + " (these: " +
+                                               write_options(options, OptionsScope::kSample) + ")");
+}
+
 PartsEncoder::PartsEncoder() = default;
 PartsEncoder::PartsEncoder(PartsEncoder&&) noexcept = default;
 PartsEncoder& PartsEncoder::operator=(PartsEncoder&&) noexcept = default;
@@ -173,7 +183,6 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   std::stable_sort(readers.begin(), readers.end(), [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
   // One capture, one setting, every frame once.
   const PartHeader& first = readers.front()->header();
-  const std::string settings = write_options(options, OptionsScope::kSample);
   std::vector<PartHeader> headers;
   int next = 0;
   for (const auto& reader : readers) {
@@ -184,10 +193,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
       throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" + a.root.string() + ") and " +
                                                    reader->source() + " (" + b.root.string() + ")");
     }
-    if (!same_options(h.settings, options, OptionsScope::kSample)) {
-      throw Error(ErrorCode::kInvalidArgument, reader->source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
-                                                   ") was sampled with other settings than these: " + h.settings + " (these: " + settings + ")");
-    }
+    check_part_settings(*reader, options);
     if (b.reference != a.reference || b.given_reference != a.given_reference) {
       throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) + " and " + std::to_string(b.reference) + ")");
     }
@@ -206,46 +212,46 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   }
   SampledCapture capture = first.capture;
   capture.landmark_names = assembled_names(headers);
-  auto encoder_made = std::make_unique<SequenceEncoder>(capture, options);
-  SequenceEncoder& encoder = *encoder_made;
-  int done = 0;
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
+  std::vector<size_t> part_of;  // per frame of the capture, the part that holds it
+  std::vector<std::vector<int>> positions;  // per part, its landmark names' places among the assembled names
   for (size_t p = 0; p < readers.size(); ++p) {
     const PartHeader& h = readers[p]->header();
     seconds_mapping += h.seconds_mapping;
     seconds_registration += h.seconds_registration;
     seconds_selection += h.seconds_selection;
+    part_of.insert(part_of.end(), static_cast<size_t>(h.range.size()), p);
     // Each frame's landmarks under the assembled names (a part adds only the names its frames found).
-    std::vector<int> position;
+    std::vector<int>& position = positions.emplace_back();
     for (const std::string& n : h.capture.landmark_names) {
       const auto it = std::find(capture.landmark_names.begin(), capture.landmark_names.end(), n);
       if (it == capture.landmark_names.end()) throw Error(ErrorCode::kCorrupt, readers[p]->source() + ": landmark '" + n + "' is neither the capture's nor one found");
       position.push_back(static_cast<int>(it - capture.landmark_names.begin()));
     }
-    for (int k = 0; k < h.range.size(); ++k) {
-      SampledFrame f = readers[p]->frame(static_cast<size_t>(k));
-      if (f.dropped.empty()) {
-        std::vector<Vec3> points(capture.landmark_names.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
-        for (size_t l = 0; l < position.size(); ++l) points[static_cast<size_t>(position[l])] = f.landmarks[l];
-        f.landmarks = std::move(points);
-        // The map stays in its part (checked as read just now) and is read from there when a
-        // step needs it: the maps are most of a part's bytes, not to be copied again.
-        f.map = {};
-        f.map_source = readers[p]->map_source(static_cast<size_t>(k));
-      }
-      try {
-        encoder.add_sampled_frame(std::move(f));
-      } catch (const Error& e) {
-        throw Error(e.code(), readers[p]->source() + ": frame " + std::to_string(h.range.first + k) + ": " + e.what());
-      }
-      if (options.progress) options.progress("assembling", ++done, capture.frame_count);
-    }
   }
-  encoder.finish_sampled_frames();
+  const auto frame = [&](int i) {
+    const size_t p = part_of[static_cast<size_t>(i)];
+    const auto k = static_cast<size_t>(i - readers[p]->header().range.first);
+    SampledFrame f = readers[p]->frame(k);
+    if (f.dropped.empty()) {
+      std::vector<Vec3> points(capture.landmark_names.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+      for (size_t l = 0; l < positions[p].size(); ++l) points[static_cast<size_t>(positions[p][l])] = f.landmarks[l];
+      f.landmarks = std::move(points);
+      // The map stays in its part (checked as read just now) and is read from there when a
+      // step needs it: the maps are most of a part's bytes, not to be copied again.
+      f.map = {};
+      f.map_source = readers[p]->map_source(k);
+    }
+    if (options.progress) options.progress("assembling", i + 1, capture.frame_count);
+    return f;
+  };
+  const auto where = [&](int i) { return readers[part_of[static_cast<size_t>(i)]]->source() + ": frame " + std::to_string(i); };
+  std::unique_ptr<SequenceEncoder> encoder_made = SequenceEncoder::of_sampled_frames(capture, options, frame, where);
+  SequenceEncoder& encoder = *encoder_made;
   encoder.report().seconds_mapping = seconds_mapping;
   encoder.report().seconds_registration = seconds_registration;
   encoder.report().seconds_selection = seconds_selection;
-  encoder.report().seconds_reading_parts = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  encoder.report().seconds_reading_parts = seconds_since(start);
   encoder.report().parts = static_cast<int>(readers.size());
   if (header_out) *header_out = first;
   PartsEncoder made;

@@ -6,6 +6,7 @@
 #include "facemorph/meshkit/delaunay.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
+#include "codec/encoder/stages/elapsed.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/parallel.hpp"
 #include "facemorph/meshkit/topology.hpp"
@@ -26,10 +27,6 @@ namespace facemorph {
 namespace {
 
 [[noreturn]] void bad(const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "geodesic frame: " + what); }
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 double angular_distance(double a, double b) { return std::abs(std::remainder(a - b, kTwoPi)); }
 

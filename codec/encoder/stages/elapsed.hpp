@@ -1,4 +1,6 @@
-// Each stage's time in the report (EncodeReport::seconds_*): the wall-clock seconds since it began.
+// The encoder's timings (EncodeReport::seconds_*, the maps' and geodesic frames' reports): the wall-clock
+// seconds since a step began. One definition for the encoder library (the tools, which include no
+// encoder-private header, have theirs in tools/tool_support.hpp).
 #pragma once
 
 #include <chrono>

@@ -24,22 +24,23 @@ double auto_field_error(const KeyframeSelection& chosen) {
 
 }  // namespace
 
-FieldCoding SequenceEncoder::round_fields(Sequence& sequence, const KeyframeSelection& chosen) {
-  return StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { return round_fields(stored, chosen); });
+FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen) {
+  return StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { return round_fields(encoder, stored, chosen); });
 }
 
-FieldPrecisionOptions SequenceEncoder::field_precision(const KeyframeSelection& chosen) const {
-  FieldPrecisionOptions precision = options_.field_precision;
-  precision.spill = options_.spill_keyframes;
-  precision.threads = options_.threads;
-  if (options_.auto_field_error) precision.target_error = auto_field_error(chosen);
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen) {
+  FieldPrecisionOptions precision = options.field_precision;
+  precision.spill = options.spill_keyframes;
+  precision.threads = options.threads;
+  if (options.auto_field_error) precision.target_error = auto_field_error(chosen);
   return precision;
 }
 
-FieldCoding SequenceEncoder::round_fields(StoredSequence& keys, const KeyframeSelection& chosen) {
+FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keys, const KeyframeSelection& chosen) {
   const auto start = std::chrono::steady_clock::now();
-  FieldCoding coding = choose_field_coding(keys, field_precision(chosen), &report_.field_precision);
-  report_.seconds_precision = seconds_since(start);
+  EncodeReport& report = encoder.report();
+  FieldCoding coding = choose_field_coding(keys, field_precision_options(encoder.options(), chosen), &report.field_precision);
+  report.seconds_precision = seconds_since(start);
   return coding;
 }
 

@@ -168,11 +168,4 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   return facemorph::select_keyframes(*samples_, node_weights_, selection);
 }
 
-std::vector<ResidualFrame> SequenceEncoder::residual_frames(const KeyframeSelection& chosen) const {
-  if (!options_.residual_frames) return {};
-  std::vector<double> key_times;
-  for (int k : chosen.keyframes) key_times.push_back(capture_.frames.at(static_cast<size_t>(k)).time);
-  return residuals_on_file_times(chosen.residuals, key_times, first_time_, capture_.fps);
-}
-
 }  // namespace facemorph

@@ -100,47 +100,55 @@ TextureSharing share_keyframe_textures(StoredSequence& stored, const std::vector
 
 // ---- The encoder's texture stage: the frames' textures as it keeps them ----
 
-std::vector<int> SequenceEncoder::choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes) {
-  return choose_texture_qualities(*StoredSequence::of(Sequence(sequence), SpillMode::kMemory), keyframes);
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes) {
+  return choose_texture_qualities(encoder, *StoredSequence::of(Sequence(sequence), SpillMode::kMemory), keyframes);
 }
 
-std::vector<int> SequenceEncoder::choose_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes) {
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes) {
   const auto start = std::chrono::steady_clock::now();
-  report_.texture_qualities.clear();
-  report_.texture_interpolation_psnr.clear();
+  EncodeReport& report = encoder.report();
+  const EncodeOptions& options = encoder.options();
+  report.texture_qualities.clear();
+  report.texture_interpolation_psnr.clear();
   FrameTextures frames;
-  frames.time = [&](int i) { return capture_.frames[static_cast<size_t>(i)].time; };
-  frames.has_texture = [&](int i) { return has_texture(i); };
-  frames.texture = [&](int i, int size) { return frame_texture(i, size); };
-  TextureQualities chosen = keyframe_texture_qualities(stored, keyframes, frames, options_.texture_quality, options_.texture_codec, options_.texture_coding, options_.threads);
-  report_.texture_qualities = chosen.qualities;
-  report_.texture_interpolation_psnr = std::move(chosen.interpolation_psnr);
-  report_.seconds_texture = seconds_since(start);
+  frames.time = [&](int i) { return encoder.capture().frames[static_cast<size_t>(i)].time; };
+  frames.has_texture = [&](int i) { return encoder.has_texture(i); };
+  frames.texture = [&](int i, int size) { return encoder.frame_texture(i, size); };
+  TextureQualities chosen = keyframe_texture_qualities(stored, keyframes, frames, options.texture_quality, options.texture_codec, options.texture_coding, options.threads);
+  report.texture_qualities = chosen.qualities;
+  report.texture_interpolation_psnr = std::move(chosen.interpolation_psnr);
+  report.seconds_texture = seconds_since(start);
   return std::move(chosen.qualities);
 }
 
-void SequenceEncoder::share_textures(Sequence& sequence, const std::vector<int>& keyframes) {
-  StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { share_textures(stored, keyframes); });
+void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes) {
+  StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { share_textures(encoder, stored, keyframes); });
 }
 
-void SequenceEncoder::share_textures(StoredSequence& stored, const std::vector<int>& keyframes) {
+void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes) {
   const size_t keys = stored.size();
-  report_.texture_shared_with.assign(keys, -1);
-  report_.texture_share_psnr.assign(keys, 0.0);
-  if (!options_.share_textures) return;
+  EncodeReport& report = encoder.report();
+  report.texture_shared_with.assign(keys, -1);
+  report.texture_share_psnr.assign(keys, 0.0);
+  if (!encoder.options().share_textures) return;
   // Each keyframe's image where painted from one with UVs; where `keyframes` are not the
   // sequence's, none (share_keyframe_textures refuses them if there is texture to share).
   std::vector<std::filesystem::path> images;
   if (keyframes.size() == keys) {
     images.resize(keys);
     for (size_t k = 0; k < keys; ++k) {
-      const auto i = static_cast<size_t>(keyframes[k]);
-      if (!textures_[i].empty() && summaries_[i].has_uvs) images[k] = textures_[i];
+      const int i = keyframes[k];
+      if (!encoder.texture_path(i).empty() && encoder.frame_summary(i).has_uvs) images[k] = encoder.texture_path(i);
     }
   }
-  TextureSharing sharing = share_keyframe_textures(stored, images, options_.texture_coding.min_psnr);
-  report_.texture_shared_with = std::move(sharing.shared_with);
-  report_.texture_share_psnr = std::move(sharing.psnr);
+  TextureSharing sharing = share_keyframe_textures(stored, images, encoder.options().texture_coding.min_psnr);
+  report.texture_shared_with = std::move(sharing.shared_with);
+  report.texture_share_psnr = std::move(sharing.psnr);
+}
+
+void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes) {
+  choose_texture_qualities(encoder, stored, keyframes);
+  share_textures(encoder, stored, keyframes);
 }
 
 }  // namespace facemorph

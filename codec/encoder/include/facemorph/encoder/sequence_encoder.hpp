@@ -76,12 +76,13 @@ class SequenceEncoder {
  public:
   // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
   SequenceEncoder(Capture capture, EncodeOptions options);
-  // The staged encode's assembling encoder: `capture`'s frames come through add_sampled_frame, in
-  // capture order, each frame once; finish_sampled_frames then leaves the encoder as
-  // map_frames, register_frames and sample_frames would have on the whole capture (spec/part-file.md).
-  SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
-  void add_sampled_frame(SampledFrame&& frame);
-  void finish_sampled_frames();
+  // The staged encode's assembling encoder: `capture`'s frames, frame(k) for k = 0 .. frame_count - 1
+  // in capture order, leave it as map_frames, register_frames and sample_frames would have on the
+  // whole capture (spec/part-file.md). A frame that does not fit (out of order, the wrong number of
+  // landmarks or samples, a registration that is no registration) throws, named by where(k).
+  static std::unique_ptr<SequenceEncoder> of_sampled_frames(const SampledCapture& capture, EncodeOptions options,
+                                                             const std::function<SampledFrame(int)>& frame,
+                                                             const std::function<std::string(int)>& where);
   // After sample_frames: every frame of this encoder's capture as given, kept or dropped, in order,
   // handed to `take` (numbered as set_source_indices says).
   void for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const;
@@ -104,9 +105,6 @@ class SequenceEncoder {
   void register_frames();
   void sample_frames();     // 3. registered surfaces on the selection grid, head poses
   KeyframeSelection select_keyframes() const;  // 4. by predicted error
-  // `chosen`'s residual frames (none without options().residual_frames) at the times a file holds
-  // (residuals_on_file_times): what the sequence built on its keyframes carries.
-  std::vector<ResidualFrame> residual_frames(const KeyframeSelection& chosen) const;
   Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
   // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
   // noise and, given the keyframes `chosen`, the error the spline makes between them.
@@ -128,27 +126,8 @@ class SequenceEncoder {
   // §7.17), with its fixed nodes where given.
   std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid, const KeyframeSegment* segment = nullptr);
   Sequence build(const std::vector<int>& keyframes, int grid);
-  // 7. the fields rounded as the file will store them (options().field_precision, or with
-  // auto_field_error two fifths of `chosen`'s mean predicted error): what a file written with the
-  // returned coding (SequenceFileMetadata::field_coding) holds. Fills report().field_precision.
-  FieldCoding round_fields(StoredSequence& keyframes, const KeyframeSelection& chosen);
-  // The field precision's options round_fields uses: options().field_precision with the encoder's
-  // spill and threads, and with auto_field_error the target `chosen` gives.
-  FieldPrecisionOptions field_precision(const KeyframeSelection& chosen) const;
-  FieldCoding round_fields(Sequence& sequence, const KeyframeSelection& chosen);
-  // 8. each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
-  // at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
-  // what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
-  // build. Fills report().texture_qualities; empty for a sequence without texture.
-  std::vector<int> choose_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes);
-  std::vector<int> choose_texture_qualities(const Sequence& sequence, const std::vector<int>& keyframes);
-  // 9. keyframes whose textures are painted from one captured image (the same file, or the same
-  // pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
-  // keyframe's texture where the two are within options().texture_coding.min_psnr of each other
-  // over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
-  // report().texture_shared_with and texture_share_psnr.
-  void share_textures(StoredSequence& stored, const std::vector<int>& keyframes);
-  void share_textures(Sequence& sequence, const std::vector<int>& keyframes);
+  // 7-9 (precision, residuals, textures) are the stages below the class: they read the encoder's
+  // frames and options and fill its report, and keep nothing.
 
   // 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
   // most frames were registered without interior landmarks, the hl+t fields and the positions of
@@ -232,7 +211,14 @@ class SequenceEncoder {
     std::string reason;
   };
   static FrameFailure failure_of(const Error& e, const std::string& name);
-  void progress(const std::string& stage, int done, int total) const;
+  void progress(const std::string& stage, int done, int total) const {
+    if (options_.progress) options_.progress(stage, done, total);
+  }
+  // of_sampled_frames's steps: the encoder of no frames yet, each frame added, the reference's
+  // stores settled once all came.
+  SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
+  void add_sampled_frame(SampledFrame&& frame);
+  void finish_sampled_frames();
   // Sets those of frame `index`'s landmarks `points` that lie farther from `mesh` than
   // options().landmark_tolerance to NaN, with a warning each (strict: throws kInvalidArgument); says
   // whether it set any.
@@ -248,7 +234,7 @@ class SequenceEncoder {
   Image frame_texture(const MappedFrame& frame, int i, int size) const;
   // The reference's map, kept in memory while it is the reference: every stage uses it.
   std::shared_ptr<const MappedFrame> pin_reference();
-  std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store() const;
+  static std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
   // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
   // has one; kCorrupt naming the frame where the bytes are not one.
   DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
@@ -309,6 +295,34 @@ class SequenceEncoder {
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
                                        const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress = {});
 
+// ---- The stages after the keyframes are built (stages/round_fields.cpp, stages/texture_coding.cpp) ----
+
+// 7. The field precision's options: options.field_precision with the encode's spill and threads,
+// and with auto_field_error two fifths of `chosen`'s mean predicted error as the target.
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
+// The fields rounded as the file will store them (field_precision_options): what a file written
+// with the returned coding (SequenceFileMetadata::field_coding) holds. Fills the encoder's
+// report().field_precision and seconds_precision.
+FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keyframes, const KeyframeSelection& chosen);
+FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen);
+// 8. Each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
+// at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
+// what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
+// build. Fills report().texture_qualities; empty for a sequence without texture.
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes);
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes);
+// 9. Keyframes whose textures are painted from one captured image (the same file, or the same
+// pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
+// keyframe's texture where the two are within options().texture_coding.min_psnr of each other
+// over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
+// report().texture_shared_with and texture_share_psnr.
+void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes);
+// 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
+void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+
+// ---- The driver ----
+
 // The steps after the selection's sampling: keyframes, N, representation, the keyframes on G,
 // field precision, texture qualities and sharing, and the report's per-frame lines. What
 // encode_capture_stored runs once `encoder` has mapped, registered and sampled every frame, and the
@@ -325,6 +339,13 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
 // increasing from the first frame to the last, a predicted error a frame).
 void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
+// encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_stored),
+// their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the
+// residual frames fitted to them as stored (options().residual_frames, fit_decoded_residuals;
+// report().residual_fit) and the texture stage (code_textures): what a file written with the
+// report's field coding and texture qualities holds. The bench runs it for each keyframe set and
+// representation it measures, so that it measures what fmenc writes.
+std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 
 // ---- The pieces, for tests and the bench ----
 

@@ -50,6 +50,11 @@ struct PartsEncoder {
 };
 PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, PartHeader* header = nullptr);
 
+// Throws kInvalidArgument naming `part` (its file and frames) where it was sampled with other
+// sample settings than `options` (same_options of OptionsScope::kSample), both settings shown: the
+// assemble and fmenc --stage check refuse such a part alike.
+void check_part_settings(const PartReader& part, const EncodeOptions& options);
+
 // The ranges a capture of `frames` frames splits into, `per_part` frames each (the last may hold fewer).
 std::vector<FrameRange> part_ranges(int frames, int per_part);
 

@@ -1,0 +1,107 @@
+// fmbench --capture: texture PSNR on the disk, each frame's captured texture carried there through its
+// own registration and map, against facemorph's decoded textures and the baselines' coded copies.
+#include "tools/bench_capture_parts.hpp"
+
+#include "facemorph/meshkit/distance.hpp"
+#include "facemorph/decoder.hpp"
+#include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "facemorph/meshkit/mesh_io.hpp"
+#include "facemorph/parallel.hpp"
+#include "facemorph/meshkit/render.hpp"
+#include "facemorph/sequence_file.hpp"
+
+#include "tools/bench_sequence.hpp"
+#include "tools/plot.hpp"
+#include "tools/tool_support.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <utility>
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+namespace facemorph::tools::capture_bench {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::array<uint8_t, 3> rounded(const std::array<double, 3>& rgb) {
+  std::array<uint8_t, 3> out{};
+  for (size_t c = 0; c < 3; ++c) out[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[c]), 0L, 255L));
+  return out;
+}
+
+template <typename Colour>
+double texel_psnr(const DiskTexels& t, Colour&& colour) {
+  double sum = 0;
+  for (size_t k = 0; k < t.texel.size(); ++k) {
+    const std::array<uint8_t, 3> c = colour(k);
+    for (size_t j = 0; j < 3; ++j) {
+      const double d = double(c[j]) - double(t.truth[3 * k + j]);
+      sum += d * d;
+    }
+  }
+  const double mse = sum / std::max<double>(3.0 * static_cast<double>(t.texel.size()), 1);
+  return psnr_of_mse(std::max(mse, 1e-12));
+}
+
+}  // namespace
+
+DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& captured, int size) {
+  DiskTexels t;
+  t.size = size;
+  const std::shared_ptr<const MappedFrame> mapped = encoder.frame(frame);  // held while `inverse` refers to its map
+  const InverseDiskMap inverse(mapped->map);
+  const SequenceEncoder::Sampler sample = encoder.sampler(frame);
+  std::vector<std::vector<std::pair<int, Vec2>>> rows(static_cast<size_t>(size));
+  parallel_for(size, 0, [&](int y) {
+    for (int x = 0; x < size; ++x) {
+      const Vec2 w(2 * (x + 0.5) / size - 1, 1 - 2 * (y + 0.5) / size);
+      if (w.norm() > 1) continue;
+      Vec2 v = sample(w);
+      if (v.norm() > 1) v.normalize();
+      if (const auto hit = inverse.locate(v)) rows[static_cast<size_t>(y)].emplace_back(y * size + x, inverse.texture_uv(*hit));
+    }
+  });
+  for (const auto& row : rows) {
+    for (const auto& [texel, uv] : row) {
+      t.texel.push_back(texel);
+      t.uv.push_back(uv);
+      const auto rgb = rounded(sample_bilinear(captured, uv.x(), uv.y()));
+      t.truth.insert(t.truth.end(), rgb.begin(), rgb.end());
+    }
+  }
+  return t;
+}
+
+// A disk texture (facemorph's decode) against the captured texture.
+double psnr_of_disk(const DiskTexels& t, const Image& disk) {
+  if (disk.width != t.size) throw Error(ErrorCode::kInternal, "decoded texture size differs from the measured one");
+  return texel_psnr(t, [&](size_t k) {
+    const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
+    return std::array<uint8_t, 3>{p[0], p[1], p[2]};
+  });
+}
+
+// A coded copy of the captured texture (JPEG, an H.264 frame) against it, through the same map.
+double psnr_of_copy(const DiskTexels& t, const Image& copy) {
+  return texel_psnr(t, [&](size_t k) { return rounded(sample_bilinear(copy, t.uv[k].x(), t.uv[k].y())); });
+}
+
+}  // namespace facemorph::tools::capture_bench
