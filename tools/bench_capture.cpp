@@ -40,7 +40,11 @@ json measure_capture(Context& context, const std::string& input) {
   TextureBaselines texture;
   const FacemorphPoints fm = measure_facemorph(context, captured, stage_seconds, texture);
   const Summary summary = summarise(fm.main.evaluation);
-  const double target_rms = summary.held_rms_mean, target_psnr = fm.main.held_psnr();
+  // Where every frame is a keyframe (a single scan), no frame is held out: the baselines are matched
+  // to the keyframes' error, not to the held-out mean of none (0, which no Draco setting reaches).
+  const bool held_out = std::any_of(fm.main.evaluation.frames.begin(), fm.main.evaluation.frames.end(), [](const FrameError& f) { return !f.keyframe; });
+  const double target_rms = held_out ? summary.held_rms_mean : summary.key_rms_mean;
+  const double target_psnr = held_out ? fm.main.held_psnr() : fm.main.key_psnr();
   const MatchedBaselines baselines = match_baselines(context.plan, captured, fm.shown, texture, target_rms, target_psnr, stage_seconds);
   CaptureFigures figures{captured, fm, texture, baselines, stage_seconds, summary, target_rms, target_psnr, {}, {}};
   // The main encode, mapping to file; a stage that did not run is listed with 0 s.
