@@ -55,7 +55,7 @@ TEST(GridChoice, TheWorstRegionRaisesTheGridWhereTheFloorsNinetyNinthPercentileI
   EXPECT_EQ(capped.term, "worst region");
 }
 
-TEST(GridChoice, TheDensityCapFollowsTheMedianVertexArea) {
+TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {
   // A capture of V vertices spread evenly over the disk: each holds π/V of it (and so does its
   // lower quartile).
   for (const int vertices : {500, 2000, 9400, 20000}) {
