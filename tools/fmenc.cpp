@@ -482,11 +482,22 @@ int main(int argc, char** argv) {
     if (!report.grid_floors.empty()) {
       std::printf("  --grid auto: resampling floor (RMS of the diagonal)");
       for (const auto& [n, floor] : report.grid_floors) std::printf(" %d: %.3f%%", n, 100 * floor);
-      std::printf("; the capture's median frame noise %.3f%%\n", 100 * report.median_noise);
+      std::printf("; 99th percentile");
+      for (const auto& [n, p99] : report.grid_floor_p99s) std::printf(" %d: %.3f%%", n, 100 * p99);
+      std::printf("; the capture's median frame noise %.3f%%; density cap N = %d (a vertex of the denser quarter holds %.3g of the disk: %.2f nodes at N = %d)\n", 100 * report.median_noise,
+                  report.grid_density_cap, report.grid_vertex_area,
+                  report.grid_vertex_area * (sequence->shape().grid_n - 1) * (sequence->shape().grid_n - 1) / 4.0, sequence->shape().grid_n);
       const char* why = report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
                         : report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
-      std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence->shape().grid_n, 100 * report.grid_target, why);
+      if (report.grid_term == "density") {
+        std::printf("  --grid auto: N = %d, as fine as the captured mesh's density asks (at most 3 nodes in the area of a vertex of its denser quarter)\n", sequence->shape().grid_n);
+      } else if (report.grid_term == "worst region") {
+        std::printf("  --grid auto: N = %d, the smallest whose 99th percentile is within %.3f%% (the worst region)\n", sequence->shape().grid_n,
+                    100 * report.grid_worst_target);
+      } else {
+        std::printf("  --grid auto: N = %d, the smallest within %.3f%% (%s)\n", sequence->shape().grid_n, 100 * report.grid_target, why);
+      }
     }
     if (report.radial_equalising > 0) {
       // A whole head (spec/method.md §7.11): the reparametrisation, the representation it forces and

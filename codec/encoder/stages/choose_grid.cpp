@@ -1,8 +1,9 @@
 // The grid's size N (--grid auto): the smallest whose resampling floor on the reference frame
-// meets a target set by the capture's noise and the spline's error between keyframes
-// (spec/method.md §7.6).
+// meets a target set by the capture's noise and the spline's error between keyframes, capped by the
+// captured mesh's density, and raised where the floor's worst region would be (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
+#include "facemorph/disk_grid.hpp"
 #include "facemorph/encoder/sequence_encoder.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/meshkit/distance.hpp"
@@ -24,8 +25,45 @@ constexpr double kGridNoiseShare = 1.0;
 // Half the error the spline makes between keyframes: where bytes spent on a finer grid and on more
 // keyframes buy the same error (equal slopes; measured on Medusa, spec/method.md §7.6).
 constexpr double kGridErrorShare = 0.5;
+// Past this many of G's nodes in the disk area of a captured vertex of the denser quarter, G samples
+// the captured mesh more finely than it was captured: its facets, not the face, which a held-out
+// frame (another sampling of the face) does not share. The quarter, not the median: an adaptive mesh
+// (ICT decimated) puts its vertices where the detail is. Measured (spec/method.md §7.6): a 1.9k-vertex
+// face stops paying for nodes past N = 97 (2.4 such nodes; 129: 4.2), decimated ICT still pays at
+// N = 257 (2.0).
+constexpr double kGridNodesPerVertex = 3.0;
+// The floor's share of the worst-region target (every decoded frame's 99th-percentile point error
+// within 1% of the diagonal, design §7): what a keyframe alone shows, with room for the rounding
+// in quadrature (√(1 − 0.75²) = 0.66%). Not less: between keyframes the spline sets the worst
+// region, and a finer grid bought none of it (Medusa N = 41 → 57: worst-frame p99 1.735 → 1.713%
+// for 25% more bytes; spec/method.md §7.6).
+constexpr double kGridWorstTarget = 0.0075;
+constexpr double kGaussianP99 = 2.576;
 
 }  // namespace
+
+int density_grid_cap(double vertex_disk_area) {
+  if (!(vertex_disk_area > 0)) return std::end(kGridCandidates)[-1];
+  int cap = kGridCandidates[0];
+  for (int n : kGridCandidates) {
+    const double h = 2.0 / (n - 1);  // G's spacing: one node per h² of the disk
+    if (vertex_disk_area / (h * h) <= kGridNodesPerVertex) cap = n;
+  }
+  return cap;
+}
+
+double quartile_vertex_disk_area(const std::vector<Vec2>& disk, const std::vector<Face>& faces) {
+  if (disk.empty()) return 0;
+  std::vector<double> area(disk.size(), 0.0);
+  for (const Face& f : faces) {
+    const Vec2 a = disk[static_cast<size_t>(f[0])], b = disk[static_cast<size_t>(f[1])], c = disk[static_cast<size_t>(f[2])];
+    const double third = std::abs((b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y())) / 6.0;
+    for (int k = 0; k < 3; ++k) area[static_cast<size_t>(f[static_cast<size_t>(k)])] += third;
+  }
+  const auto quartile = area.begin() + static_cast<std::ptrdiff_t>(area.size() / 4);
+  std::nth_element(area.begin(), quartile, area.end());
+  return *quartile;
+}
 
 GridChoice choose_grid_size(GridChoiceInput input) {
   GridChoice choice;
@@ -44,11 +82,29 @@ GridChoice choose_grid_size(GridChoiceInput input) {
                interpolation_term = kGridErrorShare * input.mean_predicted_error;
   choice.target = std::max({kGridFloorTarget, noise_term, interpolation_term});
   choice.term = choice.target == interpolation_term ? "interpolation" : choice.target == noise_term ? "noise" : "floor";
+  // The RMS terms ask for no more than the captured mesh's density holds (density_grid_cap); the
+  // worst region may ask for more: it is a bound every decoded frame must meet, not a trade.
+  choice.density_cap = density_grid_cap(input.vertex_disk_area);
+  // A floor measured against a noisy frame has that frame's noise in its worst region too: the
+  // 99th percentile of |x| for Gaussian noise of RMS σ is 2.576σ, which no grid removes.
+  const double worst_target = choice.worst_target = std::max(kGridWorstTarget, input.noise_decides ? kGaussianP99 * choice.median_noise : 0.0);
+  int rms_met_at = 0;  // the candidate where the RMS terms were done (met or capped)
+  bool rms_met = false;
   for (int n : kGridCandidates) {
-    const double floor = input.floor(n);
-    choice.floors.emplace_back(n, floor);
+    const GridFloor floor = input.floor(n);
+    choice.floors.emplace_back(n, floor.rms);
+    choice.floor_p99s.emplace_back(n, floor.p99);
     choice.n = n;
-    if (floor <= choice.target) return choice;
+    if (rms_met_at == 0 && (floor.rms <= choice.target || n >= choice.density_cap)) {
+      rms_met_at = n;
+      rms_met = floor.rms <= choice.target;
+    }
+    if (rms_met_at > 0 && floor.p99 <= worst_target) break;
+  }
+  if (choice.n > rms_met_at && rms_met_at > 0) {
+    choice.term = "worst region";
+  } else if (rms_met_at > 0 && !rms_met) {
+    choice.term = "density";
   }
   return choice;
 }
@@ -66,14 +122,23 @@ int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
   input.noise_decides = report_.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
   const std::shared_ptr<const MappedFrame> reference = frame(options_.reference_frame);
+  // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.
+  if (report_.radial_equalising == 0 && options_.density_equalising.strength == 0) {
+    input.vertex_disk_area = quartile_vertex_disk_area(reference->map.disk, reference->map.surface.faces);
+  }
   input.floor = [&](int n) {
     const DiskGrid grid = make_disk_grid(n);
     const std::vector<Vec3> sampled = sample_surface(*reference, options_.reference_frame, grid.nodes);
     const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
-    return floor.rms / floor.diagonal;
+    return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
   };
+  const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
   report_.grid_floors = std::move(choice.floors);
+  report_.grid_floor_p99s = std::move(choice.floor_p99s);
+  report_.grid_density_cap = choice.density_cap;
+  report_.grid_worst_target = choice.worst_target;
+  report_.grid_vertex_area = input_area;
   report_.median_noise = choice.median_noise;
   report_.grid_target = choice.target;
   report_.grid_term = std::move(choice.term);

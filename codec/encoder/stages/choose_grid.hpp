@@ -1,6 +1,10 @@
 // --grid auto (spec/method.md §7.6): the smallest N of the candidates whose resampling floor on the
-// reference frame meets a target set by the capture's noise and the spline's error between keyframes.
+// reference frame meets a target set by the capture's noise and the spline's error between keyframes,
+// no finer than the captured mesh's own density asks, and whose worst region (the floor's 99th
+// percentile) stays within its share of the 1% worst-region target.
 #pragma once
+
+#include "facemorph/mesh.hpp"
 
 #include <functional>
 #include <string>
@@ -9,6 +13,22 @@
 
 namespace facemorph {
 
+// G's resampling floor on the reference frame at one N: its surface against G's surface sampled from
+// it, over the reference's diagonal.
+struct GridFloor {
+  double rms = 0;
+  double p99 = 0;  // the 99th-percentile point distance: the worst region's
+};
+
+// The largest N the RMS terms may ask for on a capture whose vertices of the denser quarter hold
+// `vertex_disk_area` of the unit disk each (quartile_vertex_disk_area): the largest candidate with
+// at most kGridNodesPerVertex (3) of G's nodes in that area (at least the smallest candidate; the
+// largest for an area of 0: no cap).
+int density_grid_cap(double vertex_disk_area);
+
+// The lower quartile over `disk`'s vertices of each one's disk area (a third of its triangles').
+double quartile_vertex_disk_area(const std::vector<Vec2>& disk, const std::vector<Face>& faces);
+
 // What the choice reads of the encode.
 struct GridChoiceInput {
   std::vector<double> noise;  // each frame's noise estimate over its diagonal (infinite below 5 frames)
@@ -16,15 +36,21 @@ struct GridChoiceInput {
   // reference: their found landmarks' disagreement reads as noise).
   bool noise_decides = true;
   double mean_predicted_error = 0;  // the spline's between the chosen keyframes (fraction of the diagonal); 0: none chosen
-  std::function<double(int n)> floor;  // the reference's resampling floor on G of size n: RMS over its diagonal
+  double vertex_disk_area = 0;  // the reference frame's quartile_vertex_disk_area on the disk G samples (0: no cap)
+  std::function<GridFloor(int n)> floor;  // the reference's resampling floor on G of size n
 };
 
 struct GridChoice {
   int n = 0;
-  std::vector<std::pair<int, double>> floors;  // (N, floor) tried, in order
+  std::vector<std::pair<int, double>> floors;  // (N, floor RMS) tried, in order
+  std::vector<std::pair<int, double>> floor_p99s;  // (N, floor 99th percentile) tried, in order
+  int density_cap = 0;                         // density_grid_cap of the capture
+  double worst_target = 0;                     // the floor's 99th percentile asked for (fraction of the diagonal)
   double median_noise = 0;                     // the frames' median noise (0 where it is not finite)
   double target = 0;                           // the floor asked for (fraction of the diagonal)
-  std::string term;                            // which term set it: "floor", "noise" or "interpolation"
+  // which term set it: "floor", "noise" or "interpolation" (the RMS target met), "density" (the
+  // density cap reached first) or "worst region" (the 99th percentile asked for more than either)
+  std::string term;
 };
 
 // The candidates tried from the coarsest up; the finest where none meets the target (a crowded face).

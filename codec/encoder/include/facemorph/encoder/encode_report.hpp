@@ -87,9 +87,13 @@ struct EncodeReport {
   int grid = 0;
   int texture_size = 0;                                   // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
+  std::vector<std::pair<int, double>> grid_floor_p99s;    // (N, the floor's 99th-percentile point error / diagonal), the same N
+  int grid_density_cap = 0;                               // the largest N the RMS terms could ask for (the captured mesh's density)
+  double grid_worst_target = 0;                           // the floor's 99th percentile --grid auto asked for / diagonal
+  double grid_vertex_area = 0;                            // the reference's lower-quartile vertex area on the disk (0: not measured)
   double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
   double grid_target = 0;                                 // the floor --grid auto asked for / diagonal
-  std::string grid_term;                                  // which term set it: "floor", "noise" or "interpolation"
+  std::string grid_term;                                  // which term set it: "floor", "noise", "interpolation", "density" or "worst region"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   double radial_equalising = 0;  // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)

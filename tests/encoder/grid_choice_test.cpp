@@ -1,0 +1,123 @@
+// --grid auto's two bounds beside the RMS target (spec/method.md §7.6): a grid no finer than the
+// captured mesh's density asks, and a floor whose worst region (99th percentile) leaves room for
+// the 1% worst-region target.
+#include "codec/encoder/stages/choose_grid.hpp"
+#include "facemorph/disk_grid.hpp"
+#include "facemorph/encoder/sequence_encoder.hpp"
+#include "facemorph/encoder/synth.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+#include <vector>
+
+namespace facemorph {
+namespace {
+
+// A floor that falls as 1/N² from its values at N = 33, as resampling floors do (§7.6), on a capture
+// whose frames all read `noise` (the RMS target then is the noise).
+GridChoiceInput grid_input_falling_from(double rms_at_33, double p99_at_33, double noise, double vertex_area) {
+  GridChoiceInput input;
+  input.noise.assign(12, noise);
+  input.vertex_disk_area = vertex_area;
+  input.floor = [=](int n) {
+    const double shrink = (33.0 * 33.0) / (double(n) * double(n));
+    return GridFloor{.rms = rms_at_33 * shrink, .p99 = p99_at_33 * shrink};
+  };
+  return input;
+}
+
+// G's nodes within one vertex's area of the disk at size n.
+double grid_nodes_in_vertex_area(double vertex_area, int n) {
+  const double h = 2.0 / (n - 1);
+  return vertex_area / (h * h);
+}
+
+TEST(GridChoice, TheWorstRegionRaisesTheGridWhereTheFloorsNinetyNinthPercentileIsHigh) {
+  // The RMS target (0.1% noise) is met at N = 33 already (0.05%).
+  const GridChoice calm = choose_grid_size(grid_input_falling_from(5e-4, 4e-3, 1e-3, 0));
+  EXPECT_EQ(calm.n, 33);
+  EXPECT_EQ(calm.term, "noise");
+  // The same RMS with a 2% worst region at N = 33: within 0.75% from (33/N)² <= 3/8, N >= 54, so 57.
+  const GridChoice rough = choose_grid_size(grid_input_falling_from(5e-4, 2e-2, 1e-3, 0));
+  EXPECT_EQ(rough.n, 57);
+  EXPECT_EQ(rough.term, "worst region");
+  ASSERT_EQ(rough.floor_p99s.size(), rough.floors.size());
+  EXPECT_DOUBLE_EQ(rough.worst_target, 0.0075);
+  EXPECT_LE(rough.floor_p99s.back().second, 0.0075);
+  for (size_t i = 0; i + 1 < rough.floor_p99s.size(); ++i) EXPECT_GT(rough.floor_p99s[i].second, 0.0075);
+  // Past the density cap as well: the worst region is a bound, not a trade (vertices of π/2000 of
+  // the disk cap the RMS terms at 81; a 20% worst region at 33 needs (33/N)² <= 3/80, N >= 171).
+  const GridChoice capped = choose_grid_size(grid_input_falling_from(1.0, 0.2, 1e-3, std::numbers::pi / 2000));
+  EXPECT_EQ(capped.density_cap, 81);
+  EXPECT_EQ(capped.n, 193);
+  EXPECT_EQ(capped.term, "worst region");
+}
+
+TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {
+  // A capture of V vertices spread evenly over the disk: each holds π/V of it (and so does its
+  // lower quartile).
+  for (const int vertices : {500, 2000, 9400, 20000}) {
+    const double area = std::numbers::pi / vertices;
+    const int cap = density_grid_cap(area);
+    SCOPED_TRACE(vertices);
+    if (cap > 33) {
+      EXPECT_LE(grid_nodes_in_vertex_area(area, cap), 3.0);
+    }
+    // The next candidate would put more than 3 nodes in a vertex's area.
+    const std::vector<int> candidates = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
+    for (int n : candidates) {
+      if (n > cap) {
+        EXPECT_GT(grid_nodes_in_vertex_area(area, n), 3.0) << n;
+        break;
+      }
+    }
+    // A floor that never meets the RMS target stops at the cap, named as the density's.
+    const GridChoice choice = choose_grid_size(grid_input_falling_from(1.0, 0.0, 1e-3, area));
+    EXPECT_EQ(choice.n, cap);
+    EXPECT_EQ(choice.term, "density");
+    EXPECT_EQ(choice.floors.back().first, cap);
+  }
+  EXPECT_EQ(density_grid_cap(std::numbers::pi / 2000), 81);
+  EXPECT_EQ(density_grid_cap(std::numbers::pi / 500), 41);
+  EXPECT_EQ(density_grid_cap(0), 257);  // no area measured: no cap
+}
+
+TEST(GridChoice, QuartileVertexDiskAreaOfTwoTriangles) {
+  // Two triangles of the unit square [0,1]²: 4 vertices; the two on the diagonal touch both
+  // triangles (area 1/2 each: a third of 1), the other two one (a sixth): the lower quartile, a sixth.
+  const std::vector<Vec2> disk = {Vec2(0, 0), Vec2(1, 0), Vec2(1, 1), Vec2(0, 1)};
+  const std::vector<Face> faces = {Face{0, 1, 2}, Face{0, 2, 3}};
+  EXPECT_NEAR(quartile_vertex_disk_area(disk, faces), 1.0 / 6.0, 1e-12);
+  EXPECT_EQ(quartile_vertex_disk_area({}, {}), 0.0);
+}
+
+// End to end: a clean capture of ~800 vertices, too short for a noise estimate (4 frames) and no
+// keyframes chosen, asks for the fixed 0.02% floor, which its own facets keep out of reach until
+// N = 257; the cap holds G to the mesh's density.
+TEST(GridChoice, ALowVertexCaptureGetsAGridSizedToItsMesh) {
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 4, .vertices = 800, .remesh = true, .noise = 0, .texture_size = 64});
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options;
+  options.texture = false;
+  SequenceEncoder encoder(capture, options);
+  encoder.map_frames();
+  encoder.register_frames();
+  encoder.sample_frames();
+  const int n = encoder.choose_grid();
+  const EncodeReport& report = encoder.report();
+  ASSERT_GT(report.grid_vertex_area, 0);
+  EXPECT_EQ(report.grid_density_cap, density_grid_cap(report.grid_vertex_area));
+  EXPECT_LE(report.grid_density_cap, 97);  // an 800-vertex face: far below the 257 the floor alone asks
+  ASSERT_FALSE(report.grid_floors.empty());
+  EXPECT_EQ(report.grid_term, "density");
+  EXPECT_EQ(n, report.grid_density_cap);
+  EXPECT_LE(grid_nodes_in_vertex_area(report.grid_vertex_area, n), 3.0);
+  EXPECT_GT(report.grid_floors.back().second, report.grid_target);  // the floor alone would go on
+  EXPECT_LE(report.grid_floor_p99s.back().second, report.grid_worst_target);
+}
+
+}  // namespace
+}  // namespace facemorph
