@@ -96,6 +96,37 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
   }
 }
 
+// Where a keyframe's fields do not reconstruct, the capture is not refused (issue 47 part 2): the
+// whole head on its conformal disk (--radial-equalising 0, no radial spread) gives hl+t keyframes
+// that do not converge; the encoder then stores every keyframe as positions and the report (the
+// summary's warning, the settings' representation_fallback) names the keyframe and how far it was.
+// Letting the failure through (no fallback) is the mutation this test catches.
+TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
+  testing::TempDir dir;
+  SynthOptions o;
+  o.frames = 2;
+  o.vertices = 2000;
+  o.texture_size = 64;
+  o.holes = true;
+  o.whole_head = true;
+  write_synthetic_capture(dir.path(), o);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  options.density_equalising.radial = 0;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(read_capture(dir.path()), options, &report);
+  EXPECT_EQ(sequence.representation, Representation::kXYZ);
+  EXPECT_EQ(report.radial_equalising, 0);
+  EXPECT_NE(report.representation_fallback.find("keyframe "), std::string::npos) << report.representation_fallback;
+  EXPECT_NE(report.representation_fallback.find("did not converge"), std::string::npos) << report.representation_fallback;
+  ASSERT_FALSE(report.warnings.empty());
+  EXPECT_NE(report.warnings.back().find("every keyframe stored as positions (xyz)"), std::string::npos) << report.warnings.back();
+  // Asked for the fields, the encode still fails: positions were not asked for.
+  options.representation = Representation::kHLT;
+  testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(read_capture(dir.path()), options); });
+}
+
 // The project's root: FACEMORPH_SHARED_DATA is "<root>/../shared/data".
 std::filesystem::path ict_script() {
   const std::string shared = FACEMORPH_SHARED_DATA, tail = "/../shared/data";

@@ -263,7 +263,13 @@ struct ExactSurfaces {
     store.reset(keys.size());
     diagonals.assign(keys.size(), 0.0);
     pool.run(keys.size(), [&](Reconstructor& reconstructor, size_t k) {
-      Decoded d = decode_exact(reconstructor, *keys.fields(k));
+      Decoded d;
+      try {
+        d = decode_exact(reconstructor, *keys.fields(k));
+      } catch (const Error& e) {
+        // Named, so that the encoder can say which keyframe did not reconstruct (encode_sampled).
+        throw Error(e.code(), "keyframe " + std::to_string(k) + ": " + e.what());
+      }
       diagonals[k] = d.diagonal;
       store.put(k, std::move(d.exact));
     });
