@@ -73,9 +73,9 @@ Agreement agreement(const FaceOrientation& o, const Scan& scan, const Eigen::Mat
   auto flat = [&](const Vec3& v) { return Vec3(v - v.dot(facing) * facing); };
   const Agreement a{degrees_between(flat(o.up - o.nose_tip), flat(scan.nose_bridge - scan.nose_tip)), degrees_between(o.facing, facing),
                     (o.nose_tip - scan.nose_tip).norm() / bounding_box_diagonal(scan.mesh.positions)};
-  std::printf("%s: by %s, confidence %.2f: up %.1f° off, facing %.1f° off, tip %.2f%% of the diagonal off (mirror %.2f%%, across %.2f%%, up evidence %.2f)\n",
+  std::printf("%s: by %s, confidence %.2f: up %.1f° off, facing %.1f° off, tip %.2f%% of the diagonal off (mirror %.2f%%, nose %.2f, up evidence %.2f)\n",
               label.c_str(), face_finding_method_name(o.method), o.confidence, a.up_degrees, a.facing_degrees, 100 * a.tip_error,
-              100 * o.mirror_error, 100 * o.across_mirror_error, o.up_evidence);
+              100 * o.mirror_error, o.nose_prominence, o.up_evidence);
   return a;
 }
 
@@ -192,7 +192,7 @@ TEST(FaceFinding, AFacelessDomeBesideHairIsRefusedByName) {
       try {
         const FaceOrientation o = find_face(scan.mesh, texture, "dome.obj");
         ADD_FAILURE() << "a faceless dome was taken for a face: by " << face_finding_method_name(o.method) << ", mirror " << 100 * o.mirror_error
-                      << "%, across " << 100 * o.across_mirror_error << "%, confidence " << o.confidence;
+                      << "%, nose " << o.nose_prominence << ", confidence " << o.confidence;
       } catch (const Error& e) {
         const std::string what = e.what();
         std::printf("%s\n", what.c_str());
@@ -205,9 +205,10 @@ TEST(FaceFinding, AFacelessDomeBesideHairIsRefusedByName) {
   }
 }
 
-// A closed ball: no step finds a face, and the refusal names the whole surface's reason.
+// A closed ball: no step finds a face, and the refusal names each step's reason, the whole surface's first.
 TEST(FaceFinding, SurfacesWithoutAFaceAreRefusedByName) {
-  testing::expect_error(ErrorCode::kInvalidArgument, "ball.obj: no face orientation found: the surface faces no single direction",
+  testing::expect_error(ErrorCode::kInvalidArgument,
+                        "ball.obj: no face found: neither the geometry nor the texture shows a face (the surface faces no single direction",
                         [] { find_face(testing::icosphere(1, 2), nullptr, "ball.obj"); });
 }
 

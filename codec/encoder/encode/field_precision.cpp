@@ -547,7 +547,13 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
   // applies to it) and every keyframe's exact surface.
   Calibration calibration;
-  pool.run(1, [&](Reconstructor& reconstructor, size_t) { calibration = calibrate(*keys.fields(0), options, reconstructor); });
+  pool.run(1, [&](Reconstructor& reconstructor, size_t) {
+    try {
+      calibration = calibrate(*keys.fields(0), options, reconstructor);
+    } catch (const Error& e) {
+      throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
+    }
+  });
   const ExactSurfaces exact(keys, pool, spill);
   FieldPrecisionOptions chosen = options;
   std::optional<StepChoice> choice;

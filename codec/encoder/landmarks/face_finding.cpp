@@ -86,17 +86,16 @@ std::string reason_of(const Error& e, const std::string& name) {
 
 double geometry_confidence(const FaceOrientation& o) { return std::clamp(1 - o.mirror_error / kMaxFaceMirrorError, 0.0, 1.0); }
 
-// A face is mirror-symmetric left to right and never top to bottom (its forehead is no chin, its
-// sockets no mouth); a dome, or any surface of revolution, is as symmetric across its midline as
-// along it, and a region of it passes the mirror test as well as a face. How much worse the surface
-// maps onto itself mirrored top to bottom than left to right: mirror errors under kMirrorNoise of
-// the diagonal count as that (a scan's noise, not the shape).
-constexpr double kMirrorNoise = 0.002;
-constexpr double kMinFaceAsymmetry = 3.5;
-double asymmetry(const FaceOrientation& o) { return o.across_mirror_error / std::max(o.mirror_error, kMirrorNoise); }
-// In [0, 1]: 0 for a surface as symmetric top to bottom as left to right, 1 from kMinFaceAsymmetry.
-double face_shape_confidence(const FaceOrientation& o) { return std::clamp((asymmetry(o) - 1) / (kMinFaceAsymmetry - 1), 0.0, 1.0); }
-bool geometry_shows_face(const FaceOrientation& o) { return asymmetry(o) >= kMinFaceAsymmetry; }
+// A face's nose falls away steeply from its tip (FaceOrientation::nose_prominence, on its steeper
+// side: 0.81-0.90 on fmsynth's faces, 0.82-1.05 on Medusa's 232 frames, 0.74 on ICT's, 0.69-1.05 in
+// the head-and-shoulders scans' face regions, 0.39 and up in ICT's whole head's); a dome's top,
+// whose mirror plane is as good as a face's and which a region beside hair can read up from, barely
+// falls (0.06 in such a region, up to 0.2 on the whole scan, the hair included). Below
+// kMinNoseProminence the geometry shows no face, however good its mirror plane.
+constexpr double kMinNoseProminence = 0.3;
+// In [0, 1]: how clearly the surface has a nose, 1 from twice kMinNoseProminence.
+double face_shape_confidence(const FaceOrientation& o) { return std::clamp(o.nose_prominence / (2 * kMinNoseProminence), 0.0, 1.0); }
+bool geometry_shows_face(const FaceOrientation& o) { return o.nose_prominence >= kMinNoseProminence; }
 
 std::string percent_text(double share) {
   char text[32];
@@ -108,10 +107,9 @@ std::string percent_text(double share) {
 std::string no_face_shape(const FaceOrientation& o) {
   char text[320];
   std::snprintf(text, sizeof text,
-                "%s: as symmetric top to bottom as left to right (mirrored %s and %s of the diagonal off, %.2gx where a face is at least "
-                "%.2gx): a dome, not a face; face confidence %.2f",
-                face_finding_method_name(o.method), percent_text(o.across_mirror_error).c_str(), percent_text(o.mirror_error).c_str(), asymmetry(o),
-                kMinFaceAsymmetry, face_shape_confidence(o));
+                "%s: a mirror plane (%s of the diagonal off) but no nose: the surface falls %.2g a unit from its most protruding point, "
+                "where a nose falls at least %.2g: a dome, not a face",
+                face_finding_method_name(o.method), percent_text(o.mirror_error).c_str(), o.nose_prominence, kMinNoseProminence);
   return text;
 }
 
@@ -405,12 +403,15 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
   std::optional<FaceOrientation> best;
   std::string last = "no region was tried";
   // Around a whole head, the back and the crown are domes as symmetric as a face: what tells the
-  // face is that it says which way is up by itself (the nose's profile, the eye sockets), where a
-  // dome takes up from the hint or barely reads it. Among regions sure of their mirror plane
-  // (kWholeHeadSure), the one whose up evidence is the strongest; otherwise the surest.
+  // face is its nose (geometry_shows_face) and that it says which way is up by itself (the nose's
+  // profile, the eye sockets), where a dome takes up from the hint or barely reads it. Among regions
+  // sure of their mirror plane (kWholeHeadSure) with a nose, the one whose up evidence is the
+  // strongest; otherwise the surest. (Without the nose, the back of fmsynth's head won: 0.019.)
   const auto better = [whole_head = starts.size() > 1](const FaceOrientation& a, const FaceOrientation& b) {
     if (whole_head) {
-      const auto evidence = [](const FaceOrientation& o) { return o.confidence >= kWholeHeadSure && !o.up_from_hint ? o.up_evidence : -1.0; };
+      const auto evidence = [](const FaceOrientation& o) {
+        return o.confidence >= kWholeHeadSure && !o.up_from_hint && geometry_shows_face(o) ? o.up_evidence : -1.0;
+      };
       if (evidence(a) != evidence(b)) return evidence(a) > evidence(b);
     }
     return a.confidence > b.confidence;
@@ -524,14 +525,14 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
     }
   }
   if (mesh.faces.empty()) fail(name, "the surface has no faces");
-  std::string why, texture_why = "texture: not tried";
+  std::string why;
   std::optional<FaceOrientation> by_texture;
   if (options.texture) {
     by_texture = find_by_texture(mesh, texture, name, &why);
     if (by_texture) {
       found.push_back(*by_texture);
     } else {
-      reasons.push_back(texture_why = "texture: " + why);
+      reasons.push_back("texture: " + why);
     }
   }
   if (options.face_region) {
@@ -549,23 +550,25 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
   // must show a face's shape, not only a mirror plane (a dome beside hair has one as good).
   std::optional<FaceOrientation> best;
   std::vector<std::string> not_faces;
+  double face_confidence = 0;  // of the findings refused: the surest's, their mirror plane's times their nose's
   for (const FaceOrientation& o : found) {
     if (!by_texture && !geometry_shows_face(o)) {
       not_faces.push_back(no_face_shape(o));
+      face_confidence = std::max(face_confidence, o.confidence * face_shape_confidence(o));
       continue;
     }
     if (!best || o.confidence > best->confidence) best = o;
   }
   if (best) return *best;
-  if (!not_faces.empty()) {
-    std::string all;
-    for (const std::string& r : not_faces) all += (all.empty() ? "" : "; ") + r;
-    throw Error(ErrorCode::kInvalidArgument, name + ": no face found: neither the geometry nor the texture shows a face (" + all + "; " + texture_why +
-                                                 ") (give the capture its landmarks nose_tip and nose_bridge)");
-  }
+  if (reasons.empty() && not_faces.empty()) fail(name, "every way of finding a face was turned off");
+  // Each step's reason, and each geometric finding's measure of why it is no face.
   std::string all;
+  for (const std::string& r : not_faces) all += (all.empty() ? "" : "; ") + r;
   for (const std::string& r : reasons) all += (all.empty() ? "" : "; ") + r;
-  fail(name, all.empty() ? "every way of finding a face was turned off" : all);
+  char confidence[64];
+  std::snprintf(confidence, sizeof confidence, "; face confidence %.2f", face_confidence);
+  throw Error(ErrorCode::kInvalidArgument, name + ": no face found: neither the geometry nor the texture shows a face (" + all + confidence +
+                                               ") (give the capture its landmarks nose_tip and nose_bridge)");
 }
 
 }  // namespace facemorph

@@ -194,8 +194,6 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
   if (o.mirror_error > kMaxFaceMirrorError) {
     fail(name, "no plane maps the surface onto itself (best " + percent(o.mirror_error) + " of its diagonal off)");
   }
-  o.across_mirror_error = std::sqrt(mirror_sum(best + 90 * kDegree, std::numeric_limits<double>::infinity()) /
-                                    static_cast<double>(std::max<size_t>(samples.size(), 1))) / diagonal;
   const Vec3 lateral = std::cos(best) * e1 + std::sin(best) * e2;
   o.vertical = o.facing.cross(lateral).normalized();
   const Vec3 midline_axis = o.vertical;  // the axis the readings below are taken on, before up's sign is known
@@ -240,6 +238,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     }
     profile[side] = drop / run;
   }
+  o.nose_prominence = std::max(profile[0], profile[1]);
   double sockets[2] = {0, 0};  // mean depth beside the midline, on each side
   for (int side = 0; side < 2; ++side) {
     const double sign = side == 0 ? 1.0 : -1.0;

@@ -30,10 +30,10 @@ struct FaceOrientation {
   Vec3 vertical = Vec3::Zero();  // unit, towards the forehead, in the face's mirror plane
   double facing_share = 0;       // |Σ area·normal| / Σ area: 1 for a flat face, 0 for a closed one
   double mirror_error = 0;       // RMS distance of the mirrored surface to itself / diagonal, at the plane chosen
-  // The same, mirrored top to bottom: in the plane through the tip across the midline (containing
-  // the facing). A face is symmetric left to right only (its forehead is no chin); a dome, or any
-  // surface of revolution, is as symmetric across as along.
-  double across_mirror_error = 0;
+  // How sharply the surface falls away from the tip along the midline, between 2% and 6% of the
+  // diagonal, on its steeper side (towards the lip on a face): mean drop per unit distance. A nose
+  // falls steeply; a dome's top, as symmetric as a face, barely falls.
+  double nose_prominence = 0;
   double up_evidence = 0;        // in [0, 1]: how clearly the surface says which way is up
   bool up_from_hint = false;     // the surface did not say; the hint's side was taken
   FaceFindingMethod method = FaceFindingMethod::kWholeSurface;
