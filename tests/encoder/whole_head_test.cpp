@@ -23,9 +23,9 @@ namespace {
 
 // 12 frames: over 4, --landmarks auto once passed while at 12 the found landmarks' disagreement took
 // --grid auto to N = 41 and the head to 3x its face's error (the up point slid along the nose).
-Capture synthetic(const testing::TempDir& dir, bool whole_head) {
+Capture synthetic(const testing::TempDir& dir, bool whole_head, int frames = 12) {
   SynthOptions o;
-  o.frames = 12;
+  o.frames = frames;
   o.vertices = 2000;
   o.texture_size = 128;
   o.holes = true;
@@ -103,19 +103,13 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
 // Letting the failure through (no fallback) is the mutation this test catches.
 TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   testing::TempDir dir;
-  SynthOptions o;
-  o.frames = 2;
-  o.vertices = 2000;
-  o.texture_size = 64;
-  o.holes = true;
-  o.whole_head = true;
-  write_synthetic_capture(dir.path(), o);
+  const Capture head = synthetic(dir, true, 2);
   EncodeOptions options;
   options.texture = false;
   options.threads = 2;
   options.density_equalising.radial = 0;
   EncodeReport report;
-  const Sequence sequence = encode_capture(read_capture(dir.path()), options, &report);
+  const Sequence sequence = encode_capture(head, options, &report);
   EXPECT_EQ(sequence.representation, Representation::kXYZ);
   EXPECT_EQ(report.radial_equalising, 0);
   EXPECT_NE(report.representation_fallback.find("keyframe "), std::string::npos) << report.representation_fallback;
@@ -124,7 +118,7 @@ TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   EXPECT_NE(report.warnings.back().find("every keyframe stored as positions (xyz)"), std::string::npos) << report.warnings.back();
   // Asked for the fields, the encode still fails: positions were not asked for.
   options.representation = Representation::kHLT;
-  testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(read_capture(dir.path()), options); });
+  testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(head, options); });
 }
 
 // The project's root: FACEMORPH_SHARED_DATA is "<root>/../shared/data".
