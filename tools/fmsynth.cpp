@@ -41,6 +41,12 @@ int main(int argc, char** argv) {
   app.add_flag("--head", options.whole_head,
                "The whole head: the face closed round the back of the head down to a neck, whose rim is the outer boundary (rim_* markers on it); "
                "not with --remesh, --defects or --vertex-colour");
+  app.add_flag("--surround", options.surround,
+               "A head-and-shoulders scan: hair heaped on one side and a shoulder forward on the other round the face, textured (face, hair, "
+               "shirt), 0.44 x 0.54 m, no rim markers; not with --remesh, --defects, --holes, --head, --vertex-colour or --shared-texture");
+  app.add_flag("--no-face", options.no_face,
+               "With --surround: a plain dome and bare skin where the face was, and no landmarks: a scan with no face, which fmenc "
+               "--landmarks auto refuses by name");
   app.add_flag("-q,--quiet", quiet, "No progress display");
 
   return tools::guarded_main(app, argc, argv, [&] {

@@ -34,8 +34,8 @@ Found compare(const TriangleMesh& mesh, const Vec3& nose_tip, const Vec3& nose_b
   const Vec3 given_flat = (given - given.dot(o.facing) * o.facing).normalized();
   const Vec3 found_flat = (found - found.dot(o.facing) * o.facing).normalized();
   f.up_degrees = std::acos(std::clamp(given_flat.dot(found_flat), -1.0, 1.0)) * 180 / std::numbers::pi;
-  std::printf("%s: tip %.2f%% of the diagonal off, up %.1f° off (mirror %.2f%%, up evidence %.2f, facing %.2f)\n", name.c_str(),
-              100 * f.tip_error, f.up_degrees, 100 * o.mirror_error, o.up_evidence, o.facing_share);
+  std::printf("%s: tip %.2f%% of the diagonal off, up %.1f° off (mirror %.2f%%, nose %.2f, up evidence %.2f, facing %.2f)\n", name.c_str(),
+              100 * f.tip_error, f.up_degrees, 100 * o.mirror_error, o.nose_prominence, o.up_evidence, o.facing_share);
   return f;
 }
 

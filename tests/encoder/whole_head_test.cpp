@@ -23,9 +23,9 @@ namespace {
 
 // 12 frames: over 4, --landmarks auto once passed while at 12 the found landmarks' disagreement took
 // --grid auto to N = 41 and the head to 3x its face's error (the up point slid along the nose).
-Capture synthetic(const testing::TempDir& dir, bool whole_head) {
+Capture synthetic(const testing::TempDir& dir, bool whole_head, int frames = 12) {
   SynthOptions o;
-  o.frames = 12;
+  o.frames = frames;
   o.vertices = 2000;
   o.texture_size = 128;
   o.holes = true;
@@ -94,6 +94,31 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
       EXPECT_NE(whole.report.grid_term, "noise");
     }
   }
+}
+
+// Where a keyframe's fields do not reconstruct, the capture is not refused (issue 47 part 2): the
+// whole head on its conformal disk (--radial-equalising 0, no radial spread) gives hl+t keyframes
+// that do not converge; the encoder then stores every keyframe as positions and the report (the
+// summary's warning, the settings' representation_fallback) names the keyframe and how far it was.
+// Letting the failure through (no fallback) is the mutation this test catches.
+TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
+  testing::TempDir dir;
+  const Capture head = synthetic(dir, true, 2);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  options.density_equalising.radial = 0;
+  EncodeReport report;
+  const Sequence sequence = encode_capture(head, options, &report);
+  EXPECT_EQ(sequence.representation, Representation::kXYZ);
+  EXPECT_EQ(report.radial_equalising, 0);
+  EXPECT_NE(report.representation_fallback.find("keyframe "), std::string::npos) << report.representation_fallback;
+  EXPECT_NE(report.representation_fallback.find("did not converge"), std::string::npos) << report.representation_fallback;
+  ASSERT_FALSE(report.warnings.empty());
+  EXPECT_NE(report.warnings.back().find("every keyframe stored as positions (xyz)"), std::string::npos) << report.warnings.back();
+  // Asked for the fields, the encode still fails: positions were not asked for.
+  options.representation = Representation::kHLT;
+  testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(head, options); });
 }
 
 // The project's root: FACEMORPH_SHARED_DATA is "<root>/../shared/data".

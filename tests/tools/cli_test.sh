@@ -150,6 +150,21 @@ grep -q "property uchar red" "$work/vc/frame_0000.ply" || fail "fmsynth --vertex
 "$tools/fmdec" "$work/vc.fmv" --t 0.1 -o "$work/vc.obj" --quiet || fail "fmdec of a vertex-coloured capture"
 [[ -s "$work/vc.png" ]] || fail "the decoded vertex-coloured frame has no texture"
 
+# A head-and-shoulders scan (hair, a shoulder) and the same scan with a plain dome where the face was
+# (spec/method.md §7.14): --landmarks auto finds the face in the first; the second shows no face to
+# the geometry or the texture and is refused by name, with no file written.
+"$tools/fmsynth" -o "$work/hs" --surround --frames 2 --vertices 4000 --texture-size 64 --quiet || fail "fmsynth --surround"
+"$tools/fmenc" "$work/hs" -o "$work/hs.fmv" --landmarks auto --grid 33 --no-texture >"$work/hs.txt" 2>&1 || fail "fmenc --landmarks auto on a head-and-shoulders scan: $(tail -3 "$work/hs.txt")"
+grep -q "face region\|texture" "$work/hs.txt" || fail "fmenc's summary does not say how the face was found"
+"$tools/fmsynth" -o "$work/dome" --surround --no-face --frames 2 --vertices 4000 --texture-size 64 --quiet || fail "fmsynth --surround --no-face"
+[[ ! -e "$work/dome/landmarks.csv" ]] || fail "fmsynth --no-face wrote landmarks"
+expect_error "a scan with no face" "no face found: neither the geometry nor the texture shows a face" \
+  "$tools/fmenc" "$work/dome" -o "$work/dome.fmv" --landmarks auto --grid 33 --no-texture --quiet
+grep -q "frame_0000.obj" "$work/err" || fail "the refusal does not name the frame: $(cat "$work/err")"
+grep -q "face confidence" "$work/err" || fail "the refusal does not give the confidence: $(cat "$work/err")"
+[[ ! -e "$work/dome.fmv" ]] || fail "a refused encode wrote dome.fmv"
+expect_error "--no-face alone" "--no-face needs --surround" "$tools/fmsynth" -o "$work/nf" --no-face --frames 1 --quiet
+
 # An interrupted encode (killed mid-way) leaves the earlier file as it was and no temporary behind.
 # (Other settings than a.fmv's, so a finished encode would change it.)
 "$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 65 --texture 32 --quiet &

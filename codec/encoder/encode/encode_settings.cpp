@@ -111,6 +111,11 @@ Json settings_json(const EncodeOptions& o, const EncodeReport& report) {
 }
 }  // namespace
 
-std::string encode_settings_json(const EncodeOptions& options, const EncodeReport& report) { return settings_json(options, report).dump(); }
+std::string encode_settings_json(const EncodeOptions& options, const EncodeReport& report) {
+  Json settings = settings_json(options, report);
+  // Only where it happened: every other file's settings stay as they were, byte for byte.
+  if (!report.representation_fallback.empty()) settings["representation_fallback"] = report.representation_fallback;
+  return settings.dump();
+}
 
 }  // namespace facemorph

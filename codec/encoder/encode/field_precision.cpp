@@ -263,7 +263,13 @@ struct ExactSurfaces {
     store.reset(keys.size());
     diagonals.assign(keys.size(), 0.0);
     pool.run(keys.size(), [&](Reconstructor& reconstructor, size_t k) {
-      Decoded d = decode_exact(reconstructor, *keys.fields(k));
+      Decoded d;
+      try {
+        d = decode_exact(reconstructor, *keys.fields(k));
+      } catch (const Error& e) {
+        // Named, so that the encoder can say which keyframe did not reconstruct (encode_sampled).
+        throw Error(e.code(), "keyframe " + std::to_string(k) + ": " + e.what());
+      }
       diagonals[k] = d.diagonal;
       store.put(k, std::move(d.exact));
     });
@@ -541,7 +547,13 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
   // applies to it) and every keyframe's exact surface.
   Calibration calibration;
-  pool.run(1, [&](Reconstructor& reconstructor, size_t) { calibration = calibrate(*keys.fields(0), options, reconstructor); });
+  pool.run(1, [&](Reconstructor& reconstructor, size_t) {
+    try {
+      calibration = calibrate(*keys.fields(0), options, reconstructor);
+    } catch (const Error& e) {
+      throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
+    }
+  });
   const ExactSurfaces exact(keys, pool, spill);
   FieldPrecisionOptions chosen = options;
   std::optional<StepChoice> choice;

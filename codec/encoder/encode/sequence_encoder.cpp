@@ -217,7 +217,24 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   EncodeReport& report = encoder.report();
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, grid);
-  report.field_coding = encoder.options().predicted_fields ? round_fields(encoder, *sequence, chosen) : FieldCoding{};
+  if (encoder.options().predicted_fields) {
+    try {
+      report.field_coding = round_fields(encoder, *sequence, chosen);
+    } catch (const Error& e) {
+      // A keyframe whose fields do not reconstruct (hl+t's iteration did not converge): a capture
+      // never fails for it. The file's representation is one for all keyframes (the format holds no
+      // mix), so every keyframe is stored as positions, which decode without iterating, and the
+      // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
+      // encode still fails: the positions were not asked for.
+      if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ) throw;
+      const std::string which = e.what();
+      encoder.adopt_representation(Representation::kXYZ, report.blend);
+      sequence = encoder.build_stored(chosen.keyframes, grid);
+      report.field_coding = round_fields(encoder, *sequence, chosen);
+      report.representation_fallback = which;
+      report.warnings.push_back("every keyframe stored as positions (xyz): the fields' reconstruction did not converge (" + which + ")");
+    }
+  }
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
   if (encoder.options().residual_frames) sequence->set_residuals(fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
   code_textures(encoder, *sequence, chosen.keyframes);

@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 #include <optional>
@@ -52,6 +53,9 @@ constexpr std::array<double, 3> kRegionReaches = {0.19, 0.15, 0.12};
 // find_face_orientation's own bound.
 constexpr double kWholeHeadFacingShare = 0.25;
 constexpr double kWholeHeadSure = 0.5;  // mirror error under 1.5% of the diagonal
+// Around a whole head without holes, the directions whose regions a coarse first pass ranks best,
+// read in full at every reach.
+constexpr size_t kRefinedDirections = 3;
 // A whole-surface finding at least this sure (mirror error under 1% of the diagonal) is taken as
 // it is; a less sure one competes with the texture's and the face region's, the surest winning (a
 // scan's hair and shoulders can make a slanted plane the best one, and up then reads wrong).
@@ -81,6 +85,33 @@ std::string reason_of(const Error& e, const std::string& name) {
 }
 
 double geometry_confidence(const FaceOrientation& o) { return std::clamp(1 - o.mirror_error / kMaxFaceMirrorError, 0.0, 1.0); }
+
+// A face's nose falls away steeply from its tip (FaceOrientation::nose_prominence, on its steeper
+// side: 0.81-0.90 on fmsynth's faces, 0.82-1.05 on Medusa's 232 frames, 0.74 on ICT's, 0.69-1.05 in
+// the head-and-shoulders scans' face regions, 0.39 and up in ICT's whole head's); a dome's top,
+// whose mirror plane is as good as a face's and which a region beside hair can read up from, barely
+// falls (0.06 in such a region, up to 0.2 on the whole scan, the hair included). Below
+// kMinNoseProminence the geometry shows no face, however good its mirror plane.
+constexpr double kMinNoseProminence = 0.3;
+// In [0, 1]: how clearly the surface has a nose, 1 from twice kMinNoseProminence.
+double face_shape_confidence(const FaceOrientation& o) { return std::clamp(o.nose_prominence / (2 * kMinNoseProminence), 0.0, 1.0); }
+bool geometry_shows_face(const FaceOrientation& o) { return o.nose_prominence >= kMinNoseProminence; }
+
+std::string percent_text(double share) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2g%%", 100 * share);
+  return text;
+}
+
+// Why a geometric finding shows no face, with what was measured.
+std::string no_face_shape(const FaceOrientation& o) {
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "%s: a mirror plane (%s of the diagonal off) but no nose: the surface falls %.2g a unit from its most protruding point, "
+                "where a nose falls at least %.2g: a dome, not a face",
+                face_finding_method_name(o.method), percent_text(o.mirror_error).c_str(), o.nose_prominence, kMinNoseProminence);
+  return text;
+}
 
 // The faces `keep` of `mesh` as a mesh of their own (positions only: orientation reads geometry).
 TriangleMesh sub_mesh(const TriangleMesh& mesh, const std::vector<bool>& keep) {
@@ -339,7 +370,8 @@ std::vector<Vec3> search_directions() {
 }
 
 std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, const Vec3* facing_hint,
-                                              const std::function<void(int, int)>& progress, std::string* why) {
+                                              const FaceFindingOptions& options, std::string* why) {
+  const std::function<void(int, int)>& progress = options.progress;
   const Vec3 mean = area_weighted_normal(mesh);  // a sum of cross products: twice the area-weighted normal
   const double area = 2 * total_area(mesh.positions, mesh.faces);  // on the same scale
   // A whole head faces no one way (its mean normal is the neck's opening's, pointing up): its face
@@ -371,56 +403,86 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
   std::optional<FaceOrientation> best;
   std::string last = "no region was tried";
   // Around a whole head, the back and the crown are domes as symmetric as a face: what tells the
-  // face is that it says which way is up by itself (the nose's profile, the eye sockets), where a
-  // dome takes up from the hint or barely reads it. Among regions sure of their mirror plane
-  // (kWholeHeadSure), the one whose up evidence is the strongest; otherwise the surest.
+  // face is its nose (geometry_shows_face) and that it says which way is up by itself (the nose's
+  // profile, the eye sockets), where a dome takes up from the hint or barely reads it. Among regions
+  // sure of their mirror plane (kWholeHeadSure) with a nose, the one whose up evidence is the
+  // strongest; otherwise the surest. (Without the nose, the back of fmsynth's head won: 0.019.)
   const auto better = [whole_head = starts.size() > 1](const FaceOrientation& a, const FaceOrientation& b) {
     if (whole_head) {
-      const auto evidence = [](const FaceOrientation& o) { return o.confidence >= kWholeHeadSure && !o.up_from_hint ? o.up_evidence : -1.0; };
+      const auto evidence = [](const FaceOrientation& o) {
+        return o.confidence >= kWholeHeadSure && !o.up_from_hint && geometry_shows_face(o) ? o.up_evidence : -1.0;
+      };
       if (evidence(a) != evidence(b)) return evidence(a) > evidence(b);
     }
     return a.confidence > b.confidence;
   };
-  // Nearby directions often end at the same tip, and the region is the tip's: each region (reach,
-  // tip) is read once; the answer is the same, as a region read again cannot win over itself.
+  // The region about the most protruding vertex along `start` within `reach` of the diagonal, and
+  // that vertex; nullopt where that region (reach, tip) was read already. Nearby directions often
+  // end at the same tip, and the region is the tip's: read again it could not win over itself.
   std::vector<std::pair<double, size_t>> read;  // (reach, tip) of the regions read
-  const int total = static_cast<int>(kRegionReaches.size() * starts.size());
-  int done = 0;
+  const auto region_about = [&](const Vec3& start, double reach) -> std::optional<std::vector<bool>> {
+    // About the most protruding vertex along the facing of the region itself (the shoulders turn the
+    // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
+    Vec3 facing = start;
+    std::vector<bool> keep(mesh.faces.size(), false);
+    for (int round = 0; round < 2; ++round) {
+      size_t tip = 0;
+      for (size_t v = 1; v < mesh.positions.size(); ++v) {
+        if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
+      }
+      if (round == 1) {
+        if (std::find(read.begin(), read.end(), std::make_pair(reach, tip)) != read.end()) return std::nullopt;
+        read.emplace_back(reach, tip);
+      }
+      for (size_t f = 0; f < mesh.faces.size(); ++f) {
+        keep[f] = true;
+        for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
+      }
+      const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
+      if (!(n.norm() > 0)) break;
+      facing = n.normalized();
+    }
+    return keep;
+  };
+  const auto read_region = [&](const std::vector<bool>& keep, const MirrorSearch& search) -> std::optional<FaceOrientation> {
+    try {
+      FaceOrientation o = find_face_orientation_up_side(sub_mesh(mesh, keep), name, vertical_hint, region_up_scale(mesh),
+                                                        up_side.norm() > 0 ? &up_side : nullptr, search);
+      o.method = FaceFindingMethod::kFaceRegion;
+      o.confidence = geometry_confidence(o);
+      return o;
+    } catch (const Error& e) {
+      last = reason_of(e, name);
+      return std::nullopt;
+    }
+  };
+  // Around a whole head without holes, a first pass ranks the directions by a coarse reading of
+  // their largest regions (kCoarseMirrorSearch), and only the kRefinedDirections best are read in
+  // full at every reach: reading all 78 regions in full took about 17 s a frame of fmsynth --head.
+  int first = 0;  // the progress steps of the first pass
+  if (options.coarse_first_pass && starts.size() > kRefinedDirections) {
+    first = static_cast<int>(starts.size());
+    std::vector<std::pair<FaceOrientation, Vec3>> ranked;
+    for (size_t i = 0; i < starts.size(); ++i) {
+      if (progress) progress(static_cast<int>(i), first + static_cast<int>(kRefinedDirections * kRegionReaches.size()));
+      if (const std::optional<std::vector<bool>> keep = region_about(starts[i], kRegionReaches.front())) {
+        if (const std::optional<FaceOrientation> o = read_region(*keep, kCoarseMirrorSearch)) ranked.emplace_back(*o, starts[i]);
+      }
+    }
+    std::stable_sort(ranked.begin(), ranked.end(), [&](const auto& a, const auto& b) { return better(a.first, b.first); });
+    starts.clear();
+    for (size_t i = 0; i < ranked.size() && i < kRefinedDirections; ++i) starts.push_back(ranked[i].second);
+    read.clear();
+  }
+  const int total = first + static_cast<int>(kRegionReaches.size() * starts.size());
+  int done = first;
   for (double reach : kRegionReaches) {
     for (const Vec3& start : starts) {
       if (progress) progress(done++, total);
-      // About the most protruding vertex along the facing of the region itself (the shoulders turn the
-      // whole scan's mean normal), found twice: from the whole scan's, then from the first region's.
-      Vec3 facing = start;
-      std::vector<bool> keep(mesh.faces.size(), false);
-      bool seen = false;
-      for (int round = 0; round < 2; ++round) {
-        size_t tip = 0;
-        for (size_t v = 1; v < mesh.positions.size(); ++v) {
-          if (mesh.positions[v].dot(facing) > mesh.positions[tip].dot(facing)) tip = v;
-        }
-        if (round == 1) {
-          seen = std::find(read.begin(), read.end(), std::make_pair(reach, tip)) != read.end();
-          if (seen) break;
-          read.emplace_back(reach, tip);
-        }
-        for (size_t f = 0; f < mesh.faces.size(); ++f) {
-          keep[f] = true;
-          for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
-        }
-        const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
-        if (!(n.norm() > 0)) break;
-        facing = n.normalized();
-      }
-      if (seen) continue;
-      try {
-        FaceOrientation o = find_face_orientation_up_side(sub_mesh(mesh, keep), name, vertical_hint, region_up_scale(mesh),
-                                                          up_side.norm() > 0 ? &up_side : nullptr);
-        o.method = FaceFindingMethod::kFaceRegion;
-        o.confidence = geometry_confidence(o);
-        if (!best || better(o, *best)) best = o;
-      } catch (const Error& e) {
-        last = reason_of(e, name);
+      const std::optional<std::vector<bool>> keep = region_about(start, reach);
+      if (!keep) continue;
+      if (std::optional<FaceOrientation> o = read_region(*keep, MirrorSearch{})) {
+        if (!best || better(*o, *best)) best = o;
       }
     }
   }
@@ -449,17 +511,14 @@ FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const 
 FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
                                  const Vec3* facing_hint, const FaceFindingOptions& options) {
   std::vector<std::string> reasons;
-  std::optional<FaceOrientation> best;
-  auto consider = [&best](FaceOrientation o) {
-    if (!best || o.confidence > best->confidence) best = o;
-  };
+  std::vector<FaceOrientation> found;  // each step's finding, where it found one
   if (options.whole_surface) {
     try {
       FaceOrientation o = find_face_orientation(mesh, name, vertical_hint);
       o.method = FaceFindingMethod::kWholeSurface;
       o.confidence = geometry_confidence(o);
-      if (o.confidence >= kSureConfidence) return o;
-      consider(o);
+      if (o.confidence >= kSureConfidence && geometry_shows_face(o)) return o;
+      found.push_back(o);
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kInvalidArgument) throw;
       reasons.push_back(reason_of(e, name));
@@ -471,26 +530,45 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
   if (options.texture) {
     by_texture = find_by_texture(mesh, texture, name, &why);
     if (by_texture) {
-      consider(*by_texture);
+      found.push_back(*by_texture);
     } else {
       reasons.push_back("texture: " + why);
     }
   }
   if (options.face_region) {
-    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, options.progress, &why)) {
+    if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, options, &why)) {
       // The texture's face, where it agrees, confirms the region's: two independent readings.
       if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine && o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
         o->confidence = 1 - (1 - o->confidence) * (1 - by_texture->confidence);
       }
-      consider(*o);
+      found.push_back(*o);
     } else {
       reasons.push_back("face region: " + why);
     }
   }
+  // Where the texture shows a face, every finding stands; where it does not, a geometric finding
+  // must show a face's shape, not only a mirror plane (a dome beside hair has one as good).
+  std::optional<FaceOrientation> best;
+  std::vector<std::string> not_faces;
+  double face_confidence = 0;  // of the findings refused: the surest's, their mirror plane's times their nose's
+  for (const FaceOrientation& o : found) {
+    if (!by_texture && !geometry_shows_face(o)) {
+      not_faces.push_back(no_face_shape(o));
+      face_confidence = std::max(face_confidence, o.confidence * face_shape_confidence(o));
+      continue;
+    }
+    if (!best || o.confidence > best->confidence) best = o;
+  }
   if (best) return *best;
+  if (reasons.empty() && not_faces.empty()) fail(name, "every way of finding a face was turned off");
+  // Each step's reason, and each geometric finding's measure of why it is no face.
   std::string all;
+  for (const std::string& r : not_faces) all += (all.empty() ? "" : "; ") + r;
   for (const std::string& r : reasons) all += (all.empty() ? "" : "; ") + r;
-  fail(name, all.empty() ? "every way of finding a face was turned off" : all);
+  char confidence[64];
+  std::snprintf(confidence, sizeof confidence, "; face confidence %.2f", face_confidence);
+  throw Error(ErrorCode::kInvalidArgument, name + ": no face found: neither the geometry nor the texture shows a face (" + all + confidence +
+                                               ") (give the capture its landmarks nose_tip and nose_bridge)");
 }
 
 }  // namespace facemorph

@@ -22,9 +22,8 @@ namespace {
 
 // Below this share of its area facing one way a surface is no face seen from the front.
 constexpr double kMinFacingShare = 0.25;
-// The mirror test uses at most this many vertices, within this share of the diagonal of the tip
-// (the middle of the face: a scan's cut edge need not be symmetric).
-constexpr int kMirrorSamples = 600;
+// The mirror test uses vertices within this share of the diagonal of the tip (the middle of the
+// face: a scan's cut edge need not be symmetric), at most MirrorSearch::samples of them.
 constexpr double kMirrorReach = 0.35;
 // The nose's profile along the midline, between kProfileNear and kProfileFar of the tip (fractions
 // of the diagonal; ~0.5 to 1.5 cm on a face).
@@ -111,7 +110,7 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
 }
 
 FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale,
-                                              const Vec3* up_side) {
+                                              const Vec3* up_side, const MirrorSearch& search) {
   FaceOrientation o;
   if (mesh.faces.empty()) fail(name, "the surface has no faces");
   // 1. Facing: the area-weighted mean normal, about the area-weighted centroid.
@@ -155,7 +154,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     for (const Vec3& p : mesh.positions) {
       if ((p - o.nose_tip).norm() < kMirrorReach * diagonal) near.push_back(p);
     }
-    const size_t stride = std::max<size_t>(1, near.size() / kMirrorSamples);
+    const size_t stride = std::max<size_t>(1, near.size() / static_cast<size_t>(std::max(search.samples, 1)));
     for (size_t i = 0; i < near.size(); i += stride) samples.push_back(near[i]);
   }
   const PointToMesh surface(mesh);
@@ -176,14 +175,20 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     return sum;
   };
   constexpr double kDegree = std::numbers::pi / 180;
+  // Planes every step_degrees over the half turn, then every refine_degrees within a step of the best.
+  const int planes = std::max(1, static_cast<int>(std::lround(180 / search.step_degrees)));
   double best = 0, best_sum = mirror_sum(0, std::numeric_limits<double>::infinity());
-  for (int step = 1; step < 60; ++step) {
-    const double sum = mirror_sum(3 * step * kDegree, best_sum);
-    if (sum < best_sum) best_sum = sum, best = 3 * step * kDegree;
+  for (int step = 1; step < planes; ++step) {
+    const double sum = mirror_sum(step * search.step_degrees * kDegree, best_sum);
+    if (sum < best_sum) best_sum = sum, best = step * search.step_degrees * kDegree;
   }
-  for (double offset = -2.5; offset <= 2.5; offset += 0.5) {
-    const double sum = mirror_sum(best + offset * kDegree, best_sum);
-    if (sum < best_sum) best_sum = sum, best = best + offset * kDegree;
+  // (Each offset is taken from the best so far, as it always was: the default search picks the
+  // planes it picked before the search was parametrised.)
+  const int refine = static_cast<int>(std::lround(search.step_degrees / search.refine_degrees)) - 1;
+  for (int k = -refine; k <= refine; ++k) {
+    const double theta = best + k * search.refine_degrees * kDegree;
+    const double sum = mirror_sum(theta, best_sum);
+    if (sum < best_sum) best_sum = sum, best = theta;
   }
   o.mirror_error = std::sqrt(best_sum / static_cast<double>(std::max<size_t>(samples.size(), 1))) / diagonal;
   if (o.mirror_error > kMaxFaceMirrorError) {
@@ -233,6 +238,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     }
     profile[side] = drop / run;
   }
+  o.nose_prominence = std::max(profile[0], profile[1]);
   double sockets[2] = {0, 0};  // mean depth beside the midline, on each side
   for (int side = 0; side < 2; ++side) {
     const double sign = side == 0 ? 1.0 : -1.0;

@@ -1,5 +1,7 @@
 // fmsynth's capture writer: meshes, per-frame textures, landmarks and the manifest.
 #include "facemorph/encoder/capture.hpp"
+#include "facemorph/encoder/image_io.hpp"
+#include "facemorph/meshkit/delaunay.hpp"
 #include "facemorph/error.hpp"
 #include "facemorph/meshkit/mesh_io.hpp"
 #include "facemorph/parallel.hpp"
@@ -112,6 +114,23 @@ TriangleMesh head_frame(const SynthOptions& options, const SyntheticFace& face, 
   return mesh;
 }
 
+// A head-and-shoulders frame (--surround, --no-face): the scan's fixed points and triangles, noise
+// along the view (+z), its own texture.
+void write_surrounded_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face, const std::vector<Vec2>& material,
+                            const std::vector<Face>& faces, int index) {
+  const double time = index / options.fps;
+  const std::string stem = frame_stem(index, options.frames);
+  SurroundedFrame frame = surrounded_frame(face, material, faces, time, Eigen::Matrix3d::Identity(), !options.no_face);
+  std::mt19937_64 rng(options.seed * 7919 + static_cast<uint64_t>(index) * 104729 + 1);
+  std::normal_distribution<double> gaussian(0.0, 1.0);
+  if (options.noise > 0) {
+    for (Vec3& p : frame.mesh.positions) p.z() += options.noise * gaussian(rng);
+  }
+  frame.mesh.texture = directory / (stem + ".jpg");
+  write_image(frame.mesh.texture, frame.texture, 95);
+  write_mesh(directory / (stem + ".obj"), frame.mesh, {.significant_digits = 7});
+}
+
 void write_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face,
                  const TexturePainter& painter, const MaterialSampling* fixed, const HeadSampling* head, int index) {
   const double time = index / options.fps;
@@ -185,9 +204,18 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   if (options.whole_head && (options.remesh || options.defects != 0 || options.vertex_colour)) {
     throw Error(ErrorCode::kInvalidArgument, "--head takes neither --remesh, --defects nor --vertex-colour");
   }
+  if (options.no_face && !options.surround) throw Error(ErrorCode::kInvalidArgument, "--no-face needs --surround");
+  if (options.surround && (options.remesh || options.defects != 0 || options.holes || options.whole_head || options.vertex_colour || options.shared_texture)) {
+    throw Error(ErrorCode::kInvalidArgument, "--surround takes neither --remesh, --defects, --holes, --head, --vertex-colour nor --shared-texture");
+  }
   std::optional<MaterialSampling> fixed;
   std::optional<HeadSampling> head;
-  if (!options.remesh) {
+  std::vector<Vec2> surround;
+  std::vector<Face> surround_faces;
+  if (options.surround) {
+    surround = surround_material(surround_spacing(options.vertices), options.seed);
+    surround_faces = delaunay_triangulation(surround);
+  } else if (!options.remesh) {
     head = sample_head(options.vertices, face, options.holes, options.whole_head);
     fixed = head->face;
     fixed->faces.assign(head->faces.begin(), head->faces.begin() + static_cast<long>(head->face_faces));
@@ -195,20 +223,35 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
 
   if (options.shared_texture && options.vertex_colour) throw Error(ErrorCode::kInvalidArgument, "--shared-texture and --vertex-colour exclude each other");
   if (options.shared_texture) write_texture(directory / kSharedTextureName, painter, 0.0);
-  parallel_for(options.frames, 0, [&](int i) { write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, head ? &*head : nullptr, i); },
-               progress);
+  parallel_for(
+      options.frames, 0,
+      [&](int i) {
+        if (options.surround) {
+          write_surrounded_frame(directory, options, face, surround, surround_faces, i);
+        } else {
+          write_frame(directory, options, face, painter, fixed ? &*fixed : nullptr, head ? &*head : nullptr, i);
+        }
+      },
+      progress);
 
   Capture capture;
   capture.root = directory;
-  capture.description = std::string(options.whole_head ? "fmsynth synthetic whole head, expression " : "fmsynth synthetic face, expression ") + expression_name(options.expression);
+  capture.description = std::string(options.no_face         ? "fmsynth head-and-shoulders scan with no face (a plain dome), expression "
+                                    : options.surround      ? "fmsynth synthetic face in a head-and-shoulders scan, expression "
+                                    : options.whole_head    ? "fmsynth synthetic whole head, expression "
+                                                            : "fmsynth synthetic face, expression ") +
+                        expression_name(options.expression);
   capture.fps = options.fps;
   capture.units = "m";
   const std::string extension = options.vertex_colour ? ".ply" : ".obj";
   for (int i = 0; i < options.frames; ++i) capture.frames.push_back({frame_stem(i, options.frames) + extension, i / options.fps});
   // The whole head's rim markers lie on the neck's rim (its vertices, evenly spaced), not the face's.
+  // A head-and-shoulders scan's rim is its extent's rectangle, not the face's: no rim markers; and
+  // with no face, no landmarks at all.
   std::vector<const NamedPoint*> named;
   for (const NamedPoint& l : face.landmarks()) {
-    if (!options.whole_head || l.name.rfind("rim_", 0) != 0) named.push_back(&l);
+    if (options.no_face) break;
+    if (!(options.whole_head || options.surround) || l.name.rfind("rim_", 0) != 0) named.push_back(&l);
   }
   constexpr int kNeckMarkers = 8;
   for (const NamedPoint* l : named) capture.landmark_names.push_back(l->name);
@@ -235,6 +278,7 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
   if (options.defects != 0) capture.generator.emplace_back("defects", defect_names(options.defects));
   if (options.holes) capture.generator.emplace_back("holes", "eyes, mouth, nostrils");
   if (options.whole_head) capture.generator.emplace_back("surface", "whole head to the neck");
+  if (options.surround) capture.generator.emplace_back("surface", options.no_face ? "hair and a shoulder round a plain dome: no face" : "hair and a shoulder round the face");
   write_capture_manifest(capture);
 }
 

@@ -51,6 +51,9 @@ struct EncodeReport {
   std::vector<EncodedFrameReport> frames;  // the frames encoded (without the dropped ones)
   std::vector<DroppedFrame> dropped;       // in capture order
   std::vector<std::string> warnings;       // landmarks ignored, a reference frame moved; each names its frame
+  // Why the keyframes are stored as positions though hl+t was chosen: the keyframe whose fields'
+  // reconstruction did not converge, and how far it was (encode_sampled); empty when none.
+  std::string representation_fallback;
   int reference_frame = 0;                 // the frame registered to, in the capture as given
   int orientation_found = 0;               // frames whose nose tip and up were found from the geometry
   double weakest_up_evidence = 1;          // the least clear of their up readings (FaceOrientation::up_evidence)

@@ -10,6 +10,7 @@
 // any τ (SyntheticFace::position), which is the ground truth tests and benchmarks compare against.
 #pragma once
 
+#include "facemorph/image.hpp"
 #include "facemorph/mesh.hpp"
 
 #include <array>
@@ -102,6 +103,12 @@ struct SynthOptions {
   // whose rim is the surface's outer boundary (rim_* markers lie on it). Not with --remesh,
   // --defects or --vertex-colour.
   bool whole_head = false;
+  // A head-and-shoulders scan (fmsynth --surround): hair and a shoulder round the face, textured
+  // (surrounded_frame). Not with --remesh, --defects, --holes, --head or --vertex-colour.
+  bool surround = false;
+  // With surround: a plain dome and bare skin where the face was (fmsynth --no-face): no face, and
+  // no landmarks written.
+  bool no_face = false;
 };
 
 struct HeadVertex;
@@ -198,6 +205,25 @@ struct HeadSampling {
   size_t face_faces = 0;
 };
 HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool holes, bool whole_head);
+
+// fmsynth --surround: the face inside a head-and-shoulders scan, 0.44 x 0.54 m of the face's
+// material plane (the face's ellipse in the middle): hair heaped on the left (seen from the front),
+// a shoulder forward on the right, textured with the face, hair, skin and a shirt. With `with_face`
+// false (fmsynth --no-face), the same surround with a plain dome and bare skin where the face was:
+// no face to find, which --landmarks auto refuses by name (spec/method.md §7.14).
+struct SurroundedFrame {
+  TriangleMesh mesh;  // UVs per vertex over the whole extent (uv_faces equal to faces)
+  Image texture;      // 800 pixels a metre
+};
+// The scan's material points: a grid `spacing` apart over the extent, jittered inside by up to 0.3
+// of the spacing (by `seed`); the edge's points unjittered, so the rim is the extent's rectangle.
+std::vector<Vec2> surround_material(double spacing, uint64_t seed);
+double surround_spacing(int vertices);  // the spacing that gives about `vertices` vertices
+// Frame `time` of `face` on those points and their triangles, turned by `pose`.
+SurroundedFrame surrounded_frame(const SyntheticFace& face, const std::vector<Vec2>& material, const std::vector<Face>& faces, double time,
+                                 const Eigen::Matrix3d& pose, bool with_face);
+// The same, triangulating surround_material(spacing, seed) itself.
+SurroundedFrame surrounded_frame(const SyntheticFace& face, double spacing, uint64_t seed, double time, const Eigen::Matrix3d& pose, bool with_face);
 
 // Progress callback: (frames done, frames total).
 using ProgressCallback = std::function<void(int, int)>;
