@@ -2,12 +2,12 @@
 // the file round trip, and every captured frame decoded at its own time and measured against it.
 #pragma once
 
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/mesh.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include <nlohmann/json.hpp>
 

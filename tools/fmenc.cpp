@@ -3,15 +3,15 @@
 // each keyframe's fields, pose, holes and texture written. The file is written under a temporary
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
-#include "facemorph/encoder/encode_settings.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/segment_join.hpp"
-#include "facemorph/encoder/options_json.hpp"
-#include "facemorph/encoder/segmented_encode.hpp"
-#include "facemorph/encoder/staged_encode.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/encode_settings.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
+#include "codec/encoder/encode/options_json.hpp"
+#include "codec/encoder/encode/segmented_encode.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include "tools/tool_support.hpp"
 

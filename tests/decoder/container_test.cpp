@@ -1,7 +1,7 @@
 // The .fmv container (spec/container.md): round trips, the checksum's definition, and every way a
 // damaged or foreign file must be refused by name rather than crash or decode wrong.
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"

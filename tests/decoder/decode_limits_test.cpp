@@ -5,11 +5,11 @@
 // the same bits; hole levels checked where they are read; a group's stream read to its end before
 // any of its keyframes is shown; failures naming the file and t. Every file is crafted with valid
 // checksums (crafted::rebuild), so each test reaches the check it means.
-#include "codec/decoder/container/file_layout.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/fields.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/container/file_layout.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
 #include "format/zstd_frame.hpp"

@@ -2,9 +2,9 @@
 // hand), each refused by name when opened or when the keyframe it breaks is decoded, without
 // decoding another keyframe's data as its own, allocating past the claimed size or decoding a
 // failed keyframe again.
-#include "facemorph/error.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "format/error.hpp"
+#include "codec/decoder/image/image_codec.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"

@@ -1,4 +1,4 @@
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 
 #include "tests/test_util.hpp"
 

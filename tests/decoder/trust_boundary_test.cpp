@@ -5,10 +5,10 @@
 // reaches the check it means.
 #include "facemorph.h"
 #include "codec/decoder/player/decoder.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/limits.hpp"
-#include "facemorph/reconstruct.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 #include "format/zstd_frame.hpp"
 
 #include "tests/decoder/crafted_files.hpp"

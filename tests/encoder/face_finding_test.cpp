@@ -2,13 +2,13 @@
 // fmsynth's face with hair on one side and a shoulder forward on the other, textured, turned off
 // the axes. Its whole surface has no mirror plane; the texture's detected face and the face region
 // each find the face, and a surface without a face is still refused by name.
-#include "facemorph/encoder/face_orientation.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

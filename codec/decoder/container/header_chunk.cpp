@@ -1,9 +1,9 @@
 // The header chunk, HEAD (spec/container.md §5): the grid, representation, spline, times, units,
 // metadata and the keyframe coding's steps. Read first, and checked against the caller's limits
 // before anything the file describes is allocated (§10.2 steps 2-4).
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
-#include "facemorph/disk_grid.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 #include "format/byte_writer.hpp"
 #include "format/container.hpp"
 

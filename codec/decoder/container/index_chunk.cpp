@@ -2,7 +2,7 @@
 // chunks are. A player reads it with the header and can then place every keyframe in time and
 // space, and fetch any keyframe's chunks, without decoding another (§10.1: opening costs what the
 // index costs).
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
 #include "format/byte_writer.hpp"
 

@@ -3,7 +3,7 @@
 // predicted (from the previous keyframe of the group, and along G's lattice) and only the
 // residuals coded, under adaptive models carried through the group, so every decoder reproduces the
 // encoder's values to the bit.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
 #include "format/byte_writer.hpp"
 #include "format/ranged_residuals.hpp"

@@ -3,7 +3,7 @@
 // 64ths of a frame period, each correction but the last as an integer multiple of 2^-e (the last is
 // minus their sum, so they sum to 0 exactly), all zigzag varints; the chunk is zstd-compressed where
 // that is smaller.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
 #include <cmath>
 

@@ -4,15 +4,15 @@
 // texture_group_chunk). This file
 // writes a whole file, and opens one for reading: the header and index read and checked, every
 // index entry at a chunk of its kind; keyframes and textures decoded when asked for.
-#include "facemorph/sequence_file.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/keyframe_source.hpp"
+#include "format/error.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 

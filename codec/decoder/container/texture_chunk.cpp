@@ -1,8 +1,8 @@
 // A keyframe's texture, TEXR (spec/container.md §8): an M × M image of the disk in one of the
 // image codecs the format names.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 #include "format/byte_writer.hpp"
 
 namespace facemorph::file_layout {

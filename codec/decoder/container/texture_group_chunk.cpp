@@ -1,9 +1,9 @@
 // A group's keyframe textures as one AV1 image sequence, TGOP (spec/container.md §8.1, format
 // 2.1): the group's first keyframe, the image codec (3), and one AVIF file holding exactly the
 // group's keyframes' textures in order, each predicted from those before it.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 #include "format/byte_writer.hpp"
 
 #include <algorithm>

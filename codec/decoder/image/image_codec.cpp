@@ -1,6 +1,6 @@
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <avif/avif.h>
 #include <png.h>

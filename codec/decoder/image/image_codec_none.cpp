@@ -3,9 +3,9 @@
 // so that the module carries no AV1 decoder twice. Every codec call is kUnsupported, naming why; a
 // player of this build asks for no texture buffer and blends the keyframes' images itself with the
 // weights fm_decoder_get_texture_weights gives (spec/web.md).
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 namespace facemorph {
 

@@ -1,9 +1,9 @@
 // What the image codecs share whichever codecs are built (image_codec.cpp with libavif, libwebp and
 // libpng; image_codec_none.cpp without them, for the browser, which decodes the images itself):
 // codec names, the choice of codec for a quality, and the dispatch to the codec's functions.
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_codec.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <algorithm>

@@ -2,9 +2,9 @@
 // arrays of the layout a GPU takes, with the sizes checked before anything is written.
 #include "codec/decoder/player/decoder.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/sequence_file.hpp"
-#include "facemorph/spline.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <cmath>
 #include <cstdio>

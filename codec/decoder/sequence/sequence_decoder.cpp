@@ -1,8 +1,8 @@
 // Playing a sequence back at any t (spec/method.md §7): blend, reconstruct, cut holes, place.
-#include "facemorph/sequence.hpp"
+#include "codec/core/sequence/sequence.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/hole_cut.hpp"
+#include "format/error.hpp"
+#include "codec/decoder/sequence/hole_cut.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,9 +1,9 @@
 // The Riemann conformal map: preconditioning, linear start, QIEM on the double cover, projection.
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/linear_map.hpp"

@@ -1,9 +1,9 @@
-#include "facemorph/encoder/segment_join.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
 
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/core/container/file_layout.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 #include "codec/encoder/encode/json_fields.hpp"
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 

@@ -4,7 +4,7 @@
 #include "codec/encoder/registration/registration_internal.hpp"
 
 #include "codec/encoder/registration/partition_map.hpp"
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

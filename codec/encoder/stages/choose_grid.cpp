@@ -3,9 +3,9 @@
 // (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
-// The analytic synthetic face (see facemorph/encoder/synth.hpp for the model).
-#include "facemorph/error.hpp"
-#include "facemorph/encoder/synth.hpp"
+// The analytic synthetic face (see codec/encoder/synth/synth.hpp for the model).
+#include "format/error.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 
 #include <algorithm>
 #include <cmath>

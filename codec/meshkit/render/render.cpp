@@ -1,7 +1,7 @@
-#include "facemorph/meshkit/render.hpp"
+#include "codec/meshkit/render/render.hpp"
 
 #include "codec/decoder/player/decoder.hpp"  // area_weighted_normals: the decoder's one normal rule
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
