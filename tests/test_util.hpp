@@ -4,7 +4,7 @@
 #include "format/error.hpp"
 #include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/container/file_metadata.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <gtest/gtest.h>

@@ -22,6 +22,7 @@
 #include "tools/bench_sequence.hpp"
 #include "tools/plot.hpp"
 #include "tools/tool_support.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -2,7 +2,7 @@
 // -> Laplace-Beltrami reconstruction) for each representation, and the decoder's speed.
 #include "tools/bench_reconstruct.hpp"
 
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"

@@ -5,12 +5,13 @@
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/conformal/resample.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 
 #include "tools/plot.hpp"
 #include "tools/tool_support.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -9,9 +9,9 @@
 #include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/image/texture_codec.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/bench_sequence.hpp"

@@ -2,7 +2,7 @@
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "format/error.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "format/file_io.hpp"
 
 #include <ImfChannelList.h>

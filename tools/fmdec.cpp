@@ -2,10 +2,10 @@
 // shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
 // for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
 #include "codec/meshkit/gltf/gltf.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/render/render.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 
 #include "tools/field_export.hpp"
@@ -13,7 +13,6 @@
 #include "tools/video_file.hpp"
 
 #include "format/file_io.hpp"
-
 
 #include <chrono>
 #include <cmath>

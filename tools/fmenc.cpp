@@ -12,6 +12,7 @@
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tools/tool_support.hpp"
 
@@ -155,7 +156,6 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
                 "fit %.1f s, rounding to the settled steps %.1f s (this segment's)\n", r.seconds_reading_parts, r.seconds_keyframes, r.seconds_precision);
   }
 }
-
 
 }  // namespace
 

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "format/error.hpp"
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

@@ -7,7 +7,7 @@
 // this module; its documentation is the public one.
 #include "facemorph.h"
 #include "codec/core/image/image.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/image/texture_codec.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 

@@ -10,9 +10,9 @@
 #include "codec/encoder/encode/encode_settings.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "python/src/status.hpp"
 

@@ -10,8 +10,8 @@
 // (500 MB of zeros) while the generator holds kilobytes: such frames are laid out here by hand, raw
 // and RLE blocks (RFC 8878 §3.1.1.2).
 #include "format/error.hpp"
-#include "codec/decoder/image/image_codec.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"

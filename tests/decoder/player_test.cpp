@@ -5,9 +5,11 @@
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // The decoder's side of the temporal model: hole cutting and playing a sequence back.
 #include "codec/decoder/sequence/hole_cut.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"

@@ -6,13 +6,14 @@
 #include "facemorph.h"
 #include "codec/decoder/player/decoder.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/decoder/image/image_codec.hpp"
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "format/zstd_frame.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

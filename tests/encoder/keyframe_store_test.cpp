@@ -7,7 +7,7 @@
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"

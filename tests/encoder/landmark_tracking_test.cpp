@@ -8,7 +8,7 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/sequence/sequence.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include "tests/test_util.hpp"
 

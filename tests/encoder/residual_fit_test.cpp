@@ -10,8 +10,9 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -6,8 +6,9 @@
 #include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "format/container.hpp"
 #include "format/file_io.hpp"

@@ -8,9 +8,11 @@
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

@@ -7,7 +7,7 @@
 #include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "format/error.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "format/file_io.hpp"
 

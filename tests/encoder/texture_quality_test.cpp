@@ -5,10 +5,13 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/decoder/image/image_decode.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

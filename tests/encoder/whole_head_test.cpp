@@ -5,7 +5,7 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include "tests/test_util.hpp"
 

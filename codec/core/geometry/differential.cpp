@@ -1,7 +1,10 @@
 #include "codec/core/geometry/differential.hpp"
 
+#include "format/error.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace facemorph {
 namespace {
@@ -80,6 +83,28 @@ Eigen::VectorXd mixed_voronoi_areas(std::span<const Vec3> positions, std::span<c
     }
   }
   return area;
+}
+
+void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
+  if (out.size() != 3 * positions.size()) {
+    throw Error(ErrorCode::kInvalidArgument, "normals: " + std::to_string(out.size()) + " floats for " + std::to_string(positions.size()) + " vertices");
+  }
+  std::vector<Vec3> sum(positions.size(), Vec3::Zero());
+  const auto count = static_cast<int64_t>(positions.size());
+  for (const Face& f : faces) {
+    for (int32_t v : f) {
+      if (v < 0 || v >= count) throw Error(ErrorCode::kInvalidArgument, "normals: face index " + std::to_string(v) + " out of range");
+    }
+    const Vec3& a = positions[static_cast<size_t>(f[0])];
+    // |(b − a) × (c − a)| is twice the triangle's area: the sum weights each face by its area.
+    const Vec3 n = (positions[static_cast<size_t>(f[1])] - a).cross(positions[static_cast<size_t>(f[2])] - a);
+    for (int32_t v : f) sum[static_cast<size_t>(v)] += n;
+  }
+  for (size_t v = 0; v < sum.size(); ++v) {
+    const double length = sum[v].norm();
+    const Vec3 n = length > 0 && std::isfinite(length) ? Vec3(sum[v] / length) : Vec3::Zero();
+    for (int k = 0; k < 3; ++k) out[3 * v + static_cast<size_t>(k)] = static_cast<float>(n[k]);
+  }
 }
 
 }  // namespace facemorph

@@ -1,5 +1,5 @@
 // Discrete differential geometry on triangle meshes (method-notes §1, spec/method.md §1): the
-// operators the reconstruction needs. Measures only the encoder and the tools use (angles, normals,
+// operators the reconstruction needs, and the vertex normals every side shows. Measures only the encoder and the tools use (angles, normals,
 // mean curvature, ...) are meshkit's, in codec/meshkit/geometry/surface_measures.hpp.
 //
 // Sign conventions, used everywhere in facemorph:
@@ -38,5 +38,11 @@ SparseMatrix cotangent_laplacian(std::span<const Vec3> positions, std::span<cons
 double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
 // Mixed Voronoi vertex areas (Meyer et al. 2003); sums to the total area.
 Eigen::VectorXd mixed_voronoi_areas(std::span<const Vec3> positions, std::span<const Face> faces);
+
+// Area-weighted unit vertex normals (Σ over the vertex's triangles of (b − a) × (c − a), then
+// normalised) as 3 floats per vertex into `out` (3 × positions.size()); zero for a vertex that
+// touches no triangle of non-zero area. Throws kInvalidArgument for a face index out of range or
+// a wrong output size.
+void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out);
 
 }  // namespace facemorph

@@ -7,7 +7,7 @@
 
 #include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/geometry/mesh.hpp"
 
 #include <memory>

@@ -7,7 +7,7 @@
 
 #include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/image/image.hpp"
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
 #include "codec/core/sequence/spline.hpp"

@@ -5,7 +5,7 @@
 #pragma once
 
 #include "codec/core/container/file_layout.hpp"
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/sequence/sequence.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "format/container.hpp"

@@ -26,8 +26,8 @@
 #pragma once
 
 #include "format/error.hpp"
-#include "codec/core/container/decoder_limits.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -169,11 +169,5 @@ class Decoder {
   FileInfo info_;
   std::unique_ptr<Impl> impl_;
 };
-
-// Area-weighted unit vertex normals (Σ over the vertex's triangles of (b − a) × (c − a), then
-// normalised) as 3 floats per vertex into `out` (3 × positions.size()); zero for a vertex that
-// touches no triangle of non-zero area. Throws kInvalidArgument for a face index out of range or
-// a wrong output size.
-void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out);
 
 }  // namespace facemorph

@@ -10,7 +10,7 @@
 #include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/core/reconstruct/fields.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/image/texture_codec.hpp"
 #include "codec/core/sequence/spline.hpp"
 
 #include <functional>

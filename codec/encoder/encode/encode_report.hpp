@@ -10,7 +10,7 @@
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/core/reconstruct/fields.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include <array>
 #include <cstdint>

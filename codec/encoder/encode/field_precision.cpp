@@ -8,7 +8,7 @@
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/util/parallel.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <algorithm>
 #include <array>

@@ -6,7 +6,7 @@
 #pragma once
 
 #include "codec/core/sequence/sequence.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include <array>
 #include <vector>

@@ -6,7 +6,7 @@
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "format/error.hpp"
 #include "codec/core/util/parallel.hpp"
-#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <Eigen/Dense>
 

@@ -1,6 +1,7 @@
 #include "codec/encoder/encode/segment_join.hpp"
 
-#include "codec/core/container/file_layout.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 #include "codec/encoder/encode/json_fields.hpp"
 #include "format/error.hpp"

@@ -7,7 +7,7 @@
 
 #include "codec/encoder/encode/segmented_encode.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include <cstdint>
 #include <filesystem>

@@ -2,7 +2,8 @@
 #include "codec/encoder/encode/texture_quality.hpp"
 
 #include "format/error.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/decoder/image/image_decode.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include <algorithm>
 #include <cmath>

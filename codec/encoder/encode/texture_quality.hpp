@@ -7,7 +7,7 @@
 #pragma once
 
 #include "codec/core/image/image.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/image/texture_codec.hpp"
 
 #include <vector>
 

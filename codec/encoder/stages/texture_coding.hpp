@@ -6,7 +6,7 @@
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/core/image/image.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/core/image/texture_codec.hpp"
 
 #include <filesystem>
 #include <functional>

@@ -3,10 +3,10 @@
 // decoder a player links.
 #include "codec/meshkit/gltf/gltf.hpp"
 
-#include "codec/decoder/player/decoder.hpp"  // area_weighted_normals: the decoder's one normal rule
+#include "codec/core/geometry/differential.hpp"  // area_weighted_normals: the decoder's one normal rule
 #include "format/error.hpp"
 #include "codec/core/geometry/differential.hpp"
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include <algorithm>
 #include <array>

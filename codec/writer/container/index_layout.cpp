@@ -1,6 +1,6 @@
 // Where a file's chunks after its index go, and the index that names them (spec/container.md §6):
 // what the writer of a sequence and the joiner of segments (file_join.cpp) share.
-#include "codec/core/container/file_layout.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 
 namespace facemorph::file_layout {
 

@@ -1,9 +1,9 @@
-// The image codecs of a build without libavif, libwebp and libpng (FACEMORPH_IMAGE_CODECS=OFF): the
+// The image decoders of a build without libavif, libwebp and libpng (FACEMORPH_IMAGE_CODECS=OFF): the
 // WebAssembly decoder, whose textures the browser decodes itself (createImageBitmap, ImageDecoder),
 // so that the module carries no AV1 decoder twice. Every codec call is kUnsupported, naming why; a
 // player of this build asks for no texture buffer and blends the keyframes' images itself with the
 // weights fm_decoder_get_texture_weights gives (spec/web.md).
-#include "codec/decoder/image/image_codec.hpp"
+#include "codec/decoder/image/image_decode.hpp"
 
 #include "format/error.hpp"
 
@@ -18,17 +18,8 @@ namespace {
 
 }  // namespace
 
-std::vector<uint8_t> encode_webp(const Image&, int) { no_codec("WebP encoding"); }
 Image decode_webp(std::span<const uint8_t>, const std::string& source, int, int64_t) { no_codec("WebP decoding", source); }
-std::vector<uint8_t> encode_avif(const Image&, int) { no_codec("AVIF encoding"); }
 Image decode_avif(std::span<const uint8_t>, const std::string& source, int, int64_t) { no_codec("AVIF decoding", source); }
-Image avif_colour_round_trip(const Image&) { no_codec("AVIF colour conversion"); }
-std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const>, int) { no_codec("AVIF sequence encoding"); }
-struct AvifSequenceWriter::State {};
-AvifSequenceWriter::AvifSequenceWriter(int) { no_codec("AVIF sequence encoding"); }
-AvifSequenceWriter::~AvifSequenceWriter() = default;
-void AvifSequenceWriter::add(const Image&) { no_codec("AVIF sequence encoding"); }
-std::vector<uint8_t> AvifSequenceWriter::finish() { no_codec("AVIF sequence encoding"); }
 struct AvifSequenceReader::State {};
 AvifSequenceReader::AvifSequenceReader(std::span<const uint8_t>, std::string source, uint32_t, uint32_t) { no_codec("AVIF sequence decoding", source); }
 AvifSequenceReader::~AvifSequenceReader() = default;
@@ -41,7 +32,9 @@ void decode_avif_sequence(std::span<const uint8_t>, const std::string& source, u
 std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t>, const std::string& source, uint32_t, uint32_t) {
   no_codec("AVIF sequence parsing", source);
 }
-std::vector<uint8_t> encode_png(const Image&) { no_codec("PNG encoding"); }
 Image decode_png(std::span<const uint8_t>, const std::string& source, int64_t) { no_codec("PNG decoding", source); }
+Image decode_texture(TextureCodec codec, std::span<const uint8_t>, const std::string& source, int64_t) {
+  no_codec(codec == TextureCodec::kAvif ? "AVIF decoding" : "WebP decoding", source);
+}
 
 }  // namespace facemorph

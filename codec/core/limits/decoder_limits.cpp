@@ -1,6 +1,6 @@
-// DecoderLimits (codec/core/container/decoder_limits.hpp): what a file may make a decoder allocate, estimated from its
+// DecoderLimits (codec/core/limits/decoder_limits.hpp): what a file may make a decoder allocate, estimated from its
 // header before anything is decoded (spec/container.md §10.1).
-#include "codec/core/container/decoder_limits.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "format/error.hpp"
