@@ -1,6 +1,7 @@
 // What a keyframe stores on G, computed with the decoder's own operators.
 #include "codec/core/reconstruct/fields.hpp"
 
+#include "codec/core/util/enum_names.hpp"
 #include "codec/core/grid/disk_grid.hpp"
 #include "format/error.hpp"
 
@@ -12,20 +13,17 @@
 
 namespace facemorph {
 
-const char* representation_name(Representation representation) {
-  switch (representation) {
-    case Representation::kHL: return "hl";
-    case Representation::kHLT: return "hl+t";
-    case Representation::kXYZ: return "xyz";
-  }
-  return "unknown";
-}
+namespace {
+
+constexpr EnumName<Representation> kRepresentationNames[] = {
+    {Representation::kHL, "hl"}, {Representation::kHLT, "hl+t"}, {Representation::kXYZ, "xyz"}};
+
+}  // namespace
+
+const char* representation_name(Representation representation) { return name_of(kRepresentationNames, representation); }
 
 Representation parse_representation(const std::string& name) {
-  if (name == "hl") return Representation::kHL;
-  if (name == "hl+t") return Representation::kHLT;
-  if (name == "xyz") return Representation::kXYZ;
-  throw Error(ErrorCode::kInvalidArgument, "unknown representation '" + name + "' (hl, hl+t, xyz)");
+  return parse_name(kRepresentationNames, name, "representation");
 }
 
 void validate_fields(const GridFields& fields) {

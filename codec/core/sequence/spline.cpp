@@ -4,6 +4,7 @@
 // handful of sparse row sums, and extrapolation is the same piece evaluated outside its segment.
 #include "codec/core/sequence/spline.hpp"
 
+#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>
@@ -12,22 +13,17 @@
 
 namespace facemorph {
 
-const char* spline_kind_name(SplineKind kind) {
-  switch (kind) {
-    case SplineKind::kLocalCubic: return "local";
-    case SplineKind::kCatmullRom: return "catmull-rom";
-    case SplineKind::kNotAKnot: return "not-a-knot";
-    case SplineKind::kLinear: return "linear";
-  }
-  return "unknown";
-}
+namespace {
 
-SplineKind parse_spline_kind(const std::string& name) {
-  for (SplineKind kind : {SplineKind::kLocalCubic, SplineKind::kCatmullRom, SplineKind::kNotAKnot, SplineKind::kLinear}) {
-    if (name == spline_kind_name(kind)) return kind;
-  }
-  throw Error(ErrorCode::kInvalidArgument, "unknown spline '" + name + "' (local, catmull-rom, not-a-knot, linear)");
-}
+constexpr EnumName<SplineKind> kSplineNames[] = {
+    {SplineKind::kLocalCubic, "local"}, {SplineKind::kCatmullRom, "catmull-rom"},
+    {SplineKind::kNotAKnot, "not-a-knot"}, {SplineKind::kLinear, "linear"}};
+
+}  // namespace
+
+const char* spline_kind_name(SplineKind kind) { return name_of(kSplineNames, kind); }
+
+SplineKind parse_spline_kind(const std::string& name) { return parse_name(kSplineNames, name, "spline"); }
 
 namespace {
 

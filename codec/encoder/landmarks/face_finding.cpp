@@ -4,6 +4,8 @@
 #include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
 
+#include "codec/core/util/enum_names.hpp"
+
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
 #include "format/error.hpp"
@@ -432,14 +434,15 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
 
 }  // namespace
 
-const char* face_finding_method_name(FaceFindingMethod method) {
-  switch (method) {
-    case FaceFindingMethod::kWholeSurface: return "whole surface";
-    case FaceFindingMethod::kTexture: return "texture";
-    case FaceFindingMethod::kFaceRegion: return "face region";
-  }
-  return "unknown";
-}
+namespace {
+
+constexpr EnumName<FaceFindingMethod> kFaceFindingMethodNames[] = {
+    {FaceFindingMethod::kWholeSurface, "whole surface"}, {FaceFindingMethod::kTexture, "texture"},
+    {FaceFindingMethod::kFaceRegion, "face region"}};
+
+}  // namespace
+
+const char* face_finding_method_name(FaceFindingMethod method) { return name_of(kFaceFindingMethodNames, method); }
 
 FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
                           const FaceFindingOptions& options) {
