@@ -6,45 +6,44 @@
 # root to a file that exists, except the two installed headers, which keep their installed names.
 # Prints each include that breaks a rule and fails; run from the repository root.
 set -u
-status=0
-# folder | what it may include besides system headers
-rules='format|format/
-codec/core|format/ codec/core/
-codec/decoder|format/ codec/core/ codec/decoder/ facemorph.h facemorph/decoder.hpp
-codec/writer|format/ codec/core/ codec/decoder/ codec/writer/
-codec/meshkit|format/ codec/core/ codec/writer/ codec/meshkit/
-codec/encoder|format/ codec/core/ codec/decoder/ codec/writer/ codec/meshkit/ codec/encoder/ facemorph.h facemorph/decoder.hpp'
-
-for source in $(find format codec tools python tests -name '*.cpp' -o -name '*.hpp' -o -name '*.h' -o -name '*.c' -o -name '*.inc' | sort); do
-  case $source in tests/consumer/*) continue ;; esac  # programs built against the installed package
-  allowed=''
-  for rule in $(echo "$rules" | tr ' ' '#'); do
-    folder=${rule%%|*}
-    case $source in "$folder"/*) allowed=$(echo "${rule#*|}" | tr '#' ' ') ;; esac
-  done
-  grep -n '^[[:space:]]*#[[:space:]]*include' "$source" | while IFS= read -r line; do
-    include=$(echo "$line" | sed -n 's/.*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p')
-    if [ -z "$include" ]; then
-      case $source in codec/encoder/* | tools/* | python/* | tests/*) ;;
-        *) echo "$line" | grep -q 'opencv' && echo "$source:$line: OpenCV below the encoder" ;;
-      esac
-      continue
-    fi
-    case $include in
-      facemorph.h | facemorph/decoder.hpp) ;;
-      *) [ -f "$include" ] || echo "$source:$line: not a path from the repository root" ;;
-    esac
-    [ -z "$allowed" ] && continue
-    ok=no
-    for prefix in $allowed; do
-      case $include in "$prefix"*) ok=yes ;; esac
-    done
-    [ $ok = yes ] || echo "$source:$line: runs back up or sideways (allowed: $allowed)"
-  done
-done > /tmp/check_layers.$$ 2>&1
-if [ -s /tmp/check_layers.$$ ]; then
-  cat /tmp/check_layers.$$
-  status=1
-fi
-rm -f /tmp/check_layers.$$
+find format codec tools python tests \( -name '*.cpp' -o -name '*.hpp' -o -name '*.h' -o -name '*.c' -o -name '*.inc' \) \
+     ! -path 'tests/consumer/*' | sort > /tmp/check_layers_sources.$$
+# Every file an include may name (a path from the root).
+find format codec tools python tests -type f | sort > /tmp/check_layers_files.$$
+xargs grep -Hn '^[[:space:]]*#[[:space:]]*include' < /tmp/check_layers_sources.$$ |
+awk -v files=/tmp/check_layers_files.$$ '
+  BEGIN {
+    while ((getline f < files) > 0) exists[f] = 1
+    # folder | what it may include besides system headers
+    rule["format"] = "format/"
+    rule["codec/core"] = "format/ codec/core/"
+    rule["codec/decoder"] = "format/ codec/core/ codec/decoder/ facemorph.h facemorph/decoder.hpp"
+    rule["codec/writer"] = "format/ codec/core/ codec/decoder/ codec/writer/"
+    rule["codec/meshkit"] = "format/ codec/core/ codec/writer/ codec/meshkit/"
+    rule["codec/encoder"] = "format/ codec/core/ codec/decoder/ codec/writer/ codec/meshkit/ codec/encoder/ facemorph.h facemorph/decoder.hpp"
+    bad = 0
+  }
+  {
+    source = $0; sub(/:.*/, "", source)
+    at = $0; sub(/^[^:]*:/, "", at); sub(/:.*/, "", at)
+    line = $0; sub(/^[^:]*:[0-9]+:/, "", line)
+    folder = ""
+    for (f in rule) if (index(source, f "/") == 1 && length(f) > length(folder)) folder = f
+    if (match(line, /"[^"]*"/)) {
+      include = substr(line, RSTART + 1, RLENGTH - 2)
+      if (include != "facemorph.h" && include != "facemorph/decoder.hpp" && !(include in exists)) {
+        print source ":" at ": " line ": not a path from the repository root"; bad = 1
+      }
+      if (folder != "") {
+        n = split(rule[folder], allowed, " "); ok = 0
+        for (i = 1; i <= n; i++) if (index(include, allowed[i]) == 1) ok = 1
+        if (!ok) { print source ":" at ": " line ": runs back up or sideways (allowed: " rule[folder] ")"; bad = 1 }
+      }
+    } else if (line ~ /opencv/ && source !~ /^(codec\/encoder|tools|python|tests)\//) {
+      print source ":" at ": " line ": OpenCV below the encoder"; bad = 1
+    }
+  }
+  END { exit bad }'
+status=$?
+rm -f /tmp/check_layers_sources.$$ /tmp/check_layers_files.$$
 exit $status
