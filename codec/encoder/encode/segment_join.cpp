@@ -2,6 +2,7 @@
 
 #include "codec/decoder/container/chunk_readers.hpp"
 #include "codec/writer/container/chunk_writers.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 #include "codec/encoder/encode/json_fields.hpp"
 #include "format/error.hpp"

@@ -3,6 +3,7 @@
 // (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
+#include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "format/error.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
