@@ -3,7 +3,7 @@
 // it never yields a silent zero.
 #pragma once
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <bit>
 #include <cstdint>

@@ -1,7 +1,7 @@
 #include "format/container.hpp"
 
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"

@@ -1,6 +1,6 @@
 #include "format/file_io.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <atomic>

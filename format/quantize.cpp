@@ -1,6 +1,6 @@
 #include "format/quantize.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 #include "format/range_coder.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 namespace facemorph::format {
 

@@ -1,6 +1,6 @@
 #include "format/ranged_residuals.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/range_coder.hpp"
 
 #include <algorithm>

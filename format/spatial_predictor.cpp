@@ -1,6 +1,6 @@
 #include "format/spatial_predictor.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <limits>

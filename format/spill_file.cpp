@@ -1,6 +1,6 @@
 #include "format/spill_file.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <cerrno>
 #include <cstdlib>

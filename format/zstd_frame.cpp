@@ -1,6 +1,6 @@
 #include "format/zstd_frame.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <memory>

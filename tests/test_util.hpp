@@ -1,10 +1,10 @@
 // Shared helpers for the facemorph tests: temporary folders, shared-data lookup, shape builders.
 #pragma once
 
-#include "facemorph/error.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/mesh.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "format/error.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/container/file_metadata.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <gtest/gtest.h>

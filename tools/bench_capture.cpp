@@ -10,6 +10,7 @@
 
 #include "tools/bench_capture_parts.hpp"
 #include "tools/tool_support.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <chrono>
 #include <csignal>

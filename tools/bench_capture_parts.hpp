@@ -10,12 +10,12 @@
 #include "tools/bench_capture.hpp"
 #include "tools/bench_sequence.hpp"
 
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/mesh.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include <nlohmann/json.hpp>
 

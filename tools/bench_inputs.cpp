@@ -1,8 +1,8 @@
 #include "tools/bench_inputs.hpp"
 
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,13 +2,13 @@
 // -> Laplace-Beltrami reconstruction) for each representation, and the decoder's speed.
 #include "tools/bench_reconstruct.hpp"
 
-#include "facemorph/sequence_file.hpp"
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/reconstruct.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"

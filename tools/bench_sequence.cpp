@@ -1,16 +1,17 @@
 // What fmbench's whole-capture benches share (see bench_sequence.hpp).
 #include "tools/bench_sequence.hpp"
 
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
 
 #include "tools/plot.hpp"
 #include "tools/tool_support.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <algorithm>
 #include <chrono>

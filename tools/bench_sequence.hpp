@@ -2,12 +2,13 @@
 // the file round trip, and every captured frame decoded at its own time and measured against it.
 #pragma once
 
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/mesh.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -27,7 +28,6 @@ struct ScratchFolder {
   ScratchFolder& operator=(const ScratchFolder&) = delete;
   std::filesystem::path path;
 };
-
 
 // A capture to measure: a folder as given, or one the bench makes or finds: synth (fmsynth
 // --frames 60 --expression mixed --remesh with `synth`'s noise and texture), synth:head30 (the

@@ -5,12 +5,12 @@
 // variables.
 #include "tools/bench_tracking.hpp"
 
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/encoder/keyframes.hpp"
-#include "facemorph/encoder/landmark_tracking.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 
 #include "tools/tool_support.hpp"
 

@@ -1,8 +1,8 @@
 #include "tools/field_export.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/image_codec.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "format/file_io.hpp"
 
 #include <ImfChannelList.h>

@@ -3,7 +3,7 @@
 // curve and the boundary-frame vectors as CSV, the texture as PNG.
 #pragma once
 
-#include "facemorph/sequence.hpp"
+#include "codec/core/sequence/sequence.hpp"
 
 #include <filesystem>
 #include <vector>

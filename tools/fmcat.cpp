@@ -1,6 +1,6 @@
 // fmcat: joins the segment files of one long encode into one .fmv, without decoding them
 // (fmenc --stage assemble --segment S/N writes them; spec/method.md §7.17).
-#include "facemorph/encoder/segment_join.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
 
 #include "tools/tool_support.hpp"
 

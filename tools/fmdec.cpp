@@ -1,19 +1,18 @@
 // fmdec: plays a .fmv file back. One time (--t) to a mesh with its texture and, on request, a
 // shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
 // for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
-#include "facemorph/meshkit/gltf.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/meshkit/render.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/meshkit/gltf/gltf.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include "tools/field_export.hpp"
 #include "tools/tool_support.hpp"
 #include "tools/video_file.hpp"
 
 #include "format/file_io.hpp"
-
 
 #include <chrono>
 #include <cmath>

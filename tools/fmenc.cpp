@@ -3,15 +3,16 @@
 // each keyframe's fields, pose, holes and texture written. The file is written under a temporary
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
-#include "facemorph/encoder/encode_settings.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/segment_join.hpp"
-#include "facemorph/encoder/options_json.hpp"
-#include "facemorph/encoder/segmented_encode.hpp"
-#include "facemorph/encoder/staged_encode.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/encode_settings.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
+#include "codec/encoder/encode/options_json.hpp"
+#include "codec/encoder/encode/segmented_encode.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tools/tool_support.hpp"
 
@@ -153,7 +154,6 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
                 "fit %.1f s, rounding to the settled steps %.1f s (this segment's)\n", r.seconds_reading_parts, r.seconds_keyframes, r.seconds_precision);
   }
 }
-
 
 }  // namespace
 

@@ -1,11 +1,11 @@
 // fminfo: describes a facemorph input or output. For a capture (a folder with capture.json, or a
 // plain folder of meshes with --fps) it reads, validates and repairs every frame the way the
 // encoder will, and prints a summary (or JSON).
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/container.hpp"
 
 #include "tools/tool_support.hpp"

@@ -5,7 +5,7 @@
 // software renderer and writes them as an mp4 (tools/video_file.hpp).
 #include "facemorph.h"
 
-#include "facemorph/meshkit/render.hpp"
+#include "codec/meshkit/render/render.hpp"
 #include "tools/tool_support.hpp"
 #include "tools/video_file.hpp"
 

@@ -1,6 +1,6 @@
 // fmsynth: writes a synthetic face capture (spec/capture.md), facemorph's own sample and test data.
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
 #include "tools/tool_support.hpp"
 

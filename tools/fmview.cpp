@@ -1,8 +1,8 @@
 // fmview: renders a mesh to a PNG picture (textured, checkerboard over its UVs, or plain shaded),
 // shaded smoothly by the decoder's vertex normals (--flat: each triangle by its own).
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/meshkit/render.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
 
 #include "tools/tool_support.hpp"
 

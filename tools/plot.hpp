@@ -2,7 +2,7 @@
 // ticks with numbers, lines and markers. A 5x7 bitmap font for the numbers; no other dependency.
 #pragma once
 
-#include "facemorph/image.hpp"
+#include "codec/core/image/image.hpp"
 
 #include <array>
 #include <string>

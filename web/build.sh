@@ -24,13 +24,13 @@ emcmake cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DFACEMORPH_SHARED=OFF -DFACEMORPH_INSTALL=OFF -DFACEMORPH_IMAGE_CODECS=OFF \
   -DFACEMORPH_ZSTD_SOURCE_DIR="$zstd_dir" \
   -DEigen3_DIR=/usr/share/eigen3/cmake -DCMAKE_FIND_ROOT_PATH_MODE_PACKAGE=BOTH >/dev/null
-cmake --build "$build" -j "$jobs" --target facemorph_decoder facemorph_zstd
+cmake --build "$build" -j "$jobs" --target facemorph_decoder facemorph_core facemorph_zstd
 mkdir -p web/dist
 # The C API's functions and nothing else (as the shared library's version script), plus malloc and
 # free for the buffers JS hands in. One ES module, instantiated by facemorph.js with the .wasm's
 # bytes it fetched itself (web page, worker or node alike).
 exports=$(grep -o 'FM_API [^(]*(' codec/decoder/include/facemorph.h | sed -E 's/.*[ *](fm_[a-z0-9_]+)\($/_\1/' | grep '^_fm_' | sort -u | paste -sd, -)
-emcc $flags "$build/codec/decoder/libfacemorph_decoder.a" "$build/format/libfacemorph_format.a" "$build/libfacemorph_zstd.a" \
+emcc $flags "$build/codec/decoder/libfacemorph_decoder.a" "$build/codec/core/libfacemorph_core.a" "$build/format/libfacemorph_format.a" "$build/libfacemorph_zstd.a" \
   -o web/dist/facemorph_wasm.mjs \
   -sMODULARIZE=1 -sEXPORT_ES6=1 -sEXPORT_NAME=createFacemorphModule -sENVIRONMENT=web,worker \
   -sALLOW_MEMORY_GROWTH=1 -sINITIAL_MEMORY=33554432 -sMAXIMUM_MEMORY=2147483648 -sFILESYSTEM=0 \

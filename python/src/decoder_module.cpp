@@ -6,12 +6,12 @@
 // file under the same limits (spec/python.md §2). The Python layer (facemorph/__init__.py) wraps
 // this module; its documentation is the public one.
 #include "facemorph.h"
-#include "facemorph/image.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/image/texture_codec.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
-#include "status.hpp"
+#include "python/src/status.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>

@@ -6,15 +6,15 @@
 // options make the same bytes as fmenc (tests/python: cmp). The encode runs without the GIL;
 // progress calls back into Python on the calling thread, where an exception (KeyboardInterrupt
 // included) ends the encode and is raised.
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/encode_settings.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/encode_settings.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
-#include "status.hpp"
+#include "python/src/status.hpp"
 
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>

@@ -2,7 +2,7 @@
 // fm_status, the library's ErrorCode: one numbering), carrying the library's message unchanged.
 #pragma once
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <pybind11/pybind11.h>
 

@@ -1,7 +1,8 @@
 // The .fmv container (spec/container.md): round trips, the checksum's definition, and every way a
 // damaged or foreign file must be refused by name rather than crash or decode wrong.
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
@@ -10,6 +11,7 @@
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <cstring>
 #include <gtest/gtest.h>
@@ -31,7 +33,6 @@ using crafted::predicted_metadata;
 using crafted::rebuild;
 using crafted::small_metadata;
 using crafted::small_sequence;
-
 
 // What a writer can be given: no steps (it takes 16-bit precision itself), or steps; lossless
 // textures (TEXR) or lossy ones as one image sequence per group (TGOP, format 2.1).

@@ -3,9 +3,9 @@
 // offset right, so that a test reaches the check it means, past the CRCs.
 #pragma once
 
-#include "facemorph/fields.hpp"
-#include "facemorph/grid_geometry.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/container.hpp"

@@ -5,16 +5,18 @@
 // the same bits; hole levels checked where they are read; a group's stream read to its end before
 // any of its keyframes is shown; failures naming the file and t. Every file is crafted with valid
 // checksums (crafted::rebuild), so each test reaches the check it means.
-#include "codec/decoder/container/file_layout.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/fields.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
 #include "format/zstd_frame.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -3,8 +3,8 @@
 // tests/data/make_golden.sh, and a sample of what it decoded to then: grid positions at keyframe
 // times, between keyframes and past the ends. Format 1.x (facemorph 0.2-0.7) was experimental and
 // is refused by name (experimental_v1_5.fmv, the last of them).
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"

@@ -1,8 +1,8 @@
-#include "codec/decoder/geometry/exact_delaunay.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/core/geometry/exact_delaunay.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -13,8 +13,8 @@
 // multiple of both.
 //   hostile_check DIR   (DIR: hostile_corpus's output, with its manifest.tsv)
 #include "facemorph.h"
-#include "facemorph/error.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "format/error.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include <sys/resource.h>
 

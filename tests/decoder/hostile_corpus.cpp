@@ -9,9 +9,9 @@
 // every run must fail (empty: the file may open and decode). Sizes a zstd frame announces are the review's
 // (500 MB of zeros) while the generator holds kilobytes: such frames are laid out here by hand, raw
 // and RLE blocks (RFC 8878 §3.1.1.2).
-#include "facemorph/error.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "format/error.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"

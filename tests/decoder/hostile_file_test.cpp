@@ -2,9 +2,10 @@
 // hand), each refused by name when opened or when the keyframe it breaks is decoded, without
 // decoding another keyframe's data as its own, allocating past the claimed size or decoding a
 // failed keyframe again.
-#include "facemorph/error.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "format/error.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"
@@ -236,7 +237,6 @@ TEST(Hostile, ATextureGroupPayloadOverTheBudgetIsRefusedAtOpen) {
   limits.max_memory_bytes = uint64_t{64} << 20;
   EXPECT_NO_THROW(open_sequence_source(path, limits));
 }
-
 
 // AV1 frames smaller than the AVIF container claims (16² frames whose ispe and tkhd say 32², in a
 // file of 32² textures): libavif scales each frame to the stated size, so the texture is 32² with

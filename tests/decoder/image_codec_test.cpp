@@ -1,4 +1,5 @@
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_decode.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include "tests/test_util.hpp"
 

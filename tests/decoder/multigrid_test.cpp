@@ -2,11 +2,11 @@
 // interior Laplacian contracts the error as multigrid on the 5-point stencil does, solves to any
 // residual asked for, agrees with a direct solve, and leaves an exact solution where it is (the
 // property the decoder's fixed-point iteration relies on).
-#include "codec/decoder/reconstruct/lattice_multigrid.hpp"
+#include "codec/core/reconstruct/lattice_multigrid.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/grid_geometry.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
 
 #include <gtest/gtest.h>
 

@@ -3,11 +3,13 @@
 // is written, the arrays keep their conventions, and a keyframe decodes as SequenceDecoder does.
 #include "codec/decoder/player/decoder.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

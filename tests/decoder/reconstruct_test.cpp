@@ -1,4 +1,4 @@
-#include "facemorph/reconstruct.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,9 +1,10 @@
 // Residual frames (format 2.3, spec/container.md §7.4, spec/method.md §7.18): the corrected blend
 // weights, analytically; continuity in t, past the ends too; the RSDW chunk's round trip to the bit
 // and what a decoder shows with it; and every check of its reader.
-#include "facemorph/residual_weights.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/sequence/residual_weights.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 
 #include "tests/decoder/crafted_files.hpp"

@@ -1,7 +1,7 @@
 // The decoder's side of the temporal model: hole cutting and playing a sequence back.
-#include "facemorph/hole_cut.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/decoder/sequence/hole_cut.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,7 +1,7 @@
 // The keyframe splines (cardinal weights) and the rigid head pose: fit, SO(3) log/exp, pose spline.
-#include "facemorph/error.hpp"
-#include "facemorph/pose.hpp"
-#include "facemorph/spline.hpp"
+#include "format/error.hpp"
+#include "codec/core/sequence/pose.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -5,14 +5,15 @@
 // reaches the check it means.
 #include "facemorph.h"
 #include "codec/decoder/player/decoder.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/limits.hpp"
-#include "facemorph/reconstruct.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 #include "format/zstd_frame.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // The keyframe fit's band factor against Eigen's dense one, and its refusals.
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,7 +1,7 @@
 // Mutated capture manifests and landmark files must give a facemorph::Error or a valid result:
 // never a crash, never an out-of-bounds read (this runs under the sanitizers in CI), never a capture
 // that breaks the reader's promises (broken_capture_invariant).
-#include "facemorph/encoder/capture.hpp"
+#include "codec/encoder/capture/capture.hpp"
 
 #include "tests/test_util.hpp"
 

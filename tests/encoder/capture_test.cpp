@@ -1,6 +1,6 @@
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
 

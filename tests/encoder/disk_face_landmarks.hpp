@@ -2,7 +2,7 @@
 // every registration of the disk must pass.
 #pragma once
 
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -2,15 +2,15 @@
 // fmsynth's face with hair on one side and a shoulder forward on the other, textured, turned off
 // the axes. Its whole surface has no mirror plane; the texture's detected face and the face region
 // each find the face, and a surface without a face is still refused by name.
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/face_orientation.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

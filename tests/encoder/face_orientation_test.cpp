@@ -1,12 +1,12 @@
 // The face's orientation from geometry alone, against the landmarks the captures carry: fmsynth's
 // faces (seeds, expressions, head motion, remeshing, noise) and, when ../shared is there, real ones.
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/face_orientation.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 // The encoder's frame store: a spilled map reads back as the same numbers, the encoder holds a few
 // maps at once whatever the capture's length, and spilling leaves the output as it was.
-#include "facemorph/encoder/frame_store.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/frame_store.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,12 +1,12 @@
 // The geodesic frame (paper §4, method-notes §6): surface geodesics between disk points, the frame of
 // a face's landmarks and its partition mesh, and Φ, the piecewise-affine registration through it.
-#include "facemorph/encoder/registration.hpp"
-#include "facemorph/encoder/registration_store.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/registration/registration.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "format/error.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 #include "tests/encoder/disk_face_landmarks.hpp"
 #include "tests/test_util.hpp"

@@ -2,9 +2,9 @@
 // captured mesh's density asks, and a floor whose worst region (99th percentile) leaves room for
 // the 1% worst-region target.
 #include "codec/encoder/stages/choose_grid.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

@@ -2,11 +2,11 @@
 // values whose spline best matches every frame of the capture, not its own frame. On a noisy
 // capture that averages each frame's noise away with its neighbours'; on a clean one it barely
 // moves the keyframes.
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,9 +1,9 @@
 // The keyframe round trip through the whole encode path: mesh -> conformal map -> G -> fields ->
 // 16 bits -> Laplace-Beltrami reconstruction, against the surface.
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/reconstruct.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 
 #include "tests/test_util.hpp"
 

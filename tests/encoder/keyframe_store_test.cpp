@@ -1,13 +1,13 @@
 // The encoder's keyframe store: a spilled surface or set of fields reads back as the same numbers,
 // the encoder holds a few keyframes' arrays at once whatever the number of keyframes, and spilling
 // leaves the output as it was (spec/method.md §7.15).
-#include "facemorph/encoder/keyframe_store.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/encoder/field_precision.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"

@@ -1,14 +1,14 @@
 // Landmark correspondence by optical flow on the disk images (landmark_tracking.hpp): fmsynth's
 // faces, whose every material point is known at every time, tracked from a reference frame.
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/encoder/landmark_tracking.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/sequence/sequence.hpp"
+#include "codec/core/container/file_metadata.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,6 +1,6 @@
 // Registration of disks through landmarks: the OMT, the GMF, the bijection check and its fallbacks.
-#include "facemorph/encoder/registration.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/registration/registration.hpp"
+#include "format/error.hpp"
 
 #include "tests/encoder/disk_face_landmarks.hpp"
 #include "tests/test_util.hpp"

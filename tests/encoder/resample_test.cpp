@@ -1,7 +1,7 @@
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/disk_grid.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 
 #include "tests/test_util.hpp"
 

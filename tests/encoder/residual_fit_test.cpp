@@ -1,17 +1,18 @@
-// Residual frames fitted to the stored keyframes (facemorph/encoder/residual_fit.hpp, spec/method.md
+// Residual frames fitted to the stored keyframes (codec/encoder/encode/residual_fit.hpp, spec/method.md
 // §7.18): the least-squares correction itself, and on an encoded fast-speech capture that the
 // residuals lower what a decoder shows against the captured frames, never make a frame worse, reach
 // the file to the bit, and leave keyframes and extrapolation as the spline has them.
-#include "facemorph/encoder/residual_fit.hpp"
+#include "codec/encoder/encode/residual_fit.hpp"
 
-#include "facemorph/encoder/keyframes.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
 

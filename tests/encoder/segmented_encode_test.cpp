@@ -1,13 +1,14 @@
 // Segments of a long encode (spec/method.md §7.17): measured, assembled apart and joined without
 // decoding, they make one file that decodes close to the one-process encode; measures, segments
 // and joins that do not make up one encode, or that were damaged or crafted, are refused by name.
-#include "facemorph/encoder/segment_join.hpp"
-#include "facemorph/encoder/segmented_encode.hpp"
-#include "facemorph/encoder/staged_encode.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
+#include "codec/encoder/encode/segmented_encode.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "format/container.hpp"
 #include "format/file_io.hpp"

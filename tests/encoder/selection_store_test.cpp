@@ -1,8 +1,8 @@
 // The selection's samples spilled and read back through a bounded cache: the same floats, at most
 // the cache's frames held, and a selection on them that is the one made in memory.
-#include "facemorph/encoder/selection_store.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,16 +1,18 @@
 // The encoder end to end on the project's own synthetic captures: map, register, choose keyframes,
 // store, and decode every captured frame at its time.
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/keyframes.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/reconstruct.hpp"
-#include "facemorph/sequence_file.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

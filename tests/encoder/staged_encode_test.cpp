@@ -1,13 +1,13 @@
 // The staged encode (spec/part-file.md): parts sampled apart and assembled give the one-process
 // encode's file, byte for byte; parts that do not make up one capture, or that were damaged or
 // crafted, are refused with the file and the frame named.
-#include "facemorph/encoder/options_json.hpp"
-#include "facemorph/encoder/part_file.hpp"
-#include "facemorph/encoder/registration_store.hpp"
-#include "facemorph/encoder/staged_encode.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/encode/options_json.hpp"
+#include "codec/encoder/encode/part_file.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "format/error.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "format/file_io.hpp"
 

@@ -1,8 +1,8 @@
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,14 +1,17 @@
 // Each keyframe's texture quality from the blend's error beside it (spec/method.md §7.12): the
 // pieces against known answers, then a capture end to end through the file.
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/image_codec.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/decoder/image/image_decode.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 

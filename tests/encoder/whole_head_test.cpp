@@ -1,11 +1,11 @@
 // Issue 47 part 2: a whole head whose rim is the neck (eyes, mouth and nostrils open) encodes at the
 // default settings, given landmarks or finding them (--landmarks auto), and decodes within 1.5x the
 // error of its cropped face (the same synthetic face alone, same holes). spec/method.md §7.11.
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/sequence.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include "tests/test_util.hpp"
 

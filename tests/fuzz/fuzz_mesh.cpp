@@ -1,8 +1,8 @@
 // libFuzzer target: the OBJ and PLY parsers (the first byte picks which). Every input must give a
 // mesh or a named facemorph::Error; nothing is read from or written to disk (a missing texture is
 // allowed so the parser does not stop at the material).
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include <string_view>
 

@@ -1,5 +1,5 @@
-#include "facemorph/meshkit/delaunay.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <gtest/gtest.h>
 

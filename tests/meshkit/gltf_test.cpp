@@ -1,8 +1,8 @@
 // glTF clips: the GLB container's structure, the morph animation's contract (frame f's shape at its
 // time), hole collapse, and, where node and the Khronos validator are installed, 0 validator errors.
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/meshkit/gltf.hpp"
-#include "facemorph/reconstruct.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/meshkit/gltf/gltf.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"

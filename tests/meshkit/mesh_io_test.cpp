@@ -1,4 +1,4 @@
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "format/file_io.hpp"
 #include "tests/test_util.hpp"

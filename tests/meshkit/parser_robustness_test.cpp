@@ -1,7 +1,7 @@
 // Mutated inputs must give a facemorph::Error or a valid result: never a crash, never an out-of-
 // bounds read (this runs under AddressSanitizer in CI), never a mesh that breaks the parser's
 // promises (testing::broken_mesh_invariant). A deterministic stand-in for fuzzing.
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
 

@@ -1,8 +1,8 @@
 // The preview renderer's shading: with the decoder's vertex normals a curved surface shows no facet
 // edges (issue 48 part 4), while flat shading of the same triangles does, so the measure can fail.
-#include "facemorph/meshkit/render.hpp"
+#include "codec/meshkit/render/render.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <gtest/gtest.h>
 

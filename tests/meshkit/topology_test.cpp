@@ -1,4 +1,4 @@
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
 

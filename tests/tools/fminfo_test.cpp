@@ -2,6 +2,7 @@
 // not walk: nested deeper than its limit of 64 levels, 1 MiB of brackets (which crashed
 // fminfo --json: SIGSEGV after 35 s and 3.9 GB), or not JSON at all. fminfo describes the rest of
 // the file, leaves the settings out and says so naming the file; it never crashes.
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 

@@ -2,7 +2,7 @@
 // frame and fmview of the same frame written as OBJ are the same picture, so a decoded frame and a
 // captured one can be set side by side. fmview turned the mesh 0 degrees and fmdec 20, and the
 // decoded face looked turned next to the captured one.
-#include "facemorph/image_codec.hpp"
+#include "codec/decoder/image/image_decode.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>

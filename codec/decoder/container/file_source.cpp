@@ -1,11 +1,11 @@
-// An opened .fmv file as a KeyframeSource (open_sequence_source, facemorph/sequence_file.hpp):
+// An opened .fmv file as a KeyframeSource (open_sequence_source, codec/decoder/container/sequence_file.hpp):
 // keyframes decoded on demand into a cache bounded by the caller's memory budget, so what a player
 // holds follows what it plays, not the file's length (spec/container.md §10.1).
-#include "facemorph/sequence_file.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include "codec/decoder/container/opened_file.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <algorithm>

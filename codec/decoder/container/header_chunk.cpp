@@ -1,49 +1,20 @@
 // The header chunk, HEAD (spec/container.md §5): the grid, representation, spline, times, units,
 // metadata and the keyframe coding's steps. Read first, and checked against the caller's limits
 // before anything the file describes is allocated (§10.2 steps 2-4).
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "format/byte_writer.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 #include "format/container.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-#ifndef FACEMORPH_VERSION
-#define FACEMORPH_VERSION "unknown"
-#endif
-
 namespace facemorph::file_layout {
 
 namespace {
 
 using format::ByteReader;
-using format::ByteWriter;
-
-// The numbers the file uses for enumerations (§5): fixed forever, independent of the order of the
-// C++ enumerators.
-constexpr std::pair<Representation, uint8_t> kRepresentationCodes[] = {
-    {Representation::kHL, 0}, {Representation::kHLT, 1}, {Representation::kXYZ, 2}};
-constexpr std::pair<SplineKind, uint8_t> kSplineCodes[] = {
-    {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
-
-template <typename Enum, size_t N>
-uint8_t code_of(const std::pair<Enum, uint8_t> (&table)[N], Enum value) {
-  for (const auto& [e, c] : table) {
-    if (e == value) return c;
-  }
-  throw Error(ErrorCode::kInvalidArgument, "no file code for an enumerator");
-}
-
-template <typename Enum, size_t N>
-Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std::string& what) {
-  for (const auto& [e, c] : table) {
-    if (c == code) return e;
-  }
-  throw Error(ErrorCode::kUnsupported, what + " " + std::to_string(code) + " is not one this decoder knows");
-}
 
 // A string of at most 1 MiB; `total` counts the header's strings, which together take at most
 // kMaxHeaderStringBytes (checked before the string is copied).
@@ -70,69 +41,6 @@ std::string mebibytes(uint64_t bytes) {
 }
 
 }  // namespace
-
-double read_finite(ByteReader& r, const char* what) {
-  const double v = r.read<double>(what);
-  if (!std::isfinite(v)) corrupt(r.source(), std::string(what) + " is not finite");
-  return v;
-}
-
-std::vector<size_t> expected_lengths(int grid_n, Representation representation, size_t fixed, bool with_holes) {
-  const DiskGridShape shape = disk_grid_shape(grid_n);
-  const auto interior = static_cast<size_t>(shape.interior_count);
-  const auto rim = static_cast<size_t>(shape.rim_count);
-  const bool fields = representation != Representation::kXYZ;
-  const bool tangential = representation == Representation::kHLT;
-  const size_t holes = with_holes ? interior + rim : 0;
-  return {fields ? interior : 0, fields ? interior : 0, tangential ? interior : 0, tangential ? interior : 0,
-          fixed, fixed, fixed,
-          fields ? 0 : interior, fields ? 0 : interior, fields ? 0 : interior,
-          rim, rim, rim, holes};
-}
-
-std::vector<size_t> expected_lengths(const FileHeader& h) {
-  return expected_lengths(h.shape.grid_n, h.shape.representation, h.fixed_nodes.size(), h.has_holes());
-}
-
-std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures) {
-  const DiskGridShape shape = disk_grid_shape(s.grid_n);
-  ByteWriter w;
-  w.write(static_cast<uint32_t>(s.grid_n));
-  w.write(static_cast<uint32_t>(kDiskGridRule));
-  w.write(grid_facts(s.grid_n)->hash);
-  w.write(code_of(kRepresentationCodes, s.representation));
-  w.write(code_of(kSplineCodes, s.spline));
-  w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes ? kHasHoles : 0) |
-                               (s.has_texture() && textures == TextureLayout::kGroups ? kTextureGroups : 0) |
-                               (s.has_texture() && textures == TextureLayout::kSharedStills ? kSharedTextures : 0)));
-  w.write(uint8_t{0});
-  w.write(static_cast<uint32_t>(s.keyframe_count()));
-  w.write(s.fps);
-  w.write(s.first_time);
-  w.write(s.last_time);
-  for (int k = 0; k < 3; ++k) w.write(s.pose_centre[k]);
-  w.write(static_cast<uint32_t>(s.texture_size));
-  w.write(static_cast<uint32_t>(shape.rim_count));
-  w.write(static_cast<uint32_t>(fixed.size()));
-  // As differences from the previous node (the first from 0): sorted nodes give small numbers,
-  // which the header's zstd packs (Medusa-like noisy frames mark ~9% of the nodes).
-  int32_t previous = 0;
-  for (int32_t node : fixed) {
-    w.write(static_cast<uint32_t>(node - previous));
-    previous = node;
-  }
-  w.string(s.units);
-  w.string(metadata.encoder.empty() ? std::string("facemorph ") + FACEMORPH_VERSION : metadata.encoder);
-  w.string(metadata.settings);
-  w.write(static_cast<uint32_t>(metadata.landmark_names.size()));
-  for (const std::string& name : metadata.landmark_names) w.string(name);
-  const FieldCoding& coding = metadata.field_coding;
-  w.write(static_cast<uint32_t>(coding.intra_period));
-  for (double step : coding.steps) w.write(step);
-  w.write(coding.rotation_step);
-  w.write(coding.translation_step);
-  return w.take();
-}
 
 uint64_t max_header_bytes(int max_grid_n) {
   // grid size, rule, hash, representation, spline, flags, reserved, keyframe count, fps, times, pose

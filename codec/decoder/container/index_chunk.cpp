@@ -2,85 +2,13 @@
 // chunks are. A player reads it with the header and can then place every keyframe in time and
 // space, and fetch any keyframe's chunks, without decoding another (§10.1: opening costs what the
 // index costs).
-#include "codec/decoder/container/file_layout.hpp"
-
-#include "format/byte_writer.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
 
 #include <cmath>
 
 namespace facemorph::file_layout {
 
 using format::ByteReader;
-using format::ByteWriter;
-
-void write_varint(ByteWriter& w, int64_t value) {
-  uint64_t zigzag = value >= 0 ? static_cast<uint64_t>(value) << 1 : (static_cast<uint64_t>(-(value + 1)) << 1) | 1;
-  while (zigzag >= 0x80) {
-    w.write(static_cast<uint8_t>(zigzag | 0x80));
-    zigzag >>= 7;
-  }
-  w.write(static_cast<uint8_t>(zigzag));
-}
-
-int64_t read_varint(ByteReader& r, const char* what) {
-  uint64_t zigzag = 0;
-  for (int i = 0; i < kMaxVarintBytes; ++i) {
-    const uint8_t byte = r.read<uint8_t>(what);
-    zigzag |= static_cast<uint64_t>(byte & 0x7F) << (7 * i);
-    if ((byte & 0x80) == 0) {
-      const auto magnitude = static_cast<int64_t>(zigzag >> 1);  // below 2⁴¹
-      return (zigzag & 1) != 0 ? -magnitude - 1 : magnitude;
-    }
-  }
-  corrupt(r.source(), std::string(what) + " longer than " + std::to_string(kMaxVarintBytes) + " bytes");
-}
-
-PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
-  const Vec3 rotation = rotation_log(pose.rotation);
-  PoseCodes codes{};
-  for (int k = 0; k < 3; ++k) {
-    const double r = std::nearbyint(rotation[k] / coding.rotation_step), t = std::nearbyint(pose.translation[k] / coding.translation_step);
-    if (!(std::abs(r) < static_cast<double>(kMaxPoseCode)) || !(std::abs(t) < static_cast<double>(kMaxPoseCode))) {
-      throw Error(ErrorCode::kInvalidArgument, "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
-    }
-    if (std::abs(coding.rotation_step * r) > kMaxRotationComponent) {
-      throw Error(ErrorCode::kInvalidArgument, "a rotation step of " + std::to_string(coding.rotation_step) + " rad rounds a rotation vector beyond 4");
-    }
-    codes[static_cast<size_t>(k)] = static_cast<int64_t>(r);
-    codes[static_cast<size_t>(3 + k)] = static_cast<int64_t>(t);
-  }
-  return codes;
-}
-
-RigidPose pose_of(const PoseCodes& codes, const FieldCoding& coding) {
-  RigidPose pose;
-  const auto c = [&](size_t i) { return static_cast<double>(codes[i]); };
-  pose.rotation = rotation_exp(Vec3(coding.rotation_step * c(0), coding.rotation_step * c(1), coding.rotation_step * c(2)));
-  pose.translation = Vec3(coding.translation_step * c(3), coding.translation_step * c(4), coding.translation_step * c(5));
-  return pose;
-}
-
-// Each kind of number in a run of its own, which the chunk's zstd packs: the times, each pose
-// component's changes from keyframe to keyframe, the group offsets, the texture offsets.
-std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h) {
-  ByteWriter w;
-  w.write(static_cast<uint32_t>(entries.size()));
-  for (const IndexEntry& e : entries) w.write(e.time);
-  for (size_t i = 0; i < kPoseCodes; ++i) {
-    int64_t previous = 0;
-    for (const IndexEntry& e : entries) {
-      write_varint(w, e.pose[i] - previous);
-      previous = e.pose[i];
-    }
-  }
-  for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].group_offset);
-  if (h.texture_groups()) {  // one TGOP per group (format 2.1)
-    for (size_t k = 0; k < entries.size(); k += h.group_size()) w.write(entries[k].texture_offset);
-  } else if (h.has_texture()) {
-    for (const IndexEntry& e : entries) w.write(e.texture_offset);
-  }
-  return w.take();
-}
 
 uint64_t max_index_bytes(const FileHeader& h) {
   const uint64_t count = h.keyframe_count, groups = h.group_count();

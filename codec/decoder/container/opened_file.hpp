@@ -4,10 +4,10 @@
 // (file_source.cpp) share. Internal to the decoder library.
 #pragma once
 
-#include "codec/decoder/container/file_layout.hpp"
-#include "facemorph/limits.hpp"
-#include "facemorph/sequence.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/container/file_layout.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/sequence/sequence.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "format/container.hpp"
 
 #include <cstdint>

@@ -1,25 +1,10 @@
 // A keyframe's texture, TEXR (spec/container.md §8): an M × M image of the disk in one of the
 // image codecs the format names.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
 
-#include "facemorph/image_codec.hpp"
-#include "format/byte_writer.hpp"
+#include "codec/decoder/image/image_decode.hpp"
 
 namespace facemorph::file_layout {
-
-namespace {
-
-constexpr uint32_t kTextureWebp = 1, kTextureAvif = 2;  // the format's numbers for the image codecs
-
-}  // namespace
-
-std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
-  format::ByteWriter w;
-  w.write(number);
-  w.write(stored_texture_codec(codec, quality) == TextureCodec::kAvif ? kTextureAvif : kTextureWebp);
-  w.bytes(encode_texture(codec, texture, quality));
-  return w.take();
-}
 
 TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::string& where, uint32_t number) {
   format::ByteReader r(payload, where);

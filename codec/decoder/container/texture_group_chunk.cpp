@@ -1,19 +1,13 @@
 // A group's keyframe textures as one AV1 image sequence, TGOP (spec/container.md §8.1, format
 // 2.1): the group's first keyframe, the image codec (3), and one AVIF file holding exactly the
 // group's keyframes' textures in order, each predicted from those before it.
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
 
-#include "facemorph/image_codec.hpp"
-#include "format/byte_writer.hpp"
-
-#include <algorithm>
+#include "codec/decoder/image/image_decode.hpp"
 
 namespace facemorph::file_layout {
 
 namespace {
-
-constexpr uint32_t kTextureAvifSequence = 3;  // the format's number for an AVIF image sequence
-constexpr size_t kPreambleBytes = 8;          // the first keyframe and the codec
 
 // The chunk's own fields checked against the index's place and the codecs this decoder reads; the
 // AVIF file after them.
@@ -25,27 +19,10 @@ std::span<const uint8_t> sequence_of(std::span<const uint8_t> payload, const std
   if (codec != kTextureAvifSequence) {
     throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(codec) + " (this decoder reads an AVIF image sequence, 3, in TGOP)");
   }
-  return payload.subspan(kPreambleBytes);
+  return payload.subspan(kTextureGroupPreambleBytes);
 }
 
 }  // namespace
-
-bool uses_texture_groups(bool has_texture, const SequenceFileMetadata& metadata) {
-  if (!has_texture || metadata.texture_coding != TextureCoding::kSequence || metadata.texture_codec != TextureCodec::kAvif) return false;
-  const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
-  if (qualities.empty()) return metadata.texture_quality <= 100;
-  return std::all_of(qualities.begin(), qualities.end(), [](int q) { return q <= 100; });
-}
-
-TextureGroupWriter::TextureGroupWriter(size_t first, int quality) : first_(first), sequence_(quality) {}
-
-std::vector<uint8_t> TextureGroupWriter::finish() {
-  format::ByteWriter w;
-  w.write(static_cast<uint32_t>(first_));
-  w.write(kTextureAvifSequence);
-  w.bytes(sequence_.finish());
-  return w.take();
-}
 
 TextureGroupReader::TextureGroupReader(std::vector<uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size)
     : payload_(std::move(payload)), sequence_(std::make_unique<AvifSequenceReader>(sequence_of(payload_, where, first), where, count, size)) {}

@@ -6,7 +6,7 @@
 #include "facemorph.h"
 
 #include "codec/decoder/player/decoder.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,9 +2,9 @@
 // arrays of the layout a GPU takes, with the sizes checked before anything is written.
 #include "codec/decoder/player/decoder.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/sequence_file.hpp"
-#include "facemorph/spline.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -19,28 +19,6 @@ std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::
 
 std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
   return open_sequence_source(bytes, name, limits);
-}
-
-void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
-  if (out.size() != 3 * positions.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "normals: " + std::to_string(out.size()) + " floats for " + std::to_string(positions.size()) + " vertices");
-  }
-  std::vector<Vec3> sum(positions.size(), Vec3::Zero());
-  const auto count = static_cast<int64_t>(positions.size());
-  for (const Face& f : faces) {
-    for (int32_t v : f) {
-      if (v < 0 || v >= count) throw Error(ErrorCode::kInvalidArgument, "normals: face index " + std::to_string(v) + " out of range");
-    }
-    const Vec3& a = positions[static_cast<size_t>(f[0])];
-    // |(b − a) × (c − a)| is twice the triangle's area: the sum weights each face by its area.
-    const Vec3 n = (positions[static_cast<size_t>(f[1])] - a).cross(positions[static_cast<size_t>(f[2])] - a);
-    for (int32_t v : f) sum[static_cast<size_t>(v)] += n;
-  }
-  for (size_t v = 0; v < sum.size(); ++v) {
-    const double length = sum[v].norm();
-    const Vec3 n = length > 0 && std::isfinite(length) ? Vec3(sum[v] / length) : Vec3::Zero();
-    for (int k = 0; k < 3; ++k) out[3 * v + static_cast<size_t>(k)] = static_cast<float>(n[k]);
-  }
 }
 
 struct Decoder::Impl {

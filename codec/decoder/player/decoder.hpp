@@ -2,11 +2,11 @@
 // wrapper facemorph/decoder.hpp over the C API facemorph.h): open a .fmv file (or its bytes in
 // memory), ask what it holds, and decode any time t into arrays the caller owns — positions,
 // normals, UVs, triangle indices and the RGBA texture, the layout a GPU vertex buffer and texture
-// take as they are. A thin layer over SequenceDecoder (facemorph/sequence.hpp), which keeps the
+// take as they are. A thin layer over SequenceDecoder (codec/core/sequence/sequence.hpp), which keeps the
 // multigrid solver of G's Laplacian and the keyframes' own decoded surfaces between calls. The C API
 // (c_api.cpp) is this class behind a plain-C interface; the tools and tests use it directly.
 //
-// Errors: every function that can fail throws facemorph::Error (facemorph/error.hpp) with a named
+// Errors: every function that can fail throws facemorph::Error (format/error.hpp) with a named
 // code and a message naming the file and the reason. decode() writes nothing when it throws.
 //
 // Threads: a Decoder is used by one thread at a time (decode changes its state). Several Decoders
@@ -25,9 +25,9 @@
 //   texture    M × M RGBA8 texels, alpha 255, row 0 at the top (v = 1), rows packed without padding.
 #pragma once
 
-#include "facemorph/error.hpp"
-#include "facemorph/limits.hpp"
-#include "facemorph/sequence.hpp"
+#include "format/error.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -39,7 +39,7 @@
 
 namespace facemorph {
 
-// Opens a .fmv file for decoding on demand (open_sequence_source, facemorph/sequence_file.hpp):
+// Opens a .fmv file for decoding on demand (open_sequence_source, codec/decoder/container/sequence_file.hpp):
 // the header and index are read and checked, nothing else (spec/container.md §9: kIo, kTruncated, kCorrupt, kUnsupported, each naming the file and the
 // chunk; kLimit where a frame needs more than `limits` allow, found from the sizes it states before
 // they are allocated, §10). Afterwards keyframes and textures are decoded when a frame needs them,
@@ -169,11 +169,5 @@ class Decoder {
   FileInfo info_;
   std::unique_ptr<Impl> impl_;
 };
-
-// Area-weighted unit vertex normals (Σ over the vertex's triangles of (b − a) × (c − a), then
-// normalised) as 3 floats per vertex into `out` (3 × positions.size()); zero for a vertex that
-// touches no triangle of non-zero area. Throws kInvalidArgument for a face index out of range or
-// a wrong output size.
-void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out);
 
 }  // namespace facemorph

@@ -1,7 +1,7 @@
-#include "facemorph/hole_cut.hpp"
+#include "codec/decoder/sequence/hole_cut.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/mesh.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <cmath>
 #include <unordered_map>

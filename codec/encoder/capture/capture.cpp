@@ -1,6 +1,6 @@
 // capture.json + landmarks.csv reading and writing.
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "format/error.hpp"
 
 #include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/file_io.hpp"

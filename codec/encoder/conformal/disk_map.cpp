@@ -1,9 +1,11 @@
 // The Riemann conformal map: preconditioning, linear start, QIEM on the double cover, projection.
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+
+#include "codec/core/util/enum_names.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/linear_map.hpp"
@@ -19,20 +21,18 @@
 
 namespace facemorph {
 
-const char* conformal_method_name(ConformalMethod method) {
-  switch (method) {
-    case ConformalMethod::kQiem: return "qiem";
-    case ConformalMethod::kLinear: return "linear";
-    case ConformalMethod::kTutte: return "tutte";
-  }
-  return "?";
-}
+namespace {
+
+constexpr EnumName<ConformalMethod> kConformalMethodNames[] = {
+    {ConformalMethod::kQiem, "qiem"}, {ConformalMethod::kLinear, "linear"},
+    {ConformalMethod::kTutte, "tutte"}};
+
+}  // namespace
+
+const char* conformal_method_name(ConformalMethod method) { return name_of(kConformalMethodNames, method); }
 
 ConformalMethod parse_conformal_method(const std::string& name) {
-  for (ConformalMethod method : {ConformalMethod::kQiem, ConformalMethod::kLinear, ConformalMethod::kTutte}) {
-    if (name == conformal_method_name(method)) return method;
-  }
-  throw Error(ErrorCode::kInvalidArgument, "unknown conformal method '" + name + "' (qiem, linear, tutte)");
+  return parse_name(kConformalMethodNames, name, "conformal method");
 }
 
 namespace {

@@ -1,10 +1,10 @@
 // Measures of a disk map: conformal factor per vertex, angle and quasi-conformal distortion.
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "codec/encoder/conformal/untangle.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 #include "codec/encoder/conformal/double_cover.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>

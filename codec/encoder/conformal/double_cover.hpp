@@ -2,8 +2,8 @@
 // Delaunay triangulation that makes its cotangent weights non-negative.
 #pragma once
 
-#include "facemorph/geometry.hpp"
-#include "facemorph/mesh.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <span>
 #include <vector>

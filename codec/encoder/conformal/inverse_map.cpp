@@ -1,6 +1,6 @@
 // The inverse disk map: disk point -> surface point, exact on the rim.
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

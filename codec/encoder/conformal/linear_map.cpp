@@ -1,8 +1,8 @@
 // The linear disk map: intrinsic Delaunay weights, the rim at arc-length angles, one SPD solve.
 #include "codec/encoder/conformal/linear_map.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/spd_solver.hpp"

@@ -1,8 +1,8 @@
 // The linear disk map: harmonic, with the rim on the circle at arc length (QIEM's start and fallback).
 #pragma once
 
-#include "facemorph/geometry.hpp"
-#include "facemorph/mesh.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <vector>
 

@@ -1,4 +1,4 @@
-#include "facemorph/encoder/moebius.hpp"
+#include "codec/encoder/conformal/moebius.hpp"
 
 #include <numbers>
 

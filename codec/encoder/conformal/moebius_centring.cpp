@@ -1,7 +1,7 @@
 // Möbius centring of a symmetric spherical map: Newton on the automorphism parameter a.
 #include "codec/encoder/conformal/moebius_centring.hpp"
 
-#include "facemorph/encoder/moebius.hpp"
+#include "codec/encoder/conformal/moebius.hpp"
 
 #include <cmath>
 #include <complex>

@@ -1,7 +1,7 @@
 // Landmark normalisation: the disk Möbius map sending the centre landmark to 0, the direction one up.
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/conformal/untangle.hpp"
 

@@ -1,7 +1,7 @@
 // QIEM: the mirror-symmetric step systems, the flow with its adaptive step, the initial sphere map.
 #include "codec/encoder/conformal/qiem.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/conformal/moebius_centring.hpp"
 #include "codec/encoder/conformal/spd_solver.hpp"

@@ -1,8 +1,8 @@
 // The spherical conformal map of the double cover by the quasi-implicit Euler method (QIEM).
 #pragma once
 
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/geometry.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/core/geometry/differential.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 

@@ -1,8 +1,8 @@
-#include "facemorph/encoder/resample.hpp"
+#include "codec/encoder/conformal/resample.hpp"
 
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/render.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/render/render.hpp"
 
 #include <algorithm>
 #include <cmath>

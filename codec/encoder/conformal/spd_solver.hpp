@@ -6,7 +6,7 @@
 // (process-wide): the encoder parallelises over frames (spd_solver.cpp says what that saved).
 #pragma once
 
-#include "facemorph/geometry.hpp"
+#include "codec/core/geometry/differential.hpp"
 
 #include <memory>
 

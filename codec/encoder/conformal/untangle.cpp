@@ -1,8 +1,8 @@
 // Untangling a disk map: the vertices around flipped faces re-solved with mean-value weights.
 #include "codec/encoder/conformal/untangle.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
 
 #include <Eigen/SparseLU>
 

@@ -8,14 +8,14 @@
 // move with the flow v = -∇ρ'/ρ' that carries population from dense to sparse regions until ρ is
 // uniform. Recomputing ρ from the areas (rather than only diffusing it) keeps the final disk
 // consistent with the population exactly, whatever the step.
-#include "facemorph/encoder/density_equalising.hpp"
+#include "codec/encoder/density/density_equalising.hpp"
 
 #include "codec/encoder/conformal/spd_solver.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // The options' ranges, checked once where an encoder takes them (encode_options.hpp).
-#include "facemorph/encoder/encode_options.hpp"
+#include "codec/encoder/encode/encode_options.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/disk_grid.hpp"
+#include "format/error.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 
 #include <string>
 

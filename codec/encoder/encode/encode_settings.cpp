@@ -1,6 +1,6 @@
-#include "facemorph/encoder/encode_settings.hpp"
+#include "codec/encoder/encode/encode_settings.hpp"
 
-#include "facemorph/encoder/texture_quality.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
 
 #include <nlohmann/json.hpp>
 

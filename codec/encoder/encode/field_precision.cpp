@@ -1,14 +1,14 @@
-#include "facemorph/encoder/field_precision.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/encoder/keyframe_store.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/grid_geometry.hpp"
-#include "facemorph/keyframe_source.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/reconstruct.hpp"
-#include "facemorph/sequence_file.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "format/error.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <algorithm>
 #include <array>

@@ -1,10 +1,10 @@
-#include "facemorph/encoder/frame_pipeline.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
 
 #include "codec/encoder/landmarks/face_facing.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <chrono>

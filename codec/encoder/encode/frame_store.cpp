@@ -1,6 +1,6 @@
-#include "facemorph/encoder/frame_store.hpp"
+#include "codec/encoder/encode/frame_store.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/encode/spill_bytes.hpp"
 

@@ -3,7 +3,7 @@
 // kCorrupt saying which field of `what` ("its header") is wrong; the caller names the file.
 #pragma once
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <nlohmann/json.hpp>
 

@@ -1,6 +1,6 @@
-#include "facemorph/encoder/keyframe_store.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/encode/spill_bytes.hpp"
 

@@ -1,10 +1,10 @@
 // The encode options' one schema (options_json.hpp): sample_fields and segment_fields list each
 // field once, with its key; a writer and a reader walk the same list.
-#include "facemorph/encoder/options_json.hpp"
+#include "codec/encoder/encode/options_json.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <nlohmann/json.hpp>
 

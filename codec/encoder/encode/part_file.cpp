@@ -1,8 +1,8 @@
 // The part file (spec/part-file.md): writing, reading, and checking what is read.
-#include "facemorph/encoder/part_file.hpp"
+#include "codec/encoder/encode/part_file.hpp"
 
-#include "facemorph/encoder/registration_store.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"

@@ -1,6 +1,6 @@
-#include "facemorph/encoder/registration_store.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/encode/spill_bytes.hpp"
 #include "codec/encoder/registration/partition_map.hpp"

@@ -1,12 +1,12 @@
 // compare_blends: the hl+t fields and the positions of a few keyframes blended at frames between
 // them, each against that frame (representation_choice.hpp).
-#include "facemorph/encoder/representation_choice.hpp"
+#include "codec/encoder/encode/representation_choice.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/fields.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/reconstruct.hpp"
+#include "format/error.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 
 #include <algorithm>
 #include <limits>

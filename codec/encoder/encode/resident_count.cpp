@@ -1,5 +1,5 @@
-// Counting a store's items in memory (facemorph/encoder/spill_file.hpp).
-#include "facemorph/encoder/spill_file.hpp"
+// Counting a store's items in memory (codec/encoder/encode/spill_file.hpp).
+#include "codec/encoder/encode/spill_file.hpp"
 
 namespace facemorph {
 

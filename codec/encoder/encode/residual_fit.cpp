@@ -1,14 +1,14 @@
 // Residual frames fitted to what the decoder shows (spec/method.md §7.18).
-#include "facemorph/encoder/residual_fit.hpp"
+#include "codec/encoder/encode/residual_fit.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/keyframes.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/sequence.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <Eigen/Dense>
 

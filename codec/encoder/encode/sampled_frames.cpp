@@ -1,11 +1,11 @@
 // The encoder's frames handed out after sampling, and taken back in: the staged encode's seam
 // (staged_encode.hpp, spec/part-file.md). A frame handed out by one encoder and added to another
 // leaves the second where map_frames, register_frames and sample_frames would have left it.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "facemorph/encoder/registration_store.hpp"
-#include "facemorph/encoder/selection_store.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <numeric>

@@ -1,9 +1,11 @@
-#include "facemorph/encoder/segment_join.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
 
-#include "codec/decoder/container/file_layout.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 #include "codec/encoder/encode/json_fields.hpp"
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 

@@ -1,13 +1,13 @@
-#include "facemorph/encoder/segmented_encode.hpp"
+#include "codec/encoder/encode/segmented_encode.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/field_precision.hpp"
-#include "facemorph/encoder/options_json.hpp"
-#include "facemorph/encoder/staged_encode.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/disk_grid.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/options_json.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "format/error.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
 #include "format/checksum.hpp"

@@ -4,16 +4,16 @@
 // plan (choose_grid.cpp, choose_representation.cpp), build and fit (build_keyframes.cpp,
 // fit_keyframes.cpp), precision (round_fields.cpp), texture (texture_coding.cpp) — for the
 // one-process encode and the staged and segmented encodes alike.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/encode/spill_bytes.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/encoder/residual_fit.hpp"
-#include "facemorph/encoder/selection_store.hpp"
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "codec/encoder/encode/residual_fit.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "format/error.hpp"
 
 #ifdef __GLIBC__
 #include <malloc.h>

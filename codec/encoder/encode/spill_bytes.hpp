@@ -2,9 +2,9 @@
 // bytes, arrays with their length first. Private to the encoder.
 #pragma once
 
-#include "facemorph/error.hpp"
-#include "facemorph/encoder/moebius.hpp"
-#include "facemorph/mesh.hpp"
+#include "format/error.hpp"
+#include "codec/encoder/conformal/moebius.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <algorithm>
 #include <cstdint>

@@ -1,10 +1,10 @@
 // The staged encode: the sample stage (one part) and the assemble stage (spec/part-file.md).
-#include "facemorph/encoder/staged_encode.hpp"
+#include "codec/encoder/encode/staged_encode.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/options_json.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/encode/options_json.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <chrono>

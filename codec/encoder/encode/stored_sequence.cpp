@@ -1,6 +1,6 @@
-#include "facemorph/encoder/stored_sequence.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 namespace facemorph {
 

@@ -1,8 +1,9 @@
 // Each keyframe's texture quality from the interpolation error beside it (spec/method.md §7.12).
-#include "facemorph/encoder/texture_quality.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/image_codec.hpp"
+#include "format/error.hpp"
+#include "codec/decoder/image/image_decode.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include <algorithm>
 #include <cmath>

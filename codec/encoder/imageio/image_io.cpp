@@ -1,6 +1,6 @@
-#include "facemorph/encoder/image_io.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <opencv2/imgcodecs.hpp>

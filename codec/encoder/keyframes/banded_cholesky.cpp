@@ -1,6 +1,6 @@
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,9 +1,9 @@
 // Keyframe selection by predicted error: an even start (or greedy, for a tolerance), then local
 // moves of each keyframe within the gap to its neighbours while the objective improves.
-#include "facemorph/encoder/keyframes.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 
-#include "facemorph/encoder/residual_fit.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/encode/residual_fit.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // find_face with a hint of where the face looks: for a whole head, whose surface faces no one way.
 #pragma once
 
-#include "facemorph/encoder/face_orientation.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
 
 namespace facemorph {
 

@@ -1,16 +1,18 @@
 // Finding the face in a scan that holds more than a face (spec/method.md §7.14): the whole surface's
 // mirror plane, then a face detected in rendered views of the textured surface, then the mirror
 // plane of the region around the most protruding point.
-#include "facemorph/encoder/face_orientation.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/render.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/core/util/enum_names.hpp"
+
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
@@ -494,14 +496,15 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
 
 }  // namespace
 
-const char* face_finding_method_name(FaceFindingMethod method) {
-  switch (method) {
-    case FaceFindingMethod::kWholeSurface: return "whole surface";
-    case FaceFindingMethod::kTexture: return "texture";
-    case FaceFindingMethod::kFaceRegion: return "face region";
-  }
-  return "unknown";
-}
+namespace {
+
+constexpr EnumName<FaceFindingMethod> kFaceFindingMethodNames[] = {
+    {FaceFindingMethod::kWholeSurface, "whole surface"}, {FaceFindingMethod::kTexture, "texture"},
+    {FaceFindingMethod::kFaceRegion, "face region"}};
+
+}  // namespace
+
+const char* face_finding_method_name(FaceFindingMethod method) { return name_of(kFaceFindingMethodNames, method); }
 
 FaceOrientation find_face(const TriangleMesh& mesh, const Image* texture, const std::string& name, const Vec3* vertical_hint,
                           const FaceFindingOptions& options) {

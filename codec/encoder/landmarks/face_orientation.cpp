@@ -1,11 +1,11 @@
 // The face's orientation from its geometry: facing direction, nose tip, mirror plane, up.
-#include "facemorph/encoder/face_orientation.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

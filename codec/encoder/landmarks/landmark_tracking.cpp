@@ -1,11 +1,11 @@
 // Correspondence between frames by optical flow on disk images of their geometry (spec/method.md §7.14).
-#include "facemorph/encoder/landmark_tracking.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
 
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
-#include "facemorph/parallel.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/core/util/parallel.hpp"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>

@@ -1,9 +1,9 @@
 // Frame validation and repair: from a scanner's triangle soup to a disk the conformal map accepts.
-#include "facemorph/error.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "format/error.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "codec/encoder/prepare/manifold_repair.hpp"
 

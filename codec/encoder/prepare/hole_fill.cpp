@@ -3,12 +3,12 @@
 // Delaunay edge flips, then faired as a membrane (harmonic), which spans the rim of the hole
 // instead of bulging into it. The membrane is what keeps an open mouth from becoming a deep
 // cavity whose conformal image would be crowded beyond any grid (spec/method.md §2).
-#include "facemorph/error.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "format/error.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include <Eigen/SparseCholesky>
 

@@ -1,7 +1,7 @@
 #include "codec/encoder/prepare/manifold_repair.hpp"
 
-#include "facemorph/geometry.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <limits>

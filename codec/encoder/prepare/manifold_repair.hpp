@@ -4,7 +4,7 @@
 // them in order and counts what they changed in the frame's RepairReport.
 #pragma once
 
-#include "facemorph/mesh.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <cstdint>
 #include <vector>

@@ -1,9 +1,9 @@
 // Whether a registration is a bijection of the disk: det Df > 0 on a dense grid and the circle's
 // images in strictly increasing cyclic angle (method-notes §5, "Keeping a bijection").
 #include "codec/encoder/registration/registration_internal.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

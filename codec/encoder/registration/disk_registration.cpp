@@ -3,8 +3,9 @@
 // frame's partition built on that GMF.
 #include "codec/encoder/registration/registration_internal.hpp"
 
+#include "codec/core/util/enum_names.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,46 +16,30 @@
 
 namespace facemorph {
 
-const char* registration_method_name(RegistrationMethod method) {
-  switch (method) {
-    case RegistrationMethod::kMoebius: return "moebius";
-    case RegistrationMethod::kGmf: return "gmf";
-    case RegistrationMethod::kFrame: return "frame";
-  }
-  return "gmf";
-}
+namespace {
+
+constexpr EnumName<RegistrationMethod> kRegistrationMethodNames[] = {
+    {RegistrationMethod::kMoebius, "moebius"}, {RegistrationMethod::kGmf, "gmf"},
+    {RegistrationMethod::kFrame, "frame"}};
+constexpr EnumName<GmfForm> kGmfFormNames[] = {
+    {GmfForm::kThinPlate, "thin-plate"}, {GmfForm::kPaperGrid, "paper-grid"}};
+constexpr EnumName<RegistrationFallback> kRegistrationFallbackNames[] = {
+    {RegistrationFallback::kNone, "none"}, {RegistrationFallback::kMoreSmoothing, "more-smoothing"}, {RegistrationFallback::kSubsteps, "substeps"},
+    {RegistrationFallback::kMoebiusOnly, "moebius-only"}, {RegistrationFallback::kGmfInsteadOfFrame, "gmf-instead-of-frame"}};
+
+}  // namespace
+
+const char* registration_method_name(RegistrationMethod method) { return name_of(kRegistrationMethodNames, method); }
 
 RegistrationMethod parse_registration_method(const std::string& name) {
-  if (name == "moebius") return RegistrationMethod::kMoebius;
-  if (name == "gmf") return RegistrationMethod::kGmf;
-  if (name == "frame") return RegistrationMethod::kFrame;
-  throw Error(ErrorCode::kInvalidArgument, "unknown registration method '" + name + "' (moebius, gmf, frame)");
+  return parse_name(kRegistrationMethodNames, name, "registration method");
 }
 
-const char* gmf_form_name(GmfForm form) {
-  switch (form) {
-    case GmfForm::kThinPlate: return "thin-plate";
-    case GmfForm::kPaperGrid: return "paper-grid";
-  }
-  return "thin-plate";
-}
+const char* gmf_form_name(GmfForm form) { return name_of(kGmfFormNames, form); }
 
-GmfForm parse_gmf_form(const std::string& name) {
-  if (name == "thin-plate") return GmfForm::kThinPlate;
-  if (name == "paper-grid") return GmfForm::kPaperGrid;
-  throw Error(ErrorCode::kInvalidArgument, "unknown GMF form '" + name + "' (thin-plate, paper-grid)");
-}
+GmfForm parse_gmf_form(const std::string& name) { return parse_name(kGmfFormNames, name, "GMF form"); }
 
-const char* registration_fallback_name(RegistrationFallback fallback) {
-  switch (fallback) {
-    case RegistrationFallback::kNone: return "none";
-    case RegistrationFallback::kMoreSmoothing: return "more-smoothing";
-    case RegistrationFallback::kSubsteps: return "substeps";
-    case RegistrationFallback::kMoebiusOnly: return "moebius-only";
-    case RegistrationFallback::kGmfInsteadOfFrame: return "gmf-instead-of-frame";
-  }
-  return "none";
-}
+const char* registration_fallback_name(RegistrationFallback fallback) { return name_of(kRegistrationFallbackNames, fallback); }
 
 namespace {
 

@@ -3,13 +3,13 @@
 // triangulation of the disk whose edges follow those curves.
 #include "codec/encoder/registration/surface_path.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <chrono>

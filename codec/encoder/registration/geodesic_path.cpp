@@ -3,7 +3,7 @@
 // method-notes §6 steps 2-4; and the geodesic frame's options checked.
 #include "codec/encoder/registration/surface_path.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <cmath>
 #include <string>

@@ -1,7 +1,7 @@
 // Landmark validation: the one place the registration checks what the encoder hands it.
 #include "codec/encoder/registration/registration_internal.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,7 +2,7 @@
 // starts, the best rotation and an algebraic fit.
 #include "codec/encoder/registration/registration_internal.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/Dense>
 

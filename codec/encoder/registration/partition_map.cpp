@@ -1,12 +1,12 @@
 // The partition mesh and Φ, the piecewise-affine map taking each partition triangle V to the triangle
 // of its images f̄(V) (paper §5, method-notes §6 "Barycentric coordinates").
 #include "codec/encoder/registration/partition_map.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,7 +2,7 @@
 // and the step register_disks takes from f̄ to Φ.
 #pragma once
 
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include <cmath>
 #include <memory>

@@ -1,11 +1,11 @@
 // Martínez-Velho-Carvalho path correction (method-notes §6 step 3): a pulled-back path moved, point
 // by point and across strips of faces unfolded flat, toward a surface geodesic.
 #include "codec/encoder/registration/surface_path.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/delaunay.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <array>

@@ -2,7 +2,7 @@
 // and the fits and checks register_disks builds on.
 #pragma once
 
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include <cmath>
 #include <numbers>

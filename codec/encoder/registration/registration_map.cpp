@@ -1,10 +1,10 @@
 // Evaluating a registration f = (id + d_k) ∘ ... ∘ (id + d_1) ∘ m, or Φ interpolating it on a
 // partition mesh: the smooth map, its Jacobian, and the map of the closed disk (circle onto circle,
 // interior clamped inside).
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include "codec/encoder/registration/partition_map.hpp"
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <cmath>
 #include <string>

@@ -2,8 +2,8 @@
 // correction toward a geodesic (Martínez, Velho, Carvalho 2005; method-notes §6 steps 2-4).
 #pragma once
 
-#include "facemorph/encoder/conformal.hpp"
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include <cstdint>
 #include <span>

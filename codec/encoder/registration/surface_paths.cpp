@@ -1,11 +1,11 @@
 // The surface's connectivity as paths walk it (SurfacePaths: each edge's faces, each vertex's fan),
 // points on it, and a straight disk segment pulled back onto it (method-notes §6 step 2).
 #include "codec/encoder/registration/surface_path.hpp"
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/delaunay.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // The GMF's displacement fields (method-notes §5): the standard thin-plate spline with an affine
 // part, and the paper's n×n grid of r² log r centres fitted as a displacement.
-#include "facemorph/encoder/registration.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
-#include "facemorph/error.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/Dense>
 

@@ -1,17 +1,17 @@
 // The keyframes on G: each keyframe's registered surface in the face frame (fitted to every frame
 // where asked), its fields with the fixed-frame nodes of every keyframe's folds, its holes as a
 // level set and its texture on the disk; each array put in the store as it is made.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 #include "codec/encoder/stages/fit_keyframes.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/resample.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/pose.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/sequence/pose.hpp"
 
 #include <algorithm>
 #include <cmath>

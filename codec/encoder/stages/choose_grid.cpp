@@ -3,10 +3,11 @@
 // captured mesh's density, and raised where the floor's worst region would be (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
-#include "facemorph/disk_grid.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -4,7 +4,7 @@
 // percentile) stays within its share of the 1% worst-region target.
 #pragma once
 
-#include "facemorph/mesh.hpp"
+#include "codec/core/geometry/mesh.hpp"
 
 #include <functional>
 #include <string>

@@ -1,14 +1,14 @@
 // What the keyframes store when the options leave it open: hl+t, or xyz where the fields blended
 // between keyframes come out farther from the frames than the blended positions
 // (spec/method.md §7.14).
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/representation_choice.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/pose.hpp"
-#include "facemorph/spline.hpp"
+#include "codec/encoder/encode/representation_choice.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/sequence/pose.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <memory>
 #include <vector>

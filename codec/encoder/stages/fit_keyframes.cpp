@@ -5,10 +5,10 @@
 
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/pose.hpp"
-#include "facemorph/spline.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/sequence/pose.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <Eigen/Core>
 

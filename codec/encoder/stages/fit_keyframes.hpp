@@ -3,10 +3,10 @@
 // frame's noise, so that a noisy capture's noise is averaged away instead of interpolated.
 #pragma once
 
-#include "facemorph/encoder/keyframe_store.hpp"
-#include "facemorph/grid_geometry.hpp"
-#include "facemorph/pose.hpp"
-#include "facemorph/spline.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/core/sequence/pose.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <functional>
 #include <span>

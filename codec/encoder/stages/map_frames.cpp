@@ -1,19 +1,19 @@
 // The encoder's first stage: every frame read, prepared, conformally mapped and normalised (on the
 // threads, each map put in the frame store as it is made); frames that fail dropped and named; the
 // landmarks found on the frames (nose tip, up, rim markers) adopted under their names.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/landmarks/face_facing.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/encoder/face_orientation.hpp"
-#include "facemorph/encoder/frame.hpp"
-#include "facemorph/encoder/frame_pipeline.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/parallel.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/util/parallel.hpp"
 
 #include <algorithm>
 #include <cstdio>

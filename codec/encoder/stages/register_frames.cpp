@@ -1,15 +1,15 @@
 // The encoder's second stage: every frame's landmarks on its disk paired with the reference's
 // (tracked points added where it shares too few), and the frame registered to the reference's disk
 // through them; the reference's reparametrised disk and geodesic frame made first, once.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/landmark_tracking.hpp"
-#include "facemorph/encoder/registration.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/parallel.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/encoder/registration/registration.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/core/util/parallel.hpp"
 
 #include <algorithm>
 #include <limits>

@@ -1,10 +1,10 @@
 // The field precision stage: the fields rounded as the file will store them, to a target set by
 // the spline's predicted error (--field-error auto) or given (field_precision.hpp).
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/field_precision.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
 
 #include <algorithm>
 

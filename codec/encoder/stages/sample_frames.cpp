@@ -1,17 +1,17 @@
 // The encoder's third and fourth stages: every registered frame sampled on the coarse selection
 // grid with its rigid head pose, and the keyframes chosen from those samples by the spline's
 // predicted error; each frame's noise estimate, which the grid's choice and the keyframe fit read.
-#include "facemorph/encoder/sequence_encoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
-#include "facemorph/encoder/keyframes.hpp"
-#include "facemorph/encoder/selection_store.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/distance.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/pose.hpp"
+#include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/sequence/pose.hpp"
 
 #include <algorithm>
 #include <cmath>

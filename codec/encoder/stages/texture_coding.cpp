@@ -5,11 +5,11 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/encoder/sequence_encoder.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/spline.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "format/error.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/core/sequence/spline.hpp"
 
 #include <map>
 #include <memory>

@@ -3,10 +3,10 @@
 // (spec/method.md §7.16).
 #pragma once
 
-#include "facemorph/encoder/stored_sequence.hpp"
-#include "facemorph/encoder/texture_quality.hpp"
-#include "facemorph/image.hpp"
-#include "facemorph/image_codec.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/image/texture_codec.hpp"
 
 #include <filesystem>
 #include <functional>

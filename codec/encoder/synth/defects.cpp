@@ -1,7 +1,7 @@
 // fmsynth --defects: what scanners write into a face's mesh, written into a synthetic frame so the
 // encoder's repairs (spec/method.md §2.1) have inputs whose every defect is known and counted.
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/error.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <array>

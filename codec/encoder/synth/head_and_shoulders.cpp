@@ -2,8 +2,8 @@
 // heaped on one side and a shoulder forward on the other, textured (face, hair, shirt); or the same
 // surround with a plain dome and bare skin where the face was, a surface with no face that
 // --landmarks auto must refuse (spec/method.md §7.14).
-#include "facemorph/encoder/synth.hpp"
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,10 @@
-// The analytic synthetic face (see facemorph/encoder/synth.hpp for the model).
-#include "facemorph/error.hpp"
-#include "facemorph/encoder/synth.hpp"
+// The analytic synthetic face (see codec/encoder/synth/synth.hpp for the model).
+#include "format/error.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/core/util/enum_names.hpp"
+#include "codec/encoder/synth/synth.hpp"
+
+#include "codec/meshkit/geometry/delaunay.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -85,25 +87,17 @@ double angle_at_arc_length(const std::vector<double>& arc, double length) {
 
 }  // namespace
 
-Expression parse_expression(const std::string& name) {
-  if (name == "blink") return Expression::kBlink;
-  if (name == "mouth") return Expression::kMouth;
-  if (name == "smile") return Expression::kSmile;
-  if (name == "talk") return Expression::kTalk;
-  if (name == "mixed") return Expression::kMixed;
-  throw Error(ErrorCode::kInvalidArgument, "unknown expression '" + name + "' (blink, mouth, smile, talk, mixed)");
-}
+namespace {
 
-const char* expression_name(Expression expression) {
-  switch (expression) {
-    case Expression::kBlink: return "blink";
-    case Expression::kMouth: return "mouth";
-    case Expression::kSmile: return "smile";
-    case Expression::kTalk: return "talk";
-    case Expression::kMixed: return "mixed";
-  }
-  return "mixed";
-}
+constexpr EnumName<Expression> kExpressionNames[] = {
+    {Expression::kBlink, "blink"}, {Expression::kMouth, "mouth"}, {Expression::kSmile, "smile"},
+    {Expression::kTalk, "talk"}, {Expression::kMixed, "mixed"}};
+
+}  // namespace
+
+Expression parse_expression(const std::string& name) { return parse_name(kExpressionNames, name, "expression"); }
+
+const char* expression_name(Expression expression) { return name_of(kExpressionNames, expression); }
 
 Vec2 SyntheticFace::rim_point(double theta) { return {kA * std::cos(theta), kB * std::sin(theta)}; }
 

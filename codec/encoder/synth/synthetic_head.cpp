@@ -1,13 +1,13 @@
 // The synthetic whole head (fmsynth --head) and the face's holes (fmsynth --holes): see
-// facemorph/encoder/synth.hpp. The back of the head is a star-shaped surface about a point behind
+// codec/encoder/synth/synth.hpp. The back of the head is a star-shaped surface about a point behind
 // the face, sampled by directions: directions evenly spread on the sphere (a Fibonacci lattice),
 // triangulated by Delaunay in a stereographic plane (conformal, so the planar Delaunay is the
 // spherical one and the triangles come out near-equilateral on the head), between the face's rim
 // and the neck's. Its vertices follow the face's rim where they join it, fading with the angle away.
-#include "facemorph/error.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "format/error.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 
 #include <algorithm>
 #include <cmath>

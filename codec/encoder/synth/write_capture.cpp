@@ -1,11 +1,11 @@
 // fmsynth's capture writer: meshes, per-frame textures, landmarks and the manifest.
-#include "facemorph/encoder/capture.hpp"
-#include "facemorph/encoder/image_io.hpp"
-#include "facemorph/meshkit/delaunay.hpp"
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
-#include "facemorph/parallel.hpp"
-#include "facemorph/encoder/synth.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
 #include "format/file_io.hpp"
 

@@ -1,7 +1,7 @@
-#include "facemorph/meshkit/delaunay.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 
-#include "codec/decoder/geometry/bowyer_watson.hpp"
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/core/geometry/bowyer_watson.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <array>

@@ -1,4 +1,4 @@
-#include "facemorph/meshkit/distance.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
 #include <cmath>

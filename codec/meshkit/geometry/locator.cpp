@@ -1,4 +1,4 @@
-#include "facemorph/meshkit/locator.hpp"
+#include "codec/meshkit/geometry/locator.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
-#include "facemorph/meshkit/surface_measures.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 
-#include "codec/decoder/geometry/elementary.hpp"
+#include "codec/core/geometry/elementary.hpp"
 #include <algorithm>
 #include <cmath>
 

@@ -1,12 +1,12 @@
 // glTF 2.0 binary, written directly: a JSON chunk and one binary buffer (the glTF 2.0 specification,
 // §4.4 "GLB File Format Specification"). A few hundred lines do not justify a dependency for the
 // decoder a player links.
-#include "facemorph/meshkit/gltf.hpp"
+#include "codec/meshkit/gltf/gltf.hpp"
 
-#include "codec/decoder/player/decoder.hpp"  // area_weighted_normals: the decoder's one normal rule
-#include "facemorph/error.hpp"
-#include "facemorph/geometry.hpp"
-#include "facemorph/image_codec.hpp"
+#include "codec/core/geometry/differential.hpp"  // area_weighted_normals: the decoder's one normal rule
+#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include <algorithm>
 #include <array>

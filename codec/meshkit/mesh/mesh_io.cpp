@@ -1,6 +1,6 @@
 // Format dispatch for mesh files: by extension, with atomic writes.
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "format/file_io.hpp"
 

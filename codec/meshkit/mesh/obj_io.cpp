@@ -1,6 +1,6 @@
 // Wavefront OBJ + MTL reading and writing.
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/file_io.hpp"

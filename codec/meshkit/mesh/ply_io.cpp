@@ -1,6 +1,6 @@
 // PLY reading (ASCII, binary little/big endian) and writing (ASCII, binary little endian).
-#include "facemorph/error.hpp"
-#include "facemorph/meshkit/mesh_io.hpp"
+#include "format/error.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/byte_reader.hpp"

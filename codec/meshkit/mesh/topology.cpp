@@ -1,4 +1,4 @@
-#include "facemorph/meshkit/topology.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
 #include <numeric>

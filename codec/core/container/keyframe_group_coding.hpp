@@ -1,0 +1,50 @@
+// What the KGOP chunk's writer and reader share (spec/container.md §7.2, §7.3): which arrays lie on
+// G's lattice and the models their residuals adapt under. Private to the two
+// (codec/writer/container/keyframe_group_chunk.cpp, codec/decoder/container/keyframe_group_chunk.cpp).
+#pragma once
+
+#include "codec/core/container/file_layout.hpp"
+#include "format/ranged_residuals.hpp"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace facemorph::file_layout {
+
+// Which arrays lie on G's lattice (spatial predictors 2 and 3 allowed): the per-node fields and
+// positions on the interior nodes, the hole level on every node. The band vectors and the rim are
+// sequences only.
+inline const format::LatticeNeighbours* lattice_of(size_t array, size_t length, const GridFacts& grid) {
+  const format::LatticeNeighbours* lattice = nullptr;
+  if (array <= 3 || (array >= 7 && array <= 9)) lattice = &grid.interior;
+  if (array == kScalarArrayCount) lattice = &grid.all_nodes;
+  return lattice && lattice->size() == length ? lattice : nullptr;  // an empty array has none
+}
+
+// lattice_of for every array of a keyframe, given their lengths.
+inline std::vector<const format::LatticeNeighbours*> lattices_of(const std::vector<size_t>& lengths, const GridFacts& grid) {
+  std::vector<const format::LatticeNeighbours*> lattices;
+  for (size_t a = 0; a < lengths.size(); ++a) lattices.push_back(lattice_of(a, lengths[a], grid));
+  return lattices;
+}
+
+template <typename T>
+inline std::vector<size_t> lengths_of(const std::vector<std::vector<T>>& arrays) {
+  std::vector<size_t> lengths;
+  for (const std::vector<T>& a : arrays) lengths.push_back(a.size());
+  return lengths;
+}
+
+// The models each array's residuals adapt under (§7.3): its own, except that b continues a's and
+// the second and third components of a vector field the first's.
+inline constexpr std::array<uint8_t, kKeyframeArrays> kRangeModelSets = {0, 1, 2, 2, 4, 4, 4, 7, 7, 7, 10, 10, 10, 13};
+
+// The models a group's stream adapts, fresh at its start and carried through its keyframes.
+struct GroupModels {
+  format::BitModel reference;                                              // 1: from the previous keyframe
+  std::array<std::array<format::BitModel, 3>, kKeyframeArrays> predictor;  // the high bit's, then the low bit's under each high bit
+  std::vector<format::ResidualModels> residuals;
+};
+
+}  // namespace facemorph::file_layout

@@ -1,0 +1,45 @@
+#include "codec/core/util/parallel.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace facemorph {
+
+void parallel_for(int count, int threads, const std::function<void(int)>& body,
+                  const std::function<void(int, int)>& progress) {
+  if (count <= 0) return;
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = std::min(threads, count);
+  std::atomic<int> next{0}, done{0};
+  std::exception_ptr failure;
+  std::mutex failure_mutex;
+  auto run = [&](int i) {
+    try {
+      body(i);
+    } catch (...) {
+      std::lock_guard lock(failure_mutex);
+      if (!failure) failure = std::current_exception();
+      next = count;  // stop handing out work
+    }
+    ++done;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) {
+    pool.emplace_back([&] {
+      for (int i = next++; i < count; i = next++) run(i);
+    });
+  }
+  for (int i = next++; i < count; i = next++) {
+    run(i);
+    if (progress) progress(std::min(done.load(), count), count);
+  }
+  for (auto& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+  if (progress) progress(count, count);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,366 @@
+// The encoder: a capture in, a Sequence (codec/core/sequence/sequence.hpp) out (spec/method.md §7).
+//
+//   every frame: prepare, conformal map, normalise (frame_pipeline.hpp)        parallel
+//   every frame: landmarks on the disk, registered to the reference frame        parallel
+//   every frame: its registered surface on a coarse grid, its rigid head pose    parallel
+//   keyframes: chosen by the predicted error of the spline (keyframes.hpp)
+//   grid size N: from the capture (--grid auto)
+//   every keyframe: the registered surface on G in the face's own frame, its fields, its holes as
+//   a level set, its texture on the disk                                          parallel
+#pragma once
+
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/density/density_equalising.hpp"
+#include "codec/encoder/encode/encode_options.hpp"
+#include "codec/encoder/encode/encode_report.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/encode/frame_store.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/encoder/registration/registration.hpp"
+#include "codec/encoder/encode/registration_store.hpp"
+#include "codec/encoder/encode/representation_choice.hpp"
+#include "codec/encoder/encode/sampled_frame.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "format/error.hpp"
+#include "codec/core/sequence/sequence.hpp"
+
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+
+// One segment of a long capture's keyframes, coded apart from the others (fmenc --stage measure,
+// --stage assemble --segment S/N; spec/method.md §7.17). Positions are in the capture's list of
+// keyframes (KeyframeSelection::keyframes).
+struct KeyframeSegment {
+  size_t first = 0, end = 0;          // the keyframes it codes: whole groups of the intra period
+  size_t fit_first = 0, fit_end = 0;  // those the keyframe fit solves over: the segment and a margin each side
+  // The fixed nodes of the whole capture (every segment's folds); none: the segment's own folds.
+  std::optional<std::vector<int32_t>> fixed_nodes;
+  bool textures = true;  // false: none sampled (a stage that writes no file)
+};
+
+// Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
+// and at least three landmarks shared with the reference frame; rim_* markers give the boundary
+// correspondence. A frame that lacks them, or cannot be read, prepared or mapped, is dropped and
+// named in the report (EncodeOptions::strict: the encode ends with its error instead). Throws
+// facemorph::Error for bad options, when no frame is left, and in strict mode what the frame's
+// stage threw, naming the frame (kInvalidArgument for missing landmarks; what prepare_frame,
+// conformal_disk_map and the image reader throw, e.g. kNotADisk or kMissingTexture).
+Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
+// The same, the keyframes left where the encoder keeps them (in its temporary file, with
+// options.spill_keyframes): a KeyframeSource the file writer reads a keyframe at a time
+// (write_sequence_file(path, *stored, metadata)), so that encoding to a file holds each keyframe's
+// time and pose rather than its arrays (spec/method.md §7.15). The temporary file goes with it.
+// The encoder keeps its own capture: moved in, a long capture's paths and landmarks are not held twice.
+std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
+
+// The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
+// encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
+// mapping. Stages run in order; a later stage may be re-run with other options (registering again
+// redoes the selection samples). Each stage goes through the frames a few at a time (one per
+// thread), reading each map back from the store and releasing it when done.
+class SequenceEncoder {
+ public:
+  // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
+  SequenceEncoder(Capture capture, EncodeOptions options);
+  // The staged encode's assembling encoder: `capture`'s frames, frame(k) for k = 0 .. frame_count - 1
+  // in capture order, leave it as map_frames, register_frames and sample_frames would have on the
+  // whole capture (spec/part-file.md). A frame that does not fit (out of order, the wrong number of
+  // landmarks or samples, a registration that is no registration) throws, named by where(k).
+  static std::unique_ptr<SequenceEncoder> of_sampled_frames(const SampledCapture& capture, EncodeOptions options,
+                                                             const std::function<SampledFrame(int)>& frame,
+                                                             const std::function<std::string(int)>& where);
+  // After sample_frames: every frame of this encoder's capture as given, kept or dropped, in order,
+  // handed to `take` (numbered as set_source_indices says).
+  void for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const;
+  // Numbers this encoder's frames as frames `indices` (increasing) of a larger capture, in its
+  // report, its messages and for_each_sampled_frame: a part's encoder holds some of the capture's
+  // frames. Before map_frames.
+  void set_source_indices(std::vector<int> indices);
+  // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
+  // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
+  void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
+  // N of the grid every frame is sampled on for the keyframe selection (SampledFrame::selection).
+  static int selection_grid() { return kSelectionGrid; }
+
+  // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
+  // options().strict): from here on the encoder's capture() and frame indices are those of the
+  // frames kept, and report().dropped names the others.
+  void map_frames();
+  // 2. register every frame to the reference (options().registration); method kFrame first builds
+  // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
+  void register_frames();
+  void sample_frames();     // 3. registered surfaces on the selection grid, head poses
+  KeyframeSelection select_keyframes() const;  // 4. by predicted error
+  Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
+  // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
+  // noise and, given the keyframes `chosen`, the error the spline makes between them.
+  int choose_grid(const KeyframeSelection* chosen = nullptr);
+  // 5½ (encode_capture, once the keyframes and N are chosen): frees the selection's samples of every
+  // frame (its local, world and normal vectors on the 65² grid, 230 KB a frame), which the later
+  // steps do not read, keeping what they do: each frame's time, pose and diagonal, the reference's
+  // local vectors (pose_centre) and the fit's noise estimate at `keyframes`. build may then be given
+  // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
+  // again.
+  void release_selection_samples(const std::vector<int>& keyframes);
+  // 4-5½ as an earlier stage of this encode chose them (a segment's measure, segmented_encode.hpp):
+  // the representation and what choose_representation measured taken as given, and the
+  // selection's samples released but for `keyframes`.
+  void adopt_representation(Representation representation, const BlendComparison& blend);
+  // 6. the keyframes on G: fields, poses, holes, textures, each array put in the store as it is
+  // made (options().spill_keyframes). build: the same, read back as a Sequence.
+  // With `segment`: only its keyframes, fitted over its fit range of `keyframes` (spec/method.md
+  // §7.17), with its fixed nodes where given.
+  std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid, const KeyframeSegment* segment = nullptr);
+  Sequence build(const std::vector<int>& keyframes, int grid);
+  // 7-9 (precision, residuals, textures) are the stages below the class: they read the encoder's
+  // frames and options and fill its report, and keep nothing.
+
+  // 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
+  // most frames were registered without interior landmarks, the hl+t fields and the positions of
+  // `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
+  // G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
+  // not show them); xyz where the fields come out farther by more than kFieldsBlendMargin. Fills
+  // report().blend and report().representation.
+  void choose_representation(const KeyframeSelection& chosen, int grid);
+  // What build stores: options().representation, or (unset) what choose_representation chose (hl+t
+  // before it runs).
+  Representation representation() const { return options_.representation.value_or(auto_representation_); }
+  EncodeOptions& options() { return options_; }
+  // The frames kept (all until map_frames drops any), their landmarks' names, without their
+  // landmarks: those are in the encoder's store (landmarks(i)).
+  const Capture& capture() const { return capture_; }
+  // Frame i's landmarks, one per name of capture().landmark_names (NaN where it lacks one), as the
+  // encoder uses them: those farther than the tolerance ignored, those map_frames found added. The
+  // encoder keeps them in a store (with options().spill_frames, its temporary file: 1.8 kB a frame
+  // for ICT's 74, a capture's length in memory otherwise), not in capture().
+  std::vector<Vec3> landmarks(int i) const;
+  // Frame i's landmarks and the reference's on their disks (disk_landmarks), after map_frames.
+  DiskLandmarks frame_disk_landmarks(int i) const;
+  int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
+  int frame_count() const { return static_cast<int>(capture_.frames.size()); }
+  // Frame i's map, read back from the store (options().spill_frames; its prepared mesh left empty,
+  // see FrameStore::put) and held in memory as long as the pointer is. After map_frames.
+  std::shared_ptr<const MappedFrame> frame(int i) const;
+  const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
+  const FrameStore& frame_store() const { return *store_; }
+  // Frame i's registration, read back from its store (options().spill_frames) and held as long as
+  // the pointer is. After register_frames.
+  std::shared_ptr<const DiskRegistration> registration(int i) const;
+  // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
+  const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
+  // Where frame i is sampled for disk points of G (or of the disk texture): the reference's
+  // reparametrisation, then the frame's registration (after register_frames). A sampler holds the
+  // registration it read back; sample_points reads it for one call.
+  class Sampler {
+   public:
+    Sampler(const DiskReparametrisation& reparametrisation, std::shared_ptr<const DiskRegistration> registration)
+        : reparametrisation_(reparametrisation), registration_(std::move(registration)) {}
+    Vec2 operator()(const Vec2& node) const { return (*registration_)(reparametrisation_(node)); }
+
+   private:
+    const DiskReparametrisation& reparametrisation_;
+    std::shared_ptr<const DiskRegistration> registration_;
+  };
+  Sampler sampler(int i) const { return Sampler(reparametrisation_, registration(i)); }
+  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
+  std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
+  const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
+  // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
+  // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
+  // samples, read back from the store (kInternal once release_selection_samples has run).
+  const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
+  std::shared_ptr<const SelectionFrame> selection_frame(int i) const;
+  const std::vector<double>& selection_weights() const { return node_weights_; }
+  const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
+  // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
+  bool has_texture(int i) const;
+  // Frame i's own colour on the size x size disk texture, sampled through its registration as a
+  // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
+  // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
+  Image frame_texture(int i, int size) const;
+  EncodeReport& report() { return report_; }
+
+ private:
+  // The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
+  // frames by error at a fraction of the cost of G itself.
+  static constexpr int kSelectionGrid = 65;
+  // What the selection's cache of spilled samples may hold: ~830 frames of 79 kB, more than the frames
+  // its refinement predicts around one keyframe (six gaps between keyframes) at 10% keyframes.
+  static constexpr uint64_t kSelectionCacheBytes = uint64_t{64} << 20;
+  // The selection grid's node weights (its interior nodes' areas) into node_weights_; the grid.
+  GridGeometry set_selection_weights();
+  // The selection's samples into the report: their store's peak and bytes (release_selection_samples).
+  void note_selection_samples();
+  struct FrameFailure {  // why a frame failed; code kOk while it has not
+    ErrorCode code = ErrorCode::kOk;
+    std::string reason;
+  };
+  static FrameFailure failure_of(const Error& e, const std::string& name);
+  void progress(const std::string& stage, int done, int total) const {
+    if (options_.progress) options_.progress(stage, done, total);
+  }
+  // of_sampled_frames's steps: the encoder of no frames yet, each frame added, the reference's
+  // stores settled once all came.
+  SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
+  void add_sampled_frame(SampledFrame&& frame);
+  void finish_sampled_frames();
+  // Sets those of frame `index`'s landmarks `points` that lie farther from `mesh` than
+  // options().landmark_tolerance to NaN, with a warning each (strict: throws kInvalidArgument); says
+  // whether it set any.
+  bool ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const;
+  // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
+  // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
+  void drop_frames(const std::vector<FrameFailure>& failures);
+  // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
+  // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
+  void adopt_found_landmarks();
+  // Frame i's map and colour, given its map (loaded once by the caller).
+  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
+  Image frame_texture(const MappedFrame& frame, int i, int size) const;
+  // The reference's map, kept in memory while it is the reference: every stage uses it.
+  std::shared_ptr<const MappedFrame> pin_reference();
+  static std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
+  // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
+  // has one; kCorrupt naming the frame where the bytes are not one.
+  DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
+  // What every stage after mapping reads of the reference (its map and landmarks `points`): its disk
+  // reparametrised (options().density_equalising) and, for kFrame, its geodesic frame.
+  void set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points);
+  // Adds a mapped frame's found nose tip, up and rim markers to the report's counts.
+  void count_found_landmarks(const FrameSummary& frame, bool given_rim);
+  // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
+  // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
+  std::vector<TrackedPoints> track_frames();
+
+  bool vertical_hint_set_ = false;
+  std::optional<Vec3> vertical_hint_;
+  // Per frame of the capture as given, the landmarks ignored on it; and the summaries of frames
+  // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.
+  std::map<int, std::vector<std::string>> warnings_by_frame_;
+  std::map<int, FrameSummary> dropped_summaries_;
+  std::vector<char> without_interior_;  // per frame kept: registered without interior landmarks shared with the reference
+  int given_reference_ = 0;  // as options().reference_frame came, in the capture as given
+  // The assembling encoder (add_sampled_frame): the reference in the capture as given, whether the
+  // capture gave rim markers, the next frame due, and the registrations that came before the
+  // reference's frame (with kFrame they need its geodesic frame's partition to be read).
+  int sampled_reference_ = -1;
+  bool given_rim_ = false;
+  int next_sampled_ = 0;
+  std::vector<std::pair<size_t, std::vector<char>>> pending_registrations_;
+  Capture capture_;  // without its landmarks, which are in landmarks_
+  std::unique_ptr<SpilledItems<std::vector<Vec3>>> landmarks_;
+  std::vector<int> source_index_;
+  double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
+  EncodeOptions options_;
+  std::unique_ptr<FrameStore> store_;
+  std::vector<FrameSummary> summaries_;
+  int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
+  std::shared_ptr<const MappedFrame> pinned_;
+  std::vector<std::filesystem::path> textures_;
+  std::unique_ptr<RegistrationStore> registrations_;
+  std::shared_ptr<const GeodesicFrame> geodesic_frame_;
+  Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
+  DiskReparametrisation reparametrisation_;
+  std::vector<SelectionFrame> selection_;
+  std::unique_ptr<SelectionStore> samples_;  // their samples (sample_frames until release_selection_samples)
+  // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
+  bool samples_released_ = false;
+  std::map<int, double> released_noise_;
+  // frame_noise at frame k, from the samples or, once they are released, as kept for a keyframe.
+  double noise_at(int k) const;
+  std::vector<double> node_weights_;
+  EncodeReport report_;
+};
+
+// The up direction of the first frame of `capture` from `reference` on (cyclically) that lacks its
+// pose landmarks and whose surface says which way is up (find_face_orientation); none when none
+// does. `landmarks(i)`: frame i's points, one per name of capture.landmark_names. What map_frames
+// gives frames whose surfaces do not say. `progress`: (regions read, regions to read) of the frame
+// being read (find_face's, FaceFindingOptions::progress).
+std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress = {});
+
+// ---- The stages after the keyframes are built (stages/round_fields.cpp, stages/texture_coding.cpp) ----
+
+// 7. The field precision's options: options.field_precision with the encode's spill and threads,
+// and with auto_field_error two fifths of `chosen`'s mean predicted error as the target.
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
+// The fields rounded as the file will store them (field_precision_options): what a file written
+// with the returned coding (SequenceFileMetadata::field_coding) holds. Fills the encoder's
+// report().field_precision and seconds_precision.
+FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keyframes, const KeyframeSelection& chosen);
+FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen);
+// 8. Each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
+// at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
+// what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
+// build. Fills report().texture_qualities; empty for a sequence without texture.
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes);
+std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes);
+// 9. Keyframes whose textures are painted from one captured image (the same file, or the same
+// pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
+// keyframe's texture where the two are within options().texture_coding.min_psnr of each other
+// over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
+// report().texture_shared_with and texture_share_psnr.
+void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes);
+// 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
+void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+
+// ---- The driver ----
+
+// The steps after the selection's sampling: keyframes, N, representation, the keyframes on G,
+// field precision, texture qualities and sharing, and the report's per-frame lines. What
+// encode_capture_stored runs once `encoder` has mapped, registered and sampled every frame, and the
+// staged encode's assemble stage once its frames came from the parts (staged_encode.hpp).
+std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report = nullptr);
+// encode_sampled's first and last steps, for an encode that builds and codes its keyframes another
+// way (a segment: segmented_encode.hpp). plan_keyframes: the keyframes, N and the representation
+// chosen (the report's lines for them filled), the selection's samples released. finish_report:
+// the report's per-frame lines and memory figures, moved to `report` where given.
+KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
+// plan_keyframes's choices made by an earlier stage of the same encode, taken as they are: the
+// report's lines for them filled, the representation adopted, the selection's samples released.
+// kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
+// increasing from the first frame to the last, a predicted error a frame).
+void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
+void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
+// encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_stored),
+// their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the
+// residual frames fitted to them as stored (options().residual_frames, fit_decoded_residuals;
+// report().residual_fit) and the texture stage (code_textures): what a file written with the
+// report's field coding and texture qualities holds. The bench runs it for each keyframe set and
+// representation it measures, so that it measures what fmenc writes.
+std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
+
+// ---- The pieces, for tests and the bench ----
+
+// Where the capture's landmarks of one frame lie on its disk, paired with the reference's: the
+// registration's input. Landmarks missing in either frame are left out; rim_* markers are flagged
+// and put exactly on the circle.
+DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame,
+                             const DiskMap& frame_map);
+// The same for two frames' points, one per name of `names` (NaN where a frame lacks it).
+DiskLandmarks disk_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const DiskMap& reference_map,
+                             const std::vector<Vec3>& frame, const DiskMap& frame_map);
+
+// The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
+// distance to the nearest hole outline inside a filled hole, plus it outside capped at
+// kHoleLevelBand; kHoleLevelBand everywhere without holes.
+std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map, const std::vector<Vec2>& points);
+
+}  // namespace facemorph

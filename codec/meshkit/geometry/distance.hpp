@@ -1,0 +1,59 @@
+// Distances between surfaces and nearest points on them: how the benchmarks measure geometric error
+// (design §6) and where the encoder finds landmarks on a frame.
+#pragma once
+
+#include "codec/meshkit/geometry/locator.hpp"
+#include "codec/core/geometry/mesh.hpp"
+
+#include <limits>
+#include <span>
+#include <vector>
+
+namespace facemorph {
+
+// Barycentric coordinates of the point of triangle abc nearest to p (Ericson, Real-Time Collision
+// Detection §5.1.5: by Voronoi regions of the vertices, edges and face).
+// The diagonal of the points' axis-aligned bounding box: the scale relative errors are given in
+// (0 for no points).
+double bounding_box_diagonal(std::span<const Vec3> points);
+
+Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+// Closest-point queries against one triangle mesh, through a uniform grid of buckets.
+class PointToMesh {
+ public:
+  explicit PointToMesh(const TriangleMesh& mesh);  // the mesh must outlive this
+  // Distance from p to the nearest point of the mesh (infinity for a mesh without faces).
+  double distance(const Vec3& p) const;
+  // The same where it is under `bound`; otherwise some value at least `bound` (the search stops
+  // there: a caller that only needs to know "that far or farther" saves the far shells).
+  double distance_below(const Vec3& p, double bound) const;
+  // The nearest point of the mesh: its face and barycentric coordinates. Of equally near faces the
+  // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces.
+  SurfacePoint closest(const Vec3& p) const;
+
+ private:
+  // best: its squared distance; the search ends once nothing nearer than `bound` can be left.
+  SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity()) const;
+
+  const TriangleMesh& mesh_;
+  Vec3 origin_;
+  double cell_ = 1;
+  int nx_ = 1, ny_ = 1, nz_ = 1;
+  std::vector<int> start_, faces_;
+};
+
+struct SurfaceDistance {
+  double rms = 0;         // over the vertices of both meshes, each to the other surface
+  double max = 0;         // Hausdorff distance (at vertices)
+  // 99th percentile of the same distances (nearest rank: the smallest distance that at least 99% of
+  // them do not exceed): the worst region's error, which one stray vertex cannot set as it sets max.
+  double p99 = 0;
+  double diagonal = 0;    // bounding-box diagonal of the reference
+};
+
+// Symmetric point-to-surface distance between `reference` and `test` (each mesh's vertices to the
+// other surface), with the reference's bounding-box diagonal for relative figures.
+SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test);
+
+}  // namespace facemorph
