@@ -17,8 +17,7 @@ namespace facemorph::format {
 class ByteReader {
  public:
   // `source` names the input in error messages, e.g. the file path.
-  ByteReader(std::span<const uint8_t> bytes, std::string source)
-      : bytes_(bytes), source_(std::move(source)) {}
+  ByteReader(std::span<const uint8_t> bytes, std::string source) : bytes_(bytes), source_(std::move(source)) {}
 
   size_t position() const { return pos_; }
   size_t remaining() const { return bytes_.size() - pos_; }
@@ -28,10 +27,8 @@ class ByteReader {
   // Throws kTruncated unless `count` more bytes are available; `what` names the field.
   void require(size_t count, const char* what) const {
     if (count > remaining()) {
-      throw Error(ErrorCode::kTruncated,
-                  source_ + ": truncated: " + what + " needs " + std::to_string(count) +
-                      " bytes at offset " + std::to_string(pos_) + ", only " +
-                      std::to_string(remaining()) + " left");
+      throw Error(ErrorCode::kTruncated, source_ + ": truncated: " + what + " needs " + std::to_string(count) + " bytes at offset " +
+                                             std::to_string(pos_) + ", only " + std::to_string(remaining()) + " left");
     }
   }
 
@@ -62,9 +59,8 @@ class ByteReader {
 
   void seek(size_t position, const char* what) {
     if (position > bytes_.size()) {
-      throw Error(ErrorCode::kTruncated, source_ + ": truncated: " + what + " at offset " +
-                                             std::to_string(position) + " lies past the end (" +
-                                             std::to_string(bytes_.size()) + " bytes)");
+      throw Error(ErrorCode::kTruncated, source_ + ": truncated: " + what + " at offset " + std::to_string(position) +
+                                             " lies past the end (" + std::to_string(bytes_.size()) + " bytes)");
     }
     pos_ = position;
   }

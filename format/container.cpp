@@ -1,13 +1,11 @@
 #include "format/container.hpp"
 
-
-#include "format/error.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
+#include "format/error.hpp"
 #include "format/spill_file.hpp"
 #include "format/zstd_frame.hpp"
-
 
 #include <algorithm>
 #include <ostream>
@@ -166,8 +164,10 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
     const uint64_t stored = r.read<uint64_t>("a chunk's size");
     chunk.raw_size = r.read<uint64_t>("a chunk's size");
     if ((chunk.flags & ~kChunkKnownFlags) != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " sets reserved flags");
-    if (stored > kMaxPayloadBytes || chunk.raw_size > kMaxPayloadBytes) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " announces over 1 GiB");
-    if (!chunk.compressed() && chunk.raw_size != stored) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " has inconsistent sizes");
+    if (stored > kMaxPayloadBytes || chunk.raw_size > kMaxPayloadBytes)
+      throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " announces over 1 GiB");
+    if (!chunk.compressed() && chunk.raw_size != stored)
+      throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " has inconsistent sizes");
     if (stored + kChunkTrailerBytes > r.remaining()) {
       throw Error(ErrorCode::kTruncated, source_ + ": truncated: " + name + " needs " + std::to_string(stored + kChunkTrailerBytes) +
                                              " bytes, only " + std::to_string(r.remaining()) + " left");
@@ -184,11 +184,13 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
         throw Error(ErrorCode::kCorrupt, source_ + ": the end chunk counts " + std::to_string(count) + " chunks, the file holds " +
                                              std::to_string(chunks_.size()));
       }
-      if (r.remaining() != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(r.remaining()) + " bytes after the end chunk");
+      if (r.remaining() != 0)
+        throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(r.remaining()) + " bytes after the end chunk");
       return;
     }
     if (chunks_.size() >= max_chunks) {
-      throw Error(ErrorCode::kLimit, source_ + ": more than " + std::to_string(max_chunks) + " chunks, over the limit the keyframe limit sets (max_keyframes)");
+      throw Error(ErrorCode::kLimit, source_ + ": more than " + std::to_string(max_chunks) +
+                                         " chunks, over the limit the keyframe limit sets (max_keyframes)");
     }
     chunks_.push_back(std::move(chunk));
     if (r.remaining() == 0) throw Error(ErrorCode::kTruncated, source_ + ": truncated: the file ends without its end chunk");

@@ -19,7 +19,8 @@ class SpillFile;
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
-inline constexpr uint16_t kMinorVersion = 3;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared textures; 2.3: residual frames)
+inline constexpr uint16_t kMinorVersion =
+    3;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared textures; 2.3: residual frames)
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;
@@ -43,12 +44,12 @@ inline constexpr uint32_t kChunkKnownFlags = kChunkCompressed | kChunkCritical;
 
 // A chunk as found in a file: where it is, and its stored payload as a view into the file's bytes.
 struct ChunkView {
-  std::string type;            // four characters [A-Z0-9]
+  std::string type;  // four characters [A-Z0-9]
   uint32_t flags = 0;
-  uint64_t offset = 0;         // of the chunk header in the file
-  uint64_t raw_size = 0;       // the payload's size once decompressed
+  uint64_t offset = 0;    // of the chunk header in the file
+  uint64_t raw_size = 0;  // the payload's size once decompressed
   std::span<const uint8_t> stored;
-  uint32_t crc = 0;            // as stored
+  uint32_t crc = 0;  // as stored
   bool compressed() const { return (flags & kChunkCompressed) != 0; }
   bool critical() const { return (flags & kChunkCritical) != 0; }
   uint64_t total_size() const { return kChunkHeaderBytes + stored.size() + kChunkTrailerBytes; }
@@ -144,8 +145,8 @@ class ContainerReader {
   const ChunkView& chunk_at(uint64_t offset, const std::string& what) const;
   // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise).
   // A raw size over `max_bytes` (the caller's memory budget) is kLimit before anything is
-  // allocated, a stored payload's as a compressed one's; a compressed payload is allocated as it decompresses, so a frame that announces more
-  // than it holds costs what it holds.
+  // allocated, a stored payload's as a compressed one's; a compressed payload is allocated as it decompresses, so a frame that announces
+  // more than it holds costs what it holds.
   std::vector<uint8_t> payload(const ChunkView& chunk, uint64_t max_bytes = kMaxPayloadBytes) const;
   // Checks every chunk's CRC.
   void verify() const;

@@ -2,6 +2,10 @@
 
 #include "format/error.hpp"
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -9,10 +13,6 @@
 #include <cstring>
 #include <fstream>
 #include <system_error>
-#include <fcntl.h>
-#include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 namespace facemorph::format {
 namespace fs = std::filesystem;
@@ -31,8 +31,7 @@ std::vector<uint8_t> read_file(const fs::path& path, uint64_t max_bytes) {
   if (size < 0) throw Error(ErrorCode::kIo, path.string() + ": cannot determine the file size");
   if (static_cast<uint64_t>(size) > max_bytes) {
     throw Error(ErrorCode::kInvalidArgument,
-                path.string() + ": " + std::to_string(size) + " bytes exceeds the limit of " +
-                    std::to_string(max_bytes));
+                path.string() + ": " + std::to_string(size) + " bytes exceeds the limit of " + std::to_string(max_bytes));
   }
   in.seekg(0, std::ios::beg);
   std::vector<uint8_t> data(static_cast<size_t>(size));
@@ -99,7 +98,8 @@ void commit_temporary(const fs::path& from, const fs::path& to) {
 }
 
 void write_file_atomically(const fs::path& path, std::span<const uint8_t> data) {
-  write_file_atomically(path, [&](std::ostream& out) { out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size())); });
+  write_file_atomically(
+      path, [&](std::ostream& out) { out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size())); });
 }
 
 void write_file_atomically(const fs::path& path, const std::function<void(std::ostream&)>& write) {
@@ -131,8 +131,7 @@ void write_file_atomically(const fs::path& path, const std::function<void(std::o
 }
 
 void write_file_atomically(const fs::path& path, std::string_view text) {
-  write_file_atomically(path, std::span<const uint8_t>(
-                                  reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+  write_file_atomically(path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
 
 }  // namespace facemorph::format

@@ -14,8 +14,7 @@ namespace facemorph::format {
 
 // Reads the whole file. Throws kIo naming the file if it cannot be opened or read, and
 // kInvalidArgument if it is larger than `max_bytes`.
-std::vector<uint8_t> read_file(const std::filesystem::path& path,
-                               uint64_t max_bytes = uint64_t{1} << 34);
+std::vector<uint8_t> read_file(const std::filesystem::path& path, uint64_t max_bytes = uint64_t{1} << 34);
 
 // A file's bytes mapped read-only (POSIX mmap): pages are read as they are touched and belong to
 // the page cache, not the process's heap, so opening a long file costs what is read of it. The file

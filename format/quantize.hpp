@@ -8,7 +8,7 @@
 namespace facemorph::format {
 
 struct Quantized16 {
-  double lo = 0, hi = 0;           // the range: code 0 is lo, code 65535 is hi
+  double lo = 0, hi = 0;  // the range: code 0 is lo, code 65535 is hi
   std::vector<uint16_t> codes;
   double step() const { return (hi - lo) / 65535.0; }
 };

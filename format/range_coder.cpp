@@ -56,7 +56,8 @@ std::vector<uint8_t> RangeEncoder::finish() {
 }
 
 RangeDecoder::RangeDecoder(std::span<const uint8_t> bytes, std::string source) : bytes_(bytes), source_(std::move(source)) {
-  if (bytes_.size() < 5) throw Error(ErrorCode::kCorrupt, source_ + ": a range-coded stream of " + std::to_string(bytes_.size()) + " bytes (at least 5)");
+  if (bytes_.size() < 5)
+    throw Error(ErrorCode::kCorrupt, source_ + ": a range-coded stream of " + std::to_string(bytes_.size()) + " bytes (at least 5)");
   if (bytes_[0] != 0) throw Error(ErrorCode::kCorrupt, source_ + ": a range-coded stream that does not start with 0");
   pos_ = 1;
   for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | next_byte();
@@ -107,7 +108,8 @@ uint32_t RangeDecoder::decode_direct(int count) {
 
 void RangeDecoder::expect_end() const {
   if (pos_ != bytes_.size()) {
-    throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(bytes_.size() - pos_) + " bytes after the range-coded stream's last value");
+    throw Error(ErrorCode::kCorrupt,
+                source_ + ": " + std::to_string(bytes_.size() - pos_) + " bytes after the range-coded stream's last value");
   }
 }
 

@@ -24,7 +24,8 @@ constexpr size_t kMaxResidualsPerByte = 650;
 
 using Models = ResidualModels;
 static_assert(std::tuple_size_v<decltype(Models::zero)> == kMagnitudeClasses && std::tuple_size_v<decltype(Models::sign)> == kSignClasses);
-static_assert(std::tuple_size_v<decltype(Models::larger)> == kMagnitudeClasses && std::tuple_size_v<decltype(Models::larger)::value_type> == kUnary);
+static_assert(std::tuple_size_v<decltype(Models::larger)> == kMagnitudeClasses &&
+              std::tuple_size_v<decltype(Models::larger)::value_type> == kUnary);
 static_assert(std::tuple_size_v<decltype(Models::escape)> == kEscapeModels);
 
 uint64_t magnitude(int64_t r) { return r < 0 ? uint64_t{0} - static_cast<uint64_t>(r) : static_cast<uint64_t>(r); }
@@ -167,7 +168,8 @@ const LatticeNeighbours* checked(const LatticeNeighbours* lattice, size_t size) 
 }
 
 void check_layout(size_t arrays, std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets) {
-  if (lattices.size() != arrays || model_sets.size() != arrays) throw Error(ErrorCode::kInvalidArgument, "one lattice and one model set per residual array needed");
+  if (lattices.size() != arrays || model_sets.size() != arrays)
+    throw Error(ErrorCode::kInvalidArgument, "one lattice and one model set per residual array needed");
   for (size_t a = 0; a < arrays; ++a) {
     if (model_sets[a] > a) throw Error(ErrorCode::kInvalidArgument, "an array's model set must be its own or an earlier array's");
   }
@@ -185,7 +187,8 @@ std::vector<Models>& starting_models(std::vector<Models>& models, size_t arrays)
 void RangedStreamWriter::decision(BitModel& model, bool bit) { coder_.encode(model, bit ? 1 : 0); }
 
 void RangedStreamWriter::number(NumberModels& models, int64_t value) {
-  if (magnitude(value) >= (uint64_t{1} << kMaxNumberBits)) throw Error(ErrorCode::kInvalidArgument, "a number beyond 2^42 for the range coder");
+  if (magnitude(value) >= (uint64_t{1} << kMaxNumberBits))
+    throw Error(ErrorCode::kInvalidArgument, "a number beyond 2^42 for the range coder");
   EncoderSide side{coder_};
   code_number(side, models, value);
 }
@@ -214,13 +217,16 @@ int64_t RangedStreamReader::number(NumberModels& models) {
   return code_number(side, models, 0);
 }
 
-std::vector<std::vector<int64_t>> RangedStreamReader::residual_arrays(std::span<const size_t> lengths, std::span<const LatticeNeighbours* const> lattices,
-                                                                      std::span<const uint8_t> model_sets, std::vector<ResidualModels>& carried) {
+std::vector<std::vector<int64_t>> RangedStreamReader::residual_arrays(std::span<const size_t> lengths,
+                                                                      std::span<const LatticeNeighbours* const> lattices,
+                                                                      std::span<const uint8_t> model_sets,
+                                                                      std::vector<ResidualModels>& carried) {
   check_layout(lengths.size(), lattices, model_sets);
   // Refused before anything is allocated: more residuals than the whole stream can hold.
   const size_t most = kMaxResidualsPerByte * bytes_;
   for (size_t n : lengths) {
-    if (n > most - residuals_read_) throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(bytes_) + " range-coded bytes cannot hold the arrays' values");
+    if (n > most - residuals_read_)
+      throw Error(ErrorCode::kCorrupt, source_ + ": " + std::to_string(bytes_) + " range-coded bytes cannot hold the arrays' values");
     residuals_read_ += n;
   }
   DecoderSide side{coder_, source_};
@@ -234,8 +240,9 @@ std::vector<std::vector<int64_t>> RangedStreamReader::residual_arrays(std::span<
   return out;
 }
 
-std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
-                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* carried) {
+std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays,
+                                             std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
+                                             std::vector<ResidualModels>* carried) {
   RangedStreamWriter stream;
   std::vector<Models> fresh;
   stream.residual_arrays(arrays, lattices, model_sets, carried ? *carried : fresh);
@@ -243,8 +250,9 @@ std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t
 }
 
 std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
-                                                          std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
-                                                          const std::string& source, std::vector<ResidualModels>* carried) {
+                                                          std::span<const LatticeNeighbours* const> lattices,
+                                                          std::span<const uint8_t> model_sets, const std::string& source,
+                                                          std::vector<ResidualModels>* carried) {
   RangedStreamReader stream(bytes, source);
   std::vector<Models> fresh;
   std::vector<std::vector<int64_t>> out = stream.residual_arrays(lengths, lattices, model_sets, carried ? *carried : fresh);

@@ -71,7 +71,7 @@ class RangedStreamReader {
  private:
   RangeDecoder coder_;
   std::string source_;
-  size_t bytes_ = 0;          // the stream's size, which bounds how many residuals it can hold
+  size_t bytes_ = 0;  // the stream's size, which bounds how many residuals it can hold
   size_t residuals_read_ = 0;
 };
 
@@ -82,14 +82,16 @@ class RangedStreamReader {
 // the sets model_sets names are used), which the stream starts from and leaves as it ended (field
 // coding 3 carries them from one predicted keyframe to the next); null or empty: fresh models.
 // kInvalidArgument for a residual beyond kMaxRangedResidual or tables that do not match.
-std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
-                                             std::span<const uint8_t> model_sets, std::vector<ResidualModels>* models = nullptr);
+std::vector<uint8_t> encode_ranged_residuals(std::span<const std::vector<int64_t>> arrays,
+                                             std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
+                                             std::vector<ResidualModels>* models = nullptr);
 
-// The inverse (with the same `models` as the encoder had): `lengths[k]` residuals for array k, which must use the whole stream. Throws kCorrupt
-// naming `source` when the stream ends early, has bytes left, or decodes a residual out of range.
+// The inverse (with the same `models` as the encoder had): `lengths[k]` residuals for array k, which must use the whole stream. Throws
+// kCorrupt naming `source` when the stream ends early, has bytes left, or decodes a residual out of range.
 std::vector<std::vector<int64_t>> decode_ranged_residuals(std::span<const uint8_t> bytes, std::span<const size_t> lengths,
-                                                          std::span<const LatticeNeighbours* const> lattices, std::span<const uint8_t> model_sets,
-                                                          const std::string& source, std::vector<ResidualModels>* models = nullptr);
+                                                          std::span<const LatticeNeighbours* const> lattices,
+                                                          std::span<const uint8_t> model_sets, const std::string& source,
+                                                          std::vector<ResidualModels>* models = nullptr);
 
 // The bits the range coder would spend on one array with fresh models (less the stream's end): how
 // the encoder chooses predictors and references without coding every candidate.

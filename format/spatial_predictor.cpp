@@ -21,10 +21,8 @@ template <typename Code>
 int64_t predict(size_t i, SpatialPredictor predictor, const LatticeNeighbours* lattice, Code code) {
   const auto previous = [&] { return i == 0 ? int64_t{0} : code(i - 1); };
   switch (predictor) {
-    case SpatialPredictor::kNone:
-      return 0;
-    case SpatialPredictor::kPrevious:
-      return previous();
+    case SpatialPredictor::kNone: return 0;
+    case SpatialPredictor::kPrevious: return previous();
     case SpatialPredictor::kGradient:
     case SpatialPredictor::kMedian: {
       const int32_t l = lattice->left[i], u = lattice->up[i], ul = lattice->up_left[i];
@@ -51,7 +49,6 @@ void check_order(const LatticeNeighbours& lattice) {
     }
   }
 }
-
 
 }  // namespace
 

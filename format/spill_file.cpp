@@ -24,8 +24,8 @@ void SpillFile::open() {
   const std::filesystem::path folder = std::filesystem::temp_directory_path(error);
   if (error) {
     const char* named = std::getenv("TMPDIR");
-    throw Error(ErrorCode::kIo, "cannot create a temporary file for " + what_ + ": no temporary folder (TMPDIR" + (named ? " = " + std::string(named) : std::string(" unset")) +
-                                    "): " + error.message());
+    throw Error(ErrorCode::kIo, "cannot create a temporary file for " + what_ + ": no temporary folder (TMPDIR" +
+                                    (named ? " = " + std::string(named) : std::string(" unset")) + "): " + error.message());
   }
   std::string name = (folder / "facemorph-spill-XXXXXX").string();
   fd_ = ::mkstemp(name.data());
@@ -49,8 +49,8 @@ SpillFile::Record SpillFile::append(const char* data, size_t size) {
     const ssize_t n = ::pwrite(fd_, data + done, size - done, static_cast<off_t>(record.offset + done));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      throw Error(ErrorCode::kIo, "cannot write " + what_ + " to the temporary file in " + std::filesystem::temp_directory_path().string() + ": " +
-                                      std::strerror(errno) + " (a full disk? TMPDIR names another folder)");
+      throw Error(ErrorCode::kIo, "cannot write " + what_ + " to the temporary file in " + std::filesystem::temp_directory_path().string() +
+                                      ": " + std::strerror(errno) + " (a full disk? TMPDIR names another folder)");
     }
     done += static_cast<size_t>(n);
   }
@@ -62,7 +62,9 @@ std::vector<char> SpillFile::read(const Record& record) const {
   for (size_t done = 0; done < bytes.size();) {
     const ssize_t n = ::pread(fd_, bytes.data() + done, bytes.size() - done, static_cast<off_t>(record.offset + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw Error(ErrorCode::kIo, "cannot read " + what_ + " back from the temporary file: " + (n < 0 ? std::strerror(errno) : "the file is short"));
+    if (n <= 0)
+      throw Error(ErrorCode::kIo,
+                  "cannot read " + what_ + " back from the temporary file: " + (n < 0 ? std::strerror(errno) : "the file is short"));
     done += static_cast<size_t>(n);
   }
   return bytes;
@@ -70,7 +72,8 @@ std::vector<char> SpillFile::read(const Record& record) const {
 
 void SpillFile::clear() {
   std::lock_guard lock(mutex_);
-  if (fd_ >= 0 && ::ftruncate(fd_, 0) != 0) throw Error(ErrorCode::kIo, "cannot empty the temporary file of " + what_ + ": " + std::strerror(errno));
+  if (fd_ >= 0 && ::ftruncate(fd_, 0) != 0)
+    throw Error(ErrorCode::kIo, "cannot empty the temporary file of " + what_ + ": " + std::strerror(errno));
   end_ = 0;
 }
 

@@ -2,11 +2,11 @@
 
 #include "format/error.hpp"
 
+#include <zstd.h>
 #include <algorithm>
 #include <memory>
 #include <new>
 #include <string>
-#include <zstd.h>
 
 namespace facemorph::format {
 

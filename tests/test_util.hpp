@@ -1,17 +1,17 @@
 // Shared helpers for the facemorph tests: temporary folders, shared-data lookup, shape builders.
 #pragma once
 
-#include "format/error.hpp"
-#include "codec/core/image/image.hpp"
-#include "codec/core/geometry/mesh.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
+#include "format/error.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <gtest/gtest.h>
 
-#include <filesystem>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <optional>
@@ -40,8 +40,7 @@ class TempDir {
  public:
   TempDir() {
     std::random_device rd;
-    path_ = std::filesystem::temp_directory_path() /
-            ("facemorph-test-" + std::to_string(rd()) + "-" + std::to_string(rd()));
+    path_ = std::filesystem::temp_directory_path() / ("facemorph-test-" + std::to_string(rd()) + "-" + std::to_string(rd()));
     std::filesystem::create_directories(path_);
   }
   ~TempDir() {
@@ -126,11 +125,10 @@ inline std::filesystem::path shared_data() {
 // make (or a test run outside ctest) is made here, into `scratch`. Empty where ../shared/data or
 // python3 is absent, or the script failed: the test then skips.
 inline std::filesystem::path ict_speech_capture(const std::string& start_seconds, const std::string& seconds, const std::string& fps,
-                                         const std::filesystem::path& scratch) {
+                                                const std::filesystem::path& scratch) {
   const std::filesystem::path data = shared_data();
   if (data.empty()) return {};
-  const std::filesystem::path made =
-      std::filesystem::path(FACEMORPH_ICT_CAPTURES) / ("ict_" + start_seconds + "_" + seconds + "_" + fps);
+  const std::filesystem::path made = std::filesystem::path(FACEMORPH_ICT_CAPTURES) / ("ict_" + start_seconds + "_" + seconds + "_" + fps);
   if (std::filesystem::is_regular_file(made / "capture.json")) return made;
   const std::string command = "python3 '" + (data / "ict-facekit/tools/make_capture.py").string() + "' '" + scratch.string() +
                               "' --start-seconds " + start_seconds + " --seconds " + seconds + " --fps " + fps + " > /dev/null 2>&1";
@@ -146,8 +144,7 @@ void expect_error(ErrorCode code, const std::string& fragment, Body&& body) {
     ADD_FAILURE() << "expected facemorph::Error(" << error_code_name(code) << ")";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-        << "message '" << e.what() << "' lacks '" << fragment << "'";
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << "message '" << e.what() << "' lacks '" << fragment << "'";
   }
 }
 
@@ -213,7 +210,8 @@ inline std::string broken_mesh_invariant(const TriangleMesh& mesh) {
     return std::to_string(mesh.colours.size()) + " colours for " + std::to_string(mesh.positions.size()) + " vertices";
   }
   for (size_t i = 0; i < mesh.colours.size(); ++i) {
-    if (!mesh.colours[i].allFinite() || mesh.colours[i].minCoeff() < 0 || mesh.colours[i].maxCoeff() > 1) return "colour " + std::to_string(i) + " outside [0, 1]";
+    if (!mesh.colours[i].allFinite() || mesh.colours[i].minCoeff() < 0 || mesh.colours[i].maxCoeff() > 1)
+      return "colour " + std::to_string(i) + " outside [0, 1]";
   }
   if (!mesh.uv_faces.empty() && mesh.uv_faces.size() != mesh.faces.size()) {
     return std::to_string(mesh.uv_faces.size()) + " uv faces for " + std::to_string(mesh.faces.size()) + " faces";
@@ -224,8 +222,8 @@ inline std::string broken_mesh_invariant(const TriangleMesh& mesh) {
       for (int k = 0; k < 3; ++k) {
         const int32_t index = (*faces)[f][k];
         if (index < 0 || static_cast<size_t>(index) >= count) {
-          return std::string(faces == &mesh.faces ? "face " : "uv face ") + std::to_string(f) + " index " +
-                 std::to_string(index) + " out of range (" + std::to_string(count) + ")";
+          return std::string(faces == &mesh.faces ? "face " : "uv face ") + std::to_string(f) + " index " + std::to_string(index) +
+                 " out of range (" + std::to_string(count) + ")";
         }
       }
     }
@@ -242,12 +240,12 @@ inline std::vector<uint8_t> mutate(std::vector<uint8_t> bytes, std::mt19937& rng
   for (int e = 0; e < edits && !bytes.empty(); ++e) {
     const size_t at = rng() % bytes.size();
     switch (kind(rng)) {
-      case 0: bytes[at] = static_cast<uint8_t>(byte(rng)); break;                       // flip a byte
-      case 1: bytes.resize(at); break;                                                   // truncate
+      case 0: bytes[at] = static_cast<uint8_t>(byte(rng)); break;  // flip a byte
+      case 1: bytes.resize(at); break;                             // truncate
       case 2: bytes.insert(bytes.begin() + static_cast<long>(at), static_cast<uint8_t>(byte(rng))); break;
       case 3: bytes.erase(bytes.begin() + static_cast<long>(at)); break;
-      case 4: bytes[at] = "0123456789-.e \n/"[rng() % 16]; break;                       // plausible text
-      case 5: {                                                                          // digit run
+      case 4: bytes[at] = "0123456789-.e \n/"[rng() % 16]; break;  // plausible text
+      case 5: {                                                    // digit run
         std::string run(1 + rng() % 20, '0');
         for (char& c : run) c = static_cast<char>('0' + rng() % 10);
         if (rng() % 4 == 0) run.front() = '-';

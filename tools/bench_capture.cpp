@@ -8,9 +8,9 @@
 // the quality that matches facemorph's texture PSNR, and facemorph's own xyz representation.
 #include "tools/bench_capture.hpp"
 
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "tools/bench_capture_parts.hpp"
 #include "tools/tool_support.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <chrono>
 #include <csignal>
@@ -43,7 +43,8 @@ json measure_capture(Context& context, const std::string& input) {
   const Summary summary = summarise(fm.main.evaluation);
   // Where every frame is a keyframe (a single scan), no frame is held out: the baselines are matched
   // to the keyframes' error, not to the held-out mean of none (0, which no Draco setting reaches).
-  const bool held_out = std::any_of(fm.main.evaluation.frames.begin(), fm.main.evaluation.frames.end(), [](const FrameError& f) { return !f.keyframe; });
+  const bool held_out =
+      std::any_of(fm.main.evaluation.frames.begin(), fm.main.evaluation.frames.end(), [](const FrameError& f) { return !f.keyframe; });
   const double target_rms = held_out ? summary.held_rms_mean : summary.key_rms_mean;
   const double target_psnr = held_out ? fm.main.held_psnr() : fm.main.key_psnr();
   const MatchedBaselines baselines = match_baselines(context.plan, captured, fm.shown, texture, target_rms, target_psnr, stage_seconds);
@@ -81,7 +82,8 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_flag("--geometry-only", options.geometry_only,
                "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
   app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
-  app.add_flag("--residual-frames", options.residual_frames, "With --capture: encode with residual frames (fmenc --residual-frames, format 2.3)");
+  app.add_flag("--residual-frames", options.residual_frames,
+               "With --capture: encode with residual frames (fmenc --residual-frames, format 2.3)");
 }
 
 int run_capture_bench(const CaptureBenchOptions& options) {
@@ -93,10 +95,12 @@ int run_capture_bench(const CaptureBenchOptions& options) {
       captures.push_back(c);
     }
   }
-  if (!options.fmv.empty() && captures.size() != 1) throw Error(ErrorCode::kInvalidArgument, "--fmv needs exactly one --capture, the one it was made from");
+  if (!options.fmv.empty() && captures.size() != 1)
+    throw Error(ErrorCode::kInvalidArgument, "--fmv needs exactly one --capture, the one it was made from");
   for (const std::string& c : captures) {
     std::error_code ec;
-    if (c != "synth" && c != "medusa" && c != "ict" && !fs::exists(c, ec)) throw Error(ErrorCode::kIo, "capture '" + c + "' does not exist");
+    if (c != "synth" && c != "medusa" && c != "ict" && !fs::exists(c, ec))
+      throw Error(ErrorCode::kIo, "capture '" + c + "' does not exist");
   }
   if (!options.against.empty() && !options.geometry_only) throw Error(ErrorCode::kInvalidArgument, "--against is for --geometry-only");
   if (options.geometry_only) {
@@ -109,11 +113,12 @@ int run_capture_bench(const CaptureBenchOptions& options) {
   capture_bench::require_program("draco_decoder", "draco");
   capture_bench::require_program("ffmpeg", "ffmpeg");
   std::setvbuf(stdout, nullptr, _IOLBF, 0);  // each capture's lines as they come, also into a log file
-  std::signal(SIGPIPE, SIG_IGN);  // an ffmpeg that dies is reported by its pipe, not by killing the bench
+  std::signal(SIGPIPE, SIG_IGN);             // an ffmpeg that dies is reported by its pipe, not by killing the bench
   const capture_bench::Plan plan = capture_bench::make_plan(options.quick);
   const ScratchFolder scratch("fmbench-capture");
   capture_bench::Context context{options, plan, scratch.path, {}};
-  context.markdown = "# facemorph rate against Draco, JPEG and H.264\n\nMade by `fmbench --capture" + std::string(options.quick ? " --quick" : "") +
+  context.markdown = "# facemorph rate against Draco, JPEG and H.264\n\nMade by `fmbench --capture" +
+                     std::string(options.quick ? " --quick" : "") +
                      "`. Geometry error: symmetric point-to-surface distance between each captured frame and its decode at the "
                      "frame's own time, relative to the frame's bounding-box diagonal; D1 PSNR takes the diagonal as peak. Texture PSNR: "
                      "RGB on the registered disk, each frame's texture carried there through its own conformal map. Ratios are baseline "
@@ -132,4 +137,3 @@ int run_capture_bench(const CaptureBenchOptions& options) {
 }
 
 }  // namespace facemorph::tools
-

@@ -14,11 +14,11 @@ struct CaptureBenchOptions {
   std::string fmv;                    // measure this file instead of the bench's own encode (one capture)
   std::string json_out, report;       // report: Markdown; its pictures and curves go beside it
   std::string data = "../shared/data";
-  bool quick = false;                 // the smoke test: small capture, few candidates, about a minute
-  bool geometry_only = false;         // with fmv: only its geometry error (no mapping, no baselines)
-  std::string against;                // with geometry_only: also how far fmv decodes from this file of the same capture, frame by frame
+  bool quick = false;          // the smoke test: small capture, few candidates, about a minute
+  bool geometry_only = false;  // with fmv: only its geometry error (no mapping, no baselines)
+  std::string against;         // with geometry_only: also how far fmv decodes from this file of the same capture, frame by frame
   bool quiet = false;
-  bool residual_frames = false;       // the encode with residual frames (fmenc --residual-frames)
+  bool residual_frames = false;  // the encode with residual frames (fmenc --residual-frames)
 };
 
 // The options go on the top level: fmbench --capture DIR [--fmv F] [--json F] [--report F] [--quick].

@@ -2,16 +2,16 @@
 // video), and the settings of each that match facemorph's error.
 #include "tools/bench_capture_parts.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
-#include "facemorph/decoder.hpp"
-#include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
-#include "codec/meshkit/render/render.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "facemorph/decoder.hpp"
 
 #include "tools/bench_sequence.hpp"
 #include "tools/plot.hpp"
@@ -91,9 +91,10 @@ std::vector<uint64_t> encode_h264(const std::vector<fs::path>& textures, double 
     char rate[32];
     std::snprintf(rate, sizeof rate, "%.6g", fps);
     // Odd sizes padded to even (yuv420p); the decode crops back.
-    pipe->command = "ffmpeg -v error -y -f rawvideo -pix_fmt rgb24 -s " + std::to_string(width) + "x" + std::to_string(height) + " -r " + rate +
-                    " -i - -vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' -c:v libx264 -preset medium -crf " + std::to_string(crf) +
-                    " -pix_fmt yuv420p " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) + " > /dev/null 2>&1";
+    pipe->command = "ffmpeg -v error -y -f rawvideo -pix_fmt rgb24 -s " + std::to_string(width) + "x" + std::to_string(height) + " -r " +
+                    rate + " -i - -vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' -c:v libx264 -preset medium -crf " + std::to_string(crf) +
+                    " -pix_fmt yuv420p " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) +
+                    " > /dev/null 2>&1";
     pipe->file = popen(pipe->command.c_str(), "w");
     if (!pipe->file) throw Error(ErrorCode::kIo, "could not start ffmpeg: " + pipe->command);
     pipes.push_back(std::move(pipe));
@@ -120,7 +121,9 @@ std::vector<uint64_t> encode_h264(const std::vector<fs::path>& textures, double 
 // " (... not matched ...)" where a baseline missed facemorph's figure at its finest setting, or "an
 // upper bound" where its coarsest setting met it already.
 std::string match_note(bool met, size_t pick, const char* missed) {
-  return !met ? std::string(" (") + missed + " not matched at the finest tried)" : pick == 0 ? std::string(" (the coarsest tried: an upper bound)") : std::string();
+  return !met        ? std::string(" (") + missed + " not matched at the finest tried)"
+         : pick == 0 ? std::string(" (the coarsest tried: an upper bound)")
+                     : std::string();
 }
 
 MatchedBaselines match_baselines(const Plan& plan, const CapturedFrames& c, int shown, const TextureBaselines& texture, double target_rms,
@@ -130,7 +133,8 @@ MatchedBaselines match_baselines(const Plan& plan, const CapturedFrames& c, int 
   // every frame (one finer while the whole capture misses it).
   const auto draco_start = std::chrono::steady_clock::now();
   for (int qp : plan.draco_qp) m.draco_curve.push_back(draco_point(c.capture, c.meshes, c.sample, qp, c.scratch));
-  m.draco_pick = coarsest_meeting(m.draco_curve.size(), [&](size_t k) { return mean(m.draco_curve[k].rms) <= target_rms; }, m.draco_met);
+  m.draco_pick = coarsest_meeting(
+      m.draco_curve.size(), [&](size_t k) { return mean(m.draco_curve[k].rms) <= target_rms; }, m.draco_met);
   m.draco_first_pick = m.draco_pick;
   for (;;) {
     m.draco = draco_point(c.capture, c.meshes, c.every, plan.draco_qp[m.draco_pick], c.scratch);
@@ -145,13 +149,15 @@ MatchedBaselines match_baselines(const Plan& plan, const CapturedFrames& c, int 
   if (c.textured) {
     const auto jpeg_psnr = [&](int quality) { return mean_at(texture.jpeg_psnr, quality); };
     const auto h264_psnr = [&](int crf) { return mean_at(texture.h264_psnr, crf); };
-    const size_t q = coarsest_meeting(plan.jpeg_quality.size(), [&](size_t k) { return jpeg_psnr(plan.jpeg_quality[k]) >= target_psnr; }, m.jpeg_met);
+    const size_t q = coarsest_meeting(
+        plan.jpeg_quality.size(), [&](size_t k) { return jpeg_psnr(plan.jpeg_quality[k]) >= target_psnr; }, m.jpeg_met);
     m.jpeg_quality = plan.jpeg_quality[q];
     m.jpeg_note = match_note(m.jpeg_met, q, "PSNR");
     for (const fs::path& path : c.textures) m.jpeg_bytes += encode_image(rgb_of(read_image(path)), ".jpg", m.jpeg_quality).size();
     // CRFs fine to coarse in the plan: the coarsest meeting is the last that does.
     const size_t n = plan.h264_crf.size();
-    const size_t crf = coarsest_meeting(n, [&](size_t k) { return h264_psnr(plan.h264_crf[n - 1 - k]) >= target_psnr; }, m.h264_met);
+    const size_t crf = coarsest_meeting(
+        n, [&](size_t k) { return h264_psnr(plan.h264_crf[n - 1 - k]) >= target_psnr; }, m.h264_met);
     m.h264_crf = plan.h264_crf[n - 1 - crf];
     m.h264_note = match_note(m.h264_met, crf, "PSNR");
     m.h264_total = texture.h264_bytes[n - 1 - crf];

@@ -1,16 +1,16 @@
 // fmbench --capture: the plan of a run, small helpers, and the capture as it lies on disk.
 #include "tools/bench_capture_parts.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
-#include "facemorph/decoder.hpp"
-#include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
-#include "codec/meshkit/render/render.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "facemorph/decoder.hpp"
 
 #include "tools/bench_sequence.hpp"
 #include "tools/plot.hpp"
@@ -125,15 +125,16 @@ std::string fixed(double value, int digits) {
 std::string kilobytes(double bytes) { return fixed(bytes / 1000, bytes < 10000 ? 2 : 1) + " kB"; }
 
 std::string target_line(const char* what, double ratio, double target) {
-  return std::string(what) + ": " + fixed(ratio, 2) + "x (target " + fixed(target, 0) + "x: " +
-         (ratio >= target ? "met" : "missed by " + fixed(target / ratio, 1) + "x") + ")";
+  return std::string(what) + ": " + fixed(ratio, 2) + "x (target " + fixed(target, 0) +
+         "x: " + (ratio >= target ? "met" : "missed by " + fixed(target / ratio, 1) + "x") + ")";
 }
 
 // The frame of `capture` nearest `time` (the earlier of two as near): where a file's keyframe lies.
 int nearest_frame(const Capture& capture, double time) {
   int nearest = 0;
   for (int i = 1; i < static_cast<int>(capture.frames.size()); ++i) {
-    if (std::abs(capture.frames[static_cast<size_t>(i)].time - time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - time)) nearest = i;
+    if (std::abs(capture.frames[static_cast<size_t>(i)].time - time) < std::abs(capture.frames[static_cast<size_t>(nearest)].time - time))
+      nearest = i;
   }
   return nearest;
 }

@@ -2,17 +2,17 @@
 // runs them, each file written, read back and measured on every frame.
 #include "tools/bench_capture_parts.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
-#include "facemorph/decoder.hpp"
-#include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
-#include "codec/meshkit/render/render.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "facemorph/decoder.hpp"
 
 #include "tools/bench_sequence.hpp"
 #include "tools/plot.hpp"
@@ -56,7 +56,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
   if (!options.fmv.empty()) {
     given = read_sequence_file(options.fmv, &given_info);
     const json settings = json::parse(given_info.metadata.settings.empty() ? "{}" : given_info.metadata.settings, nullptr, false);
-    if (settings.is_object() && settings.contains("registration")) encode.registration.method = parse_registration_method(settings["registration"]);
+    if (settings.is_object() && settings.contains("registration"))
+      encode.registration.method = parse_registration_method(settings["registration"]);
     encode.representation = given->representation;
   }
   SequenceEncoder encoder(c.capture, encode);
@@ -90,7 +91,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     out.info = info;
     out.texture_bytes = chunk_bytes(info, "TEXR") + chunk_bytes(info, "TGOP");  // stills, or one sequence per group (2.1)
     out.evaluation = evaluate(encoder, sequence, keyframes, c.meshes, c.every, false, [&](int i, const DecodedFrame& decoded) {
-      const bool measured = c.textured && !decoded.texture.empty() && (all_textures || std::binary_search(c.sample.begin(), c.sample.end(), i));
+      const bool measured =
+          c.textured && !decoded.texture.empty() && (all_textures || std::binary_search(c.sample.begin(), c.sample.end(), i));
       if (!measured && !also) return;
       if (!measured) return also(i, DiskTexels{}, decoded);
       const Image source = read_image(c.textures[static_cast<size_t>(i)]);
@@ -104,7 +106,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
   // As fmenc stores it: the driver's steps once the keyframes are chosen (code_keyframes: the
   // keyframes built, their fields rounded, the residual frames fitted to them as stored, the
   // textures' qualities and sharing), the file written with the coding they chose and read back.
-  auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes, SequenceFileInfo& info) {
+  auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes,
+                         SequenceFileInfo& info) {
     const std::string variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ ? " (xyz)" : "";
     encoder.options().representation = representation;
     const std::unique_ptr<StoredSequence> stored = code_keyframes(encoder, chosen, n);
@@ -114,7 +117,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     if (encoder.options().residual_frames) stage_seconds["residual frames" + variant] += r.residual_fit.seconds;
     stage_seconds["texture quality" + variant] += r.seconds_texture;
     Sequence back;
-    timed(("file" + variant).c_str(), [&] { back = file_round_trip(stored->to_sequence(), r.texture_qualities, &bytes, &info, r.field_coding); });
+    timed(("file" + variant).c_str(),
+          [&] { back = file_round_trip(stored->to_sequence(), r.texture_qualities, &bytes, &info, r.field_coding); });
     return back;
   };
 

@@ -1,16 +1,16 @@
 // fmbench --capture --geometry-only: a given file's geometry error on every frame of its capture.
 #include "tools/bench_capture_parts.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
-#include "facemorph/decoder.hpp"
-#include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/util/parallel.hpp"
-#include "codec/meshkit/render/render.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "facemorph/decoder.hpp"
 
 #include "tools/bench_sequence.hpp"
 #include "tools/plot.hpp"
@@ -49,10 +49,14 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   // from another capture (or other frames of this one) is refused rather than measured against
   // frames it never held.
   const double slack = 0.25 / capture.fps;
-  if (count == 0 || std::abs(sequence.first_time - capture.frames.front().time) > slack || std::abs(sequence.last_time - capture.frames.back().time) > slack) {
-    throw Error(ErrorCode::kInvalidArgument, options.fmv + " spans " + std::to_string(sequence.first_time) + " to " + std::to_string(sequence.last_time) +
-                                                 " s, " + input + " " + (count == 0 ? std::string("has no frames") : std::to_string(capture.frames.front().time) + " to " +
-                                                 std::to_string(capture.frames.back().time) + " s") + ": its keyframes are no frames of it (was the file made from another capture?)");
+  if (count == 0 || std::abs(sequence.first_time - capture.frames.front().time) > slack ||
+      std::abs(sequence.last_time - capture.frames.back().time) > slack) {
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        options.fmv + " spans " + std::to_string(sequence.first_time) + " to " + std::to_string(sequence.last_time) + " s, " + input + " " +
+            (count == 0 ? std::string("has no frames")
+                        : std::to_string(capture.frames.front().time) + " to " + std::to_string(capture.frames.back().time) + " s") +
+            ": its keyframes are no frames of it (was the file made from another capture?)");
   }
   std::vector<int> keyframes;
   for (double time : sequence.times) {
@@ -71,7 +75,8 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   e.frames.resize(static_cast<size_t>(count));
   // --against: the other file's surface at every frame, RMS distance of G's nodes / the diagonal.
   const std::shared_ptr<const KeyframeSource> other = options.against.empty() ? nullptr : open_sequence_source(options.against);
-  if (other && other->outline().grid_n != sequence.grid_n) throw Error(ErrorCode::kInvalidArgument, options.against + ": another grid than " + options.fmv + "'s");
+  if (other && other->outline().grid_n != sequence.grid_n)
+    throw Error(ErrorCode::kInvalidArgument, options.against + ": another grid than " + options.fmv + "'s");
   std::vector<double> apart(static_cast<size_t>(count), 0.0);
   Progress progress(input, options.quiet);
   int done = 0;
@@ -93,7 +98,8 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
       f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
       const DecodedFrame decoded = decoder.decode(f.time, decode);
       f.converged = decoded.converged;
-      const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
+      const SurfaceDistance d =
+          surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
       f.rms = d.rms / d.diagonal;
       f.max = d.max / d.diagonal;
       f.p99 = d.p99 / d.diagonal;
@@ -111,19 +117,23 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   progress.finish();
   const Summary s = summarise(e);
   const bool held_out = static_cast<int>(keyframes.size()) < count;
-  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; ", options.fmv.c_str(), static_cast<unsigned long long>(file_bytes), e.keyframes, count, e.grid);
+  std::printf("%s: %llu bytes, %d keyframes of %d frames, N = %d; ", options.fmv.c_str(), static_cast<unsigned long long>(file_bytes),
+              e.keyframes, count, e.grid);
   if (held_out) {
-    std::printf("held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; ", 100 * s.held_rms_mean, 100 * s.held_rms_worst, 100 * s.held_max_worst);
+    std::printf("held-out RMS %.4f%% mean, %.4f%% worst, max %.4f%%; ", 100 * s.held_rms_mean, 100 * s.held_rms_worst,
+                100 * s.held_max_worst);
   } else {
     std::printf("no held-out frames (every frame a keyframe); ");
   }
-  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst frame\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst, 100 * s.p99_worst);
+  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst frame\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst,
+              100 * s.p99_worst);
   json evaluation = evaluation_json(e);
   if (other) {
     double mean = 0;
     for (double a : apart) mean += a / static_cast<double>(count);
     const double worst = *std::max_element(apart.begin(), apart.end());
-    std::printf("  decoded apart from %s: RMS %.4f%% mean, %.4f%% worst of the diagonal\n", options.against.c_str(), 100 * mean, 100 * worst);
+    std::printf("  decoded apart from %s: RMS %.4f%% mean, %.4f%% worst of the diagonal\n", options.against.c_str(), 100 * mean,
+                100 * worst);
     evaluation["against"] = {{"fmv", options.against}, {"rms_mean", mean}, {"rms_worst", worst}};
   }
   for (const char* key : {"decode_ms_per_frame", "mean_iterations"}) evaluation.erase(key);  // not measured here

@@ -10,12 +10,12 @@
 #include "tools/bench_capture.hpp"
 #include "tools/bench_sequence.hpp"
 
+#include "codec/core/container/file_metadata.hpp"
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/image/image.hpp"
-#include "codec/core/geometry/mesh.hpp"
-#include "codec/core/container/file_metadata.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -37,9 +37,9 @@ using nlohmann::json;
 // What one run tries: the full bench, or the smoke test CI runs in about a minute.
 struct Plan {
   SynthOptions synth;
-  int frame_limit = 0;      // 0: every frame
-  int texture_size = 0;     // fmenc's default: auto (as sharp as the capture's texture, at most 1024)
-  int sample_frames = 15;   // frames the baselines' sweeps are measured on (the matched points on all)
+  int frame_limit = 0;     // 0: every frame
+  int texture_size = 0;    // fmenc's default: auto (as sharp as the capture's texture, at most 1024)
+  int sample_frames = 15;  // frames the baselines' sweeps are measured on (the matched points on all)
   std::vector<double> budgets = {0.05, 0.10, 0.20, 0.30};
   std::vector<int> draco_qp = {3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 14};  // coarse to fine
   std::vector<int> jpeg_quality = {2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 95};
@@ -79,9 +79,9 @@ double mean_at(const std::map<int, std::vector<double>>& values, int key);
 // decode of it) or any disk texture (facemorph's decode) is compared against it.
 struct DiskTexels {
   int size = 0;
-  std::vector<int> texel;       // y * size + x
-  std::vector<Vec2> uv;         // in the captured texture
-  std::vector<uint8_t> truth;   // RGB of the captured texture there
+  std::vector<int> texel;      // y * size + x
+  std::vector<Vec2> uv;        // in the captured texture
+  std::vector<uint8_t> truth;  // RGB of the captured texture there
 };
 
 DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& captured, int size);
@@ -94,7 +94,7 @@ double psnr_of_copy(const DiskTexels& t, const Image& copy);
 
 struct DracoPoint {
   int qp = 0;
-  uint64_t bytes = 0;           // .drc bytes of the frames measured
+  uint64_t bytes = 0;                 // .drc bytes of the frames measured
   std::vector<double> rms, max, p99;  // relative to the captured frame's diagonal
   int frames = 0;
 };
@@ -130,8 +130,9 @@ class H264Readers {
   H264Readers(const std::vector<int>& crfs, const fs::path& scratch, int width, int height) : width_(width), height_(height) {
     for (int crf : crfs) {
       auto pipe = std::make_unique<Pipe>();
-      pipe->command = "ffmpeg -v error -i " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) + " -vf crop=" +
-                      std::to_string(width) + ":" + std::to_string(height) + ":0:0 -f rawvideo -pix_fmt rgb24 - 2> /dev/null";
+      pipe->command = "ffmpeg -v error -i " + shell_quote((scratch / ("texture_crf" + std::to_string(crf) + ".mp4")).string()) +
+                      " -vf crop=" + std::to_string(width) + ":" + std::to_string(height) +
+                      ":0:0 -f rawvideo -pix_fmt rgb24 - 2> /dev/null";
       pipe->file = popen(pipe->command.c_str(), "r");
       if (!pipe->file) throw Error(ErrorCode::kIo, "could not start ffmpeg: " + pipe->command);
       pipes_.push_back(std::move(pipe));
@@ -229,7 +230,7 @@ struct CapturedFrames {
   uint64_t raw_mesh = 0, raw_texture = 0;  // bytes of the OBJ + MTL files, and of their images
   int64_t vertex_frames = 0;
   std::vector<fs::path> textures;
-  bool textured = false;  // every frame has its image
+  bool textured = false;           // every frame has its image
   std::vector<int> every, sample;  // every frame; the frames the baselines' sweeps are measured on
 };
 
@@ -250,7 +251,7 @@ struct FacemorphPoints {
   Encoded main, xyz;  // fmenc's default budget (or the file given), and its xyz variant
   size_t residual_frames = 0;
   std::vector<Encoded> curve, xyz_curve;  // by keyframe budget
-  int shown = 0;  // the held-out frame nearest the middle, for the pictures
+  int shown = 0;                          // the held-out frame nearest the middle, for the pictures
   DecodedFrame shown_decoded;
 };
 

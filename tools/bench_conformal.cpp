@@ -2,15 +2,15 @@
 // on meshes, captures (every frame) and in-memory synthetic faces.
 #include "tools/bench_conformal.hpp"
 
+#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
-#include "codec/meshkit/render/render.hpp"
-#include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/render/render.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
@@ -31,8 +31,8 @@ struct FrameResult {
   std::string name;
   int vertices = 0, faces = 0, holes = 0;
   double seconds_load = 0, seconds_map = 0;
-  double seconds_grid = 0;     // positions onto G (N = 256)
-  double seconds_texture = -1; // texture onto 1024² (-1: the frame has no image)
+  double seconds_grid = 0;      // positions onto G (N = 256)
+  double seconds_texture = -1;  // texture onto 1024² (-1: the frame has no image)
   ConformalReport report;
   Distortion distortion;
   double lambda2_ratio = 0;  // max λ² / min λ²: how crowded the map is
@@ -61,7 +61,7 @@ Image histogram_picture(const std::vector<double>& histogram) {
       }
     }
   }
-  for (int x = 20; x < 620; ++x) std::fill_n(image.at(x, 300), 3, uint8_t{0});  // axis
+  for (int x = 20; x < 620; ++x) std::fill_n(image.at(x, 300), 3, uint8_t{0});                                         // axis
   for (int y = 300; y < 310; ++y) std::fill_n(image.at(20 + (bins / 2) * 600 / bins + 300 / bins, y), 3, uint8_t{0});  // 90°
   return image;
 }
@@ -112,10 +112,17 @@ json frame_json(const FrameResult& r) {
           {"energy", c.energy},
           {"energy_excess", c.energy_excess},
           {"intrinsic_flips", c.intrinsic_flips},
-          {"splits", {{"chords", c.split_chords}, {"ears", c.split_ears}, {"obtuse_boundary", c.split_obtuse_boundary}, {"caps", c.split_caps}}},
-          {"seconds", {{"load_and_prepare", r.seconds_load}, {"precondition", c.seconds_prepare}, {"initial_map", c.seconds_initial},
-                       {"flow", c.seconds_flow}, {"finish", c.seconds_finish}, {"map_total", r.seconds_map},
-                       {"resample_positions_N256", r.seconds_grid}, {"resample_texture_1024", r.seconds_texture}}},
+          {"splits",
+           {{"chords", c.split_chords}, {"ears", c.split_ears}, {"obtuse_boundary", c.split_obtuse_boundary}, {"caps", c.split_caps}}},
+          {"seconds",
+           {{"load_and_prepare", r.seconds_load},
+            {"precondition", c.seconds_prepare},
+            {"initial_map", c.seconds_initial},
+            {"flow", c.seconds_flow},
+            {"finish", c.seconds_finish},
+            {"map_total", r.seconds_map},
+            {"resample_positions_N256", r.seconds_grid},
+            {"resample_texture_1024", r.seconds_texture}}},
           {"angle_error_degrees", {{"mean", d.mean_degrees}, {"p95", d.p95_degrees}, {"max", d.max_degrees}}},
           {"mu", {{"mean", d.mu_mean}, {"max", d.mu_max}}},
           {"flipped_after", d.flipped},
@@ -139,14 +146,16 @@ void add_conformal_command(CLI::App& app, ConformalBenchOptions& options) {
   cmd->add_option("--disk-out", options.disk_out, "Write its disk embedding (z = 0; same vertices and faces as --mesh-out)");
   cmd->add_option("--pictures", options.pictures, "Folder for pictures: checkerboard on the face, the disk, the angle histogram");
   cmd->add_option("--json", options.json_out, "Also write the results as JSON to this file ('-': standard output)");
-  cmd->footer("Columns: iterations and factorisations of QIEM; seconds to load+validate, for the linear start, the flow, the "
-                "whole map; corner-angle error mean/p95/max (degrees); mean |mu|; flipped triangles left; vertices moved to "
-                "unflip; lambda^2 max/min (crowding); seconds to resample positions onto G (N=256) and the texture (1024^2, "
-                "-1 without an image). Captures: medians over frames (worst for max and lambda), then a line on the worst frame.");
+  cmd->footer(
+      "Columns: iterations and factorisations of QIEM; seconds to load+validate, for the linear start, the flow, the "
+      "whole map; corner-angle error mean/p95/max (degrees); mean |mu|; flipped triangles left; vertices moved to "
+      "unflip; lambda^2 max/min (crowding); seconds to resample positions onto G (N=256) and the texture (1024^2, "
+      "-1 without an image). Captures: medians over frames (worst for max and lambda), then a line on the worst frame.");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
-  cmd->add_flag("--sweep", options.sweep,
-                "Every frame of every input through the encoder's map (QIEM with its fallbacks), failures caught: counts by outcome "
-                "(qiem, linear, tutte, failed), preconditioning left-overs, time. tools/bench/conformal_sweep.sh makes the standard inputs");
+  cmd->add_flag(
+      "--sweep", options.sweep,
+      "Every frame of every input through the encoder's map (QIEM with its fallbacks), failures caught: counts by outcome "
+      "(qiem, linear, tutte, failed), preconditioning left-overs, time. tools/bench/conformal_sweep.sh makes the standard inputs");
   cmd->add_option("--threads", options.threads, "Worker threads for --sweep (0: one per core)")->capture_default_str();
 }
 
@@ -163,7 +172,8 @@ struct SweepFrame {
 
 // fmbench conformal --sweep: what fmenc's mapping stage makes of every frame.
 int run_conformal_sweep(const ConformalBenchOptions& options) {
-  if (options.inputs.empty()) throw Error(ErrorCode::kInvalidArgument, "--sweep needs inputs (tools/bench/conformal_sweep.sh makes the standard ones)");
+  if (options.inputs.empty())
+    throw Error(ErrorCode::kInvalidArgument, "--sweep needs inputs (tools/bench/conformal_sweep.sh makes the standard ones)");
   json results = json::array();
   std::printf("%-40s %6s %6s %6s %6s %6s %9s %9s %8s %8s\n", "input", "frames", "qiem", "linear", "tutte", "failed", "caps left",
               "obtuse l.", "median s", "worst s");
@@ -205,8 +215,14 @@ int run_conformal_sweep(const ConformalBenchOptions& options) {
       seconds.push_back(f.seconds);
       caps += f.caps_left > 0;
       obtuse += f.obtuse_left > 0;
-      per_frame.push_back({{"frame", f.name}, {"outcome", f.outcome}, {"reason", f.reason}, {"caps_left", f.caps_left},
-                           {"obtuse_boundary_left", f.obtuse_left}, {"vertices", f.vertices}, {"seconds", f.seconds}, {"repair", f.repair}});
+      per_frame.push_back({{"frame", f.name},
+                           {"outcome", f.outcome},
+                           {"reason", f.reason},
+                           {"caps_left", f.caps_left},
+                           {"obtuse_boundary_left", f.obtuse_left},
+                           {"vertices", f.vertices},
+                           {"seconds", f.seconds},
+                           {"repair", f.repair}});
     }
     const std::string label = input.size() > 40 ? "..." + input.substr(input.size() - 37) : input;
     std::printf("%-40s %6zu %6d %6d %6d %6d %9d %9d %8.3f %8.3f\n", label.c_str(), frames.size(), count("qiem"), count("linear"),
@@ -215,12 +231,23 @@ int run_conformal_sweep(const ConformalBenchOptions& options) {
       if (f.outcome != "qiem") std::printf("    %s: %s: %s\n", f.name.c_str(), f.outcome.c_str(), f.reason.c_str());
     }
     // Scans with defects (fmsynth --defects, real scans): repaired before the map, said once.
-    const auto repaired = std::count_if(frames.begin(), frames.end(), [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
-    const auto first = std::find_if(frames.begin(), frames.end(), [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
+    const auto repaired = std::count_if(frames.begin(), frames.end(),
+                                        [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
+    const auto first = std::find_if(frames.begin(), frames.end(),
+                                    [](const SweepFrame& f) { return !f.repair.empty() && f.repair != "valid as captured"; });
     if (repaired > 0) std::printf("    %td frames repaired, e.g. %s: %s\n", repaired, first->name.c_str(), first->repair.c_str());
-    results.push_back({{"input", input}, {"frames", frames.size()}, {"qiem", count("qiem")}, {"linear", count("linear")}, {"tutte", count("tutte")},
-                       {"failed", count("failed")}, {"frames_repaired", repaired}, {"frames_with_caps_left", caps}, {"frames_with_obtuse_boundary_left", obtuse},
-                       {"median_seconds", percentile(seconds, 0.5)}, {"worst_seconds", percentile(seconds, 1.0)}, {"per_frame", per_frame}});
+    results.push_back({{"input", input},
+                       {"frames", frames.size()},
+                       {"qiem", count("qiem")},
+                       {"linear", count("linear")},
+                       {"tutte", count("tutte")},
+                       {"failed", count("failed")},
+                       {"frames_repaired", repaired},
+                       {"frames_with_caps_left", caps},
+                       {"frames_with_obtuse_boundary_left", obtuse},
+                       {"median_seconds", percentile(seconds, 0.5)},
+                       {"worst_seconds", percentile(seconds, 1.0)},
+                       {"per_frame", per_frame}});
   }
   if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "conformal-sweep"}, {"results", results}});
   return 0;
@@ -240,7 +267,8 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
   const DiskGrid grid = make_disk_grid(256);
   json results = json::array();
   std::printf("%-34s %-6s %6s %7s %5s %5s %7s %7s %7s %7s %6s %6s %6s %7s %5s %5s %9s %6s %6s\n", "input", "method", "frames", "verts",
-              "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng", "grid s", "tex s");
+              "iters", "fact", "prep s", "init s", "flow s", "total s", "mean°", "p95°", "max°", "|mu|", "flip", "untg", "lam2 rng",
+              "grid s", "tex s");
   bool first_output = true;
   for (const std::string& input : inputs) {
     const BenchSource source = open_bench_source(input);
@@ -302,33 +330,38 @@ int run_conformal_bench(const ConformalBenchOptions& options) {
       }
       const bool many = frames.size() > 1;
       std::string label = input.size() > 34 ? "..." + input.substr(input.size() - 31) : input;
-      std::printf("%-34s %-6s %6zu %7.0f %5.0f %5.0f %7.3f %7.3f %7.3f %7.3f %6.2f %6.2f %6.1f %7.4f %5d %5d %9.2e %6.3f %6.3f\n", label.c_str(),
-                  conformal_method_name(method), frames.size(), median([](auto& r) { return r.vertices; }),
+      std::printf("%-34s %-6s %6zu %7.0f %5.0f %5.0f %7.3f %7.3f %7.3f %7.3f %6.2f %6.2f %6.1f %7.4f %5d %5d %9.2e %6.3f %6.3f\n",
+                  label.c_str(), conformal_method_name(method), frames.size(), median([](auto& r) { return r.vertices; }),
                   median([](auto& r) { return r.report.iterations; }), median([](auto& r) { return r.report.factorizations; }),
                   median([](auto& r) { return r.seconds_load + r.report.seconds_prepare; }),
                   median([](auto& r) { return r.report.seconds_initial; }), median([](auto& r) { return r.report.seconds_flow; }),
                   median([](auto& r) { return r.seconds_map; }), median([](auto& r) { return r.distortion.mean_degrees; }),
                   median([](auto& r) { return r.distortion.p95_degrees; }), worst([](auto& r) { return r.distortion.max_degrees; }),
-                  median([](auto& r) { return r.distortion.mu_mean; }), flips, untangled,
-                  worst([](auto& r) { return r.lambda2_ratio; }), median([](auto& r) { return r.seconds_grid; }),
-                  median([](auto& r) { return r.seconds_texture; }));
+                  median([](auto& r) { return r.distortion.mu_mean; }), flips, untangled, worst([](auto& r) { return r.lambda2_ratio; }),
+                  median([](auto& r) { return r.seconds_grid; }), median([](auto& r) { return r.seconds_texture; }));
       if (many) {
-        std::printf("%-34s %-6s worst frame: total %.3f s, mean %.2f°, p95 %.2f°; frames over mean 2.5°: %d, over p95 8°: %d%s\n", "",
-                    "", worst([](auto& r) { return r.seconds_map; }), worst([](auto& r) { return r.distortion.mean_degrees; }),
+        std::printf("%-34s %-6s worst frame: total %.3f s, mean %.2f°, p95 %.2f°; frames over mean 2.5°: %d, over p95 8°: %d%s\n", "", "",
+                    worst([](auto& r) { return r.seconds_map; }), worst([](auto& r) { return r.distortion.mean_degrees; }),
                     worst([](auto& r) { return r.distortion.p95_degrees; }),
                     static_cast<int>(std::count_if(frames.begin(), frames.end(), [](auto& r) { return r.distortion.mean_degrees > 2.5; })),
                     static_cast<int>(std::count_if(frames.begin(), frames.end(), [](auto& r) { return r.distortion.p95_degrees > 8.0; })),
                     fallbacks ? (", " + std::to_string(fallbacks) + " fell back to linear").c_str() : "");
       }
-      json entry = {{"input", input}, {"method", conformal_method_name(method)}, {"frames", frames.size()},
-                    {"flipped_total", flips}, {"untangled_vertices_total", untangled}, {"fallbacks", fallbacks},
-                    {"median", {{"map_seconds", median([](auto& r) { return r.seconds_map; })},
-                                {"mean_degrees", median([](auto& r) { return r.distortion.mean_degrees; })},
-                                {"p95_degrees", median([](auto& r) { return r.distortion.p95_degrees; })}}},
-                    {"worst", {{"map_seconds", worst([](auto& r) { return r.seconds_map; })},
-                               {"mean_degrees", worst([](auto& r) { return r.distortion.mean_degrees; })},
-                               {"p95_degrees", worst([](auto& r) { return r.distortion.p95_degrees; })},
-                               {"max_degrees", worst([](auto& r) { return r.distortion.max_degrees; })}}}};
+      json entry = {{"input", input},
+                    {"method", conformal_method_name(method)},
+                    {"frames", frames.size()},
+                    {"flipped_total", flips},
+                    {"untangled_vertices_total", untangled},
+                    {"fallbacks", fallbacks},
+                    {"median",
+                     {{"map_seconds", median([](auto& r) { return r.seconds_map; })},
+                      {"mean_degrees", median([](auto& r) { return r.distortion.mean_degrees; })},
+                      {"p95_degrees", median([](auto& r) { return r.distortion.p95_degrees; })}}},
+                    {"worst",
+                     {{"map_seconds", worst([](auto& r) { return r.seconds_map; })},
+                      {"mean_degrees", worst([](auto& r) { return r.distortion.mean_degrees; })},
+                      {"p95_degrees", worst([](auto& r) { return r.distortion.p95_degrees; })},
+                      {"max_degrees", worst([](auto& r) { return r.distortion.max_degrees; })}}}};
       json per_frame = json::array();
       for (const FrameResult& r : frames) per_frame.push_back(frame_json(r));
       entry["per_frame"] = std::move(per_frame);

@@ -1,8 +1,8 @@
 #include "tools/bench_inputs.hpp"
 
 #include "codec/encoder/capture/capture.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -43,9 +43,12 @@ FrameLandmarks synthetic_landmarks(const SyntheticFace& face, double time) {
   FrameLandmarks landmarks;
   for (const NamedPoint& point : face.landmarks()) {
     const Vec3 x = face.position(point.material, time);
-    if (point.name == "nose_tip") landmarks.centre = x;
-    else if (point.name == "nose_bridge") landmarks.up = x;
-    else if (point.name.rfind("rim_", 0) == 0) landmarks.rim_markers.push_back(x);
+    if (point.name == "nose_tip")
+      landmarks.centre = x;
+    else if (point.name == "nose_bridge")
+      landmarks.up = x;
+    else if (point.name.rfind("rim_", 0) == 0)
+      landmarks.rim_markers.push_back(x);
   }
   return landmarks;
 }
@@ -59,7 +62,8 @@ std::vector<std::string> default_bench_inputs(const std::string& data, bool larg
   const fs::path root(data);
   std::error_code ec;
   if (fs::is_directory(root / "medusa-mediapipe-4d/capture", ec)) inputs.push_back((root / "medusa-mediapipe-4d/capture").string());
-  if (fs::exists(root / "ict-facekit/derived/face_area_neutral.obj", ec)) inputs.push_back((root / "ict-facekit/derived/face_area_neutral.obj").string());
+  if (fs::exists(root / "ict-facekit/derived/face_area_neutral.obj", ec))
+    inputs.push_back((root / "ict-facekit/derived/face_area_neutral.obj").string());
   return inputs;
 }
 

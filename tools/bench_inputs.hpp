@@ -2,9 +2,9 @@
 // faces ("synth:N"), one frame at a time, with the landmarks of the reference pose.
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/geometry/mesh.hpp"
 
 #include <functional>
 #include <string>

@@ -2,13 +2,13 @@
 // -> Laplace-Beltrami reconstruction) for each representation, and the decoder's speed.
 #include "tools/bench_reconstruct.hpp"
 
-#include "codec/writer/container/sequence_file_writer.hpp"
-#include "codec/encoder/capture/capture.hpp"
-#include "codec/meshkit/geometry/distance.hpp"
-#include "codec/encoder/encode/frame_pipeline.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tools/bench_inputs.hpp"
 #include "tools/tool_support.hpp"
@@ -27,11 +27,11 @@ namespace {
 struct RoundTrip {
   Representation representation;
   bool quantized;
-  size_t bytes = 0;                 // compressed 16-bit fields (compressed_bytes)
+  size_t bytes = 0;  // compressed 16-bit fields (compressed_bytes)
   int iterations = 0;
   bool converged = false;
   double change = 0, seconds = 0;
-  double rms = 0, max = 0;          // symmetric point-to-surface, relative to the frame's bbox diagonal
+  double rms = 0, max = 0;                          // symmetric point-to-surface, relative to the frame's bbox diagonal
   double disk_l2 = 0, disk_linf = 0, disk_rms = 0;  // against the resampled surface on G (capture units)
 };
 
@@ -81,9 +81,11 @@ void add_reconstruct_command(CLI::App& app, ReconstructBenchOptions& options) {
                   "Head rotation test: two keyframes of a synthetic face turning by this many degrees, the midpoint decoded "
                   "from their blended fields, per representation (repeatable)");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
-  cmd->footer("Round trip: the frame's surface against the reconstruction from its own fields, as symmetric point-to-surface "
-              "distance (RMS, max) relative to the frame's bounding-box diagonal, in float (f64) and at the stored 16 bits (q16); "
-              "'floor'/'flrmax' are the grid resampling alone (RMS/max). L2/Linf: the paper's measures over the disk against the resampled surface.");
+  cmd->footer(
+      "Round trip: the frame's surface against the reconstruction from its own fields, as symmetric point-to-surface "
+      "distance (RMS, max) relative to the frame's bounding-box diagonal, in float (f64) and at the stored 16 bits (q16); "
+      "'floor'/'flrmax' are the grid resampling alone (RMS/max). L2/Linf: the paper's measures over the disk against the resampled "
+      "surface.");
 }
 
 int run_reconstruct_bench(const ReconstructBenchOptions& options) {
@@ -163,21 +165,39 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
                     100 * percentile(floors, 0.5), 100 * percentile(rms, 0.5), 100 * percentile(floor_max, 0.5), 100 * percentile(max, 0.5),
                     100 * percentile(rms, 1.0), percentile(l2, 0.5), percentile(linf, 0.5),
                     first.quantized ? std::to_string(static_cast<int>(std::lround(percentile(bytes, 0.5) / 1000))).c_str() : "");
-        json entry = {{"input", input}, {"frames", frames}, {"representation", representation_name(first.representation)},
-                      {"bits", first.quantized ? 16 : 64}, {"converged_frames", converged},
+        json entry = {{"input", input},
+                      {"frames", frames},
+                      {"representation", representation_name(first.representation)},
+                      {"bits", first.quantized ? 16 : 64},
+                      {"converged_frames", converged},
                       {"median_compressed_bytes_per_keyframe", first.quantized ? percentile(bytes, 0.5) : 0.0},
-                      {"median", {{"iterations", percentile(iterations, 0.5)}, {"rms_relative", percentile(rms, 0.5)},
-                                  {"max_relative", percentile(max, 0.5)}, {"resampling_floor_rms_relative", percentile(floors, 0.5)}, {"resampling_floor_max_relative", percentile(floor_max, 0.5)},
-                                  {"disk_l2", percentile(l2, 0.5)}, {"disk_linf", percentile(linf, 0.5)}}},
-                      {"worst", {{"rms_relative", percentile(rms, 1.0)}, {"max_relative", percentile(max, 1.0)},
-                                 {"iterations", percentile(iterations, 1.0)}}}};
+                      {"median",
+                       {{"iterations", percentile(iterations, 0.5)},
+                        {"rms_relative", percentile(rms, 0.5)},
+                        {"max_relative", percentile(max, 0.5)},
+                        {"resampling_floor_rms_relative", percentile(floors, 0.5)},
+                        {"resampling_floor_max_relative", percentile(floor_max, 0.5)},
+                        {"disk_l2", percentile(l2, 0.5)},
+                        {"disk_linf", percentile(linf, 0.5)}}},
+                      {"worst",
+                       {{"rms_relative", percentile(rms, 1.0)},
+                        {"max_relative", percentile(max, 1.0)},
+                        {"iterations", percentile(iterations, 1.0)}}}};
         json frames_json = json::array();
         for (size_t i = 0; i < per_frame.size(); ++i) {
           const RoundTrip& r = per_frame[i][k];
-          frames_json.push_back({{"frame", source.frame_name(i)}, {"iterations", r.iterations}, {"converged", r.converged},
-                                 {"last_change", r.change}, {"seconds", r.seconds}, {"rms_relative", r.rms}, {"max_relative", r.max},
-                                 {"disk_l2", r.disk_l2}, {"disk_linf", r.disk_linf}, {"disk_rms", r.disk_rms},
-                                 {"resampling_floor_rms_relative", floors[i]}, {"resampling_floor_max_relative", floor_max[i]}});
+          frames_json.push_back({{"frame", source.frame_name(i)},
+                                 {"iterations", r.iterations},
+                                 {"converged", r.converged},
+                                 {"last_change", r.change},
+                                 {"seconds", r.seconds},
+                                 {"rms_relative", r.rms},
+                                 {"max_relative", r.max},
+                                 {"disk_l2", r.disk_l2},
+                                 {"disk_linf", r.disk_linf},
+                                 {"disk_rms", r.disk_rms},
+                                 {"resampling_floor_rms_relative", floors[i]},
+                                 {"resampling_floor_max_relative", floor_max[i]}});
         }
         entry["per_frame"] = std::move(frames_json);
         results.push_back(std::move(entry));
@@ -188,7 +208,9 @@ int run_reconstruct_bench(const ReconstructBenchOptions& options) {
   if (options.speed) speed = run_decode_speed(options.quiet);
   json rotation = json::array();
   for (double degrees : options.rotation) rotation.push_back(run_rotation_experiment(options.grid, degrees));
-  if (!options.json_out.empty()) write_json(options.json_out, {{"benchmark", "reconstruct"}, {"grid", options.grid}, {"round_trip", results}, {"speed", speed}, {"rotation", rotation}});
+  if (!options.json_out.empty())
+    write_json(options.json_out,
+               {{"benchmark", "reconstruct"}, {"grid", options.grid}, {"round_trip", results}, {"speed", speed}, {"rotation", rotation}});
   return 0;
 }
 
@@ -232,7 +254,9 @@ json run_rotation_experiment(int grid_n, double degrees) {
     const SurfaceDistance d = surface_distance(truth, grid_mesh(reconstructor.geometry().grid(), r.positions));
     std::printf("  %-5s midpoint error: rms %.4f%%, max %.4f%% of the diagonal (%d iterations%s)\n", representation_name(rep),
                 100 * d.rms / d.diagonal, 100 * d.max / d.diagonal, r.iterations, r.converged ? "" : ", not converged");
-    out[representation_name(rep)] = {{"rms_relative", d.rms / d.diagonal}, {"max_relative", d.max / d.diagonal}, {"iterations", r.iterations},
+    out[representation_name(rep)] = {{"rms_relative", d.rms / d.diagonal},
+                                     {"max_relative", d.max / d.diagonal},
+                                     {"iterations", r.iterations},
                                      {"converged", r.converged}};
   }
   return out;
@@ -251,8 +275,8 @@ json run_decode_speed(bool quiet) {
   }
   progress.finish();
   std::printf("\ndecode speed, one thread, hl+t at 16 bits, a %d-frame synthetic sequence\n", frames);
-  std::printf("%6s %9s %10s %10s %10s %11s %11s %10s %10s\n", "N", "nodes", "setup s", "solver MB", "cold ms", "cold iters", "warm ms", "warm iters",
-              "warm fps");
+  std::printf("%6s %9s %10s %10s %10s %11s %11s %10s %10s\n", "N", "nodes", "setup s", "solver MB", "cold ms", "cold iters", "warm ms",
+              "warm iters", "warm fps");
   json out = json::array();
   const ReconstructOptions ro;  // the decoder's defaults
   for (int n : {64, 128, 256, 512}) {
@@ -261,7 +285,8 @@ json run_decode_speed(bool quiet) {
     const double setup_seconds = seconds_since(start);  // G, its operators and the multigrid hierarchy
     std::vector<GridFields> fields;
     for (const MappedFrame& map : maps) {
-      fields.push_back(keyframe_fields(reconstructor.geometry(), sample_on_grid(map, reconstructor.geometry().grid()), Representation::kHLT));
+      fields.push_back(
+          keyframe_fields(reconstructor.geometry(), sample_on_grid(map, reconstructor.geometry().grid()), Representation::kHLT));
     }
     start = std::chrono::steady_clock::now();
     const ReconstructResult cold = reconstructor.reconstruct(fields[0], ro);
@@ -277,9 +302,15 @@ json run_decode_speed(bool quiet) {
     const double warm_mean_iterations = static_cast<double>(warm_iterations) / (frames - 1);
     std::printf("%6d %9d %10.3f %10.1f %10.2f %11d %11.2f %10.1f %10.1f\n", n, reconstructor.geometry().grid().node_count(), setup_seconds,
                 reconstructor.solver_bytes() / 1e6, cold_ms, cold.iterations, warm_ms, warm_mean_iterations, 1e3 / warm_ms);
-    out.push_back({{"grid", n}, {"nodes", reconstructor.geometry().grid().node_count()}, {"setup_seconds", setup_seconds},
-                   {"solver_bytes", reconstructor.solver_bytes()}, {"cold_ms", cold_ms}, {"cold_iterations", cold.iterations},
-                   {"warm_ms", warm_ms}, {"warm_iterations", warm_mean_iterations}, {"warm_fps", 1e3 / warm_ms}});
+    out.push_back({{"grid", n},
+                   {"nodes", reconstructor.geometry().grid().node_count()},
+                   {"setup_seconds", setup_seconds},
+                   {"solver_bytes", reconstructor.solver_bytes()},
+                   {"cold_ms", cold_ms},
+                   {"cold_iterations", cold.iterations},
+                   {"warm_ms", warm_ms},
+                   {"warm_iterations", warm_mean_iterations},
+                   {"warm_fps", 1e3 / warm_ms}});
   }
   return out;
 }

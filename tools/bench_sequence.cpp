@@ -1,17 +1,17 @@
 // What fmbench's whole-capture benches share (see bench_sequence.hpp).
 #include "tools/bench_sequence.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/conformal/resample.hpp"
-#include "codec/writer/image/image_encode.hpp"
-#include "codec/encoder/synth/synth.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "tools/plot.hpp"
 #include "tools/tool_support.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -35,14 +35,15 @@ ScratchFolder::~ScratchFolder() {
   fs::remove_all(path, ec);
 }
 
-std::optional<fs::path> make_bench_capture(const std::string& input, const std::string& data, const fs::path& scratch, const SynthOptions& synth,
-                                           const char* bench, bool quiet) {
+std::optional<fs::path> make_bench_capture(const std::string& input, const std::string& data, const fs::path& scratch,
+                                           const SynthOptions& synth, const char* bench, bool quiet) {
   if (input == "synth" || input.rfind("synth:head", 0) == 0) {
     SynthOptions options = synth;
     if (input != "synth") options.head_motion_degrees = std::stod(input.substr(10));
     const fs::path out = scratch / (input == "synth" ? "synth" : "synth_head" + input.substr(10));
     if (!quiet) {
-      std::fprintf(stderr, "%s: writing %s (fmsynth --frames %d --vertices %d --expression mixed --remesh --noise %g --texture-size %d%s)\n", bench,
+      std::fprintf(stderr,
+                   "%s: writing %s (fmsynth --frames %d --vertices %d --expression mixed --remesh --noise %g --texture-size %d%s)\n", bench,
                    out.c_str(), options.frames, options.vertices, options.noise, options.texture_size,
                    input == "synth" ? "" : (" --head-motion " + input.substr(10)).c_str());
     }
@@ -68,8 +69,8 @@ std::optional<fs::path> make_bench_capture(const std::string& input, const std::
   return fs::path(input);
 }
 
-Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& texture_qualities, std::vector<uint8_t>* bytes, SequenceFileInfo* info,
-                         const FieldCoding& coding) {
+Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& texture_qualities, std::vector<uint8_t>* bytes,
+                         SequenceFileInfo* info, const FieldCoding& coding) {
   SequenceFileMetadata metadata;
   metadata.keyframe_texture_qualities = texture_qualities;
   metadata.field_coding = coding;
@@ -89,7 +90,8 @@ Summary summarise(const Evaluation& e) {
     if (f.keyframe) {
       s.key_rms_mean += f.rms, s.key_rms_worst = std::max(s.key_rms_worst, f.rms), ++keys;
     } else {
-      s.held_rms_mean += f.rms, s.held_rms_worst = std::max(s.held_rms_worst, f.rms), s.held_max_worst = std::max(s.held_max_worst, f.max), ++held;
+      s.held_rms_mean += f.rms, s.held_rms_worst = std::max(s.held_rms_worst, f.rms), s.held_max_worst = std::max(s.held_max_worst, f.max),
+                                ++held;
       if (f.psnr >= 0) psnr_sum += f.psnr, s.psnr_worst = std::min(s.psnr_worst, f.psnr), ++textured;
     }
   }
@@ -144,11 +146,29 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
 json evaluation_json(const Evaluation& e) {
   const Summary s = summarise(e);
   json frames = json::array();
-  for (const FrameError& f : e.frames) frames.push_back({{"time", f.time}, {"keyframe", f.keyframe}, {"rms_relative", f.rms}, {"max_relative", f.max}, {"p99_relative", f.p99}, {"texture_psnr_db", f.psnr}, {"converged", f.converged}});
-  return {{"registration", e.registration}, {"spline", e.spline}, {"keyframes", e.keyframes}, {"grid", e.grid},
-          {"keyframe_rms_mean", s.key_rms_mean}, {"keyframe_rms_worst", s.key_rms_worst}, {"held_out_rms_mean", s.held_rms_mean},
-          {"held_out_rms_worst", s.held_rms_worst}, {"held_out_max_worst", s.held_max_worst}, {"p99_worst", s.p99_worst}, {"held_out_texture_psnr_mean", s.psnr_mean},
-          {"held_out_texture_psnr_worst", s.psnr_worst}, {"decode_ms_per_frame", e.decode_ms}, {"mean_iterations", e.iterations}, {"frames", frames}};
+  for (const FrameError& f : e.frames)
+    frames.push_back({{"time", f.time},
+                      {"keyframe", f.keyframe},
+                      {"rms_relative", f.rms},
+                      {"max_relative", f.max},
+                      {"p99_relative", f.p99},
+                      {"texture_psnr_db", f.psnr},
+                      {"converged", f.converged}});
+  return {{"registration", e.registration},
+          {"spline", e.spline},
+          {"keyframes", e.keyframes},
+          {"grid", e.grid},
+          {"keyframe_rms_mean", s.key_rms_mean},
+          {"keyframe_rms_worst", s.key_rms_worst},
+          {"held_out_rms_mean", s.held_rms_mean},
+          {"held_out_rms_worst", s.held_rms_worst},
+          {"held_out_max_worst", s.held_max_worst},
+          {"p99_worst", s.p99_worst},
+          {"held_out_texture_psnr_mean", s.psnr_mean},
+          {"held_out_texture_psnr_worst", s.psnr_worst},
+          {"decode_ms_per_frame", e.decode_ms},
+          {"mean_iterations", e.iterations},
+          {"frames", frames}};
 }
 
 void write_error_plot(const fs::path& path, const Evaluation& e) {

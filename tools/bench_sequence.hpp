@@ -2,12 +2,12 @@
 // the file round trip, and every captured frame decoded at its own time and measured against it.
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/image/image.hpp"
-#include "codec/core/geometry/mesh.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <nlohmann/json.hpp>
@@ -33,8 +33,9 @@ struct ScratchFolder {
 // --frames 60 --expression mixed --remesh with `synth`'s noise and texture), synth:head30 (the
 // same with --head-motion 30), medusa, ict (make_capture.py --start-seconds 56 --seconds 4, into
 // `scratch`). nullopt when the data it needs (`data`, python3) is absent.
-std::optional<std::filesystem::path> make_bench_capture(const std::string& input, const std::string& data, const std::filesystem::path& scratch,
-                                                        const SynthOptions& synth, const char* bench, bool quiet);
+std::optional<std::filesystem::path> make_bench_capture(const std::string& input, const std::string& data,
+                                                        const std::filesystem::path& scratch, const SynthOptions& synth, const char* bench,
+                                                        bool quiet);
 
 // `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with per-keyframe
 // `texture_qualities` (fmenc's come from SequenceEncoder::choose_texture_qualities; empty: AVIF
@@ -45,9 +46,9 @@ Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& textu
                          SequenceFileInfo* info = nullptr, const FieldCoding& coding = {});
 
 struct FrameError {
-  double rms = 0, max = 0;   // symmetric point-to-surface, relative to the captured frame's diagonal
-  double p99 = 0;            // its 99th percentile (the worst region), relative to the same diagonal
-  double psnr = -1;          // decoded texture against the captured one on the disk (dB); -1 without
+  double rms = 0, max = 0;  // symmetric point-to-surface, relative to the captured frame's diagonal
+  double p99 = 0;           // its 99th percentile (the worst region), relative to the same diagonal
+  double psnr = -1;         // decoded texture against the captured one on the disk (dB); -1 without
   bool keyframe = false;
   bool converged = true;
   double time = 0;

@@ -3,13 +3,13 @@
 // captured frame decoded at its own time and compared with the frame as captured.
 #include "tools/bench_temporal.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/core/image/texture_codec.hpp"
 #include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/image/texture_codec.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
@@ -49,17 +49,17 @@ Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelec
 
 void print_evaluation(const std::string& label, const Evaluation& e) {
   const Summary s = summarise(e);
-  std::printf("%-28s %-8s %-11s %4d %5d %9.4f %9.4f %9.4f %9.4f %9.4f %8.2f %8.2f %8.1f\n", label.c_str(), e.registration.c_str(), e.spline.c_str(),
-              e.keyframes, e.grid, 100 * s.key_rms_worst, 100 * s.held_rms_mean, 100 * s.held_rms_worst, 100 * s.held_max_worst,
-              100 * s.key_rms_mean, s.psnr_mean, s.psnr_worst, e.decode_ms);
+  std::printf("%-28s %-8s %-11s %4d %5d %9.4f %9.4f %9.4f %9.4f %9.4f %8.2f %8.2f %8.1f\n", label.c_str(), e.registration.c_str(),
+              e.spline.c_str(), e.keyframes, e.grid, 100 * s.key_rms_worst, 100 * s.held_rms_mean, 100 * s.held_rms_worst,
+              100 * s.held_max_worst, 100 * s.key_rms_mean, s.psnr_mean, s.psnr_worst, e.decode_ms);
 }
 
 // The paper's Table 1 for one registration: matching energies averaged over the frames.
 struct MatchingEnergies {
-  double disk_moebius = 0, disk = 0;   // E_D of the OMT alone and of the registration (disk units²)
-  double local = 0;                    // E_loc: Σ |f(p) - q|² over the landmarks, in 3D (capture units²)
-  double global = 0;                   // E: ∫_D |S_b(f(x)) - S_a(x)|² dx in the face frame (capture units²)
-  double global_relative = 0;          // sqrt(E / area of D) / diagonal: the RMS correspondence distance
+  double disk_moebius = 0, disk = 0;  // E_D of the OMT alone and of the registration (disk units²)
+  double local = 0;                   // E_loc: Σ |f(p) - q|² over the landmarks, in 3D (capture units²)
+  double global = 0;                  // E: ∫_D |S_b(f(x)) - S_a(x)|² dx in the face frame (capture units²)
+  double global_relative = 0;         // sqrt(E / area of D) / diagonal: the RMS correspondence distance
 };
 
 MatchingEnergies matching_energies(SequenceEncoder& encoder) {
@@ -91,7 +91,8 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
     }
     double sum = 0;
     const std::shared_ptr<const SelectionFrame> sampled = encoder.selection_frame(i);
-    for (size_t v = 0; v < weights.size(); ++v) sum += weights[v] * (sampled->local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
+    for (size_t v = 0; v < weights.size(); ++v)
+      sum += weights[v] * (sampled->local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
     m.global += sum;
     m.global_relative += std::sqrt(sum / area) / selection[static_cast<size_t>(i)].diagonal;
     ++counted;
@@ -130,9 +131,10 @@ void add_temporal_command(CLI::App& app, TemporalBenchOptions& options) {
                 "--field-error auto, AVIF textures at --quality auto); report the file's bytes");
   cmd->add_flag("--no-targets", options.no_targets, "Skip the keyframes-for-1%-and-0.5% searches");
   cmd->add_flag("-q,--quiet", options.quiet, "No progress display");
-  cmd->footer("Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "
-              "relative to its bounding-box diagonal, %. key: keyframes' worst RMS; held: held-out frames' mean and worst RMS "
-              "and worst max; psnr: held-out texture against the captured one on the disk, mean and worst (dB).");
+  cmd->footer(
+      "Errors: symmetric point-to-surface distance between the decoded surface (holes cut) and the captured frame, "
+      "relative to its bounding-box diagonal, %. key: keyframes' worst RMS; held: held-out frames' mean and worst RMS "
+      "and worst max; psnr: held-out texture against the captured one on the disk, mean and worst (dB).");
 }
 
 int run_temporal_bench(const TemporalBenchOptions& options) {
@@ -192,7 +194,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     encoder.map_frames();
     progress.finish();
     std::vector<TriangleMesh> captured;
-    for (int i = 0; i < count; ++i) captured.push_back(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}));
+    for (int i = 0; i < count; ++i)
+      captured.push_back(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}));
     std::vector<int> every(static_cast<size_t>(count));
     for (int i = 0; i < count; ++i) every[static_cast<size_t>(i)] = i;
     bool textured = encoder.has_texture(0);
@@ -200,8 +203,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     std::printf("\n%s: %d frames at %.3g fps, %s\n", input.c_str(), count, capture.fps, folder->c_str());
     json entry = {{"input", input}, {"frames", count}, {"fps", capture.fps}};
     // Table 1 and Table 3: each registration, keyframes chosen by its own prediction.
-    std::printf("%-28s %-8s %-11s %4s %5s %9s %9s %9s %9s %9s %8s %8s %8s\n", "", "reg", "spline", "keys", "N", "key wst%", "held mn%", "held wst%",
-                "held max%", "key mn%", "psnr mn", "psnr wst", "dec ms");
+    std::printf("%-28s %-8s %-11s %4s %5s %9s %9s %9s %9s %9s %8s %8s %8s\n", "", "reg", "spline", "keys", "N", "key wst%", "held mn%",
+                "held wst%", "held max%", "key mn%", "psnr mn", "psnr wst", "dec ms");
     json registrations = json::array();
     std::vector<Evaluation> by_method;
     std::vector<MatchingEnergies> energies_by_method;
@@ -222,10 +225,13 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       }
       if (!encoder.reparametrisation().identity()) {
         const DensityEqualisingReport& d = encoder.reparametrisation().report();
-        std::printf("    density-equalising (strength %.2f): %d steps%s, area density variation %.3f -> %.3f\n", options.density_equalising, d.steps,
-                    d.stopped_early ? " (stopped: a step would make a sliver)" : "", d.variation_before, d.variation_after);
-        entry["density_equalising"] = {{"strength", options.density_equalising}, {"steps", d.steps}, {"stopped_early", d.stopped_early},
-                                       {"variation_before", d.variation_before}, {"variation_after", d.variation_after}};
+        std::printf("    density-equalising (strength %.2f): %d steps%s, area density variation %.3f -> %.3f\n", options.density_equalising,
+                    d.steps, d.stopped_early ? " (stopped: a step would make a sliver)" : "", d.variation_before, d.variation_after);
+        entry["density_equalising"] = {{"strength", options.density_equalising},
+                                       {"steps", d.steps},
+                                       {"stopped_early", d.stopped_early},
+                                       {"variation_before", d.variation_before},
+                                       {"variation_after", d.variation_after}};
       }
       const MatchingEnergies energies = matching_energies(encoder);
       energies_by_method.push_back(energies);
@@ -247,29 +253,41 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       if (through_file) r["file_bytes"] = file_bytes, r["file_bytes_per_second"] = file_bytes / file_seconds;
       if (const GeodesicFrame* frame = encoder.geodesic_frame()) {
         const PartitionMesh& partition = *frame->partition;
-        std::printf("    geodesic frame of frame %d: %d landmarks, %zu curves (%d straight, %d unconverged), partition %zu vertices / %zu "
-                    "triangles (%d curve pieces not edges), built in %.2f + %.2f s; %d of %d frames fell back to the GMF\n",
-                    encoder.options().reference_frame, frame->landmark_count, frame->paths.size(), frame->straight_paths, frame->unconverged_paths,
-                    partition.vertices().size(), partition.faces().size(), frame->unconforming_segments, frame->seconds_paths,
-                    frame->seconds_partition, frame_fallbacks, count);
-        r["geodesic_frame"] = {{"landmarks", frame->landmark_count}, {"curves", frame->paths.size()}, {"straight_curves", frame->straight_paths},
-                               {"unconverged_curves", frame->unconverged_paths}, {"partition_vertices", partition.vertices().size()},
-                               {"partition_triangles", partition.faces().size()}, {"unconforming_segments", frame->unconforming_segments},
-                               {"seconds_paths", frame->seconds_paths}, {"seconds_partition", frame->seconds_partition},
+        std::printf(
+            "    geodesic frame of frame %d: %d landmarks, %zu curves (%d straight, %d unconverged), partition %zu vertices / %zu "
+            "triangles (%d curve pieces not edges), built in %.2f + %.2f s; %d of %d frames fell back to the GMF\n",
+            encoder.options().reference_frame, frame->landmark_count, frame->paths.size(), frame->straight_paths, frame->unconverged_paths,
+            partition.vertices().size(), partition.faces().size(), frame->unconforming_segments, frame->seconds_paths,
+            frame->seconds_partition, frame_fallbacks, count);
+        r["geodesic_frame"] = {{"landmarks", frame->landmark_count},
+                               {"curves", frame->paths.size()},
+                               {"straight_curves", frame->straight_paths},
+                               {"unconverged_curves", frame->unconverged_paths},
+                               {"partition_vertices", partition.vertices().size()},
+                               {"partition_triangles", partition.faces().size()},
+                               {"unconforming_segments", frame->unconforming_segments},
+                               {"seconds_paths", frame->seconds_paths},
+                               {"seconds_partition", frame->seconds_partition},
                                {"frames_fallen_back_to_gmf", frame_fallbacks}};
       }
-      r["matching_energies"] = {{"E_D_moebius", energies.disk_moebius}, {"E_D", energies.disk}, {"E_loc", energies.local}, {"E", energies.global},
+      r["matching_energies"] = {{"E_D_moebius", energies.disk_moebius},
+                                {"E_D", energies.disk},
+                                {"E_loc", energies.local},
+                                {"E", energies.global},
                                 {"E_rms_relative", energies.global_relative}};
       r["registration_fallbacks"] = fallbacks;
       r["selection_history"] = chosen.history;
       registrations.push_back(r);
       if (!options.plots.empty()) {
-        write_error_plot(fs::path(options.plots) / (fs::path(input).filename().string() + "_" + registration_method_name(method) + "_error.png"), e);
+        write_error_plot(
+            fs::path(options.plots) / (fs::path(input).filename().string() + "_" + registration_method_name(method) + "_error.png"), e);
       }
       by_method.push_back(std::move(e));
-      std::printf("    matching energies (mean over frames): E_D OMT %.3e, E_D %.3e, E_loc %.3e %s², E %.3e %s² (RMS %.4f%% of the diagonal); %d fallbacks\n",
-                  energies.disk_moebius, energies.disk, energies.local, capture.units.c_str(), energies.global, capture.units.c_str(),
-                  100 * energies.global_relative, fallbacks);
+      std::printf(
+          "    matching energies (mean over frames): E_D OMT %.3e, E_D %.3e, E_loc %.3e %s², E %.3e %s² (RMS %.4f%% of the diagonal); %d "
+          "fallbacks\n",
+          energies.disk_moebius, energies.disk, energies.local, capture.units.c_str(), energies.global, capture.units.c_str(),
+          100 * energies.global_relative, fallbacks);
     }
     entry["grid"] = grid;
     entry["grid_floors"] = encoder.report().grid_floors;
@@ -283,8 +301,9 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         const double g = summarise(by_method[k]).held_rms_mean;
         const MatchingEnergies& ek = energies_by_method[k];
         auto rate = [](double omt, double other) { return omt > 0 ? (omt - other) / omt : 0.0; };
-        std::printf("    improvement of %s over moebius: held-out mean RMS %.1f%%, E_D %.1f%%, E_loc %.1f%%, E %.1f%%\n", by_method[k].registration.c_str(),
-                    100 * rate(m, g), 100 * rate(em.disk, ek.disk), 100 * rate(em.local, ek.local), 100 * rate(em.global, ek.global));
+        std::printf("    improvement of %s over moebius: held-out mean RMS %.1f%%, E_D %.1f%%, E_loc %.1f%%, E %.1f%%\n",
+                    by_method[k].registration.c_str(), 100 * rate(m, g), 100 * rate(em.disk, ek.disk), 100 * rate(em.local, ek.local),
+                    100 * rate(em.global, ek.global));
         entry["improvement_over_moebius"][by_method[k].registration] = rate(m, g);
         entry["energy_improvement_over_moebius"][by_method[k].registration] = {
             {"E_D", rate(em.disk, ek.disk)}, {"E_loc", rate(em.local, ek.local)}, {"E", rate(em.global, ek.global)}};
@@ -333,7 +352,10 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       for (size_t k = 0; k < e.frames.size(); ++k) {
         const int ahead = k == 0 ? 1 : k == 1 ? 3 : 10;
         std::printf("  +%d frames: %.4f%% RMS, %.4f%% max", ahead, 100 * e.frames[k].rms, 100 * e.frames[k].max);
-        extrapolation.push_back({{"frames_past", ahead}, {"time", e.frames[k].time}, {"rms_relative", e.frames[k].rms}, {"max_relative", e.frames[k].max},
+        extrapolation.push_back({{"frames_past", ahead},
+                                 {"time", e.frames[k].time},
+                                 {"rms_relative", e.frames[k].rms},
+                                 {"max_relative", e.frames[k].max},
                                  {"within_sane_range", e.frames[k].time <= spline.sane_range().end}});
       }
       std::printf("\n");
@@ -355,7 +377,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
             std::printf("    worst held-out RMS <= %.1f%%: %d keyframes of %d (%.1f%%), measured worst %.4f%%%s\n", 100 * target,
                         static_cast<int>(chosen.keyframes.size()), count, 100.0 * chosen.keyframes.size() / count, 100 * worst,
                         worst <= target ? "" : " (not met)");
-            targets.push_back({{"target", target}, {"keyframes", chosen.keyframes.size()}, {"measured_worst", worst}, {"met", worst <= target}});
+            targets.push_back(
+                {{"target", target}, {"keyframes", chosen.keyframes.size()}, {"measured_worst", worst}, {"met", worst <= target}});
             break;
           }
           tolerance *= 0.7 * target / worst;

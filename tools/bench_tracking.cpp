@@ -7,9 +7,9 @@
 
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include "tools/tool_support.hpp"
@@ -102,14 +102,14 @@ void measure_accuracy(const TrackingBenchOptions& o) {
   }
   if (o.per_landmark) {
     for (size_t l = 0; l < interior.size(); ++l) {
-      std::printf("  %s at (%.3f, %.3f): kept %d, RMS %.4f tracked, %.4f untracked\n", kept.landmark_names[interior[l]].c_str(), from[l].x(), from[l].y(),
-                  per_kept[l], std::sqrt(per_tracked[l] / (encoder.frame_count() - 1) * stride), std::sqrt(per_untracked[l] / (encoder.frame_count() - 1) * stride));
+      std::printf("  %s at (%.3f, %.3f): kept %d, RMS %.4f tracked, %.4f untracked\n", kept.landmark_names[interior[l]].c_str(),
+                  from[l].x(), from[l].y(), per_kept[l], std::sqrt(per_tracked[l] / (encoder.frame_count() - 1) * stride),
+                  std::sqrt(per_untracked[l] / (encoder.frame_count() - 1) * stride));
     }
   }
-  std::printf("all: %d of %d kept; RMS %.4f tracked (lost points untracked), %.4f untracked\n", kept_points, tried, std::sqrt(sum_tracked / std::max(tried, 1)),
-              std::sqrt(sum_untracked / std::max(tried, 1)));
+  std::printf("all: %d of %d kept; RMS %.4f tracked (lost points untracked), %.4f untracked\n", kept_points, tried,
+              std::sqrt(sum_tracked / std::max(tried, 1)), std::sqrt(sum_untracked / std::max(tried, 1)));
 }
-
 
 // The keyframe selection's predicted error between keyframes (what held-out frames will show) for
 // tracking variants on one mapping of the capture, its landmarks withheld.
@@ -146,19 +146,20 @@ void measure_selection(const TrackingBenchOptions& o) {
     }
     int fallbacks = 0;
     for (int i = 0; i < encoder.frame_count(); ++i) fallbacks += encoder.registration(i)->fallback != RegistrationFallback::kNone;
-    std::printf("gain %.2f spacing %.3f window %.0f round trip %.3f smoothing %.3g: %zu keyframes, predicted mean %.4f%% (budget mean %.4f%%), "
-                "%d fallbacks, %.1f points, %.2f s tracking, %.2f s registration\n",
-                gain, spacing, window, round_trip, smoothing, chosen.keyframes.size(), 100 * sum / std::max(n, 1), 100 * chosen.budget_mean_error, fallbacks,
-                encoder.report().tracked_points_mean, encoder.report().seconds_tracking, encoder.report().seconds_registration);
+    std::printf(
+        "gain %.2f spacing %.3f window %.0f round trip %.3f smoothing %.3g: %zu keyframes, predicted mean %.4f%% (budget mean %.4f%%), "
+        "%d fallbacks, %.1f points, %.2f s tracking, %.2f s registration\n",
+        gain, spacing, window, round_trip, smoothing, chosen.keyframes.size(), 100 * sum / std::max(n, 1), 100 * chosen.budget_mean_error,
+        fallbacks, encoder.report().tracked_points_mean, encoder.report().seconds_tracking, encoder.report().seconds_registration);
   }
 }
-
 
 }  // namespace
 
 void add_tracking_command(CLI::App& app, TrackingBenchOptions& options) {
-  CLI::App* cmd = app.add_subcommand("tracking", "Landmark tracking on a capture with interior landmarks: tracked against given, frame by frame; or, "
-                                                 "with --variants, the keyframe selection per tracking variant, landmarks withheld");
+  CLI::App* cmd = app.add_subcommand("tracking",
+                                     "Landmark tracking on a capture with interior landmarks: tracked against given, frame by frame; or, "
+                                     "with --variants, the keyframe selection per tracking variant, landmarks withheld");
   cmd->add_option("capture", options.capture, "A capture folder with interior landmarks")->required();
   cmd->add_option("--stride", options.stride, "Every stride-th frame")->capture_default_str();
   cmd->add_option("--image-size", options.image_size, "Disk image texels per side (0: the default)");
@@ -169,7 +170,8 @@ void add_tracking_command(CLI::App& app, TrackingBenchOptions& options) {
   cmd->add_option("--round-trip", options.round_trip, "Largest forward-backward distance kept (negative: the default)");
   cmd->add_flag("--no-holes", options.no_holes, "Images without the filled holes' outlines");
   cmd->add_flag("--chain", options.chain, "Track frame to frame instead of from the reference");
-  cmd->add_flag("--chain-direct", options.chain_direct, "With --chain: track from the reference again, started where the chain put each point");
+  cmd->add_flag("--chain-direct", options.chain_direct,
+                "With --chain: track from the reference again, started where the chain put each point");
   cmd->add_flag("--per-landmark", options.per_landmark, "Also each landmark's RMS");
   cmd->add_option("--variants", options.variants, "\"spacing,window,round_trip,smoothing[,gain];...\": the selection per variant instead");
   cmd->add_flag("--given-landmarks", options.given_landmarks, "With --variants: keep the capture's landmarks");

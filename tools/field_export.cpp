@@ -1,8 +1,8 @@
 #include "tools/field_export.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "format/error.hpp"
 #include "codec/writer/image/image_encode.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <ImfChannelList.h>
@@ -66,7 +66,8 @@ std::string vectors_csv(const std::string& header, const std::vector<Vec3>& vect
   out.precision(9);
   out << header << "\n";
   for (size_t k = 0; k < vectors.size(); ++k) {
-    out << (nodes ? (*nodes)[k] : static_cast<int32_t>(k)) << "," << vectors[k].x() << "," << vectors[k].y() << "," << vectors[k].z() << "\n";
+    out << (nodes ? (*nodes)[k] : static_cast<int32_t>(k)) << "," << vectors[k].x() << "," << vectors[k].y() << "," << vectors[k].z()
+        << "\n";
   }
   return out.str();
 }

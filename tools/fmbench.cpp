@@ -26,6 +26,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("temporal")) return run_temporal_bench(temporal);
     if (app.got_subcommand("tracking")) return run_tracking_bench(tracking);
     if (!capture.captures.empty()) return run_capture_bench(capture);
-    throw facemorph::Error(facemorph::ErrorCode::kInvalidArgument, "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal, tracking); --help lists them");
+    throw facemorph::Error(
+        facemorph::ErrorCode::kInvalidArgument,
+        "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal, tracking); --help lists them");
   });
 }

@@ -12,7 +12,9 @@
 using namespace facemorph;
 
 int main(int argc, char** argv) {
-  CLI::App app("Join the segment files of one encode (fmenc --stage assemble --segment S/N) into one facemorph file, without decoding them.", "fmcat");
+  CLI::App app(
+      "Join the segment files of one encode (fmenc --stage assemble --segment S/N) into one facemorph file, without decoding them.",
+      "fmcat");
   std::vector<std::string> segments;
   std::string output;
   bool quiet = false, check = false;

@@ -1,12 +1,12 @@
 // fmdec: plays a .fmv file back. One time (--t) to a mesh with its texture and, on request, a
 // shaded picture; a range of times (--fps, --from, --to) to a folder of meshes, to nothing (--null,
 // for timing), or to a video of previews; or each keyframe's stored fields as EXR (--extract-fields).
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/meshkit/gltf/gltf.hpp"
-#include "codec/writer/image/image_encode.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/render/render.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include "tools/field_export.hpp"
 #include "tools/tool_support.hpp"
@@ -25,9 +25,9 @@ using namespace facemorph;
 namespace fs = std::filesystem;
 
 struct Outputs {
-  fs::path mesh;      // -o: .obj (+ .mtl + .png) or .ply
-  fs::path preview;   // a .png picture, or an .mp4 video for a range
-  fs::path out_dir;   // a range: one mesh per frame
+  fs::path mesh;     // -o: .obj (+ .mtl + .png) or .ply
+  fs::path preview;  // a .png picture, or an .mp4 video for a range
+  fs::path out_dir;  // a range: one mesh per frame
   std::string format = "obj";
   bool null = false;
   double yaw = kPreviewYawDegrees;
@@ -68,7 +68,8 @@ void check_mesh_path(const fs::path& path) {
 // the one before; a range within one keyframe's reach carries the middle frame's texture alone.
 class ClipCollector {
  public:
-  ClipCollector(const DiskGrid& grid, bool compact, bool normals, std::vector<double> keyframe_times) : keyframe_times_(std::move(keyframe_times)) {
+  ClipCollector(const DiskGrid& grid, bool compact, bool normals, std::vector<double> keyframe_times)
+      : keyframe_times_(std::move(keyframe_times)) {
     clip_.compact = compact;
     clip_.normals = normals;
     clip_.faces = grid.faces;
@@ -134,7 +135,8 @@ int main(int argc, char** argv) {
   double tolerance = ReconstructOptions{}.tolerance;
   app.add_option("input", input, "The .fmv file")->required();
   app.add_option("--t", t, "The time to decode, in seconds from the first frame (past the ends: extrapolated within the sane range)");
-  app.add_option("-o,--output", mesh_out, "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply; for a range, CLIP.glb (glTF 2.0)");
+  app.add_option("-o,--output", mesh_out,
+                 "Mesh of the frame: FRAME.obj (+ FRAME.mtl, FRAME.png) or FRAME.ply; for a range, CLIP.glb (glTF 2.0)");
   app.add_option("--preview", preview, "A shaded, textured picture (.png) of the frame, or a video (.mp4) of a range");
   app.add_option("--preview-size", preview_size, "Preview pixels per side")->capture_default_str();
   app.add_option("--yaw", out.yaw, "Preview: degrees the face is turned")->capture_default_str();
@@ -148,9 +150,12 @@ int main(int argc, char** argv) {
   app.add_flag("--keep-holes-filled", keep_holes, "Show eyes and mouth as the encoder's fill instead of cutting them out");
   app.add_flag("--clamp", clamp, "Clamp times past the sane extrapolation range to it instead of failing");
   app.add_flag("--no-texture", no_texture, "Do not blend or write the texture");
-  app.add_flag("--glb-float", glb_float, "A glTF clip in plain floats, without KHR_mesh_quantization and EXT_meshopt_compression (for viewers that lack them)");
-  app.add_flag("--glb-flat", glb_flat, "A glTF clip without normals: viewers shade each triangle flat; the sample's compact clip is 37% smaller");
-  app.add_option("--tolerance", tolerance, "Stop the reconstruction when a step moves no node more than this fraction of the rim's diameter")
+  app.add_flag("--glb-float", glb_float,
+               "A glTF clip in plain floats, without KHR_mesh_quantization and EXT_meshopt_compression (for viewers that lack them)");
+  app.add_flag("--glb-flat", glb_flat,
+               "A glTF clip without normals: viewers shade each triangle flat; the sample's compact clip is 37% smaller");
+  app.add_option("--tolerance", tolerance,
+                 "Stop the reconstruction when a step moves no node more than this fraction of the rim's diameter")
       ->capture_default_str();
   app.add_flag("-q,--quiet", quiet, "No progress display or summary");
   DecoderLimits limits;
@@ -181,26 +186,33 @@ int main(int argc, char** argv) {
       if (fps > 0 || from || to || !out_dir.empty() || out.null) {
         throw Error(ErrorCode::kInvalidArgument, "--t decodes one frame; --fps/--from/--to/--out-dir/--null decode a range");
       }
-      if (mesh_out.empty() && preview.empty()) throw Error(ErrorCode::kInvalidArgument, "--t needs -o FRAME.obj and/or --preview FRAME.png");
+      if (mesh_out.empty() && preview.empty())
+        throw Error(ErrorCode::kInvalidArgument, "--t needs -o FRAME.obj and/or --preview FRAME.png");
       if (!mesh_out.empty()) check_mesh_path(mesh_out);
       if (!mesh_out.empty() && !preview.empty() && fs::path(mesh_out).extension() == ".obj" &&
           fs::weakly_canonical(fs::path(mesh_out).replace_extension(".png")) == fs::weakly_canonical(preview)) {
-        throw Error(ErrorCode::kInvalidArgument, preview + " is where the mesh's texture goes; give the preview another name (e.g. FRAME_view.png)");
+        throw Error(ErrorCode::kInvalidArgument,
+                    preview + " is where the mesh's texture goes; give the preview another name (e.g. FRAME_view.png)");
       }
-      if (!preview.empty() && fs::path(preview).extension() != ".png") throw Error(ErrorCode::kInvalidArgument, preview + ": a frame's preview is a .png");
+      if (!preview.empty() && fs::path(preview).extension() != ".png")
+        throw Error(ErrorCode::kInvalidArgument, preview + ": a frame's preview is a .png");
       const DecodedFrame frame = decoder.decode(*t, options);
       if (!mesh_out.empty()) write_frame(frame, mesh_out);
       if (!preview.empty()) write_png(preview, preview_picture(frame, out.yaw, preview_size));
       if (!quiet) {
         print_frame(frame, mesh_out.empty() ? fs::path(preview) : fs::path(mesh_out));
-        if (!mesh_out.empty() && !frame.texture.empty()) std::printf("  texture %s\n", fs::path(mesh_out).replace_extension(".png").string().c_str());
+        if (!mesh_out.empty() && !frame.texture.empty())
+          std::printf("  texture %s\n", fs::path(mesh_out).replace_extension(".png").string().c_str());
         if (!preview.empty()) std::printf("  preview %s\n", preview.c_str());
       }
       return 0;
     }
-    if (fps <= 0) throw Error(ErrorCode::kInvalidArgument, "give --t T for one frame, or --fps F (with --out-dir, --null or --preview SEQ.mp4) for a range");
+    if (fps <= 0)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "give --t T for one frame, or --fps F (with --out-dir, --null or --preview SEQ.mp4) for a range");
     const bool glb = fs::path(mesh_out).extension() == ".glb";
-    if (!mesh_out.empty() && !glb) throw Error(ErrorCode::kInvalidArgument, "a range goes to -o CLIP.glb, --out-dir DIR, --null or --preview SEQ.mp4, not to one mesh");
+    if (!mesh_out.empty() && !glb)
+      throw Error(ErrorCode::kInvalidArgument, "a range goes to -o CLIP.glb, --out-dir DIR, --null or --preview SEQ.mp4, not to one mesh");
     if (out_dir.empty() && !out.null && preview.empty() && !glb) {
       throw Error(ErrorCode::kInvalidArgument, "a range needs -o CLIP.glb, --out-dir DIR, --null or --preview SEQ.mp4");
     }
@@ -217,7 +229,8 @@ int main(int argc, char** argv) {
     const int count = tools::frame_count(begin, end, fps, 1e-3);
     std::optional<tools::VideoFile> video;
     if (!preview.empty()) {
-      if (fs::path(preview).extension() != ".mp4") throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");
+      if (fs::path(preview).extension() != ".mp4")
+        throw Error(ErrorCode::kInvalidArgument, preview + ": a range's preview is an .mp4 video");
       video.emplace(fs::path(preview).replace_extension(".partial.mp4"), preview_size, fps);
     }
     if (!out_dir.empty()) {
@@ -254,14 +267,16 @@ int main(int argc, char** argv) {
       format::commit_temporary(fs::path(preview).replace_extension(".partial.mp4"), preview);
     }
     if (!quiet) {
-      std::printf("fmdec: %d frames, t = %.3f .. %.3f s at %.3f fps: %.2f ms per frame (worst %.2f ms, %.1f iterations), file read in %.0f ms%s\n",
-                  count, begin, begin + (count - 1) / fps, fps, 1000 * seconds / count, worst_ms, static_cast<double>(iterations) / count,
-                  1000 * seconds_read, fell_back ? (", " + std::to_string(fell_back) + " frames did not converge").c_str() : "");
+      std::printf(
+          "fmdec: %d frames, t = %.3f .. %.3f s at %.3f fps: %.2f ms per frame (worst %.2f ms, %.1f iterations), file read in %.0f ms%s\n",
+          count, begin, begin + (count - 1) / fps, fps, 1000 * seconds / count, worst_ms, static_cast<double>(iterations) / count,
+          1000 * seconds_read, fell_back ? (", " + std::to_string(fell_back) + " frames did not converge").c_str() : "");
       if (!out_dir.empty()) std::printf("  meshes in %s\n", out_dir.c_str());
       if (video) std::printf("  video %s\n", preview.c_str());
       if (clip) {
-        std::printf("  glTF clip %s (%llu bytes, %zu texture%s)\n", mesh_out.c_str(), static_cast<unsigned long long>(fs::file_size(mesh_out)),
-                    clip->textures(), clip->textures() == 1 ? "" : "s, switched at the keyframes");
+        std::printf("  glTF clip %s (%llu bytes, %zu texture%s)\n", mesh_out.c_str(),
+                    static_cast<unsigned long long>(fs::file_size(mesh_out)), clip->textures(),
+                    clip->textures() == 1 ? "" : "s, switched at the keyframes");
       }
     }
     return 0;

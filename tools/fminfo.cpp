@@ -1,11 +1,11 @@
 // fminfo: describes a facemorph input or output. For a capture (a folder with capture.json, or a
 // plain folder of meshes with --fps) it reads, validates and repairs every frame the way the
 // encoder will, and prints a summary (or JSON).
+#include "codec/core/util/parallel.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "format/container.hpp"
 
 #include "tools/tool_support.hpp"
@@ -14,8 +14,8 @@
 
 #include <algorithm>
 #include <array>
-#include <fstream>
 #include <cstdio>
+#include <fstream>
 
 namespace {
 
@@ -32,8 +32,7 @@ struct FrameSummary {
 std::vector<Vec3> rim_markers(const Capture& capture, size_t frame) {
   std::vector<Vec3> markers;
   for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
-    if (capture.landmark_names[l].rfind("rim_", 0) == 0 && frame < capture.landmarks.size() &&
-        capture.landmarks[frame][l].allFinite()) {
+    if (capture.landmark_names[l].rfind("rim_", 0) == 0 && frame < capture.landmarks.size() && capture.landmarks[frame][l].allFinite()) {
       markers.push_back(capture.landmarks[frame][l]);
     }
   }
@@ -97,10 +96,14 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
     doc["fill_folded_faces"] = folded;
     nlohmann::json per_frame = nlohmann::json::array();
     for (size_t i = 0; i < count; ++i) {
-      per_frame.push_back({{"mesh", capture.frames[i].mesh.generic_string()}, {"time", capture.frames[i].time},
-                           {"vertices", frames[i].vertices}, {"faces", frames[i].faces},
-                           {"prepared_vertices", frames[i].prepared_vertices}, {"prepared_faces", frames[i].prepared_faces},
-                           {"holes", frames[i].holes.size()}, {"report", frames[i].report}});
+      per_frame.push_back({{"mesh", capture.frames[i].mesh.generic_string()},
+                           {"time", capture.frames[i].time},
+                           {"vertices", frames[i].vertices},
+                           {"faces", frames[i].faces},
+                           {"prepared_vertices", frames[i].prepared_vertices},
+                           {"prepared_faces", frames[i].prepared_faces},
+                           {"holes", frames[i].holes.size()},
+                           {"report", frames[i].report}});
     }
     doc["per_frame"] = std::move(per_frame);
     std::printf("%s\n", doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
@@ -110,10 +113,10 @@ int describe_capture(const Capture& capture, bool json_out, bool quiet, const st
   if (!capture.description.empty()) std::printf("            %s\n", capture.description.c_str());
   std::printf("frames      %zu at %.3f fps, %.3f s, units %s\n", count, capture.fps, capture.duration(), capture.units.c_str());
   std::printf("vertices    %d .. %d per frame\n", vmin->vertices, vmax->vertices);
-  std::printf("texture     %s\n", frames[0].has_texture ? "per-frame image with UVs"
+  std::printf("texture     %s\n", frames[0].has_texture   ? "per-frame image with UVs"
                                   : frames[0].has_colours ? "colour per vertex, no image (painted onto the disk)"
-                                  : frames[0].has_uvs   ? "UVs, no image"
-                                                        : "none");
+                                  : frames[0].has_uvs     ? "UVs, no image"
+                                                          : "none");
   std::printf("landmarks   %zu (%zu on the rim)\n", capture.landmark_names.size(), rim_markers(capture, 0).size());
   std::printf("validation  all %zu frames are disks after repair; %zu repaired\n", count, repaired);
   if (holes > 0) {
@@ -203,12 +206,14 @@ void print_encoder_notes(const nlohmann::json& settings) {
   const nlohmann::json &dropped = list("dropped_frames"), &fallbacks = list("conformal_fallbacks"), &warnings = list("warnings");
   if (!dropped.empty()) {
     std::printf("dropped     %zu frames, not encoded (the spline covers their times):\n", dropped.size());
-    for (const auto& d : dropped) std::printf("            %s at %.3f s: %s\n", text(d, "name").c_str(), number(d, "time"), text(d, "reason").c_str());
+    for (const auto& d : dropped)
+      std::printf("            %s at %.3f s: %s\n", text(d, "name").c_str(), number(d, "time"), text(d, "reason").c_str());
   }
   if (!fallbacks.empty()) {
     std::printf("fallbacks   %zu frames mapped without QIEM:\n", fallbacks.size());
     for (const auto& f : fallbacks) {
-      std::printf("            %s at %.3f s, %s map: %s\n", text(f, "name").c_str(), number(f, "time"), text(f, "method").c_str(), text(f, "reason").c_str());
+      std::printf("            %s at %.3f s, %s map: %s\n", text(f, "name").c_str(), number(f, "time"), text(f, "method").c_str(),
+                  text(f, "reason").c_str());
     }
   }
   for (const auto& w : warnings) {
@@ -217,9 +222,10 @@ void print_encoder_notes(const nlohmann::json& settings) {
   // The encoder's repairs of the captured meshes (spec/method.md §2.1); absent in files older than issue 47.
   const auto repairs = settings.find("repairs");
   if (repairs != settings.end() && repairs->is_object() && number(*repairs, "frames_repaired") > 0) {
-    std::printf("repairs     %.0f frames repaired: %.0f faces and %.0f vertices changed, the surface moved at most %.3g (%.3g%% of the diagonal)\n",
-                number(*repairs, "frames_repaired"), number(*repairs, "faces_changed"), number(*repairs, "vertices_changed"),
-                number(*repairs, "largest_move"), 100 * number(*repairs, "largest_move_of_diagonal"));
+    std::printf(
+        "repairs     %.0f frames repaired: %.0f faces and %.0f vertices changed, the surface moved at most %.3g (%.3g%% of the diagonal)\n",
+        number(*repairs, "frames_repaired"), number(*repairs, "faces_changed"), number(*repairs, "vertices_changed"),
+        number(*repairs, "largest_move"), 100 * number(*repairs, "largest_move_of_diagonal"));
     const auto frames = repairs->find("frames");
     if (frames != repairs->end() && frames->is_array()) {
       for (const auto& f : *frames) std::printf("            %s: %s\n", text(f, "name").c_str(), text(f, "repair").c_str());
@@ -258,8 +264,12 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     doc["last_time"] = sequence.last_time;
     doc["duration_seconds"] = duration;
     doc["units"] = sequence.units;
-    doc["grid"] = {{"n", sequence.grid_n}, {"rule", info.grid_rule}, {"hash", tools::hex64(info.grid_hash)},
-                   {"nodes", shape.interior_count + shape.rim_count}, {"rim_nodes", shape.rim_count}, {"fixed_nodes", fixed}};
+    doc["grid"] = {{"n", sequence.grid_n},
+                   {"rule", info.grid_rule},
+                   {"hash", tools::hex64(info.grid_hash)},
+                   {"nodes", shape.interior_count + shape.rim_count},
+                   {"rim_nodes", shape.rim_count},
+                   {"fixed_nodes", fixed}};
     doc["representation"] = representation_name(sequence.representation);
     const FieldCoding& coding = info.metadata.field_coding;
     doc["field_coding"] = {{"steps", coding.steps},
@@ -285,7 +295,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     for (const auto& g : info.field_groups) groups.push_back({{"first", g.first}, {"count", g.count}, {"bytes", g.bytes}});
     doc["field_groups"] = std::move(groups);
     nlohmann::json chunks = nlohmann::json::array();
-    for (const auto& c : info.chunks) chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
+    for (const auto& c : info.chunks)
+      chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
     doc["chunks"] = std::move(chunks);
     doc["settings"] = settings.value;
     if (!settings.problem.empty()) doc["settings_error"] = settings.problem;
@@ -294,33 +305,40 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     std::printf("%s\n", doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     return 0;
   }
-  std::printf("file        %s: %llu bytes, format %d.%d, written by %s\n", path.string().c_str(), static_cast<unsigned long long>(info.file_bytes),
-              info.major_version, info.minor_version, info.metadata.encoder.c_str());
+  std::printf("file        %s: %llu bytes, format %d.%d, written by %s\n", path.string().c_str(),
+              static_cast<unsigned long long>(info.file_bytes), info.major_version, info.minor_version, info.metadata.encoder.c_str());
   std::printf("capture     %.3f s at %.3f fps (frames at %.3f .. %.3f s), units %s\n", duration, sequence.fps, sequence.first_time,
               sequence.last_time, sequence.units.c_str());
   std::printf("rate        %.0f bytes per second of capture (%.1f kbit/s)\n", bytes_per_second, bytes_per_second * 8 / 1000);
   std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", sequence.grid_n, shape.interior_count + shape.rim_count,
               shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
   const FieldCoding& coding = info.metadata.field_coding;
-  std::printf("fields      %s, integer multiples of a step per array, predicted and range-coded in groups of %d keyframes; %zu nodes in boundary frames\n",
-              representation_name(sequence.representation), coding.intra_period, fixed);
+  std::printf(
+      "fields      %s, integer multiples of a step per array, predicted and range-coded in groups of %d keyframes; %zu nodes in boundary "
+      "frames\n",
+      representation_name(sequence.representation), coding.intra_period, fixed);
   std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
               coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
-  std::printf("pose        in the index: rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step, coding.translation_step,
-              sequence.units.c_str());
+  std::printf("pose        in the index: rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step,
+              coding.translation_step, sequence.units.c_str());
   std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
               spline.sane_range().begin, spline.sane_range().end);
   const bool texture_groups = info.texture_size > 0 && info.metadata.texture_coding == TextureCoding::kSequence;
-  const std::string texture_coding = texture_groups ? " AVIF image sequence per group of " + std::to_string(coding.intra_period) +
-                                                          " keyframes (format 2.1 TGOP; each keyframe's bytes its AV1 sample, a group's first also the chunk's and AVIF container's)"
-                                     : std::string(info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") +
-                                           (info.distinct_textures < sequence.keyframe_count()
-                                                ? " stills, " + std::to_string(info.distinct_textures) + " for " + std::to_string(sequence.keyframe_count()) +
-                                                      " keyframes (format 2.2: keyframes showing one texture name one TEXR; its bytes are the first's)"
-                                                : " still per keyframe");
-  std::printf("texture     %s\n", info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str() : "none");
+  const std::string texture_coding =
+      texture_groups
+          ? " AVIF image sequence per group of " + std::to_string(coding.intra_period) +
+                " keyframes (format 2.1 TGOP; each keyframe's bytes its AV1 sample, a group's first also the chunk's and AVIF container's)"
+          : std::string(info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") +
+                (info.distinct_textures < sequence.keyframe_count()
+                     ? " stills, " + std::to_string(info.distinct_textures) + " for " + std::to_string(sequence.keyframe_count()) +
+                           " keyframes (format 2.2: keyframes showing one texture name one TEXR; its bytes are the first's)"
+                     : " still per keyframe");
+  std::printf("texture     %s\n",
+              info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str()
+                                    : "none");
   std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
-  if (info.residual_frames > 0) std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
+  if (info.residual_frames > 0)
+    std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (verify) {
     std::printf("keyframes   %zu, every one decoded and checked\n", sequence.keyframe_count());
@@ -332,14 +350,17 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
   } else {
     // A group's stream is divided among its keyframes only by decoding it: the group's bytes stand
     // on its first keyframe's line.
-    std::printf("keyframes   %zu, checksums verified (fminfo --verify decodes each and gives its fields' bytes)\n", sequence.keyframe_count());
+    std::printf("keyframes   %zu, checksums verified (fminfo --verify decodes each and gives its fields' bytes)\n",
+                sequence.keyframe_count());
     std::printf("    #     time  group's fields B  texture B\n");
     size_t group = 0;
     for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
       const bool first = group < info.field_groups.size() && info.field_groups[group].first == k;
-      const std::string fields = first ? std::to_string(info.field_groups[group].bytes) + " (" + std::to_string(info.field_groups[group].count) + ")" : "";
+      const std::string fields =
+          first ? std::to_string(info.field_groups[group].bytes) + " (" + std::to_string(info.field_groups[group].count) + ")" : "";
       group += first;
-      std::printf("  %3zu %8.3f %17s %10llu\n", k, sequence.times[k], fields.c_str(), static_cast<unsigned long long>(info.keyframes[k].texture));
+      std::printf("  %3zu %8.3f %17s %10llu\n", k, sequence.times[k], fields.c_str(),
+                  static_cast<unsigned long long>(info.keyframes[k].texture));
     }
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");
@@ -368,7 +389,9 @@ int main(int argc, char** argv) {
   app.add_option("--landmarks", landmarks, "Landmarks CSV for a plain folder (frame,name,x,y,z)");
   app.add_option("--prepared", prepared, "Write each validated, hole-filled frame into this folder");
   app.add_flag("--json", json_out, "Print JSON");
-  app.add_flag("--verify", verify, "For a .fmv file: decode every keyframe once (as a player would), not only verify the checksums, and give each keyframe its fields' bytes");
+  app.add_flag("--verify", verify,
+               "For a .fmv file: decode every keyframe once (as a player would), not only verify the checksums, and give each keyframe its "
+               "fields' bytes");
   app.add_flag("-q,--quiet", quiet, "No progress display");
   DecoderLimits limits;
   std::string max_memory;

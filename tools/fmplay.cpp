@@ -81,7 +81,8 @@ facemorph::Image render_frame(const Buffers& b, const fm_frame& frame, int size)
     mesh.uvs.emplace_back(b.uvs[2 * v], b.uvs[2 * v + 1]);
   }
   for (uint32_t f = 0; f < frame.triangle_count; ++f) {
-    mesh.faces.push_back({static_cast<int32_t>(b.indices[3 * f]), static_cast<int32_t>(b.indices[3 * f + 1]), static_cast<int32_t>(b.indices[3 * f + 2])});
+    mesh.faces.push_back(
+        {static_cast<int32_t>(b.indices[3 * f]), static_cast<int32_t>(b.indices[3 * f + 1]), static_cast<int32_t>(b.indices[3 * f + 2])});
   }
   mesh.uv_faces = mesh.faces;
   // Shaded smoothly by the normals the C API decoded with the frame, as fmdec --preview and the web
@@ -127,9 +128,10 @@ void play_in_parallel(fm_file* file, const fm_info& info, double begin, int coun
     if (statuses[static_cast<size_t>(p)] != FM_OK) throw Failure{statuses[static_cast<size_t>(p)], messages[static_cast<size_t>(p)]};
   }
   const double frames = static_cast<double>(count) * threads;
-  std::printf("fmplay: %d players on %d threads, one file: %.0f frames in %.2f s wall (decoders created included): %.1f fps in all, "
-              "%.1f fps a player; peak memory %.1f MiB\n",
-              threads, threads, frames, seconds, frames / seconds, count / seconds, peak_memory_mib());
+  std::printf(
+      "fmplay: %d players on %d threads, one file: %.0f frames in %.2f s wall (decoders created included): %.1f fps in all, "
+      "%.1f fps a player; peak memory %.1f MiB\n",
+      threads, threads, frames, seconds, frames / seconds, count / seconds, peak_memory_mib());
 }
 
 }  // namespace
@@ -172,7 +174,8 @@ int main(int argc, char** argv) {
     if (loops < 1) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--loop must be at least 1"};
     if (threads < 1 || threads > 256) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--threads must be 1 .. 256"};
     if (video_size < 16 || video_size > 8192) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--video-size must be 16 .. 8192"};
-    if (!video.empty() && fs::path(video).extension() != ".mp4") throw Failure{FM_ERROR_INVALID_ARGUMENT, video + ": the video must be .mp4"};
+    if (!video.empty() && fs::path(video).extension() != ".mp4")
+      throw Failure{FM_ERROR_INVALID_ARGUMENT, video + ": the video must be .mp4"};
 
     const auto open_start = std::chrono::steady_clock::now();
     fm_decoder_options options;
@@ -200,8 +203,8 @@ int main(int argc, char** argv) {
     if (!(end >= begin)) throw Failure{FM_ERROR_INVALID_ARGUMENT, "--to is before --from"};
     if (!clamp && (begin < info.range_begin || end > info.range_end)) {
       char text[200];
-      std::snprintf(text, sizeof text, "%s: t = %.4g .. %.4g s is outside the range the file serves, [%.4g, %.4g] s (--clamp clamps)", input.c_str(), begin,
-                    end, info.range_begin, info.range_end);
+      std::snprintf(text, sizeof text, "%s: t = %.4g .. %.4g s is outside the range the file serves, [%.4g, %.4g] s (--clamp clamps)",
+                    input.c_str(), begin, end, info.range_begin, info.range_end);
       throw Failure{FM_ERROR_OUT_OF_RANGE, text};
     }
     int count = 0;
@@ -211,8 +214,8 @@ int main(int argc, char** argv) {
       throw Failure{FM_ERROR_INVALID_ARGUMENT, e.what()};
     }
     if (!quiet) {
-      std::printf("fmplay: %s: N = %u, %u keyframes, %.3f s at %.3f fps, up to %u vertices and %u triangles%s, texture %ux%u\n", input.c_str(),
-                  info.grid_n, info.keyframe_count, info.duration, info.fps, info.max_vertex_count, info.max_triangle_count,
+      std::printf("fmplay: %s: N = %u, %u keyframes, %.3f s at %.3f fps, up to %u vertices and %u triangles%s, texture %ux%u\n",
+                  input.c_str(), info.grid_n, info.keyframe_count, info.duration, info.fps, info.max_vertex_count, info.max_triangle_count,
                   info.has_holes ? " (holes: counts change per frame)" : "", info.texture_size, info.texture_size);
     }
 
@@ -245,13 +248,14 @@ int main(int argc, char** argv) {
     }
     const int frames = count * loops;
     const double mean_ms = total_ms / frames;
-    std::printf("fmplay: %d frames (%d x %d, t = %.3f .. %.3f s): %.1f fps mean (%.2f ms), worst frame %.2f ms (%.1f fps) at t = %.3f s, "
-                "%.1f iterations a frame, peak memory %.1f MiB, file opened in %.0f ms, decoder created in %.0f ms\n",
-                frames, loops, count, begin, begin + (count - 1) / fps, 1000 / mean_ms, mean_ms, worst_ms, 1000 / worst_ms, worst_t,
-                static_cast<double>(iterations) / frames, peak_memory_mib(), open_ms, create_ms);
+    std::printf(
+        "fmplay: %d frames (%d x %d, t = %.3f .. %.3f s): %.1f fps mean (%.2f ms), worst frame %.2f ms (%.1f fps) at t = %.3f s, "
+        "%.1f iterations a frame, peak memory %.1f MiB, file opened in %.0f ms, decoder created in %.0f ms\n",
+        frames, loops, count, begin, begin + (count - 1) / fps, 1000 / mean_ms, mean_ms, worst_ms, 1000 / worst_ms, worst_t,
+        static_cast<double>(iterations) / frames, peak_memory_mib(), open_ms, create_ms);
     if (!quiet) {
-      std::printf("  first frame (cold) %.2f ms; real time at %.3f fps (%.2f ms a frame): %s (%d of %d frames slower)\n", first_ms, fps, budget_ms,
-                  slow == 0 ? "yes" : "no", slow, frames);
+      std::printf("  first frame (cold) %.2f ms; real time at %.3f fps (%.2f ms a frame): %s (%d of %d frames slower)\n", first_ms, fps,
+                  budget_ms, slow == 0 ? "yes" : "no", slow, frames);
       if (fell_back > 0) std::printf("  %d frames did not converge and show the keyframes' blended surfaces\n", fell_back);
     }
     if (writer) {

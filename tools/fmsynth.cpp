@@ -1,6 +1,6 @@
 // fmsynth: writes a synthetic face capture (spec/capture.md), facemorph's own sample and test data.
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "tools/tool_support.hpp"
 
@@ -37,13 +37,16 @@ int main(int argc, char** argv) {
   app.add_option("--defects", defects,
                  "Write what scanners write into every frame, for the encoder's repairs: all, or a comma-separated list of bow-ties, "
                  "three-face-edges, duplicates, degenerate, flipped, islands, torso (spec/capture.md)");
-  app.add_flag("--holes", options.holes, "Leave the eyes, mouth and nostrils open, as scanners do (holes the encoder fills and cuts back out)");
-  app.add_flag("--head", options.whole_head,
-               "The whole head: the face closed round the back of the head down to a neck, whose rim is the outer boundary (rim_* markers on it); "
-               "not with --remesh, --defects or --vertex-colour");
-  app.add_flag("--surround", options.surround,
-               "A head-and-shoulders scan: hair heaped on one side and a shoulder forward on the other round the face, textured (face, hair, "
-               "shirt), 0.44 x 0.54 m, no rim markers; not with --remesh, --defects, --holes, --head, --vertex-colour or --shared-texture");
+  app.add_flag("--holes", options.holes,
+               "Leave the eyes, mouth and nostrils open, as scanners do (holes the encoder fills and cuts back out)");
+  app.add_flag(
+      "--head", options.whole_head,
+      "The whole head: the face closed round the back of the head down to a neck, whose rim is the outer boundary (rim_* markers on it); "
+      "not with --remesh, --defects or --vertex-colour");
+  app.add_flag(
+      "--surround", options.surround,
+      "A head-and-shoulders scan: hair heaped on one side and a shoulder forward on the other round the face, textured (face, hair, "
+      "shirt), 0.44 x 0.54 m, no rim markers; not with --remesh, --defects, --holes, --head, --vertex-colour or --shared-texture");
   app.add_flag("--no-face", options.no_face,
                "With --surround: a plain dome and bare skin where the face was, and no landmarks: a scan with no face, which fmenc "
                "--landmarks auto refuses by name");

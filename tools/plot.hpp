@@ -13,14 +13,14 @@ namespace facemorph::tools {
 struct PlotSeries {
   std::vector<double> x, y;
   std::array<uint8_t, 3> color = {40, 90, 200};
-  bool line = true;       // join the points
-  bool markers = false;   // draw a small square at each point
-  std::string label;      // shown in the legend (top right) when not empty
+  bool line = true;      // join the points
+  bool markers = false;  // draw a small square at each point
+  std::string label;     // shown in the legend (top right) when not empty
 };
 
 struct PlotOptions {
   int width = 900, height = 450;
-  std::string x_label, y_label;     // short: the font has digits, letters, space and . % - / ( ) : = +
+  std::string x_label, y_label;        // short: the font has digits, letters, space and . % - / ( ) : = +
   std::vector<double> vertical_marks;  // x positions marked by thin vertical lines (e.g. keyframes)
   bool y_from_zero = true;
 };

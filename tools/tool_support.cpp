@@ -14,8 +14,7 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }
 
 Progress::Progress(std::string label, bool quiet)
-    : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)), start_(std::chrono::steady_clock::now()),
-      last_draw_(start_) {}
+    : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)), start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
 
 void Progress::update(int done, int total) {
   if (!enabled_) return;
@@ -68,18 +67,22 @@ double parse_fraction(const std::string& text, const char* what) {
 }
 
 void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory) {
-  app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")->default_str("256M");
+  app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")
+      ->default_str("256M");
   app.add_option("--max-grid", limits.max_grid_n, "Refuse files whose grid N is larger")->capture_default_str();
   app.add_option("--max-keyframes", limits.max_keyframes, "Refuse files with more keyframes")->capture_default_str();
   app.add_option("--max-texture", limits.max_texture_size, "Refuse files whose texture has more texels per side")->capture_default_str();
-  app.add_option("--max-work", limits.max_work,
-                 "Stop a frame whose decode would do more work than this, in work units (about a second on one core at the default; 0: no bound)")
+  app.add_option(
+         "--max-work", limits.max_work,
+         "Stop a frame whose decode would do more work than this, in work units (about a second on one core at the default; 0: no bound)")
       ->capture_default_str();
 }
 
 DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory) {
   if (!max_memory.empty()) {
-    const auto bad = [&] { return Error(ErrorCode::kInvalidArgument, "--max-memory '" + max_memory + "' is not a size (bytes, or 512M, 2G)"); };
+    const auto bad = [&] {
+      return Error(ErrorCode::kInvalidArgument, "--max-memory '" + max_memory + "' is not a size (bytes, or 512M, 2G)");
+    };
     size_t used = 0;
     unsigned long long value = 0;
     try {
@@ -90,10 +93,14 @@ DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory)
     }
     const std::string suffix = max_memory.substr(used);
     int shift = 0;
-    if (suffix == "K" || suffix == "k") shift = 10;
-    else if (suffix == "M" || suffix == "m") shift = 20;
-    else if (suffix == "G" || suffix == "g") shift = 30;
-    else if (!suffix.empty()) throw bad();
+    if (suffix == "K" || suffix == "k")
+      shift = 10;
+    else if (suffix == "M" || suffix == "m")
+      shift = 20;
+    else if (suffix == "G" || suffix == "g")
+      shift = 30;
+    else if (!suffix.empty())
+      throw bad();
     if (value == 0 || value > (~0ull >> shift)) throw bad();
     limits.max_memory_bytes = static_cast<uint64_t>(value) << shift;
   }
@@ -104,7 +111,8 @@ DecoderLimits parsed_limits(DecoderLimits limits, const std::string& max_memory)
 int frame_count(double begin, double end, double fps, double slack) {
   constexpr double kMaxFrames = 1e8;
   if (!(fps > 0) || !std::isfinite(fps)) throw Error(ErrorCode::kInvalidArgument, "--fps must be a finite positive number");
-  if (!std::isfinite(begin) || !std::isfinite(end) || !(end >= begin)) throw Error(ErrorCode::kInvalidArgument, "the time range is not a finite interval");
+  if (!std::isfinite(begin) || !std::isfinite(end) || !(end >= begin))
+    throw Error(ErrorCode::kInvalidArgument, "the time range is not a finite interval");
   const double frames = std::floor((end - begin) * fps + slack);  // inf - inf and overflow give no number below the bound
   if (!(frames >= 0 && frames < kMaxFrames)) {
     char text[160];

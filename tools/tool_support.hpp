@@ -2,8 +2,8 @@
 // file and the reason, non-zero exit) and a progress line on terminals.
 #pragma once
 
-#include "format/error.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
+#include "format/error.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

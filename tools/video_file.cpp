@@ -25,8 +25,8 @@ void* video_module() {
 VideoFile::VideoFile(const std::filesystem::path& path, int size, double fps) : path_(path), size_(size) {
   void* module = video_module();
   if (!module) {
-    throw Error(ErrorCode::kUnsupported, path.string() + ": writing a video needs " + kModule +
-                                             " beside this tool (built when OpenCV's videoio is there)");
+    throw Error(ErrorCode::kUnsupported,
+                path.string() + ": writing a video needs " + kModule + " beside this tool (built when OpenCV's videoio is there)");
   }
   auto open = reinterpret_cast<void* (*)(const char*, int, double)>(dlsym(module, "facemorph_video_open"));
   write_ = reinterpret_cast<int (*)(void*, const uint8_t*, int)>(dlsym(module, "facemorph_video_write"));

@@ -3,8 +3,8 @@
 // without OpenCV. A build without OpenCV has no module: asking for a video is then a named error.
 #pragma once
 
-#include "format/error.hpp"
 #include "codec/core/image/image.hpp"
+#include "format/error.hpp"
 
 #include <filesystem>
 #include <string>

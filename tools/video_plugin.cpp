@@ -17,8 +17,7 @@ __attribute__((visibility("default"))) void* facemorph_video_open(const char* pa
     auto* writer = new cv::VideoWriter(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(size, size));
     if (writer->isOpened()) return writer;
     delete writer;
-  } catch (const std::exception&) {
-  }
+  } catch (const std::exception&) {}
   return nullptr;
 }
 

@@ -5,11 +5,11 @@
 // encoder, format version; the keyframes' own textures) comes from the library's reader of the same
 // file under the same limits (spec/python.md §2). The Python layer (facemorph/__init__.py) wraps
 // this module; its documentation is the public one.
-#include "facemorph.h"
 #include "codec/core/image/image.hpp"
 #include "codec/core/image/texture_codec.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "facemorph.h"
 
 #include "python/src/status.hpp"
 
@@ -145,7 +145,8 @@ class File {
     d["settings_text"] = py::reinterpret_steal<py::object>(
         PyUnicode_DecodeUTF8(header_.metadata.settings.data(), static_cast<Py_ssize_t>(header_.metadata.settings.size()), "replace"));
     d["landmark_names"] = header_.metadata.landmark_names;
-    d["texture_codec"] = info_.texture_size > 0 ? py::object(py::str(texture_codec_name(header_.metadata.texture_codec))) : py::object(py::none());
+    d["texture_codec"] =
+        info_.texture_size > 0 ? py::object(py::str(texture_codec_name(header_.metadata.texture_codec))) : py::object(py::none());
     d["distinct_textures"] = header_.distinct_textures;
     return d;
   }
@@ -153,7 +154,8 @@ class File {
   // fm_decoder_decode at t into new arrays: positions n×3, normals n×3, uv n×2 (float32), faces
   // m×3 (int32), texture M×M×3 (uint8; None without texture), those `outputs` asks for.
   Frame decode(double t, uint32_t flags, unsigned outputs) {
-    const size_t n = info_.max_vertex_count, m = info_.max_triangle_count, texels = static_cast<size_t>(info_.texture_size) * info_.texture_size;
+    const size_t n = info_.max_vertex_count, m = info_.max_triangle_count,
+                 texels = static_cast<size_t>(info_.texture_size) * info_.texture_size;
     py::array_t<float> positions, normals, uv;
     py::array_t<int32_t> faces;
     py::array_t<uint8_t> texture;
@@ -246,7 +248,8 @@ class File {
   py::array_t<uint8_t> keyframe_texture(int64_t k) {
     if (info_.texture_size == 0) throw StatusError(FM_ERROR_INVALID_ARGUMENT, name() + ": the file has no texture");
     if (k < 0 || k >= static_cast<int64_t>(info_.keyframe_count)) {
-      throw StatusError(FM_ERROR_INVALID_ARGUMENT, name() + ": keyframe " + std::to_string(k) + " outside 0.." + std::to_string(info_.keyframe_count - 1));
+      throw StatusError(FM_ERROR_INVALID_ARGUMENT,
+                        name() + ": keyframe " + std::to_string(k) + " outside 0.." + std::to_string(info_.keyframe_count - 1));
     }
     std::shared_ptr<const Image> image;
     {
@@ -255,7 +258,8 @@ class File {
       require_open();
       image = source()->texture(static_cast<size_t>(k));
     }
-    if (image->channels != 3) throw StatusError(FM_ERROR_INTERNAL, name() + ": keyframe texture of " + std::to_string(image->channels) + " channels");
+    if (image->channels != 3)
+      throw StatusError(FM_ERROR_INTERNAL, name() + ": keyframe texture of " + std::to_string(image->channels) + " channels");
     py::array_t<uint8_t> out({static_cast<size_t>(image->height), static_cast<size_t>(image->width), size_t{3}});
     std::memcpy(out.mutable_data(), image->pixels.data(), image->pixels.size());
     return out;
@@ -291,7 +295,8 @@ class File {
 
   std::shared_ptr<const KeyframeSource> source() {
     std::call_once(source_once_, [&] {
-      source_ = data_ ? open_borrowed_sequence_source(bytes_, "memory", limits_.decoder_limits()) : open_sequence_source(path_, limits_.decoder_limits());
+      source_ = data_ ? open_borrowed_sequence_source(bytes_, "memory", limits_.decoder_limits())
+                      : open_sequence_source(path_, limits_.decoder_limits());
     });
     return source_;
   }
@@ -311,7 +316,7 @@ class File {
 
   Limits limits_;
   std::string path_;
-  std::optional<py::bytes> data_;  // the bytes of a file opened from memory: the C API reads them where they lie...
+  std::optional<py::bytes> data_;   // the bytes of a file opened from memory: the C API reads them where they lie...
   std::span<const uint8_t> bytes_;  // ...here (read without the GIL: a bytes object never changes)
   fm_file* file_ = nullptr;
   fm_decoder* decoder_ = nullptr;

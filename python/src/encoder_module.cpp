@@ -8,11 +8,11 @@
 // included) ends the encode and is raised.
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/encode_settings.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/writer/image/image_encode.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
 #include "python/src/status.hpp"
 
@@ -235,8 +235,7 @@ py::dict run_encode(Options& options, py::object callback, F&& encode) {
     py::gil_scoped_release release;
     try {
       result = encode(bridge);
-    } catch (const Cancelled&) {
-    }
+    } catch (const Cancelled&) {}
   }
   if (bridge.stopped()) bridge.raise();
   return result_dict(*result);
@@ -248,7 +247,8 @@ class TemporaryFolder {
   TemporaryFolder() {
     std::string pattern = (fs::temp_directory_path() / "facemorph-python-XXXXXX").string();
     if (mkdtemp(pattern.data()) == nullptr) {
-      throw Error(ErrorCode::kIo, pattern + ": cannot make a temporary folder for the frames (" + std::strerror(errno) + "; TMPDIR says where)");
+      throw Error(ErrorCode::kIo,
+                  pattern + ": cannot make a temporary folder for the frames (" + std::strerror(errno) + "; TMPDIR says where)");
     }
     path_ = pattern;
   }
@@ -266,12 +266,12 @@ class TemporaryFolder {
 
 // A capture from numpy frames: facemorph/encode.py has checked every array's shape and type.
 struct NumpyFrame {
-  py::array_t<double, py::array::c_style> vertices;          // n×3
-  py::array_t<int32_t, py::array::c_style> faces;            // m×3
-  std::optional<py::array_t<double, py::array::c_style>> uv;        // k×2
-  std::optional<py::array_t<int32_t, py::array::c_style>> uv_faces; // m×3 (uv per vertex: the faces)
-  std::optional<py::array_t<double, py::array::c_style>> colours;   // n×3 in [0, 1]
-  int texture = -1;                                          // into the textures, -1: none
+  py::array_t<double, py::array::c_style> vertices;                  // n×3
+  py::array_t<int32_t, py::array::c_style> faces;                    // m×3
+  std::optional<py::array_t<double, py::array::c_style>> uv;         // k×2
+  std::optional<py::array_t<int32_t, py::array::c_style>> uv_faces;  // m×3 (uv per vertex: the faces)
+  std::optional<py::array_t<double, py::array::c_style>> colours;    // n×3 in [0, 1]
+  int texture = -1;                                                  // into the textures, -1: none
 };
 
 TriangleMesh mesh_of(const NumpyFrame& f) {
@@ -417,17 +417,17 @@ PYBIND11_MODULE(_encoder, m) {
   m.doc() = "facemorph's encoder for numpy (internal: use facemorph.encode).";
   register_status_errors();
   py::class_<NumpyFrame>(m, "NumpyFrame")
-      .def(py::init([](py::array_t<double, py::array::c_style | py::array::forcecast> vertices, py::array_t<int32_t, py::array::c_style | py::array::forcecast> faces,
+      .def(py::init([](py::array_t<double, py::array::c_style | py::array::forcecast> vertices,
+                       py::array_t<int32_t, py::array::c_style | py::array::forcecast> faces,
                        std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> uv,
                        std::optional<py::array_t<int32_t, py::array::c_style | py::array::forcecast>> uv_faces,
-                       std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> colours, int texture) {
-             return NumpyFrame{vertices, faces, uv, uv_faces, colours, texture};
-           }),
+                       std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> colours,
+                       int texture) { return NumpyFrame{vertices, faces, uv, uv_faces, colours, texture}; }),
            py::arg("vertices"), py::arg("faces"), py::arg("uv"), py::arg("uv_faces"), py::arg("colours"), py::arg("texture"));
   m.def("encode_frames", &encode_frames, py::arg("frames"), py::arg("textures"), py::arg("times"), py::arg("names"), py::arg("fps"),
         py::arg("units"), py::arg("landmark_names"), py::arg("landmarks"), py::arg("output"), py::arg("options"), py::arg("progress"));
-  m.def("encode_capture", &encode_capture, py::arg("path"), py::arg("fps"), py::arg("landmarks"), py::arg("auto_landmarks"), py::arg("output"),
-        py::arg("options"), py::arg("progress"));
+  m.def("encode_capture", &encode_capture, py::arg("path"), py::arg("fps"), py::arg("landmarks"), py::arg("auto_landmarks"),
+        py::arg("output"), py::arg("options"), py::arg("progress"));
   m.def("read_mesh", &read_mesh_file, py::arg("path"));
   m.def("read_image", &read_image_file, py::arg("path"));
 }

@@ -28,7 +28,8 @@ inline void set_status_error(int code, const std::string& message) {
   // Held for the interpreter's life (never released: a translator may run until it ends).
   static PyObject* factory = py::object(py::module_::import("facemorph.errors").attr("_from_status")).release().ptr();
   // Messages name files, whose names need not be UTF-8.
-  py::object text = py::reinterpret_steal<py::object>(PyUnicode_DecodeUTF8(message.data(), static_cast<Py_ssize_t>(message.size()), "replace"));
+  py::object text =
+      py::reinterpret_steal<py::object>(PyUnicode_DecodeUTF8(message.data(), static_cast<Py_ssize_t>(message.size()), "replace"));
   if (!text) return;
   PyObject* error = PyObject_CallFunction(factory, "iO", code, text.ptr());
   if (error == nullptr) return;  // the factory's own exception stands

@@ -12,12 +12,12 @@
 #include <string.h>
 
 static int failures = 0;
-#define EXPECT(condition)                                                     \
-  do {                                                                        \
-    if (!(condition)) {                                                       \
+#define EXPECT(condition)                                                       \
+  do {                                                                          \
+    if (!(condition)) {                                                         \
       fprintf(stderr, "consumer: %s:%d: %s\n", __FILE__, __LINE__, #condition); \
-      ++failures;                                                             \
-    }                                                                         \
+      ++failures;                                                               \
+    }                                                                           \
   } while (0)
 
 int main(int argc, char** argv) {

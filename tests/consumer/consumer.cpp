@@ -35,7 +35,8 @@ int main(int argc, char** argv) {
     if (!sizes || !finite || frame.vertex_count > info.max_vertex_count) return std::fprintf(stderr, "consumer_cxx: a wrong frame\n"), 1;
     // Only what is asked for; the arrays are reused.
     decoder.decode(t, frame, fm::kPositions | fm::kIndices);
-    if (!frame.normals.empty() || frame.positions.size() != 3 * size_t{frame.vertex_count}) return std::fprintf(stderr, "consumer_cxx: outputs\n"), 1;
+    if (!frame.normals.empty() || frame.positions.size() != 3 * size_t{frame.vertex_count})
+      return std::fprintf(stderr, "consumer_cxx: outputs\n"), 1;
     std::printf("facemorph %s (C++ %ld): t = %.3f s: %u vertices, %u triangles\n", fm_version(), static_cast<long>(__cplusplus), frame.time,
                 frame.vertex_count, frame.triangle_count);
     return 0;

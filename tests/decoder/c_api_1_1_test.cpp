@@ -70,7 +70,8 @@ std::vector<uint8_t> skeleton_of(const std::vector<uint8_t>& bytes) {
     const bool whole = chunk.type == "HEAD" || chunk.type == "KIDX";
     const size_t begin = chunk.offset, payload = begin + facemorph::format::kChunkHeaderBytes, end = begin + chunk.total_size();
     std::copy(bytes.begin() + begin, bytes.begin() + (whole ? end : payload), skeleton.begin() + begin);
-    std::copy(bytes.begin() + (end - facemorph::format::kChunkTrailerBytes), bytes.begin() + end, skeleton.begin() + (end - facemorph::format::kChunkTrailerBytes));
+    std::copy(bytes.begin() + (end - facemorph::format::kChunkTrailerBytes), bytes.begin() + end,
+              skeleton.begin() + (end - facemorph::format::kChunkTrailerBytes));
   }
   // The end chunk, which the reader does not list.
   const size_t last = reader.chunks().back().offset + reader.chunks().back().total_size();
@@ -145,7 +146,8 @@ TEST(CApi11, TextureWeightsNameTheKeyframeWhoseSharedTextureTheyShow) {
 // Format 2.3: between keyframes the weights are the spline's corrected by the residual frames, and
 // still rebuild the decoder's texture (a player blending the images itself shows what it shows).
 TEST(CApi11, TextureWeightsIncludeTheResidualFramesCorrection) {
-  expect_weights_rebuild_the_texture(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_3.fmv", [](size_t k) { return static_cast<uint32_t>(k); });
+  expect_weights_rebuild_the_texture(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_3.fmv",
+                                     [](size_t k) { return static_cast<uint32_t>(k); });
 }
 
 TEST(CApi11, BorrowedBytesFilledInAfterOpeningDecodeAsACopy) {

@@ -42,7 +42,8 @@ struct Field {
   // Whether a caller's struct of `struct_size` bytes holds all of it (spec/api.md §3, rule 2).
   bool inside(size_t struct_size) const { return struct_size >= offset + size; }
 };
-#define FM_FIELD(type, field) Field{#field, offsetof(type, field), sizeof(type::field)}
+#define FM_FIELD(type, field) \
+  Field { #field, offsetof(type, field), sizeof(type::field) }
 
 constexpr size_t round_up(size_t n, size_t alignment) { return (n + alignment - 1) / alignment * alignment; }
 
@@ -150,7 +151,8 @@ std::vector<unsigned char> expected_bytes(const Struct& prototype, size_t size, 
 }
 
 // Names the first byte where two images differ, and the field it belongs to.
-std::string first_difference(const std::vector<unsigned char>& got, const std::vector<unsigned char>& want, const std::vector<Field>& fields) {
+std::string first_difference(const std::vector<unsigned char>& got, const std::vector<unsigned char>& want,
+                             const std::vector<Field>& fields) {
   for (size_t i = 0; i < got.size() && i < want.size(); ++i) {
     if (got[i] == want[i]) continue;
     std::string where = "padding";
@@ -162,17 +164,26 @@ std::string first_difference(const std::vector<unsigned char>& got, const std::v
   return got.size() == want.size() ? "" : "sizes differ";
 }
 
-const std::vector<Field> kFrameFields = {
-    FM_FIELD(fm_frame, positions),    FM_FIELD(fm_frame, positions_bytes), FM_FIELD(fm_frame, normals),
-    FM_FIELD(fm_frame, normals_bytes), FM_FIELD(fm_frame, uvs),            FM_FIELD(fm_frame, uvs_bytes),
-    FM_FIELD(fm_frame, indices),      FM_FIELD(fm_frame, indices_bytes),   FM_FIELD(fm_frame, texture),
-    FM_FIELD(fm_frame, texture_bytes), FM_FIELD(fm_frame, time),           FM_FIELD(fm_frame, vertex_count),
-    FM_FIELD(fm_frame, triangle_count), FM_FIELD(fm_frame, texture_size),  FM_FIELD(fm_frame, iterations),
-    FM_FIELD(fm_frame, fell_back)};
+const std::vector<Field> kFrameFields = {FM_FIELD(fm_frame, positions),
+                                         FM_FIELD(fm_frame, positions_bytes),
+                                         FM_FIELD(fm_frame, normals),
+                                         FM_FIELD(fm_frame, normals_bytes),
+                                         FM_FIELD(fm_frame, uvs),
+                                         FM_FIELD(fm_frame, uvs_bytes),
+                                         FM_FIELD(fm_frame, indices),
+                                         FM_FIELD(fm_frame, indices_bytes),
+                                         FM_FIELD(fm_frame, texture),
+                                         FM_FIELD(fm_frame, texture_bytes),
+                                         FM_FIELD(fm_frame, time),
+                                         FM_FIELD(fm_frame, vertex_count),
+                                         FM_FIELD(fm_frame, triangle_count),
+                                         FM_FIELD(fm_frame, texture_size),
+                                         FM_FIELD(fm_frame, iterations),
+                                         FM_FIELD(fm_frame, fell_back)};
 // What fm_decoder_decode writes (on FM_OK and FM_ERROR_BUFFER_TOO_SMALL).
-const std::vector<Field> kFrameOutputs = {FM_FIELD(fm_frame, time),         FM_FIELD(fm_frame, vertex_count),
+const std::vector<Field> kFrameOutputs = {FM_FIELD(fm_frame, time),           FM_FIELD(fm_frame, vertex_count),
                                           FM_FIELD(fm_frame, triangle_count), FM_FIELD(fm_frame, texture_size),
-                                          FM_FIELD(fm_frame, iterations),   FM_FIELD(fm_frame, fell_back)};
+                                          FM_FIELD(fm_frame, iterations),     FM_FIELD(fm_frame, fell_back)};
 
 // The caller's five buffers, each filled with a pattern the decode overwrites where it writes.
 struct Buffers {
@@ -270,12 +281,21 @@ TEST(CApi, FrameIsReadAndWrittenOnlyWithinStructSizeAtEverySize) {
   }
 }
 
-const std::vector<Field> kInfoFields = {
-    FM_FIELD(fm_info, fps),           FM_FIELD(fm_info, first_time),          FM_FIELD(fm_info, last_time),
-    FM_FIELD(fm_info, duration),      FM_FIELD(fm_info, range_begin),         FM_FIELD(fm_info, range_end),
-    FM_FIELD(fm_info, keyframe_count), FM_FIELD(fm_info, grid_n),             FM_FIELD(fm_info, max_vertex_count),
-    FM_FIELD(fm_info, max_triangle_count), FM_FIELD(fm_info, grid_vertex_count), FM_FIELD(fm_info, grid_triangle_count),
-    FM_FIELD(fm_info, has_holes),     FM_FIELD(fm_info, texture_size),        FM_FIELD(fm_info, units)};
+const std::vector<Field> kInfoFields = {FM_FIELD(fm_info, fps),
+                                        FM_FIELD(fm_info, first_time),
+                                        FM_FIELD(fm_info, last_time),
+                                        FM_FIELD(fm_info, duration),
+                                        FM_FIELD(fm_info, range_begin),
+                                        FM_FIELD(fm_info, range_end),
+                                        FM_FIELD(fm_info, keyframe_count),
+                                        FM_FIELD(fm_info, grid_n),
+                                        FM_FIELD(fm_info, max_vertex_count),
+                                        FM_FIELD(fm_info, max_triangle_count),
+                                        FM_FIELD(fm_info, grid_vertex_count),
+                                        FM_FIELD(fm_info, grid_triangle_count),
+                                        FM_FIELD(fm_info, has_holes),
+                                        FM_FIELD(fm_info, texture_size),
+                                        FM_FIELD(fm_info, units)};
 
 // fm_file_get_info fills the fields wholly inside struct_size with the file's values and leaves
 // every other byte (a field cut by struct_size, and all past it) as the caller left it.
@@ -315,10 +335,14 @@ TEST(CApi, OptionsAreReadOnlyWithinStructSizeAtEverySize) {
   const Opener openers[] = {
       {"fm_file_open_with_options", [](const std::string& path, const std::vector<uint8_t>&, const fm_decoder_options* options,
                                        fm_file** file) { return fm_file_open_with_options(path.c_str(), options, file); }},
-      {"fm_file_open_memory_with_options", [](const std::string&, const std::vector<uint8_t>& data, const fm_decoder_options* options,
-                                              fm_file** file) { return fm_file_open_memory_with_options(data.data(), data.size(), options, file); }},
-      {"fm_file_open_memory_borrowed", [](const std::string&, const std::vector<uint8_t>& data, const fm_decoder_options* options,
-                                          fm_file** file) { return fm_file_open_memory_borrowed(data.data(), data.size(), options, file); }},
+      {"fm_file_open_memory_with_options",
+       [](const std::string&, const std::vector<uint8_t>& data, const fm_decoder_options* options, fm_file** file) {
+         return fm_file_open_memory_with_options(data.data(), data.size(), options, file);
+       }},
+      {"fm_file_open_memory_borrowed",
+       [](const std::string&, const std::vector<uint8_t>& data, const fm_decoder_options* options, fm_file** file) {
+         return fm_file_open_memory_borrowed(data.data(), data.size(), options, file);
+       }},
   };
   for (const Field& limit : fields) {
     // The defaults, and this one limit just below what the golden file needs.

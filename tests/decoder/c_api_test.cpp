@@ -9,7 +9,6 @@
 #include "format/container.hpp"
 #include "format/file_io.hpp"
 
-
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,20 +1,20 @@
 // The .fmv container (spec/container.md): round trips, the checksum's definition, and every way a
 // damaged or foreign file must be refused by name rather than crash or decode wrong.
+#include "format/container.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
-#include "format/container.hpp"
 #include "format/file_io.hpp"
 
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
-#include <cstring>
 #include <gtest/gtest.h>
+#include <cstring>
 
 #include <cmath>
 #include <cstdlib>
@@ -22,8 +22,8 @@
 #include <functional>
 #include <sstream>
 
-#include <csignal>
 #include <sys/resource.h>
+#include <csignal>
 
 namespace facemorph {
 namespace {
@@ -167,17 +167,17 @@ TEST(Container, GeometryOnlyAndHoleFreeSequencesRoundTrip) {
 // container), never read past its end.
 TEST(Container, EveryTruncationIsNamed) {
   for (const SequenceFileMetadata& metadata : codings()) {
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
-  for (size_t size = 0; size < bytes.size(); ++size) {
-    const std::span<const uint8_t> prefix(bytes.data(), size);
-    try {
-      decode_sequence_file(prefix, "cut.fmv");
-      ADD_FAILURE() << "a file cut at " << size << " bytes was read";
-    } catch (const Error& e) {
-      EXPECT_TRUE(e.code() == ErrorCode::kTruncated) << size << ": " << e.what();
-      EXPECT_NE(std::string(e.what()).find("cut.fmv"), std::string::npos);
+    const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
+    for (size_t size = 0; size < bytes.size(); ++size) {
+      const std::span<const uint8_t> prefix(bytes.data(), size);
+      try {
+        decode_sequence_file(prefix, "cut.fmv");
+        ADD_FAILURE() << "a file cut at " << size << " bytes was read";
+      } catch (const Error& e) {
+        EXPECT_TRUE(e.code() == ErrorCode::kTruncated) << size << ": " << e.what();
+        EXPECT_NE(std::string(e.what()).find("cut.fmv"), std::string::npos);
+      }
     }
-  }
   }
 }
 
@@ -185,25 +185,26 @@ TEST(Container, EveryTruncationIsNamed) {
 // preamble and the chunk headers. Never a crash, never a file read as good.
 TEST(Container, EveryByteFlipIsNamed) {
   for (const SequenceFileMetadata& metadata : codings()) {
-  const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
-  const format::ContainerReader reader(bytes, "good.fmv");
-  for (size_t at = 0; at < bytes.size(); ++at) {
-    std::vector<uint8_t> damaged = bytes;
-    damaged[at] ^= 0x5A;
-    try {
-      decode_sequence_file(damaged, "flipped.fmv");
-      ADD_FAILURE() << "a flip at byte " << at << " went unnoticed";
-    } catch (const Error& e) {
-      EXPECT_TRUE(e.code() == ErrorCode::kCorrupt || e.code() == ErrorCode::kTruncated || e.code() == ErrorCode::kUnsupported)
-          << at << ": " << error_code_name(e.code()) << " " << e.what();
+    const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), metadata);
+    const format::ContainerReader reader(bytes, "good.fmv");
+    for (size_t at = 0; at < bytes.size(); ++at) {
+      std::vector<uint8_t> damaged = bytes;
+      damaged[at] ^= 0x5A;
+      try {
+        decode_sequence_file(damaged, "flipped.fmv");
+        ADD_FAILURE() << "a flip at byte " << at << " went unnoticed";
+      } catch (const Error& e) {
+        EXPECT_TRUE(e.code() == ErrorCode::kCorrupt || e.code() == ErrorCode::kTruncated || e.code() == ErrorCode::kUnsupported)
+            << at << ": " << error_code_name(e.code()) << " " << e.what();
+      }
     }
-  }
-  // A flip inside a payload is a checksum mismatch naming the chunk.
-  for (const format::ChunkView& chunk : reader.chunks()) {
-    std::vector<uint8_t> damaged = bytes;
-    damaged[chunk.offset + format::kChunkHeaderBytes + chunk.stored.size() / 2] ^= 1;
-    testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk " + chunk.type, [&] { decode_sequence_file(damaged, "f.fmv"); });
-  }
+    // A flip inside a payload is a checksum mismatch naming the chunk.
+    for (const format::ChunkView& chunk : reader.chunks()) {
+      std::vector<uint8_t> damaged = bytes;
+      damaged[chunk.offset + format::kChunkHeaderBytes + chunk.stored.size() / 2] ^= 1;
+      testing::expect_error(ErrorCode::kCorrupt, "checksum mismatch in chunk " + chunk.type,
+                            [&] { decode_sequence_file(damaged, "f.fmv"); });
+    }
   }
 }
 
@@ -238,7 +239,8 @@ TEST(Container, PredictedCodingStoresExactMultiplesOfItsSteps) {
     EXPECT_EQ(back.keyframes[k].pose.rotation, rounded.keyframes[k].pose.rotation);
     EXPECT_EQ(back.keyframes[k].pose.translation, rounded.keyframes[k].pose.translation);
     EXPECT_LT((back.keyframes[k].pose.rotation - s.keyframes[k].pose.rotation).cwiseAbs().maxCoeff(), 0.87 * m.field_coding.rotation_step);
-    EXPECT_LE((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).cwiseAbs().maxCoeff(), 0.5 * m.field_coding.translation_step * (1 + 1e-9));
+    EXPECT_LE((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).cwiseAbs().maxCoeff(),
+              0.5 * m.field_coding.translation_step * (1 + 1e-9));
     if (k > 0) {
       EXPECT_GT((back.keyframes[k].pose.translation - s.keyframes[k].pose.translation).norm(), 0) << "the test's poses must need rounding";
     }
@@ -278,11 +280,11 @@ TEST(Container, KeyframeGroupsThatBreakTheirRulesAreCorrupt) {
       if (type == "KGOP" && payload[0] == 0) change(payload);
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "another group of keyframes", [&] {
-    decode_sequence_file(rebuild(bytes, first_group([](std::vector<uint8_t>& p) { p[0] = 1; })), "n.fmv");
-  });
+  testing::expect_error(ErrorCode::kCorrupt, "another group of keyframes",
+                        [&] { decode_sequence_file(rebuild(bytes, first_group([](std::vector<uint8_t>& p) { p[0] = 1; })), "n.fmv"); });
   for (int delta : {-3, 2}) {
-    const auto resize = first_group([delta](std::vector<uint8_t>& p) { p.resize(static_cast<size_t>(static_cast<int64_t>(p.size()) + delta), 0); });
+    const auto resize =
+        first_group([delta](std::vector<uint8_t>& p) { p.resize(static_cast<size_t>(static_cast<int64_t>(p.size()) + delta), 0); });
     try {
       decode_sequence_file(rebuild(bytes, resize), "s.fmv");
       ADD_FAILURE() << "a stream resized by " << delta << " was read";
@@ -297,7 +299,8 @@ TEST(Container, KeyframeGroupsThatBreakTheirRulesAreCorrupt) {
       if (type == "HEAD") std::memcpy(payload.data() + payload.size() - 8, &step, 8);
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "a pose step that is not positive", [&] { decode_sequence_file(rebuild(bytes, translation_step(-1)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "a pose step that is not positive",
+                        [&] { decode_sequence_file(rebuild(bytes, translation_step(-1)), "p.fmv"); });
   // A coarser step is a valid file that decodes the same rotations and other translations.
   const Sequence coarser = decode_sequence_file(rebuild(bytes, translation_step(2 * m.field_coding.translation_step)), "c.fmv");
   const Sequence same = decode_sequence_file(bytes, "g.fmv");
@@ -338,7 +341,8 @@ TEST(Container, TheWriterRefusesStringsAReaderWouldRefuse) {
   metadata.settings = "\"" + std::string((1u << 20) - 2, 'x') + "\"";
   EXPECT_EQ(decode_sequence_file(encode_sequence_file(small_sequence(9, 8), metadata), "settings.fmv").keyframes.size(), 3u);
   metadata.settings += " ";
-  testing::expect_error(ErrorCode::kInvalidArgument, "settings of 1048577 bytes", [&] { encode_sequence_file(small_sequence(9, 8), metadata); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "settings of 1048577 bytes",
+                        [&] { encode_sequence_file(small_sequence(9, 8), metadata); });
   metadata = small_metadata();
   metadata.landmark_names = {"nose_tip", std::string((1u << 20) + 1, 'n')};
   testing::expect_error(ErrorCode::kInvalidArgument, "a landmark name", [&] { encode_sequence_file(small_sequence(9, 8), metadata); });
@@ -379,7 +383,8 @@ TEST(Container, ForeignFilesAndOtherVersionsAreRefused) {
     const auto other_grid = [at](const std::string& type, std::vector<uint8_t>& payload) {
       if (type == "HEAD") payload[at] ^= 1;
     };
-    testing::expect_error(ErrorCode::kUnsupported, "not the grid this decoder builds", [&] { decode_sequence_file(rebuild(bytes, other_grid), "g.fmv"); });
+    testing::expect_error(ErrorCode::kUnsupported, "not the grid this decoder builds",
+                          [&] { decode_sequence_file(rebuild(bytes, other_grid), "g.fmv"); });
   }
   // Bytes after the end chunk.
   std::vector<uint8_t> trailing = bytes;
@@ -525,7 +530,8 @@ TEST(Container, AFileOfFormat2_0StillReads) {
   grouped[10] = 0;
   const uint32_t grouped_crc = format::crc32(std::span(grouped).first(12));
   for (int i = 0; i < 4; ++i) grouped[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(grouped_crc >> (8 * i));
-  testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file", [&] { decode_sequence_file(grouped, "g.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file",
+                        [&] { decode_sequence_file(grouped, "g.fmv"); });
 }
 
 // Sets a file's preamble minor version, its preamble checksum made right.
@@ -594,11 +600,13 @@ TEST(Container, SharedTexturesInAFileBefore2_2AreCorrupt) {
   std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   ASSERT_NO_THROW(decode_sequence_file(bytes, "good.fmv"));
   stamp_minor_version(bytes, 1);
-  testing::expect_error(ErrorCode::kCorrupt, "shared textures (flag bit 3) in a format 2.1 file", [&] { decode_sequence_file(bytes, "old.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "shared textures (flag bit 3) in a format 2.1 file",
+                        [&] { decode_sequence_file(bytes, "old.fmv"); });
   const std::vector<uint8_t> both = rebuild(encode_sequence_file(s, m), [](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "HEAD") payload[18] |= 4;  // the flags byte (after N, rule, hash, representation, spline): groups too
   });
-  testing::expect_error(ErrorCode::kCorrupt, "both the texture groups flag (bit 2) and the shared textures flag (bit 3)", [&] { decode_sequence_file(both, "both.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "both the texture groups flag (bit 2) and the shared textures flag (bit 3)",
+                        [&] { decode_sequence_file(both, "both.fmv"); });
 }
 
 // TGOP chunks that pass their checksums but break §8.1, and texture entries at the wrong kind of
@@ -617,21 +625,27 @@ TEST(Container, CraftedTextureGroupsAreRefusedByName) {
   };
   const Image* one[] = {&s.keyframes[0].texture};
   const Image* three[] = {&s.keyframes[0].texture, &s.keyframes[1].texture, &s.keyframes[2].texture};
-  testing::expect_error(ErrorCode::kCorrupt, "TGOP", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "TGOP", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(three, 80))), "three.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "TGOP",
+                        [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images",
+                        [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(one, 80))), "one.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "TGOP",
+                        [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(three, 80))), "three.fmv"); });
   Image small(8, 8, 3);
   const Image* two_small[] = {&small, &small};
-  testing::expect_error(ErrorCode::kCorrupt, "images of 8 x 8", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(two_small, 80))), "size.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "images of 8 x 8",
+                        [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif_sequence(two_small, 80))), "size.fmv"); });
   // A still where a sequence of two belongs: one image.
-  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images", [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif(s.keyframes[0].texture, 80))), "still.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "an AVIF sequence of 1 images",
+                        [&] { decode_sequence_file(rebuild(bytes, group0(encode_avif(s.keyframes[0].texture, 80))), "still.fmv"); });
   // Another first keyframe than the index's place; another codec; a sequence cut short.
   const auto patch = [](size_t at, uint8_t value) {
     return [at, value](const std::string& type, std::vector<uint8_t>& payload) {
       if (type == "TGOP" && payload[0] == 0) payload[at] = value;
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 1, the index places it at keyframe 0", [&] { decode_sequence_file(rebuild(bytes, patch(0, 1)), "first.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 1, the index places it at keyframe 0",
+                        [&] { decode_sequence_file(rebuild(bytes, patch(0, 1)), "first.fmv"); });
   testing::expect_error(ErrorCode::kUnsupported, "image codec 2", [&] { decode_sequence_file(rebuild(bytes, patch(4, 2)), "codec.fmv"); });
   const auto cut = [](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "TGOP" && payload[0] == 0) payload.resize(payload.size() - 20);
@@ -646,8 +660,10 @@ TEST(Container, CraftedTextureGroupsAreRefusedByName) {
       if (type == from && payload[0] == 0) type = to;
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture entry points at a TGOP chunk, not TEXR", [&] { decode_sequence_file(rebuild(still_bytes, rename("TEXR", "TGOP")), "t.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture group entry points at a TEXR chunk, not TGOP", [&] { decode_sequence_file(rebuild(bytes, rename("TGOP", "TEXR")), "t.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture entry points at a TGOP chunk, not TEXR",
+                        [&] { decode_sequence_file(rebuild(still_bytes, rename("TEXR", "TGOP")), "t.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 0's texture group entry points at a TEXR chunk, not TGOP",
+                        [&] { decode_sequence_file(rebuild(bytes, rename("TGOP", "TEXR")), "t.fmv"); });
   // The flag (header byte 18, bit 2) in a file whose index is 2.0's, one texture offset a
   // keyframe: its first offsets name TEXR chunks, not TGOP. And without textures.
   const auto flag = [](const std::string& type, std::vector<uint8_t>& payload) {
@@ -655,10 +671,12 @@ TEST(Container, CraftedTextureGroupsAreRefusedByName) {
   };
   // (The index then holds more offsets than a grouped file's: its last 8 bytes are past the fields
   // of format 2.2, refused before the offsets are followed.)
-  testing::expect_error(ErrorCode::kCorrupt, "index: 8 bytes after its last field", [&] { decode_sequence_file(rebuild(still_bytes, flag), "flag.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "index: 8 bytes after its last field",
+                        [&] { decode_sequence_file(rebuild(still_bytes, flag), "flag.fmv"); });
   Sequence plain = s;
   for (Keyframe& key : plain.keyframes) key.texture = {};
-  testing::expect_error(ErrorCode::kCorrupt, "without the textures flag", [&] { decode_sequence_file(rebuild(encode_sequence_file(plain, stills), flag), "plain.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "without the textures flag",
+                        [&] { decode_sequence_file(rebuild(encode_sequence_file(plain, stills), flag), "plain.fmv"); });
 }
 
 // Values that pass every checksum but are impossible: caught by the header's limits and by the
@@ -672,7 +690,8 @@ TEST(Container, ImpossibleValuesWithGoodChecksumsAreCorrupt) {
   };
   testing::expect_error(ErrorCode::kCorrupt, "grid size 4", [&] { decode_sequence_file(rebuild(bytes, patch_header(0, 4)), "n.fmv"); });
   testing::expect_error(ErrorCode::kCorrupt, "keyframe count", [&] { decode_sequence_file(rebuild(bytes, patch_header(20, 0)), "k.fmv"); });
-  testing::expect_error(ErrorCode::kUnsupported, "representation 7", [&] { decode_sequence_file(rebuild(bytes, patch_header(16, 7)), "r.fmv"); });
+  testing::expect_error(ErrorCode::kUnsupported, "representation 7",
+                        [&] { decode_sequence_file(rebuild(bytes, patch_header(16, 7)), "r.fmv"); });
   // Poses in the index beyond their bounds: a code beyond 2^40, a rotation vector component beyond
   // 4 (log R's angle is at most π), a translation beyond 1e9.
   const auto index_pose = [](size_t component, int64_t change) {
@@ -680,13 +699,17 @@ TEST(Container, ImpossibleValuesWithGoodChecksumsAreCorrupt) {
       if (type == "KIDX") payload = crafted::with_pose_change(payload, component, 1, change);
     };
   };
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a pose code beyond 2^40", [&] { decode_sequence_file(rebuild(bytes, index_pose(4, int64_t{1} << 40)), "p.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a rotation vector component beyond 4", [&] { decode_sequence_file(rebuild(bytes, index_pose(1, 410000)), "p.fmv"); });
-  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a pose translation beyond 1e9", [&] { decode_sequence_file(rebuild(bytes, index_pose(5, int64_t{1} << 39)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a pose code beyond 2^40",
+                        [&] { decode_sequence_file(rebuild(bytes, index_pose(4, int64_t{1} << 40)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a rotation vector component beyond 4",
+                        [&] { decode_sequence_file(rebuild(bytes, index_pose(1, 410000)), "p.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "keyframe 1: a pose translation beyond 1e9",
+                        [&] { decode_sequence_file(rebuild(bytes, index_pose(5, int64_t{1} << 39)), "p.fmv"); });
   testing::expect_error(ErrorCode::kCorrupt, "index: a pose number longer than 6 bytes", [&] {
-    decode_sequence_file(rebuild(bytes, [](const std::string& type, std::vector<uint8_t>& payload) {
-                           if (type == "KIDX") payload = crafted::with_pose_change(payload, 0, 0, int64_t{1} << 45);
-                         }),
+    decode_sequence_file(rebuild(bytes,
+                                 [](const std::string& type, std::vector<uint8_t>& payload) {
+                                   if (type == "KIDX") payload = crafted::with_pose_change(payload, 0, 0, int64_t{1} << 45);
+                                 }),
                          "p.fmv");
   });
   // Just within the bounds: a rotation of 3.9 rad about x decodes (a proper rotation, the time's).
@@ -695,7 +718,8 @@ TEST(Container, ImpossibleValuesWithGoodChecksumsAreCorrupt) {
   // Times out of order.
   const auto same_times = [](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "KIDX") {
-      for (size_t k = 0; k < 3; ++k) std::fill(payload.begin() + 4 + 8 * static_cast<long>(k), payload.begin() + 12 + 8 * static_cast<long>(k), 0);
+      for (size_t k = 0; k < 3; ++k)
+        std::fill(payload.begin() + 4 + 8 * static_cast<long>(k), payload.begin() + 12 + 8 * static_cast<long>(k), 0);
     }
   };
   testing::expect_error(ErrorCode::kCorrupt, "keyframe", [&] { decode_sequence_file(rebuild(bytes, same_times), "t.fmv"); });
@@ -778,7 +802,8 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
 // at once, and may alter a keyframe as it is read (a source that disagrees with its outline).
 class WatchedSource final : public KeyframeSource {
  public:
-  explicit WatchedSource(const Sequence& sequence) : inner_(memory_source(std::make_shared<const Sequence>(sequence))), outline_(inner_->outline()) {}
+  explicit WatchedSource(const Sequence& sequence)
+      : inner_(memory_source(std::make_shared<const Sequence>(sequence))), outline_(inner_->outline()) {}
   std::function<void(size_t, Keyframe&)> alter;
   std::function<void(size_t, Image&)> alter_texture;
   SequenceOutline& outline_to_alter() { return outline_; }
@@ -847,7 +872,9 @@ TEST(Container, AStreamedOrMeasuredFileIsTheFileMadeInMemory) {
   }
   const std::vector<uint8_t> before = format::read_file(path);
   WatchedSource failing(s);
-  failing.alter = [&](size_t k, Keyframe& key) { if (k + 1 == s.keyframes.size()) key.pose.translation.x() = std::nan(""); };
+  failing.alter = [&](size_t k, Keyframe& key) {
+    if (k + 1 == s.keyframes.size()) key.pose.translation.x() = std::nan("");
+  };
   testing::expect_error(ErrorCode::kInvalidArgument, "the pose", [&] { write_sequence_file(path, failing, codings().back()); });
   EXPECT_TRUE(format::read_file(path) == before);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
@@ -891,7 +918,8 @@ TEST(Container, AWriteThatCannotFinishLeavesThePreviousFile) {
     {
       const testing::ScopedEnv no_temporary_folder("TMPDIR", (dir.path() / "no-such-folder").string());
       const WatchedSource source(s);
-      testing::expect_error(ErrorCode::kIo, path.string() + ": cannot create a temporary file for the container's chunks: no temporary folder (TMPDIR = ",
+      testing::expect_error(ErrorCode::kIo,
+                            path.string() + ": cannot create a temporary file for the container's chunks: no temporary folder (TMPDIR = ",
                             [&] { write_sequence_file(path, source, metadata); });
     }
     only_the_previous_file();
@@ -909,29 +937,59 @@ TEST(Container, TheWriterChecksEveryKeyframeItReadsFromASource) {
     testing::expect_error(ErrorCode::kInvalidArgument, message, [&] { encode_sequence_file(source, metadata); });
   };
   const size_t last = s.keyframes.size() - 1;
-  refused([&](size_t k, Keyframe& key) { if (k == last) key.time += 1; }, "keyframe " + std::to_string(last) + ": its time is not the outline's");
-  refused([](size_t k, Keyframe& key) { if (k == 1) key.fields.fixed_nodes.push_back(0); }, "keyframe 1");
-  refused([](size_t k, Keyframe& key) { if (k == 1) key.hole_level.pop_back(); }, "keyframe 1: ");
-  refused([](size_t k, Keyframe& key) { if (k == 1) key.pose.translation.x() = std::nan(""); }, "keyframe 1: the pose");
-  refused([](size_t k, Keyframe& key) { if (k == 1) key.fields.grid_n += 2; }, "keyframe 1");
+  refused(
+      [&](size_t k, Keyframe& key) {
+        if (k == last) key.time += 1;
+      },
+      "keyframe " + std::to_string(last) + ": its time is not the outline's");
+  refused(
+      [](size_t k, Keyframe& key) {
+        if (k == 1) key.fields.fixed_nodes.push_back(0);
+      },
+      "keyframe 1");
+  refused(
+      [](size_t k, Keyframe& key) {
+        if (k == 1) key.hole_level.pop_back();
+      },
+      "keyframe 1: ");
+  refused(
+      [](size_t k, Keyframe& key) {
+        if (k == 1) key.pose.translation.x() = std::nan("");
+      },
+      "keyframe 1: the pose");
+  refused(
+      [](size_t k, Keyframe& key) {
+        if (k == 1) key.fields.grid_n += 2;
+      },
+      "keyframe 1");
   // Fields valid in themselves, but not the sequence's: each would write a file the reader refuses,
   // or index G's arrays out of range.
-  refused([](size_t k, Keyframe& key) {
-    if (k != 1) return;
-    key.fields.fixed_nodes.pop_back();
-    key.fields.fixed_laplacian.pop_back();
-  }, "keyframe 1: fixed-frame nodes differ from keyframe 0's");
+  refused(
+      [](size_t k, Keyframe& key) {
+        if (k != 1) return;
+        key.fields.fixed_nodes.pop_back();
+        key.fields.fixed_laplacian.pop_back();
+      },
+      "keyframe 1: fixed-frame nodes differ from keyframe 0's");
   const Sequence coarse = small_sequence(9);
-  refused([&](size_t k, Keyframe& key) { if (k == 1) key.fields = coarse.keyframes[1].fields; }, "keyframe 1: fields of another grid or representation");
+  refused(
+      [&](size_t k, Keyframe& key) {
+        if (k == 1) key.fields = coarse.keyframes[1].fields;
+      },
+      "keyframe 1: fields of another grid or representation");
   {
     WatchedSource source(s);
-    source.alter_texture = [](size_t k, Image& image) { if (k == 2) image = Image(image.width, image.height / 2, 3); };
-    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: the texture is not 16 x 16 RGB", [&] { encode_sequence_file(source, metadata); });
+    source.alter_texture = [](size_t k, Image& image) {
+      if (k == 2) image = Image(image.width, image.height / 2, 3);
+    };
+    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: the texture is not 16 x 16 RGB",
+                          [&] { encode_sequence_file(source, metadata); });
   }
   {
     WatchedSource source(s);
     source.outline_to_alter().times[2] = source.outline_to_alter().times[1];
-    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: time does not increase", [&] { encode_sequence_file(source, metadata); });
+    testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2: time does not increase",
+                          [&] { encode_sequence_file(source, metadata); });
   }
   for (const SequenceFileMetadata& coding : codings()) {
     WatchedSource source(s);  // unaltered: written, and read back as the sequence's file

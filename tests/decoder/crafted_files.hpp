@@ -117,9 +117,9 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
 }
 
 // Rebuilds a file chunk by chunk, letting `edit(type, payload)` change a payload (decompressed) or
-// a chunk's type (an `edit` taking `std::string&`), and keeps the index's offsets right: each offset that named a chunk names it where it now starts
-// (chunks before it may have grown), the index itself included (compressed, its size moves with its
-// numbers). Times and other index fields are taken from the index as `edit` left it.
+// a chunk's type (an `edit` taking `std::string&`), and keeps the index's offsets right: each offset that named a chunk names it where it
+// now starts (chunks before it may have grown), the index itself included (compressed, its size moves with its numbers). Times and other
+// index fields are taken from the index as `edit` left it.
 template <typename Edit>
 // `compress`: chunk types stored compressed (where zstd makes them smaller) even if they were not.
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false,

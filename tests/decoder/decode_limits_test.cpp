@@ -5,18 +5,18 @@
 // the same bits; hole levels checked where they are read; a group's stream read to its end before
 // any of its keyframes is shown; failures naming the file and t. Every file is crafted with valid
 // checksums (crafted::rebuild), so each test reaches the check it means.
-#include "codec/decoder/container/chunk_readers.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "format/error.hpp"
 #include "codec/core/reconstruct/fields.hpp"
+#include "codec/decoder/container/chunk_readers.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/zstd_frame.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -56,10 +56,13 @@ void open_bytes(const std::vector<uint8_t>& bytes, const DecoderLimits& limits =
 TEST(DecodeLimits, AByteAfterTheHeaderOrIndexIsCorruptInAKnownVersion) {
   const std::vector<uint8_t> good = small_file();
   open_bytes(good);
-  testing::expect_error(ErrorCode::kCorrupt, "header: 1 bytes after its last field", [&] { open_bytes(rebuild(good, appending("HEAD", 1))); });
-  testing::expect_error(ErrorCode::kCorrupt, "index: 1 bytes after its last field", [&] { open_bytes(rebuild(good, appending("KIDX", 1))); });
+  testing::expect_error(ErrorCode::kCorrupt, "header: 1 bytes after its last field",
+                        [&] { open_bytes(rebuild(good, appending("HEAD", 1))); });
+  testing::expect_error(ErrorCode::kCorrupt, "index: 1 bytes after its last field",
+                        [&] { open_bytes(rebuild(good, appending("KIDX", 1))); });
   // fminfo's path says the same.
-  testing::expect_error(ErrorCode::kCorrupt, "after its last field", [&] { decode_sequence_file(rebuild(good, appending("HEAD", 1)), "crafted.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "after its last field",
+                        [&] { decode_sequence_file(rebuild(good, appending("HEAD", 1)), "crafted.fmv"); });
 }
 
 TEST(DecodeLimits, ALaterMinorVersionMayAppendAtMost64KiB) {
@@ -102,7 +105,8 @@ TEST(DecodeLimits, TheHeadersStringsTakeAtMostFourMiBTogether) {
   const std::vector<uint8_t> good = small_file();
   open_bytes(rebuild(good, with_landmark_names(3, 1u << 20)));  // 3 MiB of names and the rest: within
   // 470 names of 1 MiB took 1.68 GB against a 512 MiB budget.
-  testing::expect_error(ErrorCode::kCorrupt, "at most 4 MiB together", [&] { open_bytes(rebuild(good, with_landmark_names(5, 1u << 20))); });
+  testing::expect_error(ErrorCode::kCorrupt, "at most 4 MiB together",
+                        [&] { open_bytes(rebuild(good, with_landmark_names(5, 1u << 20))); });
   // The writer refuses what a reader would.
   SequenceFileMetadata metadata = small_metadata();
   metadata.landmark_names.assign(5, std::string(1u << 20, 'x'));
@@ -138,9 +142,8 @@ TEST(DecodeLimits, AHeaderStatingMoreThanItCanHoldIsRefusedBeforeItIsDecompresse
   testing::expect_error(ErrorCode::kLimit, "max_grid_n", [&] { open_bytes(with_header_announcing(good, uint64_t{6} << 20), small_grid); });
   // The bound is what a header can hold: one at the bound less the appended 64 KiB is not refused
   // for its size (it is for its bytes after the last field).
-  testing::expect_error(ErrorCode::kCorrupt, "after its last field", [&] {
-    open_bytes(with_header_announcing(good, file_layout::max_header_bytes(17) - (64 << 10)), small_grid);
-  });
+  testing::expect_error(ErrorCode::kCorrupt, "after its last field",
+                        [&] { open_bytes(with_header_announcing(good, file_layout::max_header_bytes(17) - (64 << 10)), small_grid); });
 }
 
 TEST(DecodeLimits, AnIndexStatingMoreThanItsEntriesCanHoldIsRefusedBeforeItIsDecompressed) {
@@ -154,7 +157,8 @@ TEST(DecodeLimits, ACompressedTextureIsCorruptAtOpen) {
   // 300 MB of texture to decode. Padded with zeros so that zstd makes it smaller and keeps it so.
   const std::vector<uint8_t> bytes = rebuild(small_file(), appending("TEXR", 1 << 16), false, false, {"TEXR"});
   const format::ContainerReader reader(bytes, "crafted");
-  ASSERT_TRUE(std::any_of(reader.chunks().begin(), reader.chunks().end(), [](const auto& c) { return c.type == "TEXR" && c.compressed(); }));
+  ASSERT_TRUE(
+      std::any_of(reader.chunks().begin(), reader.chunks().end(), [](const auto& c) { return c.type == "TEXR" && c.compressed(); }));
   testing::expect_error(ErrorCode::kCorrupt, "a texture's chunk never is", [&] { open_bytes(bytes); });
 }
 
@@ -184,7 +188,8 @@ TEST(DecodeLimits, AHoleLevelBeyondItsBoundIsCorruptNamingTheKeyframeAndTheFile)
 
 TEST(DecodeLimits, AByteAfterAGroupsStreamFailsEveryFrameOfTheGroup) {
   // Groups of two keyframes (predicted_metadata), each stream followed by one byte.
-  const std::vector<uint8_t> bytes = rebuild(encode_sequence_file(small_sequence(), crafted::predicted_metadata()), appending("KGOP", 1, 0x5A));
+  const std::vector<uint8_t> bytes =
+      rebuild(encode_sequence_file(small_sequence(), crafted::predicted_metadata()), appending("KGOP", 1, 0x5A));
   testing::expect_error(ErrorCode::kCorrupt, "", [&] { decode_sequence_file(bytes, "tail.fmv"); });  // fminfo's path
   // Playing: at the default budget (the whole run kept) and under the smallest that opens the file,
   // which keeps too few keyframes for a whole run (decoded only as far as the keyframe asked for,
@@ -262,14 +267,16 @@ TEST(DecodeLimits, TheWorkLimitComesFromTheLimitsTheFileWasOpenedWith) {
   SequenceDecoder decoder(source);
   // No progress is possible: every call stops at the same step, naming it, and nothing is
   // remembered as the file's fault.
-  for (int i = 0; i < 3; ++i) testing::expect_error(ErrorCode::kLimit, "f.fmv: t = 0.3 s: decoding keyframe 0's", [&] { decoder.decode(0.3); });
+  for (int i = 0; i < 3; ++i)
+    testing::expect_error(ErrorCode::kLimit, "f.fmv: t = 0.3 s: decoding keyframe 0's", [&] { decoder.decode(0.3); });
   DecodeOptions raised;
   raised.max_work = 0;
   EXPECT_NO_THROW(decoder.decode(0.3, raised));
   // A texture of M² pixels is paid before it is decoded, and a stop leaves it to the next call.
   const auto textured = open_sequence_source(bytes, "f.fmv");
   WorkMeter short_of_a_texture(16 * 16 * WorkMeter::kPerPixel - 1, "f.fmv");
-  testing::expect_error(ErrorCode::kLimit, "decoding keyframe 1's texture of 16² pixels", [&] { textured->texture(1, short_of_a_texture); });
+  testing::expect_error(ErrorCode::kLimit, "decoding keyframe 1's texture of 16² pixels",
+                        [&] { textured->texture(1, short_of_a_texture); });
   EXPECT_TRUE(short_of_a_texture.stopped());
   WorkMeter enough(16 * 16 * WorkMeter::kPerWebpPixel, "f.fmv");  // lossless stills: WebP
   EXPECT_EQ(textured->texture(1, enough)->width, 16);

@@ -1,11 +1,11 @@
 // The enumerations' name tables (codec/core/util/enum_names.hpp): every name is what files and
 // settings have always stored, each enumerator's name parses back to it, and a name outside the
 // table is a named error listing the table.
+#include "codec/core/util/enum_names.hpp"
 #include "codec/core/container/file_metadata.hpp"
 #include "codec/core/image/texture_codec.hpp"
 #include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/sequence/spline.hpp"
-#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 #include "tests/test_util.hpp"
 
@@ -38,8 +38,10 @@ TEST(EnumNames, AnUnknownNameListsTheTable) {
 
 // The names files and settings store (golden files hold them): never renamed.
 TEST(EnumNames, TheStoredNamesStay) {
-  const std::pair<SplineKind, const char*> splines[] = {
-      {SplineKind::kLocalCubic, "local"}, {SplineKind::kCatmullRom, "catmull-rom"}, {SplineKind::kNotAKnot, "not-a-knot"}, {SplineKind::kLinear, "linear"}};
+  const std::pair<SplineKind, const char*> splines[] = {{SplineKind::kLocalCubic, "local"},
+                                                        {SplineKind::kCatmullRom, "catmull-rom"},
+                                                        {SplineKind::kNotAKnot, "not-a-knot"},
+                                                        {SplineKind::kLinear, "linear"}};
   for (const auto& [kind, name] : splines) {
     EXPECT_STREQ(spline_kind_name(kind), name);
     EXPECT_EQ(parse_spline_kind(name), kind);

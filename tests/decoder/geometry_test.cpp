@@ -1,6 +1,6 @@
 #include "codec/core/geometry/differential.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -70,8 +70,8 @@ TEST(Laplacian, CotangentsFromEdgeLengthsMatchEmbeddedOnes) {
   std::vector<CornerValues> lengths(m.faces.size());
   for (size_t f = 0; f < m.faces.size(); ++f) {
     for (int k = 0; k < 3; ++k) {
-      lengths[f][k] = (m.positions[static_cast<size_t>(m.faces[f][(k + 1) % 3])] -
-                       m.positions[static_cast<size_t>(m.faces[f][(k + 2) % 3])]).norm();
+      lengths[f][k] =
+          (m.positions[static_cast<size_t>(m.faces[f][(k + 1) % 3])] - m.positions[static_cast<size_t>(m.faces[f][(k + 2) % 3])]).norm();
     }
   }
   const auto intrinsic = corner_cotangents_from_lengths(lengths);
@@ -107,7 +107,7 @@ TEST(Areas, SphereAreaAndVolumeConvergeToTheAnalyticValues) {
     const double area_error = std::abs(total_area(s.positions, s.faces) - 4 * kPi * r * r);
     const double volume_error = std::abs(signed_volume(s.positions, s.faces) - 4.0 / 3.0 * kPi * r * r * r);
     EXPECT_GT(signed_volume(s.positions, s.faces), 0);  // outward orientation
-    EXPECT_LT(area_error, previous_area_error / 3.5);    // second order: /4 per level
+    EXPECT_LT(area_error, previous_area_error / 3.5);   // second order: /4 per level
     EXPECT_LT(volume_error, previous_volume_error / 3.5);
     previous_area_error = area_error;
     previous_volume_error = volume_error;
@@ -128,7 +128,7 @@ TEST(MeanCurvature, SphereWithOutwardNormalsHasMinusOneOverR) {
     const TriangleMesh s = testing::icosphere(r, level);
     const Eigen::VectorXd H = mean_curvature(s.positions, s.faces, std::vector<bool>(s.positions.size(), false));
     const double error = (H.array() + 1.0 / r).abs().maxCoeff() * r;
-    EXPECT_LT(H.maxCoeff(), 0.0);  // bends away from the outward normal
+    EXPECT_LT(H.maxCoeff(), 0.0);      // bends away from the outward normal
     EXPECT_LT(error, previous / 3.0);  // second order
     previous = error;
   }
@@ -186,8 +186,9 @@ TEST(MeanCurvature, BoundaryVerticesTakeTheInteriorMean) {
   TriangleMesh cap = testing::icosphere(r, 4);
   std::vector<Face> kept;
   for (const Face& f : cap.faces) {
-    const Vec3 c = (cap.positions[static_cast<size_t>(f[0])] + cap.positions[static_cast<size_t>(f[1])] +
-                    cap.positions[static_cast<size_t>(f[2])]) / 3.0;
+    const Vec3 c =
+        (cap.positions[static_cast<size_t>(f[0])] + cap.positions[static_cast<size_t>(f[1])] + cap.positions[static_cast<size_t>(f[2])]) /
+        3.0;
     if (c.z() > 0.3) kept.push_back(f);
   }
   cap.faces = kept;

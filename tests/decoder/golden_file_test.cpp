@@ -3,8 +3,8 @@
 // tests/data/make_golden.sh, and a sample of what it decoded to then: grid positions at keyframe
 // times, between keyframes and past the ends. Format 1.x (facemorph 0.2-0.7) was experimental and
 // is refused by name (experimental_v1_5.fmv, the last of them).
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "format/file_io.hpp"
 
 #include "tests/test_util.hpp"
@@ -139,7 +139,8 @@ TEST(GoldenFile, Version2_3DecodesAsItDidWhenWritten) {
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.
 TEST(GoldenFile, AnExperimentalVersion1FileIsRefusedByName) {
   const std::filesystem::path file = std::filesystem::path(FACEMORPH_TEST_DATA) / "experimental_v1_5.fmv";
-  testing::expect_error(ErrorCode::kUnsupported, "format version 1.5 is an experimental version this decoder does not read; encode the capture again",
+  testing::expect_error(ErrorCode::kUnsupported,
+                        "format version 1.5 is an experimental version this decoder does not read; encode the capture again",
                         [&] { read_sequence_file(file); });
   testing::expect_error(ErrorCode::kUnsupported, "experimental version", [&] { open_sequence_source(file); });
 }

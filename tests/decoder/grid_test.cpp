@@ -1,8 +1,8 @@
+#include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/exact_delaunay.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/core/geometry/differential.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -10,8 +10,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <set>
 #include <numbers>
+#include <set>
 
 namespace facemorph {
 namespace {
@@ -22,7 +22,8 @@ using testing::kPi;
 std::vector<IntPoint> lattice_of(const DiskGrid& g) {
   const int64_t m = g.n - 1, q = (int64_t{1} << 30) / m;
   std::vector<IntPoint> out;
-  for (const Vec2& w : g.nodes) out.push_back({std::llround(w.x() * static_cast<double>(q * m)), std::llround(w.y() * static_cast<double>(q * m))});
+  for (const Vec2& w : g.nodes)
+    out.push_back({std::llround(w.x() * static_cast<double>(q * m)), std::llround(w.y() * static_cast<double>(q * m))});
   return out;
 }
 
@@ -76,7 +77,7 @@ TEST(DiskGrid, IsACartesianInteriorWithARimOnTheCircleAndNoSlivers) {
       EXPECT_GT(twice, 0);
       area += twice / 2;
     }
-    EXPECT_GT(min_angle * 180 / kPi, 20.0) << "N = " << n;  // no slivers at the rim
+    EXPECT_GT(min_angle * 180 / kPi, 20.0) << "N = " << n;                         // no slivers at the rim
     EXPECT_NEAR(area, g.rim_count / 2.0 * std::sin(2 * kPi / g.rim_count), 1e-8);  // the rim polygon's area
     EXPECT_EQ(g.faces, canonical(g.faces)) << "faces are stored in the canonical order";
   }
@@ -128,7 +129,8 @@ TEST(DiskGrid, GoldenHashesPinTheRule) {
 // every N to 129, and a sample of the larger ones. (The whole table takes 40 s.)
 TEST(DiskGrid, KnownHashesAreTheGridsOwn) {
   for (int n = kMinGridSize; n <= 129; ++n) EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
-  for (int n : {160, 200, 256, 257, 321, 513, 1024, kKnownGridHashes}) EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
+  for (int n : {160, 200, 256, 257, 321, 513, 1024, kKnownGridHashes})
+    EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
   EXPECT_EQ(known_disk_grid_hash(kKnownGridHashes + 1), 0u);
   EXPECT_EQ(known_disk_grid_hash(kMinGridSize - 1), 0u);
 }

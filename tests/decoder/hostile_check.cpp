@@ -12,9 +12,9 @@
 // (tests/tools/hostile_files_test.sh, one process a run), not this one's: the sanitizers cost a
 // multiple of both.
 //   hostile_check DIR   (DIR: hostile_corpus's output, with its manifest.tsv)
+#include "codec/decoder/container/sequence_file.hpp"
 #include "facemorph.h"
 #include "format/error.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 
 #include <sys/resource.h>
 
@@ -178,7 +178,8 @@ int main(int argc, char** argv) {
       Verdict verdict(entry.name);
       check_file(dir / entry.name, entry, verdict);
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      std::printf("%-36s %6.2f s  peak so far %7.1f MiB  %s\n", entry.name.c_str(), seconds, peak_resident_mib(), verdict.failures() ? "FAILED" : "ok");
+      std::printf("%-36s %6.2f s  peak so far %7.1f MiB  %s\n", entry.name.c_str(), seconds, peak_resident_mib(),
+                  verdict.failures() ? "FAILED" : "ok");
       if (seconds > worst_seconds) worst_seconds = seconds, worst_file = entry.name;
       failures += verdict.failures();
     }

@@ -9,11 +9,11 @@
 // every run must fail (empty: the file may open and decode). Sizes a zstd frame announces are the review's
 // (500 MB of zeros) while the generator holds kilobytes: such frames are laid out here by hand, raw
 // and RLE blocks (RFC 8878 §3.1.1.2).
-#include "format/error.hpp"
-#include "codec/writer/image/image_encode.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "format/checksum.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 #include "format/zstd_frame.hpp"
 #include "tests/decoder/crafted_files.hpp"
@@ -60,15 +60,18 @@ Bytes zstd_frame(const std::vector<Piece>& pieces) {
   };
   std::vector<Block> blocks;
   for (const Piece& p : pieces) {
-    for (uint64_t at = 0; at < p.raw.size(); at += kBlock) blocks.push_back({0, static_cast<uint32_t>(std::min(kBlock, p.raw.size() - at)), p.raw.data() + at});
+    for (uint64_t at = 0; at < p.raw.size(); at += kBlock)
+      blocks.push_back({0, static_cast<uint32_t>(std::min(kBlock, p.raw.size() - at)), p.raw.data() + at});
     for (uint64_t at = 0; at < p.run; at += kBlock) blocks.push_back({1, static_cast<uint32_t>(std::min(kBlock, p.run - at)), &p.byte});
   }
   if (blocks.empty()) blocks.push_back({0, 0, nullptr});
   for (size_t b = 0; b < blocks.size(); ++b) {
     const uint32_t h = (b + 1 == blocks.size() ? 1u : 0u) | (blocks[b].type << 1) | (blocks[b].size << 3);
     for (int i = 0; i < 3; ++i) f.push_back(static_cast<uint8_t>(h >> (8 * i)));
-    if (blocks[b].type == 1) f.push_back(*blocks[b].data);
-    else f.insert(f.end(), blocks[b].data, blocks[b].data + blocks[b].size);
+    if (blocks[b].type == 1)
+      f.push_back(*blocks[b].data);
+    else
+      f.insert(f.end(), blocks[b].data, blocks[b].data + blocks[b].size);
   }
   return f;
 }
@@ -87,7 +90,9 @@ format::PreparedChunk compressed_chunk(const std::string& type, const std::vecto
 Bytes relaid(const Bytes& bytes, std::optional<format::PreparedChunk> head, const std::function<format::PreparedChunk(Bytes)>& make_index) {
   const format::ContainerReader reader(bytes, "in");
   const std::vector<format::ChunkView>& old = reader.chunks();
-  const auto kept = [](const format::ChunkView& c) { return format::PreparedChunk{c.type, c.flags, c.raw_size, {c.stored.begin(), c.stored.end()}}; };
+  const auto kept = [](const format::ChunkView& c) {
+    return format::PreparedChunk{c.type, c.flags, c.raw_size, {c.stored.begin(), c.stored.end()}};
+  };
   if (!head) head = kept(old[0]);
   size_t groups = 0, texture_groups = 0;
   bool textured = false;
@@ -98,7 +103,8 @@ Bytes relaid(const Bytes& bytes, std::optional<format::PreparedChunk> head, cons
   }
   const Bytes index = reader.payload(old[1]);
   const uint64_t index_size = make_index(index).total_size();
-  const int64_t delta = static_cast<int64_t>(head->total_size() + index_size) - static_cast<int64_t>(old[0].total_size() + old[1].total_size());
+  const int64_t delta =
+      static_cast<int64_t>(head->total_size() + index_size) - static_cast<int64_t>(old[0].total_size() + old[1].total_size());
   format::ByteReader r(index, "index");
   format::ByteWriter w;
   const uint32_t count = r.read<uint32_t>("count");
@@ -268,7 +274,8 @@ Bytes keyframes_repeated(int n, uint32_t count, SplineKind spline) {
   index.write(count);
   for (uint32_t k = 0; k < count; ++k) index.write(k / 30.0);
   for (uint32_t v = 0; v < 6 * count; ++v) index.write(uint8_t{0});  // every pose change 0
-  uint64_t at = format::kPreambleBytes + head_chunk.total_size() + format::kChunkHeaderBytes + (index.size() + 8 * count) + format::kChunkTrailerBytes;
+  uint64_t at = format::kPreambleBytes + head_chunk.total_size() + format::kChunkHeaderBytes + (index.size() + 8 * count) +
+                format::kChunkTrailerBytes;
   for (const format::PreparedChunk& c : chunks) {
     index.write(at);
     at += c.total_size();
@@ -293,11 +300,13 @@ class Corpus {
  public:
   explicit Corpus(fs::path dir) : dir_(std::move(dir)) { fs::create_directories(dir_); }
 
-  void add(const std::string& name, const Bytes& bytes, std::vector<double> times, const std::string& what, const std::string& refused = "") {
+  void add(const std::string& name, const Bytes& bytes, std::vector<double> times, const std::string& what,
+           const std::string& refused = "") {
     format::write_file_atomically(dir_ / name, bytes);
     entries_.push_back({name, std::move(times), what, refused});
     const auto now = std::chrono::steady_clock::now();
-    std::printf("%-36s %9zu bytes %5.2f s  %s\n", name.c_str(), bytes.size(), std::chrono::duration<double>(now - last_).count(), what.c_str());
+    std::printf("%-36s %9zu bytes %5.2f s  %s\n", name.c_str(), bytes.size(), std::chrono::duration<double>(now - last_).count(),
+                what.c_str());
     last_ = now;
   }
 
@@ -334,9 +343,17 @@ void write_set(Corpus& corpus) {
   const Bytes header = payload_of(plain, "HEAD");
   corpus.add("a_names_470x1MiB.fmv", relaid(plain, header_with_names_frame(header, 470, 1u << 20), stored_index), three,
              "470 landmark names of 1 MiB: a header stating 470 MiB", "a header holds at most");
-  corpus.add("a_names_5x1MiB.fmv", rebuild(plain, [&](const std::string& t, Bytes& p) { if (t == "HEAD") p = header_with_names(p, 5, 1u << 20); }),
+  corpus.add("a_names_5x1MiB.fmv",
+             rebuild(plain,
+                     [&](const std::string& t, Bytes& p) {
+                       if (t == "HEAD") p = header_with_names(p, 5, 1u << 20);
+                     }),
              three, "5 landmark names of 1 MiB: strings over 4 MiB together", "at most 4 MiB together");
-  corpus.add("a_names_3x1MiB.fmv", rebuild(plain, [&](const std::string& t, Bytes& p) { if (t == "HEAD") p = header_with_names(p, 3, 1u << 20); }),
+  corpus.add("a_names_3x1MiB.fmv",
+             rebuild(plain,
+                     [&](const std::string& t, Bytes& p) {
+                       if (t == "HEAD") p = header_with_names(p, 3, 1u << 20);
+                     }),
              three, "3 landmark names of 1 MiB: within the budget (opens)");
 
   // (b) 500 MB of zeros after the header's and after the index's last field, as zstd frames of RLE
@@ -345,17 +362,23 @@ void write_set(Corpus& corpus) {
   corpus.add("b_head_500MB_zeros.fmv", relaid(plain, compressed_chunk("HEAD", {{header}, {{}, k500MB, 0}}), stored_index), three,
              "500 MB of zeros after the header's last field (zstd)", "a header holds at most");
   corpus.add("b_kidx_500MB_zeros.fmv",
-             relaid(plain, std::nullopt, [&](Bytes index) { return compressed_chunk("KIDX", {{std::move(index)}, {{}, k500MB, 0}}); }), three,
-             "500 MB of zeros after the index's last field (zstd)", "an index of 3 keyframes holds at most");
-  corpus.add("b_head_1_byte.fmv", rebuild(plain, appending("HEAD", 1)), three, "one byte after the header's last field (format 2.2)", "header: 1 bytes after its last field");
-  corpus.add("b_kidx_1_byte.fmv", rebuild(plain, appending("KIDX", 1)), three, "one byte after the index's last field (format 2.2)", "index: 1 bytes after its last field");
+             relaid(plain, std::nullopt,
+                    [&](Bytes index) {
+                      return compressed_chunk("KIDX", {{std::move(index)}, {{}, k500MB, 0}});
+                    }),
+             three, "500 MB of zeros after the index's last field (zstd)", "an index of 3 keyframes holds at most");
+  corpus.add("b_head_1_byte.fmv", rebuild(plain, appending("HEAD", 1)), three, "one byte after the header's last field (format 2.2)",
+             "header: 1 bytes after its last field");
+  corpus.add("b_kidx_1_byte.fmv", rebuild(plain, appending("KIDX", 1)), three, "one byte after the index's last field (format 2.2)",
+             "index: 1 bytes after its last field");
   {
     Bytes later = rebuild(plain, appending("HEAD", (64 << 10) + 1));
     const uint16_t minor = format::kMinorVersion + 1;
     std::memcpy(later.data() + 10, &minor, sizeof minor);
     const uint32_t crc = format::crc32(std::span<const uint8_t>(later.data(), 12));
     std::memcpy(later.data() + 12, &crc, sizeof crc);
-    corpus.add("b_later_minor_64KiB_plus_1.fmv", later, three, "format 2.3 appending 64 KiB + 1 to the header", "a later minor version appends at most 64 KiB");
+    corpus.add("b_later_minor_64KiB_plus_1.fmv", later, three, "format 2.3 appending 64 KiB + 1 to the header",
+               "a later minor version appends at most 64 KiB");
   }
 
   // (c), (g) A 3072² texture, near the largest the default budget admits where a frame blends three
@@ -417,18 +440,22 @@ void write_set(Corpus& corpus) {
     roughen(s);
     SequenceFileMetadata m = crafted::small_metadata();
     m.field_coding.intra_period = 1;
-    corpus.add("f_n400_rough_fields.fmv", encode_sequence_file(s, m), {0.25, 0.97}, "N = 400 (the largest the default budget admits) with rough fields");
+    corpus.add("f_n400_rough_fields.fmv", encode_sequence_file(s, m), {0.25, 0.97},
+               "N = 400 (the largest the default budget admits) with rough fields");
   }
 
   // (h) Hole levels ±inf and ±1.5e308: the hole level's step scaled so that its codes decode to them.
-  corpus.add("h_hole_level_1.5e308.fmv", rebuild(predicted, with_step(13, 1.5e308)), three, "hole levels ±1.5e308 and ±inf (step 1.5e308)", "hole level");
+  corpus.add("h_hole_level_1.5e308.fmv", rebuild(predicted, with_step(13, 1.5e308)), three, "hole levels ±1.5e308 and ±inf (step 1.5e308)",
+             "hole level");
   corpus.add("h_hole_level_inf.fmv", rebuild(predicted, with_step(13, std::numeric_limits<double>::max())), three,
              "hole levels ±inf (step DBL_MAX)", "hole level");
   corpus.add("h_hole_level_17.fmv", rebuild(predicted, with_step(13, 1e3)), three, "hole levels beyond 16 (step 1e3)", "hole level");
 
   // (i) One byte after a KGOP's stream, in a 2.2 file and in a 2.1 file of texture groups.
-  corpus.add("i_kgop_extra_byte.fmv", rebuild(predicted, appending("KGOP", 1, 0x5A)), three, "one byte after each KGOP stream (2.2)", "1 bytes after the range-coded stream's last value");
-  corpus.add("i_kgop_extra_byte_groups.fmv", rebuild(grouped, appending("KGOP", 1, 0x5A)), three, "one byte after each KGOP stream (2.1, TGOP)", "1 bytes after the range-coded stream's last value");
+  corpus.add("i_kgop_extra_byte.fmv", rebuild(predicted, appending("KGOP", 1, 0x5A)), three, "one byte after each KGOP stream (2.2)",
+             "1 bytes after the range-coded stream's last value");
+  corpus.add("i_kgop_extra_byte_groups.fmv", rebuild(grouped, appending("KGOP", 1, 0x5A)), three,
+             "one byte after each KGOP stream (2.1, TGOP)", "1 bytes after the range-coded stream's last value");
 
   // (j) Settings nested 524,288 levels deep: 1 MiB of brackets, the most a string holds.
   {
@@ -440,19 +467,23 @@ void write_set(Corpus& corpus) {
   }
 
   // More: truncations, claims over the limits, times and poses at their bounds.
-  corpus.add("k_truncated_half.fmv", Bytes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(plain.size() / 2)), three, "the file cut in half", "truncated");
+  corpus.add("k_truncated_half.fmv", Bytes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(plain.size() / 2)), three,
+             "the file cut in half", "truncated");
   {
     const format::ContainerReader reader(plain, "plain");
     const uint64_t end_chunk = reader.chunks().back().offset + reader.chunks().back().total_size();
     corpus.add("k_truncated_at_end_chunk.fmv", Bytes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(end_chunk)), three,
                "the file cut at a chunk boundary (no end chunk)", "without its end chunk");
   }
-  corpus.add("k_keyframes_1M.fmv", rebuild(plain, patch<uint32_t>("HEAD", 20, 1u << 20)), three, "a header claiming 2^20 keyframes", "max_keyframes");
-  corpus.add("k_texture_16384.fmv", rebuild(plain, patch<uint32_t>("HEAD", 72, 16384)), three, "a header claiming a 16384² texture", "max_texture_size");
+  corpus.add("k_keyframes_1M.fmv", rebuild(plain, patch<uint32_t>("HEAD", 20, 1u << 20)), three, "a header claiming 2^20 keyframes",
+             "max_keyframes");
+  corpus.add("k_texture_16384.fmv", rebuild(plain, patch<uint32_t>("HEAD", 72, 16384)), three, "a header claiming a 16384² texture",
+             "max_texture_size");
   corpus.add("k_grid_4097.fmv", rebuild(plain, patch<uint32_t>("HEAD", 0, 4097)), three, "a header claiming N = 4097", "max_grid_n");
   corpus.add("k_grid_1025.fmv", rebuild(plain, patch<uint32_t>("HEAD", 0, 1025)), three, "a header claiming N = 1025", "rim nodes");
   // Keyframe times 0, 1e-200, 1 (closer than 1e-9 of the span) and 0, 2, 1e9 (a gap of 31 years).
-  corpus.add("k_times_1e-200.fmv", rebuild(plain, patch<double>("KIDX", 4 + 8, 1e-200)), three, "keyframe times 0, 1e-200, 1", "1e-9 of the keyframes' span");
+  corpus.add("k_times_1e-200.fmv", rebuild(plain, patch<double>("KIDX", 4 + 8, 1e-200)), three, "keyframe times 0, 1e-200, 1",
+             "1e-9 of the keyframes' span");
   const auto times_0_2_1e9 = [](const std::string& t, Bytes& p) {
     patch<double>("KIDX", 4 + 8, 2)(t, p);
     patch<double>("KIDX", 4 + 16, 1e9)(t, p);
@@ -470,9 +501,12 @@ void write_set(Corpus& corpus) {
     corpus.add("k_translation_1e9.fmv", rebuild(predicted, far), three, "keyframe 2 translated to 1e9 mm");
   }
   corpus.add("k_spline_7.fmv", rebuild(plain, patch<uint8_t>("HEAD", 17, 7)), three, "an unknown spline kind", "spline kind 7");
-  corpus.add("k_intra_period_0.fmv", rebuild(predicted, [](const std::string& t, Bytes& p) {
-               if (t == "HEAD") std::memset(p.data() + p.size() - kHeaderTail, 0, 4);
-             }), three, "intra period 0", "intra period 0");
+  corpus.add("k_intra_period_0.fmv",
+             rebuild(predicted,
+                     [](const std::string& t, Bytes& p) {
+                       if (t == "HEAD") std::memset(p.data() + p.size() - kHeaderTail, 0, 4);
+                     }),
+             three, "intra period 0", "intra period 0");
 }
 
 }  // namespace

@@ -2,11 +2,11 @@
 // hand), each refused by name when opened or when the keyframe it breaks is decoded, without
 // decoding another keyframe's data as its own, allocating past the claimed size or decoding a
 // failed keyframe again.
-#include "format/error.hpp"
-#include "codec/writer/image/image_encode.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/writer/image/image_encode.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -28,8 +28,7 @@ size_t offsets_at(const std::vector<uint8_t>& index) {
   const uint32_t count = r.read<uint32_t>("count");
   for (uint32_t k = 0; k < count; ++k) r.read<double>("t");
   for (uint32_t v = 0; v < 6 * count; ++v) {
-    while ((r.read<uint8_t>("pose") & 0x80) != 0) {
-    }
+    while ((r.read<uint8_t>("pose") & 0x80) != 0) {}
   }
   return index.size() - r.remaining();
 }
@@ -64,7 +63,9 @@ std::vector<uint8_t> claiming(std::vector<uint8_t> avif, uint32_t size) {
     }
     return at;
   };
-  const auto box_size = [&](size_t at) { return (uint32_t{avif[at]} << 24) | (uint32_t{avif[at + 1]} << 16) | (uint32_t{avif[at + 2]} << 8) | avif[at + 3]; };
+  const auto box_size = [&](size_t at) {
+    return (uint32_t{avif[at]} << 24) | (uint32_t{avif[at + 1]} << 16) | (uint32_t{avif[at + 2]} << 8) | avif[at + 3];
+  };
   for (size_t at : find_all("ispe")) {
     put32be(avif, at + 12, size);
     put32be(avif, at + 16, size);
@@ -96,11 +97,13 @@ TEST(Hostile, AliasedGroupAndTextureOffsetsFailTheirKeyframesByName) {
   const auto kgop = open_sequence_source(rebuild(bytes, alias(1, 0)), "kgop");
   EXPECT_NO_THROW(kgop->keyframe(1));
   testing::expect_error(ErrorCode::kCorrupt, "holds another group of keyframes than the index says", [&] { kgop->keyframe(2); });
-  testing::expect_error(ErrorCode::kCorrupt, "holds another group of keyframes than the index says", [&] { decode_sequence_file(rebuild(bytes, alias(0, 1)), "kgop"); });
+  testing::expect_error(ErrorCode::kCorrupt, "holds another group of keyframes than the index says",
+                        [&] { decode_sequence_file(rebuild(bytes, alias(0, 1)), "kgop"); });
   const auto tgop = open_sequence_source(rebuild(bytes, alias(3, 2)), "tgop");
   EXPECT_NO_THROW(tgop->texture(1));
   testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 0, the index places it at keyframe 2", [&] { tgop->texture(2); });
-  testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 2, the index places it at keyframe 0", [&] { decode_sequence_file(rebuild(bytes, alias(2, 3)), "tgop"); });
+  testing::expect_error(ErrorCode::kCorrupt, "starts at keyframe 2, the index places it at keyframe 0",
+                        [&] { decode_sequence_file(rebuild(bytes, alias(2, 3)), "tgop"); });
   // A stills file (TEXR, one offset a keyframe): slots 0-1 KGOP, 2-4 TEXR.
   SequenceFileMetadata stills = crafted::grouped_texture_metadata();
   stills.texture_coding = TextureCoding::kStills;
@@ -140,11 +143,16 @@ TEST(Hostile, AnAv1FrameLargerThanItsContainerClaimsIsRefusedBeforeItIsAllocated
   for (const auto& file : {rebuild(bytes, tgop_of(0, claiming(encode_avif_sequence(two_big, 80), 16))),
                            rebuild(bytes, tgop_of(2, claiming(encode_avif_sequence(one_big, 80), 16))),
                            rebuild(bytes, tgop_of(2, claiming(encode_avif(big, 80), 16)))}) {
-    testing::expect_error(ErrorCode::kCorrupt, "frame 0 of the AVIF sequence is damaged", [&] { decode_sequence_file(file, "claims.fmv"); });
+    testing::expect_error(ErrorCode::kCorrupt, "frame 0 of the AVIF sequence is damaged",
+                          [&] { decode_sequence_file(file, "claims.fmv"); });
   }
   // A TGOP too short for its own fields: truncated, naming the field.
   testing::expect_error(ErrorCode::kTruncated, "the image codec", [&] {
-    decode_sequence_file(rebuild(bytes, [](const std::string& type, std::vector<uint8_t>& p) { if (type == "TGOP" && p[0] == 0) p.resize(4); }), "short.fmv");
+    decode_sequence_file(rebuild(bytes,
+                                 [](const std::string& type, std::vector<uint8_t>& p) {
+                                   if (type == "TGOP" && p[0] == 0) p.resize(4);
+                                 }),
+                         "short.fmv");
   });
 }
 
@@ -168,7 +176,8 @@ TEST(Hostile, ACompressedTextureGroupIsRefusedAtOpen) {
     writer.add(compressed);
   }
   const std::vector<uint8_t> file = writer.finish();
-  testing::expect_error(ErrorCode::kCorrupt, "is compressed; a texture group's chunk never is", [&] { open_sequence_source(file, "compressed"); });
+  testing::expect_error(ErrorCode::kCorrupt, "is compressed; a texture group's chunk never is",
+                        [&] { open_sequence_source(file, "compressed"); });
 }
 
 // Writes `bytes` over the file at `path` in place (same length: no truncation, so a mapping of it
@@ -218,7 +227,8 @@ TEST(Hostile, AnIndexShorterThanItsEntriesIsTruncatedBeforeTheyAreAllocated) {
     payload.resize(4 + 3 * 8 + 6 * 3);  // the count, the times and one byte a pose number: no offsets
     writer.add(format::prepare_chunk("KIDX", payload, true, 0));
   }
-  testing::expect_error(ErrorCode::kTruncated, "index: truncated: the entries", [&] { open_sequence_source(writer.finish(), "short index"); });
+  testing::expect_error(ErrorCode::kTruncated, "index: truncated: the entries",
+                        [&] { open_sequence_source(writer.finish(), "short index"); });
 }
 
 // A TGOP stored with 8 MiB after its AVIF, in a file mapped from disk under a 4 MiB budget: the
@@ -247,7 +257,8 @@ TEST(Hostile, AnAv1FrameSmallerThanItsContainerClaimsIsScaledToIt) {
   Image small(16, 16, 3);
   for (int y = 0; y < 16; ++y) {
     for (int x = 0; x < 16; ++x) {
-      for (int c = 0; c < 3; ++c) small.pixels[(static_cast<size_t>(y) * 16 + x) * 3 + c] = static_cast<uint8_t>(x < 8 ? 40 + 60 * c : 200 - 50 * c);
+      for (int c = 0; c < 3; ++c)
+        small.pixels[(static_cast<size_t>(y) * 16 + x) * 3 + c] = static_cast<uint8_t>(x < 8 ? 40 + 60 * c : 200 - 50 * c);
     }
   }
   const Image* two_small[] = {&small, &small};
@@ -263,7 +274,8 @@ TEST(Hostile, AnAv1FrameSmallerThanItsContainerClaimsIsScaledToIt) {
       for (int x : {2, 10, 21, 29}) {
         for (int c = 0; c < 3; ++c) {
           const int expected = x < 16 ? 40 + 60 * c : 200 - 50 * c;
-          EXPECT_NEAR(texture.pixels[(static_cast<size_t>(y) * 32 + x) * 3 + c], expected, 12) << "keyframe " << k << " texel " << x << "," << y;
+          EXPECT_NEAR(texture.pixels[(static_cast<size_t>(y) * 32 + x) * 3 + c], expected, 12)
+              << "keyframe " << k << " texel " << x << "," << y;
         }
       }
     }

@@ -135,7 +135,7 @@ TEST(ImageCodec, DamagedAvifBytesAreNamedErrors) {
   const std::string ispe = "ispe";
   const auto at = std::search(small_header.begin(), small_header.end(), ispe.begin(), ispe.end());
   ASSERT_NE(at, small_header.end());
-  const auto size_at = static_cast<size_t>(at - small_header.begin()) + 8;  // after the box's version and flags
+  const auto size_at = static_cast<size_t>(at - small_header.begin()) + 8;         // after the box's version and flags
   for (size_t i = 0; i < 8; ++i) small_header[size_at + i] = i % 4 == 3 ? 16 : 0;  // 16 x 16, big-endian
   testing::expect_error(ErrorCode::kCorrupt, "t.avif", [&] { decode_avif(small_header, "t.avif", 3, 16 * 16); });
   // Every truncation, and a byte changed at every 5th place, is an error or a full image, never a crash.

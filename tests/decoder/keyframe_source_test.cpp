@@ -1,17 +1,16 @@
 // Decoding on demand (open_sequence_source, spec/container.md §10.1): an opened file holds what the
 // budget allows whatever its length, and decodes every frame exactly as the file decoded whole.
-#include "codec/decoder/player/decoder.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/sequence/spline.hpp"
-#include "format/error.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/player/decoder.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
-#include "tests/decoder/crafted_files.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
@@ -80,7 +79,8 @@ TEST(KeyframeSource, ALongFileDecodesOnDemandWithinABudgetItsWholeDecodeExceeds)
   const std::vector<uint8_t> bytes = long_file();
   const uint64_t budget = crafted::smallest_budget(bytes);
   // Decoded whole, the same file needs more than that budget holds.
-  testing::expect_error(ErrorCode::kLimit, "over the memory limit", [&] { decode_sequence_file(bytes, "long", nullptr, with_memory(budget)); });
+  testing::expect_error(ErrorCode::kLimit, "over the memory limit",
+                        [&] { decode_sequence_file(bytes, "long", nullptr, with_memory(budget)); });
   // One step less and a frame's four keyframes no longer fit: refused by name, at open.
   testing::expect_error(ErrorCode::kLimit, "--max-memory", [&] { open_sequence_source(bytes, "long", with_memory(budget - (16 << 10))); });
 
@@ -218,7 +218,8 @@ std::vector<uint8_t> with_empty_chunks(const std::vector<uint8_t>& bytes, size_t
 
 TEST(KeyframeSource, AFileOfManyEmptyChunksIsRefusedBeforeItsChunkListOutgrowsTheBudget) {
   // 28 MB of chunks under a 32 MiB budget: walked, their list alone would take about 80 MB.
-  const std::vector<uint8_t> bytes = with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 1'000'000);
+  const std::vector<uint8_t> bytes =
+      with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 1'000'000);
   ASSERT_LE(bytes.size(), uint64_t{32} << 20);
   testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(bytes, "many chunks", with_memory(uint64_t{32} << 20)); });
   // Mapped from disk, the file's size is no longer held to the budget: the same count refuses it.
@@ -227,7 +228,8 @@ TEST(KeyframeSource, AFileOfManyEmptyChunksIsRefusedBeforeItsChunkListOutgrowsTh
   format::write_file_atomically(path, bytes);
   testing::expect_error(ErrorCode::kLimit, "chunks", [&] { open_sequence_source(path, with_memory(uint64_t{4} << 20)); });
   // A file with a few unknown chunks still opens.
-  EXPECT_NO_THROW(open_sequence_source(with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 100), "some"));
+  EXPECT_NO_THROW(
+      open_sequence_source(with_empty_chunks(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()), 100), "some"));
 }
 
 TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
@@ -236,7 +238,8 @@ TEST(KeyframeSource, AStoredPayloadOverTheBudgetIsRefusedNotCopied) {
   // largest payload is counted when the file opens (§10.1), so it is refused there.
   const std::vector<uint8_t> bytes = crafted::rebuild(encode_sequence_file(crafted::small_sequence(), crafted::small_metadata()),
                                                       [](const std::string& type, std::vector<uint8_t>& payload) {
-                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 2) payload.resize(payload.size() + (8 << 20));
+                                                        if (type == "TEXR" && payload.size() > 12 && payload[0] == 2)
+                                                          payload.resize(payload.size() + (8 << 20));
                                                       });
   testing::TempDir dir;
   const auto path = dir / "padded.fmv";

@@ -5,8 +5,8 @@
 #include "codec/core/reconstruct/lattice_multigrid.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "format/error.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
+#include "format/error.hpp"
 
 #include <gtest/gtest.h>
 
@@ -55,13 +55,15 @@ std::vector<Vec3> some_surface(const InteriorLaplacian& L, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 1e-2);
   std::vector<Vec3> x;
-  for (const Vec2& w : L.nodes) x.emplace_back(w.x() + noise(rng), 1.2 * w.y() + noise(rng), 0.4 * std::exp(-3 * w.squaredNorm()) + noise(rng));
+  for (const Vec2& w : L.nodes)
+    x.emplace_back(w.x() + noise(rng), 1.2 * w.y() + noise(rng), 0.4 * std::exp(-3 * w.squaredNorm()) + noise(rng));
   return x;
 }
 
 std::vector<Vec3> times(const SparseMatrix& K, const std::vector<Vec3>& x) {
   std::vector<Vec3> b(x.size());
-  Eigen::Map<Points>(b.data()->data(), static_cast<Eigen::Index>(b.size()), 3) = K * Eigen::Map<const Points>(x.data()->data(), static_cast<Eigen::Index>(x.size()), 3);
+  Eigen::Map<Points>(b.data()->data(), static_cast<Eigen::Index>(b.size()), 3) =
+      K * Eigen::Map<const Points>(x.data()->data(), static_cast<Eigen::Index>(x.size()), 3);
   return b;
 }
 

@@ -8,8 +8,8 @@
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/file_io.hpp"
 
-#include "tests/test_util.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -156,7 +156,8 @@ TEST(Decoder, TooSmallBuffersAreNamedAndNothingIsWritten) {
   FrameBuffers out;
   out.positions = std::span<float>(positions).first(3 * vertices - 1);  // one float short
   out.normals = std::span<float>(normals).first(3 * vertices);
-  testing::expect_error(ErrorCode::kBufferTooSmall, "positions needs " + std::to_string(3 * vertices) + " floats, has " + std::to_string(3 * vertices - 1),
+  testing::expect_error(ErrorCode::kBufferTooSmall,
+                        "positions needs " + std::to_string(3 * vertices) + " floats, has " + std::to_string(3 * vertices - 1),
                         [&] { decoder.decode(0.2, out); });
   // Nothing written anywhere: not in the short buffer, not in the one that was large enough.
   EXPECT_TRUE(std::all_of(positions.begin(), positions.end(), [](float x) { return x == kCanary; }));
@@ -179,7 +180,8 @@ TEST(Decoder, TooSmallBuffersAreNamedAndNothingIsWritten) {
   EXPECT_EQ(frame.positions_size(), 3 * vertices);
   EXPECT_NE(positions[3 * vertices - 1], kCanary);
   EXPECT_TRUE(std::all_of(positions.begin() + static_cast<ptrdiff_t>(3 * vertices), positions.end(), [](float x) { return x == kCanary; }));
-  EXPECT_TRUE(std::all_of(indices.begin() + static_cast<ptrdiff_t>(frame.indices_size()), indices.end(), [](uint32_t x) { return x == 0xdeadbeef; }));
+  EXPECT_TRUE(std::all_of(indices.begin() + static_cast<ptrdiff_t>(frame.indices_size()), indices.end(),
+                          [](uint32_t x) { return x == 0xdeadbeef; }));
 }
 
 TEST(Decoder, KeyframeTimeDecodesAsTheSequenceDecoder) {
@@ -194,14 +196,18 @@ TEST(Decoder, KeyframeTimeDecodesAsTheSequenceDecoder) {
     EXPECT_EQ(frame.iterations, expected.iterations);
     ASSERT_EQ(frame.vertex_count, expected.mesh.vertex_count());
     for (size_t v = 0; v < expected.mesh.positions.size(); ++v) {
-      for (int k = 0; k < 3; ++k) ASSERT_EQ(a.positions[3 * v + static_cast<size_t>(k)], static_cast<float>(expected.mesh.positions[v][k])) << "t = " << t << ", vertex " << v;
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(a.positions[3 * v + static_cast<size_t>(k)], static_cast<float>(expected.mesh.positions[v][k]))
+            << "t = " << t << ", vertex " << v;
     }
     ASSERT_EQ(frame.triangle_count, expected.mesh.face_count());
     for (size_t f = 0; f < expected.mesh.faces.size(); ++f) {
-      for (int k = 0; k < 3; ++k) ASSERT_EQ(a.indices[3 * f + static_cast<size_t>(k)], static_cast<uint32_t>(expected.mesh.faces[f][static_cast<size_t>(k)]));
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(a.indices[3 * f + static_cast<size_t>(k)], static_cast<uint32_t>(expected.mesh.faces[f][static_cast<size_t>(k)]));
     }
     for (size_t p = 0; p < expected.texture.pixels.size() / 3; ++p) {
-      for (int c = 0; c < 3; ++c) ASSERT_EQ(a.texture[4 * p + static_cast<size_t>(c)], expected.texture.pixels[3 * p + static_cast<size_t>(c)]);
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(a.texture[4 * p + static_cast<size_t>(c)], expected.texture.pixels[3 * p + static_cast<size_t>(c)]);
     }
   }
 }

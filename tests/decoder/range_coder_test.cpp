@@ -62,7 +62,8 @@ TEST(RangeCoder, StreamsThatEndEarlyOrLateAreCorrupt) {
     decoder.expect_end();
   };
   read_all(bytes);
-  testing::expect_error(ErrorCode::kCorrupt, "s.bits: the range-coded stream ends before its last value", [&] { read_all(std::span(bytes).first(bytes.size() - 1)); });
+  testing::expect_error(ErrorCode::kCorrupt, "s.bits: the range-coded stream ends before its last value",
+                        [&] { read_all(std::span(bytes).first(bytes.size() - 1)); });
   testing::expect_error(ErrorCode::kCorrupt, "s.bits: a range-coded stream of 4 bytes", [&] { read_all(std::span(bytes).first(4)); });
   bytes.push_back(0);
   testing::expect_error(ErrorCode::kCorrupt, "s.bits: 1 bytes after", [&] { read_all(bytes); });
@@ -138,8 +139,8 @@ TEST(RangedResiduals, CarriedModelsContinueWhereTheLastStreamEnded) {
   const std::vector<uint8_t> carried = format::encode_ranged_residuals(second.arrays, second.lattices, second.model_sets, &written);
   const std::vector<uint8_t> fresh = format::encode_ranged_residuals(second.arrays, second.lattices, second.model_sets);
   EXPECT_LT(carried.size(), fresh.size());
-  format::decode_ranged_residuals(format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets), first.lengths(), first.lattices,
-                                  first.model_sets, "k0.res", &read);
+  format::decode_ranged_residuals(format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets), first.lengths(),
+                                  first.lattices, first.model_sets, "k0.res", &read);
   EXPECT_EQ(format::decode_ranged_residuals(carried, second.lengths(), second.lattices, second.model_sets, "k1.res", &read), second.arrays);
   try {
     EXPECT_NE(format::decode_ranged_residuals(carried, second.lengths(), second.lattices, second.model_sets, "k1.res"), second.arrays);
@@ -147,9 +148,8 @@ TEST(RangedResiduals, CarriedModelsContinueWhereTheLastStreamEnded) {
     EXPECT_EQ(e.code(), ErrorCode::kCorrupt) << e.what();  // or the stream does not even fit
   }
   std::vector<format::ResidualModels> wrong_count(2);
-  testing::expect_error(ErrorCode::kInvalidArgument, "carried models", [&] {
-    format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets, &wrong_count);
-  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "carried models",
+                        [&] { format::encode_ranged_residuals(first.arrays, first.lattices, first.model_sets, &wrong_count); });
 }
 
 // Field coding 4's stream: decisions, numbers and arrays of residuals interleaved in one stream
@@ -245,7 +245,9 @@ TEST(RangedResiduals, DamagedStreamsAreNamed) {
   const std::vector<uint8_t> bytes = format::encode_ranged_residuals(r.arrays, r.lattices, r.model_sets);
   const std::vector<size_t> lengths = r.lengths();
   for (size_t cut = 0; cut < bytes.size(); ++cut) {
-    testing::expect_error(ErrorCode::kCorrupt, "k.res", [&] { format::decode_ranged_residuals(std::span(bytes).first(cut), lengths, r.lattices, r.model_sets, "k.res"); });
+    testing::expect_error(ErrorCode::kCorrupt, "k.res", [&] {
+      format::decode_ranged_residuals(std::span(bytes).first(cut), lengths, r.lattices, r.model_sets, "k.res");
+    });
   }
   for (size_t at = 0; at < bytes.size(); ++at) {
     for (uint8_t flip : {uint8_t{0x01}, uint8_t{0xA5}}) {
@@ -264,7 +266,8 @@ TEST(RangedResiduals, DamagedStreamsAreNamed) {
   // More values than the bytes could hold are refused before they are allocated.
   std::vector<size_t> huge = lengths;
   huge[0] = size_t{1} << 40;
-  testing::expect_error(ErrorCode::kCorrupt, "cannot hold", [&] { format::decode_ranged_residuals(bytes, huge, r.lattices, r.model_sets, "k.res"); });
+  testing::expect_error(ErrorCode::kCorrupt, "cannot hold",
+                        [&] { format::decode_ranged_residuals(bytes, huge, r.lattices, r.model_sets, "k.res"); });
 }
 
 }  // namespace

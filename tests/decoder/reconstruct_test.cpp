@@ -6,13 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <cstdlib>
+#include <functional>
 #include <numbers>
 
 namespace facemorph {
 namespace {
-
 
 using testing::sample_nodes;
 
@@ -75,7 +74,8 @@ TEST(Reconstruct, TangentialFieldsMakeTheSampledSurfaceTheFixedPointOnAnyGrid) {
     const auto& grid = reconstructor.geometry().grid();
     for (const auto& truth : {sample_nodes(grid, paraboloid), sample_nodes(grid, saddle)}) {
       reconstructor.forget_warm_start();
-      const ReconstructResult r = reconstructor.reconstruct(compute_fields(reconstructor.geometry(), truth, Representation::kHLT), {.tolerance = 1e-10});
+      const ReconstructResult r =
+          reconstructor.reconstruct(compute_fields(reconstructor.geometry(), truth, Representation::kHLT), {.tolerance = 1e-10});
       EXPECT_LT(max_error(r.positions, truth), 1e-7) << "N = " << n;
     }
     // The paraboloid's Δ S = (0, 0, 1.6) is vertical, not normal: the paper's (H, λ) loses its
@@ -172,8 +172,9 @@ TEST(Reconstruct, FieldsCombineLinearlyInEveryArrayAndRefuseMismatches) {
 
 TEST(Reconstruct, MalformedFieldsAreNamedByEveryConsumer) {
   Reconstructor reconstructor(17);
-  const GridFields good = compute_fields(reconstructor.geometry(), sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); }),
-                                         Representation::kHLT, {3});
+  const GridFields good =
+      compute_fields(reconstructor.geometry(), sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); }),
+                     Representation::kHLT, {3});
   EXPECT_NO_THROW(validate_fields(good));
   struct Case {
     const char* fragment;
@@ -194,7 +195,12 @@ TEST(Reconstruct, MalformedFieldsAreNamedByEveryConsumer) {
       {"fixed_laplacian is not finite", [](GridFields& f) { f.fixed_laplacian[1].z() = -INFINITY; }},
       {"grid size N = 3", [](GridFields& f) { f.grid_n = 3; }},
       {"unknown representation", [](GridFields& f) { f.representation = static_cast<Representation>(7); }},
-      {"fixed_nodes has", [](GridFields& f) { f.representation = Representation::kHL; f.tangential_u.clear(); f.tangential_v.clear(); }},
+      {"fixed_nodes has",
+       [](GridFields& f) {
+         f.representation = Representation::kHL;
+         f.tangential_u.clear();
+         f.tangential_v.clear();
+       }},
   };
   for (const Case& c : cases) {
     GridFields bad = good;
@@ -237,11 +243,16 @@ TEST(Reconstruct, OneReconstructorDecodesEachCallAsAFreshOneWould) {
   // may reach the next (after forget_warm_start), whatever the representation or depth before.
   Reconstructor shared(33);
   const GridGeometry& geometry = shared.geometry();
-  const auto truth = sample_nodes(geometry.grid(), [](const Vec2& w) { return Vec3(w.x(), 1.1 * w.y(), 0.5 * std::exp(-3 * w.squaredNorm())); });
+  const auto truth =
+      sample_nodes(geometry.grid(), [](const Vec2& w) { return Vec3(w.x(), 1.1 * w.y(), 0.5 * std::exp(-3 * w.squaredNorm())); });
   const struct {
     Representation representation;
     int depth;
-  } calls[] = {{Representation::kHLT, 5}, {Representation::kHL, 0}, {Representation::kXYZ, 5}, {Representation::kHLT, 16}, {Representation::kHLT, 5}};
+  } calls[] = {{Representation::kHLT, 5},
+               {Representation::kHL, 0},
+               {Representation::kXYZ, 5},
+               {Representation::kHLT, 16},
+               {Representation::kHLT, 5}};
   for (const auto& call : calls) {
     const GridFields fields = compute_fields(geometry, truth, call.representation);
     const ReconstructOptions options{.tolerance = 1e-9, .anderson_depth = call.depth, .throw_on_failure = false};
@@ -251,7 +262,8 @@ TEST(Reconstruct, OneReconstructorDecodesEachCallAsAFreshOneWould) {
     const ReconstructResult first = fresh.reconstruct(fields, options);
     EXPECT_EQ(again.iterations, first.iterations) << "depth " << call.depth;
     ASSERT_EQ(again.positions.size(), first.positions.size());
-    for (size_t v = 0; v < first.positions.size(); ++v) ASSERT_EQ(again.positions[v], first.positions[v]) << "node " << v << ", depth " << call.depth;
+    for (size_t v = 0; v < first.positions.size(); ++v)
+      ASSERT_EQ(again.positions[v], first.positions[v]) << "node " << v << ", depth " << call.depth;
   }
 }
 
@@ -290,7 +302,8 @@ TEST(Reconstruct, FoldsAtGridResolutionAreFoundWithTwoRingsAroundThem) {
   const auto& grid = geometry.grid();
   EXPECT_TRUE(folded_nodes(geometry, sample_nodes(grid, [](const Vec2& w) { return cap(w); })).empty());
   // (x, y) -> (|x|, y, 0) folds the disk over along x = 0: the normals flip there.
-  const auto folds = folded_nodes(geometry, sample_nodes(grid, [](const Vec2& w) { return Vec3(std::abs(w.x()) + 0.01 * w.y(), w.y(), 0.1 * w.x()); }));
+  const auto folds =
+      folded_nodes(geometry, sample_nodes(grid, [](const Vec2& w) { return Vec3(std::abs(w.x()) + 0.01 * w.y(), w.y(), 0.1 * w.x()); }));
   ASSERT_FALSE(folds.empty());
   for (int32_t v : folds) EXPECT_LE(std::abs(grid.nodes[static_cast<size_t>(v)].x()), 3.01 * grid.h);
   int near_fold = 0;
@@ -303,7 +316,8 @@ TEST(Reconstruct, NonConvergenceAndNonFiniteIteratesAreNamedNeverReturnedSilentl
   const auto truth = sample_nodes(reconstructor.geometry().grid(), [](const Vec2& w) { return cap(w); });
   GridFields wild = compute_fields(reconstructor.geometry(), truth, Representation::kHL);
   for (double& H : wild.mean_curvature) H *= 40;  // no surface with this boundary has it
-  testing::expect_error(ErrorCode::kNotConverged, "did not converge in 60 iterations", [&] { reconstructor.reconstruct(wild, {.max_iterations = 60}); });
+  testing::expect_error(ErrorCode::kNotConverged, "did not converge in 60 iterations",
+                        [&] { reconstructor.reconstruct(wild, {.max_iterations = 60}); });
   reconstructor.forget_warm_start();
   const ReconstructResult r = reconstructor.reconstruct(wild, {.max_iterations = 60, .throw_on_failure = false});
   EXPECT_FALSE(r.converged);
@@ -314,9 +328,8 @@ TEST(Reconstruct, NonConvergenceAndNonFiniteIteratesAreNamedNeverReturnedSilentl
   for (double& l : overflowing.log_conformal_factor) l = 400;
   for (bool throw_on_failure : {true, false}) {
     reconstructor.forget_warm_start();
-    testing::expect_error(ErrorCode::kNumerical, "non-finite", [&] {
-      reconstructor.reconstruct(overflowing, {.throw_on_failure = throw_on_failure});
-    });
+    testing::expect_error(ErrorCode::kNumerical, "non-finite",
+                          [&] { reconstructor.reconstruct(overflowing, {.throw_on_failure = throw_on_failure}); });
   }
   // A failed frame leaves the warm start alone: the next frame decodes as if it had not happened.
   reconstructor.forget_warm_start();

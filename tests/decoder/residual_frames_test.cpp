@@ -2,8 +2,8 @@
 // weights, analytically; continuity in t, past the ends too; the RSDW chunk's round trip to the bit
 // and what a decoder shows with it; and every check of its reader.
 #include "codec/core/sequence/residual_weights.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/checksum.hpp"
 
@@ -58,8 +58,8 @@ TEST(ResidualFrames, TheWeightsAreTheSplinesPlusTheCorrectionInterpolatedBetween
       {0.2, {0.25, -0.5, 0.25, 0}},
       {0.25, {0.0625, -0.25, 0.1875, 0}},
       {0.3, {-0.125, 0, 0.125, 0}},
-      {0.1, {0.125, -0.25, 0.125, 0}},     // u = 1/2 from keyframe 0 to the residual at 0.2
-      {0.4, {-0.0625, 0, 0.0625, 0}},      // u = 1/2 from 0.3 to keyframe 1
+      {0.1, {0.125, -0.25, 0.125, 0}},           // u = 1/2 from keyframe 0 to the residual at 0.2
+      {0.4, {-0.0625, 0, 0.0625, 0}},            // u = 1/2 from 0.3 to keyframe 1
       {0.65, {0.25, -0.125, -0.0625, -0.0625}},  // from keyframe 1 (0.5) to 0.8: u = 1/2
       {0.9, {0.25, -0.125, -0.0625, -0.0625}},   // from 0.8 to keyframe 2 (1.0): u = 1/2
   };
@@ -112,9 +112,9 @@ TEST(ResidualFrames, ValidationRefusesWhatTheBlendCannotUse) {
   const auto refused = [&](std::vector<ResidualFrame> r, const std::string& fragment) {
     testing::expect_error(ErrorCode::kInvalidArgument, fragment, [&] { validate_residuals(times, r); });
   };
-  refused({{0.5, {0.25, -0.25, 0, 0}}}, "not strictly between two keyframes");       // at a keyframe
-  refused({{-0.1, {0.25, -0.25, 0}}}, "not strictly between two keyframes");         // before the first
-  refused({{1.6, {0.25, -0.25, 0}}}, "not strictly between two keyframes");          // after the last
+  refused({{0.5, {0.25, -0.25, 0, 0}}}, "not strictly between two keyframes");  // at a keyframe
+  refused({{-0.1, {0.25, -0.25, 0}}}, "not strictly between two keyframes");    // before the first
+  refused({{1.6, {0.25, -0.25, 0}}}, "not strictly between two keyframes");     // after the last
   refused({{0.2, {0.25, -0.25}}}, "2 corrections where its keyframe interval has 3 keys");
   refused({{0.2, {0.25, -0.25, 0}}, {0.1, {0.25, -0.25, 0}}}, "times must increase");
   refused({{0.2, {0.25, -0.25, 0.1}}}, "sum to");
@@ -188,8 +188,8 @@ TEST(ResidualFrames, TheWriterRefusesWhatTheFileCannotHoldExactly) {
   s.residuals[0].delta = {1e-12, -1e-12, 0};  // not a multiple of 2^-30
   testing::expect_error(ErrorCode::kInvalidArgument, "not multiples of 2^-30", [&] { encode_sequence_file(s, small_metadata()); });
   // The encoder's helper moves times to the lattice and drops one that would leave its interval.
-  const std::vector<ResidualFrame> moved = residuals_on_file_times({{0.25 + 1e-9, {0.25, -0.125, -0.125}}, {0.5 - 1e-6, {0.25, -0.125, -0.125}}},
-                                                                   {0.0, 0.5, 1.0}, 0.0, 30.0);
+  const std::vector<ResidualFrame> moved =
+      residuals_on_file_times({{0.25 + 1e-9, {0.25, -0.125, -0.125}}, {0.5 - 1e-6, {0.25, -0.125, -0.125}}}, {0.0, 0.5, 1.0}, 0.0, 30.0);
   ASSERT_EQ(moved.size(), 1u);
   EXPECT_EQ(moved[0].time, 0.25);
 }
@@ -220,19 +220,38 @@ TEST(ResidualFrames, EveryCheckOfTheChunkRefusesABadOneByName) {
   corrupt(with_payload([](auto& p) { p[0] = 7; }), "states 7 residual frames");  // its 9 bytes hold 4
   corrupt(with_payload([](auto& p) { p[3] = 0x10; }), "residual frames");        // 2^28 + 2
   corrupt(with_payload([](auto& p) { p[4] = 31; }), "step exponent 31");
-  corrupt(with_payload([](auto& p) { p[9] = 0; p[10] = 0; }), "residual frame 1: its time does not come after");  // a change of 0
-  corrupt(with_payload([](auto& p) { p[9] = 0x80; p[10] = 0x2F; }), "residual frame 1: its time");  // q = 3488: 1.82 s, past the last keyframe
-  corrupt(with_payload([](auto& p) { p[7] = 0x80; p[8] = 0x02; }), "a correction beyond");  // code 128 > 4 x 16
-  corrupt(with_payload([](auto& p) { p[11] = 0x7E; p[12] = 0x7E; }), "last correction");   // 63 + 63: their sum is beyond
+  corrupt(with_payload([](auto& p) {
+            p[9] = 0;
+            p[10] = 0;
+          }),
+          "residual frame 1: its time does not come after");  // a change of 0
+  corrupt(with_payload([](auto& p) {
+            p[9] = 0x80;
+            p[10] = 0x2F;
+          }),
+          "residual frame 1: its time");  // q = 3488: 1.82 s, past the last keyframe
+  corrupt(with_payload([](auto& p) {
+            p[7] = 0x80;
+            p[8] = 0x02;
+          }),
+          "a correction beyond");  // code 128 > 4 x 16
+  corrupt(with_payload([](auto& p) {
+            p[11] = 0x7E;
+            p[12] = 0x7E;
+          }),
+          "last correction");  // 63 + 63: their sum is beyond
   corrupt(with_payload([](auto& p) { p.push_back(0); }), "1 bytes after its last field");
-  testing::expect_error(ErrorCode::kTruncated, "a residual correction", [&] { open_sequence_source(with_payload([](auto& p) { p.resize(11); }), "crafted.fmv"); });
+  testing::expect_error(ErrorCode::kTruncated, "a residual correction",
+                        [&] { open_sequence_source(with_payload([](auto& p) { p.resize(11); }), "crafted.fmv"); });
   // Two RSDW chunks in a 2.3 file: the extra chunk rebuild adds, renamed.
-  const std::vector<uint8_t> two = rebuild(rebuild(good, [](const std::string&, std::vector<uint8_t>&) {}, true), [&](std::string& type, std::vector<uint8_t>& payload) {
-    if (type == "ZZZ1") {
-      type = "RSDW";
-      payload = {2, 0, 0, 0, 4, 0xC0, 0x07, 8, 3, 0x80, 0x0F, 1, 1};
-    }
-  });
+  const std::vector<uint8_t> two = rebuild(rebuild(
+                                               good, [](const std::string&, std::vector<uint8_t>&) {}, true),
+                                           [&](std::string& type, std::vector<uint8_t>& payload) {
+                                             if (type == "ZZZ1") {
+                                               type = "RSDW";
+                                               payload = {2, 0, 0, 0, 4, 0xC0, 0x07, 8, 3, 0x80, 0x0F, 1, 1};
+                                             }
+                                           });
   corrupt(two, "two RSDW chunks");
 }
 

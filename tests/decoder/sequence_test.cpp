@@ -45,7 +45,8 @@ TEST(HoleCut, KeepsThePositiveSideAndClipsAlongTheZeroLevel) {
   // is its disk point, and the area is the disk polygon's less the hole's.
   const auto& loops = topology.boundary_loops();
   const auto& hole = loops[0].size() < loops[1].size() ? loops[0] : loops[1];
-  for (int v : hole) EXPECT_NEAR((cut.positions[static_cast<size_t>(v)].head<2>() - centre).norm(), 0.3, 1e-3);  // the chord error of h = 1/32
+  for (int v : hole)
+    EXPECT_NEAR((cut.positions[static_cast<size_t>(v)].head<2>() - centre).norm(), 0.3, 1e-3);  // the chord error of h = 1/32
   for (int v = 0; v < cut.vertex_count(); ++v) {
     EXPECT_LT((cut.uvs[static_cast<size_t>(v)] - 0.5 * (cut.positions[static_cast<size_t>(v)].head<2>() + Vec2(1, 1))).norm(), 1e-12);
   }
@@ -75,10 +76,10 @@ std::shared_ptr<Sequence> turning_bump(SplineKind spline, bool hole) {
     Keyframe key;
     key.time = times[k];
     const double s = key.time;
-    key.fields = compute_fields(geometry, sample_nodes(geometry.grid(), [s](const Vec2& w) {
-                                  return Vec3(w.x(), w.y(), (0.2 + 0.2 * s) * std::exp(-3 * w.squaredNorm()));
-                                }),
-                                Representation::kHLT);
+    key.fields = compute_fields(
+        geometry,
+        sample_nodes(geometry.grid(), [s](const Vec2& w) { return Vec3(w.x(), w.y(), (0.2 + 0.2 * s) * std::exp(-3 * w.squaredNorm())); }),
+        Representation::kHLT);
     key.pose.rotation = Eigen::AngleAxisd(0.6 * s, Vec3::UnitY()).toRotationMatrix();
     key.pose.translation = sequence->pose_centre - key.pose.rotation * sequence->pose_centre;  // turning about the centre
     if (hole) {
@@ -237,8 +238,8 @@ TEST(SequenceDecoder, MalformedSequencesAreNamed) {
   check("keyframe 2: a hole level is not finite", [](Sequence& s) { s.keyframes[2].hole_level.back() = INFINITY; });
   check("fixed-frame nodes differ", [](Sequence& s) {
     const DiskGrid grid = make_disk_grid(33);
-    s.keyframes[1].fields = compute_fields(GridGeometry(grid), sample_nodes(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }), Representation::kHLT,
-                                           {grid.node(16, 16)});
+    s.keyframes[1].fields = compute_fields(GridGeometry(grid), sample_nodes(grid, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0); }),
+                                           Representation::kHLT, {grid.node(16, 16)});
   });
 }
 

@@ -15,7 +15,7 @@ TEST(SpatialPredictor, EveryPredictorRoundTripsExactlyAndPlanesLeaveSmallResidua
   std::vector<int32_t> plane, rough;
   for (int j = 0; j < w; ++j) {
     for (int i = 0; i < w; ++i) {
-      plane.push_back(3 * i - 7 * j + 11);                     // a plane: the gradient predicts it exactly
+      plane.push_back(3 * i - 7 * j + 11);  // a plane: the gradient predicts it exactly
       rough.push_back(static_cast<int32_t>((i * 7919 + j * 104729) % 2001) - 1000);
     }
   }
@@ -39,10 +39,12 @@ TEST(SpatialPredictor, EveryPredictorRoundTripsExactlyAndPlanesLeaveSmallResidua
     }
   }
   // A lattice predictor without the table, or with a neighbour that comes later, is refused.
-  testing::expect_error(ErrorCode::kInvalidArgument, "neighbour table", [&] { format::spatial_residuals(plane, format::SpatialPredictor::kGradient, nullptr); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "neighbour table",
+                        [&] { format::spatial_residuals(plane, format::SpatialPredictor::kGradient, nullptr); });
   format::LatticeNeighbours backwards = lattice;
   backwards.left[3] = 10;
-  testing::expect_error(ErrorCode::kInvalidArgument, "comes after", [&] { format::spatial_residuals(plane, format::SpatialPredictor::kMedian, &backwards); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "comes after",
+                        [&] { format::spatial_residuals(plane, format::SpatialPredictor::kMedian, &backwards); });
 }
 
 }  // namespace

@@ -1,13 +1,13 @@
 // The keyframe splines (cardinal weights) and the rigid head pose: fit, SO(3) log/exp, pose spline.
-#include "format/error.hpp"
-#include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/core/sequence/pose.hpp"
+#include "format/error.hpp"
 
 #include "tests/test_util.hpp"
 
+#include <gtest/gtest.h>
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
-#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
@@ -133,7 +133,8 @@ TEST(Spline, EachKindReproducesItsPolynomialDegree) {
     SplineKind kind;
     int degree;
   };
-  for (const Case c : {Case{SplineKind::kLinear, 1}, Case{SplineKind::kCatmullRom, 2}, Case{SplineKind::kLocalCubic, 3}, Case{SplineKind::kNotAKnot, 3}}) {
+  for (const Case c :
+       {Case{SplineKind::kLinear, 1}, Case{SplineKind::kCatmullRom, 2}, Case{SplineKind::kLocalCubic, 3}, Case{SplineKind::kNotAKnot, 3}}) {
     for (int count : {4, 5, 6, 9, 25}) {
       const std::vector<double> times = random_times(count, 200 + static_cast<unsigned>(count));
       const KeyframeSpline spline(times, c.kind);
@@ -146,7 +147,8 @@ TEST(Spline, EachKindReproducesItsPolynomialDegree) {
             << spline_kind_name(c.kind) << " K = " << count << " t = " << t;
         EXPECT_NEAR(blend(spline.derivative_weights(t), y), slope[static_cast<size_t>(c.degree) - 1](t), 1e-10 * scale)
             << spline_kind_name(c.kind) << " K = " << count << " t = " << t;
-        if (c.degree < 3) worst_next = std::max(worst_next, std::abs(blend(spline.weights(t), next) - poly[static_cast<size_t>(c.degree)](t)));
+        if (c.degree < 3)
+          worst_next = std::max(worst_next, std::abs(blend(spline.weights(t), next) - poly[static_cast<size_t>(c.degree)](t)));
       }
       if (c.degree < 3) {
         EXPECT_GT(worst_next, 1e-4) << spline_kind_name(c.kind) << " reproduces degree " << c.degree + 1 << " too";
@@ -201,7 +203,8 @@ TEST(Spline, LocalKindsTouchABoundedWindow) {
     SplineKind kind;
     int before, after, most;
   };
-  for (const Case c : {Case{SplineKind::kLinear, 0, 1, 2}, Case{SplineKind::kCatmullRom, 1, 2, 4}, Case{SplineKind::kLocalCubic, 2, 3, 6}}) {
+  for (const Case c :
+       {Case{SplineKind::kLinear, 0, 1, 2}, Case{SplineKind::kCatmullRom, 1, 2, 4}, Case{SplineKind::kLocalCubic, 2, 3, 6}}) {
     const KeyframeSpline spline(times, c.kind);
     EXPECT_EQ(spline.max_keys(), c.most) << spline_kind_name(c.kind);
     size_t widest = 0;
@@ -314,7 +317,8 @@ TEST(Spline, DerivativeWeightsAreTheDerivativeAndContinuousForC1Kinds) {
     }
     double worst_jump = 0;
     for (size_t k = 1; k + 1 < times.size(); ++k) {
-      const double left = blend(spline.derivative_weights(times[k] - 1e-10), y), right = blend(spline.derivative_weights(times[k] + 1e-10), y);
+      const double left = blend(spline.derivative_weights(times[k] - 1e-10), y),
+                   right = blend(spline.derivative_weights(times[k] + 1e-10), y);
       worst_jump = std::max(worst_jump, std::abs(left - right));
     }
     if (kind == SplineKind::kLinear) {
@@ -342,10 +346,18 @@ TEST(Spline, SaneRangeIsOneIntervalPastEachEnd) {
 TEST(Spline, BadInputGivesNamedErrors) {
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
   testing::expect_error(ErrorCode::kInvalidArgument, "no keyframes", [] { KeyframeSpline({}, SplineKind::kLinear); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 1 is not finite", [&] { KeyframeSpline({0.0, nan, 2.0}, SplineKind::kNotAKnot); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2 is not finite", [&] { KeyframeSpline({0.0, 1.0, inf}, SplineKind::kLocalCubic); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing at keyframe 2", [] { KeyframeSpline({0.0, 1.0, 1.0}, SplineKind::kCatmullRom); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing at keyframe 1", [] { KeyframeSpline({1.0, 0.5}, SplineKind::kLinear); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 1 is not finite", [&] {
+    KeyframeSpline({0.0, nan, 2.0}, SplineKind::kNotAKnot);
+  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe 2 is not finite", [&] {
+    KeyframeSpline({0.0, 1.0, inf}, SplineKind::kLocalCubic);
+  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing at keyframe 2", [] {
+    KeyframeSpline({0.0, 1.0, 1.0}, SplineKind::kCatmullRom);
+  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "strictly increasing at keyframe 1", [] {
+    KeyframeSpline({1.0, 0.5}, SplineKind::kLinear);
+  });
   testing::expect_error(ErrorCode::kInvalidArgument, "overflows", [] { KeyframeSpline({-1.5e308, 1.5e308}, SplineKind::kLinear); });
   testing::expect_error(ErrorCode::kInvalidArgument, "unknown kind", [] { KeyframeSpline({0.0}, static_cast<SplineKind>(17)); });
   const KeyframeSpline spline({0.0, 1.0, 2.0}, SplineKind::kNotAKnot);
@@ -450,11 +462,19 @@ TEST(Pose, KabschBadInputGivesNamedErrors) {
   const std::vector<Vec3> three = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
   const double nan = std::numeric_limits<double>::quiet_NaN();
   testing::expect_error(ErrorCode::kInvalidArgument, "3 points to map onto 2", [&] { fit_rigid_pose(three, {three[0], three[1]}); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "at least 3 points, got 2", [&] { fit_rigid_pose({three[0], three[1]}, {three[0], three[1]}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "at least 3 points, got 2", [&] {
+    fit_rigid_pose({three[0], three[1]}, {three[0], three[1]});
+  });
   testing::expect_error(ErrorCode::kInvalidArgument, "2 weights for 3 points", [&] { fit_rigid_pose(three, three, {1.0, 1.0}); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "point 1 is not finite", [&] { fit_rigid_pose(three, {three[0], Vec3(nan, 0, 0), three[2]}); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "weight 2 must be finite and non-negative", [&] { fit_rigid_pose(three, three, {1.0, 1.0, nan}); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "weight 0 must be finite and non-negative", [&] { fit_rigid_pose(three, three, {-1.0, 1.0, 1.0}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "point 1 is not finite", [&] {
+    fit_rigid_pose(three, {three[0], Vec3(nan, 0, 0), three[2]});
+  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "weight 2 must be finite and non-negative", [&] {
+    fit_rigid_pose(three, three, {1.0, 1.0, nan});
+  });
+  testing::expect_error(ErrorCode::kInvalidArgument, "weight 0 must be finite and non-negative", [&] {
+    fit_rigid_pose(three, three, {-1.0, 1.0, 1.0});
+  });
   testing::expect_error(ErrorCode::kInvalidArgument, "weights sum to 0", [&] { fit_rigid_pose(three, three, {0.0, 0.0, 0.0}); });
 }
 
@@ -462,7 +482,8 @@ TEST(Pose, KabschBadInputGivesNamedErrors) {
 // proper rotation.
 TEST(Pose, LogAndExpRoundTripAtEveryAngle) {
   std::mt19937 rng(800);
-  for (double angle : {0.0, 1e-12, 1e-9, 1e-6, 0.99e-4, 1.01e-4, 0.1, 1.0, kPi / 2 - 1e-9, kPi / 2 + 1e-9, 2.0, 3.0, kPi - 1e-6, kPi - 1e-9}) {
+  for (double angle :
+       {0.0, 1e-12, 1e-9, 1e-6, 0.99e-4, 1.01e-4, 0.1, 1.0, kPi / 2 - 1e-9, kPi / 2 + 1e-9, 2.0, 3.0, kPi - 1e-6, kPi - 1e-9}) {
     for (int j = 0; j < 20; ++j) {
       const Vec3 w = random_unit(rng) * angle;
       const Eigen::Matrix3d r = rotation_exp(w);
@@ -486,8 +507,10 @@ TEST(Pose, LogAndExpRoundTripAtEveryAngle) {
 
 TEST(Pose, LogAndExpRejectBadInput) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  testing::expect_error(ErrorCode::kInvalidArgument, "not a finite proper rotation", [] { rotation_log(Eigen::Matrix3d::Identity() * 1.01); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "not a finite proper rotation", [] { rotation_log(Eigen::Vector3d(1, 1, -1).asDiagonal().toDenseMatrix()); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "not a finite proper rotation",
+                        [] { rotation_log(Eigen::Matrix3d::Identity() * 1.01); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "not a finite proper rotation",
+                        [] { rotation_log(Eigen::Vector3d(1, 1, -1).asDiagonal().toDenseMatrix()); });
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
   r(0, 1) = nan;
   testing::expect_error(ErrorCode::kInvalidArgument, "not a finite proper rotation", [&] { rotation_log(r); });
@@ -549,7 +572,8 @@ TEST(Pose, UnwrappedRotationsAreContinuousAndBlendHitsTheKeys) {
   for (size_t k = 0; k < keys.size(); ++k) EXPECT_LT((xi[k] - 2.0 * static_cast<double>(k) * axis).norm(), 1e-13) << "key " << k;
   // A key a whole turn from the first (the identity to rounding, its axis noise) stays on the turn.
   std::vector<RigidPose> turn(5);
-  for (size_t k = 0; k < turn.size(); ++k) turn[k].rotation = rotation_exp(Vec3(0.6, 0.0, 0.8) * (k == 3 ? 2 * kPi : 2.1 * static_cast<double>(k)));
+  for (size_t k = 0; k < turn.size(); ++k)
+    turn[k].rotation = rotation_exp(Vec3(0.6, 0.0, 0.8) * (k == 3 ? 2 * kPi : 2.1 * static_cast<double>(k)));
   const std::vector<Vec3> turn_xi = unwrap_rotations(turn);
   EXPECT_LT((turn_xi[3] - Vec3(0.6, 0.0, 0.8) * (2 * kPi)).norm(), 1e-9);
   EXPECT_LT((turn_xi[4] - Vec3(0.6, 0.0, 0.8) * 8.4).norm(), 1e-13);
@@ -574,7 +598,9 @@ TEST(Pose, BlendBadInputGivesNamedErrors) {
   testing::expect_error(ErrorCode::kInvalidArgument, "2 keys with 1 weights", [&] { blend_poses(keys, SplineWeights{{0, 1}, {1.0}}); });
   testing::expect_error(ErrorCode::kInvalidArgument, "no weights", [&] { blend_poses(keys, SplineWeights{}); });
   testing::expect_error(ErrorCode::kInvalidArgument, "not finite", [&] { blend_poses(keys, SplineWeights{{0}, {std::nan("")}}); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "2 rotation vectors for 3 keys", [&] { blend_poses(keys, {Vec3::Zero(), Vec3::Zero()}, w); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "2 rotation vectors for 3 keys", [&] {
+    blend_poses(keys, {Vec3::Zero(), Vec3::Zero()}, w);
+  });
   keys[1].rotation(0, 0) = 2;
   testing::expect_error(ErrorCode::kInvalidArgument, "key 1: not a finite proper rotation", [&] { blend_poses(keys, w); });
   testing::expect_error(ErrorCode::kInvalidArgument, "key 1: not a finite proper rotation", [&] { unwrap_rotations(keys); });

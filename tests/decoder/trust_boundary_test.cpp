@@ -3,17 +3,17 @@
 // decoded to finite output — within the default limits, and C API handles cannot be misused into
 // memory errors. Every file here is crafted with valid checksums (crafted::rebuild), so each test
 // reaches the check it means.
-#include "facemorph.h"
-#include "codec/decoder/player/decoder.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/writer/image/image_encode.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/decoder/player/decoder.hpp"
+#include "codec/writer/image/image_encode.hpp"
+#include "facemorph.h"
 #include "format/zstd_frame.hpp"
 
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -100,7 +100,9 @@ TEST(TrustBoundary, AGridOverTheLimitIsRefusedBeforeItIsBuilt) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   // 238 bytes naming N = 4097 took 7 s and 1.2 GB building G to check its hash.
   const std::vector<uint8_t> big = rebuild(bytes, patch_header<uint32_t>(0, 4097));
-  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "grid size 4097 over the limit of 1025", [&] { decode_sequence_file(big, "n.fmv"); }); });
+  const double s = seconds([&] {
+    testing::expect_error(ErrorCode::kLimit, "grid size 4097 over the limit of 1025", [&] { decode_sequence_file(big, "n.fmv"); });
+  });
   EXPECT_LT(s, 0.1);
   // N = 1025 with its rim count but another grid's hash: the hash comes from a table, so the refusal
   // builds no G (which took 0.12 s and 90 MB at N = 1025).
@@ -126,11 +128,13 @@ TEST(TrustBoundary, AGridOverTheLimitIsRefusedBeforeItIsBuilt) {
   // A caller may allow more (then the hash decides: N changed, the rim count no longer matches).
   DecoderLimits wide;
   wide.max_grid_n = 4097;
-  testing::expect_error(ErrorCode::kCorrupt, "rim nodes", [&] { decode_sequence_file(rebuild(bytes, patch_header<uint32_t>(0, 33)), "n.fmv", nullptr, wide); });
+  testing::expect_error(ErrorCode::kCorrupt, "rim nodes",
+                        [&] { decode_sequence_file(rebuild(bytes, patch_header<uint32_t>(0, 33)), "n.fmv", nullptr, wide); });
   // Under the limit a smaller one refuses what the default reads.
   DecoderLimits narrow;
   narrow.max_grid_n = 8;
-  testing::expect_error(ErrorCode::kLimit, "grid size 9 over the limit of 8", [&] { decode_sequence_file(bytes, "s.fmv", nullptr, narrow); });
+  testing::expect_error(ErrorCode::kLimit, "grid size 9 over the limit of 8",
+                        [&] { decode_sequence_file(bytes, "s.fmv", nullptr, narrow); });
 }
 
 TEST(TrustBoundary, KeyframesTexturesAndMemoryOverTheLimitsAreRefusedFromTheHeader) {
@@ -142,7 +146,9 @@ TEST(TrustBoundary, KeyframesTexturesAndMemoryOverTheLimitsAreRefusedFromTheHead
   // 5000 keyframes of 4096² textures: 250 GB decoded from a file of a few kB. Refused from the
   // header, before the index is read, in well under 0.1 s.
   const std::vector<uint8_t> huge = rebuild(rebuild(bytes, patch_header<uint32_t>(20, 5000)), patch_header<uint32_t>(72, 4096));
-  const double s = seconds([&] { testing::expect_error(ErrorCode::kLimit, "over the memory limit of 256.0 MiB", [&] { decode_sequence_file(huge, "m.fmv"); }); });
+  const double s = seconds([&] {
+    testing::expect_error(ErrorCode::kLimit, "over the memory limit of 256.0 MiB", [&] { decode_sequence_file(huge, "m.fmv"); });
+  });
   EXPECT_LT(s, 0.1);
   // The estimate counts every keyframe's fields and texture (all are decoded at open): the default
   // budget holds 20 keyframes of 1024² on a grid of 257, not 40, nor 200 of 4096², nor a grid of 1025.
@@ -194,7 +200,8 @@ TEST(TrustBoundary, ACompressedPayloadCostsWhatItHoldsNotWhatItAnnounces) {
 TEST(TrustBoundary, APoseCentreOrTranslationBeyondItsBoundIsCorrupt) {
   const std::vector<uint8_t> bytes = encode_sequence_file(small_sequence(9, 8), small_metadata());
   // A finite centre of 1.7e308 overflowed in the pose blend and decoded to -inf with FM_OK.
-  testing::expect_error(ErrorCode::kCorrupt, "pose centre coordinate beyond 1e9", [&] { decode_sequence_file(rebuild(bytes, patch_header(48, 1.7e308)), "c.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "pose centre coordinate beyond 1e9",
+                        [&] { decode_sequence_file(rebuild(bytes, patch_header(48, 1.7e308)), "c.fmv"); });
   // The index's translation of keyframe 1 moved 2^39 steps of 10 µm: 5.5e9 mm.
   const auto far = [](const std::string& type, std::vector<uint8_t>& payload) {
     if (type == "KIDX") payload = crafted::with_pose_change(payload, 3, 1, int64_t{1} << 39);
@@ -209,7 +216,8 @@ TEST(TrustBoundary, KeyframeTimesTooCloseForTheSplineAreCorruptNotAnArgumentErro
     const double t = 1e-200;
     if (type == "KIDX") std::memcpy(payload.data() + 4 + 8, &t, 8);
   };
-  testing::expect_error(ErrorCode::kCorrupt, "1e-9 of the keyframes' span", [&] { decode_sequence_file(rebuild(bytes, close_times), "t.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "1e-9 of the keyframes' span",
+                        [&] { decode_sequence_file(rebuild(bytes, close_times), "t.fmv"); });
   fm_file* file = nullptr;
   const std::vector<uint8_t> crafted = rebuild(bytes, close_times);
   EXPECT_EQ(fm_file_open_memory(crafted.data(), crafted.size(), &file), FM_ERROR_CORRUPT) << fm_last_error_message();
@@ -224,7 +232,8 @@ TEST(TrustBoundary, ATextureLargerThanTheHeaderSaysIsCorruptBeforeItIsDecoded) {
     payload.resize(8);  // keyframe number, image codec 1 (WebP)
     payload.insert(payload.end(), big.begin(), big.end());
   };
-  testing::expect_error(ErrorCode::kCorrupt, "64 x 64 pixels is too large", [&] { decode_sequence_file(rebuild(bytes, swap_image), "t.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "64 x 64 pixels is too large",
+                        [&] { decode_sequence_file(rebuild(bytes, swap_image), "t.fmv"); });
 }
 
 TEST(TrustBoundary, TheDecoderNeverReturnsNonFiniteNumbers) {
@@ -266,7 +275,8 @@ TEST(TrustBoundary, AKeyframeThatFailsIsRememberedAndFailsAtOnce) {
   EXPECT_EQ(sequence_decoder.keyframe_failure(0), "");
   const size_t tried = sequence_decoder.keyframe_reconstructions();
   // The same failure, at the new t: "sequence: t = 0.7 s: keyframe 1 cannot be reconstructed ...".
-  testing::expect_error(ErrorCode::kCorrupt, "sequence: t = 0.7 s: " + kept.substr(kept.find("keyframe 1")), [&] { sequence_decoder.decode(0.7); });
+  testing::expect_error(ErrorCode::kCorrupt, "sequence: t = 0.7 s: " + kept.substr(kept.find("keyframe 1")),
+                        [&] { sequence_decoder.decode(0.7); });
   EXPECT_EQ(sequence_decoder.keyframe_reconstructions(), tried);
 }
 
@@ -384,7 +394,8 @@ TEST(TrustBoundary, MemoryAfterAHundredCraftedFilesIsThatAfterTheFirst) {
     if (i == 0) after_first = status_bytes("VmRSS");
   }
   const uint64_t after_all = status_bytes("VmRSS");
-  if (testing::kAddressSanitizer) GTEST_SKIP() << "resident memory under AddressSanitizer's quarantine: " << after_first << " -> " << after_all;
+  if (testing::kAddressSanitizer)
+    GTEST_SKIP() << "resident memory under AddressSanitizer's quarantine: " << after_first << " -> " << after_all;
   if (after_first > 0) {
     EXPECT_LT(after_all, after_first + (uint64_t{8} << 20)) << after_first << " -> " << after_all;
   }
@@ -408,7 +419,8 @@ TEST(TrustBoundary, AGroupRotationBeyondFourIsCorrupt) {
       std::memcpy(payload.data() + payload.size() - 16, &step, 8);
     }
   };
-  testing::expect_error(ErrorCode::kCorrupt, "rotation vector component beyond 4", [&] { decode_sequence_file(rebuild(bytes, doubled), "r.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "rotation vector component beyond 4",
+                        [&] { decode_sequence_file(rebuild(bytes, doubled), "r.fmv"); });
 }
 
 // Convergence is max |ΔS| over the nodes (spec/method.md §5.4), not an RMS. (Mutation: RMS.)

@@ -5,8 +5,8 @@
 
 #include "tests/test_util.hpp"
 
-#include <Eigen/Cholesky>
 #include <gtest/gtest.h>
+#include <Eigen/Cholesky>
 
 #include <deque>
 #include <random>

@@ -14,8 +14,8 @@
 namespace facemorph {
 namespace {
 
-using testing::TempDir;
 using testing::expect_error;
+using testing::TempDir;
 using testing::write_text;
 
 void write_triangle(const std::filesystem::path& path) { write_text(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"); }
@@ -159,9 +159,10 @@ TEST(Capture, ALandmarksFileReadsAsItsText) {
   // 3000 rows of 1000 names, made long by digits past a double's precision, so the file spans blocks.
   const std::string digits(200, '7');
   for (int k = 0; k < 3000; ++k) {
-    text += std::to_string(k % 3) + ",landmark_" + std::to_string(k / 3) + "," + std::to_string(k) + "." + digits + ",-1.5e-3,7." + digits + "\r\n";
+    text += std::to_string(k % 3) + ",landmark_" + std::to_string(k / 3) + "," + std::to_string(k) + "." + digits + ",-1.5e-3,7." + digits +
+            "\r\n";
   }
-  text += "2,last,1,2,3";  // no line end
+  text += "2,last,1,2,3";                   // no line end
   ASSERT_GT(text.size(), size_t{1} << 20);  // past one block
   write_text(dir / "lm.csv", text);
   Capture whole = c;

@@ -1,9 +1,9 @@
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/prepare/frame.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/untangle.hpp"
@@ -77,7 +77,8 @@ TEST(IntrinsicDelaunay, FlipsMakeEveryWeightNonNegativeAndKeepTheArea) {
   for (int c = 0; c < K.outerSize(); ++c) {
     for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
       if (it.row() == it.col()) continue;
-      const bool boundary_pair = topology.is_boundary_vertex(static_cast<int>(it.row())) && topology.is_boundary_vertex(static_cast<int>(it.col()));
+      const bool boundary_pair =
+          topology.is_boundary_vertex(static_cast<int>(it.row())) && topology.is_boundary_vertex(static_cast<int>(it.col()));
       if (!boundary_pair) {
         EXPECT_LE(it.value(), 1e-12);  // K_ij = -w_ij <= 0
       }
@@ -120,7 +121,8 @@ TriangleMesh disk_with_a_cap(double along, double height) {
 
 bool every_face_counter_clockwise(const TriangleMesh& mesh) {
   for (const Face& f : mesh.faces) {
-    const Vec3 &a = mesh.positions[static_cast<size_t>(f[0])], &b = mesh.positions[static_cast<size_t>(f[1])], &c = mesh.positions[static_cast<size_t>(f[2])];
+    const Vec3 &a = mesh.positions[static_cast<size_t>(f[0])], &b = mesh.positions[static_cast<size_t>(f[1])],
+               &c = mesh.positions[static_cast<size_t>(f[2])];
     if ((b - a).cross(c - a).z() <= 0) return false;
   }
   return true;
@@ -183,7 +185,8 @@ TEST(Preconditioning, ANeedleMeshTerminatesAndMaps) {
   EXPECT_LE(report.rounds, 2 + 24 + 24);
   const DiskMap map = conformal_disk_map(mesh);
   for (const Vec2& w : map.disk) ASSERT_TRUE(w.allFinite());
-  EXPECT_EQ(count_flipped(map.disk, map.surface.faces), 0) << conformal_method_name(map.report.method) << ": " << map.report.fallback_reason;
+  EXPECT_EQ(count_flipped(map.disk, map.surface.faces), 0)
+      << conformal_method_name(map.report.method) << ": " << map.report.fallback_reason;
 }
 
 // Tutte's map, the last resort, needs nothing of the triangles' shapes: on a disk it is an
@@ -254,8 +257,9 @@ TEST(ConformalMap, QiemRunsToItsToleranceNotItsFirstStep) {
   const double loose = mean_angle_error({.energy_tolerance = 1e-3}, &loose_steps);
   const double one_step = mean_angle_error({.energy_tolerance = 1e9}, nullptr);
   const double linear = mean_angle_error({.method = ConformalMethod::kLinear}, nullptr);
-  std::printf("ellipse mean angle error: linear %.4f°, one step %.4f°, 1e-3 %.4f° (%d steps), defaults %.4f° (%d steps), 1e-11 %.4f° (%d steps)\n",
-              linear, one_step, loose, loose_steps, defaults, steps, tight, tight_steps);
+  std::printf(
+      "ellipse mean angle error: linear %.4f°, one step %.4f°, 1e-3 %.4f° (%d steps), defaults %.4f° (%d steps), 1e-11 %.4f° (%d steps)\n",
+      linear, one_step, loose, loose_steps, defaults, steps, tight, tight_steps);
   EXPECT_LT(defaults, tight * 1.02 + 1e-3);
   EXPECT_GT(one_step, defaults * 1.5);
   EXPECT_GT(loose, defaults * 1.03);
@@ -369,7 +373,9 @@ TEST(InverseDiskMap, RoundTripsSurfacePointsAndIsExactOnTheRim) {
     EXPECT_LT((inverse.position(*hit) - p).norm(), 1e-9);
     EXPECT_LT((inverse.texture_uv(*hit) - (bary[0] * map.surface.uvs[static_cast<size_t>(map.surface.uv_faces[static_cast<size_t>(f)][0])] +
                                            bary[1] * map.surface.uvs[static_cast<size_t>(map.surface.uv_faces[static_cast<size_t>(f)][1])] +
-                                           bary[2] * map.surface.uvs[static_cast<size_t>(map.surface.uv_faces[static_cast<size_t>(f)][2])])).norm(), 1e-9);
+                                           bary[2] * map.surface.uvs[static_cast<size_t>(map.surface.uv_faces[static_cast<size_t>(f)][2])]))
+                  .norm(),
+              1e-9);
   }
   // Every point of the unit circle lands on the boundary curve: at a rim vertex's angle, on it.
   for (int v : map.rim) {
@@ -405,7 +411,8 @@ TEST(ConformalMap, SplitsKeepTextureCoordinatesAndGeometry) {
   auto uv_area = [](const TriangleMesh& mesh) {
     double sum = 0;
     for (const Face& t : mesh.uv_faces) {
-      const Vec2 &a = mesh.uvs[static_cast<size_t>(t[0])], &b = mesh.uvs[static_cast<size_t>(t[1])], &c = mesh.uvs[static_cast<size_t>(t[2])];
+      const Vec2 &a = mesh.uvs[static_cast<size_t>(t[0])], &b = mesh.uvs[static_cast<size_t>(t[1])],
+                 &c = mesh.uvs[static_cast<size_t>(t[2])];
       sum += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
     }
     return sum;
@@ -491,7 +498,9 @@ TEST(ConformalMap, ACollapsedDiskFallsBackToTheLinearMap) {
 // stopped the encoder before the fallback above.
 TEST(ConformalMap, NoiseAsLargeAsTheEdgesStillMapsToAnEmbedding) {
   testing::TempDir dir;
-  write_synthetic_capture(dir.path(), {.frames = 12, .expression = Expression::kTalk, .vertices = 3000, .remesh = true, .noise = 0.004, .seed = 7, .texture_size = 64});
+  write_synthetic_capture(
+      dir.path(),
+      {.frames = 12, .expression = Expression::kTalk, .vertices = 3000, .remesh = true, .noise = 0.004, .seed = 7, .texture_size = 64});
   const PreparedFrame p = prepare_frame(read_mesh(dir.path() / "frame_0002.obj"), "frame_0002.obj");
   const DiskMap map = conformal_disk_map(p.mesh);
   for (const Vec2& w : map.disk) ASSERT_TRUE(w.allFinite());

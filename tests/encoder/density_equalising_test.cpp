@@ -1,10 +1,10 @@
 // The density-equalising reparametrisation of the reference disk (issue 8 item 10, spec/method.md
 // §7.11): it leaves an evenly mapped disk alone, spreads a crowded one, stays a bijection with the
 // rim on the circle, and refuses a strength outside [0, 1].
-#include "codec/core/grid/disk_grid.hpp"
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/core/geometry/differential.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
 #include "tests/test_util.hpp"
 

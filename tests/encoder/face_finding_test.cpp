@@ -3,10 +3,10 @@
 // the axes. Its whole surface has no mirror plane; the texture's detected face and the face region
 // each find the face, and a surface without a face is still refused by name.
 #include "codec/encoder/capture/capture.hpp"
-#include "codec/encoder/landmarks/face_orientation.hpp"
-#include "codec/encoder/prepare/frame.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/prepare/frame.hpp"
 #include "codec/encoder/synth/synth.hpp"
 
 #include "codec/meshkit/geometry/distance.hpp"
@@ -73,9 +73,11 @@ Agreement agreement(const FaceOrientation& o, const Scan& scan, const Eigen::Mat
   auto flat = [&](const Vec3& v) { return Vec3(v - v.dot(facing) * facing); };
   const Agreement a{degrees_between(flat(o.up - o.nose_tip), flat(scan.nose_bridge - scan.nose_tip)), degrees_between(o.facing, facing),
                     (o.nose_tip - scan.nose_tip).norm() / bounding_box_diagonal(scan.mesh.positions)};
-  std::printf("%s: by %s, confidence %.2f: up %.1f° off, facing %.1f° off, tip %.2f%% of the diagonal off (mirror %.2f%%, nose %.2f, up evidence %.2f)\n",
-              label.c_str(), face_finding_method_name(o.method), o.confidence, a.up_degrees, a.facing_degrees, 100 * a.tip_error,
-              100 * o.mirror_error, o.nose_prominence, o.up_evidence);
+  std::printf(
+      "%s: by %s, confidence %.2f: up %.1f° off, facing %.1f° off, tip %.2f%% of the diagonal off (mirror %.2f%%, nose %.2f, up evidence "
+      "%.2f)\n",
+      label.c_str(), face_finding_method_name(o.method), o.confidence, a.up_degrees, a.facing_degrees, 100 * a.tip_error,
+      100 * o.mirror_error, o.nose_prominence, o.up_evidence);
   return a;
 }
 
@@ -160,10 +162,11 @@ TEST(FaceFinding, AWholeHeadWithoutHolesFoundByTheCoarseFirstPassAsInFull) {
   double coarse_seconds = 0, full_seconds = 0;
   const FaceOrientation a = timed(coarse, &coarse_seconds), b = timed(full, &full_seconds);
   const Vec3 true_tip = capture.landmarks[0][static_cast<size_t>(capture.landmark_index("nose_tip"))];
-  std::printf("whole head without holes: coarse first pass %.2f s, in full %.2f s; tips %.3f%% of the diagonal apart, up points %.3f%%, "
-              "the true tip %.3f%% off (confidence %.2f against %.2f)\n",
-              coarse_seconds, full_seconds, 100 * (a.nose_tip - b.nose_tip).norm() / diagonal, 100 * (a.up - b.up).norm() / diagonal,
-              100 * (a.nose_tip - true_tip).norm() / diagonal, a.confidence, b.confidence);
+  std::printf(
+      "whole head without holes: coarse first pass %.2f s, in full %.2f s; tips %.3f%% of the diagonal apart, up points %.3f%%, "
+      "the true tip %.3f%% off (confidence %.2f against %.2f)\n",
+      coarse_seconds, full_seconds, 100 * (a.nose_tip - b.nose_tip).norm() / diagonal, 100 * (a.up - b.up).norm() / diagonal,
+      100 * (a.nose_tip - true_tip).norm() / diagonal, a.confidence, b.confidence);
   EXPECT_EQ(a.method, FaceFindingMethod::kFaceRegion);
   EXPECT_LT((a.nose_tip - b.nose_tip).norm(), 0.005 * diagonal);
   EXPECT_LT((a.up - b.up).norm(), 0.005 * diagonal);
@@ -174,8 +177,9 @@ TEST(FaceFinding, AWholeHeadWithoutHolesFoundByTheCoarseFirstPassAsInFull) {
 // (above); with no step at all the refusal names that.
 TEST(FaceFinding, WithoutAnyStepTheScanIsRefused) {
   const Scan scan = head_and_shoulders(1, kPoses[1]);
-  testing::expect_error(ErrorCode::kInvalidArgument, "scan.obj: no face orientation found",
-                        [&] { find_face(scan.mesh, &scan.texture, "scan.obj", nullptr, {.whole_surface = false, .texture = false, .face_region = false}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "scan.obj: no face orientation found", [&] {
+    find_face(scan.mesh, &scan.texture, "scan.obj", nullptr, {.whole_surface = false, .texture = false, .face_region = false});
+  });
 }
 
 // The same surround with a plain dome and bare skin where the face was (fmsynth --surround
@@ -188,11 +192,12 @@ TEST(FaceFinding, AFacelessDomeBesideHairIsRefusedByName) {
   for (const Eigen::Matrix3d& pose : {kPoses[0], kPoses[1]}) {
     const Scan scan = head_and_shoulders(1, pose, false);
     for (const Image* texture : {&scan.texture, static_cast<const Image*>(nullptr)}) {
-      const std::string texture_reason = texture ? "texture: no face detected in views of the textured surface" : "texture: the surface has no texture";
+      const std::string texture_reason =
+          texture ? "texture: no face detected in views of the textured surface" : "texture: the surface has no texture";
       try {
         const FaceOrientation o = find_face(scan.mesh, texture, "dome.obj");
-        ADD_FAILURE() << "a faceless dome was taken for a face: by " << face_finding_method_name(o.method) << ", mirror " << 100 * o.mirror_error
-                      << "%, nose " << o.nose_prominence << ", confidence " << o.confidence;
+        ADD_FAILURE() << "a faceless dome was taken for a face: by " << face_finding_method_name(o.method) << ", mirror "
+                      << 100 * o.mirror_error << "%, nose " << o.nose_prominence << ", confidence " << o.confidence;
       } catch (const Error& e) {
         const std::string what = e.what();
         std::printf("%s\n", what.c_str());

@@ -1,7 +1,7 @@
 // The face's orientation from geometry alone, against the landmarks the captures carry: fmsynth's
 // faces (seeds, expressions, head motion, remeshing, noise) and, when ../shared is there, real ones.
-#include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/landmarks/face_orientation.hpp"
+#include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
@@ -18,8 +18,8 @@ namespace facemorph {
 namespace {
 
 struct Found {
-  double tip_error = 0;      // distance to the nose_tip landmark / diagonal
-  double up_degrees = 0;     // angle between the found up direction and nose_tip -> nose_bridge
+  double tip_error = 0;   // distance to the nose_tip landmark / diagonal
+  double up_degrees = 0;  // angle between the found up direction and nose_tip -> nose_bridge
 };
 
 Found compare(const TriangleMesh& mesh, const Vec3& nose_tip, const Vec3& nose_bridge, const std::string& name) {
@@ -45,8 +45,11 @@ TEST(FaceOrientation, SyntheticFacesAgreeWithTheirLandmarks) {
     uint64_t seed;
     double head_motion;
     double time;
-  } cases[] = {{Expression::kMixed, 1, 0, 0.5}, {Expression::kTalk, 2, 25, 1.3}, {Expression::kSmile, 3, 0, 0.8},
-               {Expression::kMouth, 4, 15, 0.25}, {Expression::kBlink, 5, 30, 1.9}};
+  } cases[] = {{Expression::kMixed, 1, 0, 0.5},
+               {Expression::kTalk, 2, 25, 1.3},
+               {Expression::kSmile, 3, 0, 0.8},
+               {Expression::kMouth, 4, 15, 0.25},
+               {Expression::kBlink, 5, 30, 1.9}};
   for (const auto& c : cases) {
     const SyntheticFace face(c.expression, c.seed, c.head_motion);
     Vec3 tip, bridge;
@@ -66,7 +69,8 @@ TEST(FaceOrientation, SurfacesWithoutAFaceAreRefusedByName) {
   testing::expect_error(ErrorCode::kInvalidArgument, "ball.obj: no face orientation found: the surface faces no single direction",
                         [] { find_face_orientation(testing::icosphere(1, 2), "ball.obj"); });
   const TriangleMesh flat = testing::polar_disk(12, 48, [](const Vec2& w) { return Vec3(w.x(), w.y(), 0.3 * (1 - w.squaredNorm())); });
-  testing::expect_error(ErrorCode::kInvalidArgument, "dome.obj: no face orientation found", [&] { find_face_orientation(flat, "dome.obj"); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "dome.obj: no face orientation found",
+                        [&] { find_face_orientation(flat, "dome.obj"); });
 }
 
 // Frames across the Medusa capture (468-vertex MediaPipe meshes: laughs, squints, head motion)
@@ -90,7 +94,8 @@ TEST(FaceOrientation, RealFacesAgreeWithTheirLandmarks) {
     worst_tip = std::max(worst_tip, f.tip_error);
     worst_up = std::max(worst_up, f.up_degrees);
   }
-  std::printf("medusa, %zu frames (every %zu): worst tip %.2f%% of the diagonal, worst up %.1f°\n", medusa.frames.size(), stride, 100 * worst_tip, worst_up);
+  std::printf("medusa, %zu frames (every %zu): worst tip %.2f%% of the diagonal, worst up %.1f°\n", medusa.frames.size(), stride,
+              100 * worst_tip, worst_up);
   EXPECT_LT(worst_tip, 0.02);
   EXPECT_LT(worst_up, 15.0);
   const TriangleMesh ict = read_mesh(data / "ict-facekit/derived/face_area_neutral.obj", {.allow_missing_texture = true});

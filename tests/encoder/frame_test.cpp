@@ -1,11 +1,11 @@
 #include "codec/encoder/prepare/frame.hpp"
+#include "codec/core/geometry/differential.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/core/geometry/differential.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
-#include "codec/meshkit/geometry/surface_measures.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -221,7 +221,8 @@ TEST(PrepareFrame, BadFramesAreNamedErrors) {
 
   TriangleMesh two = disk;
   for (const Vec3& q : disk.positions) two.positions.push_back(q + Vec3(5, 0, 0));
-  for (const Face& f : disk.faces) two.faces.push_back({f[0] + disk.vertex_count(), f[1] + disk.vertex_count(), f[2] + disk.vertex_count()});
+  for (const Face& f : disk.faces)
+    two.faces.push_back({f[0] + disk.vertex_count(), f[1] + disk.vertex_count(), f[2] + disk.vertex_count()});
   expect_error(ErrorCode::kNotADisk, "frame_0012.obj: 2 components; a face capture must be one open surface",
                [&] { prepare_frame(two, "frame_0012.obj"); });
 
@@ -265,7 +266,8 @@ TEST(PrepareFrame, BadFramesAreNamedErrors) {
   EXPECT_EQ(split.dropped_components, 1);
 
   const TriangleMesh holes = dome(20, 60, {{{0.0, 0.0}, 0.3}});
-  expect_error(ErrorCode::kNotADisk, "1 holes besides the outer rim", [&] { prepare_frame(holes, "h.obj", {.fill_holes = false, .rim_markers = {}}); });
+  expect_error(ErrorCode::kNotADisk, "1 holes besides the outer rim",
+               [&] { prepare_frame(holes, "h.obj", {.fill_holes = false, .rim_markers = {}}); });
 
   expect_error(ErrorCode::kInvalidMesh, "empty.obj: the mesh has no faces", [&] { prepare_frame(TriangleMesh{}, "empty.obj"); });
 }
@@ -304,8 +306,8 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
   const PreparedFrame clean = prepare_frame(defect_frame(0).clean, "clean.obj", defect_frame(0).options);
   ASSERT_FALSE(clean.report.changed()) << clean.report.summary();
   const double edge = std::sqrt(total_area(clean.mesh.positions, clean.mesh.faces) / clean.mesh.face_count());
-  for (uint32_t kind : std::vector<uint32_t>{kDefectBowTies, kDefectThreeFaceEdges, kDefectDuplicateFaces, kDefectDegenerateFaces, kDefectFlippedPatch,
-                                            kDefectIslands, kDefectTorso, kDefectAll}) {
+  for (uint32_t kind : std::vector<uint32_t>{kDefectBowTies, kDefectThreeFaceEdges, kDefectDuplicateFaces, kDefectDegenerateFaces,
+                                             kDefectFlippedPatch, kDefectIslands, kDefectTorso, kDefectAll}) {
     SCOPED_TRACE(defect_names(kind));
     const DefectFrame frame = defect_frame(kind);
     const DefectCounts& c = frame.counts;
@@ -346,8 +348,10 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
     if (c.islands) {
       EXPECT_NE(summary.find("specks"), std::string::npos) << summary;
     }
-    EXPECT_NE(summary.find("in all " + std::to_string(r.faces_changed) + " faces and " + std::to_string(r.vertices_changed) + " vertices changed"),
-              std::string::npos) << summary;
+    EXPECT_NE(summary.find("in all " + std::to_string(r.faces_changed) + " faces and " + std::to_string(r.vertices_changed) +
+                           " vertices changed"),
+              std::string::npos)
+        << summary;
     // Added surface is gone: every prepared vertex lies on the clean frame's surface, but for the
     // pinched hole's fill and the split copies, which stay within an edge of it.
     const PointToMesh on_clean(clean.mesh);
@@ -370,9 +374,11 @@ TEST(PrepareFrame, EachDefectKindIsRepairedAndNamed) {
     if (c.three_face_edges) {
       expect_error(ErrorCode::kInvalidMesh, "non-manifold edges (edge", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
     } else if (c.bow_ties) {
-      expect_error(ErrorCode::kInvalidMesh, "non-manifold vertices where separate fans of faces touch", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
+      expect_error(ErrorCode::kInvalidMesh, "non-manifold vertices where separate fans of faces touch",
+                   [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
     } else if (c.islands) {
-      expect_error(ErrorCode::kNotADisk, std::to_string(c.islands + 1) + " components", [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
+      expect_error(ErrorCode::kNotADisk, std::to_string(c.islands + 1) + " components",
+                   [&] { prepare_frame(frame.mesh, "defects.obj", strict); });
     } else {
       EXPECT_NO_THROW(prepare_frame(frame.mesh, "defects.obj", strict));  // duplicates, degenerate faces and orientation: repaired as ever
     }
@@ -430,7 +436,8 @@ TEST(PrepareFrame, LandmarksPickTheFaceComponent) {
   const TriangleMesh face = dome(6, 16);
   TriangleMesh both = face;
   for (const Vec3& q : face.positions) both.positions.push_back(3 * q + Vec3(10, 0, 0));  // nine times the area
-  for (const Face& f : face.faces) both.faces.push_back({f[0] + face.vertex_count(), f[1] + face.vertex_count(), f[2] + face.vertex_count()});
+  for (const Face& f : face.faces)
+    both.faces.push_back({f[0] + face.vertex_count(), f[1] + face.vertex_count(), f[2] + face.vertex_count()});
   PrepareOptions options;
   options.keep_largest_component = true;
   options.face_points = {Vec3(0, 0, 1), Vec3(0.5, 0, 0.75)};

@@ -1,13 +1,13 @@
 // The geodesic frame (paper §4, method-notes §6): surface geodesics between disk points, the frame of
 // a face's landmarks and its partition mesh, and Φ, the piecewise-affine registration through it.
-#include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "format/error.hpp"
 
-#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "tests/encoder/disk_face_landmarks.hpp"
 #include "tests/test_util.hpp"
 
@@ -22,13 +22,12 @@
 namespace facemorph {
 namespace {
 
-using testing::kPi;
 using testing::expect_circle_onto_circle;
 using testing::face;
 using testing::face_points;
+using testing::kPi;
 using testing::max_landmark_error;
 using testing::on_circle;
-
 
 // A disk map whose disk is the polar grid itself and whose surface is `lift` of it: the surface is
 // parametrised over the disk exactly (no conformal map involved), so its geodesics are known.
@@ -81,10 +80,10 @@ bool curves_meet(const std::vector<Vec2>& c1, const std::vector<Vec2>& c2) {
 }
 
 TEST(CurvesMeet, TheTestsOwnCrossingCheck) {
-  EXPECT_TRUE(curves_meet({{-1, 0}, {1, 0}}, {{0, -1}, {0, 1}}));                 // a crossing
-  EXPECT_TRUE(curves_meet({{-1, 0}, {1, 0}}, {{0, 0}, {0, 1}}));                  // an end inside the other curve
-  EXPECT_TRUE(curves_meet({{0, 0}, {1, 0}}, {{0, 0}, {0.5, 0}, {0.5, 1}}));       // a shared end, then overlapping
-  EXPECT_FALSE(curves_meet({{0, 0}, {1, 0}}, {{0, 0}, {0, 1}}));                  // a shared end only
+  EXPECT_TRUE(curves_meet({{-1, 0}, {1, 0}}, {{0, -1}, {0, 1}}));                       // a crossing
+  EXPECT_TRUE(curves_meet({{-1, 0}, {1, 0}}, {{0, 0}, {0, 1}}));                        // an end inside the other curve
+  EXPECT_TRUE(curves_meet({{0, 0}, {1, 0}}, {{0, 0}, {0.5, 0}, {0.5, 1}}));             // a shared end, then overlapping
+  EXPECT_FALSE(curves_meet({{0, 0}, {1, 0}}, {{0, 0}, {0, 1}}));                        // a shared end only
   EXPECT_FALSE(curves_meet({{0, 0}, {1, 0}, {2, 1}}, {{0, 0.1}, {1, 0.1}, {2, 1.1}}));  // parallel
 }
 
@@ -278,7 +277,7 @@ TEST(FrameRegistration, MatchesTheLandmarksExactlyAndFollowsTheGmf) {
   for (size_t j = 0; j < l.frame.size(); ++j) {
     Vec2 p = l.reference[j];
     if (j == 7 || j == 8 || j == 4) p.y() -= 0.08;  // lower lip and chin down
-    if (j == 9 || j == 10) p.y() -= 0.04;            // mouth corners half as far
+    if (j == 9 || j == 10) p.y() -= 0.04;           // mouth corners half as far
     l.frame[j] = M(p);
   }
   const GeodesicFrame& frame = flat_frame();
@@ -376,8 +375,10 @@ TEST(FrameRegistration, BadInputIsANamedError) {
   expect_error(ErrorCode::kInvalidArgument, "partition vertex 5 is not finite", [&] { register_through_partition(frame, gmf, images, l); });
   DiskLandmarks bad = l;
   bad.frame.pop_back();
-  expect_error(ErrorCode::kInvalidArgument, "frame landmarks", [&] { register_through_partition(frame, gmf, frame.partition->vertices(), bad); });
-  expect_error(ErrorCode::kInvalidArgument, "frame landmarks", [&] { register_disks(bad, {.method = RegistrationMethod::kFrame}, &frame); });
+  expect_error(ErrorCode::kInvalidArgument, "frame landmarks",
+               [&] { register_through_partition(frame, gmf, frame.partition->vertices(), bad); });
+  expect_error(ErrorCode::kInvalidArgument, "frame landmarks",
+               [&] { register_disks(bad, {.method = RegistrationMethod::kFrame}, &frame); });
 }
 
 TEST(GeodesicFrame, BadInputIsANamedError) {
@@ -423,7 +424,9 @@ TEST(PartitionMesh, BadTrianglesAreNamed) {
   expect_error(ErrorCode::kInvalidArgument, "face 0 has a vertex index out of range", [&] { PartitionMesh(square, {{0, 1, 7}}); });
   expect_error(ErrorCode::kInvalidArgument, "outside the unit disk", [&] { PartitionMesh({{0, 0}, {2, 0}, {0, 1}}, {{0, 1, 2}}); });
   // A triangle beside the origin: the boundary does not go round it.
-  expect_error(ErrorCode::kInvalidArgument, "go round the origin", [&] { PartitionMesh({{0.1, 0.1}, {0.5, 0.1}, {0.1, 0.5}}, {{0, 1, 2}}); });
+  expect_error(ErrorCode::kInvalidArgument, "go round the origin", [&] {
+    PartitionMesh({{0.1, 0.1}, {0.5, 0.1}, {0.1, 0.5}}, {{0, 1, 2}});
+  });
 }
 
 // ---- The frame of a synthetic face, mapped as the encoder maps it ----
@@ -635,7 +638,8 @@ std::vector<DiskRegistration> registrations_of_every_kind() {
   out.push_back(register_disks(l));
   out.push_back(register_disks(l, {.method = RegistrationMethod::kFrame}, &frame));
   std::vector<Vec2> images = frame.partition->vertices();
-  const auto t = std::find_if(frame.partition->faces().begin(), frame.partition->faces().end(), [](const Face& face) { return face[0] == 0; });
+  const auto t =
+      std::find_if(frame.partition->faces().begin(), frame.partition->faces().end(), [](const Face& face) { return face[0] == 0; });
   std::swap(images[0], images[static_cast<size_t>((*t)[1])]);
   out.push_back(register_through_partition(frame, out[1], images, l));
   // Φ with every number it carries away from its default, so that a field the store forgot to
@@ -648,8 +652,17 @@ std::vector<DiskRegistration> registrations_of_every_kind() {
   odd.fallback = RegistrationFallback::kSubsteps;
   odd.fallback_reason = "a reason";
   odd.boundary_samples = 11;
-  odd.check = {.grid_points = 1, .refined_points = 2, .folded_points = 3, .min_jacobian = 4.5, .min_area_ratio = 5.5, .worst_point = Vec2(0.1, 0.2),
-               .stopped = true, .boundary_samples = 6, .boundary_order_breaks = 7, .max_boundary_radius_error = 8.5, .clamped_points = 9};
+  odd.check = {.grid_points = 1,
+               .refined_points = 2,
+               .folded_points = 3,
+               .min_jacobian = 4.5,
+               .min_area_ratio = 5.5,
+               .worst_point = Vec2(0.1, 0.2),
+               .stopped = true,
+               .boundary_samples = 6,
+               .boundary_order_breaks = 7,
+               .max_boundary_radius_error = 8.5,
+               .clamped_points = 9};
   out.push_back(odd);
   return out;
 }

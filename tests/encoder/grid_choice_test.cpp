@@ -1,9 +1,9 @@
 // --grid auto's two bounds beside the RMS target (spec/method.md §7.6): a grid no finer than the
 // captured mesh's density asks, and a floor whose worst region (99th percentile) leaves room for
 // the 1% worst-region target.
-#include "codec/encoder/stages/choose_grid.hpp"
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/stages/choose_grid.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "tests/test_util.hpp"
 

@@ -2,11 +2,11 @@
 // values whose spline best matches every frame of the capture, not its own frame. On a noisy
 // capture that averages each frame's noise away with its neighbours'; on a clean one it barely
 // moves the keyframes.
-#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -83,7 +83,8 @@ TEST(KeyframeFit, AveragesPerFrameNoiseAwayAndBeatsInterpolatingTheKeyframes) {
     if (is_key(e, i)) {
       fitted_key += ea;
       interpolating_key += eb;
-      worst_key_to_capture = std::max(worst_key_to_capture, relative_rms(read_mesh(capture.mesh_path(i), {.allow_missing_texture = true}), a.mesh));
+      worst_key_to_capture =
+          std::max(worst_key_to_capture, relative_rms(read_mesh(capture.mesh_path(i), {.allow_missing_texture = true}), a.mesh));
     } else {
       fitted_held += ea;
       interpolating_held += eb;
@@ -93,8 +94,10 @@ TEST(KeyframeFit, AveragesPerFrameNoiseAwayAndBeatsInterpolatingTheKeyframes) {
   fitted_held /= held, interpolating_held /= held, fitted_key /= keys, interpolating_key /= keys;
   RecordProperty("fitted_held", std::to_string(fitted_held));
   RecordProperty("interpolating_held", std::to_string(interpolating_held));
-  std::printf("to the truth, mean: held-out %.4f%% fitted, %.4f%% interpolating; keyframes %.4f%% / %.4f%%; keyframe to its capture, worst %.4f%%\n",
-              100 * fitted_held, 100 * interpolating_held, 100 * fitted_key, 100 * interpolating_key, 100 * worst_key_to_capture);
+  std::printf(
+      "to the truth, mean: held-out %.4f%% fitted, %.4f%% interpolating; keyframes %.4f%% / %.4f%%; keyframe to its capture, worst "
+      "%.4f%%\n",
+      100 * fitted_held, 100 * interpolating_held, 100 * fitted_key, 100 * interpolating_key, 100 * worst_key_to_capture);
   EXPECT_LT(fitted_held, 0.9 * interpolating_held);
   EXPECT_LT(fitted_key, 0.9 * interpolating_key);
   EXPECT_LT(worst_key_to_capture, 0.008);  // the capture's own noise (~0.4%) and the fit's share of it

@@ -1,9 +1,9 @@
 // The keyframe round trip through the whole encode path: mesh -> conformal map -> G -> fields ->
 // 16 bits -> Laplace-Beltrami reconstruction, against the surface.
-#include "codec/meshkit/geometry/distance.hpp"
-#include "codec/encoder/encode/frame_pipeline.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -17,7 +17,8 @@ namespace {
 
 TEST(KeyframeRoundTrip, ParaboloidAndSaddleThroughTheWholePipelineConvergeUnderRefinement) {
   // Mesh -> conformal map -> G -> hl+t fields at 16 bits -> reconstruction, against the surface.
-  for (auto height : {+[](double x, double y) { return 0.5 * (x * x + y * y); }, +[](double x, double y) { return 0.5 * (x * x - y * y); }}) {
+  for (auto height :
+       {+[](double x, double y) { return 0.5 * (x * x + y * y); }, +[](double x, double y) { return 0.5 * (x * x - y * y); }}) {
     TriangleMesh mesh = testing::grid_mesh(48, [height](double u, double v) {
       const double x = 2 * u - 1, y = 2 * v - 1;
       return Vec3(x, y, height(x, y));

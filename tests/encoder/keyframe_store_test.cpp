@@ -160,7 +160,8 @@ TEST(StoredSequence, GivesBackTheSequencePutInAndWhatReplacedIt) {
   }
   Sequence unordered = s;
   unordered.keyframes[1].time = unordered.keyframes[0].time;
-  testing::expect_error(ErrorCode::kInvalidArgument, "time does not increase", [&] { StoredSequence::of(std::move(unordered), SpillMode::kMemory); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "time does not increase",
+                        [&] { StoredSequence::of(std::move(unordered), SpillMode::kMemory); });
   const StoredSequence empty(s, SpillMode::kSpill);  // the shape only: nothing put yet
   testing::expect_error(ErrorCode::kInternal, "never stored", [&] { empty.fields(0); });
 }
@@ -236,7 +237,8 @@ TEST(KeyframeStore, TheEncoderHoldsAFewKeyframesAtOnceAndWritesTheSameFile) {
       const uint64_t on_g = 8 + 24 * grid.nodes.size(), interior = 8 + 24 * static_cast<uint64_t>(grid.interior_count);
       const uint64_t fields = FieldsStore::serialize(sequence.keyframes[0].fields).size();
       const uint64_t texture = TextureStore::serialize(sequence.keyframes[0].texture).size();
-      EXPECT_GE(report.keyframes_spilled_bytes, keys * (2 * on_g + interior + 2 * fields + texture)) << "some keyframe arrays stayed in memory";
+      EXPECT_GE(report.keyframes_spilled_bytes, keys * (2 * on_g + interior + 2 * fields + texture))
+          << "some keyframe arrays stayed in memory";
     } else {
       EXPECT_EQ(report.keyframes_spilled_bytes, 0u);
     }

@@ -1,14 +1,14 @@
 // Landmark correspondence by optical flow on the disk images (landmark_tracking.hpp): fmsynth's
 // faces, whose every material point is known at every time, tracked from a reference frame.
-#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/core/container/file_metadata.hpp"
+#include "codec/core/sequence/sequence.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
-#include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/sequence/sequence.hpp"
-#include "codec/core/container/file_metadata.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -38,10 +38,14 @@ Truth synthetic_frames(Expression expression, uint64_t seed, const std::vector<d
     std::vector<Vec3> interior;
     for (const NamedPoint& p : face.landmarks()) {
       const Vec3 x = face.position(p.material, time);
-      if (p.name == "nose_tip") given.centre = x;
-      else if (p.name == "nose_bridge") given.up = x;
-      else if (p.name.rfind("rim_", 0) == 0) given.rim_markers.push_back(x);
-      else if (p.name != "between_eyes") interior.push_back(x);
+      if (p.name == "nose_tip")
+        given.centre = x;
+      else if (p.name == "nose_bridge")
+        given.up = x;
+      else if (p.name.rfind("rim_", 0) == 0)
+        given.rim_markers.push_back(x);
+      else if (p.name != "between_eyes")
+        interior.push_back(x);
     }
     t.frames.push_back(map_frame(mesh, "synth", given));
     std::vector<Vec2> points;

@@ -15,10 +15,10 @@
 namespace facemorph {
 namespace {
 
-using testing::kPi;
 using testing::expect_circle_onto_circle;
 using testing::face;
 using testing::face_points;
+using testing::kPi;
 using testing::max_landmark_error;
 using testing::on_circle;
 
@@ -63,14 +63,15 @@ Eigen::Matrix2d central_differences(const Map& map, const Vec2& x) {
 // ---- OMT ----
 
 TEST(MoebiusFit, RecoversAKnownMapFromEitherStart) {
-  const DiskMoebius maps[] = {{Complex(0, 0), 0.7}, {Complex(0.2, -0.1), -0.4}, {Complex(-0.3, 0.25), 2.5}, {Complex(0.5, 0), 1.0},
-                              {std::polar(0.5, 2.2), -2.9}};
+  const DiskMoebius maps[] = {
+      {Complex(0, 0), 0.7}, {Complex(0.2, -0.1), -0.4}, {Complex(-0.3, 0.25), 2.5}, {Complex(0.5, 0), 1.0}, {std::polar(0.5, 2.2), -2.9}};
   for (const DiskMoebius& M : maps) {
     for (bool rim : {false, true}) {
       const DiskLandmarks l = mapped(rim, M);
       for (MoebiusStart start : {MoebiusStart::kRotation, MoebiusStart::kAlgebraic, MoebiusStart::kBest}) {
         const MoebiusFit fit = fit_moebius(l, {.start = start});
-        SCOPED_TRACE(::testing::Message() << "a = " << M.a << ", θ = " << M.theta << ", rim " << rim << ", start " << static_cast<int>(start));
+        SCOPED_TRACE(::testing::Message() << "a = " << M.a << ", θ = " << M.theta << ", rim " << rim << ", start "
+                                          << static_cast<int>(start));
         EXPECT_EQ(fit.start, start == MoebiusStart::kBest ? fit.start : start);
         EXPECT_LT(std::abs(fit.map.a - M.a), 1e-9);
         EXPECT_LT(angle_distance(fit.map.theta, M.theta), 1e-9);
@@ -455,7 +456,8 @@ TEST(Registration, BadInputIsANamedError) {
   std::swap(l.frame[l.frame.size() - 1], l.frame[l.frame.size() - 3]);  // rim markers out of order
   expect_bad(l, "cyclic order");
 
-  testing::expect_error(ErrorCode::kInvalidArgument, "geodesic frame", [&] { register_disks(good, {.method = RegistrationMethod::kFrame}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "geodesic frame",
+                        [&] { register_disks(good, {.method = RegistrationMethod::kFrame}); });
   testing::expect_error(ErrorCode::kInvalidArgument, "smoothing", [&] { register_disks(good, {.smoothing = -1}); });
   testing::expect_error(ErrorCode::kInvalidArgument, "fold grid", [&] { register_disks(good, {.fold_grid = 2}); });
   testing::expect_error(ErrorCode::kInvalidArgument, "spacing", [&] { register_disks(good, {.boundary_spacing_degrees = -5}); });

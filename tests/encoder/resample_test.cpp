@@ -1,7 +1,7 @@
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/conformal/resample.hpp"
-#include "codec/encoder/synth/synth.hpp"
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/synth/synth.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -39,7 +39,9 @@ TEST(Resample, AFlatDiskResamplesToTheGridItself) {
   const DiskGrid grid = make_disk_grid(33);
   const auto positions = resample_positions(inverse, grid);
   for (int i = 0; i < grid.interior_count; ++i) {
-    EXPECT_LT((positions[static_cast<size_t>(i)] - Vec3(grid.nodes[static_cast<size_t>(i)].x(), grid.nodes[static_cast<size_t>(i)].y(), 0)).norm(), 1e-9);
+    EXPECT_LT((positions[static_cast<size_t>(i)] - Vec3(grid.nodes[static_cast<size_t>(i)].x(), grid.nodes[static_cast<size_t>(i)].y(), 0))
+                  .norm(),
+              1e-9);
   }
   // Rim nodes land on the boundary polygon (within its chord sagitta of the circle).
   for (int k = 0; k < grid.rim_count; ++k) {

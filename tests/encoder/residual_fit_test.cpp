@@ -4,14 +4,14 @@
 // the file to the bit, and leave keyframes and extrapolation as the spline has them.
 #include "codec/encoder/encode/residual_fit.hpp"
 
-#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/test_util.hpp"
@@ -129,7 +129,8 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
     EXPECT_EQ(with->residuals[r].time, residuals[r].time);
     EXPECT_EQ(with->residuals[r].delta, residuals[r].delta);
   }
-  const std::shared_ptr<const Sequence> plain_file = std::make_shared<const Sequence>(decode_sequence_file(encode_sequence_file(*plain, {}), "plain.fmv"));
+  const std::shared_ptr<const Sequence> plain_file =
+      std::make_shared<const Sequence>(decode_sequence_file(encode_sequence_file(*plain, {}), "plain.fmv"));
   SequenceDecoder a(with), b(plain_file);
   // Against the captured frames: the held-out mean falls, and no frame is worse beyond the
   // reconstruction's tolerance.
@@ -160,7 +161,8 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
     SCOPED_TRACE(t);
     const DecodedFrame before = a.decode(t - h, past), after = a.decode(t + h, past);
     double apart = 0;
-    for (size_t n = 0; n < before.grid_positions.size(); ++n) apart = std::max(apart, (before.grid_positions[n] - after.grid_positions[n]).norm());
+    for (size_t n = 0; n < before.grid_positions.size(); ++n)
+      apart = std::max(apart, (before.grid_positions[n] - after.grid_positions[n]).norm());
     EXPECT_LT(apart, 1e-4 * fast.encoder->selection_frames().front().diagonal);
   }
 }

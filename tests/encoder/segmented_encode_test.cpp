@@ -1,13 +1,13 @@
 // Segments of a long encode (spec/method.md §7.17): measured, assembled apart and joined without
 // decoding, they make one file that decodes close to the one-process encode; measures, segments
 // and joins that do not make up one encode, or that were damaged or crafted, are refused by name.
-#include "codec/encoder/encode/segment_join.hpp"
 #include "codec/encoder/encode/segmented_encode.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/encode/segment_join.hpp"
 #include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "format/container.hpp"
@@ -88,8 +88,10 @@ struct Encode {
     metadata.encoder = "test";
     metadata.field_coding = report.field_coding;
     metadata.keyframe_texture_qualities = report.texture_qualities;
-    metadata.settings = nlohmann::json{{"texture_qualities_chosen", report.texture_qualities}, {"texture_shared_with", report.texture_shared_with},
-                                       {"inter_dead_zone_chosen", report.field_precision.inter_dead_zone}}.dump();
+    metadata.settings = nlohmann::json{{"texture_qualities_chosen", report.texture_qualities},
+                                       {"texture_shared_with", report.texture_shared_with},
+                                       {"inter_dead_zone_chosen", report.field_precision.inter_dead_zone}}
+                            .dump();
     return metadata;
   }
   void write_one(const fs::path& path) const {
@@ -166,7 +168,8 @@ TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode
   // own way; spec/method.md §7.17).
   const double target = measures.front().target_error;
   const double difference = largest_decoded_difference(joined, one, e.capture);
-  EXPECT_LT(difference, 2.5 * target) << "the joined file decodes " << difference << " of the diagonal from the one-process file, the target " << target;
+  EXPECT_LT(difference, 2.5 * target) << "the joined file decodes " << difference
+                                      << " of the diagonal from the one-process file, the target " << target;
   // The settings say what each segment chose, and every keyframe's texture quality.
   const nlohmann::json settings = settings_of(joined);
   EXPECT_FALSE(settings.contains("segment"));

@@ -1,18 +1,18 @@
 // The encoder end to end on the project's own synthetic captures: map, register, choose keyframes,
 // store, and decode every captured frame at its time.
-#include "codec/meshkit/geometry/distance.hpp"
-#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/encoder/encode/texture_quality.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
-#include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
-#include "tests/test_util.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -83,8 +83,8 @@ TEST(SequenceEncoder, EncodesASyntheticCaptureThatDecodesCloseToEveryFrame) {
     // The decoded texture is the captured one, registered onto the disk: faces look like faces.
     EXPECT_EQ(frame.texture.width, 64);
   }
-  EXPECT_LT(worst_key, 0.0015);   // the resampling floor of a 3k-vertex frame on a 65² grid, and 16 bits
-  EXPECT_LT(worst_held, 0.006);   // three keyframes for twelve frames of a changing expression
+  EXPECT_LT(worst_key, 0.0015);  // the resampling floor of a 3k-vertex frame on a 65² grid, and 16 bits
+  EXPECT_LT(worst_held, 0.006);  // three keyframes for twelve frames of a changing expression
   // The selection predicted the held-out error it measured (same spline, same pose blend).
   for (const EncodedFrameReport& f : report.frames) EXPECT_LT(f.predicted_error, 0.006);
 }
@@ -225,8 +225,10 @@ TEST(SequenceEncoder, AVertexColouredCaptureEncodesAndDecodesWithItsColour) {
   }
   RecordProperty("worst_keyframe_psnr_db", std::to_string(worst_key));
   RecordProperty("worst_held_out_psnr_db", std::to_string(worst_held));
-  std::printf("vertex-coloured round trip, texture PSNR against the painted truth: keyframes worst %.2f dB, held-out worst %.2f dB; "
-              "a grey texture at best %.2f dB\n", worst_key, worst_held, best_grey);
+  std::printf(
+      "vertex-coloured round trip, texture PSNR against the painted truth: keyframes worst %.2f dB, held-out worst %.2f dB; "
+      "a grey texture at best %.2f dB\n",
+      worst_key, worst_held, best_grey);
   EXPECT_GT(worst_key, 30);   // AVIF at the automatic quality: a keyframe's own PSNR is at least 30 dB (measured 40.0)
   EXPECT_GT(worst_held, 30);  // frames between keyframes: the blend of the registered keyframes (measured 33.9 dB)
   EXPECT_LT(best_grey, 20);   // had the colours been lost, a flat texture would score as well
@@ -411,7 +413,9 @@ TEST(FieldPrecision, ADeadZoneKeepsThePreviousKeyframesCodes) {
   Sequence copy = exact;
   for (double bad : {0.4, 1.0, std::nan("")}) {
     testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { choose_field_coding(copy, {kTarget, 8, true, bad}); });
-    testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { round_keyframes(copy, metadata.field_coding, {kTarget, 8, true, bad}); });
+    testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] {
+      round_keyframes(copy, metadata.field_coding, {kTarget, 8, true, bad});
+    });
   }
 }
 
@@ -456,7 +460,9 @@ TEST(FieldPrecision, AutoDeadZoneKeepsTheSmallestOfItsCandidates) {
   Sequence copy = exact;
   FieldCoding coding;
   coding.steps.assign(kKeyframeArrayCount, 1e-3);
-  testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] { round_keyframes(copy, coding, {kTarget, 8, true, kAutoDeadZone}); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "dead zone", [&] {
+    round_keyframes(copy, coding, {kTarget, 8, true, kAutoDeadZone});
+  });
 }
 
 // On a noisy capture the decoded error is far from linear in the steps (error diffusion hides small
@@ -511,7 +517,8 @@ TEST(FieldPrecision, StepsDoNotFollowTheReconstructionsNoise) {
     for (size_t g = 1; g < a.group_steps.size(); ++g) {
       if (a.group_steps[g] == 0 && b.group_steps[g] == 0) continue;  // a group the fields do not have
       const double ra_g = a.group_steps[g] / a.group_steps[0], rb_g = b.group_steps[g] / b.group_steps[0];
-      EXPECT_NEAR(std::log(rb_g / ra_g), 0.0, std::log(2.0)) << "group " << g << " at target " << target << ": " << ra_g << " and " << rb_g << " of H's";
+      EXPECT_NEAR(std::log(rb_g / ra_g), 0.0, std::log(2.0))
+          << "group " << g << " at target " << target << ": " << ra_g << " and " << rb_g << " of H's";
     }
   }
 }
@@ -570,8 +577,10 @@ TEST(SequenceEncoder, DiskLandmarksFlagTheRimMarkersAndOnlyThem) {
     const bool named_rim = capture.landmark_names[j].rfind("rim_", 0) == 0;
     EXPECT_EQ(l.on_rim[j] != 0, named_rim) << capture.landmark_names[j];
     for (const Vec2& w : {l.reference[j], l.frame[j]}) {
-      if (named_rim) EXPECT_NEAR(w.norm(), 1.0, 1e-12) << capture.landmark_names[j];
-      else EXPECT_LT(w.norm(), 0.999) << capture.landmark_names[j];
+      if (named_rim)
+        EXPECT_NEAR(w.norm(), 1.0, 1e-12) << capture.landmark_names[j];
+      else
+        EXPECT_LT(w.norm(), 0.999) << capture.landmark_names[j];
     }
     rim += named_rim;
   }
@@ -656,14 +665,15 @@ TEST(SequenceEncoder, BadCapturesAreNamedErrors) {
 // Without --strict, a frame that cannot be encoded is dropped and named, never chosen as a
 // keyframe, and the spline covers its time; a landmark off its frame's surface is ignored and
 // named. Here: frame 5 has a second surface (an eyeball), frame 8's nose tip lies 5 cm off it (so,
-// unless found from the geometry, frame 8 cannot be put in the reference pose either), frame 3's chin lies 5 cm off (chin_bottom_midline) (ignored; the
-// frame is kept).
+// unless found from the geometry, frame 8 cannot be put in the reference pose either), frame 3's chin lies 5 cm off (chin_bottom_midline)
+// (ignored; the frame is kept).
 TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   testing::TempDir dir;
   Capture capture = small_capture(dir, 0);
   const TriangleMesh frame5 = read_mesh(capture.mesh_path(5), {.allow_missing_texture = true});
   write_mesh(capture.mesh_path(5), with_a_second_component(frame5));
-  const auto nose = static_cast<size_t>(capture.landmark_index("nose_tip")), chin = static_cast<size_t>(capture.landmark_index("chin_bottom_midline"));
+  const auto nose = static_cast<size_t>(capture.landmark_index("nose_tip")),
+             chin = static_cast<size_t>(capture.landmark_index("chin_bottom_midline"));
   ASSERT_LT(chin, capture.landmark_names.size());
   capture.landmarks[8][nose] += Vec3(0, 0, 0.05);
   capture.landmarks[3][chin] += Vec3(0, 0, 0.05);
@@ -739,9 +749,11 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
   // --strict: the first of them ends the encode, named (one thread: frame 3's chin comes first).
   options.strict = true;
   options.threads = 1;
-  testing::expect_error(ErrorCode::kInvalidArgument, capture.frames[3].mesh.string() + ": landmark 'chin_bottom_midline' lies", [&] { encode_capture(capture, options); });
+  testing::expect_error(ErrorCode::kInvalidArgument, capture.frames[3].mesh.string() + ": landmark 'chin_bottom_midline' lies",
+                        [&] { encode_capture(capture, options); });
   capture.landmarks[3][chin] -= Vec3(0, 0, 0.05);
-  testing::expect_error(ErrorCode::kNotADisk, capture.frames[5].mesh.string() + ": 2 components", [&] { encode_capture(capture, options); });
+  testing::expect_error(ErrorCode::kNotADisk, capture.frames[5].mesh.string() + ": 2 components",
+                        [&] { encode_capture(capture, options); });
 }
 
 // Frames the registration cannot take (two lack every landmark: their nose tip and up are found, but
@@ -1047,7 +1059,8 @@ TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {
   for (size_t i = 1; i < capture.frames.size(); ++i) {
     write_mesh(capture.mesh_path(i), with_a_second_component(read_mesh(capture.mesh_path(i), {.allow_missing_texture = true})));
   }
-  testing::expect_error(ErrorCode::kNotADisk, "no frame of the capture could be encoded (6 dropped); the first, " + capture.frames[0].mesh.string(),
+  testing::expect_error(ErrorCode::kNotADisk,
+                        "no frame of the capture could be encoded (6 dropped); the first, " + capture.frames[0].mesh.string(),
                         [&] { encode_capture(capture, options); });
 }
 
@@ -1229,7 +1242,8 @@ TEST(KeyframeSelection, FastMotionGetsResidualFramesInsteadOfKeyframes) {
   EXPECT_TRUE(without.residuals.empty());
   options.residuals = true;
   const KeyframeSelection with = select_keyframes(frames, weights, options);
-  EXPECT_LT(2 * with.keyframes.size(), without.keyframes.size()) << with.keyframes.size() << " keyframes with residuals, " << without.keyframes.size() << " without";
+  EXPECT_LT(2 * with.keyframes.size(), without.keyframes.size())
+      << with.keyframes.size() << " keyframes with residuals, " << without.keyframes.size() << " without";
   ASSERT_GT(with.residuals.size(), 10u);
   ASSERT_EQ(with.residual_frames.size(), with.residuals.size());
   const std::vector<double> spline_only = prediction_errors(frames, weights, with.keyframes, options.spline, Vec3::Zero());
@@ -1248,11 +1262,13 @@ TEST(KeyframeSelection, FastMotionGetsResidualFramesInsteadOfKeyframes) {
     lowered += with.predicted_error[static_cast<size_t>(j)] <= 0.9 * spline_only[static_cast<size_t>(j)];
   }
   EXPECT_GT(lowered, with.residuals.size() / 2);
-  EXPECT_NO_THROW(validate_residuals([&] {
-    std::vector<double> times;
-    for (int k : with.keyframes) times.push_back(frames[static_cast<size_t>(k)].time);
-    return times;
-  }(), with.residuals));
+  EXPECT_NO_THROW(validate_residuals(
+      [&] {
+        std::vector<double> times;
+        for (int k : with.keyframes) times.push_back(frames[static_cast<size_t>(k)].time);
+        return times;
+      }(),
+      with.residuals));
   options.residual_step = 0;
   testing::expect_error(ErrorCode::kInvalidArgument, "residual step", [&] { select_keyframes(frames, weights, options); });
 }

@@ -1,13 +1,13 @@
 // The staged encode (spec/part-file.md): parts sampled apart and assembled give the one-process
 // encode's file, byte for byte; parts that do not make up one capture, or that were damaged or
 // crafted, are refused with the file and the frame named.
+#include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/encode/options_json.hpp"
 #include "codec/encoder/encode/part_file.hpp"
 #include "codec/encoder/encode/registration_store.hpp"
-#include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/synth/synth.hpp"
-#include "format/error.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "format/error.hpp"
 
 #include "format/file_io.hpp"
 
@@ -53,8 +53,8 @@ std::vector<uint8_t> file_of(const StoredSequence& sequence, const std::filesyst
 
 // Samples `capture` in the parts `ranges` (each on its own encoder) and assembles them, the parts
 // given in reverse: the file, and the report through `report`.
-std::vector<uint8_t> staged_file(const Capture& capture, const EncodeOptions& options, const std::vector<FrameRange>& ranges, const testing::TempDir& dir,
-                                 EncodeReport* report) {
+std::vector<uint8_t> staged_file(const Capture& capture, const EncodeOptions& options, const std::vector<FrameRange>& ranges,
+                                 const testing::TempDir& dir, EncodeReport* report) {
   std::vector<std::filesystem::path> parts;
   for (const FrameRange& range : ranges) {
     parts.push_back(dir.path() / ("part_" + std::to_string(range.first) + ".fms"));
@@ -182,7 +182,8 @@ TEST(StagedEncode, TheAssembleStageNeedsNotRunWhereTheSampleStageRan) {
   encode_part(capture, options, {3, 6}, "b.fms");
   std::filesystem::create_directories("elsewhere");
   std::filesystem::current_path("elsewhere");
-  EXPECT_TRUE(one == file_of(*assemble_parts({"../a.fms", "../b.fms"}, options), "staged.fmv")) << "the assembled file differs from the one-process file";
+  EXPECT_TRUE(one == file_of(*assemble_parts({"../a.fms", "../b.fms"}, options), "staged.fmv"))
+      << "the assembled file differs from the one-process file";
 }
 
 TEST(StagedEncode, PartsThatAreNotOneCaptureOnceAreRefused) {
@@ -190,7 +191,8 @@ TEST(StagedEncode, PartsThatAreNotOneCaptureOnceAreRefused) {
   const Capture capture = small_capture(dir.path() / "capture", 8);
   const EncodeOptions options = small_options();
   const auto part = [&](int first, int end, const EncodeOptions& o = small_options()) {
-    const std::filesystem::path path = dir.path() / ("p" + std::to_string(first) + "_" + std::to_string(end) + "_" + std::to_string(o.reference_frame) + ".fms");
+    const std::filesystem::path path =
+        dir.path() / ("p" + std::to_string(first) + "_" + std::to_string(end) + "_" + std::to_string(o.reference_frame) + ".fms");
     if (!std::filesystem::exists(path)) encode_part(capture, o, {first, end}, path);
     return path;
   };
@@ -270,7 +272,8 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
     format::write_file_atomically(path, content);
     return path;
   };
-  refused(write("cut.fms", std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2))), ErrorCode::kTruncated, "truncated");
+  refused(write("cut.fms", std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2))), ErrorCode::kTruncated,
+          "truncated");
   std::vector<uint8_t> flipped = bytes;
   flipped[bytes.size() * 3 / 4] ^= 0x20;
   refused(write("flipped.fms", flipped), ErrorCode::kCorrupt, "checksum");
@@ -304,8 +307,8 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
   refused(crafted(good, dir.path() / "holes.fms", 3,
                   [](SampledFrame& f) {
                     const MappedFrame m = FrameStore::deserialize(f.map.data(), f.map.size());
-                    const size_t at = 8 + m.name.size() + 8 + 4 * m.prepared.rim.size() + 8 + 4 * m.prepared.source_vertex.size() +
-                                      18 * 4 + 2 * 8;  // the repair report's counts and totals (spec/part-file.md §4), then the hole count
+                    const size_t at = 8 + m.name.size() + 8 + 4 * m.prepared.rim.size() + 8 + 4 * m.prepared.source_vertex.size() + 18 * 4 +
+                                      2 * 8;  // the repair report's counts and totals (spec/part-file.md §4), then the hole count
                     const uint64_t holes = uint64_t{1} << 58;
                     std::memcpy(f.map.data() + at, &holes, sizeof holes);
                   }),
@@ -317,7 +320,8 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
                     f.registration = RegistrationStore::serialize(r);
                   }),
           ErrorCode::kCorrupt, "frame 4: its registration's Möbius map is not one of the disk");
-  refused(crafted(good, dir.path() / "samples.fms", 0, [](SampledFrame& f) { f.selection.local[10].x() = std::numeric_limits<float>::quiet_NaN(); }),
+  refused(crafted(good, dir.path() / "samples.fms", 0,
+                  [](SampledFrame& f) { f.selection.local[10].x() = std::numeric_limits<float>::quiet_NaN(); }),
           ErrorCode::kCorrupt, "frame 0: its selection samples have a number not finite");
   refused(crafted(good, dir.path() / "names.fms", 5, [](SampledFrame& f) { f.landmarks.push_back(Vec3::Zero()); }), ErrorCode::kCorrupt,
           "frame 5: it holds");
@@ -334,9 +338,14 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
   const std::vector<std::pair<std::function<void(SampledFrame&)>, std::string>> records = {
       {edit_map([](MappedFrame& m) { m.map.surface.faces.clear(); }), "its map has no surface"},
       {edit_map([](MappedFrame& m) { m.map.surface.positions[4] *= 1e300; }), "its map's surface has a coordinate past"},
-      {edit_map([](MappedFrame& m) { m.map.disk[static_cast<size_t>(m.map.rim[0])] *= 0.5; }), "its map's rim does not lie on the unit circle"},
-      {edit_map([](MappedFrame& m) { m.map.rim.push_back(static_cast<int>(m.map.disk.size())); }), "its map's rim is not a loop of its vertices"},
-      {edit_map([](MappedFrame& m) { for (Vec2& w : m.map.disk) w.y() = -w.y(); }), "its map's disk does not cover the unit disk once"},
+      {edit_map([](MappedFrame& m) { m.map.disk[static_cast<size_t>(m.map.rim[0])] *= 0.5; }),
+       "its map's rim does not lie on the unit circle"},
+      {edit_map([](MappedFrame& m) { m.map.rim.push_back(static_cast<int>(m.map.disk.size())); }),
+       "its map's rim is not a loop of its vertices"},
+      {edit_map([](MappedFrame& m) {
+         for (Vec2& w : m.map.disk) w.y() = -w.y();
+       }),
+       "its map's disk does not cover the unit disk once"},
       {edit_map([](MappedFrame& m) { m.map.surface.uv_faces.pop_back(); }), "its map's texture coordinates do not fit its faces"},
       {edit_map([](MappedFrame& m) { m.map.surface.colours = {Vec3(1, 0, 0)}; }), "its map's colours do not fit its vertices"},
       {[](SampledFrame& f) { f.mapped = false; }, "it is kept but was never mapped"},
@@ -347,17 +356,21 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
       {[](SampledFrame& f) { f.selection.pose.rotation *= 2; }, "its head pose is not a rigid motion"},
       {[](SampledFrame& f) { f.selection.diagonal = 0; }, "its selection samples have a number not finite"},
       {[](SampledFrame& f) { f.selection.local[3] *= 1e20f; }, "its selection samples have a coordinate past"},
-      {[](SampledFrame& f) { f.landmarks[0] = Vec3::Constant(std::numeric_limits<double>::infinity()); }, "a landmark is neither a point nor missing"},
+      {[](SampledFrame& f) { f.landmarks[0] = Vec3::Constant(std::numeric_limits<double>::infinity()); },
+       "a landmark is neither a point nor missing"},
       {[](SampledFrame& f) { f.texture = "/dev/zero"; }, "its texture /dev/zero is not a file"},
       {[](SampledFrame& f) { f.texture = "relative.jpg"; }, "its texture's path is not absolute"},
-      {[](SampledFrame& f) { f.registration.back() = 7; }, "its registration: registration store: a stored registration holds 7 where a truth value belongs"},
+      {[](SampledFrame& f) { f.registration.back() = 7; },
+       "its registration: registration store: a stored registration holds 7 where a truth value belongs"},
   };
   for (size_t c = 0; c < records.size(); ++c) {
-    refused(crafted(good, dir.path() / ("record_" + std::to_string(c) + ".fms"), 1, records[c].first), ErrorCode::kCorrupt, "frame 1: " + records[c].second);
+    refused(crafted(good, dir.path() / ("record_" + std::to_string(c) + ".fms"), 1, records[c].first), ErrorCode::kCorrupt,
+            "frame 1: " + records[c].second);
   }
   // What only the assembling encoder sees (a frame's time not after the one before it, which the
   // part's records cannot tell alone) is named by the part and the frame as well.
-  const std::filesystem::path early = crafted(good, dir.path() / "early.fms", 3, [&](SampledFrame& f) { f.time = f.selection.time = capture.frames[2].time; });
+  const std::filesystem::path early =
+      crafted(good, dir.path() / "early.fms", 3, [&](SampledFrame& f) { f.time = f.selection.time = capture.frames[2].time; });
   EXPECT_NO_THROW(PartReader(early).verify());
   testing::expect_error(ErrorCode::kInvalidArgument, early.string() + ": frame 3: ", [&] { assemble_parts({early}, small_options()); });
   // And the header's.
@@ -376,11 +389,20 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
     return dir.path() / name;
   };
   refused(header_of([](PartHeader& h) { h.capture.frame_count = 0, h.range = {0, 0}; }, "frames.fms"), ErrorCode::kLimit, "outside 1..");
-  refused(header_of([](PartHeader& h) { h.range = {4, 9}; }, "range.fms"), ErrorCode::kCorrupt, "its frames are not a range of its capture's");
-  refused(header_of([](PartHeader& h) { h.capture.reference = 6; }, "reference.fms"), ErrorCode::kCorrupt, "its reference frame is not one of its capture's");
-  refused(header_of([](PartHeader& h) { h.capture.root = "relative"; }, "root.fms"), ErrorCode::kCorrupt, "its capture's folder is not an absolute path");
-  refused(header_of([](PartHeader& h) { h.capture.given_landmark_names = {"x"}; }, "names.fms"), ErrorCode::kCorrupt, "do not begin with the capture's own");
-  refused(header_of([](PartHeader& h) { h.settings = std::string(40, '[') + std::string(40, ']'); }, "deep.fms"), ErrorCode::kCorrupt, "nests deeper than");
+  refused(header_of(
+              [](PartHeader& h) {
+                h.range = {4, 9};
+              },
+              "range.fms"),
+          ErrorCode::kCorrupt, "its frames are not a range of its capture's");
+  refused(header_of([](PartHeader& h) { h.capture.reference = 6; }, "reference.fms"), ErrorCode::kCorrupt,
+          "its reference frame is not one of its capture's");
+  refused(header_of([](PartHeader& h) { h.capture.root = "relative"; }, "root.fms"), ErrorCode::kCorrupt,
+          "its capture's folder is not an absolute path");
+  refused(header_of([](PartHeader& h) { h.capture.given_landmark_names = {"x"}; }, "names.fms"), ErrorCode::kCorrupt,
+          "do not begin with the capture's own");
+  refused(header_of([](PartHeader& h) { h.settings = std::string(40, '[') + std::string(40, ']'); }, "deep.fms"), ErrorCode::kCorrupt,
+          "nests deeper than");
   // A writer that does not finish leaves nothing; one that finishes replaces the file whole.
   {
     const PartReader reader(good);

@@ -1,7 +1,7 @@
+#include "codec/encoder/synth/synth.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
 
 #include "tests/test_util.hpp"
@@ -13,8 +13,8 @@
 namespace facemorph {
 namespace {
 
-using testing::TempDir;
 using testing::expect_error;
+using testing::TempDir;
 
 SynthOptions small(int frames) {
   SynthOptions o;

@@ -1,17 +1,17 @@
 // Each keyframe's texture quality from the blend's error beside it (spec/method.md §7.12): the
 // pieces against known answers, then a capture end to end through the file.
+#include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/image/image_decode.hpp"
 #include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/synth/synth.hpp"
-#include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
-#include "codec/decoder/image/image_decode.hpp"
-#include "codec/writer/image/image_encode.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
+#include "codec/encoder/synth/synth.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "codec/writer/image/image_encode.hpp"
 
-#include "tests/test_util.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -29,7 +29,8 @@ Image detailed_texture(int size, unsigned seed) {
   for (int y = 0; y < size; ++y) {
     for (int x = 0; x < size; ++x) {
       const double shade = 0.5 + 0.4 * std::sin(x * 0.05) * std::cos(y * 0.07);
-      for (int c = 0; c < 3; ++c) image.at(x, y)[c] = static_cast<uint8_t>(std::clamp(static_cast<int>(60 + 150 * shade) + 20 * c + grain(rng), 0, 255));
+      for (int c = 0; c < 3; ++c)
+        image.at(x, y)[c] = static_cast<uint8_t>(std::clamp(static_cast<int>(60 + 150 * shade) + 20 * c + grain(rng), 0, 255));
     }
   }
   return image;
@@ -51,7 +52,9 @@ TEST(TextureQuality, QualityIsTheLowestThatMeetsTheTargetInEitherCodec) {
   const Image texture = detailed_texture(128, 7);
   for (TextureCodec codec : {TextureCodec::kAvif, TextureCodec::kWebp}) {
     SCOPED_TRACE(texture_codec_name(codec));
-    auto error_at = [&](int quality) { return disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "test")); };
+    auto error_at = [&](int quality) {
+      return disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "test"));
+    };
     const double target = error_at(50);
     const int quality = texture_quality_for(codec, texture, target);
     EXPECT_LE(quality, 50);
@@ -84,7 +87,7 @@ TEST(TextureQuality, TargetsAreAShareOfTheSmallerNeighbouringIntervalWithinTheBo
   EXPECT_DOUBLE_EQ(targets[0], 25.0);
   EXPECT_DOUBLE_EQ(targets[1], 25.0);
   EXPECT_DOUBLE_EQ(targets[2], mse_of_psnr(32));  // 100 clamped to the coarsest allowed, 41.0
-  EXPECT_LT(targets[3], 0);                        // its only interval was not measured
+  EXPECT_LT(targets[3], 0);                       // its only interval was not measured
   // A nearly perfect blend does not ask for more than max_psnr; nothing measured: no target.
   EXPECT_DOUBLE_EQ(texture_error_targets({1e-6}, options)[0], mse_of_psnr(48));
   EXPECT_LT(texture_error_targets({-1.0}, options)[1], 0);
@@ -137,8 +140,7 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   int held = 0;
   for (int i = 0; i < encoder.frame_count(); ++i) {
     if (std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i)) continue;
-    const Image own = resample_texture(InverseDiskMap(encoder.frame(i)->map), read_image(encoder.texture_path(i)), 128,
-                                       encoder.sampler(i));
+    const Image own = resample_texture(InverseDiskMap(encoder.frame(i)->map), read_image(encoder.texture_path(i)), 128, encoder.sampler(i));
     const double t = capture.frames[static_cast<size_t>(i)].time;
     auto_mse += disk_texture_mse(own, auto_decoder.decode(t).texture);
     fixed_mse += disk_texture_mse(own, fixed_decoder.decode(t).texture);
@@ -147,8 +149,9 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   ASSERT_GT(held, 0);
   const double loss = psnr_of_mse(fixed_mse / held) - psnr_of_mse(auto_mse / held);
   // The rule's bound: a keyframe's coding adds at most a quarter of the blend's MSE, 10 log10(1.25) dB.
-  EXPECT_LT(loss, 10 * std::log10(1.25)) << "held-out texture PSNR " << psnr_of_mse(fixed_mse / held) << " dB at quality 90, " << psnr_of_mse(auto_mse / held)
-                        << " dB auto; texture bytes " << fixed_bytes << " and " << auto_bytes;
+  EXPECT_LT(loss, 10 * std::log10(1.25)) << "held-out texture PSNR " << psnr_of_mse(fixed_mse / held) << " dB at quality 90, "
+                                         << psnr_of_mse(auto_mse / held) << " dB auto; texture bytes " << fixed_bytes << " and "
+                                         << auto_bytes;
   // Wrong per-keyframe qualities are refused by the writer.
   SequenceFileMetadata bad;
   bad.keyframe_texture_qualities = {90};

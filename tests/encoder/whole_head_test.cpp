@@ -1,11 +1,11 @@
 // Issue 47 part 2: a whole head whose rim is the neck (eyes, mouth and nostrils open) encodes at the
 // default settings, given landmarks or finding them (--landmarks auto), and decodes within 1.5x the
 // error of its cropped face (the same synthetic face alone, same holes). spec/method.md §7.11.
+#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -84,7 +84,8 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
     EXPECT_EQ(whole.report.radial_equalising, 1);
     EXPECT_NEAR(whole.report.density_equalising.half_area_radius_after, std::sqrt(0.5), 0.02);
     EXPECT_EQ(whole.representation, Representation::kXYZ);
-    EXPECT_LT(whole.keyframe_error, 1.5 * cropped.keyframe_error) << "head " << whole.keyframe_error << " m, face " << cropped.keyframe_error << " m";
+    EXPECT_LT(whole.keyframe_error, 1.5 * cropped.keyframe_error)
+        << "head " << whole.keyframe_error << " m, face " << cropped.keyframe_error << " m";
     if (find_landmarks) {
       // The found landmarks' disagreement from frame to frame reads as frame noise, above the given
       // landmarks' (spec/method.md §7.14): on a whole head whose frames share no interior landmarks
@@ -160,7 +161,8 @@ TEST(WholeHead, IctsWholeHeadWithFoundLandmarksWithinOneAndAHalfTimesItsFace) {
   EXPECT_TRUE(head.report.dropped.empty());
   EXPECT_EQ(head.representation, Representation::kXYZ);
   EXPECT_LE(head.report.keyframes.size(), 4u);
-  EXPECT_LT(head.keyframe_error, 1.5 * face.keyframe_error) << "head " << head.keyframe_error << " cm, face " << face.keyframe_error << " cm";
+  EXPECT_LT(head.keyframe_error, 1.5 * face.keyframe_error)
+      << "head " << head.keyframe_error << " cm, face " << face.keyframe_error << " cm";
 }
 
 // ICT's whole head (tools/ict_whole_head.py reads ../shared/data/ict-facekit; skipped without it):

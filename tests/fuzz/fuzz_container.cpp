@@ -2,8 +2,8 @@
 // every chunk checksum it can find (and the preamble's): the fuzzer then reaches the payload parsers,
 // the zstd frames, the index and the validators, which is where a reader's bugs live. The reader
 // itself is the production code, checksums included.
-#include "format/error.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "format/error.hpp"
 #include "tests/fuzz/mend_checksums.hpp"
 
 #include <vector>

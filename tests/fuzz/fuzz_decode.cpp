@@ -49,16 +49,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   fm_info_init(&info);
   fm_decoder* decoder = nullptr;
   if (fm_file_get_info(file, &info) != FM_OK || fm_decoder_create(file, &decoder) != FM_OK) std::abort();  // an opened file has both
-  fm_file_close(file);  // the decoder keeps it
+  fm_file_close(file);                                                                                     // the decoder keeps it
   std::vector<double> times(info.keyframe_count);
   size_t count = 0;
   if (fm_file_get_keyframe_times(file, times.data(), times.size(), &count) != FM_ERROR_CLOSED_HANDLE) std::abort();
-  std::vector<float> positions(3 * static_cast<size_t>(info.max_vertex_count)), normals(positions.size()), uvs(2 * static_cast<size_t>(info.max_vertex_count));
+  std::vector<float> positions(3 * static_cast<size_t>(info.max_vertex_count)), normals(positions.size()),
+      uvs(2 * static_cast<size_t>(info.max_vertex_count));
   std::vector<uint32_t> indices(3 * static_cast<size_t>(info.max_triangle_count));
   std::vector<uint8_t> texture(4 * static_cast<size_t>(info.texture_size) * info.texture_size);
   const double span = info.last_time - info.first_time;
-  const double ts[] = {info.first_time, info.first_time + 0.37 * span, info.first_time + 0.37 * span, info.last_time, info.last_time + span + 1,
-                       info.first_time - 1};
+  const double ts[] = {info.first_time, info.first_time + 0.37 * span, info.first_time + 0.37 * span,
+                       info.last_time,  info.last_time + span + 1,     info.first_time - 1};
   for (size_t i = 0; i < sizeof ts / sizeof ts[0]; ++i) {
     fm_frame frame;
     fm_frame_init(&frame);
@@ -69,7 +70,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     frame.texture = texture.empty() ? nullptr : texture.data(), frame.texture_bytes = texture.size();
     const uint32_t flags = i >= 4 ? FM_DECODE_CLAMP : 0;
     const fm_status status = fm_decoder_decode(decoder, ts[i], flags, &frame);
-    if (status == FM_ERROR_INVALID_ARGUMENT || status == FM_ERROR_INTERNAL || status == FM_ERROR_BUFFER_TOO_SMALL) std::abort();  // never the file's fault
+    if (status == FM_ERROR_INVALID_ARGUMENT || status == FM_ERROR_INTERNAL || status == FM_ERROR_BUFFER_TOO_SMALL)
+      std::abort();  // never the file's fault
     if (status != FM_OK) continue;
     if (frame.vertex_count > info.max_vertex_count || frame.triangle_count > info.max_triangle_count) std::abort();
     check_finite(positions, 3 * frame.vertex_count);

@@ -1,8 +1,8 @@
 // libFuzzer target: the OBJ and PLY parsers (the first byte picks which). Every input must give a
 // mesh or a named facemorph::Error; nothing is read from or written to disk (a missing texture is
 // allowed so the parser does not stop at the material).
-#include "format/error.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "format/error.hpp"
 
 #include <string_view>
 
@@ -16,7 +16,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     } else {
       facemorph::parse_obj({reinterpret_cast<const char*>(data), size}, "fuzz.obj", "/nonexistent", options);
     }
-  } catch (const facemorph::Error&) {
-  }
+  } catch (const facemorph::Error&) {}
   return 0;
 }

@@ -12,8 +12,7 @@ namespace {
 
 void expect_delaunay(const std::vector<Vec2>& points, const std::vector<Face>& faces) {
   for (const Face& f : faces) {
-    const Vec2 &a = points[static_cast<size_t>(f[0])], &b = points[static_cast<size_t>(f[1])],
-               &c = points[static_cast<size_t>(f[2])];
+    const Vec2 &a = points[static_cast<size_t>(f[0])], &b = points[static_cast<size_t>(f[1])], &c = points[static_cast<size_t>(f[2])];
     ASSERT_GT(orient2d(a, b, c), 0) << "clockwise or flat triangle";
     for (size_t i = 0; i < points.size(); ++i) {
       if (static_cast<int32_t>(i) == f[0] || static_cast<int32_t>(i) == f[1] || static_cast<int32_t>(i) == f[2]) continue;
@@ -69,7 +68,8 @@ TEST(Delaunay, LargeJitteredLatticeIsAValidDisk) {
   EXPECT_EQ(topo.euler_characteristic(), 1);
   EXPECT_EQ(topo.boundary_loops().size(), 1u);
   double area = 0;
-  for (const Face& f : faces) area += 0.5 * orient2d(points[static_cast<size_t>(f[0])], points[static_cast<size_t>(f[1])], points[static_cast<size_t>(f[2])]);
+  for (const Face& f : faces)
+    area += 0.5 * orient2d(points[static_cast<size_t>(f[0])], points[static_cast<size_t>(f[1])], points[static_cast<size_t>(f[2])]);
   EXPECT_GT(area, 299.0 * 299.0 * 0.98);
 }
 

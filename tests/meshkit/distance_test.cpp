@@ -15,7 +15,8 @@ double brute_force(const TriangleMesh& mesh, const Vec3& p) {
   for (const Face& f : mesh.faces) {
     // Dense sampling is not exact; use the closest-point formula through a one-face mesh.
     TriangleMesh one;
-    one.positions = {mesh.positions[static_cast<size_t>(f[0])], mesh.positions[static_cast<size_t>(f[1])], mesh.positions[static_cast<size_t>(f[2])]};
+    one.positions = {mesh.positions[static_cast<size_t>(f[0])], mesh.positions[static_cast<size_t>(f[1])],
+                     mesh.positions[static_cast<size_t>(f[2])]};
     one.faces = {{0, 1, 2}};
     best = std::min(best, PointToMesh(one).distance(p));
   }

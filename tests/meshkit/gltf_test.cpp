@@ -1,7 +1,7 @@
 // glTF clips: the GLB container's structure, the morph animation's contract (frame f's shape at its
 // time), hole collapse, and, where node and the Khronos validator are installed, 0 validator errors.
-#include "codec/core/grid/disk_grid.hpp"
 #include "codec/meshkit/gltf/gltf.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "format/file_io.hpp"
 
@@ -171,10 +171,10 @@ TEST(Gltf, TheKhronosValidatorFindsNoError) {
   for (const auto& [name, clip] : clips) {
     SCOPED_TRACE(name);
     format::write_file_atomically(dir.path() / name, encode_glb(clip));
-    const std::string script = "const v=require('" + modules.string() + "');const b=new Uint8Array(require('fs').readFileSync('" +
-                               (dir.path() / name).string() +
-                               "'));v.validateBytes(b).then(r=>{console.log(JSON.stringify(r.issues.messages));process.exit(r.issues.numErrors?1:0)})"
-                               ".catch(e=>{console.error(e);process.exit(2)})";
+    const std::string script =
+        "const v=require('" + modules.string() + "');const b=new Uint8Array(require('fs').readFileSync('" + (dir.path() / name).string() +
+        "'));v.validateBytes(b).then(r=>{console.log(JSON.stringify(r.issues.messages));process.exit(r.issues.numErrors?1:0)})"
+        ".catch(e=>{console.error(e);process.exit(2)})";
     testing::write_text(dir.path() / "validate.js", script);
     EXPECT_EQ(std::system(("node " + (dir.path() / "validate.js").string()).c_str()), 0);
   }

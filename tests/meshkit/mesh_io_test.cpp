@@ -11,8 +11,8 @@
 namespace facemorph {
 namespace {
 
-using testing::TempDir;
 using testing::expect_error;
+using testing::TempDir;
 using testing::write_text;
 
 TriangleMesh textured_square() {
@@ -101,20 +101,21 @@ TEST(ObjIo, BadInputIsANamedError) {
 TEST(ObjIo, HugeIndicesAndNonFiniteCoordinatesAreNamedErrors) {
   const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n";
   auto parse = [&](const std::string& face) { return parse_obj(tri + face + "\n", "big.obj", "."); };
-  expect_errors({{ErrorCode::kInvalidMesh, "big.obj:5: vertex index 99999999999999999999 out of range", "f 99999999999999999999 1 2"},
-                 {ErrorCode::kInvalidMesh, "vertex index -99999999999999999999 out of range", "f -99999999999999999999 1 2"},
-                 {ErrorCode::kInvalidMesh, "vertex index -9223372036854775808 out of range", "f -9223372036854775808 1 2"},
-                 {ErrorCode::kInvalidMesh, "vertex index 9223372036854775807 out of range", "f 9223372036854775807 1 2"},
-                 {ErrorCode::kInvalidMesh, "vertex index -4 out of range", "f -4 1 2"},
-                 {ErrorCode::kInvalidMesh, "texture-coordinate index 18446744073709551617 out of range", "f 1/18446744073709551617 2/1 3/1"},
-                 {ErrorCode::kInvalidMesh, "texture-coordinate index -2 out of range", "f 1/-2 2/1 3/1"},
-                 {ErrorCode::kParse, "malformed vertex index '1e300'", "f 1e300 1 2"},
-                 {ErrorCode::kParse, "malformed vertex index '2.5'", "f 2.5 1 2"},
-                 {ErrorCode::kParse, "malformed vertex index '+-1'", "f +-1 1 2"},
-                 {ErrorCode::kInvalidMesh, "big.obj:5: v line: non-finite coordinate 'nan'", "v 1 nan 0"},
-                 {ErrorCode::kInvalidMesh, "big.obj:5: vt line: non-finite coordinate '-inf'", "vt 0 -inf"},
-                 {ErrorCode::kParse, "big.obj:5: malformed v line", "v 0 1e999 0"}},
-                parse);
+  expect_errors(
+      {{ErrorCode::kInvalidMesh, "big.obj:5: vertex index 99999999999999999999 out of range", "f 99999999999999999999 1 2"},
+       {ErrorCode::kInvalidMesh, "vertex index -99999999999999999999 out of range", "f -99999999999999999999 1 2"},
+       {ErrorCode::kInvalidMesh, "vertex index -9223372036854775808 out of range", "f -9223372036854775808 1 2"},
+       {ErrorCode::kInvalidMesh, "vertex index 9223372036854775807 out of range", "f 9223372036854775807 1 2"},
+       {ErrorCode::kInvalidMesh, "vertex index -4 out of range", "f -4 1 2"},
+       {ErrorCode::kInvalidMesh, "texture-coordinate index 18446744073709551617 out of range", "f 1/18446744073709551617 2/1 3/1"},
+       {ErrorCode::kInvalidMesh, "texture-coordinate index -2 out of range", "f 1/-2 2/1 3/1"},
+       {ErrorCode::kParse, "malformed vertex index '1e300'", "f 1e300 1 2"},
+       {ErrorCode::kParse, "malformed vertex index '2.5'", "f 2.5 1 2"},
+       {ErrorCode::kParse, "malformed vertex index '+-1'", "f +-1 1 2"},
+       {ErrorCode::kInvalidMesh, "big.obj:5: v line: non-finite coordinate 'nan'", "v 1 nan 0"},
+       {ErrorCode::kInvalidMesh, "big.obj:5: vt line: non-finite coordinate '-inf'", "vt 0 -inf"},
+       {ErrorCode::kParse, "big.obj:5: malformed v line", "v 0 1e999 0"}},
+      parse);
   EXPECT_EQ(parse("f +1 -2 3").faces[0], (Face{0, 1, 2}));
 }
 
@@ -152,8 +153,9 @@ TEST(PlyIo, ReadsPerVertexUvsPolygonsAndBigEndian) {
   ASSERT_TRUE(m.has_uvs());
   EXPECT_DOUBLE_EQ(m.uvs[2].y(), 1.0);
 
-  std::string big = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
-                    "property double z\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n";
+  std::string big =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+      "property double z\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n";
   auto put_be = [&big](const void* p, size_t n) {
     for (size_t i = 0; i < n; ++i) big.push_back(static_cast<const char*>(p)[n - 1 - i]);
   };
@@ -174,8 +176,9 @@ TEST(PlyIo, TruncatedAndCorruptFilesAreNamedErrors) {
     std::vector<uint8_t> part(bytes.begin(), bytes.begin() + static_cast<long>(cut));
     expect_error(ErrorCode::kTruncated, "cut.ply", [&] { parse_ply(part, "cut.ply", "."); });
   }
-  const std::string huge = "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty float x\n"
-                           "property float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string huge =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n";
   expect_error(ErrorCode::kTruncated, "announces", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(huge.data()), huge.size()}, "huge.ply", ".");
   });
@@ -189,8 +192,9 @@ TEST(PlyIo, TruncatedAndCorruptFilesAreNamedErrors) {
   expect_error(ErrorCode::kTruncated, "truncated", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(ascii.data()), ascii.size()}, "t.ply", ".");
   });
-  const std::string bad_index = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                                "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+  const std::string bad_index =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
   expect_error(ErrorCode::kInvalidMesh, "vertex index 7", [&] {
     parse_ply({reinterpret_cast<const uint8_t*>(bad_index.data()), bad_index.size()}, "i.ply", ".");
   });
@@ -198,8 +202,10 @@ TEST(PlyIo, TruncatedAndCorruptFilesAreNamedErrors) {
 
 // A PLY with one triangle whose index list is typed `index_type`, followed by `body`.
 std::string triangle_ply(const std::string& encoding, const std::string& count_type, const std::string& index_type) {
-  return "ply\nformat " + encoding + " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-         "element face 1\nproperty list " + count_type + " " + index_type + " vertex_indices\nend_header\n";
+  return "ply\nformat " + encoding +
+         " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+         "element face 1\nproperty list " +
+         count_type + " " + index_type + " vertex_indices\nend_header\n";
 }
 
 TriangleMesh parse_ply_text(const std::string& text, const std::string& name) {
@@ -243,8 +249,10 @@ TEST(PlyIo, BinaryFloatIndicesNoIntegerHoldsAreNamedErrors) {
       for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put(x);
       put(uint8_t{3});
       for (double v : {a, b, c}) {
-        if (index_type == "float") put(static_cast<float>(v));
-        else put(v);
+        if (index_type == "float")
+          put(static_cast<float>(v));
+        else
+          put(v);
       }
       return parse_ply_text(bytes, index_type + ".ply");
     };
@@ -293,11 +301,13 @@ void expect_colours(const TriangleMesh& m, const std::vector<Vec3>& expected, do
 TEST(PlyIo, ReadsVertexColoursAsciiAndBinaryUcharAndFloatWithAlpha) {
   const std::vector<Vec3> expected = {{1, 0, 0}, {0, 128 / 255.0, 1}, {51 / 255.0, 102 / 255.0, 153 / 255.0}};
   // ASCII uchar with alpha (ignored).
-  const TriangleMesh a = parse_ply_text(coloured_ply_head("ascii", "uchar", true) + "0 0 0 255 0 0 255\n1 0 0 0 128 255 7\n0 1 0 51 102 153 0\n3 0 1 2\n", "a.ply");
+  const TriangleMesh a = parse_ply_text(
+      coloured_ply_head("ascii", "uchar", true) + "0 0 0 255 0 0 255\n1 0 0 0 128 255 7\n0 1 0 51 102 153 0\n3 0 1 2\n", "a.ply");
   expect_colours(a, expected, 0.0);
   EXPECT_EQ(a.positions[1], Vec3(1, 0, 0));  // alpha does not shift the other properties
   // ASCII float without alpha.
-  const TriangleMesh f = parse_ply_text(coloured_ply_head("ascii", "float", false) + "0 0 0 1 0 0\n1 0 0 0 0.50196078 1\n0 1 0 0.2 0.4 0.6\n3 0 1 2\n", "f.ply");
+  const TriangleMesh f = parse_ply_text(
+      coloured_ply_head("ascii", "float", false) + "0 0 0 1 0 0\n1 0 0 0 0.50196078 1\n0 1 0 0.2 0.4 0.6\n3 0 1 2\n", "f.ply");
   expect_colours(f, expected, 1e-7);
   // Binary little-endian, uchar and float, with alpha.
   for (const std::string type : {"uchar", "float"}) {
@@ -308,8 +318,10 @@ TEST(PlyIo, ReadsVertexColoursAsciiAndBinaryUcharAndFloatWithAlpha) {
       for (float x : xyz[v]) put(x);
       for (int c = 0; c < 4; ++c) {
         const double value = c < 3 ? expected[static_cast<size_t>(v)][c] : 1.0;
-        if (type == "uchar") put(static_cast<uint8_t>(std::lround(255 * value)));
-        else put(static_cast<float>(value));
+        if (type == "uchar")
+          put(static_cast<uint8_t>(std::lround(255 * value)));
+        else
+          put(static_cast<float>(value));
       }
     }
     put(uint8_t{3});
@@ -318,7 +330,8 @@ TEST(PlyIo, ReadsVertexColoursAsciiAndBinaryUcharAndFloatWithAlpha) {
     expect_colours(parse_ply_text(bytes, type + ".ply"), expected, type == "uchar" ? 0.0 : 1e-7);
   }
   // 16-bit colours are full range too.
-  const TriangleMesh wide = parse_ply_text(coloured_ply_head("ascii", "ushort", false) + "0 0 0 65535 0 0\n1 0 0 0 32896 65535\n0 1 0 13107 26214 39321\n3 0 1 2\n", "u.ply");
+  const TriangleMesh wide = parse_ply_text(
+      coloured_ply_head("ascii", "ushort", false) + "0 0 0 65535 0 0\n1 0 0 0 32896 65535\n0 1 0 13107 26214 39321\n3 0 1 2\n", "u.ply");
   expect_colours(wide, expected, 1e-15);
   // Without red/green/blue, no colours.
   EXPECT_FALSE(parse_ply_text(triangle_ply("ascii", "uchar", "int") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "n.ply").has_colours());
@@ -333,12 +346,14 @@ TEST(PlyIo, BadVertexColoursAreNamedErrors) {
                  {ErrorCode::kInvalidMesh, "c.ply: vertex 0: colour red 1.5 is not in [0, 1]", real + "0 0 0 1.5 0 0\n"},
                  {ErrorCode::kInvalidMesh, "vertex 0: colour green -0.25 is not in [0, 1]", real + "0 0 0 0 -0.25 0\n"},
                  {ErrorCode::kInvalidMesh, "vertex 0: colour blue nan is not in [0, 1]", real + "0 0 0 0 0 nan\n"},
-                 {ErrorCode::kUnsupported, "vertex colour 'red' has a type other than uchar", coloured_ply_head("ascii", "int", false) + "0 0 0 0 0 0\n"}},
+                 {ErrorCode::kUnsupported, "vertex colour 'red' has a type other than uchar",
+                  coloured_ply_head("ascii", "int", false) + "0 0 0 0 0 0\n"}},
                 parse);
   Warnings warnings;
-  const std::string partial = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                              "property uchar red\nproperty uchar green\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                              "0 0 0 1 2\n1 0 0 3 4\n0 1 0 5 6\n3 0 1 2\n";
+  const std::string partial =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "property uchar red\nproperty uchar green\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0 1 2\n1 0 0 3 4\n0 1 0 5 6\n3 0 1 2\n";
   const TriangleMesh m = parse_ply({reinterpret_cast<const uint8_t*>(partial.data()), partial.size()}, "p.ply", ".", {}, &warnings);
   EXPECT_FALSE(m.has_colours());
   ASSERT_EQ(warnings.size(), 1u);

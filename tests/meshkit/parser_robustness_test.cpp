@@ -33,8 +33,7 @@ TEST(ParserRobustness, ObjSurvivesMutations) {
   for (const TriangleMesh& sample : {sample_mesh(), coloured_sample_mesh()}) {
     const std::string text = format_obj(sample, "");
     survive_mutations({text.begin(), text.end()}, 1, [](const std::vector<uint8_t>& b) {
-      const TriangleMesh m =
-          parse_obj({reinterpret_cast<const char*>(b.data()), b.size()}, "m.obj", ".", {.allow_missing_texture = true});
+      const TriangleMesh m = parse_obj({reinterpret_cast<const char*>(b.data()), b.size()}, "m.obj", ".", {.allow_missing_texture = true});
       EXPECT_EQ(testing::broken_mesh_invariant(m), "");
     });
   }

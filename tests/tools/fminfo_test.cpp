@@ -9,10 +9,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
 #include <fstream>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 
 #ifndef FACEMORPH_FMINFO
 #error "FACEMORPH_FMINFO must name the fminfo program"
@@ -83,7 +83,8 @@ TEST(Fminfo, SettingsNestedDeeperAreLeftOutNamingTheFile) {
     SCOPED_TRACE(json ? "--json" : "text");
     const FminfoRun run = fminfo(dir, file, json);
     ASSERT_EQ(run.status, 0) << run.err;
-    EXPECT_NE(run.err.find("fminfo: warning: " + file.string() + ": the settings are nested deeper than 64 levels"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("fminfo: warning: " + file.string() + ": the settings are nested deeper than 64 levels"), std::string::npos)
+        << run.err;
     if (json) {
       const nlohmann::json doc = described(run);
       EXPECT_TRUE(doc["settings"].is_null());

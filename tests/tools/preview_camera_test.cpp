@@ -34,10 +34,11 @@ bool background(const facemorph::Image& picture, int x, int y) {
 TEST(PreviewCamera, FmviewOfADecodedFrameIsFmdecsPreview) {
   const TempDir dir;
   const std::string golden = std::string(FACEMORPH_TEST_DATA) + "/golden_v2_1.fmv";
-  const std::string decode = std::string(FACEMORPH_FMDEC) + " " + golden + " --t 0.2 -o " + (dir / "f.obj").string() +
-                             " --preview " + (dir / "preview.png").string() + " --preview-size 400 --quiet";
+  const std::string decode = std::string(FACEMORPH_FMDEC) + " " + golden + " --t 0.2 -o " + (dir / "f.obj").string() + " --preview " +
+                             (dir / "preview.png").string() + " --preview-size 400 --quiet";
   ASSERT_EQ(std::system(decode.c_str()), 0) << decode;
-  const std::string view = std::string(FACEMORPH_FMVIEW) + " " + (dir / "f.obj").string() + " -o " + (dir / "view.png").string() + " --size 400";
+  const std::string view =
+      std::string(FACEMORPH_FMVIEW) + " " + (dir / "f.obj").string() + " -o " + (dir / "view.png").string() + " --size 400";
   ASSERT_EQ(std::system(view.c_str()), 0) << view;
 
   const facemorph::Image preview = read_picture(dir / "preview.png");

@@ -62,8 +62,11 @@ int main(int argc, char** argv) {
     fwrite(&frame.vertex_count, sizeof frame.vertex_count, 1, out);
     fwrite(positions, sizeof(float), 3 * (size_t)frame.vertex_count, out);
   }
-  if (status != FM_OK) fprintf(stderr, "native_frames: %s: %s\n", fm_status_name(status), fm_last_error_message());
-  else fprintf(stderr, "native_frames: N = %u: native decode %.2f ms a frame (mean of %d, the first included)\n", info.grid_n, total_ms / count, count);
+  if (status != FM_OK)
+    fprintf(stderr, "native_frames: %s: %s\n", fm_status_name(status), fm_last_error_message());
+  else
+    fprintf(stderr, "native_frames: N = %u: native decode %.2f ms a frame (mean of %d, the first included)\n", info.grid_n,
+            total_ms / count, count);
   free(positions);
   free(normals);
   free(uvs);

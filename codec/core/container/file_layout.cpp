@@ -24,10 +24,20 @@ std::vector<size_t> expected_lengths(int grid_n, Representation representation, 
   const bool fields = representation != Representation::kXYZ;
   const bool tangential = representation == Representation::kHLT;
   const size_t holes = with_holes ? interior + rim : 0;
-  return {fields ? interior : 0, fields ? interior : 0, tangential ? interior : 0, tangential ? interior : 0,
-          fixed, fixed, fixed,
-          fields ? 0 : interior, fields ? 0 : interior, fields ? 0 : interior,
-          rim, rim, rim, holes};
+  return {fields ? interior : 0,
+          fields ? interior : 0,
+          tangential ? interior : 0,
+          tangential ? interior : 0,
+          fixed,
+          fixed,
+          fixed,
+          fields ? 0 : interior,
+          fields ? 0 : interior,
+          fields ? 0 : interior,
+          rim,
+          rim,
+          rim,
+          holes};
 }
 
 std::vector<size_t> expected_lengths(const FileHeader& h) {
@@ -62,10 +72,12 @@ PoseCodes pose_codes(const RigidPose& pose, const FieldCoding& coding) {
   for (int k = 0; k < 3; ++k) {
     const double r = std::nearbyint(rotation[k] / coding.rotation_step), t = std::nearbyint(pose.translation[k] / coding.translation_step);
     if (!(std::abs(r) < static_cast<double>(kMaxPoseCode)) || !(std::abs(t) < static_cast<double>(kMaxPoseCode))) {
-      throw Error(ErrorCode::kInvalidArgument, "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
+      throw Error(ErrorCode::kInvalidArgument,
+                  "a pose more than 2^40 pose steps from the origin (translation " + std::to_string(pose.translation[k]) + ")");
     }
     if (std::abs(coding.rotation_step * r) > kMaxRotationComponent) {
-      throw Error(ErrorCode::kInvalidArgument, "a rotation step of " + std::to_string(coding.rotation_step) + " rad rounds a rotation vector beyond 4");
+      throw Error(ErrorCode::kInvalidArgument,
+                  "a rotation step of " + std::to_string(coding.rotation_step) + " rad rounds a rotation vector beyond 4");
     }
     codes[static_cast<size_t>(k)] = static_cast<int64_t>(r);
     codes[static_cast<size_t>(3 + k)] = static_cast<int64_t>(t);
@@ -97,7 +109,8 @@ void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arra
 int32_t field_code(double value, double step) {
   const double code = std::nearbyint(value / step);
   if (!(std::abs(code) < static_cast<double>(kMaxFieldCode))) {
-    throw Error(ErrorCode::kInvalidArgument, "a field value " + std::to_string(value) + " lies more than 2^30 steps of " + std::to_string(step) + " from 0");
+    throw Error(ErrorCode::kInvalidArgument,
+                "a field value " + std::to_string(value) + " lies more than 2^30 steps of " + std::to_string(step) + " from 0");
   }
   return static_cast<int32_t>(code);
 }
@@ -105,12 +118,14 @@ int32_t field_code(double value, double step) {
 void check_field_coding(const FieldCoding& coding) {
   if (coding.steps.size() != kKeyframeArrays) throw Error(ErrorCode::kInvalidArgument, "field coding: one step per keyframe array needed");
   for (double step : coding.steps) {
-    if (!(step > 0) || !std::isfinite(step)) throw Error(ErrorCode::kInvalidArgument, "field coding: a step that is not finite and positive");
+    if (!(step > 0) || !std::isfinite(step))
+      throw Error(ErrorCode::kInvalidArgument, "field coding: a step that is not finite and positive");
   }
   if (coding.intra_period < 1 || static_cast<uint32_t>(coding.intra_period) > kMaxIntraPeriod) {
     throw Error(ErrorCode::kInvalidArgument, "field coding: intra period outside [1, 2^20]");
   }
-  if (!(coding.rotation_step > 0 && coding.translation_step > 0 && std::isfinite(coding.rotation_step) && std::isfinite(coding.translation_step))) {
+  if (!(coding.rotation_step > 0 && coding.translation_step > 0 && std::isfinite(coding.rotation_step) &&
+        std::isfinite(coding.translation_step))) {
     throw Error(ErrorCode::kInvalidArgument, "field coding: pose steps that are not finite and positive (set_default_pose_steps)");
   }
 }

@@ -5,16 +5,16 @@
 // (codec/writer/container/chunk_writers.hpp).
 #pragma once
 
-#include "format/error.hpp"
+#include "codec/core/container/file_metadata.hpp"
 #include "codec/core/image/texture_codec.hpp"
-#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/sequence.hpp"
-#include "codec/core/container/file_metadata.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <array>
@@ -49,9 +49,9 @@ inline constexpr uint64_t kMaxHeaderStringBytes = uint64_t{4} << 20;
 inline constexpr uint64_t kMaxAppendedBytes = uint64_t{64} << 10;
 inline constexpr int kMaxTextureSize = 16384;
 inline constexpr size_t kKeyframeArrays = kKeyframeArrayCount;  // the fields' arrays, then the hole level
-inline constexpr int64_t kMaxFieldCode = int64_t{1} << 30;       // |code| bound: differences of codes fit 32 bits
-inline constexpr double kMaxRotationComponent = 4;               // > π: a rotation vector log R is within it
-inline constexpr int64_t kMaxPoseCode = int64_t{1} << 40;        // pose codes: changes fit 42 bits
+inline constexpr int64_t kMaxFieldCode = int64_t{1} << 30;      // |code| bound: differences of codes fit 32 bits
+inline constexpr double kMaxRotationComponent = 4;              // > π: a rotation vector log R is within it
+inline constexpr int64_t kMaxPoseCode = int64_t{1} << 40;       // pose codes: changes fit 42 bits
 // Ranges a file may state (spec/container.md §5, §6): within them every product the decoder forms
 // (a pose applied to a point, a spline's powers of time ratios) is a finite double.
 inline constexpr double kMaxCoordinate = 1e9;  // |pose centre|, |translation| in the file's units (1000 km in mm)
@@ -69,8 +69,12 @@ inline constexpr int kMaxVarintBytes = 6;
 void write_varint(format::ByteWriter& w, int64_t value);
 int64_t read_varint(format::ByteReader& r, const char* what);
 
-[[noreturn]] inline void corrupt(const std::string& where, const std::string& what) { throw Error(ErrorCode::kCorrupt, where + ": " + what); }
-[[noreturn]] inline void over_limit(const std::string& where, const std::string& what) { throw Error(ErrorCode::kLimit, where + ": " + what); }
+[[noreturn]] inline void corrupt(const std::string& where, const std::string& what) {
+  throw Error(ErrorCode::kCorrupt, where + ": " + what);
+}
+[[noreturn]] inline void over_limit(const std::string& where, const std::string& what) {
+  throw Error(ErrorCode::kLimit, where + ": " + what);
+}
 
 // A float64 the file states, which must be finite.
 double read_finite(format::ByteReader& r, const char* what);
@@ -153,8 +157,9 @@ RigidPose pose_of(const PoseCodes& codes, const FieldCoding& coding);
 struct IndexEntry {
   double time = 0;
   PoseCodes pose{};
-  uint64_t group_offset = 0;    // the KGOP chunk of the keyframe's group
-  uint64_t texture_offset = 0;  // its TEXR chunk (shared with other keyframes where flag bit 3 is set), or its group's TGOP chunk; 0 without textures
+  uint64_t group_offset = 0;  // the KGOP chunk of the keyframe's group
+  uint64_t texture_offset =
+      0;  // its TEXR chunk (shared with other keyframes where flag bit 3 is set), or its group's TGOP chunk; 0 without textures
 };
 
 // ---- Residual frames (RSDW, residual_chunk.cpp; format 2.3) ----
@@ -192,7 +197,8 @@ std::shared_ptr<const GridFacts> grid_facts(int n);
 
 // A keyframe's arrays in the file's order (§7.1): scalar_arrays(fields), then the hole level.
 std::vector<std::vector<double>> keyframe_arrays(const Keyframe& key);
-void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, Representation representation, int grid_n, std::vector<int32_t> fixed_nodes);
+void assign_keyframe_arrays(Keyframe& key, std::vector<std::vector<double>> arrays, Representation representation, int grid_n,
+                            std::vector<int32_t> fixed_nodes);
 // A value as an integer multiple of `step`; kInvalidArgument beyond 2³⁰ steps.
 int32_t field_code(double value, double step);
 // kInvalidArgument unless the coding has kKeyframeArrays finite positive steps, an intra period in

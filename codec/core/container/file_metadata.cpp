@@ -2,8 +2,8 @@
 // rounded as a file of a coding stores it.
 #include "codec/core/container/file_metadata.hpp"
 
-#include "codec/core/util/enum_names.hpp"
 #include "codec/core/container/file_layout.hpp"
+#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 
 namespace facemorph {
@@ -12,16 +12,13 @@ using namespace file_layout;
 
 namespace {
 
-constexpr EnumName<TextureCoding> kTextureCodingNames[] = {
-    {TextureCoding::kSequence, "sequence"}, {TextureCoding::kStills, "stills"}};
+constexpr EnumName<TextureCoding> kTextureCodingNames[] = {{TextureCoding::kSequence, "sequence"}, {TextureCoding::kStills, "stills"}};
 
 }  // namespace
 
 const char* texture_coding_name(TextureCoding coding) { return name_of(kTextureCodingNames, coding); }
 
-TextureCoding parse_texture_coding(const std::string& name) {
-  return parse_name(kTextureCodingNames, name, "texture coding");
-}
+TextureCoding parse_texture_coding(const std::string& name) { return parse_name(kTextureCodingNames, name, "texture coding"); }
 
 void round_to_field_steps(Keyframe& key, const FieldCoding& coding) {
   check_field_coding(coding);

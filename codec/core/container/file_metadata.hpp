@@ -54,14 +54,14 @@ TextureCoding parse_texture_coding(const std::string& name);  // throws kInvalid
 
 // What a file says about itself besides the sequence.
 struct SequenceFileMetadata {
-  std::string encoder;                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
-  std::string settings;                     // the encoder's settings (JSON text)
-  std::vector<std::string> landmark_names;  // of the capture, for players that show them
-  TextureCodec texture_codec = TextureCodec::kAvif;  // the reader reports keyframe 0's
-  int texture_quality = 90;                 // the codec's quality 0..100 (above 100: lossless WebP)
-  std::vector<int> keyframe_texture_qualities;  // one per keyframe, in place of texture_quality (the encoder's choice)
+  std::string encoder;                                      // e.g. "facemorph 0.2.0"; the writer fills it when empty
+  std::string settings;                                     // the encoder's settings (JSON text)
+  std::vector<std::string> landmark_names;                  // of the capture, for players that show them
+  TextureCodec texture_codec = TextureCodec::kAvif;         // the reader reports keyframe 0's
+  int texture_quality = 90;                                 // the codec's quality 0..100 (above 100: lossless WebP)
+  std::vector<int> keyframe_texture_qualities;              // one per keyframe, in place of texture_quality (the encoder's choice)
   TextureCoding texture_coding = TextureCoding::kSequence;  // lossy AVIF textures only; the reader reports the file's
-  FieldCoding field_coding;                 // the writer's; the reader reports the file's
+  FieldCoding field_coding;                                 // the writer's; the reader reports the file's
   // The writer's texture layout from these settings alone, not from the bytes each takes: texture
   // groups wherever they apply (lossy AVIF, kSequence), else stills, shared where keyframes show the
   // same pixels. The segments of one encode lay theirs out alike, so that they join (file_join.hpp).

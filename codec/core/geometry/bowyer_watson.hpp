@@ -9,8 +9,8 @@
 // and each caller orders the points (along hilbert_index) and decides what a repeated point means.
 #pragma once
 
-#include "format/error.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "format/error.hpp"
 
 #include <array>
 #include <cstdint>
@@ -86,7 +86,8 @@ class Triangulation {
         if (nb >= 0 && stamp_[static_cast<size_t>(nb)] == epoch_) continue;
         const int32_t a = t.v[static_cast<size_t>((k + 1) % 3)], b = t.v[static_cast<size_t>((k + 2) % 3)];
         if (predicates_.orientation(p(a), p(b), q) <= 0) {
-          throw Error(ErrorCode::kNumerical, std::string(Predicates::kName) + ": the cavity is not star-shaped at point " + std::to_string(index));
+          throw Error(ErrorCode::kNumerical,
+                      std::string(Predicates::kName) + ": the cavity is not star-shaped at point " + std::to_string(index));
         }
         int32_t slot = -1;
         if (nb >= 0) {

@@ -31,8 +31,7 @@ std::vector<CornerValues> corner_cotangents(std::span<const Vec3> positions, std
   return cot;
 }
 
-SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<const CornerValues> cotangents,
-                                       int vertex_count) {
+SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<const CornerValues> cotangents, int vertex_count) {
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(faces.size() * 12);
   for (size_t f = 0; f < faces.size(); ++f) {
@@ -87,7 +86,8 @@ Eigen::VectorXd mixed_voronoi_areas(std::span<const Vec3> positions, std::span<c
 
 void area_weighted_normals(std::span<const Vec3> positions, std::span<const Face> faces, std::span<float> out) {
   if (out.size() != 3 * positions.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "normals: " + std::to_string(out.size()) + " floats for " + std::to_string(positions.size()) + " vertices");
+    throw Error(ErrorCode::kInvalidArgument,
+                "normals: " + std::to_string(out.size()) + " floats for " + std::to_string(positions.size()) + " vertices");
   }
   std::vector<Vec3> sum(positions.size(), Vec3::Zero());
   const auto count = static_cast<int64_t>(positions.size());

@@ -1,6 +1,6 @@
 // Discrete differential geometry on triangle meshes (method-notes §1, spec/method.md §1): the
-// operators the reconstruction needs, and the vertex normals every side shows. Measures only the encoder and the tools use (angles, normals,
-// mean curvature, ...) are meshkit's, in codec/meshkit/geometry/surface_measures.hpp.
+// operators the reconstruction needs, and the vertex normals every side shows. Measures only the encoder and the tools use (angles,
+// normals, mean curvature, ...) are meshkit's, in codec/meshkit/geometry/surface_measures.hpp.
 //
 // Sign conventions, used everywhere in facemorph:
 //  * K is the positive semidefinite cotangent Laplacian: K_ij = -w_ij, K_ii = sum_j w_ij,
@@ -31,8 +31,7 @@ double cotangent(const Vec3& a, const Vec3& b);
 std::vector<CornerValues> corner_cotangents(std::span<const Vec3> positions, std::span<const Face> faces);
 
 // K from per-corner cotangents: corner k of face f weights the edge opposite it by cot/2.
-SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<const CornerValues> cotangents,
-                                       int vertex_count);
+SparseMatrix laplacian_from_cotangents(std::span<const Face> faces, std::span<const CornerValues> cotangents, int vertex_count);
 SparseMatrix cotangent_laplacian(std::span<const Vec3> positions, std::span<const Face> faces);
 
 double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);

@@ -57,7 +57,8 @@ struct Int256 {
 template <typename Lift>
 int lifted_determinant_sign(const std::array<int64_t, 6>& rel, const std::array<Int128, 3>& minor, Lift&& lift) {
   Int256 det;
-  for (int k = 0; k < 3; ++k) det += Int256::product(lift(rel[static_cast<size_t>(2 * k)], rel[static_cast<size_t>(2 * k + 1)]), minor[static_cast<size_t>(k)]);
+  for (int k = 0; k < 3; ++k)
+    det += Int256::product(lift(rel[static_cast<size_t>(2 * k)], rel[static_cast<size_t>(2 * k + 1)]), minor[static_cast<size_t>(k)]);
   return det.sign();
 }
 
@@ -123,7 +124,8 @@ int perturbed_incircle(const IntPoint& a, const IntPoint& b, const IntPoint& c, 
   const std::array<Int128, 3> minor = {static_cast<Int128>(bdx) * cdy - static_cast<Int128>(cdx) * bdy,
                                        static_cast<Int128>(cdx) * ady - static_cast<Int128>(adx) * cdy,
                                        static_cast<Int128>(adx) * bdy - static_cast<Int128>(bdx) * ady};
-  if (const int s = lifted_determinant_sign(rel, minor, [](int64_t x, int64_t y) { return static_cast<Int128>(x) * x + static_cast<Int128>(y) * y; })) {
+  if (const int s = lifted_determinant_sign(rel, minor,
+                                            [](int64_t x, int64_t y) { return static_cast<Int128>(x) * x + static_cast<Int128>(y) * y; })) {
     return s;
   }
   if (const int s = lifted_determinant_sign(rel, minor, [](int64_t x, int64_t y) { return -static_cast<Int128>(x) * y; })) return s;

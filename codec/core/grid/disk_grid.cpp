@@ -7,8 +7,8 @@
 #include "codec/core/geometry/exact_delaunay.hpp"
 
 #include <algorithm>
-#include <iterator>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <numbers>
 
@@ -40,11 +40,11 @@ std::pair<Int128, Int128> cos_sin_q62(Int128 x) {
 
 // (cos, sin) of 2π k / B in Q62: reduced by integer arithmetic to an angle in [0, π/4].
 std::pair<Int128, Int128> unit_circle_point(int k, int b) {
-  const int64_t quarter = 4 * static_cast<int64_t>(k) / b;           // quadrant
-  const int64_t r = 4 * static_cast<int64_t>(k) - quarter * b;       // angle (π/2) r / B within it
-  const bool mirrored = 2 * r > b;                                   // past π/4: use π/2 − angle
+  const int64_t quarter = 4 * static_cast<int64_t>(k) / b;      // quadrant
+  const int64_t r = 4 * static_cast<int64_t>(k) - quarter * b;  // angle (π/2) r / B within it
+  const bool mirrored = 2 * r > b;                              // past π/4: use π/2 − angle
   const int64_t numerator = mirrored ? b - r : r;
-  const Int128 x = kPi * numerator / (2 * static_cast<Int128>(b));   // (π/2) numerator / B
+  const Int128 x = kPi * numerator / (2 * static_cast<Int128>(b));  // (π/2) numerator / B
   auto [c, s] = cos_sin_q62(x);
   if (mirrored) std::swap(c, s);
   switch (quarter) {
@@ -87,8 +87,8 @@ int64_t isqrt(int64_t v) {
 
 void require_size(int n) {
   if (n < kMinGridSize || n > kMaxGridSize) {
-    throw Error(ErrorCode::kInvalidArgument, "grid size N must be in [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) +
-                                                 "], got " + std::to_string(n));
+    throw Error(ErrorCode::kInvalidArgument, "grid size N must be in [" + std::to_string(kMinGridSize) + ", " +
+                                                 std::to_string(kMaxGridSize) + "], got " + std::to_string(n));
   }
 }
 
@@ -99,12 +99,14 @@ void require_size(int n) {
 void validate_band(const DiskGrid& grid, const std::vector<IntPoint>& lattice, const std::vector<Face>& band_faces,
                    const std::vector<std::pair<int32_t, int32_t>>& square_boundary, Int128 squares_twice_area) {
   auto fail = [&](const std::string& why) {
-    throw Error(ErrorCode::kNumerical, "disk grid N = " + std::to_string(grid.n) + ": " + why + " (please report: the rule of spec/method.md §4 failed)");
+    throw Error(ErrorCode::kNumerical,
+                "disk grid N = " + std::to_string(grid.n) + ": " + why + " (please report: the rule of spec/method.md §4 failed)");
   };
   Int128 twice_area = squares_twice_area;
   std::map<std::pair<int32_t, int32_t>, int> directed;
   for (const Face& f : band_faces) {
-    const IntPoint &a = lattice[static_cast<size_t>(f[0])], &b = lattice[static_cast<size_t>(f[1])], &c = lattice[static_cast<size_t>(f[2])];
+    const IntPoint &a = lattice[static_cast<size_t>(f[0])], &b = lattice[static_cast<size_t>(f[1])],
+                   &c = lattice[static_cast<size_t>(f[2])];
     if (exact_orientation(a, b, c) <= 0) fail("a face is not counter-clockwise");
     twice_area += static_cast<Int128>(b.x - a.x) * (c.y - a.y) - static_cast<Int128>(b.y - a.y) * (c.x - a.x);
     for (int k = 0; k < 3; ++k) {
@@ -214,7 +216,8 @@ DiskGrid make_disk_grid(int n) {
   const ExactDelaunayResult delaunay = exact_delaunay(band_points);
   std::vector<Face> band_faces;
   if (delaunay.unresolved_ties > 0) {
-    throw Error(ErrorCode::kNumerical, "disk grid N = " + std::to_string(n) + ": a cocircularity the perturbation does not break (please report)");
+    throw Error(ErrorCode::kNumerical,
+                "disk grid N = " + std::to_string(n) + ": a cocircularity the perturbation does not break (please report)");
   }
   for (const Face& f : delaunay.faces) {
     int64_t sx = 0, sy = 0;

@@ -24,14 +24,14 @@ namespace facemorph {
 inline constexpr int kDiskGridRule = 1;
 
 struct DiskGrid {
-  int n = 0;          // N: grid points per side of [-1, 1]²
-  double h = 0;       // grid spacing, 2 / (N - 1)
-  std::vector<Vec2> nodes;                    // interior nodes (row by row, j then i), then rim nodes
-  std::vector<std::array<int32_t, 2>> cell;   // (i, j) of each interior node
-  std::vector<int32_t> node_at;               // N*N: node index of grid point (i, j) (j * N + i), or -1
+  int n = 0;                                 // N: grid points per side of [-1, 1]²
+  double h = 0;                              // grid spacing, 2 / (N - 1)
+  std::vector<Vec2> nodes;                   // interior nodes (row by row, j then i), then rim nodes
+  std::vector<std::array<int32_t, 2>> cell;  // (i, j) of each interior node
+  std::vector<int32_t> node_at;              // N*N: node index of grid point (i, j) (j * N + i), or -1
   int interior_count = 0;
   int rim_count = 0;
-  std::vector<Face> faces;                    // counter-clockwise, in the canonical order of spec/method.md §4
+  std::vector<Face> faces;  // counter-clockwise, in the canonical order of spec/method.md §4
   // FNV-1a 64 of the nodes' lattice coordinates and the faces (spec/method.md §4): equal hashes,
   // equal grids.
   uint64_t hash = 0;
@@ -42,7 +42,7 @@ struct DiskGrid {
   int32_t node(int i, int j) const {
     return (i < 0 || j < 0 || i >= n || j >= n) ? -1 : node_at[static_cast<size_t>(j) * static_cast<size_t>(n) + static_cast<size_t>(i)];
   }
-  double rim_angle(int k) const;              // nominal angle 2π k / B of rim node k (node interior_count + k)
+  double rim_angle(int k) const;  // nominal angle 2π k / B of rim node k (node interior_count + k)
 };
 
 inline constexpr int kMinGridSize = 5;

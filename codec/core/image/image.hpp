@@ -12,8 +12,8 @@ namespace facemorph {
 struct Image {
   int width = 0;
   int height = 0;
-  int channels = 3;              // 3: RGB, 4: RGBA
-  std::vector<uint8_t> pixels;   // row-major, top row first, channels interleaved
+  int channels = 3;             // 3: RGB, 4: RGBA
+  std::vector<uint8_t> pixels;  // row-major, top row first, channels interleaved
 
   Image() = default;
   Image(int w, int h, int c) : width(w), height(h), channels(c), pixels(static_cast<size_t>(w) * h * c, 0) {}

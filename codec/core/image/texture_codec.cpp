@@ -8,16 +8,13 @@ namespace facemorph {
 
 namespace {
 
-constexpr EnumName<TextureCodec> kTextureCodecNames[] = {
-    {TextureCodec::kAvif, "avif"}, {TextureCodec::kWebp, "webp"}};
+constexpr EnumName<TextureCodec> kTextureCodecNames[] = {{TextureCodec::kAvif, "avif"}, {TextureCodec::kWebp, "webp"}};
 
 }  // namespace
 
 const char* texture_codec_name(TextureCodec codec) { return name_of(kTextureCodecNames, codec); }
 
-TextureCodec parse_texture_codec(const std::string& name) {
-  return parse_name(kTextureCodecNames, name, "texture codec");
-}
+TextureCodec parse_texture_codec(const std::string& name) { return parse_name(kTextureCodecNames, name, "texture codec"); }
 
 TextureCodec stored_texture_codec(TextureCodec codec, int quality) { return quality > 100 ? TextureCodec::kWebp : codec; }
 

@@ -13,7 +13,9 @@ namespace {
 
 // Saturating arithmetic: an estimate that overflows is over every budget.
 uint64_t add(uint64_t a, uint64_t b) { return a > std::numeric_limits<uint64_t>::max() - b ? std::numeric_limits<uint64_t>::max() : a + b; }
-uint64_t mul(uint64_t a, uint64_t b) { return b != 0 && a > std::numeric_limits<uint64_t>::max() / b ? std::numeric_limits<uint64_t>::max() : a * b; }
+uint64_t mul(uint64_t a, uint64_t b) {
+  return b != 0 && a > std::numeric_limits<uint64_t>::max() / b ? std::numeric_limits<uint64_t>::max() : a * b;
+}
 
 }  // namespace
 
@@ -48,7 +50,8 @@ void WorkMeter::refuse(const std::string& what) {
 }
 
 void check_decoder_limits(const DecoderLimits& limits, const std::string& what) {
-  if (limits.max_grid_n < kMinGridSize) throw Error(ErrorCode::kInvalidArgument, what + ": the largest grid must be at least " + std::to_string(kMinGridSize));
+  if (limits.max_grid_n < kMinGridSize)
+    throw Error(ErrorCode::kInvalidArgument, what + ": the largest grid must be at least " + std::to_string(kMinGridSize));
   if (limits.max_keyframes < 1) throw Error(ErrorCode::kInvalidArgument, what + ": at least one keyframe must be allowed");
   if (limits.max_texture_size < 0) throw Error(ErrorCode::kInvalidArgument, what + ": a negative texture size");
   if (limits.max_memory_bytes == 0) throw Error(ErrorCode::kInvalidArgument, what + ": no memory allowed");

@@ -15,9 +15,9 @@
 namespace facemorph {
 
 struct DecoderLimits {
-  int max_grid_n = 1025;               // N of the disk grid G (the format allows up to 4097)
-  uint32_t max_keyframes = 65536;      // keyframes in one file (the format allows up to 2^20)
-  int max_texture_size = 4096;         // M, texels per side (the format allows up to 16384)
+  int max_grid_n = 1025;                            // N of the disk grid G (the format allows up to 4097)
+  uint32_t max_keyframes = 65536;                   // keyframes in one file (the format allows up to 2^20)
+  int max_texture_size = 4096;                      // M, texels per side (the format allows up to 16384)
   uint64_t max_memory_bytes = uint64_t{256} << 20;  // what an opened file and one decoder on it may hold, bytes
   // What one decode call may do, in work units (WorkMeter; spec/container.md §10.3): about a second
   // on one core of the reference machine. 0: no bound.

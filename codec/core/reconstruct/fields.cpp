@@ -1,8 +1,8 @@
 // What a keyframe stores on G, computed with the decoder's own operators.
 #include "codec/core/reconstruct/fields.hpp"
 
-#include "codec/core/util/enum_names.hpp"
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 
 #include "format/quantize.hpp"
@@ -22,23 +22,22 @@ constexpr EnumName<Representation> kRepresentationNames[] = {
 
 const char* representation_name(Representation representation) { return name_of(kRepresentationNames, representation); }
 
-Representation parse_representation(const std::string& name) {
-  return parse_name(kRepresentationNames, name, "representation");
-}
+Representation parse_representation(const std::string& name) { return parse_name(kRepresentationNames, name, "representation"); }
 
 void validate_fields(const GridFields& fields) {
   auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "fields: " + what); };
   const bool hl = fields.representation == Representation::kHL, hlt = fields.representation == Representation::kHLT,
              xyz = fields.representation == Representation::kXYZ;
   if (!hl && !hlt && !xyz) fail("unknown representation " + std::to_string(static_cast<int>(fields.representation)));
-  if (fields.grid_n < kMinGridSize || fields.grid_n > kMaxGridSize) fail("grid size N = " + std::to_string(fields.grid_n) + " out of range");
+  if (fields.grid_n < kMinGridSize || fields.grid_n > kMaxGridSize)
+    fail("grid size N = " + std::to_string(fields.grid_n) + " out of range");
   const DiskGridShape shape = disk_grid_shape(fields.grid_n);
   const auto interior = static_cast<size_t>(shape.interior_count);
   auto sized = [&](const auto& values, bool used, size_t expected, const char* name) {
     const size_t want = used ? expected : 0;
     if (values.size() != want) {
-      fail(std::string(name) + " has " + std::to_string(values.size()) + " values, " + representation_name(fields.representation) + " at N = " +
-           std::to_string(fields.grid_n) + " needs " + std::to_string(want));
+      fail(std::string(name) + " has " + std::to_string(values.size()) + " values, " + representation_name(fields.representation) +
+           " at N = " + std::to_string(fields.grid_n) + " needs " + std::to_string(want));
     }
   };
   sized(fields.rim, true, static_cast<size_t>(shape.rim_count), "rim");
@@ -57,8 +56,10 @@ void validate_fields(const GridFields& fields) {
   auto finite = [&](const auto& values, const char* name) {
     for (size_t i = 0; i < values.size(); ++i) {
       bool ok;
-      if constexpr (std::is_same_v<std::decay_t<decltype(values[i])>, double>) ok = std::isfinite(values[i]);
-      else ok = values[i].allFinite();
+      if constexpr (std::is_same_v<std::decay_t<decltype(values[i])>, double>)
+        ok = std::isfinite(values[i]);
+      else
+        ok = values[i].allFinite();
       if (!ok) fail(std::string(name) + " is not finite at entry " + std::to_string(i));
     }
   };
@@ -104,7 +105,8 @@ GridFields fields_from_scalar_arrays(Representation representation, int grid_n, 
     const std::vector<double>& z = arrays[next + 2];
     next += 3;
     if (y.size() != x.size() || z.size() != x.size()) {
-      throw Error(ErrorCode::kInvalidArgument, "fields_from_scalar_arrays: the components of array " + std::to_string(next - 3) + " differ in length");
+      throw Error(ErrorCode::kInvalidArgument,
+                  "fields_from_scalar_arrays: the components of array " + std::to_string(next - 3) + " differ in length");
     }
     vectors->resize(x.size());
     for (size_t i = 0; i < x.size(); ++i) (*vectors)[i] = Vec3(x[i], y[i], z[i]);

@@ -3,8 +3,8 @@
 // resampled surface), validated, blended between keyframes and quantised.
 #pragma once
 
-#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 
 #include <string>
 #include <vector>
@@ -17,7 +17,7 @@ enum class Representation {
   kXYZ,  // positions
 };
 const char* representation_name(Representation representation);  // "hl", "hl+t", "xyz"
-Representation parse_representation(const std::string& name);     // throws kInvalidArgument
+Representation parse_representation(const std::string& name);    // throws kInvalidArgument
 
 // What one surface stores on G, dequantised (spec/method.md §5.2).
 struct GridFields {
@@ -31,8 +31,8 @@ struct GridFields {
   // any crowded nodes the encoder adds; and those vectors' components in their boundary frames.
   std::vector<int32_t> fixed_nodes;
   std::vector<Vec3> fixed_laplacian;
-  std::vector<Vec3> positions;               // per interior node (xyz)
-  std::vector<Vec3> rim;                     // the boundary curve: positions at the rim nodes
+  std::vector<Vec3> positions;  // per interior node (xyz)
+  std::vector<Vec3> rim;        // the boundary curve: positions at the rim nodes
 };
 
 // Checks that `fields` is what its representation promises for its grid (spec/method.md §5.2):

@@ -1,9 +1,9 @@
 // Operators on the shared disk grid, shared by the encoder (fields) and the decoder (reconstruction).
-#include "format/error.hpp"
-#include "codec/core/geometry/elementary.hpp"
-#include "codec/core/geometry/differential.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/core/geometry/differential.hpp"
+#include "codec/core/geometry/elementary.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "format/error.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -53,7 +53,8 @@ void GridGeometry::build_jacobian_stencils() {
     };
     for (int32_t f : faces_of_[static_cast<size_t>(v)]) {
       const Face& t = grid_.faces[static_cast<size_t>(f)];
-      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
+      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])],
+                 &c = grid_.nodes[static_cast<size_t>(t[2])];
       Eigen::Matrix2d W;
       W << b.x() - a.x(), c.x() - a.x(), b.y() - a.y(), c.y() - a.y();
       const double area = 0.5 * std::abs(W.determinant());
@@ -87,8 +88,10 @@ std::vector<double> GridGeometry::conformal_factor_squared(const std::vector<Vec
     double surface = 0, disk = 0;
     for (int32_t f : faces_of_[v]) {
       const Face& t = grid_.faces[static_cast<size_t>(f)];
-      surface += triangle_area(positions[static_cast<size_t>(t[0])], positions[static_cast<size_t>(t[1])], positions[static_cast<size_t>(t[2])]);
-      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])], &c = grid_.nodes[static_cast<size_t>(t[2])];
+      surface +=
+          triangle_area(positions[static_cast<size_t>(t[0])], positions[static_cast<size_t>(t[1])], positions[static_cast<size_t>(t[2])]);
+      const Vec2 &a = grid_.nodes[static_cast<size_t>(t[0])], &b = grid_.nodes[static_cast<size_t>(t[1])],
+                 &c = grid_.nodes[static_cast<size_t>(t[2])];
       disk += std::abs(signed_area(a, b, c));
     }
     out[v] = surface / disk;

@@ -3,9 +3,9 @@
 // stencil), the conformal factor, and the frames the reconstruction iterates on.
 #pragma once
 
-#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Sparse>
@@ -45,8 +45,8 @@ class GridGeometry {
   // being data, does not change while the decoder iterates.
   std::vector<std::array<Vec3, 3>> boundary_frames(const std::vector<Vec3>& rim, const std::vector<int32_t>& nodes) const;
 
-  const SparseMatrix& stiffness() const { return K_; }        // over all nodes, SPD on the interior block
-  const Eigen::VectorXd& mass() const { return mass_; }       // lumped, per node
+  const SparseMatrix& stiffness() const { return K_; }   // over all nodes, SPD on the interior block
+  const Eigen::VectorXd& mass() const { return mass_; }  // lumped, per node
 
  private:
   DiskGrid grid_;

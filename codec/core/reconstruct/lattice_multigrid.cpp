@@ -80,7 +80,8 @@ SparseMatrix permuted(const SparseMatrix& m, const std::vector<int32_t>& row_pla
   for (Eigen::Index c = 0; c < m.outerSize(); ++c) {
     for (SparseMatrix::InnerIterator it(m, c); it; ++it) {
       const auto r = static_cast<size_t>(it.row());
-      entries.emplace_back(row_place.empty() ? it.row() : row_place[r], column_place.empty() ? c : column_place[static_cast<size_t>(c)], it.value());
+      entries.emplace_back(row_place.empty() ? it.row() : row_place[r], column_place.empty() ? c : column_place[static_cast<size_t>(c)],
+                           it.value());
     }
   }
   SparseMatrix out(m.rows(), m.cols());
@@ -139,8 +140,8 @@ struct LatticeMultigrid::PaddedRows {
 struct LatticeMultigrid::Level {
   PaddedRows<float> off_diagonal;  // the level's matrix without its diagonal
   std::vector<float> diagonal, inverse_diagonal;
-  PaddedRows<float> prolongation;  // from the next coarser level (a row per node of this level)
-  PaddedRows<float> restriction;   // to it (Pᵀ: a row per node of the coarser level)
+  PaddedRows<float> prolongation;                               // from the next coarser level (a row per node of this level)
+  PaddedRows<float> restriction;                                // to it (Pᵀ: a row per node of the coarser level)
   std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> direct;  // the coarsest level only
   // Work arrays: the right-hand side, iterate and residual of the level's correction equation.
   mutable std::vector<Float4> b, x, residual;
@@ -206,7 +207,8 @@ LatticeMultigrid::LatticeMultigrid(const SparseMatrix& K, const std::vector<std:
     const SparseMatrix P = A.rows() > kCoarsestSize ? bilinear_prolongation(level_cells, coarse_cells) : SparseMatrix();
     if (P.cols() == 0 || P.cols() >= A.rows()) {
       level->direct = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>(A);
-      if (level->direct->info() != Eigen::Success) throw Error(ErrorCode::kNumerical, "multigrid: the coarsest level could not be factored");
+      if (level->direct->info() != Eigen::Success)
+        throw Error(ErrorCode::kNumerical, "multigrid: the coarsest level could not be factored");
       levels_.push_back(std::move(level));
       break;
     }
@@ -236,7 +238,8 @@ double LatticeMultigrid::cycle(const Vec3* b, const Vec3* x, Vec3* out) const {
   for (Eigen::Index r = 0; r < n_; ++r) {
     const Vec3 s = b[r] - fine_diagonal_[r] * x[r] - fine_->row_sum(static_cast<size_t>(r), x, Vec3(Vec3::Zero()));
     norm2 += s.squaredNorm();
-    top.b[static_cast<size_t>(fine_order_[static_cast<size_t>(r)])] = Float4{static_cast<float>(s.x()), static_cast<float>(s.y()), static_cast<float>(s.z()), 0.0f};
+    top.b[static_cast<size_t>(fine_order_[static_cast<size_t>(r)])] =
+        Float4{static_cast<float>(s.x()), static_cast<float>(s.y()), static_cast<float>(s.z()), 0.0f};
   }
   std::fill(top.x.begin(), top.x.end(), Float4{});
   v_cycle(0);

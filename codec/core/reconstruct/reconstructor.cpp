@@ -1,6 +1,6 @@
 // Laplace-Beltrami reconstruction on G (paper Algorithm 1 with method-notes §8 corrections).
-#include "format/error.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "format/error.hpp"
 
 #include "codec/core/reconstruct/lattice_multigrid.hpp"
 
@@ -57,7 +57,7 @@ class AndersonMixer {
     const int slot = count_ < depth_ ? count_ : oldest_;
     const auto size = static_cast<size_t>(x.size());
     double residual2 = 0;
-    double cross[kMaxDepth] = {};   // dF_slot · dF_j (the Gram matrix's new row)
+    double cross[kMaxDepth] = {};    // dF_slot · dF_j (the Gram matrix's new row)
     double project[kMaxDepth] = {};  // dF_j · f, the newest f
     double* df = dF_[static_cast<size_t>(slot)].data();
     double* dg = dG_[static_cast<size_t>(slot)].data();
@@ -151,11 +151,11 @@ ReconstructSuspension& ReconstructSuspension::operator=(ReconstructSuspension&&)
 void ReconstructSuspension::clear() { state_.reset(); }
 
 struct Reconstructor::Impl {
-  SparseMatrix K_II, K_IB;  // interior-interior and interior-rim blocks of the stiffness matrix
+  SparseMatrix K_II, K_IB;                      // interior-interior and interior-rim blocks of the stiffness matrix
   std::unique_ptr<LatticeMultigrid> multigrid;  // once per grid: K_II is SPD (Dirichlet on the rim)
-  Eigen::VectorXd mass;     // lumped mass of the interior nodes
-  std::vector<Vec3> last;      // the previous result...
-  std::vector<Vec3> before;    // ...and the one before: the warm start extrapolates from both
+  Eigen::VectorXd mass;                         // lumped mass of the interior nodes
+  std::vector<Vec3> last;                       // the previous result...
+  std::vector<Vec3> before;                     // ...and the one before: the warm start extrapolates from both
   // Work arrays of reconstruct(), kept between calls (sizes fixed by the grid).
   AndersonMixer anderson;
   std::vector<Vec3> boundary_rhs, constant_rhs, rhs, next, tu, tv, n, previous_n;
@@ -192,8 +192,10 @@ Reconstructor::Reconstructor(std::shared_ptr<const GridGeometry> geometry)
     for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
       const int r = static_cast<int>(it.row());
       if (r >= interior || std::abs(it.value()) <= negligible) continue;
-      if (c < interior) ii.emplace_back(r, c, it.value());
-      else ib.emplace_back(r, c - interior, it.value());
+      if (c < interior)
+        ii.emplace_back(r, c, it.value());
+      else
+        ib.emplace_back(r, c - interior, it.value());
     }
   }
   impl_->K_II.resize(interior, interior);
@@ -220,8 +222,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   const auto interior = static_cast<size_t>(grid.interior_count);
   validate_fields(fields);
   if (fields.grid_n != grid.n) {
-    throw Error(ErrorCode::kInvalidArgument, "fields were made for N = " + std::to_string(fields.grid_n) + ", the reconstructor's grid has N = " +
-                                                 std::to_string(grid.n));
+    throw Error(ErrorCode::kInvalidArgument, "fields were made for N = " + std::to_string(fields.grid_n) +
+                                                 ", the reconstructor's grid has N = " + std::to_string(grid.n));
   }
   ReconstructResult result;
   result.positions.resize(grid.nodes.size());
@@ -245,7 +247,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   std::vector<Vec3>& boundary_rhs = work.boundary_rhs;  // -K_IB S_rim
   boundary_rhs.assign(interior, Vec3::Zero());
   for (Eigen::Index k = 0; k < impl_->K_IB.outerSize(); ++k) {  // by rim node (column)
-    for (SparseMatrix::InnerIterator it(impl_->K_IB, k); it; ++it) boundary_rhs[static_cast<size_t>(it.row())] -= it.value() * fields.rim[static_cast<size_t>(k)];
+    for (SparseMatrix::InnerIterator it(impl_->K_IB, k); it; ++it)
+      boundary_rhs[static_cast<size_t>(it.row())] -= it.value() * fields.rim[static_cast<size_t>(k)];
   }
 
   const LatticeMultigrid& multigrid = *impl_->multigrid;
@@ -260,8 +263,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
     std::copy(resumed->positions.begin(), resumed->positions.begin() + static_cast<long>(interior), S.begin());
   } else if (options.start != nullptr) {
     if (options.start->size() != grid.nodes.size()) {
-      throw Error(ErrorCode::kInvalidArgument, "reconstruction start has " + std::to_string(options.start->size()) + " positions for a grid of " +
-                                                   std::to_string(grid.nodes.size()) + " nodes");
+      throw Error(ErrorCode::kInvalidArgument, "reconstruction start has " + std::to_string(options.start->size()) +
+                                                   " positions for a grid of " + std::to_string(grid.nodes.size()) + " nodes");
     }
     for (size_t v = 0; v < interior; ++v) {
       const Vec3& p = (*options.start)[v];
@@ -392,7 +395,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
       change2 = std::max(change2, d2);
       sum2 += d2;  // not finite when any node is not
     }
-    if (!std::isfinite(sum2)) throw Error(ErrorCode::kNumerical, "reconstruction produced a non-finite surface at iteration " + std::to_string(iteration));
+    if (!std::isfinite(sum2))
+      throw Error(ErrorCode::kNumerical, "reconstruction produced a non-finite surface at iteration " + std::to_string(iteration));
     result.change = std::sqrt(change2) / diameter;
     anderson.step(flat(S), flat(next));
     std::copy(next.begin(), next.end(), S.begin());
@@ -410,7 +414,8 @@ ReconstructResult Reconstructor::reconstruct(const GridFields& fields, const Rec
   }
   if (!result.converged && options.throw_on_failure) {
     char text[160];
-    std::snprintf(text, sizeof text, "reconstruction did not converge in %d iterations (last change %.3g of the rim diameter, tolerance %.3g)",
+    std::snprintf(text, sizeof text,
+                  "reconstruction did not converge in %d iterations (last change %.3g of the rim diameter, tolerance %.3g)",
                   result.iterations, result.change, options.tolerance);
     throw Error(ErrorCode::kNotConverged, text);  // the warm start stays as it was
   }

@@ -5,10 +5,10 @@
 // multigrid V-cycle from the current surface (its hierarchy built once per grid).
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
-#include "codec/core/limits/decoder_limits.hpp"
-#include "codec/core/geometry/mesh.hpp"
 
 #include <memory>
 #include <vector>
@@ -67,7 +67,7 @@ struct ReconstructOptions {
 struct ReconstructResult {
   std::vector<Vec3> positions;  // every node of G
   int iterations = 0;
-  double change = 0;            // last max |S⁺ - S| / diameter
+  double change = 0;  // last max |S⁺ - S| / diameter
   bool converged = false;
 };
 

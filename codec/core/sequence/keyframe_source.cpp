@@ -3,9 +3,9 @@
 #include "codec/core/sequence/keyframe_source.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "format/error.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/sequence/sequence.hpp"
+#include "format/error.hpp"
 
 #include <cmath>
 #include <string>
@@ -38,7 +38,8 @@ void validate_outline(const SequenceOutline& o) {
   if (o.times.empty()) fail("no keyframes");
   if (o.poses.size() != o.times.size()) fail("a pose for every keyframe");
   if (!(o.fps > 0) || !std::isfinite(o.fps)) fail("frame rate must be finite and positive");
-  if (!std::isfinite(o.first_time) || !std::isfinite(o.last_time) || o.last_time < o.first_time) fail("the capture's time span is not a finite interval");
+  if (!std::isfinite(o.first_time) || !std::isfinite(o.last_time) || o.last_time < o.first_time)
+    fail("the capture's time span is not a finite interval");
   for (size_t k = 0; k < o.times.size(); ++k) {
     if (!std::isfinite(o.times[k])) fail("keyframe " + std::to_string(k) + ": time is not finite");
     if (k > 0 && !(o.times[k] > o.times[k - 1])) fail("keyframe " + std::to_string(k) + ": time does not increase");
@@ -52,23 +53,28 @@ void validate_outline(const SequenceOutline& o) {
 }
 
 void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t>& fixed_nodes, size_t k, const Keyframe& key) {
-  const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what); };
+  const auto fail = [&](const std::string& what) {
+    throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what);
+  };
   if (!(key.time == outline.times.at(k))) fail("its time is not the outline's");
   try {
     validate_fields(key.fields);
   } catch (const Error& e) {
     fail(e.what());
   }
-  if (key.fields.grid_n != outline.grid_n || key.fields.representation != outline.representation) fail("fields of another grid or representation");
+  if (key.fields.grid_n != outline.grid_n || key.fields.representation != outline.representation)
+    fail("fields of another grid or representation");
   if (key.fields.fixed_nodes != fixed_nodes) fail("fixed-frame nodes differ from keyframe 0's");
   if (!key.pose.is_proper()) fail("the pose is not a finite proper rotation and translation");
   if (key.hole_level.empty() == outline.has_holes) {
-    fail(std::string("hole levels present in some keyframes only (") + (outline.has_holes ? "none here, where keyframe 0 has them" : "here, where keyframe 0 has none") + ")");
+    fail(std::string("hole levels present in some keyframes only (") +
+         (outline.has_holes ? "none here, where keyframe 0 has them" : "here, where keyframe 0 has none") + ")");
   }
   if (!key.hole_level.empty()) {
     const DiskGridShape shape = disk_grid_shape(outline.grid_n);
     const auto nodes = static_cast<size_t>(shape.interior_count + shape.rim_count);
-    if (key.hole_level.size() != nodes) fail(std::to_string(key.hole_level.size()) + " hole levels for " + std::to_string(nodes) + " nodes");
+    if (key.hole_level.size() != nodes)
+      fail(std::to_string(key.hole_level.size()) + " hole levels for " + std::to_string(nodes) + " nodes");
     for (double v : key.hole_level) {
       if (!std::isfinite(v)) fail("a hole level is not finite");
     }

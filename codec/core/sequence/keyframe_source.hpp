@@ -5,9 +5,9 @@
 // §10.1), so memory follows what is played, not the length of the file.
 #pragma once
 
-#include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/image/image.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
 #include "codec/core/sequence/spline.hpp"
@@ -31,11 +31,11 @@ struct SequenceOutline {
   double fps = 0, first_time = 0, last_time = 0;  // as Sequence's
   std::string units = "m";
   Vec3 pose_centre = Vec3::Zero();
-  std::vector<double> times;       // every keyframe's, strictly increasing
-  std::vector<RigidPose> poses;    // every keyframe's
-  size_t fixed_node_count = 0;     // nodes in the boundary frames (GridFields::fixed_nodes)
+  std::vector<double> times;     // every keyframe's, strictly increasing
+  std::vector<RigidPose> poses;  // every keyframe's
+  size_t fixed_node_count = 0;   // nodes in the boundary frames (GridFields::fixed_nodes)
   bool has_holes = false;
-  int texture_size = 0;            // M; 0: no texture
+  int texture_size = 0;                  // M; 0: no texture
   std::vector<ResidualFrame> residuals;  // as Sequence's (format 2.3)
   bool has_texture() const { return texture_size > 0; }
   size_t keyframe_count() const { return times.size(); }

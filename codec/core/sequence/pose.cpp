@@ -20,7 +20,8 @@ constexpr double kTwoPi = 2 * std::numbers::pi;
 
 // Whether R is a finite proper rotation to 1e-6: poses from files and fits, not exact matrices.
 bool is_rotation(const Eigen::Matrix3d& r) {
-  return r.allFinite() && (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-6 && std::abs(r.determinant() - 1) <= 1e-6;
+  return r.allFinite() && (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-6 &&
+         std::abs(r.determinant() - 1) <= 1e-6;
 }
 
 void check_rotation(const Eigen::Matrix3d& r, const std::string& what) {
@@ -54,8 +55,8 @@ Eigen::Matrix3d skew(const Vec3& w) {
 }  // namespace
 
 bool RigidPose::is_proper() const {
-  return rotation.allFinite() && translation.allFinite() && (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() <= 1e-6 &&
-         rotation.determinant() > 0;
+  return rotation.allFinite() && translation.allFinite() &&
+         (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() <= 1e-6 && rotation.determinant() > 0;
 }
 
 RigidPose RigidPose::inverse() const {
@@ -170,13 +171,15 @@ RigidPose blend_poses(const std::vector<RigidPose>& keys, const SplineWeights& w
   return blend_poses(keys, unwrap_rotations(keys), w, centre);
 }
 
-RigidPose blend_poses(const std::vector<RigidPose>& keys, const std::vector<Vec3>& rotation_vectors, const SplineWeights& w, const Vec3& centre) {
+RigidPose blend_poses(const std::vector<RigidPose>& keys, const std::vector<Vec3>& rotation_vectors, const SplineWeights& w,
+                      const Vec3& centre) {
   const std::string name = "blend_poses: ";
   if (keys.empty()) fail(name + "no keys");
   if (rotation_vectors.size() != keys.size()) {
     fail(name + std::to_string(rotation_vectors.size()) + " rotation vectors for " + std::to_string(keys.size()) + " keys");
   }
-  if (w.keys.size() != w.weights.size()) fail(name + std::to_string(w.keys.size()) + " keys with " + std::to_string(w.weights.size()) + " weights");
+  if (w.keys.size() != w.weights.size())
+    fail(name + std::to_string(w.keys.size()) + " keys with " + std::to_string(w.weights.size()) + " weights");
   if (w.keys.empty()) fail(name + "no weights");
   if (!centre.allFinite()) fail(name + "the centre is not finite");
   check_rotation(keys[0].rotation, name + "key 0");

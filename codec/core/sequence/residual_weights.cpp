@@ -27,7 +27,9 @@ void validate_residuals(const std::vector<double>& key_times, const std::vector<
   const int count = static_cast<int>(key_times.size());
   for (size_t r = 0; r < residuals.size(); ++r) {
     const ResidualFrame& f = residuals[r];
-    const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what); };
+    const auto fail = [&](const std::string& what) {
+      throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what);
+    };
     if (!std::isfinite(f.time)) fail("its time is not finite");
     if (r > 0 && !(f.time > residuals[r - 1].time)) fail("times must increase");
     const int i = residual_interval(key_times, f.time);
@@ -38,7 +40,8 @@ void validate_residuals(const std::vector<double>& key_times, const std::vector<
     }
     double sum = 0;
     for (double d : f.delta) {
-      if (!std::isfinite(d) || std::abs(d) > kMaxResidualDelta) fail("a correction is not finite or beyond ±" + std::to_string(kMaxResidualDelta));
+      if (!std::isfinite(d) || std::abs(d) > kMaxResidualDelta)
+        fail("a correction is not finite or beyond ±" + std::to_string(kMaxResidualDelta));
       sum += d;
     }
     if (std::abs(sum) > kResidualSumTolerance) fail("its corrections sum to " + std::to_string(sum) + ", not 0");
@@ -52,7 +55,8 @@ SplineWeights residual_weights(const KeyframeSpline& spline, const std::vector<R
   if (i < 0) return w;
   // The nodes either side of t within its interval: a residual there, or the interval's keyframe.
   const auto after = std::upper_bound(residuals.begin(), residuals.end(), t, [](double x, const ResidualFrame& f) { return x < f.time; });
-  const ResidualFrame* left = after != residuals.begin() && std::prev(after)->time > times[static_cast<size_t>(i)] ? &*std::prev(after) : nullptr;
+  const ResidualFrame* left =
+      after != residuals.begin() && std::prev(after)->time > times[static_cast<size_t>(i)] ? &*std::prev(after) : nullptr;
   const ResidualFrame* right = after != residuals.end() && after->time < times[static_cast<size_t>(i) + 1] ? &*after : nullptr;
   if (!left && !right) return w;
   const double t0 = left ? left->time : times[static_cast<size_t>(i)], t1 = right ? right->time : times[static_cast<size_t>(i) + 1];
@@ -85,10 +89,12 @@ SplineWeights residual_weights(const KeyframeSpline& spline, const std::vector<R
 
 double residual_time(int64_t q, double first_time, double fps) { return first_time + static_cast<double>(q) / (kResidualTimeSteps * fps); }
 
-int64_t residual_time_code(double time, double first_time, double fps) { return std::llround((time - first_time) * kResidualTimeSteps * fps); }
+int64_t residual_time_code(double time, double first_time, double fps) {
+  return std::llround((time - first_time) * kResidualTimeSteps * fps);
+}
 
-std::vector<ResidualFrame> residuals_on_file_times(std::vector<ResidualFrame> residuals, const std::vector<double>& key_times, double first_time,
-                                                   double fps) {
+std::vector<ResidualFrame> residuals_on_file_times(std::vector<ResidualFrame> residuals, const std::vector<double>& key_times,
+                                                   double first_time, double fps) {
   std::vector<ResidualFrame> out;
   for (ResidualFrame& f : residuals) {
     const int before = residual_interval(key_times, f.time);

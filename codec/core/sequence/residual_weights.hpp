@@ -59,8 +59,8 @@ int64_t residual_time_code(double time, double first_time, double fps);
 // `residuals` (times and corrections as a fit gave them) as a file can hold them: each time moved to
 // its nearest residual_time, and a residual whose moved time is not strictly inside its keyframe
 // interval or not after the previous one's dropped (frames closer than a 64th of a frame period).
-std::vector<ResidualFrame> residuals_on_file_times(std::vector<ResidualFrame> residuals, const std::vector<double>& key_times, double first_time,
-                                                   double fps);
+std::vector<ResidualFrame> residuals_on_file_times(std::vector<ResidualFrame> residuals, const std::vector<double>& key_times,
+                                                   double first_time, double fps);
 
 // The most keys residual_weights returns for these residuals: the spline's max_keys(), or more where
 // a residual's window reaches keys the spline does not blend there (a linear spline: 2 → 4).

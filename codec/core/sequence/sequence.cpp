@@ -22,10 +22,13 @@ void validate_sequence(const Sequence& sequence) {
   for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
     const Keyframe& key = sequence.keyframes[k];
     validate_keyframe(outline, first.fields.fixed_nodes, k, key);
-    const auto fail = [&](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what); };
+    const auto fail = [&](const std::string& what) {
+      throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": " + what);
+    };
     if (key.texture.empty() != first.texture.empty()) fail("textures present in some keyframes only");
-    if (!key.texture.empty() && (key.texture.width != first.texture.width || key.texture.height != first.texture.height ||
-                                 key.texture.channels != 3 || key.texture.pixels.size() != static_cast<size_t>(key.texture.width) * key.texture.height * 3)) {
+    if (!key.texture.empty() &&
+        (key.texture.width != first.texture.width || key.texture.height != first.texture.height || key.texture.channels != 3 ||
+         key.texture.pixels.size() != static_cast<size_t>(key.texture.width) * key.texture.height * 3)) {
       fail("the texture is not " + std::to_string(first.texture.width) + " x " + std::to_string(first.texture.height) + " RGB");
     }
   }
@@ -58,7 +61,6 @@ FACEMORPH_PIXEL_CLONES void blend_pixels(const uint8_t* const* pixels, const flo
     out[p] = static_cast<uint8_t>(std::min(std::max(sum + 0.5f, 0.0f), 255.0f));
   }
 }
-
 
 }  // namespace
 

@@ -4,10 +4,10 @@
 // makes one.
 #pragma once
 
-#include "codec/core/reconstruct/fields.hpp"
-#include "codec/core/image/image.hpp"
-#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
 #include "codec/core/sequence/spline.hpp"
@@ -18,14 +18,14 @@
 namespace facemorph {
 
 struct Keyframe {
-  double time = 0;        // seconds from the capture's first frame
-  GridFields fields;      // the face in its own frame (the pose taken out)
-  RigidPose pose;         // face frame -> capture frame
+  double time = 0;    // seconds from the capture's first frame
+  GridFields fields;  // the face in its own frame (the pose taken out)
+  RigidPose pose;     // face frame -> capture frame
   // Per node of G: < 0 inside a filled hole (eyes, mouth), > 0 outside; empty when the sequence
   // keeps no holes. A distance-like level set in disk units, capped at +kHoleLevelBand outside
   // (not inside: a hole opening between keyframes then grows from its deepest point).
   std::vector<double> hole_level;
-  Image texture;          // the frame's texture on the disk (texel (x, y) at UV (x + ½, y + ½) / M); empty: none
+  Image texture;  // the frame's texture on the disk (texel (x, y) at UV (x + ½, y + ½) / M); empty: none
 };
 
 inline constexpr double kHoleLevelBand = 0.1;
@@ -34,8 +34,8 @@ struct Sequence {
   int grid_n = 0;
   Representation representation = Representation::kHLT;
   SplineKind spline = SplineKind::kCatmullRom;
-  double fps = 0;              // the capture's nominal frame rate
-  double first_time = 0;       // the capture's first and last frame times (seconds)
+  double fps = 0;         // the capture's nominal frame rate
+  double first_time = 0;  // the capture's first and last frame times (seconds)
   double last_time = 0;
   std::string units = "m";
   // The point (face frame) whose path the pose blend follows (blend_poses): the face's centroid,

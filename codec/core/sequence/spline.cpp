@@ -15,9 +15,10 @@ namespace facemorph {
 
 namespace {
 
-constexpr EnumName<SplineKind> kSplineNames[] = {
-    {SplineKind::kLocalCubic, "local"}, {SplineKind::kCatmullRom, "catmull-rom"},
-    {SplineKind::kNotAKnot, "not-a-knot"}, {SplineKind::kLinear, "linear"}};
+constexpr EnumName<SplineKind> kSplineNames[] = {{SplineKind::kLocalCubic, "local"},
+                                                 {SplineKind::kCatmullRom, "catmull-rom"},
+                                                 {SplineKind::kNotAKnot, "not-a-knot"},
+                                                 {SplineKind::kLinear, "linear"}};
 
 }  // namespace
 
@@ -126,7 +127,8 @@ std::vector<KeyframeSpline::Row> KeyframeSpline::hermite_tangents(const std::vec
     row.values.assign(static_cast<size_t>(windows.back() - windows.front() + 4), 0.0);
     for (int32_t first : windows) {
       const std::vector<double> w = lagrange_derivative(times, first, 4, k);
-      for (size_t j = 0; j < w.size(); ++j) row.values[static_cast<size_t>(first - row.first) + j] += w[j] / static_cast<double>(windows.size());
+      for (size_t j = 0; j < w.size(); ++j)
+        row.values[static_cast<size_t>(first - row.first) + j] += w[j] / static_cast<double>(windows.size());
     }
   }
   return rows;
@@ -239,7 +241,8 @@ uint64_t KeyframeSpline::memory_bytes() const {
 
 SplineWeights KeyframeSpline::evaluate(double t, bool derivative) const {
   if (!std::isfinite(t)) {
-    throw Error(ErrorCode::kInvalidArgument, std::string("keyframe spline: ") + (derivative ? "derivative " : "") + "weights at a non-finite t");
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("keyframe spline: ") + (derivative ? "derivative " : "") + "weights at a non-finite t");
   }
   SplineWeights out;
   if (times_.size() == 1) {
@@ -310,7 +313,8 @@ SplineWeights KeyframeSpline::evaluate(double t, bool derivative) const {
   for (int r = 0; r < 2; ++r) {
     // At a knot the rows add nothing: skip them.
     if (!rows[r] || factor[r] == 0) continue;
-    for (size_t j = 0; j < rows[r]->values.size(); ++j) sum[static_cast<size_t>(rows[r]->first - first) + j] += factor[r] * rows[r]->values[j];
+    for (size_t j = 0; j < rows[r]->values.size(); ++j)
+      sum[static_cast<size_t>(rows[r]->first - first) + j] += factor[r] * rows[r]->values[j];
   }
   for (size_t j = 0; j < sum.size(); ++j) {
     if (sum[j] == 0) continue;

@@ -9,8 +9,7 @@
 
 namespace facemorph {
 
-void parallel_for(int count, int threads, const std::function<void(int)>& body,
-                  const std::function<void(int, int)>& progress) {
+void parallel_for(int count, int threads, const std::function<void(int)>& body, const std::function<void(int, int)>& progress) {
   if (count <= 0) return;
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = std::min(threads, count);

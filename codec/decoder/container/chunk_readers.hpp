@@ -17,8 +17,8 @@ namespace facemorph::file_layout {
 // Reads and checks a header. `minor_version`: the file's; one this decoder knows (kMinorVersion or
 // older) defines every byte of its header, and a byte past its last field is corrupt; a later one
 // may append up to kMaxAppendedBytes, which are skipped.
-FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held,
-                       uint16_t minor_version);
+FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits,
+                       const KeyframesHeld& keyframes_held, uint16_t minor_version);
 // The most bytes a header chunk may decompress to (§5, §10.2): its fixed fields, the fixed nodes of
 // the largest G that `max_grid_n` allows, the strings within kMaxHeaderStringBytes and the appended
 // fields of a later minor version. Checked against the chunk's stated size before it is decompressed.
@@ -32,7 +32,8 @@ void check_appended_bytes(size_t remaining, uint16_t minor_version, const std::s
 
 // Checks the times (bounds, separation) and pose codes (bounds) as it reads; the offsets are the
 // caller's to check against the chunks.
-std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h, uint16_t minor_version);
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h,
+                                   uint16_t minor_version);
 
 // Reads and checks a payload against the header (first time, fps) and the keyframes' times: every
 // check of §7.4, kCorrupt naming the residual; kLimit where their memory passes `max_memory_bytes`.
@@ -86,6 +87,7 @@ class TextureGroupReader {
   std::unique_ptr<AvifSequenceReader> sequence_;
 };
 // The bytes of each of the group's keyframes' AV1 samples, in order (fminfo). Throws as TextureGroupReader.
-std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count, uint32_t size);
+std::vector<uint64_t> texture_group_sample_bytes(std::span<const uint8_t> payload, const std::string& where, uint32_t first, uint32_t count,
+                                                 uint32_t size);
 
 }  // namespace facemorph::file_layout

@@ -3,8 +3,8 @@
 // holds follows what it plays, not the file's length (spec/container.md §10.1).
 #include "codec/decoder/container/sequence_file.hpp"
 
-#include "codec/decoder/container/opened_file.hpp"
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/decoder/container/opened_file.hpp"
 #include "format/error.hpp"
 #include "format/file_io.hpp"
 
@@ -32,12 +32,12 @@ uint64_t window_bound(SplineKind kind) {
 
 // What the source and a decoder on it hold, in bytes (spec/container.md §10.1's terms).
 struct MemoryPlan {
-  uint64_t fields = 0;      // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
-  uint64_t surface = 0;     // one keyframe's reconstructed surface (24 n)
-  uint64_t texture = 0;     // one keyframe's RGB texture (3 M²)
-  uint64_t in_flight = 0;   // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes;
-                            // with texture groups, the AV1 decoder's reference frames
-  uint64_t fixed = 0;       // G, the solver, one frame, the index, the file's bytes where they are copied
+  uint64_t fields = 0;          // one keyframe's arrays as decoded (8 V, its fixed nodes, the vectors)
+  uint64_t surface = 0;         // one keyframe's reconstructed surface (24 n)
+  uint64_t texture = 0;         // one keyframe's RGB texture (3 M²)
+  uint64_t in_flight = 0;       // decoding a keyframe: its chunk's payload, its codes, residuals and arrays, the previous one's codes;
+                                // with texture groups, the AV1 decoder's reference frames
+  uint64_t fixed = 0;           // G, the solver, one frame, the index, the file's bytes where they are copied
   uint64_t keyframes_kept = 0;  // keyframes the budget holds at once: fields, texture and surface each
 };
 
@@ -57,9 +57,8 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
   plan.in_flight = 24 * values + file.largest_payload() + file.texture_decoder_bytes();
   // A sixteenth of the budget is left to the allocator: memory freed inside the process is not all
   // returned to the system (measured: without it, fmplay peaked 9% over a 128 MiB budget).
-  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) + owned_bytes + spline_bytes +
-               file.header_bytes() +
-               window * (plan.fields + plan.texture) + limits.max_memory_bytes / 16;
+  plan.fixed = estimated_memory_bytes(file.shape().grid_n, 0, file.texture_size(), values) + index_memory_bytes(file.keyframe_count()) +
+               owned_bytes + spline_bytes + file.header_bytes() + window * (plan.fields + plan.texture) + limits.max_memory_bytes / 16;
   const uint64_t per_keyframe = plan.fields + plan.surface + plan.texture;
   const uint64_t needed = plan.fixed + plan.in_flight;
   plan.keyframes_kept = limits.max_memory_bytes > needed ? (limits.max_memory_bytes - needed) / per_keyframe : 0;
@@ -68,10 +67,11 @@ MemoryPlan plan_memory(const OpenedFile& file, uint64_t owned_bytes, uint64_t wi
 
 class FileSource final : public KeyframeSource {
  public:
-  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>, std::span<const uint8_t>> bytes, const std::string& source, const DecoderLimits& limits,
-             SequenceFileInfo* info)
+  FileSource(std::variant<std::vector<uint8_t>, std::unique_ptr<format::MappedFile>, std::span<const uint8_t>> bytes,
+             const std::string& source, const DecoderLimits& limits, SequenceFileInfo* info)
       : bytes_(std::move(bytes)),
-        file_(view(), source, limits, [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }),
+        file_(view(), source, limits,
+              [](uint32_t keyframes, SplineKind spline) { return std::min<uint64_t>(keyframes, window_bound(spline)); }),
         work_limit_(limits.max_work) {
     const size_t count = file_.keyframe_count();
     // The header's fields as a sequence in memory gives them (the shape has no keyframes: times,
@@ -88,8 +88,9 @@ class FileSource final : public KeyframeSource {
     plan_ = plan_memory(file_, owned, window, timing, limits);
     if (plan_.keyframes_kept < window) {
       const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);
-      throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) + " keyframes, which with G and its solver need about " +
-                                         std::to_string(needed >> 20) + " MiB, over the memory limit of " + std::to_string(limits.max_memory_bytes >> 20) +
+      throw Error(ErrorCode::kLimit, source + ": a frame blends up to " + std::to_string(window) +
+                                         " keyframes, which with G and its solver need about " + std::to_string(needed >> 20) +
+                                         " MiB, over the memory limit of " + std::to_string(limits.max_memory_bytes >> 20) +
                                          " MiB (max_memory_bytes, --max-memory)");
     }
     cache_capacity_ = plan_.keyframes_kept * (plan_.fields + plan_.texture);
@@ -143,7 +144,8 @@ class FileSource final : public KeyframeSource {
     }
     // A run: one still, or a group's image sequence (format 2.1), decoded from its first frame. A
     // shared still (format 2.2) is held once, in its owner's slot, whichever keyframe asks.
-    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), work, false, [&](size_t first) { return file_.read_textures(first); });
+    return fetch(textures_, file_.texture_owner(k), file_.texture_run_length(), work, false,
+                 [&](size_t first) { return file_.read_textures(first); });
   }
 
   struct Entry {
@@ -182,8 +184,8 @@ class FileSource final : public KeyframeSource {
   struct Shelf {
     std::vector<Slot<T>> slots;
     std::vector<std::pair<ErrorCode, std::string>> failures;  // the error and its message
-    std::vector<bool> run_read_whole;  // per run: decoded to its end once, without a fault
-    Suspended<T> suspended;            // at most one run, the one a stopped call was decoding
+    std::vector<bool> run_read_whole;                         // per run: decoded to its end once, without a fault
+    Suspended<T> suspended;                                   // at most one run, the one a stopped call was decoding
     bool texture = false;
     uint64_t bytes_each = 0;  // as the plan counts one
     void resize(size_t count, bool is_texture, uint64_t bytes) {
@@ -321,21 +323,24 @@ class FileSource final : public KeyframeSource {
 
 }  // namespace
 
-std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits, SequenceFileInfo* info) {
+std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits,
+                                                           SequenceFileInfo* info) {
   check_decoder_limits(limits);
   return std::make_shared<FileSource>(std::make_unique<format::MappedFile>(path), path.string(), limits, info);
 }
 
-std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source, const DecoderLimits& limits,
-                                                           SequenceFileInfo* info) {
+std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
+                                                           const DecoderLimits& limits, SequenceFileInfo* info) {
   check_decoder_limits(limits);
   if (bytes.size() > limits.max_memory_bytes) {
-    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " +
+                                       std::to_string(limits.max_memory_bytes));
   }
   return std::make_shared<FileSource>(std::vector<uint8_t>(bytes.begin(), bytes.end()), source, limits, info);
 }
 
-std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<const uint8_t> bytes, const std::string& source, const DecoderLimits& limits) {
+std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
+                                                                    const DecoderLimits& limits) {
   check_decoder_limits(limits);
   return std::make_shared<FileSource>(bytes, source, limits, nullptr);
 }

@@ -54,24 +54,27 @@ uint64_t max_header_bytes(int max_grid_n) {
 void check_appended_bytes(size_t remaining, uint16_t minor_version, const std::string& where) {
   if (remaining == 0) return;
   if (minor_version <= format::kMinorVersion) {
-    corrupt(where, std::to_string(remaining) + " bytes after its last field, which format 2." + std::to_string(minor_version) + " does not define");
+    corrupt(where, std::to_string(remaining) + " bytes after its last field, which format 2." + std::to_string(minor_version) +
+                       " does not define");
   }
   if (remaining > kMaxAppendedBytes) {
     corrupt(where, std::to_string(remaining) + " bytes after the fields this decoder knows; a later minor version appends at most 64 KiB");
   }
 }
 
-FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held,
-                       uint16_t minor_version) {
+FileHeader read_header(std::span<const uint8_t> payload, const std::string& source, const DecoderLimits& limits,
+                       const KeyframesHeld& keyframes_held, uint16_t minor_version) {
   ByteReader r(payload, source + ": header");
   FileHeader h;
   h.limits = limits;
   const uint32_t n = r.read<uint32_t>("the grid size");
   if (n < static_cast<uint32_t>(kMinGridSize) || n > static_cast<uint32_t>(kMaxGridSize)) {
-    corrupt(r.source(), "grid size " + std::to_string(n) + " outside [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
+    corrupt(r.source(),
+            "grid size " + std::to_string(n) + " outside [" + std::to_string(kMinGridSize) + ", " + std::to_string(kMaxGridSize) + "]");
   }
   if (n > static_cast<uint32_t>(limits.max_grid_n)) {
-    over_limit(r.source(), "grid size " + std::to_string(n) + " over the limit of " + std::to_string(limits.max_grid_n) + " (max_grid_n, --max-grid)");
+    over_limit(r.source(),
+               "grid size " + std::to_string(n) + " over the limit of " + std::to_string(limits.max_grid_n) + " (max_grid_n, --max-grid)");
   }
   h.shape.grid_n = static_cast<int>(n);
   h.grid_rule = r.read<uint32_t>("the grid rule");
@@ -82,18 +85,21 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   if ((h.flags & ~(kHasTexture | kHasHoles | kTextureGroups | kSharedTextures)) != 0) corrupt(r.source(), "reserved flags are set");
   if (h.texture_groups() && !h.has_texture()) corrupt(r.source(), "the texture groups flag (bit 2) without the textures flag (bit 0)");
   if (h.shared_textures() && !h.has_texture()) corrupt(r.source(), "the shared textures flag (bit 3) without the textures flag (bit 0)");
-  if (h.shared_textures() && h.texture_groups()) corrupt(r.source(), "both the texture groups flag (bit 2) and the shared textures flag (bit 3)");
+  if (h.shared_textures() && h.texture_groups())
+    corrupt(r.source(), "both the texture groups flag (bit 2) and the shared textures flag (bit 3)");
   r.skip(1, "a reserved byte");
   h.keyframe_count = r.read<uint32_t>("the keyframe count");
   if (h.keyframe_count == 0 || h.keyframe_count > kMaxKeyframes) corrupt(r.source(), "keyframe count " + std::to_string(h.keyframe_count));
   if (h.keyframe_count > limits.max_keyframes) {
-    over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes, over the limit of " + std::to_string(limits.max_keyframes) + " (max_keyframes)");
+    over_limit(r.source(), std::to_string(h.keyframe_count) + " keyframes, over the limit of " + std::to_string(limits.max_keyframes) +
+                               " (max_keyframes)");
   }
   h.shape.fps = read_finite(r, "the frame rate");
   h.shape.first_time = read_finite(r, "the first time");
   h.shape.last_time = read_finite(r, "the last time");
   if (h.shape.fps <= 0 || h.shape.last_time < h.shape.first_time) corrupt(r.source(), "impossible frame rate or time range");
-  if (h.shape.fps < kMinFrameRate || h.shape.fps > kMaxFrameRate || std::abs(h.shape.first_time) > kMaxTime || std::abs(h.shape.last_time) > kMaxTime) {
+  if (h.shape.fps < kMinFrameRate || h.shape.fps > kMaxFrameRate || std::abs(h.shape.first_time) > kMaxTime ||
+      std::abs(h.shape.last_time) > kMaxTime) {
     corrupt(r.source(), "a frame rate outside [1e-6, 1e6] or a time beyond 1e9 s");
   }
   for (int k = 0; k < 3; ++k) {
@@ -105,13 +111,14 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
     corrupt(r.source(), "texture size " + std::to_string(h.texture_size) + " does not match the texture flag or exceeds 16384");
   }
   if (h.texture_size > static_cast<uint32_t>(limits.max_texture_size)) {
-    over_limit(r.source(), "texture size " + std::to_string(h.texture_size) + " over the limit of " + std::to_string(limits.max_texture_size) +
-                               " (max_texture_size)");
+    over_limit(r.source(), "texture size " + std::to_string(h.texture_size) + " over the limit of " +
+                               std::to_string(limits.max_texture_size) + " (max_texture_size)");
   }
   const uint32_t rim_count = r.read<uint32_t>("the rim node count");
   const DiskGridShape shape = disk_grid_shape(h.shape.grid_n);
   if (rim_count != static_cast<uint32_t>(shape.rim_count)) {
-    corrupt(r.source(), std::to_string(rim_count) + " rim nodes; G at N = " + std::to_string(n) + " has " + std::to_string(shape.rim_count));
+    corrupt(r.source(),
+            std::to_string(rim_count) + " rim nodes; G at N = " + std::to_string(n) + " has " + std::to_string(shape.rim_count));
   }
   const uint32_t fixed = r.read<uint32_t>("the fixed node count");
   if (fixed > static_cast<uint32_t>(shape.interior_count)) corrupt(r.source(), "more fixed nodes than interior nodes");
@@ -132,16 +139,17 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   const uint64_t held = keyframes_held(h.keyframe_count, h.shape.spline);
   // With texture groups, the AV1 decoder's frames too (§10.1: 8 references and the frame it decodes).
   const uint64_t sequence_decoder = h.texture_groups() ? texture_sequence_decoder_bytes(h.texture_size) : 0;
-  const uint64_t memory =
-      estimated_memory_bytes(static_cast<int>(n), held, static_cast<int>(h.texture_size), values) + index_memory_bytes(h.keyframe_count) + sequence_decoder;
+  const uint64_t memory = estimated_memory_bytes(static_cast<int>(n), held, static_cast<int>(h.texture_size), values) +
+                          index_memory_bytes(h.keyframe_count) + sequence_decoder;
   if (memory > limits.max_memory_bytes) {
-    over_limit(r.source(), std::to_string(held) + " keyframes held at once on G at N = " + std::to_string(n) + " with " + std::to_string(h.texture_size) +
-                               "² textures need about " + mebibytes(memory) + ", over the memory limit of " + mebibytes(limits.max_memory_bytes) +
-                               " (max_memory_bytes, --max-memory)");
+    over_limit(r.source(), std::to_string(held) + " keyframes held at once on G at N = " + std::to_string(n) + " with " +
+                               std::to_string(h.texture_size) + "² textures need about " + mebibytes(memory) +
+                               ", over the memory limit of " + mebibytes(limits.max_memory_bytes) + " (max_memory_bytes, --max-memory)");
   }
   uint64_t string_bytes = 0;
   h.shape.units = read_string(r, "the units", string_bytes);
-  if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm") corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");
+  if (h.shape.units != "m" && h.shape.units != "cm" && h.shape.units != "mm")
+    corrupt(r.source(), "units '" + h.shape.units + "' (m, cm or mm)");
   h.metadata.encoder = read_string(r, "the encoder", string_bytes);
   h.metadata.settings = read_string(r, "the settings", string_bytes);
   const uint32_t landmarks = r.read<uint32_t>("the landmark count");
@@ -168,7 +176,8 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   const uint64_t known = known_disk_grid_hash(h.shape.grid_n);
   if (h.grid_rule != static_cast<uint32_t>(kDiskGridRule) || h.grid_hash != (known != 0 ? known : grid_facts(h.shape.grid_n)->hash)) {
     throw Error(ErrorCode::kUnsupported, source + ": the file's grid (rule " + std::to_string(h.grid_rule) + ", N = " + std::to_string(n) +
-                                             ") is not the grid this decoder builds (rule " + std::to_string(kDiskGridRule) + "): it would decode differently");
+                                             ") is not the grid this decoder builds (rule " + std::to_string(kDiskGridRule) +
+                                             "): it would decode differently");
   }
   return h;
 }

@@ -16,10 +16,12 @@ uint64_t max_index_bytes(const FileHeader& h) {
   return 4 + 8 * count + kPoseCodes * uint64_t{kMaxVarintBytes} * count + 8 * (groups + textures) + kMaxAppendedBytes;
 }
 
-std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h, uint16_t minor_version) {
+std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::string& source, const FileHeader& h,
+                                   uint16_t minor_version) {
   ByteReader r(payload, source + ": index");
   const uint32_t count = r.read<uint32_t>("the entry count");
-  if (count != h.keyframe_count) corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(h.keyframe_count) + " keyframes");
+  if (count != h.keyframe_count)
+    corrupt(r.source(), std::to_string(count) + " entries for " + std::to_string(h.keyframe_count) + " keyframes");
   // The smallest index of `count` entries, before they are allocated: the times, a byte for each
   // pose number, the offsets.
   const size_t groups = h.group_count();
@@ -48,8 +50,10 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
       code += read_varint(r, "a pose number");  // both below 2⁴²: no overflow
       if (code <= -kMaxPoseCode || code >= kMaxPoseCode) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a pose code beyond 2^40");
       const double value = static_cast<double>(code) * (i < 3 ? coding.rotation_step : coding.translation_step);
-      if (i < 3 && !(std::abs(value) <= kMaxRotationComponent)) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a rotation vector component beyond 4");
-      if (i >= 3 && !(std::abs(value) <= kMaxCoordinate)) corrupt(r.source(), "keyframe " + std::to_string(k) + ": a pose translation beyond 1e9");
+      if (i < 3 && !(std::abs(value) <= kMaxRotationComponent))
+        corrupt(r.source(), "keyframe " + std::to_string(k) + ": a rotation vector component beyond 4");
+      if (i >= 3 && !(std::abs(value) <= kMaxCoordinate))
+        corrupt(r.source(), "keyframe " + std::to_string(k) + ": a pose translation beyond 1e9");
       entries[k].pose[i] = code;
     }
   }

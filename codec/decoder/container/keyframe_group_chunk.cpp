@@ -29,9 +29,10 @@ format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, c
 
 // A decoded keyframe's arrays from its residuals: the spatial predictors undone, then the previous
 // keyframe's `codes` added where it is coded from it. `codes` holds this keyframe's on return.
-std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::vector<int64_t>>& residuals, const std::vector<format::SpatialPredictor>& predictors,
-                                                       bool from_previous, std::vector<std::vector<int32_t>>& codes, const FileHeader& h,
-                                                       const GridFacts& grid, const std::string& where) {
+std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::vector<int64_t>>& residuals,
+                                                       const std::vector<format::SpatialPredictor>& predictors, bool from_previous,
+                                                       std::vector<std::vector<int32_t>>& codes, const FileHeader& h, const GridFacts& grid,
+                                                       const std::string& where) {
   const std::vector<double>& steps = h.metadata.field_coding.steps;
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
   std::vector<std::vector<int32_t>> these(kKeyframeArrays);
@@ -68,7 +69,8 @@ struct KeyframeGroupReader::State {
   std::vector<std::vector<int32_t>> codes;  // the last keyframe's
 };
 
-KeyframeGroupReader::KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first, uint32_t count)
+KeyframeGroupReader::KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first,
+                                         uint32_t count)
     : state_(std::make_unique<State>(std::move(payload), std::move(where), h, first, count)) {
   State& s = *state_;
   ByteReader r(s.payload, s.where);
@@ -88,9 +90,13 @@ uint32_t KeyframeGroupReader::next() const { return state_->next; }
 Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
   State& s = *state_;
   const uint32_t j = s.next;
-  if (j >= s.count) throw Error(ErrorCode::kInternal, s.where + ": keyframe " + std::to_string(s.first + j) + " past the group's " + std::to_string(s.count));
+  if (j >= s.count)
+    throw Error(ErrorCode::kInternal,
+                s.where + ": keyframe " + std::to_string(s.first + j) + " past the group's " + std::to_string(s.count));
   const std::string keyframe_where = s.where + " (keyframe " + std::to_string(s.first + j) + ")";
-  if (work != nullptr) work->charge(s.values * WorkMeter::kPerValue, "decoding keyframe " + std::to_string(s.first + j) + "'s " + std::to_string(s.values) + " values");
+  if (work != nullptr)
+    work->charge(s.values * WorkMeter::kPerValue,
+                 "decoding keyframe " + std::to_string(s.first + j) + "'s " + std::to_string(s.values) + " values");
   // From here on a failure leaves the stream where no later keyframe can be read: the caller drops
   // the reader (a fault of the file fails the whole group).
   const GridFacts& grid = *s.grid;
@@ -105,8 +111,8 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
   }
   const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, s.lattices, kRangeModelSets, s.models.residuals);
   Keyframe key;
-  assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, s.codes, s.h, grid, keyframe_where), s.h.shape.representation,
-                         s.h.shape.grid_n, s.h.fixed_nodes);
+  assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, s.codes, s.h, grid, keyframe_where),
+                         s.h.shape.representation, s.h.shape.grid_n, s.h.fixed_nodes);
   try {
     validate_fields(key.fields);
   } catch (const Error& e) {
@@ -116,7 +122,8 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
   // not finite, or so large that a blend of them overflows, is the file's fault and named here.
   for (size_t v = 0; v < key.hole_level.size(); ++v) {
     if (!(std::abs(key.hole_level[v]) <= kMaxHoleLevel)) {
-      corrupt(keyframe_where, "hole level " + std::to_string(key.hole_level[v]) + " at node " + std::to_string(v) + " (at most 16 in magnitude)");
+      corrupt(keyframe_where,
+              "hole level " + std::to_string(key.hole_level[v]) + " at node " + std::to_string(v) + " (at most 16 in magnitude)");
     }
   }
   end = s.stream_start + stream.position();

@@ -86,7 +86,8 @@ class OpenedFile {
   // Decodes keyframes first_of_run .. last (last within the run of first_of_run; read_fields),
   // calling `take(k, key, field_bytes)` for each in order; the stream's end is checked where last
   // is the run's last. field_bytes: what keyframe k's fields take in the file.
-  void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work = nullptr) const;
+  void decode_run(size_t first_of_run, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take,
+                  WorkMeter* work = nullptr) const;
   // The keyframe whose stored texture keyframe k shows: k itself, or in a file of shared textures
   // (format 2.2) the first keyframe naming the same TEXR. decode_texture(k) decodes the owner's.
   size_t texture_owner(size_t k) const;
@@ -98,8 +99,8 @@ class OpenedFile {
   uint64_t texture_decoder_bytes() const;
   // Decodes the textures of keyframes first_of_run .. last (within one texture run; read_textures),
   // handing take(k, image) those for which wanted(k), in order.
-  void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
-                       WorkMeter* work = nullptr) const;
+  void decode_textures(size_t first_of_run, size_t last, const std::function<bool(size_t)>& wanted,
+                       const std::function<void(size_t, Image&&)>& take, WorkMeter* work = nullptr) const;
   // Every keyframe's fields, run by run, in order (decode_run over the whole file).
   void decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const;
   // Every stored texture once, run by run (each group's sequence decoded once): take(k, image) for

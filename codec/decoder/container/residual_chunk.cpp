@@ -26,7 +26,8 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
                                " bytes, more than max_memory_bytes (" + std::to_string(max_memory_bytes) + ")");
   }
   const int e = r.read<uint8_t>("the step exponent");
-  if (e > kMaxResidualStepExponent) corrupt(r.source(), "step exponent " + std::to_string(e) + " beyond " + std::to_string(kMaxResidualStepExponent));
+  if (e > kMaxResidualStepExponent)
+    corrupt(r.source(), "step exponent " + std::to_string(e) + " beyond " + std::to_string(kMaxResidualStepExponent));
   const int64_t bound = max_code(e);
   const int keys = static_cast<int>(key_times.size());
   std::vector<ResidualFrame> residuals(count);
@@ -34,7 +35,8 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
   for (uint32_t n = 0; n < count; ++n) {
     const std::string name = "residual frame " + std::to_string(n);
     const int64_t change = read_varint(r, "a residual time's change");
-    if (change < 1 || change >= kMaxTimeCode - q) corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
+    if (change < 1 || change >= kMaxTimeCode - q)
+      corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
     q += change;
     ResidualFrame& f = residuals[n];
     f.time = residual_time(q, shape.first_time, shape.fps);
@@ -49,7 +51,8 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
       sum += code;
       f.delta[static_cast<size_t>(m)] = std::ldexp(static_cast<double>(code), -e);
     }
-    if (sum < -bound || sum > bound) corrupt(r.source(), name + ": its last correction (minus the others' sum) beyond ±" + std::to_string(kMaxResidualDelta));
+    if (sum < -bound || sum > bound)
+      corrupt(r.source(), name + ": its last correction (minus the others' sum) beyond ±" + std::to_string(kMaxResidualDelta));
     f.delta.back() = std::ldexp(static_cast<double>(-sum), -e);
   }
   // Later minor versions may append here; this reader skips them (a bounded number of bytes).

@@ -9,11 +9,11 @@
 #include "codec/decoder/container/chunk_readers.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 
-#include "format/error.hpp"
 #include "codec/core/image/image.hpp"
-#include "codec/decoder/image/image_decode.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/decoder/image/image_decode.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <algorithm>
@@ -32,7 +32,10 @@ struct OpenedFile::State {
   // that for the largest K allowed (room for chunks a later minor version adds), so that its list
   // of chunks (about 80 bytes each) does not grow with a file padded with empty ones.
   State(std::span<const uint8_t> bytes, std::string source_name, const DecoderLimits& limits)
-      : reader(bytes, source_name, 4 * uint64_t{limits.max_keyframes} + 64), source(std::move(source_name)), file_bytes(bytes.size()), limits(limits) {}
+      : reader(bytes, source_name, 4 * uint64_t{limits.max_keyframes} + 64),
+        source(std::move(source_name)),
+        file_bytes(bytes.size()),
+        limits(limits) {}
   format::ContainerReader reader;
   std::string source;
   uint64_t file_bytes = 0;
@@ -45,7 +48,8 @@ struct OpenedFile::State {
   std::vector<uint32_t> texture_owner;
 };
 
-OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits, const KeyframesHeld& keyframes_held) {
+OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits,
+                       const KeyframesHeld& keyframes_held) {
   check_decoder_limits(limits);
   state_ = std::make_unique<State>(bytes, std::move(source), limits);
   State& s = *state_;
@@ -55,10 +59,11 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
     corrupt(s.source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
-    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk ||
-                       chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk;
+    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk ||
+                       chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk;
     if (!known && chunk.critical()) {
-      throw Error(ErrorCode::kUnsupported, s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
+      throw Error(ErrorCode::kUnsupported,
+                  s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
   }
   // The header and the index decompress to no more than the format lets them hold (§10.2 steps 2
@@ -66,25 +71,30 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   const uint16_t minor = reader.minor_version();
   const auto bounded_payload = [&](const format::ChunkView& chunk, uint64_t bound, const std::string& what) {
     if (chunk.raw_size > bound) {
-      corrupt(s.source, reader.describe(chunk) + " states " + std::to_string(chunk.raw_size) + " bytes; " + what + " holds at most " + std::to_string(bound));
+      corrupt(s.source, reader.describe(chunk) + " states " + std::to_string(chunk.raw_size) + " bytes; " + what + " holds at most " +
+                            std::to_string(bound));
     }
     return reader.payload(chunk, limits.max_memory_bytes);
   };
   if (chunks[0].raw_size > max_header_bytes(limits.max_grid_n) && chunks[0].raw_size <= max_header_bytes(kMaxGridSize)) {
-    over_limit(s.source, reader.describe(chunks[0]) + " states " + std::to_string(chunks[0].raw_size) + " bytes, more than a header of a grid within " +
-                             std::to_string(limits.max_grid_n) + " holds (max_grid_n, --max-grid)");
+    over_limit(s.source, reader.describe(chunks[0]) + " states " + std::to_string(chunks[0].raw_size) +
+                             " bytes, more than a header of a grid within " + std::to_string(limits.max_grid_n) +
+                             " holds (max_grid_n, --max-grid)");
   }
   s.header = read_header(bounded_payload(chunks[0], max_header_bytes(kMaxGridSize), "a header"), s.source, limits, keyframes_held, minor);
   const FileHeader& header = *s.header;
   // Texture groups came with format 2.1: a file stamped 2.0 cannot hold them.
   if (header.texture_groups() && reader.minor_version() < 1) {
-    corrupt(s.source, "header: texture groups (flag bit 2) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
+    corrupt(s.source, "header: texture groups (flag bit 2) in a format " + std::to_string(reader.major_version()) + "." +
+                          std::to_string(reader.minor_version()) + " file");
   }
   if (header.shared_textures() && reader.minor_version() < 2) {
-    corrupt(s.source, "header: shared textures (flag bit 3) in a format " + std::to_string(reader.major_version()) + "." + std::to_string(reader.minor_version()) + " file");
+    corrupt(s.source, "header: shared textures (flag bit 3) in a format " + std::to_string(reader.major_version()) + "." +
+                          std::to_string(reader.minor_version()) + " file");
   }
-  s.index = read_index(bounded_payload(chunks[1], max_index_bytes(header), "an index of " + std::to_string(header.keyframe_count) + " keyframes"), s.source,
-                       header, minor);
+  s.index =
+      read_index(bounded_payload(chunks[1], max_index_bytes(header), "an index of " + std::to_string(header.keyframe_count) + " keyframes"),
+                 s.source, header, minor);
   // Shared textures: each TEXR belongs to the first keyframe that names it (its number must say so,
   // §8), and every later keyframe naming it shows that texture. Elsewhere each keyframe owns its
   // entry, and one naming another's TEXR fails by that number when decoded.
@@ -92,19 +102,22 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   std::unordered_map<uint64_t, uint32_t> first_to_name;
   for (size_t k = 0; k < s.index.size(); ++k) {
     s.texture_owner[k] = static_cast<uint32_t>(k);
-    if (header.shared_textures()) s.texture_owner[k] = first_to_name.emplace(s.index[k].texture_offset, static_cast<uint32_t>(k)).first->second;
+    if (header.shared_textures())
+      s.texture_owner[k] = first_to_name.emplace(s.index[k].texture_offset, static_cast<uint32_t>(k)).first->second;
   }
   // Every entry points at a chunk of its kind, before anything is decoded from it.
   for (size_t k = 0; k < s.index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(s.index[k].group_offset, name + "'s index entry");
-    if (chunk.type != kKeyframeGroupChunk) corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
+    if (chunk.type != kKeyframeGroupChunk)
+      corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
     // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
     if (chunk.compressed()) corrupt(s.source, reader.describe(chunk) + " is compressed; a group's chunk never is");
     if (header.texture_groups()) {
       if (k % header.group_size() == 0) {  // the group's entry (its later keyframes share it)
         const format::ChunkView& texture = reader.chunk_at(s.index[k].texture_offset, name + "'s texture group entry");
-        if (texture.type != kTextureGroupChunk) corrupt(s.source, name + "'s texture group entry points at a " + texture.type + " chunk, not TGOP");
+        if (texture.type != kTextureGroupChunk)
+          corrupt(s.source, name + "'s texture group entry points at a " + texture.type + " chunk, not TGOP");
         if (texture.compressed()) corrupt(s.source, reader.describe(texture) + " is compressed; a texture group's chunk never is");
       }
     } else if (header.has_texture()) {
@@ -132,8 +145,8 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
       std::vector<double> key_times;
       key_times.reserve(s.index.size());
       for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
-      s.header->shape.residuals = read_residuals(reader.payload(*residual_chunk, limits.max_memory_bytes), s.source, header.shape, key_times,
-                                                 limits.max_memory_bytes, minor);
+      s.header->shape.residuals = read_residuals(reader.payload(*residual_chunk, limits.max_memory_bytes), s.source, header.shape,
+                                                 key_times, limits.max_memory_bytes, minor);
     }
   }
 }
@@ -169,7 +182,8 @@ uint64_t OpenedFile::header_bytes() const {
 uint64_t OpenedFile::largest_payload() const {
   uint64_t largest = 0;
   for (const format::ChunkView& chunk : state_->reader.chunks()) {
-    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk) largest = std::max(largest, chunk.raw_size);
+    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk)
+      largest = std::max(largest, chunk.raw_size);
   }
   return largest;
 }
@@ -180,7 +194,9 @@ size_t OpenedFile::texture_owner(size_t k) const { return state_->texture_owner.
 
 size_t OpenedFile::texture_run_length() const { return state_->header->texture_groups() ? state_->header->group_size() : 1; }
 
-uint64_t OpenedFile::texture_decoder_bytes() const { return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0; }
+uint64_t OpenedFile::texture_decoder_bytes() const {
+  return state_->header->texture_groups() ? texture_sequence_decoder_bytes(state_->header->texture_size) : 0;
+}
 
 std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t first) const {
   class FieldRun final : public RunReader<Keyframe> {
@@ -190,8 +206,8 @@ std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t 
           first_(first),
           count_(count),
           framing_(chunk.total_size() - chunk.raw_size),
-          group_(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk), *s.header, static_cast<uint32_t>(first),
-                 static_cast<uint32_t>(count)) {}
+          group_(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk), *s.header,
+                 static_cast<uint32_t>(first), static_cast<uint32_t>(count)) {}
     size_t next() const override { return first_ + group_.next(); }
     size_t end() const override { return first_ + count_; }
     std::optional<Keyframe> read(WorkMeter* work, bool, uint64_t& bytes) override {
@@ -221,10 +237,12 @@ std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t 
   return std::make_unique<FieldRun>(s, first, std::min(run_length(), s.index.size() - first), chunk);
 }
 
-void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take, WorkMeter* work) const {
+void OpenedFile::decode_run(size_t first, size_t last, const std::function<void(size_t, Keyframe&&, uint64_t)>& take,
+                            WorkMeter* work) const {
   const std::unique_ptr<RunReader<Keyframe>> run = read_fields(first);
   if (last < first || last >= run->end()) {
-    throw Error(ErrorCode::kInternal, state_->source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+    throw Error(ErrorCode::kInternal,
+                state_->source + ": keyframes " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
   }
   while (run->next() <= last) {
     const size_t k = run->next();
@@ -245,7 +263,11 @@ std::unique_ptr<OpenedFile::RunReader<Image>> OpenedFile::read_textures(size_t f
   class TextureRun final : public RunReader<Image> {
    public:
     TextureRun(const OpenedFile& file, size_t first, size_t count, uint64_t pixel_cost)
-        : file_(file), first_(first), count_(count), pixels_(uint64_t(file.texture_size()) * uint64_t(file.texture_size())), pixel_cost_(pixel_cost) {}
+        : file_(file),
+          first_(first),
+          count_(count),
+          pixels_(uint64_t(file.texture_size()) * uint64_t(file.texture_size())),
+          pixel_cost_(pixel_cost) {}
     size_t next() const override { return group_ ? first_ + group_->next() : first_ + (still_read_ ? 1 : 0); }
     size_t end() const override { return first_ + count_; }
     std::optional<Image> read(WorkMeter* work, bool wanted, uint64_t& bytes) override {
@@ -253,7 +275,8 @@ std::unique_ptr<OpenedFile::RunReader<Image>> OpenedFile::read_textures(size_t f
       if (k >= end()) throw Error(ErrorCode::kInternal, file_.source() + ": texture " + std::to_string(k) + " past its run");
       bytes = 0;
       if (work != nullptr) {
-        work->charge(pixels_ * pixel_cost_, "decoding keyframe " + std::to_string(k) + "'s texture of " + std::to_string(file_.texture_size()) + "² pixels");
+        work->charge(pixels_ * pixel_cost_,
+                     "decoding keyframe " + std::to_string(k) + "'s texture of " + std::to_string(file_.texture_size()) + "² pixels");
       }
       const State& s = *file_.state_;
       if (!s.header->texture_groups()) {
@@ -263,9 +286,10 @@ std::unique_ptr<OpenedFile::RunReader<Image>> OpenedFile::read_textures(size_t f
       if (!group_) {
         const format::ChunkView& chunk = file_.texture_chunk(first_);
         group_ = std::make_unique<TextureGroupReader>(s.reader.payload(chunk, s.limits.max_memory_bytes),
-                                                      s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first_) + ".." +
-                                                          std::to_string(first_ + count_ - 1) + ")",
-                                                      static_cast<uint32_t>(first_), static_cast<uint32_t>(count_), static_cast<uint32_t>(s.header->texture_size));
+                                                      s.source + ": " + s.reader.describe(chunk) + " (keyframes " + std::to_string(first_) +
+                                                          ".." + std::to_string(first_ + count_ - 1) + ")",
+                                                      static_cast<uint32_t>(first_), static_cast<uint32_t>(count_),
+                                                      static_cast<uint32_t>(s.header->texture_size));
       }
       Image image = group_->read(wanted);
       return wanted ? std::optional<Image>(std::move(image)) : std::nullopt;
@@ -288,11 +312,12 @@ std::unique_ptr<OpenedFile::RunReader<Image>> OpenedFile::read_textures(size_t f
   return std::make_unique<TextureRun>(*this, first, std::min(run, s.index.size() - first), pixel_cost);
 }
 
-void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted, const std::function<void(size_t, Image&&)>& take,
-                                 WorkMeter* work) const {
+void OpenedFile::decode_textures(size_t first, size_t last, const std::function<bool(size_t)>& wanted,
+                                 const std::function<void(size_t, Image&&)>& take, WorkMeter* work) const {
   const std::unique_ptr<RunReader<Image>> run = read_textures(first);
   if (last < first || last >= run->end()) {
-    throw Error(ErrorCode::kInternal, state_->source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
+    throw Error(ErrorCode::kInternal,
+                state_->source + ": textures " + std::to_string(first) + ".." + std::to_string(last) + " are not one run's");
   }
   while (run->next() <= last) {
     const size_t k = run->next();
@@ -303,14 +328,16 @@ void OpenedFile::decode_textures(size_t first, size_t last, const std::function<
 }
 
 void OpenedFile::decode_every_keyframe(const std::function<void(size_t, Keyframe&&, uint64_t)>& take) const {
-  for (size_t first = 0; first < keyframe_count(); first += run_length()) decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, take);
+  for (size_t first = 0; first < keyframe_count(); first += run_length())
+    decode_run(first, std::min(first + run_length(), keyframe_count()) - 1, take);
 }
 
 void OpenedFile::decode_every_texture(const std::function<void(size_t, Image&&)>& take) const {
   const size_t run = texture_run_length();
   for (size_t first = 0; first < keyframe_count(); first += run) {
     if (texture_owner(first) != first) continue;  // a shared texture, decoded at its owner
-    decode_textures(first, std::min(first + run, keyframe_count()) - 1, [](size_t) { return true; }, take);
+    decode_textures(
+        first, std::min(first + run, keyframe_count()) - 1, [](size_t) { return true; }, take);
   }
 }
 
@@ -319,13 +346,15 @@ Image OpenedFile::decode_texture(size_t k) const {
   if (s.header->texture_groups()) {
     Image image;
     const size_t first = k / texture_run_length() * texture_run_length();
-    decode_textures(first, k, [k](size_t j) { return j == k; }, [&](size_t, Image&& decoded) { image = std::move(decoded); });
+    decode_textures(
+        first, k, [k](size_t j) { return j == k; }, [&](size_t, Image&& decoded) { image = std::move(decoded); });
     return image;
   }
   const format::ChunkView& chunk = texture_chunk(k);
   const uint32_t owner = s.texture_owner.at(k);
-  return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(owner) + ")",
-                      owner, s.header->texture_size);
+  return read_texture(s.reader.payload(chunk, s.limits.max_memory_bytes),
+                      s.source + ": " + s.reader.describe(chunk) + " (keyframe " + std::to_string(owner) + ")", owner,
+                      s.header->texture_size);
 }
 
 TextureCodec OpenedFile::texture_codec(size_t k) const {
@@ -365,11 +394,12 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
       const auto count = static_cast<uint32_t>(std::min(run, s.index.size() - first));
       std::vector<uint64_t> samples;
       if (split_texture_groups) try {
-        samples = texture_group_sample_bytes(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk),
-                                             static_cast<uint32_t>(first), count, header.texture_size);
-      } catch (const Error&) {
-        samples.clear();
-      }
+          samples =
+              texture_group_sample_bytes(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk),
+                                         static_cast<uint32_t>(first), count, header.texture_size);
+        } catch (const Error&) {
+          samples.clear();
+        }
       uint64_t shared = chunk.total_size();
       for (size_t j = 1; j < samples.size(); ++j) {
         const uint64_t bytes = std::min(samples[j], shared);
@@ -407,10 +437,12 @@ void OpenedFile::check_every_keyframe(SequenceFileInfo* info) const {
   }
 }
 
-Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info, const DecoderLimits& limits) {
+Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string& source, SequenceFileInfo* info,
+                              const DecoderLimits& limits) {
   check_decoder_limits(limits);
   if (bytes.size() > limits.max_memory_bytes) {
-    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+    throw Error(ErrorCode::kLimit, source + ": " + std::to_string(bytes.size()) + " bytes, over the memory limit of " +
+                                       std::to_string(limits.max_memory_bytes));
   }
   // Decoded whole: every keyframe is held at once.
   const OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
@@ -443,7 +475,8 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
   check_decoder_limits(limits);
   format::MappedFile mapped(path);
   // One keyframe at a time: what a decoder on demand holds for the frame's keyframes, no more.
-  const OpenedFile file(mapped.bytes(), path.string(), limits, [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
+  const OpenedFile file(mapped.bytes(), path.string(), limits,
+                        [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
   SequenceFileInfo info;
   file.check_every_keyframe(&info);
   return info;
@@ -452,7 +485,8 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 SequenceFileInfo describe_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
   check_decoder_limits(limits);
   format::MappedFile mapped(path);
-  const OpenedFile file(mapped.bytes(), path.string(), limits, [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
+  const OpenedFile file(mapped.bytes(), path.string(), limits,
+                        [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
   file.verify_checksums();
   return file.describe();
 }
@@ -462,7 +496,8 @@ Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo*
   std::error_code error;
   const uintmax_t size = std::filesystem::file_size(path, error);
   if (!error && size > limits.max_memory_bytes) {
-    throw Error(ErrorCode::kLimit, path.string() + ": " + std::to_string(size) + " bytes, over the memory limit of " + std::to_string(limits.max_memory_bytes));
+    throw Error(ErrorCode::kLimit, path.string() + ": " + std::to_string(size) + " bytes, over the memory limit of " +
+                                       std::to_string(limits.max_memory_bytes));
   }
   const std::vector<uint8_t> bytes = format::read_file(path);
   return decode_sequence_file(bytes, path.string(), info, limits);

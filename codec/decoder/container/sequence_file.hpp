@@ -4,8 +4,8 @@
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
-#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/sequence.hpp"
 
 #include <cstdint>
@@ -36,10 +36,12 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
 // the keyframes one frame of the spline blends. A file is mapped (format::MappedFile), not read;
 // bytes are copied (they count against the budget) and may be freed at once. `info`: the file's
 // description, as decode_sequence_file gives it.
-std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits,
+std::shared_ptr<const KeyframeSource> open_sequence_source(const std::filesystem::path& path,
+                                                           const DecoderLimits& limits = kDefaultDecoderLimits,
                                                            SequenceFileInfo* info = nullptr);
 std::shared_ptr<const KeyframeSource> open_sequence_source(std::span<const uint8_t> bytes, const std::string& source,
-                                                           const DecoderLimits& limits = kDefaultDecoderLimits, SequenceFileInfo* info = nullptr);
+                                                           const DecoderLimits& limits = kDefaultDecoderLimits,
+                                                           SequenceFileInfo* info = nullptr);
 // The same over bytes the caller keeps, not copied (fm_file_open_memory_borrowed): they must outlive
 // the source and every decoder on it. Only the header's and index's chunks and every chunk's 24-byte
 // header and 4-byte checksum are read here; a keyframe's chunks when a frame first needs them (and
@@ -61,6 +63,7 @@ SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const 
 // open_sequence_source, and kCorrupt naming the first chunk whose checksum does not match.
 SequenceFileInfo describe_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
 
-Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr, const DecoderLimits& limits = kDefaultDecoderLimits);
+Sequence read_sequence_file(const std::filesystem::path& path, SequenceFileInfo* info = nullptr,
+                            const DecoderLimits& limits = kDefaultDecoderLimits);
 
 }  // namespace facemorph

@@ -11,7 +11,8 @@ TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::strin
   if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe's texture than the index says");
   const uint32_t number_of_codec = r.read<uint32_t>("the image codec");
   if (number_of_codec != kTextureWebp && number_of_codec != kTextureAvif) {
-    throw Error(ErrorCode::kUnsupported, where + ": image codec " + std::to_string(number_of_codec) + " (this decoder reads WebP, 1, and AVIF, 2)");
+    throw Error(ErrorCode::kUnsupported,
+                where + ": image codec " + std::to_string(number_of_codec) + " (this decoder reads WebP, 1, and AVIF, 2)");
   }
   return number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
 }
@@ -28,7 +29,8 @@ Image read_texture(std::span<const uint8_t> payload, const std::string& where, u
     corrupt(where, std::string("an image larger than the header's texture size: ") + e.what());  // the file's fault, not the caller's
   }
   if (image.width != static_cast<int>(size) || image.height != static_cast<int>(size)) {
-    corrupt(where, "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
+    corrupt(where,
+            "a " + std::to_string(image.width) + "x" + std::to_string(image.height) + " texture, the header says " + std::to_string(size));
   }
   return image;
 }

@@ -20,7 +20,8 @@ Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int
   int width = 0, height = 0;
   if (!WebPGetInfo(bytes.data(), bytes.size(), &width, &height)) throw Error(ErrorCode::kCorrupt, source + ": not a WebP image");
   if (static_cast<int64_t>(width) * height > max_pixels) {
-    throw Error(ErrorCode::kInvalidArgument, source + ": WebP image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is too large");
+    throw Error(ErrorCode::kInvalidArgument,
+                source + ": WebP image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is too large");
   }
   Image image(width, height, channels);
   const int stride = width * channels;
@@ -43,16 +44,17 @@ Image rgb_of(const avifImage* decoded, int channels, const std::string& source) 
   if (channels == 4 && decoded->alphaPlane == nullptr) {
     for (size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;  // no alpha stored: opaque
   }
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": the AVIF image cannot be converted to RGB (" + avifResultToString(result) + ")");
+  if (result != AVIF_RESULT_OK)
+    throw Error(ErrorCode::kCorrupt, source + ": the AVIF image cannot be converted to RGB (" + avifResultToString(result) + ")");
   return image;
 }
-
 
 namespace {
 
 // A decoder on an AVIF image sequence of exactly `frames` 8-bit images of size × size, parsed and
 // checked from the container alone (no pixel decoded yet); kCorrupt naming `source` otherwise.
-std::unique_ptr<avifDecoder, AvifDecoderFree> parsed_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size) {
+std::unique_ptr<avifDecoder, AvifDecoderFree> parsed_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames,
+                                                              uint32_t size) {
   std::unique_ptr<avifDecoder, AvifDecoderFree> decoder(avifDecoderCreate());
   if (!decoder) throw Error(ErrorCode::kInvalidArgument, source + ": AVIF decoding: out of memory");
   decoder->maxThreads = 1;
@@ -65,11 +67,14 @@ std::unique_ptr<avifDecoder, AvifDecoderFree> parsed_sequence(std::span<const ui
   // writes one image so), and a still where several frames belong is refused by its count below.
   avifResult result = avifDecoderSetIOMemory(decoder.get(), bytes.data(), bytes.size());
   if (result == AVIF_RESULT_OK) result = avifDecoderParse(decoder.get());
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": not an AVIF image sequence (" + avifResultToString(result) + ")");
-  if (decoder->imageCount != static_cast<int>(frames) || decoder->image->width != size || decoder->image->height != size || decoder->image->depth != 8) {
-    throw Error(ErrorCode::kCorrupt, source + ": an AVIF sequence of " + std::to_string(decoder->imageCount) + " images of " + std::to_string(decoder->image->width) +
-                                         " x " + std::to_string(decoder->image->height) + " at " + std::to_string(decoder->image->depth) + " bits, not " +
-                                         std::to_string(frames) + " of " + std::to_string(size) + " x " + std::to_string(size) + " at 8");
+  if (result != AVIF_RESULT_OK)
+    throw Error(ErrorCode::kCorrupt, source + ": not an AVIF image sequence (" + avifResultToString(result) + ")");
+  if (decoder->imageCount != static_cast<int>(frames) || decoder->image->width != size || decoder->image->height != size ||
+      decoder->image->depth != 8) {
+    throw Error(ErrorCode::kCorrupt, source + ": an AVIF sequence of " + std::to_string(decoder->imageCount) + " images of " +
+                                         std::to_string(decoder->image->width) + " x " + std::to_string(decoder->image->height) + " at " +
+                                         std::to_string(decoder->image->depth) + " bits, not " + std::to_string(frames) + " of " +
+                                         std::to_string(size) + " x " + std::to_string(size) + " at 8");
   }
   return decoder;
 }
@@ -97,15 +102,18 @@ uint32_t AvifSequenceReader::next() const { return state_->next; }
 Image AvifSequenceReader::read(bool convert) {
   State& s = *state_;
   const uint32_t j = s.next;
-  if (j >= s.frames) throw Error(ErrorCode::kInvalidArgument, s.source + ": frame " + std::to_string(j) + " of a sequence of " + std::to_string(s.frames));
+  if (j >= s.frames)
+    throw Error(ErrorCode::kInvalidArgument, s.source + ": frame " + std::to_string(j) + " of a sequence of " + std::to_string(s.frames));
   const avifResult result = avifDecoderNextImage(s.decoder.get());
   if (result != AVIF_RESULT_OK) {
-    throw Error(ErrorCode::kCorrupt, s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is damaged (" + avifResultToString(result) + ")");
+    throw Error(ErrorCode::kCorrupt,
+                s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is damaged (" + avifResultToString(result) + ")");
   }
   const avifImage* decoded = s.decoder->image;
   if (decoded->width != s.size || decoded->height != s.size || decoded->depth != 8) {
-    throw Error(ErrorCode::kCorrupt, s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is " + std::to_string(decoded->width) + " x " +
-                                         std::to_string(decoded->height) + ", not " + std::to_string(s.size) + " x " + std::to_string(s.size));
+    throw Error(ErrorCode::kCorrupt, s.source + ": frame " + std::to_string(j) + " of the AVIF sequence is " +
+                                         std::to_string(decoded->width) + " x " + std::to_string(decoded->height) + ", not " +
+                                         std::to_string(s.size) + " x " + std::to_string(s.size));
   }
   ++s.next;
   return convert ? rgb_of(decoded, 3, s.source) : Image();
@@ -113,7 +121,8 @@ Image AvifSequenceReader::read(bool convert) {
 
 void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size, uint32_t last,
                           const std::function<bool(uint32_t)>& wanted, const std::function<void(uint32_t, Image&&)>& take) {
-  if (last >= frames) throw Error(ErrorCode::kInvalidArgument, source + ": frame " + std::to_string(last) + " of a sequence of " + std::to_string(frames));
+  if (last >= frames)
+    throw Error(ErrorCode::kInvalidArgument, source + ": frame " + std::to_string(last) + " of a sequence of " + std::to_string(frames));
   AvifSequenceReader reader(bytes, source, frames, size);
   for (uint32_t j = 0; j <= last; ++j) {
     const bool convert = wanted(j);
@@ -122,7 +131,8 @@ void decode_avif_sequence(std::span<const uint8_t> bytes, const std::string& sou
   }
 }
 
-std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames, uint32_t size) {
+std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t> bytes, const std::string& source, uint32_t frames,
+                                                 uint32_t size) {
   const auto decoder = parsed_sequence(bytes, source, frames, size);
   // The extent frame j needs runs from the sync sample (frame 0) to j's sample: j's own bytes are
   // how far it reaches past frame j - 1's.
@@ -131,14 +141,14 @@ std::vector<uint64_t> avif_sequence_sample_bytes(std::span<const uint8_t> bytes,
   for (uint32_t j = 0; j < frames; ++j) {
     avifExtent extent{};
     const avifResult result = avifDecoderNthImageMaxExtent(decoder.get(), j, &extent);
-    if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence: " + avifResultToString(result));
+    if (result != AVIF_RESULT_OK)
+      throw Error(ErrorCode::kCorrupt, source + ": frame " + std::to_string(j) + " of the AVIF sequence: " + avifResultToString(result));
     const uint64_t end = extent.offset + extent.size;
     sizes[j] = j == 0 ? extent.size : (end > previous_end ? end - previous_end : 0);
     previous_end = std::max(previous_end, end);
   }
   return sizes;
 }
-
 
 Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int channels, int64_t max_pixels) {
   if (channels != 3 && channels != 4) throw Error(ErrorCode::kInvalidArgument, "decode_avif: channels must be 3 or 4");
@@ -151,22 +161,25 @@ Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int
   if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": not an AVIF image (" + avifResultToString(result) + ")");
   const uint32_t width = decoder->image->width, height = decoder->image->height;
   if (static_cast<int64_t>(width) * height > max_pixels) {
-    throw Error(ErrorCode::kInvalidArgument, source + ": AVIF image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is too large");
+    throw Error(ErrorCode::kInvalidArgument,
+                source + ": AVIF image of " + std::to_string(width) + " x " + std::to_string(height) + " pixels is too large");
   }
   // One 8-bit still image (spec/container.md §8): a sequence or a deeper image is not a texture.
   if (decoder->imageCount != 1 || decoder->image->depth != 8) {
-    throw Error(ErrorCode::kCorrupt, source + ": an AVIF of " + std::to_string(decoder->imageCount) + " images at " + std::to_string(decoder->image->depth) +
-                                         " bits, not one 8-bit still image");
+    throw Error(ErrorCode::kCorrupt, source + ": an AVIF of " + std::to_string(decoder->imageCount) + " images at " +
+                                         std::to_string(decoder->image->depth) + " bits, not one 8-bit still image");
   }
   // The AV1 frame may claim another size than the container's header; the AV1 decoder refuses a
   // frame larger than the header's, so a hostile file cannot make it allocate more.
   decoder->imageSizeLimit = std::max<uint32_t>(width * height, 1);
   result = avifDecoderNextImage(decoder.get());
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kCorrupt, source + ": the AVIF image data is damaged (" + avifResultToString(result) + ")");
+  if (result != AVIF_RESULT_OK)
+    throw Error(ErrorCode::kCorrupt, source + ": the AVIF image data is damaged (" + avifResultToString(result) + ")");
   const avifImage* decoded = decoder->image;
   if (decoded->width != width || decoded->height != height || decoded->depth != 8) {
-    throw Error(ErrorCode::kCorrupt, source + ": the AVIF frame is " + std::to_string(decoded->width) + " x " + std::to_string(decoded->height) +
-                                         ", its header says " + std::to_string(width) + " x " + std::to_string(height));
+    throw Error(ErrorCode::kCorrupt, source + ": the AVIF frame is " + std::to_string(decoded->width) + " x " +
+                                         std::to_string(decoded->height) + ", its header says " + std::to_string(width) + " x " +
+                                         std::to_string(height));
   }
   return rgb_of(decoded, channels, source);
 }
@@ -184,7 +197,8 @@ Image decode_png(std::span<const uint8_t> bytes, const std::string& source, int6
   }
   if (static_cast<int64_t>(png.width) * png.height > max_pixels) {
     png_image_free(&png);
-    throw Error(ErrorCode::kInvalidArgument, source + ": PNG image of " + std::to_string(png.width) + " x " + std::to_string(png.height) + " pixels is too large");
+    throw Error(ErrorCode::kInvalidArgument,
+                source + ": PNG image of " + std::to_string(png.width) + " x " + std::to_string(png.height) + " pixels is too large");
   }
   const bool alpha = (png.format & PNG_FORMAT_FLAG_ALPHA) != 0;
   png.format = alpha ? PNG_FORMAT_RGBA : PNG_FORMAT_RGB;

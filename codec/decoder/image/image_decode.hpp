@@ -18,14 +18,12 @@ namespace facemorph {
 
 // Decodes WebP bytes to RGB (`channels` 3) or RGBA (4). Throws kCorrupt naming `source` when the
 // bytes are not a WebP image, kInvalidArgument when its size exceeds `max_pixels`.
-Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int channels = 3,
-                  int64_t max_pixels = int64_t{1} << 26);
+Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int channels = 3, int64_t max_pixels = int64_t{1} << 26);
 
 // Decodes AVIF bytes to RGB (`channels` 3) or RGBA (4, opaque). Throws kCorrupt naming `source` when
 // the bytes are not an AVIF image or its data is damaged, kInvalidArgument when its size exceeds
 // `max_pixels`.
-Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int channels = 3,
-                  int64_t max_pixels = int64_t{1} << 26);
+Image decode_avif(std::span<const uint8_t> bytes, const std::string& source, int channels = 3, int64_t max_pixels = int64_t{1} << 26);
 
 // Reads an AVIF image sequence that must hold exactly `frames` 8-bit images of size x size frame
 // by frame, in order, so that a caller may stop between two frames and go on later with the same

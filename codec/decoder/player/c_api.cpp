@@ -5,15 +5,15 @@
 #define FACEMORPH_BUILDING_LIBRARY
 #include "facemorph.h"
 
-#include "codec/decoder/player/decoder.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/decoder/player/decoder.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
-#include <mutex>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <span>
 #include <string>
@@ -233,7 +233,8 @@ fm_status open_path(const char* function, const char* path, const fm_decoder_opt
   });
 }
 
-fm_status open_bytes(const char* function, const void* data, size_t size, const fm_decoder_options* options, fm_file** file, bool borrowed = false) {
+fm_status open_bytes(const char* function, const void* data, size_t size, const fm_decoder_options* options, fm_file** file,
+                     bool borrowed = false) {
   return guarded(function, [&] {
     check_pointer(file, "file");
     *file = nullptr;
@@ -264,8 +265,8 @@ struct CallerBuffer {
 // The buffer `field` of *frame with its size `field`_bytes, read only where the caller's struct
 // holds both (spec/api.md §3); NULL (not wanted) otherwise. Every use of a buffer goes through
 // what this read, so no field beyond struct_size is ever loaded, not even for a check.
-#define FM_FRAME_BUFFER(frame, field)                                                       \
-  (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes)           \
+#define FM_FRAME_BUFFER(frame, field)                                                                          \
+  (FM_COVERS(frame, fm_frame, field) && FM_COVERS(frame, fm_frame, field##_bytes)                              \
        ? CallerBuffer<std::remove_pointer_t<decltype((frame)->field)>>{(frame)->field, (frame)->field##_bytes} \
        : CallerBuffer<std::remove_pointer_t<decltype((frame)->field)>>{})
 
@@ -306,7 +307,9 @@ FM_API uint32_t fm_version_number(void) { return FACEMORPH_VERSION_NUMBER; }
 
 FM_API fm_status fm_file_open(const char* path, fm_file** file) { return open_path("fm_file_open", path, nullptr, file); }
 
-FM_API fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) { return open_bytes("fm_file_open_memory", data, size, nullptr, file); }
+FM_API fm_status fm_file_open_memory(const void* data, size_t size, fm_file** file) {
+  return open_bytes("fm_file_open_memory", data, size, nullptr, file);
+}
 
 FM_API fm_status fm_file_open_with_options(const char* path, const fm_decoder_options* options, fm_file** file) {
   return open_path("fm_file_open_with_options", path, options, file);
@@ -354,12 +357,13 @@ FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
     size_t end = 0;
 #define FM_INFO_FIELD(field) \
   if (FM_COVERS(info, fm_info, field)) end = offsetof(fm_info, field) + sizeof out.field;
-    FM_INFO_FIELD(fps) FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin)
-    FM_INFO_FIELD(range_end) FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count)
-    FM_INFO_FIELD(max_triangle_count) FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes)
-    FM_INFO_FIELD(texture_size) FM_INFO_FIELD(units)
+    FM_INFO_FIELD(fps)
+    FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end)
+        FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count)
+            FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size)
+                FM_INFO_FIELD(units)
 #undef FM_INFO_FIELD
-    const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
+                    const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
     if (end > begin) std::memcpy(reinterpret_cast<char*>(info) + begin, reinterpret_cast<const char*>(&out) + begin, end - begin);
     return ok();
   });
@@ -426,8 +430,8 @@ FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags
       describe(d.frame_info(t, options), frame);
       throw Error(ErrorCode::kBufferTooSmall, "a buffer smaller than one element (sizes are in bytes)");
     }
-    const bool wants_nothing = buffers.positions.empty() && buffers.normals.empty() && buffers.uvs.empty() && buffers.indices.empty() &&
-                               buffers.texture.empty();
+    const bool wants_nothing =
+        buffers.positions.empty() && buffers.normals.empty() && buffers.uvs.empty() && buffers.indices.empty() && buffers.texture.empty();
     try {
       describe(wants_nothing ? d.frame_info(t, options) : d.decode(t, buffers, options), frame);
     } catch (const Error& e) {
@@ -458,7 +462,8 @@ FM_API fm_status fm_decoder_get_texture_weights(fm_decoder* decoder, double t, u
     *count = w.keys.size();
     if (keyframes == nullptr && weights == nullptr && capacity == 0) return ok();  // the count alone
     if (capacity < w.keys.size()) {
-      throw Error(ErrorCode::kBufferTooSmall, std::to_string(w.keys.size()) + " keyframes blend at t, room for " + std::to_string(capacity));
+      throw Error(ErrorCode::kBufferTooSmall,
+                  std::to_string(w.keys.size()) + " keyframes blend at t, room for " + std::to_string(capacity));
     }
     for (size_t i = 0; i < w.keys.size(); ++i) {
       keyframes[i] = static_cast<uint32_t>(w.keys[i]);

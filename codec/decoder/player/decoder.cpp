@@ -3,8 +3,8 @@
 #include "codec/decoder/player/decoder.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/decoder/container/sequence_file.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -17,7 +17,8 @@ std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::
   return open_sequence_source(path, limits);
 }
 
-std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name, const DecoderLimits& limits) {
+std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name,
+                                                           const DecoderLimits& limits) {
   return open_sequence_source(bytes, name, limits);
 }
 
@@ -38,7 +39,8 @@ struct Decoder::Impl {
   // `texture`: the texture must be blended; `any`: a kept frame with or without it will do (for
   // sizes only), and a new one is decoded with the texture the caller will most likely ask for next.
   const DecodedFrame& decode(double t, const FrameOptions& options, bool texture, bool any = false) {
-    if (key && key->t == t && key->clamp == options.clamp && key->keep_holes_filled == options.keep_holes_filled && (key->texture || !texture || any)) {
+    if (key && key->t == t && key->clamp == options.clamp && key->keep_holes_filled == options.keep_holes_filled &&
+        (key->texture || !texture || any)) {
       return frame;
     }
     key.reset();  // a throw below leaves no stale frame behind
@@ -129,8 +131,9 @@ Decoder::Decoder(std::shared_ptr<const KeyframeSource> source) {
   // The counts above follow from N; the grid the decoder built must have them.
   const DiskGrid& grid = impl_->decoder.geometry().grid();
   if (grid.node_count() != info_.grid_vertex_count || static_cast<int>(grid.faces.size()) != info_.grid_triangle_count) {
-    throw Error(ErrorCode::kInternal, "decoder: G has " + std::to_string(grid.node_count()) + " nodes and " + std::to_string(grid.faces.size()) +
-                                          " triangles, not " + std::to_string(info_.grid_vertex_count) + " and " + std::to_string(info_.grid_triangle_count));
+    throw Error(ErrorCode::kInternal, "decoder: G has " + std::to_string(grid.node_count()) + " nodes and " +
+                                          std::to_string(grid.faces.size()) + " triangles, not " + std::to_string(info_.grid_vertex_count) +
+                                          " and " + std::to_string(info_.grid_triangle_count));
   }
 }
 
@@ -197,7 +200,8 @@ FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions&
   }
   if (!out.indices.empty()) {
     for (size_t f = 0; f < mesh.faces.size(); ++f) {
-      for (int k = 0; k < 3; ++k) out.indices[3 * f + static_cast<size_t>(k)] = static_cast<uint32_t>(mesh.faces[f][static_cast<size_t>(k)]);
+      for (int k = 0; k < 3; ++k)
+        out.indices[3 * f + static_cast<size_t>(k)] = static_cast<uint32_t>(mesh.faces[f][static_cast<size_t>(k)]);
     }
   }
   if (!out.texture.empty() && info.texture_size > 0) {

@@ -25,9 +25,9 @@
 //   texture    M × M RGBA8 texels, alpha 255, row 0 at the top (v = 1), rows packed without padding.
 #pragma once
 
-#include "format/error.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "format/error.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -40,12 +40,12 @@
 namespace facemorph {
 
 // Opens a .fmv file for decoding on demand (open_sequence_source, codec/decoder/container/sequence_file.hpp):
-// the header and index are read and checked, nothing else (spec/container.md §9: kIo, kTruncated, kCorrupt, kUnsupported, each naming the file and the
-// chunk; kLimit where a frame needs more than `limits` allow, found from the sizes it states before
-// they are allocated, §10). Afterwards keyframes and textures are decoded when a frame needs them,
-// into a cache bounded by limits.max_memory_bytes: memory follows what is played, not the file.
-// The result is immutable to its users and thread-safe: share it between decoders and threads.
-std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
+// the header and index are read and checked, nothing else (spec/container.md §9: kIo, kTruncated, kCorrupt, kUnsupported, each naming the
+// file and the chunk; kLimit where a frame needs more than `limits` allow, found from the sizes it states before they are allocated, §10).
+// Afterwards keyframes and textures are decoded when a frame needs them, into a cache bounded by limits.max_memory_bytes: memory follows
+// what is played, not the file. The result is immutable to its users and thread-safe: share it between decoders and threads.
+std::shared_ptr<const KeyframeSource> open_sequence_file(const std::filesystem::path& path,
+                                                         const DecoderLimits& limits = kDefaultDecoderLimits);
 // The same from bytes in memory. The bytes are copied (and count against the budget): the caller
 // may free them at once. `name` names the source in error messages.
 std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
@@ -53,17 +53,17 @@ std::shared_ptr<const KeyframeSource> open_sequence_memory(std::span<const uint8
 
 // What a file holds, fixed for the file.
 struct FileInfo {
-  double fps = 0;             // the capture's nominal frame rate (frames per second)
-  double first_time = 0;      // the capture's first and last frame times, seconds
+  double fps = 0;         // the capture's nominal frame rate (frames per second)
+  double first_time = 0;  // the capture's first and last frame times, seconds
   double last_time = 0;
-  double duration = 0;        // last_time - first_time, seconds
+  double duration = 0;  // last_time - first_time, seconds
   // Times decode() serves without FrameOptions::clamp: the keyframes' span extended by one
   // keyframe interval at each end (extrapolation; ±infinity with a single keyframe, which is
   // constant); outside it decode throws kOutOfRange.
   double range_begin = 0;
   double range_end = 0;
   std::vector<double> keyframe_times;  // seconds, strictly increasing
-  int grid_n = 0;             // N of the disk grid G
+  int grid_n = 0;                      // N of the disk grid G
   // Every decoded frame has at most this many vertices and triangles, so buffers of these sizes
   // always suffice. Without holes (or with FrameOptions::keep_holes_filled) every frame has
   // exactly these counts and the same indices; with holes cut, the counts change from frame to
@@ -71,12 +71,12 @@ struct FileInfo {
   // its triangles.
   int max_vertex_count = 0;
   int max_triangle_count = 0;
-  int grid_vertex_count = 0;   // G's nodes and triangles: every frame's counts when the topology is fixed
+  int grid_vertex_count = 0;  // G's nodes and triangles: every frame's counts when the topology is fixed
   int grid_triangle_count = 0;
-  bool has_holes = false;      // eyes and mouth are cut out per frame: the topology changes
+  bool has_holes = false;  // eyes and mouth are cut out per frame: the topology changes
   bool has_texture = false;
-  int texture_size = 0;        // M, texels per side (0: no texture)
-  std::string units;           // "m", "cm" or "mm"
+  int texture_size = 0;  // M, texels per side (0: no texture)
+  std::string units;     // "m", "cm" or "mm"
 };
 
 // What a sequence holds, without a decoder (no solver built): what a player shows before it
@@ -108,11 +108,11 @@ struct FrameBuffers {
 
 // What a decode produced.
 struct FrameInfo {
-  double time = 0;          // the time decoded, seconds (t, or t clamped into the range)
+  double time = 0;  // the time decoded, seconds (t, or t clamped into the range)
   int vertex_count = 0;
   int triangle_count = 0;
-  int texture_size = 0;     // M (0: no texture)
-  int iterations = 0;       // reconstruction steps the frame took
+  int texture_size = 0;  // M (0: no texture)
+  int iterations = 0;    // reconstruction steps the frame took
   // The reconstruction did not meet its tolerance; the frame is then the spline of the keyframes'
   // own surfaces (always a valid face), which fell_back says.
   bool converged = true;
@@ -133,7 +133,8 @@ class Decoder {
   explicit Decoder(std::shared_ptr<const KeyframeSource> source);
   // open_sequence_file / open_sequence_memory, then a decoder on it.
   static Decoder open(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
-  static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory", const DecoderLimits& limits = kDefaultDecoderLimits);
+  static Decoder open_memory(std::span<const uint8_t> bytes, const std::string& name = "memory",
+                             const DecoderLimits& limits = kDefaultDecoderLimits);
 
   Decoder(Decoder&&) noexcept;
   Decoder& operator=(Decoder&&) noexcept;

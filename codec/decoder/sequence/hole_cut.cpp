@@ -1,7 +1,7 @@
 #include "codec/decoder/sequence/hole_cut.hpp"
 
-#include "format/error.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "format/error.hpp"
 
 #include <cmath>
 #include <unordered_map>
@@ -11,11 +11,13 @@ namespace facemorph {
 TriangleMesh cut_holes(const DiskGrid& grid, const std::vector<Vec3>& positions, const std::vector<double>& level) {
   const size_t n = grid.nodes.size();
   if (positions.size() != n || level.size() != n) {
-    throw Error(ErrorCode::kInvalidArgument, "cut_holes: " + std::to_string(positions.size()) + " positions and " + std::to_string(level.size()) +
-                                                 " level values for a grid of " + std::to_string(n) + " nodes");
+    throw Error(ErrorCode::kInvalidArgument, "cut_holes: " + std::to_string(positions.size()) + " positions and " +
+                                                 std::to_string(level.size()) + " level values for a grid of " + std::to_string(n) +
+                                                 " nodes");
   }
   for (size_t v = 0; v < n; ++v) {
-    if (!std::isfinite(level[v]) || !positions[v].allFinite()) throw Error(ErrorCode::kInvalidArgument, "cut_holes: non-finite value at node " + std::to_string(v));
+    if (!std::isfinite(level[v]) || !positions[v].allFinite())
+      throw Error(ErrorCode::kInvalidArgument, "cut_holes: non-finite value at node " + std::to_string(v));
   }
   TriangleMesh mesh;
   std::vector<int32_t> output_vertex(n, -1);  // node -> its vertex in the result, once used

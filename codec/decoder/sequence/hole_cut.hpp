@@ -7,8 +7,8 @@
 // that opens between two keyframes opens smoothly.
 #pragma once
 
-#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 
 #include <vector>
 

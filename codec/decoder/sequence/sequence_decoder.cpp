@@ -1,8 +1,8 @@
 // Playing a sequence back at any t (spec/method.md §7): blend, reconstruct, cut holes, place.
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 
-#include "format/error.hpp"
 #include "codec/decoder/sequence/hole_cut.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -46,7 +46,8 @@ SequenceDecoder::SequenceDecoder(std::shared_ptr<const KeyframeSource> source)
 ReconstructSuspension& SequenceDecoder::suspension_for(bool keyframe, size_t k, double t, const ReconstructOptions& o) {
   Pending& p = pending_;
   const bool same = p.keyframe == keyframe && (keyframe ? p.k == k : p.t == t) && p.max_iterations == o.max_iterations &&
-                    p.anderson_depth == o.anderson_depth && p.stall_iterations == o.stall_iterations && p.tolerance == o.tolerance && p.damping == o.damping;
+                    p.anderson_depth == o.anderson_depth && p.stall_iterations == o.stall_iterations && p.tolerance == o.tolerance &&
+                    p.damping == o.damping;
   if (!same) {
     p.state.clear();  // another reconstruction's: it starts over when next needed
     p.keyframe = keyframe;
@@ -61,7 +62,8 @@ ReconstructSuspension& SequenceDecoder::suspension_for(bool keyframe, size_t k, 
   return p.state;
 }
 
-std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options, WorkMeter& work) {
+std::shared_ptr<const std::vector<Vec3>> SequenceDecoder::keyframe_surface(size_t k, const GridFields& fields,
+                                                                           const ReconstructOptions& options, WorkMeter& work) {
   if (!keyframe_failures_[k].empty()) throw Error(ErrorCode::kCorrupt, keyframe_failures_[k]);
   std::shared_ptr<const std::vector<Vec3>>& surface = keyframe_surfaces_[k];
   if (surface) {
@@ -164,8 +166,9 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
   if ((t < lo || t > hi) && !options.ignore_sane_range) {
     if (!options.clamp_to_sane_range) {
       char text[200];
-      std::snprintf(text, sizeof text, "t = %.4g s is outside the range this sequence can serve, [%.4g, %.4g] s (keyframes span [%.4g, %.4g] s)", t, lo,
-                    hi, outline().times.front(), outline().times.back());
+      std::snprintf(text, sizeof text,
+                    "t = %.4g s is outside the range this sequence can serve, [%.4g, %.4g] s (keyframes span [%.4g, %.4g] s)", t, lo, hi,
+                    outline().times.front(), outline().times.back());
       throw Error(ErrorCode::kOutOfRange, text);
     }
     t = std::clamp(t, lo, hi);
@@ -190,7 +193,8 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
   // Start from the spline of the keyframes' own surfaces: they are the fixed points of their
   // fields, so the blend is close wherever t lies.
   std::vector<std::shared_ptr<const std::vector<Vec3>>> surfaces;
-  for (size_t i = 0; i < w.keys.size(); ++i) surfaces.push_back(keyframe_surface(static_cast<size_t>(w.keys[i]), held[i]->fields, options.reconstruct, work));
+  for (size_t i = 0; i < w.keys.size(); ++i)
+    surfaces.push_back(keyframe_surface(static_cast<size_t>(w.keys[i]), held[i]->fields, options.reconstruct, work));
   const std::vector<Vec3> start = blend<Vec3>(w, Vec3::Zero(), [&](size_t i) -> const std::vector<Vec3>& { return *surfaces[i]; });
   // Playing a clip, the previous frames tell how far the reconstruction lands from that spline:
   // the correction δ = S − start is smooth in t (and zero at keyframes), so continuing it from the
@@ -211,8 +215,8 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
     // ~1% of the face — its iterate is no surface to show. The spline of the keyframes' own
     // surfaces is: the start, which the encoder's keyframe selection measured.
     if (options.reconstruct.throw_on_failure && !options.fall_back_to_start) {
-      throw Error(ErrorCode::kNotConverged, "the reconstruction did not converge (last change " +
-                                                std::to_string(result.change) + " of the rim diameter)");
+      throw Error(ErrorCode::kNotConverged,
+                  "the reconstruction did not converge (last change " + std::to_string(result.change) + " of the rim diameter)");
     }
     if (options.fall_back_to_start) {
       result.positions = start;
@@ -229,7 +233,8 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
   constexpr double kFloatMax = 3.4028234663852886e38;
   for (const Vec3& p : frame.grid_positions) {
     if (!(std::abs(p.x()) < kFloatMax && std::abs(p.y()) < kFloatMax && std::abs(p.z()) < kFloatMax)) {
-      throw Error(ErrorCode::kCorrupt, "the file decodes to positions beyond float range or not finite (a corrupt file)");  // decode() adds t
+      throw Error(ErrorCode::kCorrupt,
+                  "the file decodes to positions beyond float range or not finite (a corrupt file)");  // decode() adds t
     }
   }
 

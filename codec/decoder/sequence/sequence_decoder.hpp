@@ -13,8 +13,8 @@
 namespace facemorph {
 
 struct DecodeOptions {
-  bool cut_holes = true;      // false: keep the fill (--keep-holes-filled)
-  bool texture = true;        // blend the texture
+  bool cut_holes = true;  // false: keep the fill (--keep-holes-filled)
+  bool texture = true;    // blend the texture
   // Extrapolation past the sane range (KeyframeSpline::sane_range) is an error (kOutOfRange)
   // unless this is set: then t is clamped to the range.
   bool clamp_to_sane_range = false;
@@ -39,17 +39,17 @@ struct DecodeOptions {
 };
 
 struct DecodedFrame {
-  double time = 0;                 // the time decoded (after any clamp)
+  double time = 0;                   // the time decoded (after any clamp)
   std::vector<Vec3> grid_positions;  // every node of G, in capture coordinates
-  TriangleMesh mesh;               // G's faces (holes cut unless asked not to), UV = (w + 1) / 2
-  Image texture;                   // blended, clamped to 0..255; empty without texture
-  std::vector<double> hole_level;  // the blended level set per node of G (< 0 inside a hole); empty without holes
+  TriangleMesh mesh;                 // G's faces (holes cut unless asked not to), UV = (w + 1) / 2
+  Image texture;                     // blended, clamped to 0..255; empty without texture
+  std::vector<double> hole_level;    // the blended level set per node of G (< 0 inside a hole); empty without holes
   RigidPose pose;
-  SplineWeights weights;           // the keyframes that made it and their weights (with the residuals' correction)
-  int iterations = 0;              // reconstruction steps
-  bool converged = true;           // false only when the caller asked for the best effort
-  double change = 0;               // the reconstruction's last step, relative to the rim's diameter
-  bool fell_back = false;          // not converged: the frame is the spline of the keyframes' surfaces
+  SplineWeights weights;   // the keyframes that made it and their weights (with the residuals' correction)
+  int iterations = 0;      // reconstruction steps
+  bool converged = true;   // false only when the caller asked for the best effort
+  double change = 0;       // the reconstruction's last step, relative to the rim's diameter
+  bool fell_back = false;  // not converged: the frame is the spline of the keyframes' surfaces
 };
 
 // Plays a sequence back. Keeps the multigrid solver of G's Laplacian and, lazily, the keyframes' own
@@ -83,7 +83,8 @@ class SequenceDecoder {
 
  private:
   DecodedFrame decode_metered(double t, const DecodeOptions& options, WorkMeter& work);
-  std::shared_ptr<const std::vector<Vec3>> keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options, WorkMeter& work);
+  std::shared_ptr<const std::vector<Vec3>> keyframe_surface(size_t k, const GridFields& fields, const ReconstructOptions& options,
+                                                            WorkMeter& work);
   // The frame's reconstruction, going on from where the work limit stopped the last call at t.
   ReconstructResult reconstruct_frame(double t, const GridFields& fields, ReconstructOptions options, WorkMeter& work);
   // The suspension for keyframe k's surface (keyframe) or the frame at t: the pending one where it

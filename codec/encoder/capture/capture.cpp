@@ -22,9 +22,7 @@ namespace {
 constexpr uint64_t kMaxManifestBytes = uint64_t{1} << 28;
 constexpr size_t kMaxLandmarkLineBytes = 4096;
 
-[[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) {
-  throw Error(code, source + ": " + why);
-}
+[[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) { throw Error(code, source + ": " + why); }
 
 void check_frames(const Capture& capture, const std::string& source) {
   if (capture.frames.empty()) fail(ErrorCode::kParse, source, "the capture has no frames");
@@ -32,8 +30,9 @@ void check_frames(const Capture& capture, const std::string& source) {
     const double t = capture.frames[i].time;
     if (!std::isfinite(t)) fail(ErrorCode::kParse, source, "frame " + std::to_string(i) + " has a non-finite time");
     if (i > 0 && !(t > capture.frames[i - 1].time)) {
-      fail(ErrorCode::kParse, source, "frame " + std::to_string(i) + " (" + capture.frames[i].mesh.string() +
-                                          ") has time " + std::to_string(t) + ", not after the previous frame");
+      fail(ErrorCode::kParse, source,
+           "frame " + std::to_string(i) + " (" + capture.frames[i].mesh.string() + ") has time " + std::to_string(t) +
+               ", not after the previous frame");
     }
     std::error_code ec;
     if (!fs::is_regular_file(capture.mesh_path(i), ec)) {
@@ -93,13 +92,15 @@ namespace {
 // an hour of 74 landmarks at 30 fps is 300 MB of text, which need not be in memory at once).
 class LandmarkRows {
  public:
-  LandmarkRows(const std::string& source, Capture& capture, const LandmarkLimits& limits) : source_(source), capture_(capture), limits_(limits) {
+  LandmarkRows(const std::string& source, Capture& capture, const LandmarkLimits& limits)
+      : source_(source), capture_(capture), limits_(limits) {
     for (size_t i = 0; i < capture.landmark_names.size(); ++i) index_[capture.landmark_names[i]] = static_cast<int>(i);
   }
 
   void line(std::string_view line, size_t number) {
     if (line.size() > kMaxLandmarkLineBytes) {
-      fail(ErrorCode::kParse, source_ + ":" + std::to_string(number), "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
+      fail(ErrorCode::kParse, source_ + ":" + std::to_string(number),
+           "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
     }
     if (!header_seen_) {
       if (text::trim(line) != "frame,name,x,y,z") fail(ErrorCode::kParse, source_, "the first line must be the header 'frame,name,x,y,z'");
@@ -122,13 +123,15 @@ class LandmarkRows {
     const auto frame = text::parse_int(fields[0]);
     const size_t frames = capture_.frames.size();
     if (!frame || *frame < 0 || *frame >= static_cast<int64_t>(frames)) {
-      fail(ErrorCode::kParse, where, "frame '" + std::string(fields[0]) + "' is not a frame of the capture (0.." + std::to_string(frames - 1) + ")");
+      fail(ErrorCode::kParse, where,
+           "frame '" + std::string(fields[0]) + "' is not a frame of the capture (0.." + std::to_string(frames - 1) + ")");
     }
     if (fields[1].empty()) fail(ErrorCode::kParse, where, "empty landmark name");
     Vec3 p;
     for (int k = 0; k < 3; ++k) {
       const auto value = text::parse_double(fields[2 + k]);
-      if (!value || !std::isfinite(*value)) fail(ErrorCode::kParse, where, "coordinate '" + std::string(fields[2 + k]) + "' is not a finite number");
+      if (!value || !std::isfinite(*value))
+        fail(ErrorCode::kParse, where, "coordinate '" + std::string(fields[2 + k]) + "' is not a finite number");
       p[k] = *value;
     }
     const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -140,8 +143,9 @@ class LandmarkRows {
       const size_t names = capture_.landmark_names.size() + 1;
       if (names > limits_.names) fail(ErrorCode::kParse, where, "more than " + std::to_string(limits_.names) + " landmark names");
       if (names * frames > limits_.points) {
-        fail(ErrorCode::kParse, where, std::to_string(names) + " landmark names for " + std::to_string(frames) + " frames: more than the " +
-                                           std::to_string(limits_.points) + " landmark points a capture may hold");
+        fail(ErrorCode::kParse, where,
+             std::to_string(names) + " landmark names for " + std::to_string(frames) + " frames: more than the " +
+                 std::to_string(limits_.points) + " landmark points a capture may hold");
       }
       it = index_.emplace(name, static_cast<int>(capture_.landmark_names.size())).first;
       capture_.landmark_names.push_back(name);
@@ -208,7 +212,8 @@ void for_each_line(const fs::path& path, const OnLine& on_line) {
     pending.append(block.data() + start, got - start);
     // One byte more than a row may hold: the "\r" of a CRLF row whose "\n" is in the next block.
     if (pending.size() > kMaxLandmarkLineBytes + 1) {
-      fail(ErrorCode::kParse, path.string() + ":" + std::to_string(number + 1), "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
+      fail(ErrorCode::kParse, path.string() + ":" + std::to_string(number + 1),
+           "a line longer than " + std::to_string(kMaxLandmarkLineBytes) + " bytes");
     }
   }
   if (!pending.empty()) emit(pending);
@@ -263,8 +268,7 @@ Capture read_capture(const fs::path& path) {
       }
       CaptureFrame f;
       f.mesh = frame["mesh"].get<std::string>();
-      f.time = frame.contains("time") && frame["time"].is_number() ? frame["time"].get<double>()
-                                                                    : static_cast<double>(i) / capture.fps;
+      f.time = frame.contains("time") && frame["time"].is_number() ? frame["time"].get<double>() : static_cast<double>(i) / capture.fps;
       capture.frames.push_back(std::move(f));
       ++i;
     }
@@ -329,8 +333,8 @@ void write_capture_manifest(const Capture& capture) {
     for (size_t l = 0; l < capture.landmark_names.size(); ++l) {
       const Vec3& p = capture.landmarks[f][l];
       if (!p.allFinite()) continue;
-      csv += std::to_string(f) + "," + capture.landmark_names[l] + "," + text::format_number(p.x()) + "," +
-             text::format_number(p.y()) + "," + text::format_number(p.z()) + "\n";
+      csv += std::to_string(f) + "," + capture.landmark_names[l] + "," + text::format_number(p.x()) + "," + text::format_number(p.y()) +
+             "," + text::format_number(p.z()) + "\n";
     }
   }
   format::write_file_atomically(capture.root / "landmarks.csv", std::string_view(csv));
@@ -342,7 +346,8 @@ Capture open_capture(const std::filesystem::path& path, double fps, const std::f
   if (manifest) return read_capture(path);
   if (!std::filesystem::is_directory(path, ec)) throw Error(ErrorCode::kIo, path.string() + ": no such capture folder");
   if (!(fps > 0)) {
-    throw Error(ErrorCode::kInvalidArgument, path.string() + ": no capture.json here; give --fps (and --landmarks) to read it as a plain folder of meshes");
+    throw Error(ErrorCode::kInvalidArgument,
+                path.string() + ": no capture.json here; give --fps (and --landmarks) to read it as a plain folder of meshes");
   }
   return scan_capture_folder(path, fps, landmarks_csv);
 }

@@ -49,8 +49,7 @@ Capture read_capture(const std::filesystem::path& path);
 
 // A plain folder of .obj/.ply files (natural name order), frame i at time i / fps; landmarks from a
 // CSV `frame,name,x,y,z` file (empty path: none).
-Capture scan_capture_folder(const std::filesystem::path& folder, double fps,
-                            const std::filesystem::path& landmarks_csv);
+Capture scan_capture_folder(const std::filesystem::path& folder, double fps, const std::filesystem::path& landmarks_csv);
 
 // What the tools accept as a capture: a folder with capture.json (or that file), read by
 // read_capture; otherwise a plain folder of meshes at `fps`, with landmarks from `landmarks_csv`.

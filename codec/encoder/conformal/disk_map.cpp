@@ -1,11 +1,11 @@
 // The Riemann conformal map: preconditioning, linear start, QIEM on the double cover, projection.
 #include "codec/encoder/conformal/conformal.hpp"
 
-#include "codec/core/util/enum_names.hpp"
-#include "format/error.hpp"
 #include "codec/core/geometry/differential.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
+#include "codec/core/util/enum_names.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/linear_map.hpp"
@@ -24,16 +24,13 @@ namespace facemorph {
 namespace {
 
 constexpr EnumName<ConformalMethod> kConformalMethodNames[] = {
-    {ConformalMethod::kQiem, "qiem"}, {ConformalMethod::kLinear, "linear"},
-    {ConformalMethod::kTutte, "tutte"}};
+    {ConformalMethod::kQiem, "qiem"}, {ConformalMethod::kLinear, "linear"}, {ConformalMethod::kTutte, "tutte"}};
 
 }  // namespace
 
 const char* conformal_method_name(ConformalMethod method) { return name_of(kConformalMethodNames, method); }
 
-ConformalMethod parse_conformal_method(const std::string& name) {
-  return parse_name(kConformalMethodNames, name, "conformal method");
-}
+ConformalMethod parse_conformal_method(const std::string& name) { return parse_name(kConformalMethodNames, name, "conformal method"); }
 
 namespace {
 

@@ -1,10 +1,10 @@
 // Measures of a disk map: conformal factor per vertex, angle and quasi-conformal distortion.
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/core/geometry/differential.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
 
-#include "codec/encoder/conformal/untangle.hpp"
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/conformal/untangle.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -19,7 +19,8 @@ Eigen::VectorXd conformal_factor(const DiskMap& map) {
   for (const Face& f : map.surface.faces) {
     const double a3 = triangle_area(map.surface.positions[static_cast<size_t>(f[0])], map.surface.positions[static_cast<size_t>(f[1])],
                                     map.surface.positions[static_cast<size_t>(f[2])]);
-    const double a2 = std::abs(signed_area(map.disk[static_cast<size_t>(f[0])], map.disk[static_cast<size_t>(f[1])], map.disk[static_cast<size_t>(f[2])]));
+    const double a2 = std::abs(
+        signed_area(map.disk[static_cast<size_t>(f[0])], map.disk[static_cast<size_t>(f[1])], map.disk[static_cast<size_t>(f[2])]));
     for (int32_t v : f) {
       surface_area[v] += a3;
       disk_area[v] += a2;
@@ -37,7 +38,8 @@ Distortion measure_distortion(const DiskMap& map) {
   errors.reserve(3 * faces.size());
   double area_sum = 0, mu_sum = 0, within = 0;
   for (size_t f = 0; f < faces.size(); ++f) {
-    const Vec2 w[3] = {map.disk[static_cast<size_t>(faces[f][0])], map.disk[static_cast<size_t>(faces[f][1])], map.disk[static_cast<size_t>(faces[f][2])]};
+    const Vec2 w[3] = {map.disk[static_cast<size_t>(faces[f][0])], map.disk[static_cast<size_t>(faces[f][1])],
+                       map.disk[static_cast<size_t>(faces[f][2])]};
     const Vec3 s[3] = {map.surface.positions[static_cast<size_t>(faces[f][0])], map.surface.positions[static_cast<size_t>(faces[f][1])],
                        map.surface.positions[static_cast<size_t>(faces[f][2])]};
     d.flipped += signed_area(w[0], w[1], w[2]) <= 0;

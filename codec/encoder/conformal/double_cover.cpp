@@ -1,8 +1,8 @@
 #include "codec/encoder/conformal/double_cover.hpp"
 
-#include "format/error.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -20,7 +20,8 @@ class MeshEditor {
   void split_edge(int32_t a, int32_t b, double t = 0.5) {
     const bool has_uv = mesh_.has_uvs();  // before faces and uv_faces are grown one after the other
     const auto m = static_cast<int32_t>(mesh_.positions.size());
-    if (mesh_.has_colours()) mesh_.colours.push_back((1 - t) * mesh_.colours[static_cast<size_t>(a)] + t * mesh_.colours[static_cast<size_t>(b)]);
+    if (mesh_.has_colours())
+      mesh_.colours.push_back((1 - t) * mesh_.colours[static_cast<size_t>(a)] + t * mesh_.colours[static_cast<size_t>(b)]);
     mesh_.positions.push_back((1 - t) * mesh_.positions[static_cast<size_t>(a)] + t * mesh_.positions[static_cast<size_t>(b)]);
     source_.push_back(-1);
     const size_t count = mesh_.faces.size();
@@ -64,7 +65,8 @@ class MeshEditor {
     if (has_uv) {
       const Face t = mesh_.uv_faces[f];
       const auto tg = static_cast<int32_t>(mesh_.uvs.size());
-      mesh_.uvs.push_back((mesh_.uvs[static_cast<size_t>(t[0])] + mesh_.uvs[static_cast<size_t>(t[1])] + mesh_.uvs[static_cast<size_t>(t[2])]) / 3.0);
+      mesh_.uvs.push_back(
+          (mesh_.uvs[static_cast<size_t>(t[0])] + mesh_.uvs[static_cast<size_t>(t[1])] + mesh_.uvs[static_cast<size_t>(t[2])]) / 3.0);
       mesh_.uv_faces[f] = {t[0], t[1], tg};
       mesh_.uv_faces.push_back({t[1], t[2], tg});
       mesh_.uv_faces.push_back({t[2], t[0], tg});
@@ -113,7 +115,8 @@ DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& sour
     std::vector<size_t> ears;
     for (size_t f = 0; f < mesh.faces.size(); ++f) {
       const Face& face = mesh.faces[f];
-      if (topology.is_boundary_vertex(face[0]) && topology.is_boundary_vertex(face[1]) && topology.is_boundary_vertex(face[2])) ears.push_back(f);
+      if (topology.is_boundary_vertex(face[0]) && topology.is_boundary_vertex(face[1]) && topology.is_boundary_vertex(face[2]))
+        ears.push_back(f);
     }
     std::vector<std::array<int32_t, 2>> chords, obtuse;
     for (int e = 0; e < topology.edge_count(); ++e) {
@@ -129,8 +132,8 @@ DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& sour
       }
       const Vec3& pc = mesh.positions[static_cast<size_t>(c)];
       // Opposite angle above 90° (with a little margin, so near-right angles do not cascade).
-      if ((mesh.positions[static_cast<size_t>(a)] - pc).dot(mesh.positions[static_cast<size_t>(b)] - pc) < -1e-9 *
-              (mesh.positions[static_cast<size_t>(a)] - pc).norm() * (mesh.positions[static_cast<size_t>(b)] - pc).norm()) {
+      if ((mesh.positions[static_cast<size_t>(a)] - pc).dot(mesh.positions[static_cast<size_t>(b)] - pc) <
+          -1e-9 * (mesh.positions[static_cast<size_t>(a)] - pc).norm() * (mesh.positions[static_cast<size_t>(b)] - pc).norm()) {
         obtuse.push_back({a, b});
       }
     }
@@ -195,7 +198,8 @@ std::vector<CornerValues> face_edge_lengths(const TriangleMesh& mesh) {
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
     for (int k = 0; k < 3; ++k) {
       lengths[f][k] = (mesh.positions[static_cast<size_t>(mesh.faces[f][(k + 1) % 3])] -
-                       mesh.positions[static_cast<size_t>(mesh.faces[f][(k + 2) % 3])]).norm();
+                       mesh.positions[static_cast<size_t>(mesh.faces[f][(k + 2) % 3])])
+                          .norm();
     }
   }
   return lengths;
@@ -240,7 +244,8 @@ int flip_to_intrinsic_delaunay(std::vector<Face>& faces, std::vector<CornerValue
     std::unordered_map<uint64_t, std::pair<int32_t, int8_t>> half;
     half.reserve(3 * face_count);
     for (size_t f = 0; f < face_count; ++f) {
-      for (int k = 0; k < 3; ++k) half[directed_edge_key(faces[f][(k + 1) % 3], faces[f][(k + 2) % 3])] = {static_cast<int32_t>(f), static_cast<int8_t>(k)};
+      for (int k = 0; k < 3; ++k)
+        half[directed_edge_key(faces[f][(k + 1) % 3], faces[f][(k + 2) % 3])] = {static_cast<int32_t>(f), static_cast<int8_t>(k)};
     }
     for (size_t f = 0; f < face_count; ++f) {
       for (int k = 0; k < 3; ++k) {

@@ -46,8 +46,7 @@ struct DoubleCover {
 };
 // `faces` and `lengths` may be an intrinsic triangulation of the disk (flipped interior edges);
 // `on_boundary` flags the disk's boundary vertices.
-DoubleCover build_double_cover(std::span<const Face> faces, std::span<const CornerValues> lengths,
-                               const std::vector<uint8_t>& on_boundary);
+DoubleCover build_double_cover(std::span<const Face> faces, std::span<const CornerValues> lengths, const std::vector<uint8_t>& on_boundary);
 
 // Edge lengths of each face of a mesh (lengths[f][k] opposite corner k).
 std::vector<CornerValues> face_edge_lengths(const TriangleMesh& mesh);

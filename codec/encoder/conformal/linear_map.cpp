@@ -1,15 +1,15 @@
 // The linear disk map: intrinsic Delaunay weights, the rim at arc-length angles, one SPD solve.
 #include "codec/encoder/conformal/linear_map.hpp"
 
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/spd_solver.hpp"
 
 #include <cmath>
-#include <string>
 #include <numbers>
+#include <string>
 
 namespace facemorph {
 

@@ -13,8 +13,8 @@ inline Complex to_complex(const Vec2& p) { return {p.x(), p.y()}; }
 inline Vec2 to_vec2(const Complex& z) { return {z.real(), z.imag()}; }
 
 struct DiskMoebius {
-  Complex a = 0;      // the point sent to the origin
-  double theta = 0;   // rotation applied after
+  Complex a = 0;     // the point sent to the origin
+  double theta = 0;  // rotation applied after
 
   Complex operator()(const Complex& z) const { return std::polar(1.0, theta) * (z - a) / (1.0 - std::conj(a) * z); }
   Vec2 operator()(const Vec2& p) const { return to_vec2((*this)(to_complex(p))); }

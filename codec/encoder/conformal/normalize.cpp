@@ -1,6 +1,6 @@
 // Landmark normalisation: the disk Möbius map sending the centre landmark to 0, the direction one up.
-#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
 
 #include "codec/encoder/conformal/untangle.hpp"

@@ -91,8 +91,8 @@ class SymmetricSystems {
 
 }  // namespace
 
-FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, const DoubleCover& cover,
-                          Eigen::MatrixXd phi, const ConformalOptions& options) {
+FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, const DoubleCover& cover, Eigen::MatrixXd phi,
+                          const ConformalOptions& options) {
   const Eigen::Index N = K.rows();
   auto energy_of = [&](const Eigen::MatrixXd& p) { return 0.5 * (p.transpose() * (K * p)).trace(); };
   auto project = [&](Eigen::MatrixXd& p) {
@@ -115,7 +115,8 @@ FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, c
     const Eigen::MatrixXd Kphi = K * phi;
     const Eigen::VectorXd D = (Kphi.array() * phi.array()).rowwise().sum();
     const double max_d = D.maxCoeff();
-    if (!(max_d > 0) || !std::isfinite(max_d)) throw Error(ErrorCode::kNumerical, "QIEM: degenerate map (max D = " + std::to_string(max_d) + ")");
+    if (!(max_d > 0) || !std::isfinite(max_d))
+      throw Error(ErrorCode::kNumerical, "QIEM: degenerate map (max D = " + std::to_string(max_d) + ")");
     Eigen::MatrixXd next;
     double next_energy = energy;
     bool accepted = false, rejected = false;

@@ -1,8 +1,8 @@
 // The spherical conformal map of the double cover by the quasi-implicit Euler method (QIEM).
 #pragma once
 
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/core/geometry/differential.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
 
 #include "codec/encoder/conformal/double_cover.hpp"
 
@@ -28,7 +28,7 @@ Eigen::MatrixXd initial_sphere_map(const std::vector<Vec2>& w, const DoubleCover
 // cover's cotangent Laplacian, `areas` its vertex areas, `phi` the start (initial_sphere_map).
 // Throws kNumerical when the map degenerates or no step lowers the energy, kNotConverged when the
 // energy has not settled after options.max_iterations steps.
-FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, const DoubleCover& cover,
-                          Eigen::MatrixXd phi, const ConformalOptions& options);
+FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, const DoubleCover& cover, Eigen::MatrixXd phi,
+                          const ConformalOptions& options);
 
 }  // namespace facemorph

@@ -1,15 +1,17 @@
 #include "codec/encoder/conformal/resample.hpp"
 
 #include "codec/encoder/imageio/image_io.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/render/render.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace facemorph {
 
-std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGrid& grid) { return resample_positions(inverse, grid.nodes); }
+std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, const DiskGrid& grid) {
+  return resample_positions(inverse, grid.nodes);
+}
 
 std::vector<Vec3> resample_positions(const InverseDiskMap& inverse, std::span<const Vec2> points) {
   std::vector<Vec3> positions(points.size());
@@ -52,8 +54,9 @@ Image resample_texture(const DiskMap& map, const InverseDiskMap& inverse, const 
         const double w1 = ((c.x() - x) * (a.y() - y) - (c.y() - y) * (a.x() - x)) / area;
         const double w2 = 1 - w0 - w1;
         if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        put(x, y, w0 * map.surface.uvs[static_cast<size_t>(t[0])] + w1 * map.surface.uvs[static_cast<size_t>(t[1])] +
-                      w2 * map.surface.uvs[static_cast<size_t>(t[2])]);
+        put(x, y,
+            w0 * map.surface.uvs[static_cast<size_t>(t[0])] + w1 * map.surface.uvs[static_cast<size_t>(t[1])] +
+                w2 * map.surface.uvs[static_cast<size_t>(t[2])]);
       }
     }
   }
@@ -124,7 +127,8 @@ Image resample_texture(const InverseDiskMap& inverse, const TextureSource& sourc
       Vec2 w = (1 - fy) * ((1 - fx) * at(i, j) + fx * at(i + 1, j)) + fy * ((1 - fx) * at(i, j + 1) + fx * at(i + 1, j + 1));
       if (w.norm() > 1) w.normalize();
       const auto hit = inverse.locate(w);
-      if (!hit) throw Error(ErrorCode::kNumerical, "texel (" + std::to_string(x) + ", " + std::to_string(y) + ") maps outside the disk map");
+      if (!hit)
+        throw Error(ErrorCode::kNumerical, "texel (" + std::to_string(x) + ", " + std::to_string(y) + ") maps outside the disk map");
       const auto rgb = source.sample(inverse, *hit);
       uint8_t* p = out.at(x, y);
       for (int c = 0; c < 3; ++c) p[c] = static_cast<uint8_t>(std::clamp(std::lround(rgb[static_cast<size_t>(c)]), 0L, 255L));

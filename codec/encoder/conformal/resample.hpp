@@ -2,9 +2,9 @@
 // of G, texture on an M x M image of the disk's bounding square.
 #pragma once
 
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/image/image.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
 
 #include <array>
 #include <filesystem>

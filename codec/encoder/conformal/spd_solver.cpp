@@ -1,8 +1,8 @@
 #include "codec/encoder/conformal/spd_solver.hpp"
 
 #ifdef FACEMORPH_HAVE_CHOLMOD
-#include <Eigen/CholmodSupport>
 #include <dlfcn.h>
+#include <Eigen/CholmodSupport>
 #include <mutex>
 #else
 #include <Eigen/SparseCholesky>

@@ -1,8 +1,8 @@
 // Untangling a disk map: the vertices around flipped faces re-solved with mean-value weights.
 #include "codec/encoder/conformal/untangle.hpp"
 
-#include "format/error.hpp"
 #include "codec/core/geometry/differential.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/SparseLU>
 
@@ -55,7 +55,8 @@ int untangle(DiskMap& map) {
     std::vector<int> out;
     for (size_t f = 0; f < faces.size(); ++f) {
       if (signed_area(map.disk[static_cast<size_t>(faces[f][0])], map.disk[static_cast<size_t>(faces[f][1])],
-                      map.disk[static_cast<size_t>(faces[f][2])]) <= 0) out.push_back(static_cast<int>(f));
+                      map.disk[static_cast<size_t>(faces[f][2])]) <= 0)
+        out.push_back(static_cast<int>(f));
     }
     return out;
   };
@@ -98,8 +99,10 @@ int untangle(DiskMap& map) {
       for (const auto& [j, w] : row) {
         diagonal += w;
         const int c = in_patch[static_cast<size_t>(j)];
-        if (c >= 0) triplets.emplace_back(r, c, -w);
-        else rhs.row(r) += w * map.disk[static_cast<size_t>(j)].transpose();
+        if (c >= 0)
+          triplets.emplace_back(r, c, -w);
+        else
+          rhs.row(r) += w * map.disk[static_cast<size_t>(j)].transpose();
       }
       triplets.emplace_back(r, r, diagonal);
     }

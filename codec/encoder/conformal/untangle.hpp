@@ -1,8 +1,8 @@
 // Flipped triangles of a disk map: signed areas, their count, and the re-solve that unflips them.
 #pragma once
 
-#include "codec/encoder/conformal/conformal.hpp"
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/conformal/conformal.hpp"
 
 #include <vector>
 

@@ -10,12 +10,12 @@
 // consistent with the population exactly, whatever the step.
 #include "codec/encoder/density/density_equalising.hpp"
 
-#include "codec/encoder/conformal/spd_solver.hpp"
+#include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "format/error.hpp"
-#include "codec/core/geometry/differential.hpp"
+#include "codec/encoder/conformal/spd_solver.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -30,7 +30,8 @@ namespace {
 std::vector<double> disk_areas(const std::vector<Vec2>& points, const std::vector<Face>& faces) {
   std::vector<double> areas(faces.size());
   for (size_t f = 0; f < faces.size(); ++f) {
-    areas[f] = signed_area(points[static_cast<size_t>(faces[f][0])], points[static_cast<size_t>(faces[f][1])], points[static_cast<size_t>(faces[f][2])]);
+    areas[f] = signed_area(points[static_cast<size_t>(faces[f][0])], points[static_cast<size_t>(faces[f][1])],
+                           points[static_cast<size_t>(faces[f][2])]);
   }
   return areas;
 }
@@ -72,7 +73,8 @@ std::vector<Vec2> vertex_gradients(const std::vector<Vec2>& points, const std::v
     Eigen::Matrix2d edges;
     edges.row(0) = (points[j] - points[i]).transpose();
     edges.row(1) = (points[k] - points[i]).transpose();
-    const Vec2 rise(f[static_cast<Eigen::Index>(j)] - f[static_cast<Eigen::Index>(i)], f[static_cast<Eigen::Index>(k)] - f[static_cast<Eigen::Index>(i)]);
+    const Vec2 rise(f[static_cast<Eigen::Index>(j)] - f[static_cast<Eigen::Index>(i)],
+                    f[static_cast<Eigen::Index>(k)] - f[static_cast<Eigen::Index>(i)]);
     const Vec2 g = edges.partialPivLu().solve(rise);
     for (size_t v : {i, j, k}) {
       sum[v] += areas[t] * g;
@@ -143,7 +145,8 @@ DiskReparametrisation::DiskReparametrisation(const DiskMap& reference, const Den
   const InverseDiskMap inverse(reference);
   std::vector<double> population(faces.size());
   for (size_t f = 0; f < faces.size(); ++f) {
-    const Vec2 &a = points[static_cast<size_t>(faces[f][0])], &b = points[static_cast<size_t>(faces[f][1])], &c = points[static_cast<size_t>(faces[f][2])];
+    const Vec2 &a = points[static_cast<size_t>(faces[f][0])], &b = points[static_cast<size_t>(faces[f][1])],
+               &c = points[static_cast<size_t>(faces[f][2])];
     double sum = 0;
     const Vec2 samples[] = {(4 * a + b + c) / 6, (a + 4 * b + c) / 6, (a + b + 4 * c) / 6, (a + b + c) / 3};
     for (const Vec2& sample : samples) {

@@ -30,10 +30,10 @@ constexpr double kAutoRadial = -1;
 constexpr double kCrowdedHalfAreaRadius = 0.25;
 
 struct DensityEqualisingOptions {
-  double strength = 0.5;      // exponent of the density equalised, in [0, 1]; 0: the identity
-  double step = 0.05;         // diffusion time step (disk of area π)
+  double strength = 0.5;  // exponent of the density equalised, in [0, 1]; 0: the identity
+  double step = 0.05;     // diffusion time step (disk of area π)
   int max_steps = 100;
-  double tolerance = 1e-2;    // stop when the vertex density's coefficient of variation is below this
+  double tolerance = 1e-2;  // stop when the vertex density's coefficient of variation is below this
   // The radial reparametrisation's strength (DiskReparametrisation::radial) where `strength` is 0:
   // in [0, 1] (0: none), or kAutoRadial (fmenc --radial-equalising).
   double radial = kAutoRadial;
@@ -43,7 +43,7 @@ struct DensityEqualisingReport {
   int steps = 0;
   // Coefficient of variation of the area density (to the power strength) over the flow grid's triangles.
   double variation_before = 0, variation_after = 0;
-  bool stopped_early = false;                         // a step could not keep every triangle well shaped
+  bool stopped_early = false;  // a step could not keep every triangle well shaped
   // The radial reparametrisation (DiskReparametrisation::radial): the conformal disk's radius that
   // holds half the surface's area, and after it (sqrt(1/2) for an equal-area one). 0: not radial.
   double half_area_radius_before = 0, half_area_radius_after = 0;
@@ -80,8 +80,8 @@ class DiskReparametrisation {
   struct Mesh {
     std::vector<Vec2> conformal, equalised;  // per vertex
     std::vector<Face> faces;
-    std::vector<double> rim_angle;           // equalised rim vertices' angles, sorted, in [0, 2π)
-    std::vector<double> rim_conformal_angle; // the same vertices' conformal angles, unwrapped to increase
+    std::vector<double> rim_angle;            // equalised rim vertices' angles, sorted, in [0, 2π)
+    std::vector<double> rim_conformal_angle;  // the same vertices' conformal angles, unwrapped to increase
     std::unique_ptr<TriangleLocator> locator;
   };
   std::shared_ptr<const Mesh> mesh_;

@@ -3,15 +3,15 @@
 // the one-process, staged (part files) and segmented encodes alike.
 #pragma once
 
+#include "codec/core/image/texture_codec.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/sequence/spline.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
-#include "codec/encoder/encode/texture_quality.hpp"
-#include "codec/core/reconstruct/fields.hpp"
-#include "codec/core/image/texture_codec.hpp"
-#include "codec/core/sequence/spline.hpp"
 
 #include <functional>
 #include <optional>
@@ -32,8 +32,8 @@ struct EncodeOptions {
   // keeps every frame as a keyframe (SelectionOptions::sparse_interval). 0: off (fmenc --keyframes P
   // sets 0, as for the bound).
   double sparse_frame_interval = 0.25;
-  double max_error = 0;             // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
-  int grid = 0;                     // N; 0 = automatic (spec/method.md §7.6)
+  double max_error = 0;  // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
+  int grid = 0;          // N; 0 = automatic (spec/method.md §7.6)
   // What the keyframes store. Unset (the default; fmenc --representation auto): hl+t, except where
   // most frames register to the reference without interior landmarks (none shared, none tracked)
   // and the keyframes' fields, blended at frames between them, come out farther from those frames
@@ -52,7 +52,7 @@ struct EncodeOptions {
   // budget keeps its keyframes), and the fit decodes every frame between keyframes twice.
   bool residual_frames = false;
   bool texture = true;
-  int texture_size = 0;             // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
+  int texture_size = 0;  // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
   // --texture-codec: how keyframe textures are stored (AVIF: ~30% smaller than WebP at equal PSNR).
   TextureCodec texture_codec = TextureCodec::kAvif;
   // --quality: every keyframe's texture at this quality of the codec (0..100, above 100 lossless WebP), or
@@ -64,10 +64,10 @@ struct EncodeOptions {
   // stored once, where it stays within texture_coding.min_psnr of each one's own (share_textures,
   // spec/method.md §7.16). fmenc --no-texture-sharing turns it off.
   bool share_textures = true;
-  bool keep_holes_filled = false;   // true: store no holes; the decoder shows the fill
-  bool largest_component = false;   // keep each frame's largest surface, drop eyeballs, teeth (else an error)
-  int reference_frame = 0;          // the frame every other is registered to
-  int threads = 0;                  // 0: one per core
+  bool keep_holes_filled = false;  // true: store no holes; the decoder shows the fill
+  bool largest_component = false;  // keep each frame's largest surface, drop eyeballs, teeth (else an error)
+  int reference_frame = 0;         // the frame every other is registered to
+  int threads = 0;                 // 0: one per core
   ConformalOptions conformal;
   // --density-equalising: how far G's nodes spread over the reference's surface by area instead of
   // conformally (density_equalising.hpp); strength 0 (the default) keeps the conformal disk: measured,

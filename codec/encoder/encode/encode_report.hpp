@@ -2,15 +2,15 @@
 // chose and measured, for the tools' summaries, the file's settings and the bench.
 #pragma once
 
+#include "codec/core/container/file_metadata.hpp"
+#include "codec/core/reconstruct/fields.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
-#include "codec/encoder/prepare/frame.hpp"
-#include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
-#include "codec/core/reconstruct/fields.hpp"
-#include "codec/core/container/file_metadata.hpp"
+#include "codec/encoder/prepare/frame.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include <array>
 #include <cstdint>
@@ -26,16 +26,16 @@ struct EncodedFrameReport {
   double time = 0;
   int vertices = 0;
   int holes_filled = 0;
-  std::string repair;  // what preparation changed ("valid as captured", "dropped 2 other components (812 faces)", ...)
+  std::string repair;          // what preparation changed ("valid as captured", "dropped 2 other components (812 faces)", ...)
   RepairTotals repair_totals;  // faces and vertices it changed, how far the surface moved
   bool keyframe = false;
   RegistrationFallback fallback = RegistrationFallback::kNone;
   std::string fallback_reason;
-  std::string conformal_fallback_reason;  // non-empty when QIEM failed and the frame took another map...
+  std::string conformal_fallback_reason;                      // non-empty when QIEM failed and the frame took another map...
   ConformalMethod conformal_method = ConformalMethod::kQiem;  // ...this one
-  double energy_moebius = 0, energy = 0;  // E_D of the OMT and of the registration (disk units²)
-  double predicted_error = 0;             // the selection's predicted error (fraction of the diagonal)
-  double diagonal = 0;                    // of the captured frame
+  double energy_moebius = 0, energy = 0;                      // E_D of the OMT and of the registration (disk units²)
+  double predicted_error = 0;                                 // the selection's predicted error (fraction of the diagonal)
+  double diagonal = 0;                                        // of the captured frame
 };
 
 // A frame the encoder left out (EncodeOptions::strict is false), with the error that would have
@@ -54,11 +54,11 @@ struct EncodeReport {
   // Why the keyframes are stored as positions though hl+t was chosen: the keyframe whose fields'
   // reconstruction did not converge, and how far it was (encode_sampled); empty when none.
   std::string representation_fallback;
-  int reference_frame = 0;                 // the frame registered to, in the capture as given
-  int orientation_found = 0;               // frames whose nose tip and up were found from the geometry
-  double weakest_up_evidence = 1;          // the least clear of their up readings (FaceOrientation::up_evidence)
-  int up_from_hint = 0;                    // of them, frames whose surface did not say and another frame's up was taken
-  double worst_mirror_error = 0;           // the least symmetric of them (FaceOrientation::mirror_error)
+  int reference_frame = 0;         // the frame registered to, in the capture as given
+  int orientation_found = 0;       // frames whose nose tip and up were found from the geometry
+  double weakest_up_evidence = 1;  // the least clear of their up readings (FaceOrientation::up_evidence)
+  int up_from_hint = 0;            // of them, frames whose surface did not say and another frame's up was taken
+  double worst_mirror_error = 0;   // the least symmetric of them (FaceOrientation::mirror_error)
   // How they were found (FaceFindingMethod: whole surface, texture, face region), frames each, and
   // the least sure finding (FaceOrientation::confidence). A staged encode's part files do not carry
   // these: frames read from them count as found on the whole surface with confidence 0.
@@ -66,7 +66,7 @@ struct EncodeReport {
   double lowest_face_confidence = 1;
   // The method that found the most frames ("whole surface", "texture", "face region").
   const char* main_orientation_method() const;
-  bool rim_markers_found = false;          // rim markers placed on the rims (the capture had none)
+  bool rim_markers_found = false;  // rim markers placed on the rims (the capture had none)
   // Tracking (EncodeOptions::track_landmarks), over the frames that took tracked points (the
   // reference excluded): how many, the reference's grid, the points kept per frame (mean, fewest),
   // the median and 90th percentile of their round-trip errors (disk units; the disk's radius is 1).
@@ -88,20 +88,20 @@ struct EncodeReport {
   double median_frame_interval = 0;                       // seconds
   double budget_mean_error = 0, budget_worst_error = 0;   // the predicted errors it left (fraction of the diagonal)
   int grid = 0;
-  int texture_size = 0;                                   // M chosen (0: no texture)
-  std::vector<std::pair<int, double>> grid_floors;        // (N, resampling floor RMS / diagonal) tried by --grid auto
-  std::vector<std::pair<int, double>> grid_floor_p99s;    // (N, the floor's 99th-percentile point error / diagonal), the same N
-  int grid_density_cap = 0;                               // the largest N the RMS terms could ask for (the captured mesh's density)
-  double grid_worst_target = 0;                           // the floor's 99th percentile --grid auto asked for / diagonal
-  double grid_vertex_area = 0;                            // the reference's lower-quartile vertex area on the disk (0: not measured)
-  double median_noise = 0;                                // frames' median noise estimate / diagonal (--grid auto)
-  double grid_target = 0;                                 // the floor --grid auto asked for / diagonal
-  std::string grid_term;                                  // which term set it: "floor", "noise", "interpolation", "density" or "worst region"
+  int texture_size = 0;                                 // M chosen (0: no texture)
+  std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto
+  std::vector<std::pair<int, double>> grid_floor_p99s;  // (N, the floor's 99th-percentile point error / diagonal), the same N
+  int grid_density_cap = 0;                             // the largest N the RMS terms could ask for (the captured mesh's density)
+  double grid_worst_target = 0;                         // the floor's 99th percentile --grid auto asked for / diagonal
+  double grid_vertex_area = 0;                          // the reference's lower-quartile vertex area on the disk (0: not measured)
+  double median_noise = 0;                              // frames' median noise estimate / diagonal (--grid auto)
+  double grid_target = 0;                               // the floor --grid auto asked for / diagonal
+  std::string grid_term;                                // which term set it: "floor", "noise", "interpolation", "density" or "worst region"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
-  double radial_equalising = 0;  // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
+  double radial_equalising = 0;         // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
   std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending
-  FieldCoding field_coding;          // what the file must store (SequenceFileMetadata::field_coding)
+  FieldCoding field_coding;             // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;
   // Per keyframe, the quality of its texture in options().texture_codec (SequenceFileMetadata::keyframe_texture_qualities;
   // empty without texture); with auto quality, per interval between keyframes the PSNR of the texture
@@ -126,8 +126,8 @@ struct EncodeReport {
   // frames' samples in memory at once (its cache's and those in use), and the bytes written.
   int peak_selection_samples_in_memory = 0;
   uint64_t selection_spilled_bytes = 0;
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0, seconds_precision = 0,
-         seconds_texture = 0;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_representation = 0, seconds_keyframes = 0,
+         seconds_precision = 0, seconds_texture = 0;
   // The staged encode's assemble stage (staged_encode.hpp): the parts read and checked. Its
   // seconds_mapping, _registration and _selection are then the parts' own, summed.
   double seconds_reading_parts = 0;

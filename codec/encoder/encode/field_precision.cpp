@@ -1,14 +1,14 @@
 #include "codec/encoder/encode/field_precision.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/encoder/encode/keyframe_store.hpp"
-#include "codec/encoder/encode/stored_sequence.hpp"
-#include "format/error.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/util/parallel.hpp"
-#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <array>
@@ -157,7 +157,8 @@ class FieldRounder {
     Chain(const FieldRounder& rounder, const FieldCoding& coding) : rounder_(rounder), coding_(coding) {}
     GridFields next(size_t k, const GridFields& fields) {
       const bool intra = coding_.intra(k);
-      if (!intra && (before_.empty() || k != last_ + 1)) throw Error(ErrorCode::kInternal, "field rounding: keyframe " + std::to_string(k) + " out of order");
+      if (!intra && (before_.empty() || k != last_ + 1))
+        throw Error(ErrorCode::kInternal, "field rounding: keyframe " + std::to_string(k) + " out of order");
       std::vector<std::vector<double>> arrays = scalar_arrays(fields);
       for (size_t a = 0; a < arrays.size(); ++a) rounder_.round(arrays[a], coding_.steps[a], intra ? nullptr : &before_[a]);
       GridFields out = fields_from_scalar_arrays(fields.representation, fields.grid_n, fields.fixed_nodes, arrays);
@@ -176,10 +177,12 @@ class FieldRounder {
   // The keyframes as the file will hold them: their fields as above, and the hole level. Keyframe
   // k's exact fields are not read again once k is rounded, so each is replaced in place.
   void round(std::vector<Keyframe>& keyframes, const FieldCoding& coding) const {
-    for_each_rounded(keyframes.size(), [&](size_t k) { return &keyframes[k].fields; }, coding, [&](size_t k, GridFields&& fields) {
-      keyframes[k].fields = std::move(fields);
-      round_to_field_steps(keyframes[k], coding);
-    });
+    for_each_rounded(
+        keyframes.size(), [&](size_t k) { return &keyframes[k].fields; }, coding,
+        [&](size_t k, GridFields&& fields) {
+          keyframes[k].fields = std::move(fields);
+          round_to_field_steps(keyframes[k], coding);
+        });
   }
 
  private:
@@ -281,8 +284,8 @@ struct ExactSurfaces {
 // Each keyframe's decoded error with `coding`: rounded in order on this thread (a keyframe's
 // rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
 // that no more rounded fields than threads are held.
-std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder, const ExactSurfaces& exact,
-                                   ReconstructorPool& pool) {
+std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder,
+                                   const ExactSurfaces& exact, ReconstructorPool& pool) {
   std::vector<double> errors(keys.size(), 0.0);
   std::vector<std::pair<size_t, GridFields>> batch;
   const auto decode_batch = [&] {
@@ -292,10 +295,12 @@ std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding
     });
     batch.clear();
   };
-  rounder.for_each_rounded(keys.size(), [&](size_t k) { return keys.fields(k); }, coding, [&](size_t k, GridFields&& rounded) {
-    batch.emplace_back(k, std::move(rounded));
-    if (batch.size() == pool.size()) decode_batch();
-  });
+  rounder.for_each_rounded(
+      keys.size(), [&](size_t k) { return keys.fields(k); }, coding,
+      [&](size_t k, GridFields&& rounded) {
+        batch.emplace_back(k, std::move(rounded));
+        if (batch.size() == pool.size()) decode_batch();
+      });
   decode_batch();
   return errors;
 }
@@ -322,8 +327,8 @@ namespace {
 // every dead zone (keyframe 0 is intra: no dead zone applies to it), so choose_field_coding
 // calibrates once for all its trials.
 struct Calibration {
-  std::vector<size_t> present;     // the groups the fields have
-  std::vector<double> group_steps; // per group (0: absent)
+  std::vector<size_t> present;      // the groups the fields have
+  std::vector<double> group_steps;  // per group (0: absent)
 };
 
 Calibration calibrate(const GridFields& probe_fields, const FieldPrecisionOptions& options, Reconstructor& reconstructor) {
@@ -407,8 +412,8 @@ struct StepChoice {
 
 // choose_field_coding's steps for one dead zone (options checked), from the calibration's steps,
 // for the exact fields of `keys` (not changed: the caller rounds them).
-StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions& options, const Calibration& calibration, const ExactSurfaces& exact,
-                        ReconstructorPool& pool) {
+StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions& options, const Calibration& calibration,
+                        const ExactSurfaces& exact, ReconstructorPool& pool) {
   const Sequence& sequence = keys.shape();
   FieldCoding coding;
   coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
@@ -451,14 +456,15 @@ StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions&
       exponent = std::clamp(std::log(worst / last_worst) / std::log(scale / last_scale), 0.5, 4.0);
     }
     double next = scale * std::pow(aim / worst, 1 / exponent);
-    if (best_scale > 0 && std::isfinite(missed_scale) && !(next > best_scale && next < missed_scale)) next = std::sqrt(best_scale * missed_scale);
+    if (best_scale > 0 && std::isfinite(missed_scale) && !(next > best_scale && next < missed_scale))
+      next = std::sqrt(best_scale * missed_scale);
     last_scale = scale;
     last_worst = worst;
     scale = next;
   }
   if (best_scale == 0) {
-    throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) + " in " +
-                                              std::to_string(kMaxRefinements) + " refinements");
+    throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) +
+                                              " in " + std::to_string(kMaxRefinements) + " refinements");
   }
   apply(best_scale);
   return {coding, best_scale, best_errors, refinements};
@@ -496,7 +502,9 @@ class RoundedKeyframes final : public KeyframeSource {
     }
     return last_;
   }
-  std::shared_ptr<const Image> texture(size_t) const override { throw Error(ErrorCode::kInternal, "field precision: a trial has no textures"); }
+  std::shared_ptr<const Image> texture(size_t) const override {
+    throw Error(ErrorCode::kInternal, "field precision: a trial has no textures");
+  }
   size_t surfaces_kept() const override { return 1; }
   uint64_t bytes_held() const override { return 0; }
 

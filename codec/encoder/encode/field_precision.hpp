@@ -5,8 +5,8 @@
 // each group of arrays gets the step that makes its share of the error equal.
 #pragma once
 
-#include "codec/core/sequence/sequence.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/sequence/sequence.hpp"
 
 #include <array>
 #include <vector>
@@ -81,7 +81,8 @@ FieldCoding choose_field_coding(Sequence& sequence, const FieldPrecisionOptions&
 // The same on keyframes in the encoder's store, read one at a time (each trial's file too, through
 // the writer's source), with the rounded fields, hole levels and poses put back: what the search
 // holds in memory does not grow with the keyframes (spec/method.md §7.15).
-FieldCoding choose_field_coding(StoredSequence& keyframes, const FieldPrecisionOptions& options = {}, FieldPrecisionReport* report = nullptr);
+FieldCoding choose_field_coding(StoredSequence& keyframes, const FieldPrecisionOptions& options = {},
+                                FieldPrecisionReport* report = nullptr);
 
 // Rounds every keyframe's fields to `coding`'s steps as choose_field_coding does (error diffusion
 // per options.noise_shaping; the keyframes the file may predict, those not a multiple of the intra

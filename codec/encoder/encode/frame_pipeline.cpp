@@ -13,7 +13,9 @@
 
 namespace facemorph {
 
-FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) { return frame_landmarks(capture.landmark_names, capture.landmarks[frame]); }
+FrameLandmarks capture_frame_landmarks(const Capture& capture, size_t frame) {
+  return frame_landmarks(capture.landmark_names, capture.landmarks[frame]);
+}
 
 FrameLandmarks frame_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& points) {
   FrameLandmarks landmarks;
@@ -50,7 +52,8 @@ std::vector<Vec3> rim_points_at_angles(const DiskMap& map, int count) {
       // The rim runs counter-clockwise on the disk: the edge whose angles bracket the target.
       if (span > 0 && offset >= 0 && offset <= span) {
         const double s = offset / span;
-        points.push_back((1 - s) * map.surface.positions[static_cast<size_t>(rim[i])] + s * map.surface.positions[static_cast<size_t>(rim[(i + 1) % n])]);
+        points.push_back((1 - s) * map.surface.positions[static_cast<size_t>(rim[i])] +
+                         s * map.surface.positions[static_cast<size_t>(rim[(i + 1) % n])]);
         break;
       }
     }

@@ -8,14 +8,14 @@
 // resampling floor, the map for its distortion) takes it on the way.
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/prepare/frame.hpp"
-#include "codec/core/reconstruct/fields.hpp"
-#include "codec/core/reconstruct/grid_geometry.hpp"
-#include "codec/core/geometry/mesh.hpp"
 
 #include <optional>
 #include <string>
@@ -58,11 +58,11 @@ struct MappedFrame {
   std::string name;
   PreparedFrame prepared;
   DiskMap map;
-  bool normalized = false;       // centre and up were known (given or found)
+  bool normalized = false;               // centre and up were known (given or found)
   std::optional<FaceOrientation> found;  // set when the centre and up were found from the geometry
-  std::vector<Vec3> found_rim;   // kFoundRimMarkers points on the rim (after normalisation; empty if not normalised)
-  double seconds_prepare = 0;    // validation, repair, hole filling
-  double seconds_map = 0;        // the conformal map (normalisation included)
+  std::vector<Vec3> found_rim;           // kFoundRimMarkers points on the rim (after normalisation; empty if not normalised)
+  double seconds_prepare = 0;            // validation, repair, hole filling
+  double seconds_map = 0;                // the conformal map (normalisation included)
 };
 
 // Stages 1-3. Throws what prepare_frame, conformal_disk_map and (with options.find_orientation)
@@ -72,7 +72,8 @@ struct MappedFrame {
 // facing) shows where its face is (find_face_facing's hint).
 Vec3 filled_holes_facing(const PreparedFrame& prepared);
 
-MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks, const MapFrameOptions& options = {});
+MappedFrame map_frame(const TriangleMesh& mesh, const std::string& name, const FrameLandmarks& landmarks,
+                      const MapFrameOptions& options = {});
 
 // Stage 4: the mapped surface at every node of G (interior nodes, then rim nodes).
 std::vector<Vec3> sample_on_grid(const MappedFrame& frame, const DiskGrid& grid);

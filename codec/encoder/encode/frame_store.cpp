@@ -38,8 +38,8 @@ TriangleMesh read_mesh_bytes(Reader& r) {
 void write_conformal_report(Writer& w, const ConformalReport& c) {
   w.value(c.method);
   w.text(c.fallback_reason);
-  for (int v : {c.iterations, c.factorizations, c.intrinsic_flips, c.split_chords, c.split_ears, c.split_obtuse_boundary, c.split_caps, c.caps_left,
-                c.obtuse_boundary_left, c.flipped_triangles, c.untangled_vertices}) {
+  for (int v : {c.iterations, c.factorizations, c.intrinsic_flips, c.split_chords, c.split_ears, c.split_obtuse_boundary, c.split_caps,
+                c.caps_left, c.obtuse_boundary_left, c.flipped_triangles, c.untangled_vertices}) {
     w.value(v);
   }
   for (double v : {c.energy, c.energy_excess, c.seconds_prepare, c.seconds_initial, c.seconds_flow, c.seconds_finish}) w.value(v);
@@ -49,11 +49,12 @@ ConformalReport read_conformal_report(Reader& r) {
   ConformalReport c;
   c.method = r.value<ConformalMethod>();
   c.fallback_reason = r.text();
-  for (int* v : {&c.iterations, &c.factorizations, &c.intrinsic_flips, &c.split_chords, &c.split_ears, &c.split_obtuse_boundary, &c.split_caps,
-                 &c.caps_left, &c.obtuse_boundary_left, &c.flipped_triangles, &c.untangled_vertices}) {
+  for (int* v : {&c.iterations, &c.factorizations, &c.intrinsic_flips, &c.split_chords, &c.split_ears, &c.split_obtuse_boundary,
+                 &c.split_caps, &c.caps_left, &c.obtuse_boundary_left, &c.flipped_triangles, &c.untangled_vertices}) {
     *v = r.value<int>();
   }
-  for (double* v : {&c.energy, &c.energy_excess, &c.seconds_prepare, &c.seconds_initial, &c.seconds_flow, &c.seconds_finish}) *v = r.value<double>();
+  for (double* v : {&c.energy, &c.energy_excess, &c.seconds_prepare, &c.seconds_initial, &c.seconds_flow, &c.seconds_finish})
+    *v = r.value<double>();
   return c;
 }
 
@@ -76,10 +77,11 @@ void write_repair_report(Writer& w, const RepairReport& report) {
 
 RepairReport read_repair_report(Reader& r) {
   RepairReport report;
-  for (int* v : {&report.merged_vertices, &report.dropped_degenerate_faces, &report.split_faces, &report.dropped_duplicate_faces,
-                 &report.dropped_unreferenced_vertices, &report.reoriented_faces, &report.dropped_components, &report.dropped_component_faces,
-                 &report.non_manifold_edges, &report.dropped_sheet_faces, &report.dropped_sheets, &report.split_vertices, &report.added_vertices,
-                 &report.rewired_faces, &report.dropped_specks, &report.dropped_speck_faces, &report.faces_changed, &report.vertices_changed}) {
+  for (int* v :
+       {&report.merged_vertices, &report.dropped_degenerate_faces, &report.split_faces, &report.dropped_duplicate_faces,
+        &report.dropped_unreferenced_vertices, &report.reoriented_faces, &report.dropped_components, &report.dropped_component_faces,
+        &report.non_manifold_edges, &report.dropped_sheet_faces, &report.dropped_sheets, &report.split_vertices, &report.added_vertices,
+        &report.rewired_faces, &report.dropped_specks, &report.dropped_speck_faces, &report.faces_changed, &report.vertices_changed}) {
     *v = r.value<int>();
   }
   report.largest_move = r.value<double>();

@@ -46,9 +46,11 @@ inline int integer_field(const nlohmann::json& doc, const char* name, const std:
   if (!doc.contains(name)) bad(what + " lacks \"" + name + "\"");
   const nlohmann::json& value = doc.at(name);
   if (!value.is_number_integer()) bad(what + "'s \"" + name + "\" is not a whole number");
-  if (value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(std::numeric_limits<int>::max())) bad(what + "'s \"" + name + "\" is out of range");
+  if (value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(std::numeric_limits<int>::max()))
+    bad(what + "'s \"" + name + "\" is out of range");
   const auto number = value.get<int64_t>();
-  if (number < std::numeric_limits<int>::min() || number > std::numeric_limits<int>::max()) bad(what + "'s \"" + name + "\" is out of range");
+  if (number < std::numeric_limits<int>::min() || number > std::numeric_limits<int>::max())
+    bad(what + "'s \"" + name + "\" is out of range");
   return static_cast<int>(number);
 }
 

@@ -73,7 +73,8 @@ const char* kind_name(const Image*) { return "the keyframes' textures"; }
 template <typename T>
 KeyframeStore<T>::KeyframeStore(Mode mode, std::shared_ptr<ResidentCount> count)
     : count_(count ? std::move(count) : std::make_shared<ResidentCount>()),
-      items_(mode, kind_name(static_cast<const T*>(nullptr)), "keyframe store: keyframe", &KeyframeStore<T>::serialize, &KeyframeStore<T>::deserialize, count_) {}
+      items_(mode, kind_name(static_cast<const T*>(nullptr)), "keyframe store: keyframe", &KeyframeStore<T>::serialize,
+             &KeyframeStore<T>::deserialize, count_) {}
 
 template <typename T>
 std::vector<char> KeyframeStore<T>::serialize(const T& item) {

@@ -10,10 +10,10 @@
 // when a step needs it: memory holds one a thread.
 #pragma once
 
-#include "codec/encoder/encode/spill_file.hpp"
-#include "codec/core/reconstruct/fields.hpp"
-#include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+#include "codec/encoder/encode/spill_file.hpp"
 
 #include <memory>
 #include <vector>

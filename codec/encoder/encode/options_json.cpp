@@ -24,10 +24,14 @@ constexpr int kMaxOptionsDepth = 8;
 class OptionsWriter {
  public:
   template <typename T>
-  void value(const char* key, const T& v) { top()[key] = v; }
+  void value(const char* key, const T& v) {
+    top()[key] = v;
+  }
   // An enumeration as its number (what the files have always held).
   template <typename E>
-  void enumeration(const char* key, const E& v, E /*last*/) { top()[key] = static_cast<int>(v); }
+  void enumeration(const char* key, const E& v, E /*last*/) {
+    top()[key] = static_cast<int>(v);
+  }
   void representation(const char* key, const std::optional<Representation>& v) { top()[key] = v ? representation_name(*v) : "auto"; }
   void object(const char* key, const std::function<void()>& fields) {
     stack_.push_back(&top()[key]);
@@ -53,7 +57,8 @@ class OptionsReader {
   template <typename E>
   void enumeration(const char* key, E& v, E last) {
     const int number = json_fields::integer_field(top(), key, what());
-    if (number < 0 || number > static_cast<int>(last)) json_fields::bad(what() + "'s \"" + key + "\" is no choice of its kind (" + std::to_string(number) + ")");
+    if (number < 0 || number > static_cast<int>(last))
+      json_fields::bad(what() + "'s \"" + key + "\" is no choice of its kind (" + std::to_string(number) + ")");
     v = static_cast<E>(number);
   }
   void representation(const char* key, std::optional<Representation>& v) {

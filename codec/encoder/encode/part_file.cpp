@@ -26,9 +26,10 @@ namespace {
 // spec fixes as little-endian IEEE 754.
 static_assert(std::endian::native == std::endian::little, "part files are little-endian");
 
-constexpr format::ContainerKind kPartContainer{{0x89, 'F', 'M', 'S', '\r', '\n', 0x1A, '\n'}, kPartMajorVersion, kPartMinorVersion, "facemorph part file"};
+constexpr format::ContainerKind kPartContainer{
+    {0x89, 'F', 'M', 'S', '\r', '\n', 0x1A, '\n'}, kPartMajorVersion, kPartMinorVersion, "facemorph part file"};
 constexpr std::string_view kHeaderChunk = "PHDR", kFrameChunk = "PFRM";
-constexpr int kRecordZstdLevel = 3;  // a map's doubles gain little from more
+constexpr int kRecordZstdLevel = 3;         // a map's doubles gain little from more
 constexpr size_t kMaxLandmarkNames = 4096;  // spec/capture.md §4
 constexpr size_t kMaxTextBytes = 4096;      // a frame's name, path, a warning, a reason
 
@@ -53,7 +54,8 @@ FaceOrientation read_orientation(Reader& r) {
   for (double* v : {&o.facing_share, &o.mirror_error, &o.up_evidence}) *v = r.value<double>();
   o.up_from_hint = r.value<uint8_t>() != 0;
   const uint8_t method = r.value<uint8_t>();
-  if (method > static_cast<uint8_t>(FaceFindingMethod::kFaceRegion)) throw Error(ErrorCode::kCorrupt, "a found orientation's method " + std::to_string(method) + " is unknown");
+  if (method > static_cast<uint8_t>(FaceFindingMethod::kFaceRegion))
+    throw Error(ErrorCode::kCorrupt, "a found orientation's method " + std::to_string(method) + " is unknown");
   o.method = static_cast<FaceFindingMethod>(method);
   o.confidence = r.value<double>();
   if (!(o.confidence >= 0 && o.confidence <= 1)) throw Error(ErrorCode::kCorrupt, "a found orientation's confidence is outside [0, 1]");
@@ -105,7 +107,8 @@ std::vector<char> record_bytes(const SampledFrame& f) {
   w.value<uint64_t>(f.warnings.size());
   for (const std::string& warning : f.warnings) w.text(warning);
   const bool kept = f.dropped.empty();
-  w.value<uint8_t>(static_cast<uint8_t>((f.mapped ? kMapped : 0) | (kept ? kKept : 0) | (f.without_interior_landmarks ? kWithoutInterior : 0)));
+  w.value<uint8_t>(
+      static_cast<uint8_t>((f.mapped ? kMapped : 0) | (kept ? kKept : 0) | (f.without_interior_landmarks ? kWithoutInterior : 0)));
   w.text(f.dropped);
   if (f.mapped) write_summary(w, f.summary);
   if (!kept) return w.take();
@@ -176,7 +179,8 @@ bool indices_within(const std::vector<int>& indices, size_t size) {
 
 bool faces_within(const std::vector<Face>& faces, size_t size) {
   return std::all_of(faces.begin(), faces.end(), [&](const Face& f) {
-    return f[0] >= 0 && f[1] >= 0 && f[2] >= 0 && static_cast<size_t>(f[0]) < size && static_cast<size_t>(f[1]) < size && static_cast<size_t>(f[2]) < size;
+    return f[0] >= 0 && f[1] >= 0 && f[2] >= 0 && static_cast<size_t>(f[0]) < size && static_cast<size_t>(f[1]) < size &&
+           static_cast<size_t>(f[2]) < size;
   });
 }
 
@@ -186,7 +190,8 @@ void check_map(const MappedFrame& m) {
   const TriangleMesh& s = m.map.surface;
   const size_t vertices = s.positions.size();
   if (vertices < 3 || s.faces.empty()) bad("its map has no surface");
-  if (!spill::all_finite(s.positions) || !faces_within(s.faces, vertices)) bad("its map's surface has a coordinate not finite or a face outside its vertices");
+  if (!spill::all_finite(s.positions) || !faces_within(s.faces, vertices))
+    bad("its map's surface has a coordinate not finite or a face outside its vertices");
   if (!within(s.positions, kMaxCoordinate)) bad("its map's surface has a coordinate past " + std::to_string(kMaxCoordinate));
   if (m.map.disk.size() != vertices || !spill::all_finite(m.map.disk)) bad("its map's disk does not fit its surface");
   for (const Vec2& w : m.map.disk) {
@@ -201,7 +206,8 @@ void check_map(const MappedFrame& m) {
   // point or a line, or folded over itself, does not.
   double area = 0;
   for (const Face& f : s.faces) {
-    const Vec2 &a = m.map.disk[static_cast<size_t>(f[0])], &b = m.map.disk[static_cast<size_t>(f[1])], &c = m.map.disk[static_cast<size_t>(f[2])];
+    const Vec2 &a = m.map.disk[static_cast<size_t>(f[0])], &b = m.map.disk[static_cast<size_t>(f[1])],
+               &c = m.map.disk[static_cast<size_t>(f[2])];
     area += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
   }
   if (!(area > 0.5 * std::numbers::pi && area < 1.01 * std::numbers::pi)) bad("its map's disk does not cover the unit disk once");
@@ -209,23 +215,27 @@ void check_map(const MappedFrame& m) {
     bad("its map's texture coordinates do not fit its faces");
   }
   if (s.uvs.empty() && !s.uv_faces.empty()) bad("its map has texture faces without texture coordinates");
-  if (!s.colours.empty() && (s.colours.size() != vertices || !within(s.colours, kMaxCoordinate))) bad("its map's colours do not fit its vertices");
+  if (!s.colours.empty() && (s.colours.size() != vertices || !within(s.colours, kMaxCoordinate)))
+    bad("its map's colours do not fit its vertices");
   for (const FilledHole& hole : m.prepared.report.holes) {
     if (!indices_within(hole.loop, vertices)) bad("a hole's outline lies outside its map's vertices");
   }
 }
 
 void check_record(const SampledFrame& f, const PartHeader& header, int expected_index, size_t selection_nodes) {
-  if (f.index != expected_index) bad("it is frame " + std::to_string(f.index) + ", where frame " + std::to_string(expected_index) + " was due");
+  if (f.index != expected_index)
+    bad("it is frame " + std::to_string(f.index) + ", where frame " + std::to_string(expected_index) + " was due");
   if (!(f.time >= header.capture.first_time && f.time <= header.capture.last_time)) bad("its time is outside the capture's");
   for (const std::string& warning : f.warnings) {
     if (warning.size() > kMaxTextBytes) bad("a warning is longer than " + std::to_string(kMaxTextBytes) + " bytes");
   }
-  if (f.name.size() > kMaxTextBytes || f.dropped.size() > kMaxTextBytes || f.texture.string().size() > kMaxTextBytes) bad("a name is too long");
+  if (f.name.size() > kMaxTextBytes || f.dropped.size() > kMaxTextBytes || f.texture.string().size() > kMaxTextBytes)
+    bad("a name is too long");
   if (f.mapped) {
     const FrameSummary& s = f.summary;
     const auto method = static_cast<int>(s.conformal_method);
-    if (s.vertices < 0 || s.holes_filled < 0 || method < 0 || method > static_cast<int>(ConformalMethod::kTutte)) bad("its summary is out of range");
+    if (s.vertices < 0 || s.holes_filled < 0 || method < 0 || method > static_cast<int>(ConformalMethod::kTutte))
+      bad("its summary is out of range");
     const RepairTotals& t = s.repair_totals;
     if (t.faces_changed < 0 || t.vertices_changed < 0 || !(t.largest_move >= 0 && t.largest_move <= kMaxCoordinate) ||
         !(t.diagonal >= 0 && t.diagonal <= kMaxCoordinate)) {
@@ -233,16 +243,17 @@ void check_record(const SampledFrame& f, const PartHeader& header, int expected_
     }
   }
   if (!f.dropped.empty()) return;
-  if (f.landmarks.size() != header.capture.landmark_names.size()) bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +
-                                                                      std::to_string(header.capture.landmark_names.size()) + " names");
+  if (f.landmarks.size() != header.capture.landmark_names.size())
+    bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +
+        std::to_string(header.capture.landmark_names.size()) + " names");
   for (const Vec3& p : f.landmarks) {
     // NaN where the frame lacks the landmark; else a point.
     if (!p.hasNaN() && !(p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) bad("a landmark is neither a point nor missing");
   }
   const SelectionFrame& s = f.selection;
   if (s.local.size() != selection_nodes || s.normal.size() != selection_nodes) bad("its selection samples are not the selection grid's");
-  if (s.time != f.time || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() || !(s.diagonal > 1e-12 && s.diagonal <= kMaxCoordinate) ||
-      !spill::all_finite(s.local) || !spill::all_finite(s.normal)) {
+  if (s.time != f.time || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() ||
+      !(s.diagonal > 1e-12 && s.diagonal <= kMaxCoordinate) || !spill::all_finite(s.local) || !spill::all_finite(s.normal)) {
     bad("its selection samples have a number not finite");
   }
   if (!(s.pose.rotation.transpose() * s.pose.rotation - Eigen::Matrix3d::Identity()).isZero(1e-6) || !(s.pose.rotation.determinant() > 0) ||
@@ -256,7 +267,8 @@ void check_record(const SampledFrame& f, const PartHeader& header, int expected_
     // Read by the assemble stage: a file, never a pipe or a device that would block or not end.
     if (!f.texture.is_absolute()) bad("its texture's path is not absolute");
     std::error_code error;
-    if (std::filesystem::status(f.texture, error).type() != std::filesystem::file_type::regular) bad("its texture " + f.texture.string() + " is not a file");
+    if (std::filesystem::status(f.texture, error).type() != std::filesystem::file_type::regular)
+      bad("its texture " + f.texture.string() + " is not a file");
   }
 }
 
@@ -283,7 +295,9 @@ nlohmann::json header_json(const PartHeader& h) {
 }
 
 template <typename T>
-T field(const nlohmann::json& doc, const char* name) { return json_fields::field<T>(doc, name, "its header"); }
+T field(const nlohmann::json& doc, const char* name) {
+  return json_fields::field<T>(doc, name, "its header");
+}
 int integer_field(const nlohmann::json& doc, const char* name) { return json_fields::integer_field(doc, name, "its header"); }
 
 // How deep the header's JSON may nest: the settings are two levels; a reader (and dump) recurses.
@@ -314,13 +328,17 @@ PartHeader parse_header(const std::vector<uint8_t>& bytes) {
   h.seconds_registration = field<double>(seconds, "registration");
   h.seconds_selection = field<double>(seconds, "selection");
   if (c.frame_count < 1 || c.frame_count > kMaxPartCaptureFrames) {
-    throw Error(ErrorCode::kLimit, "its capture has " + std::to_string(c.frame_count) + " frames, outside 1.." + std::to_string(kMaxPartCaptureFrames));
+    throw Error(ErrorCode::kLimit,
+                "its capture has " + std::to_string(c.frame_count) + " frames, outside 1.." + std::to_string(kMaxPartCaptureFrames));
   }
   if (h.range.first < 0 || h.range.end > c.frame_count || h.range.first >= h.range.end) bad("its frames are not a range of its capture's");
-  if (c.reference < 0 || c.reference >= c.frame_count || c.given_reference < 0 || c.given_reference >= c.frame_count) bad("its reference frame is not one of its capture's");
-  if (!(c.fps > 0) || !std::isfinite(c.fps) || !std::isfinite(c.first_time) || !std::isfinite(c.last_time)) bad("its capture's frame rate or times are not finite");
+  if (c.reference < 0 || c.reference >= c.frame_count || c.given_reference < 0 || c.given_reference >= c.frame_count)
+    bad("its reference frame is not one of its capture's");
+  if (!(c.fps > 0) || !std::isfinite(c.fps) || !std::isfinite(c.first_time) || !std::isfinite(c.last_time))
+    bad("its capture's frame rate or times are not finite");
   if (c.landmark_names.size() > kMaxLandmarkNames) bad("it names more than " + std::to_string(kMaxLandmarkNames) + " landmarks");
-  if (c.given_landmark_names.size() > c.landmark_names.size() || !std::equal(c.given_landmark_names.begin(), c.given_landmark_names.end(), c.landmark_names.begin())) {
+  if (c.given_landmark_names.size() > c.landmark_names.size() ||
+      !std::equal(c.given_landmark_names.begin(), c.given_landmark_names.end(), c.landmark_names.begin())) {
     bad("its landmark names do not begin with the capture's own");
   }
   if (!c.root.is_absolute()) bad("its capture's folder is not an absolute path");
@@ -375,12 +393,13 @@ PartWriter::~PartWriter() {
 
 void PartWriter::add(const SampledFrame& frame) {
   if (frame.index != next_ || next_ >= header_.range.end) {
-    throw Error(ErrorCode::kInternal, path_.string() + ": frame " + std::to_string(frame.index) + " given where frame " + std::to_string(next_) + " was due");
+    throw Error(ErrorCode::kInternal,
+                path_.string() + ": frame " + std::to_string(frame.index) + " given where frame " + std::to_string(next_) + " was due");
   }
   const std::vector<char> bytes = record_bytes(frame);
   if (bytes.size() > kMaxPartRecordBytes) {
-    throw Error(ErrorCode::kLimit, path_.string() + ": " + frame.name + ": its record is " + std::to_string(bytes.size() >> 20) + " MiB, over the part's " +
-                                       std::to_string(kMaxPartRecordBytes >> 20) + " MiB");
+    throw Error(ErrorCode::kLimit, path_.string() + ": " + frame.name + ": its record is " + std::to_string(bytes.size() >> 20) +
+                                       " MiB, over the part's " + std::to_string(kMaxPartRecordBytes >> 20) + " MiB");
   }
   try {
     writer_->add(format::prepare_chunk(kFrameChunk, std::vector<uint8_t>(bytes.begin(), bytes.end()), true, kRecordZstdLevel));
@@ -391,7 +410,9 @@ void PartWriter::add(const SampledFrame& frame) {
 }
 
 void PartWriter::finish() {
-  if (next_ != header_.range.end) throw Error(ErrorCode::kInternal, path_.string() + ": finished at frame " + std::to_string(next_) + " of " + std::to_string(header_.range.end));
+  if (next_ != header_.range.end)
+    throw Error(ErrorCode::kInternal,
+                path_.string() + ": finished at frame " + std::to_string(next_) + " of " + std::to_string(header_.range.end));
   writer_->finish();
   out_.flush();
   out_.close();
@@ -405,7 +426,8 @@ void PartWriter::finish() {
 PartReader::PartReader(const std::filesystem::path& path) : source_(path.string()) {
   selection_nodes_ = static_cast<size_t>(make_disk_grid(SequenceEncoder::selection_grid()).interior_count);
   file_ = std::make_unique<format::MappedFile>(path);
-  reader_ = std::make_unique<format::ContainerReader>(file_->bytes(), source_, static_cast<uint64_t>(kMaxPartCaptureFrames) + 2, kPartContainer);
+  reader_ =
+      std::make_unique<format::ContainerReader>(file_->bytes(), source_, static_cast<uint64_t>(kMaxPartCaptureFrames) + 2, kPartContainer);
   const std::vector<format::ChunkView>& chunks = reader_->chunks();
   try {
     if (chunks.empty() || chunks.front().type != kHeaderChunk) bad("it does not begin with its header");
@@ -419,7 +441,8 @@ PartReader::PartReader(const std::filesystem::path& path) : source_(path.string(
       }
     }
     if (records_.size() != static_cast<size_t>(header_.range.size())) {
-      bad("it holds " + std::to_string(records_.size()) + " frames' records for the " + std::to_string(header_.range.size()) + " frames its header names");
+      bad("it holds " + std::to_string(records_.size()) + " frames' records for the " + std::to_string(header_.range.size()) +
+          " frames its header names");
     }
   } catch (const Error& e) {
     if (std::string(e.what()).rfind(source_, 0) == 0) throw;

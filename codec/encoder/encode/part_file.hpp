@@ -25,7 +25,8 @@ class ContainerWriter;
 class MappedFile;
 }  // namespace format
 
-inline constexpr uint16_t kPartMajorVersion = 3;  // 2: frames carry the non-manifold repairs; 3: a found orientation's method and confidence (spec/part-file.md)
+inline constexpr uint16_t kPartMajorVersion =
+    3;  // 2: frames carry the non-manifold repairs; 3: a found orientation's method and confidence (spec/part-file.md)
 inline constexpr uint16_t kPartMinorVersion = 0;
 // What a part may hold: frames of a capture (2^24: 155 hours at 30 fps), a header, one frame's record
 // (a 256 MiB record is a mesh of ~5M vertices).
@@ -41,11 +42,11 @@ struct FrameRange {
 };
 
 struct PartHeader {
-  std::string capture_id;   // capture_fingerprint of the capture sampled
-  SampledCapture capture;   // what the assembling encoder is told of it
-  FrameRange range;         // the frames this part holds, one record each
-  std::string settings;     // the options sampled with: write_options(options, OptionsScope::kSample)
-  std::string encoder;      // the writer ("facemorph 1.5.0")
+  std::string capture_id;  // capture_fingerprint of the capture sampled
+  SampledCapture capture;  // what the assembling encoder is told of it
+  FrameRange range;        // the frames this part holds, one record each
+  std::string settings;    // the options sampled with: write_options(options, OptionsScope::kSample)
+  std::string encoder;     // the writer ("facemorph 1.5.0")
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
   uint16_t minor_version = kPartMinorVersion;  // on read, the file's
 };

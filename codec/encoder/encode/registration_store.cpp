@@ -28,8 +28,10 @@ ThinPlateDisplacement read_step(Reader& r) {
   ThinPlateDisplacement step;
   step.centres = r.array<Vec2>();
   const std::vector<double> weights = r.array<double>();
-  if (weights.size() != 2 * step.centres.size()) throw Error(ErrorCode::kInternal, "registration store: a thin-plate step's weights do not fit its centres");
-  step.weights = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2>>(weights.data(), static_cast<Eigen::Index>(step.centres.size()), 2);
+  if (weights.size() != 2 * step.centres.size())
+    throw Error(ErrorCode::kInternal, "registration store: a thin-plate step's weights do not fit its centres");
+  step.weights =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2>>(weights.data(), static_cast<Eigen::Index>(step.centres.size()), 2);
   step.offset = r.value<Vec2>();
   step.linear = r.value<Eigen::Matrix2d>();
   return step;
@@ -38,7 +40,8 @@ ThinPlateDisplacement read_step(Reader& r) {
 // BijectionCheck holds only numbers: written field by field, so a field added to it must be added
 // here too (the round-trip test compares them all).
 void write_check(Writer& w, const BijectionCheck& c) {
-  for (int v : {c.grid_points, c.refined_points, c.folded_points, c.boundary_samples, c.boundary_order_breaks, c.clamped_points}) w.value(v);
+  for (int v : {c.grid_points, c.refined_points, c.folded_points, c.boundary_samples, c.boundary_order_breaks, c.clamped_points})
+    w.value(v);
   for (double v : {c.min_jacobian, c.min_area_ratio, c.max_boundary_radius_error}) w.value(v);
   w.value(c.worst_point);
   w.value(c.stopped);
@@ -46,7 +49,8 @@ void write_check(Writer& w, const BijectionCheck& c) {
 
 BijectionCheck read_check(Reader& r) {
   BijectionCheck c;
-  for (int* v : {&c.grid_points, &c.refined_points, &c.folded_points, &c.boundary_samples, &c.boundary_order_breaks, &c.clamped_points}) *v = r.value<int>();
+  for (int* v : {&c.grid_points, &c.refined_points, &c.folded_points, &c.boundary_samples, &c.boundary_order_breaks, &c.clamped_points})
+    *v = r.value<int>();
   for (double* v : {&c.min_jacobian, &c.min_area_ratio, &c.max_boundary_radius_error}) *v = r.value<double>();
   c.worst_point = r.value<Vec2>();
   c.stopped = r.value<bool>();
@@ -97,7 +101,8 @@ DiskRegistration RegistrationStore::deserialize(const char* bytes, size_t size, 
   f.boundary_samples = r.value<int>();
   f.check = read_check(r);
   if (r.value<bool>()) {
-    if (!partition && !for_check) throw Error(ErrorCode::kInternal, "registration store: a stored registration through a partition, and no partition to attach it to");
+    if (!partition && !for_check)
+      throw Error(ErrorCode::kInternal, "registration store: a stored registration through a partition, and no partition to attach it to");
     auto map = std::make_shared<PiecewiseAffineMap>();
     map->partition = partition;
     map->images = r.array<Vec2>();
@@ -124,14 +129,17 @@ void RegistrationStore::check(const DiskRegistration& f) {
   const auto method = static_cast<int>(f.method), form = static_cast<int>(f.form), fallback = static_cast<int>(f.fallback),
              start = static_cast<int>(f.moebius_start);
   if (method < 0 || method > static_cast<int>(RegistrationMethod::kFrame) || form < 0 || form > static_cast<int>(GmfForm::kPaperGrid) ||
-      fallback < 0 || fallback > static_cast<int>(RegistrationFallback::kSubsteps) || start < 0 || start > static_cast<int>(MoebiusStart::kAlgebraic)) {
+      fallback < 0 || fallback > static_cast<int>(RegistrationFallback::kSubsteps) || start < 0 ||
+      start > static_cast<int>(MoebiusStart::kAlgebraic)) {
     bad("its registration names an unknown method");
   }
-  if (!std::isfinite(f.moebius.a.real()) || !std::isfinite(f.moebius.a.imag()) || !(std::abs(f.moebius.a) < 1) || !std::isfinite(f.moebius.theta)) {
+  if (!std::isfinite(f.moebius.a.real()) || !std::isfinite(f.moebius.a.imag()) || !(std::abs(f.moebius.a) < 1) ||
+      !std::isfinite(f.moebius.theta)) {
     bad("its registration's Möbius map is not one of the disk");
   }
   if (!std::all_of(f.steps.begin(), f.steps.end(), step_finite)) bad("its registration has a number not finite");
-  if (f.partition_map && (!spill::all_finite(f.partition_map->images) || !spill::all_finite(f.partition_map->jacobians))) bad("its registration has a number not finite");
+  if (f.partition_map && (!spill::all_finite(f.partition_map->images) || !spill::all_finite(f.partition_map->jacobians)))
+    bad("its registration has a number not finite");
 }
 
 RegistrationStore::RegistrationStore(SpillMode mode)

@@ -8,8 +8,8 @@
 // back (a few kB) by the stage that samples its frame, which holds it while it samples.
 #pragma once
 
-#include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/encode/spill_file.hpp"
+#include "codec/encoder/registration/registration.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -44,7 +44,8 @@ class RegistrationStore {
   static std::vector<char> serialize(const DiskRegistration& registration);
   // for_check: a registration through a partition may come without it, its Φ unattached (not to
   // be evaluated: to be checked, check below, before the partition is there).
-  static DiskRegistration deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition, bool for_check = false);
+  static DiskRegistration deserialize(const char* bytes, size_t size, const std::shared_ptr<const PartitionMesh>& partition,
+                                      bool for_check = false);
   // Throws kCorrupt where a registration read from a file (a part file, spec/part-file.md) is not
   // one the encoder could have made: an unknown method, a Möbius map off the disk, a number not finite.
   static void check(const DiskRegistration& registration);

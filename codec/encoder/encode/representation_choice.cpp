@@ -2,11 +2,11 @@
 // them, each against that frame (representation_choice.hpp).
 #include "codec/encoder/encode/representation_choice.hpp"
 
-#include "format/error.hpp"
 #include "codec/core/reconstruct/fields.hpp"
-#include "codec/meshkit/geometry/distance.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -32,7 +32,8 @@ double relative_distance(const std::vector<Face>& faces, const std::vector<Vec3>
 BlendComparison compare_blends(const std::shared_ptr<const GridGeometry>& geometry, const std::vector<double>& key_times, SplineKind spline,
                                const std::vector<std::vector<Vec3>>& keys, const std::vector<BlendTrial>& trials, int threads) {
   const auto nodes = static_cast<size_t>(geometry->grid().node_count());
-  if (keys.size() != key_times.size()) throw Error(ErrorCode::kInvalidArgument, "compare_blends: keyframe surfaces and times differ in number");
+  if (keys.size() != key_times.size())
+    throw Error(ErrorCode::kInvalidArgument, "compare_blends: keyframe surfaces and times differ in number");
   std::vector<int32_t> fixed;
   for (const std::vector<Vec3>& key : keys) {
     if (key.empty()) continue;
@@ -58,7 +59,9 @@ BlendComparison compare_blends(const std::shared_ptr<const GridGeometry>& geomet
     std::vector<Vec3> positions(nodes, Vec3::Zero());
     for (size_t j = 0; j < w.keys.size(); ++j) {
       const auto k = static_cast<size_t>(w.keys[j]);
-      if (keys[k].empty()) throw Error(ErrorCode::kInvalidArgument, "compare_blends: the trial at " + std::to_string(trial.time) + " needs keyframe " + std::to_string(k));
+      if (keys[k].empty())
+        throw Error(ErrorCode::kInvalidArgument,
+                    "compare_blends: the trial at " + std::to_string(trial.time) + " needs keyframe " + std::to_string(k));
       blended_keys.push_back(&fields[k]);
       for (size_t v = 0; v < nodes; ++v) positions[v] += w.weights[j] * keys[k][v];
     }

@@ -26,7 +26,7 @@ struct BlendComparison {
   double fields_error = 0;     // mean over the trials of the symmetric RMS distance, over the frame's diagonal
   double positions_error = 0;  // the same for the blend of positions
   int trials = 0;
-  int not_converged = 0;       // field blends the decoder did not settle (measured as they stood; one that diverged counts as infinitely far)
+  int not_converged = 0;  // field blends the decoder did not settle (measured as they stood; one that diverged counts as infinitely far)
 };
 
 // `keys[k]`: keyframe k's registered surface on G (face frame, every node), or empty where no trial's

@@ -3,12 +3,12 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "codec/encoder/keyframes/keyframes.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "codec/encoder/encode/stored_sequence.hpp"
-#include "format/error.hpp"
 #include "codec/core/util/parallel.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/Dense>
 
@@ -20,8 +20,8 @@
 
 namespace facemorph {
 
-double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns, std::span<const double> weights,
-                            double step, std::vector<double>& delta) {
+double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns,
+                            std::span<const double> weights, double step, std::vector<double>& delta) {
   const int n = static_cast<int>(columns.size());
   delta.clear();
   if (n < 2) return std::numeric_limits<double>::infinity();
@@ -114,13 +114,14 @@ DecodeOptions shape_only() {
 
 }  // namespace
 
-std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes, double step,
-                                                 ResidualFitReport* report_out) {
+std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes,
+                                                 double step, ResidualFitReport* report_out) {
   const auto start = std::chrono::steady_clock::now();
   ResidualFitReport report;
   stored.set_residuals({});
   const std::vector<double>& key_times = stored.outline().times;
-  if (key_times.size() != keyframes.size()) throw Error(ErrorCode::kInvalidArgument, "fit_decoded_residuals: the keyframes are not the stored sequence's");
+  if (key_times.size() != keyframes.size())
+    throw Error(ErrorCode::kInvalidArgument, "fit_decoded_residuals: the keyframes are not the stored sequence's");
   const std::vector<CaptureFrame>& frames = encoder.capture().frames;
   // Frames strictly between the first and last keyframe, not keyframes themselves: interval i of each.
   std::vector<int> held, interval;
@@ -163,7 +164,8 @@ std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder,
       std::vector<std::vector<double>> columns(static_cast<size_t>(window.count), std::vector<double>(offsets.size()));
       for (int m = 0; m < window.count; ++m) {
         const std::vector<Vec3>& key = local[static_cast<size_t>(window.first + m)];
-        for (size_t v = 0; v < offsets.size(); ++v) columns[static_cast<size_t>(m)][v] = (decoded.pose.rotation * key[v]).dot(captured.normals[v]);
+        for (size_t v = 0; v < offsets.size(); ++v)
+          columns[static_cast<size_t>(m)][v] = (decoded.pose.rotation * key[v]).dot(captured.normals[v]);
       }
       const double predicted = relative_rms(fit_blend_correction(offsets, columns, captured.weights, step, delta), captured);
       ++report.frames_fitted;

@@ -27,8 +27,8 @@ class StoredSequence;
 // each δ clamped to ±1 (past a whole keyframe's weight a blend extrapolates) and rounded to
 // multiples of `step`, the last minus the sum of the others so that the sum is exactly 0. Returns
 // Σ_v w_v (o_v + Σ δ_m a_m[v])² with the rounded δ; +∞ (δ empty) for fewer than 2 keys.
-double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns, std::span<const double> weights,
-                            double step, std::vector<double>& delta);
+double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns,
+                            std::span<const double> weights, double step, std::vector<double>& delta);
 
 // A fitted correction is kept where the frame decodes with it at least this fraction closer to its
 // captured surface. Lower than the selection's kResidualMinGain: that one judges a prediction, this
@@ -39,10 +39,10 @@ inline constexpr double kDecodedResidualMinGain = 0.02;
 // What fit_decoded_residuals did, for the encoder's report (errors: RMS of the offsets along the
 // captured frame's normals on G, area-weighted, over its bbox diagonal, as decoded).
 struct ResidualFitReport {
-  int frames_fitted = 0;     // frames between keyframes whose decoded error was above kResidualFloor
-  int frames_improved = 0;   // frames whose decoded error the correction lowered by kDecodedResidualMinGain or more
-  int frames_worse = 0;      // frames a correction fitted for, that decoded no better with it (left at 0)
-  int residuals = 0;         // residual frames stored (improved frames, and 0's beside them in their intervals)
+  int frames_fitted = 0;                     // frames between keyframes whose decoded error was above kResidualFloor
+  int frames_improved = 0;                   // frames whose decoded error the correction lowered by kDecodedResidualMinGain or more
+  int frames_worse = 0;                      // frames a correction fitted for, that decoded no better with it (left at 0)
+  int residuals = 0;                         // residual frames stored (improved frames, and 0's beside them in their intervals)
   double mean_before = 0, worst_before = 0;  // over the frames between keyframes, the spline's alone
   double mean_after = 0, worst_after = 0;    // with the residuals kept
   double seconds = 0;                        // the fit's time, decoding included
@@ -57,7 +57,7 @@ struct ResidualFitReport {
 // by kDecodedResidualMinGain or more. An interval with a correction kept has a residual at every frame
 // (the others 0: the decoder interpolates between an interval's residuals); one without has none.
 // Leaves `stored`'s residuals empty; `report` (optional) is filled.
-std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes, double step,
-                                                 ResidualFitReport* report = nullptr);
+std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes,
+                                                 double step, ResidualFitReport* report = nullptr);
 
 }  // namespace facemorph

@@ -4,9 +4,9 @@
 #pragma once
 
 #include "codec/encoder/conformal/conformal.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/prepare/frame.hpp"
-#include "codec/encoder/keyframes/keyframes.hpp"
 
 #include <filesystem>
 #include <functional>
@@ -20,9 +20,9 @@ namespace facemorph {
 // the counts and reasons the report gives, whether it has colour, and the landmarks it found.
 struct FrameSummary {
   std::string name;
-  int vertices = 0;      // of the prepared mesh
+  int vertices = 0;  // of the prepared mesh
   int holes_filled = 0;
-  std::string repair;    // RepairReport::summary()
+  std::string repair;          // RepairReport::summary()
   RepairTotals repair_totals;  // RepairReport::totals()
   ConformalMethod conformal_method = ConformalMethod::kQiem;
   std::string conformal_fallback_reason;
@@ -45,15 +45,15 @@ struct SampledFrame {
   bool mapped = false;
   FrameSummary summary;  // a frame mapped
   // A frame kept:
-  std::filesystem::path texture;              // its texture image (absolute), if any
-  std::vector<Vec3> landmarks;                // one per name of the part's landmark names
-  std::vector<char> map;                      // FrameStore::serialize
+  std::filesystem::path texture;  // its texture image (absolute), if any
+  std::vector<Vec3> landmarks;    // one per name of the part's landmark names
+  std::vector<char> map;          // FrameStore::serialize
   // Or, where set, what gives those bytes when asked (map left empty): the assembling encoder reads
   // the map from there each time a step needs it rather than keeping a copy (a part file's record).
   std::function<std::vector<char>()> map_source;
-  std::vector<char> registration;             // RegistrationStore::serialize
-  bool without_interior_landmarks = false;    // registered without interior landmarks shared with the reference
-  SelectionFrame selection;                   // its time, pose, diagonal and samples on the selection grid
+  std::vector<char> registration;           // RegistrationStore::serialize
+  bool without_interior_landmarks = false;  // registered without interior landmarks shared with the reference
+  SelectionFrame selection;                 // its time, pose, diagonal and samples on the selection grid
 };
 
 // What the assembling encoder is told of the capture besides its frames (staged_encode.cpp).
@@ -61,12 +61,12 @@ struct SampledCapture {
   std::filesystem::path root;
   double fps = 0;
   std::string units = "m";
-  double first_time = 0, last_time = 0;      // the capture's as given
-  int frame_count = 0;                       // as given
-  std::vector<std::string> landmark_names;   // the names the frames' landmarks follow (with those found added)
+  double first_time = 0, last_time = 0;           // the capture's as given
+  int frame_count = 0;                            // as given
+  std::vector<std::string> landmark_names;        // the names the frames' landmarks follow (with those found added)
   std::vector<std::string> given_landmark_names;  // the capture's own
-  int given_reference = 0;                   // EncodeOptions::reference_frame as given
-  int reference = 0;                         // the frame registered to (capture index): given_reference unless that one was dropped
+  int given_reference = 0;                        // EncodeOptions::reference_frame as given
+  int reference = 0;                              // the frame registered to (capture index): given_reference unless that one was dropped
 };
 
 }  // namespace facemorph

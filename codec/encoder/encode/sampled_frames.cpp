@@ -15,7 +15,8 @@ namespace facemorph {
 SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions options)
     : options_(std::move(options)), store_(std::make_unique<FrameStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory)) {
   if (capture.frame_count <= 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
-  if (capture.reference < 0 || capture.reference >= capture.frame_count || capture.given_reference < 0 || capture.given_reference >= capture.frame_count) {
+  if (capture.reference < 0 || capture.reference >= capture.frame_count || capture.given_reference < 0 ||
+      capture.given_reference >= capture.frame_count) {
     throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(capture.reference) + " is not a frame of the capture");
   }
   capture_.root = capture.root;
@@ -37,13 +38,14 @@ SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions op
   registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   set_selection_weights();
   selection_.assign(count, {});
-  samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
+  samples_ =
+      std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
   report_.reference_frame = capture.reference;
 }
 
 std::unique_ptr<SequenceEncoder> SequenceEncoder::of_sampled_frames(const SampledCapture& capture, EncodeOptions options,
-                                                                   const std::function<SampledFrame(int)>& frame,
-                                                                   const std::function<std::string(int)>& where) {
+                                                                    const std::function<SampledFrame(int)>& frame,
+                                                                    const std::function<std::string(int)>& where) {
   std::unique_ptr<SequenceEncoder> encoder(new SequenceEncoder(capture, std::move(options)));
   for (int k = 0; k < capture.frame_count; ++k) {
     SampledFrame f = frame(k);
@@ -59,9 +61,11 @@ std::unique_ptr<SequenceEncoder> SequenceEncoder::of_sampled_frames(const Sample
 
 void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   if (f.index != next_sampled_) {
-    throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " came where frame " + std::to_string(next_sampled_) + " was due");
+    throw Error(ErrorCode::kInvalidArgument,
+                "frame " + std::to_string(f.index) + " came where frame " + std::to_string(next_sampled_) + " was due");
   }
-  if (f.index >= static_cast<int>(store_->size())) throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " is past the capture");
+  if (f.index >= static_cast<int>(store_->size()))
+    throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " is past the capture");
   ++next_sampled_;
   if (!capture_.frames.empty() && !(f.time > capture_.frames.back().time)) {
     throw Error(ErrorCode::kInvalidArgument, f.name + ": its time " + std::to_string(f.time) + " s does not follow the frame before it");
@@ -81,7 +85,8 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   }
   const size_t nodes = node_weights_.size();
   if (f.selection.local.size() != nodes || f.selection.normal.size() != nodes) {
-    throw Error(ErrorCode::kInvalidArgument, f.name + ": its selection samples are not the selection grid's " + std::to_string(nodes) + " nodes");
+    throw Error(ErrorCode::kInvalidArgument,
+                f.name + ": its selection samples are not the selection grid's " + std::to_string(nodes) + " nodes");
   }
   const size_t i = capture_.frames.size();
   if (f.index == sampled_reference_) {
@@ -94,7 +99,8 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     pinned_ = std::make_shared<const MappedFrame>(mapped);
     set_reference_geometry(*pinned_, f.landmarks);
     registrations_->reset(store_->size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
-    for (auto& [k, pending] : pending_registrations_) registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
+    for (auto& [k, pending] : pending_registrations_)
+      registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
     pending_registrations_.clear();
     selection_[i].local = f.selection.local;  // pose_centre reads them after the samples are released
   }
@@ -134,7 +140,8 @@ DiskRegistration SequenceEncoder::read_sampled_registration(const std::string& n
 
 void SequenceEncoder::finish_sampled_frames() {
   if (next_sampled_ != static_cast<int>(store_->size())) {
-    throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(next_sampled_) + " to " + std::to_string(store_->size() - 1) + " never came");
+    throw Error(ErrorCode::kInvalidArgument,
+                "frames " + std::to_string(next_sampled_) + " to " + std::to_string(store_->size() - 1) + " never came");
   }
   if (pinned_index_ < 0) throw Error(ErrorCode::kInvalidArgument, "the reference frame never came");
   const size_t kept = capture_.frames.size();
@@ -146,10 +153,12 @@ void SequenceEncoder::finish_sampled_frames() {
   selection_.resize(kept);
   if (given_reference_ != sampled_reference_) {
     // As drop_frames says it: after every frame's own warnings.
-    const auto given = std::find_if(report_.dropped.begin(), report_.dropped.end(), [&](const DroppedFrame& d) { return d.index == given_reference_; });
-    if (given == report_.dropped.end()) throw Error(ErrorCode::kInvalidArgument, "the reference frame moved from a frame that was not dropped");
-    report_.warnings.push_back(given->name + ": the reference frame was dropped; " + capture_.frames[static_cast<size_t>(options_.reference_frame)].mesh.string() +
-                               " is the reference instead");
+    const auto given =
+        std::find_if(report_.dropped.begin(), report_.dropped.end(), [&](const DroppedFrame& d) { return d.index == given_reference_; });
+    if (given == report_.dropped.end())
+      throw Error(ErrorCode::kInvalidArgument, "the reference frame moved from a frame that was not dropped");
+    report_.warnings.push_back(given->name + ": the reference frame was dropped; " +
+                               capture_.frames[static_cast<size_t>(options_.reference_frame)].mesh.string() + " is the reference instead");
   }
   report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior_.begin(), without_interior_.end(), 1));
   auto_representation_ = Representation::kHLT;

@@ -1,12 +1,12 @@
 #include "codec/encoder/encode/segment_join.hpp"
 
 #include "codec/decoder/container/chunk_readers.hpp"
-#include "codec/writer/container/chunk_writers.hpp"
-#include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/decoder/container/opened_file.hpp"
 #include "codec/encoder/encode/json_fields.hpp"
-#include "format/error.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/container.hpp"
+#include "format/error.hpp"
 #include "format/file_io.hpp"
 
 #include <nlohmann/json.hpp>
@@ -35,14 +35,17 @@ struct Segment {
   std::string encode;
 };
 
-[[noreturn]] void refuse(const Segment& s, const std::string& why) { throw Error(ErrorCode::kInvalidArgument, s.path.string() + ": " + why); }
+[[noreturn]] void refuse(const Segment& s, const std::string& why) {
+  throw Error(ErrorCode::kInvalidArgument, s.path.string() + ": " + why);
+}
 
 Segment open_segment(const std::filesystem::path& path, bool check_every_keyframe) {
   Segment s;
   s.path = path;
   s.mapped = std::make_unique<format::MappedFile>(path);
   // The joiner holds no keyframe: the header and index alone, as opening a file for playing does.
-  s.file = std::make_unique<OpenedFile>(s.mapped->bytes(), path.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; });
+  s.file = std::make_unique<OpenedFile>(s.mapped->bytes(), path.string(), kDefaultDecoderLimits,
+                                        [](uint32_t, SplineKind) { return uint64_t{1}; });
   s.file->verify_checksums();
   if (check_every_keyframe) {
     SequenceFileInfo ignored;
@@ -64,7 +67,8 @@ Segment open_segment(const std::filesystem::path& path, bool check_every_keyfram
     refuse(s, std::string("it is not a segment: ") + e.what());
   }
   if (s.count < 1 || s.index < 0 || s.index >= s.count) refuse(s, "its segment number is out of range");
-  if (s.first_keyframe < 0 || s.keyframes < 1 || s.first_keyframe >= s.keyframes) refuse(s, "its place among the keyframes is out of range");
+  if (s.first_keyframe < 0 || s.keyframes < 1 || s.first_keyframe >= s.keyframes)
+    refuse(s, "its place among the keyframes is out of range");
   return s;
 }
 
@@ -80,9 +84,13 @@ void check_same_header(const Segment& first, const Segment& s) {
   differs(x.grid_n == y.grid_n && a.grid_rule == b.grid_rule && a.grid_hash == b.grid_hash, "grid");
   differs(x.representation == y.representation && x.spline == y.spline, "representation or spline");
   differs((a.flags & ~kSharedTextures) == (b.flags & ~kSharedTextures) && a.texture_size == b.texture_size, "texture layout");
-  differs(x.fps == y.fps && x.first_time == y.first_time && x.last_time == y.last_time && x.units == y.units && x.pose_centre == y.pose_centre, "capture times, units or pose centre");
+  differs(
+      x.fps == y.fps && x.first_time == y.first_time && x.last_time == y.last_time && x.units == y.units && x.pose_centre == y.pose_centre,
+      "capture times, units or pose centre");
   differs(a.fixed_nodes == b.fixed_nodes, "fixed nodes");
-  differs(p.steps == q.steps && p.intra_period == q.intra_period && p.rotation_step == q.rotation_step && p.translation_step == q.translation_step, "field coding");
+  differs(p.steps == q.steps && p.intra_period == q.intra_period && p.rotation_step == q.rotation_step &&
+              p.translation_step == q.translation_step,
+          "field coding");
   differs(a.metadata.landmark_names == b.metadata.landmark_names && a.metadata.encoder == b.metadata.encoder, "landmark names or encoder");
 }
 
@@ -93,7 +101,8 @@ std::string joined_settings(const std::vector<Segment>& segments) {
   joined.erase("segment");
   nlohmann::json qualities = nlohmann::json::array(), shared = nlohmann::json::array(), each = nlohmann::json::array();
   for (const Segment& s : segments) {
-    const nlohmann::json& q = s.settings.contains("texture_qualities_chosen") ? s.settings["texture_qualities_chosen"] : nlohmann::json::array();
+    const nlohmann::json& q =
+        s.settings.contains("texture_qualities_chosen") ? s.settings["texture_qualities_chosen"] : nlohmann::json::array();
     const nlohmann::json& w = s.settings.contains("texture_shared_with") ? s.settings["texture_shared_with"] : nlohmann::json::array();
     for (const nlohmann::json& v : q) qualities.push_back(v);
     // An earlier keyframe of the segment moves with it; anything else (-1: its own) stays as it is.
@@ -103,7 +112,8 @@ std::string joined_settings(const std::vector<Segment>& segments) {
     }
     each.push_back({{"first_keyframe", s.first_keyframe},
                     {"keyframes", s.file->keyframe_count()},
-                    {"inter_dead_zone_chosen", s.settings.contains("inter_dead_zone_chosen") ? s.settings["inter_dead_zone_chosen"] : nlohmann::json(nullptr)}});
+                    {"inter_dead_zone_chosen",
+                     s.settings.contains("inter_dead_zone_chosen") ? s.settings["inter_dead_zone_chosen"] : nlohmann::json(nullptr)}});
   }
   if (joined.contains("texture_qualities_chosen")) joined["texture_qualities_chosen"] = qualities;
   if (joined.contains("texture_shared_with")) joined["texture_shared_with"] = shared;
@@ -115,7 +125,8 @@ std::string joined_settings(const std::vector<Segment>& segments) {
 // A group's or texture's chunk with the keyframe number its payload opens with (§7, §8, §8.1)
 // moved by `shift`, after checking it is `expected` (the number in the segment).
 format::PreparedChunk renumbered(const format::ContainerReader& reader, const format::ChunkView& chunk, uint32_t expected, uint32_t shift) {
-  if (chunk.compressed() || chunk.stored.size() < 4) throw Error(ErrorCode::kCorrupt, reader.source() + ": " + reader.describe(chunk) + " is compressed or too short");
+  if (chunk.compressed() || chunk.stored.size() < 4)
+    throw Error(ErrorCode::kCorrupt, reader.source() + ": " + reader.describe(chunk) + " is compressed or too short");
   format::PreparedChunk out;
   out.type = chunk.type;
   out.flags = chunk.flags;
@@ -124,7 +135,8 @@ format::PreparedChunk renumbered(const format::ContainerReader& reader, const fo
   uint32_t number = 0;
   std::memcpy(&number, out.stored.data(), 4);  // little-endian, as the file (spec/container.md §1)
   if (number != expected) {
-    throw Error(ErrorCode::kCorrupt, reader.source() + ": " + reader.describe(chunk) + " names keyframe " + std::to_string(number) + ", not " + std::to_string(expected));
+    throw Error(ErrorCode::kCorrupt, reader.source() + ": " + reader.describe(chunk) + " names keyframe " + std::to_string(number) +
+                                         ", not " + std::to_string(expected));
   }
   number += shift;
   std::memcpy(out.stored.data(), &number, 4);
@@ -133,19 +145,26 @@ format::PreparedChunk renumbered(const format::ContainerReader& reader, const fo
 
 }  // namespace
 
-void write_segment_file(const std::filesystem::path& path, const KeyframeSource& segment, SequenceFileMetadata metadata, const SegmentPlacement& placement) {
+void write_segment_file(const std::filesystem::path& path, const KeyframeSource& segment, SequenceFileMetadata metadata,
+                        const SegmentPlacement& placement) {
   if (!metadata.field_coding.predicted()) {
-    throw Error(ErrorCode::kInvalidArgument, path.string() + ": a segment's fields are coded with the steps its measures settled (metadata.field_coding), not the writer's own");
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        path.string() + ": a segment's fields are coded with the steps its measures settled (metadata.field_coding), not the writer's own");
   }
   nlohmann::json settings = metadata.settings.empty() ? nlohmann::json::object() : nlohmann::json::parse(metadata.settings);
-  settings["segment"] = {{"index", placement.segment.index}, {"count", placement.segment.count}, {"first_keyframe", placement.first_keyframe},
-                         {"keyframes", placement.keyframes}, {"encode", placement.encode}};
+  settings["segment"] = {{"index", placement.segment.index},
+                         {"count", placement.segment.count},
+                         {"first_keyframe", placement.first_keyframe},
+                         {"keyframes", placement.keyframes},
+                         {"encode", placement.encode}};
   metadata.settings = settings.dump();
   metadata.texture_layout_from_settings = true;
   write_sequence_file(path, segment, metadata);
 }
 
-JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, const std::filesystem::path& output, bool check_every_keyframe) {
+JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, const std::filesystem::path& output,
+                              bool check_every_keyframe) {
   static_assert(std::endian::native == std::endian::little, "the container is little-endian");
   if (paths.empty()) throw Error(ErrorCode::kInvalidArgument, "no segments to join");
   std::vector<Segment> segments;
@@ -154,27 +173,33 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
   const Segment& first = segments.front();
   size_t next = 0;
   for (const Segment& s : segments) {
-    if (s.count != first.count || s.encode != first.encode || s.keyframes != first.keyframes) refuse(s, "it is a segment of another encode than " + first.path.string());
+    if (s.count != first.count || s.encode != first.encode || s.keyframes != first.keyframes)
+      refuse(s, "it is a segment of another encode than " + first.path.string());
   }
   for (size_t i = 1; i < segments.size(); ++i) {
-    if (segments[i].index == segments[i - 1].index) refuse(segments[i], "segment " + std::to_string(segments[i].index) + " is given twice (also " + segments[i - 1].path.string() + ")");
+    if (segments[i].index == segments[i - 1].index)
+      refuse(segments[i], "segment " + std::to_string(segments[i].index) + " is given twice (also " + segments[i - 1].path.string() + ")");
   }
   for (size_t i = 0; i < segments.size(); ++i) {
     const Segment& s = segments[i];
     if (s.index != static_cast<int>(i)) {
-      throw Error(ErrorCode::kInvalidArgument, "segment " + std::to_string(i) + " of " + std::to_string(first.count) + " is missing (" + s.path.string() + " is segment " +
-                                                   std::to_string(s.index) + ")");
+      throw Error(ErrorCode::kInvalidArgument, "segment " + std::to_string(i) + " of " + std::to_string(first.count) + " is missing (" +
+                                                   s.path.string() + " is segment " + std::to_string(s.index) + ")");
     }
     check_same_header(first, s);
     const size_t period = first.file->header().group_size(), count = s.file->keyframe_count();
-    if (static_cast<size_t>(s.first_keyframe) != next) refuse(s, "it starts at keyframe " + std::to_string(s.first_keyframe) + ", where " + std::to_string(next) + " was due");
+    if (static_cast<size_t>(s.first_keyframe) != next)
+      refuse(s, "it starts at keyframe " + std::to_string(s.first_keyframe) + ", where " + std::to_string(next) + " was due");
     if (i + 1 < static_cast<size_t>(first.count) && count % period != 0) refuse(s, "it holds part of a group of keyframes");
     next += count;
   }
   if (static_cast<int>(segments.size()) != first.count) {
-    throw Error(ErrorCode::kInvalidArgument, "segment " + std::to_string(segments.size()) + " of " + std::to_string(first.count) + " is missing");
+    throw Error(ErrorCode::kInvalidArgument,
+                "segment " + std::to_string(segments.size()) + " of " + std::to_string(first.count) + " is missing");
   }
-  if (next != static_cast<size_t>(first.keyframes)) throw Error(ErrorCode::kInvalidArgument, "the segments hold " + std::to_string(next) + " keyframes of " + std::to_string(first.keyframes));
+  if (next != static_cast<size_t>(first.keyframes))
+    throw Error(ErrorCode::kInvalidArgument,
+                "the segments hold " + std::to_string(next) + " keyframes of " + std::to_string(first.keyframes));
 
   // The joined header and index.
   FileHeader joined = first.file->header();
@@ -194,7 +219,9 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
       outline.times.push_back(e.time);
     }
   }
-  const TextureLayout layout = joined.texture_groups() ? TextureLayout::kGroups : joined.shared_textures() ? TextureLayout::kSharedStills : TextureLayout::kStills;
+  const TextureLayout layout = joined.texture_groups()    ? TextureLayout::kGroups
+                               : joined.shared_textures() ? TextureLayout::kSharedStills
+                                                          : TextureLayout::kStills;
   std::vector<uint8_t> header_payload = write_header(outline, joined.fixed_nodes, joined.metadata, layout);
   const std::vector<uint8_t> header_read_back = header_payload;
   const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, std::move(header_payload), true, 19);
@@ -239,8 +266,8 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
   // may not hold of the whole (the settings' size, the keyframe count, times too close across a
   // seam), and a file a player refuses is not written.
   try {
-    const FileHeader read =
-        read_header(header_read_back, output.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; }, format::kMinorVersion);
+    const FileHeader read = read_header(
+        header_read_back, output.string(), kDefaultDecoderLimits, [](uint32_t, SplineKind) { return uint64_t{1}; }, format::kMinorVersion);
     read_index(write_index(entries, joined), output.string(), read, format::kMinorVersion);
   } catch (const Error& e) {
     throw Error(ErrorCode::kInvalidArgument, std::string("the segments do not join into a file a player takes: ") + e.what());
@@ -256,7 +283,8 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
       if (writer.add(chunk) != laid.offsets[c]) throw Error(ErrorCode::kInternal, "segment join: the index is out of step with the chunks");
     }
     writer.finish();
-    if (writer.size() != laid.end + format::ContainerWriter::end_chunk_size()) throw Error(ErrorCode::kInternal, "segment join: the file is out of step with its index");
+    if (writer.size() != laid.end + format::ContainerWriter::end_chunk_size())
+      throw Error(ErrorCode::kInternal, "segment join: the file is out of step with its index");
   });
   JoinReport report;
   report.segments = static_cast<int>(segments.size());

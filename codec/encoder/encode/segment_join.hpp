@@ -5,9 +5,9 @@
 // whole; the header and index are made again and every checksum computed anew.
 #pragma once
 
-#include "codec/encoder/encode/segmented_encode.hpp"
-#include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/sequence/keyframe_source.hpp"
+#include "codec/encoder/encode/segmented_encode.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -19,7 +19,8 @@ namespace facemorph {
 // plays on its own, whose settings (metadata.settings, a JSON object or empty) say where its
 // keyframes go, and whose textures are laid out as every segment's
 // (SequenceFileMetadata::texture_layout_from_settings). Written whole or not at all.
-void write_segment_file(const std::filesystem::path& path, const KeyframeSource& segment, SequenceFileMetadata metadata, const SegmentPlacement& placement);
+void write_segment_file(const std::filesystem::path& path, const KeyframeSource& segment, SequenceFileMetadata metadata,
+                        const SegmentPlacement& placement);
 
 struct JoinReport {
   int segments = 0;
@@ -38,6 +39,7 @@ struct JoinReport {
 // decodes). The joined header and index are read back as a player reads them before anything is
 // written (kInvalidArgument where the whole breaks a limit its segments kept alone: the settings'
 // size, the keyframe count, keyframe times too close across a seam).
-JoinReport join_segment_files(const std::vector<std::filesystem::path>& segments, const std::filesystem::path& output, bool check_every_keyframe = false);
+JoinReport join_segment_files(const std::vector<std::filesystem::path>& segments, const std::filesystem::path& output,
+                              bool check_every_keyframe = false);
 
 }  // namespace facemorph

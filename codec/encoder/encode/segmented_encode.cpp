@@ -2,12 +2,12 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
+#include "codec/core/grid/disk_grid.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
 #include "codec/encoder/encode/options_json.hpp"
 #include "codec/encoder/encode/staged_encode.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "format/error.hpp"
-#include "codec/core/grid/disk_grid.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
 #include "format/checksum.hpp"
@@ -54,12 +54,15 @@ struct SegmentStart {
 
 // `planned`: a measure whose choices of keyframes, N and representation are taken (the assemble
 // stage); none: they are made here (the measure stage).
-SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id, const SegmentMeasure* planned = nullptr) {
+SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
+                           const SegmentMeasure* planned = nullptr) {
   if (!options.predicted_fields) {
-    throw Error(ErrorCode::kUnsupported, "segments need predicted fields: without them each file takes steps from its own keyframes' range, and files "
-                                         "with other steps do not join");
+    throw Error(ErrorCode::kUnsupported,
+                "segments need predicted fields: without them each file takes steps from its own keyframes' range, and files "
+                "with other steps do not join");
   }
-  if (id.index < 0 || id.index >= id.count || id.count > kMaxSegments) throw Error(ErrorCode::kInvalidArgument, "no segment " + std::to_string(id.index) + " of " + std::to_string(id.count));
+  if (id.index < 0 || id.index >= id.count || id.count > kMaxSegments)
+    throw Error(ErrorCode::kInvalidArgument, "no segment " + std::to_string(id.index) + " of " + std::to_string(id.count));
   SegmentStart s;
   s.parts = encoder_of_parts(parts, options, &s.header);
   s.encoder = s.parts.encoder.get();
@@ -79,7 +82,8 @@ SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, cons
 }
 
 void check_steps(const std::vector<double>& steps, const std::string& where) {
-  if (steps.size() != kKeyframeArrayCount) json_fields::bad(where + " holds " + std::to_string(steps.size()) + " field steps, not " + std::to_string(kKeyframeArrayCount));
+  if (steps.size() != kKeyframeArrayCount)
+    json_fields::bad(where + " holds " + std::to_string(steps.size()) + " field steps, not " + std::to_string(kKeyframeArrayCount));
   for (double s : steps) {
     if (!(s > 0) || !std::isfinite(s)) json_fields::bad(where + " holds a field step that is not finite and positive");
   }
@@ -91,8 +95,8 @@ SegmentId parse_segment(const std::string& text) {
   SegmentId id;
   int consumed = 0;
   const bool digits = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) { return (c >= '0' && c <= '9') || c == '/'; });
-  if (!digits || std::sscanf(text.c_str(), "%d/%d%n", &id.index, &id.count, &consumed) != 2 || consumed != static_cast<int>(text.size()) || id.index < 0 ||
-      id.index >= id.count || id.count > kMaxSegments) {
+  if (!digits || std::sscanf(text.c_str(), "%d/%d%n", &id.index, &id.count, &consumed) != 2 || consumed != static_cast<int>(text.size()) ||
+      id.index < 0 || id.index >= id.count || id.count > kMaxSegments) {
     throw Error(ErrorCode::kInvalidArgument, "--segment '" + text + "': S/N with 0 <= S < N <= " + std::to_string(kMaxSegments));
   }
   return id;
@@ -115,7 +119,8 @@ KeyframeSegment segment_keyframes(size_t keyframes, int intra_period, SegmentId 
   return s;
 }
 
-SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id, EncodeReport* report) {
+SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
+                               EncodeReport* report) {
   SegmentStart s = start_segment(parts, options, id);
   SequenceEncoder& encoder = *s.encoder;
   SegmentMeasure m;
@@ -171,15 +176,19 @@ void write_segment_measure(const std::filesystem::path& path, const SegmentMeasu
                               {"target_error", m.target_error},
                               {"inter_dead_zone", m.inter_dead_zone},
                               {"keyframe_errors", m.keyframe_errors},
-                              {"plan", {{"keyframes", m.plan.keyframes},
-                                        {"predicted_error", m.plan.predicted_error},
-                                        {"budget", m.plan.budget},
-                                        {"budget_mean_error", m.plan.budget_mean_error},
-                                        {"budget_worst_error", m.plan.budget_worst_error},
-                                        {"median_interval", m.plan.median_interval},
-                                        {"sparse", m.plan.sparse},
-                                        {"blend", {{"trials", m.blend.trials}, {"fields_error", m.blend.fields_error},
-                                                   {"positions_error", m.blend.positions_error}, {"not_converged", m.blend.not_converged}}}}}};
+                              {"plan",
+                               {{"keyframes", m.plan.keyframes},
+                                {"predicted_error", m.plan.predicted_error},
+                                {"budget", m.plan.budget},
+                                {"budget_mean_error", m.plan.budget_mean_error},
+                                {"budget_worst_error", m.plan.budget_worst_error},
+                                {"median_interval", m.plan.median_interval},
+                                {"sparse", m.plan.sparse},
+                                {"blend",
+                                 {{"trials", m.blend.trials},
+                                  {"fields_error", m.blend.fields_error},
+                                  {"positions_error", m.blend.positions_error},
+                                  {"not_converged", m.blend.not_converged}}}}}};
   format::write_file_atomically(path, doc.dump() + "\n");
 }
 
@@ -199,7 +208,8 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     const std::string it = "the measure";
     const nlohmann::json doc = json_fields::parse_object(bytes, kMaxMeasureDepth, it);
     if (field<std::string>(doc, "format", it) != kMeasureFormat) bad("it is not a segment measure");
-    if (integer_field(doc, "version", it) != kMeasureVersion) throw Error(ErrorCode::kUnsupported, "measure version " + doc["version"].dump() + " (this fmenc reads 1)");
+    if (integer_field(doc, "version", it) != kMeasureVersion)
+      throw Error(ErrorCode::kUnsupported, "measure version " + doc["version"].dump() + " (this fmenc reads 1)");
     SegmentMeasure m;
     m.source = where;
     m.segment = {integer_field(doc, "segment", it), integer_field(doc, "segments", it)};
@@ -216,17 +226,21 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     }
     m.first = integer_field(doc, "first", it);
     m.end = integer_field(doc, "end", it);
-    if (m.segment.index < 0 || m.segment.index >= m.segment.count || m.segment.count > kMaxSegments) bad("its segment number is out of range");
+    if (m.segment.index < 0 || m.segment.index >= m.segment.count || m.segment.count > kMaxSegments)
+      bad("its segment number is out of range");
     const bool empty = m.first == m.keyframes && m.end == m.keyframes;  // a segment past the capture's groups
-    if (m.keyframes < 1 || m.intra_period < 1 || (!empty && (m.first < 0 || m.first >= m.end || m.end > m.keyframes || m.first % m.intra_period != 0))) {
+    if (m.keyframes < 1 || m.intra_period < 1 ||
+        (!empty && (m.first < 0 || m.first >= m.end || m.end > m.keyframes || m.first % m.intra_period != 0))) {
       bad("its keyframes are not whole groups of the capture's");
     }
-    if (m.grid < kMinGridSize || m.grid > kMaxGridSize) bad("its grid N = " + std::to_string(m.grid) + " is outside " + std::to_string(kMinGridSize) + ".." + std::to_string(kMaxGridSize));
+    if (m.grid < kMinGridSize || m.grid > kMaxGridSize)
+      bad("its grid N = " + std::to_string(m.grid) + " is outside " + std::to_string(kMinGridSize) + ".." + std::to_string(kMaxGridSize));
     const auto interior = static_cast<size_t>(disk_grid_shape(m.grid).interior_count);
     const nlohmann::json& folds = doc.contains("folds") ? doc["folds"] : nlohmann::json();
     if (!folds.is_array() || folds.size() > interior) bad("its folds are not a list of at most G's interior nodes");
     for (const nlohmann::json& node : folds) {
-      if (!node.is_number_integer() || node.get<int64_t>() < 0 || node.get<int64_t>() >= static_cast<int64_t>(interior)) bad("a fold is not an interior node of G");
+      if (!node.is_number_integer() || node.get<int64_t>() < 0 || node.get<int64_t>() >= static_cast<int64_t>(interior))
+        bad("a fold is not an interior node of G");
       if (!m.folds.empty() && node.get<int32_t>() <= m.folds.back()) bad("its folds are not ascending");
       m.folds.push_back(node.get<int32_t>());
     }
@@ -259,7 +273,8 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     m.blend.positions_error = field<double>(blend, "positions_error", "its plan's blend");
     m.blend.not_converged = integer_field(blend, "not_converged", "its plan's blend");
     // The frames the plan covers are checked against the parts when it is taken (adopt_keyframe_plan).
-    if (m.plan.keyframes.size() != static_cast<size_t>(m.keyframes)) bad("its plan holds " + std::to_string(m.plan.keyframes.size()) + " keyframes, not " + std::to_string(m.keyframes));
+    if (m.plan.keyframes.size() != static_cast<size_t>(m.keyframes))
+      bad("its plan holds " + std::to_string(m.plan.keyframes.size()) + " keyframes, not " + std::to_string(m.keyframes));
     for (double e : m.plan.predicted_error) {
       if (!(e >= 0) || !std::isfinite(e)) bad("its plan's predicted errors are not finite and at least 0");
     }
@@ -269,32 +284,39 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
   }
 }
 
-std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
-                                                 const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement, EncodeReport* report,
-                                                 PartHeader* header) {
+std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
+                                                 SegmentId id, const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement,
+                                                 EncodeReport* report, PartHeader* header) {
   // The measures first (cheap): one encode's N segments, each once.
   std::vector<const SegmentMeasure*> by_index(static_cast<size_t>(id.count), nullptr);
   const std::string settings = write_options(options, OptionsScope::kSegment);
   for (const SegmentMeasure& m : measures) {
-    const std::string which = (m.source.empty() ? "" : m.source + ": ") + "the measure of segment " + std::to_string(m.segment.index) + "/" + std::to_string(m.segment.count);
-    if (m.segment.count != id.count) throw Error(ErrorCode::kInvalidArgument, which + " is of " + std::to_string(m.segment.count) + " segments, not " + std::to_string(id.count));
+    const std::string which = (m.source.empty() ? "" : m.source + ": ") + "the measure of segment " + std::to_string(m.segment.index) +
+                              "/" + std::to_string(m.segment.count);
+    if (m.segment.count != id.count)
+      throw Error(ErrorCode::kInvalidArgument,
+                  which + " is of " + std::to_string(m.segment.count) + " segments, not " + std::to_string(id.count));
     if (by_index[static_cast<size_t>(m.segment.index)]) throw Error(ErrorCode::kInvalidArgument, which + " is given twice");
-    if (!same_options(m.settings, options, OptionsScope::kSegment)) throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
+    if (!same_options(m.settings, options, OptionsScope::kSegment))
+      throw Error(ErrorCode::kInvalidArgument, which + " was made with other settings: " + m.settings + " (these: " + settings + ")");
     const SegmentMeasure& first = measures.front();
-    if (m.capture_id != first.capture_id || m.keyframes != first.keyframes || m.intra_period != first.intra_period || m.grid != first.grid ||
-        m.representation != first.representation || m.plan.keyframes != first.plan.keyframes || m.plan.predicted_error != first.plan.predicted_error) {
-      throw Error(ErrorCode::kInvalidArgument, which + " is of another encode than the first measure's (capture, keyframes, intra period, grid or representation)");
+    if (m.capture_id != first.capture_id || m.keyframes != first.keyframes || m.intra_period != first.intra_period ||
+        m.grid != first.grid || m.representation != first.representation || m.plan.keyframes != first.plan.keyframes ||
+        m.plan.predicted_error != first.plan.predicted_error) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  which + " is of another encode than the first measure's (capture, keyframes, intra period, grid or representation)");
     }
     // Its keyframes those its number gives (an empty segment past the capture's groups included).
     const KeyframeSegment range = segment_keyframes(static_cast<size_t>(m.keyframes), m.intra_period, m.segment);
     if (m.first != static_cast<int>(range.first) || m.end != static_cast<int>(range.end)) {
-      throw Error(ErrorCode::kInvalidArgument, which + " holds keyframes " + std::to_string(m.first) + ":" + std::to_string(m.end) + ", not its segment's " +
-                                                   std::to_string(range.first) + ":" + std::to_string(range.end));
+      throw Error(ErrorCode::kInvalidArgument, which + " holds keyframes " + std::to_string(m.first) + ":" + std::to_string(m.end) +
+                                                   ", not its segment's " + std::to_string(range.first) + ":" + std::to_string(range.end));
     }
     by_index[static_cast<size_t>(m.segment.index)] = &m;
   }
   for (size_t s = 0; s < by_index.size(); ++s) {
-    if (!by_index[s]) throw Error(ErrorCode::kInvalidArgument, "no measure of segment " + std::to_string(s) + "/" + std::to_string(id.count));
+    if (!by_index[s])
+      throw Error(ErrorCode::kInvalidArgument, "no measure of segment " + std::to_string(s) + "/" + std::to_string(id.count));
   }
   const SegmentMeasure& own = *by_index[static_cast<size_t>(id.index)];
   SegmentStart s = start_segment(parts, options, id, &own);
@@ -303,7 +325,8 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   // The keyframes, N and representation are the measure's own (adopted), and its range was checked
   // against its number above: what the parts decide besides is the capture and the intra period.
   if (own.capture_id != s.header.capture_id || own.intra_period != s.intra_period) {
-    throw Error(ErrorCode::kInvalidArgument, own.source + ": the measures are not of these parts: another capture, or another intra period or range of keyframes");
+    throw Error(ErrorCode::kInvalidArgument,
+                own.source + ": the measures are not of these parts: another capture, or another intra period or range of keyframes");
   }
   // Settled across the segments: the fixed nodes, every segment's folds; each step the finest any
   // segment needs (a finer step than a segment's own search chose keeps its keyframes within the target).
@@ -351,7 +374,8 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   }
   r.field_coding = coding;
   r.seconds_precision = seconds_since(start);
-  const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first), s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
+  const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first),
+                                   s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
   code_textures(encoder, *sequence, keyframes);
   if (placement) {
     char hex[17];

@@ -15,10 +15,10 @@
 // assemble stage takes them from the measures.
 #pragma once
 
-#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/encode/part_file.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 
 #include <filesystem>
 #include <memory>
@@ -46,11 +46,11 @@ struct SegmentMeasure {
   std::string settings;    // the options, write_options(options, OptionsScope::kSegment): the same in every segment of an encode
   int keyframes = 0, intra_period = 0, grid = 0;
   Representation representation = Representation::kHL;
-  int first = 0, end = 0;          // the keyframes the segment codes
-  std::vector<int32_t> folds;      // where they fold: interior nodes of G, ascending
-  std::vector<double> steps;       // the field steps they need, kKeyframeArrayCount
-  double target_error = 0;         // the field precision's target
-  double inter_dead_zone = 0.5;    // the dead zone its search kept
+  int first = 0, end = 0;               // the keyframes the segment codes
+  std::vector<int32_t> folds;           // where they fold: interior nodes of G, ascending
+  std::vector<double> steps;            // the field steps they need, kKeyframeArrayCount
+  double target_error = 0;              // the field precision's target
+  double inter_dead_zone = 0.5;         // the dead zone its search kept
   std::vector<double> keyframe_errors;  // its keyframes' decoded errors at its steps
   // The keyframes (frame indices), N and representation it chose from every frame
   // (plan_keyframes), the same in every measure of an encode: the assemble stage takes them rather
@@ -87,8 +87,8 @@ struct SegmentPlacement {
 // any order) settle; null for an empty segment (no file to write). kInvalidArgument where the
 // measures are not one encode's N segments, each once, or not this capture's and options' (naming
 // the measure at fault). The placement's count is that of the segments that code keyframes.
-std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, SegmentId id,
-                                                 const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement,
+std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
+                                                 SegmentId id, const std::vector<SegmentMeasure>& measures, SegmentPlacement* placement,
                                                  EncodeReport* report = nullptr, PartHeader* header = nullptr);
 
 }  // namespace facemorph

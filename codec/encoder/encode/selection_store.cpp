@@ -17,7 +17,8 @@ SelectionStore::SelectionStore(const std::vector<SelectionFrame>& outlines, Spil
   cache_bytes_ = cache_bytes;
 }
 
-std::shared_ptr<const SelectionFrame> SelectionStore::assemble(size_t i, std::vector<Eigen::Vector3f>&& local, std::vector<Eigen::Vector3f>&& normal) const {
+std::shared_ptr<const SelectionFrame> SelectionStore::assemble(size_t i, std::vector<Eigen::Vector3f>&& local,
+                                                               std::vector<Eigen::Vector3f>&& normal) const {
   SelectionFrame frame;
   frame.time = outlines_[i].time;
   frame.pose = outlines_[i].pose;
@@ -51,7 +52,8 @@ std::shared_ptr<const SelectionFrame> SelectionStore::sampled(size_t i) const {
   SpillFile::Record record;
   {
     std::lock_guard lock(mutex_);
-    if (i >= outlines_.size() || !stored_[i]) throw Error(ErrorCode::kInternal, "selection store: frame " + std::to_string(i) + " was never stored");
+    if (i >= outlines_.size() || !stored_[i])
+      throw Error(ErrorCode::kInternal, "selection store: frame " + std::to_string(i) + " was never stored");
     if (in_memory_[i]) {
       if (mode_ == SpillMode::kSpill) recent_.splice(recent_.begin(), recent_, where_.at(i));
       return in_memory_[i];

@@ -9,8 +9,8 @@
 // slides along the capture). Times, poses and diagonals stay in memory: every stage reads them.
 #pragma once
 
-#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/encode/spill_file.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 
 #include <list>
 #include <memory>
@@ -43,7 +43,8 @@ class SelectionStore final : public SelectionFrames {
   uint64_t reads() const;  // samples read back from the file (cache misses)
 
  private:
-  std::shared_ptr<const SelectionFrame> assemble(size_t i, std::vector<Eigen::Vector3f>&& local, std::vector<Eigen::Vector3f>&& normal) const;
+  std::shared_ptr<const SelectionFrame> assemble(size_t i, std::vector<Eigen::Vector3f>&& local,
+                                                 std::vector<Eigen::Vector3f>&& normal) const;
 
   const std::vector<SelectionFrame>& outlines_;
   SpillMode mode_;

@@ -48,7 +48,8 @@ SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
     : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
-  if (capture_.landmarks.empty()) capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
+  if (capture_.landmarks.empty())
+    capture_.landmarks.resize(capture_.frames.size(), std::vector<Vec3>(capture_.landmark_names.size(), Vec3::Constant(std::nan(""))));
   if (capture_.landmarks.size() != capture_.frames.size()) {
     throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture_.landmarks.size()) + " of its " +
                                                  std::to_string(count) + " frames");
@@ -168,12 +169,15 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   return chosen;
 }
 
-void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend) {
+void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
+                         const BlendComparison& blend) {
   const std::vector<int>& keys = chosen.keyframes;
   const int frames = encoder.frame_count();
   const bool increasing = std::adjacent_find(keys.begin(), keys.end(), std::greater_equal<int>()) == keys.end();
-  if (keys.empty() || keys.front() != 0 || keys.back() != frames - 1 || !increasing || chosen.predicted_error.size() != static_cast<size_t>(frames)) {
-    throw Error(ErrorCode::kInvalidArgument, "the keyframes planned are not a selection of this encode's " + std::to_string(frames) + " frames");
+  if (keys.empty() || keys.front() != 0 || keys.back() != frames - 1 || !increasing ||
+      chosen.predicted_error.size() != static_cast<size_t>(frames)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "the keyframes planned are not a selection of this encode's " + std::to_string(frames) + " frames");
   }
   report_selection(encoder.report(), chosen);
   encoder.report().grid = grid;
@@ -226,7 +230,8 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
       // mix), so every keyframe is stored as positions, which decode without iterating, and the
       // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
       // encode still fails: the positions were not asked for.
-      if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ) throw;
+      if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ)
+        throw;
       const std::string which = e.what();
       encoder.adopt_representation(Representation::kXYZ, report.blend);
       sequence = encoder.build_stored(chosen.keyframes, grid);
@@ -236,7 +241,9 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
     }
   }
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
-  if (encoder.options().residual_frames) sequence->set_residuals(fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
+  if (encoder.options().residual_frames)
+    sequence->set_residuals(
+        fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
   code_textures(encoder, *sequence, chosen.keyframes);
   return sequence;
 }

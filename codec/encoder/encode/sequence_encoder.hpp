@@ -9,6 +9,7 @@
 //   a level set, its texture on the disk                                          parallel
 #pragma once
 
+#include "codec/core/sequence/sequence.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
@@ -18,17 +19,16 @@
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/encode/frame_store.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
-#include "codec/encoder/keyframes/keyframes.hpp"
-#include "codec/encoder/landmarks/landmark_tracking.hpp"
-#include "codec/encoder/registration/registration.hpp"
 #include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
 #include "codec/encoder/encode/selection_store.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/landmarks/landmark_tracking.hpp"
+#include "codec/encoder/registration/registration.hpp"
 #include "format/error.hpp"
-#include "codec/core/sequence/sequence.hpp"
 
 #include <filesystem>
 #include <functional>
@@ -81,8 +81,8 @@ class SequenceEncoder {
   // whole capture (spec/part-file.md). A frame that does not fit (out of order, the wrong number of
   // landmarks or samples, a registration that is no registration) throws, named by where(k).
   static std::unique_ptr<SequenceEncoder> of_sampled_frames(const SampledCapture& capture, EncodeOptions options,
-                                                             const std::function<SampledFrame(int)>& frame,
-                                                             const std::function<std::string(int)>& where);
+                                                            const std::function<SampledFrame(int)>& frame,
+                                                            const std::function<std::string(int)>& where);
   // After sample_frames: every frame of this encoder's capture as given, kept or dropped, in order,
   // handed to `take` (numbered as set_source_indices says).
   void for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const;
@@ -103,9 +103,9 @@ class SequenceEncoder {
   // 2. register every frame to the reference (options().registration); method kFrame first builds
   // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
   void register_frames();
-  void sample_frames();     // 3. registered surfaces on the selection grid, head poses
+  void sample_frames();                        // 3. registered surfaces on the selection grid, head poses
   KeyframeSelection select_keyframes() const;  // 4. by predicted error
-  Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
+  Vec3 pose_centre() const;                    // the face's centroid in the face frame (after sample_frames)
   // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
   // noise and, given the keyframes `chosen`, the error the spline makes between them.
   int choose_grid(const KeyframeSelection* chosen = nullptr);
@@ -254,7 +254,7 @@ class SequenceEncoder {
   std::map<int, std::vector<std::string>> warnings_by_frame_;
   std::map<int, FrameSummary> dropped_summaries_;
   std::vector<char> without_interior_;  // per frame kept: registered without interior landmarks shared with the reference
-  int given_reference_ = 0;  // as options().reference_frame came, in the capture as given
+  int given_reference_ = 0;             // as options().reference_frame came, in the capture as given
   // The assembling encoder (add_sampled_frame): the reference in the capture as given, whether the
   // capture gave rim markers, the next frame due, and the registrations that came before the
   // reference's frame (with kFrame they need its geodesic frame's partition to be read).
@@ -293,7 +293,8 @@ class SequenceEncoder {
 // gives frames whose surfaces do not say. `progress`: (regions read, regions to read) of the frame
 // being read (find_face's, FaceFindingOptions::progress).
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
-                                       const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress = {});
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks,
+                                       const std::function<void(int, int)>& progress = {});
 
 // ---- The stages after the keyframes are built (stages/round_fields.cpp, stages/texture_coding.cpp) ----
 
@@ -337,7 +338,8 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
 // report's lines for them filled, the representation adopted, the selection's samples released.
 // kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
 // increasing from the first frame to the last, a predicted error a frame).
-void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
+void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
+                         const BlendComparison& blend);
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
 // encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_stored),
 // their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the

@@ -2,9 +2,9 @@
 // bytes, arrays with their length first. Private to the encoder.
 #pragma once
 
-#include "format/error.hpp"
-#include "codec/encoder/conformal/moebius.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/encoder/conformal/moebius.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -20,10 +20,12 @@ namespace facemorph::spill {
 // output must not depend on whether its frames were spilled).
 static_assert(sizeof(Vec2) == 2 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double) && sizeof(Face) == 3 * sizeof(int32_t));
 static_assert(sizeof(Complex) == 2 * sizeof(double) && sizeof(bool) == 1);
-static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double) && sizeof(Eigen::Matrix3d) == 9 * sizeof(double));
+static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Matrix2d) == 4 * sizeof(double) &&
+              sizeof(Eigen::Matrix3d) == 9 * sizeof(double));
 template <typename T>
-constexpr bool kPlain = std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex> ||
-                        std::is_same_v<T, Eigen::Vector3f> || std::is_same_v<T, Eigen::Matrix2d> || std::is_same_v<T, Eigen::Matrix3d>;
+constexpr bool kPlain =
+    std::is_trivially_copyable_v<T> || std::is_same_v<T, Vec2> || std::is_same_v<T, Vec3> || std::is_same_v<T, Complex> ||
+    std::is_same_v<T, Eigen::Vector3f> || std::is_same_v<T, Eigen::Matrix2d> || std::is_same_v<T, Eigen::Matrix3d>;
 
 class Writer {
  public:
@@ -64,7 +66,8 @@ class Reader {
       // from a file may hold any byte there.
       uint8_t byte = 0;
       bytes(&byte, 1);
-      if (byte > 1) throw Error(ErrorCode::kInternal, std::string(what_) + " holds " + std::to_string(byte) + " where a truth value belongs");
+      if (byte > 1)
+        throw Error(ErrorCode::kInternal, std::string(what_) + " holds " + std::to_string(byte) + " where a truth value belongs");
       return byte == 1;
     } else {
       T v;

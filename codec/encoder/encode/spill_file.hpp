@@ -85,7 +85,11 @@ class SpilledItems {
   // store's own errors ("frame store: frame").
   SpilledItems(SpillMode mode, std::string contents, std::string item, Serialize serialize, Deserialize deserialize,
                std::shared_ptr<ResidentCount> count = nullptr)
-      : mode_(mode), item_(std::move(item)), file_(std::move(contents)), serialize_(std::move(serialize)), deserialize_(std::move(deserialize)),
+      : mode_(mode),
+        item_(std::move(item)),
+        file_(std::move(contents)),
+        serialize_(std::move(serialize)),
+        deserialize_(std::move(deserialize)),
         count_(std::move(count)) {}
   SpilledItems(const SpilledItems&) = delete;
   SpilledItems& operator=(const SpilledItems&) = delete;
@@ -134,7 +138,8 @@ class SpilledItems {
     Entry entry;
     {
       std::lock_guard lock(mutex_);
-      if (i >= entries_.size() || !entries_[i].stored) throw Error(ErrorCode::kInternal, item_ + " " + std::to_string(i) + " was never stored");
+      if (i >= entries_.size() || !entries_[i].stored)
+        throw Error(ErrorCode::kInternal, item_ + " " + std::to_string(i) + " was never stored");
       entry = entries_[i];
     }
     if (entry.item) return entry.item;

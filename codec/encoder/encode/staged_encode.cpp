@@ -95,7 +95,8 @@ std::vector<std::string> assembled_names(const std::vector<PartHeader>& headers)
 std::vector<FrameRange> part_ranges(int frames, int per_part) {
   if (frames < 1 || per_part < 1) throw Error(ErrorCode::kInvalidArgument, "a capture splits into parts of at least one frame");
   std::vector<FrameRange> ranges;
-  for (int first = 0; first < frames; first += std::min(per_part, frames - first)) ranges.push_back({first, std::min(frames, first + per_part)});
+  for (int first = 0; first < frames; first += std::min(per_part, frames - first))
+    ranges.push_back({first, std::min(frames, first + per_part)});
   return ranges;
 }
 
@@ -103,22 +104,26 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   const int count = static_cast<int>(capture.frames.size());
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (range.first < 0 || range.end > count || range.first >= range.end) {
-    throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(range.first) + ":" + std::to_string(range.end) + " are not a range of the capture's " +
-                                                 std::to_string(count) + " frames");
+    throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(range.first) + ":" + std::to_string(range.end) +
+                                                 " are not a range of the capture's " + std::to_string(count) + " frames");
   }
   if (options.reference_frame < 0 || options.reference_frame >= count) {
-    throw Error(ErrorCode::kInvalidArgument, "reference frame " + std::to_string(options.reference_frame) + " is not a frame of the capture");
+    throw Error(ErrorCode::kInvalidArgument,
+                "reference frame " + std::to_string(options.reference_frame) + " is not a frame of the capture");
   }
   if (options.track_landmarks) {
-    throw Error(ErrorCode::kUnsupported, "--track-landmarks tracks from frame to frame across the whole capture, which a part does not hold: encode in one process");
+    throw Error(ErrorCode::kUnsupported,
+                "--track-landmarks tracks from frame to frame across the whole capture, which a part does not hold: encode in one process");
   }
   if (!capture.landmarks.empty() && capture.landmarks.size() != capture.frames.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture.landmarks.size()) + " of its " + std::to_string(count) + " frames");
+    throw Error(ErrorCode::kInvalidArgument, "the capture has landmarks for " + std::to_string(capture.landmarks.size()) + " of its " +
+                                                 std::to_string(count) + " frames");
   }
   // What map_frames settles from the whole capture: the up hint, then the reference.
   std::optional<Vec3> hint;
   if (options.find_landmarks) {
-    hint = find_vertical_hint(capture, options.reference_frame, options.largest_component, [&](size_t i) { return frame_points(capture, i); });
+    hint =
+        find_vertical_hint(capture, options.reference_frame, options.largest_component, [&](size_t i) { return frame_points(capture, i); });
   }
   const int reference = settle_reference(capture, options, hint);
   std::vector<int> indices(static_cast<size_t>(range.size()));
@@ -166,8 +171,8 @@ void check_part_settings(const PartReader& part, const EncodeOptions& options) {
   const PartHeader& h = part.header();
   if (same_options(h.settings, options, OptionsScope::kSample)) return;
   throw Error(ErrorCode::kInvalidArgument, part.source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
-                                               ") was sampled with other settings than these: " + h.settings + " (these: " +
-                                               write_options(options, OptionsScope::kSample) + ")");
+                                               ") was sampled with other settings than these: " + h.settings +
+                                               " (these: " + write_options(options, OptionsScope::kSample) + ")");
 }
 
 PartsEncoder::PartsEncoder() = default;
@@ -180,7 +185,8 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<PartReader>> readers;
   for (const std::filesystem::path& part : parts) readers.push_back(std::make_unique<PartReader>(part));
-  std::stable_sort(readers.begin(), readers.end(), [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
+  std::stable_sort(readers.begin(), readers.end(),
+                   [](const auto& a, const auto& b) { return a->header().range.first < b->header().range.first; });
   // One capture, one setting, every frame once.
   const PartHeader& first = readers.front()->header();
   std::vector<PartHeader> headers;
@@ -188,32 +194,35 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   for (const auto& reader : readers) {
     const PartHeader& h = reader->header();
     const SampledCapture &a = first.capture, &b = h.capture;
-    if (h.capture_id != first.capture_id || b.root != a.root || b.frame_count != a.frame_count || b.fps != a.fps || b.units != a.units || b.first_time != a.first_time ||
-        b.last_time != a.last_time || b.given_landmark_names != a.given_landmark_names) {
-      throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" + a.root.string() + ") and " +
-                                                   reader->source() + " (" + b.root.string() + ")");
+    if (h.capture_id != first.capture_id || b.root != a.root || b.frame_count != a.frame_count || b.fps != a.fps || b.units != a.units ||
+        b.first_time != a.first_time || b.last_time != a.last_time || b.given_landmark_names != a.given_landmark_names) {
+      throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" +
+                                                   a.root.string() + ") and " + reader->source() + " (" + b.root.string() + ")");
     }
     check_part_settings(*reader, options);
     if (b.reference != a.reference || b.given_reference != a.given_reference) {
-      throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) + " and " + std::to_string(b.reference) + ")");
+      throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) +
+                                                   " and " + std::to_string(b.reference) + ")");
     }
     if (h.range.first > next) {
       throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(next) + ":" + std::to_string(h.range.first) + " are in no part");
     }
     if (h.range.first < next) {
-      throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(h.range.first) + ":" + std::to_string(std::min(next, h.range.end)) +
-                                                   " are in two parts (" + reader->source() + " and the part before it)");
+      throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(h.range.first) + ":" +
+                                                   std::to_string(std::min(next, h.range.end)) + " are in two parts (" + reader->source() +
+                                                   " and the part before it)");
     }
     next = h.range.end;
     headers.push_back(h);
   }
   if (next != first.capture.frame_count) {
-    throw Error(ErrorCode::kInvalidArgument, "frames " + std::to_string(next) + ":" + std::to_string(first.capture.frame_count) + " are in no part");
+    throw Error(ErrorCode::kInvalidArgument,
+                "frames " + std::to_string(next) + ":" + std::to_string(first.capture.frame_count) + " are in no part");
   }
   SampledCapture capture = first.capture;
   capture.landmark_names = assembled_names(headers);
   double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
-  std::vector<size_t> part_of;  // per frame of the capture, the part that holds it
+  std::vector<size_t> part_of;              // per frame of the capture, the part that holds it
   std::vector<std::vector<int>> positions;  // per part, its landmark names' places among the assembled names
   for (size_t p = 0; p < readers.size(); ++p) {
     const PartHeader& h = readers[p]->header();
@@ -225,7 +234,8 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
     std::vector<int>& position = positions.emplace_back();
     for (const std::string& n : h.capture.landmark_names) {
       const auto it = std::find(capture.landmark_names.begin(), capture.landmark_names.end(), n);
-      if (it == capture.landmark_names.end()) throw Error(ErrorCode::kCorrupt, readers[p]->source() + ": landmark '" + n + "' is neither the capture's nor one found");
+      if (it == capture.landmark_names.end())
+        throw Error(ErrorCode::kCorrupt, readers[p]->source() + ": landmark '" + n + "' is neither the capture's nor one found");
       position.push_back(static_cast<int>(it - capture.landmark_names.begin()));
     }
   }
@@ -260,8 +270,8 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   return made;
 }
 
-std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, EncodeReport* report,
-                                               PartHeader* header) {
+std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
+                                               EncodeReport* report, PartHeader* header) {
   return encode_sampled(*encoder_of_parts(parts, options, header).encoder, report);
 }
 

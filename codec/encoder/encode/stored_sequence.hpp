@@ -7,9 +7,9 @@
 // asks for that keyframe: memory holds every keyframe's time and pose and the few arrays in use.
 #pragma once
 
-#include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/sequence.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
 
 #include <memory>
 #include <type_traits>

@@ -1,9 +1,9 @@
 // Each keyframe's texture quality from the interpolation error beside it (spec/method.md §7.12).
 #include "codec/encoder/encode/texture_quality.hpp"
 
-#include "format/error.hpp"
 #include "codec/decoder/image/image_decode.hpp"
 #include "codec/writer/image/image_encode.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -17,7 +17,8 @@ SymmetricBand::SymmetricBand(int size, int band) : size_(size), band_(band) {
 
 double& SymmetricBand::at(int i, int j) {
   if (i < j) std::swap(i, j);
-  if (j < 0 || i >= size_ || i - j > band_) throw Error(ErrorCode::kInternal, "band matrix: (" + std::to_string(i) + ", " + std::to_string(j) + ") outside the band");
+  if (j < 0 || i >= size_ || i - j > band_)
+    throw Error(ErrorCode::kInternal, "band matrix: (" + std::to_string(i) + ", " + std::to_string(j) + ") outside the band");
   return values_[static_cast<size_t>(i) * static_cast<size_t>(band_ + 1) + static_cast<size_t>(band_ - (i - j))];
 }
 
@@ -41,14 +42,16 @@ BandedCholesky::BandedCholesky(const SymmetricBand& a) : factor_(a.size(), a.ban
 
 void BandedCholesky::forward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& before) const {
   const int m = static_cast<int>(before.size());
-  if (k < 0 || k >= size() || m != std::min(k, band())) throw Error(ErrorCode::kInternal, "band solve: forward step " + std::to_string(k) + " given " + std::to_string(m) + " rows before it");
+  if (k < 0 || k >= size() || m != std::min(k, band()))
+    throw Error(ErrorCode::kInternal, "band solve: forward step " + std::to_string(k) + " given " + std::to_string(m) + " rows before it");
   for (int i = 0; i < m; ++i) row -= at(k, k - m + i) * before[static_cast<size_t>(i)];
   row /= at(k, k);
 }
 
 void BandedCholesky::backward(int k, Eigen::VectorXd& row, const std::deque<Eigen::VectorXd>& after) const {
   const int m = static_cast<int>(after.size());
-  if (k < 0 || k >= size() || m != std::min(size() - 1 - k, band())) throw Error(ErrorCode::kInternal, "band solve: back step " + std::to_string(k) + " given " + std::to_string(m) + " rows after it");
+  if (k < 0 || k >= size() || m != std::min(size() - 1 - k, band()))
+    throw Error(ErrorCode::kInternal, "band solve: back step " + std::to_string(k) + " given " + std::to_string(m) + " rows after it");
   for (int i = 0; i < m; ++i) row -= at(k + 1 + i, k) * after[static_cast<size_t>(i)];
   row /= at(k, k);
 }

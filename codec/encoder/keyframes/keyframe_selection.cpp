@@ -20,7 +20,8 @@ void check_frames(const SelectionFrames& frames, const std::vector<double>& node
     if (f->local.size() != node_weights.size() || f->normal.size() != node_weights.size()) {
       throw Error(ErrorCode::kInvalidArgument, "keyframe selection: frame " + std::to_string(i) + " has arrays of another size");
     }
-    if (i > 0 && !(frames.outline(i).time > frames.outline(i - 1).time)) throw Error(ErrorCode::kInvalidArgument, "keyframe selection: times must increase");
+    if (i > 0 && !(frames.outline(i).time > frames.outline(i - 1).time))
+      throw Error(ErrorCode::kInvalidArgument, "keyframe selection: times must increase");
   }
 }
 
@@ -28,7 +29,8 @@ void check_frames(const SelectionFrames& frames, const std::vector<double>& node
 class Predictor {
  public:
   // residual_step > 0: each frame between keyframes predicted with its best residual (SelectionOptions::residuals).
-  Predictor(const SelectionFrames& frames, const std::vector<double>& node_weights, SplineKind kind, const Vec3& centre, double residual_step = 0)
+  Predictor(const SelectionFrames& frames, const std::vector<double>& node_weights, SplineKind kind, const Vec3& centre,
+            double residual_step = 0)
       : frames_(frames), weights_(node_weights), kind_(kind), centre_(centre), residual_step_(residual_step) {
     for (double w : node_weights) total_weight_ += w;
   }
@@ -73,7 +75,8 @@ class Predictor {
       for (int j = from; j <= to; ++j) {
         Prediction& p = predicted[static_cast<size_t>(j - lo)];
         const bool own = !p.delta.empty() && p.fitted <= p.spline;
-        residuals->push_back({frames_.outline(static_cast<size_t>(j)).time, own ? std::move(p.delta) : std::vector<double>(static_cast<size_t>(window.count), 0.0)});
+        residuals->push_back({frames_.outline(static_cast<size_t>(j)).time,
+                              own ? std::move(p.delta) : std::vector<double>(static_cast<size_t>(window.count), 0.0)});
         at->push_back(j);
         out[static_cast<size_t>(j)] = own ? p.fitted : p.spline;
       }
@@ -138,7 +141,8 @@ class Predictor {
     // a[m][v]: how far key m's unit weight moves node v along its normal.
     std::vector<std::vector<double>> a(static_cast<size_t>(n), std::vector<double>(weights_.size()));
     for (int m = 0; m < n; ++m) {
-      for (size_t v = 0; v < weights_.size(); ++v) a[static_cast<size_t>(m)][v] = (rotation * keyed[static_cast<size_t>(m)]->local_at(v)).dot(frame.normal_at(v));
+      for (size_t v = 0; v < weights_.size(); ++v)
+        a[static_cast<size_t>(m)][v] = (rotation * keyed[static_cast<size_t>(m)]->local_at(v)).dot(frame.normal_at(v));
     }
     const double sum = fit_blend_correction(offsets, a, weights_, residual_step_, delta);
     return std::sqrt(sum / std::max(total_weight_, 1e-300)) / frame.diagonal;
@@ -219,8 +223,8 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
   return select_keyframes(SelectionFramesInMemory(frames), node_weights, options);
 }
 
-std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights, const std::vector<int>& keyframes,
-                                      SplineKind kind, const Vec3& pose_centre) {
+std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights,
+                                      const std::vector<int>& keyframes, SplineKind kind, const Vec3& pose_centre) {
   check_frames(frames, node_weights);
   for (size_t i = 0; i < keyframes.size(); ++i) {
     if (keyframes[i] < 0 || static_cast<size_t>(keyframes[i]) >= frames.size() || (i > 0 && keyframes[i] <= keyframes[i - 1])) {
@@ -240,7 +244,8 @@ KeyframeSelection select_with(const SelectionFrames& frames, const Predictor& pr
   const int count = static_cast<int>(frames.size());
   KeyframeSelection selection;
   const auto finish = [&] {
-    if (residuals) predictor.errors(selection.keyframes, 0, count - 1, selection.predicted_error, &selection.residuals, &selection.residual_frames);
+    if (residuals)
+      predictor.errors(selection.keyframes, 0, count - 1, selection.predicted_error, &selection.residuals, &selection.residual_frames);
     return selection;
   };
   std::vector<int>& keys = selection.keyframes;
@@ -324,8 +329,9 @@ KeyframeSelection select_with(const SelectionFrames& frames, const Predictor& pr
 // (spline_only: even, then moved), and its residuals added; the search stops at the first count
 // that misses. The keyframes' predicted errors stay the spline's (they set N and the field
 // rounding, spec/method.md §7.18); `plain` (with its residuals) where no smaller count holds.
-KeyframeSelection fewer_keyframes_with_residuals(const SelectionFrames& frames, const Predictor& spline_only, const Predictor& with_residuals,
-                                                 const SelectionOptions& options, KeyframeSelection plain) {
+KeyframeSelection fewer_keyframes_with_residuals(const SelectionFrames& frames, const Predictor& spline_only,
+                                                 const Predictor& with_residuals, const SelectionOptions& options,
+                                                 KeyframeSelection plain) {
   const int count = static_cast<int>(frames.size());
   const Objective bar = objective(plain.predicted_error, plain.keyframes);
   SelectionOptions fewer = options;
@@ -346,7 +352,8 @@ KeyframeSelection fewer_keyframes_with_residuals(const SelectionFrames& frames, 
 
 }  // namespace
 
-KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vector<double>& node_weights, const SelectionOptions& options) {
+KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vector<double>& node_weights,
+                                   const SelectionOptions& options) {
   check_frames(frames, node_weights);
   if (options.residuals && !(options.residual_step > 0 && options.residual_step <= 1)) {
     throw Error(ErrorCode::kInvalidArgument, "keyframe selection: the residual step must lie in (0, 1]");
@@ -361,7 +368,8 @@ KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vec
   // precision: the residuals are added to what the encode would have been (measured on Medusa, 23
   // keyframes at the budget: letting them move the keyframes and N cost 24% more bytes for a worse
   // decoded error; spec/method.md §7.18).
-  const bool grown = options.max_error > 0 || (!plain.sparse && plain.budget > 0 && static_cast<int>(plain.keyframes.size()) > plain.budget);
+  const bool grown =
+      options.max_error > 0 || (!plain.sparse && plain.budget > 0 && static_cast<int>(plain.keyframes.size()) > plain.budget);
   if (grown) {
     KeyframeSelection traded = select_with(frames, with_residuals, options, true);
     if (traded.keyframes.size() < plain.keyframes.size()) return traded;

@@ -24,7 +24,7 @@ struct SelectionFrame {
   std::vector<Eigen::Vector3f> local;   // face frame (the pose taken out)
   std::vector<Eigen::Vector3f> normal;  // unit normals in the capture frame
   RigidPose pose;
-  double diagonal = 1;        // bounding-box diagonal of the captured frame
+  double diagonal = 1;  // bounding-box diagonal of the captured frame
 
   Vec3 local_at(size_t v) const { return local[v].cast<double>(); }
   Vec3 world_at(size_t v) const { return pose.apply(local_at(v)); }  // capture frame
@@ -50,14 +50,16 @@ class SelectionFramesInMemory final : public SelectionFrames {
   explicit SelectionFramesInMemory(const std::vector<SelectionFrame>& frames) : frames_(frames) {}
   size_t size() const override { return frames_.size(); }
   const SelectionFrame& outline(size_t i) const override { return frames_.at(i); }
-  std::shared_ptr<const SelectionFrame> sampled(size_t i) const override { return {std::shared_ptr<const SelectionFrame>(), &frames_.at(i)}; }
+  std::shared_ptr<const SelectionFrame> sampled(size_t i) const override {
+    return {std::shared_ptr<const SelectionFrame>(), &frames_.at(i)};
+  }
 
  private:
   const std::vector<SelectionFrame>& frames_;
 };
 
 struct SelectionOptions {
-  double fraction = 0.10;     // budget: keyframes = max(2, round(fraction * frames))
+  double fraction = 0.10;  // budget: keyframes = max(2, round(fraction * frames))
   // With the budget, > 0: more keyframes than the budget where it leaves the mean predicted error
   // between keyframes above this, or the worst above 3 times this (frames far apart, fast motion):
   // the worst-predicted frame is added until both hold. 0: the budget exactly.
@@ -67,7 +69,7 @@ struct SelectionOptions {
   // spline nothing between them to be checked against, and are few: each is stored at the grid's
   // and the field rounding's floor rather than predicted (spec/method.md §7.5).
   double sparse_interval = 0;
-  double max_error = 0;       // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
+  double max_error = 0;  // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
   SplineKind spline = SplineKind::kCatmullRom;
   Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
   // Residual frames (residual_weights.hpp): each frame between keyframes is predicted with the
@@ -88,14 +90,14 @@ inline constexpr double kResidualMinGain = 0.1;
 inline constexpr double kResidualFloor = 5e-5;
 
 struct KeyframeSelection {
-  std::vector<int> keyframes;             // frame indices, increasing; always the first and the last frame
-  std::vector<double> predicted_error;    // per frame: RMS of the prediction's normal offset / diagonal (0 at keyframes)
+  std::vector<int> keyframes;           // frame indices, increasing; always the first and the last frame
+  std::vector<double> predicted_error;  // per frame: RMS of the prediction's normal offset / diagonal (0 at keyframes)
   // After each addition: how many keyframes, and the worst predicted error then.
   std::vector<std::pair<int, double>> history;
-  int budget = 0;                         // keyframes the budget gave (0 with max_error)
+  int budget = 0;                                        // keyframes the budget gave (0 with max_error)
   double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
-  double median_interval = 0;             // between consecutive frames, seconds
-  bool sparse = false;                    // every frame kept: median_interval above SelectionOptions::sparse_interval
+  double median_interval = 0;                            // between consecutive frames, seconds
+  bool sparse = false;                                   // every frame kept: median_interval above SelectionOptions::sparse_interval
   // With SelectionOptions::residuals: the residual frames at the frames they serve (times the
   // frames' own; ResidualFrame::delta multiples of residual_step), increasing. Where they took the
   // place of keyframes where the error bound grew the budget, or under a tolerance (and with them
@@ -103,7 +105,7 @@ struct KeyframeSelection {
   // (the budget, or fewer keyframes than it where residuals keep the frames within what it left)
   // predicted_error is the spline's alone, to which the residuals are added.
   std::vector<ResidualFrame> residuals;
-  std::vector<int> residual_frames;       // the frame index of each
+  std::vector<int> residual_frames;  // the frame index of each
 };
 
 // The mean of `chosen`'s predicted errors between keyframes (fraction of the diagonal); 0 when
@@ -122,8 +124,8 @@ KeyframeSelection select_keyframes(const std::vector<SelectionFrame>& frames, co
                                    const SelectionOptions& options);
 
 // The predicted error of every frame given the keyframes (frame indices, increasing).
-std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights, const std::vector<int>& keyframes,
-                                      SplineKind spline, const Vec3& pose_centre);
+std::vector<double> prediction_errors(const SelectionFrames& frames, const std::vector<double>& node_weights,
+                                      const std::vector<int>& keyframes, SplineKind spline, const Vec3& pose_centre);
 std::vector<double> prediction_errors(const std::vector<SelectionFrame>& frames, const std::vector<double>& node_weights,
                                       const std::vector<int>& keyframes, SplineKind spline, const Vec3& pose_centre);
 

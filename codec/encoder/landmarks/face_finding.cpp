@@ -1,18 +1,18 @@
 // Finding the face in a scan that holds more than a face (spec/method.md §7.14): the whole surface's
 // mirror plane, then a face detected in rendered views of the textured surface, then the mirror
 // plane of the region around the most protruding point.
-#include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
+#include "codec/encoder/landmarks/face_orientation.hpp"
 
 #include "codec/core/util/enum_names.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
-#include "codec/meshkit/render/render.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "codec/meshkit/render/render.hpp"
+#include "format/error.hpp"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
@@ -138,7 +138,8 @@ TriangleMesh sub_mesh(const TriangleMesh& mesh, const std::vector<bool>& keep) {
 Vec3 area_weighted_normal(const TriangleMesh& mesh) {
   Vec3 sum = Vec3::Zero();
   for (const Face& f : mesh.faces) {
-    const Vec3 &a = mesh.positions[static_cast<size_t>(f[0])], &b = mesh.positions[static_cast<size_t>(f[1])], &c = mesh.positions[static_cast<size_t>(f[2])];
+    const Vec3 &a = mesh.positions[static_cast<size_t>(f[0])], &b = mesh.positions[static_cast<size_t>(f[1])],
+               &c = mesh.positions[static_cast<size_t>(f[2])];
     sum += (b - a).cross(c - a);
   }
   return sum;
@@ -169,7 +170,8 @@ class TextureFaceFinder {
   // Why no texture can be read; empty when one can.
   std::string unavailable() const {
     if (!colour_) return "the surface has no texture";
-    if (!std::filesystem::exists(kCascadeFile)) return "OpenCV's face cascade " + kCascadeFile.string() + " is not installed (Debian: opencv-data)";
+    if (!std::filesystem::exists(kCascadeFile))
+      return "OpenCV's face cascade " + kCascadeFile.string() + " is not installed (Debian: opencv-data)";
     return {};
   }
 
@@ -230,7 +232,9 @@ class TextureFaceFinder {
       const int f = face_at(cx, d.box.y + y_share * d.box.height);
       if (f < 0) return std::nullopt;
       const Face& t = mesh_.faces[static_cast<size_t>(f)];
-      return (mesh_.positions[static_cast<size_t>(t[0])] + mesh_.positions[static_cast<size_t>(t[1])] + mesh_.positions[static_cast<size_t>(t[2])]) / 3;
+      return (mesh_.positions[static_cast<size_t>(t[0])] + mesh_.positions[static_cast<size_t>(t[1])] +
+              mesh_.positions[static_cast<size_t>(t[2])]) /
+             3;
     };
     s.centre = point_at(kBoxCentreY);
     s.eyes = point_at(kBoxEyesY);
@@ -255,7 +259,8 @@ class TextureFaceFinder {
     options.background = {255, 255, 255};
     auto front_only = [&turned, &shader](int f, const Vec3& bary) {
       const Face& t = turned.faces[static_cast<size_t>(f)];
-      const Vec3 &a = turned.positions[static_cast<size_t>(t[0])], &b = turned.positions[static_cast<size_t>(t[1])], &c = turned.positions[static_cast<size_t>(t[2])];
+      const Vec3 &a = turned.positions[static_cast<size_t>(t[0])], &b = turned.positions[static_cast<size_t>(t[1])],
+                 &c = turned.positions[static_cast<size_t>(t[2])];
       if ((b - a).cross(c - a).z() <= 0) return std::array<double, 3>{255, 255, 255};
       return shader(f, bary);
     };
@@ -294,7 +299,7 @@ std::optional<FaceOrientation> find_by_texture(const TriangleMesh& mesh, const I
   // A detection alone is at most half-sure: the box places the face, but its up and tip are coarse
   // (3-20° and up to 3.5% of the diagonal off on the test's scans).
   const double texture_confidence = 0.5 * std::min(1.0, static_cast<double>(d->neighbours) / kConfidentNeighbours);
-  const Vec3 towards = d->turn.transpose() * Vec3::UnitZ();   // out of the face, towards the camera
+  const Vec3 towards = d->turn.transpose() * Vec3::UnitZ();  // out of the face, towards the camera
   Vec3 vertical = *seen.eyes - *seen.chin;
   vertical = (vertical - vertical.dot(towards) * towards).normalized();
   // The region read as the face: the surface within 1.5 eyes-to-chin of the box's centre (the
@@ -371,10 +376,10 @@ std::vector<Vec3> search_directions() {
   return out;
 }
 
-std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, const Vec3* facing_hint,
-                                              const FaceFindingOptions& options, std::string* why) {
+std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint,
+                                              const Vec3* facing_hint, const FaceFindingOptions& options, std::string* why) {
   const std::function<void(int, int)>& progress = options.progress;
-  const Vec3 mean = area_weighted_normal(mesh);  // a sum of cross products: twice the area-weighted normal
+  const Vec3 mean = area_weighted_normal(mesh);                    // a sum of cross products: twice the area-weighted normal
   const double area = 2 * total_area(mesh.positions, mesh.faces);  // on the same scale
   // A whole head faces no one way (its mean normal is the neck's opening's, pointing up): its face
   // is looked for about the most protruding point along each of 26 directions, the surest region
@@ -438,7 +443,8 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
       }
       for (size_t f = 0; f < mesh.faces.size(); ++f) {
         keep[f] = true;
-        for (int k = 0; k < 3; ++k) keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
+        for (int k = 0; k < 3; ++k)
+          keep[f] = keep[f] && (mesh.positions[static_cast<size_t>(mesh.faces[f][k])] - mesh.positions[tip]).norm() < reach * diagonal;
       }
       const Vec3 n = area_weighted_normal(sub_mesh(mesh, keep));
       if (!(n.norm() > 0)) break;
@@ -489,8 +495,9 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
     }
   }
   if (progress) progress(total, total);
-  if (!best) *why = last + " (in regions of " + std::to_string(static_cast<int>(100 * kRegionReaches.back())) + "-" +
-                    std::to_string(static_cast<int>(100 * kRegionReaches.front())) + "% of the diagonal about the most protruding point)";
+  if (!best)
+    *why = last + " (in regions of " + std::to_string(static_cast<int>(100 * kRegionReaches.back())) + "-" +
+           std::to_string(static_cast<int>(100 * kRegionReaches.front())) + "% of the diagonal about the most protruding point)";
   return best;
 }
 
@@ -498,9 +505,9 @@ std::optional<FaceOrientation> find_by_region(const TriangleMesh& mesh, const st
 
 namespace {
 
-constexpr EnumName<FaceFindingMethod> kFaceFindingMethodNames[] = {
-    {FaceFindingMethod::kWholeSurface, "whole surface"}, {FaceFindingMethod::kTexture, "texture"},
-    {FaceFindingMethod::kFaceRegion, "face region"}};
+constexpr EnumName<FaceFindingMethod> kFaceFindingMethodNames[] = {{FaceFindingMethod::kWholeSurface, "whole surface"},
+                                                                   {FaceFindingMethod::kTexture, "texture"},
+                                                                   {FaceFindingMethod::kFaceRegion, "face region"}};
 
 }  // namespace
 
@@ -541,7 +548,8 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
   if (options.face_region) {
     if (std::optional<FaceOrientation> o = find_by_region(mesh, name, vertical_hint, facing_hint, options, &why)) {
       // The texture's face, where it agrees, confirms the region's: two independent readings.
-      if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine && o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
+      if (by_texture && o->vertical.dot(by_texture->vertical) >= kMinAgreementCosine &&
+          o->facing.dot(by_texture->facing) >= kMinAgreementCosine) {
         o->confidence = 1 - (1 - o->confidence) * (1 - by_texture->confidence);
       }
       found.push_back(*o);
@@ -570,8 +578,8 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
   for (const std::string& r : reasons) all += (all.empty() ? "" : "; ") + r;
   char confidence[64];
   std::snprintf(confidence, sizeof confidence, "; face confidence %.2f", face_confidence);
-  throw Error(ErrorCode::kInvalidArgument, name + ": no face found: neither the geometry nor the texture shows a face (" + all + confidence +
-                                               ") (give the capture its landmarks nose_tip and nose_bridge)");
+  throw Error(ErrorCode::kInvalidArgument, name + ": no face found: neither the geometry nor the texture shows a face (" + all +
+                                               confidence + ") (give the capture its landmarks nose_tip and nose_bridge)");
 }
 
 }  // namespace facemorph

@@ -4,16 +4,16 @@
 
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <numbers>
 #include <optional>
-#include <array>
 #include <string>
 #include <vector>
 
@@ -73,8 +73,8 @@ std::vector<double> smoothed(const TriangleMesh& mesh, std::vector<double> value
 // first coordinate); nullopt where the section does not reach that far. `projected` holds each
 // face's corners as (along the midline, across it, out of the face) from the tip. Measured along
 // the midline and not as the surface point nearest to tip + distance · vertical: that point lies
-// off a sloping nose, and its nearest point slid along the bridge as the vertical tilted by a few degrees between frames (9.5-14.7 mm from the tip
-// over 12 frames of fmsynth --head at one probe distance), which the registration took for motion.
+// off a sloping nose, and its nearest point slid along the bridge as the vertical tilted by a few degrees between frames (9.5-14.7 mm from
+// the tip over 12 frames of fmsynth --head at one probe distance), which the registration took for motion.
 std::optional<Vec3> midline_point(const std::vector<std::array<Vec3, 3>>& projected, double distance, double up_sign) {
   std::optional<Vec3> best;
   for (const auto& t : projected) {
@@ -128,7 +128,8 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
   centroid /= area;
   o.facing_share = normal_sum.norm() / area;
   if (o.facing_share < kMinFacingShare) {
-    fail(name, "the surface faces no single direction (its mean normal is " + percent(o.facing_share) + " of its area: a closed surface or a whole head)");
+    fail(name, "the surface faces no single direction (its mean normal is " + percent(o.facing_share) +
+                   " of its area: a closed surface or a whole head)");
   }
   o.facing = normal_sum.normalized();
   const double diagonal = bounding_box_diagonal(mesh.positions);

@@ -2,8 +2,8 @@
 // encoder uses in place of the nose_tip and nose_bridge landmarks when a capture has none.
 #pragma once
 
-#include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -34,8 +34,8 @@ struct FaceOrientation {
   // diagonal, on its steeper side (towards the lip on a face): mean drop per unit distance. A nose
   // falls steeply; a dome's top, as symmetric as a face, barely falls.
   double nose_prominence = 0;
-  double up_evidence = 0;        // in [0, 1]: how clearly the surface says which way is up
-  bool up_from_hint = false;     // the surface did not say; the hint's side was taken
+  double up_evidence = 0;     // in [0, 1]: how clearly the surface says which way is up
+  bool up_from_hint = false;  // the surface did not say; the hint's side was taken
   FaceFindingMethod method = FaceFindingMethod::kWholeSurface;
   // In [0, 1]: how sure the finding is. Geometry: 1 - mirror_error / 3% (the largest accepted);
   // texture: half the detector's neighbour count / 12, capped at 1 (a detection alone is coarse);

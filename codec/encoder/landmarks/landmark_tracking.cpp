@@ -1,11 +1,11 @@
 // Correspondence between frames by optical flow on disk images of their geometry (spec/method.md §7.14).
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 
-#include "codec/meshkit/geometry/distance.hpp"
-#include "format/error.hpp"
 #include "codec/core/geometry/differential.hpp"
-#include "codec/meshkit/geometry/surface_measures.hpp"
 #include "codec/core/util/parallel.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/geometry/surface_measures.hpp"
+#include "format/error.hpp"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -81,17 +81,19 @@ struct Flow {
   std::vector<double> round_trip;  // disk units; infinity where lost
 };
 
-Flow lucas_kanade(const cv::Mat& reference, const cv::Mat& frame, const std::vector<cv::Point2f>& from, const std::vector<cv::Point2f>& start,
-                  const TrackingOptions& options) {
+Flow lucas_kanade(const cv::Mat& reference, const cv::Mat& frame, const std::vector<cv::Point2f>& from,
+                  const std::vector<cv::Point2f>& start, const TrackingOptions& options) {
   const cv::Size window(options.window, options.window);
   const cv::TermCriteria stop(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
   Flow flow;
   flow.at = start;
   std::vector<float> error;
-  cv::calcOpticalFlowPyrLK(reference, frame, from, flow.at, flow.ok, error, window, options.pyramid_levels, stop, cv::OPTFLOW_USE_INITIAL_FLOW);
+  cv::calcOpticalFlowPyrLK(reference, frame, from, flow.at, flow.ok, error, window, options.pyramid_levels, stop,
+                           cv::OPTFLOW_USE_INITIAL_FLOW);
   std::vector<cv::Point2f> back = from;
   std::vector<uchar> back_ok;
-  cv::calcOpticalFlowPyrLK(frame, reference, flow.at, back, back_ok, error, window, options.pyramid_levels, stop, cv::OPTFLOW_USE_INITIAL_FLOW);
+  cv::calcOpticalFlowPyrLK(frame, reference, flow.at, back, back_ok, error, window, options.pyramid_levels, stop,
+                           cv::OPTFLOW_USE_INITIAL_FLOW);
   const int size = reference.cols;
   flow.round_trip.assign(from.size(), std::numeric_limits<double>::infinity());
   for (size_t i = 0; i < from.size(); ++i) {
@@ -119,7 +121,8 @@ DiskFeatures disk_features(const DiskMap& map, int size, const std::vector<Fille
   const TriangleMesh& surface = map.surface;
   const size_t n = surface.positions.size();
   if (size < 16) throw Error(ErrorCode::kInvalidArgument, "disk features: image size " + std::to_string(size) + " is below 16");
-  if (n == 0 || map.disk.size() != n || surface.faces.empty()) throw Error(ErrorCode::kInvalidArgument, "disk features: the map's surface and disk disagree");
+  if (n == 0 || map.disk.size() != n || surface.faces.empty())
+    throw Error(ErrorCode::kInvalidArgument, "disk features: the map's surface and disk disagree");
   const double diagonal = bounding_box_diagonal(surface.positions);
   std::vector<bool> boundary(n, false);
   for (int v : map.rim) boundary[static_cast<size_t>(v)] = true;
@@ -147,7 +150,8 @@ DiskFeatures disk_features(const DiskMap& map, int size, const std::vector<Fille
   f.vertices.assign(texels, 0);
   for (const Vec2& w : map.disk) {
     const cv::Point2f t = to_texel(w, size);
-    const int x = std::clamp(static_cast<int>(std::lround(t.x)), 0, size - 1), y = std::clamp(static_cast<int>(std::lround(t.y)), 0, size - 1);
+    const int x = std::clamp(static_cast<int>(std::lround(t.x)), 0, size - 1),
+              y = std::clamp(static_cast<int>(std::lround(t.y)), 0, size - 1);
     uint8_t& c = f.vertices[static_cast<size_t>(y) * size + x];
     if (c < 255) ++c;
   }
@@ -193,7 +197,8 @@ DiskFeatures disk_features(const DiskMap& map, int size, const std::vector<Fille
       float h_value = 0, l_value = 0;
       for (double s = std::min(r, 1.0); s > 0; s -= 0.5 / size) {
         const cv::Point2f t = to_texel(r > 0 ? Vec2(w * (s / r)) : Vec2(w), size);
-        const int tx = std::clamp(static_cast<int>(std::lround(t.x)), 0, size - 1), ty = std::clamp(static_cast<int>(std::lround(t.y)), 0, size - 1);
+        const int tx = std::clamp(static_cast<int>(std::lround(t.x)), 0, size - 1),
+                  ty = std::clamp(static_cast<int>(std::lround(t.y)), 0, size - 1);
         const size_t from = static_cast<size_t>(ty) * size + tx;
         if (!std::isnan(f.curvature[from])) {
           h_value = f.curvature[from];
@@ -222,9 +227,10 @@ std::vector<Vec2> tracking_grid(const TrackingOptions& options) {
   return points;
 }
 
-TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& frame, const std::vector<Vec2>& points, const std::vector<Vec2>& start,
-                           const TrackingOptions& options) {
-  if (reference.size != frame.size || reference.size < 16) throw Error(ErrorCode::kInvalidArgument, "track_points: features of different sizes");
+TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& frame, const std::vector<Vec2>& points,
+                           const std::vector<Vec2>& start, const TrackingOptions& options) {
+  if (reference.size != frame.size || reference.size < 16)
+    throw Error(ErrorCode::kInvalidArgument, "track_points: features of different sizes");
   if (!start.empty() && start.size() != points.size()) throw Error(ErrorCode::kInvalidArgument, "track_points: one start per point needed");
   if (options.window < 3 || options.window % 2 == 0 || options.pyramid_levels < 0) {
     throw Error(ErrorCode::kInvalidArgument, "track_points: the window must be odd and at least 3, the pyramid levels >= 0");
@@ -249,7 +255,8 @@ TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& fr
       const int cx = static_cast<int>(std::lround(from[i].x)), cy = static_cast<int>(std::lround(from[i].y));
       int count = 0;
       for (int y = std::max(0, cy - half); y <= std::min(size - 1, cy + half); ++y) {
-        for (int x = std::max(0, cx - half); x <= std::min(size - 1, cx + half); ++x) count += reference.vertices[static_cast<size_t>(y) * size + x];
+        for (int x = std::max(0, cx - half); x <= std::min(size - 1, cx + half); ++x)
+          count += reference.vertices[static_cast<size_t>(y) * size + x];
       }
       if (count < options.min_window_vertices) resolved[i] = 0, ++out.unresolved;
     }
@@ -270,7 +277,8 @@ TrackedPoints track_points(const DiskFeatures& reference, const DiskFeatures& fr
   }
   std::vector<int> kept;
   for (size_t i = 0; i < from.size(); ++i) {
-    if (resolved[i] && best.ok[i] && (!options.check_round_trip || best.round_trip[i] <= options.max_round_trip)) kept.push_back(static_cast<int>(i));
+    if (resolved[i] && best.ok[i] && (!options.check_round_trip || best.round_trip[i] <= options.max_round_trip))
+      kept.push_back(static_cast<int>(i));
   }
   out.lost = out.tried - out.unresolved - static_cast<int>(kept.size());
   if (options.check_round_trip && options.min_gain > 0) {
@@ -355,11 +363,13 @@ std::vector<TrackedPoints> track_sequence(size_t count, size_t reference, const 
   for (const int direction : {+1, -1}) {
     std::vector<Vec2> last = grid;  // where each point was last seen
     std::vector<size_t> order;
-    for (auto i = static_cast<std::ptrdiff_t>(reference) + direction; i >= 0 && i < static_cast<std::ptrdiff_t>(count); i += direction) order.push_back(static_cast<size_t>(i));
+    for (auto i = static_cast<std::ptrdiff_t>(reference) + direction; i >= 0 && i < static_cast<std::ptrdiff_t>(count); i += direction)
+      order.push_back(static_cast<size_t>(i));
     for (size_t begin = 0; begin < order.size(); begin += kChunk) {
       const size_t end = std::min(order.size(), begin + kChunk);
       std::vector<DiskFeatures> drawn(end - begin);
-      parallel_for(static_cast<int>(end - begin), threads, [&](int k) { drawn[static_cast<size_t>(k)] = features(order[begin + static_cast<size_t>(k)]); });
+      parallel_for(static_cast<int>(end - begin), threads,
+                   [&](int k) { drawn[static_cast<size_t>(k)] = features(order[begin + static_cast<size_t>(k)]); });
       for (size_t k = begin; k < end; ++k) {
         TrackedPoints t = track_points(own, drawn[k - begin], grid, last, options);
         for (size_t j = 0; j < t.index.size(); ++j) last[static_cast<size_t>(t.index[j])] = t.frame[j];

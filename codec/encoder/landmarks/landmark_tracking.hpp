@@ -6,11 +6,11 @@
 // Disk coordinates throughout: points of the closed unit disk, dimensionless.
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/encoder/registration/registration.hpp"
-#include "codec/core/geometry/mesh.hpp"
 
 #include <cstddef>
 #include <functional>
@@ -19,14 +19,14 @@
 namespace facemorph {
 
 struct TrackingOptions {
-  int image_size = 512;          // texels per side of the disk images ([-1, 1]²)
-  double spacing = 0.05;         // the reference's points: a square grid this far apart (disk units)...
-  double max_radius = 0.85;      // ...within this radius (the rim has its own markers)
-  int window = 21;             
-  double blur = 1.0;             // Gaussian blur of the images before the flow (texels; 0: none)
+  int image_size = 512;      // texels per side of the disk images ([-1, 1]²)
+  double spacing = 0.05;     // the reference's points: a square grid this far apart (disk units)...
+  double max_radius = 0.85;  // ...within this radius (the rim has its own markers)
+  int window = 21;
+  double blur = 1.0;  // Gaussian blur of the images before the flow (texels; 0: none)
   // The log conformal factor's contrast against the curvature's (0: the flow sees curvature alone).
   double log_factor_weight = 1.0;
-  int pyramid_levels = 3;        // above the full image
+  int pyramid_levels = 3;  // above the full image
   // A point is kept when, tracked back from the frame to the reference, it lands within this of
   // where it started (disk units; 0.01 is 2.6 texels of a 512² image).
   double max_round_trip = 0.01;

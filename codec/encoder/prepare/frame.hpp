@@ -12,16 +12,16 @@
 namespace facemorph {
 
 struct FilledHole {
-  std::vector<int> loop;     // its boundary in the prepared mesh, surface on the left
-  int first_vertex = 0;      // fill vertices: [first_vertex, first_vertex + vertex_count)
+  std::vector<int> loop;  // its boundary in the prepared mesh, surface on the left
+  int first_vertex = 0;   // fill vertices: [first_vertex, first_vertex + vertex_count)
   int vertex_count = 0;
-  int first_face = 0;        // fill faces: [first_face, first_face + face_count)
+  int first_face = 0;  // fill faces: [first_face, first_face + face_count)
   int face_count = 0;
-  double perimeter = 0;      // capture units
-  double area = 0;           // of the fill
-  double min_angle_degrees = 0;  // smallest angle the fill chose (corners forced by the hole excluded)
+  double perimeter = 0;                     // capture units
+  double area = 0;                          // of the fill
+  double min_angle_degrees = 0;             // smallest angle the fill chose (corners forced by the hole excluded)
   double sharpest_hole_corner_degrees = 0;  // smallest interior angle of the hole itself
-  int folded_faces = 0;      // fill faces folded back: > 120 deg from the surrounding surface
+  int folded_faces = 0;                     // fill faces folded back: > 120 deg from the surrounding surface
 };
 
 // What a frame's repairs changed in all (RepairReport's totals): what the encoder keeps of a frame
@@ -34,22 +34,22 @@ struct RepairTotals {
 };
 
 struct RepairReport {
-  int merged_vertices = 0;             // exact duplicate positions welded
-  int dropped_degenerate_faces = 0;    // repeated vertex or zero area
-  int split_faces = 0;                 // neighbours split to absorb a zero-area face (T-junction)
-  int dropped_duplicate_faces = 0;     // same three vertices as an earlier face
+  int merged_vertices = 0;           // exact duplicate positions welded
+  int dropped_degenerate_faces = 0;  // repeated vertex or zero area
+  int split_faces = 0;               // neighbours split to absorb a zero-area face (T-junction)
+  int dropped_duplicate_faces = 0;   // same three vertices as an earlier face
   int dropped_unreferenced_vertices = 0;
-  int reoriented_faces = 0;            // flipped to agree with their neighbours
-  int dropped_components = 0;          // separate surfaces (eyeballs, teeth) dropped by keep_largest_component
-  int dropped_component_faces = 0;     // and their faces
+  int reoriented_faces = 0;         // flipped to agree with their neighbours
+  int dropped_components = 0;       // separate surfaces (eyeballs, teeth) dropped by keep_largest_component
+  int dropped_component_faces = 0;  // and their faces
   // The non-manifold repairs (PrepareOptions::repair_non_manifold; spec/method.md §2.1).
-  int non_manifold_edges = 0;          // edges with three or more faces, resolved
-  int dropped_sheet_faces = 0;         // faces dropped to resolve them
-  int dropped_sheets = 0;              // of which whole sheets (fins, a fused hair or torso surface)
-  int split_vertices = 0;              // bow-tie vertices split
-  int added_vertices = 0;              // copies they made
-  int rewired_faces = 0;               // faces moved onto a copy
-  int dropped_specks = 0;              // islands under kSpeckAreaFraction of the face's area
+  int non_manifold_edges = 0;   // edges with three or more faces, resolved
+  int dropped_sheet_faces = 0;  // faces dropped to resolve them
+  int dropped_sheets = 0;       // of which whole sheets (fins, a fused hair or torso surface)
+  int split_vertices = 0;       // bow-tie vertices split
+  int added_vertices = 0;       // copies they made
+  int rewired_faces = 0;        // faces moved onto a copy
+  int dropped_specks = 0;       // islands under kSpeckAreaFraction of the face's area
   int dropped_speck_faces = 0;
   // Totals over every repair above (hole filling apart): faces dropped, added, re-attached or
   // flipped; vertices dropped (welded included), added or moved; and the largest distance from a
@@ -88,9 +88,9 @@ struct PrepareOptions {
 };
 
 struct PreparedFrame {
-  TriangleMesh mesh;                 // a disk
-  std::vector<int> rim;              // its boundary loop, surface on the left
-  std::vector<int> source_vertex;    // input vertex of each mesh vertex; -1 for fill vertices
+  TriangleMesh mesh;               // a disk
+  std::vector<int> rim;            // its boundary loop, surface on the left
+  std::vector<int> source_vertex;  // input vertex of each mesh vertex; -1 for fill vertices
   RepairReport report;
 };
 
@@ -109,7 +109,7 @@ PreparedFrame prepare_frame(const TriangleMesh& mesh, const std::string& name, c
 // be triangulated without duplicating an existing edge.
 struct HoleFill {
   std::vector<Vec3> positions;
-  std::vector<Vec2> uvs;  // per new vertex, when `loop_uvs` was given
+  std::vector<Vec2> uvs;      // per new vertex, when `loop_uvs` was given
   std::vector<Vec3> colours;  // per new vertex, when the mesh has colours: the rim's, weighted by inverse distance
   std::vector<Face> faces;
   double min_angle_degrees = 0;

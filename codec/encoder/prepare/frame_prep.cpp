@@ -1,15 +1,15 @@
 // Frame validation and repair: from a scanner's triangle soup to a disk the conformal map accepts.
-#include "format/error.hpp"
-#include "codec/encoder/prepare/frame.hpp"
 #include "codec/core/geometry/differential.hpp"
+#include "codec/encoder/prepare/frame.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include "codec/encoder/prepare/manifold_repair.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numeric>
 #include <sstream>
@@ -48,12 +48,10 @@ class FramePreparer {
       if (i != rim) fill(loops[i]);
     }
     const MeshTopology final_topology(mesh_.faces, mesh_.vertex_count());
-    if (!final_topology.is_manifold() || final_topology.boundary_loops().size() != 1 ||
-        final_topology.euler_characteristic() != 1) {
-      fail(ErrorCode::kNotADisk, "hole filling did not produce a disk (" +
-                                     std::to_string(final_topology.boundary_loops().size()) + " boundary loops, Euler characteristic " +
-                                     std::to_string(final_topology.euler_characteristic()) + ", " +
-                                     std::to_string(final_topology.non_manifold_edges().size()) + " non-manifold edges, " +
+    if (!final_topology.is_manifold() || final_topology.boundary_loops().size() != 1 || final_topology.euler_characteristic() != 1) {
+      fail(ErrorCode::kNotADisk, "hole filling did not produce a disk (" + std::to_string(final_topology.boundary_loops().size()) +
+                                     " boundary loops, Euler characteristic " + std::to_string(final_topology.euler_characteristic()) +
+                                     ", " + std::to_string(final_topology.non_manifold_edges().size()) + " non-manifold edges, " +
                                      std::to_string(final_topology.non_manifold_vertices().size()) + " non-manifold vertices, " +
                                      std::to_string(final_topology.inconsistently_oriented_edges().size()) + " flipped edges)");
     }
@@ -77,13 +75,14 @@ class FramePreparer {
   void check_values() const {
     if (mesh_.faces.empty()) fail(ErrorCode::kInvalidMesh, "the mesh has no faces");
     for (size_t i = 0; i < mesh_.positions.size(); ++i) {
-      if (!mesh_.positions[i].allFinite()) fail(ErrorCode::kInvalidMesh, "vertex " + std::to_string(i) + " has a non-finite coordinate (NaN or Inf)");
+      if (!mesh_.positions[i].allFinite())
+        fail(ErrorCode::kInvalidMesh, "vertex " + std::to_string(i) + " has a non-finite coordinate (NaN or Inf)");
     }
     for (size_t f = 0; f < mesh_.faces.size(); ++f) {
       for (int32_t v : mesh_.faces[f]) {
         if (v < 0 || v >= mesh_.vertex_count()) {
-          fail(ErrorCode::kInvalidMesh, "face " + std::to_string(f) + " refers to vertex " + std::to_string(v) + " of " +
-                                            std::to_string(mesh_.vertex_count()));
+          fail(ErrorCode::kInvalidMesh,
+               "face " + std::to_string(f) + " refers to vertex " + std::to_string(v) + " of " + std::to_string(mesh_.vertex_count()));
         }
       }
     }
@@ -93,7 +92,8 @@ class FramePreparer {
       }
       for (const Face& t : mesh_.uv_faces) {
         for (int32_t v : t) {
-          if (v < 0 || static_cast<size_t>(v) >= mesh_.uvs.size()) fail(ErrorCode::kInvalidMesh, "a texture-coordinate index is out of range");
+          if (v < 0 || static_cast<size_t>(v) >= mesh_.uvs.size())
+            fail(ErrorCode::kInvalidMesh, "a texture-coordinate index is out of range");
         }
       }
     } else if (!mesh_.uv_faces.empty()) {
@@ -101,11 +101,13 @@ class FramePreparer {
     }
     // Colours are optional but, when present, one per vertex: every later step keeps them so.
     if (!mesh_.colours.empty() && !mesh_.has_colours()) {
-      fail(ErrorCode::kInvalidMesh, std::to_string(mesh_.colours.size()) + " vertex colours for " + std::to_string(mesh_.vertex_count()) + " vertices");
+      fail(ErrorCode::kInvalidMesh,
+           std::to_string(mesh_.colours.size()) + " vertex colours for " + std::to_string(mesh_.vertex_count()) + " vertices");
     }
     for (size_t i = 0; i < mesh_.colours.size(); ++i) {
       const Vec3& c = mesh_.colours[i];
-      if (!c.allFinite() || c.minCoeff() < 0 || c.maxCoeff() > 1) fail(ErrorCode::kInvalidMesh, "vertex " + std::to_string(i) + " has a colour outside [0, 1]");
+      if (!c.allFinite() || c.minCoeff() < 0 || c.maxCoeff() > 1)
+        fail(ErrorCode::kInvalidMesh, "vertex " + std::to_string(i) + " has a colour outside [0, 1]");
     }
   }
 
@@ -168,8 +170,9 @@ class FramePreparer {
     std::vector<double> area(static_cast<size_t>(topology.component_count()), 0.0);
     for (size_t f = 0; f < mesh_.faces.size(); ++f) {
       const Face& t = mesh_.faces[f];
-      area[static_cast<size_t>(component[f])] += triangle_area(mesh_.positions[static_cast<size_t>(t[0])], mesh_.positions[static_cast<size_t>(t[1])],
-                                                                mesh_.positions[static_cast<size_t>(t[2])]);
+      area[static_cast<size_t>(component[f])] +=
+          triangle_area(mesh_.positions[static_cast<size_t>(t[0])], mesh_.positions[static_cast<size_t>(t[1])],
+                        mesh_.positions[static_cast<size_t>(t[2])]);
     }
     int keep = choose_face_group(mesh_, component, topology.component_count(), area, face_points_);
     if (keep < 0) keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
@@ -209,7 +212,8 @@ class FramePreparer {
       std::vector<uint8_t> drop(mesh_.faces.size(), 0);
       std::unordered_map<uint64_t, std::vector<int>> by_edge;
       for (size_t f = 0; f < mesh_.faces.size(); ++f) {
-        for (int k = 0; k < 3; ++k) by_edge[undirected_edge_key(mesh_.faces[f][k], mesh_.faces[f][(k + 1) % 3])].push_back(static_cast<int>(f));
+        for (int k = 0; k < 3; ++k)
+          by_edge[undirected_edge_key(mesh_.faces[f][k], mesh_.faces[f][(k + 1) % 3])].push_back(static_cast<int>(f));
       }
       bool changed = false;
       const size_t count = mesh_.faces.size();
@@ -307,8 +311,8 @@ class FramePreparer {
   // and how far the repaired surface lies from the captured vertices it no longer holds.
   void count_changes() {
     RepairReport& r = report_;
-    r.faces_changed = r.dropped_degenerate_faces + 2 * r.split_faces + r.dropped_duplicate_faces + r.reoriented_faces + r.dropped_sheet_faces +
-                      r.rewired_faces + r.dropped_component_faces + r.dropped_speck_faces;
+    r.faces_changed = r.dropped_degenerate_faces + 2 * r.split_faces + r.dropped_duplicate_faces + r.reoriented_faces +
+                      r.dropped_sheet_faces + r.rewired_faces + r.dropped_component_faces + r.dropped_speck_faces;
     std::vector<uint8_t> kept(input_.positions.size(), 0), used(input_.positions.size(), 0);
     for (int s : source_) kept[static_cast<size_t>(s)] = 1;
     for (const Face& f : input_.faces) {
@@ -331,8 +335,8 @@ class FramePreparer {
     const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
     if (!topology.non_manifold_edges().empty()) {
       const auto e = topology.edge(topology.non_manifold_edges()[0]);
-      fail(ErrorCode::kInvalidMesh, std::to_string(topology.non_manifold_edges().size()) +
-                                        " non-manifold edges (edge " + std::to_string(e[0]) + "-" + std::to_string(e[1]) + " has " +
+      fail(ErrorCode::kInvalidMesh, std::to_string(topology.non_manifold_edges().size()) + " non-manifold edges (edge " +
+                                        std::to_string(e[0]) + "-" + std::to_string(e[1]) + " has " +
                                         std::to_string(topology.edge_faces(topology.non_manifold_edges()[0]).size()) + " faces)");
     }
     if (topology.inconsistently_oriented_edges().empty()) return;
@@ -547,8 +551,8 @@ std::string RepairReport::summary() const {
       folded += h.folded_faces;
       min_angle = std::min(min_angle, h.min_angle_degrees);
     }
-    out << "filled " << holes.size() << " hole" << (holes.size() > 1 ? "s" : "") << " (" << faces
-        << " faces, smallest angle " << static_cast<int>(min_angle) << " deg";
+    out << "filled " << holes.size() << " hole" << (holes.size() > 1 ? "s" : "") << " (" << faces << " faces, smallest angle "
+        << static_cast<int>(min_angle) << " deg";
     if (folded > 0) out << ", " << folded << " facing against the hole";
     out << ")";
     separator = "; ";
@@ -582,7 +586,8 @@ std::string RepairReport::summary() const {
   if (faces_changed > 0 || vertices_changed > 0) {
     char moved[96];
     std::snprintf(moved, sizeof moved, "%.3g (%.3g%% of the diagonal)", largest_move, diagonal > 0 ? 100 * largest_move / diagonal : 0.0);
-    out << separator << "in all " << faces_changed << " faces and " << vertices_changed << " vertices changed, the surface moved at most " << moved;
+    out << separator << "in all " << faces_changed << " faces and " << vertices_changed << " vertices changed, the surface moved at most "
+        << moved;
   }
   const std::string text = out.str();
   return text.empty() ? "valid as captured" : text;

@@ -3,12 +3,12 @@
 // Delaunay edge flips, then faired as a membrane (harmonic), which spans the rim of the hole
 // instead of bulging into it. The membrane is what keeps an open mouth from becoming a deep
 // cavity whose conformal image would be crowded beyond any grid (spec/method.md §2).
-#include "format/error.hpp"
+#include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/encoder/prepare/frame.hpp"
-#include "codec/core/geometry/differential.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/SparseCholesky>
 
@@ -28,8 +28,7 @@ constexpr int kMaxLoop = 3000;  // the O(n³) triangulation takes about a second
 // (the loop reversed, so fill faces orient like the mesh), n.. are new vertices.
 class Fill {
  public:
-  Fill(const TriangleMesh& mesh, const std::vector<int>& loop, const std::vector<double>& sigma,
-       const std::vector<Vec2>* loop_uvs)
+  Fill(const TriangleMesh& mesh, const std::vector<int>& loop, const std::vector<double>& sigma, const std::vector<Vec2>* loop_uvs)
       : n_(static_cast<int>(loop.size())), has_uv_(loop_uvs != nullptr) {
     for (int i = 0; i < n_; ++i) {
       const auto k = static_cast<size_t>(n_ - 1 - i);
@@ -99,8 +98,8 @@ class Fill {
       }
     }
     if (split[n - 1] < 0) {
-      throw Error(ErrorCode::kNotADisk, "a hole of " + std::to_string(n) +
-                                            " boundary vertices cannot be triangulated without duplicating an existing edge");
+      throw Error(ErrorCode::kNotADisk,
+                  "a hole of " + std::to_string(n) + " boundary vertices cannot be triangulated without duplicating an existing edge");
     }
     std::vector<std::pair<size_t, size_t>> stack = {{0, n - 1}};
     while (!stack.empty()) {
@@ -227,9 +226,7 @@ class Fill {
 
   HoleFill result(int mesh_vertex_count) const {
     HoleFill fill;
-    auto global = [&](int32_t v) {
-      return v < n_ ? global_[static_cast<size_t>(v)] : static_cast<int32_t>(mesh_vertex_count + v - n_);
-    };
+    auto global = [&](int32_t v) { return v < n_ ? global_[static_cast<size_t>(v)] : static_cast<int32_t>(mesh_vertex_count + v - n_); };
     for (const Face& f : faces_) fill.faces.push_back({global(f[0]), global(f[1]), global(f[2])});
     fill.positions.assign(p_.begin() + n_, p_.end());
     if (has_uv_) fill.uvs.assign(uv_.begin() + n_, uv_.end());

@@ -11,11 +11,14 @@ namespace facemorph {
 namespace {
 
 Vec3 centroid(const TriangleMesh& mesh, const Face& f) {
-  return (mesh.positions[static_cast<size_t>(f[0])] + mesh.positions[static_cast<size_t>(f[1])] + mesh.positions[static_cast<size_t>(f[2])]) / 3.0;
+  return (mesh.positions[static_cast<size_t>(f[0])] + mesh.positions[static_cast<size_t>(f[1])] +
+          mesh.positions[static_cast<size_t>(f[2])]) /
+         3.0;
 }
 
 double face_area(const TriangleMesh& mesh, const Face& f) {
-  return triangle_area(mesh.positions[static_cast<size_t>(f[0])], mesh.positions[static_cast<size_t>(f[1])], mesh.positions[static_cast<size_t>(f[2])]);
+  return triangle_area(mesh.positions[static_cast<size_t>(f[0])], mesh.positions[static_cast<size_t>(f[1])],
+                       mesh.positions[static_cast<size_t>(f[2])]);
 }
 
 }  // namespace
@@ -32,7 +35,8 @@ void remove_faces(TriangleMesh& mesh, const std::vector<uint8_t>& drop) {
   if (!mesh.uv_faces.empty()) mesh.uv_faces.resize(out);
 }
 
-std::vector<int> landmark_votes(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<Vec3>& face_points) {
+std::vector<int> landmark_votes(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count,
+                                const std::vector<Vec3>& face_points) {
   std::vector<int> votes(static_cast<size_t>(group_count), 0);
   // A frame has a few dozen landmarks: a scan over the faces' centres per point is cheap, and this
   // runs only on frames that need a choice.
@@ -52,8 +56,8 @@ std::vector<int> landmark_votes(const TriangleMesh& mesh, const std::vector<int>
   return votes;
 }
 
-int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count, const std::vector<double>& group_area,
-                      const std::vector<Vec3>& face_points) {
+int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of_face, int group_count,
+                      const std::vector<double>& group_area, const std::vector<Vec3>& face_points) {
   const std::vector<int> votes = landmark_votes(mesh, group_of_face, group_count, face_points);
   if (std::all_of(votes.begin(), votes.end(), [](int v) { return v == 0; })) return -1;
   int chosen = 0;
@@ -64,7 +68,8 @@ int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of
   return chosen;
 }
 
-std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points, NonManifoldEdgeRepair* counts) {
+std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points,
+                                             NonManifoldEdgeRepair* counts) {
   const size_t face_total = mesh.faces.size();
   std::vector<uint8_t> drop(face_total, 0);
   const MeshTopology topology(mesh.faces, mesh.vertex_count());
@@ -170,7 +175,8 @@ BowTieRepair split_bow_tie_vertices(TriangleMesh& mesh, std::vector<int>& source
     std::vector<std::vector<int32_t>> ordered;
     for (auto& [root, list] : members) ordered.push_back(std::move(list));
     // The fan of most faces keeps the vertex (ties: the one holding the lowest face, for determinism).
-    std::sort(ordered.begin(), ordered.end(), [](const auto& a, const auto& b) { return a.size() != b.size() ? a.size() > b.size() : a[0] < b[0]; });
+    std::sort(ordered.begin(), ordered.end(),
+              [](const auto& a, const auto& b) { return a.size() != b.size() ? a.size() > b.size() : a[0] < b[0]; });
     ++repair.vertices;
     const Vec3 at = mesh.positions[static_cast<size_t>(v)];
     for (size_t fan = 1; fan < ordered.size(); ++fan) {

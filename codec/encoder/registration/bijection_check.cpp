@@ -1,17 +1,17 @@
 // Whether a registration is a bijection of the disk: det Df > 0 on a dense grid and the circle's
 // images in strictly increasing cyclic angle (method-notes §5, "Keeping a bijection").
-#include "codec/encoder/registration/registration_internal.hpp"
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/registration/registration_internal.hpp"
 
 #include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <optional>
-#include <utility>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace facemorph {

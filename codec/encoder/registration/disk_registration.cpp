@@ -19,13 +19,14 @@ namespace facemorph {
 namespace {
 
 constexpr EnumName<RegistrationMethod> kRegistrationMethodNames[] = {
-    {RegistrationMethod::kMoebius, "moebius"}, {RegistrationMethod::kGmf, "gmf"},
-    {RegistrationMethod::kFrame, "frame"}};
-constexpr EnumName<GmfForm> kGmfFormNames[] = {
-    {GmfForm::kThinPlate, "thin-plate"}, {GmfForm::kPaperGrid, "paper-grid"}};
+    {RegistrationMethod::kMoebius, "moebius"}, {RegistrationMethod::kGmf, "gmf"}, {RegistrationMethod::kFrame, "frame"}};
+constexpr EnumName<GmfForm> kGmfFormNames[] = {{GmfForm::kThinPlate, "thin-plate"}, {GmfForm::kPaperGrid, "paper-grid"}};
 constexpr EnumName<RegistrationFallback> kRegistrationFallbackNames[] = {
-    {RegistrationFallback::kNone, "none"}, {RegistrationFallback::kMoreSmoothing, "more-smoothing"}, {RegistrationFallback::kSubsteps, "substeps"},
-    {RegistrationFallback::kMoebiusOnly, "moebius-only"}, {RegistrationFallback::kGmfInsteadOfFrame, "gmf-instead-of-frame"}};
+    {RegistrationFallback::kNone, "none"},
+    {RegistrationFallback::kMoreSmoothing, "more-smoothing"},
+    {RegistrationFallback::kSubsteps, "substeps"},
+    {RegistrationFallback::kMoebiusOnly, "moebius-only"},
+    {RegistrationFallback::kGmfInsteadOfFrame, "gmf-instead-of-frame"}};
 
 }  // namespace
 
@@ -71,8 +72,8 @@ std::string describe(const BijectionCheck& c, const RegistrationOptions& o) {
         << ") (area ratio " << c.min_area_ratio << ")";
   }
   if (c.boundary_order_breaks > 0) {
-    out << (out.tellp() > 0 ? "; " : "") << "circle images out of order at " << c.boundary_order_breaks << " of "
-        << c.boundary_samples << " samples";
+    out << (out.tellp() > 0 ? "; " : "") << "circle images out of order at " << c.boundary_order_breaks << " of " << c.boundary_samples
+        << " samples";
   }
   return out.str();
 }
@@ -113,8 +114,8 @@ GmfData gmf_data(const CheckedLandmarks& l, const DiskMoebius& m, double spacing
 // One GMF try: `substeps` fields, each fitted at the points' current images to 1/(steps left) of
 // what remains, composed after m; then the bijection check. Empty, with `why`, when a fit is
 // singular (sub-steps can bring two images together).
-std::optional<DiskRegistration> try_gmf(const DiskRegistration& base, const GmfData& data, const RegistrationOptions& o,
-                                        double smoothing, int substeps, std::string& why) {
+std::optional<DiskRegistration> try_gmf(const DiskRegistration& base, const GmfData& data, const RegistrationOptions& o, double smoothing,
+                                        int substeps, std::string& why) {
   DiskRegistration f = base;
   f.smoothing = smoothing;
   std::vector<Vec2> at = data.points, step_targets(at.size());
@@ -124,9 +125,8 @@ std::optional<DiskRegistration> try_gmf(const DiskRegistration& base, const GmfD
   try {
     for (int s = 0; s < substeps; ++s) {
       for (size_t i = 0; i < at.size(); ++i) step_targets[i] = (data.targets[i] - at[i]) / (substeps - s);
-      f.steps.push_back(o.form == GmfForm::kThinPlate
-                            ? fit_thin_plate(at, step_targets, smoothing > 0 ? lambda : std::vector<double>{})
-                            : fit_paper_grid(at, step_targets, data.weights, o.paper_grid_n, smoothing));
+      f.steps.push_back(o.form == GmfForm::kThinPlate ? fit_thin_plate(at, step_targets, smoothing > 0 ? lambda : std::vector<double>{})
+                                                      : fit_paper_grid(at, step_targets, data.weights, o.paper_grid_n, smoothing));
       for (Vec2& x : at) x += f.steps.back()(x);
     }
   } catch (const Error& e) {
@@ -141,9 +141,7 @@ std::optional<DiskRegistration> try_gmf(const DiskRegistration& base, const GmfD
 
 }  // namespace
 
-double matching_energy(const DiskRegistration& f, const DiskLandmarks& landmarks) {
-  return energy_of(f, check_landmarks(landmarks));
-}
+double matching_energy(const DiskRegistration& f, const DiskLandmarks& landmarks) { return energy_of(f, check_landmarks(landmarks)); }
 
 DiskRegistration register_disks(const DiskLandmarks& landmarks, const RegistrationOptions& options, const GeodesicFrame* frame) {
   check_options(options);

@@ -3,13 +3,13 @@
 // triangulation of the disk whose edges follow those curves.
 #include "codec/encoder/registration/surface_path.hpp"
 
-#include "codec/meshkit/geometry/delaunay.hpp"
+#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
 #include "codec/encoder/stages/elapsed.hpp"
-#include "format/error.hpp"
-#include "codec/core/util/parallel.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -67,7 +67,8 @@ std::vector<Face> triangulate(const std::vector<Vec2>& points, const std::vector
     std::vector<uint8_t> used(points.size(), 0);
     bool positive = true;
     for (const Face& f : faces) {
-      positive = positive && orient2d(points[static_cast<size_t>(f[0])], points[static_cast<size_t>(f[1])], points[static_cast<size_t>(f[2])]) > 0;
+      positive =
+          positive && orient2d(points[static_cast<size_t>(f[0])], points[static_cast<size_t>(f[1])], points[static_cast<size_t>(f[2])]) > 0;
       for (int v : f) used[static_cast<size_t>(v)] = 1;
     }
     if (positive && std::all_of(used.begin(), used.end(), [](uint8_t x) { return x != 0; })) return faces;
@@ -128,7 +129,8 @@ double deviation(const std::vector<Vec2>& curve) {
 int sign(double v) { return (v > 0) - (v < 0); }
 
 bool within_box(const Vec2& a, const Vec2& b, const Vec2& p) {
-  return p.x() >= std::min(a.x(), b.x()) && p.x() <= std::max(a.x(), b.x()) && p.y() >= std::min(a.y(), b.y()) && p.y() <= std::max(a.y(), b.y());
+  return p.x() >= std::min(a.x(), b.x()) && p.x() <= std::max(a.x(), b.x()) && p.y() >= std::min(a.y(), b.y()) &&
+         p.y() <= std::max(a.y(), b.y());
 }
 
 // Whether segment k1 of curve c1 and segment k2 of curve c2 meet anywhere but at a graph point that
@@ -163,7 +165,8 @@ std::set<std::pair<int, int>> crossings(const std::vector<FramePath>& paths) {
     for (size_t k = 0; k + 1 < disk.size(); ++k) {
       const Vec2 lo = disk[k].cwiseMin(disk[k + 1]), hi = disk[k].cwiseMax(disk[k + 1]);
       for (int y = cell(lo.y()); y <= cell(hi.y()); ++y) {
-        for (int x = cell(lo.x()); x <= cell(hi.x()); ++x) buckets[static_cast<size_t>(y * kCells + x)].push_back({static_cast<int>(c), static_cast<int>(k)});
+        for (int x = cell(lo.x()); x <= cell(hi.x()); ++x)
+          buckets[static_cast<size_t>(y * kCells + x)].push_back({static_cast<int>(c), static_cast<int>(k)});
       }
     }
   }
@@ -176,7 +179,8 @@ std::set<std::pair<int, int>> crossings(const std::vector<FramePath>& paths) {
         if (c1 == c2 && std::abs(k1 - k2) <= 1) continue;
         const std::pair<int, int> pair = std::minmax(c1, c2);
         if (out.count(pair)) continue;
-        if (segments_meet(paths[static_cast<size_t>(c1)], static_cast<size_t>(k1), paths[static_cast<size_t>(c2)], static_cast<size_t>(k2))) {
+        if (segments_meet(paths[static_cast<size_t>(c1)], static_cast<size_t>(k1), paths[static_cast<size_t>(c2)],
+                          static_cast<size_t>(k2))) {
           out.insert(pair);
         }
       }
@@ -342,7 +346,7 @@ class ConstrainedTriangulation {
   const std::vector<Vec2>& points_;
   std::vector<Face> faces_;
   std::unordered_map<uint64_t, int> face_of_;  // directed edge -> face
-  std::unordered_set<uint64_t> fixed_;          // constrained edges
+  std::unordered_set<uint64_t> fixed_;         // constrained edges
 };
 
 // The partition mesh (notes §6, "Partition mesh and registration"): graph points, circle samples,

@@ -13,7 +13,8 @@ namespace facemorph {
 
 void check_frame_options(const GeodesicFrameOptions& o) {
   auto bad = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "geodesic frame: " + what); };
-  if (!(o.graph_boundary_spacing_degrees > 0 && o.graph_boundary_spacing_degrees <= 60)) bad("graph boundary spacing must be in (0, 60] degrees");
+  if (!(o.graph_boundary_spacing_degrees > 0 && o.graph_boundary_spacing_degrees <= 60))
+    bad("graph boundary spacing must be in (0, 60] degrees");
   if (!(o.partition_boundary_spacing_degrees > 0 && o.partition_boundary_spacing_degrees <= 30)) {
     bad("partition boundary spacing must be in (0, 30] degrees");
   }

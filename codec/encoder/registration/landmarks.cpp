@@ -48,7 +48,8 @@ CheckedLandmarks check_landmarks(const DiskLandmarks& landmarks) {
     if (rim) {
       // A rim point interpolated on a boundary edge sits on its chord, ~1e-5 inside for rims of a
       // few hundred edges; farther in it is not a boundary point.
-      if (std::abs(std::abs(p) - 1) > 1e-3 || std::abs(std::abs(q) - 1) > 1e-3) bad(name + " is a rim marker but does not lie on the circle");
+      if (std::abs(std::abs(p) - 1) > 1e-3 || std::abs(std::abs(q) - 1) > 1e-3)
+        bad(name + " is a rim marker but does not lie on the circle");
       p /= std::abs(p);
       q /= std::abs(q);
     } else {
@@ -76,17 +77,18 @@ CheckedLandmarks check_landmarks(const DiskLandmarks& landmarks) {
     }
   }
 
-  std::sort(out.rim.begin(), out.rim.end(), [&](int a, int b) {
-    return std::arg(out.p[static_cast<size_t>(a)]) < std::arg(out.p[static_cast<size_t>(b)]);
-  });
+  std::sort(out.rim.begin(), out.rim.end(),
+            [&](int a, int b) { return std::arg(out.p[static_cast<size_t>(a)]) < std::arg(out.p[static_cast<size_t>(b)]); });
   // A homeomorphism of the circle keeps the cyclic order: walking the markers in reference order,
   // the frame angles must go round exactly once.
   const size_t r = out.rim.size();
   if (r >= 2) {
     double turn = 0;
     for (size_t k = 0; k < r; ++k) {
-      const double gap = ccw_gap(std::arg(out.q[static_cast<size_t>(out.rim[k])]), std::arg(out.q[static_cast<size_t>(out.rim[(k + 1) % r])]));
-      if (gap == 0) bad("rim markers " + std::to_string(out.rim[k]) + " and " + std::to_string(out.rim[(k + 1) % r]) + " coincide on the frame disk");
+      const double gap =
+          ccw_gap(std::arg(out.q[static_cast<size_t>(out.rim[k])]), std::arg(out.q[static_cast<size_t>(out.rim[(k + 1) % r])]));
+      if (gap == 0)
+        bad("rim markers " + std::to_string(out.rim[k]) + " and " + std::to_string(out.rim[(k + 1) % r]) + " coincide on the frame disk");
       turn += gap;
     }
     if (std::abs(turn - kTwoPi) > std::numbers::pi) bad("rim markers are in a different cyclic order on the two disks");

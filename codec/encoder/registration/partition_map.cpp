@@ -3,10 +3,10 @@
 #include "codec/encoder/registration/partition_map.hpp"
 #include "codec/core/geometry/elementary.hpp"
 
-#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
-#include "format/error.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -67,7 +67,8 @@ std::vector<Face> indexed(std::vector<Face> faces, const std::vector<Vec2>& vert
   const size_t n = vertices.size();
   if (n < 3 || faces.empty()) bad_partition("needs at least 3 vertices and a face");
   for (size_t i = 0; i < n; ++i) {
-    if (!vertices[i].allFinite() || vertices[i].norm() > 1 + 1e-9) bad_partition("vertex " + std::to_string(i) + " is outside the unit disk or not finite");
+    if (!vertices[i].allFinite() || vertices[i].norm() > 1 + 1e-9)
+      bad_partition("vertex " + std::to_string(i) + " is outside the unit disk or not finite");
   }
   for (size_t f = 0; f < faces.size(); ++f) {
     for (int v : faces[f]) {
@@ -85,7 +86,8 @@ PartitionMesh::PartitionMesh(std::vector<Vec2> vertices, std::vector<Face> faces
   const size_t n = vertices_.size();
   for (size_t f = 0; f < faces_.size(); ++f) {
     const Face& face = faces_[f];
-    if (!(orient2d(vertices_[static_cast<size_t>(face[0])], vertices_[static_cast<size_t>(face[1])], vertices_[static_cast<size_t>(face[2])]) > 0)) {
+    if (!(orient2d(vertices_[static_cast<size_t>(face[0])], vertices_[static_cast<size_t>(face[1])],
+                   vertices_[static_cast<size_t>(face[2])]) > 0)) {
       bad("face " + std::to_string(f) + " is not counter-clockwise with a positive area");
     }
   }
@@ -108,7 +110,8 @@ PartitionMesh::PartitionMesh(std::vector<Vec2> vertices, std::vector<Face> faces
   }
   for (size_t k = 0; k < m; ++k) {
     const double gap = k + 1 < m ? boundary_angle_[k + 1] - boundary_angle_[k] : boundary_angle_[0] + kTwoPi - boundary_angle_[k];
-    if (!(gap > 0 && gap < std::numbers::pi)) bad("the boundary does not go round the origin (at vertex " + std::to_string(boundary_[k]) + ")");
+    if (!(gap > 0 && gap < std::numbers::pi))
+      bad("the boundary does not go round the origin (at vertex " + std::to_string(boundary_[k]) + ")");
   }
 }
 
@@ -181,8 +184,9 @@ BijectionCheck check_images(const PiecewiseAffineMap& phi, const DiskMoebius& m)
 std::string describe(const BijectionCheck& c) {
   std::ostringstream out;
   if (c.folded_points > 0) {
-    out << "folds: " << c.folded_points << " of " << c.grid_points << " partition triangles are not positive (worst near w = "
-        << point_text(c.worst_point) << ", area ratio " << c.min_jacobian << ")";
+    out << "folds: " << c.folded_points << " of " << c.grid_points
+        << " partition triangles are not positive (worst near w = " << point_text(c.worst_point) << ", area ratio " << c.min_jacobian
+        << ")";
   }
   if (c.boundary_order_breaks > 0) {
     out << (out.tellp() > 0 ? "; " : "") << "the circle's images are out of order at " << c.boundary_order_breaks << " of "
@@ -197,15 +201,17 @@ std::string joined(const std::string& first, const std::string& second) { return
 
 DiskRegistration partition_registration(const GeodesicFrame& frame, const DiskRegistration& base, std::vector<Vec2> images,
                                         bool allow_fallback) {
-  if (!frame.partition) throw Error(ErrorCode::kInvalidArgument, "registration: the geodesic frame has no partition mesh (make_geodesic_frame builds it)");
+  if (!frame.partition)
+    throw Error(ErrorCode::kInvalidArgument, "registration: the geodesic frame has no partition mesh (make_geodesic_frame builds it)");
   const PartitionMesh& mesh = *frame.partition;
   const std::vector<Vec2>& V = mesh.vertices();
   if (images.size() != V.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "registration: " + std::to_string(images.size()) + " images for " + std::to_string(V.size()) +
-                                                 " partition vertices");
+    throw Error(ErrorCode::kInvalidArgument,
+                "registration: " + std::to_string(images.size()) + " images for " + std::to_string(V.size()) + " partition vertices");
   }
   for (size_t i = 0; i < images.size(); ++i) {
-    if (!images[i].allFinite()) throw Error(ErrorCode::kInvalidArgument, "registration: the image of partition vertex " + std::to_string(i) + " is not finite");
+    if (!images[i].allFinite())
+      throw Error(ErrorCode::kInvalidArgument, "registration: the image of partition vertex " + std::to_string(i) + " is not finite");
   }
   auto phi = std::make_shared<PiecewiseAffineMap>();
   phi->partition = frame.partition;

@@ -21,8 +21,8 @@ inline double circle_angle(const Vec2& p) {
 // and the constant Jacobian of every triangle.
 struct PiecewiseAffineMap {
   std::shared_ptr<const PartitionMesh> partition;
-  std::vector<Vec2> images;                 // Φ(V) per partition vertex (frame disk)
-  std::vector<Eigen::Matrix2d> jacobians;   // per partition triangle
+  std::vector<Vec2> images;                // Φ(V) per partition vertex (frame disk)
+  std::vector<Eigen::Matrix2d> jacobians;  // per partition triangle
 
   // Φ(w): barycentric inside the partition (notes §6, with the division by the triangle's area); in
   // the gap between a boundary chord and the circle, radially onto the gap beyond the image chord.

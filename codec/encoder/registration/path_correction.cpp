@@ -1,11 +1,11 @@
 // Martínez-Velho-Carvalho path correction (method-notes §6 step 3): a pulled-back path moved, point
 // by point and across strips of faces unfolded flat, toward a surface geodesic.
-#include "codec/encoder/registration/surface_path.hpp"
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/registration/surface_path.hpp"
 
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <array>
@@ -287,7 +287,8 @@ bool SurfacePaths::pull_string(const PathPoint& prev, std::span<const PathPoint>
       if (den == 0) return false;
       const double t = cross2(edges[k - 1].first - corners[j].at, d) / den;
       if (!std::isfinite(t)) return false;
-      p = t <= kSnap ? vertex_point(run[k - 1].a) : (t >= 1 - kSnap ? vertex_point(run[k - 1].b) : edge_point(run[k - 1].a, run[k - 1].b, t));
+      p = t <= kSnap ? vertex_point(run[k - 1].a)
+                     : (t >= 1 - kSnap ? vertex_point(run[k - 1].b) : edge_point(run[k - 1].a, run[k - 1].b, t));
     }
     if (out.empty() || !same(out.back(), p)) out.push_back(p);
   }
@@ -309,7 +310,8 @@ SurfacePaths::Fan SurfacePaths::fan_view(int v) const {
     const int n1 = face[static_cast<size_t>((k + 1) % 3)];
     second = face[static_cast<size_t>((k + 2) % 3)];
     view.neighbours.push_back(n1);
-    view.theta.push_back(view.theta.back() + angle_between(mesh.positions[static_cast<size_t>(n1)] - xv, mesh.positions[static_cast<size_t>(second)] - xv));
+    view.theta.push_back(view.theta.back() +
+                         angle_between(mesh.positions[static_cast<size_t>(n1)] - xv, mesh.positions[static_cast<size_t>(second)] - xv));
   }
   if (view.open) view.neighbours.push_back(second);
   return view;

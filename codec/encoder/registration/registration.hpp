@@ -6,10 +6,10 @@
 // Disk coordinates throughout: points of the closed unit disk |w| <= 1, dimensionless.
 #pragma once
 
-#include "codec/meshkit/geometry/locator.hpp"
 #include "codec/core/geometry/mesh.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/conformal/moebius.hpp"
+#include "codec/meshkit/geometry/locator.hpp"
 
 #include <Eigen/Core>
 
@@ -27,8 +27,8 @@ namespace facemorph {
 // projected onto it exactly, since only there is the boundary correspondence known.
 struct DiskLandmarks {
   std::vector<Vec2> reference, frame;
-  std::vector<double> weights;   // ω_j >= 0 (e.g. λ_b(q)/λ_a(p), notes §4); empty: all 1
-  std::vector<uint8_t> on_rim;   // 1 for a boundary marker; empty: none
+  std::vector<double> weights;  // ω_j >= 0 (e.g. λ_b(q)/λ_a(p), notes §4); empty: all 1
+  std::vector<uint8_t> on_rim;  // 1 for a boundary marker; empty: none
 };
 
 enum class RegistrationMethod {
@@ -36,8 +36,8 @@ enum class RegistrationMethod {
   kGmf,      // OMT, then the GMF (default)
   kFrame,    // the GMF interpolated piecewise-affinely on a geodesic frame's partition mesh (notes §6)
 };
-const char* registration_method_name(RegistrationMethod method);          // "moebius" | "gmf" | "frame"
-RegistrationMethod parse_registration_method(const std::string& name);    // throws kInvalidArgument
+const char* registration_method_name(RegistrationMethod method);        // "moebius" | "gmf" | "frame"
+RegistrationMethod parse_registration_method(const std::string& name);  // throws kInvalidArgument
 
 enum class GmfForm {
   kThinPlate,  // standard thin-plate spline with an affine part on the landmarks (notes §5, default)
@@ -60,9 +60,9 @@ struct MoebiusFitOptions {
 };
 
 struct MoebiusFit {
-  DiskMoebius map;                  // reference disk -> frame disk
-  double energy = 0;                // E_D = Σ ω |m(p) - q|², disk units squared
-  int iterations = 0;               // accepted and rejected LM steps of the start that won
+  DiskMoebius map;                               // reference disk -> frame disk
+  double energy = 0;                             // E_D = Σ ω |m(p) - q|², disk units squared
+  int iterations = 0;                            // accepted and rejected LM steps of the start that won
   MoebiusStart start = MoebiusStart::kRotation;  // the start that won
 };
 
@@ -81,7 +81,7 @@ struct ThinPlateDisplacement {
   Eigen::Matrix2d linear = Eigen::Matrix2d::Zero();
 
   Vec2 operator()(const Vec2& x) const;
-  Eigen::Matrix2d gradient(const Vec2& x) const;  // ∂d_k/∂x_l in row k, column l
+  Eigen::Matrix2d gradient(const Vec2& x) const;                            // ∂d_k/∂x_l in row k, column l
   Vec2 value_and_gradient(const Vec2& x, Eigen::Matrix2d& gradient) const;  // both in one pass
 };
 
@@ -104,11 +104,11 @@ ThinPlateDisplacement fit_paper_grid(const std::vector<Vec2>& points, const std:
 // ---- Registration ----
 
 enum class RegistrationFallback {
-  kNone,           // the GMF as asked (or method kMoebius)
-  kMoreSmoothing,  // the GMF folded (or nearly); a smoother one (smoothing × 10 per try) does not
-  kSubsteps,       // smoothing did not help; k composed sub-steps, each fitted to an equal share
-                   // (1/(steps left)) of the displacement that remains, at the asked smoothing
-  kMoebiusOnly,    // nothing did: the OMT alone
+  kNone,               // the GMF as asked (or method kMoebius)
+  kMoreSmoothing,      // the GMF folded (or nearly); a smoother one (smoothing × 10 per try) does not
+  kSubsteps,           // smoothing did not help; k composed sub-steps, each fitted to an equal share
+                       // (1/(steps left)) of the displacement that remains, at the asked smoothing
+  kMoebiusOnly,        // nothing did: the OMT alone
   kGmfInsteadOfFrame,  // method kFrame: Φ folded (an image triangle not positive, or the circle's
                        // images out of order), so the GMF f̄ itself is used
 };
@@ -128,9 +128,9 @@ struct RegistrationOptions {
   // folding: a fold thinner than the grid shows there as a near-zero ratio (measured: one of 120
   // jittered faces folded on a 513² grid with a minimum ratio of 1e-4 on the refined 129² one).
   double min_area_ratio = 0.02;
-  int smoothing_tries = 4;              // fallback 1: smoothing × 10, × 100, ...
-  int max_substeps = 8;                 // fallback 2: k = 2, 4, ... up to this
-  bool allow_fallback = true;           // false: keep a folded GMF (check.ok() says so)
+  int smoothing_tries = 4;     // fallback 1: smoothing × 10, × 100, ...
+  int max_substeps = 8;        // fallback 2: k = 2, 4, ... up to this
+  bool allow_fallback = true;  // false: keep a folded GMF (check.ok() says so)
 };
 
 // Whether a registration is a bijection of the disk, as far as a grid can tell. register_disks keeps
@@ -139,17 +139,17 @@ struct RegistrationOptions {
 // triangle's area ratio, a fold one not above 1e-12 × its source area, worst_point its centroid)
 // and the circle's points are the partition's boundary vertices.
 struct BijectionCheck {
-  int grid_points = 0;          // points with |w| <= 1 where det Df was evaluated, refined ones included
-  int refined_points = 0;       // of those, the finer looks near centres and small det Df
-  int folded_points = 0;        // of those, det Df <= 0 (or not finite)
-  double min_jacobian = 0;      // min det Df over the grid (disk area ratio)
-  double min_area_ratio = 0;    // min det Df / |m'|²: the GMF's own area ratio (1 for m alone)
-  Vec2 worst_point = Vec2::Zero();  // where that minimum is (reference disk)
-  bool stopped = false;         // an internal check stopped at the first failing point
-  int boundary_samples = 0;     // circle points whose images were ordered
-  int boundary_order_breaks = 0;  // consecutive images not strictly counter-clockwise, or winding != 1
+  int grid_points = 0;                   // points with |w| <= 1 where det Df was evaluated, refined ones included
+  int refined_points = 0;                // of those, the finer looks near centres and small det Df
+  int folded_points = 0;                 // of those, det Df <= 0 (or not finite)
+  double min_jacobian = 0;               // min det Df over the grid (disk area ratio)
+  double min_area_ratio = 0;             // min det Df / |m'|²: the GMF's own area ratio (1 for m alone)
+  Vec2 worst_point = Vec2::Zero();       // where that minimum is (reference disk)
+  bool stopped = false;                  // an internal check stopped at the first failing point
+  int boundary_samples = 0;              // circle points whose images were ordered
+  int boundary_order_breaks = 0;         // consecutive images not strictly counter-clockwise, or winding != 1
   double max_boundary_radius_error = 0;  // max ||image| - 1| of circle points before the projection
-  int clamped_points = 0;       // grid points whose image left the disk and was clamped
+  int clamped_points = 0;                // grid points whose image left the disk and was clamped
   bool ok() const { return folded_points == 0 && boundary_order_breaks == 0; }
 };
 
@@ -162,17 +162,17 @@ struct PiecewiseAffineMap;  // Φ's data (codec/registration/partition_map.hpp):
 struct DiskRegistration {
   RegistrationMethod method = RegistrationMethod::kGmf;
   GmfForm form = GmfForm::kThinPlate;
-  DiskMoebius moebius;                          // m, the OMT
-  std::vector<ThinPlateDisplacement> steps;     // the GMF: one field, several sub-steps, or none
-  double energy_moebius = 0;                    // E_D of m alone (disk units²)
-  double energy = 0;                            // E_D of f
+  DiskMoebius moebius;                       // m, the OMT
+  std::vector<ThinPlateDisplacement> steps;  // the GMF: one field, several sub-steps, or none
+  double energy_moebius = 0;                 // E_D of m alone (disk units²)
+  double energy = 0;                         // E_D of f
   int moebius_iterations = 0;
   MoebiusStart moebius_start = MoebiusStart::kRotation;
   RegistrationFallback fallback = RegistrationFallback::kNone;
-  std::string fallback_reason;                  // why, for the encoder's list of frames; empty if none
-  double smoothing = 0;                         // the smoothing (options' units) of the kept GMF
-  int boundary_samples = 0;                     // boundary centres / rows added to the GMF
-  BijectionCheck check;                         // of the kept map (empty for method kMoebius)
+  std::string fallback_reason;                              // why, for the encoder's list of frames; empty if none
+  double smoothing = 0;                                     // the smoothing (options' units) of the kept GMF
+  int boundary_samples = 0;                                 // boundary centres / rows added to the GMF
+  BijectionCheck check;                                     // of the kept map (empty for method kMoebius)
   std::shared_ptr<const PiecewiseAffineMap> partition_map;  // Φ; null unless Φ is the map
 
   // f(w) for |w| <= 1 (1e-9 of slack). Points on the circle (|w| >= 1 - 1e-12) map onto the circle,
@@ -249,20 +249,20 @@ struct GeodesicFrameOptions {
 
 // One curve of the frame: the surface geodesic between two graph points, on the reference disk.
 struct FramePath {
-  int from = -1, to = -1;     // graph points (GeodesicFrame::graph_points), from < to; -1 for geodesic_path
-  std::vector<Vec2> disk;     // the curve on the reference disk, from graph point `from` to `to`
+  int from = -1, to = -1;  // graph points (GeodesicFrame::graph_points), from < to; -1 for geodesic_path
+  std::vector<Vec2> disk;  // the curve on the reference disk, from graph point `from` to `to`
   // The path on the reference surface (capture units): points on mesh edges and vertices, the ends
   // where the disk segment enters the triangulation (a circle point's segment first crosses the gap
   // between the circle and the mesh's rim chord, a straight piece of `disk`).
   std::vector<Vec3> surface;
   std::vector<double> lengths;  // 3D length of the pulled-back straight segment, then after each sweep
   int sweeps = 0;
-  double angle_error = 0;     // largest final angle error (radians): |π - angle| at edge points,
-                              // max(0, π - min(θ_l, θ_r)) at vertex points
-  int vertex_points = 0;      // path points at mesh vertices (saddles, the boundary: legitimate corners)
-  bool converged = false;     // angle_error < angle_tolerance
-  bool straight = false;      // the pulled-back straight segment is used instead (see `reason`)
-  std::string reason;         // why the correction was not used; empty otherwise
+  double angle_error = 0;  // largest final angle error (radians): |π - angle| at edge points,
+                           // max(0, π - min(θ_l, θ_r)) at vertex points
+  int vertex_points = 0;   // path points at mesh vertices (saddles, the boundary: legitimate corners)
+  bool converged = false;  // angle_error < angle_tolerance
+  bool straight = false;   // the pulled-back straight segment is used instead (see `reason`)
+  std::string reason;      // why the correction was not used; empty otherwise
 };
 
 // The partition mesh of the reference disk (paper §5, φ_a(M_a)): the landmarks, samples along the
@@ -308,9 +308,9 @@ struct GeodesicFrame {
   // reaches the circle with its own, finer circle samples.
   std::vector<FramePath> paths;
   std::shared_ptr<const PartitionMesh> partition;  // vertices: the graph points first, same indices
-  int straight_paths = 0;         // curves that fell back to the straight segment
-  int unconverged_paths = 0;      // corrected curves that stopped above the angle tolerance
-  int unconforming_segments = 0;  // curve pieces between samples that are not partition edges
+  int straight_paths = 0;                          // curves that fell back to the straight segment
+  int unconverged_paths = 0;                       // corrected curves that stopped above the angle tolerance
+  int unconforming_segments = 0;                   // curve pieces between samples that are not partition edges
   double seconds_paths = 0, seconds_partition = 0;
 };
 
@@ -322,8 +322,8 @@ struct GeodesicFrame {
 // mismatched sizes, points not finite or outside the closed disk, rim markers more than 1e-3 off the
 // circle, coincident landmarks, bad options, a map whose sizes disagree; kNumerical when the graph
 // or the partition cannot be triangulated or a segment cannot be walked (a broken map).
-GeodesicFrame make_geodesic_frame(const DiskMap& reference, const std::vector<Vec2>& landmarks,
-                                  const std::vector<uint8_t>& on_rim, const GeodesicFrameOptions& options = {});
+GeodesicFrame make_geodesic_frame(const DiskMap& reference, const std::vector<Vec2>& landmarks, const std::vector<uint8_t>& on_rim,
+                                  const GeodesicFrameOptions& options = {});
 
 // The corrected geodesic between two points of the closed disk on `map`'s surface, as a frame curve
 // (from = to = -1; never straight). Throws kInvalidArgument for points outside the closed disk or not

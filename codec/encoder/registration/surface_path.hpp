@@ -16,7 +16,7 @@ namespace facemorph {
 struct PathPoint {
   enum Kind : uint8_t { kVertex, kEdge, kFace };
   Kind kind = kVertex;
-  int a = -1, b = -1;        // kVertex: vertex a; kEdge: the point (1 - t) x_a + t x_b; kFace: face a
+  int a = -1, b = -1;  // kVertex: vertex a; kEdge: the point (1 - t) x_a + t x_b; kFace: face a
   double t = 0;
   Vec3 bary = Vec3::Zero();  // kFace: barycentric coordinates in face a
 };
@@ -49,7 +49,7 @@ class SurfacePaths {
 
   Vec3 position(const PathPoint& p) const;
   Vec2 disk(const PathPoint& p) const;
-  double length(std::span<const PathPoint> path) const;  // 3D, capture units
+  double length(std::span<const PathPoint> path) const;       // 3D, capture units
   double angle_error(std::span<const PathPoint> path) const;  // the largest error of its interior points (radians)
   // Whether consecutive points all share a face: the invariant every step keeps.
   bool connected(std::span<const PathPoint> path) const;
@@ -57,7 +57,7 @@ class SurfacePaths {
  private:
   // The ordered faces round vertex v.
   std::span<const int> fan(int v) const;
-  int face_of(int a, int b) const;         // the face holding the directed edge a -> b, or -1
+  int face_of(int a, int b) const;           // the face holding the directed edge a -> b, or -1
   int across(int a, int b, int face) const;  // the other face of edge {a, b}, or -1
   bool touches(const PathPoint& p, int face) const;
   int shared_face(const PathPoint& p, const PathPoint& q) const;  // a face both touch, or -1

@@ -1,11 +1,11 @@
 // The surface's connectivity as paths walk it (SurfacePaths: each edge's faces, each vertex's fan),
 // points on it, and a straight disk segment pulled back onto it (method-notes §6 step 2).
-#include "codec/encoder/registration/surface_path.hpp"
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/encoder/registration/surface_path.hpp"
 
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -41,7 +41,8 @@ SurfacePaths::SurfacePaths(const DiskMap& map) : map_(map), locator_(map.disk, m
     throw Error(ErrorCode::kInvalidArgument, "geodesic frame: the disk map has " + std::to_string(map.disk.size()) + " disk points for " +
                                                  std::to_string(n) + " surface vertices");
   }
-  if (mesh.faces.empty() || map.rim.size() < 3) throw Error(ErrorCode::kInvalidArgument, "geodesic frame: the disk map has no faces or no rim");
+  if (mesh.faces.empty() || map.rim.size() < 3)
+    throw Error(ErrorCode::kInvalidArgument, "geodesic frame: the disk map has no faces or no rim");
   fan_start_.assign(n + 1, 0);
   face_of_.reserve(3 * mesh.faces.size());
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
@@ -206,7 +207,8 @@ std::vector<PathPoint> SurfacePaths::pull_back(const Vec2& from, const Vec2& to,
     if (clipped_from) s_in = std::clamp(lo, 0.0, 1.0);
     if (clipped_to) s_out = std::clamp(hi, 0.0, 1.0);
     if (!(s_in < s_out)) {
-      throw Error(ErrorCode::kNumerical, "geodesic frame: the segment from " + where(from) + " to " + where(to) + " misses the disk triangulation");
+      throw Error(ErrorCode::kNumerical,
+                  "geodesic frame: the segment from " + where(from) + " to " + where(to) + " misses the disk triangulation");
     }
   }
   const Vec2 A = from + s_in * d, B = from + s_in * d + (s_out - s_in) * d;
@@ -265,7 +267,8 @@ std::vector<PathPoint> SurfacePaths::pull_back(const Vec2& from, const Vec2& to,
       }
     }
     if (best < 0 || best_s >= 1) break;  // B is in this face up to rounding
-    if (best_s < s_now - 1e-9) throw Error(ErrorCode::kNumerical, "geodesic frame: the walk from " + where(A) + " to " + where(B) + " turned back");
+    if (best_s < s_now - 1e-9)
+      throw Error(ErrorCode::kNumerical, "geodesic frame: the walk from " + where(A) + " to " + where(B) + " turned back");
     s_now = std::max(s_now, best_s);
     const int a = f[static_cast<size_t>(best)], b = f[static_cast<size_t>((best + 1) % 3)];
     const double t = std::clamp(best_t, 0.0, 1.0);

@@ -68,8 +68,8 @@ ThinPlateDisplacement fit_thin_plate(const std::vector<Vec2>& centres, const std
   // The affine part takes three of the degrees of freedom: fewer centres cannot carry it.
   if (n < 3) throw Error(ErrorCode::kInvalidArgument, "thin-plate spline: needs at least 3 centres, got " + std::to_string(n));
   if (!smoothing.empty() && smoothing.size() != centres.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "thin-plate spline: " + std::to_string(smoothing.size()) + " smoothing values for " +
-                                                 std::to_string(n) + " centres");
+    throw Error(ErrorCode::kInvalidArgument,
+                "thin-plate spline: " + std::to_string(smoothing.size()) + " smoothing values for " + std::to_string(n) + " centres");
   }
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n + 3, n + 3);
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n + 3, 2);
@@ -108,10 +108,11 @@ ThinPlateDisplacement fit_paper_grid(const std::vector<Vec2>& points, const std:
                                      const std::vector<double>& weights, int n, double epsilon_scale) {
   check_points(points, displacements, "paper grid GMF");
   if (n < 2 || n > 256) throw Error(ErrorCode::kInvalidArgument, "paper grid GMF: n must be in [2, 256], got " + std::to_string(n));
-  if (!std::isfinite(epsilon_scale) || epsilon_scale < 0) throw Error(ErrorCode::kInvalidArgument, "paper grid GMF: epsilon must be finite and >= 0");
+  if (!std::isfinite(epsilon_scale) || epsilon_scale < 0)
+    throw Error(ErrorCode::kInvalidArgument, "paper grid GMF: epsilon must be finite and >= 0");
   if (!weights.empty() && weights.size() != points.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "paper grid GMF: " + std::to_string(weights.size()) + " weights for " +
-                                                 std::to_string(points.size()) + " points");
+    throw Error(ErrorCode::kInvalidArgument,
+                "paper grid GMF: " + std::to_string(weights.size()) + " weights for " + std::to_string(points.size()) + " points");
   }
   ThinPlateDisplacement out;
   for (int j = 0; j < n; ++j) {
@@ -124,7 +125,8 @@ ThinPlateDisplacement fit_paper_grid(const std::vector<Vec2>& points, const std:
     if (!std::isfinite(w) || w < 0) throw Error(ErrorCode::kInvalidArgument, "paper grid GMF: weights must be finite and >= 0");
     // Row weights sqrt(ω) make the least squares the paper's weighted E_D.
     const double s = std::sqrt(w);
-    for (Eigen::Index j = 0; j < columns; ++j) S(i, j) = s * kernel((points[static_cast<size_t>(i)] - out.centres[static_cast<size_t>(j)]).squaredNorm());
+    for (Eigen::Index j = 0; j < columns; ++j)
+      S(i, j) = s * kernel((points[static_cast<size_t>(i)] - out.centres[static_cast<size_t>(j)]).squaredNorm());
     d.row(i) = s * displacements[static_cast<size_t>(i)].transpose();
   }
   if (epsilon_scale == 0 && columns <= rows) {

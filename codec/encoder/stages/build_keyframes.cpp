@@ -7,11 +7,11 @@
 #include "codec/encoder/stages/fit_keyframes.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/conformal/resample.hpp"
-#include "format/error.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/sequence/pose.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/conformal/resample.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -49,7 +49,8 @@ int auto_texture_size(const TriangleMesh& surface, int width, int height) {
   constexpr int kLowest = 128, kHighest = 1024;
   double area = 0;
   for (const Face& f : surface.uv_faces) {
-    const Vec2 a = surface.uvs[static_cast<size_t>(f[0])], b = surface.uvs[static_cast<size_t>(f[1])], c = surface.uvs[static_cast<size_t>(f[2])];
+    const Vec2 a = surface.uvs[static_cast<size_t>(f[0])], b = surface.uvs[static_cast<size_t>(f[1])],
+               c = surface.uvs[static_cast<size_t>(f[2])];
     area += std::abs(signed_area(a, b, c));
   }
   const double texels = std::min(area, 1.0) * width * height;
@@ -92,7 +93,8 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
     double distance = 1e300;
     bool inside = false;
     for (const auto& outline : outlines) {
-      for (size_t k = 0; k < outline.size(); ++k) distance = std::min(distance, distance_to_segment(p, outline[k], outline[(k + 1) % outline.size()]));
+      for (size_t k = 0; k < outline.size(); ++k)
+        distance = std::min(distance, distance_to_segment(p, outline[k], outline[(k + 1) % outline.size()]));
       inside = inside || inside_polygon(p, outline);
     }
     if (!inside) distance = std::min(distance, kHoleLevelBand);
@@ -107,7 +109,8 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
 
 Sequence SequenceEncoder::build(const std::vector<int>& keyframes, int grid_n) { return build_stored(keyframes, grid_n)->to_sequence(); }
 
-std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<int>& keyframes, int grid_n, const KeyframeSegment* segment) {
+std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<int>& keyframes, int grid_n,
+                                                              const KeyframeSegment* segment) {
   const auto start = std::chrono::steady_clock::now();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
   const GridGeometry geometry(make_disk_grid(grid_n));
@@ -132,7 +135,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
     if (store_texture && !has) {
       if (k != keyframes.front()) {
         throw Error(ErrorCode::kMissingTexture,
-                    summaries_[static_cast<size_t>(k)].name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
+                    summaries_[static_cast<size_t>(k)].name +
+                        ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
       }
       store_texture = false;
     }
@@ -218,7 +222,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_stored(const std::vector<
   }
   report_.keyframe_folds = own_folds;
   parallel_for(static_cast<int>(keys), options_.threads, [&](int k) {
-    stored->put_fields(static_cast<size_t>(k), keyframe_fields(geometry, *local.get(own_offset + static_cast<size_t>(k)), stored->shape().representation, fixed));
+    stored->put_fields(static_cast<size_t>(k),
+                       keyframe_fields(geometry, *local.get(own_offset + static_cast<size_t>(k)), stored->shape().representation, fixed));
   });
   report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, local.peak_held());
   report_.keyframes_spilled_bytes += local.spilled_bytes();

@@ -6,8 +6,8 @@
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -88,7 +88,8 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   choice.density_cap = density_grid_cap(input.vertex_disk_area);
   // A floor measured against a noisy frame has that frame's noise in its worst region too: the
   // 99th percentile of |x| for Gaussian noise of RMS σ is 2.576σ, which no grid removes.
-  const double worst_target = choice.worst_target = std::max(kGridWorstTarget, input.noise_decides ? kGaussianP99 * choice.median_noise : 0.0);
+  const double worst_target = choice.worst_target =
+      std::max(kGridWorstTarget, input.noise_decides ? kGaussianP99 * choice.median_noise : 0.0);
   int rms_met_at = 0;  // the candidate where the RMS terms were done (met or capped)
   bool rms_met = false;
   for (int n : kGridCandidates) {

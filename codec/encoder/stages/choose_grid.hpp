@@ -35,19 +35,19 @@ struct GridChoiceInput {
   // false: the noise sets no target (a whole head whose frames share no interior landmarks with the
   // reference: their found landmarks' disagreement reads as noise).
   bool noise_decides = true;
-  double mean_predicted_error = 0;  // the spline's between the chosen keyframes (fraction of the diagonal); 0: none chosen
-  double vertex_disk_area = 0;  // the reference frame's quartile_vertex_disk_area on the disk G samples (0: no cap)
+  double mean_predicted_error = 0;        // the spline's between the chosen keyframes (fraction of the diagonal); 0: none chosen
+  double vertex_disk_area = 0;            // the reference frame's quartile_vertex_disk_area on the disk G samples (0: no cap)
   std::function<GridFloor(int n)> floor;  // the reference's resampling floor on G of size n
 };
 
 struct GridChoice {
   int n = 0;
-  std::vector<std::pair<int, double>> floors;  // (N, floor RMS) tried, in order
+  std::vector<std::pair<int, double>> floors;      // (N, floor RMS) tried, in order
   std::vector<std::pair<int, double>> floor_p99s;  // (N, floor 99th percentile) tried, in order
-  int density_cap = 0;                         // density_grid_cap of the capture
-  double worst_target = 0;                     // the floor's 99th percentile asked for (fraction of the diagonal)
-  double median_noise = 0;                     // the frames' median noise (0 where it is not finite)
-  double target = 0;                           // the floor asked for (fraction of the diagonal)
+  int density_cap = 0;                             // density_grid_cap of the capture
+  double worst_target = 0;                         // the floor's 99th percentile asked for (fraction of the diagonal)
+  double median_noise = 0;                         // the frames' median noise (0 where it is not finite)
+  double target = 0;                               // the floor asked for (fraction of the diagonal)
   // which term set it: "floor", "noise" or "interpolation" (the RMS target met), "density" (the
   // density cap reached first) or "worst region" (the 99th percentile asked for more than either)
   std::string term;

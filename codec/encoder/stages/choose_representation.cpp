@@ -5,10 +5,10 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "codec/encoder/encode/representation_choice.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/representation_choice.hpp"
 
 #include <memory>
 #include <vector>
@@ -22,7 +22,8 @@ std::vector<size_t> blend_trial_pairs(const std::vector<int>& keyframes) {
   }
   if (pairs.size() <= static_cast<size_t>(kBlendTrials)) return pairs;
   std::vector<size_t> spread;
-  for (int t = 0; t < kBlendTrials; ++t) spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
+  for (int t = 0; t < kBlendTrials; ++t)
+    spread.push_back(pairs[static_cast<size_t>(t) * (pairs.size() - 1) / static_cast<size_t>(kBlendTrials - 1)]);
   return spread;
 }
 
@@ -58,7 +59,8 @@ void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int
     std::vector<char> needed(keyframes.size(), 0);
     for (size_t k : pairs) {
       midway.push_back((keyframes[k] + keyframes[k + 1]) / 2);
-      for (int32_t key : spline.weights(capture_.frames[static_cast<size_t>(midway.back())].time).keys) needed[static_cast<size_t>(key)] = 1;
+      for (int32_t key : spline.weights(capture_.frames[static_cast<size_t>(midway.back())].time).keys)
+        needed[static_cast<size_t>(key)] = 1;
     }
     for (size_t k = 0; k < keyframes.size(); ++k) {
       if (needed[k]) needed_keys.push_back(static_cast<int>(k));

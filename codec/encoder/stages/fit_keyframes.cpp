@@ -5,10 +5,10 @@
 
 #include "codec/encoder/keyframes/banded_cholesky.hpp"
 
-#include "format/error.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "format/error.hpp"
 
 #include <Eigen/Core>
 
@@ -80,9 +80,9 @@ void fit_keyframes(const KeyframeFitInput& input, const GridGeometry& geometry, 
   // (a whole right-hand side was 1.25 MB a keyframe at N = 257).
   SurfaceStore forward(local.mode());
   forward.reset(keyframes.size());
-  std::map<Eigen::Index, Eigen::VectorXd> open;  // columns begun
-  std::deque<Eigen::VectorXd> recent;            // y_{k − band} .. y_{k − 1}
-  Eigen::Index next = 0;                         // the next column to finish
+  std::map<Eigen::Index, Eigen::VectorXd> open;    // columns begun
+  std::deque<Eigen::VectorXd> recent;              // y_{k − band} .. y_{k − 1}
+  Eigen::Index next = 0;                           // the next column to finish
   const auto finish_columns = [&](long through) {  // every held frame up to `through` added
     for (; next < keys && last_use[static_cast<size_t>(next)] <= through; ++next) {
       Eigen::VectorXd y = open.count(next) ? std::move(open[next]) : Eigen::VectorXd::Zero(n);

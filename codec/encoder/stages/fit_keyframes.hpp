@@ -3,10 +3,10 @@
 // frame's noise, so that a noisy capture's noise is averaged away instead of interpolated.
 #pragma once
 
-#include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/encoder/encode/keyframe_store.hpp"
 
 #include <functional>
 #include <span>

@@ -7,13 +7,13 @@
 #include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/landmarks/face_orientation.hpp"
 #include "codec/encoder/prepare/frame.hpp"
-#include "codec/encoder/encode/frame_pipeline.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -41,9 +41,12 @@ SequenceEncoder::FrameFailure SequenceEncoder::failure_of(const Error& e, const 
   return {e.code(), reason};
 }
 
-bool SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const {
+bool SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points,
+                                           std::vector<std::string>& warnings) const {
   // A capture without landmarks (or a frame without any) needs no closest-point structure.
-  if (mesh.positions.empty() || mesh.faces.empty() || std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); })) return false;
+  if (mesh.positions.empty() || mesh.faces.empty() ||
+      std::none_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); }))
+    return false;
   const PointToMesh surface(mesh);
   const double diagonal = bounding_box_diagonal(mesh.positions);
   const std::string& name = capture_.frames[index].mesh.string();
@@ -56,8 +59,8 @@ bool SequenceEncoder::ignore_far_landmarks(const TriangleMesh& mesh, size_t inde
     char share[32];
     std::snprintf(share, sizeof share, "%.3g%%", 100 * distance / diagonal);
     const std::string what = "landmark '" + capture_.landmark_names[l] + "' lies " + length_text(distance, capture_.units) + " (" + share +
-                             " of the frame's diagonal) off its surface, farther than the " + length_text(100 * options_.landmark_tolerance, "%") +
-                             " allowed";
+                             " of the frame's diagonal) off its surface, farther than the " +
+                             length_text(100 * options_.landmark_tolerance, "%") + " allowed";
     if (options_.strict) throw Error(ErrorCode::kInvalidArgument, name + ": " + what);
     warnings.push_back(name + ": " + what + "; ignored");
     point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -120,7 +123,8 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
 }
 
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
-                                       const std::function<std::vector<Vec3>(size_t)>& landmarks, const std::function<void(int, int)>& progress) {
+                                       const std::function<std::vector<Vec3>(size_t)>& landmarks,
+                                       const std::function<void(int, int)>& progress) {
   // The first frame from the reference on that lacks its pose landmarks and whose own surface says
   // clearly which way is up: its up direction settles the frames whose surfaces do not.
   const size_t count = capture.frames.size();
@@ -131,12 +135,14 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
     try {
       PrepareOptions prepare;
       prepare.keep_largest_component = largest_component;
-      const PreparedFrame p = prepare_frame(read_mesh(capture.mesh_path(index), {.allow_missing_texture = true}), capture.frames[index].mesh.string(), prepare);
+      const PreparedFrame p =
+          prepare_frame(read_mesh(capture.mesh_path(index), {.allow_missing_texture = true}), capture.frames[index].mesh.string(), prepare);
       FaceFindingOptions options;
       options.progress = progress;
       // Read as the frame's own mapping reads it: a whole head's face along its filled holes.
       const Vec3 holes = filled_holes_facing(p);
-      return find_face_facing(p.mesh, nullptr, capture.frames[index].mesh.string(), nullptr, holes.norm() > 0 ? &holes : nullptr, options).vertical;
+      return find_face_facing(p.mesh, nullptr, capture.frames[index].mesh.string(), nullptr, holes.norm() > 0 ? &holes : nullptr, options)
+          .vertical;
     } catch (const Error&) {
       // This frame does not say; the next may. Its own mapping reports why.
     }
@@ -216,9 +222,9 @@ void SequenceEncoder::map_frames() {
   std::optional<Vec3> vertical_hint = vertical_hint_;
   if (options_.find_landmarks && !vertical_hint_set_) {
     const FrameStore::Hold held = store_->hold();  // the frame being prepared
-    vertical_hint = find_vertical_hint(capture_, options_.reference_frame, options_.largest_component,
-                                       [&](size_t i) { return landmarks(static_cast<int>(i)); },
-                                       [&](int done, int total) { progress("finding the face's up", done, total); });
+    vertical_hint = find_vertical_hint(
+        capture_, options_.reference_frame, options_.largest_component, [&](size_t i) { return landmarks(static_cast<int>(i)); },
+        [&](int done, int total) { progress("finding the face's up", done, total); });
   }
   if (!options_.find_landmarks) vertical_hint.reset();
   parallel_for(
@@ -237,8 +243,9 @@ void SequenceEncoder::map_frames() {
           ignored = ignore_far_landmarks(mesh, index, points, warnings[index]);
           const FrameLandmarks landmarks = frame_landmarks(capture_.landmark_names, points);
           if ((!landmarks.centre || !landmarks.up) && !options_.find_landmarks) {
-            throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(source_index_[index]) +
-                                                         " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
+            throw Error(ErrorCode::kInvalidArgument,
+                        name + ": frame " + std::to_string(source_index_[index]) +
+                            " lacks the landmarks nose_tip and nose_bridge (or between_eyes) that fix its disk's pose");
           }
           textures_[index] = mesh.texture;
           MapFrameOptions map_options;

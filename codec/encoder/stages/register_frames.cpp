@@ -5,11 +5,11 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
+#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
-#include "format/error.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
-#include "codec/core/util/parallel.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -19,7 +19,8 @@
 
 namespace facemorph {
 
-DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame, const DiskMap& frame_map) {
+DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const DiskMap& reference_map, size_t frame,
+                             const DiskMap& frame_map) {
   return disk_landmarks(capture.landmark_names, capture.landmarks[reference], reference_map, capture.landmarks[frame], frame_map);
 }
 
@@ -53,13 +54,15 @@ std::vector<TrackedPoints> SequenceEncoder::track_frames() {
   // Which frames share too few interior landmarks with the reference, the reference's read once.
   const std::vector<Vec3> reference_points = landmarks(static_cast<int>(reference));
   std::vector<char> needs(count, 0);
-  for (size_t i = 0; i < count; ++i) needs[i] = i != reference && needs_tracked_points(capture_.landmark_names, reference_points, landmarks(static_cast<int>(i)));
+  for (size_t i = 0; i < count; ++i)
+    needs[i] = i != reference && needs_tracked_points(capture_.landmark_names, reference_points, landmarks(static_cast<int>(i)));
   const bool needed = std::find(needs.begin(), needs.end(), 1) != needs.end();
   if (!options_.track_landmarks || !needed) return tracked;
   const int size = options_.tracking.image_size;
   // Each frame's map read back from the store while its images are drawn (frame() is thread-safe).
   tracked = track_sequence(
-      count, reference, [&](size_t i) { return disk_features(this->frame(static_cast<int>(i))->map, size); }, options_.tracking, options_.threads);
+      count, reference, [&](size_t i) { return disk_features(this->frame(static_cast<int>(i))->map, size); }, options_.tracking,
+      options_.threads);
   std::vector<double> round_trips;
   double kept = 0;
   report_.tracked_points_fewest = std::numeric_limits<int>::max();
@@ -109,13 +112,15 @@ void SequenceEncoder::register_frames() {
         try {
           // The frame's landmarks on the two disks, made here and dropped once registered (kept, they
           // were 2 kB a frame for the whole encode).
-          DiskLandmarks landmarks = facemorph::disk_landmarks(capture_.landmark_names, reference_points, reference_frame->map, frame_points, frame->map);
+          DiskLandmarks landmarks =
+              facemorph::disk_landmarks(capture_.landmark_names, reference_points, reference_frame->map, frame_points, frame->map);
           const bool took_tracked = !tracked.empty() && needs && !tracked[index].reference.empty();
           if (took_tracked) add_tracked_points(landmarks, tracked[index]);
           without_interior[index] = !took_tracked && index != reference && needs;
           if (landmarks.reference.size() < 3) {
             throw Error(ErrorCode::kInvalidArgument, name + ": frame " + std::to_string(source_index_[index]) + " shares only " +
-                                                         std::to_string(landmarks.reference.size()) + " landmarks with the reference frame (3 needed)");
+                                                         std::to_string(landmarks.reference.size()) +
+                                                         " landmarks with the reference frame (3 needed)");
           }
           try {
             // A frame registered through tracked points: a smoothing thin plate, not one through every point.
@@ -136,7 +141,8 @@ void SequenceEncoder::register_frames() {
       [&](int done, int total) { progress("registering", done, total); });
   // Over the frames kept (a frame dropped here is registered neither way).
   report_.frames_without_interior_landmarks = 0;
-  for (size_t i = 0; i < without_interior.size(); ++i) report_.frames_without_interior_landmarks += failures[i].code == ErrorCode::kOk && without_interior[i];
+  for (size_t i = 0; i < without_interior.size(); ++i)
+    report_.frames_without_interior_landmarks += failures[i].code == ErrorCode::kOk && without_interior[i];
   auto_representation_ = Representation::kHLT;  // until choose_representation measures otherwise
   report_.representation = representation();
   drop_frames(failures);

@@ -25,7 +25,8 @@ double auto_field_error(const KeyframeSelection& chosen) {
 }  // namespace
 
 FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen) {
-  return StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { return round_fields(encoder, stored, chosen); });
+  return StoredSequence::around(sequence, SpillMode::kMemory,
+                                [&](StoredSequence& stored) { return round_fields(encoder, stored, chosen); });
 }
 
 FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen) {

@@ -6,12 +6,12 @@
 #include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
-#include "codec/encoder/keyframes/keyframes.hpp"
-#include "codec/encoder/encode/selection_store.hpp"
-#include "format/error.hpp"
-#include "codec/meshkit/geometry/distance.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/sequence/pose.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/selection_store.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -79,7 +79,8 @@ void SequenceEncoder::sample_frames() {
   const size_t nodes = node_weights_.size();
   selection_.assign(static_cast<size_t>(count), {});
   samples_.reset();  // the samples of the frames as sampled before, if any
-  samples_ = std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
+  samples_ =
+      std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
   samples_released_ = false;
   released_noise_.clear();
   // A frame's registered surface on the nodes, in the capture frame, and its normals.
@@ -151,7 +152,8 @@ std::shared_ptr<const SelectionFrame> SequenceEncoder::selection_frame(int i) co
 double SequenceEncoder::noise_at(int k) const {
   if (!samples_released_) return frame_noise(*samples_, node_weights_, k);
   const auto it = released_noise_.find(k);
-  if (it == released_noise_.end()) throw Error(ErrorCode::kInternal, "frame " + std::to_string(k) + " is no keyframe the selection's samples were released for");
+  if (it == released_noise_.end())
+    throw Error(ErrorCode::kInternal, "frame " + std::to_string(k) + " is no keyframe the selection's samples were released for");
   return it->second;
 }
 

@@ -5,11 +5,11 @@
 
 #include "codec/encoder/stages/elapsed.hpp"
 
-#include "codec/encoder/imageio/image_io.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
-#include "format/error.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/core/sequence/spline.hpp"
+#include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/imageio/image_io.hpp"
+#include "format/error.hpp"
 
 #include <map>
 #include <memory>
@@ -17,8 +17,8 @@
 
 namespace facemorph {
 
-TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames, int quality,
-                                            TextureCodec codec, const TextureQualityOptions& coding, int threads) {
+TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames,
+                                            int quality, TextureCodec codec, const TextureQualityOptions& coding, int threads) {
   TextureQualities chosen;
   const Sequence& sequence = stored.shape();
   if (stored.size() == 0 || stored.texture(0)->empty()) return chosen;
@@ -46,7 +46,8 @@ TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const 
     const std::vector<double> targets = texture_error_targets(interval_mse, coding);
     parallel_for(static_cast<int>(keys), threads, [&](int k) {
       const double target = targets[static_cast<size_t>(k)];
-      qualities[static_cast<size_t>(k)] = target < 0 ? coding.fallback_quality : texture_quality_for(codec, *stored.texture(static_cast<size_t>(k)), target);
+      qualities[static_cast<size_t>(k)] =
+          target < 0 ? coding.fallback_quality : texture_quality_for(codec, *stored.texture(static_cast<size_t>(k)), target);
     });
     for (double mse : interval_mse) chosen.interpolation_psnr.push_back(mse < 0 ? 0.0 : psnr_of_mse(mse));
   }
@@ -72,7 +73,7 @@ TextureSharing share_keyframe_textures(StoredSequence& stored, const std::vector
   std::map<uint64_t, int> keyframes_of_image;
   bool any = false;
   for (const std::optional<uint64_t>& pixels : image) any = any || (pixels && ++keyframes_of_image[*pixels] > 1);
-  if (!any) return sharing;  // no two keyframes were painted from one image
+  if (!any) return sharing;                        // no two keyframes were painted from one image
   std::map<uint64_t, std::vector<size_t>> owners;  // per image, the keyframes showing their own texture of it
   // What sharing may cost a keyframe: its texture coding's coarsest (min_psnr, 30 dB by default).
   // Keyframes painted from one image differ only where their registrations place the skin apart
@@ -114,7 +115,8 @@ std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Stored
   frames.time = [&](int i) { return encoder.capture().frames[static_cast<size_t>(i)].time; };
   frames.has_texture = [&](int i) { return encoder.has_texture(i); };
   frames.texture = [&](int i, int size) { return encoder.frame_texture(i, size); };
-  TextureQualities chosen = keyframe_texture_qualities(stored, keyframes, frames, options.texture_quality, options.texture_codec, options.texture_coding, options.threads);
+  TextureQualities chosen = keyframe_texture_qualities(stored, keyframes, frames, options.texture_quality, options.texture_codec,
+                                                       options.texture_coding, options.threads);
   report.texture_qualities = chosen.qualities;
   report.texture_interpolation_psnr = std::move(chosen.interpolation_psnr);
   report.seconds_texture = seconds_since(start);

@@ -3,10 +3,10 @@
 // (spec/method.md §7.16).
 #pragma once
 
-#include "codec/encoder/encode/stored_sequence.hpp"
-#include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/core/image/image.hpp"
 #include "codec/core/image/texture_codec.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/encoder/encode/texture_quality.hpp"
 
 #include <filesystem>
 #include <functional>
@@ -22,15 +22,15 @@ struct FrameTextures {
 };
 
 struct TextureQualities {
-  std::vector<int> qualities;               // per keyframe; empty for a sequence without texture
-  std::vector<double> interpolation_psnr;   // auto quality: per interval, the blend's PSNR at the frame midway (0: none between)
+  std::vector<int> qualities;              // per keyframe; empty for a sequence without texture
+  std::vector<double> interpolation_psnr;  // auto quality: per interval, the blend's PSNR at the frame midway (0: none between)
 };
 
 // Each keyframe of `stored` (frames `keyframes`) coded at `quality` of `codec`, or with
 // kAutoTextureQuality at the quality that keeps its coding error within `coding`'s share of the
 // interpolation error measured beside it. kInvalidArgument where `keyframes` are not the sequence's.
-TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames, int quality,
-                                            TextureCodec codec, const TextureQualityOptions& coding, int threads);
+TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames,
+                                            int quality, TextureCodec codec, const TextureQualityOptions& coding, int threads);
 
 struct TextureSharing {
   std::vector<int> shared_with;  // per keyframe: the earlier keyframe whose texture it shows, or -1

@@ -32,10 +32,10 @@ const Vec2 kSliverAt(0.035, -0.005);
 const Vec2 kFlippedAt(0.05, 0.015);
 constexpr double kFlippedRadius = 0.012;
 constexpr int kIslands = 4;
-constexpr double kSeamRadius = 0.85;                    // of the ellipse's size
-constexpr double kSeamFrom = 50, kSeamTo = 130;         // degrees, over the forehead
+constexpr double kSeamRadius = 0.85;             // of the ellipse's size
+constexpr double kSeamFrom = 50, kSeamTo = 130;  // degrees, over the forehead
 constexpr int kTorsoRows = 5;
-constexpr double kTorsoRowSpacing = 0.012;              // metres
+constexpr double kTorsoRowSpacing = 0.012;  // metres
 
 class DefectWriter {
  public:
@@ -84,9 +84,9 @@ class DefectWriter {
     for (size_t i = 0; i < kDuplicatesAt.size(); ++i) {
       const Face f = mesh_.faces[nearest_face(kDuplicatesAt[i])];
       switch (i % 3) {
-        case 0: added_.push_back(f); break;                      // as written
-        case 1: added_.push_back({f[1], f[2], f[0]}); break;     // rotated
-        default: added_.push_back({f[0], f[2], f[1]}); break;   // reversed
+        case 0: added_.push_back(f); break;                    // as written
+        case 1: added_.push_back({f[1], f[2], f[0]}); break;   // rotated
+        default: added_.push_back({f[0], f[2], f[1]}); break;  // reversed
       }
       ++count;
     }
@@ -146,8 +146,8 @@ class DefectWriter {
       const int32_t near = nearest_vertex(0.98 * rim);
       const Vec3 out = (Vec3(rim.x(), rim.y(), 0)).normalized();
       const Vec3 centre = position(near) + 3 * edge_ * out, up = Vec3::UnitZ(), side = out.cross(up);
-      const int32_t a = add_vertex(centre, near), b = add_vertex(centre + edge_ * side, near), c = add_vertex(centre + edge_ * (side + up), near),
-                    d = add_vertex(centre + edge_ * up, near);
+      const int32_t a = add_vertex(centre, near), b = add_vertex(centre + edge_ * side, near),
+                    c = add_vertex(centre + edge_ * (side + up), near), d = add_vertex(centre + edge_ * up, near);
       added_.push_back({a, b, c});
       added_.push_back({a, c, d});
       *faces += 2;

@@ -40,7 +40,7 @@ double surround_height(const Vec2& m) {
 constexpr std::array<uint8_t, 3> kSkin = {200, 150, 125};
 
 std::array<uint8_t, 3> surround_colour(const Vec2& m) {
-  if (m.y() < -0.13) return {40, 60, 130};                               // shirt
+  if (m.y() < -0.13) return {40, 60, 130};                             // shirt
   if (surround_height(m) > 0.01 || m.y() > 0.07) return {55, 38, 28};  // hair
   return kSkin;                                                        // neck and ears
 }
@@ -91,7 +91,8 @@ SurroundedFrame surrounded_frame(const SyntheticFace& face, const std::vector<Ve
   return frame;
 }
 
-SurroundedFrame surrounded_frame(const SyntheticFace& face, double spacing, uint64_t seed, double time, const Eigen::Matrix3d& pose, bool with_face) {
+SurroundedFrame surrounded_frame(const SyntheticFace& face, double spacing, uint64_t seed, double time, const Eigen::Matrix3d& pose,
+                                 bool with_face) {
   const std::vector<Vec2> material = surround_material(spacing, seed);
   return surrounded_frame(face, material, delaunay_triangulation(material), time, pose, with_face);
 }

@@ -10,8 +10,8 @@
 // any τ (SyntheticFace::position), which is the ground truth tests and benchmarks compare against.
 #pragma once
 
-#include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
 
 #include <array>
 #include <cstdint>
@@ -57,13 +57,13 @@ std::string defect_names(uint32_t defects);  // the comma-separated names, in th
 
 // What add_defects wrote: the counts a repair of the frame must find.
 struct DefectCounts {
-  int bow_ties = 0;           // bow-tie vertices (pinched holes and flaps)
-  int flaps = 0;              // of which flaps: one face touching the face at a vertex (a speck once split)
-  int three_face_edges = 0;   // fins' edges plus the torso's seam edges
+  int bow_ties = 0;          // bow-tie vertices (pinched holes and flaps)
+  int flaps = 0;             // of which flaps: one face touching the face at a vertex (a speck once split)
+  int three_face_edges = 0;  // fins' edges plus the torso's seam edges
   int fins = 0;
   int duplicate_faces = 0;
   int degenerate_faces = 0;
-  int slivers = 0;             // of which slivers: each closes a T-junction, so the repair splits the face across it
+  int slivers = 0;  // of which slivers: each closes a T-junction, so the repair splits the face across it
   int flipped_faces = 0;
   int islands = 0;
   int island_faces = 0;
@@ -80,11 +80,11 @@ struct SynthOptions {
   int frames = 60;
   double fps = 30;
   Expression expression = Expression::kMixed;
-  int vertices = 20000;     // target per frame (±10 % per frame with remesh)
-  bool remesh = false;      // every frame its own sampling and connectivity
-  double noise = 0.0005;    // metres, Gaussian, along the normal
-  uint64_t seed = 1;        // face identity, texture detail, noise, remeshing
-  int texture_size = 1024;  // pixels per side of each frame's texture
+  int vertices = 20000;            // target per frame (±10 % per frame with remesh)
+  bool remesh = false;             // every frame its own sampling and connectivity
+  double noise = 0.0005;           // metres, Gaussian, along the normal
+  uint64_t seed = 1;               // face identity, texture detail, noise, remeshing
+  int texture_size = 1024;         // pixels per side of each frame's texture
   double head_motion_degrees = 0;  // amplitude of a slow rigid head rotation (0: none)
   // The mouth's speed in `talk` and `mixed`: its jaw and lip motion at speech_rate times the normal
   // pace (fast speech for the rate bench, issue 44); 1 leaves every capture as it was.
@@ -122,8 +122,8 @@ class SyntheticFace {
  public:
   SyntheticFace(Expression expression, uint64_t seed, double head_motion_degrees = 0, double speech_rate = 1);
 
-  static constexpr double kHalfWidth = 0.08;    // a: material ellipse semi-axis along x (m)
-  static constexpr double kHalfHeight = 0.10;   // b: along y (m)
+  static constexpr double kHalfWidth = 0.08;   // a: material ellipse semi-axis along x (m)
+  static constexpr double kHalfHeight = 0.10;  // b: along y (m)
 
   ExpressionWeights weights(double time) const;
   // The exact surface point of material point m at time τ (metres).
@@ -186,7 +186,7 @@ MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, ui
 struct HeadVertex {
   Vec3 rest = Vec3::Zero();
   std::array<double, 2> rim_theta = {0, 0};
-  double rim_mix = 0;      // 0: the first rim point, 1: the second
+  double rim_mix = 0;  // 0: the first rim point, 1: the second
   double join_weight = 0;
   Vec3 normal = Vec3::UnitZ();  // outward, about (the ray from the head's centre): scanner noise goes along it
   Vec2 plane = Vec2::Zero();    // its stereographic image (the back's texture coordinates are made from it)
@@ -223,14 +223,14 @@ double surround_spacing(int vertices);  // the spacing that gives about `vertice
 SurroundedFrame surrounded_frame(const SyntheticFace& face, const std::vector<Vec2>& material, const std::vector<Face>& faces, double time,
                                  const Eigen::Matrix3d& pose, bool with_face);
 // The same, triangulating surround_material(spacing, seed) itself.
-SurroundedFrame surrounded_frame(const SyntheticFace& face, double spacing, uint64_t seed, double time, const Eigen::Matrix3d& pose, bool with_face);
+SurroundedFrame surrounded_frame(const SyntheticFace& face, double spacing, uint64_t seed, double time, const Eigen::Matrix3d& pose,
+                                 bool with_face);
 
 // Progress callback: (frames done, frames total).
 using ProgressCallback = std::function<void(int, int)>;
 
 // Writes a capture (capture.json, frame_NNNN.obj/.mtl/.jpg or with vertex_colour frame_NNNN.ply, landmarks.csv) into `directory`,
 // creating it. Throws facemorph::Error on failure (kIo naming the file, kInvalidArgument).
-void write_synthetic_capture(const std::filesystem::path& directory, const SynthOptions& options,
-                             const ProgressCallback& progress = {});
+void write_synthetic_capture(const std::filesystem::path& directory, const SynthOptions& options, const ProgressCallback& progress = {});
 
 }  // namespace facemorph

@@ -89,9 +89,11 @@ double angle_at_arc_length(const std::vector<double>& arc, double length) {
 
 namespace {
 
-constexpr EnumName<Expression> kExpressionNames[] = {
-    {Expression::kBlink, "blink"}, {Expression::kMouth, "mouth"}, {Expression::kSmile, "smile"},
-    {Expression::kTalk, "talk"}, {Expression::kMixed, "mixed"}};
+constexpr EnumName<Expression> kExpressionNames[] = {{Expression::kBlink, "blink"},
+                                                     {Expression::kMouth, "mouth"},
+                                                     {Expression::kSmile, "smile"},
+                                                     {Expression::kTalk, "talk"},
+                                                     {Expression::kMixed, "mixed"}};
 
 }  // namespace
 
@@ -160,12 +162,8 @@ ExpressionWeights SyntheticFace::weights(double time) const {
   auto wave = [](double t, double period, double phase) { return 0.5 * (1 - std::cos(2 * kPi * t / period + phase)); };
   ExpressionWeights w;
   switch (expression_) {
-    case Expression::kBlink:
-      w.blink = blink(time);
-      break;
-    case Expression::kMouth:
-      w.jaw = 0.8 * wave(time, 2.0, 0);
-      break;
+    case Expression::kBlink: w.blink = blink(time); break;
+    case Expression::kMouth: w.jaw = 0.8 * wave(time, 2.0, 0); break;
     case Expression::kSmile:
       w.smile = wave(time, 3.0, 0);
       w.brow = 0.3 * w.smile;
@@ -192,21 +190,20 @@ double SyntheticFace::height(const Vec2& m, const ExpressionWeights& w) const {
   const double rho2 = X * X + Y * Y;
   double z = 0.09 * (std::sqrt(std::max(1.0 - 0.85 * rho2, 0.0)) - std::sqrt(0.15));
   for (double side : {-1.0, 1.0}) {
-    z -= 0.011 * identity_[0] * bump(m, side * 0.032, 0.026, 0.016, 0.011);       // eye socket
-    z += 0.007 * (1 - 0.3 * w.blink) * bump(m, side * 0.032, 0.025, 0.010, 0.0065);  // eyeball
-    z += 0.002 * w.blink * bump(m, side * 0.032, 0.026, 0.012, 0.007);            // closed lid
-    z += 0.006 * identity_[1] * bump(m, side * 0.034, 0.047, 0.020, 0.006);       // brow ridge
-    z += 0.004 * bump(m, side * 0.014, -0.020, 0.007, 0.006);                     // nostril wing
+    z -= 0.011 * identity_[0] * bump(m, side * 0.032, 0.026, 0.016, 0.011);                       // eye socket
+    z += 0.007 * (1 - 0.3 * w.blink) * bump(m, side * 0.032, 0.025, 0.010, 0.0065);               // eyeball
+    z += 0.002 * w.blink * bump(m, side * 0.032, 0.026, 0.012, 0.007);                            // closed lid
+    z += 0.006 * identity_[1] * bump(m, side * 0.034, 0.047, 0.020, 0.006);                       // brow ridge
+    z += 0.004 * bump(m, side * 0.014, -0.020, 0.007, 0.006);                                     // nostril wing
     z += (0.006 + 0.004 * w.smile) * identity_[3] * bump(m, side * 0.046, -0.012, 0.020, 0.018);  // cheek
   }
-  z += 0.016 * identity_[2] * bump(m, 0, 0.004, 0.007, 0.022);    // nose bridge
-  z += 0.012 * identity_[2] * bump(m, 0, -0.014, 0.011, 0.009);   // nose tip
-  z += 0.006 * identity_[4] * bump(m, 0, -0.040, 0.020, 0.0045);  // upper lip
-  z += 0.0065 * identity_[4] * bump(m, 0, -0.053, 0.018, 0.005);  // lower lip
-  z += 0.004 * w.pucker * bump(m, 0, -0.046, 0.014, 0.010);       // lips pushed out
-  z -= (0.003 + 0.012 * w.jaw) *
-       bump(m, 0, -0.046, 0.021 + 0.003 * w.smile - 0.004 * w.pucker, 0.0022 + 0.004 * w.jaw);  // mouth
-  z += 0.007 * identity_[5] * bump(m, 0, -0.078, 0.020, 0.011);   // chin
+  z += 0.016 * identity_[2] * bump(m, 0, 0.004, 0.007, 0.022);                                                            // nose bridge
+  z += 0.012 * identity_[2] * bump(m, 0, -0.014, 0.011, 0.009);                                                           // nose tip
+  z += 0.006 * identity_[4] * bump(m, 0, -0.040, 0.020, 0.0045);                                                          // upper lip
+  z += 0.0065 * identity_[4] * bump(m, 0, -0.053, 0.018, 0.005);                                                          // lower lip
+  z += 0.004 * w.pucker * bump(m, 0, -0.046, 0.014, 0.010);                                                               // lips pushed out
+  z -= (0.003 + 0.012 * w.jaw) * bump(m, 0, -0.046, 0.021 + 0.003 * w.smile - 0.004 * w.pucker, 0.0022 + 0.004 * w.jaw);  // mouth
+  z += 0.007 * identity_[5] * bump(m, 0, -0.078, 0.020, 0.011);                                                           // chin
   return z;
 }
 
@@ -229,8 +226,9 @@ Vec3 SyntheticFace::head_pose(const Vec3& p, double time) const {
   const double yaw = amplitude * std::sin(2 * kPi * 0.15 * time);
   const double pitch = 0.5 * amplitude * std::sin(2 * kPi * 0.23 * time + 1.0);
   const double roll = 0.3 * amplitude * std::sin(2 * kPi * 0.11 * time + 2.0);
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw, Vec3::UnitY()) * Eigen::AngleAxisd(pitch, Vec3::UnitX()) *
-                             Eigen::AngleAxisd(roll, Vec3::UnitZ())).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(yaw, Vec3::UnitY()) * Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(roll, Vec3::UnitZ()))
+          .toRotationMatrix();
   const Vec3 pivot(0, -0.12, -0.05);  // roughly the neck
   return R * (p - pivot) + pivot;
 }
@@ -277,7 +275,7 @@ std::array<uint8_t, 3> SyntheticFace::color(const Vec2& m, double time) const {
       c = {205, 150, 130};
     } else {
       const double r = (m - e).norm();
-      c = r < 0.0022 ? std::array<double, 3>{15, 15, 20}
+      c = r < 0.0022   ? std::array<double, 3>{15, 15, 20}
           : r < 0.0052 ? std::array<double, 3>{70, 105, 125}
                        : std::array<double, 3>{238, 236, 230};
     }

@@ -4,8 +4,8 @@
 // triangulated by Delaunay in a stereographic plane (conformal, so the planar Delaunay is the
 // spherical one and the triangles come out near-equilateral on the head), between the face's rim
 // and the neck's. Its vertices follow the face's rim where they join it, fading with the angle away.
-#include "format/error.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "format/error.hpp"
 
 #include "codec/meshkit/geometry/delaunay.hpp"
 
@@ -18,14 +18,14 @@ namespace facemorph {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-const Vec3 kCentre(0, 0.0, -0.06);           // the head's rays start here (behind the nose, metres)
+const Vec3 kCentre(0, 0.0, -0.06);                      // the head's rays start here (behind the nose, metres)
 const Vec3 kNeckAxis = Vec3(0, -1, -0.3).normalized();  // down and a little back: where the neck leaves
 // The neck rim: directions this far from kNeckAxis, where the neck cylinder is 0.215 m from
 // kCentre (its rim about 0.1 m below the chin). A neck is a tube, and a conformal map shrinks a
 // tube's far end by about e per radius of its length: this is what crowds a whole head's map.
 constexpr double kNeckCap = 14 * kPi / 180;
 constexpr double kNeckRingsTo = 40 * kPi / 180;  // the neck sampled in rings up to here, the rest by a lattice
-constexpr double kJoinAngle = 25 * kPi / 180;  // the back follows the face's rim within this angle
+constexpr double kJoinAngle = 25 * kPi / 180;    // the back follows the face's rim within this angle
 // The cranium: an ellipsoid about (0, 0.01, -0.06) whose section by the face's plane z = 0 is near
 // the face's rim ellipse (0.08 x 0.10), so the join needs only a small correction.
 const Vec3 kSkullCentre(0, 0.01, -0.06);
@@ -149,8 +149,10 @@ Vec3 SyntheticFace::neck_rim_direction(double theta) {
 
 Vec3 SyntheticFace::head_point(const HeadVertex& v, double time) const {
   // The rim's displacement since time 0 (unposed), carried onto the back near the join.
-  const Vec3 rim_rest = (1 - v.rim_mix) * unposed_position(rim_point(v.rim_theta[0]), 0) + v.rim_mix * unposed_position(rim_point(v.rim_theta[1]), 0);
-  const Vec3 rim_now = (1 - v.rim_mix) * unposed_position(rim_point(v.rim_theta[0]), time) + v.rim_mix * unposed_position(rim_point(v.rim_theta[1]), time);
+  const Vec3 rim_rest =
+      (1 - v.rim_mix) * unposed_position(rim_point(v.rim_theta[0]), 0) + v.rim_mix * unposed_position(rim_point(v.rim_theta[1]), 0);
+  const Vec3 rim_now =
+      (1 - v.rim_mix) * unposed_position(rim_point(v.rim_theta[0]), time) + v.rim_mix * unposed_position(rim_point(v.rim_theta[1]), time);
   return head_pose(v.rest + v.join_weight * (rim_now - rim_rest), time);
 }
 
@@ -165,7 +167,8 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   std::vector<char> cut(s.faces.size(), 0);
   for (size_t f = 0; f < s.faces.size(); ++f) {
     const Face& t = s.faces[f];
-    const Vec2 centroid = (s.points[static_cast<size_t>(t[0])] + s.points[static_cast<size_t>(t[1])] + s.points[static_cast<size_t>(t[2])]) / 3.0;
+    const Vec2 centroid =
+        (s.points[static_cast<size_t>(t[0])] + s.points[static_cast<size_t>(t[1])] + s.points[static_cast<size_t>(t[2])]) / 3.0;
     cut[f] = holes && SyntheticFace::in_hole(centroid);
   }
   if (holes) close_bow_ties(s.faces, static_cast<int>(s.points.size()), cut);

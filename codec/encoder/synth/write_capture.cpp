@@ -1,11 +1,11 @@
 // fmsynth's capture writer: meshes, per-frame textures, landmarks and the manifest.
+#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
-#include "codec/meshkit/geometry/delaunay.hpp"
-#include "format/error.hpp"
-#include "codec/meshkit/mesh/mesh_io.hpp"
-#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/delaunay.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "format/error.hpp"
 
 #include "format/file_io.hpp"
 
@@ -69,7 +69,8 @@ constexpr const char* kSharedTextureName = "texture.jpg";
 
 void write_texture(const fs::path& path, const TexturePainter& painter, double time) {
   std::vector<uint8_t> jpeg;
-  if (!cv::imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95})) throw Error(ErrorCode::kIo, path.string() + ": JPEG encoding failed");
+  if (!cv::imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}))
+    throw Error(ErrorCode::kIo, path.string() + ": JPEG encoding failed");
   format::write_file_atomically(path, jpeg);
 }
 
@@ -82,11 +83,14 @@ std::string frame_stem(int index, int frames) {
 // The back of the head's texture coordinates: its stereographic plane (within about ±2.5) squeezed
 // into the texture's lower left corner, outside the face's ellipse, where the skin's colour is
 // painted without features.
-Vec2 back_texture_coordinate(const Vec2& plane) { return Vec2(0.01, 0.01) + 0.02 * (plane.cwiseMax(Vec2(-2.5, -2.5)).cwiseMin(Vec2(2.5, 2.5)) + Vec2(2.5, 2.5)); }
+Vec2 back_texture_coordinate(const Vec2& plane) {
+  return Vec2(0.01, 0.01) + 0.02 * (plane.cwiseMax(Vec2(-2.5, -2.5)).cwiseMin(Vec2(2.5, 2.5)) + Vec2(2.5, 2.5));
+}
 
 // The whole head's frame: the face's vertices, then the back's; the rim vertices take a second
 // texture coordinate for the back's triangles (a seam), so no triangle spans the texture.
-TriangleMesh head_frame(const SynthOptions& options, const SyntheticFace& face, const HeadSampling& head, double time, std::mt19937_64& rng) {
+TriangleMesh head_frame(const SynthOptions& options, const SyntheticFace& face, const HeadSampling& head, double time,
+                        std::mt19937_64& rng) {
   std::normal_distribution<double> gaussian(0.0, 1.0);
   const MaterialSampling& sampling = head.face;
   TriangleMesh mesh;
@@ -116,8 +120,8 @@ TriangleMesh head_frame(const SynthOptions& options, const SyntheticFace& face, 
 
 // A head-and-shoulders frame (--surround, --no-face): the scan's fixed points and triangles, noise
 // along the view (+z), its own texture.
-void write_surrounded_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face, const std::vector<Vec2>& material,
-                            const std::vector<Face>& faces, int index) {
+void write_surrounded_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face,
+                            const std::vector<Vec2>& material, const std::vector<Face>& faces, int index) {
   const double time = index / options.fps;
   const std::string stem = frame_stem(index, options.frames);
   SurroundedFrame frame = surrounded_frame(face, material, faces, time, Eigen::Matrix3d::Identity(), !options.no_face);
@@ -131,8 +135,8 @@ void write_surrounded_frame(const fs::path& directory, const SynthOptions& optio
   write_mesh(directory / (stem + ".obj"), frame.mesh, {.significant_digits = 7});
 }
 
-void write_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face,
-                 const TexturePainter& painter, const MaterialSampling* fixed, const HeadSampling* head, int index) {
+void write_frame(const fs::path& directory, const SynthOptions& options, const SyntheticFace& face, const TexturePainter& painter,
+                 const MaterialSampling* fixed, const HeadSampling* head, int index) {
   const double time = index / options.fps;
   const std::string stem = frame_stem(index, options.frames);
   if (head != nullptr && options.whole_head) {
@@ -144,10 +148,12 @@ void write_frame(const fs::path& directory, const SynthOptions& options, const S
     write_mesh(directory / (stem + ".obj"), mesh, {.significant_digits = 7});
     return;
   }
-  MaterialSampling own = fixed ? MaterialSampling{} : sample_material_ellipse(options.vertices, true, options.seed * 1000003 + static_cast<uint64_t>(index));
+  MaterialSampling own =
+      fixed ? MaterialSampling{} : sample_material_ellipse(options.vertices, true, options.seed * 1000003 + static_cast<uint64_t>(index));
   if (!fixed && options.holes) {
     std::erase_if(own.faces, [&](const Face& f) {
-      return SyntheticFace::in_hole((own.points[static_cast<size_t>(f[0])] + own.points[static_cast<size_t>(f[1])] + own.points[static_cast<size_t>(f[2])]) / 3.0);
+      return SyntheticFace::in_hole(
+          (own.points[static_cast<size_t>(f[0])] + own.points[static_cast<size_t>(f[1])] + own.points[static_cast<size_t>(f[2])]) / 3.0);
     });
   }
   const MaterialSampling& sampling = fixed ? *fixed : own;
@@ -205,8 +211,10 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
     throw Error(ErrorCode::kInvalidArgument, "--head takes neither --remesh, --defects nor --vertex-colour");
   }
   if (options.no_face && !options.surround) throw Error(ErrorCode::kInvalidArgument, "--no-face needs --surround");
-  if (options.surround && (options.remesh || options.defects != 0 || options.holes || options.whole_head || options.vertex_colour || options.shared_texture)) {
-    throw Error(ErrorCode::kInvalidArgument, "--surround takes neither --remesh, --defects, --holes, --head, --vertex-colour nor --shared-texture");
+  if (options.surround &&
+      (options.remesh || options.defects != 0 || options.holes || options.whole_head || options.vertex_colour || options.shared_texture)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "--surround takes neither --remesh, --defects, --holes, --head, --vertex-colour nor --shared-texture");
   }
   std::optional<MaterialSampling> fixed;
   std::optional<HeadSampling> head;
@@ -221,7 +229,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
     fixed->faces.assign(head->faces.begin(), head->faces.begin() + static_cast<long>(head->face_faces));
   }
 
-  if (options.shared_texture && options.vertex_colour) throw Error(ErrorCode::kInvalidArgument, "--shared-texture and --vertex-colour exclude each other");
+  if (options.shared_texture && options.vertex_colour)
+    throw Error(ErrorCode::kInvalidArgument, "--shared-texture and --vertex-colour exclude each other");
   if (options.shared_texture) write_texture(directory / kSharedTextureName, painter, 0.0);
   parallel_for(
       options.frames, 0,
@@ -236,10 +245,10 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
 
   Capture capture;
   capture.root = directory;
-  capture.description = std::string(options.no_face         ? "fmsynth head-and-shoulders scan with no face (a plain dome), expression "
-                                    : options.surround      ? "fmsynth synthetic face in a head-and-shoulders scan, expression "
-                                    : options.whole_head    ? "fmsynth synthetic whole head, expression "
-                                                            : "fmsynth synthetic face, expression ") +
+  capture.description = std::string(options.no_face      ? "fmsynth head-and-shoulders scan with no face (a plain dome), expression "
+                                    : options.surround   ? "fmsynth synthetic face in a head-and-shoulders scan, expression "
+                                    : options.whole_head ? "fmsynth synthetic whole head, expression "
+                                                         : "fmsynth synthetic face, expression ") +
                         expression_name(options.expression);
   capture.fps = options.fps;
   capture.units = "m";
@@ -263,7 +272,8 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
     const double time = capture.frames[i].time;
     for (const NamedPoint* l : named) capture.landmarks[i].push_back(face.position(l->material, time));
     if (options.whole_head) {
-      for (int k = 0; k < kNeckMarkers; ++k) capture.landmarks[i].push_back(face.head_point(head->back[static_cast<size_t>(k * head->neck_count / kNeckMarkers)], time));
+      for (int k = 0; k < kNeckMarkers; ++k)
+        capture.landmarks[i].push_back(face.head_point(head->back[static_cast<size_t>(k * head->neck_count / kNeckMarkers)], time));
     }
   }
   capture.generator = {{"name", "fmsynth"},
@@ -273,12 +283,17 @@ void write_synthetic_capture(const fs::path& directory, const SynthOptions& opti
                        {"vertices", std::to_string(options.vertices)},
                        {"remesh", options.remesh ? "true" : "false"},
                        {"noise", std::to_string(options.noise)},
-                       {"colour", options.vertex_colour ? "vertex" : options.shared_texture ? "one shared texture" : "texture"}};
-  if (options.speech_rate != 1) capture.generator.emplace_back("speech_rate", std::to_string(options.speech_rate));  // 1: manifests as before
+                       {"colour", options.vertex_colour    ? "vertex"
+                                  : options.shared_texture ? "one shared texture"
+                                                           : "texture"}};
+  if (options.speech_rate != 1)
+    capture.generator.emplace_back("speech_rate", std::to_string(options.speech_rate));  // 1: manifests as before
   if (options.defects != 0) capture.generator.emplace_back("defects", defect_names(options.defects));
   if (options.holes) capture.generator.emplace_back("holes", "eyes, mouth, nostrils");
   if (options.whole_head) capture.generator.emplace_back("surface", "whole head to the neck");
-  if (options.surround) capture.generator.emplace_back("surface", options.no_face ? "hair and a shoulder round a plain dome: no face" : "hair and a shoulder round the face");
+  if (options.surround)
+    capture.generator.emplace_back(
+        "surface", options.no_face ? "hair and a shoulder round a plain dome: no face" : "hair and a shoulder round the face");
   write_capture_manifest(capture);
 }
 

@@ -19,8 +19,7 @@ double orient2d(const Vec2& a, const Vec2& b, const Vec2& c) {
   const double bound = 3.4e-16 * (std::abs(l) + std::abs(r));
   if (std::abs(det) > bound) return det;
   using LD = long double;
-  return static_cast<double>((LD(b.x()) - LD(a.x())) * (LD(c.y()) - LD(a.y())) -
-                             (LD(b.y()) - LD(a.y())) * (LD(c.x()) - LD(a.x())));
+  return static_cast<double>((LD(b.x()) - LD(a.x())) * (LD(c.y()) - LD(a.y())) - (LD(b.y()) - LD(a.y())) * (LD(c.x()) - LD(a.x())));
 }
 
 double incircle(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
@@ -31,8 +30,7 @@ double incircle(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
     const T cdx = T(c.x()) - T(d.x()), cdy = T(c.y()) - T(d.y());
     const T alift = adx * adx + ady * ady, blift = bdx * bdx + bdy * bdy, clift = cdx * cdx + cdy * cdy;
     const T det = alift * (bdx * cdy - cdx * bdy) + blift * (cdx * ady - adx * cdy) + clift * (adx * bdy - bdx * ady);
-    const T permanent = alift * (std::abs(bdx * cdy) + std::abs(cdx * bdy)) +
-                        blift * (std::abs(cdx * ady) + std::abs(adx * cdy)) +
+    const T permanent = alift * (std::abs(bdx * cdy) + std::abs(cdx * bdy)) + blift * (std::abs(cdx * ady) + std::abs(adx * cdy)) +
                         clift * (std::abs(adx * bdy) + std::abs(bdx * ady));
     return std::make_pair(static_cast<double>(det), static_cast<double>(permanent));
   };

@@ -77,7 +77,8 @@ PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
     range(mesh.faces[f], r);
     for (int z = r[2]; z <= r[5]; ++z)
       for (int y = r[1]; y <= r[4]; ++y)
-        for (int x = r[0]; x <= r[3]; ++x) faces_[static_cast<size_t>(fill[static_cast<size_t>((z * ny_ + y) * nx_ + x)]++)] = static_cast<int>(f);
+        for (int x = r[0]; x <= r[3]; ++x)
+          faces_[static_cast<size_t>(fill[static_cast<size_t>((z * ny_ + y) * nx_ + x)]++)] = static_cast<int>(f);
   }
 }
 

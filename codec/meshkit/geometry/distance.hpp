@@ -2,8 +2,8 @@
 // (design §6) and where the encoder finds landmarks on a frame.
 #pragma once
 
-#include "codec/meshkit/geometry/locator.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/meshkit/geometry/locator.hpp"
 
 #include <limits>
 #include <span>
@@ -44,12 +44,12 @@ class PointToMesh {
 };
 
 struct SurfaceDistance {
-  double rms = 0;         // over the vertices of both meshes, each to the other surface
-  double max = 0;         // Hausdorff distance (at vertices)
+  double rms = 0;  // over the vertices of both meshes, each to the other surface
+  double max = 0;  // Hausdorff distance (at vertices)
   // 99th percentile of the same distances (nearest rank: the smallest distance that at least 99% of
   // them do not exceed): the worst region's error, which one stray vertex cannot set as it sets max.
   double p99 = 0;
-  double diagonal = 0;    // bounding-box diagonal of the reference
+  double diagonal = 0;  // bounding-box diagonal of the reference
 };
 
 // Symmetric point-to-surface distance between `reference` and `test` (each mesh's vertices to the

@@ -1,8 +1,8 @@
 #include "codec/meshkit/geometry/surface_measures.hpp"
 
-#include "codec/core/geometry/elementary.hpp"
 #include <algorithm>
 #include <cmath>
+#include "codec/core/geometry/elementary.hpp"
 
 namespace facemorph {
 namespace {
@@ -31,8 +31,7 @@ std::vector<CornerValues> corner_cotangents_from_lengths(std::span<const CornerV
     // Heron's formula in the numerically stable ordering (Kahan).
     std::array<double, 3> s = {a, b, c};
     std::sort(s.begin(), s.end(), std::greater<>());
-    const double product = (s[0] + (s[1] + s[2])) * (s[2] - (s[0] - s[1])) * (s[2] + (s[0] - s[1])) *
-                           (s[0] + (s[1] - s[2]));
+    const double product = (s[0] + (s[1] + s[2])) * (s[2] - (s[0] - s[1])) * (s[2] + (s[0] - s[1])) * (s[0] + (s[1] - s[2]));
     const double area = 0.25 * std::sqrt(std::max(product, 0.0));
     const double floor = 1e-12 * std::max({a * b, b * c, c * a});
     const double twice_area2 = 4.0 * std::max(area, 0.5 * floor);  // cot = (b²+c²-a²)/(4 area)
@@ -78,8 +77,7 @@ Eigen::VectorXd barycentric_areas(std::span<const Vec3> positions, std::span<con
 std::vector<Vec3> face_normals(std::span<const Vec3> positions, std::span<const Face> faces) {
   std::vector<Vec3> normals(faces.size());
   for (size_t f = 0; f < faces.size(); ++f) {
-    const Vec3 n = (at(positions, faces[f][1]) - at(positions, faces[f][0]))
-                       .cross(at(positions, faces[f][2]) - at(positions, faces[f][0]));
+    const Vec3 n = (at(positions, faces[f][1]) - at(positions, faces[f][0])).cross(at(positions, faces[f][2]) - at(positions, faces[f][0]));
     const double length = n.norm();
     normals[f] = length > 0 ? Vec3(n / length) : Vec3::Zero();
   }
@@ -119,8 +117,7 @@ std::vector<Vec3> laplace_beltrami_of_positions(std::span<const Vec3> positions,
   return laplacian;
 }
 
-Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const Face> faces,
-                               const std::vector<bool>& is_boundary) {
+Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const Face> faces, const std::vector<bool>& is_boundary) {
   const auto laplacian = laplace_beltrami_of_positions(positions, faces);
   const auto normals = vertex_normals(positions, faces);
   const auto n = static_cast<Eigen::Index>(positions.size());

@@ -36,8 +36,7 @@ std::vector<Vec3> vertex_normals(std::span<const Vec3> positions, std::span<cons
 // Signed mean curvature per vertex, H_i = <(Δx)_i, n_i> / 2 with angle-weighted normals and mixed
 // areas. At boundary vertices the one-ring is incomplete, so H there is the mean over interior
 // neighbours (0 when a boundary vertex has none). `is_boundary` has one flag per vertex.
-Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const Face> faces,
-                               const std::vector<bool>& is_boundary);
+Eigen::VectorXd mean_curvature(std::span<const Vec3> positions, std::span<const Face> faces, const std::vector<bool>& is_boundary);
 
 // The per-vertex mean-curvature vector Δx (length 2|H|), before projection on the normal.
 std::vector<Vec3> laplace_beltrami_of_positions(std::span<const Vec3> positions, std::span<const Face> faces);

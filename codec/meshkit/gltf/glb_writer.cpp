@@ -4,9 +4,9 @@
 #include "codec/meshkit/gltf/gltf.hpp"
 
 #include "codec/core/geometry/differential.hpp"  // area_weighted_normals: the decoder's one normal rule
-#include "format/error.hpp"
 #include "codec/core/geometry/differential.hpp"
 #include "codec/writer/image/image_encode.hpp"
+#include "format/error.hpp"
 
 #include <algorithm>
 #include <array>
@@ -101,7 +101,8 @@ class GlbBuilder {
     a << "{\"bufferView\":" << v << ",\"componentType\":" << kFloat << ",\"count\":" << values.size() / static_cast<size_t>(components)
       << ",\"type\":\"" << type << "\"";
     if (bounds) {
-      std::vector<float> lo(static_cast<size_t>(components), std::numeric_limits<float>::max()), hi(lo.size(), -std::numeric_limits<float>::max());
+      std::vector<float> lo(static_cast<size_t>(components), std::numeric_limits<float>::max()),
+          hi(lo.size(), -std::numeric_limits<float>::max());
       for (size_t i = 0; i < values.size(); ++i) {
         const size_t c = i % static_cast<size_t>(components);
         lo[c] = std::min(lo[c], values[i]);
@@ -141,9 +142,10 @@ class GlbBuilder {
     while (bin_.size() % 4 != 0) bin_.push_back(0);
     std::string json = json_without_buffers;
     json.pop_back();  // the closing brace
-    json += ",\"bufferViews\":" + join(views_) + ",\"accessors\":" + join(accessors_) + ",\"buffers\":[{\"byteLength\":" +
-            std::to_string(bin_.size()) + "}";
-    if (fallback_ > 0) json += ",{\"byteLength\":" + std::to_string(fallback_) + ",\"extensions\":{\"EXT_meshopt_compression\":{\"fallback\":true}}}";
+    json += ",\"bufferViews\":" + join(views_) + ",\"accessors\":" + join(accessors_) +
+            ",\"buffers\":[{\"byteLength\":" + std::to_string(bin_.size()) + "}";
+    if (fallback_ > 0)
+      json += ",{\"byteLength\":" + std::to_string(fallback_) + ",\"extensions\":{\"EXT_meshopt_compression\":{\"fallback\":true}}}";
     json += "]}";
     while (json.size() % 4 != 0) json.push_back(' ');
     std::vector<uint8_t> out;
@@ -151,7 +153,8 @@ class GlbBuilder {
       for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(v >> (8 * i)));
     };
     const uint64_t total = 12 + 8 + json.size() + 8 + bin_.size();
-    if (total > std::numeric_limits<uint32_t>::max()) throw Error(ErrorCode::kInvalidArgument, "glTF: the clip exceeds 4 GiB (a .glb's limit): fewer frames or a smaller grid");
+    if (total > std::numeric_limits<uint32_t>::max())
+      throw Error(ErrorCode::kInvalidArgument, "glTF: the clip exceeds 4 GiB (a .glb's limit): fewer frames or a smaller grid");
     out.reserve(total);
     u32(0x46546C67);  // "glTF"
     u32(2);
@@ -345,7 +348,8 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
     }
   }
   const Vec3 centre = 0.5 * (lo + hi);
-  const double step = std::max({(hi - lo).norm() / 16384, (hi - lo).maxCoeff() / 65534, moved / 32766, std::numeric_limits<double>::min() * 65536});
+  const double step =
+      std::max({(hi - lo).norm() / 16384, (hi - lo).maxCoeff() / 65534, moved / 32766, std::numeric_limits<double>::min() * 65536});
   const auto code = [&](const Vec3& p, int k) {
     return static_cast<int32_t>(std::clamp(std::lround((p[k] - centre[k]) / step), -32767L, 32767L));
   };
@@ -363,8 +367,8 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
     const int view = b.view_compressed(packed.data(), 8, values.size(), kArrayBuffer, false);
     std::string range;
     if (bounds) {
-      range = ",\"min\":[" + std::to_string(mn[0]) + "," + std::to_string(mn[1]) + "," + std::to_string(mn[2]) + "],\"max\":[" + std::to_string(mx[0]) +
-              "," + std::to_string(mx[1]) + "," + std::to_string(mx[2]) + "]";
+      range = ",\"min\":[" + std::to_string(mn[0]) + "," + std::to_string(mn[1]) + "," + std::to_string(mn[2]) + "],\"max\":[" +
+              std::to_string(mx[0]) + "," + std::to_string(mx[1]) + "," + std::to_string(mx[2]) + "]";
     }
     return b.accessor(view, kShort, false, values.size(), "VEC3", range);
   };
@@ -397,7 +401,8 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
   for (const Face& f : clip.faces) {
     for (int32_t v : f) indices.push_back(static_cast<uint32_t>(v));
   }
-  out.index = b.accessor(b.view_compressed(indices.data(), 4, indices.size(), kElementArrayBuffer, true), kUnsignedInt, false, indices.size(), "SCALAR");
+  out.index = b.accessor(b.view_compressed(indices.data(), 4, indices.size(), kElementArrayBuffer, true), kUnsignedInt, false,
+                         indices.size(), "SCALAR");
   for (size_t f = 1; f < frames; ++f) {
     std::vector<std::array<int32_t, 3>> dp(n);
     for (size_t v = 0; v < n; ++v) {
@@ -431,7 +436,8 @@ Streams compact_streams(const GltfClip& clip, GlbBuilder& b) {
   }
   std::ostringstream transform;
   transform.precision(17);
-  transform << ",\"translation\":[" << centre.x() << "," << centre.y() << "," << centre.z() << "],\"scale\":[" << step << "," << step << "," << step << "]";
+  transform << ",\"translation\":[" << centre.x() << "," << centre.y() << "," << centre.z() << "],\"scale\":[" << step << "," << step << ","
+            << step << "]";
   out.node_transform = transform.str();
   out.node_scale = step;
   return out;
@@ -454,8 +460,8 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
   const bool webp = switching && clip.compact;
   std::vector<std::string> nodes, node_indices, meshes;
   for (size_t i = 0; i < copies; ++i) {
-    nodes.push_back("{\"mesh\":" + std::to_string(i) + ",\"name\":\"" + clip.name + (switching ? "_" + std::to_string(i) : std::string()) + "\"" +
-                    streams.node_transform + "}");
+    nodes.push_back("{\"mesh\":" + std::to_string(i) + ",\"name\":\"" + clip.name + (switching ? "_" + std::to_string(i) : std::string()) +
+                    "\"" + streams.node_transform + "}");
     node_indices.push_back(std::to_string(i));
     std::ostringstream mesh;
     mesh << "{\"name\":\"" << clip.name << "\",\"primitives\":[{\"attributes\":{\"POSITION\":" << position;
@@ -468,8 +474,8 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
     mesh << "}";
     meshes.push_back(mesh.str());
   }
-  json << "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facemorph fmdec\"},\"scene\":0,\"scenes\":[{\"nodes\":" << GlbBuilder::join(node_indices)
-       << "}],\"nodes\":" << GlbBuilder::join(nodes) << ",\"meshes\":" << GlbBuilder::join(meshes) << ",";
+  json << "{\"asset\":{\"version\":\"2.0\",\"generator\":\"facemorph fmdec\"},\"scene\":0,\"scenes\":[{\"nodes\":"
+       << GlbBuilder::join(node_indices) << "}],\"nodes\":" << GlbBuilder::join(nodes) << ",\"meshes\":" << GlbBuilder::join(meshes) << ",";
   // The material: the texture when there is one, a skin-grey otherwise; double-sided, since a face
   // scan is an open surface seen from behind at its rim.
   const auto textured_material = [](size_t texture) {
@@ -483,12 +489,14 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
       // WebP at quality 90 where the clip is for the web: a PNG of each keyframe's texture would
       // outweigh the geometry many times over.
       const std::vector<uint8_t> bytes = webp ? encode_webp(image, 90) : encode_png(image);
-      images.push_back("{\"bufferView\":" + std::to_string(b.view(bytes.data(), bytes.size(), 0)) + ",\"mimeType\":\"image/" + (webp ? "webp" : "png") + "\"}");
+      images.push_back("{\"bufferView\":" + std::to_string(b.view(bytes.data(), bytes.size(), 0)) + ",\"mimeType\":\"image/" +
+                       (webp ? "webp" : "png") + "\"}");
       textures.push_back(webp ? "{\"sampler\":0,\"extensions\":{\"EXT_texture_webp\":{\"source\":" + std::to_string(i) + "}}}"
                               : "{\"sampler\":0,\"source\":" + std::to_string(i) + "}");
       materials.push_back(textured_material(i));
     }
-    json << "\"images\":" << GlbBuilder::join(images) << ",\"samplers\":[{\"magFilter\":9729,\"minFilter\":9729,\"wrapS\":33071,\"wrapT\":33071}],"
+    json << "\"images\":" << GlbBuilder::join(images)
+         << ",\"samplers\":[{\"magFilter\":9729,\"minFilter\":9729,\"wrapS\":33071,\"wrapT\":33071}],"
          << "\"textures\":" << GlbBuilder::join(textures) << ",\"materials\":" << GlbBuilder::join(materials) << ",";
   } else if (!clip.texture.empty() && uv >= 0) {
     const std::vector<uint8_t> png = encode_png(clip.texture);
@@ -511,15 +519,18 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
     }
     const int input = b.floats(times, 1, "SCALAR", 0, true);
     // One-hot rows: meshoptimizer packs them to almost nothing.
-    const int output = clip.compact ? b.accessor(b.view_compressed(weights.data(), 4, weights.size(), 0, false), kFloat, false, weights.size(), "SCALAR")
-                                    : b.floats(weights, 1, "SCALAR", 0, false);
+    const int output =
+        clip.compact ? b.accessor(b.view_compressed(weights.data(), 4, weights.size(), 0, false), kFloat, false, weights.size(), "SCALAR")
+                     : b.floats(weights, 1, "SCALAR", 0, false);
     samplers.push_back("{\"input\":" + std::to_string(input) + ",\"output\":" + std::to_string(output) + ",\"interpolation\":\"LINEAR\"}");
-    for (size_t i = 0; i < copies; ++i) channels.push_back("{\"sampler\":0,\"target\":{\"node\":" + std::to_string(i) + ",\"path\":\"weights\"}}");
+    for (size_t i = 0; i < copies; ++i)
+      channels.push_back("{\"sampler\":0,\"target\":{\"node\":" + std::to_string(i) + ",\"path\":\"weights\"}}");
   }
   if (switching) {
     // Each copy at its own scale while its texture is current, at 0 (nothing drawn) otherwise.
     std::vector<float> starts;
-    for (const GltfClip::SwitchedTexture& t : clip.switched_textures) starts.push_back(static_cast<float>(std::max(0.0, t.start - clip.times.front())));
+    for (const GltfClip::SwitchedTexture& t : clip.switched_textures)
+      starts.push_back(static_cast<float>(std::max(0.0, t.start - clip.times.front())));
     const int input = b.floats(starts, 1, "SCALAR", 0, true);
     for (size_t i = 0; i < copies; ++i) {
       std::vector<float> scales;
@@ -527,12 +538,14 @@ std::vector<uint8_t> encode_glb(const GltfClip& clip) {
         for (int k = 0; k < 3; ++k) scales.push_back(j == i ? static_cast<float>(streams.node_scale) : 0.0f);
       }
       const int output = b.floats(scales, 3, "VEC3", 0, false);
-      channels.push_back("{\"sampler\":" + std::to_string(samplers.size()) + ",\"target\":{\"node\":" + std::to_string(i) + ",\"path\":\"scale\"}}");
+      channels.push_back("{\"sampler\":" + std::to_string(samplers.size()) + ",\"target\":{\"node\":" + std::to_string(i) +
+                         ",\"path\":\"scale\"}}");
       samplers.push_back("{\"input\":" + std::to_string(input) + ",\"output\":" + std::to_string(output) + ",\"interpolation\":\"STEP\"}");
     }
   }
   if (!channels.empty()) {
-    json << "\"animations\":[{\"name\":\"play\",\"samplers\":" << GlbBuilder::join(samplers) << ",\"channels\":" << GlbBuilder::join(channels) << "}],";
+    json << "\"animations\":[{\"name\":\"play\",\"samplers\":" << GlbBuilder::join(samplers)
+         << ",\"channels\":" << GlbBuilder::join(channels) << "}],";
   }
   if (clip.compact) {
     const std::string extensions = std::string("[\"KHR_mesh_quantization\"") + (b.compressed() ? ",\"EXT_meshopt_compression\"" : "") +
@@ -551,7 +564,8 @@ std::vector<Face> faces_outside_holes(const std::vector<Face>& faces, const std:
     for (const std::vector<double>& level : levels) {
       bool inside = true;
       for (int32_t v : f) {
-        if (v < 0 || static_cast<size_t>(v) >= level.size()) throw Error(ErrorCode::kInvalidArgument, "faces_outside_holes: a face index beyond the levels");
+        if (v < 0 || static_cast<size_t>(v) >= level.size())
+          throw Error(ErrorCode::kInvalidArgument, "faces_outside_holes: a face index beyond the levels");
         inside = inside && level[static_cast<size_t>(v)] < 0;
       }
       always_inside = always_inside && inside;

@@ -8,8 +8,8 @@
 // texture is the current one.
 #pragma once
 
-#include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -46,8 +46,8 @@ struct GltfClip {
 };
 
 // The .glb bytes (with `compact`, needing KHR_mesh_quantization and, where a stream was compressed,
-// EXT_meshopt_compression: three.js reads both, the latter with its MeshoptDecoder). Throws kInvalidArgument for an empty clip, times not increasing, frames of
-// different sizes, faces out of range, UVs of the wrong count, or non-finite positions.
+// EXT_meshopt_compression: three.js reads both, the latter with its MeshoptDecoder). Throws kInvalidArgument for an empty clip, times not
+// increasing, frames of different sizes, faces out of range, UVs of the wrong count, or non-finite positions.
 std::vector<uint8_t> encode_glb(const GltfClip& clip);
 
 // Holes in a morphing mesh: glTF cannot change a mesh's triangles over time. The clip drops the

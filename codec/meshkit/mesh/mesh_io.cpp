@@ -1,6 +1,6 @@
 // Format dispatch for mesh files: by extension, with atomic writes.
-#include "format/error.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "format/error.hpp"
 
 #include "format/file_io.hpp"
 
@@ -30,8 +30,7 @@ TriangleMesh read_mesh(const fs::path& path, const MeshReadOptions& options, War
   const std::vector<uint8_t> bytes = format::read_file(path);
   const fs::path base = path.parent_path();
   if (ext == ".obj") {
-    return parse_obj(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), path.string(),
-                     base, options, warnings);
+    return parse_obj(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), path.string(), base, options, warnings);
   }
   return parse_ply(bytes, path.string(), base, options, warnings);
 }

@@ -24,17 +24,14 @@ struct MeshReadOptions {
 using Warnings = std::vector<std::string>;
 
 // Reads .obj or .ply (by extension, case-insensitive). Throws facemorph::Error naming the file.
-TriangleMesh read_mesh(const std::filesystem::path& path, const MeshReadOptions& options = {},
-                       Warnings* warnings = nullptr);
+TriangleMesh read_mesh(const std::filesystem::path& path, const MeshReadOptions& options = {}, Warnings* warnings = nullptr);
 
 // Parsers over memory, for fuzzing and tests. `source` names the input in messages; relative
 // MTL/texture names resolve against `base_dir`.
-TriangleMesh parse_obj(std::string_view text, const std::string& source,
-                       const std::filesystem::path& base_dir, const MeshReadOptions& options = {},
-                       Warnings* warnings = nullptr);
-TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source,
-                       const std::filesystem::path& base_dir, const MeshReadOptions& options = {},
-                       Warnings* warnings = nullptr);
+TriangleMesh parse_obj(std::string_view text, const std::string& source, const std::filesystem::path& base_dir,
+                       const MeshReadOptions& options = {}, Warnings* warnings = nullptr);
+TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source, const std::filesystem::path& base_dir,
+                       const MeshReadOptions& options = {}, Warnings* warnings = nullptr);
 
 enum class PlyEncoding { kBinaryLittleEndian, kAscii };
 
@@ -49,15 +46,13 @@ struct MeshWriteOptions {
 
 // Writes .obj (+ .mtl) or .ply by extension, each file atomically (temporary name, then rename),
 // so a failure never leaves a half-written file in place of a good one. Throws kIo / kInvalidArgument.
-void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh,
-                const MeshWriteOptions& options = {});
+void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, const MeshWriteOptions& options = {});
 
 // The OBJ text of `mesh`; `material_library` (may be empty) is referenced with mtllib/usemtl.
 std::string format_obj(const TriangleMesh& mesh, const std::string& material_library, int significant_digits = 0);
 
 // The PLY bytes of `mesh`. Per-corner UVs go in a face property `texcoord` (MeshLab's layout),
 // the texture in a `comment TextureFile NAME` header line.
-std::vector<uint8_t> format_ply(const TriangleMesh& mesh, PlyEncoding encoding,
-                                const std::string& texture_name);
+std::vector<uint8_t> format_ply(const TriangleMesh& mesh, PlyEncoding encoding, const std::string& texture_name);
 
 }  // namespace facemorph

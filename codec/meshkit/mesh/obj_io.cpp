@@ -1,6 +1,6 @@
 // Wavefront OBJ + MTL reading and writing.
-#include "format/error.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "format/error.hpp"
 
 #include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/file_io.hpp"
@@ -27,8 +27,7 @@ struct Corner {
 }
 
 // Resolves an OBJ index (1-based, or negative = relative to the end) against `count` elements.
-int32_t resolve_index(std::string_view token, size_t count, const char* kind,
-                      const std::string& source, size_t line) {
+int32_t resolve_index(std::string_view token, size_t count, const char* kind, const std::string& source, size_t line) {
   bool too_large = false;  // a whole integer beyond int64 is out of range, not malformed
   const auto value = text::parse_int(token, &too_large);
   if (!value && !too_large) {
@@ -40,15 +39,14 @@ int32_t resolve_index(std::string_view token, size_t count, const char* kind,
   const int64_t usable = std::min<int64_t>(static_cast<int64_t>(count), int64_t{std::numeric_limits<int32_t>::max()} + 1);
   if (!value || *value == 0 || index < 0 || index >= usable) {
     fail(ErrorCode::kInvalidMesh, source, line,
-         std::string(kind) + " index " + std::string(token) + " out of range (" +
-             std::to_string(count) + " defined so far)");
+         std::string(kind) + " index " + std::string(token) + " out of range (" + std::to_string(count) + " defined so far)");
   }
   return static_cast<int32_t>(index);
 }
 
 // Parses "v", "v/vt", "v/vt/vn" or "v//vn".
-Corner parse_corner(std::string_view token, size_t vertex_count, size_t uv_count,
-                    size_t normal_count, const std::string& source, size_t line) {
+Corner parse_corner(std::string_view token, size_t vertex_count, size_t uv_count, size_t normal_count, const std::string& source,
+                    size_t line) {
   Corner corner;
   const size_t slash1 = token.find('/');
   corner.vertex = resolve_index(token.substr(0, slash1), vertex_count, "vertex", source, line);
@@ -134,8 +132,8 @@ void append_int(std::string& out, int64_t value) {
 
 }  // namespace
 
-TriangleMesh parse_obj(std::string_view text_data, const std::string& source, const fs::path& base_dir,
-                       const MeshReadOptions& options, Warnings* warnings) {
+TriangleMesh parse_obj(std::string_view text_data, const std::string& source, const fs::path& base_dir, const MeshReadOptions& options,
+                       Warnings* warnings) {
   TriangleMesh mesh;
   size_t normal_count = 0;
   size_t polygons = 0;
@@ -160,8 +158,7 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
         const auto value = text::parse_double(token);
         if (!value) {
           fail(ErrorCode::kParse, source, lines.line_number(),
-               std::string("malformed ") + std::string(keyword) + " line: expected " +
-                   std::to_string(needed) + " numbers");
+               std::string("malformed ") + std::string(keyword) + " line: expected " + std::to_string(needed) + " numbers");
         }
         if (!std::isfinite(*value)) {
           fail(ErrorCode::kInvalidMesh, source, lines.line_number(),
@@ -183,8 +180,7 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
     } else if (keyword == "f") {
       corners.clear();
       for (std::string_view token = text::next_token(rest); !token.empty(); token = text::next_token(rest)) {
-        corners.push_back(parse_corner(token, mesh.positions.size(), mesh.uvs.size(), normal_count,
-                                       source, lines.line_number()));
+        corners.push_back(parse_corner(token, mesh.positions.size(), mesh.uvs.size(), normal_count, source, lines.line_number()));
       }
       if (corners.size() < 3) {
         fail(ErrorCode::kParse, source, lines.line_number(),
@@ -248,8 +244,7 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
       missing("material library " + library + " not found");
       continue;
     }
-    const std::string map = find_diffuse_map(
-        std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), material);
+    const std::string map = find_diffuse_map(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), material);
     if (map.empty()) continue;
     const fs::path texture = base_dir / map;
     std::error_code ec;
@@ -317,8 +312,7 @@ void write_obj_files(const fs::path& path, const TriangleMesh& mesh, const MeshW
     std::error_code ec;
     fs::path texture = fs::relative(mesh.texture, path.parent_path().empty() ? "." : path.parent_path(), ec);
     if (ec || texture.empty()) texture = fs::absolute(mesh.texture, ec);
-    const std::string mtl = "# facemorph\nnewmtl face\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd " +
-                            texture.generic_string() + "\n";
+    const std::string mtl = "# facemorph\nnewmtl face\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd " + texture.generic_string() + "\n";
     format::write_file_atomically(mtl_path, std::string_view(mtl));
   }
   format::write_file_atomically(path, std::string_view(format_obj(mesh, library, options.significant_digits)));

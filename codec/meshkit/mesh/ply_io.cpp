@@ -1,6 +1,6 @@
 // PLY reading (ASCII, binary little/big endian) and writing (ASCII, binary little endian).
-#include "format/error.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "format/error.hpp"
 
 #include "codec/meshkit/mesh/text_scan.hpp"
 #include "format/byte_reader.hpp"
@@ -33,9 +33,13 @@ std::optional<ScalarType> parse_scalar_type(std::string_view name) {
 
 size_t scalar_size(ScalarType type) {
   switch (type) {
-    case ScalarType::kInt8: case ScalarType::kUint8: return 1;
-    case ScalarType::kInt16: case ScalarType::kUint16: return 2;
-    case ScalarType::kInt32: case ScalarType::kUint32: case ScalarType::kFloat32: return 4;
+    case ScalarType::kInt8:
+    case ScalarType::kUint8: return 1;
+    case ScalarType::kInt16:
+    case ScalarType::kUint16: return 2;
+    case ScalarType::kInt32:
+    case ScalarType::kUint32:
+    case ScalarType::kFloat32: return 4;
     case ScalarType::kFloat64: return 8;
   }
   return 1;
@@ -65,9 +69,7 @@ struct Header {
   size_t body_offset = 0;
 };
 
-[[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) {
-  throw Error(code, source + ": " + why);
-}
+[[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) { throw Error(code, source + ": " + why); }
 
 Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
   // The header is text up to and including "end_header\n"; bound it so a binary blob is not scanned whole.
@@ -90,10 +92,14 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
     const auto where = " (header line " + std::to_string(lines.line_number()) + ")";
     if (keyword == "format") {
       const std::string_view kind = text::next_token(rest);
-      if (kind == "ascii") header.encoding = Encoding::kAscii;
-      else if (kind == "binary_little_endian") header.encoding = Encoding::kBinaryLittle;
-      else if (kind == "binary_big_endian") header.encoding = Encoding::kBinaryBig;
-      else fail(ErrorCode::kUnsupported, source, "unknown PLY format '" + std::string(kind) + "'" + where);
+      if (kind == "ascii")
+        header.encoding = Encoding::kAscii;
+      else if (kind == "binary_little_endian")
+        header.encoding = Encoding::kBinaryLittle;
+      else if (kind == "binary_big_endian")
+        header.encoding = Encoding::kBinaryBig;
+      else
+        fail(ErrorCode::kUnsupported, source, "unknown PLY format '" + std::string(kind) + "'" + where);
       have_format = true;
     } else if (keyword == "comment") {
       std::string_view comment = rest;
@@ -107,9 +113,9 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
       if (element.name.empty() || (!count && !too_large)) fail(ErrorCode::kParse, source, "malformed element line" + where);
       // Vertex indices are int32 in memory, so no element may hold more.
       if (!count || *count < 0 || *count > std::numeric_limits<int32_t>::max()) {
-        fail(ErrorCode::kCorrupt, source, "element '" + element.name + "' count " + std::string(count_token) +
-                                              " out of range (0.." +
-                                              std::to_string(std::numeric_limits<int32_t>::max()) + ")" + where);
+        fail(ErrorCode::kCorrupt, source,
+             "element '" + element.name + "' count " + std::string(count_token) + " out of range (0.." +
+                 std::to_string(std::numeric_limits<int32_t>::max()) + ")" + where);
       }
       element.count = static_cast<uint64_t>(*count);
       header.elements.push_back(std::move(element));
@@ -148,8 +154,7 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
 class ValueSource {
  public:
   ValueSource(std::span<const uint8_t> body, Encoding encoding, const std::string& source)
-      : encoding_(encoding), binary_(body, source), text_(reinterpret_cast<const char*>(body.data()), body.size()),
-        source_(source) {}
+      : encoding_(encoding), binary_(body, source), text_(reinterpret_cast<const char*>(body.data()), body.size()), source_(source) {}
 
   double read(ScalarType type, const char* what) {
     if (encoding_ == Encoding::kAscii) return read_text(what);
@@ -167,9 +172,7 @@ class ValueSource {
     return 0;
   }
 
-  size_t remaining_bytes() const {
-    return encoding_ == Encoding::kAscii ? text_.size() : binary_.remaining();
-  }
+  size_t remaining_bytes() const { return encoding_ == Encoding::kAscii ? text_.size() : binary_.remaining(); }
   bool binary() const { return encoding_ != Encoding::kAscii; }
 
  private:
@@ -241,7 +244,8 @@ double colour_scale(const Property& property, const std::string& source) {
   switch (property.type) {
     case ScalarType::kUint8: return 1.0 / 255;
     case ScalarType::kUint16: return 1.0 / 65535;
-    case ScalarType::kFloat32: case ScalarType::kFloat64: return 1.0;
+    case ScalarType::kFloat32:
+    case ScalarType::kFloat64: return 1.0;
     default:
       fail(ErrorCode::kUnsupported, source, "vertex colour '" + property.name + "' has a type other than uchar, ushort, float or double");
   }
@@ -253,16 +257,17 @@ double colour_value(double value, const Property& property, double scale, const 
   const double limit = is_integer(property.type) ? 1 / scale : 1.0;
   const bool whole = !is_integer(property.type) || value == std::trunc(value);
   if (!std::isfinite(value) || !whole || value < 0 || value > limit) {
-    fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + ": colour " + property.name + " " + text::format_number(value) +
-                                              " is not " + (is_integer(property.type) ? "a whole number in [0, " + text::format_number(limit) + "]" : std::string("in [0, 1]")));
+    fail(ErrorCode::kInvalidMesh, source,
+         element_entry(element, e) + ": colour " + property.name + " " + text::format_number(value) + " is not " +
+             (is_integer(property.type) ? "a whole number in [0, " + text::format_number(limit) + "]" : std::string("in [0, 1]")));
   }
   return value * scale;
 }
 
 }  // namespace
 
-TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source, const fs::path& base_dir,
-                       const MeshReadOptions& options, Warnings* warnings) {
+TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source, const fs::path& base_dir, const MeshReadOptions& options,
+                       Warnings* warnings) {
   const Header header = parse_header(bytes, source);
   ValueSource values(bytes.subspan(header.body_offset), header.encoding, source);
   TriangleMesh mesh;
@@ -276,8 +281,8 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
     const size_t min_bytes = minimum_element_bytes(element, values.binary());
     if (min_bytes > 0 && element.count > values.remaining_bytes() / min_bytes + 1) {
       fail(ErrorCode::kTruncated, source,
-           "truncated: element '" + element.name + "' announces " + std::to_string(element.count) +
-               " entries but only " + std::to_string(values.remaining_bytes()) + " bytes remain");
+           "truncated: element '" + element.name + "' announces " + std::to_string(element.count) + " entries but only " +
+               std::to_string(values.remaining_bytes()) + " bytes remain");
     }
     if (min_bytes == 0) continue;  // no properties: nothing to read, whatever the count
 
@@ -302,10 +307,12 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       icolour[2] = find_property(element, {"blue", "diffuse_blue"});
       const int colour_count = (icolour[0] >= 0) + (icolour[1] >= 0) + (icolour[2] >= 0);
       if (colour_count != 3) {
-        if (colour_count > 0 && warnings) warnings->push_back(source + ": vertices have some of red, green and blue but not all three; colour ignored");
+        if (colour_count > 0 && warnings)
+          warnings->push_back(source + ": vertices have some of red, green and blue but not all three; colour ignored");
         icolour[0] = icolour[1] = icolour[2] = -1;
       }
-      for (int c = 0; c < 3 && colour_count == 3; ++c) colour_scales[c] = colour_scale(element.properties[static_cast<size_t>(icolour[c])], source);
+      for (int c = 0; c < 3 && colour_count == 3; ++c)
+        colour_scales[c] = colour_scale(element.properties[static_cast<size_t>(icolour[c])], source);
       mesh.positions.reserve(element.count);
       if (colour_count == 3) mesh.colours.reserve(element.count);
       have_vertices = true;
@@ -332,16 +339,23 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
           const uint64_t n = list_length(values.read(property.count_type, "list length"), source, element, e);
           for (uint64_t k = 0; k < n; ++k) {
             const double value = values.read(property.type, element.name.c_str());
-            if (pi == ilist) polygon.push_back(vertex_index(value, mesh.positions.size(), source, e));
-            else if (pi == itex) texcoords.push_back(value);
+            if (pi == ilist)
+              polygon.push_back(vertex_index(value, mesh.positions.size(), source, e));
+            else if (pi == itex)
+              texcoords.push_back(value);
           }
         } else {
           const double value = values.read(property.type, element.name.c_str());
-          if (pi == ix) scalar[0] = value;
-          else if (pi == iy) scalar[1] = value;
-          else if (pi == iz) scalar[2] = value;
-          else if (pi == iu) uv[0] = value;
-          else if (pi == iv) uv[1] = value;
+          if (pi == ix)
+            scalar[0] = value;
+          else if (pi == iy)
+            scalar[1] = value;
+          else if (pi == iz)
+            scalar[2] = value;
+          else if (pi == iu)
+            uv[0] = value;
+          else if (pi == iv)
+            uv[1] = value;
           for (int c = 0; c < 3; ++c) {
             if (pi == icolour[c]) colour[c] = colour_value(value, property, colour_scales[c], source, element, e);
           }

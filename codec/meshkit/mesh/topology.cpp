@@ -55,7 +55,8 @@ MeshTopology::MeshTopology(std::span<const Face> faces, int vertex_count) : vert
   std::vector<HalfEdge> half_edges;
   if (lowest_end > static_cast<uint32_t>(std::max(vertex_count, 0))) {
     // An index outside the vertices (callers validate first, so not in practice): a plain sort.
-    std::sort(unordered.begin(), unordered.end(), [](const HalfEdge& x, const HalfEdge& y) { return x.key != y.key ? x.key < y.key : x.face < y.face; });
+    std::sort(unordered.begin(), unordered.end(),
+              [](const HalfEdge& x, const HalfEdge& y) { return x.key != y.key ? x.key < y.key : x.face < y.face; });
     half_edges = std::move(unordered);
   } else {
     std::vector<uint32_t> bucket_start(static_cast<size_t>(lowest_end) + 1, 0);
@@ -122,8 +123,10 @@ MeshTopology::MeshTopology(std::span<const Face> faces, int vertex_count) : vert
     for (int k = 0; k < 3; ++k) {
       const auto v = static_cast<size_t>(faces[f][static_cast<size_t>(k)]);
       const auto root = static_cast<int64_t>(corners.find(3 * f + static_cast<size_t>(k)));
-      if (fan_root[v] < 0) fan_root[v] = root;
-      else if (fan_root[v] != root) pinched[v] = 1;
+      if (fan_root[v] < 0)
+        fan_root[v] = root;
+      else if (fan_root[v] != root)
+        pinched[v] = 1;
     }
   }
   for (size_t v = 0; v < pinched.size(); ++v) {

@@ -34,9 +34,7 @@ class MeshTopology {
   const std::vector<int>& inconsistently_oriented_edges() const { return inconsistent_edges_; }
   // Vertices whose faces form more than one fan (a "bow tie"), and referenced isolated vertices.
   const std::vector<int>& non_manifold_vertices() const { return non_manifold_vertices_; }
-  bool is_manifold() const {
-    return non_manifold_edges_.empty() && inconsistent_edges_.empty() && non_manifold_vertices_.empty();
-  }
+  bool is_manifold() const { return non_manifold_edges_.empty() && inconsistent_edges_.empty() && non_manifold_vertices_.empty(); }
 
   // Boundary loops as ordered vertex cycles, oriented so the surface lies to the left of each
   // step (the direction of the boundary half-edges of counter-clockwise faces). Meaningful only

@@ -51,8 +51,8 @@ std::vector<Vec3> shading_normals(const TriangleMesh& mesh) {
 
 Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const RenderOptions& options, std::span<const Vec3> vertex_normals) {
   if (!vertex_normals.empty() && vertex_normals.size() != mesh.positions.size()) {
-    throw Error(ErrorCode::kInvalidArgument, "render: " + std::to_string(vertex_normals.size()) + " normals for " +
-                                                 std::to_string(mesh.positions.size()) + " vertices");
+    throw Error(ErrorCode::kInvalidArgument,
+                "render: " + std::to_string(vertex_normals.size()) + " normals for " + std::to_string(mesh.positions.size()) + " vertices");
   }
   Image image(options.width, options.height, 3);
   for (int y = 0; y < image.height; ++y) {
@@ -62,8 +62,7 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
 
   const double yaw = options.yaw_degrees * std::numbers::pi / 180;
   const double pitch = options.pitch_degrees * std::numbers::pi / 180;
-  const Eigen::Matrix3d R =
-      (Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(yaw, Vec3::UnitY())).toRotationMatrix();
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(yaw, Vec3::UnitY())).toRotationMatrix();
   std::vector<Vec3> p(mesh.positions.size());
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (size_t i = 0; i < p.size(); ++i) p[i] = R * mesh.positions[i];
@@ -86,12 +85,10 @@ Image render(const TriangleMesh& mesh, const SurfaceShader& shader, const Render
   const double scale = usable / extent;
   const Vec2 center(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()));
   auto to_screen = [&](const Vec3& q) {
-    return Vec3(options.width / 2.0 + (q.x() - center.x()) * scale, options.height / 2.0 - (q.y() - center.y()) * scale,
-                q.z());
+    return Vec3(options.width / 2.0 + (q.x() - center.x()) * scale, options.height / 2.0 - (q.y() - center.y()) * scale, q.z());
   };
 
-  std::vector<double> depth(static_cast<size_t>(options.width) * options.height,
-                            -std::numeric_limits<double>::infinity());
+  std::vector<double> depth(static_cast<size_t>(options.width) * options.height, -std::numeric_limits<double>::infinity());
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
     const Face& face = mesh.faces[f];
     const Vec3& pa = p[static_cast<size_t>(face[0])];

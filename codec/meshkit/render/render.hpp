@@ -2,8 +2,8 @@
 // headlight Lambert shading, flat or smooth). Deliberately dependency-free so the decoder can embed it.
 #pragma once
 
-#include "codec/core/image/image.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/core/image/image.hpp"
 
 #include <functional>
 #include <span>
@@ -27,7 +27,7 @@ struct RenderOptions {
   double margin = 0.05;      // fraction of the image left around the mesh
   bool shading = true;       // multiply by a headlight Lambert term
   std::array<uint8_t, 3> background = {255, 255, 255};
-  bool wireframe = false;    // draw the edges over the shading
+  bool wireframe = false;  // draw the edges over the shading
   std::array<uint8_t, 3> wire_color = {30, 30, 30};
 };
 

@@ -14,7 +14,8 @@
 namespace facemorph::file_layout {
 
 // The header of a file of the outline's keyframes, all sharing the fixed-frame nodes `fixed`.
-std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures);
+std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata,
+                                  TextureLayout textures);
 
 std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const FileHeader& h);
 
@@ -43,7 +44,8 @@ struct IndexLayout {
 // and stored uncompressed (a size the offsets do not change) in the unlikely case it keeps
 // changing. kInvalidArgument where a keyframe is named by no group or, in a file with textures, by
 // no texture chunk.
-IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h, const std::vector<PlacedChunk>& chunks);
+IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h,
+                          const std::vector<PlacedChunk>& chunks);
 
 // A group's payload from its keyframes first, first + 1, … given in order (their fields and hole
 // levels only: times and poses are the index's), one at a time: what is kept between them is the

@@ -15,7 +15,8 @@ namespace facemorph::file_layout {
 
 using format::ByteWriter;
 
-std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata, TextureLayout textures) {
+std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<int32_t>& fixed, const SequenceFileMetadata& metadata,
+                                  TextureLayout textures) {
   const DiskGridShape shape = disk_grid_shape(s.grid_n);
   ByteWriter w;
   w.write(static_cast<uint32_t>(s.grid_n));

@@ -4,7 +4,8 @@
 
 namespace facemorph::file_layout {
 
-IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h, const std::vector<PlacedChunk>& chunks) {
+IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h,
+                          const std::vector<PlacedChunk>& chunks) {
   std::vector<uint8_t> named_group(entries.size(), 0), named_texture(entries.size(), 0);
   for (const PlacedChunk& c : chunks) {
     for (uint32_t k : c.group_of) named_group.at(k) = 1;

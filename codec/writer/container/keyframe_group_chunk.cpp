@@ -57,7 +57,8 @@ struct Prediction {
 // null where this keyframe is the group's first. Intra and predicted alike: each array's codes, or
 // their change since the previous keyframe, under the spatial predictor that leaves the fewest
 // bits. The reference that costs less wins.
-Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous, const GridFacts& grid) {
+Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous,
+                             const GridFacts& grid) {
   auto code_all = [&](bool from_previous) {
     std::vector<CodedArray> out;
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -90,7 +91,7 @@ struct KeyframeGroupWriter::State {
   ByteWriter w;
   format::RangedStreamWriter stream;
   GroupModels models;
-  std::vector<std::vector<int32_t>> previous;             // the last keyframe's codes
+  std::vector<std::vector<int32_t>> previous;              // the last keyframe's codes
   std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (checked by the caller)
   size_t added = 0;
 };

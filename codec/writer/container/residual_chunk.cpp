@@ -10,7 +10,9 @@ using format::ByteWriter;
 
 std::vector<uint8_t> write_residuals(const SequenceOutline& o) {
   const std::vector<ResidualFrame>& residuals = o.residuals;
-  const auto fail = [](size_t r, const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what); };
+  const auto fail = [](size_t r, const std::string& what) {
+    throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what);
+  };
   if (residuals.empty() || residuals.size() > kMaxResiduals) throw Error(ErrorCode::kInvalidArgument, "residual frames: 1 to 2^24 of them");
   validate_residuals(o.times, residuals);
   // The coarsest step 2^-e that holds every correction exactly.

@@ -58,7 +58,8 @@ std::vector<size_t> texture_owners(const KeyframeSource& source) {
     const auto [first, last] = seen.equal_range(hash);
     const auto same = std::find_if(first, last, [&](const auto& entry) {
       const std::shared_ptr<const Image> other = source.texture(entry.second);
-      return other->width == image->width && other->height == image->height && other->channels == image->channels && other->pixels == image->pixels;
+      return other->width == image->width && other->height == image->height && other->channels == image->channels &&
+             other->pixels == image->pixels;
     });
     if (same != last) {
       owners[k] = same->second;
@@ -72,8 +73,8 @@ std::vector<size_t> texture_owners(const KeyframeSource& source) {
 void check_texture(const SequenceOutline& o, size_t k, const Image& texture) {
   if (texture.width != o.texture_size || texture.height != o.texture_size || texture.channels != 3 ||
       texture.pixels.size() != static_cast<size_t>(texture.width) * static_cast<size_t>(texture.height) * 3) {
-    throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": the texture is not " + std::to_string(o.texture_size) + " x " +
-                                                 std::to_string(o.texture_size) + " RGB");
+    throw Error(ErrorCode::kInvalidArgument, "sequence: keyframe " + std::to_string(k) + ": the texture is not " +
+                                                 std::to_string(o.texture_size) + " x " + std::to_string(o.texture_size) + " RGB");
   }
 }
 
@@ -99,7 +100,7 @@ namespace {
 struct LaidOutFile {
   format::PreparedChunk header, index;
   std::vector<std::pair<size_t, uint64_t>> chunks;  // (the spool's chunk, its offset)
-  uint64_t size = 0;                                 // the whole file's, end chunk included
+  uint64_t size = 0;                                // the whole file's, end chunk included
 };
 
 // encode_sequence_file's work, up to the bytes: every keyframe and texture read and its chunk
@@ -111,10 +112,13 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   // The header's strings within what a reader takes (spec/container.md §5), or no file a player refuses.
   uint64_t string_bytes = 0;
   const auto check_string = [&string_bytes](const std::string& text, const std::string& what) {
-    if (text.size() > kMaxStringBytes) throw Error(ErrorCode::kInvalidArgument, what + " of " + std::to_string(text.size()) + " bytes (a file's strings take at most 1 MiB)");
+    if (text.size() > kMaxStringBytes)
+      throw Error(ErrorCode::kInvalidArgument,
+                  what + " of " + std::to_string(text.size()) + " bytes (a file's strings take at most 1 MiB)");
     string_bytes += text.size();
     if (string_bytes > kMaxHeaderStringBytes) {
-      throw Error(ErrorCode::kInvalidArgument, what + " brings the header's strings to " + std::to_string(string_bytes) + " bytes (at most 4 MiB together)");
+      throw Error(ErrorCode::kInvalidArgument,
+                  what + " brings the header's strings to " + std::to_string(string_bytes) + " bytes (at most 4 MiB together)");
     }
   };
   check_string(given.settings, "settings");
@@ -129,7 +133,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   const std::vector<int>& qualities = metadata.keyframe_texture_qualities;
   if (!qualities.empty()) {
     if (qualities.size() != count) {
-      throw Error(ErrorCode::kInvalidArgument, std::to_string(qualities.size()) + " texture qualities for " + std::to_string(count) + " keyframes");
+      throw Error(ErrorCode::kInvalidArgument,
+                  std::to_string(qualities.size()) + " texture qualities for " + std::to_string(count) + " keyframes");
     }
     for (int q : qualities) {
       if (q < 0 || q > 101) throw Error(ErrorCode::kInvalidArgument, "texture quality " + std::to_string(q) + " outside 0..101");
@@ -152,8 +157,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   const bool any_shared = std::any_of(owners.begin(), owners.end(), [k = size_t{0}](size_t owner) mutable { return owner != k++; });
   const bool groups_possible = uses_texture_groups(has_texture, metadata);
   const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
-  std::vector<size_t> stills;  // the spool's chunks, one per distinct texture (owner), in keyframe order
-  std::vector<size_t> still_of(count, 0);     // keyframe k's chunk in `stills`
+  std::vector<size_t> stills;              // the spool's chunks, one per distinct texture (owner), in keyframe order
+  std::vector<size_t> still_of(count, 0);  // keyframe k's chunk in `stills`
   const bool groups_by_settings = metadata.texture_layout_from_settings && groups_possible;
   if (has_texture && !groups_by_settings && (any_shared || !groups_possible)) {
     // An owner's quality is the finest any keyframe showing it asks for.
@@ -162,7 +167,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     for (size_t k = 0; k < count; ++k) {
       if (owners[k] == k) {
         still_of[k] = stills.size();
-        stills.push_back(spool.add(format::prepare_chunk(kTextureChunk, write_texture(*source.texture(k), static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true)));
+        stills.push_back(spool.add(format::prepare_chunk(
+            kTextureChunk, write_texture(*source.texture(k), static_cast<uint32_t>(k), metadata.texture_codec, owner_quality[k]), true)));
       } else {
         still_of[k] = still_of[owners[k]];  // an owner comes before the keyframes sharing its texture
       }
@@ -177,7 +183,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
       // libaom's look-ahead): the finest its keyframes ask for, so each is at least as fine as its
       // quality asks.
       int quality = metadata.texture_quality;
-      if (!qualities.empty()) quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
+      if (!qualities.empty())
+        quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
       TextureGroupWriter group_textures(k, quality);
       for (size_t j = k; j < k + n; ++j) group_textures.add(*source.texture(j));
       texture_groups.push_back(spool.add(format::prepare_chunk(kTextureGroupChunk, group_textures.finish(), true)));
@@ -189,10 +196,12 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     return bytes;
   };
   TextureLayout texture_layout = any_shared ? TextureLayout::kSharedStills : TextureLayout::kStills;
-  if (!texture_groups.empty() && (groups_by_settings || stills.empty() || total(texture_groups) < total(stills))) texture_layout = TextureLayout::kGroups;
+  if (!texture_groups.empty() && (groups_by_settings || stills.empty() || total(texture_groups) < total(stills)))
+    texture_layout = TextureLayout::kGroups;
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
   const std::vector<size_t>& textures = grouped_textures ? texture_groups : stills;
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
+  const format::PreparedChunk header =
+      format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(count);
   layout.flags = static_cast<uint8_t>((has_texture ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
@@ -210,19 +219,20 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     entries[k].pose = pose_codes(key->pose, coding);
     if (k % group == 0) group_writer.emplace(k, coding, *grid);
     group_writer->add(*key);
-    if (k % group == group - 1 || k + 1 == count) groups.push_back(spool.add(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true)));
+    if (k % group == group - 1 || k + 1 == count)
+      groups.push_back(spool.add(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true)));
   }
   // Where each chunk goes: the residual frames first (format 2.3: a player reads them at open, with
   // the header and index), then a group's KGOP, then its TGOP, or after each keyframe's fields the
   // still it is the first to show.
   std::vector<PlacedChunk> placed;
-  std::vector<size_t> spooled;                  // each placed chunk's in the spool
+  std::vector<size_t> spooled;  // each placed chunk's in the spool
   if (!outline.residuals.empty()) {
     // Not critical: a 2.2 decoder skips it and shows the spline alone (§12.1).
     spooled.push_back(spool.add(format::prepare_chunk(kResidualChunk, write_residuals(outline), false, 19)));
     placed.emplace_back().size = spool.total_size(spooled.back());
   }
-  std::vector<size_t> placed_still(count, 0);   // an owner's still among the placed
+  std::vector<size_t> placed_still(count, 0);  // an owner's still among the placed
   for (size_t k = 0; k < count; ++k) {
     if (k % group == 0) {
       PlacedChunk& c = placed.emplace_back();

@@ -12,10 +12,11 @@
 
 namespace facemorph {
 
-// The file's bytes (format 2.1; a file without texture groups is what 2.0 wrote). Fields are coded with metadata.field_coding's steps (or, where it
-// has none, a 65535th of each array's range; spec/method.md §5.3), textures encoded in metadata.texture_codec at metadata.texture_quality (or each
-// at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a sequence validate_sequence rejects,
-// a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in 0..101.
+// The file's bytes (format 2.1; a file without texture groups is what 2.0 wrote). Fields are coded with metadata.field_coding's steps (or,
+// where it has none, a 65535th of each array's range; spec/method.md §5.3), textures encoded in metadata.texture_codec at
+// metadata.texture_quality (or each at its keyframe_texture_qualities entry; above 100: lossless WebP). Throws kInvalidArgument for a
+// sequence validate_sequence rejects, a coding round_to_field_steps does, or per-keyframe qualities that are not one per keyframe in
+// 0..101.
 std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const SequenceFileMetadata& metadata);
 // The same from a source's keyframes, read one at a time (a group's in order; each texture a few
 // times: checked, hashed, coded, and compared with those of the same hash), so that the writer

@@ -21,8 +21,9 @@ namespace {
 void require_codable(const Image& image, bool grey_allowed) {
   const bool channels_ok = image.channels == 3 || image.channels == 4 || (grey_allowed && image.channels == 1);
   if (image.empty() || !channels_ok || image.pixels.size() != static_cast<size_t>(image.width) * image.height * image.channels) {
-    throw Error(ErrorCode::kInvalidArgument, "cannot encode an image of " + std::to_string(image.width) + " x " + std::to_string(image.height) +
-                                                 " pixels and " + std::to_string(image.channels) + " channels");
+    throw Error(ErrorCode::kInvalidArgument, "cannot encode an image of " + std::to_string(image.width) + " x " +
+                                                 std::to_string(image.height) + " pixels and " + std::to_string(image.channels) +
+                                                 " channels");
   }
 }
 
@@ -72,14 +73,15 @@ struct AvifBytes {
 // converts back with the matrix the file signals): what the stills and the sequences code.
 std::unique_ptr<avifImage, AvifImageFree> yuv_of(const Image& image) {
   require_codable(image, false);
-  std::unique_ptr<avifImage, AvifImageFree> yuv(avifImageCreate(static_cast<uint32_t>(image.width), static_cast<uint32_t>(image.height), 8, AVIF_PIXEL_FORMAT_YUV444));
+  std::unique_ptr<avifImage, AvifImageFree> yuv(
+      avifImageCreate(static_cast<uint32_t>(image.width), static_cast<uint32_t>(image.height), 8, AVIF_PIXEL_FORMAT_YUV444));
   if (!yuv) throw Error(ErrorCode::kInvalidArgument, "AVIF encoding: out of memory");
   yuv->yuvRange = AVIF_RANGE_FULL;
   yuv->matrixCoefficients = AVIF_MATRIX_COEFFICIENTS_BT601;
   avifRGBImage rgb;
   avifRGBImageSetDefaults(&rgb, yuv.get());
   rgb.format = image.channels == 4 ? AVIF_RGB_FORMAT_RGBA : AVIF_RGB_FORMAT_RGB;
-  rgb.ignoreAlpha = AVIF_TRUE;  // textures are opaque
+  rgb.ignoreAlpha = AVIF_TRUE;                             // textures are opaque
   rgb.pixels = const_cast<uint8_t*>(image.pixels.data());  // read only: libavif's API is not const
   rgb.rowBytes = static_cast<uint32_t>(image.width * image.channels);
   const avifResult result = avifImageRGBToYUV(yuv.get(), &rgb);
@@ -126,7 +128,9 @@ namespace {
 // bytes (spec/container.md §11). Walks the boxes of `bytes` (the encoder's own output) within
 // [begin, end), descending into moov, trak and mdia.
 void clear_creation_times(std::vector<uint8_t>& bytes, size_t begin, size_t end) {
-  const auto u32 = [&](size_t at) { return (uint32_t{bytes[at]} << 24) | (uint32_t{bytes[at + 1]} << 16) | (uint32_t{bytes[at + 2]} << 8) | bytes[at + 3]; };
+  const auto u32 = [&](size_t at) {
+    return (uint32_t{bytes[at]} << 24) | (uint32_t{bytes[at + 1]} << 16) | (uint32_t{bytes[at + 2]} << 8) | bytes[at + 3];
+  };
   size_t at = begin;
   while (at + 8 <= end) {
     uint64_t size = u32(at);
@@ -143,7 +147,8 @@ void clear_creation_times(std::vector<uint8_t>& bytes, size_t begin, size_t end)
     if (type == "moov" || type == "trak" || type == "mdia") clear_creation_times(bytes, body, box_end);
     if ((type == "mvhd" || type == "tkhd" || type == "mdhd") && body + 4 <= box_end) {
       const size_t times = bytes[body] == 1 ? 16 : 8;  // version 1: two u64, else two u32
-      if (body + 4 + times <= box_end) std::fill(bytes.begin() + static_cast<ptrdiff_t>(body + 4), bytes.begin() + static_cast<ptrdiff_t>(body + 4 + times), 0);
+      if (body + 4 + times <= box_end)
+        std::fill(bytes.begin() + static_cast<ptrdiff_t>(body + 4), bytes.begin() + static_cast<ptrdiff_t>(body + 4 + times), 0);
     }
     at = box_end;
   }
@@ -176,7 +181,8 @@ void AvifSequenceWriter::add(const Image& frame) {
   }
   const auto yuv = yuv_of(frame);
   const avifResult result = avifEncoderAddImage(s.encoder.get(), yuv.get(), 1, AVIF_ADD_IMAGE_FLAG_NONE);
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+  if (result != AVIF_RESULT_OK)
+    throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
 }
 
 std::vector<uint8_t> AvifSequenceWriter::finish() {
@@ -186,7 +192,8 @@ std::vector<uint8_t> AvifSequenceWriter::finish() {
   s.finished = true;
   AvifBytes bytes;
   const avifResult result = avifEncoderFinish(s.encoder.get(), &bytes.data);
-  if (result != AVIF_RESULT_OK) throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
+  if (result != AVIF_RESULT_OK)
+    throw Error(ErrorCode::kInvalidArgument, std::string("AVIF sequence encoding failed: ") + avifResultToString(result));
   std::vector<uint8_t> out(bytes.data.data, bytes.data.data + bytes.data.size);
   clear_creation_times(out, 0, out.size());
   return out;

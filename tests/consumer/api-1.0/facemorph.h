@@ -79,23 +79,23 @@ extern "C" {
 
 typedef enum fm_status {
   FM_OK = 0,
-  FM_ERROR_IO = 1,               /* a file could not be opened or read */
-  FM_ERROR_PARSE = 2,            /* text or structure that does not follow its grammar */
-  FM_ERROR_TRUNCATED = 3,        /* the input ends before the data it announces */
-  FM_ERROR_CORRUPT = 4,          /* bytes present but wrong (checksum, impossible value, a file that decodes to non-finite numbers) */
-  FM_ERROR_UNSUPPORTED = 5,      /* a valid file using a feature this decoder does not implement */
+  FM_ERROR_IO = 1,          /* a file could not be opened or read */
+  FM_ERROR_PARSE = 2,       /* text or structure that does not follow its grammar */
+  FM_ERROR_TRUNCATED = 3,   /* the input ends before the data it announces */
+  FM_ERROR_CORRUPT = 4,     /* bytes present but wrong (checksum, impossible value, a file that decodes to non-finite numbers) */
+  FM_ERROR_UNSUPPORTED = 5, /* a valid file using a feature this decoder does not implement */
   FM_ERROR_INVALID_MESH = 6,
   FM_ERROR_NOT_A_DISK = 7,
   FM_ERROR_MISSING_TEXTURE = 8,
   FM_ERROR_INVALID_ARGUMENT = 9, /* the caller's fault, never the file's: a NULL or wrong handle or pointer, t not finite, a bad option */
   FM_ERROR_NUMERICAL = 10,       /* the reconstruction failed numerically (a non-finite iterate: a corrupt file) */
   FM_ERROR_NOT_CONVERGED = 11,
-  FM_ERROR_OUT_OF_RANGE = 12,    /* t outside [range_begin, range_end] without FM_DECODE_CLAMP */
-  FM_ERROR_BUFFER_TOO_SMALL = 13,/* an output buffer too small: the frame's counts say what is needed */
+  FM_ERROR_OUT_OF_RANGE = 12,     /* t outside [range_begin, range_end] without FM_DECODE_CLAMP */
+  FM_ERROR_BUFFER_TOO_SMALL = 13, /* an output buffer too small: the frame's counts say what is needed */
   FM_ERROR_OUT_OF_MEMORY = 14,
-  FM_ERROR_INTERNAL = 15,        /* a bug in facemorph: please report it with the message */
-  FM_ERROR_LIMIT = 16,           /* the file needs more than the decoder's limits allow (fm_decoder_options): refused before allocating */
-  FM_ERROR_CLOSED_HANDLE = 17,   /* a handle used after fm_file_close / fm_decoder_destroy, or closed twice */
+  FM_ERROR_INTERNAL = 15,      /* a bug in facemorph: please report it with the message */
+  FM_ERROR_LIMIT = 16,         /* the file needs more than the decoder's limits allow (fm_decoder_options): refused before allocating */
+  FM_ERROR_CLOSED_HANDLE = 17, /* a handle used after fm_file_close / fm_decoder_destroy, or closed twice */
   /* Never returned: gives fm_status the range of a 32-bit int in C and C++ alike, so that any
    * non-negative int a caller passes to fm_status_name is a valid value. */
   FM_STATUS_FORCE_32BIT = 0x7fffffff
@@ -130,11 +130,11 @@ typedef struct fm_decoder fm_decoder;
  * their defaults. A file that would exceed a limit is refused with FM_ERROR_LIMIT, before the
  * memory is allocated. */
 typedef struct fm_decoder_options {
-  size_t struct_size;          /* sizeof(fm_decoder_options) as the caller compiled it */
-  uint32_t max_grid_n;         /* largest grid N (default 1025; the format allows 4097) */
-  uint32_t max_keyframes;      /* most keyframes (default 65536) */
-  uint32_t max_texture_size;   /* largest texture M, texels per side (default 4096; the format allows 16384) */
-  uint64_t max_memory_bytes;   /* what an opened file and one decoder on it may hold (default 512 MiB) */
+  size_t struct_size;        /* sizeof(fm_decoder_options) as the caller compiled it */
+  uint32_t max_grid_n;       /* largest grid N (default 1025; the format allows 4097) */
+  uint32_t max_keyframes;    /* most keyframes (default 65536) */
+  uint32_t max_texture_size; /* largest texture M, texels per side (default 4096; the format allows 16384) */
+  uint64_t max_memory_bytes; /* what an opened file and one decoder on it may hold (default 512 MiB) */
 } fm_decoder_options;
 
 /* The defaults fm_decoder_options_init sets (those of API 1.0). */
@@ -183,24 +183,24 @@ FM_API fm_status fm_file_release(fm_file* file);
 
 /* What a file holds. fm_info_init it (or set struct_size to sizeof(fm_info)) before fm_file_get_info. */
 typedef struct fm_info {
-  size_t struct_size;      /* sizeof(fm_info) as the caller compiled it */
-  double fps;              /* the capture's nominal frame rate */
-  double first_time;       /* the capture's first and last frame times, seconds */
+  size_t struct_size; /* sizeof(fm_info) as the caller compiled it */
+  double fps;         /* the capture's nominal frame rate */
+  double first_time;  /* the capture's first and last frame times, seconds */
   double last_time;
-  double duration;         /* last_time - first_time */
-  double range_begin;      /* the times fm_decoder_decode serves without FM_DECODE_CLAMP (+-infinity with one keyframe) */
+  double duration;    /* last_time - first_time */
+  double range_begin; /* the times fm_decoder_decode serves without FM_DECODE_CLAMP (+-infinity with one keyframe) */
   double range_end;
   uint32_t keyframe_count;
-  uint32_t grid_n;         /* N of the disk grid */
+  uint32_t grid_n; /* N of the disk grid */
   /* Buffers for these many vertices and triangles always suffice. Without holes (or with
    * FM_DECODE_KEEP_HOLES_FILLED) every frame has exactly the grid's counts and the same indices. */
   uint32_t max_vertex_count;
   uint32_t max_triangle_count;
   uint32_t grid_vertex_count;
   uint32_t grid_triangle_count;
-  uint32_t has_holes;      /* 1: eyes and mouth are cut per frame, the counts change between frames */
-  uint32_t texture_size;   /* M, texels per side; 0: the file has no texture */
-  char units[8];           /* "m", "cm" or "mm", NUL-terminated */
+  uint32_t has_holes;    /* 1: eyes and mouth are cut per frame, the counts change between frames */
+  uint32_t texture_size; /* M, texels per side; 0: the file has no texture */
+  char units[8];         /* "m", "cm" or "mm", NUL-terminated */
 } fm_info;
 
 /* Zeroes *info and sets struct_size to sizeof(fm_info) as the caller compiled it. NULL is ignored. */
@@ -230,16 +230,16 @@ FM_API void fm_decoder_destroy(fm_decoder* decoder);
 FM_API fm_status fm_decoder_release(fm_decoder* decoder);
 
 /* Decode flags, or-ed; 0 is the default. */
-#define FM_DECODE_CLAMP 1u              /* clamp t into [range_begin, range_end] instead of FM_ERROR_OUT_OF_RANGE */
-#define FM_DECODE_KEEP_HOLES_FILLED 2u  /* keep the filled eyes and mouth: fixed topology */
-#define FM_DECODE_FLIP_V 4u             /* UV v down (glTF, Direct3D): v -> 1 - v */
+#define FM_DECODE_CLAMP 1u             /* clamp t into [range_begin, range_end] instead of FM_ERROR_OUT_OF_RANGE */
+#define FM_DECODE_KEEP_HOLES_FILLED 2u /* keep the filled eyes and mouth: fixed topology */
+#define FM_DECODE_FLIP_V 4u            /* UV v down (glTF, Direct3D): v -> 1 - v */
 
 /* One frame: the caller's buffers in, the frame's description out. A NULL buffer is not wanted
  * (and not computed); a buffer that is not NULL must hold the whole array, its size given in
  * BYTES: 3 floats per vertex (positions, normals), 2 floats per vertex (uvs), 3 uint32 per triangle
  * (indices), 4 bytes per texel (texture). fm_frame_init it, then set what you want. */
 typedef struct fm_frame {
-  size_t struct_size;      /* sizeof(fm_frame) as the caller compiled it */
+  size_t struct_size; /* sizeof(fm_frame) as the caller compiled it */
   float* positions;
   size_t positions_bytes;
   float* normals;
@@ -252,12 +252,12 @@ typedef struct fm_frame {
   size_t texture_bytes;
   /* Set by fm_decoder_decode on FM_OK and on FM_ERROR_BUFFER_TOO_SMALL (then they say what is
    * needed; nothing was written to any buffer). */
-  double time;             /* the time decoded (t, or t clamped) */
+  double time; /* the time decoded (t, or t clamped) */
   uint32_t vertex_count;
   uint32_t triangle_count;
-  uint32_t texture_size;   /* M (0: no texture) */
-  uint32_t iterations;     /* reconstruction steps */
-  uint32_t fell_back;      /* 1: the reconstruction did not converge; the frame is the spline of the keyframes' surfaces */
+  uint32_t texture_size; /* M (0: no texture) */
+  uint32_t iterations;   /* reconstruction steps */
+  uint32_t fell_back;    /* 1: the reconstruction did not converge; the frame is the spline of the keyframes' surfaces */
 } fm_frame;
 
 /* Zeroes *frame (no buffer wanted) and sets struct_size to sizeof(fm_frame) as the caller compiled
@@ -275,8 +275,8 @@ static inline void fm_frame_init(fm_frame* frame) {
  * FM_ERROR_OUT_OF_RANGE, FM_ERROR_BUFFER_TOO_SMALL, FM_ERROR_CORRUPT (the file decodes to
  * non-finite numbers, or a keyframe of it cannot be reconstructed: every later call that needs that
  * keyframe fails at once the same way; or a keyframe's fields or texture, decoded when a frame first
- * needs them, do not decode: a bad checksum, a damaged stream), FM_ERROR_UNSUPPORTED (that texture is in an image codec this decoder does not
- * read), FM_ERROR_LIMIT (its chunk is larger than the memory budget), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
+ * needs them, do not decode: a bad checksum, a damaged stream), FM_ERROR_UNSUPPORTED (that texture is in an image codec this decoder does
+ * not read), FM_ERROR_LIMIT (its chunk is larger than the memory budget), FM_ERROR_NUMERICAL, FM_ERROR_NOT_CONVERGED,
  * FM_ERROR_OUT_OF_MEMORY, FM_ERROR_INTERNAL. The decoded frame is
  * kept: calling again with the same t and flags (larger buffers after FM_ERROR_BUFFER_TOO_SMALL)
  * only copies it. Leaving every buffer NULL decodes and reports the sizes (FM_OK): the count query. */

@@ -146,12 +146,12 @@ struct Frame {
   std::vector<float> uvs;
   std::vector<uint32_t> indices;
   std::vector<uint8_t> texture;
-  double time = 0;              // the time decoded (t, or t clamped), seconds
+  double time = 0;  // the time decoded (t, or t clamped), seconds
   uint32_t vertex_count = 0;
   uint32_t triangle_count = 0;
-  uint32_t texture_size = 0;    // M (0: no texture)
-  uint32_t iterations = 0;      // reconstruction steps
-  bool fell_back = false;       // the reconstruction did not converge: the keyframes' spline
+  uint32_t texture_size = 0;  // M (0: no texture)
+  uint32_t iterations = 0;    // reconstruction steps
+  bool fell_back = false;     // the reconstruction did not converge: the keyframes' spline
 };
 
 // The state that decodes one file's frames (fm_decoder). Move-only; the destructor destroys it.
@@ -179,7 +179,8 @@ class Decoder {
     fm_frame out = {};
     out.struct_size = sizeof out;
     check(fm_decoder_decode(decoder_, t, flags, &out));
-    const std::size_t vertices = out.vertex_count, triangles = out.triangle_count, texels = std::size_t{out.texture_size} * out.texture_size;
+    const std::size_t vertices = out.vertex_count, triangles = out.triangle_count,
+                      texels = std::size_t{out.texture_size} * out.texture_size;
     wire(outputs & kPositions, frame.positions, 3 * vertices, out.positions, out.positions_bytes);
     wire(outputs & kNormals, frame.normals, 3 * vertices, out.normals, out.normals_bytes);
     wire(outputs & kUvs, frame.uvs, 2 * vertices, out.uvs, out.uvs_bytes);
