@@ -3,6 +3,7 @@
 // residuals lower what a decoder shows against the captured frames, never make a frame worse, reach
 // the file to the bit, and leave keyframes and extrapolation as the spline has them.
 #include "codec/encoder/encode/residual_fit.hpp"
+#include "codec/encoder/keyframes/blend_correction.hpp"
 
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"

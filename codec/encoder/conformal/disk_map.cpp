@@ -7,11 +7,11 @@
 #include "codec/meshkit/mesh/topology.hpp"
 #include "format/error.hpp"
 
+#include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/conformal/double_cover.hpp"
 #include "codec/encoder/conformal/linear_map.hpp"
 #include "codec/encoder/conformal/qiem.hpp"
 #include "codec/encoder/conformal/untangle.hpp"
-#include "codec/encoder/stages/elapsed.hpp"
 
 #include <algorithm>
 #include <chrono>

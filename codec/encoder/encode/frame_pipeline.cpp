@@ -1,7 +1,7 @@
 #include "codec/encoder/encode/frame_pipeline.hpp"
 
+#include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
-#include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/encoder/conformal/resample.hpp"
 #include "format/error.hpp"

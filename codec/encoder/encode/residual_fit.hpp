@@ -12,23 +12,12 @@
 
 #include "codec/core/sequence/residual_weights.hpp"
 
-#include <span>
 #include <vector>
 
 namespace facemorph {
 
 class SequenceEncoder;
 class StoredSequence;
-
-// The correction δ of a residual window's keys (n = columns.size() ≥ 2) minimising
-//   Σ_v w_v (o_v + Σ_m δ_m a_m[v])²  under Σ_m δ_m = 0
-// (o: `offsets`, a: `columns`, w: `weights`, all one per node): the last key eliminated, a ridge of
-// 10⁻⁹ of the trace (keyframes alike along the offsets' directions leave the system near singular),
-// each δ clamped to ±1 (past a whole keyframe's weight a blend extrapolates) and rounded to
-// multiples of `step`, the last minus the sum of the others so that the sum is exactly 0. Returns
-// Σ_v w_v (o_v + Σ δ_m a_m[v])² with the rounded δ; +∞ (δ empty) for fewer than 2 keys.
-double fit_blend_correction(std::span<const double> offsets, const std::vector<std::vector<double>>& columns,
-                            std::span<const double> weights, double step, std::vector<double>& delta);
 
 // A fitted correction is kept where the frame decodes with it at least this fraction closer to its
 // captured surface. Lower than the selection's kResidualMinGain: that one judges a prediction, this

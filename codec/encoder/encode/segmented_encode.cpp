@@ -1,6 +1,6 @@
 #include "codec/encoder/encode/segmented_encode.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/encoder/encode/field_precision.hpp"

@@ -6,8 +6,8 @@
 // one-process encode and the staged and segmented encodes alike.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
+#include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"
-#include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"

@@ -1,7 +1,7 @@
 // The staged encode: the sample stage (one part) and the assemble stage (spec/part-file.md).
 #include "codec/encoder/encode/staged_encode.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/encoder/encode/options_json.hpp"
 #include "format/error.hpp"

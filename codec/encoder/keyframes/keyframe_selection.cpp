@@ -2,7 +2,7 @@
 // moves of each keyframe within the gap to its neighbours while the objective improves.
 #include "codec/encoder/keyframes/keyframes.hpp"
 
-#include "codec/encoder/encode/residual_fit.hpp"
+#include "codec/encoder/keyframes/blend_correction.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>

@@ -3,10 +3,10 @@
 // triangulation of the disk whose edges follow those curves.
 #include "codec/encoder/registration/surface_path.hpp"
 
+#include "codec/core/util/elapsed.hpp"
 #include "codec/core/util/parallel.hpp"
 #include "codec/encoder/registration/partition_map.hpp"
 #include "codec/encoder/registration/registration_internal.hpp"
-#include "codec/encoder/stages/elapsed.hpp"
 #include "codec/meshkit/geometry/delaunay.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
 #include "format/error.hpp"

@@ -3,7 +3,7 @@
 // level set and its texture on the disk; each array put in the store as it is made.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/stages/fit_keyframes.hpp"
 
 #include "codec/core/geometry/elementary.hpp"

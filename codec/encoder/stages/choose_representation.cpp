@@ -3,7 +3,7 @@
 // (spec/method.md §7.14).
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/spline.hpp"

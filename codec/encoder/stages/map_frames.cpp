@@ -3,8 +3,8 @@
 // landmarks found on the frames (nose tip, up, rim markers) adopted under their names.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
+#include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/landmarks/face_facing.hpp"
-#include "codec/encoder/stages/elapsed.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/core/util/parallel.hpp"

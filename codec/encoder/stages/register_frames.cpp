@@ -3,7 +3,7 @@
 // through them; the reference's reparametrised disk and geodesic frame made first, once.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/core/util/parallel.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"

@@ -2,7 +2,7 @@
 // the spline's predicted error (--field-error auto) or given (field_precision.hpp).
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/encoder/encode/field_precision.hpp"
 

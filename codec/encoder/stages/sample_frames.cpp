@@ -3,7 +3,7 @@
 // predicted error; each frame's noise estimate, which the grid's choice and the keyframe fit read.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/core/sequence/pose.hpp"

@@ -3,7 +3,7 @@
 // (spec/method.md §7.16).
 #include "codec/encoder/stages/texture_coding.hpp"
 
-#include "codec/encoder/stages/elapsed.hpp"
+#include "codec/core/util/elapsed.hpp"
 
 #include "codec/core/sequence/spline.hpp"
 #include "codec/core/util/parallel.hpp"
