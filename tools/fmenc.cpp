@@ -426,6 +426,10 @@ int main(int argc, char** argv) {
             output.c_str(), segment.c_str(), measure.first, measure.end, measure.keyframes, measure.intra_period, measure.folds.size(),
             100 * *std::max_element(measure.keyframe_errors.begin(), measure.keyframe_errors.end()), tools::seconds_since(start));
       }
+      if (!quiet && !measure.representation_fallback.empty()) {
+        std::printf("fmenc: %s: segment %s measured as positions (xyz), which every segment will store: %s\n", output.c_str(),
+                    segment.c_str(), measure.representation_fallback.c_str());
+      }
       if (!quiet) print_segment_seconds(report, true);
       return 0;
     }

@@ -376,5 +376,117 @@ TEST(SegmentJoin, SegmentsThatDoNotMakeUpOneEncodeAreRefusedByName) {
   EXPECT_EQ(inspect_sequence_file(out).keyframes.size(), 6u);
 }
 
+// Issue 47 in segments: a whole head on its conformal disk (no radial spread) gives hl+t keyframes
+// that do not reconstruct (whole_head_test.cpp). Each segment's measure takes the driver's fallback
+// (build_reconstructable) and says so; the assemble stage stores positions in every segment, the
+// report naming the keyframe as the one-process encode's does, and the segments join into a file of
+// positions that decodes. The staged assemble takes the same fallback. Letting the failure through
+// in measure_segment (building and measuring without build_reconstructable) is the mutation this
+// catches.
+TEST(SegmentedEncode, KeyframesThatDoNotReconstructAreStoredAsPositionsInEverySegment) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 2;
+  synth.vertices = 2000;
+  synth.holes = true;
+  synth.whole_head = true;
+  write_synthetic_capture(dir.path() / "capture", synth);
+  const Capture capture = read_capture(dir.path() / "capture");
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  options.density_equalising.radial = 0;
+  options.field_precision.intra_period = 1;  // two keyframes, two groups: two segments
+  const fs::path part = dir.path() / "all.fms";
+  encode_part(capture, options, {0, 2}, part);
+  std::vector<SegmentMeasure> measures;
+  for (int s = 0; s < 2; ++s) {
+    const fs::path path = dir.path() / ("measure_" + std::to_string(s) + ".json");
+    write_segment_measure(path, measure_segment({part}, options, {s, 2}));
+    measures.push_back(read_segment_measure(path));
+    const SegmentMeasure& m = measures.back();
+    EXPECT_EQ(m.end - m.first, 1);
+    EXPECT_NE(m.representation_fallback.find("did not converge"), std::string::npos) << m.representation_fallback;
+    EXPECT_NE(m.representation, Representation::kXYZ);  // the plan's: hl+t, as the one-process encode chose
+  }
+  std::vector<fs::path> files;
+  for (int s = 0; s < 2; ++s) {
+    SegmentPlacement placement;
+    EncodeReport report;
+    const std::unique_ptr<StoredSequence> sequence = assemble_segment({part}, options, {s, 2}, measures, &placement, &report);
+    ASSERT_NE(sequence, nullptr);
+    EXPECT_EQ(sequence->shape().representation, Representation::kXYZ);
+    EXPECT_EQ(report.representation, Representation::kXYZ);
+    EXPECT_EQ(report.representation_fallback, measures[0].representation_fallback);
+    ASSERT_FALSE(report.warnings.empty());
+    EXPECT_NE(report.warnings.back().find("every keyframe stored as positions (xyz)"), std::string::npos) << report.warnings.back();
+    files.push_back(dir.path() / ("segment_" + std::to_string(s) + ".fmv"));
+    write_segment_file(files.back(), *sequence, Encode::metadata_of(report), placement);
+  }
+  const fs::path joined = dir.path() / "joined.fmv";
+  join_segment_files(files, joined, true);
+  const Sequence sequence = read_sequence_file(joined);
+  EXPECT_EQ(sequence.representation, Representation::kXYZ);
+  SequenceDecoder decoder(open_sequence_source(joined));
+  for (const CaptureFrame& frame : capture.frames) EXPECT_TRUE(decoder.decode(frame.time).converged) << frame.time;
+  // The staged assemble of the same part: the one-process driver's fallback.
+  EncodeReport staged;
+  EXPECT_EQ(assemble_parts({part}, options, &staged)->shape().representation, Representation::kXYZ);
+  EXPECT_NE(staged.representation_fallback.find("did not converge"), std::string::npos) << staged.representation_fallback;
+  // Asked for hl+t, the measure still fails: positions were not asked for.
+  options.representation = Representation::kHLT;
+  expect_error(ErrorCode::kNotConverged, "did not converge", [&] { measure_segment({part}, options, {0, 2}); });
+}
+
+// Where one segment's keyframes fall back to positions and the others' reconstruct, the decision
+// reaches every segment: all store positions, at the steps of the measure that fell back (each
+// step the finest of such measures), and join into a file that decodes as close to the
+// one-process encode of positions as segments do to theirs. Segment 1's measure is made so: the
+// same encode measured as positions, marked as fallen back, through its file as fmenc reads it.
+TEST(SegmentedEncode, OneSegmentsFallbackToPositionsReachesEverySegment) {
+  const Encode e;
+  std::vector<SegmentMeasure> measures = e.measures(3);
+  EncodeOptions positions = e.options;
+  positions.representation = Representation::kXYZ;
+  const SegmentMeasure measured = measure_segment(e.parts, positions, {1, 3});
+  SegmentMeasure fell = measures[1];
+  fell.folds = measured.folds;
+  fell.steps = measured.steps;
+  fell.inter_dead_zone = measured.inter_dead_zone;
+  fell.keyframe_errors = measured.keyframe_errors;
+  fell.representation_fallback = "keyframe 3: reconstruction did not converge (made by the test)";
+  const fs::path path = e.dir.path() / "fell.json";
+  write_segment_measure(path, fell);
+  measures[1] = read_segment_measure(path);
+  EXPECT_EQ(measures[1].representation_fallback, fell.representation_fallback);
+  std::vector<fs::path> segments;
+  for (int s = 0; s < 3; ++s) {
+    SegmentPlacement placement;
+    EncodeReport report;
+    const std::unique_ptr<StoredSequence> sequence = assemble_segment(e.parts, e.options, {s, 3}, measures, &placement, &report);
+    EXPECT_EQ(sequence->shape().representation, Representation::kXYZ) << "segment " << s;
+    EXPECT_EQ(report.representation_fallback, fell.representation_fallback);
+    EXPECT_EQ(report.field_coding.steps, measured.steps) << "segment " << s;
+    EXPECT_EQ(report.field_precision.inter_dead_zone, measured.inter_dead_zone);
+    for (double error : report.field_precision.keyframe_errors) EXPECT_LT(error, 1.25 * measured.target_error) << "segment " << s;
+    segments.push_back(e.dir.path() / ("fell_" + std::to_string(s) + ".fmv"));
+    write_segment_file(segments.back(), *sequence, Encode::metadata_of(report), placement);
+  }
+  const fs::path joined = e.dir.path() / "joined.fmv";
+  join_segment_files(segments, joined, true);
+  EXPECT_EQ(read_sequence_file(joined).representation, Representation::kXYZ);
+  EncodeReport report;
+  const std::unique_ptr<StoredSequence> one = assemble_parts(e.parts, positions, &report);
+  const fs::path one_file = e.dir.path() / "one_xyz.fmv";
+  write_sequence_file(one_file, *one, Encode::metadata_of(report));
+  const double difference = largest_decoded_difference(joined, one_file, e.capture);
+  EXPECT_LT(difference, 2.5 * measured.target_error)
+      << "the joined file decodes " << difference << " of the diagonal from the one-process file";
+  // A measure of positions that says it fell back from positions is no measure fmenc writes.
+  fell.representation = Representation::kXYZ;
+  write_segment_measure(path, fell);
+  expect_error(ErrorCode::kCorrupt, "falls back to positions from positions", [&] { read_segment_measure(path); });
+}
+
 }  // namespace
 }  // namespace facemorph

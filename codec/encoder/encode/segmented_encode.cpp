@@ -142,12 +142,16 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
     return m;
   }
   s.keyframes.textures = false;  // nothing here is written but the measure
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, encoder.report().grid, &s.keyframes);
   FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
   precision.intra_period = s.intra_period;
-  const auto start = std::chrono::steady_clock::now();
-  encoder.report().field_coding = choose_field_coding(*sequence, precision, &encoder.report().field_precision);
-  encoder.report().seconds_precision = seconds_since(start);
+  // Through the driver's fallback: where this segment's keyframes do not reconstruct, its measure
+  // is of positions, and says so (the assemble stage takes it to every segment).
+  build_reconstructable(encoder, s.chosen.keyframes, encoder.report().grid, &s.keyframes, [&](StoredSequence& keyframes) {
+    const auto start = std::chrono::steady_clock::now();
+    encoder.report().field_coding = choose_field_coding(keyframes, precision, &encoder.report().field_precision);
+    encoder.report().seconds_precision = seconds_since(start);
+  });
+  m.representation_fallback = encoder.report().representation_fallback;
   m.folds = encoder.report().keyframe_folds;
   m.steps = encoder.report().field_coding.steps;
   m.inter_dead_zone = encoder.report().field_precision.inter_dead_zone;
@@ -159,36 +163,38 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
 }
 
 void write_segment_measure(const std::filesystem::path& path, const SegmentMeasure& m) {
-  const nlohmann::json doc = {{"format", kMeasureFormat},
-                              {"version", kMeasureVersion},
-                              {"segment", m.segment.index},
-                              {"segments", m.segment.count},
-                              {"capture", m.capture_id},
-                              {"settings", nlohmann::json::parse(m.settings)},
-                              {"keyframes", m.keyframes},
-                              {"intra_period", m.intra_period},
-                              {"grid", m.grid},
-                              {"representation", representation_name(m.representation)},
-                              {"first", m.first},
-                              {"end", m.end},
-                              {"folds", m.folds},
-                              {"steps", m.steps},
-                              {"target_error", m.target_error},
-                              {"inter_dead_zone", m.inter_dead_zone},
-                              {"keyframe_errors", m.keyframe_errors},
-                              {"plan",
-                               {{"keyframes", m.plan.keyframes},
-                                {"predicted_error", m.plan.predicted_error},
-                                {"budget", m.plan.budget},
-                                {"budget_mean_error", m.plan.budget_mean_error},
-                                {"budget_worst_error", m.plan.budget_worst_error},
-                                {"median_interval", m.plan.median_interval},
-                                {"sparse", m.plan.sparse},
-                                {"blend",
-                                 {{"trials", m.blend.trials},
-                                  {"fields_error", m.blend.fields_error},
-                                  {"positions_error", m.blend.positions_error},
-                                  {"not_converged", m.blend.not_converged}}}}}};
+  nlohmann::json doc = {{"format", kMeasureFormat},
+                        {"version", kMeasureVersion},
+                        {"segment", m.segment.index},
+                        {"segments", m.segment.count},
+                        {"capture", m.capture_id},
+                        {"settings", nlohmann::json::parse(m.settings)},
+                        {"keyframes", m.keyframes},
+                        {"intra_period", m.intra_period},
+                        {"grid", m.grid},
+                        {"representation", representation_name(m.representation)},
+                        {"first", m.first},
+                        {"end", m.end},
+                        {"folds", m.folds},
+                        {"steps", m.steps},
+                        {"target_error", m.target_error},
+                        {"inter_dead_zone", m.inter_dead_zone},
+                        {"keyframe_errors", m.keyframe_errors},
+                        {"plan",
+                         {{"keyframes", m.plan.keyframes},
+                          {"predicted_error", m.plan.predicted_error},
+                          {"budget", m.plan.budget},
+                          {"budget_mean_error", m.plan.budget_mean_error},
+                          {"budget_worst_error", m.plan.budget_worst_error},
+                          {"median_interval", m.plan.median_interval},
+                          {"sparse", m.plan.sparse},
+                          {"blend",
+                           {{"trials", m.blend.trials},
+                            {"fields_error", m.blend.fields_error},
+                            {"positions_error", m.blend.positions_error},
+                            {"not_converged", m.blend.not_converged}}}}}};
+  // Only where it fell back: every other measure's bytes are as they were.
+  if (!m.representation_fallback.empty()) doc["representation_fallback"] = m.representation_fallback;
   format::write_file_atomically(path, doc.dump() + "\n");
 }
 
@@ -252,6 +258,11 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     if (!(m.target_error > 0) || !std::isfinite(m.target_error)) bad("its target error is not finite and positive");
     if (!(m.inter_dead_zone >= 0.5 && m.inter_dead_zone < 1)) bad("its dead zone is outside [0.5, 1)");
     m.keyframe_errors = field<std::vector<double>>(doc, "keyframe_errors", it);
+    if (doc.contains("representation_fallback")) {
+      m.representation_fallback = field<std::string>(doc, "representation_fallback", it);
+      if (m.representation_fallback.empty() || m.representation == Representation::kXYZ)
+        bad("it falls back to positions from positions, or says not why");
+    }
     if (m.keyframe_errors.size() != static_cast<size_t>(m.end - m.first)) bad("it holds an error for other than each of its keyframes");
     for (double e : m.keyframe_errors) {
       if (!(e >= 0) || !std::isfinite(e)) bad("a keyframe's error is not finite and at least 0");
@@ -342,11 +353,19 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   // (names, times, landmarks) does not read.
   mix(own.plan.keyframes.data(), own.plan.keyframes.size() * sizeof(int));
   mix(own.plan.predicted_error.data(), own.plan.predicted_error.size() * sizeof(double));
+  // A segment whose keyframes did not reconstruct measured positions: then every segment stores
+  // them (one representation a file, and the joined file is one), at those measures' steps.
+  const auto fell_back =
+      std::find_if(by_index.begin(), by_index.end(), [](const SegmentMeasure* m) { return !m->representation_fallback.empty(); });
+  const SegmentMeasure* fallback = fell_back == by_index.end() ? nullptr : *fell_back;
   int used = 0;  // the segments that code keyframes: N, or the capture's groups where fewer
   for (const SegmentMeasure* m : by_index) {
     if (m->first == m->end) continue;
     ++used;
-    for (size_t a = 0; a < coding.steps.size(); ++a) coding.steps[a] = std::min(coding.steps[a], m->steps[a]);
+    const bool measured_positions = !m->representation_fallback.empty();
+    if (!fallback || measured_positions) {
+      for (size_t a = 0; a < coding.steps.size(); ++a) coding.steps[a] = std::min(coding.steps[a], m->steps[a]);
+    }
     fixed.insert(fixed.end(), m->folds.begin(), m->folds.end());
     mix(m->steps.data(), m->steps.size() * sizeof(double));
     mix(m->folds.data(), m->folds.size() * sizeof(int32_t));
@@ -359,14 +378,17 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
     return nullptr;
   }
   s.keyframes.fixed_nodes = fixed;
+  // The fallback's measure settles this segment's dead zone too where its own measured the fields.
+  const SegmentMeasure& zone = fallback && own.representation_fallback.empty() ? *fallback : own;
+  if (fallback) store_as_positions(encoder, fallback->representation_fallback);
   std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, r.grid, &s.keyframes);
   FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
   precision.intra_period = s.intra_period;
-  precision.inter_dead_zone = own.inter_dead_zone;
+  precision.inter_dead_zone = zone.inter_dead_zone;
   const auto start = std::chrono::steady_clock::now();
   r.field_precision = {};
   r.field_precision.target_error = own.target_error;
-  r.field_precision.inter_dead_zone = own.inter_dead_zone;
+  r.field_precision.inter_dead_zone = zone.inter_dead_zone;
   try {
     r.field_precision.keyframe_errors = apply_field_coding(*sequence, coding, precision);
   } catch (const Error& e) {
@@ -374,6 +396,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   }
   r.field_coding = coding;
   r.seconds_precision = seconds_since(start);
+  if (fallback) warn_stored_as_positions(r);
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first),
                                    s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
   code_textures(encoder, *sequence, keyframes);

@@ -52,6 +52,10 @@ struct SegmentMeasure {
   double target_error = 0;              // the field precision's target
   double inter_dead_zone = 0.5;         // the dead zone its search kept
   std::vector<double> keyframe_errors;  // its keyframes' decoded errors at its steps
+  // Set where its keyframes' fields did not reconstruct (build_reconstructable): which keyframe and
+  // why. Its steps, dead zone and errors are then those of positions (xyz), and the assemble stage
+  // stores every segment's keyframes as positions at the steps of the measures that say so.
+  std::string representation_fallback;
   // The keyframes (frame indices), N and representation it chose from every frame
   // (plan_keyframes), the same in every measure of an encode: the assemble stage takes them rather
   // than choosing again. The selection's history is not kept.
@@ -84,7 +88,10 @@ struct SegmentPlacement {
 };
 
 // The assemble stage of segment `id`: its keyframes coded with what the measures (every segment's,
-// any order) settle; null for an empty segment (no file to write). kInvalidArgument where the
+// any order) settle; null for an empty segment (no file to write). Where a measure's keyframes did
+// not reconstruct (SegmentMeasure::representation_fallback), every segment stores positions, at the
+// finest steps of the measures that fell back (a position's rounding error is the step's, whatever
+// the keyframe), with the report's fallback and warning as the one-process encode gives them. kInvalidArgument where the
 // measures are not one encode's N segments, each once, or not this capture's and options' (naming
 // the measure at fault). The placement's count is that of the segments that code keyframes.
 std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,

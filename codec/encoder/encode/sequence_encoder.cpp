@@ -218,28 +218,44 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
   if (report_out) *report_out = std::move(report);
 }
 
+void store_as_positions(SequenceEncoder& encoder, const std::string& why) {
+  EncodeReport& report = encoder.report();
+  encoder.adopt_representation(Representation::kXYZ, report.blend);
+  report.representation_fallback = why;
+}
+
+void warn_stored_as_positions(EncodeReport& report) {
+  report.warnings.push_back("every keyframe stored as positions (xyz): the fields' reconstruction did not converge (" +
+                            report.representation_fallback + ")");
+}
+
+std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
+                                                      const KeyframeSegment* segment,
+                                                      const std::function<void(StoredSequence&)>& measure_fields) {
+  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(keyframes, grid, segment);
+  try {
+    measure_fields(*sequence);
+  } catch (const Error& e) {
+    // A keyframe whose fields do not reconstruct (hl+t's iteration did not converge): a capture
+    // never fails for it. The file's representation is one for all keyframes (the format holds no
+    // mix), so every keyframe is stored as positions, which decode without iterating, and the
+    // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
+    // encode still fails: the positions were not asked for.
+    if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ) throw;
+    store_as_positions(encoder, e.what());
+    sequence = encoder.build_stored(keyframes, grid, segment);
+    measure_fields(*sequence);
+    warn_stored_as_positions(encoder.report());
+  }
+  return sequence;
+}
+
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   EncodeReport& report = encoder.report();
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(chosen.keyframes, grid);
-  if (encoder.options().predicted_fields) {
-    try {
-      report.field_coding = round_fields(encoder, *sequence, chosen);
-    } catch (const Error& e) {
-      // A keyframe whose fields do not reconstruct (hl+t's iteration did not converge): a capture
-      // never fails for it. The file's representation is one for all keyframes (the format holds no
-      // mix), so every keyframe is stored as positions, which decode without iterating, and the
-      // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
-      // encode still fails: the positions were not asked for.
-      if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ)
-        throw;
-      const std::string which = e.what();
-      encoder.adopt_representation(Representation::kXYZ, report.blend);
-      sequence = encoder.build_stored(chosen.keyframes, grid);
-      report.field_coding = round_fields(encoder, *sequence, chosen);
-      report.representation_fallback = which;
-      report.warnings.push_back("every keyframe stored as positions (xyz): the fields' reconstruction did not converge (" + which + ")");
-    }
-  }
+  std::unique_ptr<StoredSequence> sequence =
+      build_reconstructable(encoder, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
+        if (encoder.options().predicted_fields) report.field_coding = round_fields(encoder, keyframes, chosen);
+      });
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
   if (encoder.options().residual_frames)
     sequence->set_residuals(

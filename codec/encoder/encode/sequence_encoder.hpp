@@ -341,6 +341,23 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
 void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
                          const BlendComparison& blend);
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
+// The keyframes built (build_stored: all of `keyframes`, or `segment`'s) and `measure_fields` run on
+// them (the field precision: round_fields, or a segment's measure); where the representation is
+// the encoder's own choice (options().representation unset) and not already xyz, and measuring
+// throws kNotConverged (a keyframe's fields do not reconstruct), store_as_positions and the
+// keyframes built and measured again, with the report's warning. What every encode (one process,
+// staged, a segment's measure) builds its keyframes through: a capture never fails for a keyframe
+// that does not reconstruct. Anything else measuring throws, and kNotConverged where hl+t was asked
+// for, is thrown.
+std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
+                                                      const KeyframeSegment* segment,
+                                                      const std::function<void(StoredSequence&)>& measure_fields);
+// Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
+// reconstruct, and how far it got): the representation adopted, report().representation_fallback
+// set (a file's settings say it). warn_stored_as_positions: the summary's warning for it. A
+// segment's assemble takes the fallback a measure made so (segmented_encode.hpp).
+void store_as_positions(SequenceEncoder& encoder, const std::string& why);
+void warn_stored_as_positions(EncodeReport& report);
 // encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_stored),
 // their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the
 // residual frames fitted to them as stored (options().residual_frames, fit_decoded_residuals;
