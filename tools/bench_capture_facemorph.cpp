@@ -72,10 +72,10 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
   // fmenc's order: the keyframes first, then the grid their predicted error allows.
   FacemorphPoints points;
   KeyframeSelection main_chosen;
-  if (!given) timed("selection", [&] { main_chosen = encoder.select_keyframes(); });
+  if (!given) timed("selection", [&] { main_chosen = select_keyframes(encoder); });
   int& grid = points.grid;
-  timed("grid", [&] { grid = given ? given->grid_n : encoder.choose_grid(&main_chosen); });
-  if (!given) timed("representation", [&] { encoder.choose_representation(main_chosen, grid); });
+  timed("grid", [&] { grid = given ? given->grid_n : choose_grid(encoder, &main_chosen); });
+  if (!given) timed("representation", [&] { choose_representation(encoder, main_chosen, grid); });
   const Representation main_representation = given ? given->representation : encoder.representation();
   progress.finish();
 
@@ -194,8 +194,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
       continue;
     }
     encoder.options().keyframe_fraction = budget;
-    const KeyframeSelection chosen = encoder.select_keyframes();
-    const int budget_grid = given ? grid : encoder.choose_grid(&chosen);  // as fmenc would for this budget
+    const KeyframeSelection chosen = select_keyframes(encoder);
+    const int budget_grid = given ? grid : choose_grid(encoder, &chosen);  // as fmenc would for this budget
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
     const Sequence sequence = encode_file(chosen, budget_grid, main_sequence.representation, bytes, info);

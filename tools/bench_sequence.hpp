@@ -38,9 +38,9 @@ std::optional<std::filesystem::path> make_bench_capture(const std::string& input
                                                         bool quiet);
 
 // `sequence` as fmenc writes it and fmdec reads it back: encode_sequence_file with per-keyframe
-// `texture_qualities` (fmenc's come from SequenceEncoder::choose_texture_qualities; empty: AVIF
+// `texture_qualities` (fmenc's come from choose_texture_qualities; empty: AVIF
 // quality 90) and `coding` (empty: format 1.0's code planes; fmenc's come from
-// SequenceEncoder::round_fields), then decode_sequence_file. `bytes` and `info` (when given)
+// round_fields), then decode_sequence_file. `bytes` and `info` (when given)
 // describe the file.
 Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& texture_qualities, std::vector<uint8_t>* bytes = nullptr,
                          SequenceFileInfo* info = nullptr, const FieldCoding& coding = {});

@@ -34,7 +34,7 @@ using nlohmann::json;
 namespace {
 
 // --through-file: every sequence is measured as a user gets it from fmenc and fmdec: its fields
-// rounded as fmenc rounds them (SequenceEncoder::round_fields), written by
+// rounded as fmenc rounds them (round_fields), written by
 // encode_sequence_file with AVIF textures at fmenc's qualities (choose_texture_qualities), and read back.
 bool through_file = false;
 
@@ -214,9 +214,9 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       encoder.options().spline = splines.front();
       encoder.register_frames();
       encoder.sample_frames();
-      const KeyframeSelection chosen = encoder.select_keyframes();
+      const KeyframeSelection chosen = select_keyframes(encoder);
       if (grid == 0) {
-        grid = encoder.choose_grid(&chosen);
+        grid = choose_grid(encoder, &chosen);
         if (!encoder.report().grid_floors.empty()) {
           std::printf("    --grid auto: N = %d (median frame noise %.4f%%; floors", grid, 100 * encoder.report().median_noise);
           for (const auto& [n, floor] : encoder.report().grid_floors) std::printf(" %d: %.4f%%", n, 100 * floor);
@@ -236,7 +236,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       const MatchingEnergies energies = matching_energies(encoder);
       energies_by_method.push_back(energies);
       size_t file_bytes = 0;
-      const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen, &file_bytes);
+      const Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen, &file_bytes);
       Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, textured);
       print_evaluation(input, e);
       const double file_seconds = capture.duration() + 1.0 / capture.fps;
@@ -324,8 +324,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       json kinds = json::array();
       for (SplineKind kind : splines) {
         encoder.options().spline = kind;
-        const KeyframeSelection chosen = encoder.select_keyframes();
-        Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
+        const KeyframeSelection chosen = select_keyframes(encoder);
+        Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
         const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
         print_evaluation(input, e);
         kinds.push_back(evaluation_json(e));
@@ -343,7 +343,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       so.spline = encoder.options().spline;
       so.pose_centre = encoder.pose_centre();
       const KeyframeSelection chosen = select_keyframes(head, encoder.selection_weights(), so);
-      const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
+      const Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
       const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
       const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, {last + 1, last + 3, last + 10}, false);
       json extrapolation = json::array();
@@ -369,8 +369,8 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         double tolerance = target;
         for (int attempt = 0; attempt < 4; ++attempt) {
           encoder.options().max_error = tolerance;
-          const KeyframeSelection chosen = encoder.select_keyframes();
-          const Sequence sequence = stored(encoder, encoder.build(chosen.keyframes, grid), chosen);
+          const KeyframeSelection chosen = select_keyframes(encoder);
+          const Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
           const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
           const double worst = summarise(e).held_rms_worst;
           if (worst <= target || attempt == 3 || static_cast<int>(chosen.keyframes.size()) == count) {

@@ -138,7 +138,7 @@ void measure_selection(const TrackingBenchOptions& o) {
     encoder.options().registration.smoothing = smoothing;
     encoder.register_frames();
     encoder.sample_frames();
-    const KeyframeSelection chosen = encoder.select_keyframes();
+    const KeyframeSelection chosen = select_keyframes(encoder);
     double sum = 0;
     int n = 0;
     for (double e : chosen.predicted_error) {

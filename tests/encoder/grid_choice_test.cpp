@@ -5,6 +5,7 @@
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/stages/choose_grid.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -103,10 +104,8 @@ TEST(GridChoice, ALowVertexCaptureGetsAGridSizedToItsMesh) {
   EncodeOptions options;
   options.texture = false;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
-  const int n = encoder.choose_grid();
+  testing::run_to_selection(encoder);
+  const int n = choose_grid(encoder);
   const EncodeReport& report = encoder.report();
   ASSERT_GT(report.grid_vertex_area, 0);
   EXPECT_EQ(report.grid_density_cap, density_grid_cap(report.grid_vertex_area));

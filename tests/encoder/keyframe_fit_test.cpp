@@ -7,6 +7,7 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -44,15 +45,13 @@ BothFits encode_both(const Capture& capture) {
   options.grid = kGrid;
   options.texture = false;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
+  testing::run_to_selection(encoder);
   BothFits e;
-  e.keyframes = encoder.select_keyframes().keyframes;
+  e.keyframes = select_keyframes(encoder).keyframes;
   encoder.options().keyframe_fit = true;
-  e.fitted = std::make_shared<const Sequence>(encoder.build(e.keyframes, kGrid));
+  e.fitted = std::make_shared<const Sequence>(build_sequence(encoder, e.keyframes, kGrid));
   encoder.options().keyframe_fit = false;
-  e.interpolating = std::make_shared<const Sequence>(encoder.build(e.keyframes, kGrid));
+  e.interpolating = std::make_shared<const Sequence>(build_sequence(encoder, e.keyframes, kGrid));
   return e;
 }
 
@@ -133,17 +132,15 @@ TEST(KeyframeFit, TheNoiseBoundKeepsACleanCapturesKeyframesWhereTheyAre) {
   options.grid = kGrid;
   options.texture = false;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
-  const std::vector<int> keys = encoder.select_keyframes().keyframes;
+  testing::run_to_selection(encoder);
+  const std::vector<int> keys = select_keyframes(encoder).keyframes;
   ASSERT_EQ(keys.size(), 2u);
   auto moved = [&](double kappa) {
     encoder.options().keyframe_fit = true;
     encoder.options().keyframe_fit_noise = kappa;
-    const auto fitted = std::make_shared<const Sequence>(encoder.build(keys, kGrid));
+    const auto fitted = std::make_shared<const Sequence>(build_sequence(encoder, keys, kGrid));
     encoder.options().keyframe_fit = false;
-    const auto own = std::make_shared<const Sequence>(encoder.build(keys, kGrid));
+    const auto own = std::make_shared<const Sequence>(build_sequence(encoder, keys, kGrid));
     SequenceDecoder a(fitted), b(own);
     double worst = 0;
     for (int k : keys) {
@@ -176,15 +173,13 @@ TEST(KeyframeFit, AKeyframeIsSolvedOnlyOnceItsLastFrameIsIn) {
   options.texture = false;
   options.threads = 2;
   SequenceEncoder encoder(read_capture(dir.path()), options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
+  testing::run_to_selection(encoder);
   std::vector<int> keyframes;
   for (int k = 0; k < 69; k += 2) keyframes.push_back(k);  // 35 keyframes, 34 held frames
   encoder.options().keyframe_fit = true;
-  const Sequence fitted = encoder.build(keyframes, 33);
+  const Sequence fitted = build_sequence(encoder, keyframes, 33);
   encoder.options().keyframe_fit = false;
-  const Sequence own = encoder.build(keyframes, 33);
+  const Sequence own = build_sequence(encoder, keyframes, 33);
   ASSERT_EQ(fitted.keyframes.size(), 35u);
   int moved = 0;
   for (size_t k = 0; k < fitted.keyframes.size(); ++k) {

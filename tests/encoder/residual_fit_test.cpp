@@ -14,6 +14,7 @@
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -84,10 +85,8 @@ struct FastSpeech {
     options.grid = kResidualTestGrid;
     options.texture = false;
     encoder = std::make_unique<SequenceEncoder>(capture, options);
-    encoder->map_frames();
-    encoder->register_frames();
-    encoder->sample_frames();
-    keyframes = encoder->select_keyframes().keyframes;
+    testing::run_to_selection(*encoder);
+    keyframes = select_keyframes(*encoder).keyframes;
   }
 };
 
@@ -102,7 +101,7 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
   FastSpeech fast;
   ASSERT_GE(fast.keyframes.size(), 2u);
   ASSERT_LT(fast.keyframes.size(), 6u) << "the budget should leave the mouth's motion to the spline";
-  std::unique_ptr<StoredSequence> stored = fast.encoder->build_stored(fast.keyframes, kResidualTestGrid);
+  std::unique_ptr<StoredSequence> stored = build_keyframes(*fast.encoder, fast.keyframes, kResidualTestGrid);
   ResidualFitReport report;
   const std::vector<ResidualFrame> residuals = fit_decoded_residuals(*fast.encoder, *stored, fast.keyframes, 1.0 / 128, &report);
   EXPECT_TRUE(stored->shape().residuals.empty());  // left as it was

@@ -11,6 +11,7 @@
 #include "codec/writer/image/image_encode.hpp"
 
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -107,11 +108,9 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   options.texture_size = 128;
   options.predicted_fields = false;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
-  encoder.register_frames();
-  encoder.sample_frames();
-  const KeyframeSelection chosen = encoder.select_keyframes();
-  const Sequence sequence = encoder.build(chosen.keyframes, options.grid);
+  testing::run_to_selection(encoder);
+  const KeyframeSelection chosen = select_keyframes(encoder);
+  const Sequence sequence = build_sequence(encoder, chosen.keyframes, options.grid);
   const std::vector<int> automatic = choose_texture_qualities(encoder, sequence, chosen.keyframes);
   ASSERT_EQ(automatic.size(), sequence.keyframes.size());
   for (double db : encoder.report().texture_interpolation_psnr) EXPECT_GT(db, 20);

@@ -39,7 +39,7 @@ struct EncodeOptions {
   // and the keyframes' fields, blended at frames between them, come out farther from those frames
   // than their blended positions (by more than kFieldsBlendMargin): there xyz. The fields of
   // features that the normalised maps leave apart do not blend into one surface; positions do
-  // (spec/method.md §7.14). SequenceEncoder::choose_representation decides.
+  // (spec/method.md §7.14). choose_representation (sequence_encoder.hpp) decides.
   std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;

@@ -381,7 +381,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   // The fallback's measure settles this segment's dead zone too where its own measured the fields.
   const SegmentMeasure& zone = fallback && own.representation_fallback.empty() ? *fallback : own;
   if (fallback) store_as_positions(encoder, fallback->representation_fallback);
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(s.chosen.keyframes, r.grid, &s.keyframes);
+  std::unique_ptr<StoredSequence> sequence = build_keyframes(encoder, s.chosen.keyframes, r.grid, &s.keyframes);
   FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
   precision.intra_period = s.intra_period;
   precision.inter_dead_zone = zone.inter_dead_zone;

@@ -159,11 +159,11 @@ void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes
 
 KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   const auto start = std::chrono::steady_clock::now();
-  const KeyframeSelection chosen = encoder.select_keyframes();
+  const KeyframeSelection chosen = select_keyframes(encoder);
   EncodeReport& report = encoder.report();
   report_selection(report, chosen);
-  report.grid = encoder.choose_grid(&chosen);
-  encoder.choose_representation(chosen, report.grid);
+  report.grid = choose_grid(encoder, &chosen);
+  choose_representation(encoder, chosen, report.grid);
   release_samples(encoder, chosen.keyframes);
   report.seconds_planning = seconds_since(start);
   return chosen;
@@ -232,7 +232,7 @@ void warn_stored_as_positions(EncodeReport& report) {
 std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
                                                       const KeyframeSegment* segment,
                                                       const std::function<void(StoredSequence&)>& measure_fields) {
-  std::unique_ptr<StoredSequence> sequence = encoder.build_stored(keyframes, grid, segment);
+  std::unique_ptr<StoredSequence> sequence = build_keyframes(encoder, keyframes, grid, segment);
   try {
     measure_fields(*sequence);
   } catch (const Error& e) {
@@ -243,7 +243,7 @@ std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, 
     // encode still fails: the positions were not asked for.
     if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ) throw;
     store_as_positions(encoder, e.what());
-    sequence = encoder.build_stored(keyframes, grid, segment);
+    sequence = build_keyframes(encoder, keyframes, grid, segment);
     measure_fields(*sequence);
     warn_stored_as_positions(encoder.report());
   }

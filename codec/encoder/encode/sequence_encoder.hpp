@@ -103,43 +103,28 @@ class SequenceEncoder {
   // 2. register every frame to the reference (options().registration); method kFrame first builds
   // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
   void register_frames();
-  void sample_frames();                        // 3. registered surfaces on the selection grid, head poses
-  KeyframeSelection select_keyframes() const;  // 4. by predicted error
-  Vec3 pose_centre() const;                    // the face's centroid in the face frame (after sample_frames)
-  // 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
-  // noise and, given the keyframes `chosen`, the error the spline makes between them.
-  int choose_grid(const KeyframeSelection* chosen = nullptr);
+  void sample_frames();      // 3. registered surfaces on the selection grid, head poses
+  Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
+  // 4-6 (select, grid, representation, build) are the free stages below, over the encoder's
+  // frames as these three left them.
+  //
   // 5½ (encode_capture, once the keyframes and N are chosen): frees the selection's samples of every
   // frame (its local, world and normal vectors on the 65² grid, 230 KB a frame), which the later
   // steps do not read, keeping what they do: each frame's time, pose and diagonal, the reference's
   // local vectors (pose_centre) and the fit's noise estimate at `keyframes`. build may then be given
-  // those keyframes only; select_keyframes and choose_grid throw kInternal until sample_frames runs
-  // again.
+  // those keyframes only; selection_samples (so select_keyframes and choose_grid) throw kInternal
+  // until sample_frames runs again.
   void release_selection_samples(const std::vector<int>& keyframes);
-  // 4-5½ as an earlier stage of this encode chose them (a segment's measure, segmented_encode.hpp):
-  // the representation and what choose_representation measured taken as given, and the
-  // selection's samples released but for `keyframes`.
+  // What the keyframes store from here on where options().representation leaves it open: what
+  // choose_representation chose, an earlier stage of this encode chose (a segment's measure,
+  // segmented_encode.hpp), or the fallback to positions (store_as_positions); `blend`: what the
+  // choice measured. Fills report().blend and report().representation.
   void adopt_representation(Representation representation, const BlendComparison& blend);
-  // 6. the keyframes on G: fields, poses, holes, textures, each array put in the store as it is
-  // made (options().spill_keyframes). build: the same, read back as a Sequence.
-  // With `segment`: only its keyframes, fitted over its fit range of `keyframes` (spec/method.md
-  // §7.17), with its fixed nodes where given.
-  std::unique_ptr<StoredSequence> build_stored(const std::vector<int>& keyframes, int grid, const KeyframeSegment* segment = nullptr);
-  Sequence build(const std::vector<int>& keyframes, int grid);
-  // 7-9 (precision, residuals, textures) are the stages below the class: they read the encoder's
-  // frames and options and fill its report, and keep nothing.
-
-  // 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
-  // most frames were registered without interior landmarks, the hl+t fields and the positions of
-  // `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
-  // G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
-  // not show them); xyz where the fields come out farther by more than kFieldsBlendMargin. Fills
-  // report().blend and report().representation.
-  void choose_representation(const KeyframeSelection& chosen, int grid);
-  // What build stores: options().representation, or (unset) what choose_representation chose (hl+t
-  // before it runs).
+  // What build_keyframes stores: options().representation, or (unset) what adopt_representation
+  // was given (hl+t before it is).
   Representation representation() const { return options_.representation.value_or(auto_representation_); }
   EncodeOptions& options() { return options_; }
+  const EncodeOptions& options() const { return options_; }
   // The frames kept (all until map_frames drops any), their landmarks' names, without their
   // landmarks: those are in the encoder's store (landmarks(i)).
   const Capture& capture() const { return capture_; }
@@ -177,8 +162,10 @@ class SequenceEncoder {
   };
   Sampler sampler(int i) const { return Sampler(reparametrisation_, registration(i)); }
   std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
-  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample.
+  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample;
+  // the second from frame i's map as the caller loaded it (once, for several uses).
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
+  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
   // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
   // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
@@ -186,6 +173,17 @@ class SequenceEncoder {
   const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
   std::shared_ptr<const SelectionFrame> selection_frame(int i) const;
   const std::vector<double>& selection_weights() const { return node_weights_; }
+  // Every frame's samples on the selection grid (kInternal once release_selection_samples has run).
+  const SelectionFrames& selection_samples() const;
+  // Frame k's noise estimate on the selection grid (its surface against the cubic through its four
+  // nearest frames in time, RMS by area, in the capture's units; infinite below 5 frames): from the
+  // samples, or, once they are released, as kept for the keyframes they were released for
+  // (kInternal for another frame).
+  double noise_at(int k) const;
+  // The capture's first and last frame times as given (seconds): dropping its end frames does not
+  // shorten it.
+  double first_time() const { return first_time_; }
+  double last_time() const { return last_time_; }
   const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
   // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
   bool has_texture(int i) const;
@@ -193,6 +191,8 @@ class SequenceEncoder {
   // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
   // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
   Image frame_texture(int i, int size) const;
+  // The same from frame i's map as the caller loaded it.
+  Image frame_texture(const MappedFrame& frame, int i, int size) const;
   EncodeReport& report() { return report_; }
 
  private:
@@ -229,9 +229,6 @@ class SequenceEncoder {
   // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
   // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
   void adopt_found_landmarks();
-  // Frame i's map and colour, given its map (loaded once by the caller).
-  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
-  Image frame_texture(const MappedFrame& frame, int i, int size) const;
   // The reference's map, kept in memory while it is the reference: every stage uses it.
   std::shared_ptr<const MappedFrame> pin_reference();
   static std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
@@ -281,8 +278,6 @@ class SequenceEncoder {
   // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
   bool samples_released_ = false;
   std::map<int, double> released_noise_;
-  // frame_noise at frame k, from the samples or, once they are released, as kept for a keyframe.
-  double noise_at(int k) const;
   std::vector<double> node_weights_;
   EncodeReport report_;
 };
@@ -295,6 +290,35 @@ class SequenceEncoder {
 std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bool largest_component,
                                        const std::function<std::vector<Vec3>(size_t)>& landmarks,
                                        const std::function<void(int, int)>& progress = {});
+
+// ---- The stages after sampling (stages/sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
+// build_keyframes.cpp): each reads the encoder's frames as map, register and sample left them ----
+
+// 4. The keyframes, by the spline's predicted error on the selection grid (options().keyframe_fraction,
+// max_error, keyframe_error_bound, sparse_frame_interval, spline, residual_frames). kInternal once
+// the selection's samples are released.
+KeyframeSelection select_keyframes(const SequenceEncoder& encoder);
+// 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
+// noise and, given the keyframes `chosen`, the error the spline makes between them; what the
+// automatic choice measured goes to report() (grid_floors, grid_target, grid_term, ...).
+int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen = nullptr);
+// 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
+// most frames were registered without interior landmarks, the hl+t fields and the positions of
+// `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
+// G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
+// not show them); xyz where the fields come out farther by more than kFieldsBlendMargin, or on a
+// radially spread disk. Adopted (adopt_representation); report().seconds_representation.
+void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
+// 6. The keyframes on G of size `grid`: fields (in encoder.representation()), poses, holes,
+// textures, each array put in the store as it is made (options().spill_keyframes); with
+// options().keyframe_fit, fitted to every frame. With `segment`: only its keyframes, fitted over
+// its fit range of `keyframes` (spec/method.md §7.17), with its fixed nodes where given.
+// build_sequence: the same, read back as a Sequence. Fills report().texture_size, keyframe_folds
+// and seconds_keyframes. kInvalidArgument for no keyframes or a segment outside them;
+// kMissingTexture where some keyframes have colour and another has not.
+std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
+                                                const KeyframeSegment* segment = nullptr);
+Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid);
 
 // ---- The stages after the keyframes are built (stages/round_fields.cpp, stages/texture_coding.cpp) ----
 
@@ -341,7 +365,7 @@ KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
 void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
                          const BlendComparison& blend);
 void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
-// The keyframes built (build_stored: all of `keyframes`, or `segment`'s) and `measure_fields` run on
+// The keyframes built (build_keyframes: all of `keyframes`, or `segment`'s) and `measure_fields` run on
 // them (the field precision: round_fields, or a segment's measure); where the representation is
 // the encoder's own choice (options().representation unset) and not already xyz, and measuring
 // throws kNotConverged (a keyframe's fields do not reconstruct), store_as_positions and the
@@ -358,7 +382,7 @@ std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, 
 // segment's assemble takes the fallback a measure made so (segmented_encode.hpp).
 void store_as_positions(SequenceEncoder& encoder, const std::string& why);
 void warn_stored_as_positions(EncodeReport& report);
-// encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_stored),
+// encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_keyframes),
 // their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the
 // residual frames fitted to them as stored (options().residual_frames, fit_decoded_residuals;
 // report().residual_fit) and the texture stage (code_textures): what a file written with the

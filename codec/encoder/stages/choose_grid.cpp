@@ -111,39 +111,44 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   return choice;
 }
 
-int SequenceEncoder::choose_grid(const KeyframeSelection* chosen) {
-  if (options_.grid > 0) return options_.grid;
-  if (samples_released_) throw Error(ErrorCode::kInternal, "choose_grid: the selection's samples were released (sample_frames again)");
+int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen) {
+  const EncodeOptions& options = encoder.options();
+  if (options.grid > 0) return options.grid;
+  EncodeReport& report = encoder.report();
+  // Refused before anything is measured where the samples the noise reads are gone.
+  static_cast<void>(encoder.selection_samples());
   GridChoiceInput input;
-  for (int k = 0; k < frame_count(); ++k) input.noise.push_back(noise_at(k) / selection_[static_cast<size_t>(k)].diagonal);
+  for (int k = 0; k < encoder.frame_count(); ++k)
+    input.noise.push_back(encoder.noise_at(k) / encoder.selection_frames()[static_cast<size_t>(k)].diagonal);
   // Not on a whole head (a radially spread disk, spec/method.md §7.11) whose frames share no
   // interior landmarks with the reference: there the found landmarks' disagreement from frame to
   // frame reads as noise (fmsynth --head --landmarks auto: 1.27% of the diagonal, 0.085% with its
   // landmarks), and the N = 33 it asked for decoded at 1.57 mm, N = 129 at 0.62.
-  const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
-  input.noise_decides = report_.radial_equalising == 0 || !unmatched;
+  const bool unmatched = 2 * report.frames_without_interior_landmarks > encoder.frame_count() - 1;
+  input.noise_decides = report.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
-  const std::shared_ptr<const MappedFrame> reference = frame(options_.reference_frame);
+  const int reference_index = options.reference_frame;
+  const std::shared_ptr<const MappedFrame> reference = encoder.frame(reference_index);
   // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.
-  if (report_.radial_equalising == 0 && options_.density_equalising.strength == 0) {
+  if (report.radial_equalising == 0 && options.density_equalising.strength == 0) {
     input.vertex_disk_area = quartile_vertex_disk_area(reference->map.disk, reference->map.surface.faces);
   }
   input.floor = [&](int n) {
     const DiskGrid grid = make_disk_grid(n);
-    const std::vector<Vec3> sampled = sample_surface(*reference, options_.reference_frame, grid.nodes);
+    const std::vector<Vec3> sampled = encoder.sample_surface(*reference, reference_index, grid.nodes);
     const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
     return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
   };
   const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
-  report_.grid_floors = std::move(choice.floors);
-  report_.grid_floor_p99s = std::move(choice.floor_p99s);
-  report_.grid_density_cap = choice.density_cap;
-  report_.grid_worst_target = choice.worst_target;
-  report_.grid_vertex_area = input_area;
-  report_.median_noise = choice.median_noise;
-  report_.grid_target = choice.target;
-  report_.grid_term = std::move(choice.term);
+  report.grid_floors = std::move(choice.floors);
+  report.grid_floor_p99s = std::move(choice.floor_p99s);
+  report.grid_density_cap = choice.density_cap;
+  report.grid_worst_target = choice.worst_target;
+  report.grid_vertex_area = input_area;
+  report.median_noise = choice.median_noise;
+  report.grid_target = choice.target;
+  report.grid_term = std::move(choice.term);
   return choice.n;
 }
 

@@ -37,62 +37,64 @@ void SequenceEncoder::adopt_representation(Representation representation, const 
   report_.representation = this->representation();
 }
 
-void SequenceEncoder::choose_representation(const KeyframeSelection& chosen, int grid) {
+void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   const auto start = std::chrono::steady_clock::now();
-  auto_representation_ = Representation::kHLT;
-  report_.blend = {};
+  const EncodeOptions& options = encoder.options();
+  const EncodeReport& report = encoder.report();
+  const std::vector<CaptureFrame>& frames = encoder.capture().frames;
+  Representation choice = Representation::kHLT;
+  BlendComparison blend;
   const std::vector<int>& keyframes = chosen.keyframes;
-  const bool unmatched = 2 * report_.frames_without_interior_landmarks > frame_count() - 1;
+  const bool unmatched = 2 * report.frames_without_interior_landmarks > encoder.frame_count() - 1;
   // On a radially reparametrised disk (a whole head) hl+t's fixed-point iteration diverges: the
   // tangential part of Δ_h S, large where the map stretches the disk unevenly, turns with the frame
   // it is carried in (measured on fmsynth --head at radial strengths 0.25 to 1: no keyframe converged).
   // Positions decode without iterating, and the container holds them (spec/method.md §7.11).
-  if (!options_.representation && report_.radial_equalising > 0) {
-    auto_representation_ = Representation::kXYZ;
-  } else if (!options_.representation && unmatched && keyframes.size() >= 2) {
+  if (!options.representation && report.radial_equalising > 0) {
+    choice = Representation::kXYZ;
+  } else if (!options.representation && unmatched && keyframes.size() >= 2) {
     // The frame midway between each pair of keyframes with frames between them (blend_trial_pairs).
     const std::vector<size_t> pairs = blend_trial_pairs(keyframes);
     std::vector<double> times;
-    for (int k : keyframes) times.push_back(capture_.frames[static_cast<size_t>(k)].time);
-    const KeyframeSpline spline(times, options_.spline);
+    for (int k : keyframes) times.push_back(frames[static_cast<size_t>(k)].time);
+    const KeyframeSpline spline(times, options.spline);
     std::vector<int> midway, needed_keys;
     std::vector<char> needed(keyframes.size(), 0);
     for (size_t k : pairs) {
       midway.push_back((keyframes[k] + keyframes[k + 1]) / 2);
-      for (int32_t key : spline.weights(capture_.frames[static_cast<size_t>(midway.back())].time).keys)
-        needed[static_cast<size_t>(key)] = 1;
+      for (int32_t key : spline.weights(frames[static_cast<size_t>(midway.back())].time).keys) needed[static_cast<size_t>(key)] = 1;
     }
     for (size_t k = 0; k < keyframes.size(); ++k) {
       if (needed[k]) needed_keys.push_back(static_cast<int>(k));
     }
     if (!pairs.empty()) {
       const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(grid));
-      // A frame's registered surface on G in the face frame (as build samples a keyframe).
+      // A frame's registered surface on G in the face frame (as build_keyframes samples a keyframe).
       auto local_surface = [&](int i) {
-        std::vector<Vec3> surface = sample_surface(i, geometry->grid().nodes);
-        const RigidPose to_face = selection_[static_cast<size_t>(i)].pose.inverse();
+        std::vector<Vec3> surface = encoder.sample_surface(i, geometry->grid().nodes);
+        const RigidPose to_face = encoder.selection_frames()[static_cast<size_t>(i)].pose.inverse();
         for (Vec3& p : surface) p = to_face.apply(p);
         return surface;
       };
       std::vector<std::vector<Vec3>> keys(keyframes.size());
       std::vector<BlendTrial> trials(pairs.size());
-      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), options_.threads, [&](int j) {
+      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), options.threads, [&](int j) {
         const auto index = static_cast<size_t>(j);
         if (index < needed_keys.size()) {
           const auto k = static_cast<size_t>(needed_keys[index]);
           keys[k] = local_surface(keyframes[k]);
         } else {
           const size_t t = index - needed_keys.size();
-          trials[t].time = capture_.frames[static_cast<size_t>(midway[t])].time;
+          trials[t].time = frames[static_cast<size_t>(midway[t])].time;
           trials[t].surface = local_surface(midway[t]);
         }
       });
-      report_.blend = compare_blends(geometry, times, options_.spline, keys, trials, options_.threads);
-      auto_representation_ = representation_for(report_.blend);
+      blend = compare_blends(geometry, times, options.spline, keys, trials, options.threads);
+      choice = representation_for(blend);
     }
   }
-  report_.representation = representation();
-  report_.seconds_representation = seconds_since(start);
+  encoder.adopt_representation(choice, blend);
+  encoder.report().seconds_representation = seconds_since(start);
 }
 
 }  // namespace facemorph

@@ -157,17 +157,23 @@ double SequenceEncoder::noise_at(int k) const {
   return it->second;
 }
 
-KeyframeSelection SequenceEncoder::select_keyframes() const {
-  if (samples_released_) throw Error(ErrorCode::kInternal, "select_keyframes: the selection's samples were released (sample_frames again)");
+const SelectionFrames& SequenceEncoder::selection_samples() const {
+  if (!samples_) throw Error(ErrorCode::kInternal, "the selection's samples were released or never made (sample_frames first)");
+  return *samples_;
+}
+
+KeyframeSelection select_keyframes(const SequenceEncoder& encoder) {
+  const SelectionFrames& samples = encoder.selection_samples();
+  const EncodeOptions& options = encoder.options();
   SelectionOptions selection;
-  selection.fraction = options_.keyframe_fraction;
-  selection.max_error = options_.max_error;
-  selection.error_bound = options_.keyframe_error_bound;
-  selection.sparse_interval = options_.sparse_frame_interval;
-  selection.spline = options_.spline;
-  selection.pose_centre = pose_centre();
-  selection.residuals = options_.residual_frames;
-  return facemorph::select_keyframes(*samples_, node_weights_, selection);
+  selection.fraction = options.keyframe_fraction;
+  selection.max_error = options.max_error;
+  selection.error_bound = options.keyframe_error_bound;
+  selection.sparse_interval = options.sparse_frame_interval;
+  selection.spline = options.spline;
+  selection.pose_centre = encoder.pose_centre();
+  selection.residuals = options.residual_frames;
+  return select_keyframes(samples, encoder.selection_weights(), selection);
 }
 
 }  // namespace facemorph
