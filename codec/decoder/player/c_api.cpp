@@ -360,12 +360,12 @@ FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
 #define FM_INFO_FIELD(field) \
   if (FM_COVERS(info, fm_info, field)) end = offsetof(fm_info, field) + sizeof out.field;
     FM_INFO_FIELD(fps)
-    FM_INFO_FIELD(first_time)
-    FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end) FM_INFO_FIELD(keyframe_count)
-        FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count) FM_INFO_FIELD(grid_vertex_count)
-            FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size) FM_INFO_FIELD(units)
+    FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end)
+        FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count)
+            FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size)
+                FM_INFO_FIELD(units)
 #undef FM_INFO_FIELD
-                const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
+                    const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
     if (end > begin) std::memcpy(reinterpret_cast<char*>(info) + begin, reinterpret_cast<const char*>(&out) + begin, end - begin);
     return ok();
   });
