@@ -179,23 +179,34 @@ const std::vector<Field> kFrameFields = {FM_FIELD(fm_frame, positions),
                                          FM_FIELD(fm_frame, triangle_count),
                                          FM_FIELD(fm_frame, texture_size),
                                          FM_FIELD(fm_frame, iterations),
-                                         FM_FIELD(fm_frame, fell_back)};
+                                         FM_FIELD(fm_frame, fell_back),
+                                         FM_FIELD(fm_frame, positions_f64),
+                                         FM_FIELD(fm_frame, positions_f64_bytes),
+                                         FM_FIELD(fm_frame, uvs_f64),
+                                         FM_FIELD(fm_frame, uvs_f64_bytes),
+                                         FM_FIELD(fm_frame, hole_levels),
+                                         FM_FIELD(fm_frame, hole_levels_bytes),
+                                         FM_FIELD(fm_frame, hole_level_count)};
 // What fm_decoder_decode writes (on FM_OK and FM_ERROR_BUFFER_TOO_SMALL).
-const std::vector<Field> kFrameOutputs = {FM_FIELD(fm_frame, time),           FM_FIELD(fm_frame, vertex_count),
-                                          FM_FIELD(fm_frame, triangle_count), FM_FIELD(fm_frame, texture_size),
-                                          FM_FIELD(fm_frame, iterations),     FM_FIELD(fm_frame, fell_back)};
+const std::vector<Field> kFrameOutputs = {
+    FM_FIELD(fm_frame, time),       FM_FIELD(fm_frame, vertex_count), FM_FIELD(fm_frame, triangle_count),  FM_FIELD(fm_frame, texture_size),
+    FM_FIELD(fm_frame, iterations), FM_FIELD(fm_frame, fell_back),    FM_FIELD(fm_frame, hole_level_count)};
 
-// The caller's five buffers, each filled with a pattern the decode overwrites where it writes.
+// The caller's buffers (1.3's double arrays too), each filled with a pattern the decode overwrites
+// where it writes.
 struct Buffers {
   std::vector<float> positions, normals, uvs;
   std::vector<uint32_t> indices;
   std::vector<uint8_t> texture;
+  std::vector<double> positions_f64, uvs_f64;
   explicit Buffers(const fm_info& info)
       : positions(3 * size_t{info.max_vertex_count}),
         normals(3 * size_t{info.max_vertex_count}),
         uvs(2 * size_t{info.max_vertex_count}),
         indices(3 * size_t{info.max_triangle_count}),
-        texture(4 * size_t{info.texture_size} * info.texture_size) {
+        texture(4 * size_t{info.texture_size} * info.texture_size),
+        positions_f64(3 * size_t{info.max_vertex_count}),
+        uvs_f64(2 * size_t{info.max_vertex_count}) {
     reset();
   }
   // Back to the pattern, in place: the pointers handed out stay valid.
@@ -205,6 +216,8 @@ struct Buffers {
     std::fill(uvs.begin(), uvs.end(), -7.0f);
     std::fill(indices.begin(), indices.end(), 0xA5A5A5A5u);
     std::fill(texture.begin(), texture.end(), kGuard);
+    std::fill(positions_f64.begin(), positions_f64.end(), -7.0);
+    std::fill(uvs_f64.begin(), uvs_f64.end(), -7.0);
   }
   void hand_to(fm_frame& frame) {
     frame.positions = positions.data();
@@ -217,6 +230,10 @@ struct Buffers {
     frame.indices_bytes = indices.size() * sizeof(uint32_t);
     frame.texture = texture.empty() ? nullptr : texture.data();
     frame.texture_bytes = texture.size();
+    frame.positions_f64 = positions_f64.data();
+    frame.positions_f64_bytes = positions_f64.size() * sizeof(double);
+    frame.uvs_f64 = uvs_f64.data();
+    frame.uvs_f64_bytes = uvs_f64.size() * sizeof(double);
   }
 };
 
@@ -249,7 +266,7 @@ TEST(CApi, FrameIsReadAndWrittenOnlyWithinStructSizeAtEverySize) {
       if (tiny) prototype.positions_bytes = 3;
       prototype.time = -1234.5;
       prototype.vertex_count = prototype.triangle_count = prototype.texture_size = 0x5A5A5A5Au;
-      prototype.iterations = prototype.fell_back = 0x5A5A5A5Au;
+      prototype.iterations = prototype.fell_back = prototype.hole_level_count = 0x5A5A5A5Au;
       const bool positions_wanted = FM_FIELD(fm_frame, positions_bytes).inside(size);
       const fm_status want_status = tiny && positions_wanted ? FM_ERROR_BUFFER_TOO_SMALL : FM_OK;
       // A buffer is filled where struct_size holds its pointer and its size, and nothing is written
@@ -270,6 +287,9 @@ TEST(CApi, FrameIsReadAndWrittenOnlyWithinStructSizeAtEverySize) {
         check("uvs", buffers.uvs, FM_FIELD(fm_frame, uvs_bytes), reference.uvs, untouched.uvs);
         check("indices", buffers.indices, FM_FIELD(fm_frame, indices_bytes), reference.indices, untouched.indices);
         check("texture", buffers.texture, FM_FIELD(fm_frame, texture_bytes), reference.texture, untouched.texture);
+        check("positions_f64", buffers.positions_f64, FM_FIELD(fm_frame, positions_f64_bytes), reference.positions_f64,
+              untouched.positions_f64);
+        check("uvs_f64", buffers.uvs_f64, FM_FIELD(fm_frame, uvs_f64_bytes), reference.uvs_f64, untouched.uvs_f64);
         return status;
       });
       const std::vector<unsigned char> want = expected_bytes(prototype, size, full, kFrameOutputs);

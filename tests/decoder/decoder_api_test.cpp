@@ -174,4 +174,41 @@ TEST(DecoderApi, BorrowedBytesAndTextureWeightsAsTheCApi) {
   }
 }
 
+// API 1.3 through the wrapper and the shared library: the double arrays round to the float ones,
+// a file without holes has no hole levels, the default tolerance is FM_DEFAULT_TOLERANCE (a decoder
+// set to it decodes the same bits), a coarser one takes fewer iterations, and a bad one is refused.
+TEST(DecoderApi, DoubleArraysAndToleranceOfApi1_3) {
+  const fm::File file = fm::File::open(kGolden);
+  fm::Decoder decoder(file), coarse(file), set_to_default(file);
+  set_to_default.set_tolerance(FM_DEFAULT_TOLERANCE);
+  coarse.set_tolerance(1e-3);
+  fm::Frame frame, again, rough;
+  uint32_t iterations = 0, coarse_iterations = 0;
+  for (double t : {0.1, 0.2, 0.3}) {
+    decoder.decode(t, frame, fm::kPositions | fm::kUvs | fm::kPositionsF64 | fm::kUvsF64 | fm::kHoleLevels);
+    ASSERT_EQ(frame.positions_f64.size(), 3u * frame.vertex_count);
+    ASSERT_EQ(frame.uvs_f64.size(), 2u * frame.vertex_count);
+    for (size_t i = 0; i < frame.positions.size(); ++i) ASSERT_EQ(frame.positions[i], static_cast<float>(frame.positions_f64[i]));
+    for (size_t i = 0; i < frame.uvs.size(); ++i) ASSERT_EQ(frame.uvs[i], static_cast<float>(frame.uvs_f64[i]));
+    EXPECT_EQ(frame.hole_level_count, 0u);
+    EXPECT_TRUE(frame.hole_levels.empty());
+    set_to_default.decode(t, again, fm::kPositionsF64);
+    EXPECT_EQ(again.positions_f64, frame.positions_f64);
+    coarse.decode(t, rough, fm::kPositionsF64);
+    EXPECT_NE(rough.positions_f64, frame.positions_f64);
+    iterations += frame.iterations;
+    coarse_iterations += rough.iterations;
+  }
+  EXPECT_LT(coarse_iterations, iterations);
+  for (double bad : {0.0, 0.5, std::nan("")}) {
+    try {
+      decoder.set_tolerance(bad);
+      FAIL() << "tolerance " << bad << " accepted";
+    } catch (const fm::Error& e) {
+      EXPECT_EQ(e.status(), FM_ERROR_INVALID_ARGUMENT);
+      EXPECT_NE(std::string(e.what()).find("fm_decoder_set_tolerance: "), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace

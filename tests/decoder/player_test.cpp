@@ -299,6 +299,80 @@ TEST(Decoder, HolesChangeTheCountsWithinTheBounds) {
   testing::expect_error(ErrorCode::kBufferTooSmall, "positions needs", [&] { decoder.decode(0.15, {.positions = short_by_one}); });
 }
 
+// API 1.3's arrays are SequenceDecoder's own numbers: positions and UVs in double precision bit for
+// bit, the hole levels per node of G whether the holes are cut or not (none in a file without
+// holes), and UV v flipped as the float UVs are.
+TEST(Decoder, DoubleArraysAndHoleLevelsAreTheSequenceDecoders) {
+  for (const bool holes : {false, true}) {
+    SCOPED_TRACE(holes ? "with holes" : "golden file");
+    const std::shared_ptr<const KeyframeSource> source = holes ? with_holes() : open_sequence_file(kGoldenV2_0);
+    SequenceDecoder reference(source);
+    Decoder decoder(source);
+    for (const bool filled : {false, true}) {
+      FrameOptions options;
+      options.keep_holes_filled = filled;
+      DecodeOptions reference_options;
+      reference_options.cut_holes = !filled;
+      for (double t : {0.05, 0.17, 0.3}) {
+        const DecodedFrame expected = reference.decode(t, reference_options);
+        const FrameInfo asked = decoder.frame_info(t, options);
+        std::vector<double> positions(asked.positions_size()), uvs(asked.uvs_size()), levels(asked.hole_levels_size(), 7.0);
+        const FrameInfo frame = decoder.decode(t, {.positions_f64 = positions, .uvs_f64 = uvs, .hole_levels = levels}, options);
+        ASSERT_EQ(frame.vertex_count, expected.mesh.vertex_count());
+        for (size_t v = 0; v < expected.mesh.positions.size(); ++v) {
+          for (int k = 0; k < 3; ++k) ASSERT_EQ(positions[3 * v + static_cast<size_t>(k)], expected.mesh.positions[v][k]) << "vertex " << v;
+          ASSERT_EQ(uvs[2 * v], expected.mesh.uvs[v].x());
+          ASSERT_EQ(uvs[2 * v + 1], expected.mesh.uvs[v].y());
+        }
+        EXPECT_EQ(frame.hole_level_count, holes ? decoder.info().grid_vertex_count : 0);
+        EXPECT_EQ(levels, expected.hole_level);
+        if (holes) {
+          EXPECT_TRUE(std::any_of(levels.begin(), levels.end(), [](double l) { return l < 0; }));
+          EXPECT_TRUE(std::any_of(levels.begin(), levels.end(), [](double l) { return l > 0; }));
+        }
+      }
+    }
+  }
+  Decoder decoder = Decoder::open(kGoldenV2_0);
+  FrameOptions flip;
+  flip.flip_v = true;
+  const FrameInfo asked = decoder.frame_info(0.2);
+  std::vector<double> up(asked.uvs_size()), down(asked.uvs_size());
+  decoder.decode(0.2, {.uvs_f64 = up});
+  decoder.decode(0.2, {.uvs_f64 = down}, flip);
+  for (size_t v = 0; v < up.size() / 2; ++v) {
+    EXPECT_EQ(down[2 * v], up[2 * v]);
+    EXPECT_EQ(down[2 * v + 1], 1 - up[2 * v + 1]);
+  }
+  std::vector<double> short_by_one(asked.positions_size() - 1);
+  testing::expect_error(ErrorCode::kBufferTooSmall, "positions_f64 needs", [&] { decoder.decode(0.2, {.positions_f64 = short_by_one}); });
+}
+
+// set_tolerance reaches the reconstruction: frames decode as SequenceDecoder's with that tolerance,
+// a coarser one in fewer iterations; a tolerance outside (0, 0.01] is refused.
+TEST(Decoder, ToleranceIsTheReconstructions) {
+  const auto source = open_sequence_file(kGoldenV2_0);
+  SequenceDecoder reference(source);
+  Decoder coarse(source), fine(source);
+  coarse.set_tolerance(1e-3);
+  DecodeOptions reference_options;
+  reference_options.reconstruct.tolerance = 1e-3;
+  int coarse_iterations = 0, fine_iterations = 0;
+  for (double t : {0.05, 0.17, 0.3}) {
+    const DecodedFrame expected = reference.decode(t, reference_options);
+    std::vector<double> positions(coarse.frame_info(t).positions_size());
+    const FrameInfo frame = coarse.decode(t, {.positions_f64 = positions});
+    EXPECT_EQ(frame.iterations, expected.iterations);
+    for (size_t v = 0; v < expected.mesh.positions.size(); ++v) ASSERT_EQ(positions[3 * v], expected.mesh.positions[v].x());
+    coarse_iterations += frame.iterations;
+    fine_iterations += fine.frame_info(t).iterations;
+  }
+  EXPECT_LT(coarse_iterations, fine_iterations);
+  for (double bad : {0.0, -1e-5, 0.02, std::nan("")}) {
+    testing::expect_error(ErrorCode::kInvalidArgument, "tolerance", [&] { coarse.set_tolerance(bad); });
+  }
+}
+
 TEST(AreaWeightedNormals, WeightByArea) {
   // Two triangles meeting at vertex 0 at right angles: normal +z with area 2, +y with area 1/2.
   const std::vector<Vec3> p = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, {1, 0, 0}};

@@ -1,6 +1,6 @@
 // The WebAssembly decoder against the native one (spec/web.md §4): decodes FILE at COUNT times
 // spread over its range with web/dist/facemorph_wasm.{mjs,wasm} under node, reads the native
-// decoder's record of the same times (tests/web/native_frames.c), and reports the largest vertex
+// decoder's record of the same times (tests/c_frames.c --web), and reports the largest vertex
 // difference as a fraction of the first frame's bounding-box diagonal. Exits 1 above TOLERANCE.
 //   node web/test/exactness.mjs FILE.fmv NATIVE.bin [COUNT=20] [TOLERANCE=1e-6]
 import { readFileSync } from 'node:fs';
@@ -34,7 +34,7 @@ for (let i = 0; i < count; ++i) {
   at += 12;
   if (nativeTime !== t) throw new Error(`time ${i}: native ${nativeTime}, here ${t}`);
   const start = performance.now();
-  const frame = decoder.decode(t, 0);  // positions, normals, UVs, indices: what the page asks for, as native_frames does
+  const frame = decoder.decode(t, 0);  // positions, normals, UVs, indices: what the page asks for, as c_frames --web does
   decodeMs += performance.now() - start;
   if (frame.vertexCount !== vertices) throw new Error(`t = ${t}: ${frame.vertexCount} vertices here, ${vertices} native`);
   const theirs = new Float32Array(native.buffer.slice(native.byteOffset + at, native.byteOffset + at + 12 * vertices));

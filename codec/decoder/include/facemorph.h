@@ -23,8 +23,9 @@
  * once. An fm_decoder is used by one thread at a time; decoders on one file may decode on
  * different threads at once. A file may be closed while its decoders live (they share it).
  *
- * API and ABI 1.1 (spec/api.md; 1.1 appends fm_file_open_memory_borrowed and
- * fm_decoder_get_texture_weights to 1.0): this header is the only one a C player needs; the library exports
+ * API and ABI 1.3 (spec/api.md; 1.1 appends fm_file_open_memory_borrowed and
+ * fm_decoder_get_texture_weights to 1.0, 1.2 fm_decoder_options.max_work, 1.3 the frame's
+ * double-precision arrays and hole levels and fm_decoder_set_tolerance): this header is the only one a C player needs; the library exports
  * exactly the functions below (every one starts with fm_) and nothing else. Within 1.x nothing is
  * removed, renumbered or reordered: functions, enum values, flags and struct fields are only ever
  * appended, and libfacemorph_decoder.so.1 keeps its name; a program built against 1.0 runs on every
@@ -67,11 +68,12 @@
 extern "C" {
 #endif
 
-/* The API (and ABI) this header declares: 1.2 (1.0 with two functions appended in 1.1, and
- * fm_decoder_options.max_work appended in 1.2, below). The soname follows the major version only
+/* The API (and ABI) this header declares: 1.3 (1.0 with two functions appended in 1.1,
+ * fm_decoder_options.max_work appended in 1.2, and in 1.3 fm_frame's double-precision arrays and
+ * hole levels and fm_decoder_set_tolerance, below). The soname follows the major version only
  * (libfacemorph_decoder.so.1); the library's own version is FACEMORPH_VERSION_*, below. */
 #define FACEMORPH_API_VERSION_MAJOR 1
-#define FACEMORPH_API_VERSION_MINOR 2
+#define FACEMORPH_API_VERSION_MINOR 3
 
 #define FACEMORPH_VERSION_MAJOR 0
 #define FACEMORPH_VERSION_MINOR 8
@@ -267,6 +269,20 @@ typedef struct fm_frame {
   uint32_t texture_size; /* M (0: no texture) */
   uint32_t iterations;   /* reconstruction steps */
   uint32_t fell_back;    /* 1: the reconstruction did not converge; the frame is the spline of the keyframes' surfaces */
+  /* 1.3: for tools that write the surface at the decoder's own precision (the reference decoder
+   * fmdec writes its OBJ, PLY and glTF files from these) and players that keep the topology fixed
+   * and cut the holes themselves. Buffers as above, sizes in BYTES: 3 doubles per vertex
+   * (positions_f64), 2 per vertex (uvs_f64, flipped as uvs are), hole_level_count doubles
+   * (hole_levels: the blended level set at each node of the disk grid, negative inside an eye or the
+   * mouth, in the vertex order of a frame decoded with FM_DECODE_KEEP_HOLES_FILLED, the same whether
+   * the holes are cut or not). */
+  double* positions_f64;
+  size_t positions_f64_bytes;
+  double* uvs_f64;
+  size_t uvs_f64_bytes;
+  double* hole_levels;
+  size_t hole_levels_bytes;
+  uint32_t hole_level_count; /* set as the counts above: fm_info.grid_vertex_count in a file with holes, else 0 */
 } fm_frame;
 
 /* Zeroes *frame (no buffer wanted) and sets struct_size to sizeof(fm_frame) as the caller compiled
@@ -321,6 +337,17 @@ FM_API fm_status fm_file_open_memory_borrowed(const void* data, size_t size, con
  * with capacity > 0. */
 FM_API fm_status fm_decoder_get_texture_weights(fm_decoder* decoder, double t, uint32_t flags, uint32_t* keyframes, double* weights,
                                                 size_t capacity, size_t* count);
+
+/* ---- Added in API 1.3 (facemorph 0.8.0): the fm_frame fields above, and: ---- */
+
+/* The reconstruction's stopping rule: a frame's iteration stops when a step moves no node more
+ * than `tolerance` times the rim's diameter (default FM_DEFAULT_TOLERANCE). Frames decoded after
+ * the call use it (a frame kept from before is decoded again); keyframe surfaces already
+ * reconstructed are kept, as they only start each frame's iteration. Smaller is slower and closer
+ * to the exact surface. FM_OK, FM_ERROR_INVALID_ARGUMENT (a NULL or wrong handle, tolerance not in
+ * (0, 0.01]), FM_ERROR_CLOSED_HANDLE. */
+#define FM_DEFAULT_TOLERANCE 1e-5
+FM_API fm_status fm_decoder_set_tolerance(fm_decoder* decoder, double tolerance);
 
 #ifdef __cplusplus
 }

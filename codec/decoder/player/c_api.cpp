@@ -26,6 +26,7 @@ static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_k
 static_assert(FM_DEFAULT_MAX_TEXTURE_SIZE == facemorph::kDefaultDecoderLimits.max_texture_size);
 static_assert(FM_DEFAULT_MAX_MEMORY_BYTES == facemorph::kDefaultDecoderLimits.max_memory_bytes);
 static_assert(FM_DEFAULT_MAX_WORK == facemorph::kDefaultDecoderLimits.max_work);
+static_assert(FM_DEFAULT_TOLERANCE == facemorph::ReconstructOptions{}.tolerance);
 
 // The C enum mirrors facemorph::ErrorCode value for value.
 static_assert(FM_OK == static_cast<int>(facemorph::ErrorCode::kOk));
@@ -288,6 +289,7 @@ void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
   if (FM_COVERS(frame, fm_frame, texture_size)) frame->texture_size = static_cast<uint32_t>(info.texture_size);
   if (FM_COVERS(frame, fm_frame, iterations)) frame->iterations = static_cast<uint32_t>(info.iterations);
   if (FM_COVERS(frame, fm_frame, fell_back)) frame->fell_back = info.fell_back ? 1 : 0;
+  if (FM_COVERS(frame, fm_frame, hole_level_count)) frame->hole_level_count = static_cast<uint32_t>(info.hole_level_count);  // 1.3
 }
 
 }  // namespace
@@ -420,18 +422,26 @@ FM_API fm_status fm_decoder_decode(fm_decoder* decoder, double t, uint32_t flags
     const auto uvs = FM_FRAME_BUFFER(frame, uvs);
     const auto indices = FM_FRAME_BUFFER(frame, indices);
     const auto texture = FM_FRAME_BUFFER(frame, texture);
+    const auto positions_f64 = FM_FRAME_BUFFER(frame, positions_f64);  // 1.3
+    const auto uvs_f64 = FM_FRAME_BUFFER(frame, uvs_f64);
+    const auto hole_levels = FM_FRAME_BUFFER(frame, hole_levels);
     facemorph::FrameBuffers buffers;
     buffers.positions = positions.span();
     buffers.normals = normals.span();
     buffers.uvs = uvs.span();
     buffers.indices = indices.span();
     buffers.texture = texture.span();
-    if (positions.tiny() || normals.tiny() || uvs.tiny() || indices.tiny() || texture.tiny()) {
+    buffers.positions_f64 = positions_f64.span();
+    buffers.uvs_f64 = uvs_f64.span();
+    buffers.hole_levels = hole_levels.span();
+    if (positions.tiny() || normals.tiny() || uvs.tiny() || indices.tiny() || texture.tiny() || positions_f64.tiny() || uvs_f64.tiny() ||
+        hole_levels.tiny()) {
       describe(d.frame_info(t, options), frame);
       throw Error(ErrorCode::kBufferTooSmall, "a buffer smaller than one element (sizes are in bytes)");
     }
-    const bool wants_nothing =
-        buffers.positions.empty() && buffers.normals.empty() && buffers.uvs.empty() && buffers.indices.empty() && buffers.texture.empty();
+    const bool wants_nothing = buffers.positions.empty() && buffers.normals.empty() && buffers.uvs.empty() && buffers.indices.empty() &&
+                               buffers.texture.empty() && buffers.positions_f64.empty() && buffers.uvs_f64.empty() &&
+                               buffers.hole_levels.empty();
     try {
       describe(wants_nothing ? d.frame_info(t, options) : d.decode(t, buffers, options), frame);
     } catch (const Error& e) {
@@ -469,6 +479,15 @@ FM_API fm_status fm_decoder_get_texture_weights(fm_decoder* decoder, double t, u
       keyframes[i] = static_cast<uint32_t>(w.keys[i]);
       weights[i] = w.weights[i];
     }
+    return ok();
+  });
+}
+
+// ---- API 1.3 ----
+
+FM_API fm_status fm_decoder_set_tolerance(fm_decoder* decoder, double tolerance) {
+  return guarded("fm_decoder_set_tolerance", [&] {
+    check_decoder(decoder)->set_tolerance(tolerance);
     return ok();
   });
 }

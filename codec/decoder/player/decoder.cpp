@@ -6,6 +6,7 @@
 #include "codec/core/sequence/spline.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -33,6 +34,7 @@ struct Decoder::Impl {
     bool clamp = false, keep_holes_filled = false, texture = false;
   };
   std::optional<Key> key;
+  double tolerance = ReconstructOptions{}.tolerance;
   DecodedFrame frame;
   FrameInfo info;
 
@@ -48,6 +50,7 @@ struct Decoder::Impl {
     decode_options.cut_holes = !options.keep_holes_filled;
     decode_options.texture = texture;
     decode_options.clamp_to_sane_range = options.clamp;
+    decode_options.reconstruct.tolerance = tolerance;
     if (!std::isfinite(t)) throw Error(ErrorCode::kInvalidArgument, "decode: t is not finite");
     try {
       frame = decoder.decode(t, decode_options);
@@ -65,6 +68,7 @@ struct Decoder::Impl {
     info.iterations = frame.iterations;
     info.converged = frame.converged;
     info.fell_back = frame.fell_back;
+    info.hole_level_count = static_cast<int>(frame.hole_level.size());
     key = Key{t, options.clamp, options.keep_holes_filled, texture};
     return frame;
   }
@@ -163,6 +167,12 @@ SplineWeights Decoder::texture_weights(double t, const FrameOptions& options) {
   return w;
 }
 
+void Decoder::set_tolerance(double tolerance) {
+  if (!(tolerance > 0 && tolerance <= 0.01)) throw Error(ErrorCode::kInvalidArgument, "the tolerance must be in (0, 0.01]");
+  impl_->tolerance = tolerance;
+  impl_->key.reset();  // a kept frame was reconstructed to the old tolerance
+}
+
 FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions& options) {
   const DecodedFrame& frame = impl_->decode(t, options, !out.texture.empty());
   const FrameInfo& info = impl_->info;
@@ -172,6 +182,9 @@ FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions&
   check_size("uvs", out.uvs, info.uvs_size(), "floats", problems);
   check_size("indices", out.indices, info.indices_size(), "indices", problems);
   check_size("texture", out.texture, info.texture_bytes(), "bytes", problems);
+  check_size("positions_f64", out.positions_f64, info.positions_size(), "doubles", problems);
+  check_size("uvs_f64", out.uvs_f64, info.uvs_size(), "doubles", problems);
+  check_size("hole_levels", out.hole_levels, info.hole_levels_size(), "doubles", problems);
   if (!problems.empty()) {
     char when[64];
     std::snprintf(when, sizeof when, "t = %.6g s: ", info.time);
@@ -189,6 +202,18 @@ FrameInfo Decoder::decode(double t, const FrameBuffers& out, const FrameOptions&
       for (int k = 0; k < 3; ++k) out.positions[3 * v + static_cast<size_t>(k)] = static_cast<float>(mesh.positions[v][k]);
     }
   }
+  if (!out.positions_f64.empty()) {
+    for (size_t v = 0; v < vertices; ++v) {
+      for (int k = 0; k < 3; ++k) out.positions_f64[3 * v + static_cast<size_t>(k)] = mesh.positions[v][k];
+    }
+  }
+  if (!out.uvs_f64.empty()) {
+    for (size_t v = 0; v < vertices; ++v) {
+      out.uvs_f64[2 * v] = mesh.uvs[v].x();
+      out.uvs_f64[2 * v + 1] = options.flip_v ? 1 - mesh.uvs[v].y() : mesh.uvs[v].y();
+    }
+  }
+  if (!out.hole_levels.empty()) std::copy(frame.hole_level.begin(), frame.hole_level.end(), out.hole_levels.begin());
   if (!out.normals.empty()) area_weighted_normals(mesh.positions, mesh.faces, out.normals.first(info.normals_size()));
   if (!out.uvs.empty()) {
     // Decoded meshes carry one UV per vertex (uv_faces == faces).

@@ -104,6 +104,12 @@ struct FrameBuffers {
   std::span<float> uvs{};
   std::span<uint32_t> indices{};
   std::span<uint8_t> texture{};
+  // API 1.3: positions and UVs as the decoder computes them, in double precision (for tools that
+  // write the surface at full precision), and the hole level set, one per node of G (< 0 inside a
+  // hole; FrameInfo::hole_level_count, 0 for a file without holes), whether the holes are cut or not.
+  std::span<double> positions_f64{};
+  std::span<double> uvs_f64{};
+  std::span<double> hole_levels{};
 };
 
 // What a decode produced.
@@ -117,12 +123,14 @@ struct FrameInfo {
   // own surfaces (always a valid face), which fell_back says.
   bool converged = true;
   bool fell_back = false;
+  int hole_level_count = 0;  // G's nodes in a file with holes, else 0
   // Array lengths the frame needs, in elements: floats, indices, bytes.
   size_t positions_size() const { return 3 * static_cast<size_t>(vertex_count); }
   size_t normals_size() const { return 3 * static_cast<size_t>(vertex_count); }
   size_t uvs_size() const { return 2 * static_cast<size_t>(vertex_count); }
   size_t indices_size() const { return 3 * static_cast<size_t>(triangle_count); }
   size_t texture_bytes() const { return 4 * static_cast<size_t>(texture_size) * static_cast<size_t>(texture_size); }
+  size_t hole_levels_size() const { return static_cast<size_t>(hole_level_count); }
 };
 
 class Decoder {
@@ -163,6 +171,10 @@ class Decoder {
   // as frame_info does: the blend a player that decodes the keyframes' images itself does (the
   // WebAssembly decoder, spec/web.md). Throws as frame_info.
   SplineWeights texture_weights(double t, const FrameOptions& options = {});
+  // The reconstruction stops when a step moves no node more than `tolerance` of the rim's diameter
+  // (ReconstructOptions::tolerance, 1e-5 by default); frames decoded afterwards use it. Throws
+  // kInvalidArgument outside (0, 0.01].
+  void set_tolerance(double tolerance);
 
  private:
   struct Impl;

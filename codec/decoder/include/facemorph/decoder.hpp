@@ -1,8 +1,9 @@
 // facemorph/decoder.hpp: the C++ player API, a header-only wrapper over the C API (facemorph.h),
 // as libjxl's decode_cxx.h is over decode.h. It adds only what C++ gives: handles closed by their
 // destructors, exceptions for statuses, frames into std::vectors. It includes facemorph.h and the
-// standard library only, compiles as C++17 or later, and covers API 1.2 (spec/api.md; 1.1's
-// borrowed open and texture weights included): every function is inline, so its ABI is the C API's.
+// standard library only, compiles as C++17 or later, and covers API 1.3 (spec/api.md; 1.1's
+// borrowed open and texture weights, 1.3's double-precision arrays, hole levels and tolerance included): every function is inline, so its
+// ABI is the C API's.
 //
 //   fm::File file = fm::File::open("face.fmv");                  // throws fm::Error
 //   fm::Decoder decoder(file);
@@ -74,7 +75,11 @@ enum Outputs : uint32_t {
   kUvs = 4,
   kIndices = 8,
   kTexture = 16,
-  kAllOutputs = 31,
+  kAllOutputs = 31,  // the five above, as in API 1.0 (not the 1.3 arrays below)
+  // API 1.3: positions and UVs in double precision, and the hole levels (facemorph.h fm_frame).
+  kPositionsF64 = 32,
+  kUvsF64 = 64,
+  kHoleLevels = 128,
 };
 
 // An opened .fmv file (fm_file). Move-only; the destructor closes it.
@@ -152,6 +157,12 @@ struct Frame {
   uint32_t texture_size = 0;  // M (0: no texture)
   uint32_t iterations = 0;    // reconstruction steps
   bool fell_back = false;     // the reconstruction did not converge: the keyframes' spline
+  // API 1.3 (kPositionsF64, kUvsF64, kHoleLevels): 3 and 2 doubles per vertex, and one level per
+  // node of the disk grid in a file with holes (hole_level_count of them, negative inside a hole).
+  std::vector<double> positions_f64;
+  std::vector<double> uvs_f64;
+  std::vector<double> hole_levels;
+  uint32_t hole_level_count = 0;
 };
 
 // The state that decodes one file's frames (fm_decoder). Move-only; the destructor destroys it.
@@ -186,6 +197,9 @@ class Decoder {
     wire(outputs & kUvs, frame.uvs, 2 * vertices, out.uvs, out.uvs_bytes);
     wire(outputs & kIndices, frame.indices, 3 * triangles, out.indices, out.indices_bytes);
     wire(outputs & kTexture, frame.texture, 4 * texels, out.texture, out.texture_bytes);
+    wire(outputs & kPositionsF64, frame.positions_f64, 3 * vertices, out.positions_f64, out.positions_f64_bytes);
+    wire(outputs & kUvsF64, frame.uvs_f64, 2 * vertices, out.uvs_f64, out.uvs_f64_bytes);
+    wire(outputs & kHoleLevels, frame.hole_levels, std::size_t{out.hole_level_count}, out.hole_levels, out.hole_levels_bytes);
     check(fm_decoder_decode(decoder_, t, flags, &out));
     frame.time = out.time;
     frame.vertex_count = out.vertex_count;
@@ -193,6 +207,7 @@ class Decoder {
     frame.texture_size = out.texture_size;
     frame.iterations = out.iterations;
     frame.fell_back = out.fell_back != 0;
+    frame.hole_level_count = out.hole_level_count;
   }
   // The C API's own call, for buffers the caller manages (a mapped GPU buffer): throws fm::Error
   // for every status but FM_OK (FM_ERROR_BUFFER_TOO_SMALL too: frame's counts then say what is
@@ -213,6 +228,10 @@ class Decoder {
     check(fm_decoder_get_texture_weights(decoder_, t, flags, blend.keyframes.data(), blend.weights.data(), count, &count));
     return blend;
   }
+
+  // fm_decoder_set_tolerance (API 1.3): the reconstruction's stopping rule for the frames decoded
+  // after it, a fraction of the rim's diameter in (0, 0.01] (FM_DEFAULT_TOLERANCE by default).
+  void set_tolerance(double tolerance) { check(fm_decoder_set_tolerance(decoder_, tolerance)); }
 
   // The C handle, for the C API; still owned by this Decoder.
   fm_decoder* get() const noexcept { return decoder_; }

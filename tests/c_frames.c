@@ -1,14 +1,19 @@
-/* The C side of the Python package's tests and benchmark (tests/python, python/bench_decode.py): a
- * player of the C API alone (facemorph.h, linked to libfacemorph_decoder.so.1), as any other.
+/* A player of the C API alone (facemorph.h), as any other, for the tests that compare another
+ * decoder with the native one: the Python package's tests and benchmark (tests/python,
+ * python/bench/bench_decode.py) and the WebAssembly exactness test (tests/web/exactness.sh). Each
+ * decodes FILE at COUNT times spread over its whole range, extrapolation included:
+ * t_i = begin + (end - begin) * i / (COUNT - 1), the times the other side decodes too.
  *
- *   c_frames FILE COUNT OUT       decodes FILE at COUNT times spread over its whole range
- *                                 (begin + (end - begin) * i / (COUNT - 1), extrapolation included)
- *                                 with every output, and writes each frame to OUT: t (float64), the
+ *   c_frames FILE COUNT OUT       every output; each frame written to OUT as t (float64), the
  *                                 vertex, triangle and texture counts (uint32 × 3), positions,
  *                                 normals (float32 × 3 a vertex), UVs (float32 × 2), indices
  *                                 (uint32 × 3 a triangle), texture (RGBA8, M × M)
  *   c_frames FILE COUNT - PASSES  the same decodes PASSES times over, writing nothing; prints the
  *                                 mean time a frame of each pass (ms) on stdout
+ *   c_frames --web FILE COUNT OUT what the browser's page asks for (positions, normals, UVs,
+ *                                 indices; no texture), each frame written as web/test/exactness.mjs
+ *                                 writes it: t (float64), the vertex count (uint32), the positions
+ *                                 (float32 × 3 a vertex); the mean decode time a frame on stderr
  */
 #define _POSIX_C_SOURCE 199309L /* clock_gettime in C99 */
 #include <facemorph.h>
@@ -24,9 +29,29 @@ static double now_ms(void) {
   return 1e3 * (double)t.tv_sec + 1e-6 * (double)t.tv_nsec;
 }
 
+/* One frame's record: the whole frame, or the web test's (t, vertex count, positions). */
+static void write_frame(FILE* out, int web, double t, const fm_frame* frame) {
+  fwrite(&t, sizeof t, 1, out);
+  if (web) {
+    fwrite(&frame->vertex_count, sizeof frame->vertex_count, 1, out);
+    fwrite(frame->positions, sizeof(float), 3 * (size_t)frame->vertex_count, out);
+    return;
+  }
+  const uint32_t counts[3] = {frame->vertex_count, frame->triangle_count, frame->texture_size};
+  fwrite(counts, sizeof counts, 1, out);
+  fwrite(frame->positions, sizeof(float), 3 * (size_t)frame->vertex_count, out);
+  fwrite(frame->normals, sizeof(float), 3 * (size_t)frame->vertex_count, out);
+  fwrite(frame->uvs, sizeof(float), 2 * (size_t)frame->vertex_count, out);
+  fwrite(frame->indices, sizeof(uint32_t), 3 * (size_t)frame->triangle_count, out);
+  fwrite(frame->texture, 1, 4 * (size_t)frame->texture_size * frame->texture_size, out);
+}
+
 int main(int argc, char** argv) {
-  if (argc < 4 || argc > 5) {
-    fprintf(stderr, "usage: c_frames FILE COUNT OUT | c_frames FILE COUNT - PASSES\n");
+  const int web = argc > 1 && strcmp(argv[1], "--web") == 0;
+  argv += web;
+  argc -= web;
+  if (argc < 4 || argc > 5 || (web && argc != 4)) {
+    fprintf(stderr, "usage: c_frames FILE COUNT OUT | c_frames FILE COUNT - PASSES | c_frames --web FILE COUNT OUT\n");
     return 2;
   }
   const int count = atoi(argv[2]);
@@ -49,14 +74,15 @@ int main(int argc, char** argv) {
     return 1;
   }
   const size_t vertices = info.max_vertex_count, triangles = info.max_triangle_count;
-  const size_t texels = (size_t)info.texture_size * info.texture_size;
+  const size_t texels = web ? 0 : (size_t)info.texture_size * info.texture_size;
   float* positions = malloc(3 * sizeof(float) * vertices + 1);
   float* normals = malloc(3 * sizeof(float) * vertices + 1);
   float* uvs = malloc(2 * sizeof(float) * vertices + 1);
   uint32_t* indices = malloc(3 * sizeof(uint32_t) * triangles + 1);
   uint8_t* texture = malloc(4 * texels + 1);
+  double total_ms = 0;
   for (int pass = 0; status == FM_OK && pass < passes; ++pass) {
-    double total_ms = 0;
+    total_ms = 0;
     for (int i = 0; status == FM_OK && i < count; ++i) {
       const double t = info.range_begin + (info.range_end - info.range_begin) * i / (count - 1);
       fm_frame frame;
@@ -76,19 +102,16 @@ int main(int argc, char** argv) {
       const double start = now_ms();
       status = fm_decoder_decode(decoder, t, 0, &frame);
       total_ms += now_ms() - start;
-      if (status != FM_OK || timing) continue;
-      const uint32_t counts[3] = {frame.vertex_count, frame.triangle_count, frame.texture_size};
-      fwrite(&t, sizeof t, 1, out);
-      fwrite(counts, sizeof counts, 1, out);
-      fwrite(positions, sizeof(float), 3 * (size_t)frame.vertex_count, out);
-      fwrite(normals, sizeof(float), 3 * (size_t)frame.vertex_count, out);
-      fwrite(uvs, sizeof(float), 2 * (size_t)frame.vertex_count, out);
-      fwrite(indices, sizeof(uint32_t), 3 * (size_t)frame.triangle_count, out);
-      fwrite(texture, 1, 4 * (size_t)frame.texture_size * frame.texture_size, out);
+      if (status == FM_OK && !timing) write_frame(out, web, t, &frame);
     }
     if (status == FM_OK && timing) printf("%.4f\n", total_ms / count);
   }
-  if (status != FM_OK) fprintf(stderr, "c_frames: %s: %s\n", fm_status_name(status), fm_last_error_message());
+  if (status != FM_OK) {
+    fprintf(stderr, "c_frames: %s: %s\n", fm_status_name(status), fm_last_error_message());
+  } else if (web) {
+    fprintf(stderr, "c_frames: N = %u: native decode %.2f ms a frame (mean of %d, the first included)\n", info.grid_n, total_ms / count,
+            count);
+  }
   free(positions);
   free(normals);
   free(uvs);
