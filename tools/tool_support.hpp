@@ -3,6 +3,7 @@
 #pragma once
 
 #include "codec/core/limits/decoder_limits.hpp"
+#include "codec/core/util/elapsed.hpp"
 #include "format/error.hpp"
 
 #include <CLI/CLI.hpp>
@@ -57,7 +58,8 @@ std::string hex64(uint64_t value);
 // read them alike (the bench's own took any positive number: --keyframes 2 meant 200% there).
 double parse_fraction(const std::string& text, const char* what);
 
-double seconds_since(std::chrono::steady_clock::time_point start);
+// The one clock reading of the encoder's reports too (codec/core/util/elapsed.hpp).
+using facemorph::seconds_since;
 
 // The decoder's limits as options (--max-memory 512M, --max-grid, --max-keyframes, --max-texture):
 // what a file may make the tool allocate (spec/container.md §10). parsed_limits gives them after

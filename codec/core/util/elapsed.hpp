@@ -1,7 +1,7 @@
 // Wall-clock timings (the encoder's EncodeReport::seconds_*, the maps' and geodesic frames'
 // reports): the seconds since a step began. Here, below every encoder folder, so that the stages,
 // the driver, the conformal map and the registration take it from one place without an include
-// running back up (the tools, which keep to the public API, have theirs in tools/tool_support.hpp).
+// running back up (the tools take it through tools/tool_support.hpp).
 #pragma once
 
 #include <chrono>
