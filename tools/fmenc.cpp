@@ -168,8 +168,8 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
 int main(int argc, char** argv) {
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
   std::vector<std::string> inputs;
-  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, grid = "auto", registration = "gmf",
-                      spline = "catmull-rom", representation = "auto", landmarks;
+  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0.75%", grid = "auto",
+                      registration = "gmf", spline = "catmull-rom", representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
@@ -214,6 +214,10 @@ int main(int argc, char** argv) {
   app.add_option("--keyframes", keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
   app.add_option("--max-error", max_error,
                  "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
+  app.add_option("--worst-region", worst_region,
+                 "With the default budget: more keyframes until every frame's predicted 99th-percentile point error between keyframes "
+                 "is within this (of the bbox diagonal; 0: no such bound)")
+      ->capture_default_str();
   app.add_option("--grid", grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
                  "between keyframes)")
@@ -294,6 +298,7 @@ int main(int argc, char** argv) {
       // A budget given is a budget kept; the default one grows where frames are far apart or fast.
       if (app.count("--keyframes") > 0) options.keyframe_error_bound = options.sparse_frame_interval = 0;
     }
+    options.keyframe_p99_bound = worst_region == "0" || worst_region == "0%" ? 0.0 : tools::parse_fraction(worst_region, "--worst-region");
     if (grid != "auto") {
       try {
         options.grid = std::stoi(grid);
@@ -514,10 +519,11 @@ int main(int argc, char** argv) {
     }
     if (!report.sparse && report.keyframe_budget > 0 && static_cast<int>(sequence->shape().keyframes.size()) > report.keyframe_budget) {
       std::printf(
-          "  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
-          "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
+          "  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst / %.3f%% worst 99th percentile predicted between keyframes, "
+          "above the %.2g%% / %.2g%% / %.2g%% bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
           100 * options.keyframe_fraction, report.keyframe_budget, 100 * report.budget_mean_error, 100 * report.budget_worst_error,
-          100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound, sequence->shape().keyframes.size());
+          100 * report.budget_worst_p99, 100 * options.keyframe_error_bound, 300 * options.keyframe_error_bound,
+          100 * options.keyframe_p99_bound, sequence->shape().keyframes.size());
     }
     if (report.sparse) {
       std::printf(
@@ -578,9 +584,13 @@ int main(int argc, char** argv) {
     }
     std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(bytes),
                 static_cast<double>(bytes) / duration, static_cast<double>(bytes) * 8 / duration / 1000);
-    double worst = 0;
-    for (const EncodedFrameReport& f : report.frames) worst = std::max(worst, f.predicted_error);
-    std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
+    double worst = 0, worst_p99 = 0;
+    for (const EncodedFrameReport& f : report.frames) {
+      worst = std::max(worst, f.predicted_error);
+      worst_p99 = std::max(worst_p99, f.predicted_p99);
+    }
+    std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal (RMS), %.3f%% (99th percentile)\n", 100 * worst,
+                100 * worst_p99);
     if (report.field_coding.predicted()) {
       const std::vector<double>& e = report.field_precision.keyframe_errors;
       std::printf(

@@ -28,6 +28,11 @@ struct EncodeOptions {
   // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
   // 0: the budget exactly (fmenc --keyframes P sets 0).
   double keyframe_error_bound = 0.005;
+  // With that bound, the budget also grows until every frame's predicted 99th-percentile point
+  // error between keyframes is within this (SelectionOptions::p99_bound): the decoded worst region
+  // within 1% of the diagonal, issue 44's target, with room for the grid's and the rounding's share
+  // (spec/method.md §7.5). 0: no such bound.
+  double keyframe_p99_bound = 0.0075;
   // A capture whose frames lie on median more than this apart (seconds; below 4 frames a second)
   // keeps every frame as a keyframe (SelectionOptions::sparse_interval). 0: off (fmenc --keyframes P
   // sets 0, as for the bound).

@@ -163,6 +163,7 @@ KeyframeSelection SequenceEncoder::select_keyframes() const {
   selection.fraction = options_.keyframe_fraction;
   selection.max_error = options_.max_error;
   selection.error_bound = options_.keyframe_error_bound;
+  selection.p99_bound = options_.keyframe_p99_bound;
   selection.sparse_interval = options_.sparse_frame_interval;
   selection.spline = options_.spline;
   selection.pose_centre = pose_centre();
