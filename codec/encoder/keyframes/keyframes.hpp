@@ -103,8 +103,12 @@ struct KeyframeSelection {
   int budget = 0;                                        // keyframes the budget gave (0 with max_error)
   double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
   double budget_worst_p99 = 0;                           // and the worst held-out frame's predicted 99th percentile
-  double median_interval = 0;                            // between consecutive frames, seconds
-  bool sparse = false;                                   // every frame kept: median_interval above SelectionOptions::sparse_interval
+  // > 0 where SelectionOptions::p99_bound added keyframes: the held-out mean predicted error of the
+  // keyframes chosen before them, which mean_predicted_error then returns (the grid's and the
+  // field rounding's targets follow the RMS, not the keyframes the worst region added).
+  double rate_mean_error = 0;
+  double median_interval = 0;  // between consecutive frames, seconds
+  bool sparse = false;         // every frame kept: median_interval above SelectionOptions::sparse_interval
   // With SelectionOptions::residuals: the residual frames at the frames they serve (times the
   // frames' own; ResidualFrame::delta multiples of residual_step), increasing. Where they took the
   // place of keyframes where the error bound grew the budget, or under a tolerance (and with them
@@ -117,6 +121,7 @@ struct KeyframeSelection {
 
 // The mean of `chosen`'s predicted errors between keyframes (fraction of the diagonal); 0 when
 // none was predicted (every frame a keyframe): what the grid's and the field precision's targets scale with.
+// Where the worst-region bound added keyframes, the mean before them (KeyframeSelection::rate_mean_error).
 double mean_predicted_error(const KeyframeSelection& chosen);
 
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.
