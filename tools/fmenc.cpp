@@ -168,7 +168,7 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
 int main(int argc, char** argv) {
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
   std::vector<std::string> inputs;
-  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0.75%", grid = "auto",
+  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0", grid = "auto",
                       registration = "gmf", spline = "catmull-rom", representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
@@ -216,7 +216,7 @@ int main(int argc, char** argv) {
                  "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
   app.add_option("--worst-region", worst_region,
                  "With the default budget: more keyframes until every frame's predicted 99th-percentile point error between keyframes "
-                 "is within this (of the bbox diagonal; 0: no such bound)")
+                 "is within this (of the bbox diagonal, e.g. 0.75%; 0: no such bound, the default)")
       ->capture_default_str();
   app.add_option("--grid", grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
