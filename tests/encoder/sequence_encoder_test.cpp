@@ -1275,7 +1275,9 @@ TEST(KeyframeSelection, TheWorstRegionGetsKeyframesWhereTheRmsBoundsHold) {
   double worst_p99 = 0;
   for (size_t j = 0; j < frames.size(); ++j) {
     worst_p99 = std::max(worst_p99, budget.predicted_p99[j]);
-    if (budget.predicted_error[j] > 1e-6) EXPECT_NEAR(budget.predicted_p99[j] / budget.predicted_error[j], ratio, 1e-3 * ratio) << j;
+    if (budget.predicted_error[j] > 1e-6) {
+      EXPECT_NEAR(budget.predicted_p99[j] / budget.predicted_error[j], ratio, 1e-3 * ratio) << j;
+    }
   }
   ASSERT_GT(worst_p99, 0.0075) << "the bump must sit above the bound at the budget";
   EXPECT_DOUBLE_EQ(budget.budget_worst_p99, worst_p99);
