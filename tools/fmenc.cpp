@@ -167,8 +167,8 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
 // encoder's options by encode_options and check_stage.
 struct Arguments {
   std::vector<std::string> inputs;
-  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, grid = "auto", registration = "gmf",
-                      spline = "catmull-rom", representation = "auto", landmarks;
+  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0", grid = "auto",
+                      registration = "gmf", spline = "catmull-rom", representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
@@ -217,6 +217,10 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--keyframes", a.keyframes, "Keyframe budget, a fraction of the frames (10% or 0.1)")->capture_default_str();
   app.add_option("--max-error", a.max_error,
                  "Instead of a budget: as many keyframes as keep the predicted error below this (of the bbox diagonal, e.g. 0.5%)");
+  app.add_option("--worst-region", a.worst_region,
+                 "With the default budget: more keyframes until every frame's predicted 99th-percentile point error between keyframes "
+                 "is within this (of the bbox diagonal, e.g. 0.75%; 0: no such bound, the default)")
+      ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
                  "between keyframes)")
@@ -299,6 +303,8 @@ EncodeOptions encode_options(const Arguments& a, bool keyframes_given) {
     // A budget given is a budget kept; the default one grows where a.frames are far apart or fast.
     if (keyframes_given) options.keyframe_error_bound = options.sparse_frame_interval = 0;
   }
+  options.keyframe_p99_bound =
+      a.worst_region == "0" || a.worst_region == "0%" ? 0.0 : tools::parse_fraction(a.worst_region, "--worst-region");
   if (a.grid != "auto") {
     try {
       options.grid = std::stoi(a.grid);
@@ -570,10 +576,11 @@ void print_keyframes(const Summary& s) {
   if (!s.report.sparse && s.report.keyframe_budget > 0 &&
       static_cast<int>(s.sequence->shape().keyframes.size()) > s.report.keyframe_budget) {
     std::printf(
-        "  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst predicted between keyframes, above the %.2g%% / %.2g%% "
-        "bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
+        "  keyframes: the %g%% budget (%d) left %.3f%% mean / %.3f%% worst / %.3f%% worst 99th percentile predicted between keyframes, "
+        "above the %.2g%% / %.2g%% / %.2g%% bound for frames far apart or fast: %zu keyframes (--keyframes P keeps a budget exactly)\n",
         100 * s.options.keyframe_fraction, s.report.keyframe_budget, 100 * s.report.budget_mean_error, 100 * s.report.budget_worst_error,
-        100 * s.options.keyframe_error_bound, 300 * s.options.keyframe_error_bound, s.sequence->shape().keyframes.size());
+        100 * s.report.budget_worst_p99, 100 * s.options.keyframe_error_bound, 300 * s.options.keyframe_error_bound,
+        100 * s.options.keyframe_p99_bound, s.sequence->shape().keyframes.size());
   }
   if (s.report.sparse) {
     std::printf(
@@ -646,9 +653,13 @@ void print_radial_equalising(const Summary& s) {
 void print_rate_and_fields(const Summary& s) {
   std::printf("  %llu bytes: %.0f bytes per second of capture (%.1f kbit/s)\n", static_cast<unsigned long long>(s.bytes),
               static_cast<double>(s.bytes) / s.duration, static_cast<double>(s.bytes) * 8 / s.duration / 1000);
-  double worst = 0;
-  for (const EncodedFrameReport& f : s.report.frames) worst = std::max(worst, f.predicted_error);
-  std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal\n", 100 * worst);
+  double worst = 0, worst_p99 = 0;
+  for (const EncodedFrameReport& f : s.report.frames) {
+    worst = std::max(worst, f.predicted_error);
+    worst_p99 = std::max(worst_p99, f.predicted_p99);
+  }
+  std::printf("  predicted worst error between keyframes: %.3f%% of the bbox diagonal (RMS), %.3f%% (99th percentile)\n", 100 * worst,
+              100 * worst_p99);
   if (s.report.field_coding.predicted()) {
     const std::vector<double>& e = s.report.field_precision.keyframe_errors;
     std::printf(

@@ -18,6 +18,7 @@ void check_encode_options(const EncodeOptions& options, int count) {
     throw Error(ErrorCode::kInvalidArgument, "the keyframe budget must be in (0, 100%]");
   }
   if (!(options.keyframe_error_bound >= 0)) throw Error(ErrorCode::kInvalidArgument, "the keyframe error bound must be >= 0");
+  if (!(options.keyframe_p99_bound >= 0)) throw Error(ErrorCode::kInvalidArgument, "the keyframe 99th-percentile bound must be >= 0");
   if (!(options.keyframe_fit_weight >= 0) || !(options.keyframe_fit_noise >= 0)) {
     throw Error(ErrorCode::kInvalidArgument, "the keyframe fit's weight and noise factor must be >= 0");
   }

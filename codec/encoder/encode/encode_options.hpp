@@ -28,6 +28,12 @@ struct EncodeOptions {
   // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
   // 0: the budget exactly (fmenc --keyframes P sets 0).
   double keyframe_error_bound = 0.005;
+  // > 0, with that bound: the budget also grows until every frame's predicted 99th-percentile point
+  // error between keyframes is within this (SelectionOptions::p99_bound; fmenc --worst-region 0.75%
+  // brings fast speech, ICT decimated to 2k and Medusa within issue 44's 1% decoded). Off by default:
+  // it costs 3.2x (ICT-2k) to 15x (Medusa) the bytes, and ICT at full resolution still decodes at
+  // 1.11% (spec/method.md §7.5).
+  double keyframe_p99_bound = 0;
   // A capture whose frames lie on median more than this apart (seconds; below 4 frames a second)
   // keeps every frame as a keyframe (SelectionOptions::sparse_interval). 0: off (fmenc --keyframes P
   // sets 0, as for the bound).

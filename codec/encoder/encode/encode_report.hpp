@@ -35,6 +35,7 @@ struct EncodedFrameReport {
   ConformalMethod conformal_method = ConformalMethod::kQiem;  // ...this one
   double energy_moebius = 0, energy = 0;                      // E_D of the OMT and of the registration (disk units²)
   double predicted_error = 0;                                 // the selection's predicted error (fraction of the diagonal)
+  double predicted_p99 = 0;                                   // and its 99th-percentile point (KeyframeSelection::predicted_p99)
   double diagonal = 0;                                        // of the captured frame
 };
 
@@ -87,6 +88,7 @@ struct EncodeReport {
   bool sparse = false;                                    // every frame a keyframe: frames sparser than sparse_frame_interval
   double median_frame_interval = 0;                       // seconds
   double budget_mean_error = 0, budget_worst_error = 0;   // the predicted errors it left (fraction of the diagonal)
+  double budget_worst_p99 = 0;                            // and the worst frame's predicted 99th percentile
   int grid = 0;
   int texture_size = 0;                                 // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto

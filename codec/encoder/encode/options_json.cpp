@@ -139,6 +139,7 @@ void segment_fields(Fields& f, Options& o) {
   f.object("sample", [&] { sample_fields(f, o); });
   f.value("keyframes", o.keyframe_fraction);
   f.value("keyframe_error_bound", o.keyframe_error_bound);
+  f.value("keyframe_p99_bound", o.keyframe_p99_bound);
   f.value("sparse_frame_interval", o.sparse_frame_interval);
   f.value("max_error", o.max_error);
   f.value("grid", o.grid);

@@ -186,6 +186,7 @@ void write_segment_measure(const std::filesystem::path& path, const SegmentMeasu
                           {"budget", m.plan.budget},
                           {"budget_mean_error", m.plan.budget_mean_error},
                           {"budget_worst_error", m.plan.budget_worst_error},
+                          {"rate_mean_error", m.plan.rate_mean_error},
                           {"median_interval", m.plan.median_interval},
                           {"sparse", m.plan.sparse},
                           {"blend",
@@ -275,6 +276,7 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     m.plan.budget = integer_field(plan, "budget", its_plan);
     m.plan.budget_mean_error = field<double>(plan, "budget_mean_error", its_plan);
     m.plan.budget_worst_error = field<double>(plan, "budget_worst_error", its_plan);
+    m.plan.rate_mean_error = field<double>(plan, "rate_mean_error", its_plan);
     m.plan.median_interval = field<double>(plan, "median_interval", its_plan);
     m.plan.sparse = field<bool>(plan, "sparse", its_plan);
     const nlohmann::json blend = field<nlohmann::json>(plan, "blend", its_plan);

@@ -144,6 +144,7 @@ void report_selection(EncodeReport& report, const KeyframeSelection& chosen) {
   report.median_frame_interval = chosen.median_interval;
   report.budget_mean_error = chosen.budget_mean_error;
   report.budget_worst_error = chosen.budget_worst_error;
+  report.budget_worst_p99 = chosen.budget_worst_p99;
 }
 
 void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes) {
@@ -206,6 +207,7 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
     r.energy_moebius = registration.energy_moebius;
     r.energy = registration.energy;
     r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
+    if (i < static_cast<int>(chosen.predicted_p99.size())) r.predicted_p99 = chosen.predicted_p99[static_cast<size_t>(i)];
     r.diagonal = encoder.selection_frames()[static_cast<size_t>(i)].diagonal;
     report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
     report.frames.push_back(std::move(r));

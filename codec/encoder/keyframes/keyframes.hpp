@@ -69,6 +69,11 @@ struct SelectionOptions {
   // spline nothing between them to be checked against, and are few: each is stored at the grid's
   // and the field rounding's floor rather than predicted (spec/method.md §7.5).
   double sparse_interval = 0;
+  // With the error bound (> 0), > 0: the budget also grows until every held-out frame's predicted
+  // 99th-percentile point error (the area-weighted 99th percentile of the prediction's offsets along
+  // the frame's normals, over its diagonal) is within this: the worst region (lips, eyelids), which
+  // the RMS bounds leave far above the RMS (spec/method.md §7.5).
+  double p99_bound = 0;
   double max_error = 0;  // > 0: instead of the budget, add keyframes until every frame's predicted error <= this
   SplineKind spline = SplineKind::kCatmullRom;
   Vec3 pose_centre = Vec3::Zero();  // the point whose path the pose blend follows (Sequence::pose_centre)
@@ -92,12 +97,18 @@ inline constexpr double kResidualFloor = 5e-5;
 struct KeyframeSelection {
   std::vector<int> keyframes;           // frame indices, increasing; always the first and the last frame
   std::vector<double> predicted_error;  // per frame: RMS of the prediction's normal offset / diagonal (0 at keyframes)
+  std::vector<double> predicted_p99;    // per frame: its area-weighted 99th percentile / diagonal (0 at keyframes)
   // After each addition: how many keyframes, and the worst predicted error then.
   std::vector<std::pair<int, double>> history;
   int budget = 0;                                        // keyframes the budget gave (0 with max_error)
   double budget_mean_error = 0, budget_worst_error = 0;  // what the budget alone left (held-out frames)
-  double median_interval = 0;                            // between consecutive frames, seconds
-  bool sparse = false;                                   // every frame kept: median_interval above SelectionOptions::sparse_interval
+  double budget_worst_p99 = 0;                           // and the worst held-out frame's predicted 99th percentile
+  // > 0 where SelectionOptions::p99_bound added keyframes: the held-out mean predicted error of the
+  // keyframes chosen before them, which mean_predicted_error then returns (the grid's and the
+  // field rounding's targets follow the RMS, not the keyframes the worst region added).
+  double rate_mean_error = 0;
+  double median_interval = 0;  // between consecutive frames, seconds
+  bool sparse = false;         // every frame kept: median_interval above SelectionOptions::sparse_interval
   // With SelectionOptions::residuals: the residual frames at the frames they serve (times the
   // frames' own; ResidualFrame::delta multiples of residual_step), increasing. Where they took the
   // place of keyframes where the error bound grew the budget, or under a tolerance (and with them
@@ -110,6 +121,7 @@ struct KeyframeSelection {
 
 // The mean of `chosen`'s predicted errors between keyframes (fraction of the diagonal); 0 when
 // none was predicted (every frame a keyframe): what the grid's and the field precision's targets scale with.
+// Where the worst-region bound added keyframes, the mean before them (KeyframeSelection::rate_mean_error).
 double mean_predicted_error(const KeyframeSelection& chosen);
 
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.

@@ -169,6 +169,7 @@ KeyframeSelection select_keyframes(const SequenceEncoder& encoder) {
   selection.fraction = options.keyframe_fraction;
   selection.max_error = options.max_error;
   selection.error_bound = options.keyframe_error_bound;
+  selection.p99_bound = options.keyframe_p99_bound;
   selection.sparse_interval = options.sparse_frame_interval;
   selection.spline = options.spline;
   selection.pose_centre = encoder.pose_centre();
