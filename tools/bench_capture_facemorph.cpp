@@ -68,7 +68,7 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
   };
   timed("mapping", [&] { encoder.map_frames(); });
   timed("registration", [&] { encoder.register_frames(); });
-  timed("sampling", [&] { encoder.sample_frames(); });
+  timed("sampling", [&] { sample_frames(encoder); });
   // fmenc's order: the keyframes first, then the grid their predicted error allows.
   FacemorphPoints points;
   KeyframeSelection main_chosen;

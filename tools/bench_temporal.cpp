@@ -66,8 +66,8 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
   MatchingEnergies m;
   const Capture& capture = encoder.capture();
   const int reference = encoder.options().reference_frame;
-  const auto& selection = encoder.selection_frames();
-  const auto& weights = encoder.selection_weights();
+  const auto& selection = encoder.selection().frames();
+  const auto& weights = encoder.selection().weights();
   double area = 0;
   for (double w : weights) area += w;
   int counted = 0;
@@ -90,7 +90,7 @@ MatchingEnergies matching_energies(SequenceEncoder& encoder) {
       if (hit) m.local += (inverse.position(*hit) - q).squaredNorm();
     }
     double sum = 0;
-    const std::shared_ptr<const SelectionFrame> sampled = encoder.selection_frame(i);
+    const std::shared_ptr<const SelectionFrame> sampled = encoder.selection().frame(i);
     for (size_t v = 0; v < weights.size(); ++v)
       sum += weights[v] * (sampled->local[v] - selection[static_cast<size_t>(reference)].local[v]).squaredNorm();
     m.global += sum;
@@ -213,7 +213,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       encoder.options().registration.method = method;
       encoder.options().spline = splines.front();
       encoder.register_frames();
-      encoder.sample_frames();
+      sample_frames(encoder);
       const KeyframeSelection chosen = select_keyframes(encoder);
       if (grid == 0) {
         grid = choose_grid(encoder, &chosen);
@@ -317,7 +317,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     if (encoder.registration(0)->method != main_method) {
       encoder.options().registration.method = main_method;
       encoder.register_frames();
-      encoder.sample_frames();
+      sample_frames(encoder);
     }
     // Spline kinds, same keyframes count, each choosing its own keyframes.
     if (splines.size() > 1) {
@@ -337,12 +337,12 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     if (count >= 20) {
       const int last = count - 11;
       std::vector<SelectionFrame> head;  // with their samples, read back from the encoder's store
-      for (int i = 0; i <= last; ++i) head.push_back(*encoder.selection_frame(i));
+      for (int i = 0; i <= last; ++i) head.push_back(*encoder.selection().frame(i));
       SelectionOptions so;
       so.fraction = encode.keyframe_fraction;
       so.spline = encoder.options().spline;
       so.pose_centre = encoder.pose_centre();
-      const KeyframeSelection chosen = select_keyframes(head, encoder.selection_weights(), so);
+      const KeyframeSelection chosen = select_keyframes(head, encoder.selection().weights(), so);
       const Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
       const KeyframeSpline spline(sequence.keyframe_times(), sequence.spline);
       const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, {last + 1, last + 3, last + 10}, false);

@@ -137,7 +137,7 @@ void measure_selection(const TrackingBenchOptions& o) {
     if (round_trip > 0) encoder.options().tracking.max_round_trip = round_trip;
     encoder.options().registration.smoothing = smoothing;
     encoder.register_frames();
-    encoder.sample_frames();
+    sample_frames(encoder);
     const KeyframeSelection chosen = select_keyframes(encoder);
     double sum = 0;
     int n = 0;

@@ -16,7 +16,7 @@ namespace facemorph::testing {
 inline void run_to_selection(SequenceEncoder& encoder) {
   encoder.map_frames();
   encoder.register_frames();
-  encoder.sample_frames();
+  sample_frames(encoder);
 }
 
 // 12 frames of fmsynth's face, 3000 vertices remeshed every frame, a 128² texture, turning by

@@ -103,7 +103,8 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
   ASSERT_LT(fast.keyframes.size(), 6u) << "the budget should leave the mouth's motion to the spline";
   std::unique_ptr<StoredSequence> stored = build_keyframes(*fast.encoder, fast.keyframes, kResidualTestGrid);
   ResidualFitReport report;
-  const std::vector<ResidualFrame> residuals = fit_decoded_residuals(*fast.encoder, *stored, fast.keyframes, 1.0 / 128, &report);
+  const std::vector<ResidualFrame> residuals =
+      fit_decoded_residuals(registered_frames(*fast.encoder), *stored, fast.keyframes, 1.0 / 128, &report);
   EXPECT_TRUE(stored->shape().residuals.empty());  // left as it was
   ASSERT_GT(residuals.size(), 5u);
   EXPECT_EQ(report.residuals, static_cast<int>(residuals.size()));
@@ -163,7 +164,7 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
     double apart = 0;
     for (size_t n = 0; n < before.grid_positions.size(); ++n)
       apart = std::max(apart, (before.grid_positions[n] - after.grid_positions[n]).norm());
-    EXPECT_LT(apart, 1e-4 * fast.encoder->selection_frames().front().diagonal);
+    EXPECT_LT(apart, 1e-4 * fast.encoder->selection().frames().front().diagonal);
   }
 }
 

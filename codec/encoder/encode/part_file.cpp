@@ -424,7 +424,7 @@ void PartWriter::finish() {
 // ---- Reading ----
 
 PartReader::PartReader(const std::filesystem::path& path) : source_(path.string()) {
-  selection_nodes_ = static_cast<size_t>(make_disk_grid(SequenceEncoder::selection_grid()).interior_count);
+  selection_nodes_ = static_cast<size_t>(make_disk_grid(SelectionSamples::kGrid).interior_count);
   file_ = std::make_unique<format::MappedFile>(path);
   reader_ =
       std::make_unique<format::ContainerReader>(file_->bytes(), source_, static_cast<uint64_t>(kMaxPartCaptureFrames) + 2, kPartContainer);

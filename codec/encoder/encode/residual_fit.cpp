@@ -5,7 +5,6 @@
 
 #include "codec/core/util/parallel.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/keyframes/blend_correction.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
@@ -33,9 +32,9 @@ struct CapturedOnGrid {
   double diagonal = 1;
 };
 
-CapturedOnGrid captured_on_grid(const SequenceEncoder& encoder, const GridGeometry& geometry, int frame) {
+CapturedOnGrid captured_on_grid(const RegisteredFrames& frames, const GridGeometry& geometry, int frame) {
   CapturedOnGrid c;
-  c.positions = encoder.sample_surface(frame, geometry.grid().nodes);
+  c.positions = frames.surface(frame, geometry.grid().nodes);
   std::vector<Vec3> tu, tv;
   geometry.frames(c.positions, tu, tv, c.normals);
   const std::vector<double> lambda2 = geometry.conformal_factor_squared(c.positions);
@@ -44,7 +43,7 @@ CapturedOnGrid captured_on_grid(const SequenceEncoder& encoder, const GridGeomet
     c.weights[v] = geometry.mass()[static_cast<Eigen::Index>(v)] * lambda2[v];
     c.total_weight += c.weights[v];
   }
-  c.diagonal = encoder.selection_frames()[static_cast<size_t>(frame)].diagonal;
+  c.diagonal = frames.diagonals[static_cast<size_t>(frame)];
   return c;
 }
 
@@ -75,7 +74,7 @@ DecodeOptions shape_only() {
 
 }  // namespace
 
-std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes,
+std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames, StoredSequence& stored, const std::vector<int>& keyframes,
                                                  double step, ResidualFitReport* report_out) {
   const auto start = std::chrono::steady_clock::now();
   ResidualFitReport report;
@@ -83,11 +82,10 @@ std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder,
   const std::vector<double>& key_times = stored.outline().times;
   if (key_times.size() != keyframes.size())
     throw Error(ErrorCode::kInvalidArgument, "fit_decoded_residuals: the keyframes are not the stored sequence's");
-  const std::vector<CaptureFrame>& frames = encoder.capture().frames;
   // Frames strictly between the first and last keyframe, not keyframes themselves: interval i of each.
   std::vector<int> held, interval;
   for (int j = keyframes.front() + 1; j < keyframes.back(); ++j) {
-    const int i = residual_interval(key_times, frames[static_cast<size_t>(j)].time);
+    const int i = residual_interval(key_times, frames.times[static_cast<size_t>(j)]);
     if (i < 0) continue;
     held.push_back(j);
     interval.push_back(i);
@@ -114,9 +112,9 @@ std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder,
   std::vector<char> fitted(held.size(), 0);
   for (size_t h = 0; h < held.size(); ++h) {
     const int j = held[h];
-    const double t = frames[static_cast<size_t>(j)].time;
+    const double t = frames.times[static_cast<size_t>(j)];
     const DecodedFrame decoded = plain.decode(t, options);
-    const CapturedOnGrid captured = captured_on_grid(encoder, geometry, j);
+    const CapturedOnGrid captured = captured_on_grid(frames, geometry, j);
     const std::vector<double> offsets = normal_offsets(decoded.grid_positions, captured);
     before[h] = relative_rms(offsets, captured);
     const KeyWindow window = residual_window(interval[h], static_cast<int>(keyframes.size()));
@@ -154,8 +152,8 @@ std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder,
     for (size_t h = 0; h < held.size(); ++h) {
       if (!fitted[h]) continue;
       const int j = held[h];
-      const DecodedFrame decoded = corrected.decode(frames[static_cast<size_t>(j)].time, options);
-      const CapturedOnGrid captured = captured_on_grid(encoder, geometry, j);
+      const DecodedFrame decoded = corrected.decode(frames.times[static_cast<size_t>(j)], options);
+      const CapturedOnGrid captured = captured_on_grid(frames, geometry, j);
       const double error = relative_rms(normal_offsets(decoded.grid_positions, captured), captured);
       if (error <= (1 - kDecodedResidualMinGain) * before[h]) {
         after[h] = error;

@@ -10,14 +10,25 @@
 // error: the decoder's error at every captured frame is then never above the spline's alone.
 #pragma once
 
+#include "codec/core/geometry/mesh.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
 
+#include <functional>
+#include <span>
 #include <vector>
 
 namespace facemorph {
 
-class SequenceEncoder;
 class StoredSequence;
+
+// What the fit reads of the capture's frames, registered and sampled (registered_frames(encoder),
+// sequence_encoder.hpp): frame j's time and bbox diagonal, and its registered surface at disk
+// points of G (capture frame). `surface` is called from one thread.
+struct RegisteredFrames {
+  std::vector<double> times;
+  std::vector<double> diagonals;
+  std::function<std::vector<Vec3>(int frame, std::span<const Vec2> nodes)> surface;
+};
 
 // A fitted correction is kept where the frame decodes with it at least this fraction closer to its
 // captured surface. Lower than the selection's kResidualMinGain: that one judges a prediction, this
@@ -38,7 +49,7 @@ struct ResidualFitReport {
 };
 
 // The residual frames for `stored` (its keyframes, fields as the file will hold them, no residuals
-// yet), capture frames `keyframes` of `encoder`: every frame strictly between the first and last
+// yet), capture frames `keyframes` of `frames`: every frame strictly between the first and last
 // keyframe decoded from `stored`, its correction fitted (fit_blend_correction, `step`) to the
 // decoded surface's offsets from the frame's registered surface along its normals, linearised in
 // the keyframes' decoded surfaces; each frame then decoded with its correction (at its time on the
@@ -46,7 +57,7 @@ struct ResidualFitReport {
 // by kDecodedResidualMinGain or more. An interval with a correction kept has a residual at every frame
 // (the others 0: the decoder interpolates between an interval's residuals); one without has none.
 // Leaves `stored`'s residuals empty; `report` (optional) is filled.
-std::vector<ResidualFrame> fit_decoded_residuals(const SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes,
+std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames, StoredSequence& stored, const std::vector<int>& keyframes,
                                                  double step, ResidualFitReport* report = nullptr);
 
 }  // namespace facemorph

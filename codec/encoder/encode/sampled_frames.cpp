@@ -4,7 +4,6 @@
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
 #include "codec/encoder/encode/registration_store.hpp"
-#include "codec/encoder/encode/selection_store.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>
@@ -36,10 +35,7 @@ SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions op
   landmarks_ = make_landmark_store(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   landmarks_->reset(count);
   registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
-  set_selection_weights();
-  selection_.assign(count, {});
-  samples_ =
-      std::make_unique<SelectionStore>(selection_, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory, kSelectionCacheBytes);
+  selection_.start(count, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
   report_.reference_frame = capture.reference;
 }
 
@@ -83,7 +79,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     throw Error(ErrorCode::kInvalidArgument, f.name + ": " + std::to_string(f.landmarks.size()) + " landmarks for " +
                                                  std::to_string(capture_.landmark_names.size()) + " names");
   }
-  const size_t nodes = node_weights_.size();
+  const size_t nodes = selection_.weights().size();
   if (f.selection.local.size() != nodes || f.selection.normal.size() != nodes) {
     throw Error(ErrorCode::kInvalidArgument,
                 f.name + ": its selection samples are not the selection grid's " + std::to_string(nodes) + " nodes");
@@ -102,7 +98,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     for (auto& [k, pending] : pending_registrations_)
       registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
     pending_registrations_.clear();
-    selection_[i].local = f.selection.local;  // pose_centre reads them after the samples are released
+    selection_.outline(i).local = f.selection.local;  // pose_centre reads them after the samples are released
   }
   if (registrations_->size() == store_->size()) {
     registrations_->put(i, read_sampled_registration(f.name, f.registration));
@@ -121,10 +117,11 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   textures_.push_back(std::move(f.texture));
   without_interior_.push_back(f.without_interior_landmarks ? 1 : 0);
   landmarks_->put(i, std::move(f.landmarks));
-  selection_[i].time = f.selection.time;
-  selection_[i].pose = f.selection.pose;
-  selection_[i].diagonal = f.selection.diagonal;
-  samples_->put(i, std::move(f.selection.local), std::move(f.selection.normal));
+  SelectionFrame& outline = selection_.outline(i);
+  outline.time = f.selection.time;
+  outline.pose = f.selection.pose;
+  outline.diagonal = f.selection.diagonal;
+  selection_.put(i, std::move(f.selection.local), std::move(f.selection.normal));
 }
 
 DiskRegistration SequenceEncoder::read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const {
@@ -150,7 +147,7 @@ void SequenceEncoder::finish_sampled_frames() {
   store_->keep(indices);
   landmarks_->keep(indices);
   registrations_->keep(indices);
-  selection_.resize(kept);
+  selection_.keep_first(kept);
   if (given_reference_ != sampled_reference_) {
     // As drop_frames says it: after every frame's own warnings.
     const auto given =
@@ -176,7 +173,7 @@ void SequenceEncoder::set_source_indices(std::vector<int> indices) {
 }
 
 void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFrame&&)>& take) const {
-  if (!samples_) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames are not sampled (sample_frames first)");
+  if (!selection_.sampled()) throw Error(ErrorCode::kInternal, "for_each_sampled_frame: the frames are not sampled (sample_frames first)");
   // The frames kept (in source_index_) and dropped (report_.dropped), both increasing: merged.
   auto dropped = report_.dropped.begin();
   size_t kept = 0;
@@ -207,7 +204,7 @@ void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFra
     f.map = FrameStore::serialize(*frame(i));
     f.registration = RegistrationStore::serialize(*registration(i));
     f.without_interior_landmarks = without_interior_[static_cast<size_t>(i)] != 0;
-    f.selection = *samples_->sampled(static_cast<size_t>(i));
+    f.selection = *selection_.frame(i);
     take(std::move(f));
   }
 }

@@ -11,7 +11,6 @@
 
 #include "codec/encoder/conformal/resample.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
-#include "codec/encoder/encode/selection_store.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "format/error.hpp"
 
@@ -130,7 +129,7 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   SequenceEncoder encoder(std::move(capture), options);
   encoder.map_frames();
   encoder.register_frames();
-  encoder.sample_frames();
+  sample_frames(encoder);
   return encode_sampled(encoder, report_out);
 }
 
@@ -147,8 +146,16 @@ void report_selection(EncodeReport& report, const KeyframeSelection& chosen) {
   report.budget_worst_p99 = chosen.budget_worst_p99;
 }
 
+// Frees the selection's samples of every frame (its local and normal vectors on the 65² grid),
+// which the later steps do not read, keeping what they do: each frame's time, pose and diagonal,
+// the reference's local vectors (pose_centre) and the fit's noise estimate at `keyframes`; the
+// store's figures into the report. build may then be given those keyframes only.
 void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes) {
-  encoder.release_selection_samples(keyframes);
+  if (const auto figures = encoder.selection().release(keyframes)) {
+    EncodeReport& report = encoder.report();
+    report.peak_selection_samples_in_memory = std::max(report.peak_selection_samples_in_memory, figures->peak_held);
+    report.selection_spilled_bytes = figures->spilled_bytes;
+  }
 #ifdef __GLIBC__
   // The samples were thousands of 78 KB blocks across the threads' heaps: handed back to the system
   // here, so that the keyframe steps' arrays take their place rather than add to them.
@@ -208,7 +215,7 @@ void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, co
     r.energy = registration.energy;
     r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
     if (i < static_cast<int>(chosen.predicted_p99.size())) r.predicted_p99 = chosen.predicted_p99[static_cast<size_t>(i)];
-    r.diagonal = encoder.selection_frames()[static_cast<size_t>(i)].diagonal;
+    r.diagonal = encoder.selection().frames()[static_cast<size_t>(i)].diagonal;
     report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
     report.frames.push_back(std::move(r));
   }
@@ -260,10 +267,18 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
       });
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
   if (encoder.options().residual_frames)
-    sequence->set_residuals(
-        fit_decoded_residuals(encoder, *sequence, chosen.keyframes, SelectionOptions().residual_step, &report.residual_fit));
+    sequence->set_residuals(fit_decoded_residuals(registered_frames(encoder), *sequence, chosen.keyframes, SelectionOptions().residual_step,
+                                                  &report.residual_fit));
   code_textures(encoder, *sequence, chosen.keyframes);
   return sequence;
+}
+
+RegisteredFrames registered_frames(const SequenceEncoder& encoder) {
+  RegisteredFrames frames;
+  for (const CaptureFrame& f : encoder.capture().frames) frames.times.push_back(f.time);
+  for (const SelectionFrame& f : encoder.selection().frames()) frames.diagonals.push_back(f.diagonal);
+  frames.surface = [&encoder](int i, std::span<const Vec2> nodes) { return encoder.sample_surface(i, nodes); };
+  return frames;
 }
 
 std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {

@@ -21,8 +21,9 @@
 #include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
+#include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
-#include "codec/encoder/encode/selection_store.hpp"
+#include "codec/encoder/encode/selection_samples.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
@@ -93,8 +94,6 @@ class SequenceEncoder {
   // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
   // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
   void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
-  // N of the grid every frame is sampled on for the keyframe selection (SampledFrame::selection).
-  static int selection_grid() { return kSelectionGrid; }
 
   // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
   // options().strict): from here on the encoder's capture() and frame indices are those of the
@@ -103,18 +102,13 @@ class SequenceEncoder {
   // 2. register every frame to the reference (options().registration); method kFrame first builds
   // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
   void register_frames();
-  void sample_frames();      // 3. registered surfaces on the selection grid, head poses
-  Vec3 pose_centre() const;  // the face's centroid in the face frame (after sample_frames)
-  // 4-6 (select, grid, representation, build) are the free stages below, over the encoder's
-  // frames as these three left them.
+  // 3 (sample_frames) and 4-6 (select, grid, representation, build) are the free stages below,
+  // over the encoder's frames as these two left them.
   //
-  // 5½ (encode_capture, once the keyframes and N are chosen): frees the selection's samples of every
-  // frame (its local, world and normal vectors on the 65² grid, 230 KB a frame), which the later
-  // steps do not read, keeping what they do: each frame's time, pose and diagonal, the reference's
-  // local vectors (pose_centre) and the fit's noise estimate at `keyframes`. build may then be given
-  // those keyframes only; selection_samples (so select_keyframes and choose_grid) throw kInternal
-  // until sample_frames runs again.
-  void release_selection_samples(const std::vector<int>& keyframes);
+  // The sample stage's state: every frame on the selection grid (selection_samples.hpp).
+  const SelectionSamples& selection() const { return selection_; }
+  SelectionSamples& selection() { return selection_; }
+  Vec3 pose_centre() const { return selection_.centre(options_.reference_frame); }  // the face's centroid in the face frame
   // What the keyframes store from here on where options().representation leaves it open: what
   // choose_representation chose, an earlier stage of this encode chose (a segment's measure,
   // segmented_encode.hpp), or the fallback to positions (store_as_positions); `blend`: what the
@@ -167,19 +161,6 @@ class SequenceEncoder {
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
   std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
-  // Every frame's time, pose and diagonal on the selection grid (after sample_frames; the vectors
-  // are left empty, but for the reference's local ones); selection_frame(i): frame i with its
-  // samples, read back from the store (kInternal once release_selection_samples has run).
-  const std::vector<SelectionFrame>& selection_frames() const { return selection_; }
-  std::shared_ptr<const SelectionFrame> selection_frame(int i) const;
-  const std::vector<double>& selection_weights() const { return node_weights_; }
-  // Every frame's samples on the selection grid (kInternal once release_selection_samples has run).
-  const SelectionFrames& selection_samples() const;
-  // Frame k's noise estimate on the selection grid (its surface against the cubic through its four
-  // nearest frames in time, RMS by area, in the capture's units; infinite below 5 frames): from the
-  // samples, or, once they are released, as kept for the keyframes they were released for
-  // (kInternal for another frame).
-  double noise_at(int k) const;
   // The capture's first and last frame times as given (seconds): dropping its end frames does not
   // shorten it.
   double first_time() const { return first_time_; }
@@ -196,16 +177,6 @@ class SequenceEncoder {
   EncodeReport& report() { return report_; }
 
  private:
-  // The coarse copy of G the keyframe selection predicts on: 65² is ~3.3k nodes, enough to rank
-  // frames by error at a fraction of the cost of G itself.
-  static constexpr int kSelectionGrid = 65;
-  // What the selection's cache of spilled samples may hold: ~830 frames of 79 kB, more than the frames
-  // its refinement predicts around one keyframe (six gaps between keyframes) at 10% keyframes.
-  static constexpr uint64_t kSelectionCacheBytes = uint64_t{64} << 20;
-  // The selection grid's node weights (its interior nodes' areas) into node_weights_; the grid.
-  GridGeometry set_selection_weights();
-  // The selection's samples into the report: their store's peak and bytes (release_selection_samples).
-  void note_selection_samples();
   struct FrameFailure {  // why a frame failed; code kOk while it has not
     ErrorCode code = ErrorCode::kOk;
     std::string reason;
@@ -273,12 +244,7 @@ class SequenceEncoder {
   std::shared_ptr<const GeodesicFrame> geodesic_frame_;
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
   DiskReparametrisation reparametrisation_;
-  std::vector<SelectionFrame> selection_;
-  std::unique_ptr<SelectionStore> samples_;  // their samples (sample_frames until release_selection_samples)
-  // After release_selection_samples: frame index -> frame_noise at that frame (the fit's keyframes).
-  bool samples_released_ = false;
-  std::map<int, double> released_noise_;
-  std::vector<double> node_weights_;
+  SelectionSamples selection_;  // sample_frames's
   EncodeReport report_;
 };
 
@@ -294,6 +260,9 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
 // ---- The stages after sampling (stages/sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
 // build_keyframes.cpp): each reads the encoder's frames as map, register and sample left them ----
 
+// 3. Every registered frame on the selection grid (SelectionSamples::kGrid), in the face frame, with
+// its rigid head pose: into encoder.selection(), the samples of an earlier sampling replaced.
+void sample_frames(SequenceEncoder& encoder);
 // 4. The keyframes, by the spline's predicted error on the selection grid (options().keyframe_fraction,
 // max_error, keyframe_error_bound, sparse_frame_interval, spline, residual_frames). kInternal once
 // the selection's samples are released.
@@ -391,6 +360,10 @@ void warn_stored_as_positions(EncodeReport& report);
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 
 // ---- The pieces, for tests and the bench ----
+
+// What the residual fit reads of `encoder`'s frames (residual_fit.hpp): their times, diagonals and
+// registered surfaces, after sample_frames. Holds a reference to `encoder`.
+RegisteredFrames registered_frames(const SequenceEncoder& encoder);
 
 // Where the capture's landmarks of one frame lie on its disk, paired with the reference's: the
 // registration's input. Landmarks missing in either frame are left out; rim_* markers are flagged

@@ -136,7 +136,7 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   encoder.set_vertical_hint(hint);
   encoder.map_frames();
   encoder.register_frames();
-  encoder.sample_frames();
+  sample_frames(encoder);
 
   PartHeader header;
   header.capture_id = capture_fingerprint(capture);

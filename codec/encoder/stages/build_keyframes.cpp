@@ -117,7 +117,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
   const EncodeOptions& options = encoder.options();
   EncodeReport& report = encoder.report();
   const Capture& capture = encoder.capture();
-  const std::vector<SelectionFrame>& selection = encoder.selection_frames();
+  const std::vector<SelectionFrame>& selection = encoder.selection().frames();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
   const GridGeometry geometry(make_disk_grid(grid_n));
   const DiskGrid& grid = geometry.grid();
@@ -214,7 +214,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
     fit.noise_factor = options.keyframe_fit_noise;
     fit.threads = options.threads;
     fit.surface = [&](int i, std::span<const Vec2> nodes) { return encoder.sample_surface(i, nodes); };
-    fit.noise = [&](int i) { return encoder.noise_at(i); };
+    fit.noise = [&](int i) { return encoder.selection().noise_at(i); };
     fit_keyframes(fit, geometry, local);
   }
   parallel_for(static_cast<int>(keys), options.threads,

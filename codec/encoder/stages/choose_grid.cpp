@@ -116,10 +116,10 @@ int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen) {
   if (options.grid > 0) return options.grid;
   EncodeReport& report = encoder.report();
   // Refused before anything is measured where the samples the noise reads are gone.
-  static_cast<void>(encoder.selection_samples());
+  static_cast<void>(encoder.selection().samples());
   GridChoiceInput input;
   for (int k = 0; k < encoder.frame_count(); ++k)
-    input.noise.push_back(encoder.noise_at(k) / encoder.selection_frames()[static_cast<size_t>(k)].diagonal);
+    input.noise.push_back(encoder.selection().noise_at(k) / encoder.selection().frames()[static_cast<size_t>(k)].diagonal);
   // Not on a whole head (a radially spread disk, spec/method.md §7.11) whose frames share no
   // interior landmarks with the reference: there the found landmarks' disagreement from frame to
   // frame reads as noise (fmsynth --head --landmarks auto: 1.27% of the diagonal, 0.085% with its

@@ -72,7 +72,7 @@ void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& ch
       // A frame's registered surface on G in the face frame (as build_keyframes samples a keyframe).
       auto local_surface = [&](int i) {
         std::vector<Vec3> surface = encoder.sample_surface(i, geometry->grid().nodes);
-        const RigidPose to_face = encoder.selection_frames()[static_cast<size_t>(i)].pose.inverse();
+        const RigidPose to_face = encoder.selection().frames()[static_cast<size_t>(i)].pose.inverse();
         for (Vec3& p : surface) p = to_face.apply(p);
         return surface;
       };
