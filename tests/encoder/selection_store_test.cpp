@@ -1,6 +1,9 @@
 // The selection's samples spilled and read back through a bounded cache: the same floats, at most
-// the cache's frames held, and a selection on them that is the one made in memory.
+// the cache's frames held, and a selection on them that is the one made in memory. The sample
+// stage's state around them (SelectionSamples): each frame's noise, kept for the keyframes when
+// the samples are released.
 #include "codec/encoder/encode/selection_store.hpp"
+#include "codec/encoder/encode/selection_samples.hpp"
 
 #include "format/error.hpp"
 
@@ -88,6 +91,61 @@ TEST(SelectionStore, TheSelectionOnSpilledSamplesIsTheOneInMemory) {
       EXPECT_EQ(store.peak_held(), static_cast<int>(frames.size())) << "in memory: every frame";
     }
   }
+}
+
+// The sample stage's state for 6 frames 1/30 s apart whose every node moves in a straight line
+// (the cubic through a frame's four neighbours predicts it exactly), but frame 2, which stands
+// `bump` off that line along z. The reference, frame 0, keeps its local vectors in its outline.
+void fill_line_with_bump(SelectionSamples& samples, float bump) {
+  samples.start(6, SpillMode::kMemory);
+  const size_t nodes = samples.weights().size();
+  for (size_t k = 0; k < 6; ++k) {
+    SelectionFrame& outline = samples.outline(k);
+    outline.time = static_cast<double>(k) / 30;
+    outline.diagonal = 1;
+    std::vector<Eigen::Vector3f> local(nodes), normal(nodes, Eigen::Vector3f(0, 0, 1));
+    for (size_t v = 0; v < nodes; ++v)
+      local[v] = Eigen::Vector3f(0.001f * static_cast<float>(v % 7), 0.01f * static_cast<float>(k), k == 2 ? bump : 0.0f);
+    if (k == 0) outline.local = local;
+    samples.put(k, std::move(local), std::move(normal));
+  }
+}
+
+TEST(SelectionSamples, TheNoiseIsWhatTheNeighboursCubicLeavesAndTheKeyframesKeepIt) {
+  SelectionSamples samples;
+  const float bump = 0.003f;
+  fill_line_with_bump(samples, bump);
+  ASSERT_EQ(samples.weights().size(), static_cast<size_t>(make_disk_grid(SelectionSamples::kGrid).interior_count));
+  // Frame 2 against the cubic through frames 0, 1, 3, 4 (Lagrange weights -1/6, 2/3, 2/3, -1/6):
+  // the bump over the stencil's noise gain √(1 + Σw²) = √(35/18). Frame 5 against the cubic through
+  // 1 to 4 (weights -1, 4, -6, 4): frame 2's bump seen 4 times over, over √70.
+  EXPECT_NEAR(samples.noise_at(2), bump / std::sqrt(35.0 / 18), 1e-6);
+  EXPECT_NEAR(samples.noise_at(5), 4 * bump / std::sqrt(70.0), 1e-6);
+  EXPECT_NEAR(samples.centre(0).y(), 0.0, 1e-12);  // the reference's centroid, from its outline
+  const double before = samples.noise_at(2);
+  const std::optional<SelectionSamples::StoreFigures> figures = samples.release({0, 2, 5});
+  ASSERT_TRUE(figures.has_value());
+  EXPECT_GE(figures->peak_held, 1);
+  EXPECT_EQ(figures->spilled_bytes, 0u);  // kMemory
+  // Released: the keyframes' noise as it was, the outlines and the reference's centre still there,
+  // the samples and any other frame's noise a named internal error.
+  EXPECT_FALSE(samples.sampled());
+  EXPECT_DOUBLE_EQ(samples.noise_at(2), before);
+  EXPECT_EQ(samples.frames().size(), 6u);
+  EXPECT_NEAR(samples.centre(0).y(), 0.0, 1e-12);
+  try {
+    samples.noise_at(3);
+    ADD_FAILURE() << "frame 3's noise after release";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInternal);
+    EXPECT_NE(std::string(e.what()).find("frame 3"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(samples.samples(), Error);
+  EXPECT_THROW(samples.frame(0), Error);
+  EXPECT_FALSE(samples.release({}).has_value());  // nothing left to free
+  // Sampled again: every frame's noise from the new samples.
+  fill_line_with_bump(samples, 0);
+  EXPECT_NEAR(samples.noise_at(3), 0.0, 1e-6);
 }
 
 }  // namespace
