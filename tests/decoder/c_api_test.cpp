@@ -37,9 +37,11 @@ TEST(CApi, VersionAndStatusNames) {
   EXPECT_STREQ(fm_status_name(FM_ERROR_INTERNAL), "internal");
   EXPECT_STREQ(fm_status_name(static_cast<fm_status>(999)), "unknown");
   EXPECT_STREQ(fm_status_name(FM_STATUS_FORCE_32BIT), "unknown");
-  for (int s = FM_OK; s <= FM_ERROR_INTERNAL; ++s) {  // the same names as the C++ codes
+  for (int s = FM_OK; s <= FM_ERROR_CLOSED_HANDLE; ++s) {  // the same names as the C++ codes, every one
     EXPECT_STREQ(fm_status_name(static_cast<fm_status>(s)), facemorph::error_code_name(static_cast<facemorph::ErrorCode>(s)));
   }
+  EXPECT_STREQ(fm_status_name(static_cast<fm_status>(FM_ERROR_CLOSED_HANDLE + 1)), "unknown");
+  EXPECT_EQ(facemorph::kErrorCodeCount, FM_ERROR_CLOSED_HANDLE + 1);
 }
 
 TEST(CApi, OpensAndDescribesTheGoldenFile) {

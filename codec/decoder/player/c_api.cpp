@@ -28,30 +28,40 @@ static_assert(FM_DEFAULT_MAX_MEMORY_BYTES == facemorph::kDefaultDecoderLimits.ma
 static_assert(FM_DEFAULT_MAX_WORK == facemorph::kDefaultDecoderLimits.max_work);
 static_assert(FM_DEFAULT_TOLERANCE == facemorph::ReconstructOptions{}.tolerance);
 
-// The C enum mirrors facemorph::ErrorCode value for value.
-static_assert(FM_OK == static_cast<int>(facemorph::ErrorCode::kOk));
-static_assert(FM_ERROR_IO == static_cast<int>(facemorph::ErrorCode::kIo));
-static_assert(FM_ERROR_PARSE == static_cast<int>(facemorph::ErrorCode::kParse));
-static_assert(FM_ERROR_TRUNCATED == static_cast<int>(facemorph::ErrorCode::kTruncated));
-static_assert(FM_ERROR_CORRUPT == static_cast<int>(facemorph::ErrorCode::kCorrupt));
-static_assert(FM_ERROR_UNSUPPORTED == static_cast<int>(facemorph::ErrorCode::kUnsupported));
-static_assert(FM_ERROR_INVALID_MESH == static_cast<int>(facemorph::ErrorCode::kInvalidMesh));
-static_assert(FM_ERROR_NOT_A_DISK == static_cast<int>(facemorph::ErrorCode::kNotADisk));
-static_assert(FM_ERROR_MISSING_TEXTURE == static_cast<int>(facemorph::ErrorCode::kMissingTexture));
-static_assert(FM_ERROR_INVALID_ARGUMENT == static_cast<int>(facemorph::ErrorCode::kInvalidArgument));
-static_assert(FM_ERROR_NUMERICAL == static_cast<int>(facemorph::ErrorCode::kNumerical));
-static_assert(FM_ERROR_NOT_CONVERGED == static_cast<int>(facemorph::ErrorCode::kNotConverged));
-static_assert(FM_ERROR_OUT_OF_RANGE == static_cast<int>(facemorph::ErrorCode::kOutOfRange));
-static_assert(FM_ERROR_BUFFER_TOO_SMALL == static_cast<int>(facemorph::ErrorCode::kBufferTooSmall));
-static_assert(FM_ERROR_OUT_OF_MEMORY == static_cast<int>(facemorph::ErrorCode::kOutOfMemory));
-static_assert(FM_ERROR_INTERNAL == static_cast<int>(facemorph::ErrorCode::kInternal));
-static_assert(FM_ERROR_LIMIT == static_cast<int>(facemorph::ErrorCode::kLimit));
-static_assert(FM_ERROR_CLOSED_HANDLE == static_cast<int>(facemorph::ErrorCode::kClosedHandle));
+// The C enum mirrors facemorph::ErrorCode value for value: every row of the one list
+// (FACEMORPH_ERROR_CODES, format/error.hpp) names its fm_status, whose value facemorph.h states
+// (the ABI) and must equal the row's; and the codes run 0 .. kErrorCodeCount - 1 with none left out.
+#define FACEMORPH_CHECK_STATUS(code, value, name, status) \
+  static_assert(status == value && static_cast<int>(facemorph::ErrorCode::code) == value, #status " is not facemorph::ErrorCode::" #code);
+FACEMORPH_ERROR_CODES(FACEMORPH_CHECK_STATUS)
+#undef FACEMORPH_CHECK_STATUS
+static_assert(FM_ERROR_CLOSED_HANDLE + 1 == facemorph::kErrorCodeCount, "fm_status and facemorph::ErrorCode differ in count");
+constexpr bool error_codes_run_from_zero() {
+#define FACEMORPH_ERROR_VALUE(code, value, name, status) value,
+  constexpr int values[] = {FACEMORPH_ERROR_CODES(FACEMORPH_ERROR_VALUE)};
+#undef FACEMORPH_ERROR_VALUE
+  for (int i = 0; i < facemorph::kErrorCodeCount; ++i) {
+    if (values[i] != i) return false;
+  }
+  return true;
+}
+static_assert(error_codes_run_from_zero(), "the error codes skip a value or leave their order");
 
 namespace {
 
 using facemorph::Error;
 using facemorph::ErrorCode;
+
+// The status of a code, from the one list (FACEMORPH_ERROR_CODES).
+constexpr fm_status status_of(ErrorCode code) noexcept {
+  switch (code) {
+#define FACEMORPH_STATUS_CASE(code, value, name, status) \
+  case ErrorCode::code: return status;
+    FACEMORPH_ERROR_CODES(FACEMORPH_STATUS_CASE)
+#undef FACEMORPH_STATUS_CASE
+  }
+  return FM_ERROR_INTERNAL;
+}
 
 std::string& last_message() {
   thread_local std::string message;
@@ -64,7 +74,7 @@ fm_status fail(ErrorCode code, const std::string& message) {
   } catch (...) {
     last_message().clear();  // no memory for the message: the status still says what happened
   }
-  return static_cast<fm_status>(code);
+  return status_of(code);
 }
 
 fm_status ok() {
@@ -297,7 +307,7 @@ void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
 extern "C" {
 
 FM_API const char* fm_status_name(fm_status status) {
-  if (status < FM_OK || status > FM_ERROR_CLOSED_HANDLE) return "unknown";
+  if (status < 0 || status >= facemorph::kErrorCodeCount) return "unknown";
   return facemorph::error_code_name(static_cast<ErrorCode>(status));
 }
 
