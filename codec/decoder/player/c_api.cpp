@@ -20,6 +20,17 @@
 #include <type_traits>
 #include <vector>
 
+// fm_info's names (1.4) fit their fields with the NUL: every name of the enumerations' tables.
+template <typename Entry, size_t N>
+constexpr bool names_fit(const Entry (&table)[N], size_t field_bytes) {
+  for (const Entry& entry : table) {
+    if (std::char_traits<char>::length(entry.name) >= field_bytes) return false;
+  }
+  return true;
+}
+static_assert(names_fit(facemorph::kRepresentations, sizeof(fm_info::representation)));
+static_assert(names_fit(facemorph::kSplineKinds, sizeof(fm_info::spline)));
+
 // fm_decoder_options_init (inline in the header) sets the library's own defaults.
 static_assert(FM_DEFAULT_MAX_GRID_N == facemorph::kDefaultDecoderLimits.max_grid_n);
 static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_keyframes);
@@ -365,15 +376,20 @@ FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
     out.texture_size = static_cast<uint32_t>(in.texture_size);
     // Units are "m", "cm" or "mm" (the container's reader checks): they fit with their NUL.
     std::strncpy(out.units, in.units.c_str(), sizeof out.units - 1);
+    // The names are the enumerations' tables' (fields.hpp, spline.hpp), each shorter than its field.
+    std::strncpy(out.representation, facemorph::representation_name(in.representation), sizeof out.representation - 1);
+    std::strncpy(out.spline, facemorph::spline_kind_name(in.spline), sizeof out.spline - 1);
+    out.fixed_node_count = static_cast<uint32_t>(in.fixed_node_count);
     // The fields the caller's struct holds (all of them in 1.0), in their order; struct_size stays.
     size_t end = 0;
 #define FM_INFO_FIELD(field) \
   if (FM_COVERS(info, fm_info, field)) end = offsetof(fm_info, field) + sizeof out.field;
     FM_INFO_FIELD(fps)
-    FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end)
-        FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count)
-            FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size)
-                FM_INFO_FIELD(units)
+    FM_INFO_FIELD(first_time)
+    FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end) FM_INFO_FIELD(keyframe_count)
+        FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count) FM_INFO_FIELD(grid_vertex_count)
+            FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size) FM_INFO_FIELD(units)
+                FM_INFO_FIELD(representation) FM_INFO_FIELD(spline) FM_INFO_FIELD(fixed_node_count)
 #undef FM_INFO_FIELD
                     const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
     if (end > begin) std::memcpy(reinterpret_cast<char*>(info) + begin, reinterpret_cast<const char*>(&out) + begin, end - begin);
