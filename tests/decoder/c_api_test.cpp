@@ -55,8 +55,8 @@ TEST(CApi, InfoOfApi1_4IsTheContainersOutline) {
     EXPECT_EQ(o.info.fixed_node_count, outline.fixed_node_count) << path;
   }
   CApiOpened o(kGoldenV2_0);
-  EXPECT_STREQ(o.info.representation, "hl+t");  // what make_golden.sh encodes: the defaults
-  EXPECT_STREQ(o.info.spline, "local");
+  EXPECT_STREQ(o.info.representation, "hl+t");  // as fminfo has always described golden_v2_0.fmv
+  EXPECT_STREQ(o.info.spline, "catmull-rom");
   EXPECT_GT(o.info.fixed_node_count, 0u);  // hl+t's rim band
 }
 
