@@ -10,49 +10,48 @@
 
 namespace facemorph {
 
-// Stable codes: values are part of the C API and never renumbered; new codes are appended.
+// Every code once, the one list the rest is made from: its enumerator, its value, its short stable
+// name and the C API's name for it (facemorph.h's fm_status, which must keep the same value:
+// codec/decoder/player/c_api.cpp checks every row against the header and maps codes to statuses
+// from this list). Values are part of the C API and never renumbered; new codes are appended.
+#define FACEMORPH_ERROR_CODES(X)                                                                                                          \
+  X(kOk, 0, "ok", FM_OK)                                                                                                                  \
+  X(kIo, 1, "io", FM_ERROR_IO)                              /* a file could not be opened, read or written */                             \
+  X(kParse, 2, "parse", FM_ERROR_PARSE)                     /* text or structure that does not follow its grammar */                      \
+  X(kTruncated, 3, "truncated", FM_ERROR_TRUNCATED)         /* the input ends before the data it announces ("not enough bytes") */        \
+  X(kCorrupt, 4, "corrupt", FM_ERROR_CORRUPT)               /* bytes are present but wrong (checksum, impossible value) */                \
+  X(kUnsupported, 5, "unsupported", FM_ERROR_UNSUPPORTED)   /* a valid input using a feature facemorph does not implement */              \
+  X(kInvalidMesh, 6, "invalid-mesh", FM_ERROR_INVALID_MESH) /* NaN/Inf, out-of-range index, non-manifold, non-orientable */               \
+  X(kNotADisk, 7, "not-a-disk", FM_ERROR_NOT_A_DISK)        /* a frame that cannot be made one open surface with one boundary */          \
+  X(kMissingTexture, 8, "missing-texture", FM_ERROR_MISSING_TEXTURE)    /* a referenced texture image is missing or undecodable */        \
+  X(kInvalidArgument, 9, "invalid-argument", FM_ERROR_INVALID_ARGUMENT) /* a caller-supplied option or value outside its domain */        \
+  X(kNumerical, 10, "numerical", FM_ERROR_NUMERICAL)                    /* a numerical method failed (singular system, NaN produced) */   \
+  X(kNotConverged, 11, "not-converged", FM_ERROR_NOT_CONVERGED)         /* an iteration stopped before meeting its tolerance */           \
+  X(kOutOfRange, 12, "out-of-range", FM_ERROR_OUT_OF_RANGE)             /* a request outside what the data can serve (t too far out) */   \
+  X(kBufferTooSmall, 13, "buffer-too-small", FM_ERROR_BUFFER_TOO_SMALL) /* a caller's buffer smaller than the data */                     \
+  X(kOutOfMemory, 14, "out-of-memory", FM_ERROR_OUT_OF_MEMORY)          /* an allocation failed */                                        \
+  X(kInternal, 15, "internal", FM_ERROR_INTERNAL)                       /* none of the above (a bug in facemorph: please report it) */    \
+  X(kLimit, 16, "limit", FM_ERROR_LIMIT)                                /* an input needing more than the caller's DecoderLimits allow */ \
+  X(kClosedHandle, 17, "closed-handle", FM_ERROR_CLOSED_HANDLE)         /* a C API handle used after it was closed (or closed twice) */
+
 enum class ErrorCode : int {
-  kOk = 0,
-  kIo = 1,               // a file could not be opened, read or written
-  kParse = 2,            // text or structure that does not follow its grammar
-  kTruncated = 3,        // the input ends before the data it announces ("not enough bytes")
-  kCorrupt = 4,          // bytes are present but wrong (checksum, impossible value)
-  kUnsupported = 5,      // a valid input using a feature facemorph does not implement
-  kInvalidMesh = 6,      // NaN/Inf, out-of-range index, non-manifold, non-orientable
-  kNotADisk = 7,         // a frame that cannot be made one open surface with one boundary
-  kMissingTexture = 8,   // a referenced texture image does not exist or cannot be decoded
-  kInvalidArgument = 9,  // a caller-supplied option or value outside its domain
-  kNumerical = 10,       // a numerical method failed (singular system, NaN produced)
-  kNotConverged = 11,    // an iteration stopped before meeting its tolerance
-  kOutOfRange = 12,      // a request outside what the data can serve (e.g. t too far out)
-  kBufferTooSmall = 13,  // a caller-owned output buffer is smaller than the data (the call says what is needed)
-  kOutOfMemory = 14,     // an allocation failed
-  kInternal = 15,        // a failure that is none of the above (a bug in facemorph: please report it)
-  kLimit = 16,           // an input that needs more than the caller's limits allow (DecoderLimits: grid, keyframes, texture, memory)
-  kClosedHandle = 17,    // a C API handle used after it was closed or destroyed (or closed twice)
+#define FACEMORPH_ERROR_ENUMERATOR(code, value, name, status) code = value,
+  FACEMORPH_ERROR_CODES(FACEMORPH_ERROR_ENUMERATOR)
+#undef FACEMORPH_ERROR_ENUMERATOR
 };
+
+// How many codes there are (values 0 .. kErrorCodeCount - 1, none skipped: checked in c_api.cpp).
+#define FACEMORPH_ERROR_COUNT_ONE(code, value, name, status) +1
+inline constexpr int kErrorCodeCount = 0 FACEMORPH_ERROR_CODES(FACEMORPH_ERROR_COUNT_ONE);
+#undef FACEMORPH_ERROR_COUNT_ONE
 
 // Short stable name of a code, e.g. "truncated"; never null.
 constexpr const char* error_code_name(ErrorCode code) noexcept {
   switch (code) {
-    case ErrorCode::kOk: return "ok";
-    case ErrorCode::kIo: return "io";
-    case ErrorCode::kParse: return "parse";
-    case ErrorCode::kTruncated: return "truncated";
-    case ErrorCode::kCorrupt: return "corrupt";
-    case ErrorCode::kUnsupported: return "unsupported";
-    case ErrorCode::kInvalidMesh: return "invalid-mesh";
-    case ErrorCode::kNotADisk: return "not-a-disk";
-    case ErrorCode::kMissingTexture: return "missing-texture";
-    case ErrorCode::kInvalidArgument: return "invalid-argument";
-    case ErrorCode::kNumerical: return "numerical";
-    case ErrorCode::kNotConverged: return "not-converged";
-    case ErrorCode::kOutOfRange: return "out-of-range";
-    case ErrorCode::kBufferTooSmall: return "buffer-too-small";
-    case ErrorCode::kOutOfMemory: return "out-of-memory";
-    case ErrorCode::kInternal: return "internal";
-    case ErrorCode::kLimit: return "limit";
-    case ErrorCode::kClosedHandle: return "closed-handle";
+#define FACEMORPH_ERROR_NAME_CASE(code, value, name, status) \
+  case ErrorCode::code: return name;
+    FACEMORPH_ERROR_CODES(FACEMORPH_ERROR_NAME_CASE)
+#undef FACEMORPH_ERROR_NAME_CASE
   }
   return "unknown";
 }

@@ -78,15 +78,7 @@ void declare_options(CLI::App& app, Arguments& a) {
   tools::add_limit_options(app, a.limits, a.max_memory);
 }
 
-// A failed call of the player API as fmdec's error: the status is the error's code (facemorph.h
-// mirrors ErrorCode), and the message is the library's without the C function's name it starts
-// with, so that it names the file first, as fmdec always has and the web page repeats.
-void check(fm_status status) {
-  if (status == FM_OK) return;
-  std::string message = fm_last_error_message();
-  if (const size_t colon = message.find(": "); message.rfind("fm_", 0) == 0 && colon != std::string::npos) message.erase(0, colon + 2);
-  throw Error(static_cast<ErrorCode>(status), message);
-}
+using tools::check_player;
 
 // A frame as fmdec writes it: the mesh at the decoder's precision (one UV per vertex), its texture
 // (empty when not asked for or when the file has none) and G's hole levels (when asked for).
@@ -102,27 +94,15 @@ struct PlayedFrame {
 // An opened file and a decoder on it, through the C API, with buffers for the file's largest frame.
 class Player {
  public:
-  Player(const std::string& path, const DecoderLimits& limits) {
-    const fm_decoder_options options = tools::player_options(limits);
-    fm_file* file = nullptr;
-    check(fm_file_open_with_options(path.c_str(), &options, &file));
-    file_.reset(file);
-    fm_info_init(&info_);
-    check(fm_file_get_info(file, &info_));
+  Player(const std::string& path, const DecoderLimits& limits) : file_(path, limits), info_(file_.info()) {
     fm_decoder* decoder = nullptr;
-    check(fm_decoder_create(file, &decoder));
+    check_player(fm_decoder_create(file_.get(), &decoder));
     decoder_.reset(decoder);
   }
 
   const fm_info& info() const { return info_; }
-  std::vector<double> keyframe_times() const {
-    size_t count = 0;
-    check(fm_file_get_keyframe_times(file_.get(), nullptr, 0, &count));
-    std::vector<double> times(count);
-    check(fm_file_get_keyframe_times(file_.get(), times.data(), times.size(), &count));
-    return times;
-  }
-  void set_tolerance(double tolerance) { check(fm_decoder_set_tolerance(decoder_.get(), tolerance)); }
+  std::vector<double> keyframe_times() const { return file_.keyframe_times(); }
+  void set_tolerance(double tolerance) { check_player(fm_decoder_set_tolerance(decoder_.get(), tolerance)); }
 
   // The frame at t (flags: FM_DECODE_*), with its texture when `texture`, and G's hole levels when
   // `levels` and the file has holes.
@@ -150,7 +130,7 @@ class Player {
       frame.hole_levels = levels_.data();
       frame.hole_levels_bytes = levels_.size() * sizeof(double);
     }
-    check(fm_decoder_decode(decoder_.get(), t, flags, &frame));
+    check_player(fm_decoder_decode(decoder_.get(), t, flags, &frame));
     return played(frame);
   }
 
@@ -183,7 +163,7 @@ class Player {
     return out;
   }
 
-  std::unique_ptr<fm_file, decltype(&fm_file_close)> file_{nullptr, fm_file_close};
+  tools::PlayerFile file_;
   std::unique_ptr<fm_decoder, decltype(&fm_decoder_destroy)> decoder_{nullptr, fm_decoder_destroy};
   fm_info info_{};
   std::vector<double> positions_, uvs_, levels_;

@@ -1,6 +1,8 @@
 // fminfo: describes a facemorph input or output. For a capture (a folder with capture.json, or a
 // plain folder of meshes with --fps) it reads, validates and repairs every frame the way the
 // encoder will, and prints a summary (or JSON).
+#include "facemorph.h"
+
 #include "codec/core/util/parallel.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/encoder/capture/capture.hpp"
@@ -8,6 +10,7 @@
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "format/container.hpp"
 
+#include "tools/player_options.hpp"
 #include "tools/tool_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -233,20 +236,33 @@ void print_encoder_notes(const nlohmann::json& settings) {
   }
 }
 
+// The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
+// only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
+// frames), and the writer stamps every file with its own minor, so a file stated 2.3 that uses none
+// of them is, but for its preamble, a 2.0 file (spec/container.md §12).
+int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
+  const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
+  if (info.residual_frames > 0) return 3;
+  if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
+  return texture_groups ? 1 : 0;
+}
+
 // By default the file is described from its header and index, every checksum verified, nothing
 // decoded: a few ms a MB, so that fminfo stays within the decoder's time bound on any file
 // (spec/container.md §10.5). --verify decodes every keyframe once, one at a time, as a player would
 // meet it (about 0.4 s a MB at N = 257), and gives each keyframe the bytes its fields took.
 int describe_container(const fs::path& path, bool json_out, bool verify, const DecoderLimits& limits) {
-  // Opened as a player opens it first: a file no player may open is refused before anything is decoded.
-  const std::shared_ptr<const KeyframeSource> source = open_sequence_source(path, limits);
+  // Opened as a player opens it first (the player API, facemorph.h): a file no player may open is
+  // refused before anything is decoded, and the description is what a player is told of the file.
+  const tools::PlayerFile player(path.string(), limits);
+  const fm_info& sequence = player.info();
+  const std::vector<double> times = player.keyframe_times();
   const SequenceFileInfo info = verify ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
-  const SequenceOutline& sequence = source->outline();
-  const KeyframeSpline spline(sequence.times, sequence.spline);
-  const DiskGridShape shape = disk_grid_shape(sequence.grid_n);
+  const DiskGridShape shape = disk_grid_shape(static_cast<int>(sequence.grid_n));
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
   const double bytes_per_second = static_cast<double>(info.file_bytes) / duration;
   const size_t fixed = sequence.fixed_node_count;
+  const int needed_minor = std::min<int>(minor_version_needed(info, times.size()), info.minor_version);
   // Settings fminfo will not walk are left out (null in --json), said on stderr: the rest of the
   // description stands, as the settings are informative.
   const Settings settings = read_settings(info.metadata.settings);
@@ -258,35 +274,33 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     doc["file"] = path.string();
     doc["bytes"] = info.file_bytes;
     doc["format_version"] = std::to_string(info.major_version) + "." + std::to_string(info.minor_version);
+    doc["format_version_needed"] = std::to_string(info.major_version) + "." + std::to_string(needed_minor);
     doc["encoder"] = info.metadata.encoder;
     doc["fps"] = sequence.fps;
     doc["first_time"] = sequence.first_time;
     doc["last_time"] = sequence.last_time;
     doc["duration_seconds"] = duration;
-    doc["units"] = sequence.units;
-    doc["grid"] = {{"n", sequence.grid_n},
-                   {"rule", info.grid_rule},
-                   {"hash", tools::hex64(info.grid_hash)},
-                   {"nodes", shape.interior_count + shape.rim_count},
-                   {"rim_nodes", shape.rim_count},
-                   {"fixed_nodes", fixed}};
-    doc["representation"] = representation_name(sequence.representation);
+    doc["units"] = std::string(sequence.units);
+    doc["grid"] = {{"n", static_cast<int>(sequence.grid_n)}, {"rule", info.grid_rule},
+                   {"hash", tools::hex64(info.grid_hash)},   {"nodes", shape.interior_count + shape.rim_count},
+                   {"rim_nodes", shape.rim_count},           {"fixed_nodes", fixed}};
+    doc["representation"] = std::string(sequence.representation);
     const FieldCoding& coding = info.metadata.field_coding;
     doc["field_coding"] = {{"steps", coding.steps},
                            {"intra_period", coding.intra_period},
                            {"pose_steps", {{"rotation_radians", coding.rotation_step}, {"translation", coding.translation_step}}}};
-    doc["spline"] = spline_kind_name(sequence.spline);
-    doc["sane_range"] = {spline.sane_range().begin, spline.sane_range().end};
+    doc["spline"] = std::string(sequence.spline);
+    doc["sane_range"] = {sequence.range_begin, sequence.range_end};
     doc["texture_size"] = info.texture_size;
     if (info.texture_size > 0) doc["texture_coding"] = texture_coding_name(info.metadata.texture_coding);
-    doc["holes"] = sequence.has_holes;
+    doc["holes"] = sequence.has_holes != 0;
     doc["residual_frames"] = info.residual_frames;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
     doc["verified"] = verify;  // every keyframe decoded (--verify), or checksums only
     nlohmann::json keys = nlohmann::json::array();
-    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
-      nlohmann::json key = {{"time", sequence.times[k]}, {"texture_bytes", info.keyframes[k].texture}};
+    for (size_t k = 0; k < times.size(); ++k) {
+      nlohmann::json key = {{"time", times[k]}, {"texture_bytes", info.keyframes[k].texture}};
       if (verify) key["fields_bytes"] = info.keyframes[k].fields;
       keys.push_back(std::move(key));
     }
@@ -305,62 +319,64 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     std::printf("%s\n", doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     return 0;
   }
-  std::printf("file        %s: %llu bytes, format %d.%d, written by %s\n", path.string().c_str(),
-              static_cast<unsigned long long>(info.file_bytes), info.major_version, info.minor_version, info.metadata.encoder.c_str());
+  // The version the file states, and the one it needs where that is older.
+  const std::string needs =
+      needed_minor < info.minor_version ? " (needs " + std::to_string(info.major_version) + "." + std::to_string(needed_minor) + ")" : "";
+  std::printf("file        %s: %llu bytes, format %d.%d%s, written by %s\n", path.string().c_str(),
+              static_cast<unsigned long long>(info.file_bytes), info.major_version, info.minor_version, needs.c_str(),
+              info.metadata.encoder.c_str());
   std::printf("capture     %.3f s at %.3f fps (frames at %.3f .. %.3f s), units %s\n", duration, sequence.fps, sequence.first_time,
-              sequence.last_time, sequence.units.c_str());
+              sequence.last_time, sequence.units);
   std::printf("rate        %.0f bytes per second of capture (%.1f kbit/s)\n", bytes_per_second, bytes_per_second * 8 / 1000);
-  std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", sequence.grid_n, shape.interior_count + shape.rim_count,
-              shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
+  std::printf("grid        N = %d: %d nodes, %d on the rim, rule %d, hash %s\n", static_cast<int>(sequence.grid_n),
+              shape.interior_count + shape.rim_count, shape.rim_count, info.grid_rule, tools::hex64(info.grid_hash).c_str());
   const FieldCoding& coding = info.metadata.field_coding;
   std::printf(
       "fields      %s, integer multiples of a step per array, predicted and range-coded in groups of %d keyframes; %zu nodes in boundary "
       "frames\n",
-      representation_name(sequence.representation), coding.intra_period, fixed);
+      sequence.representation, coding.intra_period, fixed);
   std::printf("steps       H %.3g, log λ %.3g, tangential %.3g, band %.3g, positions %.3g, rim %.3g, hole level %.3g\n", coding.steps[0],
               coding.steps[1], coding.steps[2], coding.steps[4], coding.steps[7], coding.steps[10], coding.steps[13]);
   std::printf("pose        in the index: rotation vector in steps of %.3g rad, translation in steps of %.3g %s\n", coding.rotation_step,
-              coding.translation_step, sequence.units.c_str());
-  std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", spline_kind_name(sequence.spline),
-              spline.sane_range().begin, spline.sane_range().end);
+              coding.translation_step, sequence.units);
+  std::printf("spline      %s; decodes t in [%.3f, %.3f] s (one keyframe interval past each end)\n", sequence.spline, sequence.range_begin,
+              sequence.range_end);
   const bool texture_groups = info.texture_size > 0 && info.metadata.texture_coding == TextureCoding::kSequence;
   const std::string texture_coding =
       texture_groups
           ? " AVIF image sequence per group of " + std::to_string(coding.intra_period) +
                 " keyframes (format 2.1 TGOP; each keyframe's bytes its AV1 sample, a group's first also the chunk's and AVIF container's)"
           : std::string(info.metadata.texture_codec == TextureCodec::kAvif ? " AVIF" : " WebP") +
-                (info.distinct_textures < sequence.keyframe_count()
-                     ? " stills, " + std::to_string(info.distinct_textures) + " for " + std::to_string(sequence.keyframe_count()) +
+                (info.distinct_textures < times.size()
+                     ? " stills, " + std::to_string(info.distinct_textures) + " for " + std::to_string(times.size()) +
                            " keyframes (format 2.2: keyframes showing one texture name one TEXR; its bytes are the first's)"
                      : " still per keyframe");
   std::printf("texture     %s\n",
               info.texture_size > 0 ? (std::to_string(info.texture_size) + "x" + std::to_string(info.texture_size) + texture_coding).c_str()
                                     : "none");
-  std::printf("holes       %s\n", sequence.has_holes ? "stored as a level set, cut on decode" : "none stored");
+  std::printf("holes       %s\n", sequence.has_holes != 0 ? "stored as a level set, cut on decode" : "none stored");
   if (info.residual_frames > 0)
     std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (verify) {
-    std::printf("keyframes   %zu, every one decoded and checked\n", sequence.keyframe_count());
+    std::printf("keyframes   %zu, every one decoded and checked\n", times.size());
     std::printf("    #     time   fields B  texture B\n");
-    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
-      std::printf("  %3zu %8.3f %10llu %10llu\n", k, sequence.times[k], static_cast<unsigned long long>(info.keyframes[k].fields),
+    for (size_t k = 0; k < times.size(); ++k) {
+      std::printf("  %3zu %8.3f %10llu %10llu\n", k, times[k], static_cast<unsigned long long>(info.keyframes[k].fields),
                   static_cast<unsigned long long>(info.keyframes[k].texture));
     }
   } else {
     // A group's stream is divided among its keyframes only by decoding it: the group's bytes stand
     // on its first keyframe's line.
-    std::printf("keyframes   %zu, checksums verified (fminfo --verify decodes each and gives its fields' bytes)\n",
-                sequence.keyframe_count());
+    std::printf("keyframes   %zu, checksums verified (fminfo --verify decodes each and gives its fields' bytes)\n", times.size());
     std::printf("    #     time  group's fields B  texture B\n");
     size_t group = 0;
-    for (size_t k = 0; k < sequence.keyframe_count(); ++k) {
+    for (size_t k = 0; k < times.size(); ++k) {
       const bool first = group < info.field_groups.size() && info.field_groups[group].first == k;
       const std::string fields =
           first ? std::to_string(info.field_groups[group].bytes) + " (" + std::to_string(info.field_groups[group].count) + ")" : "";
       group += first;
-      std::printf("  %3zu %8.3f %17s %10llu\n", k, sequence.times[k], fields.c_str(),
-                  static_cast<unsigned long long>(info.keyframes[k].texture));
+      std::printf("  %3zu %8.3f %17s %10llu\n", k, times[k], fields.c_str(), static_cast<unsigned long long>(info.keyframes[k].texture));
     }
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");

@@ -29,14 +29,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A failed C call: the status and the library's message, printed at the tool's boundary.
+// A failed C call: the status and the library's message, printed at the tool's boundary. The
+// message names the file and the reason, as fmdec's (tools::player_error_message).
 struct Failure {
   fm_status status;
   std::string message;
 };
 
 void check(fm_status status) {
-  if (status != FM_OK) throw Failure{status, fm_last_error_message()};
+  if (status != FM_OK) throw Failure{status, facemorph::tools::player_error_message()};
 }
 
 double peak_memory_mib() {
@@ -119,7 +120,7 @@ void play_in_parallel(fm_file* file, const fm_info& info, double begin, int coun
         fm_frame frame = buffers.frame();
         status = fm_decoder_decode(decoder, begin + i / fps, flags, &frame);
       }
-      if (status != FM_OK) messages[static_cast<size_t>(p)] = fm_last_error_message();
+      if (status != FM_OK) messages[static_cast<size_t>(p)] = facemorph::tools::player_error_message();
       statuses[static_cast<size_t>(p)] = status;
       fm_decoder_destroy(decoder);
     });

@@ -315,7 +315,10 @@ const std::vector<Field> kInfoFields = {FM_FIELD(fm_info, fps),
                                         FM_FIELD(fm_info, grid_triangle_count),
                                         FM_FIELD(fm_info, has_holes),
                                         FM_FIELD(fm_info, texture_size),
-                                        FM_FIELD(fm_info, units)};
+                                        FM_FIELD(fm_info, units),
+                                        FM_FIELD(fm_info, representation),
+                                        FM_FIELD(fm_info, spline),
+                                        FM_FIELD(fm_info, fixed_node_count)};
 
 // fm_file_get_info fills the fields wholly inside struct_size with the file's values and leaves
 // every other byte (a field cut by struct_size, and all past it) as the caller left it.

@@ -5,6 +5,7 @@
 #include "tests/decoder/c_api_opened.hpp"
 #include "tests/test_util.hpp"
 
+#include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/player/decoder.hpp"
 #include "format/container.hpp"
 #include "format/file_io.hpp"
@@ -37,9 +38,26 @@ TEST(CApi, VersionAndStatusNames) {
   EXPECT_STREQ(fm_status_name(FM_ERROR_INTERNAL), "internal");
   EXPECT_STREQ(fm_status_name(static_cast<fm_status>(999)), "unknown");
   EXPECT_STREQ(fm_status_name(FM_STATUS_FORCE_32BIT), "unknown");
-  for (int s = FM_OK; s <= FM_ERROR_INTERNAL; ++s) {  // the same names as the C++ codes
+  for (int s = FM_OK; s <= FM_ERROR_CLOSED_HANDLE; ++s) {  // the same names as the C++ codes, every one
     EXPECT_STREQ(fm_status_name(static_cast<fm_status>(s)), facemorph::error_code_name(static_cast<facemorph::ErrorCode>(s)));
   }
+  EXPECT_STREQ(fm_status_name(static_cast<fm_status>(FM_ERROR_CLOSED_HANDLE + 1)), "unknown");
+  EXPECT_EQ(facemorph::kErrorCodeCount, FM_ERROR_CLOSED_HANDLE + 1);
+}
+
+// API 1.4: fm_info says how the file stores its keyframes, as the container's reader reads it.
+TEST(CApi, InfoOfApi1_4IsTheContainersOutline) {
+  for (const std::string& path : {kGoldenV2_0, facemorph::testing::kGoldenV2_1}) {
+    CApiOpened o(path);
+    const facemorph::SequenceOutline& outline = facemorph::open_sequence_source(path)->outline();
+    EXPECT_STREQ(o.info.representation, facemorph::representation_name(outline.representation)) << path;
+    EXPECT_STREQ(o.info.spline, facemorph::spline_kind_name(outline.spline)) << path;
+    EXPECT_EQ(o.info.fixed_node_count, outline.fixed_node_count) << path;
+  }
+  CApiOpened o(kGoldenV2_0);
+  EXPECT_STREQ(o.info.representation, "hl+t");  // as fminfo has always described golden_v2_0.fmv
+  EXPECT_STREQ(o.info.spline, "catmull-rom");
+  EXPECT_GT(o.info.fixed_node_count, 0u);  // hl+t's rim band
 }
 
 TEST(CApi, OpensAndDescribesTheGoldenFile) {

@@ -63,5 +63,43 @@ TEST(EnumNames, TheStoredNamesStay) {
   testing::expect_error(ErrorCode::kInvalidArgument, "unknown texture codec 'jpeg' (avif, webp)", [] { parse_texture_codec("jpeg"); });
 }
 
+// The numbers files store for the coded enumerations (spec/container.md §5, §8): fixed forever,
+// whatever the order of the C++ enumerators. Each table's two maps are inverse.
+TEST(EnumNames, TheStoredCodesStay) {
+  const std::pair<SplineKind, uint8_t> splines[] = {
+      {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
+  for (const auto& [kind, code] : splines) {
+    EXPECT_EQ(code_of(kSplineKinds, kind), code);
+    EXPECT_EQ(enum_of(kSplineKinds, code, "spline"), kind);
+  }
+  const std::pair<Representation, uint8_t> representations[] = {
+      {Representation::kHL, 0}, {Representation::kHLT, 1}, {Representation::kXYZ, 2}};
+  for (const auto& [representation, code] : representations) {
+    EXPECT_EQ(code_of(kRepresentations, representation), code);
+    EXPECT_EQ(enum_of(kRepresentations, code, "representation"), representation);
+  }
+  EXPECT_EQ(code_of(kTextureCodecs, TextureCodec::kWebp), 1u);
+  EXPECT_EQ(code_of(kTextureCodecs, TextureCodec::kAvif), 2u);
+  EXPECT_EQ(entry_of_code(kTextureCodecs, uint32_t{3}), nullptr);  // TGOP's sequence, not a still's codec
+  testing::expect_error(ErrorCode::kUnsupported, "spline kind 4 is not one this decoder knows",
+                        [] { enum_of(kSplineKinds, uint8_t{4}, "spline kind"); });
+  testing::expect_error(ErrorCode::kInvalidArgument, "no file code", [] { code_of(kRepresentations, static_cast<Representation>(7)); });
+}
+
+TEST(EnumNames, OneToOneSeesARepeatedCodeOrName) {
+  enum class EnumNamesTestShape { kSquare, kCircle };
+  constexpr CodedEnumName<EnumNamesTestShape, uint8_t> fine[] = {{EnumNamesTestShape::kSquare, "square", 0},
+                                                                 {EnumNamesTestShape::kCircle, "circle", 1}};
+  constexpr CodedEnumName<EnumNamesTestShape, uint8_t> same_code[] = {{EnumNamesTestShape::kSquare, "square", 1},
+                                                                      {EnumNamesTestShape::kCircle, "circle", 1}};
+  constexpr CodedEnumName<EnumNamesTestShape, uint8_t> same_name[] = {{EnumNamesTestShape::kSquare, "square", 0},
+                                                                      {EnumNamesTestShape::kCircle, "square", 1}};
+  static_assert(is_one_to_one(fine));
+  static_assert(!is_one_to_one(same_code));
+  static_assert(!is_one_to_one(same_name));
+  EXPECT_STREQ(name_of(fine, EnumNamesTestShape::kCircle), "circle");
+  EXPECT_EQ(parse_name(fine, "square", "shape"), EnumNamesTestShape::kSquare);
+}
+
 }  // namespace
 }  // namespace facemorph

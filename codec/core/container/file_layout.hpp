@@ -79,32 +79,12 @@ int64_t read_varint(format::ByteReader& r, const char* what);
 // A float64 the file states, which must be finite.
 double read_finite(format::ByteReader& r, const char* what);
 
-// The numbers the file uses for enumerations (§5): fixed forever, independent of the order of the
-// C++ enumerators.
-inline constexpr std::pair<Representation, uint8_t> kRepresentationCodes[] = {
-    {Representation::kHL, 0}, {Representation::kHLT, 1}, {Representation::kXYZ, 2}};
-inline constexpr std::pair<SplineKind, uint8_t> kSplineCodes[] = {
-    {SplineKind::kLocalCubic, 0}, {SplineKind::kCatmullRom, 1}, {SplineKind::kNotAKnot, 2}, {SplineKind::kLinear, 3}};
+// The numbers the file uses for enumerations (§5, §8) stand in each enumeration's one table, beside
+// its names: kRepresentations, kSplineKinds, kTextureCodecs (code_of, enum_of: enum_names.hpp).
 
-template <typename Enum, size_t N>
-inline uint8_t code_of(const std::pair<Enum, uint8_t> (&table)[N], Enum value) {
-  for (const auto& [e, c] : table) {
-    if (e == value) return c;
-  }
-  throw Error(ErrorCode::kInvalidArgument, "no file code for an enumerator");
-}
-
-template <typename Enum, size_t N>
-inline Enum enum_of(const std::pair<Enum, uint8_t> (&table)[N], uint8_t code, const std::string& what) {
-  for (const auto& [e, c] : table) {
-    if (c == code) return e;
-  }
-  throw Error(ErrorCode::kUnsupported, what + " " + std::to_string(code) + " is not one this decoder knows");
-}
-
-// The format's numbers for a texture's image codec: TEXR's WebP and AVIF stills (§8), TGOP's AVIF
-// image sequence after its first keyframe and codec (§8.1).
-inline constexpr uint32_t kTextureWebp = 1, kTextureAvif = 2, kTextureAvifSequence = 3;
+// The format's number for a TGOP's AVIF image sequence, after its first keyframe (§8.1); a TEXR
+// still's codec numbers are kTextureCodecs'.
+inline constexpr uint32_t kTextureAvifSequence = 3;
 inline constexpr size_t kTextureGroupPreambleBytes = 8;
 
 // ---- The header (HEAD, header_chunk.cpp) ----

@@ -2,7 +2,6 @@
 #include "codec/core/reconstruct/fields.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 
 #include "format/quantize.hpp"
@@ -13,16 +12,9 @@
 
 namespace facemorph {
 
-namespace {
+const char* representation_name(Representation representation) { return name_of(kRepresentations, representation); }
 
-constexpr EnumName<Representation> kRepresentationNames[] = {
-    {Representation::kHL, "hl"}, {Representation::kHLT, "hl+t"}, {Representation::kXYZ, "xyz"}};
-
-}  // namespace
-
-const char* representation_name(Representation representation) { return name_of(kRepresentationNames, representation); }
-
-Representation parse_representation(const std::string& name) { return parse_name(kRepresentationNames, name, "representation"); }
+Representation parse_representation(const std::string& name) { return parse_name(kRepresentations, name, "representation"); }
 
 void validate_fields(const GridFields& fields) {
   auto fail = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "fields: " + what); };

@@ -5,6 +5,9 @@
 
 #include "codec/core/geometry/mesh.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
+#include "codec/core/util/enum_names.hpp"
+
+#include <cstdint>
 
 #include <string>
 #include <vector>
@@ -16,6 +19,10 @@ enum class Representation {
   kHLT,  // H, log λ and the tangential part (a, b) of Δ_h S; Cartesian Δ_h S in the rim band
   kXYZ,  // positions
 };
+// Each representation's name (settings, command lines) and the number the header stores (spec/container.md §5).
+inline constexpr CodedEnumName<Representation, uint8_t> kRepresentations[] = {
+    {Representation::kHL, "hl", 0}, {Representation::kHLT, "hl+t", 1}, {Representation::kXYZ, "xyz", 2}};
+static_assert(is_one_to_one(kRepresentations));
 const char* representation_name(Representation representation);  // "hl", "hl+t", "xyz"
 Representation parse_representation(const std::string& name);    // throws kInvalidArgument
 

@@ -4,7 +4,6 @@
 // handful of sparse row sums, and extrapolation is the same piece evaluated outside its segment.
 #include "codec/core/sequence/spline.hpp"
 
-#include "codec/core/util/enum_names.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>
@@ -13,18 +12,9 @@
 
 namespace facemorph {
 
-namespace {
+const char* spline_kind_name(SplineKind kind) { return name_of(kSplineKinds, kind); }
 
-constexpr EnumName<SplineKind> kSplineNames[] = {{SplineKind::kLocalCubic, "local"},
-                                                 {SplineKind::kCatmullRom, "catmull-rom"},
-                                                 {SplineKind::kNotAKnot, "not-a-knot"},
-                                                 {SplineKind::kLinear, "linear"}};
-
-}  // namespace
-
-const char* spline_kind_name(SplineKind kind) { return name_of(kSplineNames, kind); }
-
-SplineKind parse_spline_kind(const std::string& name) { return parse_name(kSplineNames, name, "spline"); }
+SplineKind parse_spline_kind(const std::string& name) { return parse_name(kSplineKinds, name, "spline"); }
 
 namespace {
 

@@ -15,6 +15,8 @@
 // beyond sane_range (the sequence decoder reports kOutOfRange or clamps).
 #pragma once
 
+#include "codec/core/util/enum_names.hpp"
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -44,6 +46,12 @@ enum class SplineKind {
   // Piecewise linear: C⁰, lines reproduced; at most 2 keys, t_i and t_{i+1}.
   kLinear,
 };
+// Each kind's name (settings, command lines) and the number the header stores (spec/container.md §5).
+inline constexpr CodedEnumName<SplineKind, uint8_t> kSplineKinds[] = {{SplineKind::kLocalCubic, "local", 0},
+                                                                      {SplineKind::kCatmullRom, "catmull-rom", 1},
+                                                                      {SplineKind::kNotAKnot, "not-a-knot", 2},
+                                                                      {SplineKind::kLinear, "linear", 3}};
+static_assert(is_one_to_one(kSplineKinds));
 const char* spline_kind_name(SplineKind kind);          // "local", "catmull-rom", "not-a-knot", "linear"
 SplineKind parse_spline_kind(const std::string& name);  // throws kInvalidArgument naming the choices
 

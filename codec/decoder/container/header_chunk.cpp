@@ -79,8 +79,8 @@ FileHeader read_header(std::span<const uint8_t> payload, const std::string& sour
   h.shape.grid_n = static_cast<int>(n);
   h.grid_rule = r.read<uint32_t>("the grid rule");
   h.grid_hash = r.read<uint64_t>("the grid hash");
-  h.shape.representation = enum_of(kRepresentationCodes, r.read<uint8_t>("the representation"), source + ": representation");
-  h.shape.spline = enum_of(kSplineCodes, r.read<uint8_t>("the spline"), source + ": spline kind");
+  h.shape.representation = enum_of(kRepresentations, r.read<uint8_t>("the representation"), source + ": representation");
+  h.shape.spline = enum_of(kSplineKinds, r.read<uint8_t>("the spline"), source + ": spline kind");
   h.flags = r.read<uint8_t>("the flags");
   if ((h.flags & ~(kHasTexture | kHasHoles | kTextureGroups | kSharedTextures)) != 0) corrupt(r.source(), "reserved flags are set");
   if (h.texture_groups() && !h.has_texture()) corrupt(r.source(), "the texture groups flag (bit 2) without the textures flag (bit 0)");

@@ -10,11 +10,12 @@ TextureCodec texture_codec_of(std::span<const uint8_t> payload, const std::strin
   format::ByteReader r(payload, where);
   if (r.read<uint32_t>("the keyframe number") != number) corrupt(where, "holds another keyframe's texture than the index says");
   const uint32_t number_of_codec = r.read<uint32_t>("the image codec");
-  if (number_of_codec != kTextureWebp && number_of_codec != kTextureAvif) {
+  const auto* codec = entry_of_code(kTextureCodecs, number_of_codec);
+  if (codec == nullptr) {
     throw Error(ErrorCode::kUnsupported,
                 where + ": image codec " + std::to_string(number_of_codec) + " (this decoder reads WebP, 1, and AVIF, 2)");
   }
-  return number_of_codec == kTextureAvif ? TextureCodec::kAvif : TextureCodec::kWebp;
+  return codec->value;
 }
 
 Image read_texture(std::span<const uint8_t> payload, const std::string& where, uint32_t number, uint32_t size) {

@@ -1,6 +1,6 @@
 #include "codec/decoder/image/image_decode.hpp"
 
-#include "codec/decoder/image/avif_image.hpp"
+#include "codec/core/image/avif_image.hpp"
 #include "format/error.hpp"
 
 #include <avif/avif.h>
@@ -28,24 +28,6 @@ Image decode_webp(std::span<const uint8_t> bytes, const std::string& source, int
   const uint8_t* ok = channels == 3 ? WebPDecodeRGBInto(bytes.data(), bytes.size(), image.pixels.data(), image.pixels.size(), stride)
                                     : WebPDecodeRGBAInto(bytes.data(), bytes.size(), image.pixels.data(), image.pixels.size(), stride);
   if (ok == nullptr) throw Error(ErrorCode::kCorrupt, source + ": the WebP image data is damaged");
-  return image;
-}
-
-Image rgb_of(const avifImage* decoded, int channels, const std::string& source) {
-  Image image(static_cast<int>(decoded->width), static_cast<int>(decoded->height), channels);
-  AvifRgb rgb;
-  avifRGBImageSetDefaults(&rgb.rgb, decoded);
-  rgb.rgb.format = channels == 4 ? AVIF_RGB_FORMAT_RGBA : AVIF_RGB_FORMAT_RGB;
-  rgb.rgb.depth = 8;
-  rgb.rgb.pixels = image.pixels.data();
-  rgb.rgb.rowBytes = static_cast<uint32_t>(image.width * channels);
-  const avifResult result = avifImageYUVToRGB(decoded, &rgb.rgb);
-  rgb.rgb.pixels = nullptr;  // ours, not libavif's to free
-  if (channels == 4 && decoded->alphaPlane == nullptr) {
-    for (size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;  // no alpha stored: opaque
-  }
-  if (result != AVIF_RESULT_OK)
-    throw Error(ErrorCode::kCorrupt, source + ": the AVIF image cannot be converted to RGB (" + avifResultToString(result) + ")");
   return image;
 }
 

@@ -68,12 +68,13 @@
 extern "C" {
 #endif
 
-/* The API (and ABI) this header declares: 1.3 (1.0 with two functions appended in 1.1,
- * fm_decoder_options.max_work appended in 1.2, and in 1.3 fm_frame's double-precision arrays and
- * hole levels and fm_decoder_set_tolerance, below). The soname follows the major version only
+/* The API (and ABI) this header declares: 1.4 (1.0 with two functions appended in 1.1,
+ * fm_decoder_options.max_work appended in 1.2, in 1.3 fm_frame's double-precision arrays and
+ * hole levels and fm_decoder_set_tolerance, and in 1.4 fm_info's representation, spline and
+ * fixed_node_count, below). The soname follows the major version only
  * (libfacemorph_decoder.so.1); the library's own version is FACEMORPH_VERSION_*, below. */
 #define FACEMORPH_API_VERSION_MAJOR 1
-#define FACEMORPH_API_VERSION_MINOR 3
+#define FACEMORPH_API_VERSION_MINOR 4
 
 #define FACEMORPH_VERSION_MAJOR 0
 #define FACEMORPH_VERSION_MINOR 8
@@ -212,6 +213,11 @@ typedef struct fm_info {
   uint32_t has_holes;    /* 1: eyes and mouth are cut per frame, the counts change between frames */
   uint32_t texture_size; /* M, texels per side; 0: the file has no texture */
   char units[8];         /* "m", "cm" or "mm", NUL-terminated */
+  /* 1.4: how the file stores its keyframes (spec/container.md §5), what fminfo describes. Names
+   * are NUL-terminated and never change (the encoder's settings use them too). */
+  char representation[8];    /* what a keyframe stores on G: "hl", "hl+t" or "xyz" */
+  char spline[16];           /* the keyframe spline: "local", "catmull-rom", "not-a-knot" or "linear" */
+  uint32_t fixed_node_count; /* nodes of G stored in a boundary frame (hl+t's rim band; 0 otherwise) */
 } fm_info;
 
 /* Zeroes *info and sets struct_size to sizeof(fm_info) as the caller compiled it. NULL is ignored. */

@@ -20,6 +20,17 @@
 #include <type_traits>
 #include <vector>
 
+// fm_info's names (1.4) fit their fields with the NUL: every name of the enumerations' tables.
+template <typename Entry, size_t N>
+constexpr bool names_fit(const Entry (&table)[N], size_t field_bytes) {
+  for (const Entry& entry : table) {
+    if (std::char_traits<char>::length(entry.name) >= field_bytes) return false;
+  }
+  return true;
+}
+static_assert(names_fit(facemorph::kRepresentations, sizeof(fm_info::representation)));
+static_assert(names_fit(facemorph::kSplineKinds, sizeof(fm_info::spline)));
+
 // fm_decoder_options_init (inline in the header) sets the library's own defaults.
 static_assert(FM_DEFAULT_MAX_GRID_N == facemorph::kDefaultDecoderLimits.max_grid_n);
 static_assert(FM_DEFAULT_MAX_KEYFRAMES == facemorph::kDefaultDecoderLimits.max_keyframes);
@@ -28,30 +39,40 @@ static_assert(FM_DEFAULT_MAX_MEMORY_BYTES == facemorph::kDefaultDecoderLimits.ma
 static_assert(FM_DEFAULT_MAX_WORK == facemorph::kDefaultDecoderLimits.max_work);
 static_assert(FM_DEFAULT_TOLERANCE == facemorph::ReconstructOptions{}.tolerance);
 
-// The C enum mirrors facemorph::ErrorCode value for value.
-static_assert(FM_OK == static_cast<int>(facemorph::ErrorCode::kOk));
-static_assert(FM_ERROR_IO == static_cast<int>(facemorph::ErrorCode::kIo));
-static_assert(FM_ERROR_PARSE == static_cast<int>(facemorph::ErrorCode::kParse));
-static_assert(FM_ERROR_TRUNCATED == static_cast<int>(facemorph::ErrorCode::kTruncated));
-static_assert(FM_ERROR_CORRUPT == static_cast<int>(facemorph::ErrorCode::kCorrupt));
-static_assert(FM_ERROR_UNSUPPORTED == static_cast<int>(facemorph::ErrorCode::kUnsupported));
-static_assert(FM_ERROR_INVALID_MESH == static_cast<int>(facemorph::ErrorCode::kInvalidMesh));
-static_assert(FM_ERROR_NOT_A_DISK == static_cast<int>(facemorph::ErrorCode::kNotADisk));
-static_assert(FM_ERROR_MISSING_TEXTURE == static_cast<int>(facemorph::ErrorCode::kMissingTexture));
-static_assert(FM_ERROR_INVALID_ARGUMENT == static_cast<int>(facemorph::ErrorCode::kInvalidArgument));
-static_assert(FM_ERROR_NUMERICAL == static_cast<int>(facemorph::ErrorCode::kNumerical));
-static_assert(FM_ERROR_NOT_CONVERGED == static_cast<int>(facemorph::ErrorCode::kNotConverged));
-static_assert(FM_ERROR_OUT_OF_RANGE == static_cast<int>(facemorph::ErrorCode::kOutOfRange));
-static_assert(FM_ERROR_BUFFER_TOO_SMALL == static_cast<int>(facemorph::ErrorCode::kBufferTooSmall));
-static_assert(FM_ERROR_OUT_OF_MEMORY == static_cast<int>(facemorph::ErrorCode::kOutOfMemory));
-static_assert(FM_ERROR_INTERNAL == static_cast<int>(facemorph::ErrorCode::kInternal));
-static_assert(FM_ERROR_LIMIT == static_cast<int>(facemorph::ErrorCode::kLimit));
-static_assert(FM_ERROR_CLOSED_HANDLE == static_cast<int>(facemorph::ErrorCode::kClosedHandle));
+// The C enum mirrors facemorph::ErrorCode value for value: every row of the one list
+// (FACEMORPH_ERROR_CODES, format/error.hpp) names its fm_status, whose value facemorph.h states
+// (the ABI) and must equal the row's; and the codes run 0 .. kErrorCodeCount - 1 with none left out.
+#define FACEMORPH_CHECK_STATUS(code, value, name, status) \
+  static_assert(status == value && static_cast<int>(facemorph::ErrorCode::code) == value, #status " is not facemorph::ErrorCode::" #code);
+FACEMORPH_ERROR_CODES(FACEMORPH_CHECK_STATUS)
+#undef FACEMORPH_CHECK_STATUS
+static_assert(FM_ERROR_CLOSED_HANDLE + 1 == facemorph::kErrorCodeCount, "fm_status and facemorph::ErrorCode differ in count");
+constexpr bool error_codes_run_from_zero() {
+#define FACEMORPH_ERROR_VALUE(code, value, name, status) value,
+  constexpr int values[] = {FACEMORPH_ERROR_CODES(FACEMORPH_ERROR_VALUE)};
+#undef FACEMORPH_ERROR_VALUE
+  for (int i = 0; i < facemorph::kErrorCodeCount; ++i) {
+    if (values[i] != i) return false;
+  }
+  return true;
+}
+static_assert(error_codes_run_from_zero(), "the error codes skip a value or leave their order");
 
 namespace {
 
 using facemorph::Error;
 using facemorph::ErrorCode;
+
+// The status of a code, from the one list (FACEMORPH_ERROR_CODES).
+constexpr fm_status status_of(ErrorCode code) noexcept {
+  switch (code) {
+#define FACEMORPH_STATUS_CASE(code, value, name, status) \
+  case ErrorCode::code: return status;
+    FACEMORPH_ERROR_CODES(FACEMORPH_STATUS_CASE)
+#undef FACEMORPH_STATUS_CASE
+  }
+  return FM_ERROR_INTERNAL;
+}
 
 std::string& last_message() {
   thread_local std::string message;
@@ -64,7 +85,7 @@ fm_status fail(ErrorCode code, const std::string& message) {
   } catch (...) {
     last_message().clear();  // no memory for the message: the status still says what happened
   }
-  return static_cast<fm_status>(code);
+  return status_of(code);
 }
 
 fm_status ok() {
@@ -297,7 +318,7 @@ void describe(const facemorph::FrameInfo& info, fm_frame* frame) {
 extern "C" {
 
 FM_API const char* fm_status_name(fm_status status) {
-  if (status < FM_OK || status > FM_ERROR_CLOSED_HANDLE) return "unknown";
+  if (status < 0 || status >= facemorph::kErrorCodeCount) return "unknown";
   return facemorph::error_code_name(static_cast<ErrorCode>(status));
 }
 
@@ -355,15 +376,20 @@ FM_API fm_status fm_file_get_info(const fm_file* file, fm_info* info) {
     out.texture_size = static_cast<uint32_t>(in.texture_size);
     // Units are "m", "cm" or "mm" (the container's reader checks): they fit with their NUL.
     std::strncpy(out.units, in.units.c_str(), sizeof out.units - 1);
+    // The names are the enumerations' tables' (fields.hpp, spline.hpp), each shorter than its field.
+    std::strncpy(out.representation, facemorph::representation_name(in.representation), sizeof out.representation - 1);
+    std::strncpy(out.spline, facemorph::spline_kind_name(in.spline), sizeof out.spline - 1);
+    out.fixed_node_count = static_cast<uint32_t>(in.fixed_node_count);
     // The fields the caller's struct holds (all of them in 1.0), in their order; struct_size stays.
     size_t end = 0;
 #define FM_INFO_FIELD(field) \
   if (FM_COVERS(info, fm_info, field)) end = offsetof(fm_info, field) + sizeof out.field;
     FM_INFO_FIELD(fps)
-    FM_INFO_FIELD(first_time) FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end)
-        FM_INFO_FIELD(keyframe_count) FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count)
-            FM_INFO_FIELD(grid_vertex_count) FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size)
-                FM_INFO_FIELD(units)
+    FM_INFO_FIELD(first_time)
+    FM_INFO_FIELD(last_time) FM_INFO_FIELD(duration) FM_INFO_FIELD(range_begin) FM_INFO_FIELD(range_end) FM_INFO_FIELD(keyframe_count)
+        FM_INFO_FIELD(grid_n) FM_INFO_FIELD(max_vertex_count) FM_INFO_FIELD(max_triangle_count) FM_INFO_FIELD(grid_vertex_count)
+            FM_INFO_FIELD(grid_triangle_count) FM_INFO_FIELD(has_holes) FM_INFO_FIELD(texture_size) FM_INFO_FIELD(units)
+                FM_INFO_FIELD(representation) FM_INFO_FIELD(spline) FM_INFO_FIELD(fixed_node_count)
 #undef FM_INFO_FIELD
                     const size_t begin = offsetof(fm_info, struct_size) + sizeof out.struct_size;
     if (end > begin) std::memcpy(reinterpret_cast<char*>(info) + begin, reinterpret_cast<const char*>(&out) + begin, end - begin);

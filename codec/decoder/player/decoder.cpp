@@ -105,6 +105,9 @@ FileInfo describe(const SequenceOutline& sequence) {
   info.has_texture = sequence.has_texture();
   info.texture_size = sequence.texture_size;
   info.units = sequence.units;
+  info.representation = sequence.representation;
+  info.spline = sequence.spline;
+  info.fixed_node_count = static_cast<int>(sequence.fixed_node_count);
   return info;
 }
 

@@ -77,6 +77,10 @@ struct FileInfo {
   bool has_texture = false;
   int texture_size = 0;  // M, texels per side (0: no texture)
   std::string units;     // "m", "cm" or "mm"
+  // How the file stores its keyframes (spec/container.md §5; C API 1.4).
+  Representation representation = Representation::kHLT;
+  SplineKind spline = SplineKind::kLocalCubic;
+  int fixed_node_count = 0;  // G's nodes stored in a boundary frame (hl+t's rim band)
 };
 
 // What a sequence holds, without a decoder (no solver built): what a player shows before it

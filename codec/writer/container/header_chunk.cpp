@@ -22,8 +22,8 @@ std::vector<uint8_t> write_header(const SequenceOutline& s, const std::vector<in
   w.write(static_cast<uint32_t>(s.grid_n));
   w.write(static_cast<uint32_t>(kDiskGridRule));
   w.write(grid_facts(s.grid_n)->hash);
-  w.write(code_of(kRepresentationCodes, s.representation));
-  w.write(code_of(kSplineCodes, s.spline));
+  w.write(code_of(kRepresentations, s.representation));
+  w.write(code_of(kSplineKinds, s.spline));
   w.write(static_cast<uint8_t>((s.has_texture() ? kHasTexture : 0) | (s.has_holes ? kHasHoles : 0) |
                                (s.has_texture() && textures == TextureLayout::kGroups ? kTextureGroups : 0) |
                                (s.has_texture() && textures == TextureLayout::kSharedStills ? kSharedTextures : 0)));

@@ -13,7 +13,7 @@ namespace facemorph::file_layout {
 std::vector<uint8_t> write_texture(const Image& texture, uint32_t number, TextureCodec codec, int quality) {
   format::ByteWriter w;
   w.write(number);
-  w.write(stored_texture_codec(codec, quality) == TextureCodec::kAvif ? kTextureAvif : kTextureWebp);
+  w.write(code_of(kTextureCodecs, stored_texture_codec(codec, quality)));
   w.bytes(encode_texture(codec, texture, quality));
   return w.take();
 }

@@ -1,6 +1,6 @@
 #include "codec/writer/image/image_encode.hpp"
 
-#include "codec/decoder/image/avif_image.hpp"  // rgb_of: avif_colour_round_trip converts back as the decoder does
+#include "codec/core/image/avif_image.hpp"  // rgb_of: avif_colour_round_trip converts back as the decoder does
 #include "format/error.hpp"
 #include "format/file_io.hpp"
 

@@ -1,9 +1,10 @@
 // facemorph/decoder.hpp: the C++ player API, a header-only wrapper over the C API (facemorph.h),
 // as libjxl's decode_cxx.h is over decode.h. It adds only what C++ gives: handles closed by their
 // destructors, exceptions for statuses, frames into std::vectors. It includes facemorph.h and the
-// standard library only, compiles as C++17 or later, and covers API 1.3 (spec/api.md; 1.1's
-// borrowed open and texture weights, 1.3's double-precision arrays, hole levels and tolerance included): every function is inline, so its
-// ABI is the C API's.
+// standard library only, compiles as C++17 or later, and covers API 1.4 (spec/api.md; 1.1's
+// borrowed open and texture weights, 1.3's double-precision arrays, hole levels and tolerance, 1.4's
+// representation, spline and fixed nodes in File::info's fm_info included): every function is
+// inline, so its ABI is the C API's.
 //
 //   fm::File file = fm::File::open("face.fmv");                  // throws fm::Error
 //   fm::Decoder decoder(file);
@@ -119,7 +120,7 @@ class File {
   File& operator=(const File&) = delete;
   ~File() { fm_file_close(file_); }
 
-  // What the file holds (fm_file_get_info).
+  // What the file holds (fm_file_get_info; API 1.4 adds its representation, spline and fixed nodes).
   fm_info info() const {
     fm_info info{};
     info.struct_size = sizeof info;

@@ -1,6 +1,8 @@
-// What the AVIF decoding and encoding share of libavif (image_decode.cpp, and the writer's
-// image_encode.cpp, whose avif_colour_round_trip converts back as the decoder does): handles freed
-// on every path, and the conversion of a decoded frame to RGB. Private to the image codecs.
+// What the AVIF decoding and encoding share of libavif (the decoder's image_decode.cpp, and the
+// writer's image_encode.cpp, whose avif_colour_round_trip converts back as the decoder does):
+// handles freed on every path, and the conversion of a decoded frame to RGB. Private to the image
+// codecs: its own library, facemorph_avif_image (codec/core/CMakeLists.txt), so that core itself
+// links no image codec and the writer need not link the decoder for it.
 #pragma once
 
 #include "codec/core/image/image.hpp"
