@@ -49,7 +49,8 @@ TEST(CApi, VersionAndStatusNames) {
 TEST(CApi, InfoOfApi1_4IsTheContainersOutline) {
   for (const std::string& path : {kGoldenV2_0, facemorph::testing::kGoldenV2_1}) {
     CApiOpened o(path);
-    const facemorph::SequenceOutline& outline = facemorph::open_sequence_source(path)->outline();
+    const auto source = facemorph::open_sequence_source(path);  // kept: outline() is a reference into it
+    const facemorph::SequenceOutline& outline = source->outline();
     EXPECT_STREQ(o.info.representation, facemorph::representation_name(outline.representation)) << path;
     EXPECT_STREQ(o.info.spline, facemorph::spline_kind_name(outline.spline)) << path;
     EXPECT_EQ(o.info.fixed_node_count, outline.fixed_node_count) << path;
