@@ -88,12 +88,44 @@ TEST(TextureQuality, TargetsAreAShareOfTheSmallerNeighbouringIntervalWithinTheBo
   EXPECT_DOUBLE_EQ(targets[0], 25.0);
   EXPECT_DOUBLE_EQ(targets[1], 25.0);
   EXPECT_DOUBLE_EQ(targets[2], mse_of_psnr(32));  // 100 clamped to the coarsest allowed, 41.0
-  EXPECT_LT(targets[3], 0);                       // its only interval was not measured
+  EXPECT_DOUBLE_EQ(targets[3], mse_of_psnr(32));  // its only interval unmeasured: the nearest, 400, clamped
   // A nearly perfect blend does not ask for more than max_psnr; nothing measured: no target.
   EXPECT_DOUBLE_EQ(texture_error_targets({1e-6}, options)[0], mse_of_psnr(48));
   EXPECT_LT(texture_error_targets({-1.0}, options)[1], 0);
   options.interpolation_share = 0;
   testing::expect_error(ErrorCode::kInvalidArgument, "share", [&] { texture_error_targets({1.0}, options); });
+}
+
+TEST(TextureQuality, AKeyframeWithUnmeasuredNeighboursTakesTheNearestMeasuredInterval) {
+  TextureQualityOptions options;
+  options.interpolation_share = 0.25;
+  options.min_psnr = 32;  // MSE 41.0: every target below is under it
+  options.max_psnr = 48;  // MSE 1.03: and over this
+  // Keyframes 0..6; measured: interval 1-2 (MSE 120) and 4-5 (MSE 80); the rest join adjacent frames.
+  const std::vector<double> spaced = texture_error_targets({-1.0, 120.0, -1.0, -1.0, 80.0, -1.0}, options);
+  ASSERT_EQ(spaced.size(), 7u);
+  EXPECT_DOUBLE_EQ(spaced[0], 30.0);  // first keyframe: its one interval unmeasured, 1-2 next
+  EXPECT_DOUBLE_EQ(spaced[1], 30.0);
+  EXPECT_DOUBLE_EQ(spaced[2], 30.0);
+  EXPECT_DOUBLE_EQ(spaced[3], 20.0);  // both neighbours adjacent; 1-2 and 4-5 one further: the smaller
+  EXPECT_DOUBLE_EQ(spaced[4], 20.0);
+  EXPECT_DOUBLE_EQ(spaced[5], 20.0);
+  EXPECT_DOUBLE_EQ(spaced[6], 20.0);  // last keyframe: its one interval unmeasured, 4-5 next
+  // Nearer wins over smaller: keyframes 0..9, measured 3-4 (MSE 160) and 8-9 (MSE 8).
+  const std::vector<double> far = texture_error_targets({-1.0, -1.0, -1.0, 160.0, -1.0, -1.0, -1.0, -1.0, 8.0}, options);
+  ASSERT_EQ(far.size(), 10u);
+  EXPECT_DOUBLE_EQ(far[0], 40.0);  // 3-4 three intervals away
+  EXPECT_DOUBLE_EQ(far[5], 40.0);  // 3-4 one away, 8-9 three away
+  EXPECT_DOUBLE_EQ(far[6], 2.0);   // both two away: the smaller
+  EXPECT_DOUBLE_EQ(far[7], 2.0);
+  EXPECT_DOUBLE_EQ(far[9], 2.0);
+  // The nearest is still clamped: MSE 1000 -> min_psnr's 41.0.
+  EXPECT_DOUBLE_EQ(texture_error_targets({-1.0, 1000.0}, options)[0], mse_of_psnr(32));
+  // No interval measured at all, or one keyframe: no target (the fallback quality).
+  for (double target : texture_error_targets({-1.0, -1.0, -1.0}, options)) EXPECT_LT(target, 0);
+  const std::vector<double> single = texture_error_targets({}, options);
+  ASSERT_EQ(single.size(), 1u);
+  EXPECT_LT(single[0], 0);
 }
 
 // End to end: with auto quality the keyframes' textures take fewer bytes than at quality 90, and the

@@ -92,11 +92,19 @@ std::vector<double> texture_error_targets(const std::vector<double>& interval_ms
   }
   const size_t keys = interval_mse.size() + 1;
   std::vector<double> targets(keys, -1.0);
+  const size_t intervals = interval_mse.size();
   for (size_t k = 0; k < keys; ++k) {
+    // The measured intervals nearest keyframe k: at `reach` 0 the two beside it (k - 1 and k), then
+    // one further out on each side, until one is measured (an interval between adjacent frames has
+    // no frame to measure). The blend's error varies slowly in time, so a keyframe with unmeasured
+    // neighbours takes the nearest measured one's rather than the fixed fallback quality; of two
+    // at the same reach, the smaller error (the finer target).
     double smallest = std::numeric_limits<double>::infinity();
-    if (k > 0 && interval_mse[k - 1] >= 0) smallest = std::min(smallest, interval_mse[k - 1]);
-    if (k + 1 < keys && interval_mse[k] >= 0) smallest = std::min(smallest, interval_mse[k]);
-    if (!std::isfinite(smallest)) continue;
+    for (size_t reach = 0; !std::isfinite(smallest) && (reach < k || k + reach < intervals); ++reach) {
+      if (reach < k && interval_mse[k - 1 - reach] >= 0) smallest = std::min(smallest, interval_mse[k - 1 - reach]);
+      if (k + reach < intervals && interval_mse[k + reach] >= 0) smallest = std::min(smallest, interval_mse[k + reach]);
+    }
+    if (!std::isfinite(smallest)) continue;  // nothing measured at all: the fallback quality
     targets[k] = std::clamp(options.interpolation_share * smallest, mse_of_psnr(options.max_psnr), mse_of_psnr(options.min_psnr));
   }
   return targets;

@@ -43,8 +43,9 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
 
 // Per keyframe, the MSE its coding may add: options.interpolation_share times the smaller of the
 // interpolation errors of the intervals beside it (`interval_mse[k]`: between keyframes k and k + 1,
-// negative where not measured), clamped to [max_psnr, min_psnr]; negative where neither neighbour
-// was measured. `keys` keyframes, keys - 1 intervals.
+// negative where not measured), clamped to [max_psnr, min_psnr]. A keyframe with neither neighbour
+// measured takes the nearest measured interval in keyframe order (ties: the smaller MSE); negative
+// only where no interval was measured at all. `keys` keyframes, keys - 1 intervals.
 std::vector<double> texture_error_targets(const std::vector<double>& interval_mse, const TextureQualityOptions& options);
 
 }  // namespace facemorph
