@@ -22,7 +22,7 @@ struct Corner {
   int32_t uv = -1;  // -1: none
 };
 
-[[noreturn]] void fail(ErrorCode code, const std::string& source, size_t line, const std::string& why) {
+[[noreturn]] void obj_fail(ErrorCode code, const std::string& source, size_t line, const std::string& why) {
   throw Error(code, source + ":" + std::to_string(line) + ": " + why);
 }
 
@@ -31,15 +31,15 @@ int32_t resolve_index(std::string_view token, size_t count, const char* kind, co
   bool too_large = false;  // a whole integer beyond int64 is out of range, not malformed
   const auto value = text::parse_int(token, &too_large);
   if (!value && !too_large) {
-    fail(ErrorCode::kParse, source, line, std::string("malformed ") + kind + " index '" + std::string(token) + "'");
+    obj_fail(ErrorCode::kParse, source, line, std::string("malformed ") + kind + " index '" + std::string(token) + "'");
   }
   // value >= INT64_MIN and count < 2^63: neither adjustment can overflow.
   const int64_t index = !value ? -1 : *value < 0 ? *value + static_cast<int64_t>(count) : *value - 1;
   // Indices are int32 in memory: elements past the first 2^31 cannot be referenced.
   const int64_t usable = std::min<int64_t>(static_cast<int64_t>(count), int64_t{std::numeric_limits<int32_t>::max()} + 1);
   if (!value || *value == 0 || index < 0 || index >= usable) {
-    fail(ErrorCode::kInvalidMesh, source, line,
-         std::string(kind) + " index " + std::string(token) + " out of range (" + std::to_string(count) + " defined so far)");
+    obj_fail(ErrorCode::kInvalidMesh, source, line,
+             std::string(kind) + " index " + std::string(token) + " out of range (" + std::to_string(count) + " defined so far)");
   }
   return static_cast<int32_t>(index);
 }
@@ -103,13 +103,13 @@ std::optional<Vec3> vertex_colour(std::string_view rest, const std::string& sour
     tokens[count++] = token;
   }
   if (count <= 1) return std::nullopt;
-  if (count != 3) fail(ErrorCode::kParse, source, line, "malformed v line: expected x y z, x y z w or x y z r g b");
+  if (count != 3) obj_fail(ErrorCode::kParse, source, line, "malformed v line: expected x y z, x y z w or x y z r g b");
   Vec3 colour;
   for (int k = 0; k < 3; ++k) {
     const auto value = text::parse_double(tokens[k]);
-    if (!value) fail(ErrorCode::kParse, source, line, "malformed vertex colour '" + std::string(tokens[k]) + "'");
+    if (!value) obj_fail(ErrorCode::kParse, source, line, "malformed vertex colour '" + std::string(tokens[k]) + "'");
     if (!(*value >= 0 && *value <= 1)) {
-      fail(ErrorCode::kInvalidMesh, source, line, "vertex colour '" + std::string(tokens[k]) + "' outside [0, 1]");
+      obj_fail(ErrorCode::kInvalidMesh, source, line, "vertex colour '" + std::string(tokens[k]) + "' outside [0, 1]");
     }
     colour[k] = *value;
   }
@@ -157,12 +157,12 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
         const std::string_view token = text::next_token(rest);
         const auto value = text::parse_double(token);
         if (!value) {
-          fail(ErrorCode::kParse, source, lines.line_number(),
-               std::string("malformed ") + std::string(keyword) + " line: expected " + std::to_string(needed) + " numbers");
+          obj_fail(ErrorCode::kParse, source, lines.line_number(),
+                   std::string("malformed ") + std::string(keyword) + " line: expected " + std::to_string(needed) + " numbers");
         }
         if (!std::isfinite(*value)) {
-          fail(ErrorCode::kInvalidMesh, source, lines.line_number(),
-               std::string(keyword) + " line: non-finite coordinate '" + std::string(token) + "'");
+          obj_fail(ErrorCode::kInvalidMesh, source, lines.line_number(),
+                   std::string(keyword) + " line: non-finite coordinate '" + std::string(token) + "'");
         }
         values[k] = *value;
       }
@@ -183,8 +183,8 @@ TriangleMesh parse_obj(std::string_view text_data, const std::string& source, co
         corners.push_back(parse_corner(token, mesh.positions.size(), mesh.uvs.size(), normal_count, source, lines.line_number()));
       }
       if (corners.size() < 3) {
-        fail(ErrorCode::kParse, source, lines.line_number(),
-             "face with " + std::to_string(corners.size()) + " corners (at least 3 needed)");
+        obj_fail(ErrorCode::kParse, source, lines.line_number(),
+                 "face with " + std::to_string(corners.size()) + " corners (at least 3 needed)");
       }
       bool has_uv = true;
       for (const Corner& c : corners) has_uv = has_uv && c.uv >= 0;

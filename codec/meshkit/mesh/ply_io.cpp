@@ -69,17 +69,17 @@ struct Header {
   size_t body_offset = 0;
 };
 
-[[noreturn]] void fail(ErrorCode code, const std::string& source, const std::string& why) { throw Error(code, source + ": " + why); }
+[[noreturn]] void ply_fail(ErrorCode code, const std::string& source, const std::string& why) { throw Error(code, source + ": " + why); }
 
 Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
   // The header is text up to and including "end_header\n"; bound it so a binary blob is not scanned whole.
   const size_t limit = std::min<size_t>(bytes.size(), 1 << 20);
   const std::string_view head(reinterpret_cast<const char*>(bytes.data()), limit);
   const size_t end = head.find("end_header");
-  if (head.substr(0, 3) != "ply") fail(ErrorCode::kParse, source, "not a PLY file (no 'ply' magic)");
-  if (end == std::string_view::npos) fail(ErrorCode::kTruncated, source, "PLY header has no end_header line");
+  if (head.substr(0, 3) != "ply") ply_fail(ErrorCode::kParse, source, "not a PLY file (no 'ply' magic)");
+  if (end == std::string_view::npos) ply_fail(ErrorCode::kTruncated, source, "PLY header has no end_header line");
   size_t body = head.find('\n', end);
-  if (body == std::string_view::npos) fail(ErrorCode::kTruncated, source, "PLY header ends without a newline");
+  if (body == std::string_view::npos) ply_fail(ErrorCode::kTruncated, source, "PLY header ends without a newline");
   Header header;
   header.body_offset = body + 1;
   bool have_format = false;
@@ -99,7 +99,7 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
       else if (kind == "binary_big_endian")
         header.encoding = Encoding::kBinaryBig;
       else
-        fail(ErrorCode::kUnsupported, source, "unknown PLY format '" + std::string(kind) + "'" + where);
+        ply_fail(ErrorCode::kUnsupported, source, "unknown PLY format '" + std::string(kind) + "'" + where);
       have_format = true;
     } else if (keyword == "comment") {
       std::string_view comment = rest;
@@ -110,17 +110,17 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
       const std::string_view count_token = text::next_token(rest);
       bool too_large = false;
       const auto count = text::parse_int(count_token, &too_large);
-      if (element.name.empty() || (!count && !too_large)) fail(ErrorCode::kParse, source, "malformed element line" + where);
+      if (element.name.empty() || (!count && !too_large)) ply_fail(ErrorCode::kParse, source, "malformed element line" + where);
       // Vertex indices are int32 in memory, so no element may hold more.
       if (!count || *count < 0 || *count > std::numeric_limits<int32_t>::max()) {
-        fail(ErrorCode::kCorrupt, source,
-             "element '" + element.name + "' count " + std::string(count_token) + " out of range (0.." +
-                 std::to_string(std::numeric_limits<int32_t>::max()) + ")" + where);
+        ply_fail(ErrorCode::kCorrupt, source,
+                 "element '" + element.name + "' count " + std::string(count_token) + " out of range (0.." +
+                     std::to_string(std::numeric_limits<int32_t>::max()) + ")" + where);
       }
       element.count = static_cast<uint64_t>(*count);
       header.elements.push_back(std::move(element));
     } else if (keyword == "property") {
-      if (header.elements.empty()) fail(ErrorCode::kParse, source, "property before any element" + where);
+      if (header.elements.empty()) ply_fail(ErrorCode::kParse, source, "property before any element" + where);
       Property property;
       std::string_view type = text::next_token(rest);
       if (type == "list") {
@@ -128,25 +128,25 @@ Header parse_header(std::span<const uint8_t> bytes, const std::string& source) {
         const auto count_type = parse_scalar_type(text::next_token(rest));
         const auto item_type = parse_scalar_type(text::next_token(rest));
         if (!count_type || !item_type || !is_integer(*count_type)) {
-          fail(ErrorCode::kParse, source, "malformed list property" + where);
+          ply_fail(ErrorCode::kParse, source, "malformed list property" + where);
         }
         property.count_type = *count_type;
         property.type = *item_type;
       } else {
         const auto scalar = parse_scalar_type(type);
-        if (!scalar) fail(ErrorCode::kParse, source, "unknown property type '" + std::string(type) + "'" + where);
+        if (!scalar) ply_fail(ErrorCode::kParse, source, "unknown property type '" + std::string(type) + "'" + where);
         property.type = *scalar;
       }
       property.name = std::string(text::next_token(rest));
-      if (property.name.empty()) fail(ErrorCode::kParse, source, "property without a name" + where);
+      if (property.name.empty()) ply_fail(ErrorCode::kParse, source, "property without a name" + where);
       header.elements.back().properties.push_back(std::move(property));
     } else if (keyword == "obj_info" || keyword.empty()) {
       continue;
     } else {
-      fail(ErrorCode::kParse, source, "unknown header keyword '" + std::string(keyword) + "'" + where);
+      ply_fail(ErrorCode::kParse, source, "unknown header keyword '" + std::string(keyword) + "'" + where);
     }
   }
-  if (!have_format) fail(ErrorCode::kParse, source, "PLY header has no format line");
+  if (!have_format) ply_fail(ErrorCode::kParse, source, "PLY header has no format line");
   return header;
 }
 
@@ -178,9 +178,9 @@ class ValueSource {
  private:
   double read_text(const char* what) {
     const std::string_view token = text::next_token(text_);
-    if (token.empty()) fail(ErrorCode::kTruncated, source_, std::string("truncated: ") + what + " missing");
+    if (token.empty()) ply_fail(ErrorCode::kTruncated, source_, std::string("truncated: ") + what + " missing");
     const auto value = text::parse_double(token);
-    if (!value) fail(ErrorCode::kParse, source_, std::string("malformed number '") + std::string(token) + "' in " + what);
+    if (!value) ply_fail(ErrorCode::kParse, source_, std::string("malformed number '") + std::string(token) + "' in " + what);
     return *value;
   }
 
@@ -221,7 +221,7 @@ std::string element_entry(const Element& element, uint64_t e) { return element.n
 uint64_t list_length(double value, const std::string& source, const Element& element, uint64_t e) {
   const auto length = text::to_integer(value, 0, 1'000'000);
   if (!length) {
-    fail(ErrorCode::kCorrupt, source, element_entry(element, e) + ": implausible list length " + text::format_number(value));
+    ply_fail(ErrorCode::kCorrupt, source, element_entry(element, e) + ": implausible list length " + text::format_number(value));
   }
   return static_cast<uint64_t>(*length);
 }
@@ -230,10 +230,10 @@ uint64_t list_length(double value, const std::string& source, const Element& ele
 // vertices read so far: range-checked before the cast, which is undefined for 1e300.
 int32_t vertex_index(double value, size_t vertex_count, const std::string& source, uint64_t face) {
   const std::string where = "face " + std::to_string(face) + ": vertex index " + text::format_number(value);
-  if (!std::isfinite(value) || value != std::trunc(value)) fail(ErrorCode::kCorrupt, source, where + " is not an integer");
+  if (!std::isfinite(value) || value != std::trunc(value)) ply_fail(ErrorCode::kCorrupt, source, where + " is not an integer");
   const auto index = text::to_integer(value, 0, static_cast<int64_t>(vertex_count) - 1);
   if (!index) {
-    fail(ErrorCode::kInvalidMesh, source, where + " out of range (" + std::to_string(vertex_count) + " vertices)");
+    ply_fail(ErrorCode::kInvalidMesh, source, where + " out of range (" + std::to_string(vertex_count) + " vertices)");
   }
   return static_cast<int32_t>(*index);  // vertex_count <= int32 max: the header bounds element counts
 }
@@ -247,7 +247,8 @@ double colour_scale(const Property& property, const std::string& source) {
     case ScalarType::kFloat32:
     case ScalarType::kFloat64: return 1.0;
     default:
-      fail(ErrorCode::kUnsupported, source, "vertex colour '" + property.name + "' has a type other than uchar, ushort, float or double");
+      ply_fail(ErrorCode::kUnsupported, source,
+               "vertex colour '" + property.name + "' has a type other than uchar, ushort, float or double");
   }
 }
 
@@ -257,9 +258,9 @@ double colour_value(double value, const Property& property, double scale, const 
   const double limit = is_integer(property.type) ? 1 / scale : 1.0;
   const bool whole = !is_integer(property.type) || value == std::trunc(value);
   if (!std::isfinite(value) || !whole || value < 0 || value > limit) {
-    fail(ErrorCode::kInvalidMesh, source,
-         element_entry(element, e) + ": colour " + property.name + " " + text::format_number(value) + " is not " +
-             (is_integer(property.type) ? "a whole number in [0, " + text::format_number(limit) + "]" : std::string("in [0, 1]")));
+    ply_fail(ErrorCode::kInvalidMesh, source,
+             element_entry(element, e) + ": colour " + property.name + " " + text::format_number(value) + " is not " +
+                 (is_integer(property.type) ? "a whole number in [0, " + text::format_number(limit) + "]" : std::string("in [0, 1]")));
   }
   return value * scale;
 }
@@ -280,9 +281,9 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
   for (const Element& element : header.elements) {
     const size_t min_bytes = minimum_element_bytes(element, values.binary());
     if (min_bytes > 0 && element.count > values.remaining_bytes() / min_bytes + 1) {
-      fail(ErrorCode::kTruncated, source,
-           "truncated: element '" + element.name + "' announces " + std::to_string(element.count) + " entries but only " +
-               std::to_string(values.remaining_bytes()) + " bytes remain");
+      ply_fail(ErrorCode::kTruncated, source,
+               "truncated: element '" + element.name + "' announces " + std::to_string(element.count) + " entries but only " +
+                   std::to_string(values.remaining_bytes()) + " bytes remain");
     }
     if (min_bytes == 0) continue;  // no properties: nothing to read, whatever the count
 
@@ -292,11 +293,11 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
     int icolour[3] = {-1, -1, -1};
     double colour_scales[3] = {1, 1, 1};
     if (is_vertex) {
-      if (have_vertices) fail(ErrorCode::kParse, source, "two vertex elements");
+      if (have_vertices) ply_fail(ErrorCode::kParse, source, "two vertex elements");
       ix = find_property(element, {"x"});
       iy = find_property(element, {"y"});
       iz = find_property(element, {"z"});
-      if (ix < 0 || iy < 0 || iz < 0) fail(ErrorCode::kParse, source, "vertex element lacks x, y or z");
+      if (ix < 0 || iy < 0 || iz < 0) ply_fail(ErrorCode::kParse, source, "vertex element lacks x, y or z");
       iu = find_property(element, {"s", "u", "texture_u", "texture_s"});
       iv = find_property(element, {"t", "v", "texture_v", "texture_t"});
       if (iu < 0 || iv < 0) iu = iv = -1;
@@ -317,9 +318,9 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       if (colour_count == 3) mesh.colours.reserve(element.count);
       have_vertices = true;
     } else if (is_face) {
-      if (have_faces) fail(ErrorCode::kParse, source, "two face elements");
+      if (have_faces) ply_fail(ErrorCode::kParse, source, "two face elements");
       ilist = find_list(element, {"vertex_indices", "vertex_index"});
-      if (ilist < 0) fail(ErrorCode::kParse, source, "face element lacks vertex_indices");
+      if (ilist < 0) ply_fail(ErrorCode::kParse, source, "face element lacks vertex_indices");
       itex = find_list(element, {"texcoord"});
       have_faces = true;
     }
@@ -366,14 +367,15 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
         if (iu >= 0) vertex_uvs.emplace_back(uv[0], uv[1]);
         if (icolour[0] >= 0) mesh.colours.push_back(colour);
         if (!mesh.positions.back().allFinite() || (iu >= 0 && !vertex_uvs.back().allFinite())) {
-          fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite coordinate");
+          ply_fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite coordinate");
         }
       } else if (is_face) {
         if (polygon.size() < 3) {
-          fail(ErrorCode::kParse, source, "face " + std::to_string(e) + " has " + std::to_string(polygon.size()) + " corners");
+          ply_fail(ErrorCode::kParse, source, "face " + std::to_string(e) + " has " + std::to_string(polygon.size()) + " corners");
         }
         for (double t : texcoords) {
-          if (!std::isfinite(t)) fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite texture coordinate");
+          if (!std::isfinite(t))
+            ply_fail(ErrorCode::kInvalidMesh, source, element_entry(element, e) + " has a non-finite texture coordinate");
         }
         const bool corner_uv = itex >= 0 && texcoords.size() == 2 * polygon.size();
         if (polygon.size() > 3) ++polygons;
@@ -386,8 +388,8 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
       }
     }
   }
-  if (!have_vertices) fail(ErrorCode::kParse, source, "no vertex element");
-  if (!have_faces) fail(ErrorCode::kParse, source, "no face element (point clouds are not surfaces)");
+  if (!have_vertices) ply_fail(ErrorCode::kParse, source, "no vertex element");
+  if (!have_faces) ply_fail(ErrorCode::kParse, source, "no face element (point clouds are not surfaces)");
   if (polygons > 0 && warnings) {
     warnings->push_back(source + ": " + std::to_string(polygons) + " polygon faces fan-triangulated");
   }
@@ -409,7 +411,7 @@ TriangleMesh parse_ply(std::span<const uint8_t> bytes, const std::string& source
     if (fs::is_regular_file(texture, ec)) {
       mesh.texture = texture;
     } else if (!options.allow_missing_texture) {
-      fail(ErrorCode::kMissingTexture, source, "texture image " + header.texture_file + " not found");
+      ply_fail(ErrorCode::kMissingTexture, source, "texture image " + header.texture_file + " not found");
     } else if (warnings) {
       warnings->push_back(source + ": texture image " + header.texture_file + " not found; reading without texture");
     }
