@@ -60,7 +60,8 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   }
   for (const format::ChunkView& chunk : chunks) {
     const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk ||
-                       chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk;
+                       chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk ||
+                       chunk.type == kPatchChunk;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported,
                   s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
@@ -147,6 +148,23 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
       for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
       s.header->shape.residuals = read_residuals(reader.payload(*residual_chunk, limits.max_memory_bytes), s.source, header.shape,
                                                  key_times, limits.max_memory_bytes, minor);
+    }
+  }
+  // Frame patches (format 2.4, §7.5): one chunk at most, skipped in a file of an earlier minor
+  // version, as the decoders of that version skip it.
+  if (minor >= 4) {
+    const format::ChunkView* patch_chunk = nullptr;
+    for (const format::ChunkView& chunk : chunks) {
+      if (chunk.type != kPatchChunk) continue;
+      if (patch_chunk) corrupt(s.source, "two " + std::string(kPatchChunk) + " chunks; a file holds its frame patches in one");
+      patch_chunk = &chunk;
+    }
+    if (patch_chunk) {
+      std::vector<double> key_times;
+      key_times.reserve(s.index.size());
+      for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
+      s.header->shape.patches = read_patches(reader.payload(*patch_chunk, limits.max_memory_bytes), s.source, header.shape, key_times,
+                                             limits.max_memory_bytes, minor);
     }
   }
 }
@@ -381,6 +399,8 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   info.texture_size = static_cast<int>(header.texture_size);
   info.metadata = header.metadata;
   info.residual_frames = header.shape.residuals.size();
+  info.frame_patches = header.shape.patches.size();
+  for (const FramePatch& p : header.shape.patches) info.patch_nodes += p.nodes.size();
   info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
   info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
   info.keyframes.resize(s.index.size());
