@@ -13,6 +13,7 @@
 #include "format/zstd_frame.hpp"
 #include "tools/tool_support.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 using namespace facemorph;
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
   std::vector<int> lattices;
   double bound = 0.01, step = 0.0005, smoothing = 0.1;
   int threads = 2;
+  bool measure = false;
   app.add_option("capture", capture_path)->required();
   app.add_option("fmv", fmv)->required();
   app.add_option("--lattice", lattices);
@@ -30,6 +32,9 @@ int main(int argc, char** argv) {
   app.add_option("--step", step);
   app.add_option("--smoothing", smoothing);
   app.add_option("--threads", threads);
+  app.add_flag(
+      "--measure", measure,
+      "Only measure the file as fmbench --geometry-only does: held-out RMS mean and worst, the worst frame's p99, of the diagonal");
   return tools::guarded_main(app, argc, argv, [&] {
     if (lattices.empty()) lattices = {17, 33, 65};
     const Capture capture = read_capture(capture_path);
@@ -45,6 +50,33 @@ int main(int argc, char** argv) {
       shown[static_cast<size_t>(i)] = {std::move(f.grid_positions), std::move(f.hole_level), f.pose};
     }
     const DiskGrid& grid = decoder.geometry().grid();
+    if (measure) {
+      std::vector<double> rms(static_cast<size_t>(count)), p99(static_cast<size_t>(count));
+      parallel_for(count, threads, [&](int i) {
+        const auto& f = shown[static_cast<size_t>(i)];
+        const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}),
+                                                   shown_mesh(grid, f.positions, f.hole_level));
+        rms[static_cast<size_t>(i)] = d.rms / d.diagonal;
+        p99[static_cast<size_t>(i)] = d.p99 / d.diagonal;
+      });
+      double mean = 0, worst = 0, worst_p99 = 0;
+      int held = 0;
+      for (int i = 0; i < count; ++i) {
+        worst_p99 = std::max(worst_p99, p99[static_cast<size_t>(i)]);
+        const double t = capture.frames[static_cast<size_t>(i)].time;
+        const auto& times = source->outline().times;
+        if (std::any_of(times.begin(), times.end(), [&](double k) { return std::abs(k - t) < 0.25 / capture.fps; })) continue;
+        ++held;
+        mean += rms[static_cast<size_t>(i)];
+        worst = std::max(worst, rms[static_cast<size_t>(i)]);
+      }
+      std::printf(
+          "%s: %llu bytes, %zu keyframes of %d frames, %zu patches; held-out RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst "
+          "frame\n",
+          fmv.c_str(), static_cast<unsigned long long>(std::filesystem::file_size(fmv)), source->outline().keyframe_count(), count,
+          source->outline().patches.size(), held ? 100 * mean / held : 0.0, 100 * worst, 100 * worst_p99);
+      return 0;
+    }
     std::vector<std::vector<PatchFit>> fits(static_cast<size_t>(count));
     std::vector<double> diagonals(static_cast<size_t>(count));
     parallel_for(count, threads, [&](int i) {
