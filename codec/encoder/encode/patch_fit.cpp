@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 
 namespace facemorph {
 
@@ -254,6 +255,15 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
   if (key_times.size() != keyframes.size())
     throw Error(ErrorCode::kInvalidArgument, "fit_frame_patches: the keyframes are not the stored sequence's");
   const auto read_frame = [&](int j) { return read_mesh(capture.mesh_path(static_cast<size_t>(j)), {.allow_missing_texture = true}); };
+  // The fit measures against the captured meshes themselves; where they are not at hand (a staged
+  // encode assembling parts made elsewhere) the file goes without patches, as before 2.4.
+  for (const int j : {keyframes.front(), keyframes.back()}) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(capture.mesh_path(static_cast<size_t>(j)), ec)) {
+      if (report_out) *report_out = report;
+      return {};
+    }
+  }
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
   SequenceDecoder decoder(source);
   const DiskGrid& grid = decoder.geometry().grid();

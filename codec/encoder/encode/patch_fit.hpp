@@ -82,7 +82,8 @@ inline constexpr double kPatchBoundMargin = 0.98;
 // lattice of kPatchLattices that meets bound · kPatchBoundMargin, else the best) where it lowers the
 // p99; then every other frame between keyframes is measured with the patches interpolated, and one
 // made worse than both the bound and its own p99 gets an empty patch (the decoder then shows it
-// unpatched). No frame decodes worse than without patches. Leaves `stored`'s patches empty.
+// unpatched). No frame decodes worse than without patches. None where the captured meshes are not
+// on disk (a staged encode's parts assembled elsewhere). Leaves `stored`'s patches empty.
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
                                           PatchFitReport* report = nullptr);
 
