@@ -167,8 +167,8 @@ void print_segment_seconds(const EncodeReport& r, bool measure) {
 // encoder's options by encode_options and check_stage.
 struct Arguments {
   std::vector<std::string> inputs;
-  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0", grid = "auto",
-                      registration = "gmf", spline = "catmull-rom", representation = "auto", landmarks;
+  std::string output, stage = "all", frames, check_capture, keyframes = "10%", max_error, worst_region = "0", patch_bound = "1%",
+                      grid = "auto", registration = "gmf", spline = "catmull-rom", representation = "auto", landmarks;
   double fps = 0;
   std::string field_error = "auto", field_rounding = "shaped", keyframe_fit = "on";
   std::string texture_size = "auto", quality_text = "auto", texture_codec = "avif", texture_coding = "sequence";
@@ -220,6 +220,10 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--worst-region", a.worst_region,
                  "With the default budget: more keyframes until every frame's predicted 99th-percentile point error between keyframes "
                  "is within this (of the bbox diagonal, e.g. 0.75%; 0: no such bound, the default)")
+      ->capture_default_str();
+  app.add_option("--patch-bound", a.patch_bound,
+                 "Frames between keyframes whose decoded 99th-percentile point error passes this (of the bbox diagonal) carry a patch, a "
+                 "sparse lattice displacement that brings them under it (format 2.4's PTCH, spec/method.md §7.19; 0: none)")
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
@@ -349,6 +353,7 @@ EncodeOptions encode_options(const Arguments& a, bool keyframes_given) {
     throw Error(ErrorCode::kInvalidArgument, "--keyframe-fit '" + a.keyframe_fit + "' is neither on nor off");
   options.keyframe_fit = a.keyframe_fit == "on";
   options.residual_frames = a.residual_frames;
+  options.patch_bound = a.patch_bound == "0" || a.patch_bound == "0%" ? 0.0 : tools::parse_fraction(a.patch_bound, "--patch-bound");
   options.predicted_fields = a.field_error != "0";
   options.auto_field_error = a.field_error == "auto";
   if (options.predicted_fields && !options.auto_field_error)
@@ -556,6 +561,14 @@ void print_keyframes(const Summary& s) {
         "their decoded error mean %.4f%% -> %.4f%%, worst %.4f%% -> %.4f%% of the diagonal; %.1f s)\n",
         s.sequence->shape().residuals.size(), r.frames_fitted, r.frames_improved, 100 * kDecodedResidualMinGain, r.frames_worse,
         100 * r.mean_before, 100 * r.mean_after, 100 * r.worst_before, 100 * r.worst_after, r.seconds);
+  }
+  if (s.options.patch_bound > 0) {
+    const PatchFitReport& r = s.report.patch_fit;
+    std::printf(
+        "  frame patches: %d frames decoded over %.2f%% (p99 of the diagonal), %d patched (%zu lattice nodes), %d pinned beside them, %d "
+        "not brought under; worst p99 between keyframes %.3f%% -> %.3f%%; %.1f s\n",
+        r.frames_over, 100 * s.options.patch_bound, r.frames_patched, r.nodes, r.frames_pinned, r.frames_unmet, 100 * r.worst_before,
+        100 * r.worst_after, r.seconds);
   }
   std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", s.sequence->shape().grid_n,
               representation_name(s.sequence->shape().representation), registration_method_name(s.options.registration.method),

@@ -238,10 +238,11 @@ void print_encoder_notes(const nlohmann::json& settings) {
 
 // The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
-// frames), and the writer stamps every file with its own minor, so a file stated 2.3 that uses none
+// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
 // of them is, but for its preamble, a 2.0 file (spec/container.md §12).
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
+  if (info.frame_patches > 0) return 4;
   if (info.residual_frames > 0) return 3;
   if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
   return texture_groups ? 1 : 0;
@@ -295,6 +296,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     if (info.texture_size > 0) doc["texture_coding"] = texture_coding_name(info.metadata.texture_coding);
     doc["holes"] = sequence.has_holes != 0;
     doc["residual_frames"] = info.residual_frames;
+    doc["frame_patches"] = info.frame_patches;
+    doc["patch_nodes"] = info.patch_nodes;
     doc["landmarks"] = info.metadata.landmark_names;
     doc["bytes_per_second"] = bytes_per_second;
     doc["verified"] = verify;  // every keyframe decoded (--verify), or checksums only
@@ -357,6 +360,10 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
   std::printf("holes       %s\n", sequence.has_holes != 0 ? "stored as a level set, cut on decode" : "none stored");
   if (info.residual_frames > 0)
     std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
+  if (info.frame_patches > 0) {
+    std::printf("patches     %zu frames between keyframes displace the surface, %zu lattice nodes in all (format 2.4 PTCH)\n",
+                info.frame_patches, info.patch_nodes);
+  }
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (verify) {
     std::printf("keyframes   %zu, every one decoded and checked\n", times.size());

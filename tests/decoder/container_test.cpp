@@ -769,6 +769,10 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   Sequence residuals = small_sequence(9, 8);
   residuals.residuals = {{0.25, {0.25, -0.125, -0.125}}, {0.75, {-0.0625, -0.0625, 0.125}}};
   seeds.emplace_back("n9_residual_frames.fmv", encode_sequence_file(residuals, predicted_metadata()));
+  // Frame patches (format 2.4): a lattice displacement in each of two keyframe intervals, one empty.
+  Sequence patches = small_sequence(9, 8);
+  patches.patches = {{0.25, 5, {12, 13}, {Vec3(0.25, -0.5, 0.125), Vec3(0, 0.0625, 0)}}, {0.75, 3, {}, {}}};
+  seeds.emplace_back("n9_frame_patches.fmv", encode_sequence_file(patches, predicted_metadata()));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

@@ -9,6 +9,7 @@
 // every run must fail (empty: the file may open and decode). Sizes a zstd frame announces are the review's
 // (500 MB of zeros) while the generator holds kilobytes: such frames are laid out here by hand, raw
 // and RLE blocks (RFC 8878 §3.1.1.2).
+#include "codec/core/container/file_layout.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "codec/writer/image/image_encode.hpp"
 #include "format/checksum.hpp"
@@ -501,6 +502,34 @@ void write_set(Corpus& corpus) {
     corpus.add("k_translation_1e9.fmv", rebuild(predicted, far), three, "keyframe 2 translated to 1e9 mm");
   }
   corpus.add("k_spline_7.fmv", rebuild(plain, patch<uint8_t>("HEAD", 17, 7)), three, "an unknown spline kind", "spline kind 7");
+  // Frame patches (format 2.4, spec/container.md §7.5): a count its bytes cannot hold, and one patch
+  // moving every node of the largest lattice (129²) by 2^40 steps of 2^-20 (10^6 units) at 0.25 s.
+  Sequence patched = small;
+  patched.patches = {{0.25, 3, {4}, {Vec3(0.0625, 0, 0)}}};
+  const Bytes with_patch = encode_sequence_file(patched, crafted::small_metadata());
+  corpus.add("m_patch_count_2e24.fmv",
+             rebuild(with_patch,
+                     [](const std::string& t, Bytes& p) {
+                       if (t == "PTCH") p = {0, 0, 0, 1, 0, 0xC0, 0x07, 6, 0};
+                     }),
+             three, "a PTCH claiming 2^24 frame patches in 9 bytes (format 2.4)", "frame patches");
+  corpus.add("m_patch_129x129_largest.fmv",
+             rebuild(with_patch,
+                     [](const std::string& t, Bytes& p) {
+                       if (t != "PTCH") return;
+                       format::ByteWriter w;
+                       w.write(uint32_t{1});
+                       w.write(int8_t{-20});
+                       file_layout::write_varint(w, 480);  // 0.25 s in 64ths of a frame period at 30 fps
+                       file_layout::write_varint(w, 129);
+                       file_layout::write_varint(w, 129 * 129);
+                       for (int n = 0; n < 129 * 129; ++n) {
+                         file_layout::write_varint(w, 0);
+                         for (int c = 0; c < 3; ++c) file_layout::write_varint(w, int64_t{1} << 40);
+                       }
+                       p = w.take();
+                     }),
+             three, "a PTCH moving all 129² lattice nodes by 10^6 units (format 2.4)");
   corpus.add("k_intra_period_0.fmv",
              rebuild(predicted,
                      [](const std::string& t, Bytes& p) {

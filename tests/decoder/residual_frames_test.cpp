@@ -146,7 +146,7 @@ TEST(ResidualFrames, AFileHoldsThemToTheBitAndADecoderShowsThem) {
     EXPECT_EQ(back.residuals[r].time, s.residuals[r].time);
     EXPECT_EQ(back.residuals[r].delta, s.residuals[r].delta);
   }
-  EXPECT_EQ(info.minor_version, 3);
+  EXPECT_EQ(info.minor_version, format::kMinorVersion);  // stamped with the writer's version
   EXPECT_EQ(info.residual_frames, 2u);
   EXPECT_EQ(chunk_count(info, "RSDW"), 1);
   // The file's frame at a residual's time is the sequence's, and not the spline's alone.

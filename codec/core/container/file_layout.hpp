@@ -31,7 +31,7 @@
 namespace facemorph::file_layout {
 
 inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR",
-                                  kTextureGroupChunk = "TGOP", kResidualChunk = "RSDW";
+                                  kTextureGroupChunk = "TGOP", kResidualChunk = "RSDW", kPatchChunk = "PTCH";
 
 // The header's flags. kTextureGroups (format 2.1): the textures are one TGOP chunk per group of
 // keyframes, not one TEXR per keyframe. kSharedTextures (format 2.2): one TEXR per keyframe, but
@@ -159,6 +159,18 @@ inline constexpr int kMaxResidualStepExponent = 30;
 // What one residual frame holds in memory (its time, the vector and up to 4 corrections): the
 // budget's count of them (§10.1).
 inline constexpr uint64_t kResidualMemoryBytes = sizeof(ResidualFrame) + 4 * sizeof(double);
+
+// ---- Frame patches (PTCH, patch_chunk.cpp; format 2.4) ----
+
+// The most patches a file may state (kMaxResiduals' reason), and what one holds in memory before
+// its nodes, and each node (its index and displacement): the budget's count of them (§10.1).
+inline constexpr uint32_t kMaxPatches = 1u << 24;
+inline constexpr uint64_t kPatchMemoryBytes = sizeof(FramePatch);
+inline constexpr uint64_t kPatchNodeMemoryBytes = sizeof(int32_t) + sizeof(Vec3);
+// Displacements are whole multiples of 2^e, e within these (2^-60 of a metre is far below any
+// capture's precision, 2^30 far above any face); codes within 2^40, the varint's bound (§6).
+inline constexpr int kMinPatchStepExponent = -60, kMaxPatchStepExponent = 30;
+inline constexpr double kMaxPatchCode = 1099511627776.0;  // 2^40
 
 // ---- G's lattice, along which the keyframe coding predicts (grid_facts.cpp) ----
 

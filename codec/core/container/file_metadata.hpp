@@ -104,6 +104,8 @@ struct SequenceFileInfo {
   // shared texture's bytes are its first keyframe's); 0 without textures.
   size_t distinct_textures = 0;
   size_t residual_frames = 0;  // format 2.3's RSDW (spec/container.md §7.4); 0 without
+  size_t frame_patches = 0;    // format 2.4's PTCH (spec/container.md §7.5); 0 without
+  size_t patch_nodes = 0;      // their moving lattice nodes, all patches together
 };
 
 // The keyframe's fields and hole level rounded to the multiples of `coding`'s steps, and its pose

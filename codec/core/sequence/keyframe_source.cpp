@@ -30,6 +30,7 @@ SequenceOutline outline_of(const Sequence& sequence) {
   o.has_holes = sequence.has_holes();
   o.texture_size = sequence.has_texture() ? sequence.keyframes.front().texture.width : 0;
   o.residuals = sequence.residuals;
+  o.patches = sequence.patches;
   return o;
 }
 
@@ -47,6 +48,7 @@ void validate_outline(const SequenceOutline& o) {
   if (o.texture_size < 0) fail("a negative texture size");
   try {
     validate_residuals(o.times, o.residuals);
+    validate_patches(o.times, o.patches);
   } catch (const Error& e) {
     fail(e.what());
   }

@@ -8,6 +8,7 @@
 #include "codec/core/image/image.hpp"
 #include "codec/core/limits/decoder_limits.hpp"
 #include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/sequence/frame_patch.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
 #include "codec/core/sequence/spline.hpp"
@@ -37,6 +38,7 @@ struct SequenceOutline {
   bool has_holes = false;
   int texture_size = 0;                  // M; 0: no texture
   std::vector<ResidualFrame> residuals;  // as Sequence's (format 2.3)
+  std::vector<FramePatch> patches;       // as Sequence's (format 2.4)
   bool has_texture() const { return texture_size > 0; }
   size_t keyframe_count() const { return times.size(); }
 };

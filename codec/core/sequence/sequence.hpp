@@ -7,6 +7,7 @@
 #include "codec/core/geometry/mesh.hpp"
 #include "codec/core/image/image.hpp"
 #include "codec/core/reconstruct/fields.hpp"
+#include "codec/core/sequence/frame_patch.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/sequence/residual_weights.hpp"
@@ -45,6 +46,9 @@ struct Sequence {
   // Residual frames (format 2.3, residual_weights.hpp): corrections of the blend between keyframes,
   // increasing, each strictly between two keyframes; none: the spline alone, as before 2.3.
   std::vector<ResidualFrame> residuals;
+  // Frame patches (format 2.4, frame_patch.hpp): displacements of the decoded surface between
+  // keyframes, increasing, each strictly between two keyframes; none: the blend alone, as before 2.4.
+  std::vector<FramePatch> patches;
 
   bool has_holes() const { return !keyframes.empty() && !keyframes.front().hole_level.empty(); }
   bool has_texture() const { return !keyframes.empty() && !keyframes.front().texture.empty(); }

@@ -40,6 +40,11 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
 std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
                                           const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version);
 
+// Reads and checks a PTCH payload against the header (first time, fps) and the keyframes' times:
+// every check of §7.5, kCorrupt naming the patch; kLimit where their memory passes `max_memory_bytes`.
+std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
+                                     const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version);
+
 // Reads the fields of a group of `count` keyframes from keyframe `first` on, one keyframe at a
 // time, in order, so that a caller may stop between two (a decode call's work limit, §10.3) and go
 // on later with the same reader: it holds the payload, the stream's place and models, and the last

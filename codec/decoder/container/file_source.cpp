@@ -84,7 +84,10 @@ class FileSource final : public KeyframeSource {
     const auto window = static_cast<uint64_t>(residual_max_keys(spline, outline_.residuals));
     const uint64_t owned = std::holds_alternative<std::vector<uint8_t>>(bytes_) ? view().size() : 0;
     // The spline's rows and the residual frames: what a decoder keeps of the file's timing.
-    const uint64_t timing = spline.memory_bytes() + outline_.residuals.size() * file_layout::kResidualMemoryBytes;
+    uint64_t patch_nodes = 0;
+    for (const FramePatch& p : outline_.patches) patch_nodes += p.nodes.size();
+    const uint64_t timing = spline.memory_bytes() + outline_.residuals.size() * file_layout::kResidualMemoryBytes +
+                            outline_.patches.size() * file_layout::kPatchMemoryBytes + patch_nodes * file_layout::kPatchNodeMemoryBytes;
     plan_ = plan_memory(file_, owned, window, timing, limits);
     if (plan_.keyframes_kept < window) {
       const uint64_t needed = plan_.fixed + plan_.in_flight + window * (plan_.fields + plan_.surface + plan_.texture);

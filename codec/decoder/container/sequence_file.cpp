@@ -48,6 +48,22 @@ struct OpenedFile::State {
   std::vector<uint32_t> texture_owner;
 };
 
+namespace {
+
+// The one chunk of `type` (null: none); two of them are corrupt (a file holds its `what` in one).
+const format::ChunkView* single_chunk(const std::vector<format::ChunkView>& chunks, std::string_view type, const std::string& what,
+                                      const std::string& source) {
+  const format::ChunkView* found = nullptr;
+  for (const format::ChunkView& chunk : chunks) {
+    if (chunk.type != type) continue;
+    if (found) corrupt(source, "two " + std::string(type) + " chunks; a file holds its " + what + " in one");
+    found = &chunk;
+  }
+  return found;
+}
+
+}  // namespace
+
 OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const DecoderLimits& limits,
                        const KeyframesHeld& keyframes_held) {
   check_decoder_limits(limits);
@@ -60,7 +76,8 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   }
   for (const format::ChunkView& chunk : chunks) {
     const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk ||
-                       chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk;
+                       chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk ||
+                       chunk.type == kPatchChunk;
     if (!known && chunk.critical()) {
       throw Error(ErrorCode::kUnsupported,
                   s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
@@ -132,22 +149,19 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   }
   s.poses.reserve(s.index.size());
   for (const IndexEntry& entry : s.index) s.poses.push_back(pose_of(entry.pose, header.metadata.field_coding));
-  // Residual frames (format 2.3, §7.4): one chunk at most. In a file of an earlier minor version a
-  // chunk of that name is skipped, as the decoders of that version skip it.
-  if (minor >= 3) {
-    const format::ChunkView* residual_chunk = nullptr;
-    for (const format::ChunkView& chunk : chunks) {
-      if (chunk.type != kResidualChunk) continue;
-      if (residual_chunk) corrupt(s.source, "two " + std::string(kResidualChunk) + " chunks; a file holds its residual frames in one");
-      residual_chunk = &chunk;
-    }
-    if (residual_chunk) {
-      std::vector<double> key_times;
-      key_times.reserve(s.index.size());
-      for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
-      s.header->shape.residuals = read_residuals(reader.payload(*residual_chunk, limits.max_memory_bytes), s.source, header.shape,
-                                                 key_times, limits.max_memory_bytes, minor);
-    }
+  // Residual frames (format 2.3, §7.4) and frame patches (2.4, §7.5): one chunk of each at most. In
+  // a file of an earlier minor version a chunk of that name is skipped, as that version's decoders
+  // skip it.
+  std::vector<double> key_times;
+  key_times.reserve(s.index.size());
+  for (const IndexEntry& entry : s.index) key_times.push_back(entry.time);
+  if (const format::ChunkView* chunk = minor >= 3 ? single_chunk(chunks, kResidualChunk, "residual frames", s.source) : nullptr) {
+    s.header->shape.residuals =
+        read_residuals(reader.payload(*chunk, limits.max_memory_bytes), s.source, header.shape, key_times, limits.max_memory_bytes, minor);
+  }
+  if (const format::ChunkView* chunk = minor >= 4 ? single_chunk(chunks, kPatchChunk, "frame patches", s.source) : nullptr) {
+    s.header->shape.patches =
+        read_patches(reader.payload(*chunk, limits.max_memory_bytes), s.source, header.shape, key_times, limits.max_memory_bytes, minor);
   }
 }
 
@@ -381,6 +395,8 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   info.texture_size = static_cast<int>(header.texture_size);
   info.metadata = header.metadata;
   info.residual_frames = header.shape.residuals.size();
+  info.frame_patches = header.shape.patches.size();
+  for (const FramePatch& p : header.shape.patches) info.patch_nodes += p.nodes.size();
   info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
   info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
   info.keyframes.resize(s.index.size());

@@ -224,6 +224,12 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
     }
   }
 
+  // Frame patches (format 2.4): the displacement, in the face frame, where the blend misses the
+  // captured shape; added after the correction history is kept, so the next frame's start is the
+  // reconstruction's own (a patch moves the surface shown, not the fields).
+  const DiskGrid& grid = reconstructor_.geometry().grid();
+  const std::vector<Vec3> patch = frame_patch_displacements(outline.times, outline.patches, t, grid.nodes);
+  for (size_t v = 0; v < patch.size(); ++v) result.positions[v] += patch[v];
   frame.pose = blend_poses(outline.poses, rotation_vectors_, spline_weights, outline.pose_centre);
   frame.grid_positions.resize(result.positions.size());
   for (size_t v = 0; v < result.positions.size(); ++v) frame.grid_positions[v] = frame.pose.apply(result.positions[v]);
@@ -238,7 +244,6 @@ DecodedFrame SequenceDecoder::decode_metered(double t, const DecodeOptions& opti
     }
   }
 
-  const DiskGrid& grid = reconstructor_.geometry().grid();
   if (outline.has_holes) {
     frame.hole_level = blend<double>(w, 0.0, [&](size_t i) -> const std::vector<double>& { return held[i]->hole_level; });
   }

@@ -57,6 +57,10 @@ struct EncodeOptions {
   // the bytes on fast speech, the 60-frame sample and ICT, but on Medusa adds 1.7% of bytes (its
   // budget keeps its keyframes), and the fit decodes every frame between keyframes twice.
   bool residual_frames = false;
+  // Frame patches (format 2.4, spec/method.md §7.19): every frame between keyframes whose decoded
+  // 99th-percentile point error passes this fraction of its bbox diagonal carries a sparse lattice
+  // displacement that brings it under (patch_fit.hpp); 0: none. On by default: a few bytes a frame.
+  double patch_bound = 0.01;
   bool texture = true;
   int texture_size = 0;  // M: texels per side of the disk texture; 0 = automatic (as sharp as the capture's, at most 1024)
   // --texture-codec: how keyframe textures are stored (AVIF: ~30% smaller than WebP at equal PSNR).

@@ -7,6 +7,7 @@
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/patch_fit.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/prepare/frame.hpp"
@@ -136,6 +137,7 @@ struct EncodeReport {
   double seconds_planning = 0;  // plan_keyframes: the keyframes, N and representation chosen
   int parts = 0;
   ResidualFitReport residual_fit;  // options.residual_frames: the residuals fitted to the stored keyframes
+  PatchFitReport patch_fit;        // options.patch_bound > 0: the frame patches fitted to what the decoder shows
 };
 
 }  // namespace facemorph

@@ -73,6 +73,7 @@ Json settings_json(const EncodeOptions& o, const EncodeReport& report) {
       {"registration", registration_method_name(o.registration.method)},
       {"spline", spline_kind_name(o.spline)},
       {"residual_frames", o.residual_frames},
+      {"patch_bound", o.patch_bound},
       {"texture", o.texture ? (o.texture_size > 0 ? Json(o.texture_size) : Json("auto")) : Json(0)},
       {"texture_chosen", report.texture_size},
       {"texture_codec", texture_codec_name(o.texture_codec)},

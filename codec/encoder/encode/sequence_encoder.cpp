@@ -10,6 +10,7 @@
 #include "codec/encoder/encode/spill_bytes.hpp"
 
 #include "codec/encoder/conformal/resample.hpp"
+#include "codec/encoder/encode/patch_fit.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "format/error.hpp"
@@ -269,6 +270,10 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
   if (encoder.options().residual_frames)
     sequence->set_residuals(fit_decoded_residuals(registered_frames(encoder), *sequence, chosen.keyframes, SelectionOptions().residual_step,
                                                   &report.residual_fit));
+  // Frame patches fitted to the decoded frames, residuals included (patch_fit.hpp).
+  if (encoder.options().patch_bound > 0)
+    sequence->set_patches(
+        fit_frame_patches(encoder.capture(), *sequence, chosen.keyframes, encoder.options().patch_bound, &report.patch_fit));
   code_textures(encoder, *sequence, chosen.keyframes);
   return sequence;
 }

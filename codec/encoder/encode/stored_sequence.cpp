@@ -70,6 +70,12 @@ void StoredSequence::set_pose(size_t k, const RigidPose& pose) {
   outline_.poses[k] = pose;
 }
 
+void StoredSequence::set_patches(std::vector<FramePatch> patches) {
+  validate_patches(outline_.times, patches);
+  shape_.patches = patches;
+  outline_.patches = std::move(patches);
+}
+
 void StoredSequence::set_residuals(std::vector<ResidualFrame> residuals) {
   validate_residuals(outline_.times, residuals);
   shape_.residuals = residuals;

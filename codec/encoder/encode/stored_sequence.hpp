@@ -58,6 +58,9 @@ class StoredSequence final : public KeyframeSource {
   // The residual frames (validate_residuals against the keyframes' times: kInvalidArgument), the
   // shape's and the outline's.
   void set_residuals(std::vector<ResidualFrame> residuals);
+  // The frame patches (validate_patches against the keyframes' times: kInvalidArgument), the
+  // shape's and the outline's.
+  void set_patches(std::vector<FramePatch> patches);
   // Keyframe k's arrays as put (kInternal for one never put).
   std::shared_ptr<const GridFields> fields(size_t k) const { return fields_.get(k); }
   std::shared_ptr<const std::vector<double>> hole_level(size_t k) const { return holes_.get(k); }

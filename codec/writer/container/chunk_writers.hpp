@@ -24,6 +24,11 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
 // summing to 0 exactly; kInvalidArgument otherwise.
 std::vector<uint8_t> write_residuals(const SequenceOutline& outline);
 
+// The PTCH payload of the outline's frame patches (not empty): times on the file's lattice
+// (residual_time), every displacement component a whole multiple of one step; kInvalidArgument
+// otherwise.
+std::vector<uint8_t> write_patches(const SequenceOutline& outline);
+
 // ---- Where the chunks after the index go (index_layout.cpp) ----
 
 // A chunk after the index, in file order: its size in the file (header, payload and checksum), and

@@ -232,6 +232,11 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     spooled.push_back(spool.add(format::prepare_chunk(kResidualChunk, write_residuals(outline), false, 19)));
     placed.emplace_back().size = spool.total_size(spooled.back());
   }
+  if (!outline.patches.empty()) {
+    // Not critical either (format 2.4): a 2.3 decoder skips it and shows the blend alone (§12.1).
+    spooled.push_back(spool.add(format::prepare_chunk(kPatchChunk, write_patches(outline), false, 19)));
+    placed.emplace_back().size = spool.total_size(spooled.back());
+  }
   std::vector<size_t> placed_still(count, 0);  // an owner's still among the placed
   for (size_t k = 0; k < count; ++k) {
     if (k % group == 0) {

@@ -1,0 +1,94 @@
+// Fitting a frame patch (spec/method.md §7.19): the sparse lattice displacement that brings a decoded
+// frame's worst region back onto its captured frame, fitted against what the decoder shows (the
+// decoded frame from the stored, rounded keyframes) and rounded as the file stores it.
+#pragma once
+
+#include "codec/core/geometry/mesh.hpp"
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/sequence/frame_patch.hpp"
+#include "codec/core/sequence/pose.hpp"
+
+#include <optional>
+#include <vector>
+
+namespace facemorph {
+
+// What the decoder shows at a captured frame's time: G's nodes in capture coordinates, the blended
+// hole level (empty without holes) and the pose that placed them.
+struct ShownFrame {
+  std::vector<Vec3> positions;
+  std::vector<double> hole_level;
+  RigidPose pose;
+};
+
+struct PatchFitOptions {
+  int lattice = 33;        // C
+  double bound = 0.01;     // the 99th-percentile point error a frame should reach, of the diagonal
+  double step_units = 0;   // the rounding step of a displacement component, capture units (> 0)
+  double smoothing = 0.1;  // weight of the lattice's differences against the samples' misfit
+};
+
+struct PatchFit {
+  FramePatch patch;       // time and C set; empty `nodes`: no patch helps
+  double p99_before = 0;  // the shown frame's 99th-percentile point error, of the diagonal
+  double p99_after = 0;   // with the rounded patch
+  double threshold = 0;   // the offset (of the diagonal) above which samples chose the moving nodes
+};
+
+// The mesh the decoder shows for these node positions (holes cut where `hole_level` is not empty).
+TriangleMesh shown_mesh(const DiskGrid& grid, const std::vector<Vec3>& positions, const std::vector<double>& hole_level);
+
+// `shown` with the patch's displacement (face frame, rotated by the shown pose) added at every node.
+std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& shown, const FramePatch& patch);
+
+// The patch for `captured` (capture coordinates) at time t: moves only lattice nodes near samples
+// (captured vertices and shown nodes, each to the other surface) whose offset exceeds a threshold,
+// lowered from 0.8 × bound until the rounded patch brings the frame's p99 under bound (or to the
+// lowest threshold tried); displacements rounded to multiples of step_units. `grid` is the shown
+// frame's G.
+PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
+                         const PatchFitOptions& options);
+
+// What fit_frame_patches did, for the encoder's report (99th-percentile point errors of the decoded
+// frames against their captured meshes, symmetric as fmbench measures them, of each frame's diagonal).
+struct PatchFitReport {
+  int frames_over = 0;      // frames between keyframes whose decoded p99 passed the bound
+  int frames_patched = 0;   // patches with moving nodes
+  int frames_pinned = 0;    // empty patches: frames beside patched ones held at the blend (their own p99)
+  int frames_unmet = 0;     // frames over the bound no patch brought under it (kept at the best one found)
+  size_t nodes = 0;         // moving lattice nodes, every patch together
+  double worst_before = 0;  // over the frames between keyframes, without patches
+  double worst_after = 0;   // with them
+  double seconds = 0;
+};
+
+class StoredSequence;
+struct Capture;
+
+// The lattice sizes a patch tries, coarsest first (it takes the first that brings the frame under
+// the bound): C = 17 measured fewest bytes on every capture (spec/method.md §7.19).
+inline constexpr int kPatchLattices[] = {17, 33, 65};
+// The rounding step of a displacement: the power of two at or below this fraction of the smallest
+// captured diagonal (0.2%: rounding moves a point at most 0.17%, and the fit checks the rounded patch).
+inline constexpr double kPatchStepShare = 0.002;
+// Patches are fitted to this share of the bound, so that the decoder's frame, which may differ from
+// the encoder's within the reconstruction's tolerance, stays under it.
+inline constexpr double kPatchBoundMargin = 0.98;
+
+// The frame patches for `stored` (its keyframes and residual frames as the file holds them, no
+// patches yet), capture frames `keyframes` of `capture`: every captured frame strictly between two
+// keyframes decoded from `stored` (at its time on the file's lattice) and measured against its
+// captured mesh; each one whose p99 passes `bound` gets the patch of fit_frame_patch (the first
+// lattice of kPatchLattices that meets bound · kPatchBoundMargin, else the best) where it lowers the
+// p99; then every other frame between keyframes is measured with the patches interpolated, and one
+// made worse than both the bound and its own p99 gets an empty patch (the decoder then shows it
+// unpatched). No frame decodes worse than without patches. None where the captured meshes are not
+// on disk (a staged encode's parts assembled elsewhere). Leaves `stored`'s patches empty.
+std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
+                                          PatchFitReport* report = nullptr);
+
+// The bytes a patch takes in a file before compression (its node gaps and rounded displacements as
+// varints), for the step `step_units` (capture units).
+std::vector<uint8_t> patch_payload(const FramePatch& patch, double step_units);
+
+}  // namespace facemorph
