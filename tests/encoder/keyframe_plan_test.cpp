@@ -453,6 +453,31 @@ TEST(KeyframeSelection, WithinItsBudgetResidualsTakeThePlaceOfKeyframes) {
   EXPECT_GT(with.residuals.size(), 20u);
 }
 
+// The keep rule (residuals_pay, spec/method.md §7.18): residuals pay for their bytes only where the
+// selection takes fewer keyframes for them. On the same fast motion a budget of 10 keyframes that
+// residuals cut pays; a budget of 2, which nothing can cut, does not, though its frames between
+// keyframes have residuals that lower their predicted errors (bytes added to the same keyframes).
+TEST(KeyframeSelection, ResidualsPayOnlyWhereTheyTakeKeyframesPlaces) {
+  const std::vector<SelectionFrame> frames = fast_bump_frames();
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.fraction = 0.25;
+  const KeyframeSelection plain = select_keyframes(frames, weights, options);
+  EXPECT_EQ(plain.spline_keyframes, 10);
+  EXPECT_FALSE(residuals_pay(plain));
+  options.residuals = true;
+  const KeyframeSelection traded = select_keyframes(frames, weights, options);
+  EXPECT_EQ(traded.spline_keyframes, 10);
+  EXPECT_LT(traded.keyframes.size(), 10u);
+  EXPECT_TRUE(residuals_pay(traded));
+  options.fraction = 2.0 / static_cast<double>(frames.size());
+  const KeyframeSelection two = select_keyframes(frames, weights, options);
+  ASSERT_EQ(two.keyframes.size(), 2u);
+  EXPECT_EQ(two.spline_keyframes, 2);
+  EXPECT_FALSE(two.residuals.empty()) << "residuals that lower the errors, on the same keyframes";
+  EXPECT_FALSE(residuals_pay(two));
+}
+
 // Given the keyframes, --grid auto also stops at half the error the spline makes between them:
 // with few keyframes for a changing expression that error is large, and a grid finer than half of
 // it buys less error per byte than keyframes would (spec/method.md §7.6).

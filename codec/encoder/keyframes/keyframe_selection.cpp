@@ -421,6 +421,7 @@ KeyframeSelection fewer_keyframes_with_residuals(const SelectionFrames& frames, 
     with_residuals.errors(trial.keyframes, 0, count - 1, with, &trial.residuals, &trial.residual_frames);
     const Objective o = objective(with, trial.keyframes);
     if (!(o.mean <= bar.mean && o.worst <= bar.worst && (p99_bound <= 0 || o.worst_p99 <= p99_bound))) break;
+    trial.spline_keyframes = best.spline_keyframes;
     best = std::move(trial);
   }
   return best;
@@ -436,6 +437,7 @@ KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vec
   }
   const Predictor spline_only(frames, node_weights, options.spline, options.pose_centre);
   KeyframeSelection plain = select_with(frames, spline_only, options, false);
+  plain.spline_keyframes = static_cast<int>(plain.keyframes.size());
   if (!options.residuals) return plain;
   const Predictor with_residuals(frames, node_weights, options.spline, options.pose_centre, options.residual_step);
   // Residual frames take the place of keyframes only where the error bound (or a tolerance) added
@@ -448,12 +450,17 @@ KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vec
       options.max_error > 0 || (!plain.sparse && plain.budget > 0 && static_cast<int>(plain.keyframes.size()) > plain.budget);
   if (grown) {
     KeyframeSelection traded = select_with(frames, with_residuals, options, true);
+    traded.spline_keyframes = plain.spline_keyframes;
     if (traded.keyframes.size() < plain.keyframes.size()) return traded;
   }
   FrameErrors corrected;
   with_residuals.errors(plain.keyframes, 0, static_cast<int>(frames.size()) - 1, corrected, &plain.residuals, &plain.residual_frames);
   if (grown || plain.sparse || plain.budget <= 2) return plain;
   return fewer_keyframes_with_residuals(frames, spline_only, with_residuals, options, std::move(plain));
+}
+
+bool residuals_pay(const KeyframeSelection& chosen) {
+  return !chosen.residuals.empty() && static_cast<int>(chosen.keyframes.size()) < chosen.spline_keyframes;
 }
 
 double mean_predicted_error(const KeyframeSelection& chosen) {
