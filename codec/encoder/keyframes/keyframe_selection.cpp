@@ -453,15 +453,13 @@ KeyframeSelection select_keyframes(const SelectionFrames& frames, const std::vec
     traded.spline_keyframes = plain.spline_keyframes;
     if (traded.keyframes.size() < plain.keyframes.size()) return traded;
   }
-  FrameErrors corrected;
-  with_residuals.errors(plain.keyframes, 0, static_cast<int>(frames.size()) - 1, corrected, &plain.residuals, &plain.residual_frames);
+  // The spline's own keyframes carry no residuals: on them residuals would be bytes added
+  // (residuals_pay), so none is predicted for them either.
   if (grown || plain.sparse || plain.budget <= 2) return plain;
   return fewer_keyframes_with_residuals(frames, spline_only, with_residuals, options, std::move(plain));
 }
 
-bool residuals_pay(const KeyframeSelection& chosen) {
-  return !chosen.residuals.empty() && static_cast<int>(chosen.keyframes.size()) < chosen.spline_keyframes;
-}
+bool residuals_pay(const KeyframeSelection& chosen) { return static_cast<int>(chosen.keyframes.size()) < chosen.spline_keyframes; }
 
 double mean_predicted_error(const KeyframeSelection& chosen) {
   if (chosen.rate_mean_error > 0) return chosen.rate_mean_error;
