@@ -288,6 +288,36 @@ TEST(KeyframeSelection, TheBudgetsKeyframesMoveToTheMotion) {
   EXPECT_GE(std::count_if(chosen.keyframes.begin(), chosen.keyframes.end(), [](int k) { return k > 30; }), 5);
 }
 
+// The moves weigh each trial on the RMS of the frames the moved keyframe reaches (affected()),
+// and measure the 99th percentiles once at the keyframes they reach: so every frame's errors are
+// those of the keyframes chosen, as if measured afresh, with each local spline. A window narrower
+// than the keyframe's reach leaves RMS values of keyframes since moved; a percentile not measured
+// at the end reads 0.
+TEST(KeyframeSelection, TheMovesLeaveTheErrorsOfTheKeyframesTheyReach) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 60; ++k) amplitudes.push_back(k < 30 ? 0.0 : 0.02 * std::sin((k - 30) * 0.5));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  for (SplineKind kind : {SplineKind::kCatmullRom, SplineKind::kLinear, SplineKind::kLocalCubic}) {
+    SelectionOptions options;
+    options.fraction = 0.15;
+    options.spline = kind;
+    const KeyframeSelection chosen = select_keyframes(frames, weights, options);
+    std::vector<int> even;
+    for (int k = 0; k < 9; ++k) even.push_back(static_cast<int>(std::lround(59.0 * k / 8)));
+    ASSERT_NE(chosen.keyframes, even) << "the moves must move keyframes for this to test them";
+    const std::vector<double> fresh = prediction_errors(frames, weights, chosen.keyframes, kind, Vec3::Zero());
+    ASSERT_EQ(chosen.predicted_p99.size(), frames.size());
+    for (size_t j = 0; j < frames.size(); ++j) {
+      EXPECT_EQ(chosen.predicted_error[j], fresh[j]) << "frame " << j;
+      // Equal weights on 81 nodes: the 99th percentile is the largest offset, at least the RMS.
+      if (fresh[j] > 0) {
+        EXPECT_GE(chosen.predicted_p99[j], fresh[j]) << "frame " << j;
+      }
+    }
+  }
+}
+
 // 40 frames of one bump at amplitudes drawn at random, up to 3% of the diagonal: motion far faster
 // than a spline through a few keyframes follows.
 std::vector<SelectionFrame> fast_bump_frames() {
