@@ -82,8 +82,8 @@ class Predictor {
   }
 
   // The RMS errors alone, each frame's 99th percentile set to 0: for a search that weighs only the
-  // RMS (refine without a p99 limit). The percentile's partial sort costs about as much as the
-  // prediction itself, and the RMS is the same either way.
+  // RMS (refine without a p99 limit). The percentile's partial sort costs about half as much as
+  // the prediction itself (profiled on Medusa), and the RMS is the same either way.
   void rms_errors(const std::vector<int>& keys, int first, int last, FrameErrors& out) const {
     measure(keys, first, last, out, nullptr, nullptr, false);
   }
@@ -255,8 +255,9 @@ void refine(const Predictor& predictor, std::vector<int>& keys, FrameErrors& err
   Objective current = objective(errors, keys);
   const std::vector<int> initial = keys;
   // Each move is weighed on the RMS alone where no p99 limit applies: measuring the percentile of
-  // every trial took about half of Medusa's selection. Only with a spline whose reach affected()
-  // covers exactly (a local one), so that one measure at the end equals what the moves measured.
+  // every trial took a third of Medusa's selection (spec/method.md §7.18). Only with a spline whose
+  // reach affected() covers exactly (a local one), so that one measure at the end equals what the
+  // moves measured.
   const bool rms_only = p99_limit <= 0 && predictor.local();
   for (int sweep = 0; sweep < 6; ++sweep) {
     bool moved = false;
