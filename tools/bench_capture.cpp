@@ -82,8 +82,8 @@ void add_capture_options(CLI::App& app, CaptureBenchOptions& options) {
   app.add_flag("--geometry-only", options.geometry_only,
                "With --capture and --fmv: only the file's geometry error on every frame (no mapping, no baselines; seconds, not minutes)");
   app.add_flag("--quiet", options.quiet, "With --capture: no progress display");
-  app.add_flag("--residual-frames", options.residual_frames,
-               "With --capture: encode with residual frames (fmenc --residual-frames, format 2.3)");
+  app.add_flag("--residual-frames,!--no-residual-frames", options.residual_frames,
+               "With --capture: encode with residual frames where they pay (on by default, as fmenc; format 2.3)");
 }
 
 int run_capture_bench(const CaptureBenchOptions& options) {

@@ -18,7 +18,7 @@ struct CaptureBenchOptions {
   bool geometry_only = false;  // with fmv: only its geometry error (no mapping, no baselines)
   std::string against;         // with geometry_only: also how far fmv decodes from this file of the same capture, frame by frame
   bool quiet = false;
-  bool residual_frames = false;  // the encode with residual frames (fmenc --residual-frames)
+  bool residual_frames = true;  // the encode with residual frames where they pay (fmenc's default; --no-residual-frames)
 };
 
 // The options go on the top level: fmbench --capture DIR [--fmv F] [--json F] [--report F] [--quick].

@@ -183,6 +183,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     const int count = static_cast<int>(capture.frames.size());
     EncodeOptions encode;
     encode.keyframe_fraction = keyframe_fraction;
+    encode.residual_frames = false;  // the sequences here are built without residuals: the spline's own keyframes
     encode.representation = parse_representation(options.representation);
     encode.grid = options.grid == "auto" ? 0 : std::stoi(options.grid);
     encode.texture_size = options.texture_size;

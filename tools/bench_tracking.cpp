@@ -121,6 +121,7 @@ void measure_selection(const TrackingBenchOptions& o) {
   }
   EncodeOptions options;
   options.texture = false;
+  options.residual_frames = false;  // keyframes selected for sequences built without residuals
   SequenceEncoder encoder(capture, options);
   encoder.map_frames();
   const std::string& text = o.variants;

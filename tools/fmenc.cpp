@@ -180,7 +180,7 @@ struct Arguments {
   double density_equalising = EncodeOptions{}.density_equalising.strength;
   std::string radial_equalising = "auto";
   bool no_texture = false, no_texture_sharing = false, track_landmarks = false, largest_component = false, keep_holes_filled = false,
-       quiet = false, strict = false, residual_frames = false;
+       quiet = false, strict = false, residual_frames = true;
 };
 
 void declare_options(CLI::App& app, Arguments& a) {
@@ -243,10 +243,10 @@ void declare_options(CLI::App& app, Arguments& a) {
                  "or one still each (format 2.0's); WebP and lossless textures are stills")
       ->capture_default_str();
   app.add_flag(
-      "--residual-frames", a.residual_frames,
-      "frames between keyframes carry a correction of the spline's blend, fitted to the stored keyframes and kept where the frame decodes "
-      "closer with it (format 2.3's RSDW), and fast motion takes fewer keyframes; off by default (spec/method.md §7.18: on Medusa it adds "
-      "bytes)");
+      "--residual-frames,!--no-residual-frames", a.residual_frames,
+      "on by default: where the selection can take fewer keyframes for them, frames between keyframes carry a correction of the "
+      "spline's blend, fitted to the stored keyframes and kept where the frame decodes closer with it (format 2.3's RSDW); elsewhere "
+      "none is written and the file is the one --no-residual-frames writes (spec/method.md §7.18)");
   app.add_flag(
       "--no-texture-sharing", a.no_texture_sharing,
       "keep every keyframe's own texture: by default keyframes painted from one captured image show one texture, stored once (format 2.2), "
@@ -553,14 +553,17 @@ void print_keyframes(const Summary& s) {
               s.sequence->shape().keyframes.size());
   for (const Keyframe& key : s.sequence->shape().keyframes) std::printf(" %.3f", key.time);
   std::printf(" s\n");
-  if (s.options.residual_frames) {
+  if (s.options.residual_frames && s.report.residual_fit.keyframes_saved == 0) {
+    std::printf("  residual frames: none (the selection took no fewer keyframes for them: bytes they would add; spec/method.md §7.18)\n");
+  } else if (s.options.residual_frames) {
     const ResidualFitReport& r = s.report.residual_fit;
     std::printf(
-        "  residual frames: %zu (fitted to the stored keyframes on %d frames between them: %d decode %.0f%% better or more, %d no "
+        "  residual frames: %zu for %d keyframes fewer (fitted to the stored keyframes on %d frames between them: %d decode %.0f%% better "
+        "or more, %d no "
         "better; "
         "their decoded error mean %.4f%% -> %.4f%%, worst %.4f%% -> %.4f%% of the diagonal; %.1f s)\n",
-        s.sequence->shape().residuals.size(), r.frames_fitted, r.frames_improved, 100 * kDecodedResidualMinGain, r.frames_worse,
-        100 * r.mean_before, 100 * r.mean_after, 100 * r.worst_before, 100 * r.worst_after, r.seconds);
+        s.sequence->shape().residuals.size(), r.keyframes_saved, r.frames_fitted, r.frames_improved, 100 * kDecodedResidualMinGain,
+        r.frames_worse, 100 * r.mean_before, 100 * r.mean_after, 100 * r.worst_before, 100 * r.worst_after, r.seconds);
   }
   if (s.options.patch_bound > 0) {
     const PatchFitReport& r = s.report.patch_fit;

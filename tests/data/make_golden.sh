@@ -17,5 +17,5 @@ trap 'rm -rf "$work"' EXIT
 "$build/tools/fmsynth" -o "$work/capture" --frames 12 --fps 30 --expression mixed --vertices 3000 --remesh --noise 0 \
   --texture-size 128 --head-motion 10 --quiet "$@"
 # Intra period 2: two groups of keyframes, one coded from the other within it.
-"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet ${FMENC_OPTIONS:-}
+"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet ${FMENC_OPTIONS:---no-residual-frames}
 FACEMORPH_WRITE_GOLDEN="$here/golden_v$version.csv" "$build/tests/facemorph_decoder_tests" --gtest_filter="GoldenFile.Version${version}*"

@@ -44,6 +44,7 @@ BothFits encode_both(const Capture& capture) {
   options.keyframe_fraction = 0.25;
   options.grid = kGrid;
   options.texture = false;
+  options.residual_frames = false;  // the spline's own keyframes: built here without residuals
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
   BothFits e;

@@ -288,6 +288,36 @@ TEST(KeyframeSelection, TheBudgetsKeyframesMoveToTheMotion) {
   EXPECT_GE(std::count_if(chosen.keyframes.begin(), chosen.keyframes.end(), [](int k) { return k > 30; }), 5);
 }
 
+// The moves weigh each trial on the RMS of the frames the moved keyframe reaches (affected()),
+// and measure the 99th percentiles once at the keyframes they reach: so every frame's errors are
+// those of the keyframes chosen, as if measured afresh, with each local spline. A window narrower
+// than the keyframe's reach leaves RMS values of keyframes since moved; a percentile not measured
+// at the end reads 0.
+TEST(KeyframeSelection, TheMovesLeaveTheErrorsOfTheKeyframesTheyReach) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 60; ++k) amplitudes.push_back(k < 30 ? 0.0 : 0.02 * std::sin((k - 30) * 0.5));
+  const std::vector<SelectionFrame> frames = bump_frames(amplitudes);
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  for (SplineKind kind : {SplineKind::kCatmullRom, SplineKind::kLinear, SplineKind::kLocalCubic}) {
+    SelectionOptions options;
+    options.fraction = 0.15;
+    options.spline = kind;
+    const KeyframeSelection chosen = select_keyframes(frames, weights, options);
+    std::vector<int> even;
+    for (int k = 0; k < 9; ++k) even.push_back(static_cast<int>(std::lround(59.0 * k / 8)));
+    ASSERT_NE(chosen.keyframes, even) << "the moves must move keyframes for this to test them";
+    const std::vector<double> fresh = prediction_errors(frames, weights, chosen.keyframes, kind, Vec3::Zero());
+    ASSERT_EQ(chosen.predicted_p99.size(), frames.size());
+    for (size_t j = 0; j < frames.size(); ++j) {
+      EXPECT_EQ(chosen.predicted_error[j], fresh[j]) << "frame " << j;
+      // Equal weights on 81 nodes: the 99th percentile is the largest offset, at least the RMS.
+      if (fresh[j] > 0) {
+        EXPECT_GE(chosen.predicted_p99[j], fresh[j]) << "frame " << j;
+      }
+    }
+  }
+}
+
 // 40 frames of one bump at amplitudes drawn at random, up to 3% of the diagonal: motion far faster
 // than a spline through a few keyframes follows.
 std::vector<SelectionFrame> fast_bump_frames() {
@@ -451,6 +481,32 @@ TEST(KeyframeSelection, WithinItsBudgetResidualsTakeThePlaceOfKeyframes) {
   EXPECT_EQ(with.keyframes.back(), 39);
   EXPECT_EQ(with.predicted_error, prediction_errors(frames, weights, with.keyframes, options.spline, Vec3::Zero()));
   EXPECT_GT(with.residuals.size(), 20u);
+}
+
+// The keep rule (residuals_pay, spec/method.md §7.18): residuals pay for their bytes only where the
+// selection takes fewer keyframes for them. On the same fast motion a budget of 10 keyframes that
+// residuals cut pays; a budget of 2, which nothing can cut, does not, though residuals would lower
+// its frames' predicted errors there (bytes added to the same keyframes): it carries none.
+TEST(KeyframeSelection, ResidualsPayOnlyWhereTheyTakeKeyframesPlaces) {
+  const std::vector<SelectionFrame> frames = fast_bump_frames();
+  const std::vector<double> weights(frames.front().local.size(), 1.0);
+  SelectionOptions options;
+  options.fraction = 0.25;
+  const KeyframeSelection plain = select_keyframes(frames, weights, options);
+  EXPECT_EQ(plain.spline_keyframes, 10);
+  EXPECT_FALSE(residuals_pay(plain));
+  options.residuals = true;
+  const KeyframeSelection traded = select_keyframes(frames, weights, options);
+  EXPECT_EQ(traded.spline_keyframes, 10);
+  EXPECT_LT(traded.keyframes.size(), 10u);
+  EXPECT_TRUE(residuals_pay(traded));
+  options.fraction = 2.0 / static_cast<double>(frames.size());
+  const KeyframeSelection two = select_keyframes(frames, weights, options);
+  ASSERT_EQ(two.keyframes.size(), 2u);
+  EXPECT_EQ(two.spline_keyframes, 2);
+  EXPECT_FALSE(residuals_pay(two));
+  EXPECT_TRUE(two.residuals.empty());
+  EXPECT_EQ(two.predicted_error, prediction_errors(frames, weights, two.keyframes, options.spline, Vec3::Zero()));
 }
 
 // Given the keyframes, --grid auto also stops at half the error the spline makes between them:

@@ -7,6 +7,7 @@
 
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/encode/encode_settings.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
@@ -107,6 +108,14 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
       fit_decoded_residuals(registered_frames(*fast.encoder), *stored, fast.keyframes, 1.0 / 128, &report);
   EXPECT_TRUE(stored->shape().residuals.empty());  // left as it was
   ASSERT_GT(residuals.size(), 5u);
+  // On two threads, one decoder each: the same residuals to the bit.
+  const std::vector<ResidualFrame> on_two =
+      fit_decoded_residuals(registered_frames(*fast.encoder), *stored, fast.keyframes, 1.0 / 128, nullptr, 2);
+  ASSERT_EQ(on_two.size(), residuals.size());
+  for (size_t r = 0; r < residuals.size(); ++r) {
+    EXPECT_EQ(on_two[r].time, residuals[r].time);
+    EXPECT_EQ(on_two[r].delta, residuals[r].delta);
+  }
   EXPECT_EQ(report.residuals, static_cast<int>(residuals.size()));
   EXPECT_GT(report.frames_improved, 0);
   EXPECT_LT(report.mean_after, report.mean_before);
@@ -168,19 +177,37 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
   }
 }
 
-// EncodeOptions::residual_frames end to end: the sequence carries what the fit kept, the report says
-// so, and without the option there are none.
-TEST(ResidualFit, TheEncoderStoresTheResidualsItReports) {
+// EncodeOptions::residual_frames end to end, with the keep rule (residuals_pay): at the default budget
+// (2 keyframes of 24, which no residual can cut) the encoder keeps none, and the file and its
+// settings are those of the encode without them, byte for byte; at a budget the residuals cut the
+// sequence carries what the fit kept, and the report says so.
+TEST(ResidualFit, TheEncoderKeepsResidualsOnlyWhereTheyTakeKeyframesPlaces) {
   const FastSpeech fast(false);
   EncodeOptions options;
   options.grid = kResidualTestGrid;
   options.texture = false;
+  ASSERT_TRUE(options.residual_frames) << "on by default";
+  const auto file_of = [&](EncodeReport& report) {
+    const std::unique_ptr<StoredSequence> stored = encode_capture_stored(fast.capture, options, &report);
+    SequenceFileMetadata metadata;
+    metadata.settings = encode_settings_json(options, report);
+    return encode_sequence_file(stored->to_sequence(), metadata);
+  };
+  EncodeReport with_report, without_report;
+  const std::vector<uint8_t> with = file_of(with_report);
+  EXPECT_EQ(with_report.keyframes.size(), 2u);
+  EXPECT_EQ(with_report.residual_fit.keyframes_saved, 0);
+  EXPECT_EQ(with_report.residual_fit.residuals, 0);
+  options.residual_frames = false;
+  EXPECT_TRUE(with == file_of(without_report)) << "no residual kept: the file without them, byte for byte";
   options.residual_frames = true;
-  EncodeReport report;
-  const std::unique_ptr<StoredSequence> stored = encode_capture_stored(fast.capture, options, &report);
-  EXPECT_EQ(report.residual_fit.residuals, static_cast<int>(stored->shape().residuals.size()));
+  options.keyframe_fraction = 0.25;
+  EncodeReport traded;
+  const std::unique_ptr<StoredSequence> stored = encode_capture_stored(fast.capture, options, &traded);
+  EXPECT_GT(traded.residual_fit.keyframes_saved, 0);
+  EXPECT_EQ(traded.residual_fit.residuals, static_cast<int>(stored->shape().residuals.size()));
   EXPECT_GT(stored->shape().residuals.size(), 5u);
-  EXPECT_LT(report.residual_fit.mean_after, report.residual_fit.mean_before);
+  EXPECT_LT(traded.residual_fit.mean_after, traded.residual_fit.mean_before);
   options.residual_frames = false;
   EXPECT_TRUE(encode_capture_stored(fast.capture, options).get()->shape().residuals.empty());
 }

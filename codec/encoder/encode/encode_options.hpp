@@ -50,13 +50,13 @@ struct EncodeOptions {
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;
   // Residual frames (format 2.3, spec/method.md §7.18): the selection takes fewer keyframes where
-  // residuals keep the frames within what the budget's left (SelectionOptions::residuals), and each
-  // frame between keyframes carries a correction of the spline's blend fitted to the stored
-  // keyframes and kept where the frame decodes closer with it (fit_decoded_residuals). Off by
-  // default (fmenc --residual-frames turns it on): it lowers the error on every capture measured and
-  // the bytes on fast speech, the 60-frame sample and ICT, but on Medusa adds 1.7% of bytes (its
-  // budget keeps its keyframes), and the fit decodes every frame between keyframes twice.
-  bool residual_frames = false;
+  // residuals keep the frames within what the budget's left (SelectionOptions::residuals), and
+  // there each frame between keyframes carries a correction of the spline's blend fitted to the
+  // stored keyframes and kept where the frame decodes closer with it (fit_decoded_residuals). Where
+  // the selection keeps the spline's own keyframes the residuals would be bytes added, so none is
+  // fitted and the file is the one written without them (residuals_pay). On by default; fmenc
+  // --no-residual-frames turns it off.
+  bool residual_frames = true;
   // Frame patches (format 2.4, spec/method.md §7.19): every frame between keyframes whose decoded
   // 99th-percentile point error passes this fraction of its bbox diagonal carries a sparse lattice
   // displacement that brings it under (patch_fit.hpp); 0: none. On by default: a few bytes a frame.

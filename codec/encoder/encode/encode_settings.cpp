@@ -72,7 +72,9 @@ Json settings_json(const EncodeOptions& o, const EncodeReport& report) {
                                                        : Json(nullptr)},
       {"registration", registration_method_name(o.registration.method)},
       {"spline", spline_kind_name(o.spline)},
-      {"residual_frames", o.residual_frames},
+      // Whether the file's residual frames took keyframes' places (residuals_pay): where they did
+      // not, the settings and the file are those of an encode without them, byte for byte.
+      {"residual_frames", o.residual_frames && report.residual_fit.keyframes_saved > 0},
       {"patch_bound", o.patch_bound},
       {"texture", o.texture ? (o.texture_size > 0 ? Json(o.texture_size) : Json("auto")) : Json(0)},
       {"texture_chosen", report.texture_size},

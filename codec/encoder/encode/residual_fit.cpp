@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <thread>
 
 namespace facemorph {
 
@@ -64,6 +66,32 @@ double relative_rms(const std::vector<double>& offsets, const CapturedOnGrid& c)
   return relative_rms(sum, c);
 }
 
+// The decoders the fit works with, one per thread (a SequenceDecoder is not thread-safe; several
+// may share one source): `count` items in contiguous runs, run r on decoders[r], so that each
+// decodes its frames in time order and reconstructs the keyframes near them only.
+class DecoderTeam {
+ public:
+  DecoderTeam(const std::shared_ptr<const KeyframeSource>& source, int threads, size_t items) {
+    const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
+    const size_t wanted = threads > 0 ? static_cast<size_t>(threads) : hardware;
+    const size_t size = std::max<size_t>(1, std::min(wanted, items));
+    for (size_t r = 0; r < size; ++r) decoders_.push_back(std::make_unique<SequenceDecoder>(source));
+  }
+  SequenceDecoder& first() { return *decoders_.front(); }
+  // body(decoder, i) for i in [0, count), items of one run on one decoder and thread. Each frame
+  // is decoded as a function of t alone (shape_only), so the runs' split changes no result.
+  void for_each(size_t count, const std::function<void(SequenceDecoder&, size_t)>& body) {
+    const size_t runs = decoders_.size();
+    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
+      const auto run = static_cast<size_t>(r);
+      for (size_t i = run * count / runs; i < (run + 1) * count / runs; ++i) body(*decoders_[run], i);
+    });
+  }
+
+ private:
+  std::vector<std::unique_ptr<SequenceDecoder>> decoders_;
+};
+
 DecodeOptions shape_only() {
   DecodeOptions o;
   o.texture = false;
@@ -75,7 +103,7 @@ DecodeOptions shape_only() {
 }  // namespace
 
 std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames, StoredSequence& stored, const std::vector<int>& keyframes,
-                                                 double step, ResidualFitReport* report_out) {
+                                                 double step, ResidualFitReport* report_out, int threads) {
   const auto start = std::chrono::steady_clock::now();
   ResidualFitReport report;
   stored.set_residuals({});
@@ -95,25 +123,25 @@ std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames,
     return {};
   }
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
-  SequenceDecoder plain(source);
-  const GridGeometry& geometry = plain.geometry();
+  DecoderTeam plain(source, threads, held.size());
+  const GridGeometry& geometry = plain.first().geometry();
   const DecodeOptions options = shape_only();
   // The keyframes' decoded surfaces in their face frames: what the decoder blends.
   std::vector<std::vector<Vec3>> local(keyframes.size());
-  for (size_t k = 0; k < keyframes.size(); ++k) {
-    const DecodedFrame f = plain.decode(key_times[k], options);
+  plain.for_each(keyframes.size(), [&](SequenceDecoder& decoder, size_t k) {
+    const DecodedFrame f = decoder.decode(key_times[k], options);
     const RigidPose to_face = f.pose.inverse();
     local[k].reserve(f.grid_positions.size());
     for (const Vec3& p : f.grid_positions) local[k].push_back(to_face.apply(p));
-  }
+  });
   // Pass 1: each frame decoded with the spline alone, its correction fitted.
-  std::vector<ResidualFrame> candidates;
+  std::vector<ResidualFrame> candidates(held.size());
   std::vector<double> before(held.size(), 0.0);
-  std::vector<char> fitted(held.size(), 0);
-  for (size_t h = 0; h < held.size(); ++h) {
+  std::vector<char> fitted(held.size(), 0), tried(held.size(), 0);
+  plain.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
     const int j = held[h];
     const double t = frames.times[static_cast<size_t>(j)];
-    const DecodedFrame decoded = plain.decode(t, options);
+    const DecodedFrame decoded = decoder.decode(t, options);
     const CapturedOnGrid captured = captured_on_grid(frames, geometry, j);
     const std::vector<double> offsets = normal_offsets(decoded.grid_positions, captured);
     before[h] = relative_rms(offsets, captured);
@@ -127,12 +155,13 @@ std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames,
           columns[static_cast<size_t>(m)][v] = (decoded.pose.rotation * key[v]).dot(captured.normals[v]);
       }
       const double predicted = relative_rms(fit_blend_correction(offsets, columns, captured.weights, step, delta), captured);
-      ++report.frames_fitted;
+      tried[h] = 1;
       if (!(predicted <= (1 - kDecodedResidualMinGain) * before[h])) std::fill(delta.begin(), delta.end(), 0.0);
       fitted[h] = std::any_of(delta.begin(), delta.end(), [](double d) { return d != 0; });
     }
-    candidates.push_back({t, std::move(delta)});
-  }
+    candidates[h] = {t, std::move(delta)};
+  });
+  report.frames_fitted = static_cast<int>(std::count(tried.begin(), tried.end(), 1));
   // Pass 2: the frames decoded with their corrections, at the times the file holds.
   const double first_time = stored.shape().first_time, fps = stored.shape().fps;
   std::vector<ResidualFrame> on_file;
@@ -148,15 +177,19 @@ std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames,
   std::vector<double> after = before;
   if (std::any_of(fitted.begin(), fitted.end(), [](char c) { return c != 0; })) {
     stored.set_residuals(on_file);
-    SequenceDecoder corrected(source);
+    DecoderTeam corrected(source, threads, held.size());
+    std::vector<double> decoded_error(held.size(), 0.0);
+    corrected.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
+      if (!fitted[h]) return;
+      const int j = held[h];
+      const DecodedFrame decoded = decoder.decode(frames.times[static_cast<size_t>(j)], options);
+      const CapturedOnGrid captured = captured_on_grid(frames, geometry, j);
+      decoded_error[h] = relative_rms(normal_offsets(decoded.grid_positions, captured), captured);
+    });
     for (size_t h = 0; h < held.size(); ++h) {
       if (!fitted[h]) continue;
-      const int j = held[h];
-      const DecodedFrame decoded = corrected.decode(frames.times[static_cast<size_t>(j)], options);
-      const CapturedOnGrid captured = captured_on_grid(frames, geometry, j);
-      const double error = relative_rms(normal_offsets(decoded.grid_positions, captured), captured);
-      if (error <= (1 - kDecodedResidualMinGain) * before[h]) {
-        after[h] = error;
+      if (decoded_error[h] <= (1 - kDecodedResidualMinGain) * before[h]) {
+        after[h] = decoded_error[h];
         ++report.frames_improved;
       } else {
         ++report.frames_worse;

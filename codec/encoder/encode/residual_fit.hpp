@@ -23,7 +23,7 @@ class StoredSequence;
 
 // What the fit reads of the capture's frames, registered and sampled (registered_frames(encoder),
 // sequence_encoder.hpp): frame j's time and bbox diagonal, and its registered surface at disk
-// points of G (capture frame). `surface` is called from one thread.
+// points of G (capture frame). `surface` is called from several threads at once (the fit's).
 struct RegisteredFrames {
   std::vector<double> times;
   std::vector<double> diagonals;
@@ -46,6 +46,9 @@ struct ResidualFitReport {
   double mean_before = 0, worst_before = 0;  // over the frames between keyframes, the spline's alone
   double mean_after = 0, worst_after = 0;    // with the residuals kept
   double seconds = 0;                        // the fit's time, decoding included
+  // Keyframes the selection took fewer for the residuals (KeyframeSelection::spline_keyframes less
+  // the keyframes): 0 where they did not pay (residuals_pay), and the encoder fitted none.
+  int keyframes_saved = 0;
 };
 
 // The residual frames for `stored` (its keyframes, fields as the file will hold them, no residuals
@@ -56,8 +59,9 @@ struct ResidualFitReport {
 // file's lattice, residuals_on_file_times) and the correction kept where the decoded error falls
 // by kDecodedResidualMinGain or more. An interval with a correction kept has a residual at every frame
 // (the others 0: the decoder interpolates between an interval's residuals); one without has none.
-// Leaves `stored`'s residuals empty; `report` (optional) is filled.
+// Leaves `stored`'s residuals empty; `report` (optional) is filled. The decodes run on up to
+// `threads` threads (0: one per core), one decoder each; the result is the same for any count.
 std::vector<ResidualFrame> fit_decoded_residuals(const RegisteredFrames& frames, StoredSequence& stored, const std::vector<int>& keyframes,
-                                                 double step, ResidualFitReport* report = nullptr);
+                                                 double step, ResidualFitReport* report = nullptr, int threads = 1);
 
 }  // namespace facemorph

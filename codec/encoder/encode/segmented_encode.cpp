@@ -64,7 +64,10 @@ SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, cons
   if (id.index < 0 || id.index >= id.count || id.count > kMaxSegments)
     throw Error(ErrorCode::kInvalidArgument, "no segment " + std::to_string(id.index) + " of " + std::to_string(id.count));
   SegmentStart s;
-  s.parts = encoder_of_parts(parts, options, &s.header);
+  // A segment carries no residual frames (spec/method.md §7.18): its keyframes are the spline's own.
+  EncodeOptions segment_options = options;
+  segment_options.residual_frames = false;
+  s.parts = encoder_of_parts(parts, segment_options, &s.header);
   s.encoder = s.parts.encoder.get();
   if (planned) {
     s.chosen = planned->plan;

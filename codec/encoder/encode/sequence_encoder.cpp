@@ -266,10 +266,13 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
       build_reconstructable(encoder, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
         if (encoder.options().predicted_fields) report.field_coding = round_fields(encoder, keyframes, chosen);
       });
-  // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
-  if (encoder.options().residual_frames)
+  // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
+  // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
+  if (encoder.options().residual_frames && residuals_pay(chosen)) {
     sequence->set_residuals(fit_decoded_residuals(registered_frames(encoder), *sequence, chosen.keyframes, SelectionOptions().residual_step,
-                                                  &report.residual_fit));
+                                                  &report.residual_fit, encoder.options().threads));
+    report.residual_fit.keyframes_saved = chosen.spline_keyframes - static_cast<int>(chosen.keyframes.size());
+  }
   // Frame patches fitted to the decoded frames, residuals included (patch_fit.hpp).
   if (encoder.options().patch_bound > 0)
     sequence->set_patches(
