@@ -66,8 +66,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     body();
     stage_seconds[stage] += seconds_since(start);
   };
-  timed("mapping", [&] { encoder.map_frames(); });
-  timed("registration", [&] { encoder.register_frames(); });
+  timed("mapping", [&] { map_frames(encoder); });
+  timed("registration", [&] { register_frames(encoder); });
   timed("sampling", [&] { sample_frames(encoder); });
   // fmenc's order: the keyframes first, then the grid their predicted error allows.
   FacemorphPoints points;

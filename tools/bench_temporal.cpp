@@ -191,7 +191,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     Progress progress(input, options.quiet);
     encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
     SequenceEncoder encoder(capture, encode);
-    encoder.map_frames();
+    map_frames(encoder);
     progress.finish();
     std::vector<TriangleMesh> captured;
     for (int i = 0; i < count; ++i)
@@ -212,7 +212,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     for (RegistrationMethod method : methods) {
       encoder.options().registration.method = method;
       encoder.options().spline = splines.front();
-      encoder.register_frames();
+      register_frames(encoder);
       sample_frames(encoder);
       const KeyframeSelection chosen = select_keyframes(encoder);
       if (grid == 0) {
@@ -316,7 +316,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         std::find(methods.begin(), methods.end(), default_method) != methods.end() ? default_method : methods.back();
     if (encoder.registration(0)->method != main_method) {
       encoder.options().registration.method = main_method;
-      encoder.register_frames();
+      register_frames(encoder);
       sample_frames(encoder);
     }
     // Spline kinds, same keyframes count, each choosing its own keyframes.

@@ -82,8 +82,8 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
       }
     }
     SequenceEncoder encoder(capture, options);
-    encoder.map_frames();
-    encoder.register_frames();
+    map_frames(encoder);
+    register_frames(encoder);
     EXPECT_EQ(encoder.report().dropped.size(), 3u);
     EXPECT_EQ(encoder.report().frames_without_interior_landmarks, 0);
   }

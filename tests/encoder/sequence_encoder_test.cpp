@@ -154,8 +154,8 @@ TEST(SequenceEncoder, VertexColoursPaintTheDiskLikeTheTextureImage) {
   EXPECT_TRUE(frame.texture.empty());
   SequenceEncoder a(coloured, {}), b(textured, {});
   for (SequenceEncoder* e : {&a, &b}) {
-    e->map_frames();
-    e->register_frames();
+    map_frames(*e);
+    register_frames(*e);
   }
   ASSERT_TRUE(a.has_texture(0));
   const Image painted = a.frame_texture(0, 256), imaged = b.frame_texture(0, 256);

@@ -43,8 +43,7 @@ std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_
       });
 }
 
-SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
-    : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
+SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options) : capture_(std::move(capture)), options_(std::move(options)) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture_.landmarks.empty())
@@ -74,43 +73,77 @@ std::vector<Vec3> SequenceEncoder::landmarks(int i) const {
   return points;
 }
 
-std::shared_ptr<const DiskRegistration> SequenceEncoder::registration(int i) const {
-  if (!registrations_) throw Error(ErrorCode::kInternal, "the frames are not registered yet");
-  return registrations_->get(static_cast<size_t>(i));
+void SequenceEncoder::put_landmarks(int i, std::vector<Vec3> points) { landmarks_->put(static_cast<size_t>(i), std::move(points)); }
+
+size_t SequenceEncoder::landmark_name_index(const std::string& name) {
+  const int index = capture_.landmark_index(name);
+  if (index >= 0) return static_cast<size_t>(index);
+  capture_.landmark_names.push_back(name);
+  return capture_.landmark_names.size() - 1;
 }
 
-std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> nodes) const {
-  std::vector<Vec2> points = reparametrisation_(nodes);
-  const std::shared_ptr<const DiskRegistration> f = registration(i);
-  for (Vec2& p : points) p = (*f)(p);
-  return points;
+void SequenceEncoder::add_frame_warnings(int i, std::vector<std::string> warnings) {
+  report_.warnings.insert(report_.warnings.end(), warnings.begin(), warnings.end());
+  if (!warnings.empty()) warnings_by_frame_[source_index_[static_cast<size_t>(i)]] = std::move(warnings);
 }
 
-std::shared_ptr<const MappedFrame> SequenceEncoder::frame(int i) const {
-  if (i == pinned_index_) return pinned_;
-  return store_->get(static_cast<size_t>(i));
+FrameFailure frame_failure(const Error& e, const std::string& name) {
+  // Stages name their frame; the report names it once.
+  std::string reason = e.what();
+  if (reason.rfind(name + ": ", 0) == 0) reason.erase(0, name.size() + 2);
+  return {e.code(), reason};
 }
 
-std::shared_ptr<const MappedFrame> SequenceEncoder::pin_reference() {
-  if (pinned_index_ != options_.reference_frame) {
-    pinned_.reset();  // first: the old one need not be held beside the new
-    pinned_ = store_->get(static_cast<size_t>(options_.reference_frame));
-    pinned_index_ = options_.reference_frame;
+void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
+  std::vector<size_t> kept;
+  for (size_t i = 0; i < failures.size(); ++i) {
+    if (failures[i].code == ErrorCode::kOk) {
+      kept.push_back(i);
+      continue;
+    }
+    report_.dropped.push_back({source_index_[i], capture_.frames[i].mesh.string(), capture_.frames[i].time, failures[i].reason});
+    // Dropped at registration, the frame was mapped: its summary still counts in what was found.
+    const std::vector<FrameSummary>& summaries = maps_.summaries;
+    if (summaries.size() == failures.size() && !summaries[i].name.empty()) dropped_summaries_[source_index_[i]] = summaries[i];
   }
-  return pinned_;
-}
-
-bool SequenceEncoder::has_texture(int i) const {
-  const auto index = static_cast<size_t>(i);
-  const FrameSummary& f = summaries_[index];
-  return (!textures_[index].empty() && f.has_uvs) || f.has_colours;
+  if (kept.size() == failures.size()) return;
+  if (kept.empty()) {
+    const DroppedFrame& first = report_.dropped.front();
+    const auto it = std::find_if(failures.begin(), failures.end(), [](const FrameFailure& f) { return f.code != ErrorCode::kOk; });
+    throw Error(it->code, "no frame of the capture could be encoded (" + std::to_string(failures.size()) + " dropped); the first, " +
+                              first.name + ": " + first.reason);
+  }
+  // The reference moves to the nearest frame kept (the earlier of two as near).
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  size_t new_reference = 0;
+  for (size_t k = 0; k < kept.size(); ++k) {
+    const double d = std::abs(capture_.frames[kept[k]].time - capture_.frames[reference].time);
+    if (d < std::abs(capture_.frames[kept[new_reference]].time - capture_.frames[reference].time)) new_reference = k;
+  }
+  if (kept[new_reference] != reference) {
+    report_.warnings.push_back(capture_.frames[reference].mesh.string() + ": the reference frame was dropped; " +
+                               capture_.frames[kept[new_reference]].mesh.string() + " is the reference instead");
+  }
+  options_.reference_frame = static_cast<int>(new_reference);
+  auto compact = [&](auto& items) {
+    if (items.size() != failures.size()) return;
+    std::remove_reference_t<decltype(items)> out;
+    out.reserve(kept.size());
+    for (size_t i : kept) out.push_back(std::move(items[i]));
+    items = std::move(out);
+  };
+  compact(capture_.frames);
+  if (landmarks_->size() == failures.size()) landmarks_->keep(kept);
+  compact(source_index_);
+  maps_.keep(kept, failures.size());
+  registrations_.keep(kept, failures.size());
 }
 
 Image SequenceEncoder::frame_texture(int i, int size) const { return frame_texture(*frame(i), i, size); }
 
 Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) const {
   Image image;
-  const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
+  const std::optional<TextureSource> source = frame_texture_source(f.map, texture_path(i), image);
   if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
   return resample_texture(InverseDiskMap(f.map), *source, size, sampler(i));
 }
@@ -127,8 +160,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
 
 std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(std::move(capture), options);
-  encoder.map_frames();
-  encoder.register_frames();
+  map_frames(encoder);
+  register_frames(encoder);
   sample_frames(encoder);
   return encode_sampled(encoder, report_out);
 }

@@ -16,10 +16,10 @@
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/frame_maps.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
-#include "codec/encoder/encode/frame_store.hpp"
+#include "codec/encoder/encode/frame_registrations.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
-#include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
@@ -68,11 +68,22 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {
 // The encoder keeps its own capture: moved in, a long capture's paths and landmarks are not held twice.
 std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
-// The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
-// encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
-// mapping. Stages run in order; a later stage may be re-run with other options (registering again
-// redoes the selection samples). Each stage goes through the frames a few at a time (one per
-// thread), reading each map back from the store and releasing it when done.
+// Why a frame failed a stage (map, register): code kOk while it has not.
+struct FrameFailure {
+  ErrorCode code = ErrorCode::kOk;
+  std::string reason;
+};
+// The failure `e` of the frame `name`, its reason without the name where the stage put it first.
+FrameFailure frame_failure(const Error& e, const std::string& name);
+
+// The encode's state, stage by stage: the capture's frames (paths, landmarks in their store, their
+// numbers in the capture as given), each stage's own state unit (the maps: FrameMaps; the
+// registrations: FrameRegistrations; the selection samples: SelectionSamples) and the report.
+// The stages are free functions over it (map_frames, register_frames, sample_frames, ...), run in
+// order by encode_capture_stored, the staged and the segmented encodes, and by the bench, which
+// re-runs a later stage with other options (registering again redoes the selection samples).
+// Each stage goes through the frames a few at a time (one per thread), reading each map back from
+// the store and releasing it when done.
 class SequenceEncoder {
  public:
   // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
@@ -94,17 +105,17 @@ class SequenceEncoder {
   // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
   // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
   void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
+  // The hint set_vertical_hint gave; none where it was not called.
+  std::optional<std::optional<Vec3>> given_vertical_hint() const {
+    return vertical_hint_set_ ? std::optional<std::optional<Vec3>>(vertical_hint_) : std::nullopt;
+  }
 
-  // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
-  // options().strict): from here on the encoder's capture() and frame indices are those of the
-  // frames kept, and report().dropped names the others.
-  void map_frames();
-  // 2. register every frame to the reference (options().registration); method kFrame first builds
-  // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
-  void register_frames();
-  // 3 (sample_frames) and 4-6 (select, grid, representation, build) are the free stages below,
-  // over the encoder's frames as these two left them.
-  //
+  // The map stage's state (map_frames): every frame's map, summary and texture path.
+  const FrameMaps& maps() const { return maps_; }
+  FrameMaps& maps() { return maps_; }
+  // The register stage's state (register_frames): every frame's registration, the reference's geometry.
+  const FrameRegistrations& registrations() const { return registrations_; }
+  FrameRegistrations& registrations() { return registrations_; }
   // The sample stage's state: every frame on the selection grid (selection_samples.hpp).
   const SelectionSamples& selection() const { return selection_; }
   SelectionSamples& selection() { return selection_; }
@@ -114,6 +125,12 @@ class SequenceEncoder {
   // segmented_encode.hpp), or the fallback to positions (store_as_positions); `blend`: what the
   // choice measured. Fills report().blend and report().representation.
   void adopt_representation(Representation representation, const BlendComparison& blend);
+  // The automatic representation back to hl+t until choose_representation measures otherwise
+  // (register_frames: a new registration, a new choice).
+  void reset_representation() {
+    auto_representation_ = Representation::kHLT;
+    report_.representation = representation();
+  }
   // What build_keyframes stores: options().representation, or (unset) what adopt_representation
   // was given (hl+t before it is).
   Representation representation() const { return options_.representation.value_or(auto_representation_); }
@@ -127,20 +144,34 @@ class SequenceEncoder {
   // encoder keeps them in a store (with options().spill_frames, its temporary file: 1.8 kB a frame
   // for ICT's 74, a capture's length in memory otherwise), not in capture().
   std::vector<Vec3> landmarks(int i) const;
+  // Frame i's landmarks replaced by `points` (one per name of capture().landmark_names), in the store.
+  void put_landmarks(int i, std::vector<Vec3> points);
+  // The place of the landmark `name` among capture().landmark_names, added at the end where missing
+  // (the landmarks map_frames finds on the frames).
+  size_t landmark_name_index(const std::string& name);
+  // The warnings a stage gives frame i (such as landmarks ignored on it): into report().warnings,
+  // and kept for for_each_sampled_frame under the frame's number in the capture as given.
+  void add_frame_warnings(int i, std::vector<std::string> warnings);
+  // Leaves out the frames whose failure is set (one per frame) from every stage's state, into
+  // report().dropped; moves the reference to the nearest frame kept (warned). Throws the first
+  // failure when none is kept.
+  void drop_frames(const std::vector<FrameFailure>& failures);
+  // The reference's map, kept in memory while it is the reference: every stage uses it.
+  std::shared_ptr<const MappedFrame> pin_reference() { return maps_.pin(options_.reference_frame); }
   // Frame i's landmarks and the reference's on their disks (disk_landmarks), after map_frames.
   DiskLandmarks frame_disk_landmarks(int i) const;
   int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
   int frame_count() const { return static_cast<int>(capture_.frames.size()); }
   // Frame i's map, read back from the store (options().spill_frames; its prepared mesh left empty,
   // see FrameStore::put) and held in memory as long as the pointer is. After map_frames.
-  std::shared_ptr<const MappedFrame> frame(int i) const;
-  const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
-  const FrameStore& frame_store() const { return *store_; }
+  std::shared_ptr<const MappedFrame> frame(int i) const { return maps_.frame(i); }
+  const FrameSummary& frame_summary(int i) const { return maps_.summaries[static_cast<size_t>(i)]; }
+  const FrameStore& frame_store() const { return maps_.store(); }
   // Frame i's registration, read back from its store (options().spill_frames) and held as long as
   // the pointer is. After register_frames.
-  std::shared_ptr<const DiskRegistration> registration(int i) const;
+  std::shared_ptr<const DiskRegistration> registration(int i) const { return registrations_.registration(i); }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
-  const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
+  const GeodesicFrame* geodesic_frame() const { return registrations_.geodesic_frame(); }
   // Where frame i is sampled for disk points of G (or of the disk texture): the reference's
   // reparametrisation, then the frame's registration (after register_frames). A sampler holds the
   // registration it read back; sample_points reads it for one call.
@@ -154,20 +185,20 @@ class SequenceEncoder {
     const DiskReparametrisation& reparametrisation_;
     std::shared_ptr<const DiskRegistration> registration_;
   };
-  Sampler sampler(int i) const { return Sampler(reparametrisation_, registration(i)); }
-  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  Sampler sampler(int i) const { return Sampler(reparametrisation(), registration(i)); }
+  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const { return registrations_.sample_points(i, nodes); }
   // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample;
   // the second from frame i's map as the caller loaded it (once, for several uses).
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
   std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
-  const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
+  const DiskReparametrisation& reparametrisation() const { return registrations_.reparametrisation(); }
   // The capture's first and last frame times as given (seconds): dropping its end frames does not
   // shorten it.
   double first_time() const { return first_time_; }
   double last_time() const { return last_time_; }
-  const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
+  const std::filesystem::path& texture_path(int i) const { return maps_.textures[static_cast<size_t>(i)]; }
   // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
-  bool has_texture(int i) const;
+  bool has_texture(int i) const { return maps_.has_texture(i); }
   // Frame i's own colour on the size x size disk texture, sampled through its registration as a
   // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
   // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
@@ -175,45 +206,21 @@ class SequenceEncoder {
   // The same from frame i's map as the caller loaded it.
   Image frame_texture(const MappedFrame& frame, int i, int size) const;
   EncodeReport& report() { return report_; }
-
- private:
-  struct FrameFailure {  // why a frame failed; code kOk while it has not
-    ErrorCode code = ErrorCode::kOk;
-    std::string reason;
-  };
-  static FrameFailure failure_of(const Error& e, const std::string& name);
+  // Tells options().progress (where set) that `done` of `total` frames went through `stage`.
   void progress(const std::string& stage, int done, int total) const {
     if (options_.progress) options_.progress(stage, done, total);
   }
+
+ private:
   // of_sampled_frames's steps: the encoder of no frames yet, each frame added, the reference's
   // stores settled once all came.
   SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
   void add_sampled_frame(SampledFrame&& frame);
   void finish_sampled_frames();
-  // Sets those of frame `index`'s landmarks `points` that lie farther from `mesh` than
-  // options().landmark_tolerance to NaN, with a warning each (strict: throws kInvalidArgument); says
-  // whether it set any.
-  bool ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const;
-  // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
-  // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
-  void drop_frames(const std::vector<FrameFailure>& failures);
-  // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
-  // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
-  void adopt_found_landmarks();
-  // The reference's map, kept in memory while it is the reference: every stage uses it.
-  std::shared_ptr<const MappedFrame> pin_reference();
   static std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
   // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
   // has one; kCorrupt naming the frame where the bytes are not one.
   DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
-  // What every stage after mapping reads of the reference (its map and landmarks `points`): its disk
-  // reparametrised (options().density_equalising) and, for kFrame, its geodesic frame.
-  void set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points);
-  // Adds a mapped frame's found nose tip, up and rim markers to the report's counts.
-  void count_found_landmarks(const FrameSummary& frame, bool given_rim);
-  // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
-  // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
-  std::vector<TrackedPoints> track_frames();
 
   bool vertical_hint_set_ = false;
   std::optional<Vec3> vertical_hint_;
@@ -221,8 +228,7 @@ class SequenceEncoder {
   // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.
   std::map<int, std::vector<std::string>> warnings_by_frame_;
   std::map<int, FrameSummary> dropped_summaries_;
-  std::vector<char> without_interior_;  // per frame kept: registered without interior landmarks shared with the reference
-  int given_reference_ = 0;             // as options().reference_frame came, in the capture as given
+  int given_reference_ = 0;  // as options().reference_frame came, in the capture as given
   // The assembling encoder (add_sampled_frame): the reference in the capture as given, whether the
   // capture gave rim markers, the next frame due, and the registrations that came before the
   // reference's frame (with kFrame they need its geodesic frame's partition to be read).
@@ -235,16 +241,10 @@ class SequenceEncoder {
   std::vector<int> source_index_;
   double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
-  std::unique_ptr<FrameStore> store_;
-  std::vector<FrameSummary> summaries_;
-  int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
-  std::shared_ptr<const MappedFrame> pinned_;
-  std::vector<std::filesystem::path> textures_;
-  std::unique_ptr<RegistrationStore> registrations_;
-  std::shared_ptr<const GeodesicFrame> geodesic_frame_;
+  FrameMaps maps_;                                             // map_frames's
+  FrameRegistrations registrations_;                           // register_frames's
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
-  DiskReparametrisation reparametrisation_;
-  SelectionSamples selection_;  // sample_frames's
+  SelectionSamples selection_;                                 // sample_frames's
   EncodeReport report_;
 };
 
@@ -257,9 +257,29 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
                                        const std::function<std::vector<Vec3>(size_t)>& landmarks,
                                        const std::function<void(int, int)>& progress = {});
 
-// ---- The stages after sampling (stages/sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
+// ---- The stages (stages/map_frames.cpp, register_frames.cpp, sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
 // build_keyframes.cpp): each reads the encoder's frames as map, register and sample left them ----
 
+// 1. Every frame prepared, conformally mapped and normalised (options().conformal, largest_component,
+// find_landmarks, landmark_tolerance), its map into encoder.maps(); the landmarks found on the
+// frames adopted under their names (nose_tip, nose_bridge, rim_*) and counted in the report. Frames
+// that fail are dropped (unless options().strict): from here on the encoder's capture() and frame
+// indices are those of the frames kept, and report().dropped names the others.
+void map_frames(SequenceEncoder& encoder);
+// 2. Every frame registered to the reference (options().registration, tracking), into
+// encoder.registrations(); method kFrame first builds the reference's geodesic frame from its disk
+// and landmarks, once, and registers through it. Frames that fail are dropped as map_frames drops them.
+void register_frames(SequenceEncoder& encoder);
+// What every stage after mapping reads of the reference (its map and landmarks `points`, one per
+// name of `names`): its disk reparametrised (`equalising`) and, for `method` kFrame, its geodesic
+// frame: into `registrations`, with the equalising's figures into `report`. Throws what
+// make_geodesic_frame throws, naming the reference.
+void set_reference_geometry(FrameRegistrations& registrations, const MappedFrame& reference, const std::vector<std::string>& names,
+                            const std::vector<Vec3>& points, const DensityEqualisingOptions& equalising, RegistrationMethod method,
+                            EncodeReport& report);
+// Adds a mapped frame's found nose tip, up and rim markers to `report`'s counts (`given_rim`: the
+// capture gave rim markers of its own, so the frame's found ones are not taken).
+void count_found_landmarks(EncodeReport& report, const FrameSummary& frame, bool given_rim);
 // 3. Every registered frame on the selection grid (SelectionSamples::kGrid), in the face frame, with
 // its rigid head pose: into encoder.selection(), the samples of an earlier sampling replaced.
 void sample_frames(SequenceEncoder& encoder);
