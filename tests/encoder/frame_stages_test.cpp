@@ -210,6 +210,19 @@ TEST(SequenceEncoder, FramesDroppedAtRegistrationLeaveTheOthersTheirOwn) {
       EXPECT_LT(matching_energy(*f, l), 1e-6) << "frame " << encoder.source_index(i);
     }
   }
+  {
+    // Frames dropped before the reference renumber it: its map stays pinned under its new number
+    // (FrameMaps::keep), so every frame still reads back its own map.
+    options.reference_frame = 8;
+    SequenceEncoder encoder(capture, options);
+    map_frames(encoder);
+    register_frames(encoder);
+    ASSERT_EQ(encoder.options().reference_frame, 6);
+    for (int i = 0; i < encoder.frame_count(); ++i)
+      EXPECT_EQ(encoder.frame(i)->name, encoder.capture().frames[static_cast<size_t>(i)].mesh.string())
+          << "frame " << encoder.source_index(i);
+    options.reference_frame = 0;
+  }
   options.spill_frames = true;
   SequenceEncoder encoder(capture, options);
   map_frames(encoder);
