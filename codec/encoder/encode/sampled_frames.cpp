@@ -11,6 +11,24 @@
 
 namespace facemorph {
 
+namespace {
+
+// A sampled frame's registration (add_sampled_frame), through `partition` (the reference's
+// geodesic frame's, null without one); kCorrupt naming the frame where the bytes are not one.
+DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes,
+                                           const std::shared_ptr<const PartitionMesh>& partition) {
+  // From a part file: bytes the stores never wrote themselves, so read as untrusted.
+  try {
+    DiskRegistration f = RegistrationStore::deserialize(bytes.data(), bytes.size(), partition);
+    RegistrationStore::check(f);
+    return f;
+  } catch (const Error& e) {
+    throw Error(ErrorCode::kCorrupt, name + ": its registration: " + e.what());
+  }
+}
+
+}  // namespace
+
 SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions options) : options_(std::move(options)) {
   if (capture.frame_count <= 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture.reference < 0 || capture.reference >= capture.frame_count || capture.given_reference < 0 ||
@@ -95,12 +113,12 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
                            options_.registration.method, report_);
     registrations_.start(maps_.size(), options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
     for (auto& [k, pending] : pending_registrations_)
-      registrations_.put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
+      registrations_.put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending, registrations_.partition()));
     pending_registrations_.clear();
     selection_.outline(i).local = f.selection.local;  // pose_centre reads them after the samples are released
   }
   if (registrations_.started()) {
-    registrations_.put(i, read_sampled_registration(f.name, f.registration));
+    registrations_.put(i, read_sampled_registration(f.name, f.registration, registrations_.partition()));
   } else {
     // Before the reference came, a registration through its geodesic frame has no partition yet.
     pending_registrations_.emplace_back(i, std::move(f.registration));
@@ -121,17 +139,6 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   outline.pose = f.selection.pose;
   outline.diagonal = f.selection.diagonal;
   selection_.put(i, std::move(f.selection.local), std::move(f.selection.normal));
-}
-
-DiskRegistration SequenceEncoder::read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const {
-  // From a part file: bytes the stores never wrote themselves, so read as untrusted.
-  try {
-    DiskRegistration f = RegistrationStore::deserialize(bytes.data(), bytes.size(), registrations_.partition());
-    RegistrationStore::check(f);
-    return f;
-  } catch (const Error& e) {
-    throw Error(ErrorCode::kCorrupt, name + ": its registration: " + e.what());
-  }
 }
 
 void SequenceEncoder::finish_sampled_frames() {

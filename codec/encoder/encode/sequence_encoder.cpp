@@ -27,7 +27,7 @@
 
 namespace facemorph {
 
-std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_store(SpillMode mode) {
+std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode) {
   return std::make_unique<SpilledItems<std::vector<Vec3>>>(
       mode, "the frames' landmarks", "landmarks of frame",
       [](const std::vector<Vec3>& points) {
