@@ -138,7 +138,7 @@ void measure_selection(const TrackingBenchOptions& o) {
     encoder.options().registration.smoothing = smoothing;
     register_frames(encoder);
     sample_frames(encoder);
-    const KeyframeSelection chosen = select_keyframes(encoder);
+    const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
     double sum = 0;
     int n = 0;
     for (double e : chosen.predicted_error) {

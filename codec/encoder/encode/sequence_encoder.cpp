@@ -139,19 +139,10 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
   registrations_.keep(kept, failures.size());
 }
 
-Image SequenceEncoder::frame_texture(int i, int size) const { return frame_texture(*frame(i), i, size); }
-
-Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) const {
-  Image image;
-  const std::optional<TextureSource> source = frame_texture_source(f.map, texture_path(i), image);
-  if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
-  return resample_texture(InverseDiskMap(f.map), *source, size, sampler(i));
-}
-
-std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const { return sample_surface(*frame(i), i, nodes); }
-
-std::vector<Vec3> SequenceEncoder::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const {
-  return resample_positions(InverseDiskMap(frame.map), sample_points(i, nodes));
+void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
+  auto_representation_ = representation;
+  report_.blend = blend;
+  report_.representation = this->representation();
 }
 
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report) {
@@ -198,13 +189,46 @@ void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes
 
 }  // namespace
 
+PlanSettings plan_settings(const EncodeOptions& options) {
+  PlanSettings settings;
+  SelectionOptions& selection = settings.selection;
+  selection.fraction = options.keyframe_fraction;
+  selection.max_error = options.max_error;
+  selection.error_bound = options.keyframe_error_bound;
+  selection.p99_bound = options.keyframe_p99_bound;
+  selection.sparse_interval = options.sparse_frame_interval;
+  selection.spline = options.spline;
+  selection.residuals = options.residual_frames;
+  settings.reference_frame = options.reference_frame;
+  settings.grid = options.grid;
+  settings.density_equalising = options.density_equalising.strength != 0;
+  settings.representation = options.representation;
+  settings.threads = options.threads;
+  return settings;
+}
+
+PlanFrames plan_frames(const SequenceEncoder& encoder) {
+  return {encoder.capture().frames, encoder.selection(), encoder.maps(), encoder.frame_sampler()};
+}
+
+void adopt_chosen_representation(SequenceEncoder& encoder, const PlanSettings& settings, const KeyframeSelection& chosen, int grid) {
+  const RepresentationDecision decision = choose_representation(settings, plan_frames(encoder), chosen, grid, encoder.report());
+  encoder.adopt_representation(decision.representation, decision.blend);
+}
+
+void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
+  adopt_chosen_representation(encoder, plan_settings(encoder.options()), chosen, grid);
+}
+
 KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   const auto start = std::chrono::steady_clock::now();
-  const KeyframeSelection chosen = select_keyframes(encoder);
+  const PlanSettings settings = plan_settings(encoder.options());
+  const PlanFrames frames = plan_frames(encoder);
+  const KeyframeSelection chosen = select_keyframes(settings, frames.selection);
   EncodeReport& report = encoder.report();
   report_selection(report, chosen);
-  report.grid = choose_grid(encoder, &chosen);
-  choose_representation(encoder, chosen, report.grid);
+  report.grid = choose_grid(settings, frames, report, &chosen);
+  adopt_chosen_representation(encoder, settings, chosen, report.grid);
   release_samples(encoder, chosen.keyframes);
   report.seconds_planning = seconds_since(start);
   return chosen;
@@ -294,23 +318,32 @@ std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, 
 
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   EncodeReport& report = encoder.report();
+  const FieldPrecisionOptions precision = field_precision_options(encoder.options(), chosen);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(encoder, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
-        if (encoder.options().predicted_fields) report.field_coding = round_fields(encoder, keyframes, chosen);
+        if (encoder.options().predicted_fields) report.field_coding = round_fields(precision, keyframes, report);
       });
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp).
   if (encoder.options().residual_frames)
     sequence->set_residuals(fit_decoded_residuals(registered_frames(encoder), *sequence, chosen.keyframes, SelectionOptions().residual_step,
                                                   &report.residual_fit));
-  code_textures(encoder, *sequence, chosen.keyframes);
+  code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, chosen.keyframes, report);
   return sequence;
+}
+
+TextureSettings texture_settings(const EncodeOptions& options) {
+  return {options.texture_quality, options.texture_codec, options.texture_coding, options.share_textures, options.threads};
+}
+
+TextureFrameSource texture_frames(const SequenceEncoder& encoder) {
+  return {encoder.capture().frames, encoder.maps(), encoder.frame_sampler()};
 }
 
 RegisteredFrames registered_frames(const SequenceEncoder& encoder) {
   RegisteredFrames frames;
   for (const CaptureFrame& f : encoder.capture().frames) frames.times.push_back(f.time);
   for (const SelectionFrame& f : encoder.selection().frames()) frames.diagonals.push_back(f.diagonal);
-  frames.surface = [&encoder](int i, std::span<const Vec2> nodes) { return encoder.sample_surface(i, nodes); };
+  frames.surface = [sampler = encoder.frame_sampler()](int i, std::span<const Vec2> nodes) { return sampler.sample_surface(i, nodes); };
   return frames;
 }
 

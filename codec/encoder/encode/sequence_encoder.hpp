@@ -19,6 +19,7 @@
 #include "codec/encoder/encode/frame_maps.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/encode/frame_registrations.hpp"
+#include "codec/encoder/encode/frame_sampler.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
@@ -29,6 +30,8 @@
 #include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
+#include "codec/encoder/stages/plan_keyframes.hpp"
+#include "codec/encoder/stages/texture_coding.hpp"
 #include "format/error.hpp"
 
 #include <filesystem>
@@ -172,25 +175,11 @@ class SequenceEncoder {
   std::shared_ptr<const DiskRegistration> registration(int i) const { return registrations_.registration(i); }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
   const GeodesicFrame* geodesic_frame() const { return registrations_.geodesic_frame(); }
-  // Where frame i is sampled for disk points of G (or of the disk texture): the reference's
-  // reparametrisation, then the frame's registration (after register_frames). A sampler holds the
-  // registration it read back; sample_points reads it for one call.
-  class Sampler {
-   public:
-    Sampler(const DiskReparametrisation& reparametrisation, std::shared_ptr<const DiskRegistration> registration)
-        : reparametrisation_(reparametrisation), registration_(std::move(registration)) {}
-    Vec2 operator()(const Vec2& node) const { return (*registration_)(reparametrisation_(node)); }
-
-   private:
-    const DiskReparametrisation& reparametrisation_;
-    std::shared_ptr<const DiskRegistration> registration_;
-  };
-  Sampler sampler(int i) const { return Sampler(reparametrisation(), registration(i)); }
-  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const { return registrations_.sample_points(i, nodes); }
-  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample;
-  // the second from frame i's map as the caller loaded it (once, for several uses).
-  std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
+  // Where frame i is sampled (FrameSampler::sampler), after register_frames.
+  using Sampler = RegistrationSampler;
+  Sampler sampler(int i) const { return frame_sampler().sampler(i); }
+  // The frames' registered surfaces and colours, over the map and register stages' state (frame_sampler.hpp).
+  FrameSampler frame_sampler() const { return FrameSampler(maps_, registrations_); }
   const DiskReparametrisation& reparametrisation() const { return registrations_.reparametrisation(); }
   // The capture's first and last frame times as given (seconds): dropping its end frames does not
   // shorten it.
@@ -199,12 +188,6 @@ class SequenceEncoder {
   const std::filesystem::path& texture_path(int i) const { return maps_.textures[static_cast<size_t>(i)]; }
   // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
   bool has_texture(int i) const { return maps_.has_texture(i); }
-  // Frame i's own colour on the size x size disk texture, sampled through its registration as a
-  // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
-  // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
-  Image frame_texture(int i, int size) const;
-  // The same from frame i's map as the caller loaded it.
-  Image frame_texture(const MappedFrame& frame, int i, int size) const;
   EncodeReport& report() { return report_; }
   // Tells options().progress (where set) that `done` of `total` frames went through `stage`.
   void progress(const std::string& stage, int done, int total) const {
@@ -279,21 +262,13 @@ void count_found_landmarks(EncodeReport& report, const FrameSummary& frame, bool
 // 3. Every registered frame on the selection grid (SelectionSamples::kGrid), in the face frame, with
 // its rigid head pose: into encoder.selection(), the samples of an earlier sampling replaced.
 void sample_frames(SequenceEncoder& encoder);
-// 4. The keyframes, by the spline's predicted error on the selection grid (options().keyframe_fraction,
-// max_error, keyframe_error_bound, sparse_frame_interval, spline, residual_frames). kInternal once
-// the selection's samples are released.
-KeyframeSelection select_keyframes(const SequenceEncoder& encoder);
-// 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
-// noise and, given the keyframes `chosen`, the error the spline makes between them; what the
-// automatic choice measured goes to report() (grid_floors, grid_target, grid_term, ...).
-int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen = nullptr);
-// 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
-// most frames were registered without interior landmarks, the hl+t fields and the positions of
-// `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
-// G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
-// not show them); xyz where the fields come out farther by more than kFieldsBlendMargin, or on a
-// radially spread disk. Adopted (adopt_representation); report().seconds_representation.
-void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
+// 4, 5, 5½: select, N and the representation, over their settings and PlanFrames (stages/plan_keyframes.hpp).
+// The plan stage's view of `encoder`'s state after sample_frames (holds references into it).
+PlanFrames plan_frames(const SequenceEncoder& encoder);
+// choose_representation on `encoder`'s frames, its decision adopted (SequenceEncoder::adopt_representation);
+// the settings from the encoder's options where not given.
+void adopt_chosen_representation(SequenceEncoder& encoder, const PlanSettings& settings, const KeyframeSelection& chosen, int grid);
+void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 // 6. The keyframes on G of size `grid`: fields (in encoder.representation()), poses, holes,
 // textures, each array put in the store as it is made (options().spill_keyframes); with
 // options().keyframe_fit, fitted to every frame. With `segment`: only its keyframes, fitted over
@@ -310,26 +285,15 @@ Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyfra
 // 7. The field precision's options: options.field_precision with the encode's spill and threads,
 // and with auto_field_error two fifths of `chosen`'s mean predicted error as the target.
 FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
-// The fields rounded as the file will store them (field_precision_options): what a file written
-// with the returned coding (SequenceFileMetadata::field_coding) holds. Fills the encoder's
-// report().field_precision and seconds_precision.
-FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keyframes, const KeyframeSelection& chosen);
-FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen);
-// 8. Each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
-// at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
-// what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
-// build. Fills report().texture_qualities; empty for a sequence without texture.
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes);
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes);
-// 9. Keyframes whose textures are painted from one captured image (the same file, or the same
-// pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
-// keyframe's texture where the two are within options().texture_coding.min_psnr of each other
-// over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
-// report().texture_shared_with and texture_share_psnr.
-void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
-void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes);
-// 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
-void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+// The fields rounded to `precision` (field_precision_options) as the file will store them: what a
+// file written with the returned coding (SequenceFileMetadata::field_coding) holds. Fills
+// report.field_precision and seconds_precision.
+FieldCoding round_fields(const FieldPrecisionOptions& precision, StoredSequence& keyframes, EncodeReport& report);
+FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& sequence, EncodeReport& report);
+// 8, 9: the texture stage over its settings (stages/texture_coding.hpp), derived once from the options;
+// texture_frames: its view of `encoder`'s frames (holds references into it).
+TextureSettings texture_settings(const EncodeOptions& options);
+TextureFrameSource texture_frames(const SequenceEncoder& encoder);
 
 // ---- The driver ----
 
