@@ -66,16 +66,18 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     body();
     stage_seconds[stage] += seconds_since(start);
   };
-  timed("mapping", [&] { encoder.map_frames(); });
-  timed("registration", [&] { encoder.register_frames(); });
+  timed("mapping", [&] { map_frames(encoder); });
+  timed("registration", [&] { register_frames(encoder); });
   timed("sampling", [&] { sample_frames(encoder); });
   // fmenc's order: the keyframes first, then the grid their predicted error allows.
   FacemorphPoints points;
   KeyframeSelection main_chosen;
-  if (!given) timed("selection", [&] { main_chosen = select_keyframes(encoder); });
+  if (!given) timed("selection", [&] { main_chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection()); });
   int& grid = points.grid;
-  timed("grid", [&] { grid = given ? given->grid_n : choose_grid(encoder, &main_chosen); });
-  if (!given) timed("representation", [&] { choose_representation(encoder, main_chosen, grid); });
+  timed("grid", [&] {
+    grid = given ? given->grid_n : choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &main_chosen);
+  });
+  if (!given) timed("representation", [&] { adopt_chosen_representation(encoder, main_chosen, grid); });
   const Representation main_representation = given ? given->representation : encoder.representation();
   progress.finish();
 
@@ -194,8 +196,10 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
       continue;
     }
     encoder.options().keyframe_fraction = budget;
-    const KeyframeSelection chosen = select_keyframes(encoder);
-    const int budget_grid = given ? grid : choose_grid(encoder, &chosen);  // as fmenc would for this budget
+    const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
+    const int budget_grid = given ? grid
+                                  : choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(),
+                                                &chosen);  // as fmenc would for this budget
     std::vector<uint8_t> bytes;
     SequenceFileInfo info;
     const Sequence sequence = encode_file(chosen, budget_grid, main_sequence.representation, bytes, info);

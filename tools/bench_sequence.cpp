@@ -132,7 +132,7 @@ Evaluation evaluate(const SequenceEncoder& encoder, const Sequence& sequence, co
     f.max = d.max / d.diagonal;
     f.p99 = d.p99 / d.diagonal;
     if (textures && !f.keyframe && !decoded.texture.empty()) {
-      const Image truth = encoder.frame_texture(i, decoded.texture.width);
+      const Image truth = encoder.frame_sampler().frame_texture(i, decoded.texture.width);
       f.psnr = disk_psnr(truth, decoded.texture);
     }
     if (on_decoded) on_decoded(i, decoded);

@@ -40,9 +40,12 @@ bool through_file = false;
 
 Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelection& chosen, size_t* file_bytes = nullptr) {
   if (!through_file) return sequence;
-  const FieldCoding coding = round_fields(encoder, sequence, chosen);
+  const FieldCoding coding = round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
   std::vector<uint8_t> file;
-  Sequence back = file_round_trip(sequence, choose_texture_qualities(encoder, sequence, chosen.keyframes), &file, nullptr, coding);
+  Sequence back = file_round_trip(
+      sequence,
+      choose_texture_qualities(texture_settings(encoder.options()), texture_frames(encoder), sequence, chosen.keyframes, encoder.report()),
+      &file, nullptr, coding);
   if (file_bytes) *file_bytes = file.size();
   return back;
 }
@@ -192,7 +195,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     Progress progress(input, options.quiet);
     encode.progress = [&](const std::string&, int done, int total) { progress.update(done, total); };
     SequenceEncoder encoder(capture, encode);
-    encoder.map_frames();
+    map_frames(encoder);
     progress.finish();
     std::vector<TriangleMesh> captured;
     for (int i = 0; i < count; ++i)
@@ -213,11 +216,11 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     for (RegistrationMethod method : methods) {
       encoder.options().registration.method = method;
       encoder.options().spline = splines.front();
-      encoder.register_frames();
+      register_frames(encoder);
       sample_frames(encoder);
-      const KeyframeSelection chosen = select_keyframes(encoder);
+      const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
       if (grid == 0) {
-        grid = choose_grid(encoder, &chosen);
+        grid = choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen);
         if (!encoder.report().grid_floors.empty()) {
           std::printf("    --grid auto: N = %d (median frame noise %.4f%%; floors", grid, 100 * encoder.report().median_noise);
           for (const auto& [n, floor] : encoder.report().grid_floors) std::printf(" %d: %.4f%%", n, 100 * floor);
@@ -317,7 +320,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         std::find(methods.begin(), methods.end(), default_method) != methods.end() ? default_method : methods.back();
     if (encoder.registration(0)->method != main_method) {
       encoder.options().registration.method = main_method;
-      encoder.register_frames();
+      register_frames(encoder);
       sample_frames(encoder);
     }
     // Spline kinds, same keyframes count, each choosing its own keyframes.
@@ -325,7 +328,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
       json kinds = json::array();
       for (SplineKind kind : splines) {
         encoder.options().spline = kind;
-        const KeyframeSelection chosen = select_keyframes(encoder);
+        const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
         Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
         const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
         print_evaluation(input, e);
@@ -370,7 +373,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
         double tolerance = target;
         for (int attempt = 0; attempt < 4; ++attempt) {
           encoder.options().max_error = tolerance;
-          const KeyframeSelection chosen = select_keyframes(encoder);
+          const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
           const Sequence sequence = stored(encoder, build_sequence(encoder, chosen.keyframes, grid), chosen);
           const Evaluation e = evaluate(encoder, sequence, chosen.keyframes, captured, every, false);
           const double worst = summarise(e).held_rms_worst;

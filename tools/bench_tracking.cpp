@@ -34,7 +34,7 @@ void measure_accuracy(const TrackingBenchOptions& o) {
   options.texture = false;
   options.largest_component = true;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
+  map_frames(encoder);
   const Capture& kept = encoder.capture();
   std::vector<size_t> interior;
   for (size_t l = 0; l < kept.landmark_names.size(); ++l) {
@@ -123,7 +123,7 @@ void measure_selection(const TrackingBenchOptions& o) {
   options.texture = false;
   options.residual_frames = false;  // keyframes selected for sequences built without residuals
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
+  map_frames(encoder);
   const std::string& text = o.variants;
   for (size_t begin = 0; begin < text.size();) {
     size_t end = text.find(';', begin);
@@ -137,9 +137,9 @@ void measure_selection(const TrackingBenchOptions& o) {
     if (window > 0) encoder.options().tracking.window = static_cast<int>(window);
     if (round_trip > 0) encoder.options().tracking.max_round_trip = round_trip;
     encoder.options().registration.smoothing = smoothing;
-    encoder.register_frames();
+    register_frames(encoder);
     sample_frames(encoder);
-    const KeyframeSelection chosen = select_keyframes(encoder);
+    const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
     double sum = 0;
     int n = 0;
     for (double e : chosen.predicted_error) {

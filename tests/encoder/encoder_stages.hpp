@@ -14,8 +14,8 @@ namespace facemorph::testing {
 // from (select_keyframes, choose_grid, choose_representation, build_keyframes), as
 // encode_capture_stored leaves it before its driver's plan.
 inline void run_to_selection(SequenceEncoder& encoder) {
-  encoder.map_frames();
-  encoder.register_frames();
+  map_frames(encoder);
+  register_frames(encoder);
   sample_frames(encoder);
 }
 

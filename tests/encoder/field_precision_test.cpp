@@ -286,9 +286,10 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   const Capture capture = read_capture(dir.path());  // the encoder reads it, never owns it
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const KeyframeSelection chosen = select_keyframes(encoder);
-  Sequence sequence = build_sequence(encoder, chosen.keyframes, choose_grid(encoder, &chosen));
-  round_fields(encoder, sequence, chosen);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
+  Sequence sequence = build_sequence(encoder, chosen.keyframes,
+                                     choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen));
+  round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {

@@ -53,7 +53,7 @@ TEST(SequenceEncoder, AMappingErrorNamesItsFrame) {
   options.conformal.max_iterations = 0;
   options.threads = 1;
   SequenceEncoder encoder(capture, options);
-  testing::expect_error(ErrorCode::kNotConverged, "frame_0000.obj: QIEM: no convergence in 0 steps", [&] { encoder.map_frames(); });
+  testing::expect_error(ErrorCode::kNotConverged, "frame_0000.obj: QIEM: no convergence in 0 steps", [&] { map_frames(encoder); });
 }
 
 // The registration's input: every landmark both frames have, in the capture's order; rim_*
@@ -66,7 +66,7 @@ TEST(SequenceEncoder, DiskLandmarksFlagTheRimMarkersAndOnlyThem) {
   EncodeOptions options;
   options.texture = false;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
+  map_frames(encoder);
   const DiskLandmarks l = disk_landmarks(capture, 0, encoder.frame(0)->map, 2, encoder.frame(2)->map);
   ASSERT_EQ(l.reference.size(), capture.landmark_names.size());
   int rim = 0;
@@ -146,7 +146,7 @@ TEST(SequenceEncoder, AFrameThatCannotBeEncodedIsDroppedAndNamed) {
     options.spill_frames = spill;
     SequenceEncoder encoder(capture, options);
     EXPECT_TRUE(encoder.capture().landmarks.empty());
-    encoder.map_frames();
+    map_frames(encoder);
     ASSERT_EQ(encoder.frame_count(), static_cast<int>(capture.frames.size()) - 1);
     for (int i = 0; i < encoder.frame_count(); ++i) {
       const auto source = static_cast<size_t>(encoder.source_index(i));
@@ -195,9 +195,9 @@ TEST(SequenceEncoder, FramesDroppedAtRegistrationLeaveTheOthersTheirOwn) {
     SCOPED_TRACE(spill ? "spilled" : "in memory");
     options.spill_frames = spill;
     SequenceEncoder encoder(capture, options);
-    encoder.map_frames();
+    map_frames(encoder);
     ASSERT_EQ(encoder.frame_count(), 12);
-    encoder.register_frames();
+    register_frames(encoder);
     ASSERT_EQ(encoder.report().dropped.size(), 2u);
     EXPECT_EQ(encoder.report().dropped[0].index, 3);
     EXPECT_EQ(encoder.report().dropped[1].index, 4);
@@ -210,11 +210,24 @@ TEST(SequenceEncoder, FramesDroppedAtRegistrationLeaveTheOthersTheirOwn) {
       EXPECT_LT(matching_energy(*f, l), 1e-6) << "frame " << encoder.source_index(i);
     }
   }
+  {
+    // Frames dropped before the reference renumber it: its map stays pinned under its new number
+    // (FrameMaps::keep), so every frame still reads back its own map.
+    options.reference_frame = 8;
+    SequenceEncoder encoder(capture, options);
+    map_frames(encoder);
+    register_frames(encoder);
+    ASSERT_EQ(encoder.options().reference_frame, 6);
+    for (int i = 0; i < encoder.frame_count(); ++i)
+      EXPECT_EQ(encoder.frame(i)->name, encoder.capture().frames[static_cast<size_t>(i)].mesh.string())
+          << "frame " << encoder.source_index(i);
+    options.reference_frame = 0;
+  }
   options.spill_frames = true;
   SequenceEncoder encoder(capture, options);
-  encoder.map_frames();
+  map_frames(encoder);
   const testing::ScopedEnv no_temporary_folder("TMPDIR", (dir.path() / "no-such-folder").string());
-  testing::expect_error(ErrorCode::kIo, "the frames' registrations", [&] { encoder.register_frames(); });
+  testing::expect_error(ErrorCode::kIo, "the frames' registrations", [&] { register_frames(encoder); });
 }
 
 // Without landmarks and without tracking, every frame gets its nose tip, up and rim markers from its
@@ -230,7 +243,7 @@ TEST(SequenceEncoder, LandmarksFoundFromTheGeometryAreKeptForTheRegistration) {
     SCOPED_TRACE(spill ? "spilled" : "in memory");
     options.spill_frames = spill;
     SequenceEncoder encoder(capture, options);
-    encoder.map_frames();
+    map_frames(encoder);
     const std::vector<std::string>& names = encoder.capture().landmark_names;
     for (int i = 0; i < encoder.frame_count(); ++i) {
       const std::vector<Vec3> points = encoder.landmarks(i);
@@ -242,7 +255,7 @@ TEST(SequenceEncoder, LandmarksFoundFromTheGeometryAreKeptForTheRegistration) {
       }
       EXPECT_EQ(rim, 6) << "frame " << i;
     }
-    encoder.register_frames();
+    register_frames(encoder);
     EXPECT_TRUE(encoder.report().dropped.empty()) << encoder.report().dropped.front().reason;
   }
 }
@@ -313,8 +326,8 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
   options.tracking.spacing = 0.1;
   for (const Capture* capture : {&given, &bare}) {
     SequenceEncoder encoder(*capture, options);
-    encoder.map_frames();
-    encoder.register_frames();
+    map_frames(encoder);
+    register_frames(encoder);
     const double expected = capture == &bare ? options.tracking.registration_smoothing : 0.0;
     for (int i = 1; i < encoder.frame_count(); ++i) {
       if (encoder.registration(i)->fallback == RegistrationFallback::kNone) {

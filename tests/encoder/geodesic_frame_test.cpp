@@ -447,7 +447,7 @@ class FaceFrame : public ::testing::Test {
     options.texture = false;
     options.grid = 65;
     encoder_ = new SequenceEncoder(*capture_, options);
-    encoder_->map_frames();
+    map_frames(*encoder_);
     const std::shared_ptr<const MappedFrame> reference = encoder_->frame(0);
     landmarks_ = new DiskLandmarks(disk_landmarks(*capture_, 0, reference->map, 0, reference->map));
     frame_ = new GeodesicFrame(make_geodesic_frame(reference->map, landmarks_->reference, landmarks_->on_rim));
@@ -545,7 +545,7 @@ TEST_F(FaceFrame, RegisteringTheReferenceToItselfIsTheIdentity) {
 
 TEST_F(FaceFrame, TheEncoderRegistersThroughTheFrame) {
   encoder_->options().registration.method = RegistrationMethod::kFrame;
-  encoder_->register_frames();
+  register_frames(*encoder_);
   ASSERT_NE(encoder_->geodesic_frame(), nullptr);
   EXPECT_EQ(encoder_->geodesic_frame()->graph_points, frame_->graph_points);  // the reference's frame, built once
   for (int i = 0; i < encoder_->frame_count(); ++i) {
@@ -564,7 +564,7 @@ TEST_F(FaceFrame, TheEncoderRegistersThroughTheFrame) {
   EXPECT_LT(((*encoder_->registration(0))(Vec2(0.3, -0.2)) - Vec2(0.3, -0.2)).norm(), 1e-9);
   // Other methods do not build a frame.
   encoder_->options().registration.method = RegistrationMethod::kGmf;
-  encoder_->register_frames();
+  register_frames(*encoder_);
   EXPECT_EQ(encoder_->geodesic_frame(), nullptr);
   EXPECT_EQ(encoder_->registration(1)->method, RegistrationMethod::kGmf);
 }

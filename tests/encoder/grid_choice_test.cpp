@@ -105,7 +105,7 @@ TEST(GridChoice, ALowVertexCaptureGetsAGridSizedToItsMesh) {
   options.texture = false;
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const int n = choose_grid(encoder);
+  const int n = choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report());
   const EncodeReport& report = encoder.report();
   ASSERT_GT(report.grid_vertex_area, 0);
   EXPECT_EQ(report.grid_density_cap, density_grid_cap(report.grid_vertex_area));

@@ -48,7 +48,7 @@ BothFits encode_both(const Capture& capture) {
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
   BothFits e;
-  e.keyframes = select_keyframes(encoder).keyframes;
+  e.keyframes = select_keyframes(plan_settings(encoder.options()), encoder.selection()).keyframes;
   encoder.options().keyframe_fit = true;
   e.fitted = std::make_shared<const Sequence>(build_sequence(encoder, e.keyframes, kGrid));
   encoder.options().keyframe_fit = false;
@@ -134,7 +134,7 @@ TEST(KeyframeFit, TheNoiseBoundKeepsACleanCapturesKeyframesWhereTheyAre) {
   options.texture = false;
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const std::vector<int> keys = select_keyframes(encoder).keyframes;
+  const std::vector<int> keys = select_keyframes(plan_settings(encoder.options()), encoder.selection()).keyframes;
   ASSERT_EQ(keys.size(), 2u);
   auto moved = [&](double kappa) {
     encoder.options().keyframe_fit = true;

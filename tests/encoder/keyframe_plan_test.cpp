@@ -61,7 +61,7 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
     auto encoder = std::make_unique<SequenceEncoder>(capture, o);
     testing::run_to_selection(*encoder);
     EXPECT_EQ(encoder->report().frames_without_interior_landmarks, expected_without);
-    choose_representation(*encoder, chosen, 33);
+    adopt_chosen_representation(*encoder, chosen, 33);
     EXPECT_EQ(encoder->report().representation, encoder->representation());
     return encoder;
   };
@@ -82,8 +82,8 @@ TEST(SequenceEncoder, TheRepresentationFollowsHowTheKeyframesBlend) {
       }
     }
     SequenceEncoder encoder(capture, options);
-    encoder.map_frames();
-    encoder.register_frames();
+    map_frames(encoder);
+    register_frames(encoder);
     EXPECT_EQ(encoder.report().dropped.size(), 3u);
     EXPECT_EQ(encoder.report().frames_without_interior_landmarks, 0);
   }
@@ -174,7 +174,7 @@ TEST(SequenceEncoder, AutomaticGridFollowsTheFloorButNotTheNoise) {
     options.texture = false;
     SequenceEncoder encoder(capture, options);
     testing::run_to_selection(encoder);
-    const int n = choose_grid(encoder);
+    const int n = choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report());
     *median_noise = encoder.report().median_noise;
     const auto& floors = encoder.report().grid_floors;
     EXPECT_FALSE(floors.empty());
@@ -523,11 +523,11 @@ TEST(SequenceEncoder, AutomaticGridStopsAtAShareOfThePredictedError) {
   options.keyframe_error_bound = 0;  // the budget exactly: two keyframes
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const KeyframeSelection chosen = select_keyframes(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   EXPECT_EQ(chosen.keyframes.size(), 2u);
-  const int alone = choose_grid(encoder);
+  const int alone = choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report());
   const double alone_target = encoder.report().grid_target;
-  const int with_keys = choose_grid(encoder, &chosen);
+  const int with_keys = choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen);
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {

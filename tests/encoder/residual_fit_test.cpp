@@ -87,7 +87,7 @@ struct FastSpeech {
     options.texture = false;
     encoder = std::make_unique<SequenceEncoder>(capture, options);
     testing::run_to_selection(*encoder);
-    keyframes = select_keyframes(*encoder).keyframes;
+    keyframes = select_keyframes(plan_settings(encoder->options()), encoder->selection()).keyframes;
   }
 };
 

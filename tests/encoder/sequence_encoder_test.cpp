@@ -154,11 +154,11 @@ TEST(SequenceEncoder, VertexColoursPaintTheDiskLikeTheTextureImage) {
   EXPECT_TRUE(frame.texture.empty());
   SequenceEncoder a(coloured, {}), b(textured, {});
   for (SequenceEncoder* e : {&a, &b}) {
-    e->map_frames();
-    e->register_frames();
+    map_frames(*e);
+    register_frames(*e);
   }
   ASSERT_TRUE(a.has_texture(0));
-  const Image painted = a.frame_texture(0, 256), imaged = b.frame_texture(0, 256);
+  const Image painted = a.frame_sampler().frame_texture(0, 256), imaged = b.frame_sampler().frame_texture(0, 256);
   std::printf("painted against the image's disk texture: %.2f dB; against grey %.2f dB\n", image_psnr(painted, imaged),
               image_psnr(painted, grey_like(painted)));
   // The image holds freckles finer than 4000 vertices resolve: close, not equal (measured 33.9 dB;
@@ -177,13 +177,14 @@ TEST(SequenceEncoder, AVertexColouredCaptureEncodesAndDecodesWithItsColour) {
   options.grid = 49;
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const KeyframeSelection chosen = select_keyframes(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   Sequence sequence = build_sequence(encoder, chosen.keyframes, 49);
   ASSERT_TRUE(sequence.has_texture());
   // --texture auto from the vertex density (spec/method.md §7.7): 1.5 √(2 V · 4/π) for V ≈ 4000
   // vertices is ~151, rounded up to 192 (any V from 2860 to 5090 gives 192).
   EXPECT_EQ(encoder.report().texture_size, 192);
-  const std::vector<int> qualities = choose_texture_qualities(encoder, sequence, chosen.keyframes);
+  const std::vector<int> qualities =
+      choose_texture_qualities(texture_settings(encoder.options()), texture_frames(encoder), sequence, chosen.keyframes, encoder.report());
   SequenceFileMetadata metadata;
   metadata.landmark_names = capture.landmark_names;
   metadata.keyframe_texture_qualities = qualities;
@@ -194,7 +195,7 @@ TEST(SequenceEncoder, AVertexColouredCaptureEncodesAndDecodesWithItsColour) {
   for (int i = 0; i < encoder.frame_count(); ++i) {
     const DecodedFrame decoded = decoder.decode(capture.frames[static_cast<size_t>(i)].time);
     ASSERT_EQ(decoded.texture.width, 192);
-    const Image truth = encoder.frame_texture(i, decoded.texture.width);
+    const Image truth = encoder.frame_sampler().frame_texture(i, decoded.texture.width);
     const double psnr = image_psnr(truth, decoded.texture);
     const bool key = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
     (key ? worst_key : worst_held) = std::min(key ? worst_key : worst_held, psnr);

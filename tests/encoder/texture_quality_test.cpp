@@ -141,13 +141,16 @@ TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
   options.predicted_fields = false;
   SequenceEncoder encoder(capture, options);
   testing::run_to_selection(encoder);
-  const KeyframeSelection chosen = select_keyframes(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   const Sequence sequence = build_sequence(encoder, chosen.keyframes, options.grid);
-  const std::vector<int> automatic = choose_texture_qualities(encoder, sequence, chosen.keyframes);
+  const std::vector<int> automatic =
+      choose_texture_qualities(texture_settings(encoder.options()), texture_frames(encoder), sequence, chosen.keyframes, encoder.report());
   ASSERT_EQ(automatic.size(), sequence.keyframes.size());
   for (double db : encoder.report().texture_interpolation_psnr) EXPECT_GT(db, 20);
   encoder.options().texture_quality = 90;
-  EXPECT_EQ(choose_texture_qualities(encoder, sequence, chosen.keyframes), std::vector<int>(sequence.keyframes.size(), 90));
+  EXPECT_EQ(
+      choose_texture_qualities(texture_settings(encoder.options()), texture_frames(encoder), sequence, chosen.keyframes, encoder.report()),
+      std::vector<int>(sequence.keyframes.size(), 90));
 
   auto through_file = [&](const std::vector<int>& qualities, uint64_t& texture_bytes) {
     SequenceFileMetadata metadata;

@@ -11,8 +11,25 @@
 
 namespace facemorph {
 
-SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions options)
-    : options_(std::move(options)), store_(std::make_unique<FrameStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory)) {
+namespace {
+
+// A sampled frame's registration (add_sampled_frame), through `partition` (the reference's
+// geodesic frame's, null without one); kCorrupt naming the frame where the bytes are not one.
+DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes,
+                                           const std::shared_ptr<const PartitionMesh>& partition) {
+  // From a part file: bytes the stores never wrote themselves, so read as untrusted.
+  try {
+    DiskRegistration f = RegistrationStore::deserialize(bytes.data(), bytes.size(), partition);
+    RegistrationStore::check(f);
+    return f;
+  } catch (const Error& e) {
+    throw Error(ErrorCode::kCorrupt, name + ": its registration: " + e.what());
+  }
+}
+
+}  // namespace
+
+SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions options) : options_(std::move(options)) {
   if (capture.frame_count <= 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture.reference < 0 || capture.reference >= capture.frame_count || capture.given_reference < 0 ||
       capture.given_reference >= capture.frame_count) {
@@ -31,11 +48,11 @@ SequenceEncoder::SequenceEncoder(const SampledCapture& capture, EncodeOptions op
   options_.reference_frame = 0;  // until the reference's frame comes (add_sampled_frame)
   check_encode_options(options_, capture.frame_count);
   const auto count = static_cast<size_t>(capture.frame_count);
-  store_->reset(count);
-  landmarks_ = make_landmark_store(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
+  const SpillMode mode = options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory;
+  maps_.start(count, mode);
+  landmarks_ = make_landmark_store(mode);
   landmarks_->reset(count);
-  registrations_ = std::make_unique<RegistrationStore>(options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
-  selection_.start(count, options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
+  selection_.start(count, mode);
   report_.reference_frame = capture.reference;
 }
 
@@ -60,7 +77,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     throw Error(ErrorCode::kInvalidArgument,
                 "frame " + std::to_string(f.index) + " came where frame " + std::to_string(next_sampled_) + " was due");
   }
-  if (f.index >= static_cast<int>(store_->size()))
+  if (f.index >= static_cast<int>(maps_.size()))
     throw Error(ErrorCode::kInvalidArgument, "frame " + std::to_string(f.index) + " is past the capture");
   ++next_sampled_;
   if (!capture_.frames.empty() && !(f.time > capture_.frames.back().time)) {
@@ -68,7 +85,7 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   }
   report_.warnings.insert(report_.warnings.end(), f.warnings.begin(), f.warnings.end());
   if (!f.warnings.empty()) warnings_by_frame_[f.index] = f.warnings;
-  if (f.mapped) count_found_landmarks(f.summary, given_rim_);
+  if (f.mapped) count_found_landmarks(report_, f.summary, given_rim_);
   if (!f.dropped.empty()) {
     if (f.index == sampled_reference_) throw Error(ErrorCode::kInvalidArgument, f.name + ": the reference frame is given as dropped");
     report_.dropped.push_back({f.index, f.name, f.time, f.dropped});
@@ -91,31 +108,31 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     // Every stage reads the reference: its map is pinned, its disk reparametrised, and (kFrame)
     // its geodesic frame built again from its disk and landmarks, as register_frames built it.
     options_.reference_frame = static_cast<int>(i);
-    pinned_index_ = static_cast<int>(i);
-    pinned_ = std::make_shared<const MappedFrame>(mapped);
-    set_reference_geometry(*pinned_, f.landmarks);
-    registrations_->reset(store_->size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
+    maps_.pin(static_cast<int>(i), std::make_shared<const MappedFrame>(mapped));
+    set_reference_geometry(registrations_, *frame(static_cast<int>(i)), capture_.landmark_names, f.landmarks, options_.density_equalising,
+                           options_.registration.method, report_);
+    registrations_.start(maps_.size(), options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
     for (auto& [k, pending] : pending_registrations_)
-      registrations_->put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending));
+      registrations_.put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending, registrations_.partition()));
     pending_registrations_.clear();
     selection_.outline(i).local = f.selection.local;  // pose_centre reads them after the samples are released
   }
-  if (registrations_->size() == store_->size()) {
-    registrations_->put(i, read_sampled_registration(f.name, f.registration));
+  if (registrations_.started()) {
+    registrations_.put(i, read_sampled_registration(f.name, f.registration, registrations_.partition()));
   } else {
     // Before the reference came, a registration through its geodesic frame has no partition yet.
     pending_registrations_.emplace_back(i, std::move(f.registration));
   }
   if (f.map_source) {
-    store_->put_source(i, std::move(f.map_source));
+    maps_.store().put_source(i, std::move(f.map_source));
   } else {
-    store_->put(i, FrameStore::deserialize(f.map.data(), f.map.size()));
+    maps_.store().put(i, FrameStore::deserialize(f.map.data(), f.map.size()));
   }
   capture_.frames.push_back({f.name, f.time});
   source_index_.push_back(f.index);
-  summaries_.push_back(std::move(f.summary));
-  textures_.push_back(std::move(f.texture));
-  without_interior_.push_back(f.without_interior_landmarks ? 1 : 0);
+  maps_.summaries.push_back(std::move(f.summary));
+  maps_.textures.push_back(std::move(f.texture));
+  registrations_.without_interior.push_back(f.without_interior_landmarks ? 1 : 0);
   landmarks_->put(i, std::move(f.landmarks));
   SelectionFrame& outline = selection_.outline(i);
   outline.time = f.selection.time;
@@ -124,29 +141,19 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
   selection_.put(i, std::move(f.selection.local), std::move(f.selection.normal));
 }
 
-DiskRegistration SequenceEncoder::read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const {
-  // From a part file: bytes the stores never wrote themselves, so read as untrusted.
-  try {
-    DiskRegistration f = RegistrationStore::deserialize(bytes.data(), bytes.size(), geodesic_frame_ ? geodesic_frame_->partition : nullptr);
-    RegistrationStore::check(f);
-    return f;
-  } catch (const Error& e) {
-    throw Error(ErrorCode::kCorrupt, name + ": its registration: " + e.what());
-  }
-}
-
 void SequenceEncoder::finish_sampled_frames() {
-  if (next_sampled_ != static_cast<int>(store_->size())) {
+  if (next_sampled_ != static_cast<int>(maps_.size())) {
     throw Error(ErrorCode::kInvalidArgument,
-                "frames " + std::to_string(next_sampled_) + " to " + std::to_string(store_->size() - 1) + " never came");
+                "frames " + std::to_string(next_sampled_) + " to " + std::to_string(maps_.size() - 1) + " never came");
   }
-  if (pinned_index_ < 0) throw Error(ErrorCode::kInvalidArgument, "the reference frame never came");
+  if (!registrations_.started()) throw Error(ErrorCode::kInvalidArgument, "the reference frame never came");
   const size_t kept = capture_.frames.size();
   std::vector<size_t> indices(kept);
   std::iota(indices.begin(), indices.end(), 0);
-  store_->keep(indices);
   landmarks_->keep(indices);
-  registrations_->keep(indices);
+  const size_t before = maps_.size();
+  maps_.keep(indices, before);
+  registrations_.keep(indices, before);
   selection_.keep_first(kept);
   if (given_reference_ != sampled_reference_) {
     // As drop_frames says it: after every frame's own warnings.
@@ -157,9 +164,9 @@ void SequenceEncoder::finish_sampled_frames() {
     report_.warnings.push_back(given->name + ": the reference frame was dropped; " +
                                capture_.frames[static_cast<size_t>(options_.reference_frame)].mesh.string() + " is the reference instead");
   }
-  report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior_.begin(), without_interior_.end(), 1));
-  auto_representation_ = Representation::kHLT;
-  report_.representation = representation();
+  const std::vector<char>& without_interior = registrations_.without_interior;
+  report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior.begin(), without_interior.end(), 1));
+  reset_representation();
   report_.peak_selection_samples_in_memory = 0;
 }
 
@@ -168,7 +175,7 @@ void SequenceEncoder::set_source_indices(std::vector<int> indices) {
       std::adjacent_find(indices.begin(), indices.end()) != indices.end() || (!indices.empty() && indices.front() < 0)) {
     throw Error(ErrorCode::kInvalidArgument, "set_source_indices: not an increasing index for each frame");
   }
-  if (store_->size() != 0) throw Error(ErrorCode::kInternal, "set_source_indices: the frames are mapped already");
+  if (maps_.size() != 0) throw Error(ErrorCode::kInternal, "set_source_indices: the frames are mapped already");
   source_index_ = std::move(indices);
 }
 
@@ -198,12 +205,12 @@ void SequenceEncoder::for_each_sampled_frame(const std::function<void(SampledFra
     f.name = capture_.frames[static_cast<size_t>(i)].mesh.string();
     f.time = capture_.frames[static_cast<size_t>(i)].time;
     f.mapped = true;
-    f.summary = summaries_[static_cast<size_t>(i)];
-    f.texture = textures_[static_cast<size_t>(i)];
+    f.summary = frame_summary(i);
+    f.texture = texture_path(i);
     f.landmarks = landmarks(i);
     f.map = FrameStore::serialize(*frame(i));
     f.registration = RegistrationStore::serialize(*registration(i));
-    f.without_interior_landmarks = without_interior_[static_cast<size_t>(i)] != 0;
+    f.without_interior_landmarks = registrations_.without_interior[static_cast<size_t>(i)] != 0;
     f.selection = *selection_.frame(i);
     take(std::move(f));
   }

@@ -404,7 +404,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   if (fallback) warn_stored_as_positions(r);
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first),
                                    s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
-  code_textures(encoder, *sequence, keyframes);
+  code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, keyframes, encoder.report());
   if (placement) {
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(encode_hash));

@@ -28,7 +28,7 @@
 
 namespace facemorph {
 
-std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_store(SpillMode mode) {
+std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode) {
   return std::make_unique<SpilledItems<std::vector<Vec3>>>(
       mode, "the frames' landmarks", "landmarks of frame",
       [](const std::vector<Vec3>& points) {
@@ -44,8 +44,7 @@ std::unique_ptr<SpilledItems<std::vector<Vec3>>> SequenceEncoder::make_landmark_
       });
 }
 
-SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options)
-    : capture_(std::move(capture)), options_(std::move(options)), store_(std::make_unique<FrameStore>()) {
+SequenceEncoder::SequenceEncoder(Capture capture, EncodeOptions options) : capture_(std::move(capture)), options_(std::move(options)) {
   const int count = frame_count();
   if (count == 0) throw Error(ErrorCode::kInvalidArgument, "the capture has no frames");
   if (capture_.landmarks.empty())
@@ -75,51 +74,76 @@ std::vector<Vec3> SequenceEncoder::landmarks(int i) const {
   return points;
 }
 
-std::shared_ptr<const DiskRegistration> SequenceEncoder::registration(int i) const {
-  if (!registrations_) throw Error(ErrorCode::kInternal, "the frames are not registered yet");
-  return registrations_->get(static_cast<size_t>(i));
+void SequenceEncoder::put_landmarks(int i, std::vector<Vec3> points) { landmarks_->put(static_cast<size_t>(i), std::move(points)); }
+
+size_t SequenceEncoder::landmark_name_index(const std::string& name) {
+  const int index = capture_.landmark_index(name);
+  if (index >= 0) return static_cast<size_t>(index);
+  capture_.landmark_names.push_back(name);
+  return capture_.landmark_names.size() - 1;
 }
 
-std::vector<Vec2> SequenceEncoder::sample_points(int i, std::span<const Vec2> nodes) const {
-  std::vector<Vec2> points = reparametrisation_(nodes);
-  const std::shared_ptr<const DiskRegistration> f = registration(i);
-  for (Vec2& p : points) p = (*f)(p);
-  return points;
+void SequenceEncoder::add_frame_warnings(int i, std::vector<std::string> warnings) {
+  report_.warnings.insert(report_.warnings.end(), warnings.begin(), warnings.end());
+  if (!warnings.empty()) warnings_by_frame_[source_index_[static_cast<size_t>(i)]] = std::move(warnings);
 }
 
-std::shared_ptr<const MappedFrame> SequenceEncoder::frame(int i) const {
-  if (i == pinned_index_) return pinned_;
-  return store_->get(static_cast<size_t>(i));
+FrameFailure frame_failure(const Error& e, const std::string& name) {
+  // Stages name their frame; the report names it once.
+  std::string reason = e.what();
+  if (reason.rfind(name + ": ", 0) == 0) reason.erase(0, name.size() + 2);
+  return {e.code(), reason};
 }
 
-std::shared_ptr<const MappedFrame> SequenceEncoder::pin_reference() {
-  if (pinned_index_ != options_.reference_frame) {
-    pinned_.reset();  // first: the old one need not be held beside the new
-    pinned_ = store_->get(static_cast<size_t>(options_.reference_frame));
-    pinned_index_ = options_.reference_frame;
+void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
+  std::vector<size_t> kept;
+  for (size_t i = 0; i < failures.size(); ++i) {
+    if (failures[i].code == ErrorCode::kOk) {
+      kept.push_back(i);
+      continue;
+    }
+    report_.dropped.push_back({source_index_[i], capture_.frames[i].mesh.string(), capture_.frames[i].time, failures[i].reason});
+    // Dropped at registration, the frame was mapped: its summary still counts in what was found.
+    const std::vector<FrameSummary>& summaries = maps_.summaries;
+    if (summaries.size() == failures.size() && !summaries[i].name.empty()) dropped_summaries_[source_index_[i]] = summaries[i];
   }
-  return pinned_;
+  if (kept.size() == failures.size()) return;
+  if (kept.empty()) {
+    const DroppedFrame& first = report_.dropped.front();
+    const auto it = std::find_if(failures.begin(), failures.end(), [](const FrameFailure& f) { return f.code != ErrorCode::kOk; });
+    throw Error(it->code, "no frame of the capture could be encoded (" + std::to_string(failures.size()) + " dropped); the first, " +
+                              first.name + ": " + first.reason);
+  }
+  // The reference moves to the nearest frame kept (the earlier of two as near).
+  const auto reference = static_cast<size_t>(options_.reference_frame);
+  size_t new_reference = 0;
+  for (size_t k = 0; k < kept.size(); ++k) {
+    const double d = std::abs(capture_.frames[kept[k]].time - capture_.frames[reference].time);
+    if (d < std::abs(capture_.frames[kept[new_reference]].time - capture_.frames[reference].time)) new_reference = k;
+  }
+  if (kept[new_reference] != reference) {
+    report_.warnings.push_back(capture_.frames[reference].mesh.string() + ": the reference frame was dropped; " +
+                               capture_.frames[kept[new_reference]].mesh.string() + " is the reference instead");
+  }
+  options_.reference_frame = static_cast<int>(new_reference);
+  auto compact = [&](auto& items) {
+    if (items.size() != failures.size()) return;
+    std::remove_reference_t<decltype(items)> out;
+    out.reserve(kept.size());
+    for (size_t i : kept) out.push_back(std::move(items[i]));
+    items = std::move(out);
+  };
+  compact(capture_.frames);
+  if (landmarks_->size() == failures.size()) landmarks_->keep(kept);
+  compact(source_index_);
+  maps_.keep(kept, failures.size());
+  registrations_.keep(kept, failures.size());
 }
 
-bool SequenceEncoder::has_texture(int i) const {
-  const auto index = static_cast<size_t>(i);
-  const FrameSummary& f = summaries_[index];
-  return (!textures_[index].empty() && f.has_uvs) || f.has_colours;
-}
-
-Image SequenceEncoder::frame_texture(int i, int size) const { return frame_texture(*frame(i), i, size); }
-
-Image SequenceEncoder::frame_texture(const MappedFrame& f, int i, int size) const {
-  Image image;
-  const std::optional<TextureSource> source = frame_texture_source(f.map, textures_[static_cast<size_t>(i)], image);
-  if (!source) throw Error(ErrorCode::kMissingTexture, f.name + ": the frame has neither a texture image with UVs nor vertex colours");
-  return resample_texture(InverseDiskMap(f.map), *source, size, sampler(i));
-}
-
-std::vector<Vec3> SequenceEncoder::sample_surface(int i, std::span<const Vec2> nodes) const { return sample_surface(*frame(i), i, nodes); }
-
-std::vector<Vec3> SequenceEncoder::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const {
-  return resample_positions(InverseDiskMap(frame.map), sample_points(i, nodes));
+void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
+  auto_representation_ = representation;
+  report_.blend = blend;
+  report_.representation = this->representation();
 }
 
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report) {
@@ -128,8 +152,8 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options, En
 
 std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options, EncodeReport* report_out) {
   SequenceEncoder encoder(std::move(capture), options);
-  encoder.map_frames();
-  encoder.register_frames();
+  map_frames(encoder);
+  register_frames(encoder);
   sample_frames(encoder);
   return encode_sampled(encoder, report_out);
 }
@@ -166,13 +190,46 @@ void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes
 
 }  // namespace
 
+PlanSettings plan_settings(const EncodeOptions& options) {
+  PlanSettings settings;
+  SelectionOptions& selection = settings.selection;
+  selection.fraction = options.keyframe_fraction;
+  selection.max_error = options.max_error;
+  selection.error_bound = options.keyframe_error_bound;
+  selection.p99_bound = options.keyframe_p99_bound;
+  selection.sparse_interval = options.sparse_frame_interval;
+  selection.spline = options.spline;
+  selection.residuals = options.residual_frames;
+  settings.reference_frame = options.reference_frame;
+  settings.grid = options.grid;
+  settings.density_equalising = options.density_equalising.strength != 0;
+  settings.representation = options.representation;
+  settings.threads = options.threads;
+  return settings;
+}
+
+PlanFrames plan_frames(const SequenceEncoder& encoder) {
+  return {encoder.capture().frames, encoder.selection(), encoder.maps(), encoder.frame_sampler()};
+}
+
+void adopt_chosen_representation(SequenceEncoder& encoder, const PlanSettings& settings, const KeyframeSelection& chosen, int grid) {
+  const RepresentationDecision decision = choose_representation(settings, plan_frames(encoder), chosen, grid, encoder.report());
+  encoder.adopt_representation(decision.representation, decision.blend);
+}
+
+void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
+  adopt_chosen_representation(encoder, plan_settings(encoder.options()), chosen, grid);
+}
+
 KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
   const auto start = std::chrono::steady_clock::now();
-  const KeyframeSelection chosen = select_keyframes(encoder);
+  const PlanSettings settings = plan_settings(encoder.options());
+  const PlanFrames frames = plan_frames(encoder);
+  const KeyframeSelection chosen = select_keyframes(settings, frames.selection);
   EncodeReport& report = encoder.report();
   report_selection(report, chosen);
-  report.grid = choose_grid(encoder, &chosen);
-  choose_representation(encoder, chosen, report.grid);
+  report.grid = choose_grid(settings, frames, report, &chosen);
+  adopt_chosen_representation(encoder, settings, chosen, report.grid);
   release_samples(encoder, chosen.keyframes);
   report.seconds_planning = seconds_since(start);
   return chosen;
@@ -262,9 +319,10 @@ std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, 
 
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
   EncodeReport& report = encoder.report();
+  const FieldPrecisionOptions precision = field_precision_options(encoder.options(), chosen);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(encoder, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
-        if (encoder.options().predicted_fields) report.field_coding = round_fields(encoder, keyframes, chosen);
+        if (encoder.options().predicted_fields) report.field_coding = round_fields(precision, keyframes, report);
       });
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
@@ -277,15 +335,23 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
   if (encoder.options().patch_bound > 0)
     sequence->set_patches(
         fit_frame_patches(encoder.capture(), *sequence, chosen.keyframes, encoder.options().patch_bound, &report.patch_fit));
-  code_textures(encoder, *sequence, chosen.keyframes);
+  code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, chosen.keyframes, report);
   return sequence;
+}
+
+TextureSettings texture_settings(const EncodeOptions& options) {
+  return {options.texture_quality, options.texture_codec, options.texture_coding, options.share_textures, options.threads};
+}
+
+TextureFrameSource texture_frames(const SequenceEncoder& encoder) {
+  return {encoder.capture().frames, encoder.maps(), encoder.frame_sampler()};
 }
 
 RegisteredFrames registered_frames(const SequenceEncoder& encoder) {
   RegisteredFrames frames;
   for (const CaptureFrame& f : encoder.capture().frames) frames.times.push_back(f.time);
   for (const SelectionFrame& f : encoder.selection().frames()) frames.diagonals.push_back(f.diagonal);
-  frames.surface = [&encoder](int i, std::span<const Vec2> nodes) { return encoder.sample_surface(i, nodes); };
+  frames.surface = [sampler = encoder.frame_sampler()](int i, std::span<const Vec2> nodes) { return sampler.sample_surface(i, nodes); };
   return frames;
 }
 

@@ -16,10 +16,11 @@
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/frame_maps.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
-#include "codec/encoder/encode/frame_store.hpp"
+#include "codec/encoder/encode/frame_registrations.hpp"
+#include "codec/encoder/encode/frame_sampler.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
-#include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
@@ -29,6 +30,8 @@
 #include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
+#include "codec/encoder/stages/plan_keyframes.hpp"
+#include "codec/encoder/stages/texture_coding.hpp"
 #include "format/error.hpp"
 
 #include <filesystem>
@@ -68,11 +71,22 @@ Sequence encode_capture(const Capture& capture, const EncodeOptions& options = {
 // The encoder keeps its own capture: moved in, a long capture's paths and landmarks are not held twice.
 std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const EncodeOptions& options = {}, EncodeReport* report = nullptr);
 
-// The same, stage by stage, keeping every frame's map (in its FrameStore) and registration: what
-// encode_capture runs, and what the bench uses to try several registrations or keyframe sets on one
-// mapping. Stages run in order; a later stage may be re-run with other options (registering again
-// redoes the selection samples). Each stage goes through the frames a few at a time (one per
-// thread), reading each map back from the store and releasing it when done.
+// Why a frame failed a stage (map, register): code kOk while it has not.
+struct FrameFailure {
+  ErrorCode code = ErrorCode::kOk;
+  std::string reason;
+};
+// The failure `e` of the frame `name`, its reason without the name where the stage put it first.
+FrameFailure frame_failure(const Error& e, const std::string& name);
+
+// The encode's state, stage by stage: the capture's frames (paths, landmarks in their store, their
+// numbers in the capture as given), each stage's own state unit (the maps: FrameMaps; the
+// registrations: FrameRegistrations; the selection samples: SelectionSamples) and the report.
+// The stages are free functions over it (map_frames, register_frames, sample_frames, ...), run in
+// order by encode_capture_stored, the staged and the segmented encodes, and by the bench, which
+// re-runs a later stage with other options (registering again redoes the selection samples).
+// Each stage goes through the frames a few at a time (one per thread), reading each map back from
+// the store and releasing it when done.
 class SequenceEncoder {
  public:
   // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
@@ -94,17 +108,17 @@ class SequenceEncoder {
   // The up direction map_frames gives frames whose surfaces do not say (find_vertical_hint): settled
   // by the caller instead of found from this encoder's frames (a part's frames are not the capture's).
   void set_vertical_hint(std::optional<Vec3> hint) { vertical_hint_ = hint, vertical_hint_set_ = true; }
+  // The hint set_vertical_hint gave; none where it was not called.
+  std::optional<std::optional<Vec3>> given_vertical_hint() const {
+    return vertical_hint_set_ ? std::optional<std::optional<Vec3>>(vertical_hint_) : std::nullopt;
+  }
 
-  // 1. prepare, conformal map, normalise every frame. Frames that fail are dropped (unless
-  // options().strict): from here on the encoder's capture() and frame indices are those of the
-  // frames kept, and report().dropped names the others.
-  void map_frames();
-  // 2. register every frame to the reference (options().registration); method kFrame first builds
-  // the reference's geodesic frame from its disk and landmarks, once, and registers through it.
-  void register_frames();
-  // 3 (sample_frames) and 4-6 (select, grid, representation, build) are the free stages below,
-  // over the encoder's frames as these two left them.
-  //
+  // The map stage's state (map_frames): every frame's map, summary and texture path.
+  const FrameMaps& maps() const { return maps_; }
+  FrameMaps& maps() { return maps_; }
+  // The register stage's state (register_frames): every frame's registration, the reference's geometry.
+  const FrameRegistrations& registrations() const { return registrations_; }
+  FrameRegistrations& registrations() { return registrations_; }
   // The sample stage's state: every frame on the selection grid (selection_samples.hpp).
   const SelectionSamples& selection() const { return selection_; }
   SelectionSamples& selection() { return selection_; }
@@ -114,6 +128,12 @@ class SequenceEncoder {
   // segmented_encode.hpp), or the fallback to positions (store_as_positions); `blend`: what the
   // choice measured. Fills report().blend and report().representation.
   void adopt_representation(Representation representation, const BlendComparison& blend);
+  // The automatic representation back to hl+t until choose_representation measures otherwise
+  // (register_frames: a new registration, a new choice).
+  void reset_representation() {
+    auto_representation_ = Representation::kHLT;
+    report_.representation = representation();
+  }
   // What build_keyframes stores: options().representation, or (unset) what adopt_representation
   // was given (hl+t before it is).
   Representation representation() const { return options_.representation.value_or(auto_representation_); }
@@ -127,93 +147,59 @@ class SequenceEncoder {
   // encoder keeps them in a store (with options().spill_frames, its temporary file: 1.8 kB a frame
   // for ICT's 74, a capture's length in memory otherwise), not in capture().
   std::vector<Vec3> landmarks(int i) const;
+  // Frame i's landmarks replaced by `points` (one per name of capture().landmark_names), in the store.
+  void put_landmarks(int i, std::vector<Vec3> points);
+  // The place of the landmark `name` among capture().landmark_names, added at the end where missing
+  // (the landmarks map_frames finds on the frames).
+  size_t landmark_name_index(const std::string& name);
+  // The warnings a stage gives frame i (such as landmarks ignored on it): into report().warnings,
+  // and kept for for_each_sampled_frame under the frame's number in the capture as given.
+  void add_frame_warnings(int i, std::vector<std::string> warnings);
+  // Leaves out the frames whose failure is set (one per frame) from every stage's state, into
+  // report().dropped; moves the reference to the nearest frame kept (warned). Throws the first
+  // failure when none is kept.
+  void drop_frames(const std::vector<FrameFailure>& failures);
+  // The reference's map, kept in memory while it is the reference: every stage uses it.
+  std::shared_ptr<const MappedFrame> pin_reference() { return maps_.pin(options_.reference_frame); }
   // Frame i's landmarks and the reference's on their disks (disk_landmarks), after map_frames.
   DiskLandmarks frame_disk_landmarks(int i) const;
   int source_index(int i) const { return source_index_[static_cast<size_t>(i)]; }  // frame i in the capture as given
   int frame_count() const { return static_cast<int>(capture_.frames.size()); }
   // Frame i's map, read back from the store (options().spill_frames; its prepared mesh left empty,
   // see FrameStore::put) and held in memory as long as the pointer is. After map_frames.
-  std::shared_ptr<const MappedFrame> frame(int i) const;
-  const FrameSummary& frame_summary(int i) const { return summaries_[static_cast<size_t>(i)]; }
-  const FrameStore& frame_store() const { return *store_; }
+  std::shared_ptr<const MappedFrame> frame(int i) const { return maps_.frame(i); }
+  const FrameSummary& frame_summary(int i) const { return maps_.summaries[static_cast<size_t>(i)]; }
+  const FrameStore& frame_store() const { return maps_.store(); }
   // Frame i's registration, read back from its store (options().spill_frames) and held as long as
   // the pointer is. After register_frames.
-  std::shared_ptr<const DiskRegistration> registration(int i) const;
+  std::shared_ptr<const DiskRegistration> registration(int i) const { return registrations_.registration(i); }
   // The reference's geodesic frame of the last register_frames with method kFrame; null otherwise.
-  const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
-  // Where frame i is sampled for disk points of G (or of the disk texture): the reference's
-  // reparametrisation, then the frame's registration (after register_frames). A sampler holds the
-  // registration it read back; sample_points reads it for one call.
-  class Sampler {
-   public:
-    Sampler(const DiskReparametrisation& reparametrisation, std::shared_ptr<const DiskRegistration> registration)
-        : reparametrisation_(reparametrisation), registration_(std::move(registration)) {}
-    Vec2 operator()(const Vec2& node) const { return (*registration_)(reparametrisation_(node)); }
-
-   private:
-    const DiskReparametrisation& reparametrisation_;
-    std::shared_ptr<const DiskRegistration> registration_;
-  };
-  Sampler sampler(int i) const { return Sampler(reparametrisation_, registration(i)); }
-  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
-  // Frame i's surface at those points (capture frame): what G, the selection grid and the fit sample;
-  // the second from frame i's map as the caller loaded it (once, for several uses).
-  std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
-  const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
+  const GeodesicFrame* geodesic_frame() const { return registrations_.geodesic_frame(); }
+  // Where frame i is sampled (FrameSampler::sampler), after register_frames.
+  using Sampler = RegistrationSampler;
+  Sampler sampler(int i) const { return frame_sampler().sampler(i); }
+  // The frames' registered surfaces and colours, over the map and register stages' state (frame_sampler.hpp).
+  FrameSampler frame_sampler() const { return FrameSampler(maps_, registrations_); }
+  const DiskReparametrisation& reparametrisation() const { return registrations_.reparametrisation(); }
   // The capture's first and last frame times as given (seconds): dropping its end frames does not
   // shorten it.
   double first_time() const { return first_time_; }
   double last_time() const { return last_time_; }
-  const std::filesystem::path& texture_path(int i) const { return textures_[static_cast<size_t>(i)]; }
+  const std::filesystem::path& texture_path(int i) const { return maps_.textures[static_cast<size_t>(i)]; }
   // Whether frame i has colour to store: a texture image with UVs, or vertex colours (spec/capture.md).
-  bool has_texture(int i) const;
-  // Frame i's own colour on the size x size disk texture, sampled through its registration as a
-  // keyframe's is (after register_frames): the image resampled, or the vertex colours painted. What
-  // texture PSNR is measured against. Throws kMissingTexture when the frame has no colour.
-  Image frame_texture(int i, int size) const;
-  // The same from frame i's map as the caller loaded it.
-  Image frame_texture(const MappedFrame& frame, int i, int size) const;
+  bool has_texture(int i) const { return maps_.has_texture(i); }
   EncodeReport& report() { return report_; }
-
- private:
-  struct FrameFailure {  // why a frame failed; code kOk while it has not
-    ErrorCode code = ErrorCode::kOk;
-    std::string reason;
-  };
-  static FrameFailure failure_of(const Error& e, const std::string& name);
+  // Tells options().progress (where set) that `done` of `total` frames went through `stage`.
   void progress(const std::string& stage, int done, int total) const {
     if (options_.progress) options_.progress(stage, done, total);
   }
+
+ private:
   // of_sampled_frames's steps: the encoder of no frames yet, each frame added, the reference's
   // stores settled once all came.
   SequenceEncoder(const SampledCapture& capture, EncodeOptions options);
   void add_sampled_frame(SampledFrame&& frame);
   void finish_sampled_frames();
-  // Sets those of frame `index`'s landmarks `points` that lie farther from `mesh` than
-  // options().landmark_tolerance to NaN, with a warning each (strict: throws kInvalidArgument); says
-  // whether it set any.
-  bool ignore_far_landmarks(const TriangleMesh& mesh, size_t index, std::vector<Vec3>& points, std::vector<std::string>& warnings) const;
-  // Leaves out the frames whose failure is set (FrameFailure per frame), into report().dropped;
-  // moves the reference to the nearest frame kept. Throws the first failure when none is kept.
-  void drop_frames(const std::vector<FrameFailure>& failures);
-  // Writes the landmarks map_frames found (FaceOrientation, rim markers) into the encoder's capture,
-  // under nose_tip, nose_bridge and rim_0.., for the registration; counts them in the report.
-  void adopt_found_landmarks();
-  // The reference's map, kept in memory while it is the reference: every stage uses it.
-  std::shared_ptr<const MappedFrame> pin_reference();
-  static std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
-  // A sampled frame's registration (add_sampled_frame), through the reference's partition where it
-  // has one; kCorrupt naming the frame where the bytes are not one.
-  DiskRegistration read_sampled_registration(const std::string& name, const std::vector<char>& bytes) const;
-  // What every stage after mapping reads of the reference (its map and landmarks `points`): its disk
-  // reparametrised (options().density_equalising) and, for kFrame, its geodesic frame.
-  void set_reference_geometry(const MappedFrame& reference, const std::vector<Vec3>& points);
-  // Adds a mapped frame's found nose tip, up and rim markers to the report's counts.
-  void count_found_landmarks(const FrameSummary& frame, bool given_rim);
-  // The reference's grid tracked onto every frame (options().tracking) when some frame needs tracked
-  // points (needs_tracked_points), with the report's tracking counts; empty otherwise.
-  std::vector<TrackedPoints> track_frames();
 
   bool vertical_hint_set_ = false;
   std::optional<Vec3> vertical_hint_;
@@ -221,8 +207,7 @@ class SequenceEncoder {
   // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.
   std::map<int, std::vector<std::string>> warnings_by_frame_;
   std::map<int, FrameSummary> dropped_summaries_;
-  std::vector<char> without_interior_;  // per frame kept: registered without interior landmarks shared with the reference
-  int given_reference_ = 0;             // as options().reference_frame came, in the capture as given
+  int given_reference_ = 0;  // as options().reference_frame came, in the capture as given
   // The assembling encoder (add_sampled_frame): the reference in the capture as given, whether the
   // capture gave rim markers, the next frame due, and the registrations that came before the
   // reference's frame (with kFrame they need its geodesic frame's partition to be read).
@@ -235,16 +220,10 @@ class SequenceEncoder {
   std::vector<int> source_index_;
   double first_time_ = 0, last_time_ = 0;  // the capture's as given: dropping its ends does not shorten it
   EncodeOptions options_;
-  std::unique_ptr<FrameStore> store_;
-  std::vector<FrameSummary> summaries_;
-  int pinned_index_ = -1;  // the frame pinned_ holds (-1: none)
-  std::shared_ptr<const MappedFrame> pinned_;
-  std::vector<std::filesystem::path> textures_;
-  std::unique_ptr<RegistrationStore> registrations_;
-  std::shared_ptr<const GeodesicFrame> geodesic_frame_;
+  FrameMaps maps_;                                             // map_frames's
+  FrameRegistrations registrations_;                           // register_frames's
   Representation auto_representation_ = Representation::kHLT;  // choose_representation's choice for an unset representation
-  DiskReparametrisation reparametrisation_;
-  SelectionSamples selection_;  // sample_frames's
+  SelectionSamples selection_;                                 // sample_frames's
   EncodeReport report_;
 };
 
@@ -257,27 +236,39 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
                                        const std::function<std::vector<Vec3>(size_t)>& landmarks,
                                        const std::function<void(int, int)>& progress = {});
 
-// ---- The stages after sampling (stages/sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
+// ---- The stages (stages/map_frames.cpp, register_frames.cpp, sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
 // build_keyframes.cpp): each reads the encoder's frames as map, register and sample left them ----
 
+// 1. Every frame prepared, conformally mapped and normalised (options().conformal, largest_component,
+// find_landmarks, landmark_tolerance), its map into encoder.maps(); the landmarks found on the
+// frames adopted under their names (nose_tip, nose_bridge, rim_*) and counted in the report. Frames
+// that fail are dropped (unless options().strict): from here on the encoder's capture() and frame
+// indices are those of the frames kept, and report().dropped names the others.
+void map_frames(SequenceEncoder& encoder);
+// 2. Every frame registered to the reference (options().registration, tracking), into
+// encoder.registrations(); method kFrame first builds the reference's geodesic frame from its disk
+// and landmarks, once, and registers through it. Frames that fail are dropped as map_frames drops them.
+void register_frames(SequenceEncoder& encoder);
+// What every stage after mapping reads of the reference (its map and landmarks `points`, one per
+// name of `names`): its disk reparametrised (`equalising`) and, for `method` kFrame, its geodesic
+// frame: into `registrations`, with the equalising's figures into `report`. Throws what
+// make_geodesic_frame throws, naming the reference.
+void set_reference_geometry(FrameRegistrations& registrations, const MappedFrame& reference, const std::vector<std::string>& names,
+                            const std::vector<Vec3>& points, const DensityEqualisingOptions& equalising, RegistrationMethod method,
+                            EncodeReport& report);
+// Adds a mapped frame's found nose tip, up and rim markers to `report`'s counts (`given_rim`: the
+// capture gave rim markers of its own, so the frame's found ones are not taken).
+void count_found_landmarks(EncodeReport& report, const FrameSummary& frame, bool given_rim);
 // 3. Every registered frame on the selection grid (SelectionSamples::kGrid), in the face frame, with
 // its rigid head pose: into encoder.selection(), the samples of an earlier sampling replaced.
 void sample_frames(SequenceEncoder& encoder);
-// 4. The keyframes, by the spline's predicted error on the selection grid (options().keyframe_fraction,
-// max_error, keyframe_error_bound, sparse_frame_interval, spline, residual_frames). kInternal once
-// the selection's samples are released.
-KeyframeSelection select_keyframes(const SequenceEncoder& encoder);
-// 5. N (options().grid, or automatic: spec/method.md §7.6), the floor's target from the capture's
-// noise and, given the keyframes `chosen`, the error the spline makes between them; what the
-// automatic choice measured goes to report() (grid_floors, grid_target, grid_term, ...).
-int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen = nullptr);
-// 5½ (for an unset options().representation; encode_capture runs it once N is chosen): where
-// most frames were registered without interior landmarks, the hl+t fields and the positions of
-// `chosen`'s keyframes blended at the frames midway between up to kBlendTrials pairs of them, on
-// G of `grid` (compare_blends: the fine features are what blend apart, and a coarser grid does
-// not show them); xyz where the fields come out farther by more than kFieldsBlendMargin, or on a
-// radially spread disk. Adopted (adopt_representation); report().seconds_representation.
-void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
+// 4, 5, 5½: select, N and the representation, over their settings and PlanFrames (stages/plan_keyframes.hpp).
+// The plan stage's view of `encoder`'s state after sample_frames (holds references into it).
+PlanFrames plan_frames(const SequenceEncoder& encoder);
+// choose_representation on `encoder`'s frames, its decision adopted (SequenceEncoder::adopt_representation);
+// the settings from the encoder's options where not given.
+void adopt_chosen_representation(SequenceEncoder& encoder, const PlanSettings& settings, const KeyframeSelection& chosen, int grid);
+void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 // 6. The keyframes on G of size `grid`: fields (in encoder.representation()), poses, holes,
 // textures, each array put in the store as it is made (options().spill_keyframes); with
 // options().keyframe_fit, fitted to every frame. With `segment`: only its keyframes, fitted over
@@ -294,26 +285,15 @@ Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyfra
 // 7. The field precision's options: options.field_precision with the encode's spill and threads,
 // and with auto_field_error two fifths of `chosen`'s mean predicted error as the target.
 FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
-// The fields rounded as the file will store them (field_precision_options): what a file written
-// with the returned coding (SequenceFileMetadata::field_coding) holds. Fills the encoder's
-// report().field_precision and seconds_precision.
-FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keyframes, const KeyframeSelection& chosen);
-FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen);
-// 8. Each keyframe's texture quality (options().texture_quality, or auto: the texture blend's error
-// at the frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule):
-// what a file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to
-// build. Fills report().texture_qualities; empty for a sequence without texture.
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes);
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes);
-// 9. Keyframes whose textures are painted from one captured image (the same file, or the same
-// pixels) share one (options().share_textures): keyframe k takes the nearest earlier such
-// keyframe's texture where the two are within options().texture_coding.min_psnr of each other
-// over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2). Fills
-// report().texture_shared_with and texture_share_psnr.
-void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
-void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes);
-// 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
-void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes);
+// The fields rounded to `precision` (field_precision_options) as the file will store them: what a
+// file written with the returned coding (SequenceFileMetadata::field_coding) holds. Fills
+// report.field_precision and seconds_precision.
+FieldCoding round_fields(const FieldPrecisionOptions& precision, StoredSequence& keyframes, EncodeReport& report);
+FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& sequence, EncodeReport& report);
+// 8, 9: the texture stage over its settings (stages/texture_coding.hpp), derived once from the options;
+// texture_frames: its view of `encoder`'s frames (holds references into it).
+TextureSettings texture_settings(const EncodeOptions& options);
+TextureFrameSource texture_frames(const SequenceEncoder& encoder);
 
 // ---- The driver ----
 
@@ -360,6 +340,11 @@ void warn_stored_as_positions(EncodeReport& report);
 std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 
 // ---- The pieces, for tests and the bench ----
+
+// Where the encoder keeps the frames' landmarks (one vector of points a frame), spilled to its
+// temporary file or in memory as `mode` says: 1.8 kB a frame of ICT's 74, which kept in the
+// capture grew with it for the whole encode.
+std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
 
 // What the residual fit reads of `encoder`'s frames (residual_fit.hpp): their times, diagonals and
 // registered surfaces, after sample_frames. Holds a reference to `encoder`.

@@ -49,7 +49,7 @@ bool maps(const Capture& capture, const EncodeOptions& options, const std::optio
   try {
     SequenceEncoder encoder(sub_capture(capture, {k}), one);
     encoder.set_vertical_hint(hint);
-    encoder.map_frames();  // with no frame left, throws the frame's failure
+    map_frames(encoder);  // with no frame left, throws the frame's failure
     return true;
   } catch (const Error&) {
     if (options.strict) throw;
@@ -134,8 +134,8 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
   SequenceEncoder encoder(sub_capture(capture, indices), part_options);
   encoder.set_source_indices(indices);
   encoder.set_vertical_hint(hint);
-  encoder.map_frames();
-  encoder.register_frames();
+  map_frames(encoder);
+  register_frames(encoder);
   sample_frames(encoder);
 
   PartHeader header;

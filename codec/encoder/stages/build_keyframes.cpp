@@ -189,7 +189,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
         const std::shared_ptr<const MappedFrame> frame = encoder.frame(static_cast<int>(index));
         const MappedFrame& f = *frame;
         const InverseDiskMap inverse(f.map);
-        const std::vector<Vec2> points = encoder.sample_points(static_cast<int>(index), grid.nodes);
+        const std::vector<Vec2> points = encoder.registrations().sample_points(static_cast<int>(index), grid.nodes);
         const RigidPose to_face = selection[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
@@ -197,7 +197,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
         const auto own = static_cast<size_t>(k) - own_offset;  // wraps past keys for a margin's keyframe
         if (own >= keys) return;
         stored->put_hole_level(own, store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
-        stored->put_texture(own, store_texture ? encoder.frame_texture(f, static_cast<int>(index), texture_size) : Image());
+        stored->put_texture(own, store_texture ? encoder.frame_sampler().frame_texture(f, static_cast<int>(index), texture_size) : Image());
       },
       [&](int done, int total) {
         if (options.progress) options.progress("keyframes", done, total);
@@ -213,7 +213,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
     fit.weight = options.keyframe_fit_weight;
     fit.noise_factor = options.keyframe_fit_noise;
     fit.threads = options.threads;
-    fit.surface = [&](int i, std::span<const Vec2> nodes) { return encoder.sample_surface(i, nodes); };
+    fit.surface = [&](int i, std::span<const Vec2> nodes) { return encoder.frame_sampler().sample_surface(i, nodes); };
     fit.noise = [&](int i) { return encoder.selection().noise_at(i); };
     fit_keyframes(fit, geometry, local);
   }

@@ -5,7 +5,7 @@
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/stages/plan_keyframes.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
 
@@ -111,31 +111,30 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   return choice;
 }
 
-int choose_grid(SequenceEncoder& encoder, const KeyframeSelection* chosen) {
-  const EncodeOptions& options = encoder.options();
-  if (options.grid > 0) return options.grid;
-  EncodeReport& report = encoder.report();
+int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
+  if (settings.grid > 0) return settings.grid;
+  const SelectionSamples& selection = frames.selection;
+  const auto count = static_cast<int>(frames.frames.size());
   // Refused before anything is measured where the samples the noise reads are gone.
-  static_cast<void>(encoder.selection().samples());
+  static_cast<void>(selection.samples());
   GridChoiceInput input;
-  for (int k = 0; k < encoder.frame_count(); ++k)
-    input.noise.push_back(encoder.selection().noise_at(k) / encoder.selection().frames()[static_cast<size_t>(k)].diagonal);
+  for (int k = 0; k < count; ++k) input.noise.push_back(selection.noise_at(k) / selection.frames()[static_cast<size_t>(k)].diagonal);
   // Not on a whole head (a radially spread disk, spec/method.md §7.11) whose frames share no
   // interior landmarks with the reference: there the found landmarks' disagreement from frame to
   // frame reads as noise (fmsynth --head --landmarks auto: 1.27% of the diagonal, 0.085% with its
   // landmarks), and the N = 33 it asked for decoded at 1.57 mm, N = 129 at 0.62.
-  const bool unmatched = 2 * report.frames_without_interior_landmarks > encoder.frame_count() - 1;
+  const bool unmatched = 2 * report.frames_without_interior_landmarks > count - 1;
   input.noise_decides = report.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
-  const int reference_index = options.reference_frame;
-  const std::shared_ptr<const MappedFrame> reference = encoder.frame(reference_index);
+  const int reference_index = settings.reference_frame;
+  const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(reference_index);
   // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.
-  if (report.radial_equalising == 0 && options.density_equalising.strength == 0) {
+  if (report.radial_equalising == 0 && !settings.density_equalising) {
     input.vertex_disk_area = quartile_vertex_disk_area(reference->map.disk, reference->map.surface.faces);
   }
   input.floor = [&](int n) {
     const DiskGrid grid = make_disk_grid(n);
-    const std::vector<Vec3> sampled = encoder.sample_surface(*reference, reference_index, grid.nodes);
+    const std::vector<Vec3> sampled = frames.sampler.sample_surface(*reference, reference_index, grid.nodes);
     const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
     return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
   };

@@ -1,7 +1,7 @@
 // What the keyframes store when the options leave it open: hl+t, or xyz where the fields blended
 // between keyframes come out farther from the frames than the blended positions
 // (spec/method.md §7.14).
-#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/stages/plan_keyframes.hpp"
 
 #include "codec/core/util/elapsed.hpp"
 
@@ -31,33 +31,26 @@ Representation representation_for(const BlendComparison& blend) {
   return blend.trials > 0 && blend.fields_error > kFieldsBlendMargin * blend.positions_error ? Representation::kXYZ : Representation::kHLT;
 }
 
-void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
-  auto_representation_ = representation;
-  report_.blend = blend;
-  report_.representation = this->representation();
-}
-
-void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
+RepresentationDecision choose_representation(const PlanSettings& settings, const PlanFrames& plan, const KeyframeSelection& chosen,
+                                             int grid, EncodeReport& report) {
   const auto start = std::chrono::steady_clock::now();
-  const EncodeOptions& options = encoder.options();
-  const EncodeReport& report = encoder.report();
-  const std::vector<CaptureFrame>& frames = encoder.capture().frames;
+  const std::vector<CaptureFrame>& frames = plan.frames;
   Representation choice = Representation::kHLT;
   BlendComparison blend;
   const std::vector<int>& keyframes = chosen.keyframes;
-  const bool unmatched = 2 * report.frames_without_interior_landmarks > encoder.frame_count() - 1;
+  const bool unmatched = 2 * report.frames_without_interior_landmarks > static_cast<int>(frames.size()) - 1;
   // On a radially reparametrised disk (a whole head) hl+t's fixed-point iteration diverges: the
   // tangential part of Δ_h S, large where the map stretches the disk unevenly, turns with the frame
   // it is carried in (measured on fmsynth --head at radial strengths 0.25 to 1: no keyframe converged).
   // Positions decode without iterating, and the container holds them (spec/method.md §7.11).
-  if (!options.representation && report.radial_equalising > 0) {
+  if (!settings.representation && report.radial_equalising > 0) {
     choice = Representation::kXYZ;
-  } else if (!options.representation && unmatched && keyframes.size() >= 2) {
+  } else if (!settings.representation && unmatched && keyframes.size() >= 2) {
     // The frame midway between each pair of keyframes with frames between them (blend_trial_pairs).
     const std::vector<size_t> pairs = blend_trial_pairs(keyframes);
     std::vector<double> times;
     for (int k : keyframes) times.push_back(frames[static_cast<size_t>(k)].time);
-    const KeyframeSpline spline(times, options.spline);
+    const KeyframeSpline spline(times, settings.selection.spline);
     std::vector<int> midway, needed_keys;
     std::vector<char> needed(keyframes.size(), 0);
     for (size_t k : pairs) {
@@ -71,14 +64,14 @@ void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& ch
       const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(grid));
       // A frame's registered surface on G in the face frame (as build_keyframes samples a keyframe).
       auto local_surface = [&](int i) {
-        std::vector<Vec3> surface = encoder.sample_surface(i, geometry->grid().nodes);
-        const RigidPose to_face = encoder.selection().frames()[static_cast<size_t>(i)].pose.inverse();
+        std::vector<Vec3> surface = plan.sampler.sample_surface(i, geometry->grid().nodes);
+        const RigidPose to_face = plan.selection.frames()[static_cast<size_t>(i)].pose.inverse();
         for (Vec3& p : surface) p = to_face.apply(p);
         return surface;
       };
       std::vector<std::vector<Vec3>> keys(keyframes.size());
       std::vector<BlendTrial> trials(pairs.size());
-      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), options.threads, [&](int j) {
+      parallel_for(static_cast<int>(needed_keys.size() + pairs.size()), settings.threads, [&](int j) {
         const auto index = static_cast<size_t>(j);
         if (index < needed_keys.size()) {
           const auto k = static_cast<size_t>(needed_keys[index]);
@@ -89,12 +82,12 @@ void choose_representation(SequenceEncoder& encoder, const KeyframeSelection& ch
           trials[t].surface = local_surface(midway[t]);
         }
       });
-      blend = compare_blends(geometry, times, options.spline, keys, trials, options.threads);
+      blend = compare_blends(geometry, times, settings.selection.spline, keys, trials, settings.threads);
       choice = representation_for(blend);
     }
   }
-  encoder.adopt_representation(choice, blend);
-  encoder.report().seconds_representation = seconds_since(start);
+  report.seconds_representation = seconds_since(start);
+  return {choice, blend};
 }
 
 }  // namespace facemorph

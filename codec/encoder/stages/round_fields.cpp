@@ -24,9 +24,9 @@ double auto_field_error(const KeyframeSelection& chosen) {
 
 }  // namespace
 
-FieldCoding round_fields(SequenceEncoder& encoder, Sequence& sequence, const KeyframeSelection& chosen) {
+FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& sequence, EncodeReport& report) {
   return StoredSequence::around(sequence, SpillMode::kMemory,
-                                [&](StoredSequence& stored) { return round_fields(encoder, stored, chosen); });
+                                [&](StoredSequence& stored) { return round_fields(precision, stored, report); });
 }
 
 FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen) {
@@ -37,10 +37,9 @@ FieldPrecisionOptions field_precision_options(const EncodeOptions& options, cons
   return precision;
 }
 
-FieldCoding round_fields(SequenceEncoder& encoder, StoredSequence& keys, const KeyframeSelection& chosen) {
+FieldCoding round_fields(const FieldPrecisionOptions& precision, StoredSequence& keys, EncodeReport& report) {
   const auto start = std::chrono::steady_clock::now();
-  EncodeReport& report = encoder.report();
-  FieldCoding coding = choose_field_coding(keys, field_precision_options(encoder.options(), chosen), &report.field_precision);
+  FieldCoding coding = choose_field_coding(keys, precision, &report.field_precision);
   report.seconds_precision = seconds_since(start);
   return coding;
 }

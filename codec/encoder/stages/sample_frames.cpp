@@ -9,6 +9,7 @@
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/util/parallel.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
+#include "codec/encoder/stages/plan_keyframes.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
 
@@ -36,7 +37,7 @@ void sample_frames(SequenceEncoder& encoder) {
     s.time = frames[index].time;
     const std::shared_ptr<const MappedFrame> frame = encoder.frame(static_cast<int>(index));
     s.diagonal = bounding_box_diagonal(frame->map.surface.positions);
-    std::vector<Vec3> all = encoder.sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
+    std::vector<Vec3> all = encoder.frame_sampler().sample_surface(*frame, static_cast<int>(index), geometry.grid().nodes);
     std::vector<Vec3> tu, tv, normals;
     geometry.frames(all, tu, tv, normals);
     normal.resize(normals.size());
@@ -67,19 +68,10 @@ void sample_frames(SequenceEncoder& encoder) {
   encoder.report().seconds_selection = seconds_since(start);
 }
 
-KeyframeSelection select_keyframes(const SequenceEncoder& encoder) {
-  const SelectionFrames& samples = encoder.selection().samples();
-  const EncodeOptions& options = encoder.options();
-  SelectionOptions selection;
-  selection.fraction = options.keyframe_fraction;
-  selection.max_error = options.max_error;
-  selection.error_bound = options.keyframe_error_bound;
-  selection.p99_bound = options.keyframe_p99_bound;
-  selection.sparse_interval = options.sparse_frame_interval;
-  selection.spline = options.spline;
-  selection.pose_centre = encoder.pose_centre();
-  selection.residuals = options.residual_frames;
-  return select_keyframes(samples, encoder.selection().weights(), selection);
+KeyframeSelection select_keyframes(const PlanSettings& settings, const SelectionSamples& selection) {
+  SelectionOptions options = settings.selection;
+  options.pose_centre = selection.centre(settings.reference_frame);
+  return select_keyframes(selection.samples(), selection.weights(), options);
 }
 
 }  // namespace facemorph

@@ -7,7 +7,6 @@
 
 #include "codec/core/sequence/spline.hpp"
 #include "codec/core/util/parallel.hpp"
-#include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/imageio/image_io.hpp"
 #include "format/error.hpp"
 
@@ -101,56 +100,59 @@ TextureSharing share_keyframe_textures(StoredSequence& stored, const std::vector
 
 // ---- The encoder's texture stage: the frames' textures as it keeps them ----
 
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const Sequence& sequence, const std::vector<int>& keyframes) {
-  return choose_texture_qualities(encoder, *StoredSequence::of(Sequence(sequence), SpillMode::kMemory), keyframes);
+std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const Sequence& sequence,
+                                          const std::vector<int>& keyframes, EncodeReport& report) {
+  return choose_texture_qualities(settings, source, *StoredSequence::of(Sequence(sequence), SpillMode::kMemory), keyframes, report);
 }
 
-std::vector<int> choose_texture_qualities(SequenceEncoder& encoder, const StoredSequence& stored, const std::vector<int>& keyframes) {
+std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const StoredSequence& stored,
+                                          const std::vector<int>& keyframes, EncodeReport& report) {
   const auto start = std::chrono::steady_clock::now();
-  EncodeReport& report = encoder.report();
-  const EncodeOptions& options = encoder.options();
   report.texture_qualities.clear();
   report.texture_interpolation_psnr.clear();
   FrameTextures frames;
-  frames.time = [&](int i) { return encoder.capture().frames[static_cast<size_t>(i)].time; };
-  frames.has_texture = [&](int i) { return encoder.has_texture(i); };
-  frames.texture = [&](int i, int size) { return encoder.frame_texture(i, size); };
-  TextureQualities chosen = keyframe_texture_qualities(stored, keyframes, frames, options.texture_quality, options.texture_codec,
-                                                       options.texture_coding, options.threads);
+  frames.time = [&](int i) { return source.frames[static_cast<size_t>(i)].time; };
+  frames.has_texture = [&](int i) { return source.maps.has_texture(i); };
+  frames.texture = [&](int i, int size) { return source.sampler.frame_texture(i, size); };
+  TextureQualities chosen =
+      keyframe_texture_qualities(stored, keyframes, frames, settings.quality, settings.codec, settings.coding, settings.threads);
   report.texture_qualities = chosen.qualities;
   report.texture_interpolation_psnr = std::move(chosen.interpolation_psnr);
   report.seconds_texture = seconds_since(start);
   return std::move(chosen.qualities);
 }
 
-void share_textures(SequenceEncoder& encoder, Sequence& sequence, const std::vector<int>& keyframes) {
-  StoredSequence::around(sequence, SpillMode::kMemory, [&](StoredSequence& stored) { share_textures(encoder, stored, keyframes); });
+void share_textures(const TextureSettings& settings, const TextureFrameSource& source, Sequence& sequence,
+                    const std::vector<int>& keyframes, EncodeReport& report) {
+  StoredSequence::around(sequence, SpillMode::kMemory,
+                         [&](StoredSequence& stored) { share_textures(settings, source, stored, keyframes, report); });
 }
 
-void share_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes) {
+void share_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
+                    const std::vector<int>& keyframes, EncodeReport& report) {
   const size_t keys = stored.size();
-  EncodeReport& report = encoder.report();
   report.texture_shared_with.assign(keys, -1);
   report.texture_share_psnr.assign(keys, 0.0);
-  if (!encoder.options().share_textures) return;
+  if (!settings.share) return;
   // Each keyframe's image where painted from one with UVs; where `keyframes` are not the
   // sequence's, none (share_keyframe_textures refuses them if there is texture to share).
   std::vector<std::filesystem::path> images;
   if (keyframes.size() == keys) {
     images.resize(keys);
     for (size_t k = 0; k < keys; ++k) {
-      const int i = keyframes[k];
-      if (!encoder.texture_path(i).empty() && encoder.frame_summary(i).has_uvs) images[k] = encoder.texture_path(i);
+      const auto i = static_cast<size_t>(keyframes[k]);
+      if (!source.maps.textures[i].empty() && source.maps.summaries[i].has_uvs) images[k] = source.maps.textures[i];
     }
   }
-  TextureSharing sharing = share_keyframe_textures(stored, images, encoder.options().texture_coding.min_psnr);
+  TextureSharing sharing = share_keyframe_textures(stored, images, settings.coding.min_psnr);
   report.texture_shared_with = std::move(sharing.shared_with);
   report.texture_share_psnr = std::move(sharing.psnr);
 }
 
-void code_textures(SequenceEncoder& encoder, StoredSequence& stored, const std::vector<int>& keyframes) {
-  choose_texture_qualities(encoder, stored, keyframes);
-  share_textures(encoder, stored, keyframes);
+void code_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
+                   const std::vector<int>& keyframes, EncodeReport& report) {
+  choose_texture_qualities(settings, source, stored, keyframes, report);
+  share_textures(settings, source, stored, keyframes, report);
 }
 
 }  // namespace facemorph

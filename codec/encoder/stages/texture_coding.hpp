@@ -5,6 +5,10 @@
 
 #include "codec/core/image/image.hpp"
 #include "codec/core/image/texture_codec.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/encode_options.hpp"
+#include "codec/encoder/encode/encode_report.hpp"
+#include "codec/encoder/encode/frame_sampler.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 
@@ -41,5 +45,45 @@ struct TextureSharing {
 // (`images[k]`: its captured image; empty for vertex colours) where the two are within `min_psnr`
 // dB of each other over the disk. Reads each image once.
 TextureSharing share_keyframe_textures(StoredSequence& stored, const std::vector<std::filesystem::path>& images, double min_psnr);
+
+// ---- The encoder's texture stage ----
+
+// Exactly what the texture stage reads of the encode options (texture_settings).
+struct TextureSettings {
+  int quality = kAutoTextureQuality;  // the codec's quality, or kAutoTextureQuality
+  TextureCodec codec = TextureCodec::kAvif;
+  TextureQualityOptions coding;
+  bool share = true;  // keyframes painted from one image share one texture
+  int threads = 0;
+};
+
+// What the texture stage reads of the encode's frames: their times, texture paths and summaries
+// (the map stage's), their colour sampled through their registrations. Holds references.
+struct TextureFrameSource {
+  const std::vector<CaptureFrame>& frames;
+  const FrameMaps& maps;
+  FrameSampler sampler;
+};
+
+// 8. Each keyframe's texture quality (settings.quality, or auto: the texture blend's error at the
+// frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule): what a
+// file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to build.
+// Fills report.texture_qualities; empty for a sequence without texture.
+std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const StoredSequence& stored,
+                                          const std::vector<int>& keyframes, EncodeReport& report);
+std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const Sequence& sequence,
+                                          const std::vector<int>& keyframes, EncodeReport& report);
+// 9. Keyframes whose textures are painted from one captured image (the same file, or the same
+// pixels) share one (settings.share): keyframe k takes the nearest earlier such keyframe's texture
+// where the two are within settings.coding.min_psnr of each other over the disk (spec/method.md
+// §7.16). A file stores a shared texture once (format 2.2). Fills report.texture_shared_with and
+// texture_share_psnr.
+void share_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
+                    const std::vector<int>& keyframes, EncodeReport& report);
+void share_textures(const TextureSettings& settings, const TextureFrameSource& source, Sequence& sequence,
+                    const std::vector<int>& keyframes, EncodeReport& report);
+// 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
+void code_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
+                   const std::vector<int>& keyframes, EncodeReport& report);
 
 }  // namespace facemorph
