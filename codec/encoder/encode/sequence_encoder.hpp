@@ -21,17 +21,17 @@
 #include "codec/encoder/encode/frame_registrations.hpp"
 #include "codec/encoder/encode/frame_sampler.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/encoder/encode/plan_keyframes.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
 #include "codec/encoder/encode/selection_samples.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/encode/texture_stage.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
-#include "codec/encoder/stages/plan_keyframes.hpp"
-#include "codec/encoder/stages/texture_coding.hpp"
 #include "format/error.hpp"
 
 #include <filesystem>
@@ -262,7 +262,7 @@ void count_found_landmarks(EncodeReport& report, const FrameSummary& frame, bool
 // 3. Every registered frame on the selection grid (SelectionSamples::kGrid), in the face frame, with
 // its rigid head pose: into encoder.selection(), the samples of an earlier sampling replaced.
 void sample_frames(SequenceEncoder& encoder);
-// 4, 5, 5½: select, N and the representation, over their settings and PlanFrames (stages/plan_keyframes.hpp).
+// 4, 5, 5½: select, N and the representation, over their settings and PlanFrames (encode/plan_keyframes.hpp).
 // The plan stage's view of `encoder`'s state after sample_frames (holds references into it).
 PlanFrames plan_frames(const SequenceEncoder& encoder);
 // choose_representation on `encoder`'s frames, its decision adopted (SequenceEncoder::adopt_representation);
@@ -290,7 +290,7 @@ FieldPrecisionOptions field_precision_options(const EncodeOptions& options, cons
 // report.field_precision and seconds_precision.
 FieldCoding round_fields(const FieldPrecisionOptions& precision, StoredSequence& keyframes, EncodeReport& report);
 FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& sequence, EncodeReport& report);
-// 8, 9: the texture stage over its settings (stages/texture_coding.hpp), derived once from the options;
+// 8, 9: the texture stage over its settings (encode/texture_stage.hpp), derived once from the options;
 // texture_frames: its view of `encoder`'s frames (holds references into it).
 TextureSettings texture_settings(const EncodeOptions& options);
 TextureFrameSource texture_frames(const SequenceEncoder& encoder);

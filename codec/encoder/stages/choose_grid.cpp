@@ -5,7 +5,7 @@
 
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
-#include "codec/encoder/stages/plan_keyframes.hpp"
+#include "codec/encoder/encode/plan_keyframes.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
 

@@ -1,7 +1,7 @@
 // What the keyframes store when the options leave it open: hl+t, or xyz where the fields blended
 // between keyframes come out farther from the frames than the blended positions
 // (spec/method.md §7.14).
-#include "codec/encoder/stages/plan_keyframes.hpp"
+#include "codec/encoder/encode/plan_keyframes.hpp"
 
 #include "codec/core/util/elapsed.hpp"
 

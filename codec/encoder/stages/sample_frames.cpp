@@ -8,8 +8,8 @@
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/core/sequence/pose.hpp"
 #include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/plan_keyframes.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
-#include "codec/encoder/stages/plan_keyframes.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
 

@@ -1,7 +1,7 @@
 // The texture stage: each keyframe's texture quality (from the texture blend's error beside it,
 // spec/method.md §7.12), and keyframes painted from one captured image sharing one texture
 // (spec/method.md §7.16).
-#include "codec/encoder/stages/texture_coding.hpp"
+#include "codec/encoder/encode/texture_stage.hpp"
 
 #include "codec/core/util/elapsed.hpp"
 
