@@ -17,9 +17,7 @@ void validate_patches(const std::vector<double>& key_times, const std::vector<Fr
     const auto fail = [&](const std::string& what) {
       throw Error(ErrorCode::kInvalidArgument, "frame patch " + std::to_string(p) + ": " + what);
     };
-    if (!std::isfinite(f.time)) fail("its time is not finite");
-    if (p > 0 && !(f.time > patches[p - 1].time)) fail("times must increase");
-    if (residual_interval(key_times, f.time) < 0) fail("its time " + std::to_string(f.time) + " s is not strictly between two keyframes");
+    checked_frame_interval(key_times, f.time, p > 0 ? &patches[p - 1].time : nullptr, fail);
     if (f.lattice < kMinPatchLattice || f.lattice > kMaxPatchLattice)
       fail("lattice " + std::to_string(f.lattice) + " outside " + std::to_string(kMinPatchLattice) + ".." +
            std::to_string(kMaxPatchLattice));

@@ -23,6 +23,15 @@ int residual_interval(const std::vector<double>& times, double t) {
   return times[static_cast<size_t>(i)] == t ? -1 : i;
 }
 
+int checked_frame_interval(const std::vector<double>& key_times, double time, const double* previous,
+                           const std::function<void(const std::string&)>& fail) {
+  if (!std::isfinite(time)) fail("its time is not finite");
+  if (previous && !(time > *previous)) fail("times must increase");
+  const int i = residual_interval(key_times, time);
+  if (i < 0) fail("its time " + std::to_string(time) + " s is not strictly between two keyframes");
+  return i;
+}
+
 void validate_residuals(const std::vector<double>& key_times, const std::vector<ResidualFrame>& residuals) {
   const int count = static_cast<int>(key_times.size());
   for (size_t r = 0; r < residuals.size(); ++r) {
@@ -30,10 +39,7 @@ void validate_residuals(const std::vector<double>& key_times, const std::vector<
     const auto fail = [&](const std::string& what) {
       throw Error(ErrorCode::kInvalidArgument, "residual frame " + std::to_string(r) + ": " + what);
     };
-    if (!std::isfinite(f.time)) fail("its time is not finite");
-    if (r > 0 && !(f.time > residuals[r - 1].time)) fail("times must increase");
-    const int i = residual_interval(key_times, f.time);
-    if (i < 0) fail("its time " + std::to_string(f.time) + " s is not strictly between two keyframes");
+    const int i = checked_frame_interval(key_times, f.time, r > 0 ? &residuals[r - 1].time : nullptr, fail);
     const KeyWindow window = residual_window(i, count);
     if (f.delta.size() != static_cast<size_t>(window.count)) {
       fail(std::to_string(f.delta.size()) + " corrections where its keyframe interval has " + std::to_string(window.count) + " keys");

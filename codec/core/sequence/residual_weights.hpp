@@ -9,6 +9,8 @@
 #include "codec/core/sequence/spline.hpp"
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 namespace facemorph {
@@ -28,6 +30,12 @@ KeyWindow residual_window(int interval, int key_count);
 // The keyframe interval i with t_i < t < t_{i+1} of `key_times` (strictly increasing), or -1 where t
 // is outside their span, at a keyframe, or not finite.
 int residual_interval(const std::vector<double>& key_times, double t);
+// The keyframe interval of a frame that a list of frames between keyframes holds (residual frames,
+// frame patches), after the checks both lists share: its time finite, after `previous` (the list's
+// frame before it; null for the first), strictly inside a keyframe interval. `fail` throws, naming
+// the frame and the defect.
+int checked_frame_interval(const std::vector<double>& key_times, double time, const double* previous,
+                           const std::function<void(const std::string&)>& fail);
 
 // The most a correction may add to one key's weight: far beyond what a fit asks for (a frame is a
 // blend of its neighbours), small enough that a blend stays a bounded combination of keyframes.
