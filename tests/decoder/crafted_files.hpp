@@ -8,10 +8,12 @@
 #include "codec/decoder/container/sequence_file.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
+#include "format/checksum.hpp"
 #include "format/container.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -217,6 +219,14 @@ inline uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
       if (e.code() != ErrorCode::kLimit) throw;
     }
   }
+}
+
+// The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
+inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
+  std::memcpy(bytes.data() + 10, &minor, sizeof minor);
+  const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
+  std::memcpy(bytes.data() + 12, &crc, sizeof crc);
+  return bytes;
 }
 
 }  // namespace facemorph::crafted

@@ -29,20 +29,13 @@ namespace {
 using crafted::rebuild;
 using crafted::small_metadata;
 using crafted::small_sequence;
+using crafted::with_minor_version;
 
 // An edit that appends `extra` bytes to the payload of chunks of `type`.
 auto appending(std::string type, size_t extra, uint8_t value = 0) {
   return [type, extra, value](const std::string& t, std::vector<uint8_t>& payload) {
     if (t == type) payload.insert(payload.end(), extra, value);
   };
-}
-
-// The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
-std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
-  std::memcpy(bytes.data() + 10, &minor, sizeof minor);
-  const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
-  std::memcpy(bytes.data() + 12, &crc, sizeof crc);
-  return bytes;
 }
 
 std::vector<uint8_t> small_file() { return encode_sequence_file(small_sequence(), small_metadata()); }

@@ -7,7 +7,6 @@
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
-#include "format/checksum.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -224,11 +223,7 @@ TEST(FramePatches, EveryCheckOfTheChunkRefusesABadOneByName) {
 // A file stamped 2.3 with a PTCH chunk: skipped, as a 2.3 decoder skips a chunk it does not know
 // (not critical), so the frames are the blend's alone.
 TEST(FramePatches, InAFileOfAnEarlierMinorVersionTheChunkIsSkipped) {
-  std::vector<uint8_t> bytes = patch_file();
-  const uint16_t minor = 3;
-  std::memcpy(bytes.data() + 10, &minor, sizeof minor);
-  const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
-  std::memcpy(bytes.data() + 12, &crc, sizeof crc);
+  const std::vector<uint8_t> bytes = crafted::with_minor_version(patch_file(), 3);
   EXPECT_TRUE(open_sequence_source(bytes, "v2_3.fmv")->outline().patches.empty());
   EXPECT_TRUE(decode_sequence_file(bytes, "v2_3.fmv").patches.empty());
 }

@@ -5,7 +5,6 @@
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
-#include "format/checksum.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -262,11 +261,7 @@ TEST(ResidualFrames, EveryCheckOfTheChunkRefusesABadOneByName) {
 // A file stamped 2.2 with an RSDW chunk: skipped, as a 2.2 decoder skips a chunk it does not know,
 // so the frames are the spline's alone.
 TEST(ResidualFrames, InAFileOfAnEarlierMinorVersionTheChunkIsSkipped) {
-  std::vector<uint8_t> bytes = residual_file();
-  const uint16_t minor = 2;
-  std::memcpy(bytes.data() + 10, &minor, sizeof minor);
-  const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
-  std::memcpy(bytes.data() + 12, &crc, sizeof crc);
+  const std::vector<uint8_t> bytes = crafted::with_minor_version(residual_file(), 2);
   const auto source = open_sequence_source(bytes, "v2_2.fmv");
   EXPECT_TRUE(source->outline().residuals.empty());
   EXPECT_TRUE(decode_sequence_file(bytes, "v2_2.fmv").residuals.empty());
