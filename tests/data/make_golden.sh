@@ -7,6 +7,9 @@
 # image for every frame, which the keyframes share; 2.3: --speech-rate 3, a mouth faster than the
 # spline of the keyframes follows, which residual frames serve, with FMENC_OPTIONS=--residual-frames).
 #   FMENC_OPTIONS="--residual-frames" tests/data/make_golden.sh build 2_3 --speech-rate 3
+# 2.4: the same capture with fmenc's defaults but a patch bound of 0.4% (at 1% its 12 frames need no
+# frame patch, the PTCH chunk the version adds):
+#   FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_4 --speech-rate 3
 set -euo pipefail
 build=${1:?usage: make_golden.sh BUILD_DIR VERSION}
 version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 2_0)}

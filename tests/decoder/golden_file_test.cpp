@@ -31,6 +31,9 @@ std::vector<double> sample_times(const Sequence& s) {
   const double step = 1 / s.fps;
   times.push_back(s.keyframes.front().time - step);  // extrapolated, a frame before and after
   times.push_back(s.keyframes.back().time + step);
+  // Format 2.4's patches show fully only at their own times (between them they are interpolated):
+  // sample those too. Files without patches keep the sample their CSV was written with.
+  for (const FramePatch& patch : s.patches) times.push_back(patch.time);
   return times;
 }
 
@@ -134,6 +137,19 @@ TEST(GoldenFile, Version2_3DecodesAsItDidWhenWritten) {
   const SequenceFileInfo info = expect_golden_2("2_3", 3, TextureCoding::kSequence);
   EXPECT_EQ(chunk_count(info, "RSDW"), 1);
   EXPECT_GT(info.residual_frames, 0u);
+}
+
+// Format 2.4: 2.3 with frame patches (PTCH), lattice displacements of the decoded surface between
+// keyframes (make_golden.sh's capture with --speech-rate 3, fmenc's defaults): the golden sample
+// holds every patch's own time, where the decoder adds that patch whole.
+TEST(GoldenFile, Version2_4DecodesAsItDidWhenWritten) {
+  const SequenceFileInfo info = expect_golden_2("2_4", 4, TextureCoding::kSequence);
+  EXPECT_EQ(chunk_count(info, "PTCH"), 1);
+  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_4.fmv");
+  ASSERT_FALSE(s.patches.empty());
+  size_t moving_nodes = 0;
+  for (const FramePatch& patch : s.patches) moving_nodes += patch.nodes.size();
+  EXPECT_GT(moving_nodes, 0u) << "every patch is a pin: the golden file would not test the displacement";
 }
 
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Web.StreamedFramesEqualTheWholeFile: builds the WebAssembly decoder (web/build.sh, incremental),
 # then web/test/stream.mjs: each FILE read by range requests into a borrowed open decodes every frame
-# as the whole file does (2.1, and 2.3 with residual frames: a chunk the open reads must be fetched
-# whole). Exits 77 (skipped) without emcc or node, naming which.
+# as the whole file does (2.1, 2.3 with residual frames and 2.4 with frame patches: a chunk the open
+# reads must be fetched whole). Exits 77 (skipped) without emcc or node, naming which.
 #   tests/web/stream.sh WORK_DIR FILE.fmv...
 set -euo pipefail
 work=$1
