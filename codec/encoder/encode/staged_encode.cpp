@@ -272,7 +272,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
 
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
                                                EncodeReport* report, PartHeader* header) {
-  return encode_sampled(*encoder_of_parts(parts, options, header).encoder, report);
+  return encoder_of_parts(parts, options, header).encoder->encode_sampled(report);
 }
 
 }  // namespace facemorph
