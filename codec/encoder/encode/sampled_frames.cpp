@@ -166,7 +166,8 @@ void SequenceEncoder::finish_sampled_frames() {
   }
   const std::vector<char>& without_interior = registrations_.without_interior;
   report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior.begin(), without_interior.end(), 1));
-  reset_representation();
+  // The representation stays a new encoder's (hl+t, reported as such once plan or adopt_plan adopts
+  // one): nothing registered it before these frames, so there is no earlier choice to reset.
   report_.peak_selection_samples_in_memory = 0;
 }
 

@@ -70,6 +70,7 @@ SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, cons
   segment_options.residual_frames = false;
   s.parts = encoder_of_parts(parts, segment_options, &s.header);
   s.encoder = s.parts.encoder.get();
+  s.parts.timing.add_to(s.encoder->report());
   s.settings = stage_settings(s.encoder->options());
   if (planned) {
     s.chosen = planned->plan;
