@@ -105,14 +105,14 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame
     return out;
   };
-  // As fmenc stores it: the driver's steps once the keyframes are chosen (code_keyframes: the
+  // As fmenc stores it: the driver's steps once the keyframes are chosen (SequenceEncoder::code: the
   // keyframes built, their fields rounded, the residual frames fitted to them as stored, the
   // textures' qualities and sharing), the file written with the coding they chose and read back.
   auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes,
                          SequenceFileInfo& info) {
     const std::string variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ ? " (xyz)" : "";
     encoder.options().representation = representation;
-    const std::unique_ptr<StoredSequence> stored = code_keyframes(encoder, chosen, n);
+    const std::unique_ptr<StoredSequence> stored = encoder.code(stage_settings(encoder.options()), chosen, n);
     const EncodeReport& r = encoder.report();
     stage_seconds["keyframes" + variant] += r.seconds_keyframes;
     if (encoder.options().predicted_fields) stage_seconds["field precision" + variant] += r.seconds_precision;

@@ -190,8 +190,10 @@ TEST(StoredSequence, TheStepsOnASequenceGiveItBackWhenTheyThrow) {
   const Sequence original = small_sequence(17, 16);
   const std::vector<uint8_t> file = encode_sequence_file(original, small_metadata());
   Sequence s = original;
-  testing::expect_error(ErrorCode::kInvalidArgument, "not the sequence's",
-                        [&] { share_textures(texture_settings(encoder.options()), texture_frames(encoder), s, {0}, encoder.report()); });
+  const TextureSettings texture = texture_settings(encoder.options());
+  testing::expect_error(ErrorCode::kInvalidArgument, "not the sequence's", [&] {
+    share_textures(texture.share, texture.coding.min_psnr, texture_frames(encoder), s, {0}, encoder.report());
+  });
   EXPECT_TRUE(encode_sequence_file(s, small_metadata()) == file) << "share_textures lost the sequence";
   encoder.options().auto_field_error = false;
   encoder.options().field_precision.target_error = -1;

@@ -134,7 +134,7 @@ struct EncodeReport {
   // The staged encode's assemble stage (staged_encode.hpp): the parts read and checked. Its
   // seconds_mapping, _registration and _selection are then the parts' own, summed.
   double seconds_reading_parts = 0;
-  double seconds_planning = 0;  // plan_keyframes: the keyframes, N and representation chosen
+  double seconds_planning = 0;  // SequenceEncoder::plan: the keyframes, N and representation chosen
   int parts = 0;
   ResidualFitReport residual_fit;  // options.residual_frames: the residuals fitted to the stored keyframes
   PatchFitReport patch_fit;        // options.patch_bound > 0: the frame patches fitted to what the decoder shows

@@ -68,8 +68,8 @@ Decoded decode_exact(Reconstructor& reconstructor, const GridFields& fields) {
   return d;
 }
 
-void check_dead_zone(const FieldPrecisionOptions& options) {
-  if (!(options.inter_dead_zone >= 0.5 && options.inter_dead_zone < 1)) {
+void check_dead_zone(double inter_dead_zone) {
+  if (!(inter_dead_zone >= 0.5 && inter_dead_zone < 1)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the inter dead zone must lie in [0.5, 1) steps");
   }
 }
@@ -308,7 +308,7 @@ std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding
 }  // namespace
 
 void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options) {
-  check_dead_zone(options);
+  check_dead_zone(options.inter_dead_zone);
   validate_sequence(sequence);
   const DiskGrid grid = make_disk_grid(sequence.grid_n);
   FieldRounder(grid, options.noise_shaping, options.inter_dead_zone).round(sequence.keyframes, coding);
@@ -331,8 +331,8 @@ struct Calibration {
   std::vector<double> group_steps;  // per group (0: absent)
 };
 
-Calibration calibrate(const GridFields& probe_fields, const FieldPrecisionOptions& options, Reconstructor& reconstructor) {
-  const FieldRounder rounder(reconstructor.geometry().grid(), options.noise_shaping, 0.5);
+Calibration calibrate(const GridFields& probe_fields, double target_error, bool noise_shaping, Reconstructor& reconstructor) {
+  const FieldRounder rounder(reconstructor.geometry().grid(), noise_shaping, 0.5);
   const Decoded probe_exact = decode_exact(reconstructor, probe_fields);
   const std::vector<std::vector<double>> arrays = scalar_arrays(probe_fields);
   Calibration calibration;
@@ -361,7 +361,7 @@ Calibration calibrate(const GridFields& probe_fields, const FieldPrecisionOption
                          probe_exact.exact, probe_exact.diagonal);
   };
   for (size_t g : present) {
-    const double share = options.target_error * std::sqrt(static_cast<double>(group_values[g]) / static_cast<double>(values));
+    const double share = target_error * std::sqrt(static_cast<double>(group_values[g]) / static_cast<double>(values));
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (size_t a : kGroups[g]) {
       for (double v : arrays[a]) {
@@ -410,17 +410,17 @@ struct StepChoice {
   int refinements = 0;
 };
 
-// choose_field_coding's steps for one dead zone (options checked), from the calibration's steps,
-// for the exact fields of `keys` (not changed: the caller rounds them).
-StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions& options, const Calibration& calibration,
-                        const ExactSurfaces& exact, ReconstructorPool& pool) {
+// choose_field_coding's steps for one dead zone (the rounder's), from the calibration's steps, for
+// the exact fields of `keys` (not changed: the caller rounds them), to meet `target_error` with
+// keyframes intra every `intra_period` (resolved: not kAutoIntraPeriod).
+StepChoice choose_steps(const StoredSequence& keys, double target_error, int intra_period, const FieldRounder& rounder,
+                        const Calibration& calibration, const ExactSurfaces& exact, ReconstructorPool& pool) {
   const Sequence& sequence = keys.shape();
   FieldCoding coding;
-  coding.intra_period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(sequence) : options.intra_period;
+  coding.intra_period = intra_period;
   coding.steps.assign(kKeyframeArrayCount, 1.0);
   coding.steps[kScalarArrayCount] = kHoleStepPerCell * 2.0 / (sequence.grid_n - 1);  // of G's spacing
   set_default_pose_steps(coding, sequence.units);
-  const FieldRounder rounder(pool.grid(), options.noise_shaping, options.inter_dead_zone);
   const std::vector<size_t>& present = calibration.present;
   const std::vector<double>& group_steps = calibration.group_steps;
   auto apply = [&](double scale) {
@@ -435,7 +435,7 @@ StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions&
   // noisy capture: 8x the scale, 50x the error, where error diffusion stops hiding the steps), so the
   // next scale follows the power law through the last two measurements, kept inside the bracket
   // of scales known to meet and to miss the target.
-  const double aim = 0.95 * options.target_error;
+  const double aim = 0.95 * target_error;
   double scale = 1, best_scale = 0, missed_scale = std::numeric_limits<double>::infinity();
   double last_scale = 0, last_worst = 0;
   std::vector<double> best_errors;
@@ -444,13 +444,13 @@ StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions&
     apply(scale);
     const std::vector<double> errors = rounded_errors(keys, coding, rounder, exact, pool);
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
-    const bool met = worst <= kTolerance * options.target_error;
+    const bool met = worst <= kTolerance * target_error;
     if (met && scale > best_scale) {
       best_scale = scale;
       best_errors = errors;
     }
     if (!met) missed_scale = std::min(missed_scale, scale);
-    if ((met && worst >= 0.8 * options.target_error) || refinements == kMaxRefinements) break;
+    if ((met && worst >= 0.8 * target_error) || refinements == kMaxRefinements) break;
     double exponent = 1;  // error ∝ scale^exponent
     if (last_scale > 0 && last_scale != scale && last_worst != worst) {
       exponent = std::clamp(std::log(worst / last_worst) / std::log(scale / last_scale), 0.5, 4.0);
@@ -463,7 +463,7 @@ StepChoice choose_steps(const StoredSequence& keys, const FieldPrecisionOptions&
     scale = next;
   }
   if (best_scale == 0) {
-    throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(options.target_error) +
+    throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(target_error) +
                                               " in " + std::to_string(kMaxRefinements) + " refinements");
   }
   apply(best_scale);
@@ -539,7 +539,7 @@ void check_options(const FieldPrecisionOptions& options) {
   if (!(options.target_error > 0) || !std::isfinite(options.target_error)) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the target error must be finite and positive");
   }
-  if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options);
+  if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options.inter_dead_zone);
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   if (options.threads < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative thread count");
 }
@@ -557,44 +557,43 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   Calibration calibration;
   pool.run(1, [&](Reconstructor& reconstructor, size_t) {
     try {
-      calibration = calibrate(*keys.fields(0), options, reconstructor);
+      calibration = calibrate(*keys.fields(0), options.target_error, options.noise_shaping, reconstructor);
     } catch (const Error& e) {
       throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
     }
   });
   const ExactSurfaces exact(keys, pool, spill);
-  FieldPrecisionOptions chosen = options;
+  const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
+  double dead_zone = options.inter_dead_zone;
   std::optional<StepChoice> choice;
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins, and
     // its steps are the result (the search is deterministic: run again, it would find them again).
-    chosen.inter_dead_zone = kDeadZoneCandidates.front();
-    const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
+    dead_zone = kDeadZoneCandidates.front();
     const bool predicts = period > 1 && shape.keyframes.size() > 1;
     uint64_t fewest = std::numeric_limits<uint64_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
-      FieldPrecisionOptions trial_options = options;
-      trial_options.inter_dead_zone = kDeadZoneCandidates[c];
+      const FieldRounder rounder(pool.grid(), options.noise_shaping, kDeadZoneCandidates[c]);
       std::optional<StepChoice> steps;
       try {
-        steps = choose_steps(keys, trial_options, calibration, exact, pool);
+        steps = choose_steps(keys, options.target_error, period, rounder, calibration, exact, pool);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
       }
-      const FieldRounder rounder(pool.grid(), options.noise_shaping, trial_options.inter_dead_zone);
       SequenceFileMetadata metadata;
       metadata.field_coding = steps->coding;
       const uint64_t bytes = sequence_file_size(RoundedKeyframes(keys, rounder, steps->coding), metadata);
       if (bytes < fewest) {
         fewest = bytes;
-        chosen.inter_dead_zone = kDeadZoneCandidates[c];
+        dead_zone = kDeadZoneCandidates[c];
         choice = std::move(steps);
       }
     }
   }
-  if (!choice) choice = choose_steps(keys, chosen, calibration, exact, pool);
-  put_rounded(keys, FieldRounder(pool.grid(), options.noise_shaping, chosen.inter_dead_zone), choice->coding);
+  const FieldRounder rounder(pool.grid(), options.noise_shaping, dead_zone);
+  if (!choice) choice = choose_steps(keys, options.target_error, period, rounder, calibration, exact, pool);
+  put_rounded(keys, rounder, choice->coding);
   spill.bytes += exact.store.spilled_bytes();
   if (report) {
     report->target_error = options.target_error;
@@ -602,7 +601,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     for (double& s : report->group_steps) s *= choice->scale;
     report->keyframe_errors = choice->errors;
     report->refinements = choice->refinements;
-    report->inter_dead_zone = chosen.inter_dead_zone;
+    report->inter_dead_zone = dead_zone;
     report->peak_keyframes_in_memory = spill.count->peak.load();
     report->spilled_bytes = spill.bytes;
   }
@@ -611,7 +610,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
 
 std::vector<double> apply_field_coding(StoredSequence& keys, const FieldCoding& coding, const FieldPrecisionOptions& options) {
   check_options(options);
-  check_dead_zone(options);
+  check_dead_zone(options.inter_dead_zone);
   if (keys.size() == 0) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
   Spill spill(options.spill);
   ReconstructorPool pool(keys.shape().grid_n, options.threads);

@@ -198,9 +198,13 @@ EncodeOptions read_options(std::string_view text, OptionsScope scope, EncodeOpti
 }
 
 bool same_options(std::string_view stored, const EncodeOptions& options, OptionsScope scope) {
+  return same_options(stored, write_options(options, scope));
+}
+
+bool same_options(std::string_view stored, std::string_view written) {
   try {
     // As values: a key the schema lacks (a later encoder's option) is a difference, as is one missing.
-    return json_fields::parse_object(stored, kMaxOptionsDepth, "the options") == Json::parse(write_options(options, scope));
+    return json_fields::parse_object(stored, kMaxOptionsDepth, "the options") == Json::parse(written);
   } catch (const Error&) {
     return false;  // not JSON, or nested too deep: not these options
   }

@@ -31,5 +31,8 @@ EncodeOptions read_options(std::string_view text, OptionsScope scope, EncodeOpti
 // `options`: compared as JSON values, so neither the keys' order nor how a number was formatted
 // matters; a key more or less does. False where `stored` is not a JSON object.
 bool same_options(std::string_view stored, const EncodeOptions& options, OptionsScope scope);
+// The same comparison of `stored` with `written` (write_options's of the options it is held to):
+// for a caller that checks many stored settings against one encode's, its options written once.
+bool same_options(std::string_view stored, std::string_view written);
 
 }  // namespace facemorph

@@ -109,8 +109,8 @@ void SequenceEncoder::add_sampled_frame(SampledFrame&& f) {
     // its geodesic frame built again from its disk and landmarks, as register_frames built it.
     options_.reference_frame = static_cast<int>(i);
     maps_.pin(static_cast<int>(i), std::make_shared<const MappedFrame>(mapped));
-    set_reference_geometry(registrations_, *frame(static_cast<int>(i)), capture_.landmark_names, f.landmarks, options_.density_equalising,
-                           options_.registration.method, report_);
+    set_reference_geometry(registrations_, *maps_.frame(static_cast<int>(i)), capture_.landmark_names, f.landmarks,
+                           options_.density_equalising, options_.registration.method, report_);
     registrations_.start(maps_.size(), options_.spill_frames ? SpillMode::kSpill : SpillMode::kMemory);
     for (auto& [k, pending] : pending_registrations_)
       registrations_.put(k, read_sampled_registration(capture_.frames[k].mesh.string(), pending, registrations_.partition()));
@@ -166,7 +166,8 @@ void SequenceEncoder::finish_sampled_frames() {
   }
   const std::vector<char>& without_interior = registrations_.without_interior;
   report_.frames_without_interior_landmarks = static_cast<int>(std::count(without_interior.begin(), without_interior.end(), 1));
-  reset_representation();
+  // The representation stays a new encoder's (hl+t, reported as such once plan or adopt_plan adopts
+  // one): nothing registered it before these frames, so there is no earlier choice to reset.
   report_.peak_selection_samples_in_memory = 0;
 }
 

@@ -32,12 +32,12 @@ constexpr int kMaxMeasureDepth = 4;  // the settings nest three levels
 constexpr const char* kMeasureFormat = "facemorph segment measure";
 constexpr int kMeasureVersion = 1;
 
-// The intra period of the whole capture's keyframes, as choose_field_coding would choose it from
-// them: every segment's groups are the whole encode's.
-int capture_intra_period(const EncodeOptions& options, const SequenceEncoder& encoder, const KeyframeSelection& chosen) {
-  if (options.field_precision.intra_period != kAutoIntraPeriod) return options.field_precision.intra_period;
+// The intra period of the whole capture's keyframes (of `frames`), as choose_field_coding would
+// choose it from them (`precision`): every segment's groups are the whole encode's.
+int capture_intra_period(const FieldPrecisionOptions& precision, const std::vector<CaptureFrame>& frames, const KeyframeSelection& chosen) {
+  if (precision.intra_period != kAutoIntraPeriod) return precision.intra_period;
   Sequence times;
-  for (int k : chosen.keyframes) times.keyframes.emplace_back().time = encoder.capture().frames[static_cast<size_t>(k)].time;
+  for (int k : chosen.keyframes) times.keyframes.emplace_back().time = frames[static_cast<size_t>(k)].time;
   return auto_intra_period(times);
 }
 
@@ -46,6 +46,7 @@ int capture_intra_period(const EncodeOptions& options, const SequenceEncoder& en
 struct SegmentStart {
   PartsEncoder parts;
   SequenceEncoder* encoder = nullptr;  // the parts'
+  StageSettings settings;              // every stage's, from the segment's options
   KeyframeSelection chosen;
   int intra_period = 0;
   KeyframeSegment keyframes;
@@ -69,17 +70,19 @@ SegmentStart start_segment(const std::vector<std::filesystem::path>& parts, cons
   segment_options.residual_frames = false;
   s.parts = encoder_of_parts(parts, segment_options, &s.header);
   s.encoder = s.parts.encoder.get();
+  s.parts.timing.add_to(s.encoder->report());
+  s.settings = stage_settings(s.encoder->options());
   if (planned) {
     s.chosen = planned->plan;
     try {
-      adopt_keyframe_plan(*s.encoder, s.chosen, planned->grid, planned->representation, planned->blend);
+      s.encoder->adopt_plan(s.chosen, planned->grid, planned->representation, planned->blend);
     } catch (const Error& e) {
       throw Error(e.code(), std::string("the measures are not of these parts: ") + e.what());
     }
   } else {
-    s.chosen = plan_keyframes(*s.encoder);
+    s.chosen = s.encoder->plan(s.settings.plan);
   }
-  s.intra_period = capture_intra_period(options, *s.encoder, s.chosen);
+  s.intra_period = capture_intra_period(s.settings.precision, s.encoder->capture().frames, s.chosen);
   s.keyframes = segment_keyframes(s.chosen.keyframes.size(), s.intra_period, id);
   return s;
 }
@@ -139,17 +142,17 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.plan = s.chosen;
   m.plan.history.clear();
   m.blend = encoder.report().blend;
-  m.target_error = field_precision_options(encoder.options(), s.chosen).target_error;
+  m.target_error = field_precision_options(s.settings, s.chosen).target_error;
   if (m.first == m.end) {  // past the capture's groups: nothing to measure
     if (report) *report = std::move(encoder.report());
     return m;
   }
   s.keyframes.textures = false;  // nothing here is written but the measure
-  FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
+  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen);
   precision.intra_period = s.intra_period;
   // Through the driver's fallback: where this segment's keyframes do not reconstruct, its measure
   // is of positions, and says so (the assemble stage takes it to every segment).
-  build_reconstructable(encoder, s.chosen.keyframes, encoder.report().grid, &s.keyframes, [&](StoredSequence& keyframes) {
+  encoder.build_reconstructable(s.settings.build, s.chosen.keyframes, encoder.report().grid, &s.keyframes, [&](StoredSequence& keyframes) {
     const auto start = std::chrono::steady_clock::now();
     encoder.report().field_coding = choose_field_coding(keyframes, precision, &encoder.report().field_precision);
     encoder.report().seconds_precision = seconds_since(start);
@@ -288,7 +291,7 @@ SegmentMeasure read_segment_measure(const std::filesystem::path& path) {
     m.blend.fields_error = field<double>(blend, "fields_error", "its plan's blend");
     m.blend.positions_error = field<double>(blend, "positions_error", "its plan's blend");
     m.blend.not_converged = integer_field(blend, "not_converged", "its plan's blend");
-    // The frames the plan covers are checked against the parts when it is taken (adopt_keyframe_plan).
+    // The frames the plan covers are checked against the parts when it is taken (SequenceEncoder::adopt_plan).
     if (m.plan.keyframes.size() != static_cast<size_t>(m.keyframes))
       bad("its plan holds " + std::to_string(m.plan.keyframes.size()) + " keyframes, not " + std::to_string(m.keyframes));
     for (double e : m.plan.predicted_error) {
@@ -385,9 +388,9 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   s.keyframes.fixed_nodes = fixed;
   // The fallback's measure settles this segment's dead zone too where its own measured the fields.
   const SegmentMeasure& zone = fallback && own.representation_fallback.empty() ? *fallback : own;
-  if (fallback) store_as_positions(encoder, fallback->representation_fallback);
-  std::unique_ptr<StoredSequence> sequence = build_keyframes(encoder, s.chosen.keyframes, r.grid, &s.keyframes);
-  FieldPrecisionOptions precision = field_precision_options(encoder.options(), s.chosen);
+  if (fallback) encoder.store_as_positions(fallback->representation_fallback);
+  std::unique_ptr<StoredSequence> sequence = encoder.build(s.settings.build, s.chosen.keyframes, r.grid, &s.keyframes);
+  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen);
   precision.intra_period = s.intra_period;
   precision.inter_dead_zone = zone.inter_dead_zone;
   const auto start = std::chrono::steady_clock::now();
@@ -404,14 +407,14 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   if (fallback) warn_stored_as_positions(r);
   const std::vector<int> keyframes(s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.first),
                                    s.chosen.keyframes.begin() + static_cast<long>(s.keyframes.end));
-  code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, keyframes, encoder.report());
+  code_textures(s.settings.texture, texture_frames(encoder), *sequence, keyframes, encoder.report());
   if (placement) {
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(encode_hash));
     *placement = {{id.index, used}, static_cast<int>(s.keyframes.first), static_cast<int>(s.chosen.keyframes.size()), hex};
   }
   if (header) *header = s.header;
-  finish_report(encoder, s.chosen, *sequence, report);
+  encoder.finish_report(s.chosen, *sequence, report);
   return sequence;
 }
 

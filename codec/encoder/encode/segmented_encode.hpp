@@ -57,7 +57,7 @@ struct SegmentMeasure {
   // stores every segment's keyframes as positions at the steps of the measures that say so.
   std::string representation_fallback;
   // The keyframes (frame indices), N and representation it chose from every frame
-  // (plan_keyframes), the same in every measure of an encode: the assemble stage takes them rather
+  // (SequenceEncoder::plan), the same in every measure of an encode: the assemble stage takes them rather
   // than choosing again. The selection's history is not kept.
   KeyframeSelection plan;
   BlendComparison blend;

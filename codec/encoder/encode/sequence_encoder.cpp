@@ -155,7 +155,7 @@ std::unique_ptr<StoredSequence> encode_capture_stored(Capture capture, const Enc
   map_frames(encoder);
   register_frames(encoder);
   sample_frames(encoder);
-  return encode_sampled(encoder, report_out);
+  return encoder.encode_sampled(report_out);
 }
 
 namespace {
@@ -175,9 +175,8 @@ void report_selection(EncodeReport& report, const KeyframeSelection& chosen) {
 // which the later steps do not read, keeping what they do: each frame's time, pose and diagonal,
 // the reference's local vectors (pose_centre) and the fit's noise estimate at `keyframes`; the
 // store's figures into the report. build may then be given those keyframes only.
-void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes) {
-  if (const auto figures = encoder.selection().release(keyframes)) {
-    EncodeReport& report = encoder.report();
+void release_samples(SelectionSamples& selection, const std::vector<int>& keyframes, EncodeReport& report) {
+  if (const auto figures = selection.release(keyframes)) {
     report.peak_selection_samples_in_memory = std::max(report.peak_selection_samples_in_memory, figures->peak_held);
     report.selection_spilled_bytes = figures->spilled_bytes;
   }
@@ -189,24 +188,6 @@ void release_samples(SequenceEncoder& encoder, const std::vector<int>& keyframes
 }
 
 }  // namespace
-
-PlanSettings plan_settings(const EncodeOptions& options) {
-  PlanSettings settings;
-  SelectionOptions& selection = settings.selection;
-  selection.fraction = options.keyframe_fraction;
-  selection.max_error = options.max_error;
-  selection.error_bound = options.keyframe_error_bound;
-  selection.p99_bound = options.keyframe_p99_bound;
-  selection.sparse_interval = options.sparse_frame_interval;
-  selection.spline = options.spline;
-  selection.residuals = options.residual_frames;
-  settings.reference_frame = options.reference_frame;
-  settings.grid = options.grid;
-  settings.density_equalising = options.density_equalising.strength != 0;
-  settings.representation = options.representation;
-  settings.threads = options.threads;
-  return settings;
-}
 
 PlanFrames plan_frames(const SequenceEncoder& encoder) {
   return {encoder.capture().frames, encoder.selection(), encoder.maps(), encoder.frame_sampler()};
@@ -221,74 +202,88 @@ void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelecti
   adopt_chosen_representation(encoder, plan_settings(encoder.options()), chosen, grid);
 }
 
-KeyframeSelection plan_keyframes(SequenceEncoder& encoder) {
+std::unique_ptr<StoredSequence> SequenceEncoder::encode_sampled(EncodeReport* report_out) {
+  const StageSettings settings = stage_settings(options_);
+  const KeyframeSelection chosen = plan(settings.plan);
+  std::unique_ptr<StoredSequence> sequence = code(settings, chosen, report_.grid);
+  finish_report(chosen, *sequence, report_out);
+  return sequence;
+}
+
+KeyframeSelection SequenceEncoder::plan(const PlanSettings& settings) {
   const auto start = std::chrono::steady_clock::now();
-  const PlanSettings settings = plan_settings(encoder.options());
-  const PlanFrames frames = plan_frames(encoder);
+  const PlanFrames frames{capture_.frames, selection_, maps_, FrameSampler(maps_, registrations_)};
   const KeyframeSelection chosen = select_keyframes(settings, frames.selection);
-  EncodeReport& report = encoder.report();
-  report_selection(report, chosen);
-  report.grid = choose_grid(settings, frames, report, &chosen);
-  adopt_chosen_representation(encoder, settings, chosen, report.grid);
-  release_samples(encoder, chosen.keyframes);
-  report.seconds_planning = seconds_since(start);
+  report_selection(report_, chosen);
+  report_.grid = choose_grid(settings, frames, report_, &chosen);
+  const RepresentationDecision decision = choose_representation(settings, frames, chosen, report_.grid, report_);
+  adopt_representation(decision.representation, decision.blend);
+  release_samples(selection_, chosen.keyframes, report_);
+  report_.seconds_planning = seconds_since(start);
   return chosen;
 }
 
-void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
-                         const BlendComparison& blend) {
+void SequenceEncoder::adopt_plan(const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend) {
   const std::vector<int>& keys = chosen.keyframes;
-  const int frames = encoder.frame_count();
+  const int frames = frame_count();
   const bool increasing = std::adjacent_find(keys.begin(), keys.end(), std::greater_equal<int>()) == keys.end();
   if (keys.empty() || keys.front() != 0 || keys.back() != frames - 1 || !increasing ||
       chosen.predicted_error.size() != static_cast<size_t>(frames)) {
     throw Error(ErrorCode::kInvalidArgument,
                 "the keyframes planned are not a selection of this encode's " + std::to_string(frames) + " frames");
   }
-  report_selection(encoder.report(), chosen);
-  encoder.report().grid = grid;
-  encoder.adopt_representation(representation, blend);
-  release_samples(encoder, keys);
+  report_selection(report_, chosen);
+  report_.grid = grid;
+  adopt_representation(representation, blend);
+  release_samples(selection_, keys, report_);
 }
 
-void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report_out) {
-  EncodeReport& report = encoder.report();
-  for (int i = 0; i < encoder.frame_count(); ++i) {
-    const FrameSummary& frame = encoder.frame_summary(i);
-    const std::shared_ptr<const DiskRegistration> f = encoder.registration(i);
+std::unique_ptr<StoredSequence> SequenceEncoder::build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
+                                                       const KeyframeSegment* segment) {
+  const BuildFrames frames{capture_, selection_, maps_, registrations_, representation(), first_time_, last_time_, pose_centre()};
+  return build_keyframes(settings, frames, keyframes, grid, segment, report_);
+}
+
+Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid) {
+  return encoder.build(build_settings(encoder.options()), keyframes, grid)->to_sequence();
+}
+
+void SequenceEncoder::finish_report(const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report_out) {
+  for (size_t i = 0; i < capture_.frames.size(); ++i) {
+    const FrameSummary& frame = maps_.summaries[i];
+    const std::shared_ptr<const DiskRegistration> f = registrations_.registration(static_cast<int>(i));
     const DiskRegistration& registration = *f;
     EncodedFrameReport r;
     r.name = frame.name;
-    r.time = encoder.capture().frames[static_cast<size_t>(i)].time;
+    r.time = capture_.frames[i].time;
     r.vertices = frame.vertices;
     r.holes_filled = frame.holes_filled;
     r.repair = frame.repair;
     r.repair_totals = frame.repair_totals;
-    r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), i);
+    r.keyframe = std::binary_search(chosen.keyframes.begin(), chosen.keyframes.end(), static_cast<int>(i));
     r.fallback = registration.fallback;
     r.fallback_reason = registration.fallback_reason;
     r.conformal_fallback_reason = frame.conformal_fallback_reason;
     r.conformal_method = frame.conformal_method;
     r.energy_moebius = registration.energy_moebius;
     r.energy = registration.energy;
-    r.predicted_error = chosen.predicted_error[static_cast<size_t>(i)];
-    if (i < static_cast<int>(chosen.predicted_p99.size())) r.predicted_p99 = chosen.predicted_p99[static_cast<size_t>(i)];
-    r.diagonal = encoder.selection().frames()[static_cast<size_t>(i)].diagonal;
-    report.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
-    report.frames.push_back(std::move(r));
+    r.predicted_error = chosen.predicted_error[i];
+    if (i < chosen.predicted_p99.size()) r.predicted_p99 = chosen.predicted_p99[i];
+    r.diagonal = selection_.frames()[i].diagonal;
+    report_.registration_fallbacks += r.fallback != RegistrationFallback::kNone;
+    report_.frames.push_back(std::move(r));
   }
-  report.peak_frames_in_memory = encoder.frame_store().peak_held();
-  report.spilled_bytes = encoder.frame_store().spilled_bytes();
-  report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, report.field_precision.peak_keyframes_in_memory);
-  report.keyframes_spilled_bytes += report.field_precision.spilled_bytes;
-  report.keyframes_spilled_bytes += sequence.spilled_bytes();
-  if (report_out) *report_out = std::move(report);
+  report_.peak_frames_in_memory = maps_.store().peak_held();
+  report_.spilled_bytes = maps_.store().spilled_bytes();
+  report_.peak_keyframes_in_memory = std::max(report_.peak_keyframes_in_memory, report_.field_precision.peak_keyframes_in_memory);
+  report_.keyframes_spilled_bytes += report_.field_precision.spilled_bytes;
+  report_.keyframes_spilled_bytes += sequence.spilled_bytes();
+  if (report_out) *report_out = std::move(report_);
 }
 
-void store_as_positions(SequenceEncoder& encoder, const std::string& why) {
-  EncodeReport& report = encoder.report();
-  encoder.adopt_representation(Representation::kXYZ, report.blend);
-  report.representation_fallback = why;
+void SequenceEncoder::store_as_positions(const std::string& why) {
+  adopt_representation(Representation::kXYZ, report_.blend);
+  report_.representation_fallback = why;
 }
 
 void warn_stored_as_positions(EncodeReport& report) {
@@ -296,10 +291,10 @@ void warn_stored_as_positions(EncodeReport& report) {
                             report.representation_fallback + ")");
 }
 
-std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
-                                                      const KeyframeSegment* segment,
-                                                      const std::function<void(StoredSequence&)>& measure_fields) {
-  std::unique_ptr<StoredSequence> sequence = build_keyframes(encoder, keyframes, grid, segment);
+std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const BuildSettings& settings, const std::vector<int>& keyframes,
+                                                                       int grid, const KeyframeSegment* segment,
+                                                                       const std::function<void(StoredSequence&)>& measure_fields) {
+  std::unique_ptr<StoredSequence> sequence = build(settings, keyframes, grid, segment);
   try {
     measure_fields(*sequence);
   } catch (const Error& e) {
@@ -308,58 +303,48 @@ std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, 
     // mix), so every keyframe is stored as positions, which decode without iterating, and the
     // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
     // encode still fails: the positions were not asked for.
-    if (e.code() != ErrorCode::kNotConverged || encoder.options().representation || encoder.representation() == Representation::kXYZ) throw;
-    store_as_positions(encoder, e.what());
-    sequence = build_keyframes(encoder, keyframes, grid, segment);
+    if (e.code() != ErrorCode::kNotConverged || options_.representation || representation() == Representation::kXYZ) throw;
+    store_as_positions(e.what());
+    sequence = build(settings, keyframes, grid, segment);
     measure_fields(*sequence);
-    warn_stored_as_positions(encoder.report());
+    warn_stored_as_positions(report_);
   }
   return sequence;
 }
 
-std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid) {
-  EncodeReport& report = encoder.report();
-  const FieldPrecisionOptions precision = field_precision_options(encoder.options(), chosen);
+std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
+  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   std::unique_ptr<StoredSequence> sequence =
-      build_reconstructable(encoder, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
-        if (encoder.options().predicted_fields) report.field_coding = round_fields(precision, keyframes, report);
+      build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
+        if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
       });
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
-  if (encoder.options().residual_frames && residuals_pay(chosen)) {
-    sequence->set_residuals(fit_decoded_residuals(registered_frames(encoder), *sequence, chosen.keyframes, SelectionOptions().residual_step,
-                                                  &report.residual_fit, encoder.options().threads));
-    report.residual_fit.keyframes_saved = chosen.spline_keyframes - static_cast<int>(chosen.keyframes.size());
+  if (settings.residual_frames && residuals_pay(chosen)) {
+    sequence->set_residuals(fit_decoded_residuals(registered_frames(), *sequence, chosen.keyframes, SelectionOptions().residual_step,
+                                                  &report_.residual_fit, settings.threads));
+    report_.residual_fit.keyframes_saved = chosen.spline_keyframes - static_cast<int>(chosen.keyframes.size());
   }
   // Frame patches fitted to the decoded frames, residuals included (patch_fit.hpp).
-  if (encoder.options().patch_bound > 0)
-    sequence->set_patches(
-        fit_frame_patches(encoder.capture(), *sequence, chosen.keyframes, encoder.options().patch_bound, &report.patch_fit));
-  code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, chosen.keyframes, report);
+  if (settings.patch_bound > 0)
+    sequence->set_patches(fit_frame_patches(capture_, *sequence, chosen.keyframes, settings.patch_bound, &report_.patch_fit));
+  code_textures(settings.texture, TextureFrameSource{capture_.frames, maps_, FrameSampler(maps_, registrations_)}, *sequence,
+                chosen.keyframes, report_);
   return sequence;
-}
-
-TextureSettings texture_settings(const EncodeOptions& options) {
-  return {options.texture_quality, options.texture_codec, options.texture_coding, options.share_textures, options.threads};
 }
 
 TextureFrameSource texture_frames(const SequenceEncoder& encoder) {
   return {encoder.capture().frames, encoder.maps(), encoder.frame_sampler()};
 }
 
-RegisteredFrames registered_frames(const SequenceEncoder& encoder) {
+RegisteredFrames SequenceEncoder::registered_frames() const {
   RegisteredFrames frames;
-  for (const CaptureFrame& f : encoder.capture().frames) frames.times.push_back(f.time);
-  for (const SelectionFrame& f : encoder.selection().frames()) frames.diagonals.push_back(f.diagonal);
-  frames.surface = [sampler = encoder.frame_sampler()](int i, std::span<const Vec2> nodes) { return sampler.sample_surface(i, nodes); };
+  for (const CaptureFrame& f : capture_.frames) frames.times.push_back(f.time);
+  for (const SelectionFrame& f : selection_.frames()) frames.diagonals.push_back(f.diagonal);
+  frames.surface = [sampler = FrameSampler(maps_, registrations_)](int i, std::span<const Vec2> nodes) {
+    return sampler.sample_surface(i, nodes);
+  };
   return frames;
-}
-
-std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report_out) {
-  const KeyframeSelection chosen = plan_keyframes(encoder);
-  std::unique_ptr<StoredSequence> sequence = code_keyframes(encoder, chosen, encoder.report().grid);
-  finish_report(encoder, chosen, *sequence, report_out);
-  return sequence;
 }
 
 }  // namespace facemorph

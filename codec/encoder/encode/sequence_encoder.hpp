@@ -13,6 +13,7 @@
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
+#include "codec/encoder/encode/build_stage.hpp"
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
@@ -26,6 +27,7 @@
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/encode/sampled_frame.hpp"
 #include "codec/encoder/encode/selection_samples.hpp"
+#include "codec/encoder/encode/stage_settings.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
 #include "codec/encoder/encode/texture_stage.hpp"
@@ -44,17 +46,6 @@
 #include <vector>
 
 namespace facemorph {
-
-// One segment of a long capture's keyframes, coded apart from the others (fmenc --stage measure,
-// --stage assemble --segment S/N; spec/method.md §7.17). Positions are in the capture's list of
-// keyframes (KeyframeSelection::keyframes).
-struct KeyframeSegment {
-  size_t first = 0, end = 0;          // the keyframes it codes: whole groups of the intra period
-  size_t fit_first = 0, fit_end = 0;  // those the keyframe fit solves over: the segment and a margin each side
-  // The fixed nodes of the whole capture (every segment's folds); none: the segment's own folds.
-  std::optional<std::vector<int32_t>> fixed_nodes;
-  bool textures = true;  // false: none sampled (a stage that writes no file)
-};
 
 // Encodes `capture`. Every frame needs the landmarks nose_tip and nose_bridge (or between_eyes)
 // and at least three landmarks shared with the reference frame; rim_* markers give the boundary
@@ -82,11 +73,14 @@ FrameFailure frame_failure(const Error& e, const std::string& name);
 // The encode's state, stage by stage: the capture's frames (paths, landmarks in their store, their
 // numbers in the capture as given), each stage's own state unit (the maps: FrameMaps; the
 // registrations: FrameRegistrations; the selection samples: SelectionSamples) and the report.
-// The stages are free functions over it (map_frames, register_frames, sample_frames, ...), run in
-// order by encode_capture_stored, the staged and the segmented encodes, and by the bench, which
-// re-runs a later stage with other options (registering again redoes the selection samples).
-// Each stage goes through the frames a few at a time (one per thread), reading each map back from
-// the store and releasing it when done.
+// The stages are free functions: map, register and sample over it (map_frames, register_frames,
+// sample_frames); the stages after them (plan, build, precision, texture) over their own settings
+// and views of its state units, which its driver members (encode_sampled, plan, code, ...) derive
+// once per run from options() (stage_settings.hpp) and hand them. The one-process encode
+// (encode_capture_stored), the staged and the segmented encodes all run through these members, and
+// the bench re-runs a later stage with other options (registering again redoes the selection
+// samples). Each stage goes through the frames a few at a time (one per thread), reading each map
+// back from the store and releasing it when done.
 class SequenceEncoder {
  public:
   // Keeps its own `capture` (paths and landmarks; meshes are read as the stages need them).
@@ -194,6 +188,54 @@ class SequenceEncoder {
     if (options_.progress) options_.progress(stage, done, total);
   }
 
+  // ---- The driver: the steps after the selection's sampling, each stage on its own settings ----
+
+  // Keyframes, N, representation, the keyframes on G, field precision, residual frames, patches,
+  // texture qualities and sharing, and the report's per-frame lines, every stage's settings derived
+  // once from options() (stage_settings). What encode_capture_stored runs once this encoder has
+  // mapped, registered and sampled every frame, and the staged encode's assemble stage once its
+  // frames came from the parts (staged_encode.hpp). The report moved to `report` where given.
+  std::unique_ptr<StoredSequence> encode_sampled(EncodeReport* report = nullptr);
+  // The plan stage: the keyframes, N and the representation chosen (the report's lines for them
+  // filled), the selection's samples released.
+  KeyframeSelection plan(const PlanSettings& settings);
+  // plan's choices made by an earlier stage of the same encode, taken as they are: the report's
+  // lines for them filled, the representation adopted, the selection's samples released.
+  // kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
+  // increasing from the first frame to the last, a predicted error a frame).
+  void adopt_plan(const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
+  // The build stage (build_keyframes) on this encoder's frames, in representation().
+  std::unique_ptr<StoredSequence> build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
+                                        const KeyframeSegment* segment = nullptr);
+  // The keyframes built (build: all of `keyframes`, or `segment`'s) and `measure_fields` run on
+  // them (the field precision: round_fields, or a segment's measure); where the representation is
+  // the encoder's own choice (options().representation unset) and not already xyz, and measuring
+  // throws kNotConverged (a keyframe's fields do not reconstruct), store_as_positions and the
+  // keyframes built and measured again, with the report's warning. What every encode (one process,
+  // staged, a segment's measure) builds its keyframes through: a capture never fails for a keyframe
+  // that does not reconstruct. Anything else measuring throws, and kNotConverged where hl+t was asked
+  // for, is thrown.
+  std::unique_ptr<StoredSequence> build_reconstructable(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
+                                                        const KeyframeSegment* segment,
+                                                        const std::function<void(StoredSequence&)>& measure_fields);
+  // encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid`,
+  // their fields rounded (settings.predicted_fields; report().field_coding, else left uncoded), the
+  // residual frames fitted to them as stored (settings.residual_frames, fit_decoded_residuals;
+  // report().residual_fit), the frame patches and the texture stage (code_textures): what a file
+  // written with the report's field coding and texture qualities holds. The bench runs it for each
+  // keyframe set and representation it measures, so that it measures what fmenc writes.
+  std::unique_ptr<StoredSequence> code(const StageSettings& settings, const KeyframeSelection& chosen, int grid);
+  // Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
+  // reconstruct, and how far it got): the representation adopted, report().representation_fallback
+  // set (a file's settings say it). A segment's assemble takes the fallback a measure made so
+  // (segmented_encode.hpp).
+  void store_as_positions(const std::string& why);
+  // What the residual fit reads of the frames (residual_fit.hpp): their times, diagonals and
+  // registered surfaces, after sample_frames. Holds references into this encoder.
+  RegisteredFrames registered_frames() const;
+  // The report's per-frame lines and memory figures, moved to `report` where given.
+  void finish_report(const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
+
  private:
   // of_sampled_frames's steps: the encoder of no frames yet, each frame added, the reference's
   // stores settled once all came.
@@ -236,8 +278,9 @@ std::optional<Vec3> find_vertical_hint(const Capture& capture, int reference, bo
                                        const std::function<std::vector<Vec3>(size_t)>& landmarks,
                                        const std::function<void(int, int)>& progress = {});
 
-// ---- The stages (stages/map_frames.cpp, register_frames.cpp, sample_frames.cpp, choose_grid.cpp, choose_representation.cpp,
-// build_keyframes.cpp): each reads the encoder's frames as map, register and sample left them ----
+// ---- The stages (stages/map_frames.cpp, register_frames.cpp, sample_frames.cpp, choose_grid.cpp,
+// choose_representation.cpp; the build stage: build_stage.hpp): each reads the encoder's frames as
+// map, register and sample left them ----
 
 // 1. Every frame prepared, conformally mapped and normalised (options().conformal, largest_component,
 // find_landmarks, landmark_tolerance), its map into encoder.maps(); the landmarks found on the
@@ -269,75 +312,25 @@ PlanFrames plan_frames(const SequenceEncoder& encoder);
 // the settings from the encoder's options where not given.
 void adopt_chosen_representation(SequenceEncoder& encoder, const PlanSettings& settings, const KeyframeSelection& chosen, int grid);
 void adopt_chosen_representation(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
-// 6. The keyframes on G of size `grid`: fields (in encoder.representation()), poses, holes,
-// textures, each array put in the store as it is made (options().spill_keyframes); with
-// options().keyframe_fit, fitted to every frame. With `segment`: only its keyframes, fitted over
-// its fit range of `keyframes` (spec/method.md §7.17), with its fixed nodes where given.
-// build_sequence: the same, read back as a Sequence. Fills report().texture_size, keyframe_folds
-// and seconds_keyframes. kInvalidArgument for no keyframes or a segment outside them;
-// kMissingTexture where some keyframes have colour and another has not.
-std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
-                                                const KeyframeSegment* segment = nullptr);
+
+// The build stage on `encoder`'s frames with its settings from encoder.options(), read back as a
+// Sequence (the tests and the bench).
 Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid);
 
 // ---- The stages after the keyframes are built (stages/round_fields.cpp, stages/texture_coding.cpp) ----
 
-// 7. The field precision's options: options.field_precision with the encode's spill and threads,
-// and with auto_field_error two fifths of `chosen`'s mean predicted error as the target.
-FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
 // The fields rounded to `precision` (field_precision_options) as the file will store them: what a
 // file written with the returned coding (SequenceFileMetadata::field_coding) holds. Fills
 // report.field_precision and seconds_precision.
 FieldCoding round_fields(const FieldPrecisionOptions& precision, StoredSequence& keyframes, EncodeReport& report);
 FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& sequence, EncodeReport& report);
-// 8, 9: the texture stage over its settings (encode/texture_stage.hpp), derived once from the options;
+// 8, 9: the texture stage over its settings (encode/texture_stage.hpp, stage_settings.hpp);
 // texture_frames: its view of `encoder`'s frames (holds references into it).
-TextureSettings texture_settings(const EncodeOptions& options);
 TextureFrameSource texture_frames(const SequenceEncoder& encoder);
 
-// ---- The driver ----
-
-// The steps after the selection's sampling: keyframes, N, representation, the keyframes on G,
-// field precision, texture qualities and sharing, and the report's per-frame lines. What
-// encode_capture_stored runs once `encoder` has mapped, registered and sampled every frame, and the
-// staged encode's assemble stage once its frames came from the parts (staged_encode.hpp).
-std::unique_ptr<StoredSequence> encode_sampled(SequenceEncoder& encoder, EncodeReport* report = nullptr);
-// encode_sampled's first and last steps, for an encode that builds and codes its keyframes another
-// way (a segment: segmented_encode.hpp). plan_keyframes: the keyframes, N and the representation
-// chosen (the report's lines for them filled), the selection's samples released. finish_report:
-// the report's per-frame lines and memory figures, moved to `report` where given.
-KeyframeSelection plan_keyframes(SequenceEncoder& encoder);
-// plan_keyframes's choices made by an earlier stage of the same encode, taken as they are: the
-// report's lines for them filled, the representation adopted, the selection's samples released.
-// kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
-// increasing from the first frame to the last, a predicted error a frame).
-void adopt_keyframe_plan(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid, Representation representation,
-                         const BlendComparison& blend);
-void finish_report(SequenceEncoder& encoder, const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
-// The keyframes built (build_keyframes: all of `keyframes`, or `segment`'s) and `measure_fields` run on
-// them (the field precision: round_fields, or a segment's measure); where the representation is
-// the encoder's own choice (options().representation unset) and not already xyz, and measuring
-// throws kNotConverged (a keyframe's fields do not reconstruct), store_as_positions and the
-// keyframes built and measured again, with the report's warning. What every encode (one process,
-// staged, a segment's measure) builds its keyframes through: a capture never fails for a keyframe
-// that does not reconstruct. Anything else measuring throws, and kNotConverged where hl+t was asked
-// for, is thrown.
-std::unique_ptr<StoredSequence> build_reconstructable(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid,
-                                                      const KeyframeSegment* segment,
-                                                      const std::function<void(StoredSequence&)>& measure_fields);
-// Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
-// reconstruct, and how far it got): the representation adopted, report().representation_fallback
-// set (a file's settings say it). warn_stored_as_positions: the summary's warning for it. A
-// segment's assemble takes the fallback a measure made so (segmented_encode.hpp).
-void store_as_positions(SequenceEncoder& encoder, const std::string& why);
+// A segment's encode stores positions because a measure did (SequenceEncoder::store_as_positions):
+// the summary's warning for it.
 void warn_stored_as_positions(EncodeReport& report);
-// encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid` (build_keyframes),
-// their fields rounded (options().predicted_fields; report().field_coding, else left uncoded), the
-// residual frames fitted to them as stored (options().residual_frames, fit_decoded_residuals;
-// report().residual_fit) and the texture stage (code_textures): what a file written with the
-// report's field coding and texture qualities holds. The bench runs it for each keyframe set and
-// representation it measures, so that it measures what fmenc writes.
-std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const KeyframeSelection& chosen, int grid);
 
 // ---- The pieces, for tests and the bench ----
 
@@ -346,9 +339,6 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
 // capture grew with it for the whole encode.
 std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
 
-// What the residual fit reads of `encoder`'s frames (residual_fit.hpp): their times, diagonals and
-// registered surfaces, after sample_frames. Holds a reference to `encoder`.
-RegisteredFrames registered_frames(const SequenceEncoder& encoder);
 
 // Where the capture's landmarks of one frame lie on its disk, paired with the reference's: the
 // registration's input. Landmarks missing in either frame are left out; rim_* markers are flagged
@@ -359,9 +349,5 @@ DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const Dis
 DiskLandmarks disk_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const DiskMap& reference_map,
                              const std::vector<Vec3>& frame, const DiskMap& frame_map);
 
-// The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
-// distance to the nearest hole outline inside a filled hole, plus it outside capped at
-// kHoleLevelBand; kHoleLevelBand everywhere without holes.
-std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map, const std::vector<Vec2>& points);
 
 }  // namespace facemorph

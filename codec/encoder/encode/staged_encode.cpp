@@ -168,11 +168,15 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
 }
 
 void check_part_settings(const PartReader& part, const EncodeOptions& options) {
+  check_part_settings(part, write_options(options, OptionsScope::kSample));
+}
+
+void check_part_settings(const PartReader& part, const std::string& sample_settings) {
   const PartHeader& h = part.header();
-  if (same_options(h.settings, options, OptionsScope::kSample)) return;
+  if (same_options(h.settings, sample_settings)) return;
   throw Error(ErrorCode::kInvalidArgument, part.source() + " (frames " + std::to_string(h.range.first) + ":" + std::to_string(h.range.end) +
-                                               ") was sampled with other settings than these: " + h.settings +
-                                               " (these: " + write_options(options, OptionsScope::kSample) + ")");
+                                               ") was sampled with other settings than these: " + h.settings + " (these: " + sample_settings +
+                                               ")");
 }
 
 PartsEncoder::PartsEncoder() = default;
@@ -190,6 +194,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   // One capture, one setting, every frame once.
   const PartHeader& first = readers.front()->header();
   std::vector<PartHeader> headers;
+  const std::string sample_settings = write_options(options, OptionsScope::kSample);
   int next = 0;
   for (const auto& reader : readers) {
     const PartHeader& h = reader->header();
@@ -199,7 +204,7 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
       throw Error(ErrorCode::kInvalidArgument, "the parts come from different captures: " + readers.front()->source() + " (" +
                                                    a.root.string() + ") and " + reader->source() + " (" + b.root.string() + ")");
     }
-    check_part_settings(*reader, options);
+    check_part_settings(*reader, sample_settings);
     if (b.reference != a.reference || b.given_reference != a.given_reference) {
       throw Error(ErrorCode::kInvalidArgument, "the parts register to different reference frames (" + std::to_string(a.reference) +
                                                    " and " + std::to_string(b.reference) + ")");
@@ -221,14 +226,15 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
   }
   SampledCapture capture = first.capture;
   capture.landmark_names = assembled_names(headers);
-  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0;
+  PartsTiming timing;
+  timing.parts = static_cast<int>(readers.size());
   std::vector<size_t> part_of;              // per frame of the capture, the part that holds it
   std::vector<std::vector<int>> positions;  // per part, its landmark names' places among the assembled names
   for (size_t p = 0; p < readers.size(); ++p) {
     const PartHeader& h = readers[p]->header();
-    seconds_mapping += h.seconds_mapping;
-    seconds_registration += h.seconds_registration;
-    seconds_selection += h.seconds_selection;
+    timing.seconds_mapping += h.seconds_mapping;
+    timing.seconds_registration += h.seconds_registration;
+    timing.seconds_selection += h.seconds_selection;
     part_of.insert(part_of.end(), static_cast<size_t>(h.range.size()), p);
     // Each frame's landmarks under the assembled names (a part adds only the names its frames found).
     std::vector<int>& position = positions.emplace_back();
@@ -256,23 +262,29 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
     return f;
   };
   const auto where = [&](int i) { return readers[part_of[static_cast<size_t>(i)]]->source() + ": frame " + std::to_string(i); };
-  std::unique_ptr<SequenceEncoder> encoder_made = SequenceEncoder::of_sampled_frames(capture, options, frame, where);
-  SequenceEncoder& encoder = *encoder_made;
-  encoder.report().seconds_mapping = seconds_mapping;
-  encoder.report().seconds_registration = seconds_registration;
-  encoder.report().seconds_selection = seconds_selection;
-  encoder.report().seconds_reading_parts = seconds_since(start);
-  encoder.report().parts = static_cast<int>(readers.size());
-  if (header_out) *header_out = first;
   PartsEncoder made;
-  made.encoder = std::move(encoder_made);
+  made.encoder = SequenceEncoder::of_sampled_frames(capture, options, frame, where);
+  timing.seconds_reading = seconds_since(start);
+  made.timing = timing;
+  if (header_out) *header_out = first;
   made.parts = std::move(readers);
   return made;
 }
 
+void PartsTiming::add_to(EncodeReport& report) const {
+  report.parts = parts;
+  report.seconds_mapping = seconds_mapping;
+  report.seconds_registration = seconds_registration;
+  report.seconds_selection = seconds_selection;
+  report.seconds_reading_parts = seconds_reading;
+}
+
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
                                                EncodeReport* report, PartHeader* header) {
-  return encode_sampled(*encoder_of_parts(parts, options, header).encoder, report);
+  const PartsEncoder made = encoder_of_parts(parts, options, header);
+  std::unique_ptr<StoredSequence> sequence = made.encoder->encode_sampled(report);
+  if (report) made.timing.add_to(*report);  // the encode reads none of them
+  return sequence;
 }
 
 }  // namespace facemorph

@@ -40,6 +40,14 @@ std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem
 // assemble_parts's first step: the parts read and checked as it says, and an encoder holding their
 // frames as sample_frames leaves them (encode_sampled's input). The encoder reads each frame's map
 // from its part when a step needs it, so the parts stay open while it lives.
+// What reading the parts measured: their own stages' seconds, summed (each part's header holds
+// its own), and the reading's. A value beside the encoder, not in its report, so that the
+// assembler adds it to the report it returns (add_to) and reads nothing back from the encoder.
+struct PartsTiming {
+  int parts = 0;
+  double seconds_mapping = 0, seconds_registration = 0, seconds_selection = 0, seconds_reading = 0;
+  void add_to(EncodeReport& report) const;  // into its parts, seconds_mapping, ... seconds_reading_parts
+};
 struct PartsEncoder {
   PartsEncoder();
   PartsEncoder(PartsEncoder&&) noexcept;
@@ -47,6 +55,7 @@ struct PartsEncoder {
   ~PartsEncoder();
   std::vector<std::unique_ptr<PartReader>> parts;  // declared first: destroyed after the encoder
   std::unique_ptr<SequenceEncoder> encoder;
+  PartsTiming timing;
 };
 PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, PartHeader* header = nullptr);
 
@@ -54,6 +63,9 @@ PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, c
 // sample settings than `options` (same_options of OptionsScope::kSample), both settings shown: the
 // assemble and fmenc --stage check refuse such a part alike.
 void check_part_settings(const PartReader& part, const EncodeOptions& options);
+// The same check against `sample_settings`, write_options(options, OptionsScope::kSample) written
+// once for every part of an assemble.
+void check_part_settings(const PartReader& part, const std::string& sample_settings);
 
 // The ranges a capture of `frames` frames splits into, `per_part` frames each (the last may hold fewer).
 std::vector<FrameRange> part_ranges(int frames, int per_part);

@@ -74,14 +74,14 @@ std::vector<int> choose_texture_qualities(const TextureSettings& settings, const
 std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const Sequence& sequence,
                                           const std::vector<int>& keyframes, EncodeReport& report);
 // 9. Keyframes whose textures are painted from one captured image (the same file, or the same
-// pixels) share one (settings.share): keyframe k takes the nearest earlier such keyframe's texture
-// where the two are within settings.coding.min_psnr of each other over the disk (spec/method.md
-// §7.16). A file stores a shared texture once (format 2.2). Fills report.texture_shared_with and
-// texture_share_psnr.
-void share_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
-                    const std::vector<int>& keyframes, EncodeReport& report);
-void share_textures(const TextureSettings& settings, const TextureFrameSource& source, Sequence& sequence,
-                    const std::vector<int>& keyframes, EncodeReport& report);
+// pixels) share one (`share`, TextureSettings::share): keyframe k takes the nearest earlier such
+// keyframe's texture where the two are within `min_psnr` (TextureSettings::coding.min_psnr) of each
+// other over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2).
+// Fills report.texture_shared_with and texture_share_psnr.
+void share_textures(bool share, double min_psnr, const TextureFrameSource& source, StoredSequence& stored, const std::vector<int>& keyframes,
+                    EncodeReport& report);
+void share_textures(bool share, double min_psnr, const TextureFrameSource& source, Sequence& sequence, const std::vector<int>& keyframes,
+                    EncodeReport& report);
 // 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
 void code_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
                    const std::vector<int>& keyframes, EncodeReport& report);

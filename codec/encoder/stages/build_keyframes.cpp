@@ -1,7 +1,9 @@
 // The keyframes on G: each keyframe's registered surface in the face frame (fitted to every frame
 // where asked), its fields with the fixed-frame nodes of every keyframe's folds, its holes as a
 // level set and its texture on the disk; each array put in the store as it is made.
-#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/build_stage.hpp"
+
+#include "codec/encoder/encode/frame_sampler.hpp"
 
 #include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/stages/fit_keyframes.hpp"
@@ -107,17 +109,13 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
   return level;
 }
 
-Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid_n) {
-  return build_keyframes(encoder, keyframes, grid_n)->to_sequence();
-}
-
-std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid_n,
-                                                const KeyframeSegment* segment) {
+std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, const BuildFrames& frames, const std::vector<int>& keyframes,
+                                                int grid_n, const KeyframeSegment* segment, EncodeReport& report) {
   const auto start = std::chrono::steady_clock::now();
-  const EncodeOptions& options = encoder.options();
-  EncodeReport& report = encoder.report();
-  const Capture& capture = encoder.capture();
-  const std::vector<SelectionFrame>& selection = encoder.selection().frames();
+  const Capture& capture = frames.capture;
+  const FrameMaps& maps = frames.maps;
+  const FrameSampler sampler(maps, frames.registrations);
+  const std::vector<SelectionFrame>& selection = frames.selection.frames();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
   const GridGeometry geometry(make_disk_grid(grid_n));
   const DiskGrid& grid = geometry.grid();
@@ -131,65 +129,68 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
   const std::vector<int> fitted(keyframes.begin() + static_cast<long>(fit_first), keyframes.begin() + static_cast<long>(fit_end));
   const size_t keys = own_end - own_first, fit_keys = fitted.size(), own_offset = own_first - fit_first;
   bool any_holes = false;
-  for (int i = 0; i < encoder.frame_count(); ++i) any_holes = any_holes || encoder.frame_summary(i).holes_filled > 0;
-  const bool store_holes = any_holes && !options.keep_holes_filled;
+  for (size_t i = 0; i < capture.frames.size(); ++i) any_holes = any_holes || maps.summaries[i].holes_filled > 0;
+  const bool store_holes = any_holes && !settings.keep_holes_filled;
   // Textures: every keyframe's, or (a capture without images or vertex colours) none; some but not
   // all is an error.
-  bool store_texture = options.texture && (!segment || segment->textures);
+  bool store_texture = settings.texture && (!segment || segment->textures);
   for (int k : keyframes) {
-    const bool has = encoder.has_texture(k);
+    const bool has = maps.has_texture(k);
     if (store_texture && !has) {
       if (k != keyframes.front()) {
         throw Error(
             ErrorCode::kMissingTexture,
-            encoder.frame_summary(k).name + ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
+            maps.summaries[static_cast<size_t>(k)].name +
+                ": this keyframe has no texture while others have (--no-texture encodes geometry only)");
       }
       store_texture = false;
     }
   }
-  int texture_size = options.texture_size;
+  int texture_size = settings.texture_size;
   if (store_texture && texture_size == 0) {
     const int first = keyframes.front();
-    if (!encoder.texture_path(first).empty() && encoder.frame_summary(first).has_uvs) {
-      const Image image = read_image(encoder.texture_path(first));
-      texture_size = auto_texture_size(encoder.frame(first)->map.surface, image.width, image.height);
+    const FrameSummary& summary = maps.summaries[static_cast<size_t>(first)];
+    const std::filesystem::path& texture = maps.textures[static_cast<size_t>(first)];
+    if (!texture.empty() && summary.has_uvs) {
+      const Image image = read_image(texture);
+      texture_size = auto_texture_size(maps.frame(first)->map.surface, image.width, image.height);
     } else {
-      texture_size = auto_texture_size_for_colours(encoder.frame_summary(first).vertices);
+      texture_size = auto_texture_size_for_colours(summary.vertices);
     }
   }
   report.texture_size = store_texture ? texture_size : 0;
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
   // keyframes' folds, since the keyframes are blended together. Each goes to the store as it is
   // made (1.25 MB at N = 257, and a long capture has hundreds) and is read back for each later use.
-  SurfaceStore local(options.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
+  SurfaceStore local(settings.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
   local.reset(fit_keys);
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence shape;
   shape.grid_n = grid_n;
-  shape.representation = encoder.representation();
-  shape.spline = options.spline;
+  shape.representation = frames.representation;
+  shape.spline = settings.spline;
   shape.fps = capture.fps;
-  shape.first_time = encoder.first_time();
-  shape.last_time = encoder.last_time();
+  shape.first_time = frames.first_time;
+  shape.last_time = frames.last_time;
   shape.units = capture.units;
-  shape.pose_centre = encoder.pose_centre();
+  shape.pose_centre = frames.pose_centre;
   shape.keyframes.resize(keys);
   for (size_t k = 0; k < keys; ++k) {
     const auto index = static_cast<size_t>(keyframes[own_first + k]);
     shape.keyframes[k].time = capture.frames[index].time;
     shape.keyframes[k].pose = selection[index].pose;
   }
-  // The keyframes' arrays go to the store as they are made (options().spill_keyframes): a long
+  // The keyframes' arrays go to the store as they are made (settings.spill_keyframes): a long
   // capture's hundreds of keyframes are not held until the file is written.
-  auto stored = std::make_unique<StoredSequence>(std::move(shape), options.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory);
+  auto stored = std::make_unique<StoredSequence>(std::move(shape), settings.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory);
   parallel_for(
-      static_cast<int>(fit_keys), options.threads,
+      static_cast<int>(fit_keys), settings.threads,
       [&](int k) {
         const auto index = static_cast<size_t>(fitted[static_cast<size_t>(k)]);
-        const std::shared_ptr<const MappedFrame> frame = encoder.frame(static_cast<int>(index));
+        const std::shared_ptr<const MappedFrame> frame = maps.frame(static_cast<int>(index));
         const MappedFrame& f = *frame;
         const InverseDiskMap inverse(f.map);
-        const std::vector<Vec2> points = encoder.registrations().sample_points(static_cast<int>(index), grid.nodes);
+        const std::vector<Vec2> points = frames.registrations.sample_points(static_cast<int>(index), grid.nodes);
         const RigidPose to_face = selection[index].pose.inverse();
         std::vector<Vec3> positions = resample_positions(inverse, points);
         for (Vec3& p : positions) p = to_face.apply(p);
@@ -197,27 +198,27 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
         const auto own = static_cast<size_t>(k) - own_offset;  // wraps past keys for a margin's keyframe
         if (own >= keys) return;
         stored->put_hole_level(own, store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
-        stored->put_texture(own, store_texture ? encoder.frame_sampler().frame_texture(f, static_cast<int>(index), texture_size) : Image());
+        stored->put_texture(own, store_texture ? sampler.frame_texture(f, static_cast<int>(index), texture_size) : Image());
       },
       [&](int done, int total) {
-        if (options.progress) options.progress("keyframes", done, total);
+        if (settings.progress) settings.progress("keyframes", done, total);
       });
-  if (options.keyframe_fit) {
+  if (settings.keyframe_fit) {
     // The keyframes' surfaces replaced by the spline's least-squares fit to every frame.
     KeyframeFitInput fit;
     fit.keyframes = fitted;
     for (const CaptureFrame& f : capture.frames) fit.times.push_back(f.time);
     for (int k : fitted) fit.poses.push_back(selection[static_cast<size_t>(k)].pose);
-    fit.spline = options.spline;
-    fit.pose_centre = encoder.pose_centre();
-    fit.weight = options.keyframe_fit_weight;
-    fit.noise_factor = options.keyframe_fit_noise;
-    fit.threads = options.threads;
-    fit.surface = [&](int i, std::span<const Vec2> nodes) { return encoder.frame_sampler().sample_surface(i, nodes); };
-    fit.noise = [&](int i) { return encoder.selection().noise_at(i); };
+    fit.spline = settings.spline;
+    fit.pose_centre = frames.pose_centre;
+    fit.weight = settings.keyframe_fit_weight;
+    fit.noise_factor = settings.keyframe_fit_noise;
+    fit.threads = settings.threads;
+    fit.surface = [&](int i, std::span<const Vec2> nodes) { return sampler.sample_surface(i, nodes); };
+    fit.noise = [&](int i) { return frames.selection.noise_at(i); };
     fit_keyframes(fit, geometry, local);
   }
-  parallel_for(static_cast<int>(keys), options.threads,
+  parallel_for(static_cast<int>(keys), settings.threads,
                [&](int k) { folds[static_cast<size_t>(k)] = folded_nodes(geometry, *local.get(own_offset + static_cast<size_t>(k))); });
   std::vector<int32_t> own_folds;
   for (const auto& f : folds) own_folds.insert(own_folds.end(), f.begin(), f.end());
@@ -229,7 +230,7 @@ std::unique_ptr<StoredSequence> build_keyframes(SequenceEncoder& encoder, const 
     throw Error(ErrorCode::kInvalidArgument, "build: the fixed nodes given miss folds of this segment's keyframes");
   }
   report.keyframe_folds = own_folds;
-  parallel_for(static_cast<int>(keys), options.threads, [&](int k) {
+  parallel_for(static_cast<int>(keys), settings.threads, [&](int k) {
     stored->put_fields(static_cast<size_t>(k),
                        keyframe_fields(geometry, *local.get(own_offset + static_cast<size_t>(k)), stored->shape().representation, fixed));
   });

@@ -122,18 +122,18 @@ std::vector<int> choose_texture_qualities(const TextureSettings& settings, const
   return std::move(chosen.qualities);
 }
 
-void share_textures(const TextureSettings& settings, const TextureFrameSource& source, Sequence& sequence,
-                    const std::vector<int>& keyframes, EncodeReport& report) {
+void share_textures(bool share, double min_psnr, const TextureFrameSource& source, Sequence& sequence, const std::vector<int>& keyframes,
+                    EncodeReport& report) {
   StoredSequence::around(sequence, SpillMode::kMemory,
-                         [&](StoredSequence& stored) { share_textures(settings, source, stored, keyframes, report); });
+                         [&](StoredSequence& stored) { share_textures(share, min_psnr, source, stored, keyframes, report); });
 }
 
-void share_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
-                    const std::vector<int>& keyframes, EncodeReport& report) {
+void share_textures(bool share, double min_psnr, const TextureFrameSource& source, StoredSequence& stored, const std::vector<int>& keyframes,
+                    EncodeReport& report) {
   const size_t keys = stored.size();
   report.texture_shared_with.assign(keys, -1);
   report.texture_share_psnr.assign(keys, 0.0);
-  if (!settings.share) return;
+  if (!share) return;
   // Each keyframe's image where painted from one with UVs; where `keyframes` are not the
   // sequence's, none (share_keyframe_textures refuses them if there is texture to share).
   std::vector<std::filesystem::path> images;
@@ -144,7 +144,7 @@ void share_textures(const TextureSettings& settings, const TextureFrameSource& s
       if (!source.maps.textures[i].empty() && source.maps.summaries[i].has_uvs) images[k] = source.maps.textures[i];
     }
   }
-  TextureSharing sharing = share_keyframe_textures(stored, images, settings.coding.min_psnr);
+  TextureSharing sharing = share_keyframe_textures(stored, images, min_psnr);
   report.texture_shared_with = std::move(sharing.shared_with);
   report.texture_share_psnr = std::move(sharing.psnr);
 }
@@ -152,7 +152,7 @@ void share_textures(const TextureSettings& settings, const TextureFrameSource& s
 void code_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
                    const std::vector<int>& keyframes, EncodeReport& report) {
   choose_texture_qualities(settings, source, stored, keyframes, report);
-  share_textures(settings, source, stored, keyframes, report);
+  share_textures(settings.share, settings.coding.min_psnr, source, stored, keyframes, report);
 }
 
 }  // namespace facemorph
