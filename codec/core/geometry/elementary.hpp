@@ -1,11 +1,14 @@
 // Elementary plane and space geometry shared across the codec, internal: the 2D cross product, the
-// signed area of a plane triangle, angles between vectors. Inline, so each caller computes exactly
+// signed area of a plane triangle, angles between vectors, a point inside a polygon, the smoothstep
+// blend. Inline, so each caller computes exactly
 // what its own copy did (same operations, same order).
 #pragma once
 
 #include "codec/core/geometry/mesh.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace facemorph {
 
@@ -23,5 +26,22 @@ inline double plane_angle(const Vec2& u, const Vec2& v) { return std::atan2(std:
 
 // The signed angle that turns u onto v in radians, in [-π, π]: positive counter-clockwise.
 inline double turning_angle(const Vec2& u, const Vec2& v) { return std::atan2(cross2(u, v), u.dot(v)); }
+
+// Crossing-number test of a point against a closed polygon (its vertices in order, the last joined
+// to the first).
+inline bool inside_polygon(const Vec2& p, const std::vector<Vec2>& polygon) {
+  bool inside = false;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Vec2 &a = polygon[i], &b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
+  }
+  return inside;
+}
+
+// 0 below 0, 1 above 1, and between them 3t² - 2t³: a blend whose slope is 0 at both ends.
+inline double smoothstep(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  return t * t * (3 - 2 * t);
+}
 
 }  // namespace facemorph

@@ -28,7 +28,7 @@ static_assert(std::endian::native == std::endian::little, "part files are little
 
 constexpr format::ContainerKind kPartContainer{
     {0x89, 'F', 'M', 'S', '\r', '\n', 0x1A, '\n'}, kPartMajorVersion, kPartMinorVersion, "facemorph part file"};
-constexpr std::string_view kHeaderChunk = "PHDR", kFrameChunk = "PFRM";
+constexpr std::string_view kPartHeaderChunk = "PHDR", kPartFrameChunk = "PFRM";
 constexpr int kRecordZstdLevel = 3;         // a map's doubles gain little from more
 constexpr size_t kMaxLandmarkNames = 4096;  // spec/capture.md §4
 constexpr size_t kMaxTextBytes = 4096;      // a frame's name, path, a warning, a reason
@@ -162,8 +162,6 @@ SampledFrame read_record(const char* bytes, size_t size) {
 
 // ---- What a record is checked for ----
 
-[[noreturn]] void bad(const std::string& what) { throw Error(ErrorCode::kCorrupt, what); }
-
 // What a coordinate of a record may be, in the capture's units: a mesh ten thousand kilometres
 // across in metres. Beyond it, squares and sums overflow to infinity downstream.
 constexpr double kMaxCoordinate = 1e9;
@@ -189,17 +187,17 @@ bool faces_within(const std::vector<Face>& faces, size_t size) {
 void check_map(const MappedFrame& m) {
   const TriangleMesh& s = m.map.surface;
   const size_t vertices = s.positions.size();
-  if (vertices < 3 || s.faces.empty()) bad("its map has no surface");
+  if (vertices < 3 || s.faces.empty()) json_fields::bad("its map has no surface");
   if (!spill::all_finite(s.positions) || !faces_within(s.faces, vertices))
-    bad("its map's surface has a coordinate not finite or a face outside its vertices");
-  if (!within(s.positions, kMaxCoordinate)) bad("its map's surface has a coordinate past " + std::to_string(kMaxCoordinate));
-  if (m.map.disk.size() != vertices || !spill::all_finite(m.map.disk)) bad("its map's disk does not fit its surface");
+    json_fields::bad("its map's surface has a coordinate not finite or a face outside its vertices");
+  if (!within(s.positions, kMaxCoordinate)) json_fields::bad("its map's surface has a coordinate past " + std::to_string(kMaxCoordinate));
+  if (m.map.disk.size() != vertices || !spill::all_finite(m.map.disk)) json_fields::bad("its map's disk does not fit its surface");
   for (const Vec2& w : m.map.disk) {
-    if (w.squaredNorm() > 1 + 1e-9) bad("its map's disk has a point outside the unit disk");
+    if (w.squaredNorm() > 1 + 1e-9) json_fields::bad("its map's disk has a point outside the unit disk");
   }
-  if (m.map.rim.size() < 3 || !indices_within(m.map.rim, vertices)) bad("its map's rim is not a loop of its vertices");
+  if (m.map.rim.size() < 3 || !indices_within(m.map.rim, vertices)) json_fields::bad("its map's rim is not a loop of its vertices");
   for (int v : m.map.rim) {
-    if (std::abs(m.map.disk[static_cast<size_t>(v)].norm() - 1) > 1e-6) bad("its map's rim does not lie on the unit circle");
+    if (std::abs(m.map.disk[static_cast<size_t>(v)].norm() - 1) > 1e-6) json_fields::bad("its map's rim does not lie on the unit circle");
   }
   // The disk's triangles cover the unit disk once (a map may leave a few flipped, which subtract):
   // their signed areas add up to the rim polygon's area, a little under π. A disk collapsed to a
@@ -210,65 +208,69 @@ void check_map(const MappedFrame& m) {
                &c = m.map.disk[static_cast<size_t>(f[2])];
     area += 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
   }
-  if (!(area > 0.5 * std::numbers::pi && area < 1.01 * std::numbers::pi)) bad("its map's disk does not cover the unit disk once");
+  if (!(area > 0.5 * std::numbers::pi && area < 1.01 * std::numbers::pi))
+    json_fields::bad("its map's disk does not cover the unit disk once");
   if (!s.uvs.empty() && (s.uv_faces.size() != s.faces.size() || !faces_within(s.uv_faces, s.uvs.size()) || !spill::all_finite(s.uvs))) {
-    bad("its map's texture coordinates do not fit its faces");
+    json_fields::bad("its map's texture coordinates do not fit its faces");
   }
-  if (s.uvs.empty() && !s.uv_faces.empty()) bad("its map has texture faces without texture coordinates");
+  if (s.uvs.empty() && !s.uv_faces.empty()) json_fields::bad("its map has texture faces without texture coordinates");
   if (!s.colours.empty() && (s.colours.size() != vertices || !within(s.colours, kMaxCoordinate)))
-    bad("its map's colours do not fit its vertices");
+    json_fields::bad("its map's colours do not fit its vertices");
   for (const FilledHole& hole : m.prepared.report.holes) {
-    if (!indices_within(hole.loop, vertices)) bad("a hole's outline lies outside its map's vertices");
+    if (!indices_within(hole.loop, vertices)) json_fields::bad("a hole's outline lies outside its map's vertices");
   }
 }
 
 void check_record(const SampledFrame& f, const PartHeader& header, int expected_index, size_t selection_nodes) {
   if (f.index != expected_index)
-    bad("it is frame " + std::to_string(f.index) + ", where frame " + std::to_string(expected_index) + " was due");
-  if (!(f.time >= header.capture.first_time && f.time <= header.capture.last_time)) bad("its time is outside the capture's");
+    json_fields::bad("it is frame " + std::to_string(f.index) + ", where frame " + std::to_string(expected_index) + " was due");
+  if (!(f.time >= header.capture.first_time && f.time <= header.capture.last_time)) json_fields::bad("its time is outside the capture's");
   for (const std::string& warning : f.warnings) {
-    if (warning.size() > kMaxTextBytes) bad("a warning is longer than " + std::to_string(kMaxTextBytes) + " bytes");
+    if (warning.size() > kMaxTextBytes) json_fields::bad("a warning is longer than " + std::to_string(kMaxTextBytes) + " bytes");
   }
   if (f.name.size() > kMaxTextBytes || f.dropped.size() > kMaxTextBytes || f.texture.string().size() > kMaxTextBytes)
-    bad("a name is too long");
+    json_fields::bad("a name is too long");
   if (f.mapped) {
     const FrameSummary& s = f.summary;
     const auto method = static_cast<int>(s.conformal_method);
     if (s.vertices < 0 || s.holes_filled < 0 || method < 0 || method > static_cast<int>(ConformalMethod::kTutte))
-      bad("its summary is out of range");
+      json_fields::bad("its summary is out of range");
     const RepairTotals& t = s.repair_totals;
     if (t.faces_changed < 0 || t.vertices_changed < 0 || !(t.largest_move >= 0 && t.largest_move <= kMaxCoordinate) ||
         !(t.diagonal >= 0 && t.diagonal <= kMaxCoordinate)) {
-      bad("its repair totals are out of range");
+      json_fields::bad("its repair totals are out of range");
     }
   }
   if (!f.dropped.empty()) return;
   if (f.landmarks.size() != header.capture.landmark_names.size())
-    bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +
-        std::to_string(header.capture.landmark_names.size()) + " names");
+    json_fields::bad("it holds " + std::to_string(f.landmarks.size()) + " landmarks for the part's " +
+                     std::to_string(header.capture.landmark_names.size()) + " names");
   for (const Vec3& p : f.landmarks) {
     // NaN where the frame lacks the landmark; else a point.
-    if (!p.hasNaN() && !(p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) bad("a landmark is neither a point nor missing");
+    if (!p.hasNaN() && !(p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate))
+      json_fields::bad("a landmark is neither a point nor missing");
   }
   const SelectionFrame& s = f.selection;
-  if (s.local.size() != selection_nodes || s.normal.size() != selection_nodes) bad("its selection samples are not the selection grid's");
+  if (s.local.size() != selection_nodes || s.normal.size() != selection_nodes)
+    json_fields::bad("its selection samples are not the selection grid's");
   if (s.time != f.time || !s.pose.rotation.allFinite() || !s.pose.translation.allFinite() ||
       !(s.diagonal > 1e-12 && s.diagonal <= kMaxCoordinate) || !spill::all_finite(s.local) || !spill::all_finite(s.normal)) {
-    bad("its selection samples have a number not finite");
+    json_fields::bad("its selection samples have a number not finite");
   }
   if (!(s.pose.rotation.transpose() * s.pose.rotation - Eigen::Matrix3d::Identity()).isZero(1e-6) || !(s.pose.rotation.determinant() > 0) ||
       !(s.pose.translation.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
-    bad("its head pose is not a rigid motion");
+    json_fields::bad("its head pose is not a rigid motion");
   }
   for (const Eigen::Vector3f& v : s.local) {
-    if (!(v.cwiseAbs().maxCoeff() <= kMaxCoordinate)) bad("its selection samples have a coordinate past " + std::to_string(kMaxCoordinate));
+    if (!(v.cwiseAbs().maxCoeff() <= kMaxCoordinate))
+      json_fields::bad("its selection samples have a coordinate past " + std::to_string(kMaxCoordinate));
   }
   if (!f.texture.empty()) {
     // Read by the assemble stage: a file, never a pipe or a device that would block or not end.
-    if (!f.texture.is_absolute()) bad("its texture's path is not absolute");
+    if (!f.texture.is_absolute()) json_fields::bad("its texture's path is not absolute");
     std::error_code error;
     if (std::filesystem::status(f.texture, error).type() != std::filesystem::file_type::regular)
-      bad("its texture " + f.texture.string() + " is not a file");
+      json_fields::bad("its texture " + f.texture.string() + " is not a file");
   }
 }
 
@@ -319,11 +321,11 @@ PartHeader parse_header(const std::vector<uint8_t>& bytes) {
   c.given_landmark_names = field<std::vector<std::string>>(doc, "given_landmark_names");
   c.given_reference = integer_field(doc, "given_reference");
   c.reference = integer_field(doc, "reference");
-  if (!doc.contains("settings") || !doc["settings"].is_object()) bad("its header lacks its settings");
+  if (!doc.contains("settings") || !doc["settings"].is_object()) json_fields::bad("its header lacks its settings");
   h.settings = doc["settings"].dump();
   h.encoder = field<std::string>(doc, "encoder");
   const nlohmann::json seconds = field<nlohmann::json>(doc, "seconds");
-  if (!seconds.is_object()) bad("its header's \"seconds\" is not an object");
+  if (!seconds.is_object()) json_fields::bad("its header's \"seconds\" is not an object");
   h.seconds_mapping = field<double>(seconds, "mapping");
   h.seconds_registration = field<double>(seconds, "registration");
   h.seconds_selection = field<double>(seconds, "selection");
@@ -331,17 +333,19 @@ PartHeader parse_header(const std::vector<uint8_t>& bytes) {
     throw Error(ErrorCode::kLimit,
                 "its capture has " + std::to_string(c.frame_count) + " frames, outside 1.." + std::to_string(kMaxPartCaptureFrames));
   }
-  if (h.range.first < 0 || h.range.end > c.frame_count || h.range.first >= h.range.end) bad("its frames are not a range of its capture's");
+  if (h.range.first < 0 || h.range.end > c.frame_count || h.range.first >= h.range.end)
+    json_fields::bad("its frames are not a range of its capture's");
   if (c.reference < 0 || c.reference >= c.frame_count || c.given_reference < 0 || c.given_reference >= c.frame_count)
-    bad("its reference frame is not one of its capture's");
+    json_fields::bad("its reference frame is not one of its capture's");
   if (!(c.fps > 0) || !std::isfinite(c.fps) || !std::isfinite(c.first_time) || !std::isfinite(c.last_time))
-    bad("its capture's frame rate or times are not finite");
-  if (c.landmark_names.size() > kMaxLandmarkNames) bad("it names more than " + std::to_string(kMaxLandmarkNames) + " landmarks");
+    json_fields::bad("its capture's frame rate or times are not finite");
+  if (c.landmark_names.size() > kMaxLandmarkNames)
+    json_fields::bad("it names more than " + std::to_string(kMaxLandmarkNames) + " landmarks");
   if (c.given_landmark_names.size() > c.landmark_names.size() ||
       !std::equal(c.given_landmark_names.begin(), c.given_landmark_names.end(), c.landmark_names.begin())) {
-    bad("its landmark names do not begin with the capture's own");
+    json_fields::bad("its landmark names do not begin with the capture's own");
   }
-  if (!c.root.is_absolute()) bad("its capture's folder is not an absolute path");
+  if (!c.root.is_absolute()) json_fields::bad("its capture's folder is not an absolute path");
   return h;
 }
 
@@ -380,7 +384,7 @@ PartWriter::PartWriter(std::filesystem::path path, const PartHeader& header)
   if (!out_) throw Error(ErrorCode::kIo, path_.string() + ": cannot write (" + temporary_.filename().string() + ")");
   writer_ = std::make_unique<format::ContainerWriter>(out_, kPartContainer);
   const std::string text = header_json(header_).dump();
-  writer_->add(format::prepare_chunk(kHeaderChunk, std::vector<uint8_t>(text.begin(), text.end()), true, kRecordZstdLevel));
+  writer_->add(format::prepare_chunk(kPartHeaderChunk, std::vector<uint8_t>(text.begin(), text.end()), true, kRecordZstdLevel));
   next_ = header_.range.first;
 }
 
@@ -402,7 +406,7 @@ void PartWriter::add(const SampledFrame& frame) {
                                        " MiB, over the part's " + std::to_string(kMaxPartRecordBytes >> 20) + " MiB");
   }
   try {
-    writer_->add(format::prepare_chunk(kFrameChunk, std::vector<uint8_t>(bytes.begin(), bytes.end()), true, kRecordZstdLevel));
+    writer_->add(format::prepare_chunk(kPartFrameChunk, std::vector<uint8_t>(bytes.begin(), bytes.end()), true, kRecordZstdLevel));
   } catch (const Error& e) {
     throw Error(e.code(), path_.string() + ": " + e.what());
   }
@@ -430,19 +434,19 @@ PartReader::PartReader(const std::filesystem::path& path) : source_(path.string(
       std::make_unique<format::ContainerReader>(file_->bytes(), source_, static_cast<uint64_t>(kMaxPartCaptureFrames) + 2, kPartContainer);
   const std::vector<format::ChunkView>& chunks = reader_->chunks();
   try {
-    if (chunks.empty() || chunks.front().type != kHeaderChunk) bad("it does not begin with its header");
+    if (chunks.empty() || chunks.front().type != kPartHeaderChunk) json_fields::bad("it does not begin with its header");
     header_ = parse_header(reader_->payload(chunks.front(), kMaxPartHeaderBytes));
     header_.minor_version = reader_->minor_version();
     for (size_t k = 1; k < chunks.size(); ++k) {
-      if (chunks[k].type == kFrameChunk) {
+      if (chunks[k].type == kPartFrameChunk) {
         records_.push_back(k);
       } else if (chunks[k].critical()) {
         throw Error(ErrorCode::kUnsupported, "it holds a critical chunk " + chunks[k].type + " this reader does not know");
       }
     }
     if (records_.size() != static_cast<size_t>(header_.range.size())) {
-      bad("it holds " + std::to_string(records_.size()) + " frames' records for the " + std::to_string(header_.range.size()) +
-          " frames its header names");
+      json_fields::bad("it holds " + std::to_string(records_.size()) + " frames' records for the " + std::to_string(header_.range.size()) +
+                       " frames its header names");
     }
   } catch (const Error& e) {
     if (std::string(e.what()).rfind(source_, 0) == 0) throw;
@@ -463,7 +467,7 @@ SampledFrame PartReader::frame(size_t k) const {
     try {
       f = read_record(reinterpret_cast<const char*>(bytes.data()), bytes.size());
     } catch (const Error& e) {
-      bad(e.what());  // the byte form's own errors (cut short) are the file's
+      json_fields::bad(e.what());  // the byte form's own errors (cut short) are the file's
     }
     check_record(f, header_, index, selection_nodes_);
     if (f.dropped.empty()) {
@@ -472,7 +476,7 @@ SampledFrame PartReader::frame(size_t k) const {
       try {
         map = FrameStore::deserialize(f.map.data(), f.map.size());
       } catch (const Error& e) {
-        bad(std::string("its map: ") + e.what());
+        json_fields::bad(std::string("its map: ") + e.what());
       }
       check_map(map);
       try {
@@ -480,7 +484,7 @@ SampledFrame PartReader::frame(size_t k) const {
         // reads it (the partition is the reference's); here, its numbers.
         registration = RegistrationStore::deserialize(f.registration.data(), f.registration.size(), nullptr, true);
       } catch (const Error& e) {
-        bad(std::string("its registration: ") + e.what());
+        json_fields::bad(std::string("its registration: ") + e.what());
       }
       RegistrationStore::check(registration);
     }

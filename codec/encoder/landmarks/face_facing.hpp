@@ -30,4 +30,8 @@ inline constexpr MirrorSearch kCoarseMirrorSearch{150, 12, 2};
 FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale,
                                               const Vec3* up_side, const MirrorSearch& search = {});
 
+// Throws kInvalidArgument: frame `name` has no face orientation, because `why`; it advises giving
+// the capture its landmarks (what the orientation and the face finding both refuse with).
+[[noreturn]] void refuse_face_orientation(const std::string& name, const std::string& why);
+
 }  // namespace facemorph

@@ -72,11 +72,6 @@ const std::filesystem::path kCascadeFile = FACEMORPH_FACE_CASCADE;
 // frames by that difference.
 double region_up_scale(const TriangleMesh& mesh) { return 2 * kRegionReaches.front() * bounding_box_diagonal(mesh.positions); }
 
-[[noreturn]] void fail(const std::string& name, const std::string& why) {
-  throw Error(ErrorCode::kInvalidArgument,
-              name + ": no face orientation found: " + why + " (give the capture its landmarks nose_tip and nose_bridge)");
-}
-
 // find_face_orientation's reason, without the frame's name and the advice (find_face names them once).
 std::string reason_of(const Error& e, const std::string& name) {
   std::string what = e.what();
@@ -534,7 +529,7 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
       reasons.push_back(reason_of(e, name));
     }
   }
-  if (mesh.faces.empty()) fail(name, "the surface has no faces");
+  if (mesh.faces.empty()) refuse_face_orientation(name, "the surface has no faces");
   std::string why;
   std::optional<FaceOrientation> by_texture;
   if (options.texture) {
@@ -571,7 +566,7 @@ FaceOrientation find_face_facing(const TriangleMesh& mesh, const Image* texture,
     if (!best || o.confidence > best->confidence) best = o;
   }
   if (best) return *best;
-  if (reasons.empty() && not_faces.empty()) fail(name, "every way of finding a face was turned off");
+  if (reasons.empty() && not_faces.empty()) refuse_face_orientation(name, "every way of finding a face was turned off");
   // Each step's reason, and each geometric finding's measure of why it is no face.
   std::string all;
   for (const std::string& r : not_faces) all += (all.empty() ? "" : "; ") + r;

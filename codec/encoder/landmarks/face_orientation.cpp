@@ -38,11 +38,6 @@ constexpr double kMinHintCosine = 0.5;
 // How far up the midline the `up` point is taken (about where nose_bridge is).
 constexpr double kUpDistance = 0.08;
 
-[[noreturn]] void fail(const std::string& name, const std::string& why) {
-  throw Error(ErrorCode::kInvalidArgument,
-              name + ": no face orientation found: " + why + " (give the capture its landmarks nose_tip and nose_bridge)");
-}
-
 std::string percent(double share) {
   char text[32];
   std::snprintf(text, sizeof text, "%.2g%%", 100 * share);
@@ -105,6 +100,11 @@ std::optional<Vec3> midline_point(const std::vector<std::array<Vec3, 3>>& projec
 
 }  // namespace
 
+void refuse_face_orientation(const std::string& name, const std::string& why) {
+  throw Error(ErrorCode::kInvalidArgument,
+              name + ": no face orientation found: " + why + " (give the capture its landmarks nose_tip and nose_bridge)");
+}
+
 FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale) {
   return find_face_orientation_up_side(mesh, name, vertical_hint, up_scale, nullptr);
 }
@@ -112,7 +112,7 @@ FaceOrientation find_face_orientation(const TriangleMesh& mesh, const std::strin
 FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const std::string& name, const Vec3* vertical_hint, double up_scale,
                                               const Vec3* up_side, const MirrorSearch& search) {
   FaceOrientation o;
-  if (mesh.faces.empty()) fail(name, "the surface has no faces");
+  if (mesh.faces.empty()) refuse_face_orientation(name, "the surface has no faces");
   // 1. Facing: the area-weighted mean normal, about the area-weighted centroid.
   Vec3 normal_sum = Vec3::Zero(), centroid = Vec3::Zero();
   double area = 0;
@@ -124,12 +124,12 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     area += n.norm();
     centroid += n.norm() * (a + b + c) / 3;
   }
-  if (!(area > 0)) fail(name, "the surface has no area");
+  if (!(area > 0)) refuse_face_orientation(name, "the surface has no area");
   centroid /= area;
   o.facing_share = normal_sum.norm() / area;
   if (o.facing_share < kMinFacingShare) {
-    fail(name, "the surface faces no single direction (its mean normal is " + percent(o.facing_share) +
-                   " of its area: a closed surface or a whole head)");
+    refuse_face_orientation(name, "the surface faces no single direction (its mean normal is " + percent(o.facing_share) +
+                                      " of its area: a closed surface or a whole head)");
   }
   o.facing = normal_sum.normalized();
   const double diagonal = bounding_box_diagonal(mesh.positions);
@@ -144,7 +144,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     if (topology.is_boundary_vertex(v)) continue;
     if (tip < 0 || smooth[static_cast<size_t>(v)] > smooth[static_cast<size_t>(tip)]) tip = v;
   }
-  if (tip < 0) fail(name, "the surface has no interior vertex");
+  if (tip < 0) refuse_face_orientation(name, "the surface has no interior vertex");
   o.nose_tip = mesh.positions[static_cast<size_t>(tip)];
 
   // 3. The mirror plane through the tip that contains the facing direction.
@@ -193,7 +193,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
   }
   o.mirror_error = std::sqrt(best_sum / static_cast<double>(std::max<size_t>(samples.size(), 1))) / diagonal;
   if (o.mirror_error > kMaxFaceMirrorError) {
-    fail(name, "no plane maps the surface onto itself (best " + percent(o.mirror_error) + " of its diagonal off)");
+    refuse_face_orientation(name, "no plane maps the surface onto itself (best " + percent(o.mirror_error) + " of its diagonal off)");
   }
   const Vec3 lateral = std::cos(best) * e1 + std::sin(best) * e2;
   o.vertical = o.facing.cross(lateral).normalized();
@@ -233,7 +233,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     for (int k = 0; k <= 8; ++k) {
       const double along = (kProfileNear + (kProfileFar - kProfileNear) * k / 8) * diagonal;
       const std::optional<double> h = height_at(sign * along, 0);
-      if (!h) fail(name, "the surface does not reach along its midline past the nose tip");
+      if (!h) refuse_face_orientation(name, "the surface does not reach along its midline past the nose tip");
       drop += -*h;
       run += along;
     }
@@ -269,7 +269,7 @@ FaceOrientation find_face_orientation_up_side(const TriangleMesh& mesh, const st
     if (vertical_hint->dot(o.vertical) < 0) o.vertical = -o.vertical;
     o.up_from_hint = true;
   } else {
-    fail(name, "neither the nose's profile nor the eye sockets say which way is up");
+    refuse_face_orientation(name, "neither the nose's profile nor the eye sockets say which way is up");
   }
   // 5. The up point, up the midline.
   const double up_distance = kUpDistance * (up_scale > 0 ? up_scale : diagonal);

@@ -50,17 +50,16 @@ double energy_of(const DiskRegistration& f, const CheckedLandmarks& l) {
   return e;
 }
 
-void check_options(const RegistrationOptions& o) {
-  auto bad = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "registration: " + what); };
-  if (!std::isfinite(o.smoothing) || o.smoothing < 0) bad("smoothing must be finite and >= 0");
-  if (o.paper_grid_n < 2 || o.paper_grid_n > 256) bad("paper grid n must be in [2, 256]");
+void check_registration_options(const RegistrationOptions& o) {
+  if (!std::isfinite(o.smoothing) || o.smoothing < 0) refuse_registration_input("smoothing must be finite and >= 0");
+  if (o.paper_grid_n < 2 || o.paper_grid_n > 256) refuse_registration_input("paper grid n must be in [2, 256]");
   if (!std::isfinite(o.boundary_spacing_degrees) || o.boundary_spacing_degrees < 0 || o.boundary_spacing_degrees > 120) {
-    bad("boundary sample spacing must be 0 (none) or in (0, 120] degrees");
+    refuse_registration_input("boundary sample spacing must be 0 (none) or in (0, 120] degrees");
   }
-  if (o.fold_grid < 3 || o.fold_grid > 4097) bad("fold grid size must be in [3, 4097]");
-  if (o.smoothing_tries < 0 || o.smoothing_tries > 12) bad("smoothing tries must be in [0, 12]");
-  if (o.max_substeps < 1 || o.max_substeps > 64) bad("max substeps must be in [1, 64]");
-  if (!(o.min_area_ratio >= 0 && o.min_area_ratio < 1)) bad("min area ratio must be in [0, 1)");
+  if (o.fold_grid < 3 || o.fold_grid > 4097) refuse_registration_input("fold grid size must be in [3, 4097]");
+  if (o.smoothing_tries < 0 || o.smoothing_tries > 12) refuse_registration_input("smoothing tries must be in [0, 12]");
+  if (o.max_substeps < 1 || o.max_substeps > 64) refuse_registration_input("max substeps must be in [1, 64]");
+  if (!(o.min_area_ratio >= 0 && o.min_area_ratio < 1)) refuse_registration_input("min area ratio must be in [0, 1)");
 }
 
 bool accepted(const BijectionCheck& c, const RegistrationOptions& o) { return c.ok() && c.min_area_ratio > o.min_area_ratio; }
@@ -144,7 +143,7 @@ std::optional<DiskRegistration> try_gmf(const DiskRegistration& base, const GmfD
 double matching_energy(const DiskRegistration& f, const DiskLandmarks& landmarks) { return energy_of(f, check_landmarks(landmarks)); }
 
 DiskRegistration register_disks(const DiskLandmarks& landmarks, const RegistrationOptions& options, const GeodesicFrame* frame) {
-  check_options(options);
+  check_registration_options(options);
   if (options.method == RegistrationMethod::kFrame) {
     if (!frame || !frame->partition) {
       throw Error(ErrorCode::kInvalidArgument,

@@ -26,8 +26,6 @@
 namespace facemorph {
 namespace {
 
-[[noreturn]] void bad(const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "geodesic frame: " + what); }
-
 double angular_distance(double a, double b) { return std::abs(std::remainder(a - b, kTwoPi)); }
 
 // Adds points of the circle every `spacing` radians, except within a quarter spacing of a circle
@@ -420,8 +418,9 @@ GeodesicFrame make_geodesic_frame(const DiskMap& reference, const std::vector<Ve
   check_frame_options(options);
   const auto start = std::chrono::steady_clock::now();
   const size_t n = landmarks.size();
-  if (n < 3) bad("needs at least 3 landmarks, got " + std::to_string(n));
-  if (!on_rim.empty() && on_rim.size() != n) bad(std::to_string(on_rim.size()) + " rim flags for " + std::to_string(n) + " landmarks");
+  if (n < 3) refuse_geodesic_frame_input("needs at least 3 landmarks, got " + std::to_string(n));
+  if (!on_rim.empty() && on_rim.size() != n)
+    refuse_geodesic_frame_input(std::to_string(on_rim.size()) + " rim flags for " + std::to_string(n) + " landmarks");
 
   // 1. The landmark graph: landmarks on the circle exactly where register_disks puts them (p / |p|
   // for rim markers), then circle samples, Delaunay-triangulated.
@@ -430,11 +429,11 @@ GeodesicFrame make_geodesic_frame(const DiskMap& reference, const std::vector<Ve
   for (size_t j = 0; j < n; ++j) {
     const std::string name = "landmark " + std::to_string(j);
     const Vec2& p = landmarks[j];
-    if (!p.allFinite()) bad(name + " is not finite");
+    if (!p.allFinite()) refuse_geodesic_frame_input(name + " is not finite");
     const double r = p.norm();
-    if (r > 1 + 1e-9) bad(name + " lies outside the unit disk (|p| = " + std::to_string(r) + ")");
+    if (r > 1 + 1e-9) refuse_geodesic_frame_input(name + " lies outside the unit disk (|p| = " + std::to_string(r) + ")");
     const bool rim = !on_rim.empty() && on_rim[j] != 0;
-    if (rim && std::abs(r - 1) > 1e-3) bad(name + " is a rim marker but does not lie on the circle");
+    if (rim && std::abs(r - 1) > 1e-3) refuse_geodesic_frame_input(name + " is a rim marker but does not lie on the circle");
     Complex z = to_complex(p);
     const bool circle = rim || r > 1 - 1e-9;
     if (circle) z /= std::abs(z);
@@ -444,7 +443,7 @@ GeodesicFrame make_geodesic_frame(const DiskMap& reference, const std::vector<Ve
   for (size_t i = 0; i < n; ++i) {
     for (size_t j = i + 1; j < n; ++j) {
       if ((frame.graph_points[i] - frame.graph_points[j]).norm() <= 1e-12) {
-        bad("landmarks " + std::to_string(i) + " and " + std::to_string(j) + " coincide");
+        refuse_geodesic_frame_input("landmarks " + std::to_string(i) + " and " + std::to_string(j) + " coincide");
       }
     }
   }

@@ -3,6 +3,7 @@
 // method-notes §6 steps 2-4; and the geodesic frame's options checked.
 #include "codec/encoder/registration/surface_path.hpp"
 
+#include "codec/encoder/registration/registration_internal.hpp"
 #include "format/error.hpp"
 
 #include <cmath>
@@ -11,17 +12,19 @@
 
 namespace facemorph {
 
+void refuse_geodesic_frame_input(const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "geodesic frame: " + what); }
+
 void check_frame_options(const GeodesicFrameOptions& o) {
-  auto bad = [](const std::string& what) { throw Error(ErrorCode::kInvalidArgument, "geodesic frame: " + what); };
   if (!(o.graph_boundary_spacing_degrees > 0 && o.graph_boundary_spacing_degrees <= 60))
-    bad("graph boundary spacing must be in (0, 60] degrees");
+    refuse_geodesic_frame_input("graph boundary spacing must be in (0, 60] degrees");
   if (!(o.partition_boundary_spacing_degrees > 0 && o.partition_boundary_spacing_degrees <= 30)) {
-    bad("partition boundary spacing must be in (0, 30] degrees");
+    refuse_geodesic_frame_input("partition boundary spacing must be in (0, 30] degrees");
   }
-  if (!(o.sample_spacing >= 1e-3 && o.sample_spacing <= 1)) bad("sample spacing must be in [0.001, 1] disk units");
-  if (!(o.angle_tolerance >= 0 && std::isfinite(o.angle_tolerance))) bad("angle tolerance must be finite and >= 0");
-  if (!(o.length_tolerance >= 0 && std::isfinite(o.length_tolerance))) bad("length tolerance must be finite and >= 0");
-  if (o.max_sweeps < 0 || o.max_sweeps > 100000) bad("max sweeps must be in [0, 100000]");
+  if (!(o.sample_spacing >= 1e-3 && o.sample_spacing <= 1)) refuse_geodesic_frame_input("sample spacing must be in [0.001, 1] disk units");
+  if (!(o.angle_tolerance >= 0 && std::isfinite(o.angle_tolerance))) refuse_geodesic_frame_input("angle tolerance must be finite and >= 0");
+  if (!(o.length_tolerance >= 0 && std::isfinite(o.length_tolerance)))
+    refuse_geodesic_frame_input("length tolerance must be finite and >= 0");
+  if (o.max_sweeps < 0 || o.max_sweeps > 100000) refuse_geodesic_frame_input("max sweeps must be in [0, 100000]");
 }
 
 // ---- Frame curves ----

@@ -20,8 +20,6 @@ using namespace path_points;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // The third corner of a triangle laid flat with a and b placed, |ac| = la, |bc| = lb: left of
 // a -> b for side +1, right for -1 (the notes' x = (|ac|² - |bc|² + |ab|²) / 2|ab|, y = ±√(|ac|² - x²)).
 Vec2 third_corner(const Vec2& a, const Vec2& b, double la, double lb, double side) {
@@ -364,7 +362,7 @@ void SurfacePaths::vertex_step(const PathPoint& prev, const PathPoint& cur, cons
   double ccw = 0, cw = 0;
   if (std::isfinite(from) && std::isfinite(to)) side_angles(fan.open, fan.total(), from, to, ccw, cw);
   const double side = std::min(ccw, cw);
-  if (!std::isfinite(from) || !std::isfinite(to) || !(side < kPi)) {
+  if (!std::isfinite(from) || !std::isfinite(to) || !(side < std::numbers::pi)) {
     out.push_back(cur);  // both sides >= π: a shortest path may pass here
     return;
   }
@@ -413,11 +411,11 @@ double SurfacePaths::point_error(const PathPoint& prev, const PathPoint& cur, co
   switch (cur.kind) {
     case PathPoint::kEdge: {
       Unfolded u;
-      if (!unfold_pair(prev, cur, next, u)) return shared_face(prev, next) >= 0 ? 0 : kPi;
+      if (!unfold_pair(prev, cur, next, u)) return shared_face(prev, next) >= 0 ? 0 : std::numbers::pi;
       const Vec2 x = u.a + cur.t * (u.b - u.a);
-      return std::abs(kPi - plane_angle(u.prev - x, u.next - x));
+      return std::abs(std::numbers::pi - plane_angle(u.prev - x, u.next - x));
     }
-    case PathPoint::kVertex: return std::max(0.0, kPi - min_side(prev, cur, next));
+    case PathPoint::kVertex: return std::max(0.0, std::numbers::pi - min_side(prev, cur, next));
     case PathPoint::kFace: return 0;
   }
   return 0;

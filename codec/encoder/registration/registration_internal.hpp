@@ -6,9 +6,15 @@
 
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <vector>
 
 namespace facemorph {
+
+// What the registration (landmarks.cpp) and the geodesic frame (geodesic_path.cpp) refuse of the
+// input they are handed: kInvalidArgument, the message prefixed with which of the two refuses it.
+[[noreturn]] void refuse_registration_input(const std::string& what);
+[[noreturn]] void refuse_geodesic_frame_input(const std::string& what);
 
 inline constexpr double kTwoPi = 2 * std::numbers::pi;
 

@@ -32,16 +32,6 @@ double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
   return (p - (a + s * ab)).norm();
 }
 
-// Crossing-number test of a point against a closed polygon.
-bool inside_polygon(const Vec2& p, const std::vector<Vec2>& polygon) {
-  bool inside = false;
-  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const Vec2 &a = polygon[i], &b = polygon[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
-  }
-  return inside;
-}
-
 // --texture auto: the disk texture as sharp as the captured one, not sharper. The face covers
 // `texels` of the captured image (its UV area); the disk shows them on π/4 M² texels, and the
 // conformal map shrinks some regions against others, so M is 1.5 times the equal-area size, rounded

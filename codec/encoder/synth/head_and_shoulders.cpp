@@ -2,6 +2,7 @@
 // heaped on one side and a shoulder forward on the other, textured (face, hair, shirt); or the same
 // surround with a plain dome and bare skin where the face was, a surface with no face that
 // --landmarks auto must refuse (spec/method.md §7.14).
+#include "codec/core/geometry/elementary.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/delaunay.hpp"
 
@@ -15,11 +16,6 @@ namespace {
 // The scan's extent in the face's material plane (metres): the face is 0.16 x 0.20 in the middle.
 constexpr double kLeft = -0.22, kRight = 0.22, kBottom = -0.34, kTop = 0.2;
 constexpr int kPixelsPerMetre = 800;
-
-double smoothstep(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * (3 - 2 * t);
-}
 
 bool on_face(const Vec2& m) {
   const double X = m.x() / SyntheticFace::kHalfWidth, Y = m.y() / SyntheticFace::kHalfHeight;

@@ -14,7 +14,6 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kA = SyntheticFace::kHalfWidth;
 constexpr double kB = SyntheticFace::kHalfHeight;
 
@@ -66,8 +65,8 @@ double inside_distance(const Vec2& m) {
 std::vector<double> ellipse_arc_lengths(int steps) {
   std::vector<double> arc(static_cast<size_t>(steps) + 1, 0.0);
   for (int k = 1; k <= steps; ++k) {
-    const Vec2 a = SyntheticFace::rim_point(2 * kPi * (k - 1) / steps);
-    const Vec2 b = SyntheticFace::rim_point(2 * kPi * k / steps);
+    const Vec2 a = SyntheticFace::rim_point(2 * std::numbers::pi * (k - 1) / steps);
+    const Vec2 b = SyntheticFace::rim_point(2 * std::numbers::pi * k / steps);
     arc[static_cast<size_t>(k)] = arc[static_cast<size_t>(k) - 1] + (b - a).norm();
   }
   return arc;
@@ -82,7 +81,7 @@ double angle_at_arc_length(const std::vector<double>& arc, double length) {
   const int k = std::clamp(static_cast<int>(it - arc.begin()) - 1, 0, steps - 1);
   const double span = arc[static_cast<size_t>(k) + 1] - arc[static_cast<size_t>(k)];
   const double f = span > 0 ? (length - arc[static_cast<size_t>(k)]) / span : 0.0;
-  return 2 * kPi * (k + f) / steps;
+  return 2 * std::numbers::pi * (k + f) / steps;
 }
 
 }  // namespace
@@ -159,7 +158,7 @@ ExpressionWeights SyntheticFace::weights(double time) const {
     const double u = std::fmod(t + 0.8, period) - 0.5 * period;
     return std::exp(-(u * u) / (2 * 0.06 * 0.06));
   };
-  auto wave = [](double t, double period, double phase) { return 0.5 * (1 - std::cos(2 * kPi * t / period + phase)); };
+  auto wave = [](double t, double period, double phase) { return 0.5 * (1 - std::cos(2 * std::numbers::pi * t / period + phase)); };
   ExpressionWeights w;
   switch (expression_) {
     case Expression::kBlink: w.blink = blink(time); break;
@@ -172,9 +171,10 @@ ExpressionWeights SyntheticFace::weights(double time) const {
     case Expression::kMixed: {
       const double scale = expression_ == Expression::kMixed ? 0.8 : 1.0;
       const double mouth_time = speech_rate_ * time;  // only the mouth speeds up: blinks and brows keep their pace
-      w.jaw = scale * (0.35 + 0.22 * std::sin(2 * kPi * 2.7 * mouth_time) + 0.12 * std::sin(2 * kPi * 4.1 * mouth_time + 1.3));
+      w.jaw = scale * (0.35 + 0.22 * std::sin(2 * std::numbers::pi * 2.7 * mouth_time) +
+                       0.12 * std::sin(2 * std::numbers::pi * 4.1 * mouth_time + 1.3));
       w.pucker = scale * 0.6 * wave(mouth_time, 0.77, 0.4);
-      w.brow = 0.25 * (1 + std::sin(2 * kPi * 0.6 * time));
+      w.brow = 0.25 * (1 + std::sin(2 * std::numbers::pi * 0.6 * time));
       if (expression_ == Expression::kMixed) {
         w.blink = blink(time);
         w.smile = 0.7 * wave(time, 4.0, 0);
@@ -222,10 +222,10 @@ Vec2 SyntheticFace::displacement(const Vec2& m, const ExpressionWeights& w) cons
 
 Vec3 SyntheticFace::head_pose(const Vec3& p, double time) const {
   if (head_motion_degrees_ == 0) return p;
-  const double amplitude = head_motion_degrees_ * kPi / 180.0;
-  const double yaw = amplitude * std::sin(2 * kPi * 0.15 * time);
-  const double pitch = 0.5 * amplitude * std::sin(2 * kPi * 0.23 * time + 1.0);
-  const double roll = 0.3 * amplitude * std::sin(2 * kPi * 0.11 * time + 2.0);
+  const double amplitude = head_motion_degrees_ * std::numbers::pi / 180.0;
+  const double yaw = amplitude * std::sin(2 * std::numbers::pi * 0.15 * time);
+  const double pitch = 0.5 * amplitude * std::sin(2 * std::numbers::pi * 0.23 * time + 1.0);
+  const double roll = 0.3 * amplitude * std::sin(2 * std::numbers::pi * 0.11 * time + 2.0);
   const Eigen::Matrix3d R =
       (Eigen::AngleAxisd(yaw, Vec3::UnitY()) * Eigen::AngleAxisd(pitch, Vec3::UnitX()) * Eigen::AngleAxisd(roll, Vec3::UnitZ()))
           .toRotationMatrix();
@@ -291,7 +291,7 @@ MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, ui
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   double target = vertices;
   if (jitter_per_frame) target *= 1.0 + 0.1 * (2 * unit(rng) - 1);
-  const double area = kPi * kA * kB;
+  const double area = std::numbers::pi * kA * kB;
   const auto arc = ellipse_arc_lengths(4096);
   // Spacing d of a hexagonal lattice giving `target` points, boundary samples included.
   double d = std::sqrt(area / (target * std::sqrt(3.0) / 2));
@@ -305,7 +305,7 @@ MaterialSampling sample_material_ellipse(int vertices, bool jitter_per_frame, ui
   }
   sampling.boundary_count = rim;
 
-  const double angle = jitter_per_frame ? unit(rng) * kPi / 3 : 0.1;
+  const double angle = jitter_per_frame ? unit(rng) * std::numbers::pi / 3 : 0.1;
   const Vec2 offset = jitter_per_frame ? Vec2(unit(rng) * d, unit(rng) * d) : Vec2(0.3 * d, 0.2 * d);
   const Eigen::Rotation2Dd rotate(angle);
   const double row = d * std::sqrt(3.0) / 2;

@@ -7,6 +7,7 @@
 #include "codec/encoder/synth/synth.hpp"
 #include "format/error.hpp"
 
+#include "codec/core/geometry/elementary.hpp"
 #include "codec/meshkit/geometry/delaunay.hpp"
 
 #include <algorithm>
@@ -17,15 +18,14 @@
 namespace facemorph {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 const Vec3 kCentre(0, 0.0, -0.06);                      // the head's rays start here (behind the nose, metres)
 const Vec3 kNeckAxis = Vec3(0, -1, -0.3).normalized();  // down and a little back: where the neck leaves
 // The neck rim: directions this far from kNeckAxis, where the neck cylinder is 0.215 m from
 // kCentre (its rim about 0.1 m below the chin). A neck is a tube, and a conformal map shrinks a
 // tube's far end by about e per radius of its length: this is what crowds a whole head's map.
-constexpr double kNeckCap = 14 * kPi / 180;
-constexpr double kNeckRingsTo = 40 * kPi / 180;  // the neck sampled in rings up to here, the rest by a lattice
-constexpr double kJoinAngle = 25 * kPi / 180;    // the back follows the face's rim within this angle
+constexpr double kNeckCap = 14 * std::numbers::pi / 180;
+constexpr double kNeckRingsTo = 40 * std::numbers::pi / 180;  // the neck sampled in rings up to here, the rest by a lattice
+constexpr double kJoinAngle = 25 * std::numbers::pi / 180;    // the back follows the face's rim within this angle
 // The cranium: an ellipsoid about (0, 0.01, -0.06) whose section by the face's plane z = 0 is near
 // the face's rim ellipse (0.08 x 0.10), so the join needs only a small correction.
 const Vec3 kSkullCentre(0, 0.01, -0.06);
@@ -47,11 +47,6 @@ bool in_hole(const Vec2& m) {
     if (std::hypot((m.x() - h.centre.x()) / h.axes.x(), (m.y() - h.centre.y()) / h.axes.y()) < 1) return true;
   }
   return false;
-}
-
-double smoothstep(double x) {
-  x = std::clamp(x, 0.0, 1.0);
-  return x * x * (3 - 2 * x);
 }
 
 // Distance from kCentre to the head along unit direction u: the cranium, blended smoothly into the
@@ -77,15 +72,6 @@ Vec3 any_perpendicular(const Vec3& n) {
 // Stereographic projection from the face's centre direction (+z): the face cap goes to infinity,
 // the back of the head and the neck to a bounded part of the plane.
 Vec2 project(const Vec3& u) { return Vec2(u.x(), u.y()) / (1 - u.z()); }
-
-bool inside_polygon(const std::vector<Vec2>& polygon, const Vec2& p) {
-  bool inside = false;
-  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const Vec2 &a = polygon[i], &b = polygon[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
-  }
-  return inside;
-}
 
 // A hole cut by the triangles' centroids can leave two cut pieces touching at one vertex, a bow tie
 // (at --vertices 1500 and 2000 a nostril was two triangles meeting at a corner), which no scanner
@@ -213,7 +199,7 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   const double angle_step = spacing / 0.1;  // the lattice's spacing as an angle seen from kCentre (head radius ~0.1 m)
   // Directions on the back's side of the face's rim, not crowding its vertices.
   auto clear_of_face = [&](const Vec3& u) {
-    if (u.z() > 0.999 || !inside_polygon(face_polygon, project(u))) return false;
+    if (u.z() > 0.999 || !inside_polygon(project(u), face_polygon)) return false;
     for (const Vec3& d : rim_dir) {
       if (u.dot(d) > std::cos(0.6 * angle_step)) return false;
     }
@@ -222,11 +208,11 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   // The neck: rings about its axis, the first its rim. The rays meet the neck's cylinder at a grazing
   // angle, so evenly spread directions would make long slivers there: rings spaced by the
   // lattice's spacing along the cylinder (h = r cot β, dh = r dβ / sin² β), staggered.
-  const int neck = std::max(12, static_cast<int>(std::lround(2 * kPi * kNeckRadius / spacing)));
+  const int neck = std::max(12, static_cast<int>(std::lround(2 * std::numbers::pi * kNeckRadius / spacing)));
   std::vector<Vec2> neck_polygon;
   std::vector<Vec3> directions;  // of the back's vertices: the neck rim first, then the inside
   for (int k = 0; k < neck; ++k) {
-    directions.push_back(SyntheticFace::neck_rim_direction(2 * kPi * k / neck));
+    directions.push_back(SyntheticFace::neck_rim_direction(2 * std::numbers::pi * k / neck));
     neck_polygon.push_back(project(directions.back()));
   }
   out.neck_count = neck;
@@ -237,15 +223,15 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
       beta += std::min(spacing * std::sin(beta) * std::sin(beta) / kNeckRadius, angle_step);
       if (beta > kNeckRingsTo) break;
       for (int k = 0; k < neck; ++k) {
-        const double theta = 2 * kPi * (k + 0.5 * (ring % 2)) / neck;
+        const double theta = 2 * std::numbers::pi * (k + 0.5 * (ring % 2)) / neck;
         const Vec3 u = (std::cos(beta) * kNeckAxis + std::sin(beta) * (std::cos(theta) * side + std::sin(theta) * other)).normalized();
         if (clear_of_face(u)) directions.push_back(u);
       }
     }
   }
   // Fibonacci directions beyond the rings, as many as the sphere holds at the lattice's spacing.
-  const int count = static_cast<int>(4 * kPi / (angle_step * angle_step * std::sqrt(3.0) / 2));
-  const double golden = kPi * (3 - std::sqrt(5.0));
+  const int count = static_cast<int>(4 * std::numbers::pi / (angle_step * angle_step * std::sqrt(3.0) / 2));
+  const double golden = std::numbers::pi * (3 - std::sqrt(5.0));
   for (int i = 0; i < count; ++i) {
     const double y = 1 - 2 * (i + 0.5) / count, r = std::sqrt(1 - y * y);
     const Vec3 u(r * std::cos(golden * i), y, r * std::sin(golden * i));
@@ -261,7 +247,7 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   auto global = [&](int32_t i) { return i < rim ? i : out.face_vertices + (i - rim); };
   for (const Face& t : triangles) {
     const Vec2 centroid = (plane[static_cast<size_t>(t[0])] + plane[static_cast<size_t>(t[1])] + plane[static_cast<size_t>(t[2])]) / 3.0;
-    if (!inside_polygon(face_polygon, centroid) || inside_polygon(neck_polygon, centroid)) continue;
+    if (!inside_polygon(centroid, face_polygon) || inside_polygon(centroid, neck_polygon)) continue;
     // Wound like the face (outward normals): the projection reverses orientation seen from outside.
     out.faces.push_back({global(t[0]), global(t[2]), global(t[1])});
   }
@@ -269,7 +255,7 @@ HeadSampling sample_head(int face_vertices, const SyntheticFace& face, bool hole
   for (const Vec3& u : directions) {
     HeadVertex v;
     size_t best = 0;
-    double nearest = kPi;
+    double nearest = std::numbers::pi;
     for (size_t k = 0; k < rim_dir.size(); ++k) {
       const double a = std::acos(std::clamp(u.dot(rim_dir[k]), -1.0, 1.0));
       if (a < nearest) nearest = a, best = k;
