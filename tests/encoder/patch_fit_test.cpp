@@ -6,7 +6,11 @@
 
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "tests/decoder/crafted_files.hpp"
 
@@ -14,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -42,7 +47,7 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
     const double r2 = (vertex_w[v] - Vec2(0.2, -0.3)).squaredNorm();
     captured.positions[v] += plain.pose.rotation * Vec3(0, 0, 0.03 * diagonal * std::exp(-r2 / 0.04));
   }
-  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * diagonal)));
+  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * 0.01 * diagonal)));
   const PatchFit fit = fit_frame_patch(grid, shown, captured, t, {.lattice = 17, .bound = 0.01, .step_units = step});
   EXPECT_GT(fit.p99_before, 0.01);
   EXPECT_LE(fit.p99_after, 0.01);
@@ -63,6 +68,57 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
   // patch itself is added exactly, FramePatches.AFileHoldsThemToTheBitAndADecoderAddsThem): 5.6e-7 measured.
   EXPECT_NEAR(p99, fit.p99_after, 1e-5);
   EXPECT_LE(p99, 0.01);
+}
+
+// Fast speech at 2k vertices, few keyframes: frames between them whose lips the blend misses.
+Capture fast_speech(const std::filesystem::path& dir) {
+  SynthOptions options;
+  options.frames = 16;
+  options.fps = 24;
+  options.expression = Expression::kTalk;
+  options.speech_rate = 3;
+  options.vertices = 2000;
+  options.texture_size = 32;
+  write_synthetic_capture(dir, options);
+  return read_capture(dir);
+}
+
+TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount) {
+  const testing::TempDir dir;
+  const Capture capture = fast_speech(dir.path() / "capture");
+  EncodeOptions options;
+  options.texture = false;
+  options.keyframe_fraction = 0.15;
+  options.patch_bound = 0.005;  // tighter than the default 1%, so that this short capture has frames over it
+  options.threads = 1;
+  EncodeReport one_report, two_report;
+  const Sequence one = encode_capture(capture, options, &one_report);
+  options.threads = 2;
+  const Sequence two = encode_capture(capture, options, &two_report);
+  const PatchFitReport& fit = one_report.patch_fit;
+  ASSERT_GT(fit.frames_patched, 0);
+  EXPECT_EQ(fit.frames_unmet, 0);
+  EXPECT_LE(fit.worst_after, options.patch_bound);
+  // The patches are fitted on the encoder's threads, each frame's as a function of its time alone.
+  EXPECT_EQ(encode_sequence_file(one, crafted::small_metadata()), encode_sequence_file(two, crafted::small_metadata()));
+  EXPECT_EQ(two_report.patch_fit.nodes, fit.nodes);
+  // What the decoder shows at each captured frame between keyframes: under the bound (within the
+  // reconstruction's tolerance, the margin kPatchBoundMargin), as the fit measured.
+  const std::vector<uint8_t> bytes = encode_sequence_file(one, crafted::small_metadata());
+  SequenceDecoder decoder(open_sequence_source(bytes, "fast.fmv"));
+  DecodeOptions o;
+  o.texture = false;
+  o.continue_correction = false;
+  const std::vector<double> key_times = one.keyframe_times();
+  double worst = 0;
+  for (size_t j = 0; j < capture.frames.size(); ++j) {
+    if (residual_interval(key_times, capture.frames[j].time) < 0) continue;  // a keyframe's own frame, or outside them
+    const TriangleMesh captured = read_mesh(capture.mesh_path(j), {.allow_missing_texture = true});
+    const SurfaceDistance d = surface_distance(captured, decoder.decode(capture.frames[j].time, o).mesh);
+    worst = std::max(worst, d.p99 / d.diagonal);
+  }
+  EXPECT_GT(fit.worst_before, options.patch_bound);
+  EXPECT_LE(worst, options.patch_bound);
 }
 
 }  // namespace

@@ -3,9 +3,10 @@
 
 #include "codec/core/container/file_layout.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/core/util/parallel.hpp"
 #include "codec/decoder/sequence/hole_cut.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/decoder_team.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
@@ -17,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 
 namespace facemorph {
 
@@ -187,6 +189,25 @@ FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const
   return patch;
 }
 
+// `patch` without its `drop` nodes of smallest displacement (largest component; of equal ones the
+// later index first).
+FramePatch without_smallest(const FramePatch& patch, size_t drop) {
+  std::vector<size_t> order(patch.nodes.size());
+  for (size_t n = 0; n < order.size(); ++n) order[n] = n;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return patch.displacements[a].cwiseAbs().maxCoeff() < patch.displacements[b].cwiseAbs().maxCoeff();
+  });
+  std::vector<char> dropped(patch.nodes.size(), 0);
+  for (size_t k = 0; k < drop && k < order.size(); ++k) dropped[order[k]] = 1;
+  FramePatch core{.time = patch.time, .lattice = patch.lattice, .nodes = {}, .displacements = {}};
+  for (size_t n = 0; n < patch.nodes.size(); ++n) {
+    if (dropped[n]) continue;
+    core.nodes.push_back(patch.nodes[n]);
+    core.displacements.push_back(patch.displacements[n]);
+  }
+  return core;
+}
+
 }  // namespace
 
 PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
@@ -197,17 +218,39 @@ PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const Tr
   best.patch = FramePatch{.time = t, .lattice = options.lattice, .nodes = {}, .displacements = {}};
   best.p99_before = best.p99_after = surface_distance(captured, before).p99 / diagonal;
   if (best.p99_before <= options.bound) return best;
+  const auto p99_of = [&](const FramePatch& patch) {
+    return surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, patch), shown.hole_level)).p99 / diagonal;
+  };
   const std::vector<OffsetSample> samples = offset_samples(before, captured);
   for (const double share : {1.0, 0.9, 0.8, 0.65, 0.5, 0.4, 0.3}) {
     const double threshold = share * options.bound;
     const FramePatch patch = fit_at_threshold(grid, shown, captured, samples, t, threshold * diagonal, options.step_units, options);
-    const double p99 = surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, patch), shown.hole_level)).p99 / diagonal;
+    const double p99 = p99_of(patch);
     if (p99 < best.p99_after) {
       best.patch = patch;
       best.p99_after = p99;
       best.threshold = threshold;
     }
     if (best.p99_after <= options.bound) break;
+  }
+  // The fewest nodes that still meet the bound: the smallest displacements (the fringe, where the
+  // smoothing fades the patch out) are often bytes that do not move the p99. The largest count of
+  // them that can go, by bisection (the p99 grows with the count dropped, though not strictly).
+  if (best.p99_after <= options.bound && best.patch.nodes.size() > 1) {
+    size_t low = 0, high = best.patch.nodes.size();  // dropping `low` meets the bound; dropping `high` (all) leaves no patch
+    double low_p99 = best.p99_after;
+    while (high - low > 1) {
+      const size_t mid = (low + high) / 2;
+      const double p99 = p99_of(without_smallest(best.patch, mid));
+      if (p99 <= options.bound) {
+        low = mid;
+        low_p99 = p99;
+      } else {
+        high = mid;
+      }
+    }
+    best.patch = without_smallest(best.patch, low);
+    best.p99_after = low_p99;
   }
   return best;
 }
@@ -246,7 +289,7 @@ struct HeldFrame {
 }  // namespace
 
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
-                                          PatchFitReport* report_out) {
+                                          PatchFitReport* report_out, int threads) {
   const auto start = std::chrono::steady_clock::now();
   PatchFitReport report;
   stored.set_patches({});
@@ -264,81 +307,118 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
       return {};
     }
   }
-  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
-  SequenceDecoder decoder(source);
-  const DiskGrid& grid = decoder.geometry().grid();
-  const DecodeOptions options = shown_decode();
-  const auto show = [&](double t) {
-    DecodedFrame f = decoder.decode(t, options);
-    return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
-  };
   // Every frame strictly between two keyframes, at its time on the file's lattice.
   std::vector<HeldFrame> held;
   for (int j = keyframes.front() + 1; keyframes.size() >= 2 && j < keyframes.back(); ++j) {
     const double t = residual_time(residual_time_code(capture.frames[static_cast<size_t>(j)].time, outline.first_time, outline.fps),
                                    outline.first_time, outline.fps);
     if (residual_interval(key_times, t) < 0 || (!held.empty() && !(t > held.back().time))) continue;
-    const TriangleMesh captured = read_frame(j);
-    const ShownFrame shown = show(t);
-    const SurfaceDistance d = surface_distance(captured, shown_mesh(grid, shown.positions, shown.hole_level));
-    held.push_back({j, t, d.diagonal, d.p99 / d.diagonal});
-    report.worst_before = std::max(report.worst_before, held.back().p99);
+    held.push_back({j, t, 0, 0});
   }
-  std::vector<FramePatch> patches;
-  std::vector<double> after(held.size());
-  for (size_t h = 0; h < held.size(); ++h) after[h] = held[h].p99;
-  if (!held.empty()) {
-    double smallest = held.front().diagonal;
-    for (const HeldFrame& f : held) smallest = std::min(smallest, f.diagonal);
-    const double step = std::exp2(std::floor(std::log2(kPatchStepShare * smallest)));
-    // Pass 1: a patch for each frame over the bound.
-    std::vector<char> patched(held.size(), 0);
-    for (size_t h = 0; h < held.size(); ++h) {
-      if (held[h].p99 <= bound) continue;
-      ++report.frames_over;
-      const TriangleMesh captured = read_frame(held[h].frame);
-      const ShownFrame shown = show(held[h].time);
-      PatchFit best;
-      best.p99_after = held[h].p99;
+  if (held.empty()) {
+    if (report_out) *report_out = report;
+    return {};
+  }
+  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
+  DecoderTeam team(source, threads, held.size());
+  const DiskGrid& grid = team.first().geometry().grid();
+  const DecodeOptions options = shown_decode();
+  const auto show = [&](SequenceDecoder& decoder, double t) {
+    DecodedFrame f = decoder.decode(t, options);
+    return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
+  };
+  // Each frame is decoded once and kept for the passes below where the frames fit in
+  // kShownFramesMemory; past it, each pass decodes the frames it measures again (the same frames:
+  // each a function of t alone).
+  const bool keep = held.size() * grid.nodes.size() * (sizeof(Vec3) + sizeof(double)) <= kShownFramesMemory;
+  std::vector<ShownFrame> kept(keep ? held.size() : 0);
+  team.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
+    ShownFrame shown = show(decoder, held[h].time);
+    const SurfaceDistance d = surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level));
+    held[h].diagonal = d.diagonal;
+    held[h].p99 = d.p99 / d.diagonal;
+    if (keep) kept[h] = std::move(shown);
+  });
+  // body(h, frame h as shown) for each of `items` on the fit's threads.
+  const auto for_each_shown = [&](const std::vector<size_t>& items, const std::function<void(size_t, const ShownFrame&)>& body) {
+    if (keep) {
+      parallel_for(static_cast<int>(items.size()), threads, [&](int i) { body(items[static_cast<size_t>(i)], kept[items[static_cast<size_t>(i)]]); });
+    } else {
+      team.for_each(items.size(), [&](SequenceDecoder& decoder, size_t i) { body(items[i], show(decoder, held[items[i]].time)); });
+    }
+  };
+  double smallest = held.front().diagonal;
+  for (const HeldFrame& f : held) {
+    smallest = std::min(smallest, f.diagonal);
+    report.worst_before = std::max(report.worst_before, f.p99);
+  }
+  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * bound * smallest)));
+  // Pass 1: a patch for each frame over the bound.
+  std::vector<size_t> over;
+  for (size_t h = 0; h < held.size(); ++h)
+    if (held[h].p99 > bound) over.push_back(h);
+  report.frames_over = static_cast<int>(over.size());
+  std::vector<PatchFit> fits(held.size());
+  for_each_shown(over, [&](size_t h, const ShownFrame& shown) {
+    const TriangleMesh captured = read_frame(held[h].frame);
+    PatchFit& best = fits[h];
+    best.p99_after = held[h].p99;
+    // The coarse step first; a frame it cannot bring under the bound tries finer ones (a power of two
+    // apart: the chunk then codes every patch in the finest, whose codes take the same bytes).
+    for (int finer = 0; finer < kPatchFinerSteps && best.p99_after > kPatchBoundMargin * bound; ++finer) {
       for (const int lattice : kPatchLattices) {
         PatchFit fit = fit_frame_patch(grid, shown, captured, held[h].time,
-                                       {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = step});
+                                       {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
         if (!fit.patch.nodes.empty() && fit.p99_after < best.p99_after) best = std::move(fit);
         if (best.p99_after <= kPatchBoundMargin * bound) break;
       }
-      if (best.patch.nodes.empty()) {
-        ++report.frames_unmet;
-        continue;
-      }
-      report.frames_unmet += best.p99_after > bound;
-      after[h] = best.p99_after;
-      patched[h] = 1;
-      patches.push_back(std::move(best.patch));
     }
-    // Pass 2: the frames between, with the patches interpolated in t; one made worse than the bound
-    // and than its own p99 is pinned by an empty patch, until none is.
-    for (bool pinned = !patches.empty(); pinned;) {
-      pinned = false;
-      for (size_t h = 0; h < held.size(); ++h) {
-        if (patched[h]) continue;
-        const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
-        if (d.empty()) continue;
-        ShownFrame shown = show(held[h].time);
-        for (size_t n = 0; n < d.size(); ++n) shown.positions[n] += shown.pose.rotation * d[n];
-        const double p99 =
-            surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level)).p99 / held[h].diagonal;
-        if (p99 <= bound || p99 <= held[h].p99) {
-          after[h] = p99;
-          continue;
-        }
-        const auto at =
-            std::upper_bound(patches.begin(), patches.end(), held[h].time, [](double t, const FramePatch& f) { return t < f.time; });
-        patches.insert(at, FramePatch{.time = held[h].time, .lattice = kPatchLattices[0], .nodes = {}, .displacements = {}});
-        after[h] = held[h].p99;
-        patched[h] = 1;
-        ++report.frames_pinned;
-        pinned = true;
-      }
+  });
+  std::vector<FramePatch> patches;
+  std::vector<double> after(held.size());
+  std::vector<char> patched(held.size(), 0);
+  for (size_t h = 0; h < held.size(); ++h) {
+    after[h] = held[h].p99;
+    if (held[h].p99 <= bound) continue;
+    if (fits[h].patch.nodes.empty()) {
+      ++report.frames_unmet;
+      continue;
+    }
+    report.frames_unmet += fits[h].p99_after > bound;
+    after[h] = fits[h].p99_after;
+    patched[h] = 1;
+    patches.push_back(std::move(fits[h].patch));
+  }
+  // Pass 2: the frames between, with the patches interpolated in t; those made worse than the bound
+  // and than their own p99 are pinned by empty patches (all of a round's at once, so that the result
+  // does not depend on the order the threads measure in), until none is.
+  for (bool pinned = !patches.empty(); pinned;) {
+    pinned = false;
+    std::vector<size_t> moved;
+    for (size_t h = 0; h < held.size(); ++h)
+      if (!patched[h] && residual_interval(key_times, held[h].time) >= 0) moved.push_back(h);
+    std::vector<char> worse(held.size(), 0);
+    for_each_shown(moved, [&](size_t h, const ShownFrame& plain) {
+      const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
+      if (d.empty()) return;
+      ShownFrame shown = plain;
+      for (size_t n = 0; n < d.size(); ++n) shown.positions[n] += shown.pose.rotation * d[n];
+      const double p99 =
+          surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level)).p99 / held[h].diagonal;
+      if (p99 <= bound || p99 <= held[h].p99)
+        after[h] = p99;
+      else
+        worse[h] = 1;
+    });
+    for (size_t h = 0; h < held.size(); ++h) {
+      if (!worse[h]) continue;
+      const auto at =
+          std::upper_bound(patches.begin(), patches.end(), held[h].time, [](double t, const FramePatch& f) { return t < f.time; });
+      patches.insert(at, FramePatch{.time = held[h].time, .lattice = kPatchLattices[0], .nodes = {}, .displacements = {}});
+      after[h] = held[h].p99;
+      patched[h] = 1;
+      ++report.frames_pinned;
+      pinned = true;
     }
   }
   for (const FramePatch& p : patches) {

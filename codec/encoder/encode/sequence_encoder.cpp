@@ -334,7 +334,8 @@ std::unique_ptr<StoredSequence> code_keyframes(SequenceEncoder& encoder, const K
   // Frame patches fitted to the decoded frames, residuals included (patch_fit.hpp).
   if (encoder.options().patch_bound > 0)
     sequence->set_patches(
-        fit_frame_patches(encoder.capture(), *sequence, chosen.keyframes, encoder.options().patch_bound, &report.patch_fit));
+        fit_frame_patches(encoder.capture(), *sequence, chosen.keyframes, encoder.options().patch_bound, &report.patch_fit,
+                          encoder.options().threads));
   code_textures(texture_settings(encoder.options()), texture_frames(encoder), *sequence, chosen.keyframes, report);
   return sequence;
 }
