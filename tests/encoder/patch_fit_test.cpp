@@ -3,6 +3,7 @@
 // patch reaches the file to the bit, and the decoder shows at the patch's time exactly what the fit
 // measured.
 #include "codec/encoder/encode/patch_fit.hpp"
+#include "codec/encoder/encode/patch_measure.hpp"
 
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
@@ -13,6 +14,7 @@
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "tests/decoder/crafted_files.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 
 #include "tests/test_util.hpp"
 
@@ -54,6 +56,10 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
   ASSERT_FALSE(fit.patch.nodes.empty());
   EXPECT_LT(fit.patch.nodes.size(), 17u * 17u / 4);  // sparse: the bump's cells, not the disk
   for (const Vec3& d : fit.patch.displacements) EXPECT_EQ(d, (d / step).array().round().matrix() * step);  // rounded
+  // The search's approximate p99 bounds the exact one from above: a patch it took was measured exactly
+  // (p99_after) and none it put under the bound was over it.
+  EXPECT_GE(fit.exact_checks, 1);
+  EXPECT_EQ(fit.approximate_misses, 0);
   // The file holds the patch to the bit, and its decoder shows at t what the fit measured.
   Sequence patched = stored;
   patched.patches = {fit.patch};
@@ -68,16 +74,24 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
   // patch itself is added exactly, FramePatches.AFileHoldsThemToTheBitAndADecoderAddsThem): 5.6e-7 measured.
   EXPECT_NEAR(p99, fit.p99_after, 1e-5);
   EXPECT_LE(p99, 0.01);
+  // The search's measure: exact() is fmbench's; approximate() is never under it, for the fitted patch
+  // and for patches that move the surface further, the other way (away from the bump) and less.
+  const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+  const PatchMeasure measure(grid, shown, captured, before);
+  EXPECT_NEAR(measure.exact(FramePatch{.time = t, .lattice = 17, .nodes = {}, .displacements = {}}) / diagonal, fit.p99_before, 1e-12);
+  for (const double scale : {1.0, 2.0, -1.0, 0.5}) {
+    FramePatch scaled = fit.patch;
+    for (Vec3& d : scaled.displacements) d *= scale;
+    const double exact = measure.exact(scaled);
+    EXPECT_EQ(exact, surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, scaled), shown.hole_level)).p99);
+    EXPECT_GE(measure.approximate(scaled), exact) << "scale " << scale;
+    EXPECT_LE(measure.approximate(scaled), 1.5 * exact) << "scale " << scale;  // and near it
+  }
 }
 
 // Fast speech at 2k vertices, few keyframes: frames between them whose lips the blend misses.
 Capture fast_speech(const std::filesystem::path& dir) {
-  SynthOptions options;
-  options.frames = 16;
-  options.fps = 24;
-  options.expression = Expression::kTalk;
-  options.speech_rate = 3;
-  options.vertices = 2000;
+  SynthOptions options = testing::fast_speech_options(16);
   options.texture_size = 32;
   write_synthetic_capture(dir, options);
   return read_capture(dir);

@@ -7,6 +7,7 @@
 #include "codec/decoder/sequence/hole_cut.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/decoder_team.hpp"
+#include "codec/encoder/encode/patch_measure.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
@@ -36,58 +37,6 @@ std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& show
 }
 
 namespace {
-
-// A point of one surface, where on the disk it lies and the offset to the other surface.
-struct OffsetSample {
-  Vec2 w;
-  Vec3 offset;  // to the captured surface, capture coordinates
-};
-
-// Each captured vertex to the shown surface and each shown vertex to the captured one, as
-// surface_distance measures them (vertices no face uses are left out), with the disk point of the
-// shown side (the shown mesh's UV is (w + 1) / 2).
-std::vector<OffsetSample> offset_samples(const TriangleMesh& shown, const TriangleMesh& captured) {
-  std::vector<OffsetSample> samples;
-  const auto disk = [&](int face, int corner) {
-    return Vec2(2 * shown.uvs[static_cast<size_t>(shown.uv_faces[static_cast<size_t>(face)][static_cast<size_t>(corner)])] - Vec2(1, 1));
-  };
-  const PointToMesh to_shown(shown), to_captured(captured);
-  std::vector<uint8_t> used(captured.positions.size(), 0);
-  for (const Face& f : captured.faces)
-    for (int32_t v : f) used[static_cast<size_t>(v)] = 1;
-  for (size_t v = 0; v < captured.positions.size(); ++v) {
-    if (!used[v]) continue;
-    const SurfacePoint s = to_shown.closest(captured.positions[v]);
-    if (s.face < 0) continue;
-    const Face& f = shown.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
-    Vec2 w = Vec2::Zero();
-    for (int k = 0; k < 3; ++k) {
-      point += s.bary[k] * shown.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-      w += s.bary[k] * disk(s.face, k);
-    }
-    samples.push_back({w, captured.positions[v] - point});
-  }
-  std::vector<Vec2> vertex_w(shown.positions.size(), Vec2::Zero());
-  std::vector<uint8_t> shown_used(shown.positions.size(), 0);
-  for (size_t f = 0; f < shown.faces.size(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const auto v = static_cast<size_t>(shown.faces[f][static_cast<size_t>(k)]);
-      vertex_w[v] = disk(static_cast<int>(f), k);
-      shown_used[v] = 1;
-    }
-  }
-  for (size_t v = 0; v < shown.positions.size(); ++v) {
-    if (!shown_used[v]) continue;
-    const SurfacePoint s = to_captured.closest(shown.positions[v]);
-    if (s.face < 0) continue;
-    const Face& f = captured.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
-    for (int k = 0; k < 3; ++k) point += s.bary[k] * captured.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-    samples.push_back({vertex_w[v], point - shown.positions[v]});
-  }
-  return samples;
-}
 
 // The lattice cell holding coordinate x (as frame_patch's bilinear interpolation takes it).
 std::pair<int, double> cell_of(double x, int lattice) {
@@ -151,9 +100,9 @@ std::vector<Vec3> solve_displacements(const std::vector<OffsetSample>& samples, 
 
 // The patch moving the lattice nodes near samples whose offset passes `threshold` (capture units),
 // fitted in two rounds (the second against the surface the first moved), rounded to `step` (units).
-FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured,
-                            const std::vector<OffsetSample>& first_samples, double t, double threshold, double step,
-                            const PatchFitOptions& options) {
+FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double threshold, double step, const PatchFitOptions& options) {
+  const ShownFrame& shown = measure.shown();
+  const std::vector<OffsetSample>& first_samples = measure.samples();
   const int lattice = options.lattice;
   std::vector<int> index(static_cast<size_t>(lattice) * static_cast<size_t>(lattice), -1);
   for (const OffsetSample& s : first_samples) {
@@ -177,8 +126,8 @@ FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const
   trial.nodes = nodes;
   const Eigen::Matrix3d to_face = shown.pose.rotation.transpose();
   for (const Vec3& d : total) trial.displacements.push_back(to_face * d);
-  const std::vector<OffsetSample> second =
-      offset_samples(shown_mesh(grid, patched_positions(grid, shown, trial), shown.hole_level), captured);
+  const TriangleMesh moved = measure.patched(trial);
+  const std::vector<OffsetSample> second = offset_samples(moved, measure.captured(), PointToMesh(moved), measure.to_captured());
   const std::vector<Vec3> more = solve_displacements(second, index, unknowns, lattice, options.smoothing);
   for (int p = 0; p < unknowns; ++p) {
     const Vec3 code = (to_face * (total[static_cast<size_t>(p)] + more[static_cast<size_t>(p)]) / step).array().round();
@@ -210,49 +159,90 @@ FramePatch without_smallest(const FramePatch& patch, size_t drop) {
 
 }  // namespace
 
-PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
-                         const PatchFitOptions& options) {
-  const double diagonal = bounding_box_diagonal(captured.positions);
-  const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+namespace {
+
+// fit_frame_patch with the frame's measure (built once for all the lattices and steps it tries).
+PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptions& options) {
+  const double diagonal = measure.diagonal();
   PatchFit best;
   best.patch = FramePatch{.time = t, .lattice = options.lattice, .nodes = {}, .displacements = {}};
-  best.p99_before = best.p99_after = surface_distance(captured, before).p99 / diagonal;
+  best.p99_before = best.p99_after = measure.p99_before() / diagonal;
   if (best.p99_before <= options.bound) return best;
-  const auto p99_of = [&](const FramePatch& patch) {
-    return surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, patch), shown.hole_level)).p99 / diagonal;
+  // The search measures approximately (PatchMeasure::approximate); a patch it takes is measured
+  // exactly, and one the exact measure puts over the bound is passed over for the next try.
+  const auto exact_meets = [&](const FramePatch& patch, double& p99) {
+    p99 = measure.exact(patch) / diagonal;
+    ++best.exact_checks;
+    best.approximate_misses += p99 > options.bound;
+    return p99 <= options.bound;
   };
-  const std::vector<OffsetSample> samples = offset_samples(before, captured);
+  FramePatch nearest;  // of the tries none of which met the bound, the lowest approximate p99
+  double nearest_p99 = best.p99_before;
+  bool met = false;
   for (const double share : {1.0, 0.9, 0.8, 0.65, 0.5, 0.4, 0.3}) {
     const double threshold = share * options.bound;
-    const FramePatch patch = fit_at_threshold(grid, shown, captured, samples, t, threshold * diagonal, options.step_units, options);
-    const double p99 = p99_of(patch);
-    if (p99 < best.p99_after) {
-      best.patch = patch;
-      best.p99_after = p99;
+    FramePatch patch = fit_at_threshold(measure, t, threshold * diagonal, options.step_units, options);
+    const double approximate = measure.approximate(patch) / diagonal;
+    double exact = 0;
+    if (approximate <= options.bound && exact_meets(patch, exact)) {
+      best.patch = std::move(patch);
+      best.p99_after = exact;
+      best.threshold = threshold;
+      met = true;
+      break;
+    }
+    if (approximate < nearest_p99) {
+      nearest = std::move(patch);
+      nearest_p99 = approximate;
       best.threshold = threshold;
     }
-    if (best.p99_after <= options.bound) break;
+  }
+  if (!met) {
+    if (!nearest.nodes.empty()) {
+      const double exact = measure.exact(nearest) / diagonal;
+      if (exact < best.p99_after) {
+        best.patch = std::move(nearest);
+        best.p99_after = exact;
+      }
+    }
+    return best;
   }
   // The fewest nodes that still meet the bound: the smallest displacements (the fringe, where the
   // smoothing fades the patch out) are often bytes that do not move the p99. The largest count of
-  // them that can go, by bisection (the p99 grows with the count dropped, though not strictly).
-  if (best.p99_after <= options.bound && best.patch.nodes.size() > 1) {
+  // them that can go, by bisection on the approximate measure (the p99 grows with the count
+  // dropped, though not strictly); then the counts it accepted, largest first, measured exactly
+  // until one meets the bound (dropping none does: measured above).
+  if (best.patch.nodes.size() > 1) {
     size_t low = 0, high = best.patch.nodes.size();  // dropping `low` meets the bound; dropping `high` (all) leaves no patch
-    double low_p99 = best.p99_after;
+    std::vector<size_t> accepted;
     while (high - low > 1) {
       const size_t mid = (low + high) / 2;
-      const double p99 = p99_of(without_smallest(best.patch, mid));
-      if (p99 <= options.bound) {
+      if (measure.approximate(without_smallest(best.patch, mid)) / diagonal <= options.bound) {
         low = mid;
-        low_p99 = p99;
+        accepted.push_back(mid);
       } else {
         high = mid;
       }
     }
-    best.patch = without_smallest(best.patch, low);
-    best.p99_after = low_p99;
+    for (auto drop = accepted.rbegin(); drop != accepted.rend(); ++drop) {
+      FramePatch thinner = without_smallest(best.patch, *drop);
+      double exact = 0;
+      if (exact_meets(thinner, exact)) {
+        best.patch = std::move(thinner);
+        best.p99_after = exact;
+        break;
+      }
+    }
   }
   return best;
+}
+
+}  // namespace
+
+PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
+                         const PatchFitOptions& options) {
+  const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+  return fit_measured(PatchMeasure(grid, shown, captured, before), t, options);
 }
 
 std::vector<uint8_t> patch_payload(const FramePatch& patch, double step_units) {
@@ -361,14 +351,16 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
   std::vector<PatchFit> fits(held.size());
   for_each_shown(over, [&](size_t h, const ShownFrame& shown) {
     const TriangleMesh captured = read_frame(held[h].frame);
+    const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+    const PatchMeasure measure(grid, shown, captured, before);
     PatchFit& best = fits[h];
     best.p99_after = held[h].p99;
     // The coarse step first; a frame it cannot bring under the bound tries finer ones (a power of two
     // apart: the chunk then codes every patch in the finest, whose codes take the same bytes).
     for (int finer = 0; finer < kPatchFinerSteps && best.p99_after > kPatchBoundMargin * bound; ++finer) {
       for (const int lattice : kPatchLattices) {
-        PatchFit fit = fit_frame_patch(grid, shown, captured, held[h].time,
-                                       {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
+        PatchFit fit =
+            fit_measured(measure, held[h].time, {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
         if (!fit.patch.nodes.empty() && fit.p99_after < best.p99_after) best = std::move(fit);
         if (best.p99_after <= kPatchBoundMargin * bound) break;
       }
@@ -385,6 +377,8 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
       continue;
     }
     report.frames_unmet += fits[h].p99_after > bound;
+    report.exact_checks += fits[h].exact_checks;
+    report.approximate_misses += fits[h].approximate_misses;
     after[h] = fits[h].p99_after;
     patched[h] = 1;
     patches.push_back(std::move(fits[h].patch));

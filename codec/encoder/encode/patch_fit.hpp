@@ -33,6 +33,10 @@ struct PatchFit {
   double p99_before = 0;  // the shown frame's 99th-percentile point error, of the diagonal
   double p99_after = 0;   // with the rounded patch
   double threshold = 0;   // the offset (of the diagonal) above which samples chose the moving nodes
+  // Patches the search's approximate p99 put under the bound, measured exactly, and of them those the
+  // exact p99 put over it (passed over for the next try).
+  int exact_checks = 0;
+  int approximate_misses = 0;
 };
 
 // The mesh the decoder shows for these node positions (holes cut where `hole_level` is not empty).
@@ -57,6 +61,8 @@ struct PatchFitReport {
   int frames_pinned = 0;    // empty patches: frames beside patched ones held at the blend (their own p99)
   int frames_unmet = 0;     // frames over the bound no patch brought under it (kept at the best one found)
   size_t nodes = 0;         // moving lattice nodes, every patch together
+  int exact_checks = 0;        // of the fits of the chosen patches (PatchFit): patches measured exactly
+  int approximate_misses = 0;  // and of them, those over the bound the approximate measure put under it
   double worst_before = 0;  // over the frames between keyframes, without patches
   double worst_after = 0;   // with them
   double seconds = 0;
