@@ -569,9 +569,10 @@ void print_keyframes(const Summary& s) {
     const PatchFitReport& r = s.report.patch_fit;
     std::printf(
         "  frame patches: %d frames decoded over %.2f%% (p99 of the diagonal), %d patched (%zu lattice nodes), %d pinned beside them, %d "
-        "not brought under; worst p99 between keyframes %.3f%% -> %.3f%%; %.1f s\n",
+        "not brought under; worst p99 between keyframes %.3f%% -> %.3f%%; %.1f s (%d of %d approximate p99s under the bound "
+        "were over it exactly)\n",
         r.frames_over, 100 * s.options.patch_bound, r.frames_patched, r.nodes, r.frames_pinned, r.frames_unmet, 100 * r.worst_before,
-        100 * r.worst_after, r.seconds);
+        100 * r.worst_after, r.seconds, r.approximate_misses, r.exact_checks);
   }
   std::printf("  grid N = %d, %s, %s registration, %s spline%s%s\n", s.sequence->shape().grid_n,
               representation_name(s.sequence->shape().representation), registration_method_name(s.options.registration.method),

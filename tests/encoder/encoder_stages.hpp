@@ -33,4 +33,17 @@ inline Capture small_remeshed_capture(const TempDir& dir, double head_motion, do
   return read_capture(dir.path());
 }
 
+// Fast speech (fmsynth's talking face at speech rate 3, 24 fps) at 2000 vertices, `frames` frames:
+// between few keyframes, frames whose lips the blend misses (the residual-frame and frame-patch
+// tests). The caller sets the texture and remeshing.
+inline SynthOptions fast_speech_options(int frames) {
+  SynthOptions options;
+  options.frames = frames;
+  options.fps = 24;
+  options.expression = Expression::kTalk;
+  options.speech_rate = 3;
+  options.vertices = 2000;
+  return options;
+}
+
 }  // namespace facemorph::testing

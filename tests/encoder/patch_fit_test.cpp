@@ -3,17 +3,24 @@
 // patch reaches the file to the bit, and the decoder shows at the patch's time exactly what the fit
 // measured.
 #include "codec/encoder/encode/patch_fit.hpp"
+#include "codec/encoder/encode/patch_measure.hpp"
 
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "tests/decoder/crafted_files.hpp"
+#include "tests/encoder/encoder_stages.hpp"
 
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -42,13 +49,17 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
     const double r2 = (vertex_w[v] - Vec2(0.2, -0.3)).squaredNorm();
     captured.positions[v] += plain.pose.rotation * Vec3(0, 0, 0.03 * diagonal * std::exp(-r2 / 0.04));
   }
-  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * diagonal)));
+  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * 0.01 * diagonal)));
   const PatchFit fit = fit_frame_patch(grid, shown, captured, t, {.lattice = 17, .bound = 0.01, .step_units = step});
   EXPECT_GT(fit.p99_before, 0.01);
   EXPECT_LE(fit.p99_after, 0.01);
   ASSERT_FALSE(fit.patch.nodes.empty());
   EXPECT_LT(fit.patch.nodes.size(), 17u * 17u / 4);  // sparse: the bump's cells, not the disk
   for (const Vec3& d : fit.patch.displacements) EXPECT_EQ(d, (d / step).array().round().matrix() * step);  // rounded
+  // The search's approximate p99 bounds the exact one from above: a patch it took was measured exactly
+  // (p99_after) and none it put under the bound was over it.
+  EXPECT_GE(fit.exact_checks, 1);
+  EXPECT_EQ(fit.approximate_misses, 0);
   // The file holds the patch to the bit, and its decoder shows at t what the fit measured.
   Sequence patched = stored;
   patched.patches = {fit.patch};
@@ -63,6 +74,65 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
   // patch itself is added exactly, FramePatches.AFileHoldsThemToTheBitAndADecoderAddsThem): 5.6e-7 measured.
   EXPECT_NEAR(p99, fit.p99_after, 1e-5);
   EXPECT_LE(p99, 0.01);
+  // The search's measure: exact() is fmbench's; approximate() is never under it, for the fitted patch
+  // and for patches that move the surface further, the other way (away from the bump) and less.
+  const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+  const PatchMeasure measure(grid, shown, captured, before);
+  EXPECT_NEAR(measure.exact(FramePatch{.time = t, .lattice = 17, .nodes = {}, .displacements = {}}) / diagonal, fit.p99_before, 1e-12);
+  for (const double scale : {1.0, 2.0, -1.0, 0.5}) {
+    FramePatch scaled = fit.patch;
+    for (Vec3& d : scaled.displacements) d *= scale;
+    const double exact = measure.exact(scaled);
+    EXPECT_EQ(exact, surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, scaled), shown.hole_level)).p99);
+    EXPECT_GE(measure.approximate(scaled), exact) << "scale " << scale;
+    EXPECT_LE(measure.approximate(scaled), 1.5 * exact) << "scale " << scale;  // and near it
+  }
+}
+
+// Fast speech at 2k vertices, few keyframes: frames between them whose lips the blend misses.
+Capture fast_speech(const std::filesystem::path& dir) {
+  SynthOptions options = testing::fast_speech_options(16);
+  options.texture_size = 32;
+  write_synthetic_capture(dir, options);
+  return read_capture(dir);
+}
+
+TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount) {
+  const testing::TempDir dir;
+  const Capture capture = fast_speech(dir.path() / "capture");
+  EncodeOptions options;
+  options.texture = false;
+  options.keyframe_fraction = 0.15;
+  options.patch_bound = 0.005;  // tighter than the default 1%, so that this short capture has frames over it
+  options.threads = 1;
+  EncodeReport one_report, two_report;
+  const Sequence one = encode_capture(capture, options, &one_report);
+  options.threads = 2;
+  const Sequence two = encode_capture(capture, options, &two_report);
+  const PatchFitReport& fit = one_report.patch_fit;
+  ASSERT_GT(fit.frames_patched, 0);
+  EXPECT_EQ(fit.frames_unmet, 0);
+  EXPECT_LE(fit.worst_after, options.patch_bound);
+  // The patches are fitted on the encoder's threads, each frame's as a function of its time alone.
+  EXPECT_EQ(encode_sequence_file(one, crafted::small_metadata()), encode_sequence_file(two, crafted::small_metadata()));
+  EXPECT_EQ(two_report.patch_fit.nodes, fit.nodes);
+  // What the decoder shows at each captured frame between keyframes: under the bound (within the
+  // reconstruction's tolerance, the margin kPatchBoundMargin), as the fit measured.
+  const std::vector<uint8_t> bytes = encode_sequence_file(one, crafted::small_metadata());
+  SequenceDecoder decoder(open_sequence_source(bytes, "fast.fmv"));
+  DecodeOptions o;
+  o.texture = false;
+  o.continue_correction = false;
+  const std::vector<double> key_times = one.keyframe_times();
+  double worst = 0;
+  for (size_t j = 0; j < capture.frames.size(); ++j) {
+    if (residual_interval(key_times, capture.frames[j].time) < 0) continue;  // a keyframe's own frame, or outside them
+    const TriangleMesh captured = read_mesh(capture.mesh_path(j), {.allow_missing_texture = true});
+    const SurfaceDistance d = surface_distance(captured, decoder.decode(capture.frames[j].time, o).mesh);
+    worst = std::max(worst, d.p99 / d.diagonal);
+  }
+  EXPECT_GT(fit.worst_before, options.patch_bound);
+  EXPECT_LE(worst, options.patch_bound);
 }
 
 }  // namespace

@@ -71,12 +71,7 @@ struct FastSpeech {
   std::unique_ptr<SequenceEncoder> encoder;
   std::vector<int> keyframes;
   explicit FastSpeech(bool select = true) {
-    SynthOptions synth;
-    synth.frames = 24;
-    synth.fps = 24;
-    synth.expression = Expression::kTalk;
-    synth.speech_rate = 3;
-    synth.vertices = 2000;
+    SynthOptions synth = testing::fast_speech_options(24);
     synth.remesh = true;
     synth.texture_size = 64;
     write_synthetic_capture(dir.path(), synth);

@@ -3,9 +3,11 @@
 
 #include "codec/core/container/file_layout.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/core/util/parallel.hpp"
 #include "codec/decoder/sequence/hole_cut.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/decoder_team.hpp"
+#include "codec/encoder/encode/patch_measure.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
@@ -17,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 
 namespace facemorph {
 
@@ -34,58 +37,6 @@ std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& show
 }
 
 namespace {
-
-// A point of one surface, where on the disk it lies and the offset to the other surface.
-struct OffsetSample {
-  Vec2 w;
-  Vec3 offset;  // to the captured surface, capture coordinates
-};
-
-// Each captured vertex to the shown surface and each shown vertex to the captured one, as
-// surface_distance measures them (vertices no face uses are left out), with the disk point of the
-// shown side (the shown mesh's UV is (w + 1) / 2).
-std::vector<OffsetSample> offset_samples(const TriangleMesh& shown, const TriangleMesh& captured) {
-  std::vector<OffsetSample> samples;
-  const auto disk = [&](int face, int corner) {
-    return Vec2(2 * shown.uvs[static_cast<size_t>(shown.uv_faces[static_cast<size_t>(face)][static_cast<size_t>(corner)])] - Vec2(1, 1));
-  };
-  const PointToMesh to_shown(shown), to_captured(captured);
-  std::vector<uint8_t> used(captured.positions.size(), 0);
-  for (const Face& f : captured.faces)
-    for (int32_t v : f) used[static_cast<size_t>(v)] = 1;
-  for (size_t v = 0; v < captured.positions.size(); ++v) {
-    if (!used[v]) continue;
-    const SurfacePoint s = to_shown.closest(captured.positions[v]);
-    if (s.face < 0) continue;
-    const Face& f = shown.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
-    Vec2 w = Vec2::Zero();
-    for (int k = 0; k < 3; ++k) {
-      point += s.bary[k] * shown.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-      w += s.bary[k] * disk(s.face, k);
-    }
-    samples.push_back({w, captured.positions[v] - point});
-  }
-  std::vector<Vec2> vertex_w(shown.positions.size(), Vec2::Zero());
-  std::vector<uint8_t> shown_used(shown.positions.size(), 0);
-  for (size_t f = 0; f < shown.faces.size(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const auto v = static_cast<size_t>(shown.faces[f][static_cast<size_t>(k)]);
-      vertex_w[v] = disk(static_cast<int>(f), k);
-      shown_used[v] = 1;
-    }
-  }
-  for (size_t v = 0; v < shown.positions.size(); ++v) {
-    if (!shown_used[v]) continue;
-    const SurfacePoint s = to_captured.closest(shown.positions[v]);
-    if (s.face < 0) continue;
-    const Face& f = captured.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
-    for (int k = 0; k < 3; ++k) point += s.bary[k] * captured.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-    samples.push_back({vertex_w[v], point - shown.positions[v]});
-  }
-  return samples;
-}
 
 // The lattice cell holding coordinate x (as frame_patch's bilinear interpolation takes it).
 std::pair<int, double> cell_of(double x, int lattice) {
@@ -149,9 +100,9 @@ std::vector<Vec3> solve_displacements(const std::vector<OffsetSample>& samples, 
 
 // The patch moving the lattice nodes near samples whose offset passes `threshold` (capture units),
 // fitted in two rounds (the second against the surface the first moved), rounded to `step` (units).
-FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured,
-                            const std::vector<OffsetSample>& first_samples, double t, double threshold, double step,
-                            const PatchFitOptions& options) {
+FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double threshold, double step, const PatchFitOptions& options) {
+  const ShownFrame& shown = measure.shown();
+  const std::vector<OffsetSample>& first_samples = measure.samples();
   const int lattice = options.lattice;
   std::vector<int> index(static_cast<size_t>(lattice) * static_cast<size_t>(lattice), -1);
   for (const OffsetSample& s : first_samples) {
@@ -175,8 +126,8 @@ FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const
   trial.nodes = nodes;
   const Eigen::Matrix3d to_face = shown.pose.rotation.transpose();
   for (const Vec3& d : total) trial.displacements.push_back(to_face * d);
-  const std::vector<OffsetSample> second =
-      offset_samples(shown_mesh(grid, patched_positions(grid, shown, trial), shown.hole_level), captured);
+  const TriangleMesh moved = measure.patched(trial);
+  const std::vector<OffsetSample> second = offset_samples(moved, measure.captured(), PointToMesh(moved), measure.to_captured());
   const std::vector<Vec3> more = solve_displacements(second, index, unknowns, lattice, options.smoothing);
   for (int p = 0; p < unknowns; ++p) {
     const Vec3 code = (to_face * (total[static_cast<size_t>(p)] + more[static_cast<size_t>(p)]) / step).array().round();
@@ -187,29 +138,111 @@ FramePatch fit_at_threshold(const DiskGrid& grid, const ShownFrame& shown, const
   return patch;
 }
 
+// `patch` without its `drop` nodes of smallest displacement (largest component; of equal ones the
+// later index first).
+FramePatch without_smallest(const FramePatch& patch, size_t drop) {
+  std::vector<size_t> order(patch.nodes.size());
+  for (size_t n = 0; n < order.size(); ++n) order[n] = n;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return patch.displacements[a].cwiseAbs().maxCoeff() < patch.displacements[b].cwiseAbs().maxCoeff();
+  });
+  std::vector<char> dropped(patch.nodes.size(), 0);
+  for (size_t k = 0; k < drop && k < order.size(); ++k) dropped[order[k]] = 1;
+  FramePatch core{.time = patch.time, .lattice = patch.lattice, .nodes = {}, .displacements = {}};
+  for (size_t n = 0; n < patch.nodes.size(); ++n) {
+    if (dropped[n]) continue;
+    core.nodes.push_back(patch.nodes[n]);
+    core.displacements.push_back(patch.displacements[n]);
+  }
+  return core;
+}
+
+}  // namespace
+
+namespace {
+
+// fit_frame_patch with the frame's measure (built once for all the lattices and steps it tries).
+PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptions& options) {
+  const double diagonal = measure.diagonal();
+  PatchFit best;
+  best.patch = FramePatch{.time = t, .lattice = options.lattice, .nodes = {}, .displacements = {}};
+  best.p99_before = best.p99_after = measure.p99_before() / diagonal;
+  if (best.p99_before <= options.bound) return best;
+  // The search measures approximately (PatchMeasure::approximate); a patch it takes is measured
+  // exactly, and one the exact measure puts over the bound is passed over for the next try.
+  const auto exact_meets = [&](const FramePatch& patch, double& p99) {
+    p99 = measure.exact(patch) / diagonal;
+    ++best.exact_checks;
+    best.approximate_misses += p99 > options.bound;
+    return p99 <= options.bound;
+  };
+  FramePatch nearest;  // of the tries none of which met the bound, the lowest approximate p99
+  double nearest_p99 = best.p99_before;
+  bool met = false;
+  for (const double share : {1.0, 0.9, 0.8, 0.65, 0.5, 0.4, 0.3}) {
+    const double threshold = share * options.bound;
+    FramePatch patch = fit_at_threshold(measure, t, threshold * diagonal, options.step_units, options);
+    const double approximate = measure.approximate(patch) / diagonal;
+    double exact = 0;
+    if (approximate <= options.bound && exact_meets(patch, exact)) {
+      best.patch = std::move(patch);
+      best.p99_after = exact;
+      best.threshold = threshold;
+      met = true;
+      break;
+    }
+    if (approximate < nearest_p99) {
+      nearest = std::move(patch);
+      nearest_p99 = approximate;
+      best.threshold = threshold;
+    }
+  }
+  if (!met) {
+    if (!nearest.nodes.empty()) {
+      const double exact = measure.exact(nearest) / diagonal;
+      if (exact < best.p99_after) {
+        best.patch = std::move(nearest);
+        best.p99_after = exact;
+      }
+    }
+    return best;
+  }
+  // The fewest nodes that still meet the bound: the smallest displacements (the fringe, where the
+  // smoothing fades the patch out) are often bytes that do not move the p99. The largest count of
+  // them that can go, by bisection on the approximate measure (the p99 grows with the count
+  // dropped, though not strictly); then the counts it accepted, largest first, measured exactly
+  // until one meets the bound (dropping none does: measured above).
+  if (best.patch.nodes.size() > 1) {
+    size_t low = 0, high = best.patch.nodes.size();  // dropping `low` meets the bound; dropping `high` (all) leaves no patch
+    std::vector<size_t> accepted;
+    while (high - low > 1) {
+      const size_t mid = (low + high) / 2;
+      if (measure.approximate(without_smallest(best.patch, mid)) / diagonal <= options.bound) {
+        low = mid;
+        accepted.push_back(mid);
+      } else {
+        high = mid;
+      }
+    }
+    for (auto drop = accepted.rbegin(); drop != accepted.rend(); ++drop) {
+      FramePatch thinner = without_smallest(best.patch, *drop);
+      double exact = 0;
+      if (exact_meets(thinner, exact)) {
+        best.patch = std::move(thinner);
+        best.p99_after = exact;
+        break;
+      }
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
 PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
                          const PatchFitOptions& options) {
-  const double diagonal = bounding_box_diagonal(captured.positions);
   const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
-  PatchFit best;
-  best.patch = FramePatch{.time = t, .lattice = options.lattice, .nodes = {}, .displacements = {}};
-  best.p99_before = best.p99_after = surface_distance(captured, before).p99 / diagonal;
-  if (best.p99_before <= options.bound) return best;
-  const std::vector<OffsetSample> samples = offset_samples(before, captured);
-  for (const double share : {1.0, 0.9, 0.8, 0.65, 0.5, 0.4, 0.3}) {
-    const double threshold = share * options.bound;
-    const FramePatch patch = fit_at_threshold(grid, shown, captured, samples, t, threshold * diagonal, options.step_units, options);
-    const double p99 = surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, patch), shown.hole_level)).p99 / diagonal;
-    if (p99 < best.p99_after) {
-      best.patch = patch;
-      best.p99_after = p99;
-      best.threshold = threshold;
-    }
-    if (best.p99_after <= options.bound) break;
-  }
-  return best;
+  return fit_measured(PatchMeasure(grid, shown, captured, before), t, options);
 }
 
 std::vector<uint8_t> patch_payload(const FramePatch& patch, double step_units) {
@@ -246,7 +279,7 @@ struct HeldFrame {
 }  // namespace
 
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
-                                          PatchFitReport* report_out) {
+                                          PatchFitReport* report_out, int threads) {
   const auto start = std::chrono::steady_clock::now();
   PatchFitReport report;
   stored.set_patches({});
@@ -264,81 +297,122 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
       return {};
     }
   }
-  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
-  SequenceDecoder decoder(source);
-  const DiskGrid& grid = decoder.geometry().grid();
-  const DecodeOptions options = shown_decode();
-  const auto show = [&](double t) {
-    DecodedFrame f = decoder.decode(t, options);
-    return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
-  };
   // Every frame strictly between two keyframes, at its time on the file's lattice.
   std::vector<HeldFrame> held;
   for (int j = keyframes.front() + 1; keyframes.size() >= 2 && j < keyframes.back(); ++j) {
     const double t = residual_time(residual_time_code(capture.frames[static_cast<size_t>(j)].time, outline.first_time, outline.fps),
                                    outline.first_time, outline.fps);
     if (residual_interval(key_times, t) < 0 || (!held.empty() && !(t > held.back().time))) continue;
-    const TriangleMesh captured = read_frame(j);
-    const ShownFrame shown = show(t);
-    const SurfaceDistance d = surface_distance(captured, shown_mesh(grid, shown.positions, shown.hole_level));
-    held.push_back({j, t, d.diagonal, d.p99 / d.diagonal});
-    report.worst_before = std::max(report.worst_before, held.back().p99);
+    held.push_back({j, t, 0, 0});
   }
-  std::vector<FramePatch> patches;
-  std::vector<double> after(held.size());
-  for (size_t h = 0; h < held.size(); ++h) after[h] = held[h].p99;
-  if (!held.empty()) {
-    double smallest = held.front().diagonal;
-    for (const HeldFrame& f : held) smallest = std::min(smallest, f.diagonal);
-    const double step = std::exp2(std::floor(std::log2(kPatchStepShare * smallest)));
-    // Pass 1: a patch for each frame over the bound.
-    std::vector<char> patched(held.size(), 0);
-    for (size_t h = 0; h < held.size(); ++h) {
-      if (held[h].p99 <= bound) continue;
-      ++report.frames_over;
-      const TriangleMesh captured = read_frame(held[h].frame);
-      const ShownFrame shown = show(held[h].time);
-      PatchFit best;
-      best.p99_after = held[h].p99;
+  if (held.empty()) {
+    if (report_out) *report_out = report;
+    return {};
+  }
+  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
+  DecoderTeam team(source, threads, held.size());
+  const DiskGrid& grid = team.first().geometry().grid();
+  const DecodeOptions options = shown_decode();
+  const auto show = [&](SequenceDecoder& decoder, double t) {
+    DecodedFrame f = decoder.decode(t, options);
+    return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
+  };
+  // Each frame is decoded once and kept for the passes below where the frames fit in
+  // kShownFramesMemory; past it, each pass decodes the frames it measures again (the same frames:
+  // each a function of t alone).
+  const bool keep = held.size() * grid.nodes.size() * (sizeof(Vec3) + sizeof(double)) <= kShownFramesMemory;
+  std::vector<ShownFrame> kept(keep ? held.size() : 0);
+  team.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
+    ShownFrame shown = show(decoder, held[h].time);
+    const SurfaceDistance d = surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level));
+    held[h].diagonal = d.diagonal;
+    held[h].p99 = d.p99 / d.diagonal;
+    if (keep) kept[h] = std::move(shown);
+  });
+  // body(h, frame h as shown) for each of `items` on the fit's threads.
+  const auto for_each_shown = [&](const std::vector<size_t>& items, const std::function<void(size_t, const ShownFrame&)>& body) {
+    if (keep) {
+      parallel_for(static_cast<int>(items.size()), threads, [&](int i) { body(items[static_cast<size_t>(i)], kept[items[static_cast<size_t>(i)]]); });
+    } else {
+      team.for_each(items.size(), [&](SequenceDecoder& decoder, size_t i) { body(items[i], show(decoder, held[items[i]].time)); });
+    }
+  };
+  double smallest = held.front().diagonal;
+  for (const HeldFrame& f : held) {
+    smallest = std::min(smallest, f.diagonal);
+    report.worst_before = std::max(report.worst_before, f.p99);
+  }
+  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * bound * smallest)));
+  // Pass 1: a patch for each frame over the bound.
+  std::vector<size_t> over;
+  for (size_t h = 0; h < held.size(); ++h)
+    if (held[h].p99 > bound) over.push_back(h);
+  report.frames_over = static_cast<int>(over.size());
+  std::vector<PatchFit> fits(held.size());
+  for_each_shown(over, [&](size_t h, const ShownFrame& shown) {
+    const TriangleMesh captured = read_frame(held[h].frame);
+    const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+    const PatchMeasure measure(grid, shown, captured, before);
+    PatchFit& best = fits[h];
+    best.p99_after = held[h].p99;
+    // The coarse step first; a frame it cannot bring under the bound tries finer ones (a power of two
+    // apart: the chunk then codes every patch in the finest, whose codes take the same bytes).
+    for (int finer = 0; finer < kPatchFinerSteps && best.p99_after > kPatchBoundMargin * bound; ++finer) {
       for (const int lattice : kPatchLattices) {
-        PatchFit fit = fit_frame_patch(grid, shown, captured, held[h].time,
-                                       {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = step});
+        PatchFit fit =
+            fit_measured(measure, held[h].time, {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
         if (!fit.patch.nodes.empty() && fit.p99_after < best.p99_after) best = std::move(fit);
         if (best.p99_after <= kPatchBoundMargin * bound) break;
       }
-      if (best.patch.nodes.empty()) {
-        ++report.frames_unmet;
-        continue;
-      }
-      report.frames_unmet += best.p99_after > bound;
-      after[h] = best.p99_after;
-      patched[h] = 1;
-      patches.push_back(std::move(best.patch));
     }
-    // Pass 2: the frames between, with the patches interpolated in t; one made worse than the bound
-    // and than its own p99 is pinned by an empty patch, until none is.
-    for (bool pinned = !patches.empty(); pinned;) {
-      pinned = false;
-      for (size_t h = 0; h < held.size(); ++h) {
-        if (patched[h]) continue;
-        const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
-        if (d.empty()) continue;
-        ShownFrame shown = show(held[h].time);
-        for (size_t n = 0; n < d.size(); ++n) shown.positions[n] += shown.pose.rotation * d[n];
-        const double p99 =
-            surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level)).p99 / held[h].diagonal;
-        if (p99 <= bound || p99 <= held[h].p99) {
-          after[h] = p99;
-          continue;
-        }
-        const auto at =
-            std::upper_bound(patches.begin(), patches.end(), held[h].time, [](double t, const FramePatch& f) { return t < f.time; });
-        patches.insert(at, FramePatch{.time = held[h].time, .lattice = kPatchLattices[0], .nodes = {}, .displacements = {}});
-        after[h] = held[h].p99;
-        patched[h] = 1;
-        ++report.frames_pinned;
-        pinned = true;
-      }
+  });
+  std::vector<FramePatch> patches;
+  std::vector<double> after(held.size());
+  std::vector<char> patched(held.size(), 0);
+  for (size_t h = 0; h < held.size(); ++h) {
+    after[h] = held[h].p99;
+    if (held[h].p99 <= bound) continue;
+    if (fits[h].patch.nodes.empty()) {
+      ++report.frames_unmet;
+      continue;
+    }
+    report.frames_unmet += fits[h].p99_after > bound;
+    report.exact_checks += fits[h].exact_checks;
+    report.approximate_misses += fits[h].approximate_misses;
+    after[h] = fits[h].p99_after;
+    patched[h] = 1;
+    patches.push_back(std::move(fits[h].patch));
+  }
+  // Pass 2: the frames between, with the patches interpolated in t; those made worse than the bound
+  // and than their own p99 are pinned by empty patches (all of a round's at once, so that the result
+  // does not depend on the order the threads measure in), until none is.
+  for (bool pinned = !patches.empty(); pinned;) {
+    pinned = false;
+    std::vector<size_t> moved;
+    for (size_t h = 0; h < held.size(); ++h)
+      if (!patched[h] && residual_interval(key_times, held[h].time) >= 0) moved.push_back(h);
+    std::vector<char> worse(held.size(), 0);
+    for_each_shown(moved, [&](size_t h, const ShownFrame& plain) {
+      const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
+      if (d.empty()) return;
+      ShownFrame shown = plain;
+      for (size_t n = 0; n < d.size(); ++n) shown.positions[n] += shown.pose.rotation * d[n];
+      const double p99 =
+          surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level)).p99 / held[h].diagonal;
+      if (p99 <= bound || p99 <= held[h].p99)
+        after[h] = p99;
+      else
+        worse[h] = 1;
+    });
+    for (size_t h = 0; h < held.size(); ++h) {
+      if (!worse[h]) continue;
+      const auto at =
+          std::upper_bound(patches.begin(), patches.end(), held[h].time, [](double t, const FramePatch& f) { return t < f.time; });
+      patches.insert(at, FramePatch{.time = held[h].time, .lattice = kPatchLattices[0], .nodes = {}, .displacements = {}});
+      after[h] = held[h].p99;
+      patched[h] = 1;
+      ++report.frames_pinned;
+      pinned = true;
     }
   }
   for (const FramePatch& p : patches) {

@@ -33,6 +33,10 @@ struct PatchFit {
   double p99_before = 0;  // the shown frame's 99th-percentile point error, of the diagonal
   double p99_after = 0;   // with the rounded patch
   double threshold = 0;   // the offset (of the diagonal) above which samples chose the moving nodes
+  // Patches the search's approximate p99 put under the bound, measured exactly, and of them those the
+  // exact p99 put over it (passed over for the next try).
+  int exact_checks = 0;
+  int approximate_misses = 0;
 };
 
 // The mesh the decoder shows for these node positions (holes cut where `hole_level` is not empty).
@@ -57,6 +61,8 @@ struct PatchFitReport {
   int frames_pinned = 0;    // empty patches: frames beside patched ones held at the blend (their own p99)
   int frames_unmet = 0;     // frames over the bound no patch brought under it (kept at the best one found)
   size_t nodes = 0;         // moving lattice nodes, every patch together
+  int exact_checks = 0;        // of the fits of the chosen patches (PatchFit): patches measured exactly
+  int approximate_misses = 0;  // and of them, those over the bound the approximate measure put under it
   double worst_before = 0;  // over the frames between keyframes, without patches
   double worst_after = 0;   // with them
   double seconds = 0;
@@ -68,12 +74,21 @@ struct Capture;
 // The lattice sizes a patch tries, coarsest first (it takes the first that brings the frame under
 // the bound): C = 17 measured fewest bytes on every capture (spec/method.md §7.19).
 inline constexpr int kPatchLattices[] = {17, 33, 65};
-// The rounding step of a displacement: the power of two at or below this fraction of the smallest
-// captured diagonal (0.2%: rounding moves a point at most 0.17%, and the fit checks the rounded patch).
-inline constexpr double kPatchStepShare = 0.002;
+// The rounding step of a displacement: the power of two at or below this fraction of the bound, of
+// the smallest captured diagonal. 0.8 (0.8% of the diagonal at the default 1%): the fit checks the
+// rounded patch against the bound, and a coarse step codes in fewer bytes what meets it (Medusa's
+// patches ~2.9 kB at a step of 0.2% of the diagonal, ~2.5 kB at 0.4%, ~1.9 kB at 0.8%; a step above
+// the bound could not meet it; spec/method.md §7.19).
+inline constexpr double kPatchStepShare = 0.8;
+// A frame the step above cannot bring under the bound tries steps of 1/2 and 1/4 of it.
+inline constexpr int kPatchFinerSteps = 3;
 // Patches are fitted to this share of the bound, so that the decoder's frame, which may differ from
 // the encoder's within the reconstruction's tolerance, stays under it.
 inline constexpr double kPatchBoundMargin = 0.98;
+// fit_frame_patches decodes each frame between keyframes once and keeps it for its later passes
+// while the frames' nodes (positions and hole levels) take no more than this; a longer capture's
+// frames are decoded again by each pass that measures them.
+inline constexpr size_t kShownFramesMemory = size_t{512} << 20;
 
 // The frame patches for `stored` (its keyframes and residual frames as the file holds them, no
 // patches yet), capture frames `keyframes` of `capture`: every captured frame strictly between two
@@ -83,9 +98,10 @@ inline constexpr double kPatchBoundMargin = 0.98;
 // p99; then every other frame between keyframes is measured with the patches interpolated, and one
 // made worse than both the bound and its own p99 gets an empty patch (the decoder then shows it
 // unpatched). No frame decodes worse than without patches. None where the captured meshes are not
-// on disk (a staged encode's parts assembled elsewhere). Leaves `stored`'s patches empty.
+// on disk (a staged encode's parts assembled elsewhere). Leaves `stored`'s patches empty. Runs on
+// up to `threads` threads (0: one per core), one decoder each; the patches are the same for any count.
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
-                                          PatchFitReport* report = nullptr);
+                                          PatchFitReport* report = nullptr, int threads = 1);
 
 // The bytes a patch takes in a file before compression (its node gaps and rounded displacements as
 // varints), for the step `step_units` (capture units).

@@ -3,8 +3,7 @@
 
 #include "codec/core/util/elapsed.hpp"
 
-#include "codec/core/util/parallel.hpp"
-#include "codec/decoder/sequence/sequence_decoder.hpp"
+#include "codec/encoder/encode/decoder_team.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/keyframes/blend_correction.hpp"
 #include "codec/encoder/keyframes/keyframes.hpp"
@@ -18,7 +17,6 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <thread>
 
 namespace facemorph {
 
@@ -65,32 +63,6 @@ double relative_rms(const std::vector<double>& offsets, const CapturedOnGrid& c)
   for (size_t v = 0; v < offsets.size(); ++v) sum += c.weights[v] * offsets[v] * offsets[v];
   return relative_rms(sum, c);
 }
-
-// The decoders the fit works with, one per thread (a SequenceDecoder is not thread-safe; several
-// may share one source): `count` items in contiguous runs, run r on decoders[r], so that each
-// decodes its frames in time order and reconstructs the keyframes near them only.
-class DecoderTeam {
- public:
-  DecoderTeam(const std::shared_ptr<const KeyframeSource>& source, int threads, size_t items) {
-    const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
-    const size_t wanted = threads > 0 ? static_cast<size_t>(threads) : hardware;
-    const size_t size = std::max<size_t>(1, std::min(wanted, items));
-    for (size_t r = 0; r < size; ++r) decoders_.push_back(std::make_unique<SequenceDecoder>(source));
-  }
-  SequenceDecoder& first() { return *decoders_.front(); }
-  // body(decoder, i) for i in [0, count), items of one run on one decoder and thread. Each frame
-  // is decoded as a function of t alone (shape_only), so the runs' split changes no result.
-  void for_each(size_t count, const std::function<void(SequenceDecoder&, size_t)>& body) {
-    const size_t runs = decoders_.size();
-    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
-      const auto run = static_cast<size_t>(r);
-      for (size_t i = run * count / runs; i < (run + 1) * count / runs; ++i) body(*decoders_[run], i);
-    });
-  }
-
- private:
-  std::vector<std::unique_ptr<SequenceDecoder>> decoders_;
-};
 
 DecodeOptions shape_only() {
   DecodeOptions o;

@@ -327,7 +327,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& setti
   }
   // Frame patches fitted to the decoded frames, residuals included (patch_fit.hpp).
   if (settings.patch_bound > 0)
-    sequence->set_patches(fit_frame_patches(capture_, *sequence, chosen.keyframes, settings.patch_bound, &report_.patch_fit));
+    sequence->set_patches(
+        fit_frame_patches(capture_, *sequence, chosen.keyframes, settings.patch_bound, &report_.patch_fit, settings.threads));
   code_textures(settings.texture, TextureFrameSource{capture_.frames, maps_, FrameSampler(maps_, registrations_)}, *sequence,
                 chosen.keyframes, report_);
   return sequence;

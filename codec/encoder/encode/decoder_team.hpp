@@ -1,0 +1,43 @@
+// Decoders for the encoder's fits that decode many frames of a stored sequence (residual_fit.hpp,
+// patch_fit.hpp), one per thread: a SequenceDecoder is not thread-safe, several may share one source.
+#pragma once
+
+#include "codec/core/util/parallel.hpp"
+#include "codec/decoder/sequence/sequence_decoder.hpp"
+
+#include <algorithm>
+#include <functional>
+#include <memory>
+#include <thread>
+#include <vector>
+
+namespace facemorph {
+
+// `count` items in contiguous runs, run r on decoders[r], so that each decoder decodes its frames in
+// time order and reconstructs the keyframes near them only.
+class DecoderTeam {
+ public:
+  // Up to `threads` decoders (0: one per core), no more than `items`.
+  DecoderTeam(const std::shared_ptr<const KeyframeSource>& source, int threads, size_t items) {
+    const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
+    const size_t wanted = threads > 0 ? static_cast<size_t>(threads) : hardware;
+    const size_t size = std::max<size_t>(1, std::min(wanted, items));
+    for (size_t r = 0; r < size; ++r) decoders_.push_back(std::make_unique<SequenceDecoder>(source));
+  }
+  SequenceDecoder& first() { return *decoders_.front(); }
+  // body(decoder, i) for i in [0, count), items of one run on one decoder and thread. The caller
+  // decodes each frame as a function of t alone (DecodeOptions::continue_correction off), so the
+  // runs' split changes no result.
+  void for_each(size_t count, const std::function<void(SequenceDecoder&, size_t)>& body) {
+    const size_t runs = decoders_.size();
+    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
+      const auto run = static_cast<size_t>(r);
+      for (size_t i = run * count / runs; i < (run + 1) * count / runs; ++i) body(*decoders_[run], i);
+    });
+  }
+
+ private:
+  std::vector<std::unique_ptr<SequenceDecoder>> decoders_;
+};
+
+}  // namespace facemorph
