@@ -9,6 +9,7 @@
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
@@ -113,6 +114,9 @@ TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount
   ASSERT_GT(fit.frames_patched, 0);
   EXPECT_EQ(fit.frames_unmet, 0);
   EXPECT_LE(fit.worst_after, options.patch_bound);
+  // approximate() is never under exact() (patch_measure.hpp), so none the search took was over the bound.
+  EXPECT_GT(fit.exact_checks, 0);
+  EXPECT_EQ(fit.approximate_misses, 0);
   // The patches are fitted on the encoder's threads, each frame's as a function of its time alone.
   EXPECT_EQ(encode_sequence_file(one, crafted::small_metadata()), encode_sequence_file(two, crafted::small_metadata()));
   EXPECT_EQ(two_report.patch_fit.nodes, fit.nodes);
@@ -133,6 +137,34 @@ TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount
   }
   EXPECT_GT(fit.worst_before, options.patch_bound);
   EXPECT_LE(worst, options.patch_bound);
+}
+
+// A longer capture's frames are decoded again by each pass instead of kept (kept_frames_memory):
+// the same patches, since each frame is a function of its time alone.
+TEST(PatchFit, FramesDecodedAgainPastTheMemoryBoundGiveTheSamePatches) {
+  const testing::TempDir dir;
+  const Capture capture = fast_speech(dir.path() / "capture");
+  EncodeOptions options;
+  options.texture = false;
+  options.keyframe_fraction = 0.15;
+  options.patch_bound = 0;  // the file without patches, fitted below
+  options.threads = 2;
+  EncodeReport report;
+  const Sequence plain = encode_capture(capture, options, &report);
+  ASSERT_TRUE(plain.patches.empty());
+  const auto fit = [&](size_t kept_frames_memory) {
+    const std::unique_ptr<StoredSequence> stored = StoredSequence::of(Sequence(plain), SpillMode::kMemory);
+    return fit_frame_patches(capture, *stored, report.keyframes, 0.005, nullptr, 2, kept_frames_memory);
+  };
+  const std::vector<FramePatch> kept = fit(kShownFramesMemory), decoded_again = fit(0);
+  ASSERT_FALSE(kept.empty());
+  ASSERT_EQ(decoded_again.size(), kept.size());
+  for (size_t p = 0; p < kept.size(); ++p) {
+    EXPECT_EQ(decoded_again[p].time, kept[p].time);
+    EXPECT_EQ(decoded_again[p].lattice, kept[p].lattice);
+    EXPECT_EQ(decoded_again[p].nodes, kept[p].nodes);
+    EXPECT_EQ(decoded_again[p].displacements, kept[p].displacements);
+  }
 }
 
 }  // namespace

@@ -279,7 +279,7 @@ struct HeldFrame {
 }  // namespace
 
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
-                                          PatchFitReport* report_out, int threads) {
+                                          PatchFitReport* report_out, int threads, size_t kept_frames_memory) {
   const auto start = std::chrono::steady_clock::now();
   PatchFitReport report;
   stored.set_patches({});
@@ -318,9 +318,9 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
     return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
   };
   // Each frame is decoded once and kept for the passes below where the frames fit in
-  // kShownFramesMemory; past it, each pass decodes the frames it measures again (the same frames:
+  // kept_frames_memory; past it, each pass decodes the frames it measures again (the same frames:
   // each a function of t alone).
-  const bool keep = held.size() * grid.nodes.size() * (sizeof(Vec3) + sizeof(double)) <= kShownFramesMemory;
+  const bool keep = held.size() * grid.nodes.size() * (sizeof(Vec3) + sizeof(double)) <= kept_frames_memory;
   std::vector<ShownFrame> kept(keep ? held.size() : 0);
   team.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
     ShownFrame shown = show(decoder, held[h].time);

@@ -47,9 +47,10 @@ std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& show
 
 // The patch for `captured` (capture coordinates) at time t: moves only lattice nodes near samples
 // (captured vertices and shown nodes, each to the other surface) whose offset exceeds a threshold,
-// lowered from 0.8 × bound until the rounded patch brings the frame's p99 under bound (or to the
-// lowest threshold tried); displacements rounded to multiples of step_units. `grid` is the shown
-// frame's G.
+// lowered from the bound (1.0, 0.9 … 0.3 × bound) until the rounded patch brings the frame's p99
+// under bound · kPatchBoundMargin (or to the lowest threshold tried); displacements rounded to
+// multiples of step_units; then the nodes of smallest displacement the frame can do without while
+// staying under it are dropped (a bisection on their count). `grid` is the shown frame's G.
 PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
                          const PatchFitOptions& options);
 
@@ -87,8 +88,10 @@ inline constexpr int kPatchFinerSteps = 3;
 inline constexpr double kPatchBoundMargin = 0.98;
 // fit_frame_patches decodes each frame between keyframes once and keeps it for its later passes
 // while the frames' nodes (positions and hole levels) take no more than this; a longer capture's
-// frames are decoded again by each pass that measures them.
-inline constexpr size_t kShownFramesMemory = size_t{512} << 20;
+// frames are decoded again by each pass that measures them (the same patches). As small as
+// SelectionSamples' cache, so that the encode's memory stays flat in the capture's length
+// (spec/method.md §7.15): 64 MB keeps ~30 frames at N = 257, every frame of the captures measured.
+inline constexpr size_t kShownFramesMemory = size_t{64} << 20;
 
 // The frame patches for `stored` (its keyframes and residual frames as the file holds them, no
 // patches yet), capture frames `keyframes` of `capture`: every captured frame strictly between two
@@ -99,9 +102,11 @@ inline constexpr size_t kShownFramesMemory = size_t{512} << 20;
 // made worse than both the bound and its own p99 gets an empty patch (the decoder then shows it
 // unpatched). No frame decodes worse than without patches. None where the captured meshes are not
 // on disk (a staged encode's parts assembled elsewhere). Leaves `stored`'s patches empty. Runs on
-// up to `threads` threads (0: one per core), one decoder each; the patches are the same for any count.
+// up to `threads` threads (0: one per core), one decoder each; the patches are the same for any count,
+// and for any `kept_frames_memory` (kShownFramesMemory's).
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
-                                          PatchFitReport* report = nullptr, int threads = 1);
+                                          PatchFitReport* report = nullptr, int threads = 1,
+                                          size_t kept_frames_memory = kShownFramesMemory);
 
 // The bytes a patch takes in a file before compression (its node gaps and rounded displacements as
 // varints), for the step `step_units` (capture units).
