@@ -37,9 +37,6 @@ PartHeader encode_part(const Capture& capture, const EncodeOptions& options, Fra
 std::unique_ptr<StoredSequence> assemble_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options,
                                                EncodeReport* report = nullptr, PartHeader* header = nullptr);
 
-// assemble_parts's first step: the parts read and checked as it says, and an encoder holding their
-// frames as sample_frames leaves them (encode_sampled's input). The encoder reads each frame's map
-// from its part when a step needs it, so the parts stay open while it lives.
 // What reading the parts measured: their own stages' seconds, summed (each part's header holds
 // its own), and the reading's. A value beside the encoder, not in its report, so that the
 // assembler adds it to the report it returns (add_to) and reads nothing back from the encoder.
@@ -57,6 +54,9 @@ struct PartsEncoder {
   std::unique_ptr<SequenceEncoder> encoder;
   PartsTiming timing;
 };
+// assemble_parts's first step: the parts read and checked as it says, and an encoder holding their
+// frames as sample_frames leaves them (encode_sampled's input). The encoder reads each frame's map
+// from its part when a step needs it, so the parts stay open while it lives.
 PartsEncoder encoder_of_parts(const std::vector<std::filesystem::path>& parts, const EncodeOptions& options, PartHeader* header = nullptr);
 
 // Throws kInvalidArgument naming `part` (its file and frames) where it was sampled with other
