@@ -98,14 +98,21 @@ Capture fast_speech(const std::filesystem::path& dir) {
   return read_capture(dir);
 }
 
-TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount) {
-  const testing::TempDir dir;
-  const Capture capture = fast_speech(dir.path() / "capture");
+// fast_speech's encode: few keyframes, no texture, patches at `patch_bound` (0: none).
+EncodeOptions fast_speech_encode(double patch_bound, int threads) {
   EncodeOptions options;
   options.texture = false;
   options.keyframe_fraction = 0.15;
-  options.patch_bound = 0.005;  // tighter than the default 1%, so that this short capture has frames over it
-  options.threads = 1;
+  options.patch_bound = patch_bound;
+  options.threads = threads;
+  return options;
+}
+
+TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount) {
+  const testing::TempDir dir;
+  const Capture capture = fast_speech(dir.path() / "capture");
+  // A bound tighter than the default 1%, so that this short capture has frames over it.
+  EncodeOptions options = fast_speech_encode(0.005, 1);
   EncodeReport one_report, two_report;
   const Sequence one = encode_capture(capture, options, &one_report);
   options.threads = 2;
@@ -144,11 +151,7 @@ TEST(PatchFit, EveryFrameDecodesUnderTheBoundAndTheFileIsTheSameAtAnyThreadCount
 TEST(PatchFit, FramesDecodedAgainPastTheMemoryBoundGiveTheSamePatches) {
   const testing::TempDir dir;
   const Capture capture = fast_speech(dir.path() / "capture");
-  EncodeOptions options;
-  options.texture = false;
-  options.keyframe_fraction = 0.15;
-  options.patch_bound = 0;  // the file without patches, fitted below
-  options.threads = 2;
+  const EncodeOptions options = fast_speech_encode(0, 2);  // the file without patches, fitted below
   EncodeReport report;
   const Sequence plain = encode_capture(capture, options, &report);
   ASSERT_TRUE(plain.patches.empty());
