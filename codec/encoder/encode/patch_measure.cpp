@@ -15,6 +15,14 @@ double p99_of_distances(std::vector<double>& distances) {
   return distances[rank];
 }
 
+// The point of `mesh` at `s` (a face and barycentric coordinates on it).
+Vec3 position_on(const TriangleMesh& mesh, const SurfacePoint& s) {
+  const Face& f = mesh.faces[static_cast<size_t>(s.face)];
+  Vec3 point = Vec3::Zero();
+  for (int k = 0; k < 3; ++k) point += s.bary[k] * mesh.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
+  return point;
+}
+
 std::vector<uint8_t> used_vertices(const TriangleMesh& mesh) {
   std::vector<uint8_t> used(mesh.positions.size(), 0);
   for (const Face& f : mesh.faces)
@@ -35,14 +43,9 @@ std::vector<OffsetSample> offset_samples(const TriangleMesh& shown, const Triang
     if (!used[v]) continue;
     const SurfacePoint s = to_shown.closest(captured.positions[v]);
     if (s.face < 0) continue;
-    const Face& f = shown.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
     Vec2 w = Vec2::Zero();
-    for (int k = 0; k < 3; ++k) {
-      point += s.bary[k] * shown.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-      w += s.bary[k] * disk(s.face, k);
-    }
-    samples.push_back({w, captured.positions[v] - point});
+    for (int k = 0; k < 3; ++k) w += s.bary[k] * disk(s.face, k);
+    samples.push_back({w, captured.positions[v] - position_on(shown, s)});
   }
   std::vector<Vec2> vertex_w(shown.positions.size(), Vec2::Zero());
   std::vector<uint8_t> shown_used(shown.positions.size(), 0);
@@ -57,10 +60,7 @@ std::vector<OffsetSample> offset_samples(const TriangleMesh& shown, const Triang
     if (!shown_used[v]) continue;
     const SurfacePoint s = to_captured.closest(shown.positions[v]);
     if (s.face < 0) continue;
-    const Face& f = captured.faces[static_cast<size_t>(s.face)];
-    Vec3 point = Vec3::Zero();
-    for (int k = 0; k < 3; ++k) point += s.bary[k] * captured.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-    samples.push_back({vertex_w[v], point - shown.positions[v]});
+    samples.push_back({vertex_w[v], position_on(captured, s) - shown.positions[v]});
   }
   return samples;
 }
@@ -79,9 +79,10 @@ PatchMeasure::PatchMeasure(const DiskGrid& grid, const ShownFrame& shown, const 
   }
   for (size_t v = 0; v < captured.positions.size(); ++v) {
     if (!captured_used[v]) continue;
-    const double d = to_before.distance(captured.positions[v]);
+    double d = 0;  // one search for the nearest point and its distance
+    const SurfacePoint nearest = to_before.closest(captured.positions[v], &d);
     distances.push_back(d);
-    anchors_.push_back({static_cast<int32_t>(v), to_before.closest(captured.positions[v]), d});
+    anchors_.push_back({static_cast<int32_t>(v), nearest, d});
   }
   p99_before_ = p99_of_distances(distances);
   diagonal_ = bounding_box_diagonal(captured.positions);
@@ -130,10 +131,7 @@ double PatchMeasure::approximate(const FramePatch& patch) const {
     // moved faces, nearer where they came closer.
     double bound = a.distance;
     if (face_moved[static_cast<size_t>(a.point.face)]) {
-      const Face& f = mesh.faces[static_cast<size_t>(a.point.face)];
-      Vec3 point = Vec3::Zero();
-      for (int k = 0; k < 3; ++k) point += a.point.bary[k] * mesh.positions[static_cast<size_t>(f[static_cast<size_t>(k)])];
-      bound = (p - point).norm();
+      bound = (p - position_on(mesh, a.point)).norm();
     }
     distances.push_back(moved.faces.empty() ? bound : std::min(bound, to_moved.distance_below(p, bound)));
   }

@@ -94,9 +94,11 @@ double PointToMesh::distance_below(const Vec3& p, double bound) const {
   return std::sqrt(squared);
 }
 
-SurfacePoint PointToMesh::closest(const Vec3& p) const {
+SurfacePoint PointToMesh::closest(const Vec3& p, double* distance) const {
   double squared = 0;
-  return nearest(p, squared);
+  const SurfacePoint point = nearest(p, squared);
+  if (distance) *distance = std::sqrt(squared);
+  return point;
 }
 
 SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound) const {

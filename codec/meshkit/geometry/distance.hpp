@@ -29,8 +29,9 @@ class PointToMesh {
   // there: a caller that only needs to know "that far or farther" saves the far shells).
   double distance_below(const Vec3& p, double bound) const;
   // The nearest point of the mesh: its face and barycentric coordinates. Of equally near faces the
-  // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces.
-  SurfacePoint closest(const Vec3& p) const;
+  // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces. `distance`:
+  // where given, distance(p), from the same search.
+  SurfacePoint closest(const Vec3& p, double* distance = nullptr) const;
 
  private:
   // best: its squared distance; the search ends once nothing nearer than `bound` can be left.
