@@ -272,7 +272,8 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--reference", a.reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", a.field_error,
                  "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: two fifths of the "
-                 "predicted error between keyframes, within [0.005%, 0.2%]; 0: 16-bit precision, no search")
+                 "predicted error between keyframes (of G's resampling floor where none is predicted: one frame, every frame a "
+                 "keyframe), within [0.005%, 0.2%]; 0: 16-bit precision, no search")
       ->capture_default_str();
   app.add_option("--field-rounding", a.field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--inter-dead-zone", a.inter_dead_zone,
@@ -681,7 +682,10 @@ void print_rate_and_fields(const Summary& s) {
     const std::vector<double>& e = s.report.field_precision.keyframe_errors;
     std::printf(
         "  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes, dead zone %.2f steps\n",
-        100 * s.report.field_precision.target_error, s.options.auto_field_error ? " (auto)" : "",
+        100 * s.report.field_precision.target_error,
+        !s.options.auto_field_error ? ""
+        : worst == 0 && s.report.grid_floor > 0 ? " (auto: two fifths of G's resampling floor, as nothing between keyframes is predicted)"
+                                                : " (auto)",
         100 * *std::max_element(e.begin(), e.end()), s.report.field_coding.intra_period, s.report.field_precision.inter_dead_zone);
   }
 }

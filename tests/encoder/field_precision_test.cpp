@@ -289,7 +289,7 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   Sequence sequence = build_sequence(encoder, chosen.keyframes,
                                      choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen));
-  round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
+  round_fields(field_precision_options(encoder.options(), chosen, encoder.report().grid_floor), sequence, encoder.report());
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {
@@ -301,6 +301,35 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   // And the rounded keyframes honour it (field_precision.hpp: within 1.25x).
   ASSERT_EQ(precision.keyframe_errors.size(), sequence.keyframes.size());
   for (double e : precision.keyframe_errors) EXPECT_LE(e, 1.25 * precision.target_error);
+}
+
+TEST(SequenceEncoder, AutomaticFieldErrorOfASingleFrameIsTwoFifthsOfItsGridFloor) {
+  // Where the selection predicts nothing (one frame), the error a keyframe holds is G's resampling
+  // floor at its N, and rounding takes two fifths of it (spec/method.md §5.3), not a fixed 0.01% of
+  // the diagonal, fifteen times finer than the floor it adds to on ICT.
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 1, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options;
+  options.texture = false;
+  EncodeReport chosen;  // --grid auto: the floor at the N it chose, the last it measured
+  encode_capture(capture, options, &chosen);
+  ASSERT_FALSE(chosen.grid_floors.empty());
+  ASSERT_EQ(chosen.grid_floors.back().first, chosen.grid);
+  const double floor = chosen.grid_floors.back().second;
+  EXPECT_EQ(chosen.grid_floor, floor);
+  ASSERT_GT(floor, 2.5 * 5e-5) << "the floor sits where the lower clamp decides, not the rule";
+  EXPECT_DOUBLE_EQ(chosen.field_precision.target_error, 0.4 * floor);
+  for (double e : chosen.field_precision.keyframe_errors) EXPECT_LE(e, 1.25 * chosen.field_precision.target_error);
+
+  // A given N: the floor is measured there, the same as --grid auto's reading at that N.
+  options.grid = chosen.grid_floors.front().first;
+  EncodeReport given;
+  encode_capture(capture, options, &given);
+  EXPECT_TRUE(given.grid_floors.empty()) << "no candidates tried at a given N";
+  EXPECT_DOUBLE_EQ(given.grid_floor, chosen.grid_floors.front().second);
+  EXPECT_DOUBLE_EQ(given.field_precision.target_error, std::clamp(0.4 * given.grid_floor, 5e-5, 2e-3));
+  EXPECT_GT(given.field_precision.target_error, 1e-4) << "a coarse grid's floor is far above 0.01%";
 }
 
 }  // namespace
