@@ -9,6 +9,7 @@
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "codec/decoder/sequence/sequence_decoder.hpp"
@@ -274,6 +275,38 @@ TEST(FieldPrecision, AutoIntraPeriodSpacesIntraKeyframesTenSecondsApart) {
   FieldPrecisionOptions no_threads;
   no_threads.threads = -1;
   testing::expect_error(ErrorCode::kInvalidArgument, "negative thread count", [&] { choose_field_coding(any, no_threads); });
+}
+
+// fminfo --field-bytes divides the fields' bytes among the arrays by the writer's own cost of each
+// (file_layout::keyframe_array_bits): each keyframe predicted as the writer predicts it (from the
+// previous one inside a group), fresh models. Its sum estimates the KGOP chunks' payloads: the
+// stream's models, carried from array to array and keyframe to keyframe, are what it leaves out.
+TEST(FieldPrecision, TheArraysBitsAddUpToTheKeyframeGroupsBytes) {
+  testing::TempDir dir;
+  Sequence rounded = unrounded_keyframes(dir, 0, 0.6, 49);
+  ASSERT_GE(rounded.keyframes.size(), 3u);
+  SequenceFileMetadata metadata;
+  metadata.field_coding = choose_field_coding(rounded, {2e-4, 0});  // intra period auto: one group
+  ASSERT_EQ(metadata.field_coding.intra_period, static_cast<int>(rounded.keyframes.size()));
+  SequenceFileInfo info;
+  decode_sequence_file(encode_sequence_file(rounded, metadata), "arrays.fmv", &info);
+  double stream = 0;
+  for (const auto& c : info.chunks) stream += c.type == "KGOP" ? static_cast<double>(c.stored_bytes) : 0.0;
+  const auto grid = file_layout::grid_facts(rounded.grid_n);
+  double estimate = 0, intra = 0;
+  for (size_t k = 0; k < rounded.keyframes.size(); ++k) {
+    const Keyframe* previous = k == 0 ? nullptr : &rounded.keyframes[k - 1];
+    const std::vector<double> bits = file_layout::keyframe_array_bits(rounded.keyframes[k], previous, metadata.field_coding, *grid);
+    ASSERT_EQ(bits.size(), static_cast<size_t>(file_layout::kKeyframeArrays));
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(rounded.keyframes[k]);
+    for (size_t a = 0; a < bits.size(); ++a) {
+      EXPECT_EQ(bits[a] > 0, !arrays[a].empty()) << "keyframe " << k << ", array " << a;
+      estimate += bits[a] / 8;
+    }
+    for (double b : file_layout::keyframe_array_bits(rounded.keyframes[k], nullptr, metadata.field_coding, *grid)) intra += b / 8;
+  }
+  EXPECT_NEAR(estimate / stream, 1.0, 0.05) << estimate << " B estimated, " << stream << " B in the KGOP chunks";
+  EXPECT_GT(intra, 1.1 * estimate) << "each keyframe alone costs more than from the one before it";
 }
 
 TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
