@@ -14,6 +14,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cstring>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -204,6 +206,24 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
   for (const auto& c : extra) writer.add(c);
   for (size_t i = 2; i < chunks.size(); ++i) writer.add(chunks[i]);
   return writer.finish();
+}
+
+// `bytes` with the payload of its chunk of type `type` (decompressed) edited by `change`: every
+// other chunk as it was (rebuild).
+inline std::vector<uint8_t> with_chunk_payload(const std::vector<uint8_t>& bytes, const std::string& type,
+                                               const std::function<void(std::vector<uint8_t>&)>& change) {
+  return rebuild(bytes, [&](const std::string& chunk, std::vector<uint8_t>& payload) {
+    if (chunk == type) change(payload);
+  });
+}
+
+// The payload (decompressed) of the first chunk of type `type` in `bytes`; none: empty.
+inline std::vector<uint8_t> chunk_payload(const std::vector<uint8_t>& bytes, const std::string& type) {
+  std::optional<std::vector<uint8_t>> found;
+  rebuild(bytes, [&](const std::string& chunk, std::vector<uint8_t>& payload) {
+    if (chunk == type && !found) found = payload;
+  });
+  return found.value_or(std::vector<uint8_t>{});
 }
 
 // The smallest memory budget (in 16 KiB steps) under which `bytes` opens on demand: the cache then

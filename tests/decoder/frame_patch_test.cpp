@@ -161,19 +161,11 @@ TEST(FramePatches, TheWriterRefusesWhatTheFileCannotHoldExactly) {
 
 // The PTCH payload of patch_file(), edited by `change`.
 std::vector<uint8_t> with_patch_payload(const std::function<void(std::vector<uint8_t>&)>& change) {
-  return crafted::rebuild(patch_file(), [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type == "PTCH") change(payload);
-  });
+  return crafted::with_chunk_payload(patch_file(), "PTCH", change);
 }
 
 TEST(FramePatches, EveryCheckOfTheChunkRefusesABadOneByName) {
-  bool seen = false;
-  crafted::rebuild(patch_file(), [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type != "PTCH") return;
-    seen = true;
-    EXPECT_EQ(payload, kPatchPayload);
-  });
-  ASSERT_TRUE(seen);
+  ASSERT_EQ(crafted::chunk_payload(patch_file(), "PTCH"), kPatchPayload);
   const auto corrupt = [](const std::vector<uint8_t>& bytes, const std::string& fragment) {
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { open_sequence_source(bytes, "crafted.fmv"); });
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { decode_sequence_file(bytes, "crafted.fmv"); });

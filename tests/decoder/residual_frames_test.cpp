@@ -199,22 +199,14 @@ TEST(ResidualFrames, TheWriterRefusesWhatTheFileCannotHoldExactly) {
 
 // The RSDW payload of residual_file(), edited by `change`.
 std::vector<uint8_t> with_payload(const std::function<void(std::vector<uint8_t>&)>& change) {
-  return rebuild(residual_file(), [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type == "RSDW") change(payload);
-  });
+  return crafted::with_chunk_payload(residual_file(), "RSDW", change);
 }
 
 // Its payload: u32 count 2, u8 e = 4 (corrections in 16ths), then 480 (zigzag 960: 0xC0 0x07), codes
 // 4 and -2 (zigzag 8, 3); 960 (0x80 0x0F), codes -1 and -1 (zigzag 1, 1).
 TEST(ResidualFrames, EveryCheckOfTheChunkRefusesABadOneByName) {
   const std::vector<uint8_t> good = residual_file();
-  bool seen = false;
-  rebuild(good, [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type != "RSDW") return;
-    seen = true;
-    EXPECT_EQ(payload, (std::vector<uint8_t>{2, 0, 0, 0, 4, 0xC0, 0x07, 8, 3, 0x80, 0x0F, 1, 1}));
-  });
-  ASSERT_TRUE(seen);
+  ASSERT_EQ(crafted::chunk_payload(good, "RSDW"), (std::vector<uint8_t>{2, 0, 0, 0, 4, 0xC0, 0x07, 8, 3, 0x80, 0x0F, 1, 1}));
   const auto corrupt = [](const std::vector<uint8_t>& bytes, const std::string& fragment) {
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { open_sequence_source(bytes, "crafted.fmv"); });
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { decode_sequence_file(bytes, "crafted.fmv"); });

@@ -100,12 +100,12 @@ TEST(ResidualFit, FittedToTheStoredKeyframesTheyLowerTheDecodedErrorAndReachTheF
   std::unique_ptr<StoredSequence> stored = fast.encoder->build(build_settings(fast.encoder->options()), fast.keyframes, kResidualTestGrid);
   ResidualFitReport report;
   const std::vector<ResidualFrame> residuals =
-      fit_decoded_residuals(fast.encoder->registered_frames(), *stored, fast.keyframes, 1.0 / 128, &report);
+      fit_decoded_residuals(registered_frames(*fast.encoder), *stored, fast.keyframes, 1.0 / 128, &report);
   EXPECT_TRUE(stored->shape().residuals.empty());  // left as it was
   ASSERT_GT(residuals.size(), 5u);
   // On two threads, one decoder each: the same residuals to the bit.
   const std::vector<ResidualFrame> on_two =
-      fit_decoded_residuals(fast.encoder->registered_frames(), *stored, fast.keyframes, 1.0 / 128, nullptr, 2);
+      fit_decoded_residuals(registered_frames(*fast.encoder), *stored, fast.keyframes, 1.0 / 128, nullptr, 2);
   ASSERT_EQ(on_two.size(), residuals.size());
   for (size_t r = 0; r < residuals.size(); ++r) {
     EXPECT_EQ(on_two[r].time, residuals[r].time);

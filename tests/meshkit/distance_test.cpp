@@ -90,6 +90,52 @@ TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
   EXPECT_EQ(PointToMesh(TriangleMesh{}).closest(vertex).face, -1);
 }
 
+// A collapsed triangle (vertices on one line, two or three of them one point) has no face region:
+// its nearest point is that of its longest edge, whichever vertex lies between, with finite
+// coordinates that sum to 1 and put the point there. Ericson's face region divides by the squared
+// area, 0 here: without the collapsed case the coordinates were NaN or a point of the wrong edge.
+TEST(Distance, ACollapsedTriangleIsItsLongestEdge) {
+  struct Case {
+    Vec3 a, b, c, p, nearest;
+  };
+  const Case cases[] = {
+      {{0, 0, 0}, {2, 0, 0}, {1, 0, 0}, {1.5, 1, 0}, {1.5, 0, 0}},  // c between a and b: edge ab
+      {{0, 0, 0}, {1, 0, 0}, {3, 0, 0}, {2.5, 1, 0}, {2.5, 0, 0}},  // b between: edge ac, beyond ab
+      {{1, 0, 0}, {0, 0, 0}, {3, 0, 0}, {2, -1, 2}, {2, 0, 0}},     // a between: edge bc
+      {{0, 0, 0}, {0, 0, 0}, {1, 0, 0}, {0.5, 1, 0}, {0.5, 0, 0}},  // a and b one point
+      {{0, 0, 0}, {1, 0, 0}, {3, 0, 0}, {-1, 1, 0}, {0, 0, 0}},     // beyond the segment's end
+      {{1, 2, 3}, {1, 2, 3}, {1, 2, 3}, {0, 0, 0}, {1, 2, 3}},      // one point
+      {{0, 0, 0}, {4, 4, 0}, {1, 1, 1e-14}, {3, 1, 0}, {2, 2, 0}},  // all but collinear (sine ~1e-14)
+  };
+  for (size_t i = 0; i < std::size(cases); ++i) {
+    const Case& k = cases[i];
+    const Vec3 bary = closest_point_barycentric(k.p, k.a, k.b, k.c);
+    ASSERT_TRUE(bary.allFinite()) << i;
+    EXPECT_NEAR(bary.sum(), 1.0, 1e-12) << i;
+    EXPECT_GE(bary.minCoeff(), 0.0) << i;
+    const Vec3 x = bary[0] * k.a + bary[1] * k.b + bary[2] * k.c;
+    EXPECT_NEAR((x - k.nearest).norm(), 0.0, 1e-9) << i;
+  }
+  // Through the mesh search: a one-face mesh of a collapsed triangle is as far as its longest edge.
+  TriangleMesh sliver;
+  sliver.positions = {{0, 0, 0}, {1, 0, 0}, {3, 0, 0}};
+  sliver.faces = {{0, 1, 2}};
+  EXPECT_NEAR(PointToMesh(sliver).distance(Vec3(2, 0, 2)), 2.0, 1e-12);
+}
+
+// The nearest rank: the ceil(0.99 n)-th smallest, so that 1% of the values may lie above it.
+TEST(Distance, TheNearestRankP99IsTheCeilOf99PercentOfTheCountThSmallest) {
+  std::vector<double> none;
+  EXPECT_EQ(nearest_rank_p99(none), 0.0);
+  std::vector<double> one{7.0};
+  EXPECT_EQ(nearest_rank_p99(one), 7.0);
+  std::vector<double> hundred(100), hundred_one(101);
+  for (size_t i = 0; i < hundred.size(); ++i) hundred[i] = static_cast<double>((i * 37) % 100);  // 0..99, shuffled
+  for (size_t i = 0; i < hundred_one.size(); ++i) hundred_one[i] = static_cast<double>((i * 37) % 101);
+  EXPECT_EQ(nearest_rank_p99(hundred), 98.0);      // rank 99 of 100: one value (99) above it
+  EXPECT_EQ(nearest_rank_p99(hundred_one), 99.0);  // rank ceil(99.99) = 100 of 101
+}
+
 TEST(Distance, SymmetricDistanceOfAnOffsetSurfaceIsTheOffset) {
   const TriangleMesh a = testing::grid_mesh(20, [](double x, double y) { return Vec3(x, y, 0); });
   TriangleMesh b = testing::grid_mesh(13, [](double x, double y) { return Vec3(x, y, 0.01); });

@@ -40,6 +40,22 @@ std::vector<IndexEntry> read_index(std::span<const uint8_t> payload, const std::
 std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
                                           const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version);
 
+// What the chunks of frames between keyframes (RSDW, PTCH) share:
+// - read_item_count: the items' count (the payload's first uint32, `count_name` naming it), kCorrupt
+//   where it is not 1 to `max` or the bytes after it cannot give each item `min_bytes`: refused
+//   before anything is allocated. `items`: their plural ("residual frames").
+// - read_item_time: an item's time, coded as its change from the previous item's code `q` (64ths of
+//   a frame period from the first time; updated), kCorrupt naming the item (`name`) where it does
+//   not come after the previous one or not strictly between two keyframes. With the keyframe
+//   interval it falls in (residual_interval).
+uint32_t read_item_count(format::ByteReader& r, const char* count_name, const char* items, uint32_t max, size_t min_bytes);
+struct ItemTime {
+  double time = 0;
+  int interval = 0;
+};
+ItemTime read_item_time(format::ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
+                        const std::vector<double>& key_times, int64_t& q);
+
 // Reads and checks a PTCH payload against the header (first time, fps) and the keyframes' times:
 // every check of §7.5, kCorrupt naming the patch; kLimit where their memory passes `max_memory_bytes`.
 std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,

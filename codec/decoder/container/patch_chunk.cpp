@@ -15,13 +15,8 @@ using format::ByteReader;
 std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
                                      const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version) {
   ByteReader r(payload, source + ": frame patches");
-  const uint32_t count = r.read<uint32_t>("the patch count");
-  // Each patch takes at least three bytes (its time's change, C, its node count): a count the
-  // payload cannot hold is refused before anything is allocated.
-  if (count == 0 || count > kMaxPatches || count > r.remaining() / 3) {
-    corrupt(r.source(), "states " + std::to_string(count) + " frame patches; its " + std::to_string(r.remaining()) + " bytes hold 1 to " +
-                            std::to_string(std::min<uint64_t>(kMaxPatches, r.remaining() / 3)));
-  }
+  // Each patch takes at least three bytes (its time's change, C, its node count).
+  const uint32_t count = read_item_count(r, "the patch count", "frame patches", kMaxPatches, 3);
   uint64_t memory = uint64_t{count} * kPatchMemoryBytes;
   const auto charge = [&](uint64_t bytes, const std::string& what) {
     memory += bytes;
@@ -43,14 +38,8 @@ std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std
   int64_t q = 0;
   for (uint32_t p = 0; p < count; ++p) {
     const std::string name = "frame patch " + std::to_string(p);
-    const int64_t change = read_varint(r, "a patch time's change");
-    if (change < 1 || change >= kMaxTimeCode - q)
-      corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
-    q += change;
     FramePatch& f = patches[p];
-    f.time = residual_time(q, shape.first_time, shape.fps);
-    if (residual_interval(key_times, f.time) < 0)
-      corrupt(r.source(), name + ": its time " + std::to_string(f.time) + " s is not strictly between two keyframes");
+    f.time = read_item_time(r, "a patch time's change", name, shape, key_times, q).time;
     const int64_t lattice = read_varint(r, "a patch's lattice size");
     if (lattice < kMinPatchLattice || lattice > kMaxPatchLattice) {
       corrupt(r.source(), name + ": lattice " + std::to_string(lattice) + " outside " + std::to_string(kMinPatchLattice) + ".." +

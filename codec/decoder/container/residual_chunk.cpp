@@ -5,6 +5,7 @@
 // that is smaller.
 #include "codec/decoder/container/chunk_readers.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace facemorph::file_layout {
@@ -14,13 +15,8 @@ using format::ByteReader;
 std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
                                           const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version) {
   ByteReader r(payload, source + ": residual frames");
-  const uint32_t count = r.read<uint32_t>("the residual count");
-  // Each residual takes at least two bytes (its time's change and one correction): a count the
-  // payload cannot hold is refused before anything is allocated.
-  if (count == 0 || count > kMaxResiduals || count > r.remaining() / 2) {
-    corrupt(r.source(), "states " + std::to_string(count) + " residual frames; its " + std::to_string(r.remaining()) + " bytes hold 1 to " +
-                            std::to_string(std::min<uint64_t>(kMaxResiduals, r.remaining() / 2)));
-  }
+  // Each residual takes at least two bytes (its time's change and one correction).
+  const uint32_t count = read_item_count(r, "the residual count", "residual frames", kMaxResiduals, 2);
   if (uint64_t{count} * kResidualMemoryBytes > max_memory_bytes) {
     over_limit(r.source(), std::to_string(count) + " residual frames need " + std::to_string(uint64_t{count} * kResidualMemoryBytes) +
                                " bytes, more than max_memory_bytes (" + std::to_string(max_memory_bytes) + ")");
@@ -34,15 +30,10 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
   int64_t q = 0;
   for (uint32_t n = 0; n < count; ++n) {
     const std::string name = "residual frame " + std::to_string(n);
-    const int64_t change = read_varint(r, "a residual time's change");
-    if (change < 1 || change >= kMaxTimeCode - q)
-      corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
-    q += change;
+    const ItemTime time = read_item_time(r, "a residual time's change", name, shape, key_times, q);
     ResidualFrame& f = residuals[n];
-    f.time = residual_time(q, shape.first_time, shape.fps);
-    const int interval = residual_interval(key_times, f.time);
-    if (interval < 0) corrupt(r.source(), name + ": its time " + std::to_string(f.time) + " s is not strictly between two keyframes");
-    const KeyWindow window = residual_window(interval, keys);
+    f.time = time.time;
+    const KeyWindow window = residual_window(time.interval, keys);
     f.delta.resize(static_cast<size_t>(window.count));
     int64_t sum = 0;
     for (int m = 0; m + 1 < window.count; ++m) {
@@ -63,6 +54,28 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
     corrupt(r.source(), error.what());
   }
   return residuals;
+}
+
+uint32_t read_item_count(ByteReader& r, const char* count_name, const char* items, uint32_t max, size_t min_bytes) {
+  const uint32_t count = r.read<uint32_t>(count_name);
+  if (count == 0 || count > max || count > r.remaining() / min_bytes) {
+    corrupt(r.source(), "states " + std::to_string(count) + " " + items + "; its " + std::to_string(r.remaining()) + " bytes hold 1 to " +
+                            std::to_string(std::min<uint64_t>(max, r.remaining() / min_bytes)));
+  }
+  return count;
+}
+
+ItemTime read_item_time(ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
+                        const std::vector<double>& key_times, int64_t& q) {
+  const int64_t change = read_varint(r, change_name);
+  if (change < 1 || change >= kMaxTimeCode - q)
+    corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
+  q += change;
+  ItemTime t;
+  t.time = residual_time(q, shape.first_time, shape.fps);
+  t.interval = residual_interval(key_times, t.time);
+  if (t.interval < 0) corrupt(r.source(), name + ": its time " + std::to_string(t.time) + " s is not strictly between two keyframes");
+  return t;
 }
 
 }  // namespace facemorph::file_layout

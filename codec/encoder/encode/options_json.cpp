@@ -1,5 +1,5 @@
-// The encode options' one schema (options_json.hpp): sample_fields and segment_fields list each
-// field once, with its key; a writer and a reader walk the same list.
+// The encode options' one schema (options_json.hpp): options_fields lists each field once, with its
+// key; a writer and a reader walk the same list.
 #include "codec/encoder/encode/options_json.hpp"
 
 #include "codec/encoder/encode/json_fields.hpp"
@@ -93,50 +93,55 @@ class OptionsReader {
   std::vector<const char*> path_;
 };
 
-// What the map, register and sample stages depend on.
+// The schema: each field once, with its key, in the order of the stages that depend on it. A
+// writer and a reader both walk it (Fields: OptionsWriter or OptionsReader; Options: EncodeOptions,
+// const for the writer).
 template <typename Fields, typename Options>
-void sample_fields(Fields& f, Options& o) {
-  f.value("reference_frame", o.reference_frame);
-  f.value("strict", o.strict);
-  f.value("texture", o.texture);
-  f.value("largest_component", o.largest_component);
-  f.value("find_landmarks", o.find_landmarks);
-  f.value("track_landmarks", o.track_landmarks);
-  f.value("landmark_tolerance", o.landmark_tolerance);
-  f.object("conformal", [&] {
-    f.enumeration("method", o.conformal.method, ConformalMethod::kTutte);
-    f.value("fallback", o.conformal.fallback);
-    f.value("max_iterations", o.conformal.max_iterations);
-    f.value("energy_tolerance", o.conformal.energy_tolerance);
-  });
-  auto& r = o.registration;
-  f.object("registration", [&] {
-    f.enumeration("method", r.method, RegistrationMethod::kFrame);
-    f.enumeration("form", r.form, GmfForm::kPaperGrid);
-    f.enumeration("moebius_start", r.moebius.start, MoebiusStart::kAlgebraic);
-    f.value("smoothing", r.smoothing);
-    f.value("paper_grid_n", r.paper_grid_n);
-    f.value("boundary_spacing_degrees", r.boundary_spacing_degrees);
-    f.value("fold_grid", r.fold_grid);
-    f.value("min_area_ratio", r.min_area_ratio);
-    f.value("smoothing_tries", r.smoothing_tries);
-    f.value("max_substeps", r.max_substeps);
-    f.value("allow_fallback", r.allow_fallback);
-  });
-  auto& d = o.density_equalising;
-  f.object("density_equalising", [&] {
-    f.value("strength", d.strength);
-    f.value("step", d.step);
-    f.value("max_steps", d.max_steps);
-    f.value("tolerance", d.tolerance);
-    f.value("radial", d.radial);
-  });
-}
-
-// The sample stage's under "sample", and what the keyframes' planning and coding depend on.
-template <typename Fields, typename Options>
-void segment_fields(Fields& f, Options& o) {
-  f.object("sample", [&] { sample_fields(f, o); });
+void options_fields(Fields& f, Options& o, OptionsScope scope) {
+  // kSample: what the map, register and sample stages depend on (a part file's).
+  const auto sample = [&] {
+    f.value("reference_frame", o.reference_frame);
+    f.value("strict", o.strict);
+    f.value("texture", o.texture);
+    f.value("largest_component", o.largest_component);
+    f.value("find_landmarks", o.find_landmarks);
+    f.value("track_landmarks", o.track_landmarks);
+    f.value("landmark_tolerance", o.landmark_tolerance);
+    f.object("conformal", [&] {
+      f.enumeration("method", o.conformal.method, ConformalMethod::kTutte);
+      f.value("fallback", o.conformal.fallback);
+      f.value("max_iterations", o.conformal.max_iterations);
+      f.value("energy_tolerance", o.conformal.energy_tolerance);
+    });
+    auto& r = o.registration;
+    f.object("registration", [&] {
+      f.enumeration("method", r.method, RegistrationMethod::kFrame);
+      f.enumeration("form", r.form, GmfForm::kPaperGrid);
+      f.enumeration("moebius_start", r.moebius.start, MoebiusStart::kAlgebraic);
+      f.value("smoothing", r.smoothing);
+      f.value("paper_grid_n", r.paper_grid_n);
+      f.value("boundary_spacing_degrees", r.boundary_spacing_degrees);
+      f.value("fold_grid", r.fold_grid);
+      f.value("min_area_ratio", r.min_area_ratio);
+      f.value("smoothing_tries", r.smoothing_tries);
+      f.value("max_substeps", r.max_substeps);
+      f.value("allow_fallback", r.allow_fallback);
+    });
+    auto& d = o.density_equalising;
+    f.object("density_equalising", [&] {
+      f.value("strength", d.strength);
+      f.value("step", d.step);
+      f.value("max_steps", d.max_steps);
+      f.value("tolerance", d.tolerance);
+      f.value("radial", d.radial);
+    });
+  };
+  if (scope == OptionsScope::kSample) {
+    sample();
+    return;
+  }
+  // kSegment: the sample stage's under "sample", and what the keyframes' planning and coding depend on.
+  f.object("sample", sample);
   f.value("keyframes", o.keyframe_fraction);
   f.value("keyframe_error_bound", o.keyframe_error_bound);
   f.value("keyframe_p99_bound", o.keyframe_p99_bound);
@@ -173,27 +178,18 @@ void segment_fields(Fields& f, Options& o) {
   });
 }
 
-template <typename Fields, typename Options>
-void scope_fields(Fields& f, Options& o, OptionsScope scope) {
-  if (scope == OptionsScope::kSample) {
-    sample_fields(f, o);
-  } else {
-    segment_fields(f, o);
-  }
-}
-
 }  // namespace
 
 std::string write_options(const EncodeOptions& options, OptionsScope scope) {
   OptionsWriter writer;
-  scope_fields(writer, options, scope);
+  options_fields(writer, options, scope);
   return writer.take().dump();
 }
 
 EncodeOptions read_options(std::string_view text, OptionsScope scope, EncodeOptions options) {
   const Json doc = json_fields::parse_object(text, kMaxOptionsDepth, "the options");
   OptionsReader reader(doc);
-  scope_fields(reader, options, scope);
+  options_fields(reader, options, scope);
   return options;
 }
 

@@ -7,14 +7,6 @@ namespace facemorph {
 
 namespace {
 
-// Nearest rank: the ceil(0.99 n)-th smallest of `distances` (as surface_distance takes it).
-double p99_of_distances(std::vector<double>& distances) {
-  if (distances.empty()) return 0;
-  const size_t rank = (99 * distances.size() + 99) / 100 - 1;
-  std::nth_element(distances.begin(), distances.begin() + static_cast<std::ptrdiff_t>(rank), distances.end());
-  return distances[rank];
-}
-
 // The point of `mesh` at `s` (a face and barycentric coordinates on it).
 Vec3 position_on(const TriangleMesh& mesh, const SurfacePoint& s) {
   const Face& f = mesh.faces[static_cast<size_t>(s.face)];
@@ -65,7 +57,6 @@ std::vector<OffsetSample> offset_samples(const TriangleMesh& shown, const Triang
   return samples;
 }
 
-
 PatchMeasure::PatchMeasure(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, const TriangleMesh& before)
     : grid_(grid), shown_(shown), captured_(captured), before_(before), to_captured_(captured), to_before_(before) {
   const PointToMesh& to_before = to_before_;
@@ -84,7 +75,7 @@ PatchMeasure::PatchMeasure(const DiskGrid& grid, const ShownFrame& shown, const 
     distances.push_back(d);
     anchors_.push_back({static_cast<int32_t>(v), nearest, d});
   }
-  p99_before_ = p99_of_distances(distances);
+  p99_before_ = nearest_rank_p99(distances);
   diagonal_ = bounding_box_diagonal(captured.positions);
   if (p99_before_ > 0) samples_ = offset_samples(before, captured, to_before_, to_captured_);
 }
@@ -94,7 +85,7 @@ double PatchMeasure::exact(const FramePatch& patch) const {
   std::vector<double> distances = shown_side(mesh);
   const PointToMesh to_mesh(mesh);
   for (const Anchor& a : anchors_) distances.push_back(to_mesh.distance(captured_.positions[static_cast<size_t>(a.vertex)]));
-  return p99_of_distances(distances);
+  return nearest_rank_p99(distances);
 }
 
 double PatchMeasure::approximate(const FramePatch& patch) const {
@@ -106,7 +97,8 @@ double PatchMeasure::approximate(const FramePatch& patch) const {
   std::vector<char> face_moved(mesh.faces.size(), 0);
   std::vector<int32_t> remap(mesh.positions.size(), -1);
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
-    for (const int32_t v : mesh.faces[f]) face_moved[f] |= mesh.positions[static_cast<size_t>(v)] != before_.positions[static_cast<size_t>(v)];
+    for (const int32_t v : mesh.faces[f])
+      face_moved[f] |= mesh.positions[static_cast<size_t>(v)] != before_.positions[static_cast<size_t>(v)];
     if (!face_moved[f]) continue;
     Face g;
     for (int k = 0; k < 3; ++k) {
@@ -135,7 +127,7 @@ double PatchMeasure::approximate(const FramePatch& patch) const {
     }
     distances.push_back(moved.faces.empty() ? bound : std::min(bound, to_moved.distance_below(p, bound)));
   }
-  return p99_of_distances(distances);
+  return nearest_rank_p99(distances);
 }
 
 std::vector<double> PatchMeasure::shown_side(const TriangleMesh& mesh) const {

@@ -143,7 +143,7 @@ void SequenceEncoder::drop_frames(const std::vector<FrameFailure>& failures) {
 void SequenceEncoder::adopt_representation(Representation representation, const BlendComparison& blend) {
   auto_representation_ = representation;
   report_.blend = blend;
-  report_.representation = this->representation();
+  report_.representation = options_.representation.value_or(representation);
 }
 
 Sequence encode_capture(const Capture& capture, const EncodeOptions& options, EncodeReport* report) {
@@ -240,7 +240,9 @@ void SequenceEncoder::adopt_plan(const KeyframeSelection& chosen, int grid, Repr
 
 std::unique_ptr<StoredSequence> SequenceEncoder::build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
                                                        const KeyframeSegment* segment) {
-  const BuildFrames frames{capture_, selection_, maps_, registrations_, representation(), first_time_, last_time_, pose_centre()};
+  const Representation representation = options_.representation.value_or(auto_representation_);
+  const Vec3 pose_centre = selection_.centre(options_.reference_frame);  // the face's centroid in the face frame
+  const BuildFrames frames{capture_, selection_, maps_, registrations_, representation, first_time_, last_time_, pose_centre};
   return build_keyframes(settings, frames, keyframes, grid, segment, report_);
 }
 
@@ -303,7 +305,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
     // mix), so every keyframe is stored as positions, which decode without iterating, and the
     // summary and fminfo (the settings' warnings) say which keyframe and why. Asked for hl+t, the
     // encode still fails: the positions were not asked for.
-    if (e.code() != ErrorCode::kNotConverged || options_.representation || representation() == Representation::kXYZ) throw;
+    if (e.code() != ErrorCode::kNotConverged || options_.representation || auto_representation_ == Representation::kXYZ) throw;
     store_as_positions(e.what());
     sequence = build(settings, keyframes, grid, segment);
     measure_fields(*sequence);
@@ -322,7 +324,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& setti
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
   if (settings.residual_frames && residuals_pay(chosen)) {
-    sequence->set_residuals(fit_decoded_residuals(registered_frames(), *sequence, chosen.keyframes, SelectionOptions().residual_step,
+    const RegisteredFrames frames = registered_frames(capture_.frames, selection_, FrameSampler(maps_, registrations_));
+    sequence->set_residuals(fit_decoded_residuals(frames, *sequence, chosen.keyframes, SelectionOptions().residual_step,
                                                   &report_.residual_fit, settings.threads));
     report_.residual_fit.keyframes_saved = chosen.spline_keyframes - static_cast<int>(chosen.keyframes.size());
   }
@@ -339,14 +342,16 @@ TextureFrameSource texture_frames(const SequenceEncoder& encoder) {
   return {encoder.capture().frames, encoder.maps(), encoder.frame_sampler()};
 }
 
-RegisteredFrames SequenceEncoder::registered_frames() const {
-  RegisteredFrames frames;
-  for (const CaptureFrame& f : capture_.frames) frames.times.push_back(f.time);
-  for (const SelectionFrame& f : selection_.frames()) frames.diagonals.push_back(f.diagonal);
-  frames.surface = [sampler = FrameSampler(maps_, registrations_)](int i, std::span<const Vec2> nodes) {
-    return sampler.sample_surface(i, nodes);
-  };
-  return frames;
+RegisteredFrames registered_frames(const std::vector<CaptureFrame>& frames, const SelectionSamples& selection, FrameSampler sampler) {
+  RegisteredFrames registered;
+  for (const CaptureFrame& f : frames) registered.times.push_back(f.time);
+  for (const SelectionFrame& f : selection.frames()) registered.diagonals.push_back(f.diagonal);
+  registered.surface = [sampler = std::move(sampler)](int i, std::span<const Vec2> nodes) { return sampler.sample_surface(i, nodes); };
+  return registered;
+}
+
+RegisteredFrames registered_frames(const SequenceEncoder& encoder) {
+  return registered_frames(encoder.capture().frames, encoder.selection(), encoder.frame_sampler());
 }
 
 }  // namespace facemorph

@@ -230,9 +230,6 @@ class SequenceEncoder {
   // set (a file's settings say it). A segment's assemble takes the fallback a measure made so
   // (segmented_encode.hpp).
   void store_as_positions(const std::string& why);
-  // What the residual fit reads of the frames (residual_fit.hpp): their times, diagonals and
-  // registered surfaces, after sample_frames. Holds references into this encoder.
-  RegisteredFrames registered_frames() const;
   // The report's per-frame lines and memory figures, moved to `report` where given.
   void finish_report(const KeyframeSelection& chosen, const StoredSequence& sequence, EncodeReport* report);
 
@@ -327,6 +324,11 @@ FieldCoding round_fields(const FieldPrecisionOptions& precision, Sequence& seque
 // 8, 9: the texture stage over its settings (encode/texture_stage.hpp, stage_settings.hpp);
 // texture_frames: its view of `encoder`'s frames (holds references into it).
 TextureFrameSource texture_frames(const SequenceEncoder& encoder);
+// What the residual fit reads of the frames (residual_fit.hpp): their times, diagonals (the
+// selection's) and registered surfaces (`sampler`'s). Holds references into `selection`'s and
+// `sampler`'s stores; the second form: `encoder`'s, after sample_frames.
+RegisteredFrames registered_frames(const std::vector<CaptureFrame>& frames, const SelectionSamples& selection, FrameSampler sampler);
+RegisteredFrames registered_frames(const SequenceEncoder& encoder);
 
 // A segment's encode stores positions because a measure did (SequenceEncoder::store_as_positions):
 // the summary's warning for it.
@@ -339,7 +341,6 @@ void warn_stored_as_positions(EncodeReport& report);
 // capture grew with it for the whole encode.
 std::unique_ptr<SpilledItems<std::vector<Vec3>>> make_landmark_store(SpillMode mode);
 
-
 // Where the capture's landmarks of one frame lie on its disk, paired with the reference's: the
 // registration's input. Landmarks missing in either frame are left out; rim_* markers are flagged
 // and put exactly on the circle.
@@ -348,6 +349,5 @@ DiskLandmarks disk_landmarks(const Capture& capture, size_t reference, const Dis
 // The same for two frames' points, one per name of `names` (NaN where a frame lacks it).
 DiskLandmarks disk_landmarks(const std::vector<std::string>& names, const std::vector<Vec3>& reference, const DiskMap& reference_map,
                              const std::vector<Vec3>& frame, const DiskMap& frame_map);
-
 
 }  // namespace facemorph

@@ -1,13 +1,44 @@
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 namespace facemorph {
 
+namespace {
+
+// The nearest point to p of the segment from vertex i to vertex j of triangle `v` (one point where
+// they coincide), as barycentric coordinates of the triangle.
+Vec3 closest_on_edge(const Vec3& p, const std::array<const Vec3*, 3>& v, int i, int j) {
+  const Vec3 edge = *v[static_cast<size_t>(j)] - *v[static_cast<size_t>(i)];
+  const double length2 = edge.squaredNorm();
+  const double t = length2 > 0 ? std::clamp((p - *v[static_cast<size_t>(i)]).dot(edge) / length2, 0.0, 1.0) : 0.0;
+  Vec3 bary = Vec3::Zero();
+  bary[i] = 1 - t;
+  bary[j] = t;
+  return bary;
+}
+
+// A triangle whose area is under this share of the parallelogram its edges ab, ac would span at a
+// right angle (sin of the angle at a under 1e-10) is taken as collapsed: there the rounding of the
+// face region's denominator (|ab x ac|², of order 1e-16 |ab|²|ac|²) is no longer small beside it,
+// and at 0 the face region's coordinates are 0/0.
+constexpr double kCollapsedSine2 = 1e-20;
+
+}  // namespace
+
 Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  if (!(ab.cross(ac).squaredNorm() > kCollapsedSine2 * ab.squaredNorm() * ac.squaredNorm())) {
+    // Collapsed: the longest edge holds the other two (the third vertex lies on it).
+    const std::array<const Vec3*, 3> v{&a, &b, &c};
+    const double lab = ab.squaredNorm(), lac = ac.squaredNorm(), lbc = (c - b).squaredNorm();
+    if (lab >= lac && lab >= lbc) return closest_on_edge(p, v, 0, 1);
+    if (lac >= lbc) return closest_on_edge(p, v, 0, 2);
+    return closest_on_edge(p, v, 1, 2);
+  }
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
   if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
   const Vec3 bp = p - b;
@@ -179,13 +210,15 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
   accumulate(reference.positions, to_test, reference);
   const size_t count = distances.size();
   d.rms = count ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
-  if (count) {
-    // Nearest rank: the ceil(0.99 n)-th smallest (1-based).
-    const size_t rank = (99 * count + 99) / 100 - 1;
-    std::nth_element(distances.begin(), distances.begin() + static_cast<std::ptrdiff_t>(rank), distances.end());
-    d.p99 = distances[rank];
-  }
+  d.p99 = nearest_rank_p99(distances);
   return d;
+}
+
+double nearest_rank_p99(std::vector<double>& values) {
+  if (values.empty()) return 0;
+  const size_t rank = (99 * values.size() + 99) / 100 - 1;  // ceil(0.99 n), 0-based
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank), values.end());
+  return values[rank];
 }
 
 }  // namespace facemorph

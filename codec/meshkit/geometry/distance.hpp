@@ -11,13 +11,20 @@
 
 namespace facemorph {
 
-// Barycentric coordinates of the point of triangle abc nearest to p (Ericson, Real-Time Collision
-// Detection §5.1.5: by Voronoi regions of the vertices, edges and face).
 // The diagonal of the points' axis-aligned bounding box: the scale relative errors are given in
 // (0 for no points).
 double bounding_box_diagonal(std::span<const Vec3> points);
 
+// Barycentric coordinates of the point of triangle abc nearest to p (Ericson, Real-Time Collision
+// Detection §5.1.5: by Voronoi regions of the vertices, edges and face). A collapsed triangle (its
+// vertices on one line, or one point) is the longest of its edges, which covers the other two: the
+// nearest point of that segment, with 0 at the vertex off it.
 Vec3 closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+// The 99th percentile of `values` by nearest rank: the ceil(0.99 n)-th smallest, the smallest value
+// that at least 99% of them do not exceed (0 for none). Reorders `values`. What surface_distance's
+// p99 and the frame patches' measure (patch_measure.hpp) take.
+double nearest_rank_p99(std::vector<double>& values);
 
 // Closest-point queries against one triangle mesh, through a uniform grid of buckets.
 class PointToMesh {

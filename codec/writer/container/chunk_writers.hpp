@@ -29,6 +29,12 @@ std::vector<uint8_t> write_residuals(const SequenceOutline& outline);
 // otherwise.
 std::vector<uint8_t> write_patches(const SequenceOutline& outline);
 
+// An item's time in either chunk (the readers' read_item_time): written as its change from the
+// previous item's code `previous` (updated) in 64ths of a frame period from the outline's first
+// time. False, writing nothing, where the time is not on that lattice, not after the previous one or
+// past kMaxTimeCode.
+bool write_item_time(format::ByteWriter& w, double time, const SequenceOutline& outline, int64_t& previous);
+
 // ---- Where the chunks after the index go (index_layout.cpp) ----
 
 // A chunk after the index, in file order: its size in the file (header, payload and checksum), and

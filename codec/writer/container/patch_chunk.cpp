@@ -50,11 +50,8 @@ std::vector<uint8_t> write_patches(const SequenceOutline& o) {
   int64_t previous = 0;
   for (size_t p = 0; p < patches.size(); ++p) {
     const FramePatch& f = patches[p];
-    const int64_t q = residual_time_code(f.time, o.first_time, o.fps);
-    if (residual_time(q, o.first_time, o.fps) != f.time || q <= previous || q >= kMaxTimeCode)
+    if (!write_item_time(w, f.time, o, previous))
       fail(p, "its time is not a 64th of a frame period after the previous one's (residual_time)");
-    write_varint(w, q - previous);
-    previous = q;
     write_varint(w, f.lattice);
     write_varint(w, static_cast<int64_t>(f.nodes.size()));
     int64_t node = -1;

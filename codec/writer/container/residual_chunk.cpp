@@ -31,12 +31,8 @@ std::vector<uint8_t> write_residuals(const SequenceOutline& o) {
   int64_t previous = 0;
   for (size_t r = 0; r < residuals.size(); ++r) {
     const ResidualFrame& f = residuals[r];
-    const int64_t q = residual_time_code(f.time, o.first_time, o.fps);
-    if (residual_time(q, o.first_time, o.fps) != f.time || q <= previous || q >= kMaxTimeCode) {
+    if (!write_item_time(w, f.time, o, previous))
       fail(r, "its time is not a 64th of a frame period after the previous one's (residuals_on_file_times)");
-    }
-    write_varint(w, q - previous);
-    previous = q;
     int64_t sum = 0;
     for (size_t m = 0; m + 1 < f.delta.size(); ++m) {
       const auto code = static_cast<int64_t>(std::ldexp(f.delta[m], e));
@@ -46,6 +42,14 @@ std::vector<uint8_t> write_residuals(const SequenceOutline& o) {
     if (static_cast<int64_t>(std::ldexp(f.delta.back(), e)) != -sum) fail(r, "its corrections do not sum to 0 exactly");
   }
   return w.take();
+}
+
+bool write_item_time(ByteWriter& w, double time, const SequenceOutline& o, int64_t& previous) {
+  const int64_t q = residual_time_code(time, o.first_time, o.fps);
+  if (residual_time(q, o.first_time, o.fps) != time || q <= previous || q >= kMaxTimeCode) return false;
+  write_varint(w, q - previous);
+  previous = q;
+  return true;
 }
 
 }  // namespace facemorph::file_layout
