@@ -18,7 +18,9 @@ driver going back to a stage's. A call within one file enters nothing.
 
 Usage: tools/options_trace.py [--root NAME] [--root-file FILE] [--carriers options|fields|settings] [--list]
   run from the repository root; clang++ parses each file it needs (-fsyntax-only), ~5 s a file,
-  cached in /tmp/options_trace-cache by the file's and the headers' contents.
+  cached in $TMPDIR/options_trace-cache (default /tmp) by the flags and the contents of the file and of
+  every header it includes (clang++ -M's list): a header's change re-parses only the units that
+  include it.
 """
 import argparse
 import hashlib
@@ -55,12 +57,27 @@ def compile_flags(build):
     return flags
 
 
-def headers_digest():
+FILE_DIGESTS = {}  # path -> sha256 of its bytes, each file read once a run
+
+
+def file_digest(path):
+    if path not in FILE_DIGESTS:
+        FILE_DIGESTS[path] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return FILE_DIGESTS[path]
+
+
+def unit_key(path, flags):
+    """What a unit's AST depends on: the flags, this script, the source and every header it includes
+    (the project's, a build folder's generated ones and the system's: clang++ -M lists them), each by
+    its contents. None where the headers cannot be listed (the unit is then parsed, not cached)."""
+    deps_flags = [f for f in flags if f != "-fsyntax-only"] + ["-M", "-MT", "unit"]
+    run = subprocess.run(["clang++"] + deps_flags + [str(path)], capture_output=True, text=True, check=False)
+    if run.returncode != 0:
+        return None
+    files = sorted(set(run.stdout.replace("\\\n", " ").split()[1:]))  # past "unit:"
     h = hashlib.sha256()
-    for d in SOURCE_DIRS:
-        for p in sorted(Path(d).rglob("*.hpp")):
-            h.update(str(p).encode())
-            h.update(p.read_bytes())
+    for part in [" ".join(flags), str(path), file_digest(__file__)] + ["%s %s" % (f, file_digest(f)) for f in files]:
+        h.update(part.encode() + b"\0")
     return h.hexdigest()
 
 
@@ -81,11 +98,11 @@ def qual_type_params(qual_type):
 UNPARSED = []  # the sources clang++ could not parse: the trace is then incomplete
 
 
-def parse_unit(path, flags, digest):
+def parse_unit(path, flags):
     CACHE.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256((digest + str(path)).encode() + Path(path).read_bytes() + Path(__file__).read_bytes()).hexdigest()
-    cached = CACHE / (key + ".json")
-    if cached.exists():
+    key = unit_key(path, flags)
+    cached = CACHE / ((key or "none") + ".json")
+    if key and cached.exists():
         return json.loads(cached.read_text())
     cmd = ["clang++"] + flags + ["-Xclang", "-ast-dump=json", "-Xclang", "-ast-dump-filter=facemorph::", str(path)]
     run = subprocess.run(cmd, capture_output=True, text=True, check=False)
@@ -95,7 +112,8 @@ def parse_unit(path, flags, digest):
         sys.stderr.write("options_trace: clang++ could not parse %s (%d): %s\n" % (path, run.returncode, run.stderr[-2000:]))
         UNPARSED.append(str(path))
         return defs
-    cached.write_text(json.dumps(defs))
+    if key:
+        cached.write_text(json.dumps(defs))
     return defs
 
 
@@ -242,7 +260,6 @@ def main():
     global CARRIER_TYPES
     CARRIER_TYPES = CARRIER_SETS[args.carriers]
     flags = compile_flags(args.build)
-    digest = headers_digest()
     sources = [p for d in SOURCE_DIRS for p in sorted(Path(d).rglob("*.cpp"))]
     texts = {p: p.read_text(errors="replace") for p in sources}
     defs = {}
@@ -252,7 +269,7 @@ def main():
         if path in parsed:
             return
         parsed.add(path)
-        for k, v in parse_unit(path, flags, digest).items():
+        for k, v in parse_unit(path, flags).items():
             f = module(v["file"])
             # A header's inline definition appears in every unit; a source's own belongs to it.
             if k not in defs or f == module(str(path)):

@@ -21,7 +21,7 @@ namespace facemorph {
 
 class StoredSequence;
 
-// What the fit reads of the capture's frames, registered and sampled (SequenceEncoder::registered_frames,
+// What the fit reads of the capture's frames, registered and sampled (registered_frames,
 // sequence_encoder.hpp): frame j's time and bbox diagonal, and its registered surface at disk
 // points of G (capture frame). `surface` is called from several threads at once (the fit's).
 struct RegisteredFrames {
