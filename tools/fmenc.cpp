@@ -2,7 +2,8 @@
 // conformally, registered to the reference frame, keyframes chosen by the spline's predicted error,
 // each keyframe's fields, pose, holes and texture written. The file is written under a temporary
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
-// file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error.
+// file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error (auto:
+// the file's own steps kept).
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/encoder/encode/encode_settings.hpp"
@@ -40,7 +41,8 @@ int parse_intra_period(const std::string& text) {
 }
 
 // Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
-// again from --field-error (from the file's values, so never finer than what it held); textures
+// again from a given --field-error (from the file's values, so never finer than what it held), or
+// with auto kept as the file states it (0.01% on a 16-bit file, which states no steps); textures
 // re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
 // measure the blend against).
 void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality,
@@ -55,11 +57,21 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   metadata.texture_coding = texture_coding;
   metadata.field_coding = {};
   FieldPrecisionReport precision;
-  if (options.predicted_fields) metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
+  // --field-error auto on a file whose fields are rounded already (it states their steps) keeps
+  // them: its values are whole multiples of those steps, so the codes and bytes stay, where rounding
+  // them again (0.01%, as a file holds nothing to measure a floor on) added bytes and error: one ICT
+  // frame, +43% at 0.01%, +21% at its own target (spec/method.md §5.3). A 16-bit file is rounded.
+  const bool keep = options.auto_field_error && info.metadata.field_coding.predicted();
+  if (keep) {
+    metadata.field_coding = info.metadata.field_coding;
+  } else if (options.predicted_fields) {
+    metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
+  }
   write_sequence_file(output, sequence, metadata);
   if (quiet) return;
   std::printf("fmenc: %s re-coded to %s: %llu bytes (was %llu)\n", input.c_str(), output.c_str(),
               static_cast<unsigned long long>(std::filesystem::file_size(output)), static_cast<unsigned long long>(info.file_bytes));
+  if (keep) std::printf("  fields kept at the file's steps (--field-error auto; a number rounds them again)\n");
   if (!precision.keyframe_errors.empty()) {
     std::printf("  fields rounded to %.3g%% of the diagonal (RMS; worst keyframe %.3g%%)\n", 100 * options.field_precision.target_error,
                 100 * *std::max_element(precision.keyframe_errors.begin(), precision.keyframe_errors.end()));
@@ -272,7 +284,8 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--reference", a.reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", a.field_error,
                  "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: two fifths of the "
-                 "predicted error between keyframes, within [0.005%, 0.2%]; 0: 16-bit precision, no search")
+                 "predicted error between keyframes (of G's resampling floor where none is predicted: one frame, every frame a "
+                 "keyframe), within [0.005%, 0.2%]; re-coding a .fmv, auto keeps its steps; 0: 16-bit precision, no search")
       ->capture_default_str();
   app.add_option("--field-rounding", a.field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--inter-dead-zone", a.inter_dead_zone,
@@ -681,7 +694,10 @@ void print_rate_and_fields(const Summary& s) {
     const std::vector<double>& e = s.report.field_precision.keyframe_errors;
     std::printf(
         "  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes, dead zone %.2f steps\n",
-        100 * s.report.field_precision.target_error, s.options.auto_field_error ? " (auto)" : "",
+        100 * s.report.field_precision.target_error,
+        !s.options.auto_field_error ? ""
+        : worst == 0 && s.report.grid_floor > 0 ? " (auto: two fifths of G's resampling floor, as nothing between keyframes is predicted)"
+                                                : " (auto)",
         100 * *std::max_element(e.begin(), e.end()), s.report.field_coding.intra_period, s.report.field_precision.inter_dead_zone);
   }
 }

@@ -8,6 +8,7 @@
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "format/container.hpp"
 
 #include "tools/player_options.hpp"
@@ -248,11 +249,41 @@ int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   return texture_groups ? 1 : 0;
 }
 
+// Where the fields' bytes go (--field-bytes): the arrays of spec/container.md §7.1 in groups (the band's
+// and the rim's three components, the positions' three, together), summed over the keyframes, each
+// keyframe predicted as the writer predicts it (file_layout::keyframe_array_bits: fresh models, so
+// the sum is an estimate of the KGOP chunks' bytes, not a division of them). Every keyframe is read
+// into memory at once: a measure for the encoder's work, not the player's bounded check --verify is.
+struct ArrayGroup {
+  const char* name;
+  size_t first, end;  // arrays [first, end)
+  double bytes = 0;
+  size_t values = 0;
+};
+std::vector<ArrayGroup> field_bytes_by_group(const fs::path& path, const DecoderLimits& limits) {
+  std::vector<ArrayGroup> groups = {{"H", 0, 1},    {"log lambda", 1, 2}, {"a", 2, 3},   {"b", 3, 4},
+                                    {"band", 4, 7}, {"positions", 7, 10}, {"rim", 10, 13}, {"hole level", 13, 14}};
+  SequenceFileInfo info;
+  const Sequence sequence = read_sequence_file(path, &info, limits);
+  const FieldCoding& coding = info.metadata.field_coding;
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(sequence.grid_n);
+  const size_t period = static_cast<size_t>(std::max(1, coding.intra_period));
+  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
+    const Keyframe* previous = k % period == 0 ? nullptr : &sequence.keyframes[k - 1];
+    const std::vector<double> bits = file_layout::keyframe_array_bits(sequence.keyframes[k], previous, coding, *grid);
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(sequence.keyframes[k]);
+    for (ArrayGroup& g : groups) {
+      for (size_t a = g.first; a < g.end; ++a) g.bytes += bits[a] / 8, g.values += arrays[a].size();
+    }
+  }
+  return groups;
+}
+
 // By default the file is described from its header and index, every checksum verified, nothing
 // decoded: a few ms a MB, so that fminfo stays within the decoder's time bound on any file
 // (spec/container.md §10.5). --verify decodes every keyframe once, one at a time, as a player would
 // meet it (about 0.4 s a MB at N = 257), and gives each keyframe the bytes its fields took.
-int describe_container(const fs::path& path, bool json_out, bool verify, const DecoderLimits& limits) {
+int describe_container(const fs::path& path, bool json_out, bool verify, bool field_bytes, const DecoderLimits& limits) {
   // Opened as a player opens it first (the player API, facemorph.h): a file no player may open is
   // refused before anything is decoded, and the description is what a player is told of the file.
   const tools::PlayerFile player(path.string(), limits);
@@ -311,6 +342,12 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
     nlohmann::json groups = nlohmann::json::array();
     for (const auto& g : info.field_groups) groups.push_back({{"first", g.first}, {"count", g.count}, {"bytes", g.bytes}});
     doc["field_groups"] = std::move(groups);
+    if (field_bytes) {
+      nlohmann::json arrays = nlohmann::json::array();
+      for (const ArrayGroup& g : field_bytes_by_group(path, limits))
+        arrays.push_back({{"arrays", g.name}, {"bytes", g.bytes}, {"values", g.values}});
+      doc["field_bytes_by_array"] = std::move(arrays);  // estimated: the writer's cost with fresh models
+    }
     nlohmann::json chunks = nlohmann::json::array();
     for (const auto& c : info.chunks)
       chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
@@ -365,6 +402,17 @@ int describe_container(const fs::path& path, bool json_out, bool verify, const D
                 info.frame_patches, info.patch_nodes);
   }
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
+  if (field_bytes) {
+    const std::vector<ArrayGroup> groups = field_bytes_by_group(path, limits);
+    double sum = 0;
+    for (const ArrayGroup& g : groups) sum += g.bytes;
+    std::printf("fields by array (the writer's prediction, fresh models: ~%.0f B in all)\n", sum);
+    for (const ArrayGroup& g : groups) {
+      if (g.values == 0) continue;
+      std::printf("  %-11s %9.0f B  %5.1f%%  %6.3f bits a value (%zu values)\n", g.name, g.bytes, 100 * g.bytes / sum,
+                  8 * g.bytes / static_cast<double>(g.values), g.values);
+    }
+  }
   if (verify) {
     std::printf("keyframes   %zu, every one decoded and checked\n", times.size());
     std::printf("    #     time   fields B  texture B\n");
@@ -406,7 +454,7 @@ int main(int argc, char** argv) {
   CLI::App app("Describe a capture (validating every frame as the encoder will) or a facemorph file.", "fminfo");
   std::string input, landmarks, prepared;
   double fps = 0;
-  bool json_out = false, quiet = false, verify = false;
+  bool json_out = false, quiet = false, verify = false, field_bytes = false;
   app.add_option("input", input, "A .fmv file, a capture folder, capture.json, or a plain folder of meshes (with --fps)")->required();
   app.add_option("--fps", fps, "Frame rate for a plain folder of meshes");
   app.add_option("--landmarks", landmarks, "Landmarks CSV for a plain folder (frame,name,x,y,z)");
@@ -415,12 +463,15 @@ int main(int argc, char** argv) {
   app.add_flag("--verify", verify,
                "For a .fmv file: decode every keyframe once (as a player would), not only verify the checksums, and give each keyframe its "
                "fields' bytes");
+  app.add_flag("--field-bytes", field_bytes,
+               "For a .fmv file: where the fields' bytes go, array by array (H, log lambda, a, b, band, positions, rim, hole level; "
+               "the writer's own cost estimate); reads every keyframe into memory");
   app.add_flag("-q,--quiet", quiet, "No progress display");
   DecoderLimits limits;
   std::string max_memory;
   tools::add_limit_options(app, limits, max_memory);
   return tools::guarded_main(app, argc, argv, [&] {
-    if (is_container(input)) return describe_container(input, json_out, verify, tools::parsed_limits(limits, max_memory));
+    if (is_container(input)) return describe_container(input, json_out, verify, field_bytes, tools::parsed_limits(limits, max_memory));
     const Capture capture = open_capture(input, fps, landmarks);
     std::error_code ec;
     if (!prepared.empty()) fs::create_directories(prepared, ec);

@@ -9,6 +9,7 @@
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/meshkit/mesh/topology.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "codec/decoder/sequence/sequence_decoder.hpp"
@@ -276,6 +277,38 @@ TEST(FieldPrecision, AutoIntraPeriodSpacesIntraKeyframesTenSecondsApart) {
   testing::expect_error(ErrorCode::kInvalidArgument, "negative thread count", [&] { choose_field_coding(any, no_threads); });
 }
 
+// fminfo --field-bytes divides the fields' bytes among the arrays by the writer's own cost of each
+// (file_layout::keyframe_array_bits): each keyframe predicted as the writer predicts it (from the
+// previous one inside a group), fresh models. Its sum estimates the KGOP chunks' payloads: the
+// stream's models, carried from array to array and keyframe to keyframe, are what it leaves out.
+TEST(FieldPrecision, TheArraysBitsAddUpToTheKeyframeGroupsBytes) {
+  testing::TempDir dir;
+  Sequence rounded = unrounded_keyframes(dir, 0, 0.6, 49);
+  ASSERT_GE(rounded.keyframes.size(), 3u);
+  SequenceFileMetadata metadata;
+  metadata.field_coding = choose_field_coding(rounded, {2e-4, 0});  // intra period auto: one group
+  ASSERT_EQ(metadata.field_coding.intra_period, static_cast<int>(rounded.keyframes.size()));
+  SequenceFileInfo info;
+  decode_sequence_file(encode_sequence_file(rounded, metadata), "arrays.fmv", &info);
+  double stream = 0;
+  for (const auto& c : info.chunks) stream += c.type == "KGOP" ? static_cast<double>(c.stored_bytes) : 0.0;
+  const auto grid = file_layout::grid_facts(rounded.grid_n);
+  double estimate = 0, intra = 0;
+  for (size_t k = 0; k < rounded.keyframes.size(); ++k) {
+    const Keyframe* previous = k == 0 ? nullptr : &rounded.keyframes[k - 1];
+    const std::vector<double> bits = file_layout::keyframe_array_bits(rounded.keyframes[k], previous, metadata.field_coding, *grid);
+    ASSERT_EQ(bits.size(), static_cast<size_t>(file_layout::kKeyframeArrays));
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(rounded.keyframes[k]);
+    for (size_t a = 0; a < bits.size(); ++a) {
+      EXPECT_EQ(bits[a] > 0, !arrays[a].empty()) << "keyframe " << k << ", array " << a;
+      estimate += bits[a] / 8;
+    }
+    for (double b : file_layout::keyframe_array_bits(rounded.keyframes[k], nullptr, metadata.field_coding, *grid)) intra += b / 8;
+  }
+  EXPECT_NEAR(estimate / stream, 1.0, 0.05) << estimate << " B estimated, " << stream << " B in the KGOP chunks";
+  EXPECT_GT(intra, 1.1 * estimate) << "each keyframe alone costs more than from the one before it";
+}
+
 TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   // The rule of spec/method.md §5.3: two fifths of the mean predicted error, within [0.005%, 0.2%].
   testing::TempDir dir;
@@ -289,7 +322,7 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   Sequence sequence = build_sequence(encoder, chosen.keyframes,
                                      choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen));
-  round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
+  round_fields(field_precision_options(encoder.options(), chosen, encoder.report().grid_floor), sequence, encoder.report());
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {
@@ -301,6 +334,35 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   // And the rounded keyframes honour it (field_precision.hpp: within 1.25x).
   ASSERT_EQ(precision.keyframe_errors.size(), sequence.keyframes.size());
   for (double e : precision.keyframe_errors) EXPECT_LE(e, 1.25 * precision.target_error);
+}
+
+TEST(SequenceEncoder, AutomaticFieldErrorOfASingleFrameIsTwoFifthsOfItsGridFloor) {
+  // Where the selection predicts nothing (one frame), the error a keyframe holds is G's resampling
+  // floor at its N, and rounding takes two fifths of it (spec/method.md §5.3), not a fixed 0.01% of
+  // the diagonal, fifteen times finer than the floor it adds to on ICT.
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 1, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options;
+  options.texture = false;
+  EncodeReport chosen;  // --grid auto: the floor at the N it chose, the last it measured
+  encode_capture(capture, options, &chosen);
+  ASSERT_FALSE(chosen.grid_floors.empty());
+  ASSERT_EQ(chosen.grid_floors.back().first, chosen.grid);
+  const double floor = chosen.grid_floors.back().second;
+  EXPECT_EQ(chosen.grid_floor, floor);
+  ASSERT_GT(floor, 2.5 * 5e-5) << "the floor sits where the lower clamp decides, not the rule";
+  EXPECT_DOUBLE_EQ(chosen.field_precision.target_error, 0.4 * floor);
+  for (double e : chosen.field_precision.keyframe_errors) EXPECT_LE(e, 1.25 * chosen.field_precision.target_error);
+
+  // A given N: the floor is measured there, the same as --grid auto's reading at that N.
+  options.grid = chosen.grid_floors.front().first;
+  EncodeReport given;
+  encode_capture(capture, options, &given);
+  EXPECT_TRUE(given.grid_floors.empty()) << "no candidates tried at a given N";
+  EXPECT_DOUBLE_EQ(given.grid_floor, chosen.grid_floors.front().second);
+  EXPECT_DOUBLE_EQ(given.field_precision.target_error, std::clamp(0.4 * given.grid_floor, 5e-5, 2e-3));
+  EXPECT_GT(given.field_precision.target_error, 1e-4) << "a coarse grid's floor is far above 0.01%";
 }
 
 }  // namespace

@@ -36,6 +36,19 @@ for g in v['field_groups']:
 assert sum(g['bytes'] for g in d['field_groups']) == sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP'), 'KGOP'" \
   "$work/info.json" "$work/verified.json" || fail "fminfo --verify's bytes per keyframe do not add up to its groups'"
 
+# Re-coding (spec/method.md §5.3): --field-error auto keeps the file's steps, so its fields' bytes
+# stay; a given target rounds them again. fminfo --field-bytes estimates those bytes array by array.
+kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sys.stdin)['chunks'] if c['type'] == 'KGOP'))"; }
+"$tools/fmenc" "$work/a.fmv" -o "$work/kept.fmv" --quiet || fail "fmenc re-coding a file"
+"$tools/fmenc" "$work/a.fmv" -o "$work/coarser.fmv" --field-error 0.3% --quiet || fail "fmenc re-coding a file at 0.3%"
+a_bytes=$("$tools/fminfo" "$work/a.fmv" --json | kgop)
+[[ $("$tools/fminfo" "$work/kept.fmv" --json | kgop) == "$a_bytes" ]] || fail "re-coding at auto changed the fields' bytes"
+(( $("$tools/fminfo" "$work/coarser.fmv" --json | kgop) < a_bytes )) || fail "re-coding at 0.3% did not round the fields again"
+"$tools/fminfo" "$work/a.fmv" --json --field-bytes | python3 -c "import json,sys
+d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP')
+parts = {g['arrays']: g['bytes'] for g in d['field_bytes_by_array']}
+assert parts['H'] > 0 and parts['log lambda'] > 0 and parts['positions'] == 0, parts
+assert abs(sum(parts.values()) / kgop - 1) < 0.1, (sum(parts.values()), kgop)" || fail "fminfo --field-bytes does not add up to the KGOP chunks"
 # Segments (spec/part-file.md §7): measured, assembled and joined by fmcat into a file fminfo takes;
 # what a user gets wrong is refused by name, and a refused join writes nothing.
 seg=(--grid 33 --texture 64 --keyframes 30% --intra-period 1 --quiet)

@@ -8,14 +8,20 @@ namespace facemorph {
 
 namespace {
 
-// --field-error auto, the fields' rounding target: two fifths of the spline's mean predicted error,
-// where rounding error and more keyframes buy held-out error at about the same price in bytes
-// (spec/method.md §5.3). The rounding's node displacement is mostly along the surface and reaches the point-to-surface error at
-// about half its size, so it may be larger than a quadrature rule on displacements would allow.
-double auto_target_error(const KeyframeSelection& chosen) {
+// --field-error auto, the fields' rounding target: two fifths of the error the keyframes hold
+// without rounding, where rounding error and the other ways to buy error down (more keyframes, a
+// finer grid) cost about the same bytes for it (spec/method.md §5.3). That error is the spline's mean
+// predicted error between keyframes; where the selection predicts none (one frame, every frame a
+// keyframe) it is G's resampling floor at the chosen N, which every keyframe holds. The rounding's
+// node displacement is mostly along the surface and reaches the point-to-surface error at about half
+// its size, so it may be larger than a quadrature rule on displacements would allow.
+double auto_target_error(const KeyframeSelection& chosen, double grid_floor) {
   constexpr double kShare = 0.4, kLowest = 5e-5, kHighest = 2e-3;
+  // Neither known (a plan made elsewhere on another N): a tenth of a per mille, fine enough for any.
+  constexpr double kUnknown = 1e-4;
   const double mean = mean_predicted_error(chosen);
-  return mean == 0 ? 1e-4 : std::clamp(kShare * mean, kLowest, kHighest);
+  const double held = mean > 0 ? mean : grid_floor;
+  return held > 0 ? std::clamp(kShare * held, kLowest, kHighest) : kUnknown;
 }
 
 }  // namespace
@@ -64,14 +70,14 @@ PlanSettings plan_settings(const EncodeOptions& options) { return stage_settings
 BuildSettings build_settings(const EncodeOptions& options) { return stage_settings(options).build; }
 TextureSettings texture_settings(const EncodeOptions& options) { return stage_settings(options).texture; }
 
-FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen) {
+FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen, double grid_floor) {
   FieldPrecisionOptions precision = settings.precision;
-  if (settings.auto_field_error) precision.target_error = auto_target_error(chosen);
+  if (settings.auto_field_error) precision.target_error = auto_target_error(chosen, grid_floor);
   return precision;
 }
 
-FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen) {
-  return field_precision_options(stage_settings(options), chosen);
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen, double grid_floor) {
+  return field_precision_options(stage_settings(options), chosen, grid_floor);
 }
 
 }  // namespace facemorph

@@ -111,8 +111,29 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   return choice;
 }
 
+namespace {
+
+// The reference frame's resampling floor on G of size n: its surface against G's surface sampled from it.
+GridFloor reference_floor(const PlanFrames& frames, const MappedFrame& reference, int reference_index, int n) {
+  const DiskGrid grid = make_disk_grid(n);
+  const std::vector<Vec3> sampled = frames.sampler.sample_surface(reference, reference_index, grid.nodes);
+  const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
+  return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
+}
+
+}  // namespace
+
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
-  if (settings.grid > 0) return settings.grid;
+  report.grid_floor = 0;
+  if (settings.grid > 0) {
+    // Where the selection predicts no error, the floor is the error the keyframes hold, and auto
+    // field error's target (stage_settings.cpp): measured at the N given. Elsewhere not needed.
+    if (chosen && mean_predicted_error(*chosen) == 0) {
+      const int reference_index = settings.reference_frame;
+      report.grid_floor = reference_floor(frames, *frames.maps.frame(reference_index), reference_index, settings.grid).rms;
+    }
+    return settings.grid;
+  }
   const SelectionSamples& selection = frames.selection;
   const auto count = static_cast<int>(frames.frames.size());
   // Refused before anything is measured where the samples the noise reads are gone.
@@ -132,14 +153,10 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   if (report.radial_equalising == 0 && !settings.density_equalising) {
     input.vertex_disk_area = quartile_vertex_disk_area(reference->map.disk, reference->map.surface.faces);
   }
-  input.floor = [&](int n) {
-    const DiskGrid grid = make_disk_grid(n);
-    const std::vector<Vec3> sampled = frames.sampler.sample_surface(*reference, reference_index, grid.nodes);
-    const SurfaceDistance floor = surface_distance(reference->map.surface, grid_mesh(grid, sampled));
-    return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
-  };
+  input.floor = [&](int n) { return reference_floor(frames, *reference, reference_index, n); };
   const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
+  report.grid_floor = choice.floors.back().second;  // the last tried is the one chosen
   report.grid_floors = std::move(choice.floors);
   report.grid_floor_p99s = std::move(choice.floor_p99s);
   report.grid_density_cap = choice.density_cap;

@@ -58,6 +58,13 @@ struct IndexLayout {
 IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries, const FileHeader& h,
                           const std::vector<PlacedChunk>& chunks);
 
+// Where a keyframe's field bytes go: each of its 14 arrays' bits (spec/container.md §7.1's order)
+// under the prediction the group writer chooses for it (from nothing, or from `previous`'s codes
+// where that costs less in all), each counted with fresh models by the range coder's own cost. An
+// estimate of the array's share of the stream: the stream's models carry over from array to array
+// where they are shared (b from a, ...) and from keyframe to keyframe. fminfo --field-bytes prints it.
+std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid);
+
 // A group's payload from its keyframes first, first + 1, … given in order (their fields and hole
 // levels only: times and poses are the index's), one at a time: what is kept between them is the
 // previous keyframe's codes and the range coder's state. `coding` and `grid` outlive the writer;

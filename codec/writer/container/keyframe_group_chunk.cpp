@@ -85,6 +85,16 @@ Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, con
 
 }  // namespace
 
+std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid) {
+  const std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
+  std::vector<std::vector<int32_t>> before;
+  if (previous) before = field_codes(*previous, coding);
+  const Prediction prediction = choose_prediction(codes, previous ? &before : nullptr, grid);
+  std::vector<double> bits;
+  for (const CodedArray& a : prediction.arrays) bits.push_back(a.residuals.empty() ? 0.0 : a.bits);
+  return bits;
+}
+
 struct KeyframeGroupWriter::State {
   const FieldCoding& coding;
   const GridFacts& grid;
