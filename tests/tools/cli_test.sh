@@ -44,6 +44,11 @@ kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sy
 a_bytes=$("$tools/fminfo" "$work/a.fmv" --json | kgop)
 [[ $("$tools/fminfo" "$work/kept.fmv" --json | kgop) == "$a_bytes" ]] || fail "re-coding at auto changed the fields' bytes"
 (( $("$tools/fminfo" "$work/coarser.fmv" --json | kgop) < a_bytes )) || fail "re-coding at 0.3% did not round the fields again"
+# A 16-bit file states its steps too (a 65535th of each array's range): auto keeps them.
+"$tools/fmenc" "$work/a.fmv" -o "$work/a16.fmv" --field-error 0 --quiet || fail "fmenc re-coding a file at 16 bits"
+"$tools/fmenc" "$work/a16.fmv" -o "$work/a16-kept.fmv" --quiet || fail "fmenc re-coding a 16-bit file"
+[[ $("$tools/fminfo" "$work/a16-kept.fmv" --json | kgop) == $("$tools/fminfo" "$work/a16.fmv" --json | kgop) ]] ||
+  fail "re-coding a 16-bit file at auto changed its fields' bytes"
 "$tools/fminfo" "$work/a.fmv" --json --field-bytes | python3 -c "import json,sys
 d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP')
 parts = {g['arrays']: g['bytes'] for g in d['field_bytes_by_array']}
