@@ -65,6 +65,9 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   const bool keep = options.auto_field_error;
   if (keep) {
     metadata.field_coding = info.metadata.field_coding;
+    // A given --intra-period regroups the same codes (how they are predicted, not how they are
+    // rounded): honoured, as before the steps were kept; auto keeps the file's groups.
+    if (options.field_precision.intra_period != kAutoIntraPeriod) metadata.field_coding.intra_period = options.field_precision.intra_period;
   } else if (options.predicted_fields) {
     metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
   }

@@ -44,6 +44,14 @@ kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sy
 a_bytes=$("$tools/fminfo" "$work/a.fmv" --json | kgop)
 [[ $("$tools/fminfo" "$work/kept.fmv" --json | kgop) == "$a_bytes" ]] || fail "re-coding at auto changed the fields' bytes"
 (( $("$tools/fminfo" "$work/coarser.fmv" --json | kgop) < a_bytes )) || fail "re-coding at 0.3% did not round the fields again"
+# Kept steps, regrouped: a given --intra-period is honoured (each keyframe its own group), auto
+# keeps the file's groups.
+groups() { python3 -c "import json,sys; d=json.load(sys.stdin); print(len(d['field_groups']), len(d['keyframes']))"; }
+"$tools/fmenc" "$work/a.fmv" -o "$work/regrouped.fmv" --intra-period 1 --quiet || fail "fmenc re-coding a file with --intra-period 1"
+read -r regrouped keyframes < <("$tools/fminfo" "$work/regrouped.fmv" --json | groups)
+((regrouped == keyframes && keyframes > 1)) || fail "re-coding at auto with --intra-period 1 left $regrouped groups for $keyframes keyframes"
+[[ $("$tools/fminfo" "$work/kept.fmv" --json | groups) == $("$tools/fminfo" "$work/a.fmv" --json | groups) ]] ||
+  fail "re-coding at auto did not keep the file's groups"
 # A 16-bit file states its steps too (a 65535th of each array's range): auto keeps them.
 "$tools/fmenc" "$work/a.fmv" -o "$work/a16.fmv" --field-error 0 --quiet || fail "fmenc re-coding a file at 16 bits"
 "$tools/fmenc" "$work/a16.fmv" -o "$work/a16-kept.fmv" --quiet || fail "fmenc re-coding a 16-bit file"
