@@ -42,7 +42,8 @@ int parse_intra_period(const std::string& text) {
 
 // Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
 // again from a given --field-error (from the file's values, so never finer than what it held), or
-// with auto kept as the file states it (0.01% on a 16-bit file, which states no steps); textures
+// with auto kept as the file states them (a 16-bit file's too: its header states the 65535ths of
+// each array's range the writer took, spec/container.md §5); textures
 // re-encoded at `quality` (auto: the fallback quality, as there are no frames between keyframes to
 // measure the blend against).
 void recode(const std::filesystem::path& input, const std::filesystem::path& output, const EncodeOptions& options, int quality,
@@ -57,13 +58,16 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   metadata.texture_coding = texture_coding;
   metadata.field_coding = {};
   FieldPrecisionReport precision;
-  // --field-error auto on a file whose fields are rounded already (it states their steps) keeps
-  // them: its values are whole multiples of those steps, so the codes and bytes stay, where rounding
+  // --field-error auto keeps the file's steps (every file states them, a 16-bit file its 65535ths):
+  // its values are whole multiples of those steps, so the codes and bytes stay, where rounding
   // them again (0.01%, as a file holds nothing to measure a floor on) added bytes and error: one ICT
-  // frame, +43% at 0.01%, +21% at its own target (spec/method.md §5.3). A 16-bit file is rounded.
-  const bool keep = options.auto_field_error && info.metadata.field_coding.predicted();
+  // frame, +43% at 0.01%, +21% at its own target (spec/method.md §5.3).
+  const bool keep = options.auto_field_error;
   if (keep) {
     metadata.field_coding = info.metadata.field_coding;
+    // A given --intra-period regroups the same codes (how they are predicted, not how they are
+    // rounded): honoured, as before the steps were kept; auto keeps the file's groups.
+    if (options.field_precision.intra_period != kAutoIntraPeriod) metadata.field_coding.intra_period = options.field_precision.intra_period;
   } else if (options.predicted_fields) {
     metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
   }

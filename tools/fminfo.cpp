@@ -20,6 +20,7 @@
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 
 namespace {
 
@@ -252,30 +253,30 @@ int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
 // Where the fields' bytes go (--field-bytes): the arrays of spec/container.md §7.1 in groups (the band's
 // and the rim's three components, the positions' three, together), summed over the keyframes, each
 // keyframe predicted as the writer predicts it (file_layout::keyframe_array_bits: fresh models, so
-// the sum is an estimate of the KGOP chunks' bytes, not a division of them). Every keyframe is read
-// into memory at once: a measure for the encoder's work, not the player's bounded check --verify is.
+// the sum is an estimate of the KGOP chunks' bytes, not a division of them). The keyframes are
+// decoded one at a time as --verify decodes them (inspect_sequence_file, within the limits' budget),
+// and only the one before is kept: memory does not grow with the file, and a file too long to be
+// decoded whole (the encoder's whole-ICT file, 723 MiB) is measured at the default budget.
 struct ArrayGroup {
   const char* name;
   size_t first, end;  // arrays [first, end)
   double bytes = 0;
   size_t values = 0;
 };
-std::vector<ArrayGroup> field_bytes_by_group(const fs::path& path, const DecoderLimits& limits) {
+// `coding`: the file's (its header's, as describe_sequence_file reads it); `grid_n`: its N.
+std::vector<ArrayGroup> field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, const DecoderLimits& limits) {
   std::vector<ArrayGroup> groups = {{"H", 0, 1},    {"log lambda", 1, 2}, {"a", 2, 3},   {"b", 3, 4},
                                     {"band", 4, 7}, {"positions", 7, 10}, {"rim", 10, 13}, {"hole level", 13, 14}};
-  SequenceFileInfo info;
-  const Sequence sequence = read_sequence_file(path, &info, limits);
-  const FieldCoding& coding = info.metadata.field_coding;
-  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(sequence.grid_n);
-  const size_t period = static_cast<size_t>(std::max(1, coding.intra_period));
-  for (size_t k = 0; k < sequence.keyframes.size(); ++k) {
-    const Keyframe* previous = k % period == 0 ? nullptr : &sequence.keyframes[k - 1];
-    const std::vector<double> bits = file_layout::keyframe_array_bits(sequence.keyframes[k], previous, coding, *grid);
-    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(sequence.keyframes[k]);
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(grid_n);
+  std::optional<Keyframe> previous;
+  inspect_sequence_file(path, limits, [&](size_t k, const Keyframe& key) {
+    const std::vector<double> bits = file_layout::keyframe_array_bits(key, coding.intra(k) ? nullptr : &*previous, coding, *grid);
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
     for (ArrayGroup& g : groups) {
       for (size_t a = g.first; a < g.end; ++a) g.bytes += bits[a] / 8, g.values += arrays[a].size();
     }
-  }
+    previous = key;
+  });
   return groups;
 }
 
@@ -298,6 +299,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   // Settings fminfo will not walk are left out (null in --json), said on stderr: the rest of the
   // description stands, as the settings are informative.
   const Settings settings = read_settings(info.metadata.settings);
+  const std::vector<ArrayGroup> array_groups =
+      field_bytes ? field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), limits) : std::vector<ArrayGroup>{};
   if (!settings.problem.empty()) {
     std::fprintf(stderr, "fminfo: warning: %s: the settings are %s; left out\n", path.string().c_str(), settings.problem.c_str());
   }
@@ -344,7 +347,7 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
     doc["field_groups"] = std::move(groups);
     if (field_bytes) {
       nlohmann::json arrays = nlohmann::json::array();
-      for (const ArrayGroup& g : field_bytes_by_group(path, limits))
+      for (const ArrayGroup& g : array_groups)
         arrays.push_back({{"arrays", g.name}, {"bytes", g.bytes}, {"values", g.values}});
       doc["field_bytes_by_array"] = std::move(arrays);  // estimated: the writer's cost with fresh models
     }
@@ -403,11 +406,10 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   }
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (field_bytes) {
-    const std::vector<ArrayGroup> groups = field_bytes_by_group(path, limits);
     double sum = 0;
-    for (const ArrayGroup& g : groups) sum += g.bytes;
+    for (const ArrayGroup& g : array_groups) sum += g.bytes;
     std::printf("fields by array (the writer's prediction, fresh models: ~%.0f B in all)\n", sum);
-    for (const ArrayGroup& g : groups) {
+    for (const ArrayGroup& g : array_groups) {
       if (g.values == 0) continue;
       std::printf("  %-11s %9.0f B  %5.1f%%  %6.3f bits a value (%zu values)\n", g.name, g.bytes, 100 * g.bytes / sum,
                   8 * g.bytes / static_cast<double>(g.values), g.values);
@@ -465,7 +467,7 @@ int main(int argc, char** argv) {
                "fields' bytes");
   app.add_flag("--field-bytes", field_bytes,
                "For a .fmv file: where the fields' bytes go, array by array (H, log lambda, a, b, band, positions, rim, hole level; "
-               "the writer's own cost estimate); reads every keyframe into memory");
+               "the writer's own cost estimate); decodes every keyframe once, one at a time, as --verify does");
   app.add_flag("-q,--quiet", quiet, "No progress display");
   DecoderLimits limits;
   std::string max_memory;

@@ -44,11 +44,39 @@ kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sy
 a_bytes=$("$tools/fminfo" "$work/a.fmv" --json | kgop)
 [[ $("$tools/fminfo" "$work/kept.fmv" --json | kgop) == "$a_bytes" ]] || fail "re-coding at auto changed the fields' bytes"
 (( $("$tools/fminfo" "$work/coarser.fmv" --json | kgop) < a_bytes )) || fail "re-coding at 0.3% did not round the fields again"
+# Kept steps, regrouped: a given --intra-period is honoured (each keyframe its own group), auto
+# keeps the file's groups.
+groups() { python3 -c "import json,sys; d=json.load(sys.stdin); print(len(d['field_groups']), len(d['keyframes']))"; }
+"$tools/fmenc" "$work/a.fmv" -o "$work/regrouped.fmv" --intra-period 1 --quiet || fail "fmenc re-coding a file with --intra-period 1"
+read -r regrouped keyframes < <("$tools/fminfo" "$work/regrouped.fmv" --json | groups)
+((regrouped == keyframes && keyframes > 1)) || fail "re-coding at auto with --intra-period 1 left $regrouped groups for $keyframes keyframes"
+[[ $("$tools/fminfo" "$work/kept.fmv" --json | groups) == $("$tools/fminfo" "$work/a.fmv" --json | groups) ]] ||
+  fail "re-coding at auto did not keep the file's groups"
+# A 16-bit file states its steps too (a 65535th of each array's range): auto keeps them.
+"$tools/fmenc" "$work/a.fmv" -o "$work/a16.fmv" --field-error 0 --quiet || fail "fmenc re-coding a file at 16 bits"
+"$tools/fmenc" "$work/a16.fmv" -o "$work/a16-kept.fmv" --quiet || fail "fmenc re-coding a 16-bit file"
+[[ $("$tools/fminfo" "$work/a16-kept.fmv" --json | kgop) == $("$tools/fminfo" "$work/a16.fmv" --json | kgop) ]] ||
+  fail "re-coding a 16-bit file at auto changed its fields' bytes"
 "$tools/fminfo" "$work/a.fmv" --json --field-bytes | python3 -c "import json,sys
 d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP')
 parts = {g['arrays']: g['bytes'] for g in d['field_bytes_by_array']}
 assert parts['H'] > 0 and parts['log lambda'] > 0 and parts['positions'] == 0, parts
 assert abs(sum(parts.values()) / kgop - 1) < 0.1, (sum(parts.values()), kgop)" || fail "fminfo --field-bytes does not add up to the KGOP chunks"
+# Each group holds its arrays' values (H, log lambda, a, b: one a node of G's interior; the band
+# three a fixed node; the rim three a rim node), and a keyframe is costed from the one before only
+# inside a group: the same codes, each keyframe its own group (regrouped.fmv, above), cost more.
+"$tools/fminfo" "$work/a.fmv" --json --field-bytes >"$work/bytes.json" && "$tools/fminfo" "$work/regrouped.fmv" --json --field-bytes >"$work/bytes1.json" &&
+  python3 -c "import json,sys
+d, one = (json.load(open(p)) for p in sys.argv[1:3])
+g, k = d['grid'], len(d['keyframes'])
+values = {a['arrays']: a['values'] for a in d['field_bytes_by_array']}
+interior = k * (g['nodes'] - g['rim_nodes'])
+assert values == {'H': interior, 'log lambda': interior, 'a': interior, 'b': interior, 'band': 3 * k * g['fixed_nodes'],
+                  'positions': 0, 'rim': 3 * k * g['rim_nodes'], 'hole level': 0}, values
+total = lambda doc: sum(a['bytes'] for a in doc['field_bytes_by_array'])
+assert len(one['field_groups']) == k > 1 and len(d['field_groups']) < k, (d['field_groups'], one['field_groups'])
+assert total(one) > 1.05 * total(d), (total(one), total(d))" "$work/bytes.json" "$work/bytes1.json" ||
+  fail "fminfo --field-bytes: its arrays' values, or its keyframes' prediction within a group, are not the file's"
 # Segments (spec/part-file.md §7): measured, assembled and joined by fmcat into a file fminfo takes;
 # what a user gets wrong is refused by name, and a refused join writes nothing.
 seg=(--grid 33 --texture 64 --keyframes 30% --intra-period 1 --quiet)

@@ -2,13 +2,14 @@
 # Hostile.ToolsHoldTheirLimitsOnEveryFile (issue 46): our own hostile set (hostile_corpus: one file
 # per row of the outside review's table and more, every checksum valid) through the tools at their
 # default limits: `fminfo FILE` (header, index and checksums), `fminfo --verify --json FILE` (every
-# keyframe decoded) and fmdec at each of the manifest's times (the first written to a mesh, the
+# keyframe decoded), `fminfo --field-bytes --json FILE` (every keyframe decoded and coded as the
+# writer would) and fmdec at each of the manifest's times (the first written to a mesh, the
 # others to --null; the last near the end of the range). Every run must exit 0 with finite output
 # (JSON that parses, a mesh without nan or inf), or non-zero with an error on stderr naming the file
 # (and, for a file the manifest says is refused, saying what it says in every run that decodes:
 # plain fminfo decodes nothing, so it may describe a file whose keyframes are at fault); never by a
 # signal or a timeout; within MAX_SECONDS of CPU time (3; fminfo --verify, which decodes every
-# keyframe, 3 s and 0.5 s a MB of the file) and MAX_MB (256 MiB of peak resident memory,
+# keyframe, 3 s and 0.5 s a MB of the file; --field-bytes 3 s and 3.5 s a MB) and MAX_MB (256 MiB of peak resident memory,
 # /usr/bin/time's "Maximum resident set size": the review's bound, which the default budget of
 # 256 MiB keeps with the process's own ~10 MiB, its estimate being above what is held: the largest
 # grid it admits, N = 400, peaks at 219 MiB). Prints a table of every run and the worst time and
@@ -34,11 +35,13 @@ while IFS=$'\t' read -r name times what refused; do
   file=$files/$name
   [[ -f $file ]] || { fail "$name: listed in the manifest, not written"; continue; }
   bounded_run "$file" fminfo "$fminfo" "$file"
-  if bounded_run "$file" "fminfo --verify --json" "$fminfo" --verify --json "$file"; then
-    python3 -c 'import json, sys
+  for run in --verify --field-bytes; do
+    if bounded_run "$file" "fminfo $run --json" "$fminfo" $run --json "$file"; then
+      python3 -c 'import json, sys
 def finite(text): raise ValueError(text + " in the JSON")
-json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_err" || fail "$name: fminfo --verify --json: not JSON: $(tail -1 "$work/json_err")"
-  fi
+json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_err" || fail "$name: fminfo $run --json: not JSON: $(tail -1 "$work/json_err")"
+    fi
+  done
   first=1
   for t in ${times//,/ }; do
     if ((first)); then
@@ -66,6 +69,6 @@ json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_e
   fi
 done <"$files/manifest.tsv"
 
-report_runs "fminfo" "fminfo --verify --json" "fmdec"
+report_runs "fminfo" "fminfo --verify --json" "fminfo --field-bytes --json" "fmdec"
 ((failures == 0)) || { echo "$failures failures"; exit 1; }
 echo "every run within $max_seconds s and $max_mb MB, refused by name or finite"

@@ -120,8 +120,9 @@ class OpenedFile {
   // reads no texture payload (what opening a file costs: the header and index).
   SequenceFileInfo describe(bool split_texture_groups = true) const;
   // Decodes every keyframe's fields and texture once, one at a time, and verifies every checksum:
-  // throws what the first fault throws. `info`: describe() with every keyframe's field bytes.
-  void check_every_keyframe(SequenceFileInfo* info) const;
+  // throws what the first fault throws. `info`: describe() with every keyframe's field bytes;
+  // `each`: given every keyframe (its texture left empty) as it is decoded, in order.
+  void check_every_keyframe(SequenceFileInfo* info, const std::function<void(size_t, const Keyframe&)>& each = {}) const;
   // The header and index as read and checked, and the chunks: for a tool that copies chunks from
   // file to file without decoding them (the segment joiner).
   const file_layout::FileHeader& header() const;

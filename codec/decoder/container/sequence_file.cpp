@@ -442,9 +442,12 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   return info;
 }
 
-void OpenedFile::check_every_keyframe(SequenceFileInfo* info) const {
+void OpenedFile::check_every_keyframe(SequenceFileInfo* info, const std::function<void(size_t, const Keyframe&)>& each) const {
   std::vector<uint64_t> field_bytes(keyframe_count());
-  decode_every_keyframe([&](size_t k, Keyframe&&, uint64_t bytes) { field_bytes[k] = bytes; });
+  decode_every_keyframe([&](size_t k, Keyframe&& key, uint64_t bytes) {
+    field_bytes[k] = bytes;
+    if (each) each(k, key);
+  });
   if (has_texture()) decode_every_texture([](size_t, Image&&) {});
   verify_checksums();  // chunks no keyframe refers to too
   if (info) {
@@ -488,13 +491,18 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
 }
 
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
+  return inspect_sequence_file(path, limits, {});
+}
+
+SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits,
+                                       const std::function<void(size_t, const Keyframe&)>& each) {
   check_decoder_limits(limits);
   format::MappedFile mapped(path);
   // One keyframe at a time: what a decoder on demand holds for the frame's keyframes, no more.
   const OpenedFile file(mapped.bytes(), path.string(), limits,
                         [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
   SequenceFileInfo info;
-  file.check_every_keyframe(&info);
+  file.check_every_keyframe(&info, each);
   return info;
 }
 

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -55,6 +56,10 @@ std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<co
 // a time). Returns the file's description with every keyframe's bytes (fminfo). Throws as
 // decode_sequence_file.
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
+// The same, handing `each` every keyframe (its texture left empty) as it is decoded, in order: what
+// a caller keeps of them is its own (fminfo --field-bytes keeps the one before).
+SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits,
+                                       const std::function<void(size_t, const Keyframe&)>& each);
 // Describes a file from what opening it reads (header and index, checked as §10.2 steps 1-5) and
 // verifies every chunk's checksum; decodes no keyframe. Each keyframe's fields bytes are 0 (a
 // group's are in field_groups); a texture group's are divided among its frames. Its cost is
