@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <random>
 
 namespace facemorph {
 namespace {
@@ -87,7 +88,67 @@ TEST(PatchFit, ABumpTheBlendMissesIsPatchedAndDecodesAsFitted) {
     EXPECT_EQ(exact, surface_distance(captured, shown_mesh(grid, patched_positions(grid, shown, scaled), shown.hole_level)).p99);
     EXPECT_GE(measure.approximate(scaled), exact) << "scale " << scale;
     EXPECT_LE(measure.approximate(scaled), 1.5 * exact) << "scale " << scale;  // and near it
+    // exact() searches only what the patch moved, and so does a measure made from the distances
+    // another kept (the fit's pinning rounds): the same p99 to the bit.
+    EXPECT_EQ(PatchMeasure(grid, shown, captured, before, measure.distances()).exact(scaled), exact) << "scale " << scale;
+    // The second round's samples, from searches of what the patch moved: those of a measure of the
+    // patched mesh in full, in the same order, to the bit.
+    const TriangleMesh moved = measure.patched(scaled);
+    const ShownFrame moved_shown{patched_positions(grid, shown, scaled), shown.hole_level, shown.pose};
+    const std::vector<OffsetSample> full = PatchMeasure(grid, moved_shown, captured, moved).samples(), part = measure.samples_of(moved);
+    ASSERT_EQ(part.size(), full.size()) << "scale " << scale;
+    size_t differ = 0;
+    for (size_t i = 0; i < full.size(); ++i) differ += part[i].w != full[i].w || part[i].offset != full[i].offset;
+    EXPECT_EQ(differ, 0u) << "scale " << scale;
   }
+}
+
+// A pinning round measures again only the frames beside its new pins: exactly those whose patches
+// interpolated in t change (frame_patch_displacements before and after the pins went in).
+TEST(PatchFit, APinningRoundMeasuresAgainExactlyTheFramesItsPinsChange) {
+  const std::vector<double> key_times = {0.0, 1.0, 2.0};
+  const std::vector<Vec2> disk = {Vec2(0.1, -0.2), Vec2(-0.5, 0.3), Vec2(0.7, 0.6)};
+  std::vector<double> times;
+  for (int i = 1; i < 40; ++i) times.push_back(i * 0.05);  // frames in both intervals, keyframe 1.0 among them
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(-1, 1);
+  const auto patch_at = [&](double t) {
+    FramePatch p{.time = t, .lattice = 3, .nodes = {0, 4, 8}, .displacements = {}};
+    for (int n = 0; n < 3; ++n) p.displacements.push_back(Vec3(unit(rng), unit(rng), unit(rng)));
+    return p;
+  };
+  const auto insert = [](std::vector<FramePatch>& patches, const FramePatch& p) {
+    patches.insert(std::upper_bound(patches.begin(), patches.end(), p.time, [](double t, const FramePatch& f) { return t < f.time; }), p);
+  };
+  size_t beside_total = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    std::vector<FramePatch> patches;
+    std::vector<double> free_times = times;
+    std::shuffle(free_times.begin(), free_times.end(), rng);
+    const int fitted = 1 + trial % 5, pinned = 1 + trial % 3;
+    for (int i = 0; i < fitted; ++i) insert(patches, patch_at(free_times[static_cast<size_t>(i)]));
+    const std::vector<FramePatch> before = patches;
+    std::vector<double> pins;
+    for (int i = 0; i < pinned; ++i) {
+      const double t = free_times[static_cast<size_t>(fitted + i)];
+      insert(patches, FramePatch{.time = t, .lattice = 3, .nodes = {}, .displacements = {}});
+      pins.push_back(t);
+    }
+    const std::vector<char> beside = frames_beside_pins(key_times, patches, pins, times);
+    ASSERT_EQ(beside.size(), times.size());
+    for (size_t i = 0; i < times.size(); ++i) {
+      if (std::any_of(patches.begin(), patches.end(), [&](const FramePatch& p) { return p.time == times[i]; })) {
+        EXPECT_EQ(beside[i], 0) << "a frame holding a patch";  // its own patch shows there, pinned or fitted
+        continue;
+      }
+      const std::vector<Vec3> was = frame_patch_displacements(key_times, before, times[i], disk);
+      const std::vector<Vec3> is = frame_patch_displacements(key_times, patches, times[i], disk);
+      const bool changed = was.empty() != is.empty() || (!is.empty() && (was[0] != is[0] || was[1] != is[1] || was[2] != is[2]));
+      EXPECT_EQ(beside[i] != 0, changed) << "trial " << trial << ", frame at " << times[i];
+      beside_total += beside[i] != 0;
+    }
+  }
+  EXPECT_GT(beside_total, 0u);
 }
 
 // Fast speech at 2k vertices, few keyframes: frames between them whose lips the blend misses.

@@ -127,7 +127,7 @@ FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double thresh
   const Eigen::Matrix3d to_face = shown.pose.rotation.transpose();
   for (const Vec3& d : total) trial.displacements.push_back(to_face * d);
   const TriangleMesh moved = measure.patched(trial);
-  const std::vector<OffsetSample> second = offset_samples(moved, measure.captured(), PointToMesh(moved), measure.to_captured());
+  const std::vector<OffsetSample> second = measure.samples_of(moved);
   const std::vector<Vec3> more = solve_displacements(second, index, unknowns, lattice, options.smoothing);
   for (int p = 0; p < unknowns; ++p) {
     const Vec3 code = (to_face * (total[static_cast<size_t>(p)] + more[static_cast<size_t>(p)]) / step).array().round();
@@ -278,6 +278,28 @@ struct HeldFrame {
 
 }  // namespace
 
+std::vector<char> frames_beside_pins(const std::vector<double>& key_times, const std::vector<FramePatch>& patches,
+                                     const std::vector<double>& pins, const std::vector<double>& times) {
+  std::vector<char> beside(times.size(), 0);
+  const auto before = [](const FramePatch& f, double t) { return f.time < t; };
+  const auto after = [](double t, const FramePatch& f) { return t < f.time; };
+  for (size_t i = 0; i < times.size(); ++i) {
+    const int interval = residual_interval(key_times, times[i]);
+    const auto at = std::lower_bound(patches.begin(), patches.end(), times[i], before);
+    if (interval < 0 || (at != patches.end() && at->time == times[i])) continue;  // a keyframe's, or holds a patch
+    for (const double pin : pins) {
+      if (residual_interval(key_times, pin) != interval) continue;
+      // No patch strictly between the frame and the pin: the pin is its neighbour on that side.
+      const double lo = std::min(pin, times[i]), hi = std::max(pin, times[i]);
+      if (std::upper_bound(patches.begin(), patches.end(), lo, after) == std::lower_bound(patches.begin(), patches.end(), hi, before)) {
+        beside[i] = 1;
+        break;
+      }
+    }
+  }
+  return beside;
+}
+
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
                                           PatchFitReport* report_out, int threads, size_t kept_frames_memory) {
   const auto start = std::chrono::steady_clock::now();
@@ -309,6 +331,20 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
     if (report_out) *report_out = report;
     return {};
   }
+  // The captured frames' diagonals first: the rounding step is the smallest one's, set before any
+  // fit. And the vertices their faces use, which the kept distances take.
+  std::vector<size_t> anchors(held.size());
+  parallel_for(static_cast<int>(held.size()), threads, [&](int i) {
+    const TriangleMesh captured = read_frame(held[static_cast<size_t>(i)].frame);
+    held[static_cast<size_t>(i)].diagonal = bounding_box_diagonal(captured.positions);
+    std::vector<char> used(captured.positions.size(), 0);
+    for (const Face& f : captured.faces)
+      for (const int32_t v : f) used[static_cast<size_t>(v)] = 1;
+    anchors[static_cast<size_t>(i)] = static_cast<size_t>(std::count(used.begin(), used.end(), 1));
+  });
+  double smallest = held.front().diagonal;
+  for (const HeldFrame& f : held) smallest = std::min(smallest, f.diagonal);
+  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * bound * smallest)));
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
   DecoderTeam team(source, threads, held.size());
   const DiskGrid& grid = team.first().geometry().grid();
@@ -317,61 +353,50 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
     DecodedFrame f = decoder.decode(t, options);
     return ShownFrame{std::move(f.grid_positions), std::move(f.hole_level), f.pose};
   };
-  // Each frame is decoded once and kept for the passes below where the frames fit in
-  // kept_frames_memory; past it, each pass decodes the frames it measures again (the same frames:
-  // each a function of t alone).
-  const bool keep = held.size() * grid.nodes.size() * (sizeof(Vec3) + sizeof(double)) <= kept_frames_memory;
-  std::vector<ShownFrame> kept(keep ? held.size() : 0);
+  // Each frame is decoded and measured once, and kept with its distances (UnpatchedDistances) for
+  // the pinning rounds where they fit in kept_frames_memory; past it, each round decodes and
+  // measures the frames it measures again (the same frames: each a function of t alone).
+  size_t kept_bytes = 0;
+  for (const size_t a : anchors)
+    kept_bytes += grid.nodes.size() * (sizeof(Vec3) + 2 * sizeof(double)) + a * (sizeof(int32_t) + sizeof(double));
+  const bool keep = kept_bytes <= kept_frames_memory;
+  struct KeptFrame {
+    ShownFrame shown;
+    UnpatchedDistances distances;
+  };
+  std::vector<KeptFrame> kept(keep ? held.size() : 0);
+  // Pass 1, as each frame is measured: a patch for each frame over the bound.
+  std::vector<PatchFit> fits(held.size());
   team.for_each(held.size(), [&](SequenceDecoder& decoder, size_t h) {
     ShownFrame shown = show(decoder, held[h].time);
-    const SurfaceDistance d = surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level));
-    held[h].diagonal = d.diagonal;
-    held[h].p99 = d.p99 / d.diagonal;
-    if (keep) kept[h] = std::move(shown);
-  });
-  // body(h, frame h as shown) for each of `items` on the fit's threads.
-  const auto for_each_shown = [&](const std::vector<size_t>& items, const std::function<void(size_t, const ShownFrame&)>& body) {
-    if (keep) {
-      parallel_for(static_cast<int>(items.size()), threads, [&](int i) { body(items[static_cast<size_t>(i)], kept[items[static_cast<size_t>(i)]]); });
-    } else {
-      team.for_each(items.size(), [&](SequenceDecoder& decoder, size_t i) { body(items[i], show(decoder, held[items[i]].time)); });
-    }
-  };
-  double smallest = held.front().diagonal;
-  for (const HeldFrame& f : held) {
-    smallest = std::min(smallest, f.diagonal);
-    report.worst_before = std::max(report.worst_before, f.p99);
-  }
-  const double step = std::exp2(std::floor(std::log2(kPatchStepShare * bound * smallest)));
-  // Pass 1: a patch for each frame over the bound.
-  std::vector<size_t> over;
-  for (size_t h = 0; h < held.size(); ++h)
-    if (held[h].p99 > bound) over.push_back(h);
-  report.frames_over = static_cast<int>(over.size());
-  std::vector<PatchFit> fits(held.size());
-  for_each_shown(over, [&](size_t h, const ShownFrame& shown) {
     const TriangleMesh captured = read_frame(held[h].frame);
     const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
     const PatchMeasure measure(grid, shown, captured, before);
-    PatchFit& best = fits[h];
-    best.p99_after = held[h].p99;
-    // The coarse step first; a frame it cannot bring under the bound tries finer ones (a power of two
-    // apart: the chunk then codes every patch in the finest, whose codes take the same bytes).
-    for (int finer = 0; finer < kPatchFinerSteps && best.p99_after > kPatchBoundMargin * bound; ++finer) {
-      for (const int lattice : kPatchLattices) {
-        PatchFit fit =
-            fit_measured(measure, held[h].time, {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
-        if (!fit.patch.nodes.empty() && fit.p99_after < best.p99_after) best = std::move(fit);
-        if (best.p99_after <= kPatchBoundMargin * bound) break;
+    held[h].p99 = measure.p99_before() / held[h].diagonal;
+    if (held[h].p99 > bound) {
+      PatchFit& best = fits[h];
+      best.p99_after = held[h].p99;
+      // The coarse step first; a frame it cannot bring under the bound tries finer ones (a power of
+      // two apart: the chunk then codes every patch in the finest, whose codes take the same bytes).
+      for (int finer = 0; finer < kPatchFinerSteps && best.p99_after > kPatchBoundMargin * bound; ++finer) {
+        for (const int lattice : kPatchLattices) {
+          PatchFit fit = fit_measured(measure, held[h].time,
+                                      {.lattice = lattice, .bound = kPatchBoundMargin * bound, .step_units = std::ldexp(step, -finer)});
+          if (!fit.patch.nodes.empty() && fit.p99_after < best.p99_after) best = std::move(fit);
+          if (best.p99_after <= kPatchBoundMargin * bound) break;
+        }
       }
     }
+    if (keep) kept[h] = {std::move(shown), measure.distances()};
   });
+  for (const HeldFrame& f : held) report.worst_before = std::max(report.worst_before, f.p99);
   std::vector<FramePatch> patches;
   std::vector<double> after(held.size());
   std::vector<char> patched(held.size(), 0);
   for (size_t h = 0; h < held.size(); ++h) {
     after[h] = held[h].p99;
     if (held[h].p99 <= bound) continue;
+    ++report.frames_over;
     if (fits[h].patch.nodes.empty()) {
       ++report.frames_unmet;
       continue;
@@ -383,37 +408,61 @@ std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence
     patched[h] = 1;
     patches.push_back(std::move(fits[h].patch));
   }
+  // frame h's p99 with the patches interpolated in t (PatchMeasure::exact: only what they move is
+  // searched again).
+  const auto p99_with_patches = [&](size_t h, const ShownFrame& shown, const UnpatchedDistances* distances) {
+    const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
+    if (d.empty()) return held[h].p99;
+    std::vector<Vec3> positions = shown.positions;
+    for (size_t n = 0; n < d.size(); ++n) positions[n] += shown.pose.rotation * d[n];
+    const TriangleMesh captured = read_frame(held[h].frame);
+    const TriangleMesh before = shown_mesh(grid, shown.positions, shown.hole_level);
+    const double p99 = distances ? PatchMeasure(grid, shown, captured, before, *distances).exact_at(positions)
+                                 : PatchMeasure(grid, shown, captured, before).exact_at(positions);
+    return p99 / held[h].diagonal;
+  };
   // Pass 2: the frames between, with the patches interpolated in t; those made worse than the bound
   // and than their own p99 are pinned by empty patches (all of a round's at once, so that the result
-  // does not depend on the order the threads measure in), until none is.
+  // does not depend on the order the threads measure in), until none is. A round after the first
+  // measures only the frames beside its new pins (frames_beside_pins): the others' patches are as
+  // the round before measured them.
+  std::vector<double> times(held.size());
+  for (size_t h = 0; h < held.size(); ++h) times[h] = held[h].time;
+  std::vector<char> again(held.size(), 1);
   for (bool pinned = !patches.empty(); pinned;) {
     pinned = false;
     std::vector<size_t> moved;
     for (size_t h = 0; h < held.size(); ++h)
-      if (!patched[h] && residual_interval(key_times, held[h].time) >= 0) moved.push_back(h);
+      if (again[h] && !patched[h] && residual_interval(key_times, held[h].time) >= 0) moved.push_back(h);
     std::vector<char> worse(held.size(), 0);
-    for_each_shown(moved, [&](size_t h, const ShownFrame& plain) {
-      const std::vector<Vec3> d = frame_patch_displacements(key_times, patches, held[h].time, grid.nodes);
-      if (d.empty()) return;
-      ShownFrame shown = plain;
-      for (size_t n = 0; n < d.size(); ++n) shown.positions[n] += shown.pose.rotation * d[n];
-      const double p99 =
-          surface_distance(read_frame(held[h].frame), shown_mesh(grid, shown.positions, shown.hole_level)).p99 / held[h].diagonal;
+    const auto measure_moved = [&](size_t h, const ShownFrame& shown, const UnpatchedDistances* distances) {
+      const double p99 = p99_with_patches(h, shown, distances);
       if (p99 <= bound || p99 <= held[h].p99)
         after[h] = p99;
       else
         worse[h] = 1;
-    });
+    };
+    if (keep) {
+      parallel_for(static_cast<int>(moved.size()), threads, [&](int i) {
+        const KeptFrame& k = kept[moved[static_cast<size_t>(i)]];
+        measure_moved(moved[static_cast<size_t>(i)], k.shown, &k.distances);
+      });
+    } else {
+      team.for_each(moved.size(), [&](SequenceDecoder& decoder, size_t i) { measure_moved(moved[i], show(decoder, held[moved[i]].time), nullptr); });
+    }
+    std::vector<double> pins;
     for (size_t h = 0; h < held.size(); ++h) {
       if (!worse[h]) continue;
       const auto at =
           std::upper_bound(patches.begin(), patches.end(), held[h].time, [](double t, const FramePatch& f) { return t < f.time; });
       patches.insert(at, FramePatch{.time = held[h].time, .lattice = kPatchLattices[0], .nodes = {}, .displacements = {}});
+      pins.push_back(held[h].time);
       after[h] = held[h].p99;
       patched[h] = 1;
       ++report.frames_pinned;
       pinned = true;
     }
+    again = frames_beside_pins(key_times, patches, pins, times);
   }
   for (const FramePatch& p : patches) {
     report.frames_patched += !p.nodes.empty();

@@ -86,11 +86,12 @@ inline constexpr int kPatchFinerSteps = 3;
 // Patches are fitted to this share of the bound, so that the decoder's frame, which may differ from
 // the encoder's within the reconstruction's tolerance, stays under it.
 inline constexpr double kPatchBoundMargin = 0.98;
-// fit_frame_patches decodes each frame between keyframes once and keeps it for its later passes
-// while the frames' nodes (positions and hole levels) take no more than this; a longer capture's
-// frames are decoded again by each pass that measures them (the same patches). As small as
+// fit_frame_patches decodes and measures each frame between keyframes once and keeps it (its nodes,
+// hole levels and distances to its captured mesh: 40 bytes a node, 12 a captured vertex) for the
+// pinning rounds while the frames take no more than this; a longer capture's frames are decoded and
+// measured again by each round that measures them (the same patches). As small as
 // SelectionSamples' cache, so that the encode's memory stays flat in the capture's length
-// (spec/method.md §7.15): 64 MB keeps ~30 frames at N = 257, every frame of the captures measured.
+// (spec/method.md §7.15): 64 MB keeps ~23 frames at N = 257, every frame of the captures measured.
 inline constexpr size_t kShownFramesMemory = size_t{64} << 20;
 
 // The frame patches for `stored` (its keyframes and residual frames as the file holds them, no
@@ -107,6 +108,13 @@ inline constexpr size_t kShownFramesMemory = size_t{64} << 20;
 std::vector<FramePatch> fit_frame_patches(const Capture& capture, StoredSequence& stored, const std::vector<int>& keyframes, double bound,
                                           PatchFitReport* report = nullptr, int threads = 1,
                                           size_t kept_frames_memory = kShownFramesMemory);
+
+// Of the frames at `times` that hold no patch, those whose patches interpolated in t
+// (frame_patch_displacements) the empty patches just inserted at `pins` change: each pin is a new neighbour of the frames of its
+// interval with no other patch of `patches` (sorted by time, the pins among them) between it and
+// them. A pinning round measures these again; the other frames show what the round before measured.
+std::vector<char> frames_beside_pins(const std::vector<double>& key_times, const std::vector<FramePatch>& patches,
+                                     const std::vector<double>& pins, const std::vector<double>& times);
 
 // The bytes a patch takes in a file before compression (its node gaps and rounded displacements as
 // varints), for the step `step_units` (capture units).

@@ -132,7 +132,11 @@ SurfacePoint PointToMesh::closest(const Vec3& p, double* distance) const {
   return point;
 }
 
-SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound) const {
+SurfacePoint PointToMesh::closest_squared(const Vec3& p, double& squared, const std::vector<char>* skip_face, double bound) const {
+  return nearest(p, squared, bound, skip_face);
+}
+
+SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, const std::vector<char>* skip_face) const {
   SurfacePoint point;
   best = std::numeric_limits<double>::infinity();
   if (mesh_.faces.empty()) return point;
@@ -141,29 +145,39 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound) con
   for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((p[k] - origin_[k]) / cell_)), 0, n[k] - 1);
   // Outside the grid the nearest cell is still c; its distance bounds how far shells must go.
   const int max_shell = std::max({nx_, ny_, nz_});
+  const auto visit = [&](int x, int y, int z) {
+    const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
+    for (int i = start_[bucket]; i < start_[bucket + 1]; ++i) {
+      const int face = faces_[static_cast<size_t>(i)];
+      if (skip_face && (*skip_face)[static_cast<size_t>(face)]) continue;
+      const Face& f = mesh_.faces[static_cast<size_t>(face)];
+      const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
+      const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
+      const Vec3& v2 = mesh_.positions[static_cast<size_t>(f[2])];
+      const Vec3 bary = closest_point_barycentric(p, v0, v1, v2);
+      const double squared = (bary[0] * v0 + bary[1] * v1 + bary[2] * v2 - p).squaredNorm();
+      // Buckets are visited out of face order (and share faces): the index breaks ties.
+      if (squared < best || (squared == best && face < point.face)) {
+        best = squared;
+        point = {face, bary};
+      }
+    }
+  };
   for (int shell = 0; shell <= max_shell; ++shell) {
-    for (int z = c[2] - shell; z <= c[2] + shell; ++z) {
-      if (z < 0 || z >= nz_) continue;
-      for (int y = c[1] - shell; y <= c[1] + shell; ++y) {
-        if (y < 0 || y >= ny_) continue;
-        for (int x = c[0] - shell; x <= c[0] + shell; ++x) {
-          if (x < 0 || x >= nx_) continue;
-          if (std::max({std::abs(x - c[0]), std::abs(y - c[1]), std::abs(z - c[2])}) != shell) continue;  // this shell only
-          const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
-          for (int i = start_[bucket]; i < start_[bucket + 1]; ++i) {
-            const int face = faces_[static_cast<size_t>(i)];
-            const Face& f = mesh_.faces[static_cast<size_t>(face)];
-            const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
-            const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
-            const Vec3& v2 = mesh_.positions[static_cast<size_t>(f[2])];
-            const Vec3 bary = closest_point_barycentric(p, v0, v1, v2);
-            const double squared = (bary[0] * v0 + bary[1] * v1 + bary[2] * v2 - p).squaredNorm();
-            // Buckets are visited out of face order (and share faces): the index breaks ties.
-            if (squared < best || (squared == best && face < point.face)) {
-              best = squared;
-              point = {face, bary};
-            }
-          }
+    // The cells of this shell alone (Chebyshev distance `shell` from c), in z, y, x order: its two
+    // z faces whole, between them the two y rows whole and the two x ends of the others (a shell
+    // is O(shell²) cells; scanning its cube and skipping the inside was O(shell³)).
+    const int x0 = std::max(c[0] - shell, 0), x1 = std::min(c[0] + shell, nx_ - 1);
+    const int y0 = std::max(c[1] - shell, 0), y1 = std::min(c[1] + shell, ny_ - 1);
+    const int z0 = std::max(c[2] - shell, 0), z1 = std::min(c[2] + shell, nz_ - 1);
+    for (int z = z0; z <= z1; ++z) {
+      const bool z_face = std::abs(z - c[2]) == shell;
+      for (int y = y0; y <= y1; ++y) {
+        if (z_face || std::abs(y - c[1]) == shell) {
+          for (int x = x0; x <= x1; ++x) visit(x, y, z);
+        } else {
+          if (c[0] - shell >= 0) visit(c[0] - shell, y, z);
+          if (shell > 0 && c[0] + shell < nx_) visit(c[0] + shell, y, z);
         }
       }
     }

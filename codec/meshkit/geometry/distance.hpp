@@ -39,10 +39,19 @@ class PointToMesh {
   // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces. `distance`:
   // where given, distance(p), from the same search.
   SurfacePoint closest(const Vec3& p, double* distance = nullptr) const;
+  // closest() with its squared distance (`squared`: infinity where no face is left), over the faces
+  // `skip_face` (one flag a face, where given) does not mark: a caller whose mesh changed in a few
+  // faces searches the rest here and the changed ones in a locator of their own. The squared
+  // distances of both searches compare as one search's would (ties: the lower face index). Faces
+  // `bound` or farther away may go unsearched (as distance_below's): where the nearest is nearer
+  // than `bound` it is found, ties included; otherwise what comes back is at least `bound` away.
+  SurfacePoint closest_squared(const Vec3& p, double& squared, const std::vector<char>* skip_face = nullptr,
+                               double bound = std::numeric_limits<double>::infinity()) const;
 
  private:
   // best: its squared distance; the search ends once nothing nearer than `bound` can be left.
-  SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity()) const;
+  SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity(),
+                       const std::vector<char>* skip_face = nullptr) const;
 
   const TriangleMesh& mesh_;
   Vec3 origin_;
