@@ -90,6 +90,33 @@ TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
   EXPECT_EQ(PointToMesh(TriangleMesh{}).closest(vertex).face, -1);
 }
 
+// Two faces equally near p, the lower index only in the next shell of the bucket search, at
+// exactly that shell's reach: the tie rule (the lowest index wins, as a scan over every face gives)
+// must still hold, so the search stops only once the best is strictly within the reach. Faces 1 and
+// 3 are both 0.25 from p; stopping at "within or at the reach" returned face 3.
+TEST(Distance, ATieAtAShellsReachStillGoesToTheLowestFaceIndex) {
+  const double corners[10][3][3] = {
+      {{0, 0.5, 1}, {0.5, 0, 0}, {0.5, 0.5, 0.5}},    {{0, 0.5, 1}, {0.5, 0.5, 0.5}, {0, 0.5, 0.5}},
+      {{0.5, 0, 0}, {1, 0, 0}, {0.5, 0.5, -1}},       {{0.5, 0, 0}, {0.5, 0.5, -1}, {0.5, 0.5, 0.5}},
+      {{1, 0, 0}, {1.5, 0, 1}, {0.5, 0.5, -1}},       {{1.5, 0, 1}, {1.5, 0.5, 1}, {0.5, 0.5, -1}},
+      {{0.5, 0.5, 0.5}, {0.5, 0.5, -1}, {0.5, 1, 1}}, {{0.5, 0.5, -1}, {1, 1, 0.5}, {0.5, 1, 1}},
+      {{0.5, 0.5, -1}, {1.5, 0.5, 1}, {1.5, 1, 1}},   {{0.5, 0.5, -1}, {1.5, 1, 1}, {1, 1, 0.5}}};
+  TriangleMesh mesh;
+  for (const auto& triangle : corners) {
+    Face f;
+    for (size_t k = 0; k < 3; ++k) {
+      f[k] = static_cast<int32_t>(mesh.positions.size());
+      mesh.positions.push_back(Vec3(triangle[k][0], triangle[k][1], triangle[k][2]));
+    }
+    mesh.faces.push_back(f);
+  }
+  const Vec3 p(0.25, 0.5, 0.25);
+  double distance = 0;
+  const SurfacePoint nearest = PointToMesh(mesh).closest(p, &distance);
+  EXPECT_EQ(distance, 0.25);
+  EXPECT_EQ(nearest.face, 1);
+}
+
 // A collapsed triangle (vertices on one line, two or three of them one point) has no face region:
 // its nearest point is that of its longest edge, whichever vertex lies between, with finite
 // coordinates that sum to 1 and put the point there. Ericson's face region divides by the squared

@@ -185,7 +185,9 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, con
     const Vec3 cell_lo = origin_ + Vec3(c[0], c[1], c[2]) * cell_;
     const double margin = std::min((p - cell_lo).minCoeff(), (cell_lo + Vec3::Constant(cell_) - p).minCoeff());
     const double reach = shell * cell_ + std::max(margin, 0.0);  // no margin when p is outside the grid
-    if (best < std::numeric_limits<double>::infinity() && std::sqrt(best) <= reach) break;
+    // Strictly within: a face at exactly `reach` may lie in the next shell, and of equally near faces
+    // the lowest index must win (as a scan over every face gives).
+    if (best < std::numeric_limits<double>::infinity() && std::sqrt(best) < reach) break;
     if (reach >= bound) break;  // whatever lies beyond is at least `bound` away
   }
   return point;
