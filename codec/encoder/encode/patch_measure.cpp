@@ -1,6 +1,7 @@
 // Measuring a frame patch (patch_measure.hpp).
 #include "codec/encoder/encode/patch_measure.hpp"
 
+#include "codec/meshkit/mesh/topology.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>
@@ -53,7 +54,7 @@ std::vector<Vec2> vertex_disk_points(const TriangleMesh& shown) {
 class PatchMeasure::MovedFaces {
  public:
   MovedFaces(const TriangleMesh& mesh, const TriangleMesh& before)
-      : flags_(moved_flags(mesh, before)), part_(moved_part(mesh, flags_, original_)), locator_(part_) {}
+      : flags_(moved_flags(mesh, before)), original_(indices_of(flags_)), part_(sub_mesh(mesh, flags_)), locator_(part_) {}
   MovedFaces(const MovedFaces&) = delete;
   MovedFaces& operator=(const MovedFaces&) = delete;
 
@@ -76,26 +77,13 @@ class PatchMeasure::MovedFaces {
       for (const int32_t v : mesh.faces[f]) moved[f] |= mesh.positions[static_cast<size_t>(v)] != before.positions[static_cast<size_t>(v)];
     return moved;
   }
-  // The moved faces in the patched mesh's order (so that of equally near ones the lower index wins
-  // in both), `original` their indices there.
-  static TriangleMesh moved_part(const TriangleMesh& mesh, const std::vector<char>& moved, std::vector<int32_t>& original) {
-    TriangleMesh part;
-    std::vector<int32_t> remap(mesh.positions.size(), -1);
-    for (size_t f = 0; f < mesh.faces.size(); ++f) {
-      if (!moved[f]) continue;
-      Face g;
-      for (size_t k = 0; k < 3; ++k) {
-        int32_t& r = remap[static_cast<size_t>(mesh.faces[f][k])];
-        if (r < 0) {
-          r = static_cast<int32_t>(part.positions.size());
-          part.positions.push_back(mesh.positions[static_cast<size_t>(mesh.faces[f][k])]);
-        }
-        g[k] = r;
-      }
-      part.faces.push_back(g);
-      original.push_back(static_cast<int32_t>(f));
-    }
-    return part;
+  // The moved faces' indices in the patched mesh, in its order (sub_mesh keeps that order, so of
+  // equally near faces the lower index wins in both).
+  static std::vector<int32_t> indices_of(const std::vector<char>& moved) {
+    std::vector<int32_t> indices;
+    for (size_t f = 0; f < moved.size(); ++f)
+      if (moved[f]) indices.push_back(static_cast<int32_t>(f));
+    return indices;
   }
 
   std::vector<char> flags_;

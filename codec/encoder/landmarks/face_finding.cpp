@@ -110,26 +110,6 @@ std::string no_face_shape(const FaceOrientation& o) {
   return text;
 }
 
-// The faces `keep` of `mesh` as a mesh of their own (positions only: orientation reads geometry).
-TriangleMesh sub_mesh(const TriangleMesh& mesh, const std::vector<bool>& keep) {
-  TriangleMesh out;
-  std::vector<int32_t> index(mesh.positions.size(), -1);
-  for (size_t f = 0; f < mesh.faces.size(); ++f) {
-    if (!keep[f]) continue;
-    Face g;
-    for (int k = 0; k < 3; ++k) {
-      int32_t& i = index[static_cast<size_t>(mesh.faces[f][k])];
-      if (i < 0) {
-        i = static_cast<int32_t>(out.positions.size());
-        out.positions.push_back(mesh.positions[static_cast<size_t>(mesh.faces[f][k])]);
-      }
-      g[k] = i;
-    }
-    out.faces.push_back(g);
-  }
-  return out;
-}
-
 Vec3 area_weighted_normal(const TriangleMesh& mesh) {
   Vec3 sum = Vec3::Zero();
   for (const Face& f : mesh.faces) {

@@ -76,4 +76,27 @@ class DisjointSets {
   std::vector<size_t> parent_;
 };
 
+// The faces f of `mesh` with keep[f] set, as a mesh of their own (positions only): the faces in
+// their order and each vertex numbered at its first use, so that of two faces the lower index stays
+// the lower one (a nearest-face search's tie rule gives the same face in the part as in the whole).
+template <class Keep>
+TriangleMesh sub_mesh(const TriangleMesh& mesh, const Keep& keep) {
+  TriangleMesh out;
+  std::vector<int32_t> index(mesh.positions.size(), -1);
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    if (!keep[f]) continue;
+    Face g;
+    for (size_t k = 0; k < 3; ++k) {
+      int32_t& i = index[static_cast<size_t>(mesh.faces[f][k])];
+      if (i < 0) {
+        i = static_cast<int32_t>(out.positions.size());
+        out.positions.push_back(mesh.positions[static_cast<size_t>(mesh.faces[f][k])]);
+      }
+      g[k] = i;
+    }
+    out.faces.push_back(g);
+  }
+  return out;
+}
+
 }  // namespace facemorph
