@@ -263,13 +263,17 @@ struct ArrayGroup {
   double bytes = 0;
   size_t values = 0;
 };
+struct FieldBytes {
+  std::vector<ArrayGroup> groups;
+  SequenceFileInfo checked;  // inspect_sequence_file's description: --verify's, from the same decode
+};
 // `coding`: the file's (its header's, as describe_sequence_file reads it); `grid_n`: its N.
-std::vector<ArrayGroup> field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, const DecoderLimits& limits) {
+FieldBytes field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, const DecoderLimits& limits) {
   std::vector<ArrayGroup> groups = {{"H", 0, 1},    {"log lambda", 1, 2}, {"a", 2, 3},   {"b", 3, 4},
                                     {"band", 4, 7}, {"positions", 7, 10}, {"rim", 10, 13}, {"hole level", 13, 14}};
   const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(grid_n);
   std::optional<Keyframe> previous;
-  inspect_sequence_file(path, limits, [&](size_t k, const Keyframe& key) {
+  SequenceFileInfo checked = inspect_sequence_file(path, limits, [&](size_t k, const Keyframe& key) {
     const std::vector<double> bits = file_layout::keyframe_array_bits(key, coding.intra(k) ? nullptr : &*previous, coding, *grid);
     const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
     for (ArrayGroup& g : groups) {
@@ -277,7 +281,7 @@ std::vector<ArrayGroup> field_bytes_by_group(const fs::path& path, const FieldCo
     }
     previous = key;
   });
-  return groups;
+  return {std::move(groups), std::move(checked)};
 }
 
 // By default the file is described from its header and index, every checksum verified, nothing
@@ -290,7 +294,14 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   const tools::PlayerFile player(path.string(), limits);
   const fm_info& sequence = player.info();
   const std::vector<double> times = player.keyframe_times();
-  const SequenceFileInfo info = verify ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
+  // --field-bytes decodes every keyframe anyway: with --verify too, that one decode serves both.
+  SequenceFileInfo info = verify && !field_bytes ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
+  FieldBytes by_array;
+  if (field_bytes) {
+    by_array = field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), limits);
+    if (verify) info = std::move(by_array.checked);
+  }
+  const std::vector<ArrayGroup>& array_groups = by_array.groups;
   const DiskGridShape shape = disk_grid_shape(static_cast<int>(sequence.grid_n));
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each
   const double bytes_per_second = static_cast<double>(info.file_bytes) / duration;
@@ -299,8 +310,6 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   // Settings fminfo will not walk are left out (null in --json), said on stderr: the rest of the
   // description stands, as the settings are informative.
   const Settings settings = read_settings(info.metadata.settings);
-  const std::vector<ArrayGroup> array_groups =
-      field_bytes ? field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), limits) : std::vector<ArrayGroup>{};
   if (!settings.problem.empty()) {
     std::fprintf(stderr, "fminfo: warning: %s: the settings are %s; left out\n", path.string().c_str(), settings.problem.c_str());
   }
