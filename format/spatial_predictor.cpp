@@ -23,6 +23,10 @@ int64_t predict(size_t i, SpatialPredictor predictor, const LatticeNeighbours* l
   switch (predictor) {
     case SpatialPredictor::kNone: return 0;
     case SpatialPredictor::kPrevious: return previous();
+    // A smooth curve sampled finely (the rim round the disk) has a second difference far smaller
+    // than its first: extrapolating the two codes before leaves 36–45% fewer bits of an intra
+    // keyframe's rim than kPrevious (spec/method.md §7.20.1).
+    case SpatialPredictor::kLinear: return i < 2 ? previous() : 2 * code(i - 1) - code(i - 2);
     case SpatialPredictor::kGradient:
     case SpatialPredictor::kMedian: {
       const int32_t l = lattice->left[i], u = lattice->up[i], ul = lattice->up_left[i];
@@ -66,7 +70,8 @@ std::vector<int32_t> codes_from_residuals(std::span<const int64_t> residuals, Sp
   if (uses_lattice(predictor)) check_order(checked_lattice(lattice, residuals.size()));
   std::vector<int32_t> codes(residuals.size());
   for (size_t i = 0; i < residuals.size(); ++i) {
-    // Residuals are below 2^35 and predictions of int32 codes below 2^33: no overflow in 64 bits.
+    // Residuals are below 2^35 and predictions of int32 codes below 2^33 (3 × 2^31 for kLinear): no
+    // overflow in 64 bits.
     const int64_t code = predict(i, predictor, lattice, [&](size_t j) { return int64_t{codes[j]}; }) + residuals[i];
     if (code < std::numeric_limits<int32_t>::min() || code > std::numeric_limits<int32_t>::max()) {
       throw Error(ErrorCode::kCorrupt, source + ": a field code outside 32 bits");

@@ -15,14 +15,17 @@
 namespace facemorph::format {
 
 // How a code is predicted from codes of the same array decoded before it (spec/container.md §7.2).
-// The numbers are the file's and fixed forever.
+// 0–3 are the file's predictor ids on an array on G's lattice, fixed forever. kLinear is written
+// as id 2 on an array that is a sequence only (the band, the rim), in a file of format 2.5 or later:
+// the id is 2 bits and an array on no lattice has no use for 2 and 3 (the container maps them).
 enum class SpatialPredictor : uint8_t {
   kNone = 0,      // 0
   kPrevious = 1,  // the previous code in array order (0 for the first)
   kGradient = 2,  // left + up − up-left on the lattice; with one of left or up only, that one; else as kPrevious
   kMedian = 3,    // LOCO-I's median edge detector over left, up, up-left; fallbacks as kGradient
+  kLinear = 4,    // 2 × the previous − the one before it, along the array (for the second: the first; for the first: 0)
 };
-inline constexpr uint8_t kSpatialPredictorCount = 4;
+inline constexpr uint8_t kSpatialPredictorCount = 4;  // the lattice's ids 0–3 (kLinear is a sequence's id 2)
 
 // Whether `predictor` reads lattice neighbours (and so needs a LatticeNeighbours table).
 constexpr bool uses_lattice(SpatialPredictor predictor) {

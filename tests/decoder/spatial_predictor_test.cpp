@@ -47,5 +47,30 @@ TEST(SpatialPredictor, EveryPredictorRoundTripsExactlyAndPlanesLeaveSmallResidua
                         [&] { format::spatial_residuals(plane, format::SpatialPredictor::kMedian, &backwards); });
 }
 
+// Format 2.5's predictor along a sequence: 2 d(i−1) − d(i−2), the first code from 0 and the second
+// from the first, as previous. It needs no lattice, leaves a parabola a constant second difference,
+// and round-trips the extremes of 32 bits (residuals up to 4 × 2^31 there).
+TEST(SpatialPredictor, LinearExtrapolatesTheTwoCodesBeforeAlongTheArray) {
+  std::vector<int32_t> parabola;
+  for (int i = 0; i < 50; ++i) parabola.push_back(3 * i * i - 5 * i + 7);
+  const std::vector<int64_t> r = format::spatial_residuals(parabola, format::SpatialPredictor::kLinear, nullptr);
+  EXPECT_EQ(r[0], 7);
+  EXPECT_EQ(r[1], 5 - 7);
+  for (size_t i = 2; i < r.size(); ++i) ASSERT_EQ(r[i], 6) << i;
+  std::vector<int32_t> rough = parabola;
+  rough[10] = std::numeric_limits<int32_t>::max();
+  rough[11] = std::numeric_limits<int32_t>::min();
+  rough[12] = std::numeric_limits<int32_t>::max();
+  const std::vector<int64_t> wide = format::spatial_residuals(rough, format::SpatialPredictor::kLinear, nullptr);
+  EXPECT_EQ(wide[12], int64_t{std::numeric_limits<int32_t>::max()} - 2 * int64_t{std::numeric_limits<int32_t>::min()} +
+                          int64_t{std::numeric_limits<int32_t>::max()});
+  EXPECT_EQ(format::codes_from_residuals(wide, format::SpatialPredictor::kLinear, nullptr, "t"), rough);
+  // A residual that leads past 32 bits is the file's fault, named.
+  std::vector<int64_t> past = r;
+  past[3] += int64_t{1} << 32;
+  testing::expect_error(ErrorCode::kCorrupt, "seq: a field code outside 32 bits",
+                        [&] { format::codes_from_residuals(past, format::SpatialPredictor::kLinear, nullptr, "seq"); });
+}
+
 }  // namespace
 }  // namespace facemorph
