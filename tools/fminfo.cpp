@@ -241,8 +241,12 @@ void print_encoder_notes(const nlohmann::json& settings) {
 // The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
 // frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
-// of them is, but for its preamble, a 2.0 file (spec/container.md §12).
+// of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5's predictor (linear along
+// the rim, §7.2) lies inside the keyframes' streams, where a description that decodes nothing
+// cannot see it, and its writer takes it for nearly every rim coded from nothing: a file stated 2.5
+// or later is taken to need 2.5.
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
+  if (info.minor_version >= 5) return 5;
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
   if (info.frame_patches > 0) return 4;
   if (info.residual_frames > 0) return 3;
@@ -267,14 +271,17 @@ struct FieldBytes {
   std::vector<ArrayGroup> groups;
   SequenceFileInfo checked;  // inspect_sequence_file's description: --verify's, from the same decode
 };
-// `coding`: the file's (its header's, as describe_sequence_file reads it); `grid_n`: its N.
-FieldBytes field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, const DecoderLimits& limits) {
+// `coding`: the file's (its header's, as describe_sequence_file reads it); `grid_n`: its N;
+// `minor_version`: its version's, whose predictors its writer had (2.5 added one).
+FieldBytes field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, uint16_t minor_version,
+                                const DecoderLimits& limits) {
   std::vector<ArrayGroup> groups = {{"H", 0, 1},    {"log lambda", 1, 2}, {"a", 2, 3},   {"b", 3, 4},
                                     {"band", 4, 7}, {"positions", 7, 10}, {"rim", 10, 13}, {"hole level", 13, 14}};
   const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(grid_n);
   std::optional<Keyframe> previous;
   SequenceFileInfo checked = inspect_sequence_file(path, limits, [&](size_t k, const Keyframe& key) {
-    const std::vector<double> bits = file_layout::keyframe_array_bits(key, coding.intra(k) ? nullptr : &*previous, coding, *grid);
+    const std::vector<double> bits =
+        file_layout::keyframe_array_bits(key, coding.intra(k) ? nullptr : &*previous, coding, *grid, minor_version);
     const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
     for (ArrayGroup& g : groups) {
       for (size_t a = g.first; a < g.end; ++a) g.bytes += bits[a] / 8, g.values += arrays[a].size();
@@ -298,7 +305,7 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   SequenceFileInfo info = verify && !field_bytes ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
   FieldBytes by_array;
   if (field_bytes) {
-    by_array = field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), limits);
+    by_array = field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), info.minor_version, limits);
     if (verify) info = std::move(by_array.checked);
   }
   const std::vector<ArrayGroup>& array_groups = by_array.groups;

@@ -3,9 +3,11 @@
 // offset right, so that a test reaches the check it means, past the CRCs.
 #pragma once
 
+#include "codec/core/container/keyframe_group_coding.hpp"
 #include "codec/core/reconstruct/fields.hpp"
 #include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "format/byte_reader.hpp"
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
@@ -241,12 +243,36 @@ inline uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
   }
 }
 
-// The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
-inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
+// The file with only its preamble's minor version set to `minor` (and the preamble's CRC made
+// again): its groups of keyframes as they are, whatever that version allows in them.
+inline std::vector<uint8_t> restamped(std::vector<uint8_t> bytes, uint16_t minor) {
   std::memcpy(bytes.data() + 10, &minor, sizeof minor);
   const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
   std::memcpy(bytes.data() + 12, &crc, sizeof crc);
   return bytes;
+}
+
+// The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
+// Below 2.5 its groups of keyframes are coded again without 2.5's linear predictor along a sequence
+// (spec/container.md §7.2), the same codes, as a writer of that version would have coded them; every
+// other byte is left as it is.
+inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
+  if (minor < file_layout::kLinearSequenceMinorVersion) {
+    SequenceFileInfo info;
+    const Sequence s = decode_sequence_file(bytes, "older.fmv", &info);
+    const FieldCoding& coding = info.metadata.field_coding;
+    const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(s.grid_n);
+    bytes = rebuild(bytes, [&](const std::string& type, std::vector<uint8_t>& payload) {
+      if (type != "KGOP") return;
+      format::ByteReader r(payload, "KGOP");
+      const uint32_t first = r.read<uint32_t>("first");
+      file_layout::KeyframeGroupWriter group(first, coding, *grid, minor);
+      const size_t end = std::min(s.keyframes.size(), first + static_cast<size_t>(coding.intra_period));
+      for (size_t k = first; k < end; ++k) group.add(s.keyframes[k]);
+      payload = group.finish();
+    });
+  }
+  return restamped(std::move(bytes), minor);
 }
 
 }  // namespace facemorph::crafted

@@ -296,14 +296,16 @@ TEST(FieldPrecision, TheArraysBitsAddUpToTheKeyframeGroupsBytes) {
   double estimate = 0, intra = 0;
   for (size_t k = 0; k < rounded.keyframes.size(); ++k) {
     const Keyframe* previous = k == 0 ? nullptr : &rounded.keyframes[k - 1];
-    const std::vector<double> bits = file_layout::keyframe_array_bits(rounded.keyframes[k], previous, metadata.field_coding, *grid);
+    const std::vector<double> bits =
+        file_layout::keyframe_array_bits(rounded.keyframes[k], previous, metadata.field_coding, *grid, info.minor_version);
     ASSERT_EQ(bits.size(), static_cast<size_t>(file_layout::kKeyframeArrays));
     const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(rounded.keyframes[k]);
     for (size_t a = 0; a < bits.size(); ++a) {
       EXPECT_EQ(bits[a] > 0, !arrays[a].empty()) << "keyframe " << k << ", array " << a;
       estimate += bits[a] / 8;
     }
-    for (double b : file_layout::keyframe_array_bits(rounded.keyframes[k], nullptr, metadata.field_coding, *grid)) intra += b / 8;
+    for (double b : file_layout::keyframe_array_bits(rounded.keyframes[k], nullptr, metadata.field_coding, *grid, info.minor_version))
+      intra += b / 8;
   }
   EXPECT_NEAR(estimate / stream, 1.0, 0.05) << estimate << " B estimated, " << stream << " B in the KGOP chunks";
   EXPECT_GT(intra, 1.1 * estimate) << "each keyframe alone costs more than from the one before it";

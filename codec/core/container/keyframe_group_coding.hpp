@@ -22,6 +22,14 @@ inline const format::LatticeNeighbours* lattice_of(size_t array, size_t length, 
   return lattice && lattice->size() == length ? lattice : nullptr;  // an empty array has none
 }
 
+// Predictor ids in the file (§7.2) are 2 bits. On a sequence (an array on no lattice) ids 2 and 3
+// are free, and from format 2.5 on id 2 is format::SpatialPredictor::kLinear; in an older file it is
+// corrupt, as 3 always is there.
+inline constexpr uint16_t kLinearSequenceMinorVersion = 5;
+inline uint8_t predictor_id(format::SpatialPredictor predictor) {
+  return predictor == format::SpatialPredictor::kLinear ? uint8_t{2} : static_cast<uint8_t>(predictor);
+}
+
 // lattice_of for every array of a keyframe, given their lengths.
 inline std::vector<const format::LatticeNeighbours*> lattices_of(const std::vector<size_t>& lengths, const GridFacts& grid) {
   std::vector<const format::LatticeNeighbours*> lattices;

@@ -18,13 +18,16 @@ namespace {
 
 using format::ByteReader;
 
-// Array a's spatial predictor p as read, or kCorrupt where it is none this array can have.
-format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, const GridFacts& grid, const std::string& where) {
-  const auto predictor = static_cast<format::SpatialPredictor>(p);
-  if (p >= format::kSpatialPredictorCount || (format::uses_lattice(predictor) && lattice_of(a, length, grid) == nullptr)) {
-    corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array");
-  }
-  return predictor;
+// Array a's spatial predictor, read as id p in a file of `minor_version`, or kCorrupt where it is
+// none this array can have there (§7.2).
+format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, const GridFacts& grid, uint16_t minor_version,
+                                           const std::string& where) {
+  const bool on_lattice = lattice_of(a, length, grid) != nullptr;
+  if (p < 2 || (on_lattice && p < format::kSpatialPredictorCount)) return static_cast<format::SpatialPredictor>(p);
+  const bool linear = !on_lattice && p == 2;
+  if (linear && minor_version >= kLinearSequenceMinorVersion) return format::SpatialPredictor::kLinear;
+  corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array" +
+                     (linear ? " in a 2." + std::to_string(minor_version) + " file (linear along a sequence is 2.5's)" : ""));
 }
 
 // A decoded keyframe's arrays from its residuals: the spatial predictors undone, then the previous
@@ -53,12 +56,14 @@ std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::ve
 }  // namespace
 
 struct KeyframeGroupReader::State {
-  State(std::vector<uint8_t> bytes, std::string place, const FileHeader& header, uint32_t first_keyframe, uint32_t keyframes)
-      : payload(std::move(bytes)), where(std::move(place)), h(header), first(first_keyframe), count(keyframes) {}
+  State(std::vector<uint8_t> bytes, std::string place, const FileHeader& header, uint32_t first_keyframe, uint32_t keyframes,
+        uint16_t minor)
+      : payload(std::move(bytes)), where(std::move(place)), h(header), first(first_keyframe), count(keyframes), minor_version(minor) {}
   std::vector<uint8_t> payload;  // the stream reads it where it lies
   std::string where;
   const FileHeader& h;
   uint32_t first = 0, count = 0, next = 0;
+  uint16_t minor_version = 0;  // the file's: which predictor ids a sequence may have
   size_t stream_start = 0;
   std::optional<format::RangedStreamReader> stream;
   std::vector<size_t> expected;
@@ -70,8 +75,8 @@ struct KeyframeGroupReader::State {
 };
 
 KeyframeGroupReader::KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first,
-                                         uint32_t count)
-    : state_(std::make_unique<State>(std::move(payload), std::move(where), h, first, count)) {
+                                         uint32_t count, uint16_t minor_version)
+    : state_(std::make_unique<State>(std::move(payload), std::move(where), h, first, count, minor_version)) {
   State& s = *state_;
   ByteReader r(s.payload, s.where);
   if (r.read<uint32_t>("the first keyframe number") != first) corrupt(s.where, "holds another group of keyframes than the index says");
@@ -107,7 +112,7 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
     if (s.expected[a] == 0) continue;
     const bool high = stream.decision(s.models.predictor[a][0]);
     const bool low = stream.decision(s.models.predictor[a][high ? 2 : 1]);
-    predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), s.expected[a], grid, keyframe_where);
+    predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), s.expected[a], grid, s.minor_version, keyframe_where);
   }
   const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, s.lattices, kRangeModelSets, s.models.residuals);
   Keyframe key;

@@ -221,7 +221,7 @@ std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t 
           count_(count),
           framing_(chunk.total_size() - chunk.raw_size),
           group_(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk), *s.header,
-                 static_cast<uint32_t>(first), static_cast<uint32_t>(count)) {}
+                 static_cast<uint32_t>(first), static_cast<uint32_t>(count), s.reader.minor_version()) {}
     size_t next() const override { return first_ + group_.next(); }
     size_t end() const override { return first_ + count_; }
     std::optional<Keyframe> read(WorkMeter* work, bool, uint64_t& bytes) override {

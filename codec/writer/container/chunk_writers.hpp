@@ -63,15 +63,18 @@ IndexLayout lay_out_index(uint64_t header_size, std::vector<IndexEntry>& entries
 // where that costs less in all), each counted with fresh models by the range coder's own cost. An
 // estimate of the array's share of the stream: the stream's models carry over from array to array
 // where they are shared (b from a, ...) and from keyframe to keyframe. fminfo --field-bytes prints it.
-std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid);
+// `minor_version`: the file's, whose predictors the writer chose among (§7.2: 2.5 added one).
+std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid,
+                                        uint16_t minor_version);
 
 // A group's payload from its keyframes first, first + 1, … given in order (their fields and hole
 // levels only: times and poses are the index's), one at a time: what is kept between them is the
 // previous keyframe's codes and the range coder's state. `coding` and `grid` outlive the writer;
-// every keyframe's arrays have one set of lengths (the caller checks).
+// every keyframe's arrays have one set of lengths (the caller checks). `minor_version`: the file's,
+// whose predictors it may choose (§7.2; an older one than the writer's own only in tests' files).
 class KeyframeGroupWriter {
  public:
-  KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid);
+  KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid, uint16_t minor_version = format::kMinorVersion);
   ~KeyframeGroupWriter();
   KeyframeGroupWriter(const KeyframeGroupWriter&) = delete;
   KeyframeGroupWriter& operator=(const KeyframeGroupWriter&) = delete;

@@ -22,13 +22,20 @@ struct CodedArray {
   double bits = 0;
 };
 
-// The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models).
-CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice) {
+// The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models):
+// none or previous, and on a lattice gradient or median, on a sequence linear where the file's
+// `minor_version` has it (§7.2).
+CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice, uint16_t minor_version) {
+  using format::SpatialPredictor;
+  std::vector<SpatialPredictor> candidates = {SpatialPredictor::kNone, SpatialPredictor::kPrevious};
+  if (lattice != nullptr) {
+    candidates.insert(candidates.end(), {SpatialPredictor::kGradient, SpatialPredictor::kMedian});
+  } else if (minor_version >= kLinearSequenceMinorVersion) {
+    candidates.push_back(SpatialPredictor::kLinear);
+  }
   CodedArray best;
   best.bits = std::numeric_limits<double>::infinity();
-  for (uint8_t p = 0; p < format::kSpatialPredictorCount; ++p) {
-    const auto predictor = static_cast<format::SpatialPredictor>(p);
-    if (format::uses_lattice(predictor) && lattice == nullptr) continue;
+  for (const SpatialPredictor predictor : candidates) {
     std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
     const double bits = format::ranged_residual_bits(residuals, lattice);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
@@ -56,9 +63,9 @@ struct Prediction {
 // `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
 // null where this keyframe is the group's first. Intra and predicted alike: each array's codes, or
 // their change since the previous keyframe, under the spatial predictor that leaves the fewest
-// bits. The reference that costs less wins.
+// bits among those a file of `minor_version` has. The reference that costs less wins.
 Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous,
-                             const GridFacts& grid) {
+                             const GridFacts& grid, uint16_t minor_version) {
   auto code_all = [&](bool from_previous) {
     std::vector<CodedArray> out;
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -66,7 +73,7 @@ Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, con
       if (from_previous) {
         for (size_t i = 0; i < values.size(); ++i) values[i] -= (*previous)[a][i];  // |codes| < 2^30: no overflow
       }
-      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid)));
+      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid), minor_version));
     }
     return out;
   };
@@ -85,11 +92,12 @@ Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, con
 
 }  // namespace
 
-std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid) {
+std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* previous, const FieldCoding& coding, const GridFacts& grid,
+                                        uint16_t minor_version) {
   const std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
   std::vector<std::vector<int32_t>> before;
   if (previous) before = field_codes(*previous, coding);
-  const Prediction prediction = choose_prediction(codes, previous ? &before : nullptr, grid);
+  const Prediction prediction = choose_prediction(codes, previous ? &before : nullptr, grid, minor_version);
   std::vector<double> bits;
   for (const CodedArray& a : prediction.arrays) bits.push_back(a.residuals.empty() ? 0.0 : a.bits);
   return bits;
@@ -98,6 +106,7 @@ std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* pre
 struct KeyframeGroupWriter::State {
   const FieldCoding& coding;
   const GridFacts& grid;
+  uint16_t minor_version;
   ByteWriter w;
   format::RangedStreamWriter stream;
   GroupModels models;
@@ -106,8 +115,8 @@ struct KeyframeGroupWriter::State {
   size_t added = 0;
 };
 
-KeyframeGroupWriter::KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid)
-    : state_(std::make_unique<State>(State{coding, grid, {}, {}, {}, {}, {}, 0})) {
+KeyframeGroupWriter::KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid, uint16_t minor_version)
+    : state_(std::make_unique<State>(State{coding, grid, minor_version, {}, {}, {}, {}, {}, 0})) {
   state_->w.write(static_cast<uint32_t>(first));
 }
 
@@ -117,12 +126,12 @@ void KeyframeGroupWriter::add(const Keyframe& key) {
   State& s = *state_;
   std::vector<std::vector<int32_t>> codes = field_codes(key, s.coding);
   if (s.added == 0) s.lattices = lattices_of(lengths_of(codes), s.grid);
-  Prediction prediction = choose_prediction(codes, s.added > 0 ? &s.previous : nullptr, s.grid);
+  Prediction prediction = choose_prediction(codes, s.added > 0 ? &s.previous : nullptr, s.grid, s.minor_version);
   if (s.added > 0) s.stream.decision(s.models.reference, prediction.from_previous);
   std::vector<std::vector<int64_t>> residuals;
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
     if (!codes[a].empty()) {
-      const auto p = static_cast<unsigned>(prediction.arrays[a].predictor);
+      const unsigned p = predictor_id(prediction.arrays[a].predictor);
       s.stream.decision(s.models.predictor[a][0], (p >> 1) != 0);
       s.stream.decision(s.models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
     }
