@@ -240,11 +240,12 @@ void print_encoder_notes(const nlohmann::json& settings) {
 
 // The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
-// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
-// of them is, but for its preamble, a 2.0 file (spec/container.md §12).
+// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.5 that uses none
+// of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5 codes the patches anew
+// (§7.5.1): a file stated 2.5 with patches needs 2.5, one stated 2.4 with them 2.4.
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
-  if (info.frame_patches > 0) return 4;
+  if (info.frame_patches > 0) return info.minor_version >= file_layout::kRangedPatchMinorVersion ? 5 : 4;
   if (info.residual_frames > 0) return 3;
   if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
   return texture_groups ? 1 : 0;
@@ -410,8 +411,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   if (info.residual_frames > 0)
     std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
   if (info.frame_patches > 0) {
-    std::printf("patches     %zu frames between keyframes displace the surface, %zu lattice nodes in all (format 2.4 PTCH)\n",
-                info.frame_patches, info.patch_nodes);
+    std::printf("patches     %zu frames between keyframes displace the surface, %zu lattice nodes in all (format 2.4 PTCH%s)\n",
+                info.frame_patches, info.patch_nodes, info.minor_version >= file_layout::kRangedPatchMinorVersion ? ", range-coded as 2.5" : "");
   }
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (field_bytes) {
