@@ -102,6 +102,17 @@ Sequence with_patches() {
 
 std::vector<uint8_t> patch_file() { return encode_sequence_file(with_patches(), small_metadata()); }
 
+// Patches read back equal to those written, to the bit.
+void expect_same_patches(const std::vector<FramePatch>& back, const std::vector<FramePatch>& written) {
+  ASSERT_EQ(back.size(), written.size());
+  for (size_t p = 0; p < written.size(); ++p) {
+    EXPECT_EQ(back[p].time, written[p].time);
+    EXPECT_EQ(back[p].lattice, written[p].lattice);
+    EXPECT_EQ(back[p].nodes, written[p].nodes);
+    EXPECT_EQ(back[p].displacements, written[p].displacements);
+  }
+}
+
 // Format 2.4's coding of with_patches(): u32 count 2, i8 e = -4; 480 (zigzag 960: 0xC0 0x07), C 5,
 // 1 node: gap 12, codes 4, -8, 2; change 960 (0x80 0x0F), C 3, 2 nodes: gap 4, codes 0, 0, 1; gap 0,
 // codes 8, 0, 0 (all zigzag).
@@ -123,13 +134,7 @@ TEST(FramePatches, AFileHoldsThemToTheBitAndADecoderAddsThem) {
   const Sequence s = with_patches();
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(patch_file(), "patches.fmv", &info);
-  ASSERT_EQ(back.patches.size(), s.patches.size());
-  for (size_t p = 0; p < s.patches.size(); ++p) {
-    EXPECT_EQ(back.patches[p].time, s.patches[p].time);
-    EXPECT_EQ(back.patches[p].lattice, s.patches[p].lattice);
-    EXPECT_EQ(back.patches[p].nodes, s.patches[p].nodes);
-    EXPECT_EQ(back.patches[p].displacements, s.patches[p].displacements);
-  }
+  expect_same_patches(back.patches, s.patches);
   EXPECT_EQ(info.minor_version, format::kMinorVersion);
   EXPECT_EQ(crafted::chunk_payload(patch_file(), "PTCH"), kRangedPatchPayload);
   EXPECT_EQ(info.frame_patches, 2u);
@@ -187,13 +192,7 @@ TEST(FramePatches, AFileStamped2_4ReadsTheVarintCoding) {
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(patch_file_v2_4(), "v2_4.fmv", &info);
   EXPECT_EQ(info.minor_version, 4);
-  ASSERT_EQ(back.patches.size(), s.patches.size());
-  for (size_t p = 0; p < s.patches.size(); ++p) {
-    EXPECT_EQ(back.patches[p].time, s.patches[p].time);
-    EXPECT_EQ(back.patches[p].lattice, s.patches[p].lattice);
-    EXPECT_EQ(back.patches[p].nodes, s.patches[p].nodes);
-    EXPECT_EQ(back.patches[p].displacements, s.patches[p].displacements);
-  }
+  expect_same_patches(back.patches, s.patches);
   // The 2.5 coding in a file stamped 2.4 is not what 2.4 wrote: its stream's first byte (0) reads
   // as a time change of 0, refused by name, never misread; the 2.4 coding in a 2.5 file likewise.
   testing::expect_error(ErrorCode::kCorrupt, "frame patches",
@@ -306,12 +305,7 @@ TEST(FramePatches, TheRangeCodedChunkHoldsThemToTheBit) {
   // The writer's coding of the patches, and its reading to the same patches as 2.4's varints.
   EXPECT_EQ(ranged_payload(2, -4, stream_of(coded_patches())), kRangedPatchPayload);
   const Sequence a = decode_sequence_file(patch_file(), "v2_5.fmv"), b = decode_sequence_file(patch_file_v2_4(), "v2_4.fmv");
-  ASSERT_EQ(a.patches.size(), b.patches.size());
-  for (size_t p = 0; p < a.patches.size(); ++p) {
-    EXPECT_EQ(a.patches[p].time, b.patches[p].time);
-    EXPECT_EQ(a.patches[p].nodes, b.patches[p].nodes);
-    EXPECT_EQ(a.patches[p].displacements, b.patches[p].displacements);
-  }
+  expect_same_patches(a.patches, b.patches);
   // An empty patch, a lattice kept, a time off the frame lattice, codes past the unary part and
   // the escape's longest: read back as written.
   const std::vector<format::CodedPatch> varied = {{1, 17, {0, 1, 18, 288}, {{1, 2, 3}, {-9, 100, 0}, {0, 0, -1}, {int64_t{1} << 34, 0, 0}}},
