@@ -20,7 +20,8 @@ class SpillFile;
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
 inline constexpr uint16_t kMinorVersion = 5;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared
-                                              // textures; 2.3: residual frames; 2.4: frame patches; 2.5: linear along the rim)
+                                              // textures; 2.3: residual frames; 2.4: frame patches; 2.5: linear along the rim,
+                                              // range-coded patches)
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;

@@ -37,6 +37,13 @@ struct Context {
   int magnitude_class, sign_class;
 };
 
+Context context_from(int64_t a, int64_t b) {
+  const uint64_t m = std::min<uint64_t>(magnitude(a), 64) + std::min<uint64_t>(magnitude(b), 64);
+  const int magnitude_class = m <= 2 ? static_cast<int>(m) : m <= 4 ? 3 : m <= 8 ? 4 : 5;
+  const auto sign = [](int64_t v) { return v < 0 ? 0 : v == 0 ? 1 : 2; };
+  return {magnitude_class, 3 * sign(a) + sign(b)};
+}
+
 Context context_of(std::span<const int64_t> coded, size_t i, const LatticeNeighbours* lattice) {
   int64_t a = 0, b = 0;
   if (lattice) {
@@ -47,10 +54,7 @@ Context context_of(std::span<const int64_t> coded, size_t i, const LatticeNeighb
     a = i > 0 ? coded[i - 1] : 0;
     b = i > 1 ? coded[i - 2] : 0;
   }
-  const uint64_t m = std::min<uint64_t>(magnitude(a), 64) + std::min<uint64_t>(magnitude(b), 64);
-  const int magnitude_class = m <= 2 ? static_cast<int>(m) : m <= 4 ? 3 : m <= 8 ? 4 : 5;
-  const auto sign = [](int64_t v) { return v < 0 ? 0 : v == 0 ? 1 : 2; };
-  return {magnitude_class, 3 * sign(a) + sign(b)};
+  return context_from(a, b);
 }
 
 // One residual's decisions, the same code for all three sides: the encoder passes the residual and
@@ -207,6 +211,12 @@ void RangedStreamWriter::residual_arrays(std::span<const std::vector<int64_t>> a
   }
 }
 
+void RangedStreamWriter::residual(ResidualModels& models, int64_t a, int64_t b, int64_t r) {
+  if (magnitude(r) > static_cast<uint64_t>(kMaxRangedResidual)) throw Error(ErrorCode::kInvalidArgument, "a residual beyond 2^34");
+  EncoderSide side{coder_};
+  code_residual(side, models, context_from(a, b), r);
+}
+
 RangedStreamReader::RangedStreamReader(std::span<const uint8_t> bytes, std::string source)
     : coder_(bytes, source), source_(std::move(source)), bytes_(bytes.size()) {}
 
@@ -215,6 +225,11 @@ bool RangedStreamReader::decision(BitModel& model) { return coder_.decode(model)
 int64_t RangedStreamReader::number(NumberModels& models) {
   DecoderSide side{coder_, source_};
   return code_number(side, models, 0);
+}
+
+int64_t RangedStreamReader::residual(ResidualModels& models, int64_t a, int64_t b) {
+  DecoderSide side{coder_, source_};
+  return code_residual(side, models, context_from(a, b), 0);
 }
 
 std::vector<std::vector<int64_t>> RangedStreamReader::residual_arrays(std::span<const size_t> lengths,

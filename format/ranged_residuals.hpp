@@ -48,6 +48,9 @@ class RangedStreamWriter {
   // As encode_ranged_residuals, onto this stream, with `models` carried.
   void residual_arrays(std::span<const std::vector<int64_t>> arrays, std::span<const LatticeNeighbours* const> lattices,
                        std::span<const uint8_t> model_sets, std::vector<ResidualModels>& models);
+  // One residual r (|r| ≤ kMaxRangedResidual, else kInvalidArgument) under `models`, its context
+  // from the two values a and b the caller chose (spec/container.md §7.3: there the neighbours').
+  void residual(ResidualModels& models, int64_t a, int64_t b, int64_t r);
   std::vector<uint8_t> finish() { return coder_.finish(); }
 
  private:
@@ -61,6 +64,7 @@ class RangedStreamReader {
   RangedStreamReader(std::span<const uint8_t> bytes, std::string source);
   bool decision(BitModel& model);
   int64_t number(NumberModels& models);
+  int64_t residual(ResidualModels& models, int64_t a, int64_t b);
   std::vector<std::vector<int64_t>> residual_arrays(std::span<const size_t> lengths, std::span<const LatticeNeighbours* const> lattices,
                                                     std::span<const uint8_t> model_sets, std::vector<ResidualModels>& models);
   // Bytes read so far: what a part of the stream cost, to within the coder's few bytes of lag.

@@ -239,7 +239,7 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--patch-bound", a.patch_bound,
                  "Frames between keyframes whose decoded 99th-percentile point error passes this (of the bbox diagonal) carry a patch, a "
-                 "sparse lattice displacement that brings them under it (format 2.4's PTCH, spec/method.md §7.19; 0: none)")
+                 "sparse lattice displacement that brings them under it (format 2.4's PTCH, range-coded since 2.5; spec/method.md §7.19; 0: none)")
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "

@@ -244,7 +244,7 @@ void print_encoder_notes(const nlohmann::json& settings) {
 // of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5's predictor (linear along
 // the rim, §7.2) lies inside the keyframes' streams, where a description that decodes nothing
 // cannot see it, and its writer takes it for nearly every rim coded from nothing: a file stated 2.5
-// or later is taken to need 2.5.
+// or later is taken to need 2.5 (its patches, if any, are range-coded too, §7.5.1).
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   if (info.minor_version >= 5) return 5;
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
@@ -417,8 +417,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   if (info.residual_frames > 0)
     std::printf("residuals   %zu frames between keyframes correct the spline's blend (format 2.3 RSDW)\n", info.residual_frames);
   if (info.frame_patches > 0) {
-    std::printf("patches     %zu frames between keyframes displace the surface, %zu lattice nodes in all (format 2.4 PTCH)\n",
-                info.frame_patches, info.patch_nodes);
+    std::printf("patches     %zu frames between keyframes displace the surface, %zu lattice nodes in all (format 2.4 PTCH%s)\n",
+                info.frame_patches, info.patch_nodes, info.minor_version >= file_layout::kRangedPatchMinorVersion ? ", range-coded as 2.5" : "");
   }
   std::printf("landmarks   %zu names\n", info.metadata.landmark_names.size());
   if (field_bytes) {

@@ -1,13 +1,15 @@
 // Frame patches (format 2.4, spec/container.md §7.5, spec/method.md §7.19): the displacement,
 // analytically (bilinear on the lattice, linear in t between nodes, 0 at keyframes and past the
 // ends); continuity in t; the PTCH chunk's round trip to the bit and what a decoder shows with it;
-// every check of its reader; a file stamped 2.3 skips it.
+// every check of its reader, in both codings (2.4's varints, 2.5's range-coded stream, §7.5.1); a
+// file stamped 2.3 skips it.
 #include "codec/core/sequence/frame_patch.hpp"
 #include "codec/decoder/container/chunk_readers.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
+#include "format/ranged_patches.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
@@ -15,6 +17,7 @@
 
 #include <cstring>
 #include <functional>
+#include <optional>
 
 namespace facemorph {
 namespace {
@@ -99,22 +102,41 @@ Sequence with_patches() {
 
 std::vector<uint8_t> patch_file() { return encode_sequence_file(with_patches(), small_metadata()); }
 
-// u32 count 2, i8 e = -4; 480 (zigzag 960: 0xC0 0x07), C 5, 1 node: gap 12, codes 4, -8, 2; change
-// 960 (0x80 0x0F), C 3, 2 nodes: gap 4, codes 0, 0, 1; gap 0, codes 8, 0, 0 (all zigzag).
+// Patches read back equal to those written, to the bit.
+void expect_same_patches(const std::vector<FramePatch>& back, const std::vector<FramePatch>& written) {
+  ASSERT_EQ(back.size(), written.size());
+  for (size_t p = 0; p < written.size(); ++p) {
+    EXPECT_EQ(back[p].time, written[p].time);
+    EXPECT_EQ(back[p].lattice, written[p].lattice);
+    EXPECT_EQ(back[p].nodes, written[p].nodes);
+    EXPECT_EQ(back[p].displacements, written[p].displacements);
+  }
+}
+
+// Format 2.4's coding of with_patches(): u32 count 2, i8 e = -4; 480 (zigzag 960: 0xC0 0x07), C 5,
+// 1 node: gap 12, codes 4, -8, 2; change 960 (0x80 0x0F), C 3, 2 nodes: gap 4, codes 0, 0, 1; gap 0,
+// codes 8, 0, 0 (all zigzag).
 const std::vector<uint8_t> kPatchPayload = {2, 0, 0, 0, 0xFC, 0xC0, 0x07, 10, 2, 24, 8, 15, 4, 0x80, 0x0F, 6, 4, 8, 0, 0, 2, 0, 16, 0, 0};
+
+// The same patches as a file stamped 2.4 writes them (the writer writes 2.5's coding; a rebuilt
+// file is stamped with the writer's version, so the stamp comes after).
+std::vector<uint8_t> patch_file_v2_4() {
+  return crafted::with_minor_version(crafted::with_chunk_payload(patch_file(), "PTCH", [](auto& p) { p = kPatchPayload; }), 4);
+}
+
+// Format 2.5's coding of with_patches() (§7.5.1): varint count 2 (zigzag 4), i8 e = -4, varint
+// stream length, then the stream: times 480 = 7.5 frames and 960 = 15 frames after it, lattices 5
+// and 3, node 12 of 25 and nodes 4 and 5 of 9, the codes as above.
+const std::vector<uint8_t> kRangedPatchPayload = {4,    0xFC, 38,   0,    0x86, 0xC5, 0xFA, 0x19, 0,    0x64, 0x18,
+                                                   0x3F, 0x19, 0xA2, 0xB1, 0x92, 0x1B, 0x8B, 0x23, 0xFE, 0x80, 0};
 
 TEST(FramePatches, AFileHoldsThemToTheBitAndADecoderAddsThem) {
   const Sequence s = with_patches();
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(patch_file(), "patches.fmv", &info);
-  ASSERT_EQ(back.patches.size(), s.patches.size());
-  for (size_t p = 0; p < s.patches.size(); ++p) {
-    EXPECT_EQ(back.patches[p].time, s.patches[p].time);
-    EXPECT_EQ(back.patches[p].lattice, s.patches[p].lattice);
-    EXPECT_EQ(back.patches[p].nodes, s.patches[p].nodes);
-    EXPECT_EQ(back.patches[p].displacements, s.patches[p].displacements);
-  }
-  EXPECT_GE(info.minor_version, 4);  // the writer stamps its own version (2.5 on)
+  expect_same_patches(back.patches, s.patches);
+  EXPECT_EQ(info.minor_version, format::kMinorVersion);
+  EXPECT_EQ(crafted::chunk_payload(patch_file(), "PTCH"), kRangedPatchPayload);
   EXPECT_EQ(info.frame_patches, 2u);
   EXPECT_EQ(info.patch_nodes, 3u);
   EXPECT_EQ(testing::chunk_count(info, "PTCH"), 1);
@@ -159,13 +181,29 @@ TEST(FramePatches, TheWriterRefusesWhatTheFileCannotHoldExactly) {
                         [&] { encode_sequence_file(s, small_metadata()); });
 }
 
-// The PTCH payload of patch_file(), edited by `change`.
+// The PTCH payload of patch_file_v2_4(), edited by `change`, in a file stamped 2.4.
 std::vector<uint8_t> with_patch_payload(const std::function<void(std::vector<uint8_t>&)>& change) {
-  return crafted::with_chunk_payload(patch_file(), "PTCH", change);
+  return crafted::with_minor_version(crafted::with_chunk_payload(patch_file_v2_4(), "PTCH", change), 4);
+}
+
+// A file stamped 2.4 reads its PTCH as 2.4 wrote it, to the same patches as the 2.5 file's.
+TEST(FramePatches, AFileStamped2_4ReadsTheVarintCoding) {
+  const Sequence s = with_patches();
+  SequenceFileInfo info;
+  const Sequence back = decode_sequence_file(patch_file_v2_4(), "v2_4.fmv", &info);
+  EXPECT_EQ(info.minor_version, 4);
+  expect_same_patches(back.patches, s.patches);
+  // The 2.5 coding in a file stamped 2.4 is not what 2.4 wrote: its stream's first byte (0) reads
+  // as a time change of 0, refused by name, never misread; the 2.4 coding in a 2.5 file likewise.
+  testing::expect_error(ErrorCode::kCorrupt, "frame patches",
+                        [&] { open_sequence_source(crafted::with_minor_version(patch_file(), 4), "v2_4.fmv"); });
+  testing::expect_error(ErrorCode::kCorrupt, "frame patches", [&] {
+    open_sequence_source(crafted::with_minor_version(patch_file_v2_4(), format::kMinorVersion), "v2_5.fmv");
+  });
 }
 
 TEST(FramePatches, EveryCheckOfTheChunkRefusesABadOneByName) {
-  ASSERT_EQ(crafted::chunk_payload(patch_file(), "PTCH"), kPatchPayload);
+  ASSERT_EQ(crafted::chunk_payload(patch_file_v2_4(), "PTCH"), kPatchPayload);
   const auto corrupt = [](const std::vector<uint8_t>& bytes, const std::string& fragment) {
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { open_sequence_source(bytes, "crafted.fmv"); });
     testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { decode_sequence_file(bytes, "crafted.fmv"); });
@@ -201,15 +239,144 @@ TEST(FramePatches, EveryCheckOfTheChunkRefusesABadOneByName) {
   });
   EXPECT_EQ(file_layout::read_patches(kPatchPayload, "roomy.fmv", with_patches(), {0.0, 0.5, 1.0}, tight + 28, 4).size(), 2u);
   // Two PTCH chunks: the extra chunk rebuild adds, renamed.
-  const std::vector<uint8_t> two = crafted::rebuild(crafted::rebuild(
-                                                        patch_file(), [](const std::string&, std::vector<uint8_t>&) {}, true),
-                                                    [&](std::string& type, std::vector<uint8_t>& payload) {
-                                                      if (type == "ZZZ1") {
-                                                        type = "PTCH";
-                                                        payload = kPatchPayload;
-                                                      }
-                                                    });
+  const std::vector<uint8_t> two = crafted::with_minor_version(
+      crafted::rebuild(crafted::rebuild(patch_file_v2_4(), [](const std::string&, std::vector<uint8_t>&) {}, true),
+                       [&](std::string& type, std::vector<uint8_t>& payload) {
+                         if (type == "ZZZ1") {
+                           type = "PTCH";
+                           payload = kPatchPayload;
+                         }
+                       }),
+      4);
   corrupt(two, "two PTCH chunks");
+}
+
+// ---- Format 2.5's coding (§7.5.1) ----
+
+// with_patches()' patches as the stream codes them: 7.5 and 15 frames, in 16ths.
+std::vector<format::CodedPatch> coded_patches() {
+  return {{480, 5, {12}, {{4, -8, 2}}}, {960, 3, {4, 5}, {{0, 0, 1}, {8, 0, 0}}}};
+}
+
+std::vector<uint8_t> stream_of(const std::vector<format::CodedPatch>& patches) {
+  format::PatchStreamWriter w;
+  for (const auto& p : patches) w.add(p);
+  return w.finish();
+}
+
+// A 2.5 PTCH payload: varint count, i8 e, varint stream length `stated` (none: the stream's), the
+// stream, then `after` bytes.
+std::vector<uint8_t> ranged_payload(int64_t count, int8_t e, const std::vector<uint8_t>& stream, std::optional<int64_t> stated = {},
+                                    size_t after = 0) {
+  format::ByteWriter w;
+  file_layout::write_varint(w, count);
+  w.write(e);
+  file_layout::write_varint(w, stated.value_or(static_cast<int64_t>(stream.size())));
+  w.bytes(stream);
+  for (size_t i = 0; i < after; ++i) w.write(uint8_t{0});
+  return w.take();
+}
+
+// A stream written decision by decision as §7.5.1 lays it out, with values no writer writes.
+struct RawPatchStream {
+  format::RangedStreamWriter stream;
+  format::PatchModels m;
+  RawPatchStream& time(bool off_frame, int64_t coded, int64_t remainder = 0) {
+    stream.decision(m.off_frame, off_frame);
+    stream.number(m.frames, coded);
+    if (off_frame) stream.number(m.remainder, remainder);
+    return *this;
+  }
+  RawPatchStream& lattice(bool is_new, int64_t c = 0) {
+    stream.decision(m.new_lattice, is_new);
+    if (is_new) stream.number(m.lattice, c);
+    return *this;
+  }
+  // Not empty, and `nodes` flags 0 (each under context 0: no neighbour or earlier patch moved).
+  RawPatchStream& still_flags(int nodes) {
+    stream.decision(m.empty, false);
+    for (int i = 0; i < nodes; ++i) stream.decision(m.occupied[0], false);
+    return *this;
+  }
+  std::vector<uint8_t> finish() { return stream.finish(); }
+};
+
+TEST(FramePatches, TheRangeCodedChunkHoldsThemToTheBit) {
+  // The writer's coding of the patches, and its reading to the same patches as 2.4's varints.
+  EXPECT_EQ(ranged_payload(2, -4, stream_of(coded_patches())), kRangedPatchPayload);
+  const Sequence a = decode_sequence_file(patch_file(), "v2_5.fmv"), b = decode_sequence_file(patch_file_v2_4(), "v2_4.fmv");
+  expect_same_patches(a.patches, b.patches);
+  // An empty patch, a lattice kept, a time off the frame lattice, codes past the unary part and
+  // the escape's longest: read back as written.
+  const std::vector<format::CodedPatch> varied = {{1, 17, {0, 1, 18, 288}, {{1, 2, 3}, {-9, 100, 0}, {0, 0, -1}, {int64_t{1} << 34, 0, 0}}},
+                                                  {64, 17, {}, {}},
+                                                  {129, 17, {1, 18, 19}, {{0, 5, 0}, {-(int64_t{1} << 34), 1, 1}, {7, 7, 7}}},
+                                                  {64, 129, {16640}, {{3, 0, 0}}}};
+  const std::vector<uint8_t> varied_stream = stream_of(varied);  // the reader holds a view of it
+  format::PatchStreamReader r(varied_stream, "varied");
+  for (const auto& p : varied) {
+    EXPECT_EQ(r.time_change(), p.time_change);
+    EXPECT_EQ(r.lattice(), p.lattice);
+    ASSERT_EQ(r.occupancy(), p.nodes.size());
+    std::vector<int32_t> nodes(p.nodes.size());
+    std::vector<std::array<int64_t, 3>> codes(p.nodes.size());
+    r.nodes_and_codes(nodes, codes);
+    EXPECT_EQ(nodes, p.nodes);
+    EXPECT_EQ(codes, p.codes);
+  }
+  EXPECT_NO_THROW(r.expect_end());
+  // What no stream may hold, refused by the writer.
+  for (const format::CodedPatch& bad : std::vector<format::CodedPatch>{{0, 3, {}, {}},
+                                                                     {1, 130, {}, {}},
+                                                                     {1, 3, {4, 4}, {{1, 0, 0}, {1, 0, 0}}},
+                                                                     {1, 3, {9}, {{1, 0, 0}}},
+                                                                     {1, 3, {4}, {{(int64_t{1} << 34) + 1, 0, 0}}}}) {
+    format::PatchStreamWriter w;
+    EXPECT_THROW(w.add(bad), Error);
+  }
+}
+
+TEST(FramePatches, EveryCheckOfTheRangeCodedChunkRefusesABadOneByName) {
+  ASSERT_EQ(crafted::chunk_payload(patch_file(), "PTCH"), kRangedPatchPayload);
+  const std::vector<uint8_t> good = stream_of(coded_patches());
+  const auto corrupt = [](const std::vector<uint8_t>& payload, const std::string& fragment) {
+    SCOPED_TRACE(fragment);
+    const std::vector<uint8_t> bytes = crafted::with_chunk_payload(patch_file(), "PTCH", [&](auto& p) { p = payload; });
+    testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { open_sequence_source(bytes, "crafted.fmv"); });
+    testing::expect_error(ErrorCode::kCorrupt, fragment, [&] { decode_sequence_file(bytes, "crafted.fmv"); });
+  };
+  const std::string s = std::to_string(good.size());
+  corrupt(ranged_payload(0, -4, good), "states 0 frame patches");
+  corrupt(ranged_payload(72 * static_cast<int64_t>(good.size()) + 1, -4, good), "its stream of " + s + " bytes holds 1 to");
+  corrupt(ranged_payload(2, -4, good, static_cast<int64_t>(good.size()) + 1), "a patch stream of");
+  corrupt(ranged_payload(2, -4, good, -5), "a patch stream of -5 bytes");
+  corrupt(ranged_payload(2, 31, good), "step exponent 31");
+  corrupt(ranged_payload(2, 30, good), "displacement code 4 beyond");  // 2^30 a step: 10^9 holds no code
+  corrupt(ranged_payload(3, -4, good), "ends before its last value");  // a third patch the stream has not
+  corrupt(ranged_payload(2, -4, std::vector<uint8_t>(good.begin(), good.end() - 1)), "range-coded");
+  std::vector<uint8_t> longer = good;
+  longer.push_back(0);
+  corrupt(ranged_payload(2, -4, longer), "range-coded");  // a byte the stream does not read
+  corrupt(ranged_payload(2, -4, good, {}, 1), "1 bytes after its last field");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, -1).finish()), "time change of -1 frames");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(true, 0, 64).finish()), "remainder 64 outside");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(true, 0, 0).finish()), "remainder 0 outside");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 100).lattice(true, 3).finish()), "is not strictly between two keyframes");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(false).finish()), "lattice 0 outside");  // no lattice before
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(true, 130).finish()), "lattice 130 outside");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(true, 1).finish()), "lattice 1 outside");
+  corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(true, 3).still_flags(9).finish()), "moves none");
+  // Their memory against the caller's budget: the count's before anything is allocated, each
+  // patch's nodes before they are (2 patches and 3 nodes need one node more than `tight`).
+  const uint64_t tight = 2 * sizeof(FramePatch) + 2 * (sizeof(int32_t) + sizeof(Vec3));
+  const uint16_t minor = format::kMinorVersion;
+  testing::expect_error(ErrorCode::kLimit, "frame patches' nodes need", [&] {
+    file_layout::read_patches(kRangedPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, tight, minor);
+  });
+  testing::expect_error(ErrorCode::kLimit, "2 frame patches need", [&] {
+    file_layout::read_patches(kRangedPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, 2 * sizeof(FramePatch) - 1, minor);
+  });
+  EXPECT_EQ(file_layout::read_patches(kRangedPatchPayload, "roomy.fmv", with_patches(), {0.0, 0.5, 1.0}, tight + 28, minor).size(), 2u);
 }
 
 // A file stamped 2.3 with a PTCH chunk: skipped, as a 2.3 decoder skips a chunk it does not know

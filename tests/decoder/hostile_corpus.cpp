@@ -16,6 +16,7 @@
 #include "format/container.hpp"
 #include "format/error.hpp"
 #include "format/file_io.hpp"
+#include "format/ranged_patches.hpp"
 #include "format/zstd_frame.hpp"
 #include "tests/decoder/crafted_files.hpp"
 
@@ -502,34 +503,81 @@ void write_set(Corpus& corpus) {
     corpus.add("k_translation_1e9.fmv", rebuild(predicted, far), three, "keyframe 2 translated to 1e9 mm");
   }
   corpus.add("k_spline_7.fmv", rebuild(plain, patch<uint8_t>("HEAD", 17, 7)), three, "an unknown spline kind", "spline kind 7");
-  // Frame patches (format 2.4, spec/container.md §7.5): a count its bytes cannot hold, and one patch
-  // moving every node of the largest lattice (129²) by 2^40 steps of 2^-20 (10^6 units) at 0.25 s.
+  // Frame patches (format 2.4, spec/container.md §7.5), in files stamped 2.4 (the writer writes 2.5's
+  // coding; a rebuilt file is stamped with the writer's version, so the stamp comes after): a count
+  // its bytes cannot hold, and one patch moving every node of the largest lattice (129²) by 2^40
+  // steps of 2^-20 (10^6 units) at 0.25 s.
   Sequence patched = small;
   patched.patches = {{0.25, 3, {4}, {Vec3(0.0625, 0, 0)}}};
   const Bytes with_patch = encode_sequence_file(patched, crafted::small_metadata());
   corpus.add("m_patch_count_2e24.fmv",
-             rebuild(with_patch,
-                     [](const std::string& t, Bytes& p) {
-                       if (t == "PTCH") p = {0, 0, 0, 1, 0, 0xC0, 0x07, 6, 0};
-                     }),
+             crafted::with_minor_version(rebuild(with_patch,
+                                                 [](const std::string& t, Bytes& p) {
+                                                   if (t == "PTCH") p = {0, 0, 0, 1, 0, 0xC0, 0x07, 6, 0};
+                                                 }),
+                                         4),
              three, "a PTCH claiming 2^24 frame patches in 9 bytes (format 2.4)", "frame patches");
   corpus.add("m_patch_129x129_largest.fmv",
+             crafted::with_minor_version(rebuild(with_patch,
+                                                 [](const std::string& t, Bytes& p) {
+                                                   if (t != "PTCH") return;
+                                                   format::ByteWriter w;
+                                                   w.write(uint32_t{1});
+                                                   w.write(int8_t{-20});
+                                                   file_layout::write_varint(w, 480);  // 0.25 s in 64ths of a frame period at 30 fps
+                                                   file_layout::write_varint(w, 129);
+                                                   file_layout::write_varint(w, 129 * 129);
+                                                   for (int n = 0; n < 129 * 129; ++n) {
+                                                     file_layout::write_varint(w, 0);
+                                                     for (int c = 0; c < 3; ++c) file_layout::write_varint(w, int64_t{1} << 40);
+                                                   }
+                                                   p = w.take();
+                                                 }),
+                                         4),
+             three, "a PTCH moving all 129² lattice nodes by 10^6 units (format 2.4)");
+  // Format 2.5's range-coded PTCH (§7.5.1): 2^24 patches stated for a 5-byte stream; every node of
+  // the largest lattice moved by 2^34 steps of 2^-20 (16384 units), the most a valid stream holds;
+  // and 64 KiB of noise stated to hold 4 patches a byte (their 16 MB within the budget), which the
+  // decoder reads until the noise breaks a check: its time is bounded by the bytes.
+  corpus.add("m_patch_ranged_count_2e24.fmv",
              rebuild(with_patch,
                      [](const std::string& t, Bytes& p) {
-                       if (t != "PTCH") return;
-                       format::ByteWriter w;
-                       w.write(uint32_t{1});
-                       w.write(int8_t{-20});
-                       file_layout::write_varint(w, 480);  // 0.25 s in 64ths of a frame period at 30 fps
-                       file_layout::write_varint(w, 129);
-                       file_layout::write_varint(w, 129 * 129);
-                       for (int n = 0; n < 129 * 129; ++n) {
-                         file_layout::write_varint(w, 0);
-                         for (int c = 0; c < 3; ++c) file_layout::write_varint(w, int64_t{1} << 40);
-                       }
-                       p = w.take();
+                       if (t == "PTCH") p = {0x80, 0x80, 0x80, 0x10, 0, 10, 0, 0, 0, 0, 0};
                      }),
-             three, "a PTCH moving all 129² lattice nodes by 10^6 units (format 2.4)");
+             three, "a range-coded PTCH claiming 2^24 frame patches in 5 bytes (format 2.5)", "frame patches");
+  const auto ranged = [](int64_t count, const Bytes& stream) {
+    return [count, stream](const std::string& t, Bytes& p) {
+      if (t != "PTCH") return;
+      format::ByteWriter w;
+      file_layout::write_varint(w, count);
+      w.write(int8_t{-20});
+      file_layout::write_varint(w, static_cast<int64_t>(stream.size()));
+      w.bytes(stream);
+      p = w.take();
+    };
+  };
+  {
+    format::PatchStreamWriter w;
+    format::CodedPatch all{480, 129, {}, {}};
+    for (int32_t n = 0; n < 129 * 129; ++n) {
+      all.nodes.push_back(n);
+      all.codes.push_back({int64_t{1} << 34, -(int64_t{1} << 34), int64_t{1} << 34});
+    }
+    w.add(all);
+    corpus.add("m_patch_ranged_129x129_largest.fmv", rebuild(with_patch, ranged(1, w.finish())), three,
+               "a range-coded PTCH moving all 129² lattice nodes by 16384 units (format 2.5)");
+  }
+  {
+    Bytes noise(64 << 10);
+    uint64_t state = 0x9E3779B97F4A7C15ull;
+    for (uint8_t& b : noise) {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      b = static_cast<uint8_t>(state >> 56);
+    }
+    noise[0] = 0;  // a range-coded stream's first byte
+    corpus.add("m_patch_ranged_noise_64k.fmv", rebuild(with_patch, ranged(4 * static_cast<int64_t>(noise.size()), noise)), three,
+               "64 KiB of noise as a range-coded PTCH stream of 4 patches a byte (format 2.5)", "frame patches");
+  }
   corpus.add("k_intra_period_0.fmv",
              rebuild(predicted,
                      [](const std::string& t, Bytes& p) {

@@ -1,7 +1,8 @@
 // fminfo on files whose settings (informative JSON the file chooses, spec/container.md §5) it must
 // not walk: nested deeper than its limit of 64 levels, 1 MiB of brackets (which crashed
 // fminfo --json: SIGSEGV after 35 s and 3.9 GB), or not JSON at all. fminfo describes the rest of
-// the file, leaves the settings out and says so naming the file; it never crashes.
+// the file, leaves the settings out and says so naming the file; it never crashes. And the version
+// a file with frame patches needs.
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -124,6 +125,22 @@ TEST(Fminfo, SettingsThatAreNotJsonAreLeftOutAndTheOutputStaysJson) {
   EXPECT_NE(run.err.find(file.string() + ": the settings are not JSON"), std::string::npos) << run.err;
   const nlohmann::json doc = described(run);
   EXPECT_TRUE(doc["settings"].is_null());
+}
+
+// The version a file with frame patches needs is the one of its PTCH's coding (spec/container.md
+// §7.5.1): 2.5's range-coded stream in a file of this writer, 2.4's varints in golden_v2_4.fmv.
+TEST(Fminfo, AFileWithPatchesNeedsTheVersionOfItsPatchCoding) {
+  TempDir dir;
+  facemorph::Sequence patched = facemorph::crafted::small_sequence(9, 8);
+  patched.patches = {{0.25, 3, {4}, {facemorph::Vec3(0.0625, 0, 0)}}};
+  const std::filesystem::path file = dir / "patched.fmv";
+  facemorph::write_sequence_file(file, patched, facemorph::crafted::small_metadata());
+  const FminfoRun run = fminfo(dir, file, true);
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_EQ(described(run)["format_version_needed"], "2.5");
+  const FminfoRun golden = fminfo(dir, std::string(FACEMORPH_TEST_DATA) + "/golden_v2_4.fmv", true);
+  ASSERT_EQ(golden.status, 0) << golden.err;
+  EXPECT_EQ(described(golden)["format_version_needed"], "2.4");
 }
 
 }  // namespace

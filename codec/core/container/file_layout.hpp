@@ -171,6 +171,12 @@ inline constexpr uint64_t kPatchNodeMemoryBytes = sizeof(int32_t) + sizeof(Vec3)
 // capture's precision, 2^30 far above any face); codes within 2^40, the varint's bound (§6).
 inline constexpr int kMinPatchStepExponent = -60, kMaxPatchStepExponent = 30;
 inline constexpr double kMaxPatchCode = 1099511627776.0;  // 2^40
+// From format 2.5 the chunk is one range-coded stream (§7.5.1), whose codes stay within the
+// residual coder's 2^34. Each patch codes at least 9 decisions, each at least 0.0124 bits (the
+// models' bounds, §7.3), so a stream of S bytes holds at most 72 S patches.
+inline constexpr uint16_t kRangedPatchMinorVersion = 5;
+inline constexpr double kMaxRangedPatchCode = 17179869184.0;  // 2^34
+inline constexpr uint64_t kMaxRangedPatchesPerByte = 72;
 
 // ---- G's lattice, along which the keyframe coding predicts (grid_facts.cpp) ----
 

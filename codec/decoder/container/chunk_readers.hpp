@@ -47,7 +47,8 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
 // - read_item_time: an item's time, coded as its change from the previous item's code `q` (64ths of
 //   a frame period from the first time; updated), kCorrupt naming the item (`name`) where it does
 //   not come after the previous one or not strictly between two keyframes. With the keyframe
-//   interval it falls in (residual_interval).
+//   interval it falls in (residual_interval). item_time: the same for a change read otherwise
+//   (format 2.5's range-coded PTCH), kCorrupt naming `source`.
 uint32_t read_item_count(format::ByteReader& r, const char* count_name, const char* items, uint32_t max, size_t min_bytes);
 struct ItemTime {
   double time = 0;
@@ -55,9 +56,12 @@ struct ItemTime {
 };
 ItemTime read_item_time(format::ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
                         const std::vector<double>& key_times, int64_t& q);
+ItemTime item_time(int64_t change, const std::string& source, const std::string& name, const Sequence& shape,
+                   const std::vector<double>& key_times, int64_t& q);
 
 // Reads and checks a PTCH payload against the header (first time, fps) and the keyframes' times:
-// every check of §7.5, kCorrupt naming the patch; kLimit where their memory passes `max_memory_bytes`.
+// every check of §7.5 (varints in a file stamped 2.4, §7.5.1's range-coded stream from 2.5 on),
+// kCorrupt naming the patch; kLimit where their memory passes `max_memory_bytes`.
 std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std::string& source, const Sequence& shape,
                                      const std::vector<double>& key_times, uint64_t max_memory_bytes, uint16_t minor_version);
 

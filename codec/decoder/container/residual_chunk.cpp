@@ -67,14 +67,18 @@ uint32_t read_item_count(ByteReader& r, const char* count_name, const char* item
 
 ItemTime read_item_time(ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
                         const std::vector<double>& key_times, int64_t& q) {
-  const int64_t change = read_varint(r, change_name);
+  return item_time(read_varint(r, change_name), r.source(), name, shape, key_times, q);
+}
+
+ItemTime item_time(int64_t change, const std::string& source, const std::string& name, const Sequence& shape,
+                   const std::vector<double>& key_times, int64_t& q) {
   if (change < 1 || change >= kMaxTimeCode - q)
-    corrupt(r.source(), name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
+    corrupt(source, name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
   q += change;
   ItemTime t;
   t.time = residual_time(q, shape.first_time, shape.fps);
   t.interval = residual_interval(key_times, t.time);
-  if (t.interval < 0) corrupt(r.source(), name + ": its time " + std::to_string(t.time) + " s is not strictly between two keyframes");
+  if (t.interval < 0) corrupt(source, name + ": its time " + std::to_string(t.time) + " s is not strictly between two keyframes");
   return t;
 }
 

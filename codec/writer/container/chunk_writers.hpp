@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,9 +25,9 @@ std::vector<uint8_t> write_index(const std::vector<IndexEntry>& entries, const F
 // summing to 0 exactly; kInvalidArgument otherwise.
 std::vector<uint8_t> write_residuals(const SequenceOutline& outline);
 
-// The PTCH payload of the outline's frame patches (not empty): times on the file's lattice
-// (residual_time), every displacement component a whole multiple of one step; kInvalidArgument
-// otherwise.
+// The PTCH payload of the outline's frame patches (not empty), in format 2.5's range-coded coding
+// (§7.5.1): times on the file's lattice (residual_time), every displacement component a whole
+// multiple of one step; kInvalidArgument otherwise.
 std::vector<uint8_t> write_patches(const SequenceOutline& outline);
 
 // An item's time in either chunk (the readers' read_item_time): written as its change from the
@@ -34,6 +35,9 @@ std::vector<uint8_t> write_patches(const SequenceOutline& outline);
 // time. False, writing nothing, where the time is not on that lattice, not after the previous one or
 // past kMaxTimeCode.
 bool write_item_time(format::ByteWriter& w, double time, const SequenceOutline& outline, int64_t& previous);
+// The same change, not written (format 2.5's range-coded PTCH codes it); nullopt where
+// write_item_time writes nothing.
+std::optional<int64_t> item_time_change(double time, const SequenceOutline& outline, int64_t& previous);
 
 // ---- Where the chunks after the index go (index_layout.cpp) ----
 

@@ -3,6 +3,7 @@
 #include "codec/writer/container/chunk_writers.hpp"
 
 #include <cmath>
+#include <optional>
 
 namespace facemorph::file_layout {
 
@@ -45,11 +46,17 @@ std::vector<uint8_t> write_residuals(const SequenceOutline& o) {
 }
 
 bool write_item_time(ByteWriter& w, double time, const SequenceOutline& o, int64_t& previous) {
+  const std::optional<int64_t> change = item_time_change(time, o, previous);
+  if (change) write_varint(w, *change);
+  return change.has_value();
+}
+
+std::optional<int64_t> item_time_change(double time, const SequenceOutline& o, int64_t& previous) {
   const int64_t q = residual_time_code(time, o.first_time, o.fps);
-  if (residual_time(q, o.first_time, o.fps) != time || q <= previous || q >= kMaxTimeCode) return false;
-  write_varint(w, q - previous);
+  if (residual_time(q, o.first_time, o.fps) != time || q <= previous || q >= kMaxTimeCode) return std::nullopt;
+  const int64_t change = q - previous;
   previous = q;
-  return true;
+  return change;
 }
 
 }  // namespace facemorph::file_layout
