@@ -238,12 +238,14 @@ void print_encoder_notes(const nlohmann::json& settings) {
   }
 }
 
-// The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
+// The format version a file needs (§12): the oldest minor whose decoder reads all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
-// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
-// of them is, but for its preamble, a 2.0 file (spec/container.md §12).
+// frames, 2.4 frame patches, 2.5 a chunk compressed against the header dictionary), and the writer
+// stamps every file with its own minor, so a file stated 2.5 that uses none of them is, but for its
+// preamble, a 2.0 file (spec/container.md §12).
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
+  if (std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.against_dictionary > 0; })) return 5;
   if (info.frame_patches > 0) return 4;
   if (info.residual_frames > 0) return 3;
   if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
@@ -362,7 +364,11 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
     }
     nlohmann::json chunks = nlohmann::json::array();
     for (const auto& c : info.chunks)
-      chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
+      chunks.push_back({{"type", c.type},
+                        {"count", c.count},
+                        {"bytes", c.stored_bytes},
+                        {"raw_bytes", c.raw_bytes},
+                        {"against_dictionary", c.against_dictionary}});
     doc["chunks"] = std::move(chunks);
     doc["settings"] = settings.value;
     if (!settings.problem.empty()) doc["settings_error"] = settings.problem;
@@ -447,8 +453,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");
   for (const auto& c : info.chunks) {
-    std::printf("            %s %6d %10llu  (%llu)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
-                static_cast<unsigned long long>(c.raw_bytes));
+    std::printf("            %s %6d %10llu  (%llu%s)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
+                static_cast<unsigned long long>(c.raw_bytes), c.against_dictionary > 0 ? "; against the header dictionary" : "");
   }
   if (!settings.problem.empty()) {
     std::printf("settings    left out: %s\n", settings.problem.c_str());

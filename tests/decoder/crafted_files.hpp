@@ -126,8 +126,10 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
 // index fields are taken from the index as `edit` left it.
 template <typename Edit>
 // `compress`: chunk types stored compressed (where zstd makes them smaller) even if they were not.
+// `alter_header`: changes the header's chunk as it will be written (its flags, sizes, stored bytes).
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false,
-                             const std::vector<std::string>& compress = {}) {
+                             const std::vector<std::string>& compress = {},
+                             const std::function<void(format::PreparedChunk&)>& alter_header = {}) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
   size_t groups = 0;          // KGOP chunks
@@ -144,8 +146,10 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     textured = textured || c.type == "TEXR";
     if (c.type == "KIDX") index_payload = payload;
     const bool compressed = c.compressed() || std::find(compress.begin(), compress.end(), type) != compress.end();
-    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0));
+    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0,
+                                           c.against_dictionary() ? format::Dictionary::kHeader : format::Dictionary::kNone));
   }
+  if (alter_header) alter_header(chunks[0]);
   std::vector<format::PreparedChunk> extra;
   if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
   const std::vector<format::ChunkView>& old = reader.chunks();
@@ -242,7 +246,15 @@ inline uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
 }
 
 // The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
+// Stamped before 2.5, its header is compressed without the header dictionary, as that version's
+// writer compressed it (a 2.4 file cannot use it: spec/container.md §3.4).
 inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
+  if (minor < format::kDictionaryMinorVersion) {
+    const std::vector<uint8_t> header = chunk_payload(bytes, "HEAD");
+    bytes = rebuild(bytes, [](const std::string&, std::vector<uint8_t>&) {}, false, false, {}, [&](format::PreparedChunk& c) {
+      if ((c.flags & format::kChunkDictionary) != 0) c = format::prepare_chunk("HEAD", header, true, 19);
+    });
+  }
   std::memcpy(bytes.data() + 10, &minor, sizeof minor);
   const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
   std::memcpy(bytes.data() + 12, &crc, sizeof crc);
