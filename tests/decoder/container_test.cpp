@@ -763,6 +763,10 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   Sequence patches = small_sequence(9, 8);
   patches.patches = {{0.25, 5, {12, 13}, {Vec3(0.25, -0.5, 0.125), Vec3(0, 0.0625, 0)}}, {0.75, 3, {}, {}}};
   seeds.emplace_back("n9_frame_patches.fmv", encode_sequence_file(patches, predicted_metadata()));
+  // The header compressed against the header dictionary (format 2.5): every file written since is.
+  SequenceFileMetadata worded = predicted_metadata();
+  worded.settings = R"({"field_rounding":"shaped","grid":"auto","keyframe_fit":true,"registration":"gmf","spline":"catmull-rom"})";
+  seeds.emplace_back("n9_header_dictionary.fmv", encode_sequence_file(small_sequence(9, 8), worded));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);
