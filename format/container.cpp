@@ -4,6 +4,7 @@
 #include "format/byte_writer.hpp"
 #include "format/checksum.hpp"
 #include "format/error.hpp"
+#include "format/header_dictionary.hpp"
 #include "format/spill_file.hpp"
 #include "format/zstd_frame.hpp"
 
@@ -31,7 +32,7 @@ void write_chunk(std::vector<uint8_t>& out, std::string_view type, uint32_t flag
 
 }  // namespace
 
-PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level) {
+PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level, Dictionary dictionary) {
   if (!valid_type(type) || type == kEndChunk) {
     throw Error(ErrorCode::kInvalidArgument, "chunk type '" + std::string(type) + "' is not four characters [A-Z0-9] (or is reserved)");
   }
@@ -42,8 +43,16 @@ PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload,
   chunk.raw_size = payload.size();
   if (zstd_level > 0 && !payload.empty()) {
     std::vector<uint8_t> packed = compress_frame(payload, zstd_level);
+    uint32_t flags = kChunkCompressed;
+    if (dictionary == Dictionary::kHeader) {
+      std::vector<uint8_t> against = compress_frame(payload, zstd_level, header_dictionary());
+      if (against.size() < packed.size()) {
+        packed = std::move(against);
+        flags |= kChunkDictionary;
+      }
+    }
     if (packed.size() < payload.size()) {
-      chunk.flags |= kChunkCompressed;
+      chunk.flags |= flags;
       chunk.stored = std::move(packed);
       return chunk;
     }
@@ -143,6 +152,8 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
   minor_ = r.read<uint16_t>("the minor version");
   const uint32_t crc = r.read<uint32_t>("the preamble checksum");
   if (crc != crc32(file.first(12))) throw Error(ErrorCode::kCorrupt, source_ + ": preamble checksum mismatch");
+  // Flag bit 2 came with the header dictionary: in an older file it is a reserved bit.
+  if (minor_ >= kind.dictionary_minor) known_flags_ |= kChunkDictionary;
   if (major_ == 1 && kind.magic == kMagic) {
     // Format 1.x was written by facemorph 0.2-0.7 only, before the format was frozen at 2.0.
     throw Error(ErrorCode::kUnsupported, source_ + ": format version 1." + std::to_string(minor_) +
@@ -163,7 +174,9 @@ ContainerReader::ContainerReader(std::span<const uint8_t> file, std::string sour
     chunk.flags = r.read<uint32_t>("a chunk's flags");
     const uint64_t stored = r.read<uint64_t>("a chunk's size");
     chunk.raw_size = r.read<uint64_t>("a chunk's size");
-    if ((chunk.flags & ~kChunkKnownFlags) != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " sets reserved flags");
+    if ((chunk.flags & ~known_flags_) != 0) throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " sets reserved flags");
+    if (chunk.against_dictionary() && !chunk.compressed())
+      throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " sets the dictionary flag (bit 2) on a payload that is not compressed");
     if (stored > kMaxPayloadBytes || chunk.raw_size > kMaxPayloadBytes)
       throw Error(ErrorCode::kCorrupt, source_ + ": " + name + " announces over 1 GiB");
     if (!chunk.compressed() && chunk.raw_size != stored)
@@ -230,6 +243,14 @@ std::vector<uint8_t> ContainerReader::payload(const ChunkView& chunk, uint64_t m
   if (chunk.raw_size > max_bytes) {
     throw Error(ErrorCode::kLimit, source_ + ": " + describe(chunk) + " decompresses to " + std::to_string(chunk.raw_size) +
                                        " bytes, over the memory limit of " + std::to_string(max_bytes));
+  }
+  if (chunk.against_dictionary()) {
+    // Its checksum is what tells a frame made against other bytes (or none) from one made against these.
+    if (!has_content_checksum(chunk.stored))
+      throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": a zstd frame against the header dictionary without its content checksum");
+    std::optional<std::vector<uint8_t>> out = decompress_frame_growing(chunk.stored, chunk.raw_size, header_dictionary());
+    if (!out) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": does not decompress against the header dictionary (damaged, or made against other bytes)");
+    return std::move(*out);
   }
   std::optional<std::vector<uint8_t>> out = decompress_frame_growing(chunk.stored, chunk.raw_size);
   if (!out) throw Error(ErrorCode::kCorrupt, source_ + ": " + describe(chunk) + ": damaged zstd payload");

@@ -21,12 +21,15 @@ inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
 inline constexpr uint16_t kMinorVersion = 5;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared
                                               // textures; 2.3: residual frames; 2.4: frame patches; 2.5: linear along the rim,
-                                              // range-coded patches)
+                                              // range-coded patches, the header dictionary)
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;
 inline constexpr uint64_t kMaxPayloadBytes = uint64_t{1} << 30;  // stored or decompressed
 inline constexpr std::string_view kEndChunk = "FEND";
+
+inline constexpr uint16_t kNoDictionary = UINT16_MAX;
+inline constexpr uint16_t kDictionaryMinorVersion = 5;  // the header dictionary's first version
 
 // Which file a container is: its magic and the version its writer writes and its reader reads (the
 // same major only). The chunk layer is shared: the facemorph file (.fmv) and the staged encode's
@@ -35,13 +38,17 @@ struct ContainerKind {
   std::array<uint8_t, 8> magic;
   uint16_t major = 0, minor = 0;
   const char* name = "";  // in errors: "facemorph container"
+  // The first minor version whose chunks may be compressed against the header dictionary (chunk
+  // flag bit 2, header_dictionary.hpp); kNoDictionary where none may.
+  uint16_t dictionary_minor = kNoDictionary;
 };
-inline constexpr ContainerKind kSequenceContainer{kMagic, kMajorVersion, kMinorVersion, "facemorph container"};
+inline constexpr ContainerKind kSequenceContainer{kMagic, kMajorVersion, kMinorVersion, "facemorph container", kDictionaryMinorVersion};
 
 // Chunk flags (spec/container.md §3). Other bits are reserved: written 0, rejected when set.
 inline constexpr uint32_t kChunkCompressed = 1;  // the payload is one zstd frame
 inline constexpr uint32_t kChunkCritical = 2;    // a reader that does not know the type must refuse the file
-inline constexpr uint32_t kChunkKnownFlags = kChunkCompressed | kChunkCritical;
+inline constexpr uint32_t kChunkDictionary = 4;  // format 2.5: the zstd frame is compressed against the header dictionary
+inline constexpr uint32_t kChunkKnownFlags = kChunkCompressed | kChunkCritical;  // in every version
 
 // A chunk as found in a file: where it is, and its stored payload as a view into the file's bytes.
 struct ChunkView {
@@ -53,6 +60,7 @@ struct ChunkView {
   uint32_t crc = 0;  // as stored
   bool compressed() const { return (flags & kChunkCompressed) != 0; }
   bool critical() const { return (flags & kChunkCritical) != 0; }
+  bool against_dictionary() const { return (flags & kChunkDictionary) != 0; }
   uint64_t total_size() const { return kChunkHeaderBytes + stored.size() + kChunkTrailerBytes; }
 };
 
@@ -67,9 +75,13 @@ struct PreparedChunk {
 };
 
 // Prepares a chunk. With `zstd_level` > 0 the payload is compressed and kept compressed only where
-// that is smaller. Throws kInvalidArgument for a type that is not four [A-Z0-9] characters, the
-// end chunk's type, or a payload over kMaxPayloadBytes.
-PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level = 0);
+// that is smaller; with `dictionary` too, it is also compressed against the header dictionary, and
+// the smallest of the three is kept (flag bit 2 where it is the dictionary's frame). Throws
+// kInvalidArgument for a type that is not four [A-Z0-9] characters, the end chunk's type, or a
+// payload over kMaxPayloadBytes.
+enum class Dictionary { kNone, kHeader };
+PreparedChunk prepare_chunk(std::string_view type, std::vector<uint8_t> payload, bool critical, int zstd_level = 0,
+                            Dictionary dictionary = Dictionary::kNone);
 
 // Builds a container: the preamble, then chunks in the order added, then the end chunk. In memory,
 // or streamed to `out` as each chunk is added (memory holds one chunk).
@@ -144,7 +156,8 @@ class ContainerReader {
   const std::vector<ChunkView>& chunks() const { return chunks_; }
   // The chunk starting at `offset` (an index entry), or kCorrupt naming `what`.
   const ChunkView& chunk_at(uint64_t offset, const std::string& what) const;
-  // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise).
+  // The payload, its CRC checked and decompressed to exactly raw_size bytes (kCorrupt otherwise;
+  // against the header dictionary where the chunk's flag bit 2 says so).
   // A raw size over `max_bytes` (the caller's memory budget) is kLimit before anything is
   // allocated, a stored payload's as a compressed one's; a compressed payload is allocated as it decompresses, so a frame that announces
   // more than it holds costs what it holds.
@@ -158,6 +171,7 @@ class ContainerReader {
   std::span<const uint8_t> file_;
   std::string source_;
   uint16_t major_ = 0, minor_ = 0;
+  uint32_t known_flags_ = kChunkKnownFlags;  // with kChunkDictionary from the kind's dictionary_minor on
   std::vector<ChunkView> chunks_;
 };
 

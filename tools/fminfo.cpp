@@ -238,9 +238,9 @@ void print_encoder_notes(const nlohmann::json& settings) {
   }
 }
 
-// The format version a file needs (§12): the oldest minor whose decoder shows all of it. Each minor
+// The format version a file needs (§12): the oldest minor whose decoder reads all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
-// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
+// frames, 2.4 frame patches, 2.5 the rim's predictor, range-coded patches and the header dictionary), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
 // of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5's predictor (linear along
 // the rim, §7.2) lies inside the keyframes' streams, where a description that decodes nothing
 // cannot see it, and its writer takes it for nearly every rim coded from nothing: a file stated 2.5
@@ -248,6 +248,7 @@ void print_encoder_notes(const nlohmann::json& settings) {
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   if (info.minor_version >= 5) return 5;
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
+  if (std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.against_dictionary > 0; })) return 5;
   if (info.frame_patches > 0) return 4;
   if (info.residual_frames > 0) return 3;
   if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
@@ -369,7 +370,11 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
     }
     nlohmann::json chunks = nlohmann::json::array();
     for (const auto& c : info.chunks)
-      chunks.push_back({{"type", c.type}, {"count", c.count}, {"bytes", c.stored_bytes}, {"raw_bytes", c.raw_bytes}});
+      chunks.push_back({{"type", c.type},
+                        {"count", c.count},
+                        {"bytes", c.stored_bytes},
+                        {"raw_bytes", c.raw_bytes},
+                        {"against_dictionary", c.against_dictionary}});
     doc["chunks"] = std::move(chunks);
     doc["settings"] = settings.value;
     if (!settings.problem.empty()) doc["settings_error"] = settings.problem;
@@ -454,8 +459,8 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
   }
   std::printf("chunks      type  count      bytes  (decompressed)\n");
   for (const auto& c : info.chunks) {
-    std::printf("            %s %6d %10llu  (%llu)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
-                static_cast<unsigned long long>(c.raw_bytes));
+    std::printf("            %s %6d %10llu  (%llu%s)\n", c.type.c_str(), c.count, static_cast<unsigned long long>(c.stored_bytes),
+                static_cast<unsigned long long>(c.raw_bytes), c.against_dictionary > 0 ? "; against the header dictionary" : "");
   }
   if (!settings.problem.empty()) {
     std::printf("settings    left out: %s\n", settings.problem.c_str());

@@ -518,26 +518,18 @@ TEST(Container, AFileOfFormat2_0StillReads) {
   const Sequence s = ramp_sequence(3, 16);
   std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   const Sequence now = decode_sequence_file(bytes, "now.fmv");
-  bytes = crafted::with_minor_version(bytes, 0);  // its groups coded as 2.0 codes them
+  bytes = crafted::with_minor_version(bytes, 0);  // its groups coded and its header compressed as 2.0 wrote them
   SequenceFileInfo info;
   const Sequence then = decode_sequence_file(bytes, "then.fmv", &info);
   EXPECT_EQ(info.minor_version, 0);
   for (size_t k = 0; k < s.keyframes.size(); ++k) EXPECT_EQ(then.keyframes[k].texture.pixels, now.keyframes[k].texture.pixels);
   // The same with texture groups is not a 2.0 file: the flag came with 2.1.
   std::vector<uint8_t> grouped = encode_sequence_file(s, grouped_texture_metadata());
-  grouped[10] = 0;
-  const uint32_t grouped_crc = format::crc32(std::span(grouped).first(12));
-  for (int i = 0; i < 4; ++i) grouped[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(grouped_crc >> (8 * i));
+  grouped = crafted::with_minor_version(grouped, 0);
   testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file",
                         [&] { decode_sequence_file(grouped, "g.fmv"); });
 }
 
-// Sets a file's preamble minor version, its preamble checksum made right.
-void stamp_minor_version(std::vector<uint8_t>& bytes, uint8_t minor) {
-  bytes[10] = minor;
-  const uint32_t crc = format::crc32(std::span(bytes).first(12));
-  for (int i = 0; i < 4; ++i) bytes[12 + static_cast<size_t>(i)] = static_cast<uint8_t>(crc >> (8 * i));
-}
 
 // Format 2.2: keyframes whose textures are the same pixels store one TEXR, which each of them
 // names; the decoder holds it once, and each keyframe decodes to it.
@@ -597,7 +589,7 @@ TEST(Container, SharedTexturesInAFileBefore2_2AreCorrupt) {
   m.texture_coding = TextureCoding::kStills;
   std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   ASSERT_NO_THROW(decode_sequence_file(bytes, "good.fmv"));
-  stamp_minor_version(bytes, 1);
+  bytes = crafted::with_minor_version(bytes, 1);
   testing::expect_error(ErrorCode::kCorrupt, "shared textures (flag bit 3) in a format 2.1 file",
                         [&] { decode_sequence_file(bytes, "old.fmv"); });
   const std::vector<uint8_t> both = rebuild(encode_sequence_file(s, m), [](const std::string& type, std::vector<uint8_t>& payload) {
@@ -771,6 +763,10 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   Sequence patches = small_sequence(9, 8);
   patches.patches = {{0.25, 5, {12, 13}, {Vec3(0.25, -0.5, 0.125), Vec3(0, 0.0625, 0)}}, {0.75, 3, {}, {}}};
   seeds.emplace_back("n9_frame_patches.fmv", encode_sequence_file(patches, predicted_metadata()));
+  // The header compressed against the header dictionary (format 2.5): every file written since is.
+  SequenceFileMetadata worded = predicted_metadata();
+  worded.settings = R"({"field_rounding":"shaped","grid":"auto","keyframe_fit":true,"registration":"gmf","spline":"catmull-rom"})";
+  seeds.emplace_back("n9_header_dictionary.fmv", encode_sequence_file(small_sequence(9, 8), worded));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

@@ -128,8 +128,10 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
 // index fields are taken from the index as `edit` left it.
 template <typename Edit>
 // `compress`: chunk types stored compressed (where zstd makes them smaller) even if they were not.
+// `alter_header`: changes the header's chunk as it will be written (its flags, sizes, stored bytes).
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false,
-                             const std::vector<std::string>& compress = {}) {
+                             const std::vector<std::string>& compress = {},
+                             const std::function<void(format::PreparedChunk&)>& alter_header = {}) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
   size_t groups = 0;          // KGOP chunks
@@ -146,8 +148,10 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     textured = textured || c.type == "TEXR";
     if (c.type == "KIDX") index_payload = payload;
     const bool compressed = c.compressed() || std::find(compress.begin(), compress.end(), type) != compress.end();
-    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0));
+    chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0,
+                                           c.against_dictionary() ? format::Dictionary::kHeader : format::Dictionary::kNone));
   }
+  if (alter_header) alter_header(chunks[0]);
   std::vector<format::PreparedChunk> extra;
   if (extra_unknown) extra.push_back(format::prepare_chunk("ZZZ1", {1, 2, 3}, extra_critical));
   const std::vector<format::ChunkView>& old = reader.chunks();
@@ -254,8 +258,8 @@ inline std::vector<uint8_t> restamped(std::vector<uint8_t> bytes, uint16_t minor
 
 // The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
 // Below 2.5 its groups of keyframes are coded again without 2.5's linear predictor along a sequence
-// (spec/container.md §7.2), the same codes, as a writer of that version would have coded them; every
-// other byte is left as it is.
+// (spec/container.md §7.2), the same codes, and below 2.5 its header is compressed without the header
+// dictionary (§3.4), as a writer of that version would have written them; every other byte is left as it is.
 inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
   if (minor < file_layout::kLinearSequenceMinorVersion) {
     SequenceFileInfo info;
@@ -270,6 +274,12 @@ inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint1
       const size_t end = std::min(s.keyframes.size(), first + static_cast<size_t>(coding.intra_period));
       for (size_t k = first; k < end; ++k) group.add(s.keyframes[k]);
       payload = group.finish();
+    });
+  }
+  if (minor < format::kDictionaryMinorVersion) {  // its header compressed as that version's writer did (§3.4)
+    const std::vector<uint8_t> header = chunk_payload(bytes, "HEAD");
+    bytes = rebuild(bytes, [](const std::string&, std::vector<uint8_t>&) {}, false, false, {}, [&](format::PreparedChunk& c) {
+      if ((c.flags & format::kChunkDictionary) != 0) c = format::prepare_chunk("HEAD", header, true, 19);
     });
   }
   return restamped(std::move(bytes), minor);

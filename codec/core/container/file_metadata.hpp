@@ -80,6 +80,7 @@ struct SequenceFileInfo {
     int count = 0;
     uint64_t stored_bytes = 0;  // as in the file, chunk headers and checksums included
     uint64_t raw_bytes = 0;     // payloads after decompression
+    int against_dictionary = 0;  // of `count`, compressed against the header dictionary (format 2.5)
   };
   std::vector<ChunkTotal> chunks;  // per type, in order of first appearance
   struct KeyframeBytes {

@@ -434,8 +434,9 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   }
   for (const format::ChunkView& chunk : s.reader.chunks()) {
     auto it = std::find_if(info.chunks.begin(), info.chunks.end(), [&](const auto& t) { return t.type == chunk.type; });
-    if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0});
+    if (it == info.chunks.end()) it = info.chunks.insert(info.chunks.end(), {chunk.type, 0, 0, 0, 0});
     ++it->count;
+    it->against_dictionary += chunk.against_dictionary() ? 1 : 0;
     it->stored_bytes += chunk.total_size();
     it->raw_bytes += chunk.raw_size;
   }

@@ -224,7 +224,7 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
                                                           : TextureLayout::kStills;
   std::vector<uint8_t> header_payload = write_header(outline, joined.fixed_nodes, joined.metadata, layout);
   const std::vector<uint8_t> header_read_back = header_payload;
-  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, std::move(header_payload), true, 19);
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, std::move(header_payload), true, 19, format::Dictionary::kHeader);
 
   // Every group's and texture's chunk in the segments' order, with the keyframes naming it.
   struct Source {

@@ -201,7 +201,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
   const std::vector<size_t>& textures = grouped_textures ? texture_groups : stills;
   const format::PreparedChunk header =
-      format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19);
+      format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19,
+                            format::Dictionary::kHeader);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(count);
   layout.flags = static_cast<uint8_t>((has_texture ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
