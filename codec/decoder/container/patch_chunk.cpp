@@ -17,6 +17,10 @@ using format::ByteReader;
 
 namespace {
 
+// The stream's own bounds are the chunk's (§7.5, §7.5.1).
+static_assert(format::kMaxRangedPatchLattice == kMaxPatchLattice);
+static_assert(kMaxRangedPatchCode == static_cast<double>(format::kMaxRangedResidual));
+
 // The memory the patches hold, charged before each allocation (§10.1).
 class PatchBudget {
  public:

@@ -207,17 +207,19 @@ PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptio
     }
     return best;
   }
-  // The fewest nodes that still meet the bound: the smallest displacements (the fringe, where the
-  // smoothing fades the patch out) are often bytes that do not move the p99. The largest count of
-  // them that can go, by bisection on the approximate measure (the p99 grows with the count
-  // dropped, though not strictly); then the counts it accepted, largest first, measured exactly
-  // until one meets the bound (dropping none does: measured above).
+  // The fewest nodes that keep the frame under kPatchThinningShare of the bound: the smallest
+  // displacements (the fringe, where the smoothing fades the patch out) are often bytes that do not
+  // move the p99. The largest count of them that can go, by bisection on the approximate measure
+  // (the p99 grows with the count dropped, though not strictly); then the counts it accepted,
+  // largest first, measured exactly until one stays under it (none may: the patch is kept whole,
+  // which meets the bound, measured above).
   if (best.patch.nodes.size() > 1) {
     size_t low = 0, high = best.patch.nodes.size();  // dropping `low` meets the bound; dropping `high` (all) leaves no patch
     std::vector<size_t> accepted;
+    const double thinned_bound = kPatchThinningShare * options.bound;
     while (high - low > 1) {
       const size_t mid = (low + high) / 2;
-      if (measure.approximate(without_smallest(best.patch, mid)) / diagonal <= options.bound) {
+      if (measure.approximate(without_smallest(best.patch, mid)) / diagonal <= thinned_bound) {
         low = mid;
         accepted.push_back(mid);
       } else {
@@ -227,7 +229,7 @@ PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptio
     for (auto drop = accepted.rbegin(); drop != accepted.rend(); ++drop) {
       FramePatch thinner = without_smallest(best.patch, *drop);
       double exact = 0;
-      if (exact_meets(thinner, exact)) {
+      if (exact_meets(thinner, exact) && exact <= thinned_bound) {
         best.patch = std::move(thinner);
         best.p99_after = exact;
         break;
