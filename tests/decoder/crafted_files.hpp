@@ -15,6 +15,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <optional>
@@ -273,6 +274,68 @@ inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint1
     });
   }
   return restamped(std::move(bytes), minor);
+}
+
+// A keyframe's residuals as a crafted group writes them: `codes`, under predictor 0, the integer
+// codes of its arrays (or their change since the previous keyframe's, where it is coded from it);
+// an edit may change any array's residuals and its predictor id in `ids`.
+struct HandCodedKeyframe {
+  size_t k = 0;
+  bool from_previous = false;
+  std::vector<uint8_t> ids;
+  std::vector<std::vector<int64_t>> residuals;
+};
+
+// The file with its first group of keyframes (0 … the intra period − 1) written again by hand
+// (spec/container.md §7): keyframe j > 0 coded from the previous one where `from_previous`, every
+// array under predictor 0 with its codes (or their change) as residuals, then `edit` applied to each
+// keyframe's before it is written. Reaches §7.2's checks with any predictor id and any residuals
+// past every CRC; the file's bytes besides that group are as they were.
+template <typename Edit>
+std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit) {
+  SequenceFileInfo info;
+  const Sequence s = decode_sequence_file(bytes, "crafted.fmv", &info);
+  const FieldCoding& coding = info.metadata.field_coding;
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(s.grid_n);
+  const auto codes_of = [&](const Keyframe& key) {
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
+    std::vector<std::vector<int64_t>> codes(arrays.size());
+    for (size_t a = 0; a < arrays.size(); ++a) {
+      for (double v : arrays[a]) codes[a].push_back(std::llround(v / coding.steps[a]));
+    }
+    return codes;
+  };
+  return rebuild(bytes, [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "KGOP") return;
+    format::ByteReader r(payload, "KGOP");
+    if (r.read<uint32_t>("first") != 0) return;
+    format::RangedStreamWriter stream;
+    file_layout::GroupModels models;
+    const size_t count = std::min(s.keyframes.size(), static_cast<size_t>(coding.intra_period));
+    for (size_t k = 0; k < count; ++k) {
+      HandCodedKeyframe key{k, from_previous && k > 0, std::vector<uint8_t>(file_layout::kKeyframeArrays, 0), codes_of(s.keyframes[k])};
+      if (key.from_previous) {
+        const std::vector<std::vector<int64_t>> before = codes_of(s.keyframes[k - 1]);
+        for (size_t a = 0; a < key.residuals.size(); ++a) {
+          for (size_t i = 0; i < key.residuals[a].size(); ++i) key.residuals[a][i] -= before[a][i];
+        }
+      }
+      edit(key);
+      if (k > 0) stream.decision(models.reference, key.from_previous);
+      for (size_t a = 0; a < file_layout::kKeyframeArrays; ++a) {
+        if (key.residuals[a].empty()) continue;
+        stream.decision(models.predictor[a][0], (key.ids[a] >> 1) != 0);
+        stream.decision(models.predictor[a][1 + (key.ids[a] >> 1)], (key.ids[a] & 1) != 0);
+      }
+      const std::vector<const format::LatticeNeighbours*> lattices =
+          file_layout::lattices_of(file_layout::lengths_of(key.residuals), *grid);
+      stream.residual_arrays(key.residuals, lattices, file_layout::kRangeModelSets, models.residuals);
+    }
+    format::ByteWriter w;
+    w.write(uint32_t{0});
+    w.bytes(stream.finish());
+    payload = w.take();
+  });
 }
 
 }  // namespace facemorph::crafted
