@@ -338,4 +338,26 @@ std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes,
   });
 }
 
+// An edit for with_first_group_by_hand with keyframe 1 from keyframe 0: array `a` (a sequence: the
+// band or the rim) under linear (id 2, format 2.5), its codes zigzag between ±(2^30 − 1), the code
+// bound, in keyframe 0 and the other way round in keyframe 1. The change d then alternates
+// ±(2^31 − 2), its linear prediction reaches 3 (2^31 − 2) and the residuals 4 (2^31 − 2), near
+// §7.3's 2^34: the widest arithmetic a valid file asks of §7.2. Returns the codes keyframe `key.k`
+// must decode to.
+inline std::vector<int32_t> linear_swing(HandCodedKeyframe& key, size_t a) {
+  const auto zigzag = [&](int32_t sign) {
+    std::vector<int32_t> codes(key.residuals[a].size());
+    for (size_t i = 0; i < codes.size(); ++i) codes[i] = (i % 2 == 0 ? sign : -sign) * static_cast<int32_t>(file_layout::kMaxFieldCode - 1);
+    return codes;
+  };
+  const std::vector<int32_t> first = zigzag(-1), codes = key.k == 0 ? first : zigzag(1);
+  std::vector<int32_t> d = codes;
+  if (key.from_previous) {
+    for (size_t i = 0; i < d.size(); ++i) d[i] = codes[i] - first[i];
+  }
+  key.ids[a] = 2;
+  key.residuals[a] = format::spatial_residuals(d, format::SpatialPredictor::kLinear, nullptr);
+  return codes;
+}
+
 }  // namespace facemorph::crafted

@@ -106,13 +106,6 @@ TEST(LinearRim, IdTwoOnASequenceIsCorruptBefore25AndIdThreeAlways) {
   }
 }
 
-// Codes at ±(2^30 − 1) alternating along an array: the widest the file allows.
-std::vector<int32_t> zigzag(size_t n, int32_t sign) {
-  std::vector<int32_t> codes(n);
-  for (size_t i = 0; i < n; ++i) codes[i] = (i % 2 == 0 ? sign : -sign) * static_cast<int32_t>(file_layout::kMaxFieldCode - 1);
-  return codes;
-}
-
 // The rim's x and the band's first component zigzag between the code bounds in keyframe 0 and the
 // other way round in keyframe 1, coded from keyframe 0: the change d alternates ±(2^31 − 2), its
 // linear prediction reaches 3 × (2^31 − 2) and the residuals 4 × (2^31 − 2), near §7.3's 2^34.
@@ -125,14 +118,8 @@ TEST(LinearRim, TheWidestSwingAlongASequenceDecodesExactlyFromThePreviousKeyfram
   const std::vector<uint8_t> file = crafted::with_first_group_by_hand(bytes, true, [&](crafted::HandCodedKeyframe& key) {
     for (size_t a : {kBandX, kRimX}) {
       ASSERT_GE(key.residuals[a].size(), 3u) << a;
-      const std::vector<int32_t> first = zigzag(key.residuals[a].size(), -1), codes = key.k == 0 ? first : zigzag(first.size(), 1);
-      std::vector<int32_t> d = codes;
-      if (key.k == 1) {
-        ASSERT_TRUE(key.from_previous);
-        for (size_t i = 0; i < d.size(); ++i) d[i] = codes[i] - first[i];
-      }
-      key.ids[a] = 2;
-      key.residuals[a] = format::spatial_residuals(d, format::SpatialPredictor::kLinear, nullptr);
+      ASSERT_EQ(key.from_previous, key.k == 1);
+      const std::vector<int32_t> codes = crafted::linear_swing(key, a);
       for (int64_t r : key.residuals[a]) widest = std::max(widest, std::abs(r));
       if (a == kRimX) expected[key.k] = codes;
     }
