@@ -15,6 +15,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <optional>
@@ -247,9 +248,21 @@ inline uint64_t smallest_budget(const std::vector<uint8_t>& bytes) {
   }
 }
 
-// The file with only its preamble's minor version set to `minor` (and the preamble's CRC made
-// again): its groups of keyframes as they are, whatever that version allows in them.
+// The file with its header compressed without the header dictionary (spec/container.md §3.4), as a
+// writer before 2.5 compressed it; every other byte as it is.
+inline std::vector<uint8_t> with_plain_header(std::vector<uint8_t> bytes) {
+  const std::vector<uint8_t> header = chunk_payload(bytes, "HEAD");
+  return rebuild(bytes, [](const std::string&, std::vector<uint8_t>&) {}, false, false, {}, [&](format::PreparedChunk& c) {
+    if ((c.flags & format::kChunkDictionary) != 0) c = format::prepare_chunk("HEAD", header, true, 19);
+  });
+}
+
+// The file with its preamble's minor version set to `minor` (and the preamble's CRC made again):
+// its groups of keyframes as they are, whatever that version allows in them. Below 2.5 its header is
+// compressed without the dictionary, which a file of that version cannot use, so that what the file
+// breaks is in its groups.
 inline std::vector<uint8_t> restamped(std::vector<uint8_t> bytes, uint16_t minor) {
+  if (minor < format::kDictionaryMinorVersion) bytes = with_plain_header(std::move(bytes));
   std::memcpy(bytes.data() + 10, &minor, sizeof minor);
   const uint32_t crc = format::crc32(std::span<const uint8_t>(bytes.data(), 12));
   std::memcpy(bytes.data() + 12, &crc, sizeof crc);
@@ -258,8 +271,8 @@ inline std::vector<uint8_t> restamped(std::vector<uint8_t> bytes, uint16_t minor
 
 // The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
 // Below 2.5 its groups of keyframes are coded again without 2.5's linear predictor along a sequence
-// (spec/container.md §7.2), the same codes, and below 2.5 its header is compressed without the header
-// dictionary (§3.4), as a writer of that version would have written them; every other byte is left as it is.
+// (spec/container.md §7.2), the same codes, and its header without the header dictionary (§3.4), as a
+// writer of that version would have written them; every other byte is left as it is.
 inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
   if (minor < file_layout::kLinearSequenceMinorVersion) {
     SequenceFileInfo info;
@@ -276,13 +289,91 @@ inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint1
       payload = group.finish();
     });
   }
-  if (minor < format::kDictionaryMinorVersion) {  // its header compressed as that version's writer did (§3.4)
-    const std::vector<uint8_t> header = chunk_payload(bytes, "HEAD");
-    bytes = rebuild(bytes, [](const std::string&, std::vector<uint8_t>&) {}, false, false, {}, [&](format::PreparedChunk& c) {
-      if ((c.flags & format::kChunkDictionary) != 0) c = format::prepare_chunk("HEAD", header, true, 19);
-    });
-  }
   return restamped(std::move(bytes), minor);
+}
+
+// A keyframe's residuals as a crafted group writes them: `codes`, under predictor 0, the integer
+// codes of its arrays (or their change since the previous keyframe's, where it is coded from it);
+// an edit may change any array's residuals and its predictor id in `ids`.
+struct HandCodedKeyframe {
+  size_t k = 0;
+  bool from_previous = false;
+  std::vector<uint8_t> ids;
+  std::vector<std::vector<int64_t>> residuals;
+};
+
+// The file with its first group of keyframes (0 … the intra period − 1) written again by hand
+// (spec/container.md §7): keyframe j > 0 coded from the previous one where `from_previous`, every
+// array under predictor 0 with its codes (or their change) as residuals, then `edit` applied to each
+// keyframe's before it is written. Reaches §7.2's checks with any predictor id and any residuals
+// past every CRC; the file's bytes besides that group are as they were.
+template <typename Edit>
+std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit) {
+  SequenceFileInfo info;
+  const Sequence s = decode_sequence_file(bytes, "crafted.fmv", &info);
+  const FieldCoding& coding = info.metadata.field_coding;
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(s.grid_n);
+  const auto codes_of = [&](const Keyframe& key) {
+    const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
+    std::vector<std::vector<int64_t>> codes(arrays.size());
+    for (size_t a = 0; a < arrays.size(); ++a) {
+      for (double v : arrays[a]) codes[a].push_back(std::llround(v / coding.steps[a]));
+    }
+    return codes;
+  };
+  return rebuild(bytes, [&](const std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "KGOP") return;
+    format::ByteReader r(payload, "KGOP");
+    if (r.read<uint32_t>("first") != 0) return;
+    format::RangedStreamWriter stream;
+    file_layout::GroupModels models;
+    const size_t count = std::min(s.keyframes.size(), static_cast<size_t>(coding.intra_period));
+    for (size_t k = 0; k < count; ++k) {
+      HandCodedKeyframe key{k, from_previous && k > 0, std::vector<uint8_t>(file_layout::kKeyframeArrays, 0), codes_of(s.keyframes[k])};
+      if (key.from_previous) {
+        const std::vector<std::vector<int64_t>> before = codes_of(s.keyframes[k - 1]);
+        for (size_t a = 0; a < key.residuals.size(); ++a) {
+          for (size_t i = 0; i < key.residuals[a].size(); ++i) key.residuals[a][i] -= before[a][i];
+        }
+      }
+      edit(key);
+      if (k > 0) stream.decision(models.reference, key.from_previous);
+      for (size_t a = 0; a < file_layout::kKeyframeArrays; ++a) {
+        if (key.residuals[a].empty()) continue;
+        stream.decision(models.predictor[a][0], (key.ids[a] >> 1) != 0);
+        stream.decision(models.predictor[a][1 + (key.ids[a] >> 1)], (key.ids[a] & 1) != 0);
+      }
+      const std::vector<const format::LatticeNeighbours*> lattices =
+          file_layout::lattices_of(file_layout::lengths_of(key.residuals), *grid);
+      stream.residual_arrays(key.residuals, lattices, file_layout::kRangeModelSets, models.residuals);
+    }
+    format::ByteWriter w;
+    w.write(uint32_t{0});
+    w.bytes(stream.finish());
+    payload = w.take();
+  });
+}
+
+// An edit for with_first_group_by_hand with keyframe 1 from keyframe 0: array `a` (a sequence: the
+// band or the rim) under linear (id 2, format 2.5), its codes zigzag between ±(2^30 − 1), the code
+// bound, in keyframe 0 and the other way round in keyframe 1. The change d then alternates
+// ±(2^31 − 2), its linear prediction reaches 3 (2^31 − 2) and the residuals 4 (2^31 − 2), near
+// §7.3's 2^34: the widest arithmetic a valid file asks of §7.2. Returns the codes keyframe `key.k`
+// must decode to.
+inline std::vector<int32_t> linear_swing(HandCodedKeyframe& key, size_t a) {
+  const auto zigzag = [&](int32_t sign) {
+    std::vector<int32_t> codes(key.residuals[a].size());
+    for (size_t i = 0; i < codes.size(); ++i) codes[i] = (i % 2 == 0 ? sign : -sign) * static_cast<int32_t>(file_layout::kMaxFieldCode - 1);
+    return codes;
+  };
+  const std::vector<int32_t> first = zigzag(-1), codes = key.k == 0 ? first : zigzag(1);
+  std::vector<int32_t> d = codes;
+  if (key.from_previous) {
+    for (size_t i = 0; i < d.size(); ++i) d[i] = codes[i] - first[i];
+  }
+  key.ids[a] = 2;
+  key.residuals[a] = format::spatial_residuals(d, format::SpatialPredictor::kLinear, nullptr);
+  return codes;
 }
 
 }  // namespace facemorph::crafted

@@ -578,6 +578,30 @@ void write_set(Corpus& corpus) {
     corpus.add("m_patch_ranged_noise_64k.fmv", rebuild(with_patch, ranged(4 * static_cast<int64_t>(noise.size()), noise)), three,
                "64 KiB of noise as a range-coded PTCH stream of 4 patches a byte (format 2.5)", "frame patches");
   }
+  // Format 2.5's linear predictor along a sequence (spec/container.md §7.2), the first group written
+  // by hand: the band's and the rim's x at the widest swing a valid file holds (residuals near 2^33),
+  // residuals that lead the rim's prediction past 32 bits, id 2 on the rim in a file stamped 2.4,
+  // and id 3 on the rim.
+  constexpr size_t kBandX = 4, kRimX = 10;
+  corpus.add("n_linear_widest_swing.fmv",
+             crafted::with_first_group_by_hand(predicted, true,
+                                               [](crafted::HandCodedKeyframe& key) {
+                                                 for (size_t a : {kBandX, kRimX}) crafted::linear_swing(key, a);
+                                               }),
+             three, "linear along the band and the rim, codes zigzag ±(2^30-1), d ±(2^31-2) (format 2.5)");
+  const auto rim_by_hand = [&](uint8_t id, std::vector<int64_t> first) {
+    return crafted::with_first_group_by_hand(predicted, false, [&](crafted::HandCodedKeyframe& key) {
+      key.ids[kRimX] = id;
+      if (key.k == 0) std::copy(first.begin(), first.end(), key.residuals[kRimX].begin());
+    });
+  };
+  const int64_t top = std::numeric_limits<int32_t>::max();
+  corpus.add("n_linear_rim_past_32_bits.fmv", rim_by_hand(2, {top, -2 * top - 1, -(int64_t{1} << 34)}), three,
+             "linear rim residuals 2^31-1, -2^32+1, -2^34: a prediction -3 x 2^31 + 1 and d near -2^34.6 (format 2.5)",
+             "outside 32 bits");
+  corpus.add("n_linear_rim_in_2_4.fmv", crafted::restamped(rim_by_hand(2, {}), 4), three, "predictor 2 on the rim in a file stamped 2.4",
+             "array 10 has predictor 2");
+  corpus.add("n_predictor_3_on_rim.fmv", rim_by_hand(3, {}), three, "predictor 3 on the rim (format 2.5)", "array 10 has predictor 3");
   corpus.add("k_intra_period_0.fmv",
              rebuild(predicted,
                      [](const std::string& t, Bytes& p) {

@@ -6,22 +6,20 @@
 #include "codec/core/container/keyframe_group_coding.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
-#include "format/byte_reader.hpp"
-#include "format/byte_writer.hpp"
 #include "format/container.hpp"
-#include "format/ranged_residuals.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace facemorph {
 namespace {
 
-using file_layout::kKeyframeArrays;
 constexpr size_t kRimX = 10;  // the rim's x, y, z are arrays 10–12 (§7.1)
 
 // A keyframe's codes at the file's steps (its values are steps × codes exactly).
@@ -39,47 +37,22 @@ struct Crafted {
   std::vector<std::vector<int64_t>> rim_x;  // the codes the decoder must give keyframe 0's rim x
 };
 
-// The small sequence's file with its first group (keyframes 0 and 1, both intra) replaced by a
-// stream written here: every array under predictor none with its codes as residuals, but the rim's
-// x under predictor id `rim_id` with every residual 1. Under linear (d₀ = 0 + 1, d₁ = d₀ + 1, then
-// 2 d(i−1) − d(i−2) + 1: second differences of 1) its codes are 1 + i (i + 1) / 2.
+// The small sequence's file with its first group (keyframes 0 and 1, both intra) written by hand:
+// every array under predictor none with its codes as residuals, but the rim's x under predictor id
+// `rim_id` with every residual 1. Under linear (d₀ = 0 + 1, d₁ = d₀ + 1, then 2 d(i−1) − d(i−2) + 1:
+// second differences of 1) its codes are 1 + i (i + 1) / 2.
 Crafted crafted_rim(uint8_t rim_id) {
-  const Sequence s = crafted::small_sequence(17, 8);
-  const SequenceFileMetadata m = crafted::predicted_metadata();  // intra period 2
-  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
-  const Sequence back = decode_sequence_file(bytes, "written.fmv");
-  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(17);
+  const std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(17, 8), crafted::predicted_metadata());
   Crafted out;
-  const auto edit = [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type != "KGOP") return;
-    format::ByteReader r(payload, "KGOP");
-    if (r.read<uint32_t>("first") != 0) return;
-    format::RangedStreamWriter stream;
-    file_layout::GroupModels models;
-    for (size_t k = 0; k < 2; ++k) {
-      std::vector<std::vector<int64_t>> residuals = codes_of(back.keyframes[k], m.field_coding);
-      if (k > 0) stream.decision(models.reference, false);  // intra
-      for (size_t a = 0; a < kKeyframeArrays; ++a) {
-        if (residuals[a].empty()) continue;
-        const unsigned p = a == kRimX ? rim_id : 0;
-        stream.decision(models.predictor[a][0], (p >> 1) != 0);
-        stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
-      }
-      std::vector<int64_t> expected;
-      for (size_t i = 0; i < residuals[kRimX].size(); ++i) {
-        residuals[kRimX][i] = 1;
-        expected.push_back(static_cast<int64_t>(1 + i * (i + 1) / 2));
-      }
-      out.rim_x.push_back(expected);
-      const std::vector<const format::LatticeNeighbours*> lattices = file_layout::lattices_of(file_layout::lengths_of(residuals), *grid);
-      stream.residual_arrays(residuals, lattices, file_layout::kRangeModelSets, models.residuals);
+  out.file = crafted::with_first_group_by_hand(bytes, false, [&](crafted::HandCodedKeyframe& key) {
+    key.ids[kRimX] = rim_id;
+    std::vector<int64_t> expected;
+    for (size_t i = 0; i < key.residuals[kRimX].size(); ++i) {
+      key.residuals[kRimX][i] = 1;
+      expected.push_back(static_cast<int64_t>(1 + i * (i + 1) / 2));
     }
-    format::ByteWriter w;
-    w.write(uint32_t{0});
-    w.bytes(stream.finish());
-    payload = w.take();
-  };
-  out.file = crafted::rebuild(bytes, edit);
+    out.rim_x.push_back(expected);
+  });
   return out;
 }
 
@@ -131,6 +104,57 @@ TEST(LinearRim, IdTwoOnASequenceIsCorruptBefore25AndIdThreeAlways) {
     testing::expect_error(ErrorCode::kCorrupt, "(keyframe 0): array 10 has predictor 3, not one for that array",
                           [&] { decode_sequence_file(crafted::restamped(crafted_rim(3).file, minor), "three.fmv"); });
   }
+}
+
+// The rim's x and the band's first component zigzag between the code bounds in keyframe 0 and the
+// other way round in keyframe 1, coded from keyframe 0: the change d alternates ±(2^31 − 2), its
+// linear prediction reaches 3 × (2^31 − 2) and the residuals 4 × (2^31 − 2), near §7.3's 2^34.
+// Every code decodes exactly (64-bit arithmetic, no overflow).
+TEST(LinearRim, TheWidestSwingAlongASequenceDecodesExactlyFromThePreviousKeyframe) {
+  constexpr size_t kBandX = 4;
+  const std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(17, 8), crafted::predicted_metadata());
+  std::vector<std::vector<int32_t>> expected(2);
+  int64_t widest = 0;
+  const std::vector<uint8_t> file = crafted::with_first_group_by_hand(bytes, true, [&](crafted::HandCodedKeyframe& key) {
+    for (size_t a : {kBandX, kRimX}) {
+      ASSERT_GE(key.residuals[a].size(), 3u) << a;
+      ASSERT_EQ(key.from_previous, key.k == 1);
+      const std::vector<int32_t> codes = crafted::linear_swing(key, a);
+      for (int64_t r : key.residuals[a]) widest = std::max(widest, std::abs(r));
+      if (a == kRimX) expected[key.k] = codes;
+    }
+  });
+  EXPECT_EQ(widest, 4 * (2 * (file_layout::kMaxFieldCode - 1)));
+  const FieldCoding coding = crafted::predicted_metadata().field_coding;
+  const Sequence back = decode_sequence_file(file, "swing.fmv");
+  for (size_t k = 0; k < 2; ++k) {
+    const std::vector<int64_t> rim = codes_of(back.keyframes[k], coding)[kRimX];
+    EXPECT_EQ(rim, std::vector<int64_t>(expected[k].begin(), expected[k].end())) << k;
+  }
+}
+
+// Residuals that lead a linear prediction past 32 bits, or a code past §7's 2^30, are the file's
+// fault, named with the keyframe (never wrapped, never undefined behaviour).
+TEST(LinearRim, ACodePast32BitsOr2To30AlongTheRimIsCorruptNamingTheKeyframe) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(17, 8), crafted::predicted_metadata());
+  const auto rim_residuals = [&](size_t keyframe, std::vector<int64_t> first) {
+    return crafted::with_first_group_by_hand(bytes, false, [&](crafted::HandCodedKeyframe& key) {
+      if (key.k != keyframe) return;
+      key.ids[kRimX] = 2;
+      std::fill(key.residuals[kRimX].begin(), key.residuals[kRimX].end(), 0);
+      std::copy(first.begin(), first.end(), key.residuals[kRimX].begin());
+    });
+  };
+  const int64_t top = std::numeric_limits<int32_t>::max();
+  // d = 2^31 − 1, −2^31, then 2 d₁ − d₀ − 2^34: about −2^34.6.
+  testing::expect_error(ErrorCode::kCorrupt, "(keyframe 1): a field code outside 32 bits",
+                        [&] { decode_sequence_file(rim_residuals(1, {top, -2 * top - 1, -(int64_t{1} << 34)}), "past32.fmv"); });
+  // d = 0, 2^30, 0, 0, …: within 32 bits, node 1 past the code bound.
+  std::vector<int32_t> d(crafted::small_sequence(17, 8).keyframes[0].fields.rim.size(), 0);
+  d[1] = 1 << 30;
+  const std::vector<int64_t> to_2_30 = format::spatial_residuals(d, format::SpatialPredictor::kLinear, nullptr);
+  testing::expect_error(ErrorCode::kCorrupt, "(keyframe 0): a field code beyond 2^30",
+                        [&] { decode_sequence_file(rim_residuals(0, to_2_30), "past30.fmv"); });
 }
 
 }  // namespace

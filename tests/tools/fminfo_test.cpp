@@ -14,6 +14,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #ifndef FACEMORPH_FMINFO
 #error "FACEMORPH_FMINFO must name the fminfo program"
@@ -47,8 +48,8 @@ std::string slurp(const std::filesystem::path& path) {
   return text.str();
 }
 
-FminfoRun fminfo(const TempDir& dir, const std::filesystem::path& file, bool json) {
-  const std::string command = std::string("\"") + FACEMORPH_FMINFO + "\" " + (json ? "--json " : "") + "\"" + file.string() + "\" > \"" +
+FminfoRun fminfo(const TempDir& dir, const std::filesystem::path& file, bool json, const std::string& options = "") {
+  const std::string command = std::string("\"") + FACEMORPH_FMINFO + "\" " + (json ? "--json " : "") + options + "\"" + file.string() + "\" > \"" +
                               (dir / "out").string() + "\" 2> \"" + (dir / "err").string() + "\"";
   const int raw = std::system(command.c_str());
   FminfoRun run;
@@ -141,6 +142,60 @@ TEST(Fminfo, AFileWithPatchesNeedsTheVersionOfItsPatchCoding) {
   const FminfoRun golden = fminfo(dir, std::string(FACEMORPH_TEST_DATA) + "/golden_v2_4.fmv", true);
   ASSERT_EQ(golden.status, 0) << golden.err;
   EXPECT_EQ(described(golden)["format_version_needed"], "2.4");
+}
+
+// fminfo --field-bytes costs each keyframe as the file's writer did, among its version's predictors
+// (spec/container.md §10.5): golden_v2_4.fmv's writer had no linear predictor along the rim, so its
+// estimate is its KGOP bytes (1339.8 B for 1328); the same bytes stamped 2.5 are costed with linear
+// (the rim's 310.2 B become 178.2 B, the whole 1207.8 B, 9% under the chunk).
+TEST(Fminfo, FieldBytesCostsAFileUnderItsOwnVersionsPredictors) {
+  TempDir dir;
+  const std::filesystem::path old_file = std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_4.fmv";
+  const std::filesystem::path restamped = dir / "golden_stamped_2_5.fmv";
+  {
+    const std::string bytes = slurp(old_file);
+    const std::vector<uint8_t> as_2_5 = facemorph::crafted::restamped(std::vector<uint8_t>(bytes.begin(), bytes.end()), 5);
+    std::ofstream(restamped, std::ios::binary).write(reinterpret_cast<const char*>(as_2_5.data()), static_cast<std::streamsize>(as_2_5.size()));
+  }
+  struct Costed {
+    double kgop = 0, fields = 0, rim = 0;
+  };
+  const auto costed = [&](const std::filesystem::path& file) {
+    const FminfoRun run = fminfo(dir, file, true, "--field-bytes ");
+    EXPECT_EQ(run.status, 0) << run.err;
+    const nlohmann::json doc = described(run);
+    Costed c;
+    for (const auto& chunk : doc["chunks"]) {
+      if (chunk["type"] == "KGOP") c.kgop += chunk["bytes"].get<double>();
+    }
+    for (const auto& group : doc["field_bytes_by_array"]) {
+      c.fields += group["bytes"].get<double>();
+      if (group["arrays"] == "rim") c.rim = group["bytes"].get<double>();
+    }
+    return c;
+  };
+  const Costed as_2_4 = costed(old_file), as_2_5 = costed(restamped);
+  EXPECT_NEAR(as_2_4.fields / as_2_4.kgop, 1.0, 0.03) << as_2_4.fields << " B estimated, " << as_2_4.kgop << " B in KGOP";
+  EXPECT_LT(as_2_5.rim, 0.7 * as_2_4.rim) << "stamped 2.5, the rim is costed with linear: " << as_2_5.rim << " B against " << as_2_4.rim;
+}
+
+// A file whose rim is coded with format 2.5's linear predictor needs 2.5: fminfo, which decodes no
+// keyframe, must not say it needs an older version (a 2.4 reader refuses its groups, shown here by
+// the same bytes stamped 2.4).
+TEST(Fminfo, AFileCodedWithLinearAlongTheRimIsNotSaidToNeedAnOlderVersion) {
+  TempDir dir;
+  const std::filesystem::path file = dir / "now.fmv";
+  facemorph::write_sequence_file(file, facemorph::crafted::small_sequence(), facemorph::crafted::small_metadata());
+  const FminfoRun run = fminfo(dir, file, false);
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.out.find(", format 2.5, written by"), std::string::npos) << run.out.substr(0, 400);
+  const std::string bytes = slurp(file);
+  const std::filesystem::path old = dir / "stamped_2_4.fmv";
+  const std::vector<uint8_t> as_2_4 = facemorph::crafted::restamped(std::vector<uint8_t>(bytes.begin(), bytes.end()), 4);
+  std::ofstream(old, std::ios::binary).write(reinterpret_cast<const char*>(as_2_4.data()), static_cast<std::streamsize>(as_2_4.size()));
+  const FminfoRun verified = fminfo(dir, old, false, "--verify ");
+  EXPECT_EQ(verified.status, 1);
+  EXPECT_NE(verified.err.find("has predictor 2, not one for that array in a 2.4 file"), std::string::npos) << verified.err;
 }
 
 }  // namespace
