@@ -10,6 +10,8 @@
 # 2.4: the same capture with fmenc's defaults but a patch bound of 0.4% (at 1% its 12 frames need no
 # frame patch, the PTCH chunk the version adds):
 #   FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_4 --speech-rate 3
+# 2.5: the same as 2.4 (its header against the dictionary, its patches range-coded, its rim linear):
+#   FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_5 --speech-rate 3
 set -euo pipefail
 build=${1:?usage: make_golden.sh BUILD_DIR VERSION}
 version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 2_0)}

@@ -152,6 +152,22 @@ TEST(GoldenFile, Version2_4DecodesAsItDidWhenWritten) {
   EXPECT_GT(moving_nodes, 0u) << "every patch is a pin: the golden file would not test the displacement";
 }
 
+// Format 2.5: 2.4 with three codings (make_golden.sh's 2.4 capture and options): the header
+// compressed against the frozen header dictionary, the frame patches range-coded, and the rim's
+// linear predictor where the writer finds it cheapest; the golden sample's times between keyframes
+// decode with the patches.
+TEST(GoldenFile, Version2_5DecodesAsItDidWhenWritten) {
+  const SequenceFileInfo info = expect_golden_2("2_5", 5, TextureCoding::kSequence);
+  EXPECT_EQ(chunk_count(info, "PTCH"), 1);
+  ASSERT_FALSE(info.chunks.empty());
+  EXPECT_EQ(info.chunks.front().type, "HEAD");
+  EXPECT_GT(info.chunks.front().against_dictionary, 0) << "the header is not compressed against the dictionary";
+  const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / "golden_v2_5.fmv");
+  size_t moving_nodes = 0;
+  for (const FramePatch& patch : s.patches) moving_nodes += patch.nodes.size();
+  EXPECT_GT(moving_nodes, 0u) << "every patch is a pin: the golden file would not test the range-coded displacement";
+}
+
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.
 TEST(GoldenFile, AnExperimentalVersion1FileIsRefusedByName) {
   const std::filesystem::path file = std::filesystem::path(FACEMORPH_TEST_DATA) / "experimental_v1_5.fmv";
