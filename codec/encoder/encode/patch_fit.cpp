@@ -138,25 +138,6 @@ FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double thresh
   return patch;
 }
 
-// `patch` without its `drop` nodes of smallest displacement (largest component; of equal ones the
-// later index first).
-FramePatch without_smallest(const FramePatch& patch, size_t drop) {
-  std::vector<size_t> order(patch.nodes.size());
-  for (size_t n = 0; n < order.size(); ++n) order[n] = n;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return patch.displacements[a].cwiseAbs().maxCoeff() < patch.displacements[b].cwiseAbs().maxCoeff();
-  });
-  std::vector<char> dropped(patch.nodes.size(), 0);
-  for (size_t k = 0; k < drop && k < order.size(); ++k) dropped[order[k]] = 1;
-  FramePatch core{.time = patch.time, .lattice = patch.lattice, .nodes = {}, .displacements = {}};
-  for (size_t n = 0; n < patch.nodes.size(); ++n) {
-    if (dropped[n]) continue;
-    core.nodes.push_back(patch.nodes[n]);
-    core.displacements.push_back(patch.displacements[n]);
-  }
-  return core;
-}
-
 }  // namespace
 
 namespace {
@@ -206,35 +187,6 @@ PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptio
       }
     }
     return best;
-  }
-  // The fewest nodes that keep the frame under kPatchThinningShare of the bound: the smallest
-  // displacements (the fringe, where the smoothing fades the patch out) are often bytes that do not
-  // move the p99. The largest count of them that can go, by bisection on the approximate measure
-  // (the p99 grows with the count dropped, though not strictly); then the counts it accepted,
-  // largest first, measured exactly until one stays under it (none may: the patch is kept whole,
-  // which meets the bound, measured above).
-  if (best.patch.nodes.size() > 1) {
-    size_t low = 0, high = best.patch.nodes.size();  // dropping `low` meets the bound; dropping `high` (all) leaves no patch
-    std::vector<size_t> accepted;
-    const double thinned_bound = kPatchThinningShare * options.bound;
-    while (high - low > 1) {
-      const size_t mid = (low + high) / 2;
-      if (measure.approximate(without_smallest(best.patch, mid)) / diagonal <= thinned_bound) {
-        low = mid;
-        accepted.push_back(mid);
-      } else {
-        high = mid;
-      }
-    }
-    for (auto drop = accepted.rbegin(); drop != accepted.rend(); ++drop) {
-      FramePatch thinner = without_smallest(best.patch, *drop);
-      double exact = 0;
-      if (exact_meets(thinner, exact) && exact <= thinned_bound) {
-        best.patch = std::move(thinner);
-        best.p99_after = exact;
-        break;
-      }
-    }
   }
   return best;
 }

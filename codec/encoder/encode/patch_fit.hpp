@@ -49,9 +49,9 @@ std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& show
 // (captured vertices and shown nodes, each to the other surface) whose offset exceeds a threshold,
 // lowered from the bound (1.0, 0.9 … 0.3 × bound) until the rounded patch brings the frame's p99
 // under bound · kPatchBoundMargin (or to the lowest threshold tried); displacements rounded to
-// multiples of step_units; then the nodes of smallest displacement the frame can do without while
-// staying under kPatchThinningShare of it are dropped (a bisection on their count). `grid` is the
-// shown frame's G.
+// multiples of step_units, kept whole: the nodes that lower the frame's RMS but not its p99 are
+// cheaper held-out RMS than any other choice (spec/method.md §7.19, "Thinning withdrawn"). `grid`
+// is the shown frame's G.
 PatchFit fit_frame_patch(const DiskGrid& grid, const ShownFrame& shown, const TriangleMesh& captured, double t,
                          const PatchFitOptions& options);
 
@@ -87,12 +87,6 @@ inline constexpr int kPatchFinerSteps = 3;
 // Patches are fitted to this share of the bound, so that the decoder's frame, which may differ from
 // the encoder's within the reconstruction's tolerance, stays under it.
 inline constexpr double kPatchBoundMargin = 0.98;
-// A patch that meets the bound is thinned (its smallest displacements dropped) only while the frame
-// stays under this share of the bound it was fitted to: the nodes kept between it and the bound
-// lower the held-out RMS for a few bytes now that nodes are range-coded (format 2.5). At 0.9 every
-// patched capture measured came out smaller and lower in RMS than with 2.4's coding thinned to the
-// bound itself; 0.8, and no thinning, made Medusa's file larger than that (spec/method.md §7.19).
-inline constexpr double kPatchThinningShare = 0.9;
 // fit_frame_patches decodes and measures each frame between keyframes once and keeps it (its nodes,
 // hole levels and distances to its captured mesh: 40 bytes a node, 12 a captured vertex) for the
 // pinning rounds while the frames take no more than this; a longer capture's frames are decoded and
