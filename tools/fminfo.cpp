@@ -299,9 +299,15 @@ FieldBytes field_bytes_by_group(const fs::path& path, const FieldCoding& coding,
 int describe_container(const fs::path& path, bool json_out, bool verify, bool field_bytes, const DecoderLimits& limits) {
   // Opened as a player opens it first (the player API, facemorph.h): a file no player may open is
   // refused before anything is decoded, and the description is what a player is told of the file.
-  const tools::PlayerFile player(path.string(), limits);
-  const fm_info& sequence = player.info();
-  const std::vector<double> times = player.keyframe_times();
+  // Closed before the file is opened again below: each open holds the file's residual frames and
+  // patches within the budget, both at once would not be (a 58 KB range-coded PTCH holds 250 MB).
+  fm_info sequence{};
+  std::vector<double> times;
+  {
+    const tools::PlayerFile player(path.string(), limits);
+    sequence = player.info();
+    times = player.keyframe_times();
+  }
   // --field-bytes decodes every keyframe anyway: with --verify too, that one decode serves both.
   SequenceFileInfo info = verify && !field_bytes ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
   FieldBytes by_array;

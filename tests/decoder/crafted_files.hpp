@@ -129,10 +129,12 @@ inline std::vector<uint8_t> with_pose_change(const std::vector<uint8_t>& index, 
 // index fields are taken from the index as `edit` left it.
 template <typename Edit>
 // `compress`: chunk types stored compressed (where zstd makes them smaller) even if they were not.
-// `alter_header`: changes the header's chunk as it will be written (its flags, sizes, stored bytes).
+// `alter_header`: changes the header's chunk as it will be written (its flags, sizes, stored bytes);
+// `alter_each` every other chunk's (not the index's, which is made again with the offsets).
 std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, bool extra_unknown = false, bool extra_critical = false,
                              const std::vector<std::string>& compress = {},
-                             const std::function<void(format::PreparedChunk&)>& alter_header = {}) {
+                             const std::function<void(format::PreparedChunk&)>& alter_header = {},
+                             const std::function<void(format::PreparedChunk&)>& alter_each = {}) {
   const format::ContainerReader reader(bytes, "in");
   std::vector<format::PreparedChunk> chunks;
   size_t groups = 0;          // KGOP chunks
@@ -151,6 +153,9 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     const bool compressed = c.compressed() || std::find(compress.begin(), compress.end(), type) != compress.end();
     chunks.push_back(format::prepare_chunk(type, std::move(payload), c.critical(), compressed ? 19 : 0,
                                            c.against_dictionary() ? format::Dictionary::kHeader : format::Dictionary::kNone));
+  }
+  if (alter_each) {
+    for (format::PreparedChunk& c : chunks) alter_each(c);
   }
   if (alter_header) alter_header(chunks[0]);
   std::vector<format::PreparedChunk> extra;

@@ -379,6 +379,25 @@ TEST(FramePatches, EveryCheckOfTheRangeCodedChunkRefusesABadOneByName) {
   EXPECT_EQ(file_layout::read_patches(kRangedPatchPayload, "roomy.fmv", with_patches(), {0.0, 0.5, 1.0}, tight + 28, minor).size(), 2u);
 }
 
+// The patches are held with the residual frames: they are charged against what the residual frames
+// left of the budget, not the whole of it (each within the whole let a file of a few kilobytes hold
+// twice the budget before the memory plan refused it). 60,000 residual frames (3.8 MB) and one
+// patch under a budget one byte short of both: the PTCH's reader refuses, by name.
+TEST(FramePatches, TheirMemoryIsWhatTheResidualFramesLeftOfTheBudget) {
+  Sequence s = crafted::small_sequence(9, 8);
+  for (size_t k = 0; k < s.keyframes.size(); ++k) s.keyframes[k].time = 50.0 * static_cast<double>(k);
+  s.last_time = 100;
+  constexpr int kResiduals = 60'000;
+  for (int j = 1; j <= kResiduals; ++j) s.residuals.push_back({j / 1920.0, {0.25, -0.125, -0.125}});  // 64ths of a frame at 30 fps
+  s.patches = {{60.0, 3, {4}, {Vec3(0, 0, 1)}}};
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, crafted::small_metadata());
+  DecoderLimits limits;
+  limits.max_memory_bytes = kResiduals * file_layout::kResidualMemoryBytes + file_layout::kPatchMemoryBytes + file_layout::kPatchNodeMemoryBytes - 1;
+  testing::expect_error(ErrorCode::kLimit, "frame patches: frame patches' nodes need", [&] { open_sequence_source(bytes, "both.fmv", limits); });
+  limits.max_memory_bytes = DecoderLimits{}.max_memory_bytes;
+  EXPECT_EQ(open_sequence_source(bytes, "both.fmv", limits)->outline().residuals.size(), size_t{kResiduals});
+}
+
 // A file stamped 2.3 with a PTCH chunk: skipped, as a 2.3 decoder skips a chunk it does not know
 // (not critical), so the frames are the blend's alone.
 TEST(FramePatches, InAFileOfAnEarlierMinorVersionTheChunkIsSkipped) {

@@ -217,5 +217,101 @@ TEST(HeaderDictionary, AHeaderThatDoesNotDecompressAgainstItIsCorrupt) {
   });
 }
 
+// RFC 8878 §3.1.1.1: a frame's header is the magic, the descriptor, a window descriptor unless the
+// frame is a single segment, the dictionary ID and the content size, sized by the descriptor.
+struct FrameHeader {
+  size_t window = 0, dictionary = 0, content_size = 0;  // offsets of those fields
+  size_t content_size_bytes = 0, end = 0;
+};
+FrameHeader frame_header(const std::vector<uint8_t>& frame) {
+  const uint8_t d = frame.at(4);
+  const bool single = (d & 0x20) != 0;
+  static constexpr size_t kDictionaryBytes[4] = {0, 1, 2, 4}, kSizeBytes[4] = {0, 2, 4, 8};
+  FrameHeader h;
+  h.window = 5;
+  h.dictionary = h.window + (single ? 0 : 1);
+  h.content_size = h.dictionary + kDictionaryBytes[d & 3];
+  h.content_size_bytes = (d >> 6) == 0 ? (single ? 1 : 0) : kSizeBytes[d >> 6];
+  h.end = h.content_size + h.content_size_bytes;
+  return h;
+}
+
+// Every other frame a chunk with flag bit 2 may hold but the one zstd frame §3.2 and §3.4 allow is
+// corrupt, named, at open: a damaged checksum, a frame that names a dictionary ID (zstd's
+// dictionary_wrong: the prefix has none), one whose content size lies or is not announced, a
+// skippable frame before or after it, two frames.
+TEST(HeaderDictionary, AnythingButOneCheckedFrameOfTheAnnouncedSizeIsCorrupt) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(crafted::small_sequence(9, 8), realistic_metadata());
+  const format::ChunkView header = chunk_of(bytes, "HEAD");
+  ASSERT_TRUE(header.against_dictionary());
+  const std::vector<uint8_t> frame(header.stored.begin(), header.stored.end());
+  const FrameHeader h = frame_header(frame);
+  ASSERT_EQ(frame[4] & 3, 0) << "the writer's frame names no dictionary ID";
+  const auto corrupt = [&](const std::string& name, const std::vector<uint8_t>& stored, const std::string& fragment) {
+    SCOPED_TRACE(name);
+    testing::expect_error(ErrorCode::kCorrupt, "chunk HEAD at offset 16" + fragment, [&] {
+      decode_sequence_file(with_header_chunk(bytes, [&](format::PreparedChunk& c) { c.stored = stored; }), name + ".fmv");
+    });
+  };
+  const std::string damaged = ": does not decompress against the header dictionary";
+  const std::string announce = ": the zstd frame does not announce the chunk's size";  // §10.2 step 2, before the checksum's
+  std::vector<uint8_t> f = frame;
+  f.back() ^= 1;
+  corrupt("checksum", f, damaged);
+  f = frame;
+  f[4] |= 1;
+  f.insert(f.begin() + static_cast<ptrdiff_t>(h.dictionary), uint8_t{42});
+  corrupt("dictionary_id", f, damaged);
+  for (int by : {-1, 1}) {
+    f = frame;
+    ASSERT_GE(h.content_size_bytes, 1u);
+    f[h.content_size] = static_cast<uint8_t>(f[h.content_size] + by);
+    corrupt("size_" + std::to_string(by), f, announce);
+  }
+  // Not a single segment, with a window of 128 KiB and no content size: decompresses to the raw
+  // size, but announces none.
+  f = frame;
+  f.erase(f.begin() + static_cast<ptrdiff_t>(h.content_size), f.begin() + static_cast<ptrdiff_t>(h.end));
+  f[4] = static_cast<uint8_t>(f[4] & 0x1F & ~0x20);
+  f.insert(f.begin() + 5, uint8_t{7 << 3});
+  ASSERT_FALSE(format::announced_size(f).has_value());
+  corrupt("no_size", f, announce);
+  const std::vector<uint8_t> skippable = {0x50, 0x2A, 0x4D, 0x18, 4, 0, 0, 0, 1, 2, 3, 4};
+  f = skippable;
+  f.insert(f.end(), frame.begin(), frame.end());
+  corrupt("skippable_before", f, announce);  // zstd gives a skippable frame's content size as 0
+  f = frame;
+  f.insert(f.end(), skippable.begin(), skippable.end());
+  corrupt("skippable_after", f, damaged);
+  f = frame;
+  f.insert(f.end(), frame.begin(), frame.end());
+  corrupt("two_frames", f, damaged);
+}
+
+// The reader decodes flag bit 2 on any compressed chunk of a 2.5 file (§3.4), though the writer
+// sets it on the header alone: the patches against the dictionary read as without.
+TEST(HeaderDictionary, AReaderDecodesItOnAnyCompressedChunk) {
+  Sequence s = crafted::small_sequence(9, 8);
+  s.patches = {{0.25, 3, {4}, {Vec3(0.0625, 0, 0)}}};
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, realistic_metadata());
+  const Sequence plain = decode_sequence_file(bytes, "plain.fmv");
+  const std::vector<uint8_t> raw = crafted::chunk_payload(bytes, "PTCH");
+  const std::vector<uint8_t> against = crafted::rebuild(
+      bytes, [](const std::string&, std::vector<uint8_t>&) {}, false, false, {}, {}, [&](format::PreparedChunk& c) {
+        if (c.type != "PTCH") return;
+        c.stored = format::compress_frame(raw, 19, format::header_dictionary());
+        c.flags |= format::kChunkCompressed | format::kChunkDictionary;
+        c.raw_size = raw.size();
+      });
+  SequenceFileInfo info;
+  const Sequence read = decode_sequence_file(against, "against.fmv", &info);
+  int flagged = 0;
+  for (const auto& c : info.chunks) flagged += c.against_dictionary;
+  EXPECT_EQ(flagged, 2);  // HEAD and PTCH
+  ASSERT_EQ(read.patches.size(), 1u);
+  EXPECT_EQ(read.patches[0].nodes, plain.patches[0].nodes);
+  EXPECT_EQ(read.patches[0].displacements, plain.patches[0].displacements);
+}
+
 }  // namespace
 }  // namespace facemorph

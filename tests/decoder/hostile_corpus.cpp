@@ -578,6 +578,57 @@ void write_set(Corpus& corpus) {
     corpus.add("m_patch_ranged_noise_64k.fmv", rebuild(with_patch, ranged(4 * static_cast<int64_t>(noise.size()), noise)), three,
                "64 KiB of noise as a range-coded PTCH stream of 4 patches a byte (format 2.5)", "frame patches");
   }
+  // The range-coded PTCH at the edges of its guards, in a capture whose two intervals hold 4.2
+  // million frames (keyframes at 0, 70,000 and 140,000 s at 30 fps) so that a valid file can hold
+  // millions of patches: 2.9 million patches with no moving node a frame apart (9 decisions each,
+  // about 72 a byte: the count's guard, §7.5.1; 186 MB); 2^24 stated for a stream that could hold
+  // them (refused before anything is allocated); the most memory a byte of stream can
+  // ask for, 129² moving nodes a patch with codes 0 (4 decisions a node), 400 patches (186 MB); and
+  // the lattice changing between 128 and 129 at every patch, times off the frame lattice, every
+  // node moving. (Sizes within the bound of tests/tools/hostile_files_test.sh, 256 MB of resident
+  // memory, which fminfo's own 61 MB and a file filling the default budget of 256 MiB would pass:
+  // 3.9 million patches, 250 MB, peak at 294 MB in fminfo, 248 MB in fmdec.)
+  {
+    Sequence longer = patched;
+    for (size_t k = 0; k < longer.keyframes.size(); ++k) longer.keyframes[k].time = 70000.0 * static_cast<double>(k);
+    longer.last_time = 140000;
+    const Bytes with_long = encode_sequence_file(longer, crafted::small_metadata());
+    const std::vector<double> far = {0.25, 70000.5, 139999.9};
+    const auto stream_of = [](int64_t count, const std::function<format::CodedPatch(int64_t)>& patch) {
+      format::PatchStreamWriter w;
+      for (int64_t p = 0; p < count; ++p) w.add(patch(p));
+      return w.finish();
+    };
+    const int64_t empties = 2'900'000;
+    const Bytes empty_stream = stream_of(empties, [](int64_t p) { return format::CodedPatch{p == 2'099'999 ? 128 : 64, 3, {}, {}}; });
+    corpus.add("m_patch_ranged_2_9M_empty.fmv", rebuild(with_long, ranged(empties, empty_stream)), far,
+               "2.9 million empty range-coded patches a frame apart in " + std::to_string(empty_stream.size()) + " bytes (format 2.5)");
+    const int64_t too_many = int64_t{1} << 24;  // 1 GiB natively, 640 MiB in WebAssembly's 32 bits
+    corpus.add("m_patch_ranged_2e24_stated.fmv", rebuild(with_long, ranged(too_many, Bytes(too_many / 72 + 1, 0))), far,
+               "2^24 range-coded patches stated for a stream of 233,017 bytes that could hold them (format 2.5)",
+               "16777216 frame patches need");
+    const auto dense = [](int64_t) {
+      format::CodedPatch all{64, 129, {}, {}};
+      for (int32_t n = 0; n < 129 * 129; ++n) {
+        all.nodes.push_back(n);
+        all.codes.push_back({0, 0, 0});
+      }
+      return all;
+    };
+    corpus.add("m_patch_ranged_dense_400.fmv", rebuild(with_long, ranged(400, stream_of(400, dense))), far,
+               "400 range-coded patches moving all 129² nodes by 0: 186 MB of nodes (format 2.5)");
+    const auto alternating = [](int64_t p) {
+      const int32_t c = p % 2 ? 129 : 128;
+      format::CodedPatch all{65, c, {}, {}};
+      for (int32_t n = 0; n < c * c; ++n) {
+        all.nodes.push_back(n);
+        all.codes.push_back({n % 7 - 3, (n * 13) % 5 - 2, p % 3 - 1});
+      }
+      return all;
+    };
+    corpus.add("m_patch_ranged_lattice_every_patch.fmv", rebuild(with_long, ranged(200, stream_of(200, alternating))), far,
+               "200 range-coded patches at 65/64 of a frame apart, lattice 128 and 129 in turn, every node moving (format 2.5)");
+  }
   // Format 2.5's linear predictor along a sequence (spec/container.md §7.2), the first group written
   // by hand: the band's and the rim's x at the widest swing a valid file holds (residuals near 2^33),
   // residuals that lead the rim's prediction past 32 bits, id 2 on the rim in a file stamped 2.4,

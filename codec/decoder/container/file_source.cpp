@@ -76,7 +76,11 @@ class FileSource final : public KeyframeSource {
     const size_t count = file_.keyframe_count();
     // The header's fields as a sequence in memory gives them (the shape has no keyframes: times,
     // poses, holes and texture are the file's, below).
+    // The residual frames and patches moved, not copied: held once, as the budget counts them.
+    OpenedFile::Frames frames = file_.take_frames();
     outline_ = outline_of(file_.shape());
+    outline_.residuals = std::move(frames.residuals);
+    outline_.patches = std::move(frames.patches);
     outline_.times.reserve(count);
     for (size_t k = 0; k < count; ++k) outline_.times.push_back(file_.keyframe_time(k));
     const KeyframeSpline spline(outline_.times, file_.shape().spline);

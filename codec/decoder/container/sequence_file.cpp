@@ -46,6 +46,8 @@ struct OpenedFile::State {
   // Keyframe k shows the texture stored for texture_owner[k]: itself, or in a file of shared
   // textures (format 2.2) the first keyframe whose entry names the same TEXR.
   std::vector<uint32_t> texture_owner;
+  // What describe() says of the residual frames and patches, counted at open (take_frames() moves them out).
+  size_t residual_frames = 0, frame_patches = 0, patch_nodes = 0;
 };
 
 namespace {
@@ -160,15 +162,29 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
         read_residuals(reader.payload(*chunk, limits.max_memory_bytes), s.source, header.shape, key_times, limits.max_memory_bytes, minor);
   }
   if (const format::ChunkView* chunk = minor >= 4 ? single_chunk(chunks, kPatchChunk, "frame patches", s.source) : nullptr) {
-    s.header->shape.patches =
-        read_patches(reader.payload(*chunk, limits.max_memory_bytes), s.source, header.shape, key_times, limits.max_memory_bytes, minor);
+    // Charged against what the residual frames left of the budget: the two are held together, and
+    // each alone within the whole budget would let a small file hold twice it before the memory
+    // plan refuses it.
+    const uint64_t residual_memory = header.shape.residuals.size() * kResidualMemoryBytes;  // ≤ the budget: checked
+    s.header->shape.patches = read_patches(reader.payload(*chunk, limits.max_memory_bytes), s.source, header.shape, key_times,
+                                           limits.max_memory_bytes - residual_memory, minor);
   }
+  s.residual_frames = header.shape.residuals.size();
+  s.frame_patches = header.shape.patches.size();
+  for (const FramePatch& p : header.shape.patches) s.patch_nodes += p.nodes.size();
 }
 
 OpenedFile::~OpenedFile() = default;
 
 const std::string& OpenedFile::source() const { return state_->source; }
 const Sequence& OpenedFile::shape() const { return state_->header->shape; }
+OpenedFile::Frames OpenedFile::take_frames() {
+  Sequence& shape = state_->header->shape;
+  Frames frames{std::move(shape.residuals), std::move(shape.patches)};
+  shape.residuals.clear();
+  shape.patches.clear();
+  return frames;
+}
 const FileHeader& OpenedFile::header() const { return *state_->header; }
 const std::vector<IndexEntry>& OpenedFile::index() const { return state_->index; }
 const format::ContainerReader& OpenedFile::container() const { return state_->reader; }
@@ -394,9 +410,9 @@ SequenceFileInfo OpenedFile::describe(bool split_texture_groups) const {
   info.grid_rule = static_cast<int>(header.grid_rule);
   info.texture_size = static_cast<int>(header.texture_size);
   info.metadata = header.metadata;
-  info.residual_frames = header.shape.residuals.size();
-  info.frame_patches = header.shape.patches.size();
-  for (const FramePatch& p : header.shape.patches) info.patch_nodes += p.nodes.size();
+  info.residual_frames = s.residual_frames;
+  info.frame_patches = s.frame_patches;
+  info.patch_nodes = s.patch_nodes;
   info.metadata.texture_codec = has_texture() ? texture_codec(0) : TextureCodec::kWebp;
   info.metadata.texture_coding = header.texture_groups() ? TextureCoding::kSequence : TextureCoding::kStills;
   info.keyframes.resize(s.index.size());
@@ -465,8 +481,11 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
                                        std::to_string(limits.max_memory_bytes));
   }
   // Decoded whole: every keyframe is held at once.
-  const OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
+  OpenedFile file(bytes, source, limits, [](uint32_t keyframes, SplineKind) { return uint64_t{keyframes}; });
+  OpenedFile::Frames frames = file.take_frames();
   Sequence sequence = file.shape();
+  sequence.residuals = std::move(frames.residuals);
+  sequence.patches = std::move(frames.patches);
   std::vector<uint64_t> field_bytes(file.keyframe_count());
   file.decode_every_keyframe([&](size_t k, Keyframe&& key, uint64_t bytes_taken) {
     sequence.keyframes.push_back(std::move(key));
