@@ -240,15 +240,15 @@ void print_encoder_notes(const nlohmann::json& settings) {
 
 // The format version a file needs (§12): the oldest minor whose decoder reads all of it. Each minor
 // only appended what a file may go without (2.1 texture groups, 2.2 shared textures, 2.3 residual
-// frames, 2.4 frame patches, 2.5 the rim's predictor, range-coded patches and the header dictionary), and the writer stamps every file with its own minor, so a file stated 2.4 that uses none
-// of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5's predictor (linear along
-// the rim, §7.2) lies inside the keyframes' streams, where a description that decodes nothing
-// cannot see it, and its writer takes it for nearly every rim coded from nothing: a file stated 2.5
-// or later is taken to need 2.5 (its patches, if any, are range-coded too, §7.5.1).
+// frames, 2.4 frame patches), and the writer stamps every file with its own minor, so a file stated
+// 2.4 that uses none of them is, but for its preamble, a 2.0 file (spec/container.md §12). 2.5's
+// predictor (linear along the rim, §7.2) lies inside the keyframes' streams, where a description
+// that decodes nothing cannot see it, and its writer takes it for nearly every rim coded from
+// nothing: a file stated 2.5 or later is taken to need 2.5 (its header against the dictionary and
+// its patches range-coded, which only a 2.5 file may hold, included).
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
   if (info.minor_version >= 5) return 5;
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
-  if (std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.against_dictionary > 0; })) return 5;
   if (info.frame_patches > 0) return 4;
   if (info.residual_frames > 0) return 3;
   if (!texture_groups && info.texture_size > 0 && info.distinct_textures < keyframes) return 2;
