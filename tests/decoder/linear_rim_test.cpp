@@ -5,8 +5,10 @@
 #include "codec/core/container/file_layout.hpp"
 #include "codec/core/container/keyframe_group_coding.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
+#include "codec/writer/container/chunk_writers.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/container.hpp"
+#include "format/ranged_residuals.hpp"
 
 #include "tests/decoder/crafted_files.hpp"
 #include "tests/test_util.hpp"
@@ -104,6 +106,52 @@ TEST(LinearRim, IdTwoOnASequenceIsCorruptBefore25AndIdThreeAlways) {
     testing::expect_error(ErrorCode::kCorrupt, "(keyframe 0): array 10 has predictor 3, not one for that array",
                           [&] { decode_sequence_file(crafted::restamped(crafted_rim(3).file, minor), "three.fmv"); });
   }
+}
+
+// The one rule the writer and the reader share (allowed_predictors), by id: a lattice's four at
+// every version; a sequence's none and previous, and linear as id 2 from 2.5 on only.
+TEST(LinearRim, TheAllowedPredictorsAreTheLatticesFourAndASequencesLinearFrom25) {
+  using format::SpatialPredictor;
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(17);
+  const std::vector<SpatialPredictor> lattice = {SpatialPredictor::kNone, SpatialPredictor::kPrevious, SpatialPredictor::kGradient,
+                                                 SpatialPredictor::kMedian};
+  const std::vector<SpatialPredictor> old_sequence = {SpatialPredictor::kNone, SpatialPredictor::kPrevious};
+  const std::vector<SpatialPredictor> new_sequence = {SpatialPredictor::kNone, SpatialPredictor::kPrevious, SpatialPredictor::kLinear};
+  const auto allowed = [](const format::LatticeNeighbours* on, uint16_t minor) {
+    const std::span<const SpatialPredictor> ids = file_layout::allowed_predictors(on, minor);
+    return std::vector<SpatialPredictor>(ids.begin(), ids.end());
+  };
+  for (uint16_t minor : {0, 3, 4}) {
+    EXPECT_EQ(allowed(&grid->interior, minor), lattice) << minor;
+    EXPECT_EQ(allowed(nullptr, minor), old_sequence) << minor;
+  }
+  for (uint16_t minor : {5, 6}) {
+    EXPECT_EQ(allowed(&grid->all_nodes, minor), lattice) << minor;
+    EXPECT_EQ(allowed(nullptr, minor), new_sequence) << minor;
+  }
+  for (uint8_t id = 0; id < 3; ++id) EXPECT_EQ(file_layout::predictor_id(new_sequence[id]), id);
+}
+
+// The writer's side of the rule, without the reader: a smooth rim's bits as the writer predicts it
+// (keyframe_array_bits, fminfo --field-bytes' figures too) are the fewer of none's and previous's
+// in a 2.4 file, and linear's, fewer still, in a 2.5 file.
+TEST(LinearRim, TheWriterOfA24FileChoosesNoneOrPreviousAlongTheRim) {
+  const Sequence s = crafted::small_sequence(17, 8);
+  const FieldCoding coding = crafted::predicted_metadata().field_coding;
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(s.grid_n);
+  const Keyframe& key = s.keyframes[0];
+  const std::vector<double> rim = file_layout::keyframe_arrays(key)[kRimX];
+  std::vector<int32_t> codes;
+  for (double v : rim) codes.push_back(file_layout::field_code(v, coding.steps[kRimX]));
+  ASSERT_GT(codes.size(), 40u);
+  const auto bits = [&](format::SpatialPredictor p) {
+    return format::ranged_residual_bits(format::spatial_residuals(codes, p, nullptr), nullptr);
+  };
+  const double older = std::min(bits(format::SpatialPredictor::kNone), bits(format::SpatialPredictor::kPrevious));
+  const double linear = bits(format::SpatialPredictor::kLinear);
+  ASSERT_LT(linear, older);
+  EXPECT_EQ(file_layout::keyframe_array_bits(key, nullptr, coding, *grid, 4)[kRimX], older);
+  EXPECT_EQ(file_layout::keyframe_array_bits(key, nullptr, coding, *grid, 5)[kRimX], linear);
 }
 
 // The rim's x and the band's first component zigzag between the code bounds in keyframe 0 and the

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace facemorph::file_layout {
@@ -28,6 +29,21 @@ inline const format::LatticeNeighbours* lattice_of(size_t array, size_t length, 
 inline constexpr uint16_t kLinearSequenceMinorVersion = 5;
 inline uint8_t predictor_id(format::SpatialPredictor predictor) {
   return predictor == format::SpatialPredictor::kLinear ? uint8_t{2} : static_cast<uint8_t>(predictor);
+}
+
+// The one statement of which predictors an array may have in a file of `minor_version` (§7.2),
+// indexed by their ids: on a lattice (`lattice` not null) none, previous, gradient, median; on a
+// sequence none, previous, and from 2.5 on linear. The writer chooses among these and the reader
+// refuses any other id, so the two cannot disagree. The writer tries them in this order and keeps
+// the first of equal cost: the order is part of the bytes it writes.
+inline std::span<const format::SpatialPredictor> allowed_predictors(const format::LatticeNeighbours* lattice, uint16_t minor_version) {
+  using format::SpatialPredictor;
+  static constexpr std::array<SpatialPredictor, 4> kOnLattice = {SpatialPredictor::kNone, SpatialPredictor::kPrevious,
+                                                                 SpatialPredictor::kGradient, SpatialPredictor::kMedian};
+  static constexpr std::array<SpatialPredictor, 3> kOnSequence = {SpatialPredictor::kNone, SpatialPredictor::kPrevious,
+                                                                  SpatialPredictor::kLinear};
+  if (lattice != nullptr) return kOnLattice;
+  return std::span<const SpatialPredictor>(kOnSequence).first(minor_version >= kLinearSequenceMinorVersion ? 3 : 2);
 }
 
 // lattice_of for every array of a keyframe, given their lengths.

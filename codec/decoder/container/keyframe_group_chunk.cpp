@@ -11,6 +11,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <span>
 
 namespace facemorph::file_layout {
 
@@ -22,10 +23,10 @@ using format::ByteReader;
 // none this array can have there (§7.2).
 format::SpatialPredictor checked_predictor(size_t a, uint8_t p, size_t length, const GridFacts& grid, uint16_t minor_version,
                                            const std::string& where) {
-  const bool on_lattice = lattice_of(a, length, grid) != nullptr;
-  if (p < 2 || (on_lattice && p < format::kSpatialPredictorCount)) return static_cast<format::SpatialPredictor>(p);
-  const bool linear = !on_lattice && p == 2;
-  if (linear && minor_version >= kLinearSequenceMinorVersion) return format::SpatialPredictor::kLinear;
+  const format::LatticeNeighbours* lattice = lattice_of(a, length, grid);
+  const std::span<const format::SpatialPredictor> allowed = allowed_predictors(lattice, minor_version);
+  if (p < allowed.size()) return allowed[p];
+  const bool linear = lattice == nullptr && p == predictor_id(format::SpatialPredictor::kLinear);  // only to say why
   corrupt(where, "array " + std::to_string(a) + " has predictor " + std::to_string(p) + ", not one for that array" +
                      (linear ? " in a 2." + std::to_string(minor_version) + " file (linear along a sequence is 2.5's)" : ""));
 }

@@ -22,20 +22,13 @@ struct CodedArray {
   double bits = 0;
 };
 
-// The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models):
-// none or previous, and on a lattice gradient or median, on a sequence linear where the file's
-// `minor_version` has it (§7.2).
+// The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models)
+// among those the file's `minor_version` allows the array (allowed_predictors, §7.2), the first of
+// equal cost.
 CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice, uint16_t minor_version) {
-  using format::SpatialPredictor;
-  std::vector<SpatialPredictor> candidates = {SpatialPredictor::kNone, SpatialPredictor::kPrevious};
-  if (lattice != nullptr) {
-    candidates.insert(candidates.end(), {SpatialPredictor::kGradient, SpatialPredictor::kMedian});
-  } else if (minor_version >= kLinearSequenceMinorVersion) {
-    candidates.push_back(SpatialPredictor::kLinear);
-  }
   CodedArray best;
   best.bits = std::numeric_limits<double>::infinity();
-  for (const SpatialPredictor predictor : candidates) {
+  for (const format::SpatialPredictor predictor : allowed_predictors(lattice, minor_version)) {
     std::vector<int64_t> residuals = format::spatial_residuals(codes, predictor, lattice);
     const double bits = format::ranged_residual_bits(residuals, lattice);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
