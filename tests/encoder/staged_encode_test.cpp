@@ -7,7 +7,10 @@
 #include "codec/encoder/encode/registration_store.hpp"
 #include "codec/encoder/synth/synth.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
+#include "format/container.hpp"
 #include "format/error.hpp"
+#include "format/header_dictionary.hpp"
+#include "format/zstd_frame.hpp"
 
 #include "format/file_io.hpp"
 
@@ -412,6 +415,49 @@ TEST(PartFile, ADamagedOrCraftedPartIsRefusedWithItsFrameNamed) {
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "unfinished.fms"));
   for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
     EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << "a temporary file was left: " << entry.path();
+  }
+}
+
+// A part whose chunks are those of `good`, each re-prepared as the part writer prepares them, and
+// `type`'s (with `against_dictionary`) compressed against the header dictionary with flag bit 2
+// set: every checksum right, the chunk as a 2.5 facemorph file would hold it. The container kind is
+// the good part's own (its magic, the version PartReader reads).
+std::vector<uint8_t> part_with_dictionary_chunk(const std::filesystem::path& good, std::string_view type, bool against_dictionary) {
+  const std::vector<uint8_t> bytes = format::read_file(good);
+  format::ContainerKind kind{{}, kPartMajorVersion, kPartMinorVersion, "part file"};
+  std::copy_n(bytes.begin(), kind.magic.size(), kind.magic.begin());
+  const format::ContainerReader reader(bytes, good.string(), UINT64_MAX, kind);
+  format::ContainerWriter writer(kind);
+  for (const format::ChunkView& c : reader.chunks()) {
+    std::vector<uint8_t> raw = reader.payload(c);
+    format::PreparedChunk chunk = format::prepare_chunk(c.type, raw, c.critical(), 3);
+    if (c.type == type && against_dictionary) {
+      chunk.stored = format::compress_frame(raw, 19, format::header_dictionary());
+      chunk.flags |= format::kChunkCompressed | format::kChunkDictionary;
+      chunk.raw_size = raw.size();
+    }
+    writer.add(chunk);
+  }
+  return writer.finish();
+}
+
+// Chunk flag bit 2 (the header dictionary, spec/container.md §3.4) is the facemorph file's from 2.5
+// on; a part file (spec/part-file.md) never has it: the part's reader refuses a chunk that sets it,
+// naming the file and the chunk, whether it is the header or a frame's record. Rebuilt the same way
+// without the flag, the part reads: what is refused is the flag.
+TEST(PartFile, AChunkAgainstTheHeaderDictionaryIsRefusedByName) {
+  testing::TempDir dir;
+  const Capture capture = small_capture(dir.path() / "capture", 4);
+  const std::filesystem::path good = dir.path() / "good.fms";
+  encode_part(capture, small_options(), {0, 4}, good);
+  const std::filesystem::path plain = dir.path() / "plain.fms";
+  format::write_file_atomically(plain, part_with_dictionary_chunk(good, "PHDR", false));
+  EXPECT_NO_THROW(PartReader(plain).verify());
+  for (const std::string_view type : {"PHDR", "PFRM"}) {
+    const std::filesystem::path path = dir.path() / (std::string(type) + ".fms");
+    format::write_file_atomically(path, part_with_dictionary_chunk(good, type, true));
+    testing::expect_error(ErrorCode::kCorrupt, path.string() + ": chunk " + std::string(type) + " at offset", [&] { PartReader(path).verify(); });
+    testing::expect_error(ErrorCode::kCorrupt, "sets reserved flags", [&] { PartReader(path).verify(); });
   }
 }
 
