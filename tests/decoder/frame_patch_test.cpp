@@ -232,8 +232,9 @@ TEST(FramePatches, EveryCheckOfTheChunkRefusesABadOneByName) {
   testing::expect_error(ErrorCode::kTruncated, "a patch time's change",
                         [&] { open_sequence_source(with_patch_payload([](auto& p) { p.resize(14); }), "crafted.fmv"); });
   // Their memory against the caller's budget, before a patch's nodes are allocated: 2 patches and 3
-  // nodes need one node more than this.
-  const uint64_t tight = 2 * sizeof(FramePatch) + 2 * (sizeof(int32_t) + sizeof(Vec3));
+  // nodes need one node more than this. The charge is fixed on every platform (64 bytes a patch, 28
+  // a node, §7.5), whatever a patch holds there (40 bytes in WebAssembly): the numbers, not sizeof.
+  const uint64_t tight = 2 * 64 + 2 * 28;
   testing::expect_error(ErrorCode::kLimit, "frame patches' nodes need", [&] {
     file_layout::read_patches(kPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, tight, 4);
   });
@@ -367,14 +368,15 @@ TEST(FramePatches, EveryCheckOfTheRangeCodedChunkRefusesABadOneByName) {
   corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(true, 1).finish()), "lattice 1 outside");
   corrupt(ranged_payload(1, -4, RawPatchStream().time(false, 6).lattice(true, 3).still_flags(9).finish()), "moves none");
   // Their memory against the caller's budget: the count's before anything is allocated, each
-  // patch's nodes before they are (2 patches and 3 nodes need one node more than `tight`).
-  const uint64_t tight = 2 * sizeof(FramePatch) + 2 * (sizeof(int32_t) + sizeof(Vec3));
+  // patch's nodes before they are (2 patches and 3 nodes need one node more than `tight`), at the
+  // fixed charge of every platform (64 bytes a patch, 28 a node).
+  const uint64_t tight = 2 * 64 + 2 * 28;
   const uint16_t minor = format::kMinorVersion;
   testing::expect_error(ErrorCode::kLimit, "frame patches' nodes need", [&] {
     file_layout::read_patches(kRangedPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, tight, minor);
   });
   testing::expect_error(ErrorCode::kLimit, "2 frame patches need", [&] {
-    file_layout::read_patches(kRangedPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, 2 * sizeof(FramePatch) - 1, minor);
+    file_layout::read_patches(kRangedPatchPayload, "tight.fmv", with_patches(), {0.0, 0.5, 1.0}, 2 * 64 - 1, minor);
   });
   EXPECT_EQ(file_layout::read_patches(kRangedPatchPayload, "roomy.fmv", with_patches(), {0.0, 0.5, 1.0}, tight + 28, minor).size(), 2u);
 }
@@ -382,7 +384,8 @@ TEST(FramePatches, EveryCheckOfTheRangeCodedChunkRefusesABadOneByName) {
 // The patches are held with the residual frames: they are charged against what the residual frames
 // left of the budget, not the whole of it (each within the whole let a file of a few kilobytes hold
 // twice the budget before the memory plan refused it). 60,000 residual frames (3.8 MB) and one
-// patch under a budget one byte short of both: the PTCH's reader refuses, by name.
+// patch under a budget one byte short of both (64 bytes a residual frame, 64 a patch, 28 a node, on
+// every platform, §10.1): the PTCH's reader refuses, by name.
 TEST(FramePatches, TheirMemoryIsWhatTheResidualFramesLeftOfTheBudget) {
   Sequence s = crafted::small_sequence(9, 8);
   for (size_t k = 0; k < s.keyframes.size(); ++k) s.keyframes[k].time = 50.0 * static_cast<double>(k);
@@ -392,7 +395,7 @@ TEST(FramePatches, TheirMemoryIsWhatTheResidualFramesLeftOfTheBudget) {
   s.patches = {{60.0, 3, {4}, {Vec3(0, 0, 1)}}};
   const std::vector<uint8_t> bytes = encode_sequence_file(s, crafted::small_metadata());
   DecoderLimits limits;
-  limits.max_memory_bytes = kResiduals * file_layout::kResidualMemoryBytes + file_layout::kPatchMemoryBytes + file_layout::kPatchNodeMemoryBytes - 1;
+  limits.max_memory_bytes = kResiduals * 64 + 64 + 28 - 1;
   testing::expect_error(ErrorCode::kLimit, "frame patches: frame patches' nodes need", [&] { open_sequence_source(bytes, "both.fmv", limits); });
   limits.max_memory_bytes = DecoderLimits{}.max_memory_bytes;
   EXPECT_EQ(open_sequence_source(bytes, "both.fmv", limits)->outline().residuals.size(), size_t{kResiduals});

@@ -156,17 +156,23 @@ inline int64_t max_code(int e) { return static_cast<int64_t>(std::ldexp(kMaxResi
 inline constexpr uint32_t kMaxResiduals = 1u << 24;
 // Corrections are multiples of 2^-e, e <= this.
 inline constexpr int kMaxResidualStepExponent = 30;
-// What one residual frame holds in memory (its time, the vector and up to 4 corrections): the
-// budget's count of them (§10.1).
-inline constexpr uint64_t kResidualMemoryBytes = sizeof(ResidualFrame) + 4 * sizeof(double);
+// What the budget charges for one residual frame (§10.1): a fixed 64 bytes on every platform, so
+// that a file is accepted or refused alike everywhere. It is what one holds on a 64-bit platform
+// (its time, the vector and up to 4 corrections); in WebAssembly (32-bit) it holds 56.
+inline constexpr uint64_t kResidualMemoryBytes = 64;
+static_assert(sizeof(ResidualFrame) + 4 * sizeof(double) <= kResidualMemoryBytes, "the charge is below what a residual frame holds");
 
 // ---- Frame patches (PTCH, patch_chunk.cpp; format 2.4) ----
 
-// The most patches a file may state (kMaxResiduals' reason), and what one holds in memory before
-// its nodes, and each node (its index and displacement): the budget's count of them (§10.1).
+// The most patches a file may state (kMaxResiduals' reason), and what the budget charges for one
+// before its nodes, and for each node (its index and displacement) (§10.1): fixed, 64 and 28 bytes
+// on every platform, so that a file is accepted or refused alike everywhere. They are what a patch
+// and a node hold on a 64-bit platform; in WebAssembly (32-bit) a patch holds 40 bytes.
 inline constexpr uint32_t kMaxPatches = 1u << 24;
-inline constexpr uint64_t kPatchMemoryBytes = sizeof(FramePatch);
-inline constexpr uint64_t kPatchNodeMemoryBytes = sizeof(int32_t) + sizeof(Vec3);
+inline constexpr uint64_t kPatchMemoryBytes = 64;
+inline constexpr uint64_t kPatchNodeMemoryBytes = 28;
+static_assert(sizeof(FramePatch) <= kPatchMemoryBytes, "the charge is below what a patch holds");
+static_assert(sizeof(int32_t) + sizeof(Vec3) <= kPatchNodeMemoryBytes, "the charge is below what a patch's node holds");
 // Displacements are whole multiples of 2^e, e within these (2^-60 of a metre is far below any
 // capture's precision, 2^30 far above any face); codes within 2^40, the varint's bound (§6).
 inline constexpr int kMinPatchStepExponent = -60, kMaxPatchStepExponent = 30;
