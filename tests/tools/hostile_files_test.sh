@@ -9,18 +9,28 @@
 # (and, for a file the manifest says is refused, saying what it says in every run that decodes:
 # plain fminfo decodes nothing, so it may describe a file whose keyframes are at fault); never by a
 # signal or a timeout; within MAX_SECONDS of CPU time (3; fminfo --verify, which decodes every
-# keyframe, 3 s and 0.5 s a MB of the file; --field-bytes 3 s and 3.5 s a MB) and MAX_MB (256 MiB of peak resident memory,
-# /usr/bin/time's "Maximum resident set size": the review's bound, which the default budget of
-# 256 MiB keeps with the process's own ~10 MiB, its estimate being above what is held: the largest
-# grid it admits, N = 400, peaks at 219 MiB). Prints a table of every run and the worst time and
-# memory per tool. Exits 77 (skipped) without /usr/bin/time,
-# timeout or python3, naming which.
+# keyframe, 3 s and 0.5 s a MB of the file; --field-bytes 3 s and 3.5 s a MB) and a tool's MAX_MB of
+# peak resident memory (/usr/bin/time's "Maximum resident set size", MiB): the decode budget a file
+# may fill (DecoderLimits' default max_memory_bytes, 256 MiB, spec/container.md §10), plus what the
+# tool holds whatever the file (its own allowance: its peak on the 3.9 KB tests/data/golden_v2_5.fmv
+# in the runs below, the worst of six, rounded up: fminfo 62.8 MiB, nearly all of it the 178
+# libraries it maps, OpenCV and GDAL among them, as --help alone peaks at 60.6 MiB; fmdec 12.3 MiB),
+# plus 4 MiB for what differs from run to run (at most 0.4 MiB over the six). So fminfo 323 MiB,
+# fmdec 273 MiB; the old 256 MiB a process left fmdec 2.3 MiB on f_n400_rough_fields.fmv (253.7 MiB)
+# and left fminfo, its own 62.8 MiB taken, 193 MiB: less than the budget a file may fill. Prints a
+# table of every run and the worst time and memory per tool. Exits 77 (skipped) without
+# /usr/bin/time, timeout or python3, naming which.
 #   hostile_files_test.sh HOSTILE_FILES FMINFO FMDEC WORK_DIR   (HOSTILE_FILES: hostile_corpus's output,
 #   written once per test run by the fixture Hostile.FilesAreWritten)
-# HOSTILE_MAX_SECONDS and HOSTILE_MAX_MB override the bounds (to measure on a slower machine).
+# HOSTILE_MAX_SECONDS and HOSTILE_MAX_MB override the bounds (to measure on a slower machine; the
+# memory one for both tools).
 set -uo pipefail
 files=${1:?usage: hostile_files_test.sh HOSTILE_FILES FMINFO FMDEC WORK_DIR} fminfo=${2:?} fmdec=${3:?} work=${4:?}
-max_seconds=${HOSTILE_MAX_SECONDS:-3} max_mb=${HOSTILE_MAX_MB:-256}
+budget_mb=256                             # DecoderLimits' default max_memory_bytes
+fminfo_own_mb=63 fmdec_own_mb=13 margin_mb=4  # measured as said above
+fminfo_max_mb=${HOSTILE_MAX_MB:-$((budget_mb + fminfo_own_mb + margin_mb))}
+fmdec_max_mb=${HOSTILE_MAX_MB:-$((budget_mb + fmdec_own_mb + margin_mb))}
+max_seconds=${HOSTILE_MAX_SECONDS:-3} max_mb=$fminfo_max_mb  # bounded_run's bound: set per tool below
 for tool in /usr/bin/time timeout python3; do
   command -v "$tool" >/dev/null || { echo "SKIPPED: $tool not found"; exit 77; }
 done
@@ -34,6 +44,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/bounded_run.sh"
 while IFS=$'\t' read -r name times what refused; do
   file=$files/$name
   [[ -f $file ]] || { fail "$name: listed in the manifest, not written"; continue; }
+  max_mb=$fminfo_max_mb
   bounded_run "$file" fminfo "$fminfo" "$file"
   for run in --verify --field-bytes; do
     if bounded_run "$file" "fminfo $run --json" "$fminfo" $run --json "$file"; then
@@ -43,6 +54,7 @@ json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_e
     fi
   done
   first=1
+  max_mb=$fmdec_max_mb
   for t in ${times//,/ }; do
     if ((first)); then
       rm -f "$work/frame.obj"
@@ -69,6 +81,7 @@ json.load(open(sys.argv[1]), parse_constant=finite)' "$work/out" 2>"$work/json_e
   fi
 done <"$files/manifest.tsv"
 
+max_mb="$fminfo_max_mb (fminfo), $fmdec_max_mb (fmdec)"  # for the report's text only
 report_runs "fminfo" "fminfo --verify --json" "fminfo --field-bytes --json" "fmdec"
 ((failures == 0)) || { echo "$failures failures"; exit 1; }
 echo "every run within $max_seconds s and $max_mb MB, refused by name or finite"
