@@ -40,7 +40,7 @@ bool through_file = false;
 
 Sequence stored(SequenceEncoder& encoder, Sequence sequence, const KeyframeSelection& chosen, size_t* file_bytes = nullptr) {
   if (!through_file) return sequence;
-  const FieldCoding coding = round_fields(field_precision_options(encoder.options(), chosen, encoder.report().grid_floor), sequence, encoder.report());
+  const FieldCoding coding = round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
   std::vector<uint8_t> file;
   Sequence back = file_round_trip(
       sequence,

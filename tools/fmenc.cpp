@@ -243,7 +243,7 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
-                 "between keyframes)")
+                 "between keyframes; where none is predicted, as one frame, half the error bound: 0.5% by default, or --max-error)")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
@@ -288,8 +288,8 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--reference", a.reference, "The frame every other is registered to")->capture_default_str();
   app.add_option("--field-error", a.field_error,
                  "RMS displacement of a decoded keyframe its fields' rounding may cause (of the bbox diagonal); auto: two fifths of the "
-                 "predicted error between keyframes (of G's resampling floor where none is predicted: one frame, every frame a "
-                 "keyframe), within [0.005%, 0.2%]; re-coding a .fmv, auto keeps its steps; 0: 16-bit precision, no search")
+                 "predicted error between keyframes (of the error bound where none is predicted: one frame, every frame a keyframe; "
+                 "0.5% by default, or --max-error), within [0.005%, 0.2%]; re-coding a .fmv, auto keeps its steps; 0: 16-bit precision, no search")
       ->capture_default_str();
   app.add_option("--field-rounding", a.field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
   app.add_option("--inter-dead-zone", a.inter_dead_zone,
@@ -638,6 +638,7 @@ void print_grid_choice(const Summary& s) {
         100 * s.report.median_noise, s.report.grid_density_cap, s.report.grid_vertex_area,
         s.report.grid_vertex_area * (s.sequence->shape().grid_n - 1) * (s.sequence->shape().grid_n - 1) / 4.0, s.sequence->shape().grid_n);
     const char* why = s.report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
+                      : s.report.grid_term == "error bound" ? "half the error bound, as nothing between keyframes is predicted"
                       : s.report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
     if (s.report.grid_term == "density") {
@@ -700,7 +701,7 @@ void print_rate_and_fields(const Summary& s) {
         "  fields rounded to %.3g%% of the diagonal%s (RMS; worst keyframe %.3g%%), intra every %d keyframes, dead zone %.2f steps\n",
         100 * s.report.field_precision.target_error,
         !s.options.auto_field_error ? ""
-        : worst == 0 && s.report.grid_floor > 0 ? " (auto: two fifths of G's resampling floor, as nothing between keyframes is predicted)"
+        : worst == 0 ? " (auto: two fifths of the error bound, as nothing between keyframes is predicted)"
                                                 : " (auto)",
         100 * *std::max_element(e.begin(), e.end()), s.report.field_coding.intra_period, s.report.field_precision.inter_dead_zone);
   }

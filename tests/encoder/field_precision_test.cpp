@@ -324,7 +324,7 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
   Sequence sequence = build_sequence(encoder, chosen.keyframes,
                                      choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen));
-  round_fields(field_precision_options(encoder.options(), chosen, encoder.report().grid_floor), sequence, encoder.report());
+  round_fields(field_precision_options(encoder.options(), chosen), sequence, encoder.report());
   double sum = 0;
   int count = 0;
   for (double e : chosen.predicted_error) {
@@ -338,33 +338,62 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
   for (double e : precision.keyframe_errors) EXPECT_LE(e, 1.25 * precision.target_error);
 }
 
-TEST(SequenceEncoder, AutomaticFieldErrorOfASingleFrameIsTwoFifthsOfItsGridFloor) {
-  // Where the selection predicts nothing (one frame), the error a keyframe holds is G's resampling
-  // floor at its N, and rounding takes two fifths of it (spec/method.md §5.3), not a fixed 0.01% of
-  // the diagonal, fifteen times finer than the floor it adds to on ICT.
+TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
+  // Where the selection predicts nothing (one frame), the error bound B it is held to stands in for
+  // the prediction (spec/method.md §5.3, §7.6): the grid's RMS target is max(0.02%, ½ B) (one frame
+  // has no noise estimate) and the fields' two fifths of B within [0.005%, 0.2%], as a sequence's
+  // whose keyframes left exactly B. Not the fixed 0.02% and two fifths of G's floor, ten times finer.
   testing::TempDir dir;
   write_synthetic_capture(dir.path(), {.frames = 1, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
   const Capture capture = read_capture(dir.path());
   EncodeOptions options;
   options.texture = false;
-  EncodeReport chosen;  // --grid auto: the floor at the N it chose, the last it measured
-  encode_capture(capture, options, &chosen);
-  ASSERT_FALSE(chosen.grid_floors.empty());
-  ASSERT_EQ(chosen.grid_floors.back().first, chosen.grid);
-  const double floor = chosen.grid_floors.back().second;
-  EXPECT_EQ(chosen.grid_floor, floor);
-  ASSERT_GT(floor, 2.5 * 5e-5) << "the floor sits where the lower clamp decides, not the rule";
-  EXPECT_DOUBLE_EQ(chosen.field_precision.target_error, 0.4 * floor);
-  for (double e : chosen.field_precision.keyframe_errors) EXPECT_LE(e, 1.25 * chosen.field_precision.target_error);
+  SequenceEncoder encoder(capture, options);
+  testing::run_to_selection(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
+  ASSERT_EQ(chosen.keyframes.size(), 1u);
+  ASSERT_EQ(mean_predicted_error(chosen), 0.0);
+  struct Case {
+    double error_bound, max_error;  // the options
+    double bound;                   // the B they hold the frame to
+  };
+  const Case cases[] = {
+      {kDefaultKeyframeErrorBound, 0, 0.005},  // the defaults: 0.25% and 0.2% (the upper clamp, met exactly)
+      {0.0025, 0, 0.0025},                     // a tighter bound: 0.125% and 0.1%
+      {0.0025, 0.003, 0.003},                  // --max-error replaces the bound: 0.15% and 0.12%
+      {0, 0, 0.005},                           // a budget given (fmenc --keyframes P) holds to none: the default
+      {0, 0.0003, 0.0003},                     // a fine tolerance: the 0.02% floor, 0.012%
+      {0, 0.0001, 0.0001},                     // finer: the floor, and the lower clamp 0.005%
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(::testing::Message() << "error bound " << c.error_bound << ", max error " << c.max_error);
+    encoder.options().keyframe_error_bound = c.error_bound;
+    encoder.options().max_error = c.max_error;
+    EXPECT_DOUBLE_EQ(unpredicted_error_bound(plan_settings(encoder.options()).selection), c.bound);
+    encoder.options().grid = 0;
+    choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen);
+    const EncodeReport& report = encoder.report();
+    EXPECT_DOUBLE_EQ(report.grid_target, std::max(2e-4, 0.5 * c.bound));
+    EXPECT_EQ(report.median_noise, 0.0) << "one frame has no noise estimate";
+    if (report.grid_term != "density" && report.grid_term != "worst region") {
+      EXPECT_EQ(report.grid_term, 0.5 * c.bound > 2e-4 ? "error bound" : "floor");
+      EXPECT_LE(report.grid_floor, report.grid_target);
+    }
+    EXPECT_DOUBLE_EQ(field_precision_options(encoder.options(), chosen).target_error, std::clamp(0.4 * c.bound, 5e-5, 2e-3));
+    // A given N: the same field target (no floor is needed for it).
+    encoder.options().grid = 65;
+    EXPECT_EQ(choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen), 65);
+    EXPECT_DOUBLE_EQ(field_precision_options(encoder.options(), chosen).target_error, std::clamp(0.4 * c.bound, 5e-5, 2e-3));
+  }
 
-  // A given N: the floor is measured there, the same as --grid auto's reading at that N.
-  options.grid = chosen.grid_floors.front().first;
-  EncodeReport given;
-  encode_capture(capture, options, &given);
-  EXPECT_TRUE(given.grid_floors.empty()) << "no candidates tried at a given N";
-  EXPECT_DOUBLE_EQ(given.grid_floor, chosen.grid_floors.front().second);
-  EXPECT_DOUBLE_EQ(given.field_precision.target_error, std::clamp(0.4 * given.grid_floor, 5e-5, 2e-3));
-  EXPECT_GT(given.field_precision.target_error, 1e-4) << "a coarse grid's floor is far above 0.01%";
+  // End to end at the defaults: the rounded keyframe honours the target (within 1.25x,
+  // field_precision.hpp), and the grid is coarser than the fixed 0.02% would ask.
+  EncodeReport report;
+  encode_capture(capture, options, &report);
+  EXPECT_DOUBLE_EQ(report.field_precision.target_error, 0.4 * kDefaultKeyframeErrorBound);
+  for (double e : report.field_precision.keyframe_errors) EXPECT_LE(e, 1.25 * report.field_precision.target_error);
+  ASSERT_FALSE(report.grid_floors.empty());
+  EXPECT_GT(report.grid_floor, 2e-4) << "a floor the fixed 0.02% target would have refused";
 }
 
 }  // namespace

@@ -198,7 +198,7 @@ TEST(StoredSequence, TheStepsOnASequenceGiveItBackWhenTheyThrow) {
   encoder.options().auto_field_error = false;
   encoder.options().field_precision.target_error = -1;
   testing::expect_error(ErrorCode::kInvalidArgument, "target error",
-                        [&] { round_fields(field_precision_options(encoder.options(), KeyframeSelection{}, 0.0), s, encoder.report()); });
+                        [&] { round_fields(field_precision_options(encoder.options(), KeyframeSelection{}), s, encoder.report()); });
   EXPECT_TRUE(encode_sequence_file(s, small_metadata()) == file) << "round_fields lost the sequence";
 }
 

@@ -10,6 +10,7 @@
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
 #include "codec/encoder/encode/texture_quality.hpp"
+#include "codec/encoder/keyframes/keyframes.hpp"
 #include "codec/encoder/landmarks/landmark_tracking.hpp"
 #include "codec/encoder/registration/registration.hpp"
 
@@ -27,7 +28,7 @@ struct EncodeOptions {
   // (fraction of the diagonal), or the worst above 3 times it: frames far apart or fast motion get
   // keyframes instead of a budget spread thin (SelectionOptions::error_bound; spec/method.md §7.5).
   // 0: the budget exactly (fmenc --keyframes P sets 0).
-  double keyframe_error_bound = 0.005;
+  double keyframe_error_bound = kDefaultKeyframeErrorBound;
   // > 0, with that bound: the budget also grows until every frame's predicted 99th-percentile point
   // error between keyframes is within this (SelectionOptions::p99_bound; fmenc --worst-region 0.75%
   // brings fast speech, ICT decimated to 2k and Medusa within issue 44's 1% decoded). Off by default:

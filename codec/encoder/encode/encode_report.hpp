@@ -94,9 +94,7 @@ struct EncodeReport {
   int texture_size = 0;                                 // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto
   std::vector<std::pair<int, double>> grid_floor_p99s;  // (N, the floor's 99th-percentile point error / diagonal), the same N
-  // The floor RMS / diagonal at `grid`: measured by --grid auto, or at a given N where the selection
-  // predicts no error (auto field error's target then; 0: not measured)
-  double grid_floor = 0;
+  double grid_floor = 0;  // the floor RMS / diagonal at `grid`, measured by --grid auto (0: a given N)
   int grid_density_cap = 0;                             // the largest N the RMS terms could ask for (the captured mesh's density)
   double grid_worst_target = 0;                         // the floor's 99th percentile --grid auto asked for / diagonal
   double grid_vertex_area = 0;                          // the reference's lower-quartile vertex area on the disk (0: not measured)

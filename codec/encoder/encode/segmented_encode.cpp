@@ -142,13 +142,13 @@ SegmentMeasure measure_segment(const std::vector<std::filesystem::path>& parts, 
   m.plan = s.chosen;
   m.plan.history.clear();
   m.blend = encoder.report().blend;
-  m.target_error = field_precision_options(s.settings, s.chosen, encoder.report().grid_floor).target_error;
+  m.target_error = field_precision_options(s.settings, s.chosen).target_error;
   if (m.first == m.end) {  // past the capture's groups: nothing to measure
     if (report) *report = std::move(encoder.report());
     return m;
   }
   s.keyframes.textures = false;  // nothing here is written but the measure
-  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen, encoder.report().grid_floor);
+  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen);
   precision.intra_period = s.intra_period;
   // Through the driver's fallback: where this segment's keyframes do not reconstruct, its measure
   // is of positions, and says so (the assemble stage takes it to every segment).
@@ -391,7 +391,7 @@ std::unique_ptr<StoredSequence> assemble_segment(const std::vector<std::filesyst
   if (fallback) encoder.store_as_positions(fallback->representation_fallback);
   std::unique_ptr<StoredSequence> sequence = encoder.build(s.settings.build, s.chosen.keyframes, r.grid, &s.keyframes);
   // Its target is the measure's (own.target_error): the steps below are the measures'.
-  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen, 0.0);
+  FieldPrecisionOptions precision = field_precision_options(s.settings, s.chosen);
   precision.target_error = own.target_error;
   precision.intra_period = s.intra_period;
   precision.inter_dead_zone = zone.inter_dead_zone;

@@ -315,8 +315,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
-  // The floor the plan measured is this N's only where the plan chose it (the bench codes others).
-  const FieldPrecisionOptions precision = field_precision_options(settings, chosen, grid == report_.grid ? report_.grid_floor : 0.0);
+  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
         if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);

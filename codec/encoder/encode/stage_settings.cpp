@@ -12,16 +12,13 @@ namespace {
 // without rounding, where rounding error and the other ways to buy error down (more keyframes, a
 // finer grid) cost about the same bytes for it (spec/method.md §5.3). That error is the spline's mean
 // predicted error between keyframes; where the selection predicts none (one frame, every frame a
-// keyframe) it is G's resampling floor at the chosen N, which every keyframe holds. The rounding's
-// node displacement is mostly along the surface and reaches the point-to-surface error at about half
-// its size, so it may be larger than a quadrature rule on displacements would allow.
-double auto_target_error(const KeyframeSelection& chosen, double grid_floor) {
+// keyframe) the error bound it is held to (held_error), so such a frame is rounded as a sequence's
+// whose keyframes left exactly that, not finer than any frame of a video at the same options. The
+// rounding's node displacement is mostly along the surface and reaches the point-to-surface error
+// at about half its size, so it may be larger than a quadrature rule on displacements would allow.
+double auto_target_error(const KeyframeSelection& chosen, const SelectionOptions& selection) {
   constexpr double kShare = 0.4, kLowest = 5e-5, kHighest = 2e-3;
-  // Neither known (a plan made elsewhere on another N): a tenth of a per mille, fine enough for any.
-  constexpr double kUnknown = 1e-4;
-  const double mean = mean_predicted_error(chosen);
-  const double held = mean > 0 ? mean : grid_floor;
-  return held > 0 ? std::clamp(kShare * held, kLowest, kHighest) : kUnknown;
+  return std::clamp(kShare * held_error(chosen, selection), kLowest, kHighest);
 }
 
 }  // namespace
@@ -70,14 +67,14 @@ PlanSettings plan_settings(const EncodeOptions& options) { return stage_settings
 BuildSettings build_settings(const EncodeOptions& options) { return stage_settings(options).build; }
 TextureSettings texture_settings(const EncodeOptions& options) { return stage_settings(options).texture; }
 
-FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen, double grid_floor) {
+FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen) {
   FieldPrecisionOptions precision = settings.precision;
-  if (settings.auto_field_error) precision.target_error = auto_target_error(chosen, grid_floor);
+  if (settings.auto_field_error) precision.target_error = auto_target_error(chosen, settings.plan.selection);
   return precision;
 }
 
-FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen, double grid_floor) {
-  return field_precision_options(stage_settings(options), chosen, grid_floor);
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen) {
+  return field_precision_options(stage_settings(options), chosen);
 }
 
 }  // namespace facemorph

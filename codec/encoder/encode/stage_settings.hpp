@@ -36,9 +36,8 @@ BuildSettings build_settings(const EncodeOptions& options);
 TextureSettings texture_settings(const EncodeOptions& options);
 // The field precision's options for the keyframes `chosen`: with auto_field_error, two fifths of
 // their mean predicted error as the target, or where they predict none (one frame, every frame a
-// keyframe) of `grid_floor`, G's resampling floor at their N (EncodeReport::grid_floor; 0: not
-// measured, then 0.01%).
-FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen, double grid_floor);
-FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen, double grid_floor);
+// keyframe) of the error bound the selection is held to (held_error), within [0.005%, 0.2%].
+FieldPrecisionOptions field_precision_options(const StageSettings& settings, const KeyframeSelection& chosen);
+FieldPrecisionOptions field_precision_options(const EncodeOptions& options, const KeyframeSelection& chosen);
 
 }  // namespace facemorph

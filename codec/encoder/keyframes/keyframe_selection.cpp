@@ -514,4 +514,14 @@ double mean_predicted_error(const KeyframeSelection& chosen) {
   return count == 0 ? 0.0 : sum / count;
 }
 
+double unpredicted_error_bound(const SelectionOptions& options) {
+  if (options.max_error > 0) return options.max_error;
+  return options.error_bound > 0 ? options.error_bound : kDefaultKeyframeErrorBound;
+}
+
+double held_error(const KeyframeSelection& chosen, const SelectionOptions& options) {
+  const double mean = mean_predicted_error(chosen);
+  return mean > 0 ? mean : unpredicted_error_bound(options);
+}
+
 }  // namespace facemorph

@@ -134,6 +134,20 @@ bool residuals_pay(const KeyframeSelection& chosen);
 // Where the worst-region bound added keyframes, the mean before them (KeyframeSelection::rate_mean_error).
 double mean_predicted_error(const KeyframeSelection& chosen);
 
+// The default bound on the mean predicted error between keyframes (EncodeOptions::keyframe_error_bound).
+inline constexpr double kDefaultKeyframeErrorBound = 0.005;
+
+// The error a frame is held to where the selection predicts none (one frame; every frame a
+// keyframe): the tolerance (max_error), else the bound on the mean (error_bound), else, where a
+// budget given holds the selection to none (fmenc --keyframes P), the default bound. A frame of a
+// sequence at these options may be left that far from its capture, so a frame nothing is predicted
+// for is coded to the same (spec/method.md §5.3, §7.6).
+double unpredicted_error_bound(const SelectionOptions& options);
+
+// What the grid's and the field rounding's targets scale with: the mean predicted error between
+// keyframes (mean_predicted_error), or where the selection predicts none, unpredicted_error_bound.
+double held_error(const KeyframeSelection& chosen, const SelectionOptions& options);
+
 // Greedy: start from the first and the last frame, then repeatedly add the frame predicted worst.
 // A frame's prediction is the spline (`options.spline`) of the keyframes' face-frame surfaces
 // placed by the spline of their poses, exactly as the decoder blends; its error is the RMS over the

@@ -1,5 +1,6 @@
 // The grid's size N (--grid auto): the smallest whose resampling floor on the reference frame
-// meets a target set by the capture's noise and the spline's error between keyframes, capped by the
+// meets a target set by the capture's noise and the spline's error between keyframes (or, where
+// nothing is predicted, the error bound the selection is held to), capped by the
 // captured mesh's density, and raised where the floor's worst region would be (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
@@ -79,10 +80,16 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   // Nor below half the error the spline makes between the chosen keyframes: errors add in
   // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
   // for the error it removes than more keyframes would (spec/method.md §7.6).
+  // Where the selection predicts nothing, the error it holds a frame to stands in for the prediction:
+  // a frame nothing is predicted for is coded as a sequence's whose keyframes left exactly that
+  // (spec/method.md §7.6, "A single frame"), not at the fixed floor, ten times finer.
+  const bool predicted = input.mean_predicted_error > 0;
   const double noise_term = input.noise_decides ? kGridNoiseShare * choice.median_noise : 0.0,
-               interpolation_term = kGridErrorShare * input.mean_predicted_error;
+               interpolation_term = kGridErrorShare * (predicted ? input.mean_predicted_error : input.error_bound);
   choice.target = std::max({kGridFloorTarget, noise_term, interpolation_term});
-  choice.term = choice.target == interpolation_term ? "interpolation" : choice.target == noise_term ? "noise" : "floor";
+  choice.term = choice.target == interpolation_term ? (predicted ? "interpolation" : "error bound")
+                : choice.target == noise_term        ? "noise"
+                                                     : "floor";
   // The RMS terms ask for no more than the captured mesh's density holds (density_grid_cap); the
   // worst region may ask for more: it is a bound every decoded frame must meet, not a trade.
   choice.density_cap = density_grid_cap(input.vertex_disk_area);
@@ -125,15 +132,7 @@ GridFloor reference_floor(const PlanFrames& frames, const MappedFrame& reference
 
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
   report.grid_floor = 0;
-  if (settings.grid > 0) {
-    // Where the selection predicts no error, the floor is the error the keyframes hold, and auto
-    // field error's target (stage_settings.cpp): measured at the N given. Elsewhere not needed.
-    if (chosen && mean_predicted_error(*chosen) == 0) {
-      const int reference_index = settings.reference_frame;
-      report.grid_floor = reference_floor(frames, *frames.maps.frame(reference_index), reference_index, settings.grid).rms;
-    }
-    return settings.grid;
-  }
+  if (settings.grid > 0) return settings.grid;
   const SelectionSamples& selection = frames.selection;
   const auto count = static_cast<int>(frames.frames.size());
   // Refused before anything is measured where the samples the noise reads are gone.
@@ -147,6 +146,7 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   const bool unmatched = 2 * report.frames_without_interior_landmarks > count - 1;
   input.noise_decides = report.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
+  input.error_bound = chosen ? unpredicted_error_bound(settings.selection) : 0.0;
   const int reference_index = settings.reference_frame;
   const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(reference_index);
   // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.
