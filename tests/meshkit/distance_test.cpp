@@ -90,6 +90,50 @@ TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
   EXPECT_EQ(PointToMesh(TriangleMesh{}).closest(vertex).face, -1);
 }
 
+// The search skips a cell or face whose box is farther than the nearest face found so far: what it
+// returns must be, to the bit, what a scan of every face returns (the smallest squared distance as
+// closest_point_barycentric computes it, of equal ones the lowest index), for points near the surface
+// (where the skips cut most), on it (at vertices: ties between the faces around one), far off it,
+// and on a mesh whose faces all come twice (exact ties everywhere). A skip rule that dropped a face
+// as near as the best (without the slack, or a box measured from the wrong corner) fails here.
+TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
+  TriangleMesh sphere = testing::icosphere(1.0, 3);
+  TriangleMesh doubled = sphere;
+  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  std::mt19937 rng(11);
+  std::normal_distribution<double> jitter(0, 0.01);
+  std::uniform_real_distribution<double> far(-3, 3);
+  for (const TriangleMesh* mesh : {&sphere, &doubled}) {
+    const PointToMesh query(*mesh);
+    const auto scan = [&](const Vec3& p, double& best) {
+      SurfacePoint point;
+      best = std::numeric_limits<double>::infinity();
+      for (size_t f = 0; f < mesh->faces.size(); ++f) {
+        const Vec3& a = mesh->positions[static_cast<size_t>(mesh->faces[f][0])];
+        const Vec3& b = mesh->positions[static_cast<size_t>(mesh->faces[f][1])];
+        const Vec3& c = mesh->positions[static_cast<size_t>(mesh->faces[f][2])];
+        const Vec3 bary = closest_point_barycentric(p, a, b, c);
+        const double squared = (bary[0] * a + bary[1] * b + bary[2] * c - p).squaredNorm();
+        if (squared < best) best = squared, point = {static_cast<int>(f), bary};
+      }
+      return point;
+    };
+    int ties = 0;
+    for (int i = 0; i < 600; ++i) {
+      const Vec3& vertex = mesh->positions[static_cast<size_t>(i) % mesh->positions.size()];
+      const Vec3 p = i % 3 == 0 ? vertex : i % 3 == 1 ? Vec3(vertex + Vec3(jitter(rng), jitter(rng), jitter(rng))) : Vec3(far(rng), far(rng), far(rng));
+      double expected = 0, squared = 0;
+      const SurfacePoint want = scan(p, expected);
+      const SurfacePoint got = query.closest_squared(p, squared);
+      ASSERT_EQ(got.face, want.face) << i;
+      EXPECT_EQ(got.bary, want.bary) << i;
+      EXPECT_EQ(squared, expected) << i;
+      ties += i % 3 == 0;
+    }
+    EXPECT_GT(ties, 100);
+  }
+}
+
 // Two faces equally near p, the lower index only in the next shell of the bucket search, at
 // exactly that shell's reach: the tie rule (the lowest index wins, as a scan over every face gives)
 // must still hold, so the search stops only once the best is strictly within the reach. Faces 1 and

@@ -81,21 +81,27 @@ PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
   nz_ = std::clamp(static_cast<int>(std::ceil(extent.z() / cell_)), 1, 512);
   cell_ = std::max({extent.x() / nx_, extent.y() / ny_, extent.z() / nz_});
   origin_ = lo;
-  auto range = [&](const Face& f, std::array<int, 6>& r) {
-    Vec3 a = mesh.positions[static_cast<size_t>(f[0])], b = a;
-    for (int32_t v : f) {
-      a = a.cwiseMin(mesh.positions[static_cast<size_t>(v)]);
-      b = b.cwiseMax(mesh.positions[static_cast<size_t>(v)]);
+  slack_ = 1e-9 * (std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()) + cell_);
+  boxes_.resize(mesh.faces.size());
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    Box& box = boxes_[f];
+    box.lo = box.hi = mesh.positions[static_cast<size_t>(mesh.faces[f][0])];
+    for (const int32_t v : mesh.faces[f]) {
+      box.lo = box.lo.cwiseMin(mesh.positions[static_cast<size_t>(v)]);
+      box.hi = box.hi.cwiseMax(mesh.positions[static_cast<size_t>(v)]);
     }
+  }
+  // The cells a face's box overlaps.
+  auto range = [&](size_t f, std::array<int, 6>& r) {
     const int n[3] = {nx_, ny_, nz_};
     for (int k = 0; k < 3; ++k) {
-      r[static_cast<size_t>(k)] = std::clamp(static_cast<int>(std::floor((a[k] - origin_[k]) / cell_)), 0, n[k] - 1);
-      r[static_cast<size_t>(k + 3)] = std::clamp(static_cast<int>(std::floor((b[k] - origin_[k]) / cell_)), 0, n[k] - 1);
+      r[static_cast<size_t>(k)] = std::clamp(static_cast<int>(std::floor((boxes_[f].lo[k] - origin_[k]) / cell_)), 0, n[k] - 1);
+      r[static_cast<size_t>(k + 3)] = std::clamp(static_cast<int>(std::floor((boxes_[f].hi[k] - origin_[k]) / cell_)), 0, n[k] - 1);
     }
   };
   start_.assign(static_cast<size_t>(nx_) * ny_ * nz_ + 1, 0);
   std::array<int, 6> r;
-  for (const Face& f : mesh.faces) {
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
     range(f, r);
     for (int z = r[2]; z <= r[5]; ++z)
       for (int y = r[1]; y <= r[4]; ++y)
@@ -105,7 +111,7 @@ PointToMesh::PointToMesh(const TriangleMesh& mesh) : mesh_(mesh) {
   faces_.resize(static_cast<size_t>(start_.back()));
   std::vector<int> fill(start_.begin(), start_.end() - 1);
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
-    range(mesh.faces[f], r);
+    range(f, r);
     for (int z = r[2]; z <= r[5]; ++z)
       for (int y = r[1]; y <= r[4]; ++y)
         for (int x = r[0]; x <= r[3]; ++x)
@@ -145,11 +151,20 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, con
   for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((p[k] - origin_[k]) / cell_)), 0, n[k] - 1);
   // Outside the grid the nearest cell is still c; its distance bounds how far shells must go.
   const int max_shell = std::max({nx_, ny_, nz_});
+  // The squared distance past which a box holds nothing as near as `best`: a face's nearest point to
+  // p lies in its box and in a cell the face is listed in, so the face that wins (ties included) is
+  // never skipped, and the search finds what a search without skips finds.
+  double limit = std::numeric_limits<double>::infinity();
+  const auto box_squared = [&p](const Vec3& lo, const Vec3& hi) { return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).squaredNorm(); };
   const auto visit = [&](int x, int y, int z) {
     const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
+    if (start_[bucket] == start_[bucket + 1]) return;
+    const Vec3 cell_lo = origin_ + Vec3(x, y, z) * cell_;
+    if (box_squared(cell_lo, cell_lo + Vec3::Constant(cell_)) > limit) return;
     for (int i = start_[bucket]; i < start_[bucket + 1]; ++i) {
       const int face = faces_[static_cast<size_t>(i)];
       if (skip_face && (*skip_face)[static_cast<size_t>(face)]) continue;
+      if (box_squared(boxes_[static_cast<size_t>(face)].lo, boxes_[static_cast<size_t>(face)].hi) > limit) continue;
       const Face& f = mesh_.faces[static_cast<size_t>(face)];
       const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
       const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
@@ -160,6 +175,8 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, con
       if (squared < best || (squared == best && face < point.face)) {
         best = squared;
         point = {face, bary};
+        limit = std::sqrt(best) + slack_;
+        limit *= limit;
       }
     }
   };

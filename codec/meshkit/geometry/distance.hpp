@@ -53,11 +53,21 @@ class PointToMesh {
   SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity(),
                        const std::vector<char>* skip_face = nullptr) const;
 
+  // A face's axis-aligned box: a search skips a face (and a cell) whose box is farther from p than
+  // the nearest face found so far, plus `slack_`, without measuring it.
+  struct Box {
+    Vec3 lo, hi;
+  };
+
   const TriangleMesh& mesh_;
   Vec3 origin_;
   double cell_ = 1;
   int nx_ = 1, ny_ = 1, nz_ = 1;
   std::vector<int> start_, faces_;
+  std::vector<Box> boxes_;  // one a face
+  // Far above the rounding of a computed distance or cell edge (1e-9 of the coordinates' size), so
+  // that no face as near as the nearest found, ties included, is skipped.
+  double slack_ = 0;
 };
 
 struct SurfaceDistance {
