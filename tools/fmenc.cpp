@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <limits>
 #include <map>
 #include <memory>
@@ -40,6 +41,42 @@ int parse_intra_period(const std::string& text) {
   }
 }
 
+// A fault in the file being re-coded, met while the writer reads it: carried past the writer, which
+// names its own output on every facemorph::Error, so the error names the input alone.
+struct InputFault {
+  std::exception_ptr error;
+};
+
+// What `read` returns, any facemorph::Error it throws carried as an InputFault.
+template <typename Read>
+auto reading_input(const Read& read) {
+  try {
+    return read();
+  } catch (const Error&) {
+    throw InputFault{std::current_exception()};
+  }
+}
+
+// The opened input as the writer reads it, each of its errors turned into an InputFault.
+class InputSource final : public KeyframeSource {
+ public:
+  explicit InputSource(std::shared_ptr<const KeyframeSource> file) : file_(std::move(file)) {}
+  const SequenceOutline& outline() const override { return file_->outline(); }
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
+    return reading_input([&] { return file_->keyframe(k); });
+  }
+  std::shared_ptr<const Image> texture(size_t k) const override {
+    return reading_input([&] { return file_->texture(k); });
+  }
+  size_t texture_owner(size_t k) const override { return file_->texture_owner(k); }
+  size_t surfaces_kept() const override { return file_->surfaces_kept(); }
+  uint64_t bytes_held() const override { return file_->bytes_held(); }
+  std::string name() const override { return file_->name(); }
+
+ private:
+  std::shared_ptr<const KeyframeSource> file_;
+};
+
 // Re-codes an existing file: keyframes, grid, poses and holes kept; the fields' rounding chosen
 // again from a given --field-error (from the file's values, so never finer than what it held), or
 // with auto kept as the file states them (a 16-bit file's too: its header states the 65535ths of
@@ -50,7 +87,19 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
             TextureCoding texture_coding, bool quiet) {
   if (quality == kAutoTextureQuality) quality = options.texture_coding.fallback_quality;
   SequenceFileInfo info;
-  Sequence sequence = read_sequence_file(input, &info);
+  const bool keep = options.auto_field_error;
+  // Keeping the file's steps needs nothing of the fields at once: the writer reads the file's
+  // keyframes one at a time through a source whose cache the decoder's budget bounds, as a player
+  // reads it, where the whole sequence decoded held every keyframe's texture (K x 3 M^2 bytes) and
+  // refused a file whose keyframes together pass the budget (spec/method.md §7.12). Rounding again
+  // measures every keyframe, so that reads the whole sequence.
+  std::shared_ptr<const KeyframeSource> source;
+  Sequence sequence;
+  if (keep) {
+    source = std::make_shared<InputSource>(open_sequence_source(input, kDefaultDecoderLimits, &info));
+  } else {
+    sequence = read_sequence_file(input, &info);
+  }
   SequenceFileMetadata metadata = info.metadata;
   metadata.encoder.clear();
   metadata.texture_quality = quality;
@@ -62,7 +111,6 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   // its values are whole multiples of those steps, so the codes and bytes stay, where rounding
   // them again (0.01%, as a file holds nothing to measure a floor on) added bytes and error: one ICT
   // frame, +43% at 0.01%, +21% at its own target (spec/method.md §5.3).
-  const bool keep = options.auto_field_error;
   if (keep) {
     metadata.field_coding = info.metadata.field_coding;
     // A given --intra-period regroups the same codes (how they are predicted, not how they are
@@ -71,7 +119,15 @@ void recode(const std::filesystem::path& input, const std::filesystem::path& out
   } else if (options.predicted_fields) {
     metadata.field_coding = choose_field_coding(sequence, options.field_precision, &precision);
   }
-  write_sequence_file(output, sequence, metadata);
+  if (source) {
+    try {
+      write_sequence_file(output, *source, metadata);
+    } catch (const InputFault& fault) {
+      std::rethrow_exception(fault.error);
+    }
+  } else {
+    write_sequence_file(output, sequence, metadata);
+  }
   if (quiet) return;
   std::printf("fmenc: %s re-coded to %s: %llu bytes (was %llu)\n", input.c_str(), output.c_str(),
               static_cast<unsigned long long>(std::filesystem::file_size(output)), static_cast<unsigned long long>(info.file_bytes));

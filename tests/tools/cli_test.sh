@@ -127,6 +127,10 @@ cp "$work/a.fmv" "$work/flip.fmv"
 # Zeros in the middle of the file: inside a texture's payload, which only its checksum can catch.
 printf '\x00\x00\x00\x00' | dd of="$work/flip.fmv" bs=1 seek=$(($(stat -c %s "$work/a.fmv") / 2)) conv=notrunc status=none
 expect_error "corrupted file" "checksum" "$tools/fmdec" "$work/flip.fmv" --t 0.1 -o "$work/flip.obj"
+# Re-coding it (the writer reads the input a keyframe at a time) fails naming the input alone, not
+# the output it was making, and writes nothing.
+expect_error "re-coding a corrupted file" "error (corrupt): $work/flip.fmv: checksum" "$tools/fmenc" "$work/flip.fmv" -o "$work/flip-recoded.fmv" --quiet
+[[ ! -e "$work/flip-recoded.fmv" ]] || fail "a failed re-code wrote flip-recoded.fmv"
 expect_error "preview over the texture" "give the preview another name" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/g.obj" --preview "$work/g.png"
 expect_error "glTF of one time" "a glTF clip is a range" "$tools/fmdec" "$work/a.fmv" --t 0.1 -o "$work/clip.glb"
 # Frame counts are range-checked before the cast to int (1e300 s at 30 fps was undefined behaviour).
