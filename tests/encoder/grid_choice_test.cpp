@@ -10,7 +10,6 @@
 
 #include <gtest/gtest.h>
 
-#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -55,35 +54,6 @@ TEST(GridChoice, TheWorstRegionRaisesTheGridWhereTheFloorsNinetyNinthPercentileI
   EXPECT_EQ(capped.density_cap, 81);
   EXPECT_EQ(capped.n, 193);
   EXPECT_EQ(capped.term, "worst region");
-}
-
-TEST(GridChoice, WhereNothingIsPredictedTheErrorBoundTakesThePredictionsPlace) {
-  // One frame: no noise estimate (infinite), no predicted error. A floor of 0.5% at N = 33 meets
-  // ½ B = 0.25% where (33/N)² <= 1/2, N >= 46.7: 49, named after the bound.
-  GridChoiceInput single = grid_input_falling_from(5e-3, 1e-3, std::numeric_limits<double>::infinity(), 0);
-  single.error_bound = 0.005;
-  const GridChoice bounded = choose_grid_size(single);
-  EXPECT_EQ(bounded.n, 49);
-  EXPECT_DOUBLE_EQ(bounded.target, 0.0025);
-  EXPECT_EQ(bounded.term, "error bound");
-  // A predicted error replaces the bound (0.4%: a target of 0.2%, (33/N)² <= 2/5, N >= 52.2: 57).
-  single.mean_predicted_error = 0.004;
-  const GridChoice predicted = choose_grid_size(single);
-  EXPECT_EQ(predicted.n, 57);
-  EXPECT_EQ(predicted.term, "interpolation");
-  // Neither (no keyframes chosen): the fixed 0.02%, (33/N)² <= 1/25, N >= 165: 193.
-  single.mean_predicted_error = 0;
-  single.error_bound = 0;
-  const GridChoice fixed = choose_grid_size(single);
-  EXPECT_EQ(fixed.n, 193);
-  EXPECT_DOUBLE_EQ(fixed.target, 2e-4);
-  EXPECT_EQ(fixed.term, "floor");
-  // The worst region still bounds the bound's N: a 2% p99 at 33 needs N >= 54 (57), past the 49 ½ B asks.
-  GridChoiceInput rough = grid_input_falling_from(5e-3, 2e-2, std::numeric_limits<double>::infinity(), 0);
-  rough.error_bound = 0.005;
-  const GridChoice worst = choose_grid_size(rough);
-  EXPECT_EQ(worst.n, 57);
-  EXPECT_EQ(worst.term, "worst region");
 }
 
 TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {
