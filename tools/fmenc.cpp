@@ -299,7 +299,7 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
-                 "between keyframes; where none is predicted, as one frame, 0.02%)")
+                 "between keyframes; where none is predicted (one frame, every frame a keyframe), the fixed 0.02% or the frame noise)")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();

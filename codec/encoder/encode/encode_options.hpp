@@ -92,7 +92,8 @@ struct EncodeOptions {
   // --field-error auto (the default): the target is two fifths of the mean error the spline is
   // predicted to make between keyframes, within [0.005%, 0.2%] of the diagonal, where rounding
   // error and more keyframes buy held-out error at about the same price in bytes, whether the
-  // capture is clean or noisy (spec/method.md §5.3); false: field_precision's target.
+  // capture is clean or noisy; where none is predicted, two fifths of the error bound
+  // (unpredicted_error_bound; spec/method.md §5.3); false: field_precision's target.
   bool auto_field_error = true;
   // --keyframe-fit: store at each keyframe the values whose spline best matches every frame of the
   // capture (least squares over all frames, in the face frame of the pose the decoder blends),
