@@ -94,7 +94,6 @@ struct EncodeReport {
   int texture_size = 0;                                 // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto
   std::vector<std::pair<int, double>> grid_floor_p99s;  // (N, the floor's 99th-percentile point error / diagonal), the same N
-  double grid_floor = 0;  // the floor RMS / diagonal at `grid`, measured by --grid auto (0: a given N)
   int grid_density_cap = 0;                             // the largest N the RMS terms could ask for (the captured mesh's density)
   double grid_worst_target = 0;                         // the floor's 99th percentile --grid auto asked for / diagonal
   double grid_vertex_area = 0;                          // the reference's lower-quartile vertex area on the disk (0: not measured)

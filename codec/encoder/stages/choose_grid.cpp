@@ -129,7 +129,6 @@ GridFloor reference_floor(const PlanFrames& frames, const MappedFrame& reference
 }  // namespace
 
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
-  report.grid_floor = 0;
   if (settings.grid > 0) return settings.grid;
   const SelectionSamples& selection = frames.selection;
   const auto count = static_cast<int>(frames.frames.size());
@@ -153,7 +152,6 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   input.floor = [&](int n) { return reference_floor(frames, *reference, reference_index, n); };
   const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
-  report.grid_floor = choice.floors.back().second;  // the last tried is the one chosen
   report.grid_floors = std::move(choice.floors);
   report.grid_floor_p99s = std::move(choice.floor_p99s);
   report.grid_density_cap = choice.density_cap;
