@@ -3,6 +3,7 @@
 // captured frame decoded at its own time and compared with the frame as captured.
 #include "tools/bench_temporal.hpp"
 
+#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/image/texture_codec.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/conformal/resample.hpp"
@@ -188,7 +189,7 @@ int run_temporal_bench(const TemporalBenchOptions& options) {
     encode.keyframe_fraction = keyframe_fraction;
     encode.residual_frames = false;  // the sequences here are built without residuals: the spline's own keyframes
     encode.representation = parse_representation(options.representation);
-    encode.grid = options.grid == "auto" ? 0 : std::stoi(options.grid);
+    encode.grid = options.grid == "auto" ? 0 : tools::parse_whole_number(options.grid, "--grid", kMinGridSize, kMaxGridSize);
     encode.texture_size = options.texture_size;
     encode.spline = splines.front();
     encode.density_equalising.strength = options.density_equalising;

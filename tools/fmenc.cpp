@@ -4,6 +4,8 @@
 // name and renamed into place, so a failed encode leaves any earlier file untouched. Given a .fmv
 // file instead of a capture, it re-codes it: the same keyframes, fields rounded to --field-error (auto:
 // the file's own steps kept).
+#include "codec/core/container/file_layout.hpp"
+#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/encoder/encode/encode_settings.hpp"
@@ -28,18 +30,6 @@
 namespace {
 
 using namespace facemorph;
-
-// "--intra-period N": a whole number of keyframes from 1 to 2^20 (the container's bound).
-int parse_intra_period(const std::string& text) {
-  try {
-    size_t used = 0;
-    const long value = std::stol(text, &used);
-    if (used != text.size() || value < 1 || value > (1L << 20)) throw std::out_of_range(text);
-    return static_cast<int>(value);
-  } catch (const std::exception&) {
-    throw Error(ErrorCode::kInvalidArgument, "--intra-period '" + text + "' is neither auto nor a whole number from 1 to 2^20");
-  }
-}
 
 // A fault in the file being re-coded, met while the writer reads it: carried past the writer, which
 // names its own output on every facemorph::Error, so the error names the input alone.
@@ -382,36 +372,14 @@ EncodeOptions encode_options(const Arguments& a, bool keyframes_given) {
   }
   options.keyframe_p99_bound =
       a.worst_region == "0" || a.worst_region == "0%" ? 0.0 : tools::parse_fraction(a.worst_region, "--worst-region");
-  if (a.grid != "auto") {
-    try {
-      options.grid = std::stoi(a.grid);
-    } catch (const std::exception&) {
-      throw Error(ErrorCode::kInvalidArgument, "--grid '" + a.grid + "' is neither auto nor a number");
-    }
-  }
-  int quality = kAutoTextureQuality;
-  if (a.quality_text != "auto") {
-    try {
-      size_t used = 0;
-      quality = std::stoi(a.quality_text, &used);
-      if (used != a.quality_text.size()) throw std::invalid_argument(a.quality_text);
-    } catch (const std::exception&) {
-      throw Error(ErrorCode::kInvalidArgument, "--quality '" + a.quality_text + "' is neither auto nor a number");
-    }
-    if (quality < 0 || quality > 101) throw Error(ErrorCode::kInvalidArgument, "--quality " + a.quality_text + " outside 0..101");
-  }
-  options.texture_quality = quality;
+  if (a.grid != "auto") options.grid = tools::parse_whole_number(a.grid, "--grid", kMinGridSize, kMaxGridSize);
+  options.texture_quality =
+      a.quality_text == "auto" ? kAutoTextureQuality : tools::parse_whole_number(a.quality_text, "--quality", 0, kMaxTextureQuality);
   options.texture_codec = parse_texture_codec(a.texture_codec);
   options.texture = !a.no_texture;
   options.share_textures = !a.no_texture_sharing;
   options.track_landmarks = a.track_landmarks;
-  if (a.texture_size != "auto") {
-    try {
-      options.texture_size = std::stoi(a.texture_size);
-    } catch (const std::exception&) {
-      throw Error(ErrorCode::kInvalidArgument, "--texture '" + a.texture_size + "' is neither auto nor a number");
-    }
-  }
+  if (a.texture_size != "auto") options.texture_size = tools::parse_whole_number(a.texture_size, "--texture", kMinTextureSize, kMaxTextureSize);
   options.registration.method = parse_registration_method(a.registration);
   options.spline = parse_spline_kind(a.spline);
   if (a.representation != "auto") options.representation = parse_representation(a.representation);
@@ -431,7 +399,7 @@ EncodeOptions encode_options(const Arguments& a, bool keyframes_given) {
   options.auto_field_error = a.field_error == "auto";
   if (options.predicted_fields && !options.auto_field_error)
     options.field_precision.target_error = tools::parse_fraction(a.field_error, "--field-error");
-  options.field_precision.intra_period = a.intra_period == "auto" ? kAutoIntraPeriod : parse_intra_period(a.intra_period);
+  options.field_precision.intra_period = a.intra_period == "auto" ? kAutoIntraPeriod : tools::parse_whole_number(a.intra_period, "--intra-period", 1, file_layout::kMaxIntraPeriod);
   if (a.field_rounding != "shaped" && a.field_rounding != "nearest") {
     throw Error(ErrorCode::kInvalidArgument, "--field-rounding '" + a.field_rounding + "' is neither shaped nor nearest");
   }

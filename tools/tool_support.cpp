@@ -62,6 +62,18 @@ double parse_fraction(const std::string& text, const char* what) {
   }
 }
 
+int parse_whole_number(const std::string& text, const char* what, long low, long high) {
+  try {
+    size_t used = 0;
+    const long value = std::stol(text, &used, 10);
+    if (used != text.size() || value < low || value > high) throw std::out_of_range(text);
+    return static_cast<int>(value);
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, std::string(what) + " '" + text + "' is neither auto nor a whole number from " +
+                                                 std::to_string(low) + " to " + std::to_string(high));
+  }
+}
+
 void add_limit_options(CLI::App& app, DecoderLimits& limits, std::string& max_memory) {
   app.add_option("--max-memory", max_memory, "Refuse files that would need more memory than this (bytes, or 512M, 2G)")
       ->default_str("256M");

@@ -169,8 +169,12 @@ expect_error "density-equalising strength" "density-equalising strength must be"
 "$tools/fmenc" "$work/cap" -o "$work/dem.fmv" --grid 33 --no-texture --density-equalising 0.5 --quiet || fail "--density-equalising 0.5"
 "$tools/fmdec" "$work/dem.fmv" --t 0.17 -o "$work/dem.obj" --quiet || fail "fmdec of a density-equalised file"
 expect_error "keyframe fit" "--keyframe-fit" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --keyframe-fit maybe
-expect_error "texture quality word" "neither auto nor a number" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality best
-expect_error "texture quality range" "outside 0..101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality 102
+expect_error "texture quality word" "--quality 'best' is neither auto nor a whole number from 0 to 101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality best
+expect_error "texture quality range" "--quality '102' is neither auto nor a whole number from 0 to 101" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --quality 102
+# A count read in full: std::stoi alone took "65x" as 65 and "1e3" as 1.
+expect_error "grid with a suffix" "--grid '65x' is neither auto nor a whole number from 5 to 4097" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid 65x
+expect_error "grid in exponent form" "--grid '1e3' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid 1e3
+expect_error "texture with a unit" "--texture '64px' is neither auto nor a whole number from 16 to 16383" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --texture 64px
 "$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
 expect_error "inter dead zone" "--inter-dead-zone '1.5' is neither auto nor a number in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
 expect_error "inter dead zone word" "--inter-dead-zone 'wide' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone wide

@@ -40,11 +40,12 @@ void check_encode_options(const EncodeOptions& options, int count) {
     throw Error(ErrorCode::kInvalidArgument, "radial equalising (" + std::to_string(radial) + ") and density equalising (" +
                                                  std::to_string(strength) + ") are two reparametrisations of the disk: ask for one");
   }
-  if (options.texture && options.texture_size != 0 && (options.texture_size < 16 || options.texture_size > 16383)) {
-    throw Error(ErrorCode::kInvalidArgument, "texture size must be 0 (auto) or in [16, 16383]");
+  if (options.texture && options.texture_size != 0 && (options.texture_size < kMinTextureSize || options.texture_size > kMaxTextureSize)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "texture size must be 0 (auto) or in [" + std::to_string(kMinTextureSize) + ", " + std::to_string(kMaxTextureSize) + "]");
   }
-  if (options.texture_quality != kAutoTextureQuality && (options.texture_quality < 0 || options.texture_quality > 101)) {
-    throw Error(ErrorCode::kInvalidArgument, "texture quality must be auto or in [0, 101], not " + std::to_string(options.texture_quality));
+  if (options.texture_quality != kAutoTextureQuality && (options.texture_quality < 0 || options.texture_quality > kMaxTextureQuality)) {
+    throw Error(ErrorCode::kInvalidArgument, "texture quality must be auto or in [0, " + std::to_string(kMaxTextureQuality) + "], not " + std::to_string(options.texture_quality));
   }
   const TextureQualityOptions& coding = options.texture_coding;
   if (!(coding.interpolation_share > 0) || !(coding.min_psnr <= coding.max_psnr) || coding.fallback_quality < 0 ||

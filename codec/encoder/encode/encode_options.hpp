@@ -21,6 +21,10 @@
 namespace facemorph {
 
 inline constexpr int kAutoTextureQuality = -1;
+// A texture size M asked for (0 is automatic): the texels per side an encode accepts.
+inline constexpr int kMinTextureSize = 16, kMaxTextureSize = 16383;
+// A texture quality asked for: the codec's 0-100, and 101 for lossless WebP.
+inline constexpr int kMaxTextureQuality = 101;
 
 struct EncodeOptions {
   double keyframe_fraction = 0.10;  // --keyframes 10%: the budget
