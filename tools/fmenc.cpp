@@ -300,8 +300,9 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
-                 "between keyframes; where none is predicted (one frame, every frame a keyframe), the fixed 0.02% or the frame noise), "
-                 "raised until the 99th percentile of the reference, as sampled and as decoded from its fields, is within 0.75%")
+                 "between keyframes; where none is predicted (one frame, every frame a keyframe), half the error bound: 0.5% by default, "
+                 "or --max-error), raised until the 99th percentile of the reference, as sampled and as decoded from its fields, is "
+                 "within 0.75%")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
@@ -706,6 +707,7 @@ void print_grid_choice(const Summary& s) {
         100 * s.report.median_noise, s.report.grid_density_cap, s.report.grid_vertex_area,
         s.report.grid_vertex_area * (s.sequence->shape().grid_n - 1) * (s.sequence->shape().grid_n - 1) / 4.0, s.sequence->shape().grid_n);
     const char* why = s.report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
+                      : s.report.grid_term == "error bound" ? "half the error bound, as nothing between keyframes is predicted"
                       : s.report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
     if (s.report.grid_term == "density") {
