@@ -694,8 +694,10 @@ void print_grid_choice(const Summary& s) {
     if (!s.report.grid_decoded_floors.empty()) {
       std::printf("; decoded from the fields (RMS / 99th percentile)");
       for (const auto& d : s.report.grid_decoded_floors) {
-        if (std::isfinite(d.p99)) {
+        if (d.reconstructed) {
           std::printf(" %d: %.3f / %.3f%%", d.n, 100 * d.rms, 100 * d.p99);
+        } else if (std::isfinite(d.p99)) {
+          std::printf(" %d: not reconstructed (as positions %.3f / %.3f%%)", d.n, 100 * d.rms, 100 * d.p99);
         } else {
           std::printf(" %d: not reconstructed", d.n);
         }

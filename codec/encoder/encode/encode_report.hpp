@@ -95,11 +95,13 @@ struct EncodeReport {
   std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto
   std::vector<std::pair<int, double>> grid_floor_p99s;  // (N, the floor's 99th-percentile point error / diagonal), the same N
   // The reference decoded from its fields at the N measured (from where the RMS terms were done):
-  // RMS and 99th percentile / diagonal, infinite where they did not reconstruct.
+  // RMS and 99th percentile / diagonal; where they did not reconstruct, the resampled floor (the
+  // keyframes then stored as positions) or infinite (the fields asked for).
   struct DecodedFloor {
     int n = 0;
     double rms = 0;
     double p99 = 0;
+    bool reconstructed = true;
   };
   std::vector<DecodedFloor> grid_decoded_floors;
   int grid_density_cap = 0;                             // the largest N the RMS terms could ask for (the captured mesh's density)

@@ -162,9 +162,11 @@ class ReferenceOnGrid {
   // Its surface against G's surface rebuilt from the fields of the sampled one: computed as the
   // keyframes' are (build_keyframes.cpp: 16-bit, its folds as fixed nodes) and decoded as the field
   // precision stage decodes a keyframe, unrounded (the rounding's share of the worst region is the
-  // room the bound leaves, and its steps are chosen on G after N). Infinite where they do not
-  // reconstruct.
-  GridFloor decoded(int n, Representation representation) {
+  // room the bound leaves, and its steps are chosen on G after N). Where they do not reconstruct,
+  // the field precision stage's decode of the same keyframe throws too and the encode stores every
+  // keyframe as positions (build_reconstructable) unless the fields were asked for: then the
+  // resampled floor is what the file shows; else infinite (the candidate fails).
+  GridFloor decoded(int n, Representation representation, bool positions_fallback) {
     at(n);
     const GridFields fields = keyframe_fields(*geometry_, sampled_, representation, folded_nodes(*geometry_, sampled_));
     Reconstructor reconstructor(geometry_);
@@ -173,7 +175,9 @@ class ReferenceOnGrid {
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
       constexpr double kNever = std::numeric_limits<double>::infinity();
-      return GridFloor{.rms = kNever, .p99 = kNever};
+      GridFloor floor = positions_fallback ? resampled(n) : GridFloor{.rms = kNever, .p99 = kNever};
+      floor.reconstructed = false;
+      return floor;
     }
   }
 
@@ -222,14 +226,15 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   // choose_representation keeps hl+t, its default.
   if (settings.representation != Representation::kXYZ) {
     const Representation representation = settings.representation.value_or(Representation::kHLT);
-    input.decoded = [&, representation](int n) { return on_grid.decoded(n, representation); };
+    const bool positions_fallback = !settings.representation;  // as build_reconstructable falls back
+    input.decoded = [&, representation, positions_fallback](int n) { return on_grid.decoded(n, representation, positions_fallback); };
   }
   const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
   report.grid_floors = std::move(choice.floors);
   report.grid_floor_p99s = std::move(choice.floor_p99s);
   report.grid_decoded_floors.clear();
-  for (const auto& [n, floor] : choice.decoded) report.grid_decoded_floors.push_back({n, floor.rms, floor.p99});
+  for (const auto& [n, floor] : choice.decoded) report.grid_decoded_floors.push_back({n, floor.rms, floor.p99, floor.reconstructed});
   report.grid_density_cap = choice.density_cap;
   report.grid_worst_target = choice.worst_target;
   report.grid_vertex_area = input_area;

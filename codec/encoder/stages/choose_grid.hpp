@@ -20,6 +20,9 @@ namespace facemorph {
 struct GridFloor {
   double rms = 0;
   double p99 = 0;  // the 99th-percentile point distance: the worst region's
+  // false: a decoded floor whose fields did not reconstruct (infinite, or the resampled floor where
+  // the keyframes would then be stored as positions)
+  bool reconstructed = true;
 };
 
 // The largest N the RMS terms may ask for on a capture whose vertices of the denser quarter hold
@@ -44,8 +47,8 @@ struct GridChoiceInput {
   double error_bound = 0;
   double vertex_disk_area = 0;            // the reference frame's quartile_vertex_disk_area on the disk G samples (0: no cap)
   std::function<GridFloor(int n)> floor;  // the reference's resampling floor on G of size n
-  // The reference's decoded floor on G of size n (infinite where its fields do not reconstruct);
-  // called only where the RMS terms are done. Empty: the keyframes store positions, which decode
+  // The reference's decoded floor on G of size n (infinite where its fields do not reconstruct and
+  // nothing else would be stored); called only where the RMS terms are done. Empty: the keyframes store positions, which decode
   // as sampled, and the resampling floor is what a decoder shows.
   std::function<GridFloor(int n)> decoded;
 };
