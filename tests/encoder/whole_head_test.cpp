@@ -34,6 +34,14 @@ Capture synthetic(const testing::TempDir& dir, bool whole_head, int frames = 12)
   return read_capture(dir.path());
 }
 
+// The geometry alone (what is measured), on two threads.
+EncodeOptions geometry_options() {
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  return options;
+}
+
 struct Encoded {
   EncodeReport report;
   Representation representation = Representation::kHLT;
@@ -45,9 +53,7 @@ Encoded encode(Capture capture, bool find_landmarks) {
     capture.landmark_names.clear();
     capture.landmarks.assign(capture.frames.size(), {});
   }
-  EncodeOptions options;
-  options.texture = false;  // the geometry is what is measured
-  options.threads = 2;
+  const EncodeOptions options = geometry_options();
   Encoded out;
   const Sequence sequence = encode_capture(capture, options, &out.report);
   out.representation = sequence.representation;
@@ -105,9 +111,7 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
 TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   testing::TempDir dir;
   const Capture head = synthetic(dir, true, 2);
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
+  EncodeOptions options = geometry_options();
   options.density_equalising.radial = 0;
   // N = 129, not --grid auto's 257 (the density cap at 2000 vertices): the fields' iteration fails
   // alike (last change 2.7e-5 of the rim diameter against 5.9e-7, both far above 1e-8) in a fifth
@@ -134,11 +138,8 @@ TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
 TEST(WholeHead, TheGridReadsTheReconstructionOrThePositionsItFallsBackTo) {
   testing::TempDir dir;
   const Capture head = synthetic(dir, true, 2);
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
   EncodeReport report;
-  const Sequence sequence = encode_capture(head, options, &report);
+  const Sequence sequence = encode_capture(head, geometry_options(), &report);
   const auto& decoded = report.grid_decoded_floors;
   ASSERT_FALSE(decoded.empty());
   ASSERT_EQ(decoded.back().n, sequence.grid_n);
