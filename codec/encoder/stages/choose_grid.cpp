@@ -162,10 +162,11 @@ class ReferenceOnGrid {
   // Its surface against G's surface rebuilt from the fields of the sampled one: computed as the
   // keyframes' are (build_keyframes.cpp: 16-bit, its folds as fixed nodes) and decoded as the field
   // precision stage decodes a keyframe, unrounded (the rounding's share of the worst region is the
-  // room the bound leaves, and its steps are chosen on G after N). Where they do not reconstruct,
-  // the field precision stage's decode of the same keyframe throws too and the encode stores every
+  // room the bound leaves, and its steps are chosen on G after N). Where they do not converge, the
+  // field precision stage's decode of the same keyframe throws too and the encode stores every
   // keyframe as positions (build_reconstructable) unless the fields were asked for: then the
-  // resampled floor is what the file shows; else infinite (the candidate fails).
+  // resampled floor is what the file shows; else (or a non-finite iterate) infinite: the candidate
+  // fails.
   GridFloor decoded(int n, Representation representation, bool positions_fallback) {
     at(n);
     const GridFields fields = keyframe_fields(*geometry_, sampled_, representation, folded_nodes(*geometry_, sampled_));
@@ -175,7 +176,10 @@ class ReferenceOnGrid {
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
       constexpr double kNever = std::numeric_limits<double>::infinity();
-      GridFloor floor = positions_fallback ? resampled(n) : GridFloor{.rms = kNever, .p99 = kNever};
+      // build_reconstructable falls back to positions for an iteration that does not converge
+      // only; a non-finite one fails the encode.
+      const bool stored_as_positions = positions_fallback && e.code() == ErrorCode::kNotConverged;
+      GridFloor floor = stored_as_positions ? resampled(n) : GridFloor{.rms = kNever, .p99 = kNever};
       floor.reconstructed = false;
       return floor;
     }
