@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <limits>
 #include <map>
@@ -289,7 +290,9 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
-                 "between keyframes; where none is predicted (one frame, every frame a keyframe), the fixed 0.02% or the frame noise)")
+                 "between keyframes; where none is predicted (one frame, every frame a keyframe), half the error bound: 0.5% by default, "
+                 "or --max-error), raised until the 99th percentile of the reference, as sampled and as decoded from its fields, is "
+                 "within 0.75%")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
@@ -656,12 +659,25 @@ void print_grid_choice(const Summary& s) {
     for (const auto& [n, floor] : s.report.grid_floors) std::printf(" %d: %.3f%%", n, 100 * floor);
     std::printf("; 99th percentile");
     for (const auto& [n, p99] : s.report.grid_floor_p99s) std::printf(" %d: %.3f%%", n, 100 * p99);
+    if (!s.report.grid_decoded_floors.empty()) {
+      std::printf("; decoded from the fields (RMS / 99th percentile)");
+      for (const auto& d : s.report.grid_decoded_floors) {
+        if (d.reconstructed) {
+          std::printf(" %d: %.3f / %.3f%%", d.n, 100 * d.rms, 100 * d.p99);
+        } else if (std::isfinite(d.p99)) {
+          std::printf(" %d: not reconstructed (as positions %.3f / %.3f%%)", d.n, 100 * d.rms, 100 * d.p99);
+        } else {
+          std::printf(" %d: not reconstructed", d.n);
+        }
+      }
+    }
     std::printf(
         "; the capture's median frame noise %.3f%%; density cap N = %d (a vertex of the denser quarter holds %.3g of the disk: %.2f "
         "nodes at N = %d)\n",
         100 * s.report.median_noise, s.report.grid_density_cap, s.report.grid_vertex_area,
         s.report.grid_vertex_area * (s.sequence->shape().grid_n - 1) * (s.sequence->shape().grid_n - 1) / 4.0, s.sequence->shape().grid_n);
     const char* why = s.report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
+                      : s.report.grid_term == "error bound" ? "half the error bound, as nothing between keyframes is predicted"
                       : s.report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
     if (s.report.grid_term == "density") {
@@ -799,10 +815,10 @@ void print_costs(const Summary& s) {
         s.report.seconds_keyframes, s.report.seconds_precision, s.report.seconds_texture, s.seconds_writing);
   } else {
     std::printf(
-        "  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, representation %.1f s, keyframes %.1f s, "
-        "field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
+        "  %.1f s, %.2f s per frame (mapping %.1f s, registration %.1f s, selection %.1f s, grid %.1f s, representation %.1f s, keyframes "
+        "%.1f s, field precision %.1f s, texture quality %.1f s, writing %.1f s)\n",
         s.seconds, s.seconds / static_cast<double>(s.frame_count), s.report.seconds_mapping, s.report.seconds_registration,
-        s.report.seconds_selection, s.report.seconds_representation, s.report.seconds_keyframes, s.report.seconds_precision,
+        s.report.seconds_selection, s.report.seconds_grid, s.report.seconds_representation, s.report.seconds_keyframes, s.report.seconds_precision,
         s.report.seconds_texture, s.seconds_writing);
   }
   if (s.report.spilled_bytes > 0) {

@@ -1,6 +1,6 @@
 // --grid auto's two bounds beside the RMS target (spec/method.md §7.6): a grid no finer than the
-// captured mesh's density asks, and a floor whose worst region (99th percentile) leaves room for
-// the 1% worst-region target.
+// captured mesh's density asks, and a worst region (99th percentile, resampled and decoded) that
+// leaves room for the 1% worst-region target; and the third term where nothing is predicted.
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/stages/choose_grid.hpp"
@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -54,6 +55,76 @@ TEST(GridChoice, TheWorstRegionRaisesTheGridWhereTheFloorsNinetyNinthPercentileI
   EXPECT_EQ(capped.density_cap, 81);
   EXPECT_EQ(capped.n, 193);
   EXPECT_EQ(capped.term, "worst region");
+}
+
+TEST(GridChoice, TheWorstRegionIsReadThroughTheReconstruction) {
+  // A resampling floor that meets both targets at N = 33 (RMS 0.05%, p99 0.4%), and a reference that
+  // decodes far from it below N = 65 (p99 4%, as a second solution of the equations would) and
+  // does not reconstruct at 49: the decoded floor sets N, 65.
+  GridChoiceInput input = grid_input_falling_from(5e-4, 4e-3, 1e-3, 0);
+  std::vector<int> decoded_at;
+  input.decoded = [&](int n) {
+    decoded_at.push_back(n);
+    if (n == 49) return GridFloor{.rms = std::numeric_limits<double>::infinity(), .p99 = std::numeric_limits<double>::infinity()};
+    return n < 65 ? GridFloor{.rms = 8e-3, .p99 = 4e-2} : GridFloor{.rms = 4e-4, .p99 = 3e-3};
+  };
+  const GridChoice choice = choose_grid_size(input);
+  EXPECT_EQ(choice.n, 65);
+  EXPECT_EQ(choice.term, "worst region");
+  // Measured from the coarse end, stopping where it is met.
+  EXPECT_EQ(decoded_at, (std::vector<int>{33, 41, 49, 57, 65}));
+  ASSERT_EQ(choice.decoded.size(), 5u);
+  EXPECT_EQ(choice.decoded.back().first, 65);
+  EXPECT_DOUBLE_EQ(choice.decoded.back().second.p99, 3e-3);
+  // The decoded floor is measured only from where the RMS terms are done: here the 0.1% noise, met
+  // where 0.8% (33/N)² <= 0.1%, N >= 93.3: 97, whose resampled p99 (4% (33/97)² = 0.46%) is within
+  // 0.75% and whose decoded one (0.9%) is not; 129 decodes within it.
+  GridChoiceInput late = grid_input_falling_from(8e-3, 4e-2, 1e-3, 0);
+  decoded_at.clear();
+  late.decoded = [&](int n) {
+    decoded_at.push_back(n);
+    return GridFloor{.rms = 1e-3, .p99 = n < 129 ? 9e-3 : 5e-3};
+  };
+  const GridChoice raised = choose_grid_size(late);
+  EXPECT_EQ(raised.n, 129);
+  EXPECT_EQ(raised.term, "worst region");
+  EXPECT_EQ(decoded_at, (std::vector<int>{97, 129}));
+  // Decoded within the bound while the resampled p99 is not: the resampled one still holds N up
+  // (a keyframe stored as positions decodes as sampled). 4% (33/N)² <= 0.75%: N >= 76.2, 81.
+  GridChoiceInput sampled = grid_input_falling_from(5e-4, 4e-2, 1e-3, 0);
+  sampled.decoded = [](int) { return GridFloor{.rms = 1e-4, .p99 = 1e-3}; };
+  EXPECT_EQ(choose_grid_size(sampled).n, 81);
+}
+
+TEST(GridChoice, WhereNothingIsPredictedTheErrorBoundTakesThePredictionsPlace) {
+  // One frame: no noise estimate (infinite), no predicted error. A floor of 0.5% at N = 33 meets
+  // ½ B = 0.25% where (33/N)² <= 1/2, N >= 46.7: 49, named after the bound.
+  GridChoiceInput single = grid_input_falling_from(5e-3, 1e-3, std::numeric_limits<double>::infinity(), 0);
+  single.error_bound = 0.005;
+  const GridChoice bounded = choose_grid_size(single);
+  EXPECT_EQ(bounded.n, 49);
+  EXPECT_DOUBLE_EQ(bounded.target, 0.0025);
+  EXPECT_EQ(bounded.term, "error bound");
+  // A predicted error replaces the bound (0.4%: a target of 0.2%, (33/N)² <= 2/5, N >= 52.2: 57).
+  single.mean_predicted_error = 0.004;
+  const GridChoice predicted = choose_grid_size(single);
+  EXPECT_EQ(predicted.n, 57);
+  EXPECT_EQ(predicted.term, "interpolation");
+  // Neither (no keyframes chosen): the fixed 0.02%, (33/N)² <= 1/25, N >= 165: 193.
+  single.mean_predicted_error = 0;
+  single.error_bound = 0;
+  const GridChoice fixed = choose_grid_size(single);
+  EXPECT_EQ(fixed.n, 193);
+  EXPECT_DOUBLE_EQ(fixed.target, 2e-4);
+  EXPECT_EQ(fixed.term, "floor");
+  // The worst region, decoded, still bounds the bound's N: a decoded p99 of 2% at 33 falling as
+  // 1/N² needs N >= 54 (57), past the 49 ½ B asks.
+  GridChoiceInput rough = grid_input_falling_from(5e-3, 1e-3, std::numeric_limits<double>::infinity(), 0);
+  rough.error_bound = 0.005;
+  rough.decoded = [](int n) { return GridFloor{.rms = 5e-3, .p99 = 2e-2 * (33.0 * 33.0) / (double(n) * double(n))}; };
+  const GridChoice worst = choose_grid_size(rough);
+  EXPECT_EQ(worst.n, 57);
+  EXPECT_EQ(worst.term, "worst region");
 }
 
 TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {

@@ -34,6 +34,14 @@ Capture synthetic(const testing::TempDir& dir, bool whole_head, int frames = 12)
   return read_capture(dir.path());
 }
 
+// The geometry alone (what is measured), on two threads.
+EncodeOptions geometry_options() {
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  return options;
+}
+
 struct Encoded {
   EncodeReport report;
   Representation representation = Representation::kHLT;
@@ -45,9 +53,7 @@ Encoded encode(Capture capture, bool find_landmarks) {
     capture.landmark_names.clear();
     capture.landmarks.assign(capture.frames.size(), {});
   }
-  EncodeOptions options;
-  options.texture = false;  // the geometry is what is measured
-  options.threads = 2;
+  const EncodeOptions options = geometry_options();
   Encoded out;
   const Sequence sequence = encode_capture(capture, options, &out.report);
   out.representation = sequence.representation;
@@ -105,9 +111,7 @@ TEST(WholeHead, EncodesAndDecodesWithinOneAndAHalfTimesItsCroppedFace) {
 TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   testing::TempDir dir;
   const Capture head = synthetic(dir, true, 2);
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
+  EncodeOptions options = geometry_options();
   options.density_equalising.radial = 0;
   // N = 129, not --grid auto's 257 (the density cap at 2000 vertices): the fields' iteration fails
   // alike (last change 2.7e-5 of the rim diameter against 5.9e-7, both far above 1e-8) in a fifth
@@ -124,6 +128,40 @@ TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   // Asked for the fields, the encode still fails: positions were not asked for.
   options.representation = Representation::kHLT;
   testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(head, options); });
+}
+
+// --grid auto on a whole head of two frames (nothing predicted: the RMS target is half the error
+// bound, met at a coarse N) whose reference's fields reconstruct to no surface, or to another one,
+// at most N (spec/method.md §7.6, "The worst region through the reconstruction"): a candidate
+// whose decoded p99 is over the bound is refused; one whose fields do not reconstruct reads the
+// positions the encode then stores, and the file holds positions at that N.
+TEST(WholeHead, TheGridReadsTheReconstructionOrThePositionsItFallsBackTo) {
+  testing::TempDir dir;
+  const Capture head = synthetic(dir, true, 2);
+  EncodeReport report;
+  const Sequence sequence = encode_capture(head, geometry_options(), &report);
+  const auto& decoded = report.grid_decoded_floors;
+  ASSERT_FALSE(decoded.empty());
+  ASSERT_EQ(decoded.back().n, sequence.grid_n);
+  const auto resampled_p99 = [&](int n) {
+    for (const auto& [m, p99] : report.grid_floor_p99s) {
+      if (m == n) return p99;
+    }
+    ADD_FAILURE() << "no resampled floor at " << n;
+    return 0.0;
+  };
+  for (size_t i = 0; i + 1 < decoded.size(); ++i) {
+    EXPECT_GT(std::max(decoded[i].p99, resampled_p99(decoded[i].n)), report.grid_worst_target) << decoded[i].n;
+  }
+  EXPECT_LE(std::max(decoded.back().p99, resampled_p99(decoded.back().n)), report.grid_worst_target);
+  EXPECT_LT(sequence.grid_n, 257) << "the fixed floor's N: half the bound asks for less";
+  if (!decoded.back().reconstructed) {
+    EXPECT_EQ(sequence.representation, Representation::kXYZ);
+    EXPECT_DOUBLE_EQ(decoded.back().p99, resampled_p99(decoded.back().n));
+  }
+  bool any_not_reconstructed = false;
+  for (const auto& d : decoded) any_not_reconstructed = any_not_reconstructed || !d.reconstructed;
+  EXPECT_TRUE(any_not_reconstructed) << "this head's fields reconstruct at every N measured: the test no longer covers the fallback";
 }
 
 // The project's root: FACEMORPH_SHARED_DATA is "<root>/../shared/data".

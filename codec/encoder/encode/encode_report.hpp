@@ -94,6 +94,16 @@ struct EncodeReport {
   int texture_size = 0;                                 // M chosen (0: no texture)
   std::vector<std::pair<int, double>> grid_floors;      // (N, resampling floor RMS / diagonal) tried by --grid auto
   std::vector<std::pair<int, double>> grid_floor_p99s;  // (N, the floor's 99th-percentile point error / diagonal), the same N
+  // The reference decoded from its fields at the N measured (from where the RMS terms were done):
+  // RMS and 99th percentile / diagonal; where they did not reconstruct, the resampled floor (the
+  // keyframes then stored as positions) or infinite (the fields asked for).
+  struct DecodedFloor {
+    int n = 0;
+    double rms = 0;
+    double p99 = 0;
+    bool reconstructed = true;
+  };
+  std::vector<DecodedFloor> grid_decoded_floors;
   int grid_density_cap = 0;                             // the largest N the RMS terms could ask for (the captured mesh's density)
   double grid_worst_target = 0;                         // the floor's 99th percentile --grid auto asked for / diagonal
   double grid_vertex_area = 0;                          // the reference's lower-quartile vertex area on the disk (0: not measured)
@@ -134,6 +144,7 @@ struct EncodeReport {
   // The staged encode's assemble stage (staged_encode.hpp): the parts read and checked. Its
   // seconds_mapping, _registration and _selection are then the parts' own, summed.
   double seconds_reading_parts = 0;
+  double seconds_grid = 0;      // choose_grid (--grid auto): the floors measured
   double seconds_planning = 0;  // SequenceEncoder::plan: the keyframes, N and representation chosen
   int parts = 0;
   ResidualFitReport residual_fit;  // options.residual_frames: the residuals fitted to the stored keyframes

@@ -61,9 +61,8 @@ struct Decoded {
 };
 
 Decoded decode_exact(Reconstructor& reconstructor, const GridFields& fields) {
-  reconstructor.forget_warm_start();
   Decoded d;
-  d.exact = reconstructor.reconstruct(fields, tight()).positions;
+  d.exact = decode_keyframe_exactly(reconstructor, fields);
   d.diagonal = diagonal(d.exact);
   return d;
 }
@@ -306,6 +305,11 @@ std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding
 }
 
 }  // namespace
+
+std::vector<Vec3> decode_keyframe_exactly(Reconstructor& reconstructor, const GridFields& fields) {
+  reconstructor.forget_warm_start();
+  return reconstructor.reconstruct(fields, tight()).positions;
+}
 
 void round_keyframes(Sequence& sequence, const FieldCoding& coding, const FieldPrecisionOptions& options) {
   check_dead_zone(options.inter_dead_zone);

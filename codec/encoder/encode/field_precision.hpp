@@ -13,6 +13,7 @@
 
 namespace facemorph {
 
+class Reconstructor;
 class StoredSequence;
 
 // FieldPrecisionOptions::intra_period's "auto": an intra keyframe at least every 10 s of capture,
@@ -62,6 +63,13 @@ struct FieldPrecisionReport {
   int peak_keyframes_in_memory = 0;     // the most decoded surfaces in memory at once (KeyframeStore)
   uint64_t spilled_bytes = 0;           // written to the temporary file (0 without options.spill)
 };
+
+// A keyframe's surface decoded from its exact fields as this stage decodes every keyframe it
+// measures rounding against: from the harmonic surface (no warm start, so which reconstructor
+// takes it changes nothing), to a tolerance of 1e-8 of the boundary's diameter in at most 400
+// iterations. The grid's worst-region bound decodes the reference frame so (choose_grid.cpp).
+// Throws what Reconstructor::reconstruct throws (kNotConverged, kNumerical, kInvalidArgument).
+std::vector<Vec3> decode_keyframe_exactly(Reconstructor& reconstructor, const GridFields& fields);
 
 // The intra period "auto" gives `sequence`: ⌊kAutoIntraSeconds / its mean keyframe interval⌋, at
 // least 1 (K for a single keyframe). Assumes a sequence validate_sequence accepts.

@@ -1,10 +1,15 @@
 // The grid's size N (--grid auto): the smallest whose resampling floor on the reference frame
 // meets a target set by the capture's noise and the spline's error between keyframes, capped by the
-// captured mesh's density, and raised where the floor's worst region would be (spec/method.md §7.6).
+// captured mesh's density, and raised where the worst region, resampled or decoded, would be
+// (spec/method.md §7.6).
 #include "codec/encoder/stages/choose_grid.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/core/util/elapsed.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/encode/plan_keyframes.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "format/error.hpp"
@@ -12,6 +17,8 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <limits>
+#include <memory>
 #include <vector>
 
 namespace facemorph {
@@ -79,15 +86,18 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   // Nor below half the error the spline makes between the chosen keyframes: errors add in
   // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
   // for the error it removes than more keyframes would (spec/method.md §7.6).
-  // Where the selection predicts nothing (one frame, every frame a keyframe) the fixed floor stays
-  // the target, though the field rounding there reads the selection's error bound (stage_settings.cpp):
-  // G's floor measures resampling, not the reconstruction, and on a face with a torso the decoded
-  // keyframe at the N the bound would ask (33) was 8x its floor's p99 (spec/method.md §7.6, "A single
-  // frame"); the rounding's error is measured through the reconstruction, so it may follow the bound.
+  // Where the selection predicts nothing (one frame, every frame a keyframe), the error it holds a
+  // frame to stands in for the prediction, as it does for the field rounding (stage_settings.cpp): a
+  // frame nothing is predicted for is coded as a sequence's whose keyframes left exactly that, not
+  // at the fixed floor, ten times finer (spec/method.md §7.6, "A single frame"). The worst-region
+  // bound below, read through the reconstruction, keeps the coarse N this allows honest.
+  const bool predicted = input.mean_predicted_error > 0;
   const double noise_term = input.noise_decides ? kGridNoiseShare * choice.median_noise : 0.0,
-               interpolation_term = kGridErrorShare * input.mean_predicted_error;
+               interpolation_term = kGridErrorShare * (predicted ? input.mean_predicted_error : input.error_bound);
   choice.target = std::max({kGridFloorTarget, noise_term, interpolation_term});
-  choice.term = choice.target == interpolation_term ? "interpolation" : choice.target == noise_term ? "noise" : "floor";
+  choice.term = choice.target == interpolation_term ? (predicted ? "interpolation" : "error bound")
+                : choice.target == noise_term        ? "noise"
+                                                     : "floor";
   // The RMS terms ask for no more than the captured mesh's density holds (density_grid_cap); the
   // worst region may ask for more: it is a bound every decoded frame must meet, not a trade.
   choice.density_cap = density_grid_cap(input.vertex_disk_area);
@@ -106,7 +116,21 @@ GridChoice choose_grid_size(GridChoiceInput input) {
       rms_met_at = n;
       rms_met = floor.rms <= choice.target;
     }
-    if (rms_met_at > 0 && floor.p99 <= worst_target) break;
+    if (rms_met_at == 0) continue;
+    // The worst region as a decoder shows it: the reference's fields at this N rebuilt by the
+    // Laplace-Beltrami reconstruction, which the resampling floor does not see where the equations
+    // reach another surface than the sampled one or none (spec/method.md §7.6; on every capture
+    // measured the two agreed within 0.004% of the diagonal). The larger of the two, since the
+    // representation is chosen after N and a keyframe whose fields do not reconstruct is stored as
+    // positions, which decode as sampled. Measured only from where the RMS terms are done, coarse to
+    // fine, as each costs a reconstruction.
+    double worst = floor.p99;
+    if (input.decoded) {
+      const GridFloor decoded = input.decoded(n);
+      choice.decoded.emplace_back(n, decoded);
+      worst = std::max(worst, decoded.p99);
+    }
+    if (worst <= worst_target) break;
   }
   if (choice.n > rms_met_at && rms_met_at > 0) {
     choice.term = "worst region";
@@ -118,18 +142,68 @@ GridChoice choose_grid_size(GridChoiceInput input) {
 
 namespace {
 
-// The reference frame's resampling floor on G of size n: its surface against G's surface sampled from it.
-GridFloor reference_floor(const PlanFrames& frames, const MappedFrame& reference, int reference_index, int n) {
-  const DiskGrid grid = make_disk_grid(n);
-  const std::vector<Vec3> sampled = frames.sampler.sample_surface(reference, reference_index, grid.nodes);
-  const SurfaceDistance floor = surface_distance(reference.map.surface, grid_mesh(grid, sampled));
+GridFloor floor_of(const TriangleMesh& reference, const DiskGrid& grid, const std::vector<Vec3>& positions) {
+  const SurfaceDistance floor = surface_distance(reference, grid_mesh(grid, positions));
   return GridFloor{.rms = floor.rms / floor.diagonal, .p99 = floor.p99 / floor.diagonal};
 }
+
+// The reference frame on G of one size: sampled once for both of its floors.
+class ReferenceOnGrid {
+ public:
+  ReferenceOnGrid(const PlanFrames& frames, const MappedFrame& reference, int reference_index)
+      : frames_(frames), reference_(reference), index_(reference_index) {}
+
+  // Its surface against G's surface sampled from it.
+  GridFloor resampled(int n) {
+    at(n);
+    return floor_of(reference_.map.surface, geometry_->grid(), sampled_);
+  }
+
+  // Its surface against G's surface rebuilt from the fields of the sampled one: computed as the
+  // keyframes' are (build_keyframes.cpp: 16-bit, its folds as fixed nodes) and decoded as the field
+  // precision stage decodes a keyframe, unrounded (the rounding's share of the worst region is the
+  // room the bound leaves, and its steps are chosen on G after N). Where they do not converge, the
+  // field precision stage's decode of the same keyframe throws too and the encode stores every
+  // keyframe as positions (build_reconstructable) unless the fields were asked for: then the
+  // resampled floor is what the file shows; else (or a non-finite iterate) infinite: the candidate
+  // fails.
+  GridFloor decoded(int n, Representation representation, bool positions_fallback) {
+    at(n);
+    const GridFields fields = keyframe_fields(*geometry_, sampled_, representation, folded_nodes(*geometry_, sampled_));
+    Reconstructor reconstructor(geometry_);
+    try {
+      return floor_of(reference_.map.surface, geometry_->grid(), decode_keyframe_exactly(reconstructor, fields));
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
+      constexpr double kNever = std::numeric_limits<double>::infinity();
+      // build_reconstructable falls back to positions for an iteration that does not converge
+      // only; a non-finite one fails the encode.
+      const bool stored_as_positions = positions_fallback && e.code() == ErrorCode::kNotConverged;
+      GridFloor floor = stored_as_positions ? resampled(n) : GridFloor{.rms = kNever, .p99 = kNever};
+      floor.reconstructed = false;
+      return floor;
+    }
+  }
+
+ private:
+  void at(int n) {
+    if (geometry_ && geometry_->grid().n == n) return;
+    geometry_ = std::make_shared<const GridGeometry>(make_disk_grid(n));
+    sampled_ = frames_.sampler.sample_surface(reference_, index_, geometry_->grid().nodes);
+  }
+
+  const PlanFrames& frames_;
+  const MappedFrame& reference_;
+  int index_;
+  std::shared_ptr<const GridGeometry> geometry_;
+  std::vector<Vec3> sampled_;
+};
 
 }  // namespace
 
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
   if (settings.grid > 0) return settings.grid;
+  const auto start = std::chrono::steady_clock::now();
   const SelectionSamples& selection = frames.selection;
   const auto count = static_cast<int>(frames.frames.size());
   // Refused before anything is measured where the samples the noise reads are gone.
@@ -143,23 +217,35 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   const bool unmatched = 2 * report.frames_without_interior_landmarks > count - 1;
   input.noise_decides = report.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
+  input.error_bound = chosen ? unpredicted_error_bound(settings.selection) : 0.0;
   const int reference_index = settings.reference_frame;
   const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(reference_index);
   // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.
   if (report.radial_equalising == 0 && !settings.density_equalising) {
     input.vertex_disk_area = quartile_vertex_disk_area(reference->map.disk, reference->map.surface.faces);
   }
-  input.floor = [&](int n) { return reference_floor(frames, *reference, reference_index, n); };
+  ReferenceOnGrid on_grid(frames, *reference, reference_index);
+  input.floor = [&](int n) { return on_grid.resampled(n); };
+  // Positions (asked for) decode as sampled; otherwise the fields the keyframes will store if
+  // choose_representation keeps hl+t, its default.
+  if (settings.representation != Representation::kXYZ) {
+    const Representation representation = settings.representation.value_or(Representation::kHLT);
+    const bool positions_fallback = !settings.representation;  // as build_reconstructable falls back
+    input.decoded = [&, representation, positions_fallback](int n) { return on_grid.decoded(n, representation, positions_fallback); };
+  }
   const double input_area = input.vertex_disk_area;
   GridChoice choice = choose_grid_size(std::move(input));
   report.grid_floors = std::move(choice.floors);
   report.grid_floor_p99s = std::move(choice.floor_p99s);
+  report.grid_decoded_floors.clear();
+  for (const auto& [n, floor] : choice.decoded) report.grid_decoded_floors.push_back({n, floor.rms, floor.p99, floor.reconstructed});
   report.grid_density_cap = choice.density_cap;
   report.grid_worst_target = choice.worst_target;
   report.grid_vertex_area = input_area;
   report.median_noise = choice.median_noise;
   report.grid_target = choice.target;
   report.grid_term = std::move(choice.term);
+  report.seconds_grid = seconds_since(start);
   return choice.n;
 }
 
