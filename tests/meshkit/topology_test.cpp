@@ -97,5 +97,33 @@ TEST(Topology, CountsComponents) {
   EXPECT_EQ(topo.euler_characteristic(), 2);
 }
 
+// What the cache gives is the topology a fresh build gives for the mesh asked about: the same
+// mesh asked again reuses it; an edit that keeps the counts (a face reversed, a vertex added) and
+// one that does not each get a fresh build.
+TEST(TopologyCache, GivesTheMeshesOwnTopologyAndRebuildsOnlyAfterAnEdit) {
+  TriangleMesh m = flat_square(4);
+  TopologyCache cache;
+  const MeshTopology* first = &cache.of(m);
+  EXPECT_EQ(&cache.of(m), first);
+  EXPECT_EQ(cache.builds(), 1);
+  const MeshTopology fresh(m.faces, m.vertex_count());
+  EXPECT_EQ(cache.of(m).edge_count(), fresh.edge_count());
+  EXPECT_EQ(cache.of(m).boundary_loops(), fresh.boundary_loops());
+
+  std::swap(m.faces[3][1], m.faces[3][2]);  // same counts, one face reversed
+  EXPECT_EQ(cache.of(m).inconsistently_oriented_edges().size(), MeshTopology(m.faces, m.vertex_count()).inconsistently_oriented_edges().size());
+  EXPECT_FALSE(cache.of(m).inconsistently_oriented_edges().empty());
+  EXPECT_EQ(cache.builds(), 2);
+
+  m.positions.push_back(Vec3(9, 9, 0));  // same faces over one more vertex
+  EXPECT_EQ(cache.of(m).vertex_count(), m.vertex_count());
+  EXPECT_EQ(cache.builds(), 3);
+
+  m.faces.pop_back();
+  EXPECT_EQ(cache.of(m).face_count(), static_cast<int>(m.faces.size()));
+  EXPECT_EQ(cache.of(m).boundary_loops(), MeshTopology(m.faces, m.vertex_count()).boundary_loops());
+  EXPECT_EQ(cache.builds(), 4);
+}
+
 }  // namespace
 }  // namespace facemorph

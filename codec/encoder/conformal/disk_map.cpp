@@ -43,10 +43,10 @@ DiskMap unmapped(const TriangleMesh& input) {
 }
 
 // The last resort (spec/method.md §3.6): Tutte's map of the disk as given, no preconditioning.
-DiskMap tutte_map(const TriangleMesh& input) {
+DiskMap tutte_map(const TriangleMesh& input, TopologyCache& topologies) {
   auto start = std::chrono::steady_clock::now();
   DiskMap map = unmapped(input);
-  map.rim = MeshTopology(map.surface.faces, map.surface.vertex_count()).boundary_loops()[0];
+  map.rim = topologies.of(map.surface).boundary_loops()[0];
   map.disk = tutte_disk_map(map.surface, map.rim);
   for (int v : map.rim) map.disk[static_cast<size_t>(v)].normalize();
   map.report.method = ConformalMethod::kTutte;
@@ -59,19 +59,18 @@ DiskMap tutte_map(const TriangleMesh& input) {
 
 // Preconditioning, the linear map, and QIEM from it (unless options.method is kLinear); QIEM's
 // failures fall back to the linear map when options.fallback allows.
-DiskMap preconditioned_map(const TriangleMesh& input, const ConformalOptions& options) {
+DiskMap preconditioned_map(const TriangleMesh& input, const ConformalOptions& options, TopologyCache& topologies) {
   auto start = std::chrono::steady_clock::now();
   DiskMap map = unmapped(input);
   ConformalReport& report = map.report;
-  const DiskPreconditioning pre = precondition_disk(map.surface, map.source_vertex);
+  const DiskPreconditioning pre = precondition_disk(map.surface, map.source_vertex, topologies);
   report.split_chords = pre.split_chords;
   report.split_ears = pre.split_ears;
   report.split_obtuse_boundary = pre.split_obtuse_boundary;
   report.split_caps = pre.split_caps;
   report.caps_left = pre.caps_left;
   report.obtuse_boundary_left = pre.obtuse_boundary_left;
-  const MeshTopology topology(map.surface.faces, map.surface.vertex_count());
-  map.rim = topology.boundary_loops()[0];
+  map.rim = topologies.of(map.surface).boundary_loops()[0];
   report.seconds_prepare = seconds_since(start);
 
   start = std::chrono::steady_clock::now();
@@ -139,22 +138,25 @@ DiskMap preconditioned_map(const TriangleMesh& input, const ConformalOptions& op
 }  // namespace
 
 DiskMap conformal_disk_map(const TriangleMesh& input, const ConformalOptions& options) {
+  // One topology a mesh: the check's is preconditioning's first round's, and its last round's gives
+  // the rim (TopologyCache rebuilds only after a split).
+  TopologyCache topologies;
   {
-    const MeshTopology topology(input.faces, input.vertex_count());
+    const MeshTopology& topology = topologies.of(input);
     if (!topology.is_manifold() || topology.boundary_loops().size() != 1 || topology.euler_characteristic() != 1) {
       throw Error(ErrorCode::kNotADisk, "the conformal map needs a disk (one boundary loop, Euler characteristic 1); got " +
                                             std::to_string(topology.boundary_loops().size()) + " loops, Euler characteristic " +
                                             std::to_string(topology.euler_characteristic()));
     }
   }
-  if (options.method == ConformalMethod::kTutte) return tutte_map(input);
+  if (options.method == ConformalMethod::kTutte) return tutte_map(input, topologies);
   try {
-    return preconditioned_map(input, options);
+    return preconditioned_map(input, options, topologies);
   } catch (const Error& e) {
     // Whatever stopped the preconditioned maps (a solver, the intrinsic flips, untangling the
     // linear map), Tutte's map needs none of it.
     if (!options.fallback) throw;
-    DiskMap map = tutte_map(input);
+    DiskMap map = tutte_map(input, topologies);
     map.report.fallback_reason = e.what();
     return map;
   }

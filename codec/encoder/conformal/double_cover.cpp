@@ -95,7 +95,7 @@ double cot_from_lengths(double opposite, double left, double right) {
 
 }  // namespace
 
-DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex) {
+DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex, TopologyCache& topologies) {
   // Termination, by construction rather than by hope. Ears and chords are split first, each once,
   // and no later split makes another: once none is left, the vertex facing a boundary edge is
   // interior (were it on the boundary, its two other edges would be chords or boundary edges, and
@@ -110,7 +110,7 @@ DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& sour
   MeshEditor editor(mesh, source_vertex);
   int cap_rounds = 0, obtuse_rounds = 0;
   for (int round = 0;; ++round) {
-    const MeshTopology topology(mesh.faces, mesh.vertex_count());
+    const MeshTopology& topology = topologies.of(mesh);
     // Ears first: their two interior-facing edges are also chords.
     std::vector<size_t> ears;
     for (size_t f = 0; f < mesh.faces.size(); ++f) {

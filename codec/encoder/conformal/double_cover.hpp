@@ -4,6 +4,7 @@
 
 #include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <span>
 #include <vector>
@@ -30,7 +31,13 @@ struct DiskPreconditioning {
 // Terminates on every disk: ears and chords take at most two rounds and never come back; caps and
 // obtuse boundary edges get a bounded number of rounds each, and those left are counted in the
 // report (the cover's intrinsic flips and untangling cope with them at some cost in distortion).
-DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex);
+// Each round's topology comes from `topologies`: the caller's disk check has built the first, and
+// the last (no split follows it) is the preconditioned mesh's, left there for the rim.
+DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex, TopologyCache& topologies);
+inline DiskPreconditioning precondition_disk(TriangleMesh& mesh, std::vector<int>& source_vertex) {
+  TopologyCache topologies;
+  return precondition_disk(mesh, source_vertex, topologies);
+}
 
 // Two copies of a disk glued along the boundary: vertices 0..n-1 are the disk's, n.. the mirror
 // copies of its interior vertices; copy-2 faces are reversed so the closed surface is consistently

@@ -1,8 +1,8 @@
 // The inverse disk map: disk point -> surface point, exact on the rim.
 #include "codec/encoder/conformal/conformal.hpp"
-#include "codec/meshkit/mesh/topology.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <numbers>
 #include <unordered_map>
@@ -12,7 +12,6 @@
 namespace facemorph {
 
 InverseDiskMap::InverseDiskMap(const DiskMap& map) : map_(map), locator_(map.disk, map.surface.faces) {
-  const MeshTopology topology(map.surface.faces, map.surface.vertex_count());
   const size_t m = map.rim.size();
   std::vector<std::pair<double, size_t>> order;
   for (size_t k = 0; k < m; ++k) {
@@ -26,16 +25,32 @@ InverseDiskMap::InverseDiskMap(const DiskMap& map) : map_(map), locator_(map.dis
     rim_angle_.push_back(order[i].first);
     rim_order_.push_back(map.rim[order[i].second]);
   }
-  // The face holding each rim edge between angle-consecutive rim vertices.
-  std::unordered_map<uint64_t, int> boundary_face;
-  for (int e = 0; e < topology.edge_count(); ++e) {
-    if (!topology.is_boundary_edge(e)) continue;
-    const auto [a, b] = topology.edge(e);
-    boundary_face[undirected_edge_key(a, b)] = topology.edge_faces(e)[0];
+  // The face holding each rim edge between angle-consecutive rim vertices: the edge's only face
+  // (an edge of two faces is a chord, not a rim edge; a pair with no edge has none). Only these m
+  // edges are looked up, in one pass over the faces, rather than building the surface's topology:
+  // a stage that samples a frame builds this map again (spec/method.md §3.3).
+  std::vector<uint8_t> on_rim(map.surface.positions.size(), 0);
+  for (int v : map.rim) on_rim[static_cast<size_t>(v)] = 1;
+  struct EdgeFaces {
+    int count = 0;
+    int face = -1;
+  };
+  std::unordered_map<uint64_t, EdgeFaces> rim_edges;
+  for (size_t i = 0; i < m; ++i) rim_edges.emplace(undirected_edge_key(rim_order_[i], rim_order_[(i + 1) % m]), EdgeFaces{});
+  const std::vector<Face>& faces = map.surface.faces;
+  for (size_t f = 0; f < faces.size(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int32_t a = faces[f][static_cast<size_t>(k)], b = faces[f][static_cast<size_t>((k + 1) % 3)];
+      if (!on_rim[static_cast<size_t>(a)] || !on_rim[static_cast<size_t>(b)]) continue;
+      const auto it = rim_edges.find(undirected_edge_key(a, b));
+      if (it == rim_edges.end()) continue;
+      ++it->second.count;
+      it->second.face = static_cast<int>(f);
+    }
   }
   for (size_t i = 0; i < m; ++i) {
-    const auto it = boundary_face.find(undirected_edge_key(rim_order_[i], rim_order_[(i + 1) % m]));
-    rim_edge_face_.push_back(it == boundary_face.end() ? -1 : it->second);
+    const EdgeFaces& edge = rim_edges.at(undirected_edge_key(rim_order_[i], rim_order_[(i + 1) % m]));
+    rim_edge_face_.push_back(edge.count == 1 ? edge.face : -1);
   }
 }
 

@@ -23,18 +23,49 @@ namespace {
 // one 20k-vertex frame), and the BLAS under it has its own thread pool, so two frame threads ran
 // four to six threads on two cores, spinning. Measured (fmbench conformal --sweep on 6 frames of
 // 20k vertices, --threads 2): CPU time 5.2 → 3.2 s, wall 9.2 → 4.8 s. Looked up at run time: the
-// BLAS may not be OpenBLAS, and OpenMP's thread count is per thread, set before its first team.
-void one_solver_thread_here() {
-  thread_local bool done = false;
-  if (done) return;
-  done = true;
-  using SetThreads = void (*)(int);
-  if (auto omp = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "omp_set_num_threads"))) omp(1);
+// BLAS may not be OpenBLAS, and libgomp is there only as CHOLMOD's dependency.
+void one_blas_thread() {
   static std::once_flag blas;
   std::call_once(blas, [] {
+    using SetThreads = void (*)(int);
     if (auto openblas = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) openblas(1);
   });
 }
+
+// OpenMP's teams of one, for one CHOLMOD call, in this thread only. omp_set_num_threads(1) is not
+// enough: CHOLMOD 3 (SuiteSparse 5) asks for its supernodal loops' teams with num_threads(4), which
+// overrides it, so every frame's ~225k teams woke three workers on futexes (14-15 s of system time in
+// the sample's 70 s encode at --threads 1, spec/method.md §7.19). max-active-levels 0 makes every
+// region a team of one whatever it asks; it is an ICV of the calling thread, set back afterwards so
+// that a program that calls the encoder keeps its own OpenMP settings.
+class OpenMpTeamsOfOne {
+ public:
+  OpenMpTeamsOfOne() {
+    one_blas_thread();
+    if (omp().get && omp().set) {
+      saved_ = omp().get();
+      omp().set(0);
+    }
+  }
+  ~OpenMpTeamsOfOne() {
+    if (saved_ >= 0) omp().set(saved_);
+  }
+  OpenMpTeamsOfOne(const OpenMpTeamsOfOne&) = delete;
+  OpenMpTeamsOfOne& operator=(const OpenMpTeamsOfOne&) = delete;
+
+ private:
+  struct Functions {
+    int (*get)() = nullptr;
+    void (*set)(int) = nullptr;
+  };
+  static const Functions& omp() {
+    static const Functions functions{
+        reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels")),
+        reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))};
+    return functions;
+  }
+  int saved_ = -1;
+};
 
 }  // namespace
 #else
@@ -43,7 +74,9 @@ struct SpdSolver::Impl {
 };
 const char* SpdSolver::backend() { return "eigen-simplicial-ldlt"; }
 namespace {
-void one_solver_thread_here() {}  // Eigen's factorisation is single-threaded
+struct OpenMpTeamsOfOne {
+  OpenMpTeamsOfOne() {}  // Eigen's factorisation is single-threaded
+};
 }  // namespace
 #endif
 
@@ -58,16 +91,19 @@ SpdSolver::SpdSolver() : impl_(std::make_unique<Impl>()) {
 SpdSolver::~SpdSolver() = default;
 
 void SpdSolver::analyze(const SparseMatrix& A) {
-  one_solver_thread_here();
+  const OpenMpTeamsOfOne teams;
   impl_->solver.analyzePattern(A);
 }
 
 bool SpdSolver::factorize(const SparseMatrix& A) {
-  one_solver_thread_here();
+  const OpenMpTeamsOfOne teams;
   impl_->solver.factorize(A);
   return impl_->solver.info() == Eigen::Success;
 }
 
-Eigen::MatrixXd SpdSolver::solve(const Eigen::MatrixXd& b) const { return impl_->solver.solve(b); }
+Eigen::MatrixXd SpdSolver::solve(const Eigen::MatrixXd& b) const {
+  const OpenMpTeamsOfOne teams;
+  return impl_->solver.solve(b);
+}
 
 }  // namespace facemorph

@@ -1,9 +1,10 @@
 // Sparse symmetric positive-definite factorisation for the encoder's large systems (the QIEM step
 // on the double cover: 2x the frame's vertices). CHOLMOD's supernodal Cholesky (SuiteSparse, with
 // the system's BLAS) when facemorph is built with it — about 10x faster than a simplicial
-// factorisation at 200k unknowns with OpenBLAS — else Eigen's simplicial LDLᵀ. Each thread that
-// analyses or factors runs CHOLMOD's OpenMP with one thread, and OpenBLAS runs with one thread
-// (process-wide): the encoder parallelises over frames (spd_solver.cpp says what that saved).
+// factorisation at 200k unknowns with OpenBLAS — else Eigen's simplicial LDLᵀ. Each call runs
+// CHOLMOD's OpenMP regions as teams of one thread (the calling thread's setting, put back after
+// the call), and OpenBLAS runs with one thread (process-wide): the encoder parallelises over frames
+// (spd_solver.cpp says what that saved).
 #pragma once
 
 #include "codec/core/geometry/differential.hpp"

@@ -47,7 +47,7 @@ class FramePreparer {
     for (size_t i = 0; i < loops.size(); ++i) {
       if (i != rim) fill(loops[i]);
     }
-    const MeshTopology final_topology(mesh_.faces, mesh_.vertex_count());
+    const MeshTopology& final_topology = topologies_.of(mesh_);
     if (!final_topology.is_manifold() || final_topology.boundary_loops().size() != 1 || final_topology.euler_characteristic() != 1) {
       fail(ErrorCode::kNotADisk, "hole filling did not produce a disk (" + std::to_string(final_topology.boundary_loops().size()) +
                                      " boundary loops, Euler characteristic " + std::to_string(final_topology.euler_characteristic()) +
@@ -140,7 +140,7 @@ class FramePreparer {
   // Edges with three or more faces: the sheet that holds the face keeps them (manifold_repair.hpp).
   void resolve_non_manifold_edges() {
     NonManifoldEdgeRepair counts;
-    const std::vector<uint8_t> drop = non_manifold_edge_drops(mesh_, face_points_, &counts);
+    const std::vector<uint8_t> drop = non_manifold_edge_drops(mesh_, face_points_, &counts, topologies_);
     if (counts.edges == 0) return;
     report_.non_manifold_edges += counts.edges;
     report_.dropped_sheet_faces += counts.dropped_faces;
@@ -151,7 +151,7 @@ class FramePreparer {
   }
 
   void split_bow_ties() {
-    const BowTieRepair split = split_bow_tie_vertices(mesh_, source_);
+    const BowTieRepair split = split_bow_tie_vertices(mesh_, source_, topologies_);
     report_.split_vertices += split.vertices;
     report_.added_vertices += split.added_vertices;
     report_.rewired_faces += split.rewired_faces;
@@ -164,7 +164,7 @@ class FramePreparer {
   // whenever repairs are on; the rest only with keep_largest_component (else check_topology names
   // the count).
   void keep_face_component() {
-    const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
+    const MeshTopology& topology = topologies_.of(mesh_);
     if (topology.component_count() <= 1 || (!options_.repair_non_manifold && !options_.keep_largest_component)) return;
     const std::vector<int>& component = topology.face_components();
     std::vector<double> area(static_cast<size_t>(topology.component_count()), 0.0);
@@ -332,7 +332,7 @@ class FramePreparer {
   // Flips faces so that every interior edge is traversed once each way (fewest flips per
   // component); a surface where that is impossible is non-orientable.
   void orient_consistently() {
-    const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
+    const MeshTopology& topology = topologies_.of(mesh_);
     if (!topology.non_manifold_edges().empty()) {
       const auto e = topology.edge(topology.non_manifold_edges()[0]);
       fail(ErrorCode::kInvalidMesh, std::to_string(topology.non_manifold_edges().size()) + " non-manifold edges (edge " +
@@ -398,8 +398,8 @@ class FramePreparer {
     return vector_area.dot(bulge) < 0;
   }
 
-  std::vector<std::vector<int>> check_topology() const {
-    const MeshTopology topology(mesh_.faces, mesh_.vertex_count());
+  std::vector<std::vector<int>> check_topology() {
+    const MeshTopology& topology = topologies_.of(mesh_);
     if (!topology.non_manifold_vertices().empty()) {
       fail(ErrorCode::kInvalidMesh, std::to_string(topology.non_manifold_vertices().size()) +
                                         " non-manifold vertices where separate fans of faces touch (vertex " +
@@ -524,6 +524,7 @@ class FramePreparer {
   std::vector<Vec3> face_points_;  // the landmarks, rim markers included
   double largest_vertex_move_ = 0;
   TriangleMesh mesh_;
+  TopologyCache topologies_;  // mesh_'s topology, rebuilt only after a step has edited the faces
   std::vector<int> source_;
   RepairReport report_;
 };

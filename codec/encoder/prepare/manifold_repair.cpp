@@ -69,10 +69,10 @@ int choose_face_group(const TriangleMesh& mesh, const std::vector<int>& group_of
 }
 
 std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points,
-                                             NonManifoldEdgeRepair* counts) {
+                                             NonManifoldEdgeRepair* counts, TopologyCache& topologies) {
   const size_t face_total = mesh.faces.size();
   std::vector<uint8_t> drop(face_total, 0);
-  const MeshTopology topology(mesh.faces, mesh.vertex_count());
+  const MeshTopology& topology = topologies.of(mesh);
   if (topology.non_manifold_edges().empty()) return drop;
 
   // Sheets: faces joined across edges with exactly two faces, so each edge with more ends sheets.
@@ -139,9 +139,9 @@ std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std
   return drop;
 }
 
-BowTieRepair split_bow_tie_vertices(TriangleMesh& mesh, std::vector<int>& source) {
+BowTieRepair split_bow_tie_vertices(TriangleMesh& mesh, std::vector<int>& source, TopologyCache& topologies) {
   BowTieRepair repair;
-  const MeshTopology topology(mesh.faces, mesh.vertex_count());
+  const MeshTopology& topology = topologies.of(mesh);
   if (topology.non_manifold_vertices().empty()) return repair;
   std::unordered_map<int32_t, size_t> slot;
   for (int v : topology.non_manifold_vertices()) slot.emplace(v, slot.size());

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "codec/core/geometry/mesh.hpp"
+#include "codec/meshkit/mesh/topology.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -36,7 +37,9 @@ struct NonManifoldEdgeRepair {
 // whether the sheet passes through the edge (two faces there: a fin ends at it), then by its area;
 // the first is kept with another face of its sheet if it has one, else with the second. A sheet that keeps no face at any such edge is
 // dropped whole (a fin, a hair or torso surface fused to the face along a seam). Marks the faces to drop; `mesh` unchanged.
-std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points, NonManifoldEdgeRepair* counts);
+// `topologies` gives the mesh's topology (built there only if the caller's steps have not).
+std::vector<uint8_t> non_manifold_edge_drops(const TriangleMesh& mesh, const std::vector<Vec3>& face_points, NonManifoldEdgeRepair* counts,
+                                             TopologyCache& topologies);
 
 struct BowTieRepair {
   int vertices = 0;         // bow-tie vertices split
@@ -49,8 +52,8 @@ struct BowTieRepair {
 // of most faces keeps the vertex, each other fan gets a copy (same colour and `source` entry) moved
 // kBowTieSeparation of the way towards its fan's centre, so the copies do not coincide (a pinched
 // hole becomes one loop with a waist, which hole filling can triangulate). Needs no edge with three
-// or more faces. `source` (one entry a vertex) grows with the copies.
+// or more faces. `source` (one entry a vertex) grows with the copies. `topologies` as above.
 inline constexpr double kBowTieSeparation = 0.25;
-BowTieRepair split_bow_tie_vertices(TriangleMesh& mesh, std::vector<int>& source);
+BowTieRepair split_bow_tie_vertices(TriangleMesh& mesh, std::vector<int>& source, TopologyCache& topologies);
 
 }  // namespace facemorph

@@ -29,6 +29,15 @@ std::span<const int32_t> MeshTopology::edge_faces(int e) const {
   return std::span<const int32_t>(edge_face_list_).subspan(begin, end - begin);
 }
 
+const MeshTopology& TopologyCache::of(std::span<const Face> faces, int vertex_count) {
+  if (topology_ && topology_->vertex_count() == vertex_count && std::equal(faces.begin(), faces.end(), faces_.begin(), faces_.end()))
+    return *topology_;
+  topology_.emplace(faces, vertex_count);
+  faces_.assign(faces.begin(), faces.end());
+  ++builds_;
+  return *topology_;
+}
+
 MeshTopology::MeshTopology(std::span<const Face> faces, int vertex_count) : vertex_count_(vertex_count) {
   const size_t face_total = faces.size();
   face_edges_.assign(face_total, {-1, -1, -1});

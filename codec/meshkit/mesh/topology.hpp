@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -63,6 +64,23 @@ class MeshTopology {
   std::vector<uint8_t> on_boundary_;
   int component_count_ = 0;
   std::vector<int> face_component_;
+};
+
+// The topology of one mesh, built once while its faces stay the same: a frame's preparation asks
+// for it at each step (sheets, bow ties, components, orientation, the disk check, the rim), and on a
+// clean capture no step edits the mesh. Each request compares the faces with a copy of those the
+// topology was built from (a 12-byte compare a face, against the build's sort of the half-edges),
+// so a mesh edited in between gets a fresh topology, never a stale one. Holds one mesh's at a time.
+class TopologyCache {
+ public:
+  const MeshTopology& of(std::span<const Face> faces, int vertex_count);
+  const MeshTopology& of(const TriangleMesh& mesh) { return of(mesh.faces, mesh.vertex_count()); }
+  int builds() const { return builds_; }  // topologies built so far (for tests)
+
+ private:
+  std::vector<Face> faces_;
+  std::optional<MeshTopology> topology_;
+  int builds_ = 0;
 };
 
 // Union-find over 0..n-1 with path halving; used by topology, validation and hole filling.

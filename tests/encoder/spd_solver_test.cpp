@@ -1,0 +1,93 @@
+#include "codec/encoder/conformal/spd_solver.hpp"
+
+#include <gtest/gtest.h>
+
+#include <dlfcn.h>
+
+#include <filesystem>
+#include <random>
+#include <vector>
+
+namespace facemorph {
+namespace {
+
+// The 5-point Laplacian of an n x n grid plus shift·I: SPD, and at n = 150 (22,500 unknowns, as a
+// 10k-vertex frame's double cover) its supernodes are large enough for CHOLMOD 3 to open its
+// OpenMP teams (num_threads(4)) in the numeric factorisation.
+SparseMatrix shifted_grid_laplacian(int n, double shift) {
+  std::vector<Eigen::Triplet<double>> entries;
+  const auto at = [n](int i, int j) { return i * n + j; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      double degree = 0;
+      for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int k = i + di, l = j + dj;
+        if (k < 0 || k >= n || l < 0 || l >= n) continue;
+        entries.emplace_back(at(i, j), at(k, l), -1.0);
+        degree += 1;
+      }
+      entries.emplace_back(at(i, j), at(i, j), degree + shift);
+    }
+  SparseMatrix A(n * n, n * n);
+  A.setFromTriplets(entries.begin(), entries.end());
+  return A;
+}
+
+// Threads of this process now (Linux); -1 where /proc does not say.
+int thread_count() {
+  std::error_code error;
+  int count = 0;
+  for (std::filesystem::directory_iterator it("/proc/self/task", error), end; !error && it != end; it.increment(error)) ++count;
+  return error ? -1 : count;
+}
+
+// The calling thread's OpenMP max-active-levels, where an OpenMP runtime is loaded (CHOLMOD's); -1 if none.
+int omp_max_active_levels() {
+  const auto get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"));
+  return get ? get() : -1;
+}
+
+TEST(SpdSolver, SolvesAShiftedGridLaplacianToRounding) {
+  const SparseMatrix A = shifted_grid_laplacian(60, 0.01);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd x(A.rows(), 2);
+  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] = normal(rng);
+  const Eigen::MatrixXd b = A * x;
+  SpdSolver solver;
+  solver.analyze(A);
+  ASSERT_TRUE(solver.factorize(A));
+  const Eigen::MatrixXd solved = solver.solve(b);
+  EXPECT_LT((A * solved - b).norm() / b.norm(), 1e-12);
+  EXPECT_LT((solved - x).norm() / x.norm(), 1e-8);  // condition number ~ 8 / 0.01
+}
+
+TEST(SpdSolver, AnIndefiniteMatrixIsReportedNotFactored) {
+  SparseMatrix A = shifted_grid_laplacian(20, 0.01);
+  A.coeffRef(37, 37) = -5;
+  SpdSolver solver;
+  solver.analyze(A);
+  EXPECT_FALSE(solver.factorize(A));
+}
+
+// The encoder runs one frame per thread, so the factorisation must run in the calling thread alone:
+// CHOLMOD 3 asks for teams of four (num_threads(4)), which started three OpenMP workers beside every
+// frame thread and woke them ~225k times a 20k-vertex frame (spd_solver.cpp). Run under ctest, each
+// test is a process of its own, so no earlier test has started OpenMP's workers; and the calling
+// thread's own OpenMP setting is what it was.
+TEST(SpdSolver, FactorsInTheCallingThreadAloneAndLeavesItsOpenMpSetting) {
+  const int before = thread_count();
+  if (before < 0) GTEST_SKIP() << "no /proc/self/task to count threads";
+  const int levels = omp_max_active_levels();
+  const SparseMatrix A = shifted_grid_laplacian(150, 0.01);
+  SpdSolver solver;
+  solver.analyze(A);
+  ASSERT_TRUE(solver.factorize(A));
+  const Eigen::MatrixXd x = solver.solve(Eigen::MatrixXd::Ones(A.rows(), 1));
+  EXPECT_LT((A * x - Eigen::MatrixXd::Ones(A.rows(), 1)).norm(), 1e-9 * std::sqrt(double(A.rows())));
+  EXPECT_EQ(thread_count(), before) << SpdSolver::backend();
+  EXPECT_EQ(omp_max_active_levels(), levels);
+}
+
+}  // namespace
+}  // namespace facemorph
