@@ -255,6 +255,34 @@ TEST(FieldPrecision, StepsDoNotFollowTheReconstructionsNoise) {
   }
 }
 
+// A group's calibration on an exact power law lands on the step that meets its share: error ∝
+// step^1.9 (ICT's H near its share) meets 1e-3 at 0.2.
+TEST(FieldPrecision, CalibrationFindsThePowerLawsStep) {
+  const auto error_at = [](double step) { return 1e-3 * std::pow(step / 0.2, 1.9); };
+  EXPECT_NEAR(calibrated_step(error_at, 1e-3, 3.0), 0.2, 1e-6);
+}
+
+// ICT's log λ at T = 0.2% (share 0.000978, spread 3.196), its five readings replayed (log-log
+// interpolation between them): two readings at nearly one step (0.671: 0.0112, 0.658: 0.0125) fit an
+// exponent clamped to 0.5, and the last fit lands on 0.0045, 100x under the share, though 0.0585 read
+// 0.09 of it. That step, kept, made the file 96 kB against 55 kB at T = 0.16% (spec/method.md
+// §7.21.1); the step kept is now no finer than 0.0585, the coarsest that met the share.
+TEST(FieldPrecision, CalibrationKeepsNoStepFinerThanOneThatMetItsShare) {
+  const std::vector<std::pair<double, double>> readings = {
+      {0.000780387, 1.13731e-06}, {0.00453146, 1.02668e-05}, {0.0585305, 8.70437e-05}, {0.657527, 0.0125032}, {0.670963, 0.0112095}};
+  const auto error_at = [&](double step) {
+    const double x = std::log(step);
+    size_t i = 0;
+    while (i + 2 < readings.size() && x > std::log(readings[i + 1].first)) ++i;
+    const double x0 = std::log(readings[i].first), x1 = std::log(readings[i + 1].first);
+    const double y0 = std::log(readings[i].second), y1 = std::log(readings[i + 1].second);
+    return std::exp(y0 + (std::clamp(x, x0, x1) - x0) / (x1 - x0) * (y1 - y0));
+  };
+  const double step = calibrated_step(error_at, 0.000977841, 3.19646);
+  EXPECT_GE(step, 0.0585) << "a step finer than one that met the share";
+  EXPECT_LE(step, 0.6575) << "a step that missed the share";
+}
+
 // Intra period auto: an intra keyframe at least every 10 s of capture, whatever the keyframe rate.
 TEST(FieldPrecision, AutoIntraPeriodSpacesIntraKeyframesTenSecondsApart) {
   const auto keyframes_every = [](double interval, size_t count) {

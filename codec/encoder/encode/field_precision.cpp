@@ -30,6 +30,7 @@ constexpr double kHoleStepPerCell = 1.0 / 16.0;
 constexpr double kTolerance = 1.25;  // a keyframe may exceed the target by this factor before steps shrink
 constexpr int kMaxRefinements = 8;
 constexpr int kCalibrationProbes = 5;  // a group's probes of keyframe 0 at most (choose_steps)
+constexpr double kFitContradicted = 4;  // a fit this far under a step that met its share is not kept (calibrated_step)
 
 ReconstructOptions tight() {
   ReconstructOptions o;
@@ -325,6 +326,47 @@ int auto_intra_period(const Sequence& sequence) {
   return static_cast<int>(std::clamp(std::floor(kAutoIntraSeconds / interval), 1.0, static_cast<double>(keys.size())));
 }
 
+// The step at which rounding one group alone (the rest exact) displaces keyframe 0 by its share.
+// The error is not proportional to the step (ICT's curvature: ∝ step^1.9 near its share), it is
+// noisy (error diffusion reshuffles every code when the step moves: ±30% between steps 10% apart),
+// and far under the share it is the reconstruction's own numerical noise (ICT: a first probe at a
+// 4096th of the spread read 2.6e-6 or 1.2e-6 for inputs 1e-5 apart, so the one linear step taken
+// from it gave steps 2x apart and files 15-25% apart at the same error). So the group is probed up
+// to five times, each probe at the step where the power law fitted (least squares in log-log)
+// through the readings above an eighth of the share meets the share, and the step is that fit's at
+// the end; the verification in choose_steps sets the common scale.
+// Where the last fit lands more than 4x under a probed step that met the share, that step is kept
+// instead: the readings say the error rises with the step, so such a fit contradicts them. Two
+// readings at nearly one step fit any exponent (ICT at T = 0.2%: log λ read 0.0112 at 0.671 and
+// 0.0125 at 0.657; the exponent, clamped to 0.5, sent the fit to 0.0045, 100x under its share,
+// though 0.0585 had read 0.09 of it): that step was 50x finer than at T = 0.16%, a 96 kB file
+// against 55 kB (spec/method.md §7.21.1). Not every step under the met one: the fit's ordinary
+// noise (±30% between steps 10% apart) lands a little under it, and keeping the met step there
+// moved the defaults' files by that noise (the sample +3.6%, fast speech +5.7%).
+double calibrated_step(const std::function<double(double)>& error_at, double share, double spread) {
+  std::vector<std::pair<double, double>> readings;  // (log step, log error) above the floor
+  auto fitted_step = [&](double step, double error) {
+    if (readings.size() < 2) return error > 0 ? std::min(step * share / error, spread) : spread;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    for (const auto& [x, y] : readings) sx += x, sy += y, sxx += x * x, sxy += x * y;
+    const double n = static_cast<double>(readings.size()), spread_x = sxx - sx * sx / n;
+    const double exponent = spread_x > 1e-12 ? std::clamp((sxy - sx * sy / n) / spread_x, 0.5, 4.0) : 1.0;
+    const double intercept = (sy - exponent * sx) / n;
+    return std::min(std::exp((std::log(share) - intercept) / exponent), spread);
+  };
+  double met = 0;  // the coarsest step probed whose error met the share
+  double step = spread / 4096;
+  for (int probe = 0; probe < kCalibrationProbes; ++probe) {
+    const double error = error_at(step);
+    if (error <= share) met = std::max(met, step);
+    if (error > share / 8) readings.emplace_back(std::log(step), std::log(error));
+    const double next = fitted_step(step, error);
+    if (next == step) break;  // at the spread: coarser steps are not tried
+    step = next;
+  }
+  return step * kFitContradicted < met ? met : step;
+}
+
 namespace {
 
 // Each group's step before the common scale: keyframe 0 rounded one group at a time. The same for
@@ -374,34 +416,7 @@ Calibration calibrate(const GridFields& probe_fields, double target_error, bool 
       }
     }
     const double spread = std::max(hi - lo, 1e-300);
-    // The step at which rounding this group alone (the rest exact) displaces keyframe 0 by its share.
-    // The error is not proportional to the step (ICT's curvature: ∝ step^1.9 near its share), it is
-    // noisy (error diffusion reshuffles every code when the step moves: ±30% between steps 10%
-    // apart), and far under the share it is the reconstruction's own numerical noise (ICT: a first
-    // probe at a 4096th of the spread read 2.6e-6 or 1.2e-6 for inputs 1e-5 apart, so the one linear
-    // step taken from it gave steps 2x apart and files 15-25% apart at the same error). So the group
-    // is probed up to five times, each probe at the step where the power law fitted (least squares
-    // in log-log) through the readings above an eighth of the share meets the share, and the step is
-    // that fit's at the end; the verification below sets the common scale.
-    std::vector<std::pair<double, double>> readings;  // (log step, log error) above the floor
-    auto fitted_step = [&](double step, double error) {
-      if (readings.size() < 2) return error > 0 ? std::min(step * share / error, spread) : spread;
-      double sx = 0, sy = 0, sxx = 0, sxy = 0;
-      for (const auto& [x, y] : readings) sx += x, sy += y, sxx += x * x, sxy += x * y;
-      const double n = static_cast<double>(readings.size()), spread_x = sxx - sx * sx / n;
-      const double exponent = spread_x > 1e-12 ? std::clamp((sxy - sx * sy / n) / spread_x, 0.5, 4.0) : 1.0;
-      const double intercept = (sy - exponent * sx) / n;
-      return std::min(std::exp((std::log(share) - intercept) / exponent), spread);
-    };
-    double step = spread / 4096;
-    for (int probe = 0; probe < kCalibrationProbes; ++probe) {
-      const double error = probe_error(g, step);
-      if (error > share / 8) readings.emplace_back(std::log(step), std::log(error));
-      const double next = fitted_step(step, error);
-      if (next == step) break;  // at the spread: coarser steps are not tried
-      step = next;
-    }
-    group_steps[g] = step;
+    group_steps[g] = calibrated_step([&](double step) { return probe_error(g, step); }, share, spread);
   }
   return calibration;
 }

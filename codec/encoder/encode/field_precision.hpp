@@ -9,6 +9,7 @@
 #include "codec/core/sequence/sequence.hpp"
 
 #include <array>
+#include <functional>
 #include <vector>
 
 namespace facemorph {
@@ -74,6 +75,13 @@ std::vector<Vec3> decode_keyframe_exactly(Reconstructor& reconstructor, const Gr
 // The intra period "auto" gives `sequence`: ⌊kAutoIntraSeconds / its mean keyframe interval⌋, at
 // least 1 (K for a single keyframe). Assumes a sequence validate_sequence accepts.
 int auto_intra_period(const Sequence& sequence);
+
+// One group's calibrated step (spec/method.md §5.3): probes `error_at` (the decoded error of
+// keyframe 0 with that group alone rounded at a step) up to five times, from spread / 4096, each
+// next probe where the power law fitted through the readings above share / 8 meets `share`; returns
+// the last fit's step, or the coarsest probed step whose error met the share where that is more
+// than 4x coarser.
+double calibrated_step(const std::function<double(double)>& error_at, double share, double spread);
 
 // Chooses the steps on keyframe 0 (a probe step per group, decoded, scaled to the target: rounding
 // error is proportional to the step), rounds every keyframe of `sequence` to them
