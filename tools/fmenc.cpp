@@ -289,10 +289,10 @@ void declare_options(CLI::App& app, Arguments& a) {
                  "sparse lattice displacement that brings them under it (format 2.4's PTCH, range-coded since 2.5; spec/method.md §7.19; 0: none)")
       ->capture_default_str();
   app.add_option("--grid", a.grid,
-                 "Grid size N of the disk grid, or auto (the smallest whose resampling floor is within the frame noise or half the error "
-                 "between keyframes; where none is predicted (one frame, every frame a keyframe), half the error bound: 0.5% by default, "
-                 "or --max-error), raised until the 99th percentile of the reference, as sampled and as decoded from its fields, is "
-                 "within 0.75%")
+                 "Grid size N of the disk grid, or auto: the smallest whose resampling floor (RMS) is within the largest of 0.02%, the "
+                 "frame noise and half the error between keyframes (half the error bound where none is predicted: one frame, every frame "
+                 "a keyframe; 0.5% by default, or --max-error), capped by the mesh's density, then raised until the reference's worst "
+                 "region (99th percentile, resampled and decoded) is within 0.75%")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();

@@ -60,8 +60,9 @@ double parse_fraction(const std::string& text, const char* what);
 
 // "65" -> 65: the whole text a base-10 whole number in [low, high], else kInvalidArgument naming
 // `what` ("--grid '65x' is neither auto nor a whole number from 5 to 4097"): std::stoi alone reads
-// "65x" as 65 and "1e3" as 1. The one parser of fmenc's and fmbench's count options; "auto" is the
-// caller's to test first.
+// "65x" as 65 and "1e3" as 1. It parses fmenc's --grid, --quality, --texture and --intra-period and
+// fmbench temporal's --grid (fmbench's other counts are CLI11's own); "auto" is the caller's to test
+// first.
 int parse_whole_number(const std::string& text, const char* what, long low, long high);
 
 // The one clock reading of the encoder's reports too (codec/core/util/elapsed.hpp).

@@ -34,8 +34,9 @@ void one_blas_thread() {
 
 // OpenMP's teams of one, for one CHOLMOD call, in this thread only. omp_set_num_threads(1) is not
 // enough: CHOLMOD 3 (SuiteSparse 5) asks for its supernodal loops' teams with num_threads(4), which
-// overrides it, so every frame's ~225k teams woke three workers on futexes (14-15 s of system time in
-// the sample's 70 s encode at --threads 1, spec/method.md §7.19). max-active-levels 0 makes every
+// overrides it, so every frame's ~225k teams woke three workers on futexes (17% of perf's samples of
+// the sample's encode at --threads 1; its system time 4.8-6.0 -> 3.6-3.7 s with this, spec/method.md
+// §3.3, which does not account for the quiet machine's 70.5 s). max-active-levels 0 makes every
 // region a team of one whatever it asks; it is an ICV of the calling thread, set back afterwards so
 // that a program that calls the encoder keeps its own OpenMP settings.
 class OpenMpTeamsOfOne {
