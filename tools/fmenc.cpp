@@ -290,9 +290,9 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto: the smallest whose resampling floor (RMS) is within the largest of 0.02%, the "
-                 "frame noise and half the error between keyframes (half the error bound where none is predicted: one frame, every frame "
-                 "a keyframe; 0.5% by default, or --max-error), capped by the mesh's density, then raised until the reference's worst "
-                 "region (99th percentile, resampled and decoded) is within 0.75%")
+                 "frame noise and half the error between keyframes (where none is predicted, one frame or every frame a keyframe, the "
+                 "0.02% or the noise), capped by the mesh's density, then raised until the reference's worst region (99th percentile, "
+                 "resampled and decoded) is within 0.75%")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
@@ -677,7 +677,6 @@ void print_grid_choice(const Summary& s) {
         100 * s.report.median_noise, s.report.grid_density_cap, s.report.grid_vertex_area,
         s.report.grid_vertex_area * (s.sequence->shape().grid_n - 1) * (s.sequence->shape().grid_n - 1) / 4.0, s.sequence->shape().grid_n);
     const char* why = s.report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
-                      : s.report.grid_term == "error bound" ? "half the error bound, as nothing between keyframes is predicted"
                       : s.report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
     if (s.report.grid_term == "density") {

@@ -109,7 +109,7 @@ struct EncodeReport {
   double grid_vertex_area = 0;                          // the reference's lower-quartile vertex area on the disk (0: not measured)
   double median_noise = 0;                              // frames' median noise estimate / diagonal (--grid auto)
   double grid_target = 0;                               // the floor --grid auto asked for / diagonal
-  std::string grid_term;                                // which term set it: "floor", "noise", "interpolation", "error bound", "density" or "worst region"
+  std::string grid_term;                                // which term set it: "floor", "noise", "interpolation", "density" or "worst region"
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   double radial_equalising = 0;         // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
