@@ -1,5 +1,6 @@
 #include "tools/tool_support.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -64,6 +65,8 @@ double parse_fraction(const std::string& text, const char* what) {
 
 int parse_whole_number(const std::string& text, const char* what, long low, long high) {
   try {
+    // Digits alone, as written: std::stol would also skip leading blanks and take a '+'.
+    if (text.empty() || !(std::isdigit(static_cast<unsigned char>(text[0])) || text[0] == '-')) throw std::invalid_argument(text);
     size_t used = 0;
     const long value = std::stol(text, &used, 10);
     if (used != text.size() || value < low || value > high) throw std::out_of_range(text);

@@ -174,6 +174,8 @@ expect_error "texture quality range" "--quality '102' is neither auto nor a whol
 # A count read in full: std::stoi alone took "65x" as 65 and "1e3" as 1.
 expect_error "grid with a suffix" "--grid '65x' is neither auto nor a whole number from 5 to 4097" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid 65x
 expect_error "grid in exponent form" "--grid '1e3' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid 1e3
+expect_error "grid with a sign" "--grid '+65' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid +65
+expect_error "grid after a blank" "--grid ' 65' is neither auto" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --grid " 65"
 expect_error "texture with a unit" "--texture '64px' is neither auto nor a whole number from 16 to 16383" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --texture 64px
 "$tools/fmenc" "$work/cap" -o "$work/own.fmv" --grid 33 --no-texture --keyframe-fit off --quiet || fail "--keyframe-fit off"
 expect_error "inter dead zone" "--inter-dead-zone '1.5' is neither auto nor a number in" "$tools/fmenc" "$work/cap" -o "$work/c.fmv" --inter-dead-zone 1.5
