@@ -7,18 +7,13 @@
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/sequence/frame_patch.hpp"
 #include "codec/encoder/encode/patch_fit.hpp"
+#include "codec/encoder/encode/patch_solve.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include <cstddef>
 #include <vector>
 
 namespace facemorph {
-
-// A point of one surface, where on the disk it lies and the offset to the other surface.
-struct OffsetSample {
-  Vec2 w;
-  Vec3 offset;  // to the captured surface, capture coordinates
-};
 
 // What a frame's unpatched surface measured against its captured mesh, all that exact() needs of it:
 // the fit keeps it between its passes (12 bytes a captured vertex, 8 a node) where it keeps the
