@@ -95,6 +95,9 @@ class PatchMeasure {
   std::vector<OffsetSample> samples_;
   // Where each anchor's and each shown vertex's sample sits in samples_ (-1: none), for samples_of.
   std::vector<int32_t> anchor_sample_, shown_sample_;
+  // Each unpatched vertex's nearest captured face (the first constructor's; empty with kept
+  // distances): where a search for the vertex moved a little starts (closest_from).
+  std::vector<int32_t> shown_face_;
   // shown_side's last position of each vertex and its distance (NaN: none yet): a measure is one
   // thread's (one frame's fit), so its const methods may keep this.
   mutable std::vector<Vec3> last_position_;
