@@ -23,6 +23,25 @@ double brute_force(const TriangleMesh& mesh, const Vec3& p) {
   return best;
 }
 
+// An icosphere and the same with every face twice (exact ties everywhere, the copy the higher index).
+std::pair<TriangleMesh, TriangleMesh> sphere_and_doubled() {
+  TriangleMesh sphere = testing::icosphere(1.0, 3);
+  TriangleMesh doubled = sphere;
+  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  return {sphere, doubled};
+}
+
+// Query i of a search test: a vertex of the mesh (ties between the faces around it), a point near
+// one, or one far off the surface, in turn.
+Vec3 probe(const TriangleMesh& mesh, int i, std::mt19937& rng) {
+  std::normal_distribution<double> jitter(0, 0.01);
+  std::uniform_real_distribution<double> far(-3, 3);
+  const Vec3& vertex = mesh.positions[static_cast<size_t>(i) % mesh.positions.size()];
+  if (i % 3 == 0) return vertex;
+  if (i % 3 == 1) return vertex + Vec3(jitter(rng), jitter(rng), jitter(rng));
+  return Vec3(far(rng), far(rng), far(rng));
+}
+
 TEST(Distance, BucketSearchMatchesBruteForceInsideAndFarOutside) {
   const TriangleMesh sphere = testing::icosphere(1.0, 2);
   const PointToMesh query(sphere);
@@ -98,12 +117,8 @@ TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
 // from. A skip rule that dropped a face as near as the best (without the slack, or a box measured
 // from the wrong corner) fails here.
 TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
-  TriangleMesh sphere = testing::icosphere(1.0, 3);
-  TriangleMesh doubled = sphere;
-  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  const auto [sphere, doubled] = sphere_and_doubled();
   std::mt19937 rng(11);
-  std::normal_distribution<double> jitter(0, 0.01);
-  std::uniform_real_distribution<double> far(-3, 3);
   for (const TriangleMesh* mesh : {&sphere, &doubled}) {
     const PointToMesh query(*mesh);
     const auto scan = [&](const Vec3& p, double& best) {
@@ -122,8 +137,7 @@ TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
     int ties = 0;
     std::uniform_int_distribution<int> any_face(0, static_cast<int>(mesh->faces.size()) - 1);
     for (int i = 0; i < 600; ++i) {
-      const Vec3& vertex = mesh->positions[static_cast<size_t>(i) % mesh->positions.size()];
-      const Vec3 p = i % 3 == 0 ? vertex : i % 3 == 1 ? Vec3(vertex + Vec3(jitter(rng), jitter(rng), jitter(rng))) : Vec3(far(rng), far(rng), far(rng));
+      const Vec3 p = probe(*mesh, i, rng);
       double expected = 0, squared = 0;
       const SurfacePoint want = scan(p, expected);
       const SurfacePoint got = query.closest_squared(p, squared);
@@ -156,18 +170,13 @@ TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
 // mesh); just below it, nothing nearer than the bound. A limit set at the bound without the slack,
 // or short of it, loses the nearest here.
 TEST(Distance, ABoundedClosestSquaredFindsTheNearestJustUnderItsBound) {
-  TriangleMesh sphere = testing::icosphere(1.0, 3);
-  TriangleMesh doubled = sphere;
-  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  const auto [sphere, doubled] = sphere_and_doubled();
   std::mt19937 rng(13);
-  std::normal_distribution<double> jitter(0, 0.01);
-  std::uniform_real_distribution<double> far(-3, 3);
   for (const TriangleMesh* mesh : {&sphere, &doubled}) {
     const PointToMesh query(*mesh);
     int found = 0;
     for (int i = 0; i < 600; ++i) {
-      const Vec3& vertex = mesh->positions[static_cast<size_t>(i) % mesh->positions.size()];
-      const Vec3 p = i % 3 == 0 ? Vec3(vertex * (1 + 1e-3)) : i % 3 == 1 ? Vec3(vertex + Vec3(jitter(rng), jitter(rng), jitter(rng))) : Vec3(far(rng), far(rng), far(rng));
+      const Vec3 p = probe(*mesh, i, rng);
       double expected = 0;
       const SurfacePoint want = query.closest_squared(p, expected);
       const double distance = std::sqrt(expected);
