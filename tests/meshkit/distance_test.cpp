@@ -23,6 +23,25 @@ double brute_force(const TriangleMesh& mesh, const Vec3& p) {
   return best;
 }
 
+// An icosphere and the same with every face twice (exact ties everywhere, the copy the higher index).
+std::pair<TriangleMesh, TriangleMesh> sphere_and_doubled() {
+  TriangleMesh sphere = testing::icosphere(1.0, 3);
+  TriangleMesh doubled = sphere;
+  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  return {sphere, doubled};
+}
+
+// Query i of a search test: a vertex of the mesh (ties between the faces around it), a point near
+// one, or one far off the surface, in turn.
+Vec3 probe(const TriangleMesh& mesh, int i, std::mt19937& rng) {
+  std::normal_distribution<double> jitter(0, 0.01);
+  std::uniform_real_distribution<double> far(-3, 3);
+  const Vec3& vertex = mesh.positions[static_cast<size_t>(i) % mesh.positions.size()];
+  if (i % 3 == 0) return vertex;
+  if (i % 3 == 1) return vertex + Vec3(jitter(rng), jitter(rng), jitter(rng));
+  return Vec3(far(rng), far(rng), far(rng));
+}
+
 TEST(Distance, BucketSearchMatchesBruteForceInsideAndFarOutside) {
   const TriangleMesh sphere = testing::icosphere(1.0, 2);
   const PointToMesh query(sphere);
@@ -94,15 +113,12 @@ TEST(Distance, ClosestPointIsTheNearestFaceWithItsBarycentrics) {
 // returns must be, to the bit, what a scan of every face returns (the smallest squared distance as
 // closest_point_barycentric computes it, of equal ones the lowest index), for points near the surface
 // (where the skips cut most), on it (at vertices: ties between the faces around one), far off it,
-// and on a mesh whose faces all come twice (exact ties everywhere). A skip rule that dropped a face
-// as near as the best (without the slack, or a box measured from the wrong corner) fails here.
+// and on a mesh whose faces all come twice (exact ties everywhere), with and without a face to start
+// from. A skip rule that dropped a face as near as the best (without the slack, or a box measured
+// from the wrong corner) fails here.
 TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
-  TriangleMesh sphere = testing::icosphere(1.0, 3);
-  TriangleMesh doubled = sphere;
-  doubled.faces.insert(doubled.faces.end(), sphere.faces.begin(), sphere.faces.end());
+  const auto [sphere, doubled] = sphere_and_doubled();
   std::mt19937 rng(11);
-  std::normal_distribution<double> jitter(0, 0.01);
-  std::uniform_real_distribution<double> far(-3, 3);
   for (const TriangleMesh* mesh : {&sphere, &doubled}) {
     const PointToMesh query(*mesh);
     const auto scan = [&](const Vec3& p, double& best) {
@@ -119,9 +135,9 @@ TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
       return point;
     };
     int ties = 0;
+    std::uniform_int_distribution<int> any_face(0, static_cast<int>(mesh->faces.size()) - 1);
     for (int i = 0; i < 600; ++i) {
-      const Vec3& vertex = mesh->positions[static_cast<size_t>(i) % mesh->positions.size()];
-      const Vec3 p = i % 3 == 0 ? vertex : i % 3 == 1 ? Vec3(vertex + Vec3(jitter(rng), jitter(rng), jitter(rng))) : Vec3(far(rng), far(rng), far(rng));
+      const Vec3 p = probe(*mesh, i, rng);
       double expected = 0, squared = 0;
       const SurfacePoint want = scan(p, expected);
       const SurfacePoint got = query.closest_squared(p, squared);
@@ -129,8 +145,55 @@ TEST(Distance, TheSearchsSkipsReturnWhatAScanOfEveryFaceReturnsToTheBit) {
       EXPECT_EQ(got.bary, want.bary) << i;
       EXPECT_EQ(squared, expected) << i;
       ties += i % 3 == 0;
+      // Started from a hint (closest_from): the nearest itself, a tie of a higher index (the doubled
+      // mesh's copy), any face, or none: the same answer. A hint kept where a lower face ties it, or
+      // whose distance were taken as a bound below the nearest, fails here.
+      const int copy = mesh == &doubled ? (want.face + static_cast<int>(sphere.faces.size())) % static_cast<int>(mesh->faces.size()) : want.face;
+      for (const int hint : {want.face, copy, any_face(rng), -1}) {
+        double distance = 0;
+        const SurfacePoint from = query.closest_from(p, hint, &distance);
+        ASSERT_EQ(from.face, want.face) << i << " hint " << hint;
+        EXPECT_EQ(from.bary, want.bary) << i << " hint " << hint;
+        EXPECT_EQ(distance, std::sqrt(expected)) << i << " hint " << hint;
+        double hinted = 0;
+        EXPECT_EQ(query.closest_squared(p, hinted, nullptr, std::numeric_limits<double>::infinity(), hint).face, want.face) << i;
+        EXPECT_EQ(hinted, expected) << i;
+      }
     }
     EXPECT_GT(ties, 100);
+  }
+}
+
+// closest_squared with a bound measures no box past it (its search starts there): just above the
+// nearest distance (as the patch measure's searches bound theirs, 1e-9 past a distance already
+// found) it still returns, to the bit, what an unbounded search returns, ties included (the doubled
+// mesh); just below it, nothing nearer than the bound. A limit set at the bound without the slack,
+// or short of it, loses the nearest here.
+TEST(Distance, ABoundedClosestSquaredFindsTheNearestJustUnderItsBound) {
+  const auto [sphere, doubled] = sphere_and_doubled();
+  std::mt19937 rng(13);
+  for (const TriangleMesh* mesh : {&sphere, &doubled}) {
+    const PointToMesh query(*mesh);
+    int found = 0;
+    for (int i = 0; i < 600; ++i) {
+      const Vec3 p = probe(*mesh, i, rng);
+      double expected = 0;
+      const SurfacePoint want = query.closest_squared(p, expected);
+      const double distance = std::sqrt(expected);
+      double squared = 0;
+      const SurfacePoint got = query.closest_squared(p, squared, nullptr, distance * (1 + 1e-9) + 1e-300);
+      ASSERT_EQ(got.face, want.face) << i;
+      EXPECT_EQ(got.bary, want.bary) << i;
+      EXPECT_EQ(squared, expected) << i;
+      found += got.face >= 0;
+      double below = 0;
+      const SurfacePoint none = query.closest_squared(p, below, nullptr, distance * (1 - 1e-6));
+      EXPECT_GE(below, distance * (1 - 1e-6) * distance * (1 - 1e-6)) << i;
+      if (none.face >= 0) {
+        EXPECT_GE(below, expected) << i;
+      }
+    }
+    EXPECT_EQ(found, 600);
   }
 }
 

@@ -8,12 +8,11 @@
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/decoder_team.hpp"
 #include "codec/encoder/encode/patch_measure.hpp"
+#include "codec/encoder/encode/patch_solve.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "format/byte_writer.hpp"
-
-#include <Eigen/Sparse>
 
 #include <algorithm>
 #include <chrono>
@@ -38,76 +37,18 @@ std::vector<Vec3> patched_positions(const DiskGrid& grid, const ShownFrame& show
 
 namespace {
 
-// The lattice cell holding coordinate x (as frame_patch's bilinear interpolation takes it).
-std::pair<int, double> cell_of(double x, int lattice) {
-  const double f = (x + 1) / 2 * (lattice - 1);
-  const int i = std::clamp(static_cast<int>(std::floor(f)), 0, lattice - 2);
-  return {i, f - i};
-}
-
-// Least squares over the moving nodes (`index`: node -> unknown, or -1): Σ |bilinear(D)(w) − offset|²
-// over the samples touching them, plus smoothing × (samples a moving node) × Σ over lattice edges
-// |D_a − D_b|² (a still node counts as 0), so a patch fades to 0 at its border.
-std::vector<Vec3> solve_displacements(const std::vector<OffsetSample>& samples, const std::vector<int>& index, int unknowns, int lattice,
-                                      double smoothing) {
-  std::vector<Eigen::Triplet<double>> entries;
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(unknowns, 3);
-  size_t rows = 0;
-  for (const OffsetSample& s : samples) {
-    const auto [i, a] = cell_of(s.w.x(), lattice);
-    const auto [j, b] = cell_of(s.w.y(), lattice);
-    const int corner[4] = {j * lattice + i, j * lattice + i + 1, (j + 1) * lattice + i, (j + 1) * lattice + i + 1};
-    const double weight[4] = {(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b};
-    bool touches = false;
-    for (int c = 0; c < 4; ++c) touches |= index[static_cast<size_t>(corner[c])] >= 0;
-    if (!touches) continue;
-    ++rows;
-    for (int c = 0; c < 4; ++c) {
-      const int p = index[static_cast<size_t>(corner[c])];
-      if (p < 0) continue;
-      rhs.row(p) += weight[c] * s.offset.transpose();
-      for (int e = 0; e < 4; ++e) {
-        const int q = index[static_cast<size_t>(corner[e])];
-        if (q >= 0) entries.emplace_back(p, q, weight[c] * weight[e]);
-      }
-    }
-  }
-  const double mu = smoothing * static_cast<double>(rows) / unknowns + 1e-9;
-  for (int b = 0; b < lattice; ++b) {
-    for (int a = 0; a < lattice; ++a) {
-      const int p = index[static_cast<size_t>(b * lattice + a)];
-      for (const int other : {a + 1 < lattice ? b * lattice + a + 1 : -1, b + 1 < lattice ? (b + 1) * lattice + a : -1}) {
-        if (other < 0) continue;
-        const int q = index[static_cast<size_t>(other)];
-        if (p < 0 && q < 0) continue;
-        if (p >= 0) entries.emplace_back(p, p, mu);
-        if (q >= 0) entries.emplace_back(q, q, mu);
-        if (p >= 0 && q >= 0) {
-          entries.emplace_back(p, q, -mu);
-          entries.emplace_back(q, p, -mu);
-        }
-      }
-    }
-  }
-  Eigen::SparseMatrix<double> normal(unknowns, unknowns);
-  normal.setFromTriplets(entries.begin(), entries.end());
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
-  const Eigen::MatrixXd x = solver.solve(rhs);
-  std::vector<Vec3> out(static_cast<size_t>(unknowns));
-  for (int p = 0; p < unknowns; ++p) out[static_cast<size_t>(p)] = x.row(p).transpose();
-  return out;
-}
-
 // The patch moving the lattice nodes near samples whose offset passes `threshold` (capture units),
 // fitted in two rounds (the second against the surface the first moved), rounded to `step` (units).
-FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double threshold, double step, const PatchFitOptions& options) {
+// `first`: the sums of measure.samples() on options.lattice.
+FramePatch fit_at_threshold(const PatchMeasure& measure, const PatchNormalSums& first, double t, double threshold, double step,
+                            const PatchFitOptions& options) {
   const ShownFrame& shown = measure.shown();
   const std::vector<OffsetSample>& first_samples = measure.samples();
   const int lattice = options.lattice;
   std::vector<int> index(static_cast<size_t>(lattice) * static_cast<size_t>(lattice), -1);
   for (const OffsetSample& s : first_samples) {
     if (s.offset.norm() <= threshold) continue;
-    const int i = cell_of(s.w.x(), lattice).first, j = cell_of(s.w.y(), lattice).first;
+    const int i = patch_cell_of(s.w.x(), lattice).first, j = patch_cell_of(s.w.y(), lattice).first;
     for (const int node : {j * lattice + i, j * lattice + i + 1, (j + 1) * lattice + i, (j + 1) * lattice + i + 1})
       index[static_cast<size_t>(node)] = 0;
   }
@@ -121,14 +62,14 @@ FramePatch fit_at_threshold(const PatchMeasure& measure, double t, double thresh
   if (nodes.empty()) return patch;
   const int unknowns = static_cast<int>(nodes.size());
   // Capture coordinates while fitting; the file holds the face frame's (the pose's rotation undone).
-  std::vector<Vec3> total = solve_displacements(first_samples, index, unknowns, lattice, options.smoothing);
+  std::vector<Vec3> total = first.solve(index, unknowns, options.smoothing);
   FramePatch trial = patch;
   trial.nodes = nodes;
   const Eigen::Matrix3d to_face = shown.pose.rotation.transpose();
   for (const Vec3& d : total) trial.displacements.push_back(to_face * d);
   const TriangleMesh moved = measure.patched(trial);
   const std::vector<OffsetSample> second = measure.samples_of(moved);
-  const std::vector<Vec3> more = solve_displacements(second, index, unknowns, lattice, options.smoothing);
+  const std::vector<Vec3> more = PatchNormalSums(second, lattice, &index).solve(index, unknowns, options.smoothing);
   for (int p = 0; p < unknowns; ++p) {
     const Vec3 code = (to_face * (total[static_cast<size_t>(p)] + more[static_cast<size_t>(p)]) / step).array().round();
     if (code.isZero()) continue;
@@ -160,9 +101,11 @@ PatchFit fit_measured(const PatchMeasure& measure, double t, const PatchFitOptio
   FramePatch nearest;  // of the tries none of which met the bound, the lowest approximate p99
   double nearest_p99 = best.p99_before;
   bool met = false;
+  // Every threshold's first solve sums the same samples: gathered once.
+  const PatchNormalSums first(measure.samples(), options.lattice);
   for (const double share : {1.0, 0.9, 0.8, 0.65, 0.5, 0.4, 0.3}) {
     const double threshold = share * options.bound;
-    FramePatch patch = fit_at_threshold(measure, t, threshold * diagonal, options.step_units, options);
+    FramePatch patch = fit_at_threshold(measure, first, t, threshold * diagonal, options.step_units, options);
     const double approximate = measure.approximate(patch) / diagonal;
     double exact = 0;
     if (approximate <= options.bound && exact_meets(patch, exact)) {

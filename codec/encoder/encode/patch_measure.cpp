@@ -47,6 +47,14 @@ std::vector<Vec2> vertex_disk_points(const TriangleMesh& shown) {
   return w;
 }
 
+// The distance from p to `mesh` where under `bound` (closest_squared's search, which measures no
+// face farther), else at least `bound` (infinity where nothing is nearer).
+double distance_within(const PointToMesh& mesh, const Vec3& p, double bound) {
+  double squared = 0;
+  mesh.closest_squared(p, squared, nullptr, bound);
+  return std::sqrt(squared);
+}
+
 }  // namespace
 
 // The faces of a patched mesh that the patch moved (a vertex of theirs differs from the unpatched
@@ -109,21 +117,29 @@ PatchMeasure::PatchMeasure(const DiskGrid& grid, const ShownFrame& shown, const 
   // One search for each vertex of either mesh gives its distance and, for the samples, its point.
   std::vector<SurfacePoint> on_captured(before.positions.size()), on_before;
   distances_.shown.assign(before.positions.size(), -1);
+  // Each search starts from the vertex before's nearest face (a neighbour's on either mesh: near the
+  // nearest), which changes no result (closest_from), only the faces measured.
+  int hint = -1;
   for (size_t v = 0; v < before.positions.size(); ++v) {
     if (!before_used[v]) continue;
-    on_captured[v] = to_captured_.closest(before.positions[v], &distances_.shown[v]);
+    on_captured[v] = to_captured_.closest_from(before.positions[v], hint, &distances_.shown[v]);
+    hint = on_captured[v].face;
     distances.push_back(distances_.shown[v]);
   }
+  hint = -1;
   for (size_t v = 0; v < captured.positions.size(); ++v) {
     if (!captured_used[v]) continue;
     double squared = 0;
-    on_before.push_back(to_before_.closest_squared(captured.positions[v], squared));
+    on_before.push_back(to_before_.closest_squared(captured.positions[v], squared, nullptr, std::numeric_limits<double>::infinity(), hint));
+    hint = on_before.back().face;
     anchor_vertex_.push_back(static_cast<int32_t>(v));
     distances_.anchor_face.push_back(on_before.back().face);
     distances_.anchor_squared.push_back(squared);
     distances.push_back(std::sqrt(squared));
   }
   distances_.p99 = nearest_rank_p99(distances);
+  shown_face_.resize(on_captured.size());
+  for (size_t v = 0; v < on_captured.size(); ++v) shown_face_[v] = on_captured[v].face;
   if (distances_.p99 <= 0) return;
   // The samples: the captured vertices', then the shown vertices' (the order the fit sums them in).
   anchor_sample_.assign(anchor_vertex_.size(), -1);
@@ -186,7 +202,7 @@ std::vector<OffsetSample> PatchMeasure::samples_of(const TriangleMesh& mesh) con
       out.push_back(unpatched);
       continue;
     }
-    const SurfacePoint s = to_captured_.closest(mesh.positions[v]);
+    const SurfacePoint s = to_captured_.closest_from(mesh.positions[v], shown_face_[v]);  // from where it was
     if (s.face >= 0) out.push_back({unpatched.w, position_on(captured_, s) - mesh.positions[v]});
   }
   return out;
@@ -243,7 +259,7 @@ double PatchMeasure::exact_at(const std::vector<Vec3>& positions) const {
     if (face < 0 || moved.empty()) {
       distances.push_back(unpatched);
     } else if (!moved.moved(face)) {  // the nearest still face: the unpatched nearest
-      distances.push_back(std::min(unpatched, moved.locator().distance_below(p, unpatched)));
+      distances.push_back(std::min(unpatched, distance_within(moved.locator(), p, unpatched)));
     } else {  // its face moved: the moved faces (near p) first, then the still ones
       const double to_moved = moved.locator().distance(p);
       double still = 0;
@@ -277,7 +293,7 @@ double PatchMeasure::approximate(const FramePatch& patch) const {
                                                   before_.positions[static_cast<size_t>(f[2])]);
       bound = (p - position_on(mesh, SurfacePoint{face, bary})).norm();
     }
-    distances.push_back(moved.empty() ? bound : std::min(bound, moved.locator().distance_below(p, bound)));
+    distances.push_back(moved.empty() ? bound : std::min(bound, distance_within(moved.locator(), p, bound)));
   }
   return nearest_rank_p99(distances);
 }
@@ -306,7 +322,7 @@ std::vector<double> PatchMeasure::shown_side(const TriangleMesh& mesh) const {
     // differ in a few lattice nodes) keeps that distance: a function of the position alone.
     if (!(p == last_position_[v])) {
       last_position_[v] = p;
-      last_distance_[v] = to_captured_.distance(p);
+      to_captured_.closest_from(p, v < shown_face_.size() ? shown_face_[v] : -1, &last_distance_[v]);
     }
     distances.push_back(last_distance_[v]);
   }

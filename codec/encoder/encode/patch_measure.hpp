@@ -7,18 +7,13 @@
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/sequence/frame_patch.hpp"
 #include "codec/encoder/encode/patch_fit.hpp"
+#include "codec/encoder/encode/patch_solve.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include <cstddef>
 #include <vector>
 
 namespace facemorph {
-
-// A point of one surface, where on the disk it lies and the offset to the other surface.
-struct OffsetSample {
-  Vec2 w;
-  Vec3 offset;  // to the captured surface, capture coordinates
-};
 
 // What a frame's unpatched surface measured against its captured mesh, all that exact() needs of it:
 // the fit keeps it between its passes (12 bytes a captured vertex, 8 a node) where it keeps the
@@ -100,6 +95,9 @@ class PatchMeasure {
   std::vector<OffsetSample> samples_;
   // Where each anchor's and each shown vertex's sample sits in samples_ (-1: none), for samples_of.
   std::vector<int32_t> anchor_sample_, shown_sample_;
+  // Each unpatched vertex's nearest captured face (the first constructor's; empty with kept
+  // distances): where a search for the vertex moved a little starts (closest_from).
+  std::vector<int32_t> shown_face_;
   // shown_side's last position of each vertex and its distance (NaN: none yet): a measure is one
   // thread's (one frame's fit), so its const methods may keep this.
   mutable std::vector<Vec3> last_position_;

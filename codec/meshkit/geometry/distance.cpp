@@ -138,11 +138,19 @@ SurfacePoint PointToMesh::closest(const Vec3& p, double* distance) const {
   return point;
 }
 
-SurfacePoint PointToMesh::closest_squared(const Vec3& p, double& squared, const std::vector<char>* skip_face, double bound) const {
-  return nearest(p, squared, bound, skip_face);
+SurfacePoint PointToMesh::closest_from(const Vec3& p, int hint, double* distance) const {
+  double squared = 0;
+  const SurfacePoint point = nearest(p, squared, std::numeric_limits<double>::infinity(), nullptr, false, hint);
+  if (distance) *distance = std::sqrt(squared);
+  return point;
 }
 
-SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, const std::vector<char>* skip_face) const {
+SurfacePoint PointToMesh::closest_squared(const Vec3& p, double& squared, const std::vector<char>* skip_face, double bound, int hint) const {
+  return nearest(p, squared, bound, skip_face, true, hint);
+}
+
+SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, const std::vector<char>* skip_face, bool skip_past_bound,
+                                   int hint) const {
   SurfacePoint point;
   best = std::numeric_limits<double>::infinity();
   if (mesh_.faces.empty()) return point;
@@ -154,8 +162,27 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, con
   // The squared distance past which a box holds nothing as near as `best`: a face's nearest point to
   // p lies in its box and in a cell the face is listed in, so the face that wins (ties included) is
   // never skipped, and the search finds what a search without skips finds.
+  // Where the caller needs nothing `bound` or farther (closest_squared), no box past it (and the
+  // slack) is measured either: a face nearer than `bound` is still found, ties included.
   double limit = std::numeric_limits<double>::infinity();
+  if (skip_past_bound && bound < std::numeric_limits<double>::infinity()) limit = (bound + slack_) * (bound + slack_);
   const auto box_squared = [&p](const Vec3& lo, const Vec3& hi) { return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).squaredNorm(); };
+  // The face's squared distance; the nearest so far where it is nearer (or as near, of a lower index).
+  const auto measure = [&](int face) {
+    const Face& f = mesh_.faces[static_cast<size_t>(face)];
+    const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
+    const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
+    const Vec3& v2 = mesh_.positions[static_cast<size_t>(f[2])];
+    const Vec3 bary = closest_point_barycentric(p, v0, v1, v2);
+    const double squared = (bary[0] * v0 + bary[1] * v1 + bary[2] * v2 - p).squaredNorm();
+    // Buckets are visited out of face order (and share faces): the index breaks ties. A hint
+    // measured first is measured again in its cells and changes nothing there.
+    if (squared < best || (squared == best && face < point.face)) {
+      best = squared;
+      point = {face, bary};
+      limit = std::min(limit, (std::sqrt(best) + slack_) * (std::sqrt(best) + slack_));
+    }
+  };
   const auto visit = [&](int x, int y, int z) {
     const size_t bucket = static_cast<size_t>((z * ny_ + y) * nx_ + x);
     if (start_[bucket] == start_[bucket + 1]) return;
@@ -165,21 +192,10 @@ SurfacePoint PointToMesh::nearest(const Vec3& p, double& best, double bound, con
       const int face = faces_[static_cast<size_t>(i)];
       if (skip_face && (*skip_face)[static_cast<size_t>(face)]) continue;
       if (box_squared(boxes_[static_cast<size_t>(face)].lo, boxes_[static_cast<size_t>(face)].hi) > limit) continue;
-      const Face& f = mesh_.faces[static_cast<size_t>(face)];
-      const Vec3& v0 = mesh_.positions[static_cast<size_t>(f[0])];
-      const Vec3& v1 = mesh_.positions[static_cast<size_t>(f[1])];
-      const Vec3& v2 = mesh_.positions[static_cast<size_t>(f[2])];
-      const Vec3 bary = closest_point_barycentric(p, v0, v1, v2);
-      const double squared = (bary[0] * v0 + bary[1] * v1 + bary[2] * v2 - p).squaredNorm();
-      // Buckets are visited out of face order (and share faces): the index breaks ties.
-      if (squared < best || (squared == best && face < point.face)) {
-        best = squared;
-        point = {face, bary};
-        limit = std::sqrt(best) + slack_;
-        limit *= limit;
-      }
+      measure(face);
     }
   };
+  if (hint >= 0 && static_cast<size_t>(hint) < mesh_.faces.size() && !(skip_face && (*skip_face)[static_cast<size_t>(hint)])) measure(hint);
   for (int shell = 0; shell <= max_shell; ++shell) {
     // The cells of this shell alone (Chebyshev distance `shell` from c), in z, y, x order: its two
     // z faces whole, between them the two y rows whole and the two x ends of the others (a shell

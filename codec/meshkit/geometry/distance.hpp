@@ -39,19 +39,28 @@ class PointToMesh {
   // lowest index wins, as in a scan over all faces. Face -1 for a mesh without faces. `distance`:
   // where given, distance(p), from the same search.
   SurfacePoint closest(const Vec3& p, double* distance = nullptr) const;
+  // closest(), the search started from face `hint` (its distance the first bound on the nearest, so
+  // that the boxes past it are skipped from the first cell): the same face, coordinates and distance
+  // to the bit, whatever the hint (-1: none). A neighbour's nearest face, or the same point's before
+  // it moved a little, is a hint near the nearest.
+  SurfacePoint closest_from(const Vec3& p, int hint, double* distance = nullptr) const;
   // closest() with its squared distance (`squared`: infinity where no face is left), over the faces
   // `skip_face` (one flag a face, where given) does not mark: a caller whose mesh changed in a few
   // faces searches the rest here and the changed ones in a locator of their own. The squared
   // distances of both searches compare as one search's would (ties: the lower face index). Faces
-  // `bound` or farther away may go unsearched (as distance_below's): where the nearest is nearer
-  // than `bound` it is found, ties included; otherwise what comes back is at least `bound` away.
+  // `bound` or farther away go unsearched, and unmeasured (distance_below measures the faces of the
+  // cells it visits): where the nearest is nearer than `bound` it is found, ties included; otherwise
+  // what comes back is at least `bound` away, or nothing (face -1, infinity).
+  // `hint`: as closest_from's.
   SurfacePoint closest_squared(const Vec3& p, double& squared, const std::vector<char>* skip_face = nullptr,
-                               double bound = std::numeric_limits<double>::infinity()) const;
+                               double bound = std::numeric_limits<double>::infinity(), int hint = -1) const;
 
  private:
-  // best: its squared distance; the search ends once nothing nearer than `bound` can be left.
+  // best: its squared distance; the search ends once nothing nearer than `bound` can be left, and
+  // with `skip_past_bound` skips from the start the boxes farther than `bound`; `hint` (>= 0): a
+  // face measured first.
   SurfacePoint nearest(const Vec3& p, double& best, double bound = std::numeric_limits<double>::infinity(),
-                       const std::vector<char>* skip_face = nullptr) const;
+                       const std::vector<char>* skip_face = nullptr, bool skip_past_bound = false, int hint = -1) const;
 
   // A face's axis-aligned box: a search skips a face (and a cell) whose box is farther from p than
   // the nearest face found so far, plus `slack_`, without measuring it.
