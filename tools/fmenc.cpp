@@ -634,6 +634,14 @@ void print_keyframes(const Summary& s) {
         100 * s.report.blend.positions_error,
         s.report.representation == Representation::kXYZ ? " (--representation hl+t stores the fields)" : "");
   }
+  if (s.report.representation_rate.measured) {
+    const RepresentationRate& r = s.report.representation_rate;
+    std::printf(
+        "  representation %s (auto, by bytes at equal error): hl+t %llu B at %.4f%%, xyz %llu B at %.4f%% (keyframes' bytes; held-out "
+        "RMS of the diagonal on %d frames); bytes x RMS^%g the lower; %.1f s\n",
+        representation_name(s.report.representation), static_cast<unsigned long long>(r.fields.bytes), 100 * r.fields.held_rms,
+        static_cast<unsigned long long>(r.positions.bytes), 100 * r.positions.held_rms, r.fields.frames, kRateErrorExponent, r.seconds);
+  }
   if (!s.report.sparse && s.report.keyframe_budget > 0 &&
       static_cast<int>(s.sequence->shape().keyframes.size()) > s.report.keyframe_budget) {
     std::printf(

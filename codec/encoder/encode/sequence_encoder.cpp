@@ -6,6 +6,8 @@
 // one-process encode and the staged and segmented encodes alike.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
+#include "codec/encoder/encode/representation_rate.hpp"
+
 #include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"
 
@@ -314,12 +316,48 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
   return sequence;
 }
 
+std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
+                                                                 std::unique_ptr<StoredSequence> fields) {
+  // Only where the representation is the encoder's to choose and the fields are still in the
+  // running (the blends or a radial disk did not already choose positions, the fields converged).
+  report_.representation_rate = {};
+  if (settings.plan.representation || auto_representation_ != Representation::kHLT) return fields;
+  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
+  const auto start = std::chrono::steady_clock::now();
+  const std::optional<double> fields_rms = held_out_rms(capture_, *fields, trials, settings.threads);
+  if (!fields_rms) return fields;
+  RepresentationRate rate;
+  rate.measured = true;
+  rate.fields = {Representation::kHLT, geometry_bytes(*fields, report_.field_coding), *fields_rms, static_cast<int>(trials.size())};
+  // The positions on the same keyframes, rounded to the same target; the fields' report kept aside
+  // (its stages' figures are the file's if the fields stay).
+  EncodeReport fields_report = report_;
+  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  adopt_representation(Representation::kXYZ, fields_report.blend);
+  std::unique_ptr<StoredSequence> positions = build(settings.build, chosen.keyframes, grid, nullptr);
+  if (settings.predicted_fields) report_.field_coding = round_fields(precision, *positions, report_);
+  rate.positions = {Representation::kXYZ, geometry_bytes(*positions, report_.field_coding),
+                    held_out_rms(capture_, *positions, trials, settings.threads).value_or(0), static_cast<int>(trials.size())};
+  rate.seconds = seconds_since(start);
+  if (cheaper_at_equal_error(rate.fields, rate.positions) == Representation::kXYZ) {
+    report_.representation_rate = rate;
+    report_.seconds_representation += rate.seconds;
+    return positions;
+  }
+  report_ = std::move(fields_report);
+  adopt_representation(Representation::kHLT, report_.blend);
+  report_.representation_rate = rate;
+  report_.seconds_representation += rate.seconds;
+  return fields;
+}
+
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
         if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
       });
+  sequence = choose_by_bytes(settings, chosen, grid, std::move(sequence));
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
   if (settings.residual_frames && residuals_pay(chosen)) {
