@@ -15,7 +15,9 @@
 namespace facemorph {
 namespace {
 
-RateCandidate candidate(Representation r, uint64_t bytes, double rms) { return {r, bytes, rms, 8}; }
+RateCandidate candidate(Representation r, uint64_t bytes, double rms, int grid = 257, bool coarser = false) {
+  return {r, grid, coarser, bytes, rms, 8};
+}
 
 // Where one candidate is clearly smaller at the same error it is kept, whichever it is; an error
 // lower by more than the exchange rate pays for more bytes; nothing measured keeps the fields.
@@ -43,6 +45,26 @@ TEST(RepresentationRate, TheSmallerAtEqualErrorIsKept) {
   EXPECT_DOUBLE_EQ(rate_cost(candidate(kHLT, 1000, 0.5)), 1000 * std::pow(0.5, kRateErrorExponent));
 }
 
+// A coarser N competes only within the tolerance; at --grid auto's N every candidate does.
+TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
+  using enum Representation;
+  const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
+                                            candidate(kHLT, 18923, 0.003061, 129, true), candidate(kXYZ, 14666, 0.003061, 129, true)};
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005), 3u);  // ict2k24 as measured: xyz at N = 129
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003), 1u);  // a tolerance under N = 129's error: xyz at 257
+  std::vector<RateCandidate> far = ict2k;
+  far[3].held_rms = 0.0045;  // within the tolerance, but 2.2x the error for 3.4x fewer bytes
+  far[2].held_rms = 0.0045;
+  EXPECT_EQ(cheapest_at_equal_error(far, 0.005), 1u);
+  // Two at the planned N: the rule of two.
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005), 0u);
+
+  EXPECT_EQ(worst_region_grid({{97, 0.00966}, {129, 0.00602}, {193, 0.0014}, {257, 0.00053}}, 0.0075, 257), 129);
+  EXPECT_EQ(worst_region_grid({{129, 0.0195}, {193, 0.00809}, {257, 0.0005}}, 0.0075, 257), 0);  // ict24: none coarser
+  EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
+}
+
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
   EXPECT_EQ(rate_trial_frames({0, 1, 2}), std::vector<int>{});  // nothing between
   EXPECT_EQ(rate_trial_frames({0}), std::vector<int>{});
@@ -67,16 +89,23 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   const Sequence chosen = encode_capture(capture, options, &report);
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
-  EXPECT_EQ(rate.fields.representation, Representation::kHLT);
-  EXPECT_EQ(rate.positions.representation, Representation::kXYZ);
-  for (const RateCandidate* c : {&rate.fields, &rate.positions}) {
-    EXPECT_GT(c->bytes, 1000u);
-    EXPECT_GT(c->held_rms, 0);
-    EXPECT_LT(c->held_rms, 0.01);  // a decoded face, not a failed one
-    EXPECT_GE(c->frames, 1);
+  ASSERT_GE(rate.candidates.size(), 2u);
+  const RateCandidate& fields = rate.candidates[0];
+  const RateCandidate& positions = rate.candidates[1];
+  EXPECT_EQ(fields.representation, Representation::kHLT);
+  EXPECT_EQ(positions.representation, Representation::kXYZ);
+  EXPECT_EQ(fields.grid, positions.grid);
+  for (const RateCandidate& c : rate.candidates) {
+    EXPECT_GT(c.bytes, 500u);
+    EXPECT_GT(c.held_rms, 0);
+    EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
+    EXPECT_GE(c.frames, 1);
   }
-  EXPECT_EQ(report.representation, cheaper_at_equal_error(rate.fields, rate.positions));
-  EXPECT_EQ(chosen.representation, report.representation);
+  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance));
+  const RateCandidate& kept = rate.candidates[rate.chosen];
+  EXPECT_EQ(report.representation, kept.representation);
+  EXPECT_EQ(chosen.representation, kept.representation);
+  EXPECT_EQ(chosen.grid_n, kept.grid);
   EXPECT_EQ(report.representation, Representation::kHLT);
   // The rounded keyframes as either representation asked for alone: the same bytes.
   for (const Representation r : {Representation::kHLT, Representation::kXYZ}) {
@@ -85,7 +114,7 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
     EncodeReport forced_report;
     const std::unique_ptr<StoredSequence> stored = encode_capture_stored(capture, forced, &forced_report);
     EXPECT_FALSE(forced_report.representation_rate.measured);  // asked for: nothing chosen
-    EXPECT_EQ(geometry_bytes(*stored, forced_report.field_coding), r == Representation::kHLT ? rate.fields.bytes : rate.positions.bytes);
+    EXPECT_EQ(geometry_bytes(*stored, forced_report.field_coding), r == Representation::kHLT ? fields.bytes : positions.bytes);
   }
 }
 

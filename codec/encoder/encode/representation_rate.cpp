@@ -1,4 +1,4 @@
-// The representation chosen by bytes at equal error: the measures and the rule
+// The representation and N chosen by bytes at equal error: the measures and the rule
 // (representation_rate.hpp, spec/method.md §7.14).
 #include "codec/encoder/encode/representation_rate.hpp"
 
@@ -26,6 +26,24 @@ double rate_cost(const RateCandidate& candidate) {
 
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions) {
   return rate_cost(positions) < rate_cost(fields) ? Representation::kXYZ : Representation::kHLT;
+}
+
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance) {
+  size_t best = 0;
+  for (size_t i = 1; i < candidates.size(); ++i) {
+    const RateCandidate& c = candidates[i];
+    if (c.coarser && !(c.held_rms <= tolerance)) continue;
+    if (rate_cost(c) < rate_cost(candidates[best])) best = i;
+  }
+  return best;
+}
+
+int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid) {
+  int coarsest = 0;
+  for (const auto& [n, p99] : floor_p99s) {
+    if (n < grid && p99 <= worst_target && (coarsest == 0 || n < coarsest)) coarsest = n;
+  }
+  return coarsest;
 }
 
 std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {

@@ -1,8 +1,10 @@
-// The representation chosen by bytes at equal error (issue 44 part 5; spec/method.md §7.14): where
-// the options leave it open and the blends did not already rule the fields out, the encoder codes
-// the chosen keyframes both ways (hl+t and xyz, each rounded to the same target error), measures
-// each one's geometry bytes as the file would hold them and its held-out error on a few decoded
-// frames against their captured meshes, and keeps the one with the lower bytes · error^k.
+// The representation and N chosen by bytes at equal error (issue 44 part 5; spec/method.md §7.14):
+// where the options leave the representation open and the blends did not already rule the fields
+// out, the encoder codes the chosen keyframes both ways (hl+t and xyz, each rounded to the same
+// target error), and where --grid auto's worst region alone allowed a coarser N, both ways at that
+// N too; it measures each one's geometry bytes as the file would hold them and its held-out error on
+// a few decoded frames against their captured meshes, and keeps the one with the lowest
+// bytes · error^k (a coarser N only where its error stays within the tolerance).
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
@@ -10,6 +12,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -23,6 +26,8 @@ class StoredSequence;
 // (fmbench's held-out RMS, on a sample of the frames between keyframes).
 struct RateCandidate {
   Representation representation = Representation::kHLT;
+  int grid = 0;         // N
+  bool coarser = false;  // N coarser than --grid auto's: kept only within the tolerance
   uint64_t bytes = 0;
   double held_rms = 0;
   int frames = 0;  // trial frames measured
@@ -31,8 +36,10 @@ struct RateCandidate {
 // What the comparison measured, for the report (measured false: no comparison ran).
 struct RepresentationRate {
   bool measured = false;
-  RateCandidate fields, positions;  // hl+t and xyz
-  double seconds = 0;               // the second candidate's build and rounding, and both measures
+  std::vector<RateCandidate> candidates;  // hl+t and xyz at --grid auto's N, then at the coarser N where tried
+  size_t chosen = 0;
+  double tolerance = 0;  // the held-out RMS a coarser N must stay within (fraction of the diagonal)
+  double seconds = 0;    // the other candidates' builds and roundings, and every measure
 };
 
 // The exchange rate between bytes and held-out error: two candidates are compared by bytes · RMS^k,
@@ -50,6 +57,14 @@ double rate_cost(const RateCandidate& candidate);
 // The candidate the rule keeps: xyz only where its cost is strictly lower than hl+t's (a tie keeps
 // the fields, which turn with a rotating head rather than cutting its chords: spec/method.md §5.2).
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions);
+// Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
+// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`; ties keep the
+// earlier.
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance);
+
+// The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
+// `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
+int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid);
 
 // The frames (capture indices) strictly between the first and last keyframes that are not keyframes,
 // at most kRateTrials of them spread evenly (the first and the last kept).

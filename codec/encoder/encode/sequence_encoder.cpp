@@ -326,29 +326,49 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const auto start = std::chrono::steady_clock::now();
   const std::optional<double> fields_rms = held_out_rms(capture_, *fields, trials, settings.threads);
   if (!fields_rms) return fields;
+  const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
-  rate.fields = {Representation::kHLT, geometry_bytes(*fields, report_.field_coding), *fields_rms, static_cast<int>(trials.size())};
-  // The positions on the same keyframes, rounded to the same target; the fields' report kept aside
-  // (its stages' figures are the file's if the fields stay).
-  EncodeReport fields_report = report_;
+  rate.tolerance = options_.max_error > 0 ? options_.max_error : options_.keyframe_error_bound;
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), *fields_rms, frames});
+  // The others on the same keyframes, each rounded to the same target: xyz at this N, then both at
+  // the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
+  // its report (its stages' figures are the file's).
+  struct Kept {
+    std::unique_ptr<StoredSequence> sequence;
+    EncodeReport report;
+  };
+  Kept best{std::move(fields), report_};
+  const EncodeReport planned = report_;
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
-  adopt_representation(Representation::kXYZ, fields_report.blend);
-  std::unique_ptr<StoredSequence> positions = build(settings.build, chosen.keyframes, grid, nullptr);
-  if (settings.predicted_fields) report_.field_coding = round_fields(precision, *positions, report_);
-  rate.positions = {Representation::kXYZ, geometry_bytes(*positions, report_.field_coding),
-                    held_out_rms(capture_, *positions, trials, settings.threads).value_or(0), static_cast<int>(trials.size())};
-  rate.seconds = seconds_since(start);
-  if (cheaper_at_equal_error(rate.fields, rate.positions) == Representation::kXYZ) {
-    report_.representation_rate = rate;
-    report_.seconds_representation += rate.seconds;
-    return positions;
+  std::vector<std::pair<Representation, int>> others{{Representation::kXYZ, grid}};
+  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
+  if (coarser > 0) others.insert(others.end(), {{Representation::kHLT, coarser}, {Representation::kXYZ, coarser}});
+  for (const auto& [representation, n] : others) {
+    report_ = planned;
+    adopt_representation(representation, planned.blend);
+    std::unique_ptr<StoredSequence> sequence;
+    try {
+      sequence = build(settings.build, chosen.keyframes, n, nullptr);
+      if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kNotConverged) throw;
+      continue;  // fields that do not reconstruct at this N: not a candidate
+    }
+    const std::optional<double> rms = held_out_rms(capture_, *sequence, trials, settings.threads);
+    rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms.value_or(0), frames});
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
+      report_.grid = n;
+      best = {std::move(sequence), report_};
+    }
   }
-  report_ = std::move(fields_report);
-  adopt_representation(Representation::kHLT, report_.blend);
-  report_.representation_rate = rate;
-  report_.seconds_representation += rate.seconds;
-  return fields;
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
+  rate.seconds = seconds_since(start);
+  report_ = std::move(best.report);
+  adopt_representation(rate.candidates[rate.chosen].representation, planned.blend);
+  report_.representation_rate = std::move(rate);
+  report_.seconds_representation += report_.representation_rate.seconds;
+  return std::move(best.sequence);
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
