@@ -5,6 +5,7 @@
 #include "format/error.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/decoder_team.hpp"
+#include "codec/encoder/encode/geometry_trial_source.hpp"
 #include "codec/encoder/encode/patch_fit.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
@@ -59,31 +60,15 @@ std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {
 
 namespace {
 
-// The stored keyframes without their textures: what the two representations store differently.
-class GeometryOnly final : public KeyframeSource {
+// The stored keyframes as they are (textures left out): what the two representations store differently.
+class GeometryOnly final : public GeometryTrialSource {
  public:
-  explicit GeometryOnly(const StoredSequence& stored) : stored_(stored), outline_(stored.outline()) { outline_.texture_size = 0; }
-  const SequenceOutline& outline() const override { return outline_; }
+  explicit GeometryOnly(const StoredSequence& stored) : GeometryTrialSource(stored.outline(), "the representation's bytes"), stored_(stored) {}
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override { return stored_.keyframe(k); }
-  std::shared_ptr<const Image> texture(size_t) const override {
-    throw Error(ErrorCode::kInternal, "the representation's bytes: the geometry has no textures");
-  }
-  size_t surfaces_kept() const override { return 1; }
-  uint64_t bytes_held() const override { return 0; }
 
  private:
   const StoredSequence& stored_;
-  SequenceOutline outline_;
 };
-
-DecodeOptions measured_decode() {
-  DecodeOptions o;
-  o.texture = false;
-  o.ignore_sane_range = true;
-  o.continue_correction = false;  // each frame a function of t alone
-  o.reconstruct.throw_on_failure = false;
-  return o;
-}
 
 }  // namespace
 
@@ -103,7 +88,7 @@ std::optional<double> held_out_rms(const Capture& capture, const StoredSequence&
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
   DecoderTeam team(source, threads, frames.size());
   const DiskGrid& grid = team.first().geometry().grid();
-  const DecodeOptions options = measured_decode();
+  const DecodeOptions options = shown_decode();
   std::vector<double> rms(frames.size(), 0);
   team.for_each(frames.size(), [&](SequenceDecoder& decoder, size_t j) {
     const auto i = static_cast<size_t>(frames[j]);
