@@ -29,6 +29,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -78,7 +79,7 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     grid = given ? given->grid_n : choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &main_chosen);
   });
   if (!given) timed("representation", [&] { adopt_chosen_representation(encoder, main_chosen, grid); });
-  const Representation main_representation = given ? given->representation : encoder.representation();
+  Representation main_representation = given ? given->representation : encoder.representation();
   progress.finish();
 
   // Facemorph's texture PSNR per frame (and the baselines' on the sample frames) as frames decode.
@@ -108,7 +109,9 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
   // As fmenc stores it: the driver's steps once the keyframes are chosen (SequenceEncoder::code: the
   // keyframes built, their fields rounded, the residual frames fitted to them as stored, the
   // textures' qualities and sharing), the file written with the coding they chose and read back.
-  auto encode_file = [&](const KeyframeSelection& chosen, int n, Representation representation, std::vector<uint8_t>& bytes,
+  // An unset representation is the encoder's to choose, with N, by bytes at equal error, as fmenc's is
+  // (SequenceEncoder::choose_by_bytes; the main point only).
+  auto encode_file = [&](const KeyframeSelection& chosen, int n, std::optional<Representation> representation, std::vector<uint8_t>& bytes,
                          SequenceFileInfo& info) {
     const std::string variant = representation == Representation::kXYZ && main_representation != Representation::kXYZ ? " (xyz)" : "";
     encoder.options().representation = representation;
@@ -161,7 +164,10 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     main_bytes.resize(given_info.file_bytes);
   } else {
     main_keys = main_chosen.keyframes;
-    main_sequence = encode_file(main_chosen, grid, main_representation, main_bytes, main_info);
+    main_sequence = encode_file(main_chosen, grid, encode.representation ? std::optional(main_representation) : std::nullopt, main_bytes,
+                                main_info);
+    main_representation = main_sequence.representation;
+    grid = main_sequence.grid_n;
   }
   points.residual_frames = main_sequence.residuals.size();
   points.shown = [&] {

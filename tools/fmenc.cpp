@@ -634,6 +634,18 @@ void print_keyframes(const Summary& s) {
         100 * s.report.blend.positions_error,
         s.report.representation == Representation::kXYZ ? " (--representation hl+t stores the fields)" : "");
   }
+  if (s.report.representation_rate.measured) {
+    const RepresentationRate& r = s.report.representation_rate;
+    std::printf("  representation and N by bytes at equal error (keyframes' bytes; held-out RMS of the diagonal on %d frames; bytes x RMS^%g "
+                "the lowest, a coarser N within %.2g%%):",
+                r.candidates.front().frames, kRateErrorExponent, 100 * r.tolerance);
+    for (size_t i = 0; i < r.candidates.size(); ++i) {
+      const RateCandidate& c = r.candidates[i];
+      std::printf("%s %s N = %d %llu B at %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid,
+                  static_cast<unsigned long long>(c.bytes), 100 * c.held_rms, i == r.chosen ? " (kept)" : "");
+    }
+    std::printf("; %.1f s\n", r.seconds);
+  }
   if (!s.report.sparse && s.report.keyframe_budget > 0 &&
       static_cast<int>(s.sequence->shape().keyframes.size()) > s.report.keyframe_budget) {
     std::printf(

@@ -39,6 +39,7 @@ Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double k
   options.grid = grid;
   options.texture = false;
   options.predicted_fields = false;
+  options.representation = Representation::kHLT;  // the fields' rounding, not the choice by bytes (§7.14)
   return encode_capture(capture, options);
 }
 

@@ -9,6 +9,7 @@
 #include "codec/encoder/encode/field_precision.hpp"
 #include "codec/encoder/encode/patch_fit.hpp"
 #include "codec/encoder/encode/representation_choice.hpp"
+#include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/residual_fit.hpp"
 #include "codec/encoder/prepare/frame.hpp"
 #include "codec/encoder/registration/registration.hpp"
@@ -83,6 +84,7 @@ struct EncodeReport {
   int frames_without_interior_landmarks = 0;
   Representation representation = Representation::kHLT;
   BlendComparison blend;  // what choose_representation measured (trials 0: nothing measured)
+  RepresentationRate representation_rate;  // what the choice by bytes at equal error measured (SequenceEncoder::choose_by_bytes)
   std::vector<int> keyframes;
   std::vector<std::pair<int, double>> selection_history;  // (keyframes, worst predicted error)
   int keyframe_budget = 0;                                // what the budget alone gave (0 with max_error)

@@ -5,6 +5,7 @@
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/util/parallel.hpp"
+#include "codec/encoder/encode/geometry_trial_source.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
@@ -494,13 +495,10 @@ StepChoice choose_steps(const StoredSequence& keys, double target_error, int int
 // keyframes in order, so each is rounded once, after its predecessor (asked in another order, the
 // chain starts again at the intra keyframe before it): the trial's file is measured holding one
 // rounded keyframe, not a copy of every keyframe's fields.
-class RoundedKeyframes final : public KeyframeSource {
+class RoundedKeyframes final : public GeometryTrialSource {
  public:
   RoundedKeyframes(const StoredSequence& keys, const FieldRounder& rounder, const FieldCoding& coding)
-      : keys_(keys), rounder_(rounder), coding_(coding), outline_(keys.outline()) {
-    outline_.texture_size = 0;  // the trials measure the fields' bytes
-  }
-  const SequenceOutline& outline() const override { return outline_; }
+      : GeometryTrialSource(keys.outline(), "field precision"), keys_(keys), rounder_(rounder), coding_(coding) {}
   std::shared_ptr<const Keyframe> keyframe(size_t k) const override {
     std::lock_guard lock(mutex_);
     if (last_ && last_index_ == k) return last_;
@@ -521,17 +519,11 @@ class RoundedKeyframes final : public KeyframeSource {
     }
     return last_;
   }
-  std::shared_ptr<const Image> texture(size_t) const override {
-    throw Error(ErrorCode::kInternal, "field precision: a trial has no textures");
-  }
-  size_t surfaces_kept() const override { return 1; }
-  uint64_t bytes_held() const override { return 0; }
 
  private:
   const StoredSequence& keys_;
   const FieldRounder& rounder_;
   const FieldCoding& coding_;
-  SequenceOutline outline_;
   mutable std::mutex mutex_;
   mutable std::optional<FieldRounder::Chain> chain_;
   mutable std::shared_ptr<const Keyframe> last_;

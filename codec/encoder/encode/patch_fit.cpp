@@ -154,8 +154,6 @@ std::vector<uint8_t> patch_payload(const FramePatch& patch, double step_units) {
   return w.take();
 }
 
-namespace {
-
 DecodeOptions shown_decode() {
   DecodeOptions o;
   o.texture = false;
@@ -164,6 +162,8 @@ DecodeOptions shown_decode() {
   o.reconstruct.throw_on_failure = false;
   return o;
 }
+
+namespace {
 
 // A frame between keyframes: its capture index, its time on the file's lattice, what it measured.
 struct HeldFrame {

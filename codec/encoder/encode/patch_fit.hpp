@@ -13,6 +13,8 @@
 
 namespace facemorph {
 
+struct DecodeOptions;
+
 // What the decoder shows at a captured frame's time: G's nodes in capture coordinates, the blended
 // hole level (empty without holes) and the pose that placed them.
 struct ShownFrame {
@@ -38,6 +40,11 @@ struct PatchFit {
   int exact_checks = 0;
   int approximate_misses = 0;
 };
+
+// How the encoder's measures decode a frame (the fit here, the representation's trials): geometry
+// alone, each frame a function of t alone (no correction carried from the previous frame), a
+// reconstruction that fails returned rather than thrown.
+DecodeOptions shown_decode();
 
 // The mesh the decoder shows for these node positions (holes cut where `hole_level` is not empty).
 TriangleMesh shown_mesh(const DiskGrid& grid, const std::vector<Vec3>& positions, const std::vector<double>& hole_level);

@@ -6,6 +6,8 @@
 // one-process encode and the staged and segmented encodes alike.
 #include "codec/encoder/encode/sequence_encoder.hpp"
 
+#include "codec/encoder/encode/representation_rate.hpp"
+
 #include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/encode/spill_bytes.hpp"
 
@@ -314,12 +316,68 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
   return sequence;
 }
 
+std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
+                                                                 std::unique_ptr<StoredSequence> fields) {
+  // Only where the representation is the encoder's to choose and the fields are still in the
+  // running (the blends or a radial disk did not already choose positions, the fields converged).
+  report_.representation_rate = {};
+  if (settings.plan.representation || auto_representation_ != Representation::kHLT) return fields;
+  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
+  const auto start = std::chrono::steady_clock::now();
+  const std::optional<double> fields_rms = held_out_rms(capture_, *fields, trials, settings.threads);
+  if (!fields_rms) return fields;
+  const auto frames = static_cast<int>(trials.size());
+  RepresentationRate rate;
+  rate.measured = true;
+  rate.tolerance = options_.max_error > 0 ? options_.max_error : options_.keyframe_error_bound;
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), *fields_rms, frames});
+  // The others on the same keyframes, each rounded to the same target: xyz at this N, then both at
+  // the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
+  // its report (its stages' figures are the file's).
+  struct Kept {
+    std::unique_ptr<StoredSequence> sequence;
+    EncodeReport report;
+  };
+  Kept best{std::move(fields), report_};
+  const EncodeReport planned = report_;
+  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  std::vector<std::pair<Representation, int>> others{{Representation::kXYZ, grid}};
+  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
+  if (coarser > 0) others.insert(others.end(), {{Representation::kHLT, coarser}, {Representation::kXYZ, coarser}});
+  for (const auto& [representation, n] : others) {
+    report_ = planned;
+    adopt_representation(representation, planned.blend);
+    std::unique_ptr<StoredSequence> sequence;
+    try {
+      sequence = build(settings.build, chosen.keyframes, n, nullptr);
+      if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::kNotConverged) throw;
+      continue;  // fields that do not reconstruct at this N: not a candidate
+    }
+    const std::optional<double> rms = held_out_rms(capture_, *sequence, trials, settings.threads);
+    rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms.value_or(0), frames});
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
+      report_.grid = n;
+      best = {std::move(sequence), report_};
+    }
+  }
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
+  rate.seconds = seconds_since(start);
+  report_ = std::move(best.report);
+  adopt_representation(rate.candidates[rate.chosen].representation, planned.blend);
+  report_.representation_rate = std::move(rate);
+  report_.seconds_representation += report_.representation_rate.seconds;
+  return std::move(best.sequence);
+}
+
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
         if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
       });
+  sequence = choose_by_bytes(settings, chosen, grid, std::move(sequence));
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
   if (settings.residual_frames && residuals_pay(chosen)) {

@@ -225,6 +225,13 @@ class SequenceEncoder {
   // written with the report's field coding and texture qualities holds. The bench runs it for each
   // keyframe set and representation it measures, so that it measures what fmenc writes.
   std::unique_ptr<StoredSequence> code(const StageSettings& settings, const KeyframeSelection& chosen, int grid);
+  // code's choice of the representation by bytes at equal error (representation_rate.hpp), given
+  // the keyframes built and rounded as hl+t: where the options leave the representation open and the
+  // fields were kept so far, the same keyframes built and rounded as xyz too, and the one of lower
+  // bytes · held-out RMS² kept and adopted (report().representation_rate says what was measured);
+  // elsewhere `fields` as given.
+  std::unique_ptr<StoredSequence> choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
+                                                  std::unique_ptr<StoredSequence> fields);
   // Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
   // reconstruct, and how far it got): the representation adopted, report().representation_fallback
   // set (a file's settings say it). A segment's assemble takes the fallback a measure made so

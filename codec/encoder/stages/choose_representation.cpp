@@ -1,5 +1,6 @@
-// What the keyframes store when the options leave it open: hl+t, or xyz where the fields blended
-// between keyframes come out farther from the frames than the blended positions
+// What the keyframes store when the options leave it open, first step: xyz where the fields blended
+// between keyframes come out farther from the frames than the blended positions, else hl+t until
+// SequenceEncoder::choose_by_bytes has measured both candidates' bytes at equal error
 // (spec/method.md §7.14).
 #include "codec/encoder/encode/plan_keyframes.hpp"
 

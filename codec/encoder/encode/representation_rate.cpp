@@ -1,0 +1,105 @@
+// The representation and N chosen by bytes at equal error: the measures and the rule
+// (representation_rate.hpp, spec/method.md §7.14).
+#include "codec/encoder/encode/representation_rate.hpp"
+
+#include "format/error.hpp"
+#include "codec/encoder/capture/capture.hpp"
+#include "codec/encoder/encode/decoder_team.hpp"
+#include "codec/encoder/encode/geometry_trial_source.hpp"
+#include "codec/encoder/encode/patch_fit.hpp"
+#include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+#include "codec/meshkit/mesh/mesh_io.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <memory>
+
+namespace facemorph {
+
+double rate_cost(const RateCandidate& candidate) {
+  if (candidate.frames <= 0 || !(candidate.held_rms > 0) || candidate.bytes == 0) return std::numeric_limits<double>::infinity();
+  return static_cast<double>(candidate.bytes) * std::pow(candidate.held_rms, kRateErrorExponent);
+}
+
+Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions) {
+  return rate_cost(positions) < rate_cost(fields) ? Representation::kXYZ : Representation::kHLT;
+}
+
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance) {
+  size_t best = 0;
+  for (size_t i = 1; i < candidates.size(); ++i) {
+    const RateCandidate& c = candidates[i];
+    if (c.coarser && !(c.held_rms <= tolerance)) continue;
+    if (rate_cost(c) < rate_cost(candidates[best])) best = i;
+  }
+  return best;
+}
+
+int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid) {
+  int coarsest = 0;
+  for (const auto& [n, p99] : floor_p99s) {
+    if (n < grid && p99 <= worst_target && (coarsest == 0 || n < coarsest)) coarsest = n;
+  }
+  return coarsest;
+}
+
+std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {
+  std::vector<int> between;
+  for (size_t k = 0; k + 1 < keyframes.size(); ++k)
+    for (int i = keyframes[k] + 1; i < keyframes[k + 1]; ++i) between.push_back(i);
+  if (between.size() <= static_cast<size_t>(kRateTrials)) return between;
+  std::vector<int> spread;
+  for (int t = 0; t < kRateTrials; ++t)
+    spread.push_back(between[static_cast<size_t>(t) * (between.size() - 1) / static_cast<size_t>(kRateTrials - 1)]);
+  return spread;
+}
+
+namespace {
+
+// The stored keyframes as they are (textures left out): what the two representations store differently.
+class GeometryOnly final : public GeometryTrialSource {
+ public:
+  explicit GeometryOnly(const StoredSequence& stored) : GeometryTrialSource(stored.outline(), "the representation's bytes"), stored_(stored) {}
+  std::shared_ptr<const Keyframe> keyframe(size_t k) const override { return stored_.keyframe(k); }
+
+ private:
+  const StoredSequence& stored_;
+};
+
+}  // namespace
+
+uint64_t geometry_bytes(const StoredSequence& stored, const FieldCoding& coding) {
+  SequenceFileMetadata metadata;
+  metadata.field_coding = coding;
+  return sequence_file_size(GeometryOnly(stored), metadata);
+}
+
+std::optional<double> held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames, int threads) {
+  if (frames.empty()) return std::nullopt;
+  for (const int i : frames) {
+    std::error_code ec;
+    if (static_cast<size_t>(i) >= capture.frames.size() || !std::filesystem::is_regular_file(capture.mesh_path(static_cast<size_t>(i)), ec))
+      return std::nullopt;
+  }
+  const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
+  DecoderTeam team(source, threads, frames.size());
+  const DiskGrid& grid = team.first().geometry().grid();
+  const DecodeOptions options = shown_decode();
+  std::vector<double> rms(frames.size(), 0);
+  team.for_each(frames.size(), [&](SequenceDecoder& decoder, size_t j) {
+    const auto i = static_cast<size_t>(frames[j]);
+    const DecodedFrame decoded = decoder.decode(capture.frames[i].time, options);
+    const TriangleMesh captured = read_mesh(capture.mesh_path(i), {.allow_missing_texture = true});
+    const SurfaceDistance d = surface_distance(captured, shown_mesh(grid, decoded.grid_positions, decoded.hole_level));
+    rms[j] = d.diagonal > 0 ? d.rms / d.diagonal : 0;
+  });
+  double sum = 0;
+  for (const double r : rms) sum += r;
+  return sum / static_cast<double>(rms.size());
+}
+
+}  // namespace facemorph

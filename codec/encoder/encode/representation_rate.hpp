@@ -1,0 +1,81 @@
+// The representation and N chosen by bytes at equal error (issue 44 part 5; spec/method.md §7.14):
+// where the options leave the representation open and the blends did not already rule the fields
+// out, the encoder codes the chosen keyframes both ways (hl+t and xyz, each rounded to the same
+// target error), and where --grid auto's worst region alone allowed a coarser N, both ways at that
+// N too; it measures each one's geometry bytes as the file would hold them and its held-out error on
+// a few decoded frames against their captured meshes, and keeps the one with the lowest
+// bytes · error^k (a coarser N only where its error stays within the tolerance).
+#pragma once
+
+#include "codec/core/container/file_metadata.hpp"
+#include "codec/core/reconstruct/fields.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <utility>
+#include <vector>
+
+namespace facemorph {
+
+struct Capture;
+class StoredSequence;
+
+// One candidate as measured: its keyframes' bytes (the file without textures, residuals or patches:
+// what differs between the representations) and the mean over the trial frames of the symmetric RMS
+// point error of the decoded frame against its captured mesh, of that mesh's bounding-box diagonal
+// (fmbench's held-out RMS, on a sample of the frames between keyframes).
+struct RateCandidate {
+  Representation representation = Representation::kHLT;
+  int grid = 0;         // N
+  bool coarser = false;  // N coarser than --grid auto's: kept only within the tolerance
+  uint64_t bytes = 0;
+  double held_rms = 0;
+  int frames = 0;  // trial frames measured
+};
+
+// What the comparison measured, for the report (measured false: no comparison ran).
+struct RepresentationRate {
+  bool measured = false;
+  std::vector<RateCandidate> candidates;  // hl+t and xyz at --grid auto's N, then at the coarser N where tried
+  size_t chosen = 0;
+  double tolerance = 0;  // the held-out RMS a coarser N must stay within (fraction of the diagonal)
+  double seconds = 0;    // the other candidates' builds and roundings, and every measure
+};
+
+// The exchange rate between bytes and held-out error: two candidates are compared by bytes · RMS^k,
+// so a candidate may take (1 + e)^k times the bytes for an error 1 + e times lower. k = 2 is the
+// elasticity −d ln B / d ln RMS of the encoder's own levers measured on ICT (more keyframes
+// 1.7–2.3, a finer N 1.7–2.9; spec/method.md §7.14): the other candidate is valued as if the file
+// had been moved along those levers to its error.
+inline constexpr double kRateErrorExponent = 2.0;
+// At most this many frames between keyframes are decoded and measured for each candidate, spread
+// evenly over them.
+inline constexpr int kRateTrials = 8;
+
+// bytes · held_rms^kRateErrorExponent (infinite when nothing was measured).
+double rate_cost(const RateCandidate& candidate);
+// The candidate the rule keeps: xyz only where its cost is strictly lower than hl+t's (a tie keeps
+// the fields, which turn with a rotating head rather than cutting its chords: spec/method.md §5.2).
+Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions);
+// Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
+// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`; ties keep the
+// earlier.
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance);
+
+// The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
+// `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
+int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid);
+
+// The frames (capture indices) strictly between the first and last keyframes that are not keyframes,
+// at most kRateTrials of them spread evenly (the first and the last kept).
+std::vector<int> rate_trial_frames(const std::vector<int>& keyframes);
+
+// The geometry bytes of `stored` as a file with `coding` would hold them (textures left out).
+uint64_t geometry_bytes(const StoredSequence& stored, const FieldCoding& coding);
+
+// The mean held-out RMS of `stored` decoded at `frames`' times against their captured meshes, of each
+// mesh's diagonal; nullopt where a captured mesh is not at hand (a staged encode's parts) or no frame
+// is given. `threads` decoders at most.
+std::optional<double> held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames, int threads);
+
+}  // namespace facemorph

@@ -1,0 +1,122 @@
+// The representation chosen by bytes at equal error (representation_rate.hpp, spec/method.md §7.14):
+// the rule on constructed candidates, the frames it measures, and the encoder's choice end to end.
+#include "codec/encoder/encode/representation_rate.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+
+#include "tests/encoder/encoder_stages.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+namespace facemorph {
+namespace {
+
+RateCandidate candidate(Representation r, uint64_t bytes, double rms, int grid = 257, bool coarser = false) {
+  return {r, grid, coarser, bytes, rms, 8};
+}
+
+// Where one candidate is clearly smaller at the same error it is kept, whichever it is; an error
+// lower by more than the exchange rate pays for more bytes; nothing measured keeps the fields.
+TEST(RepresentationRate, TheSmallerAtEqualErrorIsKept) {
+  using enum Representation;
+  // The same error: the fewer bytes.
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 55924, 0.002), candidate(kXYZ, 41178, 0.002)), kXYZ);
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 41178, 0.002), candidate(kXYZ, 55924, 0.002)), kHLT);
+  // The same bytes: the lower error.
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.0021), candidate(kXYZ, 10000, 0.0020)), kXYZ);
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.0020), candidate(kXYZ, 10000, 0.0021)), kHLT);
+  // 20% fewer bytes is worth up to 1/0.8 = 1.25 times the bytes, an error (1.25)^(1/2) = 1.118 times higher.
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.0020), candidate(kXYZ, 8000, 0.0022)), kXYZ);   // 1.10x
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.0020), candidate(kXYZ, 8000, 0.0023)), kHLT);   // 1.15x
+  // A rotating head as §5.2 measured it (30°: the positions' chords 1.39x farther) at the 6-12%
+  // fewer bytes xyz took on ICT: the fields kept.
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.0074), candidate(kXYZ, 8900, 0.0103)), kHLT);
+  // A tie keeps the fields; a candidate not measured is never chosen.
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.002), candidate(kXYZ, 10000, 0.002)), kHLT);
+  RateCandidate unmeasured = candidate(kXYZ, 100, 0.0001);
+  unmeasured.frames = 0;
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.002), unmeasured), kHLT);
+  EXPECT_EQ(cheaper_at_equal_error(candidate(kHLT, 10000, 0.002), candidate(kXYZ, 100, 0)), kHLT);  // no error read: not measured
+  EXPECT_TRUE(std::isinf(rate_cost(unmeasured)));
+  EXPECT_DOUBLE_EQ(rate_cost(candidate(kHLT, 1000, 0.5)), 1000 * std::pow(0.5, kRateErrorExponent));
+}
+
+// A coarser N competes only within the tolerance; at --grid auto's N every candidate does.
+TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
+  using enum Representation;
+  const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
+                                            candidate(kHLT, 18923, 0.003061, 129, true), candidate(kXYZ, 14666, 0.003061, 129, true)};
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005), 3u);  // ict2k24 as measured: xyz at N = 129
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003), 1u);  // a tolerance under N = 129's error: xyz at 257
+  std::vector<RateCandidate> far = ict2k;
+  far[3].held_rms = 0.0045;  // within the tolerance, but 2.2x the error for 3.4x fewer bytes
+  far[2].held_rms = 0.0045;
+  EXPECT_EQ(cheapest_at_equal_error(far, 0.005), 1u);
+  // Two at the planned N: the rule of two.
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005), 0u);
+
+  EXPECT_EQ(worst_region_grid({{97, 0.00966}, {129, 0.00602}, {193, 0.0014}, {257, 0.00053}}, 0.0075, 257), 129);
+  EXPECT_EQ(worst_region_grid({{129, 0.0195}, {193, 0.00809}, {257, 0.0005}}, 0.0075, 257), 0);  // ict24: none coarser
+  EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
+}
+
+TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
+  EXPECT_EQ(rate_trial_frames({0, 1, 2}), std::vector<int>{});  // nothing between
+  EXPECT_EQ(rate_trial_frames({0}), std::vector<int>{});
+  EXPECT_EQ(rate_trial_frames({0, 3, 5}), (std::vector<int>{1, 2, 4}));
+  const std::vector<int> spread = rate_trial_frames({0, 23});  // 22 frames between: 8 of them, ends kept
+  ASSERT_EQ(spread.size(), static_cast<size_t>(kRateTrials));
+  EXPECT_EQ(spread.front(), 1);
+  EXPECT_EQ(spread.back(), 22);
+  for (size_t i = 1; i < spread.size(); ++i) EXPECT_GT(spread[i], spread[i - 1]);
+}
+
+// End to end on a turning head (fmsynth's face, 30°): both candidates measured, the file stores the
+// one the rule picks, and that is hl+t (its keyframes take fewer bytes at an error within 1%; the
+// positions do not pay here). Each candidate's bytes are those its representation alone gives.
+TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 30);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  EncodeReport report;
+  const Sequence chosen = encode_capture(capture, options, &report);
+  const RepresentationRate& rate = report.representation_rate;
+  ASSERT_TRUE(rate.measured);
+  ASSERT_GE(rate.candidates.size(), 2u);
+  const RateCandidate& fields = rate.candidates[0];
+  const RateCandidate& positions = rate.candidates[1];
+  EXPECT_EQ(fields.representation, Representation::kHLT);
+  EXPECT_EQ(positions.representation, Representation::kXYZ);
+  EXPECT_EQ(fields.grid, positions.grid);
+  for (const RateCandidate& c : rate.candidates) {
+    EXPECT_GT(c.bytes, 500u);
+    EXPECT_GT(c.held_rms, 0);
+    EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
+    EXPECT_GE(c.frames, 1);
+  }
+  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance));
+  const RateCandidate& kept = rate.candidates[rate.chosen];
+  EXPECT_EQ(report.representation, kept.representation);
+  EXPECT_EQ(chosen.representation, kept.representation);
+  EXPECT_EQ(chosen.grid_n, kept.grid);
+  EXPECT_EQ(report.representation, Representation::kHLT);
+  // The rounded keyframes as either representation asked for alone: the same bytes.
+  for (const Representation r : {Representation::kHLT, Representation::kXYZ}) {
+    EncodeOptions forced = options;
+    forced.representation = r;
+    EncodeReport forced_report;
+    const std::unique_ptr<StoredSequence> stored = encode_capture_stored(capture, forced, &forced_report);
+    EXPECT_FALSE(forced_report.representation_rate.measured);  // asked for: nothing chosen
+    EXPECT_EQ(geometry_bytes(*stored, forced_report.field_coding), r == Representation::kHLT ? fields.bytes : positions.bytes);
+  }
+}
+
+}  // namespace
+}  // namespace facemorph
