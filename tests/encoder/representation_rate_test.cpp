@@ -65,6 +65,19 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
 }
 
+// The coarser N is tried in N's winner alone: xyz on ict2k24, hl+t on fmsynth's 30° turning head
+// (both as measured, §7.14); none where no N is coarser.
+TEST(RepresentationRate, TheCoarserGridIsTriedInTheWinnerAtN) {
+  using enum Representation;
+  using Tried = std::vector<std::pair<Representation, int>>;
+  const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080)};
+  EXPECT_EQ(coarser_candidates(ict2k, 0.005, 129), (Tried{{kXYZ, 129}}));
+  const std::vector<RateCandidate> rot30 = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
+  EXPECT_EQ(coarser_candidates(rot30, 0.005, 33), (Tried{{kHLT, 33}}));
+  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, 129), (Tried{{kHLT, 129}}));  // xyz did not converge at N
+  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, 0).empty());
+}
+
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
   EXPECT_EQ(rate_trial_frames({0, 1, 2}), std::vector<int>{});  // nothing between
   EXPECT_EQ(rate_trial_frames({0}), std::vector<int>{});

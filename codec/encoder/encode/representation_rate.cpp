@@ -8,6 +8,7 @@
 #include "codec/encoder/encode/geometry_trial_source.hpp"
 #include "codec/encoder/encode/patch_fit.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/core/util/parallel.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
 #include "codec/meshkit/mesh/mesh_io.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
@@ -78,28 +79,42 @@ uint64_t geometry_bytes(const StoredSequence& stored, const FieldCoding& coding)
   return sequence_file_size(GeometryOnly(stored), metadata);
 }
 
-std::optional<double> held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames, int threads) {
+std::optional<std::vector<TriangleMesh>> trial_meshes(const Capture& capture, const std::vector<int>& frames, int threads) {
   if (frames.empty()) return std::nullopt;
   for (const int i : frames) {
     std::error_code ec;
     if (static_cast<size_t>(i) >= capture.frames.size() || !std::filesystem::is_regular_file(capture.mesh_path(static_cast<size_t>(i)), ec))
       return std::nullopt;
   }
+  std::vector<TriangleMesh> meshes(frames.size());
+  parallel_for(static_cast<int>(frames.size()), threads, [&](int j) {
+    meshes[static_cast<size_t>(j)] = read_mesh(capture.mesh_path(static_cast<size_t>(frames[static_cast<size_t>(j)])), {.allow_missing_texture = true});
+  });
+  return meshes;
+}
+
+double held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
+                    const std::vector<TriangleMesh>& captured, int threads) {
+  if (frames.empty() || captured.size() != frames.size())
+    throw Error(ErrorCode::kInvalidArgument, "held_out_rms: one captured mesh for each trial frame");
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
   DecoderTeam team(source, threads, frames.size());
   const DiskGrid& grid = team.first().geometry().grid();
   const DecodeOptions options = shown_decode();
   std::vector<double> rms(frames.size(), 0);
   team.for_each(frames.size(), [&](SequenceDecoder& decoder, size_t j) {
-    const auto i = static_cast<size_t>(frames[j]);
-    const DecodedFrame decoded = decoder.decode(capture.frames[i].time, options);
-    const TriangleMesh captured = read_mesh(capture.mesh_path(i), {.allow_missing_texture = true});
-    const SurfaceDistance d = surface_distance(captured, shown_mesh(grid, decoded.grid_positions, decoded.hole_level));
+    const DecodedFrame decoded = decoder.decode(capture.frames[static_cast<size_t>(frames[j])].time, options);
+    const SurfaceDistance d = surface_distance(captured[j], shown_mesh(grid, decoded.grid_positions, decoded.hole_level));
     rms[j] = d.diagonal > 0 ? d.rms / d.diagonal : 0;
   });
   double sum = 0;
   for (const double r : rms) sum += r;
   return sum / static_cast<double>(rms.size());
+}
+
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser) {
+  if (coarser <= 0 || at_grid.empty()) return {};
+  return {{at_grid[cheapest_at_equal_error(at_grid, tolerance)].representation, coarser}};
 }
 
 }  // namespace facemorph

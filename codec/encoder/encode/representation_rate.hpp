@@ -8,6 +8,7 @@
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/geometry/mesh.hpp"
 #include "codec/core/reconstruct/fields.hpp"
 
 #include <cstdint>
@@ -73,9 +74,20 @@ std::vector<int> rate_trial_frames(const std::vector<int>& keyframes);
 // The geometry bytes of `stored` as a file with `coding` would hold them (textures left out).
 uint64_t geometry_bytes(const StoredSequence& stored, const FieldCoding& coding);
 
-// The mean held-out RMS of `stored` decoded at `frames`' times against their captured meshes, of each
-// mesh's diagonal; nullopt where a captured mesh is not at hand (a staged encode's parts) or no frame
-// is given. `threads` decoders at most.
-std::optional<double> held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames, int threads);
+// The captured meshes at `frames` (capture indices), read once for every candidate by `threads`
+// readers; nullopt where one is not at hand (a staged encode's parts) or no frame is given.
+std::optional<std::vector<TriangleMesh>> trial_meshes(const Capture& capture, const std::vector<int>& frames, int threads);
+
+// The mean held-out RMS of `stored` decoded at `frames`' times against `captured` (trial_meshes'),
+// of each mesh's diagonal. `threads` decoders at most.
+double held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
+                    const std::vector<TriangleMesh>& captured, int threads);
+
+// The coarser N's candidates (--grid auto's worst region, worst_region_grid): only the
+// representation `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where
+// both were measured at a coarser N (ict2k24, the sample, fmsynth's 30° turning head), the coarser
+// N's winner was the same representation as N's (spec/method.md §7.14), so the other one's build,
+// rounding and measure changed nothing and cost a quarter of the choice.
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser);
 
 }  // namespace facemorph

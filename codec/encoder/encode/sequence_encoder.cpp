@@ -324,15 +324,16 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   if (settings.plan.representation || auto_representation_ != Representation::kHLT) return fields;
   const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
   const auto start = std::chrono::steady_clock::now();
-  const std::optional<double> fields_rms = held_out_rms(capture_, *fields, trials, settings.threads);
-  if (!fields_rms) return fields;
+  const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
+  if (!captured) return fields;
+  const double fields_rms = held_out_rms(capture_, *fields, trials, *captured, settings.threads);
   const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
   rate.tolerance = options_.max_error > 0 ? options_.max_error : options_.keyframe_error_bound;
-  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), *fields_rms, frames});
-  // The others on the same keyframes, each rounded to the same target: xyz at this N, then both at
-  // the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_rms, frames});
+  // The others on the same keyframes, each rounded to the same target: xyz at this N, then N's
+  // winner at the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
   // its report (its stages' figures are the file's).
   struct Kept {
     std::unique_ptr<StoredSequence> sequence;
@@ -341,10 +342,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   Kept best{std::move(fields), report_};
   const EncodeReport planned = report_;
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
-  std::vector<std::pair<Representation, int>> others{{Representation::kXYZ, grid}};
-  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
-  if (coarser > 0) others.insert(others.end(), {{Representation::kHLT, coarser}, {Representation::kXYZ, coarser}});
-  for (const auto& [representation, n] : others) {
+  const auto try_candidate = [&](Representation representation, int n) {
     report_ = planned;
     adopt_representation(representation, planned.blend);
     std::unique_ptr<StoredSequence> sequence;
@@ -353,15 +351,19 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
       if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kNotConverged) throw;
-      continue;  // fields that do not reconstruct at this N: not a candidate
+      return;  // fields that do not reconstruct at this N: not a candidate
     }
-    const std::optional<double> rms = held_out_rms(capture_, *sequence, trials, settings.threads);
-    rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms.value_or(0), frames});
+    const double rms = held_out_rms(capture_, *sequence, trials, *captured, settings.threads);
+    rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms, frames});
     if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }
-  }
+  };
+  try_candidate(Representation::kXYZ, grid);
+  // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
+  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
+  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser)) try_candidate(representation, n);
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
