@@ -465,7 +465,8 @@ struct StepChoice {
 };
 
 // The rounding's p99 budget (spec/method.md §5.3): what the worst-region target leaves the
-// decoded floor in quadrature; infinite (not bounded) without a floor or with one at the target.
+// decoded floor, added linearly (spec/method.md §5.3: measured, quadrature let Medusa's frame 181
+// through at 1.185%); infinite (not bounded) without a floor or with one at the target.
 double rounding_p99_budget(const FieldPrecisionOptions& options) {
   if (!options.worst_floor || !(*options.worst_floor < options.worst_target)) return std::numeric_limits<double>::infinity();
   return options.worst_target - *options.worst_floor;

@@ -32,7 +32,7 @@ inline constexpr std::array<double, 4> kDeadZoneCandidates = {0.5, 0.55, 0.6, 0.
 
 // The worst region's target (issue 44, design §7): every decoded frame's 99th-percentile point
 // error within 1% of the bounding box diagonal. The grid takes three quarters of it for its decoded
-// floor (choose_grid.cpp), the rounding the rest in quadrature (spec/method.md §5.3).
+// floor (choose_grid.cpp), the rounding what the decoded floor leaves of it (spec/method.md §5.3).
 inline constexpr double kWorstRegionTarget = 0.01;
 
 struct FieldPrecisionOptions {
@@ -63,7 +63,8 @@ struct FieldPrecisionOptions {
   // percentile point error of an unrounded keyframe's decode against the captured surface (fraction
   // of the diagonal; the grid's at its N, choose_grid.cpp). Set, the steps are also refined until
   // every keyframe's rounding p99 q (its rounded decode against its unrounded one, the same measure)
-  // meets √(worst_floor² + q²) ≤ worst_target. Unset, or a floor at or over the target (no rounding
+  // meets worst_floor + q ≤ worst_target (the two add nearly linearly at the worst points: measured,
+  // spec/method.md §5.3, not in quadrature). Unset, or a floor at or over the target (no rounding
   // could meet it): only the RMS target binds.
   std::optional<double> worst_floor = std::nullopt;
   double worst_target = kWorstRegionTarget;
@@ -74,7 +75,7 @@ struct FieldPrecisionReport {
   std::vector<double> group_steps;      // per group: H, log λ, tangential, band, positions, rim (0: absent)
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
-  // The rounding's 99th-percentile budget √(worst_target² − worst_floor²) / diagonal (0: not bounded),
+  // The rounding's 99th-percentile budget worst_target − worst_floor / diagonal (0: not bounded),
   // each keyframe's rounding p99 at the chosen steps (an upper bound, its nodes' displacement, where
   // that is within the budget; empty: not bounded), and the scales the bound refused (0: it never bound).
   double rounding_p99_budget = 0;

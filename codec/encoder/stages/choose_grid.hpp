@@ -16,7 +16,9 @@ namespace facemorph {
 
 // The floor's share of the worst-region target (every decoded frame's 99th-percentile point error
 // within 1% of the diagonal, design §7): what a keyframe alone shows, with room for the rounding
-// in quadrature (√(1 − 0.75²) = 0.66%), which the field precision stage holds it to (round_fields.cpp).
+// (1% less the decoded floor's p99, 0.25% or more where the floor met this share: the field
+// precision stage holds it to that, round_fields.cpp; the two add nearly linearly at the worst
+// points, spec/method.md §5.3).
 // Not less: between keyframes the spline sets the worst region, and a finer grid bought none of it
 // (Medusa N = 41 → 57: worst-frame p99 1.735 → 1.713% for 25% more bytes; spec/method.md §7.6).
 inline constexpr double kGridWorstTarget = 0.0075;
