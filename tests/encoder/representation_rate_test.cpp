@@ -2,14 +2,19 @@
 // the rule on constructed candidates, the frames it measures, and the encoder's choice end to end.
 #include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/stages/choose_grid.hpp"
 
 #include "tests/encoder/encoder_stages.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -65,6 +70,22 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
 }
 
+// The fields at the coarser N are a candidate only where the reference rebuilt from them meets the
+// worst region's share: the resampled floor that allowed the N is not what a decoder shows (§7.6's
+// whole head: 0.48% resampled, 3.79% decoded). Positions decode as sampled: always tried there.
+TEST(RepresentationRate, TheFieldsAtACoarserGridAreTriedOnlyWhereTheirDecodedFloorMeetsTheShare) {
+  using enum Representation;
+  using Tried = std::vector<std::pair<Representation, int>>;
+  EXPECT_EQ(rate_candidates(257, 129, 0.0061, 0.0075), (Tried{{kXYZ, 257}, {kHLT, 129}, {kXYZ, 129}}));
+  EXPECT_EQ(rate_candidates(257, 129, 0.0075, 0.0075), (Tried{{kXYZ, 257}, {kHLT, 129}, {kXYZ, 129}}));  // met exactly
+  EXPECT_EQ(rate_candidates(65, 33, 0.0379, 0.0075), (Tried{{kXYZ, 65}, {kXYZ, 33}}));  // the whole head's decoded floor
+  EXPECT_EQ(rate_candidates(65, 33, 0.0076, 0.0075), (Tried{{kXYZ, 65}, {kXYZ, 33}}));
+  EXPECT_EQ(rate_candidates(65, 33, std::numeric_limits<double>::infinity(), 0.0075), (Tried{{kXYZ, 65}, {kXYZ, 33}}));  // not rebuilt
+  EXPECT_EQ(rate_candidates(65, 33, std::nan(""), 0.0075), (Tried{{kXYZ, 65}, {kXYZ, 33}}));
+  EXPECT_EQ(rate_candidates(65, 33, 0.012, 0.0125), (Tried{{kXYZ, 65}, {kHLT, 33}, {kXYZ, 33}}));  // a noisy capture's raised share
+  EXPECT_EQ(rate_candidates(65, 0, 0.0, 0.0075), (Tried{{kXYZ, 65}}));  // no coarser N
+}
+
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
   EXPECT_EQ(rate_trial_frames({0, 1, 2}), std::vector<int>{});  // nothing between
   EXPECT_EQ(rate_trial_frames({0}), std::vector<int>{});
@@ -107,6 +128,24 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   EXPECT_EQ(chosen.representation, kept.representation);
   EXPECT_EQ(chosen.grid_n, kept.grid);
   EXPECT_EQ(report.representation, Representation::kHLT);
+  // A coarser N: the fields there were decoded once and tried only within the worst region's share;
+  // kept, the rounding's p99 budget is what their decoded floor left of the 1%.
+  for (const RateCandidate& c : rate.candidates) {
+    if (!c.coarser) continue;
+    const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
+                                    [&](const EncodeReport::DecodedFloor& d) { return d.n == c.grid; });
+    ASSERT_NE(floor, report.grid_decoded_floors.end()) << "N = " << c.grid;
+    if (c.representation != Representation::kHLT) continue;
+    EXPECT_LE(floor->p99, report.grid_worst_target);
+    if (&c == &kept) {
+      double resampled = 0;
+      for (const auto& [n, p99] : report.grid_floor_p99s) {
+        if (n == c.grid) resampled = p99;
+      }
+      const double target = kWorstRegionTarget * std::max(1.0, report.grid_worst_target / kGridWorstTarget);
+      EXPECT_NEAR(report.field_precision.rounding_p99_budget, target - std::max(resampled, floor->p99), 1e-12);
+    }
+  }
   // The rounded keyframes as either representation asked for alone: the same bytes.
   for (const Representation r : {Representation::kHLT, Representation::kXYZ}) {
     EncodeOptions forced = options;

@@ -46,6 +46,14 @@ int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, dou
   return coarsest;
 }
 
+std::vector<std::pair<Representation, int>> rate_candidates(int grid, int coarser, double coarser_fields_p99, double worst_target) {
+  std::vector<std::pair<Representation, int>> others{{Representation::kXYZ, grid}};
+  if (coarser <= 0) return others;
+  if (coarser_fields_p99 <= worst_target) others.emplace_back(Representation::kHLT, coarser);
+  others.emplace_back(Representation::kXYZ, coarser);
+  return others;
+}
+
 std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {
   std::vector<int> between;
   for (size_t k = 0; k + 1 < keyframes.size(); ++k)

@@ -66,6 +66,13 @@ size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, dou
 // `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
 int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid);
 
+// The candidates measured beside hl+t at --grid auto's N `grid`: xyz there, then, where the worst
+// region allowed a coarser N (`coarser` > 0; worst_region_grid), hl+t at it only where its decoded
+// floor's 99th percentile `coarser_fields_p99` (the reference rebuilt from its fields at that N, as
+// the grid stage measures it: decoded_fields_floor) meets `worst_target` too, as the resampled floor
+// that allowed the N does not show what a decoder rebuilds; and xyz at it, which decodes as sampled.
+std::vector<std::pair<Representation, int>> rate_candidates(int grid, int coarser, double coarser_fields_p99, double worst_target);
+
 // The frames (capture indices) strictly between the first and last keyframes that are not keyframes,
 // at most kRateTrials of them spread evenly (the first and the last kept).
 std::vector<int> rate_trial_frames(const std::vector<int>& keyframes);

@@ -341,12 +341,22 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   Kept best{std::move(fields), report_};
   const EncodeReport planned = report_;
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
-  std::vector<std::pair<Representation, int>> others{{Representation::kXYZ, grid}};
   const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
-  if (coarser > 0) others.insert(others.end(), {{Representation::kHLT, coarser}, {Representation::kXYZ, coarser}});
+  // The fields at the coarser N as a decoder rebuilds them (the grid stage measures them from where
+  // its RMS terms are done, most often finer): measured once, there alone, and read by the rounding's
+  // worst-region bound (round_fields.cpp) where it is within the share.
+  std::optional<EncodeReport::DecodedFloor> coarser_fields;
+  for (const EncodeReport::DecodedFloor& d : planned.grid_decoded_floors) {
+    if (coarser > 0 && d.n == coarser) coarser_fields = d;
+  }
+  const bool measure = coarser > 0 && !coarser_fields;
+  if (measure) coarser_fields = decoded_fields_floor(settings.plan, plan_frames(*this), coarser);
+  const auto others = rate_candidates(grid, coarser, coarser_fields ? coarser_fields->p99 : 0.0, report_.grid_worst_target);
   for (const auto& [representation, n] : others) {
     report_ = planned;
     adopt_representation(representation, planned.blend);
+    if (measure && representation == Representation::kHLT)
+      report_.grid_decoded_floors.insert(report_.grid_decoded_floors.begin(), *coarser_fields);
     std::unique_ptr<StoredSequence> sequence;
     try {
       sequence = build(settings.build, chosen.keyframes, n, nullptr);
@@ -365,6 +375,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
+  // The report says what was measured whichever is kept (coarser N first, as the grid stage's order).
+  auto& decoded = report_.grid_decoded_floors;
+  if (measure && (decoded.empty() || decoded.front().n != coarser)) decoded.insert(decoded.begin(), *coarser_fields);
   adopt_representation(rate.candidates[rate.chosen].representation, planned.blend);
   report_.representation_rate = std::move(rate);
   report_.seconds_representation += report_.representation_rate.seconds;

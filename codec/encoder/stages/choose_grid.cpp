@@ -197,6 +197,13 @@ class ReferenceOnGrid {
 
 }  // namespace
 
+EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, const PlanFrames& frames, int n) {
+  const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(settings.reference_frame);
+  ReferenceOnGrid on_grid(frames, *reference, settings.reference_frame);
+  const GridFloor floor = on_grid.decoded(n, Representation::kHLT, false);
+  return {n, floor.rms, floor.p99, floor.reconstructed};
+}
+
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
   if (settings.grid > 0) return settings.grid;
   const auto start = std::chrono::steady_clock::now();
