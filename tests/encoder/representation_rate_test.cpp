@@ -157,5 +157,29 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   }
 }
 
+// Where --grid auto's worst region allows a coarser N, the reference's fields there are decoded once
+// and the floor reported; the fields are a candidate there only within the share, and where kept the
+// rounding's p99 budget is what the larger of the two floors leaves of the 1%.
+TEST(SequenceEncoder, TheFieldsAtACoarserGridAreHeldToTheirDecodedFloor) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 60);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  EncodeReport report;
+  const Sequence chosen = encode_capture(capture, options, &report);
+  const RepresentationRate& rate = report.representation_rate;
+  ASSERT_TRUE(rate.measured);
+  const auto coarser = std::find_if(rate.candidates.begin(), rate.candidates.end(), [](const RateCandidate& c) { return c.coarser; });
+  ASSERT_NE(coarser, rate.candidates.end()) << "no coarser N on this capture";
+  const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
+                                  [&](const EncodeReport::DecodedFloor& d) { return d.n == coarser->grid; });
+  ASSERT_NE(floor, report.grid_decoded_floors.end());
+  const bool fields_tried = std::any_of(rate.candidates.begin(), rate.candidates.end(), [&](const RateCandidate& c) {
+    return c.coarser && c.representation == Representation::kHLT;
+  });
+  EXPECT_EQ(fields_tried, floor->p99 <= report.grid_worst_target);
+}
+
 }  // namespace
 }  // namespace facemorph
