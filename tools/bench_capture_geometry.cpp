@@ -98,11 +98,12 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
       f.keyframe = std::binary_search(keyframes.begin(), keyframes.end(), i);
       const DecodedFrame decoded = decoder.decode(f.time, decode);
       f.converged = decoded.converged;
-      const SurfaceDistance d =
-          surface_distance(read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true}), decoded.mesh);
+      const TriangleMesh captured = read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true});
+      const SurfaceDistance d = surface_distance(captured, decoded.mesh);
       f.rms = d.rms / d.diagonal;
       f.max = d.max / d.diagonal;
       f.p99 = d.p99 / d.diagonal;
+      directional_p99s(captured, decoded.mesh, d.diagonal, f);
       if (other_decoder) {
         const std::vector<Vec3>& p = decoded.grid_positions;
         const std::vector<Vec3> q = other_decoder->decode(f.time, decode).grid_positions;
@@ -125,8 +126,9 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
   } else {
     std::printf("no held-out frames (every frame a keyframe); ");
   }
-  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst frame\n", 100 * s.key_rms_mean, 100 * s.key_rms_worst,
-              100 * s.p99_worst);
+  std::printf("keyframes RMS %.4f%% mean, %.4f%% worst; 99th percentile %.4f%% worst frame (decoded to captured %.4f%%, captured to "
+              "decoded %.4f%%)\n",
+              100 * s.key_rms_mean, 100 * s.key_rms_worst, 100 * s.p99_worst, 100 * s.p99_decoded_worst, 100 * s.p99_captured_worst);
   json evaluation = evaluation_json(e);
   if (other) {
     double mean = 0;

@@ -48,6 +48,10 @@ Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& textu
 struct FrameError {
   double rms = 0, max = 0;  // symmetric point-to-surface, relative to the captured frame's diagonal
   double p99 = 0;           // its 99th percentile (the worst region), relative to the same diagonal
+  // The same percentile of each direction apart (directional_p99s): every decoded vertex to the
+  // captured surface (the decoded frame's own error: issue 44's measure), and every captured vertex
+  // to the decoded surface (what the decoded frame misses, a sheet the repair dropped included).
+  double p99_decoded = 0, p99_captured = 0;
   double psnr = -1;         // decoded texture against the captured one on the disk (dB); -1 without
   bool keyframe = false;
   bool converged = true;
@@ -65,7 +69,12 @@ struct Evaluation {
 struct Summary {
   double key_rms_mean = 0, key_rms_worst = 0, held_rms_mean = 0, held_rms_worst = 0, held_max_worst = 0, psnr_mean = -1, psnr_worst = -1;
   double p99_worst = 0;  // over every decoded frame, keyframes and held-out: design §7's worst-region target
+  double p99_decoded_worst = 0, p99_captured_worst = 0;  // each direction's (FrameError)
 };
+
+// f.p99_decoded and f.p99_captured for a decoded frame against its captured mesh, over `diagonal`
+// (the captured frame's, as surface_distance's).
+void directional_p99s(const TriangleMesh& captured, const TriangleMesh& decoded, double diagonal, FrameError& f);
 
 // Means and worsts over keyframes and held-out frames (texture PSNR over held-out frames).
 Summary summarise(const Evaluation& e);

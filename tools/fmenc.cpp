@@ -290,9 +290,9 @@ void declare_options(CLI::App& app, Arguments& a) {
       ->capture_default_str();
   app.add_option("--grid", a.grid,
                  "Grid size N of the disk grid, or auto: the smallest whose resampling floor (RMS) is within the largest of 0.02%, the "
-                 "frame noise and half the error between keyframes (where none is predicted, one frame or every frame a keyframe, the "
-                 "0.02% or the noise), capped by the mesh's density, then raised until the reference's worst region (99th percentile, "
-                 "resampled and decoded) is within 0.75%")
+                 "frame noise and half the error between keyframes (half the error bound where none is predicted: one frame, every frame "
+                 "a keyframe; 0.5% by default, or --max-error), capped by the mesh's density, then raised until the reference's worst "
+                 "region (99th percentile, resampled and decoded) is within 0.75%; the fields' rounding then keeps it within 1%")
       ->capture_default_str();
   app.add_option("--texture", a.texture_size, "Texels per side of the disk texture, or auto (as sharp as the capture's, at most 1024)")
       ->capture_default_str();
@@ -689,6 +689,7 @@ void print_grid_choice(const Summary& s) {
         100 * s.report.median_noise, s.report.grid_density_cap, s.report.grid_vertex_area,
         s.report.grid_vertex_area * (s.sequence->shape().grid_n - 1) * (s.sequence->shape().grid_n - 1) / 4.0, s.sequence->shape().grid_n);
     const char* why = s.report.grid_term == "interpolation" ? "half the mean error predicted between keyframes"
+                      : s.report.grid_term == "error bound" ? "half the error bound, as nothing between keyframes is predicted"
                       : s.report.grid_term == "noise"       ? "the median frame noise"
                                                             : "the fixed floor";
     if (s.report.grid_term == "density") {
@@ -754,6 +755,15 @@ void print_rate_and_fields(const Summary& s) {
         : worst == 0 ? " (auto: two fifths of the error bound, as nothing between keyframes is predicted)"
                                                 : " (auto)",
         100 * *std::max_element(e.begin(), e.end()), s.report.field_coding.intra_period, s.report.field_precision.inter_dead_zone);
+    const FieldPrecisionReport& p = s.report.field_precision;
+    if (p.rounding_p99_budget > 0 && !p.keyframe_p99s.empty()) {
+      std::printf("  worst region: the rounding's 99th percentile within %.3f%% (1%% less the decoded floor), worst "
+                  "keyframe %s%.3f%%; %s\n",
+                  100 * p.rounding_p99_budget, p.worst_region_refusals > 0 ? "" : "at most ",
+                  100 * *std::max_element(p.keyframe_p99s.begin(), p.keyframe_p99s.end()),
+                  p.worst_region_refusals > 0 ? ("it refused " + std::to_string(p.worst_region_refusals) + " coarser steps").c_str()
+                                              : "it did not bind");
+    }
   }
 }
 

@@ -26,6 +26,7 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <utility>
 
 namespace facemorph {
 namespace {
@@ -94,6 +95,89 @@ TEST(FieldPrecision, RoundingMeetsItsTargetInTheDecodedSurface) {
   EXPECT_LT(bytes[true], bytes[false]);
   Sequence copy = exact;
   testing::expect_error(ErrorCode::kInvalidArgument, "target error", [&] { choose_field_coding(copy, {0.0, 8}); });
+}
+
+// Each keyframe's rounding p99 as the grid's decoded floor reads it: its surface decoded from the
+// rounded fields against the one decoded from the exact fields (every vertex of both to the other
+// surface), over the exact one's diagonal.
+std::vector<double> rounding_p99s(const Sequence& exact, const Sequence& rounded) {
+  Reconstructor reconstructor(exact.grid_n);
+  ReconstructOptions tight;
+  tight.tolerance = 1e-9;
+  tight.max_iterations = 500;
+  std::vector<double> p99s;
+  for (size_t k = 0; k < exact.keyframes.size(); ++k) {
+    reconstructor.forget_warm_start();
+    const std::vector<Vec3> a = reconstructor.reconstruct(exact.keyframes[k].fields, tight).positions;
+    reconstructor.forget_warm_start();
+    const std::vector<Vec3> b = reconstructor.reconstruct(rounded.keyframes[k].fields, tight).positions;
+    const DiskGrid& grid = reconstructor.geometry().grid();
+    const SurfaceDistance d = surface_distance(grid_mesh(grid, a), grid_mesh(grid, b));
+    p99s.push_back(d.p99 / d.diagonal);
+  }
+  return p99s;
+}
+
+// The worst region's bound (spec/method.md §5.3): where the decoded floor leaves the rounding less
+// of the 1% than the RMS target's steps take, the steps are refined until every keyframe's rounding
+// p99 is within what is left (target − floor), and the file grows; where it leaves more, or nothing
+// (a floor at the target), the steps are the RMS target's alone.
+TEST(FieldPrecision, TheWorstRegionBoundRefinesARoundingWhoseNinetyNinthPercentileWouldPassIt) {
+  testing::TempDir dir;
+  const Sequence exact = unrounded_keyframes(dir, 0, 0.25, 49);
+  ASSERT_GE(exact.keyframes.size(), 2u);
+  FieldPrecisionOptions options{.target_error = 1e-3, .intra_period = 1, .inter_dead_zone = 0.5};
+  auto round = [&](const FieldPrecisionOptions& o, FieldPrecisionReport& report, size_t& bytes) {
+    Sequence rounded = exact;
+    SequenceFileMetadata metadata;
+    metadata.field_coding = choose_field_coding(rounded, o, &report);
+    bytes = encode_sequence_file(rounded, metadata).size();
+    return rounded;
+  };
+  FieldPrecisionReport free_report;
+  size_t free_bytes = 0;
+  const Sequence free = round(options, free_report, free_bytes);
+  EXPECT_EQ(free_report.rounding_p99_budget, 0.0);
+  EXPECT_TRUE(free_report.keyframe_p99s.empty());
+  const std::vector<double> free_p99s = rounding_p99s(exact, free);
+  const double free_worst = *std::max_element(free_p99s.begin(), free_p99s.end());
+  ASSERT_GT(free_worst, 1e-4) << "a rounding the bound can refine";
+
+  // A floor that leaves half of the free rounding's worst p99: refined until it holds.
+  FieldPrecisionOptions bounded = options;
+  const double budget = 0.5 * free_worst;
+  bounded.worst_floor = bounded.worst_target - budget;
+  FieldPrecisionReport report;
+  size_t bytes = 0;
+  const Sequence held = round(bounded, report, bytes);
+  EXPECT_NEAR(report.rounding_p99_budget, budget, 1e-12);
+  EXPECT_GT(report.worst_region_refusals, 0);
+  ASSERT_EQ(report.keyframe_p99s.size(), exact.keyframes.size());
+  const std::vector<double> p99s = rounding_p99s(exact, held);
+  for (size_t k = 0; k < p99s.size(); ++k) {
+    EXPECT_LE(p99s[k], budget) << "keyframe " << k;
+    EXPECT_LE(report.keyframe_errors[k], 1.25 * options.target_error) << "the RMS target still holds";
+  }
+  EXPECT_GT(*std::max_element(p99s.begin(), p99s.end()), 0.5 * budget) << "the steps could be far coarser";
+  EXPECT_GT(bytes, free_bytes);
+
+  // A budget far over anything the search tries (a target of the whole diagonal), or a floor at the
+  // target (no steps could meet it): the RMS target's steps, byte for byte.
+  for (const auto& [target, floor] : {std::pair{1.0, 0.0}, std::pair{options.worst_target, options.worst_target}}) {
+    FieldPrecisionOptions loose = options;
+    loose.worst_target = target;
+    loose.worst_floor = floor;
+    FieldPrecisionReport loose_report;
+    size_t loose_bytes = 0;
+    round(loose, loose_report, loose_bytes);
+    EXPECT_EQ(loose_bytes, free_bytes) << floor;
+    EXPECT_EQ(loose_report.group_steps, free_report.group_steps) << floor;
+    EXPECT_EQ(loose_report.worst_region_refusals, 0) << floor;
+  }
+  Sequence copy = exact;
+  FieldPrecisionOptions negative = options;
+  negative.worst_floor = -1e-3;
+  testing::expect_error(ErrorCode::kInvalidArgument, "worst region", [&] { choose_field_coding(copy, negative); });
 }
 
 // The fraction of a keyframe's per-node codes (H, log λ, a, b) equal to the previous keyframe's.
@@ -368,11 +452,10 @@ TEST(SequenceEncoder, AutomaticFieldErrorIsTwoFifthsOfThePredictedError) {
 }
 
 TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
-  // Where the selection predicts nothing (one frame), the fields are rounded to two fifths of the
-  // error bound B it is held to, within [0.005%, 0.2%], as a sequence's whose keyframes left exactly
-  // B (spec/method.md §5.3), not to two fifths of G's floor, ten times finer. The grid keeps its
-  // fixed 0.02% target there (§7.6, "A single frame": at half the bound its coarse N left the worst
-  // region no room for that rounding on single frames of Medusa and ICT).
+  // Where the selection predicts nothing (one frame), the error bound B it is held to stands in for
+  // the prediction (spec/method.md §5.3, §7.6): the grid's RMS target is max(0.02%, ½ B) (one frame
+  // has no noise estimate) and the fields' two fifths of B within [0.005%, 0.2%], as a sequence's
+  // whose keyframes left exactly B. Not the fixed 0.02% and two fifths of G's floor, ten times finer.
   testing::TempDir dir;
   write_synthetic_capture(dir.path(), {.frames = 1, .vertices = 2000, .remesh = true, .noise = 0, .texture_size = 64});
   const Capture capture = read_capture(dir.path());
@@ -388,12 +471,12 @@ TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
     double bound;                   // the B they hold the frame to
   };
   const Case cases[] = {
-      {kDefaultKeyframeErrorBound, 0, 0.005},  // the defaults: 0.2% (the upper clamp, met exactly)
-      {0.0025, 0, 0.0025},                     // a tighter bound: 0.1%
-      {0.0025, 0.003, 0.003},                  // --max-error replaces the bound: 0.12%
+      {kDefaultKeyframeErrorBound, 0, 0.005},  // the defaults: 0.25% and 0.2% (the upper clamp, met exactly)
+      {0.0025, 0, 0.0025},                     // a tighter bound: 0.125% and 0.1%
+      {0.0025, 0.003, 0.003},                  // --max-error replaces the bound: 0.15% and 0.12%
       {0, 0, 0.005},                           // a budget given (fmenc --keyframes P) holds to none: the default
-      {0, 0.0003, 0.0003},                     // a fine tolerance: 0.012%
-      {0, 0.0001, 0.0001},                     // finer: the lower clamp 0.005%
+      {0, 0.0003, 0.0003},                     // a fine tolerance: the 0.02% floor, 0.012%
+      {0, 0.0001, 0.0001},                     // finer: the floor, and the lower clamp 0.005%
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(::testing::Message() << "error bound " << c.error_bound << ", max error " << c.max_error);
@@ -403,9 +486,13 @@ TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
     encoder.options().grid = 0;
     choose_grid(plan_settings(encoder.options()), plan_frames(encoder), encoder.report(), &chosen);
     const EncodeReport& report = encoder.report();
-    EXPECT_DOUBLE_EQ(report.grid_target, 2e-4) << "the grid's target does not follow the bound";
+    EXPECT_DOUBLE_EQ(report.grid_target, std::max(2e-4, 0.5 * c.bound));
     EXPECT_EQ(report.median_noise, 0.0) << "one frame has no noise estimate";
     ASSERT_FALSE(report.grid_floors.empty());
+    if (report.grid_term != "density" && report.grid_term != "worst region") {
+      EXPECT_EQ(report.grid_term, 0.5 * c.bound > 2e-4 ? "error bound" : "floor");
+      EXPECT_LE(report.grid_floors.back().second, report.grid_target);
+    }
     // Wherever N stopped, its worst region was read through the reconstruction too (hl+t, the default).
     ASSERT_FALSE(report.grid_decoded_floors.empty());
     EXPECT_EQ(report.grid_decoded_floors.back().n, report.grid_floors.back().first);
@@ -418,12 +505,26 @@ TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
   }
 
   // End to end at the defaults: the rounded keyframe honours the target (within 1.25x,
-  // field_precision.hpp); the grid's target stays the fixed 0.02%.
+  // field_precision.hpp), and the grid is coarser than the fixed 0.02% would ask; the rounding is
+  // held to what the decoded floor leaves of the worst region's 1%, and the frame decodes within it
+  // against the captured mesh (fmbench --capture's p99: both meshes' vertices, each to the other).
+  options.keyframe_error_bound = kDefaultKeyframeErrorBound;
+  options.max_error = 0;
+  options.grid = 0;
   EncodeReport report;
-  encode_capture(capture, options, &report);
+  const Sequence coded = encode_capture(capture, options, &report);
   EXPECT_DOUBLE_EQ(report.field_precision.target_error, 0.4 * kDefaultKeyframeErrorBound);
   for (double e : report.field_precision.keyframe_errors) EXPECT_LE(e, 1.25 * report.field_precision.target_error);
-  EXPECT_DOUBLE_EQ(report.grid_target, 2e-4);
+  ASSERT_FALSE(report.grid_floors.empty());
+  EXPECT_GT(report.grid_floors.back().second, 2e-4) << "a floor the fixed 0.02% target would have refused";
+  ASSERT_FALSE(report.grid_decoded_floors.empty());
+  const double floor = std::max(report.grid_decoded_floors.back().p99, report.grid_floor_p99s.back().second);
+  EXPECT_NEAR(report.field_precision.rounding_p99_budget, kWorstRegionTarget - floor, 1e-12);
+  ASSERT_EQ(report.field_precision.keyframe_p99s.size(), 1u);
+  EXPECT_LE(report.field_precision.keyframe_p99s[0], report.field_precision.rounding_p99_budget);
+  const SurfaceDistance decoded =
+      surface_distance(read_mesh(capture.mesh_path(0)), SequenceDecoder(std::make_shared<const Sequence>(coded)).decode(0.0).mesh);
+  EXPECT_LE(decoded.p99 / decoded.diagonal, kWorstRegionTarget) << "N = " << coded.grid_n;
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // --grid auto's two bounds beside the RMS target (spec/method.md §7.6): a grid no finer than the
 // captured mesh's density asks, and a worst region (99th percentile, resampled and decoded) that
-// leaves room for the 1% worst-region target.
+// leaves room for the 1% worst-region target; and the third term where nothing is predicted.
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/stages/choose_grid.hpp"
@@ -94,6 +94,37 @@ TEST(GridChoice, TheWorstRegionIsReadThroughTheReconstruction) {
   GridChoiceInput sampled = grid_input_falling_from(5e-4, 4e-2, 1e-3, 0);
   sampled.decoded = [](int) { return GridFloor{.rms = 1e-4, .p99 = 1e-3}; };
   EXPECT_EQ(choose_grid_size(sampled).n, 81);
+}
+
+TEST(GridChoice, WhereNothingIsPredictedTheErrorBoundTakesThePredictionsPlace) {
+  // One frame: no noise estimate (infinite), no predicted error. A floor of 0.5% at N = 33 meets
+  // ½ B = 0.25% where (33/N)² <= 1/2, N >= 46.7: 49, named after the bound.
+  GridChoiceInput single = grid_input_falling_from(5e-3, 1e-3, std::numeric_limits<double>::infinity(), 0);
+  single.error_bound = 0.005;
+  const GridChoice bounded = choose_grid_size(single);
+  EXPECT_EQ(bounded.n, 49);
+  EXPECT_DOUBLE_EQ(bounded.target, 0.0025);
+  EXPECT_EQ(bounded.term, "error bound");
+  // A predicted error replaces the bound (0.4%: a target of 0.2%, (33/N)² <= 2/5, N >= 52.2: 57).
+  single.mean_predicted_error = 0.004;
+  const GridChoice predicted = choose_grid_size(single);
+  EXPECT_EQ(predicted.n, 57);
+  EXPECT_EQ(predicted.term, "interpolation");
+  // Neither (no keyframes chosen): the fixed 0.02%, (33/N)² <= 1/25, N >= 165: 193.
+  single.mean_predicted_error = 0;
+  single.error_bound = 0;
+  const GridChoice fixed = choose_grid_size(single);
+  EXPECT_EQ(fixed.n, 193);
+  EXPECT_DOUBLE_EQ(fixed.target, 2e-4);
+  EXPECT_EQ(fixed.term, "floor");
+  // The worst region, decoded, still bounds the bound's N: a decoded p99 of 2% at 33 falling as
+  // 1/N² needs N >= 54 (57), past the 49 ½ B asks.
+  GridChoiceInput rough = grid_input_falling_from(5e-3, 1e-3, std::numeric_limits<double>::infinity(), 0);
+  rough.error_bound = 0.005;
+  rough.decoded = [](int n) { return GridFloor{.rms = 5e-3, .p99 = 2e-2 * (33.0 * 33.0) / (double(n) * double(n))}; };
+  const GridChoice worst = choose_grid_size(rough);
+  EXPECT_EQ(worst.n, 57);
+  EXPECT_EQ(worst.term, "worst region");
 }
 
 TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {

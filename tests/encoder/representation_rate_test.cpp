@@ -2,14 +2,19 @@
 // the rule on constructed candidates, the frames it measures, and the encoder's choice end to end.
 #include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/stages/choose_grid.hpp"
 
 #include "tests/encoder/encoder_stages.hpp"
 #include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -70,12 +75,33 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
 TEST(RepresentationRate, TheCoarserGridIsTriedInTheWinnerAtN) {
   using enum Representation;
   using Tried = std::vector<std::pair<Representation, int>>;
+  int decoded = 0;
+  const auto met = [&] { ++decoded; return 0.0061; };
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080)};
-  EXPECT_EQ(coarser_candidates(ict2k, 0.005, 129), (Tried{{kXYZ, 129}}));
+  EXPECT_EQ(coarser_candidates(ict2k, 0.005, 129, met, 0.0075), (Tried{{kXYZ, 129}}));
+  EXPECT_EQ(decoded, 0);  // positions won at N: the fields' floor is not decoded
   const std::vector<RateCandidate> rot30 = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
-  EXPECT_EQ(coarser_candidates(rot30, 0.005, 33), (Tried{{kHLT, 33}}));
-  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, 129), (Tried{{kHLT, 129}}));  // xyz did not converge at N
-  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, 0).empty());
+  EXPECT_EQ(coarser_candidates(rot30, 0.005, 33, met, 0.0075), (Tried{{kHLT, 33}}));
+  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, 129, met, 0.0075), (Tried{{kHLT, 129}}));  // xyz did not converge at N
+  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, 0, met, 0.0075).empty());
+}
+
+// The fields at the coarser N are a candidate only where the reference rebuilt from them meets the
+// worst region's share: the resampled floor that allowed the N is not what a decoder shows (§7.6's
+// whole head: 0.48% resampled, 3.79% decoded). Positions decode as sampled: tried there instead.
+TEST(RepresentationRate, TheFieldsAtACoarserGridAreTriedOnlyWhereTheirDecodedFloorMeetsTheShare) {
+  using enum Representation;
+  using Tried = std::vector<std::pair<Representation, int>>;
+  const std::vector<RateCandidate> fields_won = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
+  const auto floor = [](double p99) { return [p99] { return p99; }; };
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0061), 0.0075), (Tried{{kHLT, 129}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0075), 0.0075), (Tried{{kHLT, 129}}));  // met exactly
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0379), 0.0075), (Tried{{kXYZ, 33}}));  // the whole head's decoded floor
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0076), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::numeric_limits<double>::infinity()), 0.0075), (Tried{{kXYZ, 33}}));  // not rebuilt
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::nan("")), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.012), 0.0125), (Tried{{kHLT, 33}}));  // a noisy capture's raised share
+}
 }
 
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
@@ -120,6 +146,24 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   EXPECT_EQ(chosen.representation, kept.representation);
   EXPECT_EQ(chosen.grid_n, kept.grid);
   EXPECT_EQ(report.representation, Representation::kHLT);
+  // A coarser N: the fields there were decoded once and tried only within the worst region's share;
+  // kept, the rounding's p99 budget is what their decoded floor left of the 1%.
+  for (const RateCandidate& c : rate.candidates) {
+    if (!c.coarser) continue;
+    const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
+                                    [&](const EncodeReport::DecodedFloor& d) { return d.n == c.grid; });
+    ASSERT_NE(floor, report.grid_decoded_floors.end()) << "N = " << c.grid;
+    if (c.representation != Representation::kHLT) continue;
+    EXPECT_LE(floor->p99, report.grid_worst_target);
+    if (&c == &kept) {
+      double resampled = 0;
+      for (const auto& [n, p99] : report.grid_floor_p99s) {
+        if (n == c.grid) resampled = p99;
+      }
+      const double target = kWorstRegionTarget * std::max(1.0, report.grid_worst_target / kGridWorstTarget);
+      EXPECT_NEAR(report.field_precision.rounding_p99_budget, target - std::max(resampled, floor->p99), 1e-12);
+    }
+  }
   // The rounded keyframes as either representation asked for alone: the same bytes.
   for (const Representation r : {Representation::kHLT, Representation::kXYZ}) {
     EncodeOptions forced = options;
@@ -129,6 +173,30 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
     EXPECT_FALSE(forced_report.representation_rate.measured);  // asked for: nothing chosen
     EXPECT_EQ(geometry_bytes(*stored, forced_report.field_coding), r == Representation::kHLT ? fields.bytes : positions.bytes);
   }
+}
+
+// Where --grid auto's worst region allows a coarser N, the reference's fields there are decoded once
+// and the floor reported; the fields are a candidate there only within the share, and where kept the
+// rounding's p99 budget is what the larger of the two floors leaves of the 1%.
+TEST(SequenceEncoder, TheFieldsAtACoarserGridAreHeldToTheirDecodedFloor) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 60);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  EncodeReport report;
+  const Sequence chosen = encode_capture(capture, options, &report);
+  const RepresentationRate& rate = report.representation_rate;
+  ASSERT_TRUE(rate.measured);
+  const auto coarser = std::find_if(rate.candidates.begin(), rate.candidates.end(), [](const RateCandidate& c) { return c.coarser; });
+  ASSERT_NE(coarser, rate.candidates.end()) << "no coarser N on this capture";
+  const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
+                                  [&](const EncodeReport::DecodedFloor& d) { return d.n == coarser->grid; });
+  ASSERT_NE(floor, report.grid_decoded_floors.end());
+  const bool fields_tried = std::any_of(rate.candidates.begin(), rate.candidates.end(), [&](const RateCandidate& c) {
+    return c.coarser && c.representation == Representation::kHLT;
+  });
+  EXPECT_EQ(fields_tried, floor->p99 <= report.grid_worst_target);
 }
 
 }  // namespace

@@ -113,8 +113,9 @@ TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   const Capture head = synthetic(dir, true, 2);
   EncodeOptions options = geometry_options();
   options.density_equalising.radial = 0;
-  // N = 129 given, not --grid auto's 257 (on these two frames nothing is predicted: the fixed 0.02%
-  // target, to the density cap). At 129 the fields' iteration fails as at 257 (last change 2.7e-5 of
+  // N = 129 given, not --grid auto's (on these two frames nothing is predicted, so auto follows half
+  // the error bound: N = 41 at the defaults, spec/method.md §7.6; the test below asserts < 257).
+  // At 129 the fields' iteration fails as at 257, the fixed floor's N before (last change 2.7e-5 of
   // the rim diameter against 5.9e-7, both far above 1e-8), in a fifth of the time; at N = 65 it
   // converges, so the grid is not taken lower.
   options.grid = 129;
@@ -131,8 +132,9 @@ TEST(WholeHead, AKeyframeThatDoesNotReconstructIsStoredAsPositions) {
   testing::expect_error(ErrorCode::kNotConverged, "did not converge", [&] { encode_capture(head, options); });
 }
 
-// --grid auto on a whole head of two frames whose reference's fields reconstruct to no surface, or
-// to another one, at most N (spec/method.md §7.6, "The worst region through the reconstruction"): a candidate
+// --grid auto on a whole head of two frames (nothing predicted: the RMS target is half the error
+// bound, met at a coarse N) whose reference's fields reconstruct to no surface, or to another one,
+// at most N (spec/method.md §7.6, "The worst region through the reconstruction"): a candidate
 // whose decoded p99 is over the bound is refused; one whose fields do not reconstruct reads the
 // positions the encode then stores, and the file holds positions at that N.
 TEST(WholeHead, TheGridReadsTheReconstructionOrThePositionsItFallsBackTo) {
@@ -154,6 +156,7 @@ TEST(WholeHead, TheGridReadsTheReconstructionOrThePositionsItFallsBackTo) {
     EXPECT_GT(std::max(decoded[i].p99, resampled_p99(decoded[i].n)), report.grid_worst_target) << decoded[i].n;
   }
   EXPECT_LE(std::max(decoded.back().p99, resampled_p99(decoded.back().n)), report.grid_worst_target);
+  EXPECT_LT(sequence.grid_n, 257) << "the fixed floor's N: half the bound asks for less";
   if (!decoded.back().reconstructed) {
     EXPECT_EQ(sequence.representation, Representation::kXYZ);
     EXPECT_DOUBLE_EQ(decoded.back().p99, resampled_p99(decoded.back().n));

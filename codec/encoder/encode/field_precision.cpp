@@ -8,6 +8,7 @@
 #include "codec/encoder/encode/geometry_trial_source.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
 #include "codec/encoder/encode/stored_sequence.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 #include "format/error.hpp"
 
@@ -75,11 +76,41 @@ void check_dead_zone(double inter_dead_zone) {
   }
 }
 
-double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const std::vector<Vec3>& exact, double exact_diagonal) {
+std::vector<Vec3> decode_rounded(Reconstructor& reconstructor, const GridFields& rounded, const std::vector<Vec3>& exact) {
   ReconstructOptions o = tight();
   o.start = &exact;
-  const std::vector<Vec3> positions = reconstructor.reconstruct(rounded, o).positions;
-  return rms_distance(positions, exact) / exact_diagonal;
+  return reconstructor.reconstruct(rounded, o).positions;
+}
+
+double decoded_error(Reconstructor& reconstructor, const GridFields& rounded, const std::vector<Vec3>& exact, double exact_diagonal) {
+  return rms_distance(decode_rounded(reconstructor, rounded, exact), exact) / exact_diagonal;
+}
+
+// A rounded keyframe's decoded error: the RMS displacement of its nodes and the 99th percentile of
+// its rounding (fractions of the diagonal).
+struct RoundedError {
+  double rms = 0;
+  double p99 = 0;
+};
+
+// The rounding's 99th percentile as the grid's decoded floor reads it (surface_distance: every
+// vertex of both meshes to the other surface), measured where it could pass `budget`. A vertex's
+// distance to the other surface is at most its node's displacement (the other node lies on that
+// surface), so the displacements' p99 bounds it from above and is returned where it is within the
+// budget: the point-to-surface measure is taken only where the bound may bind.
+RoundedError rounded_error(Reconstructor& reconstructor, const GridFields& rounded, const std::vector<Vec3>& exact, double exact_diagonal,
+                           double budget) {
+  const std::vector<Vec3> positions = decode_rounded(reconstructor, rounded, exact);
+  RoundedError e{.rms = rms_distance(positions, exact) / exact_diagonal};
+  if (!std::isfinite(budget)) return e;
+  std::vector<double> displacement(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) displacement[i] = (positions[i] - exact[i]).norm();
+  e.p99 = nearest_rank_p99(displacement) / exact_diagonal;
+  if (e.p99 > budget) {
+    const DiskGrid& grid = reconstructor.geometry().grid();
+    e.p99 = surface_distance(grid_mesh(grid, exact), grid_mesh(grid, positions)).p99 / exact_diagonal;
+  }
+  return e;
 }
 
 // Where one choose_field_coding keeps its keyframes' arrays (keyframe_store.hpp): the stores' mode,
@@ -285,14 +316,16 @@ struct ExactSurfaces {
 // Each keyframe's decoded error with `coding`: rounded in order on this thread (a keyframe's
 // rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
 // that no more rounded fields than threads are held.
-std::vector<double> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder,
-                                   const ExactSurfaces& exact, ReconstructorPool& pool) {
-  std::vector<double> errors(keys.size(), 0.0);
+// With a finite `p99_budget`, each keyframe's rounding p99 too (rounded_error); else those are 0.
+std::vector<RoundedError> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder,
+                                         const ExactSurfaces& exact, ReconstructorPool& pool,
+                                         double p99_budget = std::numeric_limits<double>::infinity()) {
+  std::vector<RoundedError> errors(keys.size());
   std::vector<std::pair<size_t, GridFields>> batch;
   const auto decode_batch = [&] {
     pool.run(batch.size(), [&](Reconstructor& reconstructor, size_t i) {
       const auto& [k, rounded] = batch[i];
-      errors[k] = decoded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k]);
+      errors[k] = rounded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k], p99_budget);
     });
     batch.clear();
   };
@@ -427,13 +460,24 @@ struct StepChoice {
   FieldCoding coding;          // the steps at the coarsest scale that met the target
   double scale = 0;            // that scale of the calibration's steps
   std::vector<double> errors;  // each keyframe's decoded error at it
+  std::vector<double> p99s;    // each keyframe's rounding p99 at it (empty: not bounded)
   int refinements = 0;
+  int worst_region_refusals = 0;  // scales whose rounding p99 passed the budget
 };
+
+// The rounding's p99 budget (spec/method.md §5.3): what the worst-region target leaves the
+// decoded floor, added linearly (spec/method.md §5.3: measured, quadrature let Medusa's frame 181
+// through at 1.185%); infinite (not bounded) without a floor or with one at the target.
+double rounding_p99_budget(const FieldPrecisionOptions& options) {
+  if (!options.worst_floor || !(*options.worst_floor < options.worst_target)) return std::numeric_limits<double>::infinity();
+  return options.worst_target - *options.worst_floor;
+}
 
 // choose_field_coding's steps for one dead zone (the rounder's), from the calibration's steps, for
 // the exact fields of `keys` (not changed: the caller rounds them), to meet `target_error` with
-// keyframes intra every `intra_period` (resolved: not kAutoIntraPeriod).
-StepChoice choose_steps(const StoredSequence& keys, double target_error, int intra_period, const FieldRounder& rounder,
+// keyframes intra every `intra_period` (resolved: not kAutoIntraPeriod), every keyframe's rounding
+// p99 within `p99_budget` (infinite: not bounded).
+StepChoice choose_steps(const StoredSequence& keys, double target_error, double p99_budget, int intra_period, const FieldRounder& rounder,
                         const Calibration& calibration, const ExactSurfaces& exact, ReconstructorPool& pool) {
   const Sequence& sequence = keys.shape();
   FieldCoding coding;
@@ -455,39 +499,59 @@ StepChoice choose_steps(const StoredSequence& keys, double target_error, int int
   // noisy capture: 8x the scale, 50x the error, where error diffusion stops hiding the steps), so the
   // next scale follows the power law through the last two measurements, kept inside the bracket
   // of scales known to meet and to miss the target.
-  const double aim = 0.95 * target_error;
+  // The worst region's budget is a bound, not a target (no tolerance over it): a scale whose worst
+  // rounding p99 passes it misses, the next scale aims at 0.95 of it, and once it has refused a
+  // scale, a scale that meets both within 0.8 of the budget is done (coarser ones would pass it).
+  // Where it never refuses a scale, the search is the RMS target's alone, step for step.
+  const bool bounded = std::isfinite(p99_budget);
+  const double aim = 0.95 * target_error, p99_aim = 0.95 * p99_budget;
   double scale = 1, best_scale = 0, missed_scale = std::numeric_limits<double>::infinity();
-  double last_scale = 0, last_worst = 0;
-  std::vector<double> best_errors;
-  int refinements = 0;
+  double last_scale = 0, last_worst = 0, last_p99 = 0;
+  std::vector<double> best_errors, best_p99s;
+  int refinements = 0, refusals = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<double> errors = rounded_errors(keys, coding, rounder, exact, pool);
+    const std::vector<RoundedError> measured = rounded_errors(keys, coding, rounder, exact, pool, p99_budget);
+    std::vector<double> errors, p99s;
+    for (const RoundedError& e : measured) {
+      errors.push_back(e.rms);
+      if (bounded) p99s.push_back(e.p99);
+    }
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
-    const bool met = worst <= kTolerance * target_error;
+    const double worst_p99 = bounded ? std::max(*std::max_element(p99s.begin(), p99s.end()), 1e-300) : 0.0;
+    const bool p99_met = !bounded || worst_p99 <= p99_budget;
+    if (!p99_met) ++refusals;
+    const bool met = worst <= kTolerance * target_error && p99_met;
     if (met && scale > best_scale) {
       best_scale = scale;
       best_errors = errors;
+      best_p99s = p99s;
     }
     if (!met) missed_scale = std::min(missed_scale, scale);
-    if ((met && worst >= 0.8 * target_error) || refinements == kMaxRefinements) break;
-    double exponent = 1;  // error ∝ scale^exponent
-    if (last_scale > 0 && last_scale != scale && last_worst != worst) {
-      exponent = std::clamp(std::log(worst / last_worst) / std::log(scale / last_scale), 0.5, 4.0);
+    const bool near = worst >= 0.8 * target_error || (refusals > 0 && worst_p99 >= 0.8 * p99_budget);
+    if ((met && near) || refinements == kMaxRefinements) break;
+    // error ∝ scale^exponent, through the last two readings of the measure that decides
+    const bool by_p99 = !p99_met;
+    const double reading = by_p99 ? worst_p99 : worst, last_reading = by_p99 ? last_p99 : last_worst;
+    double exponent = 1;
+    if (last_scale > 0 && last_scale != scale && last_reading > 0 && last_reading != reading) {
+      exponent = std::clamp(std::log(reading / last_reading) / std::log(scale / last_scale), 0.5, 4.0);
     }
-    double next = scale * std::pow(aim / worst, 1 / exponent);
+    double next = scale * std::pow((by_p99 ? p99_aim : aim) / reading, 1 / exponent);
     if (best_scale > 0 && std::isfinite(missed_scale) && !(next > best_scale && next < missed_scale))
       next = std::sqrt(best_scale * missed_scale);
     last_scale = scale;
     last_worst = worst;
+    last_p99 = worst_p99;
     scale = next;
   }
   if (best_scale == 0) {
     throw Error(ErrorCode::kNotConverged, "field precision: no steps met the target error " + std::to_string(target_error) +
+                                              (bounded ? " and the worst region's rounding budget " + std::to_string(p99_budget) : "") +
                                               " in " + std::to_string(kMaxRefinements) + " refinements");
   }
   apply(best_scale);
-  return {coding, best_scale, best_errors, refinements};
+  return {coding, best_scale, best_errors, best_p99s, refinements, refusals};
 }
 
 // A trial's keyframes as the file would hold them (fields, hole level and pose rounded; no texture),
@@ -553,6 +617,10 @@ void check_options(const FieldPrecisionOptions& options) {
   if (options.inter_dead_zone != kAutoDeadZone) check_dead_zone(options.inter_dead_zone);
   if (options.intra_period < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative intra period");
   if (options.threads < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative thread count");
+  if (!(options.worst_target > 0) || !std::isfinite(options.worst_target) ||
+      (options.worst_floor && (!(*options.worst_floor >= 0) || !std::isfinite(*options.worst_floor)))) {
+    throw Error(ErrorCode::kInvalidArgument, "field precision: the worst region's target must be finite and positive, its floor finite and not negative");
+  }
 }
 
 }  // namespace
@@ -575,6 +643,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   });
   const ExactSurfaces exact(keys, pool, spill);
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
+  const double p99_budget = rounding_p99_budget(options);
   double dead_zone = options.inter_dead_zone;
   std::optional<StepChoice> choice;
   if (options.inter_dead_zone == kAutoDeadZone) {
@@ -587,7 +656,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
       const FieldRounder rounder(pool.grid(), options.noise_shaping, kDeadZoneCandidates[c]);
       std::optional<StepChoice> steps;
       try {
-        steps = choose_steps(keys, options.target_error, period, rounder, calibration, exact, pool);
+        steps = choose_steps(keys, options.target_error, p99_budget, period, rounder, calibration, exact, pool);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
@@ -603,7 +672,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     }
   }
   const FieldRounder rounder(pool.grid(), options.noise_shaping, dead_zone);
-  if (!choice) choice = choose_steps(keys, options.target_error, period, rounder, calibration, exact, pool);
+  if (!choice) choice = choose_steps(keys, options.target_error, p99_budget, period, rounder, calibration, exact, pool);
   put_rounded(keys, rounder, choice->coding);
   spill.bytes += exact.store.spilled_bytes();
   if (report) {
@@ -612,6 +681,9 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     for (double& s : report->group_steps) s *= choice->scale;
     report->keyframe_errors = choice->errors;
     report->refinements = choice->refinements;
+    report->rounding_p99_budget = std::isfinite(p99_budget) ? p99_budget : 0.0;
+    report->keyframe_p99s = choice->p99s;
+    report->worst_region_refusals = choice->worst_region_refusals;
     report->inter_dead_zone = dead_zone;
     report->peak_keyframes_in_memory = spill.count->peak.load();
     report->spilled_bytes = spill.bytes;
@@ -627,7 +699,8 @@ std::vector<double> apply_field_coding(StoredSequence& keys, const FieldCoding& 
   ReconstructorPool pool(keys.shape().grid_n, options.threads);
   const ExactSurfaces exact(keys, pool, spill);
   const FieldRounder rounder(pool.grid(), options.noise_shaping, options.inter_dead_zone);
-  std::vector<double> errors = rounded_errors(keys, coding, rounder, exact, pool);
+  std::vector<double> errors;
+  for (const RoundedError& e : rounded_errors(keys, coding, rounder, exact, pool)) errors.push_back(e.rms);
   put_rounded(keys, rounder, coding);
   return errors;
 }

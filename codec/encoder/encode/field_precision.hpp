@@ -10,6 +10,7 @@
 
 #include <array>
 #include <functional>
+#include <optional>
 #include <vector>
 
 namespace facemorph {
@@ -28,6 +29,11 @@ inline constexpr double kAutoIntraSeconds = 10;
 // the zones that measured best where a zone pays (spec/method.md §5.3).
 inline constexpr double kAutoDeadZone = 0;
 inline constexpr std::array<double, 4> kDeadZoneCandidates = {0.5, 0.55, 0.6, 0.65};
+
+// The worst region's target (issue 44, design §7): every decoded frame's 99th-percentile point
+// error within 1% of the bounding box diagonal. The grid takes three quarters of it for its decoded
+// floor (choose_grid.cpp), the rounding what the decoded floor leaves of it (spec/method.md §5.3).
+inline constexpr double kWorstRegionTarget = 0.01;
 
 struct FieldPrecisionOptions {
   // The RMS displacement of a keyframe's decoded surface that rounding may cause, as a fraction of
@@ -53,6 +59,15 @@ struct FieldPrecisionOptions {
   // The keyframes decoded at once while the steps are measured (0: one per core). The steps and
   // rounding are the same for any count.
   int threads = 0;
+  // The worst region's bound on the rounding (spec/method.md §5.3): the decoded floor, the 99th
+  // percentile point error of an unrounded keyframe's decode against the captured surface (fraction
+  // of the diagonal; the grid's at its N, choose_grid.cpp). Set, the steps are also refined until
+  // every keyframe's rounding p99 q (its rounded decode against its unrounded one, the same measure)
+  // meets worst_floor + q ≤ worst_target (the two add nearly linearly at the worst points: measured,
+  // spec/method.md §5.3, not in quadrature). Unset, or a floor at or over the target (no rounding
+  // could meet it): only the RMS target binds.
+  std::optional<double> worst_floor = std::nullopt;
+  double worst_target = kWorstRegionTarget;
 };
 
 struct FieldPrecisionReport {
@@ -60,6 +75,12 @@ struct FieldPrecisionReport {
   std::vector<double> group_steps;      // per group: H, log λ, tangential, band, positions, rim (0: absent)
   std::vector<double> keyframe_errors;  // each keyframe's measured RMS displacement from rounding / diagonal
   int refinements = 0;                  // times the steps were rescaled after measuring every keyframe
+  // The rounding's 99th-percentile budget worst_target − worst_floor / diagonal (0: not bounded),
+  // each keyframe's rounding p99 at the chosen steps (an upper bound, its nodes' displacement, where
+  // that is within the budget; empty: not bounded), and the scales the bound refused (0: it never bound).
+  double rounding_p99_budget = 0;
+  std::vector<double> keyframe_p99s;
+  int worst_region_refusals = 0;
   double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
   int peak_keyframes_in_memory = 0;     // the most decoded surfaces in memory at once (KeyframeStore)
   uint64_t spilled_bytes = 0;           // written to the temporary file (0 without options.spill)

@@ -45,6 +45,11 @@ KeyframeSelection select_keyframes(const PlanSettings& settings, const Selection
 // automatic choice measured goes to `report` (grid_floors, grid_target, grid_term, ...), whose
 // registration figures (frames_without_interior_landmarks, radial_equalising) it reads.
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen = nullptr);
+// The reference's decoded floor on G of size `n` as hl+t (what choose_grid measures from where the
+// RMS terms are done): for a candidate at a coarser N than that, which the grid stage read through
+// its resampled floor alone (SequenceEncoder::choose_by_bytes). Infinite where the fields do not
+// reconstruct (such a candidate is not stored as positions: it is not a candidate).
+EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, const PlanFrames& frames, int n);
 // 5½ What the keyframes store where settings.representation leaves it open: where most frames
 // were registered without interior landmarks, the hl+t fields and the positions of `chosen`'s
 // keyframes blended at the frames midway between up to kBlendTrials pairs of them, on G of `grid`

@@ -112,9 +112,12 @@ double held_out_rms(const Capture& capture, const StoredSequence& stored, const 
   return sum / static_cast<double>(rms.size());
 }
 
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser) {
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
+                                                               const std::function<double()>& coarser_fields_p99, double worst_target) {
   if (coarser <= 0 || at_grid.empty()) return {};
-  return {{at_grid[cheapest_at_equal_error(at_grid, tolerance)].representation, coarser}};
+  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance)].representation;
+  if (winner == Representation::kHLT && !(coarser_fields_p99() <= worst_target)) return {{Representation::kXYZ, coarser}};
+  return {{winner, coarser}};
 }
 
 }  // namespace facemorph

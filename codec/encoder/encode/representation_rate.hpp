@@ -12,6 +12,7 @@
 #include "codec/core/reconstruct/fields.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -83,11 +84,15 @@ std::optional<std::vector<TriangleMesh>> trial_meshes(const Capture& capture, co
 double held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
                     const std::vector<TriangleMesh>& captured, int threads);
 
-// The coarser N's candidates (--grid auto's worst region, worst_region_grid): only the
-// representation `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where
-// both were measured at a coarser N (ict2k24, the sample, fmsynth's 30° turning head), the coarser
-// N's winner was the same representation as N's (spec/method.md §7.14), so the other one's build,
-// rounding and measure changed nothing and cost a quarter of the choice.
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser);
+// The coarser N's candidate (--grid auto's worst region, worst_region_grid): the representation
+// `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where both were
+// measured at a coarser N (ict2k24, the sample, fmsynth's 30° turning head), the coarser N's winner
+// was the same representation as N's (spec/method.md §7.14), so the other one's build, rounding and
+// measure changed nothing and cost a quarter of the choice. The fields there only where the reference
+// rebuilt from them at that N (`coarser_fields_p99`, called only then: decoded_fields_floor) meets
+// `worst_target`, as the resampled floor that allowed the N does not show what a decoder rebuilds
+// (§7.6's whole head: 0.48% resampled, 3.79% decoded); else positions, which decode as sampled.
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
+                                                               const std::function<double()>& coarser_fields_p99, double worst_target);
 
 }  // namespace facemorph

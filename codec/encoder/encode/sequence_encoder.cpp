@@ -342,9 +342,27 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   Kept best{std::move(fields), report_};
   const EncodeReport planned = report_;
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  // The fields at the coarser N as a decoder rebuilds them (the grid stage measures them from where
+  // its RMS terms are done, most often finer): measured there once, only where the fields are the
+  // coarser N's candidate, and read by the rounding's worst-region bound (round_fields.cpp).
+  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
+  std::optional<EncodeReport::DecodedFloor> coarser_fields;
+  for (const EncodeReport::DecodedFloor& d : planned.grid_decoded_floors) {
+    if (coarser > 0 && d.n == coarser) coarser_fields = d;
+  }
+  bool measure = false;
+  const auto coarser_fields_p99 = [&] {
+    if (!coarser_fields) {
+      coarser_fields = decoded_fields_floor(settings.plan, plan_frames(*this), coarser);
+      measure = true;
+    }
+    return coarser_fields->p99;
+  };
   const auto try_candidate = [&](Representation representation, int n) {
     report_ = planned;
     adopt_representation(representation, planned.blend);
+    if (measure && representation == Representation::kHLT)
+      report_.grid_decoded_floors.insert(report_.grid_decoded_floors.begin(), *coarser_fields);
     std::unique_ptr<StoredSequence> sequence;
     try {
       sequence = build(settings.build, chosen.keyframes, n, nullptr);
@@ -362,11 +380,14 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
-  const int coarser = settings.plan.grid > 0 ? 0 : worst_region_grid(report_.grid_floor_p99s, report_.grid_worst_target, grid);
-  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser)) try_candidate(representation, n);
+  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser, coarser_fields_p99, report_.grid_worst_target))
+    try_candidate(representation, n);
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
+  // The report says what was measured whichever is kept (coarser N first, as the grid stage's order).
+  auto& decoded = report_.grid_decoded_floors;
+  if (measure && (decoded.empty() || decoded.front().n != coarser)) decoded.insert(decoded.begin(), *coarser_fields);
   adopt_representation(rate.candidates[rate.chosen].representation, planned.blend);
   report_.representation_rate = std::move(rate);
   report_.seconds_representation += report_.representation_rate.seconds;

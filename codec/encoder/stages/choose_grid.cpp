@@ -40,12 +40,6 @@ constexpr double kGridErrorShare = 0.5;
 // face stops paying for nodes past N = 97 (2.4 such nodes; 129: 4.2), decimated ICT still pays at
 // N = 257 (2.0).
 constexpr double kGridNodesPerVertex = 3.0;
-// The floor's share of the worst-region target (every decoded frame's 99th-percentile point error
-// within 1% of the diagonal, design §7): what a keyframe alone shows, with room for the rounding
-// in quadrature (√(1 − 0.75²) = 0.66%). Not less: between keyframes the spline sets the worst
-// region, and a finer grid bought none of it (Medusa N = 41 → 57: worst-frame p99 1.735 → 1.713%
-// for 25% more bytes; spec/method.md §7.6).
-constexpr double kGridWorstTarget = 0.0075;
 constexpr double kGaussianP99 = 2.576;
 
 }  // namespace
@@ -86,16 +80,20 @@ GridChoice choose_grid_size(GridChoiceInput input) {
   // Nor below half the error the spline makes between the chosen keyframes: errors add in
   // quadrature, so such a floor adds up to 12% to it, and below that a finer grid costs more bytes
   // for the error it removes than more keyframes would (spec/method.md §7.6).
-  // Where the selection predicts nothing (one frame, every frame a keyframe) the fixed floor stays
-  // the target, though the field rounding there reads the selection's error bound (stage_settings.cpp).
-  // The grid at half that bound was measured twice and withdrawn twice (spec/method.md §7.6, "A single
-  // frame"): its coarse N left the worst region no room for the rounding at two fifths of the bound,
-  // and single frames of Medusa and ICT decoded at 1.01-1.19% p99 though their decoded floors were
-  // within the 0.75% share below (main's N: 0.34-0.50%).
+  // Where the selection predicts nothing (one frame, every frame a keyframe), the error it holds a
+  // frame to stands in for the prediction, as it does for the field rounding (stage_settings.cpp): a
+  // frame nothing is predicted for is coded as a sequence's whose keyframes left exactly that, not
+  // at the fixed floor, ten times finer (spec/method.md §7.6, "A single frame"). The worst-region
+  // bound below, read through the reconstruction, keeps the coarse N this allows honest, and the
+  // field precision stage holds the rounding to what it leaves of the 1% (round_fields.cpp): without
+  // that bound this rule was withdrawn twice (single frames of Medusa and ICT at 1.01-1.19% p99).
+  const bool predicted = input.mean_predicted_error > 0;
   const double noise_term = input.noise_decides ? kGridNoiseShare * choice.median_noise : 0.0,
-               interpolation_term = kGridErrorShare * input.mean_predicted_error;
+               interpolation_term = kGridErrorShare * (predicted ? input.mean_predicted_error : input.error_bound);
   choice.target = std::max({kGridFloorTarget, noise_term, interpolation_term});
-  choice.term = choice.target == interpolation_term ? "interpolation" : choice.target == noise_term ? "noise" : "floor";
+  choice.term = choice.target == interpolation_term ? (predicted ? "interpolation" : "error bound")
+                : choice.target == noise_term        ? "noise"
+                                                     : "floor";
   // The RMS terms ask for no more than the captured mesh's density holds (density_grid_cap); the
   // worst region may ask for more: it is a bound every decoded frame must meet, not a trade.
   choice.density_cap = density_grid_cap(input.vertex_disk_area);
@@ -199,6 +197,13 @@ class ReferenceOnGrid {
 
 }  // namespace
 
+EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, const PlanFrames& frames, int n) {
+  const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(settings.reference_frame);
+  ReferenceOnGrid on_grid(frames, *reference, settings.reference_frame);
+  const GridFloor floor = on_grid.decoded(n, Representation::kHLT, false);
+  return {n, floor.rms, floor.p99, floor.reconstructed};
+}
+
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
   if (settings.grid > 0) return settings.grid;
   const auto start = std::chrono::steady_clock::now();
@@ -215,6 +220,7 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   const bool unmatched = 2 * report.frames_without_interior_landmarks > count - 1;
   input.noise_decides = report.radial_equalising == 0 || !unmatched;
   input.mean_predicted_error = chosen ? mean_predicted_error(*chosen) : 0.0;
+  input.error_bound = chosen ? unpredicted_error_bound(settings.selection) : 0.0;
   const int reference_index = settings.reference_frame;
   const std::shared_ptr<const MappedFrame> reference = frames.maps.frame(reference_index);
   // The conformal disk is the one G samples unless a reparametrisation spreads it (§7.11): then no cap.

@@ -14,6 +14,15 @@
 
 namespace facemorph {
 
+// The floor's share of the worst-region target (every decoded frame's 99th-percentile point error
+// within 1% of the diagonal, design §7): what a keyframe alone shows, with room for the rounding
+// (1% less the decoded floor's p99, 0.25% or more where the floor met this share: the field
+// precision stage holds it to that, round_fields.cpp; the two add nearly linearly at the worst
+// points, spec/method.md §5.3).
+// Not less: between keyframes the spline sets the worst region, and a finer grid bought none of it
+// (Medusa N = 41 → 57: worst-frame p99 1.735 → 1.713% for 25% more bytes; spec/method.md §7.6).
+inline constexpr double kGridWorstTarget = 0.0075;
+
 // G's floor on the reference frame at one N, over the reference's diagonal: its surface against G's
 // surface sampled from it (the resampling floor), or against that surface's fields decoded as a
 // decoder rebuilds them (the decoded floor).
@@ -41,6 +50,10 @@ struct GridChoiceInput {
   // reference: their found landmarks' disagreement reads as noise).
   bool noise_decides = true;
   double mean_predicted_error = 0;        // the spline's between the chosen keyframes (fraction of the diagonal); 0: none chosen
+  // Where nothing is predicted (mean_predicted_error 0: one frame, every frame a keyframe), the error
+  // the selection holds a frame to (unpredicted_error_bound), which takes the prediction's place in
+  // the third term; 0: none (no keyframes chosen), the fixed floor alone.
+  double error_bound = 0;
   double vertex_disk_area = 0;            // the reference frame's quartile_vertex_disk_area on the disk G samples (0: no cap)
   std::function<GridFloor(int n)> floor;  // the reference's resampling floor on G of size n
   // The reference's decoded floor on G of size n (infinite where its fields do not reconstruct and
@@ -58,7 +71,8 @@ struct GridChoice {
   double worst_target = 0;                         // the floor's 99th percentile asked for (fraction of the diagonal)
   double median_noise = 0;                         // the frames' median noise (0 where it is not finite)
   double target = 0;                               // the floor asked for (fraction of the diagonal)
-  // which term set it: "floor", "noise" or "interpolation" (the RMS target met), "density" (the
+  // which term set it: "floor", "noise", "interpolation" or "error bound" (the RMS target met; the
+  // third term from the prediction or, where nothing is predicted, the bound), "density" (the
   // density cap reached first) or "worst region" (the 99th percentile, the larger of the resampled
   // and the decoded one, asked for more than either)
   std::string term;
