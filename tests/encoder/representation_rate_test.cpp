@@ -157,6 +157,17 @@ TEST(SequenceEncoder, TheKeptCandidateIsTheOneStored) {
   EXPECT_EQ(stored->shape().grid_n, kept.grid);
   EXPECT_EQ(report.grid, kept.grid);
   EXPECT_EQ(geometry_bytes(*stored, report.field_coding), kept.bytes) << "the file's keyframes are the kept candidate's";
+  EXPECT_DOUBLE_EQ(rate.tolerance, kDefaultKeyframeErrorBound);
+
+  // The default budget given as fmenc --keyframes 10% gives it (the error bound set to 0): the same
+  // tolerance, so the same pick and file (before, a tolerance of 0 refused every coarser N).
+  EncodeOptions budget = options;
+  budget.keyframe_error_bound = 0;
+  EncodeReport budget_report;
+  const std::unique_ptr<StoredSequence> budget_stored = encode_capture_stored(capture, budget, &budget_report);
+  EXPECT_DOUBLE_EQ(budget_report.representation_rate.tolerance, kDefaultKeyframeErrorBound);
+  EXPECT_EQ(budget_report.representation_rate.chosen, rate.chosen);
+  EXPECT_EQ(geometry_bytes(*budget_stored, budget_report.field_coding), kept.bytes);
 }
 
 }  // namespace
