@@ -32,7 +32,9 @@ namespace facemorph {
 namespace {
 
 // A small capture's keyframes with their fields as computed (16-bit: far finer than any rounding
-// target of the field precision tests), without textures.
+// target of the field precision tests), without textures. The representation is given: left open,
+// the encoder's choice by bytes at equal error (representation_rate.hpp) may store these keyframes
+// as positions, and then the tests below would round no fields at all.
 Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double keyframe_fraction, int grid) {
   const Capture capture = testing::small_remeshed_capture(dir, 0, noise);
   EncodeOptions options;
@@ -41,7 +43,9 @@ Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double k
   options.texture = false;
   options.predicted_fields = false;
   options.representation = Representation::kHLT;  // the fields' rounding, not the choice by bytes (§7.14)
-  return encode_capture(capture, options);
+  Sequence sequence = encode_capture(capture, options);
+  if (sequence.representation != Representation::kHLT) ADD_FAILURE() << "the fixture's keyframes are not fields";
+  return sequence;
 }
 
 // The fields' rounding is chosen from the decoded surface: every keyframe decoded from its rounded

@@ -229,6 +229,20 @@ fi
 cmp -s "$work/a.fmv" "$work/before.fmv" || fail "an interrupted encode changed the earlier file"
 [[ $(ls "$work" | grep -c '\.tmp') -eq 0 ]] || fail "an interrupted encode left a temporary file"
 
+# The choice by bytes at equal error (spec/method.md §7.14) keeping a coarser N than --grid auto's
+# terms chose: the summary names the N those terms chose as "the smallest within" the target and the
+# N stored as coarser, not the stored one as the smallest (fmsynth's blinking face at seed 4: 49, 33).
+"$tools/fmsynth" -o "$work/blink" --frames 24 --expression blink --vertices 3000 --remesh --seed 4 --texture-size 64 --quiet || fail "fmsynth blink"
+"$tools/fmenc" "$work/blink" -o "$work/blink.fmv" --no-texture --threads 2 > "$work/blink.txt" 2>&1 || fail "fmenc blink: $(tail -1 "$work/blink.txt")"
+planned=$(grep -o 'RMS^2 the lowest[^:]*: hl+t N = [0-9]*' "$work/blink.txt" | grep -o '[0-9]*$')
+kept=$(grep -o 'N = [0-9]* [0-9]* B at [0-9.]*% (kept)' "$work/blink.txt" | grep -o '^N = [0-9]*' | grep -o '[0-9]*$')
+[[ -n "$planned" && -n "$kept" ]] || fail "fmenc's summary shows no choice by bytes at equal error"
+[[ "$kept" != "$planned" ]] || echo "note: the blinking face kept N = $planned; the coarser N's line not exercised" >&2
+grep -q "grid auto: N = $planned, the smallest within" "$work/blink.txt" || fail "the summary's N 'the smallest within' is not --grid auto's ($planned)"
+if [[ "$kept" != "$planned" ]]; then
+  grep -q "grid auto: N = $kept stored, coarser" "$work/blink.txt" || fail "the summary does not say N = $kept was kept coarser than $planned"
+fi
+
 if ((failures > 0)); then
   echo "$failures failures" >&2
   exit 1

@@ -330,7 +330,11 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
-  rate.tolerance = options_.max_error > 0 ? options_.max_error : options_.keyframe_error_bound;
+  // The bound the selection holds the frames to (--max-error, else the error bound), read as the
+  // grid and the field rounding read it: a budget given (fmenc --keyframes) sets the bound to 0, and
+  // the default 0.5% stands, or an explicit --keyframes 10% would keep no coarser N where the default
+  // does (spec/method.md §7.14).
+  rate.tolerance = unpredicted_error_bound(settings.plan.selection);
   rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_rms, frames});
   // The others on the same keyframes, each rounded to the same target: xyz at this N, then N's
   // winner at the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
