@@ -319,9 +319,10 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--registration", a.registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", a.spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", a.representation,
-                 "auto | hl+t | hl | xyz. auto: hl+t; where most frames share no interior landmarks with the reference frame (none "
+                 "auto | hl+t | hl | xyz. auto: where most frames share no interior landmarks with the reference frame (none "
                  "given, none tracked), the keyframes are blended both ways at up to 12 frames between them and xyz is stored where the "
-                 "fields come out more than 1.1x farther than the positions")
+                 "fields come out more than 1.1x farther than the positions; otherwise hl+t and xyz are coded at N (and at a coarser N "
+                 "where the worst region allows it) and the lowest bytes x RMS^2 is kept, a coarser N only within the error bound")
       ->capture_default_str();
   app.add_option("--density-equalising", a.density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")
