@@ -319,11 +319,11 @@ void declare_options(CLI::App& app, Arguments& a) {
   app.add_option("--registration", a.registration, "moebius | gmf | frame")->capture_default_str();
   app.add_option("--spline", a.spline, "catmull-rom | local | not-a-knot | linear")->capture_default_str();
   app.add_option("--representation", a.representation,
-                 "auto | hl+t | hl | xyz. auto: hl+t; where most frames share no interior landmarks with the reference frame (none "
+                 "auto | hl+t | hl | xyz. auto: where most frames share no interior landmarks with the reference frame (none "
                  "given, none tracked), the keyframes are blended both ways at up to 12 frames between them and xyz is stored where the "
-                 "fields come out more than 1.1x farther than the positions; where the fields stay, the keyframes are coded both ways "
-                 "(and with --grid auto at the coarsest N whose resampled 99th percentile is within 0.75%, both again) and the fewest "
-                 "bytes x held-out RMS^2 on up to 8 frames between keyframes kept, a coarser N only within the error bound")
+                 "fields come out more than 1.1x farther than the positions; otherwise hl+t and xyz are coded at N, then the one with "
+                 "the lower bytes x held-out RMS^2 (on up to 8 frames between keyframes) also at the coarsest N whose worst region is "
+                 "within 0.75% (--grid auto), and the lowest kept, a coarser N only within the error bound")
       ->capture_default_str();
   app.add_option("--density-equalising", a.density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")

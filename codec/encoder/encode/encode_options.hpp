@@ -45,12 +45,14 @@ struct EncodeOptions {
   double sparse_frame_interval = 0.25;
   double max_error = 0;  // --max-error: > 0 replaces the budget by this tolerance (fraction of the diagonal)
   int grid = 0;          // N; 0 = automatic (spec/method.md §7.6)
-  // What the keyframes store. Unset (the default; fmenc --representation auto): hl+t, except where
-  // most frames register to the reference without interior landmarks (none shared, none tracked)
-  // and the keyframes' fields, blended at frames between them, come out farther from those frames
-  // than their blended positions (by more than kFieldsBlendMargin): there xyz. The fields of
-  // features that the normalised maps leave apart do not blend into one surface; positions do
-  // (spec/method.md §7.14). choose_representation (sequence_encoder.hpp) decides.
+  // What the keyframes store. Unset (the default; fmenc --representation auto): xyz where most
+  // frames register to the reference without interior landmarks (none shared, none tracked) and the
+  // keyframes' fields, blended at frames between them, come out farther from those frames than their
+  // blended positions (by more than kFieldsBlendMargin): the fields of features that the normalised
+  // maps leave apart do not blend into one surface; positions do. choose_representation
+  // (sequence_encoder.hpp) decides that. Elsewhere the keyframes are coded as hl+t and as xyz, at N
+  // and at a coarser N the worst region allows, and the lowest bytes x RMS^2 is kept
+  // (choose_by_bytes, representation_rate.hpp; spec/method.md §7.14).
   std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;

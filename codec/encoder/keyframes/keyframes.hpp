@@ -67,8 +67,9 @@ struct SelectionOptions {
   // With the budget, > 0: a capture whose frames lie on median further apart than this (seconds)
   // keeps every frame as a keyframe. Frames that sparse (scans at a few a second or fewer) give the
   // spline nothing between them to be checked against, and are few: each is stored, not predicted,
-  // the grid's RMS target max(0.02%, the noise) (half the error bound was measured and withdrawn),
-  // the fields rounded to two fifths of the error bound (spec/method.md §5.3, §7.5, §7.6).
+  // the grid's RMS target max(0.02%, the noise, half the error bound) (half the bound withdrawn twice,
+  // the rule again since the rounding's p99 is held to what the decoded floor leaves of 1%), the
+  // fields rounded to two fifths of the error bound (spec/method.md §5.3, §7.5, §7.6).
   double sparse_interval = 0;
   // With the error bound (> 0), > 0: the budget also grows until every held-out frame's predicted
   // 99th-percentile point error (the area-weighted 99th percentile of the prediction's offsets along
@@ -142,9 +143,10 @@ inline constexpr double kDefaultKeyframeErrorBound = 0.005;
 // keyframe): the tolerance (max_error), else the bound on the mean (error_bound), else, where a
 // budget given holds the selection to none (fmenc --keyframes P), the default bound. A frame of a
 // sequence at these options may be left that far from its capture, so the fields of a frame nothing
-// is predicted for are rounded to two fifths of it (spec/method.md §5.3). The grid does not read it:
-// its RMS target there stays the fixed 0.02% (§7.6, "A single frame": at half the bound the coarse N
-// left the worst region no room for that rounding; measured and withdrawn twice).
+// is predicted for are rounded to two fifths of it (spec/method.md §5.3). The grid reads it too: its
+// RMS target there is half of it (choose_grid.cpp; §7.6, "A single frame"), withdrawn twice while the
+// coarse N left the worst region no room for that rounding, the rule again since the rounding's p99
+// is held to what the decoded floor leaves of 1% (round_fields.cpp).
 double unpredicted_error_bound(const SelectionOptions& options);
 
 // What the field rounding's target scales with (auto_target_error): the mean predicted error between

@@ -229,8 +229,10 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
   }
   ReferenceOnGrid on_grid(frames, *reference, reference_index);
   input.floor = [&](int n) { return on_grid.resampled(n); };
-  // Positions (asked for) decode as sampled; otherwise the fields the keyframes will store if
-  // choose_representation keeps hl+t, its default.
+  // Positions (asked for) decode as sampled; otherwise the fields as hl+t would store them, which
+  // choose_representation keeps unless they blend apart. Where the representation is open,
+  // choose_by_bytes may store positions after all (spec/method.md §7.14); they decode as sampled, so
+  // the resampled floor bounded here holds for them.
   if (settings.representation != Representation::kXYZ) {
     const Representation representation = settings.representation.value_or(Representation::kHLT);
     const bool positions_fallback = !settings.representation;  // as build_reconstructable falls back
