@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <utility>
 
 namespace facemorph {
 namespace {
@@ -38,30 +39,9 @@ std::vector<Vec3> solve_from_samples(const std::vector<OffsetSample>& samples, c
       }
     }
   }
-  const double mu = smoothing * static_cast<double>(rows) / unknowns + 1e-9;
-  for (int b = 0; b < lattice; ++b) {
-    for (int a = 0; a < lattice; ++a) {
-      const int p = index[static_cast<size_t>(b * lattice + a)];
-      for (const int other : {a + 1 < lattice ? b * lattice + a + 1 : -1, b + 1 < lattice ? (b + 1) * lattice + a : -1}) {
-        if (other < 0) continue;
-        const int q = index[static_cast<size_t>(other)];
-        if (p < 0 && q < 0) continue;
-        if (p >= 0) entries.emplace_back(p, p, mu);
-        if (q >= 0) entries.emplace_back(q, q, mu);
-        if (p >= 0 && q >= 0) {
-          entries.emplace_back(p, q, -mu);
-          entries.emplace_back(q, p, -mu);
-        }
-      }
-    }
-  }
-  Eigen::SparseMatrix<double> normal(unknowns, unknowns);
-  normal.setFromTriplets(entries.begin(), entries.end());
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
-  const Eigen::MatrixXd x = solver.solve(rhs);
-  std::vector<Vec3> out(static_cast<size_t>(unknowns));
-  for (int p = 0; p < unknowns; ++p) out[static_cast<size_t>(p)] = x.row(p).transpose();
-  return out;
+  // The smoothing and the solve are the code under test's (solve_patch_normal): what differs is how
+  // the samples' terms are summed.
+  return solve_patch_normal(std::move(entries), rhs, index, lattice, unknowns, smoothing, rows);
 }
 
 // Samples over the unit disk with a bump of offsets (as a frame's worst region), some exactly on

@@ -116,15 +116,21 @@ TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
   for (size_t i = 1; i < spread.size(); ++i) EXPECT_GT(spread[i], spread[i - 1]);
 }
 
+// The encoder's defaults without textures, on two threads: what the end-to-end tests encode with.
+EncodeOptions untextured() {
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  return options;
+}
+
 // End to end on a turning head (fmsynth's face, 30°): both candidates measured, the file stores the
 // one the rule picks, and that is hl+t (its keyframes take fewer bytes at an error within 1%; the
 // positions do not pay here). Each candidate's bytes are those its representation alone gives.
 TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   testing::TempDir dir;
   const Capture capture = testing::small_remeshed_capture(dir, 30);
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
+  const EncodeOptions options = untextured();
   EncodeReport report;
   const Sequence chosen = encode_capture(capture, options, &report);
   const RepresentationRate& rate = report.representation_rate;
@@ -183,11 +189,8 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
 TEST(SequenceEncoder, TheFieldsAtACoarserGridAreHeldToTheirDecodedFloor) {
   testing::TempDir dir;
   const Capture capture = testing::small_remeshed_capture(dir, 60);
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
   EncodeReport report;
-  const Sequence chosen = encode_capture(capture, options, &report);
+  encode_capture(capture, untextured(), &report);
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
   const auto coarser = std::find_if(rate.candidates.begin(), rate.candidates.end(), [](const RateCandidate& c) { return c.coarser; });
@@ -217,9 +220,7 @@ TEST(SequenceEncoder, TheKeptCandidateIsTheOneStored) {
   synth.texture_size = 64;
   write_synthetic_capture(dir.path(), synth);
   const Capture capture = read_capture(dir.path());
-  EncodeOptions options;
-  options.texture = false;
-  options.threads = 2;
+  EncodeOptions options = untextured();
   options.residual_frames = false;  // the stored keyframes alone, as the candidates' bytes count them
   options.patch_bound = 0;
   EncodeReport report;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace facemorph {
 
@@ -12,6 +13,34 @@ std::pair<int, double> patch_cell_of(double x, int lattice) {
   const double f = (x + 1) / 2 * (lattice - 1);
   const int i = std::clamp(static_cast<int>(std::floor(f)), 0, lattice - 2);
   return {i, f - i};
+}
+
+std::vector<Vec3> solve_patch_normal(std::vector<Eigen::Triplet<double>> entries, const Eigen::MatrixXd& rhs, const std::vector<int>& index,
+                                     int lattice, int unknowns, double smoothing, size_t rows) {
+  const double mu = smoothing * static_cast<double>(rows) / unknowns + 1e-9;
+  for (int b = 0; b < lattice; ++b) {
+    for (int a = 0; a < lattice; ++a) {
+      const int p = index[static_cast<size_t>(b * lattice + a)];
+      for (const int other : {a + 1 < lattice ? b * lattice + a + 1 : -1, b + 1 < lattice ? (b + 1) * lattice + a : -1}) {
+        if (other < 0) continue;
+        const int q = index[static_cast<size_t>(other)];
+        if (p < 0 && q < 0) continue;
+        if (p >= 0) entries.emplace_back(p, p, mu);
+        if (q >= 0) entries.emplace_back(q, q, mu);
+        if (p >= 0 && q >= 0) {
+          entries.emplace_back(p, q, -mu);
+          entries.emplace_back(q, p, -mu);
+        }
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> normal(unknowns, unknowns);
+  normal.setFromTriplets(entries.begin(), entries.end());
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+  const Eigen::MatrixXd x = solver.solve(rhs);
+  std::vector<Vec3> out(static_cast<size_t>(unknowns));
+  for (int p = 0; p < unknowns; ++p) out[static_cast<size_t>(p)] = x.row(p).transpose();
+  return out;
 }
 
 PatchNormalSums::PatchNormalSums(const std::vector<OffsetSample>& samples, int lattice, const std::vector<int>* only)
@@ -74,31 +103,7 @@ std::vector<Vec3> PatchNormalSums::solve(const std::vector<int>& index, int unkn
           if (q >= 0) entries.emplace_back(p, q, pair_[n][static_cast<size_t>(k)]);
         }
     }
-  // The smoothing's terms after every sample's, in the order a summed triplet list takes them.
-  const double mu = smoothing * static_cast<double>(rows) / unknowns + 1e-9;
-  for (int b = 0; b < lattice; ++b) {
-    for (int a = 0; a < lattice; ++a) {
-      const int p = index[static_cast<size_t>(b * lattice + a)];
-      for (const int other : {a + 1 < lattice ? b * lattice + a + 1 : -1, b + 1 < lattice ? (b + 1) * lattice + a : -1}) {
-        if (other < 0) continue;
-        const int q = index[static_cast<size_t>(other)];
-        if (p < 0 && q < 0) continue;
-        if (p >= 0) entries.emplace_back(p, p, mu);
-        if (q >= 0) entries.emplace_back(q, q, mu);
-        if (p >= 0 && q >= 0) {
-          entries.emplace_back(p, q, -mu);
-          entries.emplace_back(q, p, -mu);
-        }
-      }
-    }
-  }
-  Eigen::SparseMatrix<double> normal(unknowns, unknowns);
-  normal.setFromTriplets(entries.begin(), entries.end());
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
-  const Eigen::MatrixXd x = solver.solve(rhs);
-  std::vector<Vec3> out(static_cast<size_t>(unknowns));
-  for (int p = 0; p < unknowns; ++p) out[static_cast<size_t>(p)] = x.row(p).transpose();
-  return out;
+  return solve_patch_normal(std::move(entries), rhs, index, lattice, unknowns, smoothing, rows);
 }
 
 }  // namespace facemorph

@@ -6,7 +6,10 @@
 
 #include "codec/core/geometry/mesh.hpp"
 
+#include <Eigen/Sparse>
+
 #include <array>
+#include <cstddef>
 #include <vector>
 
 namespace facemorph {
@@ -20,6 +23,12 @@ struct OffsetSample {
 // The lattice cell holding disk coordinate x (as frame_patch's bilinear interpolation takes it), and
 // where in it x lies (0..1).
 std::pair<int, double> patch_cell_of(double x, int lattice);
+
+// The normal equations' solve once the samples' terms are in `entries` and `rhs` (`rows` samples
+// touching a moving node): the smoothing's terms added after them, in the order a summed triplet list
+// takes them, then the moving nodes' displacements (`index`: lattice node -> unknown, or -1).
+std::vector<Vec3> solve_patch_normal(std::vector<Eigen::Triplet<double>> entries, const Eigen::MatrixXd& rhs, const std::vector<int>& index,
+                                     int lattice, int unknowns, double smoothing, size_t rows);
 
 // Σ over samples |bilinear(D)(w) − offset|² over the moving nodes (`index`: lattice node -> unknown,
 // or -1), plus smoothing × (samples touching a moving node) / unknowns × Σ over lattice edges
