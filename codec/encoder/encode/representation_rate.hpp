@@ -1,8 +1,8 @@
 // The representation and N chosen by bytes at equal error (issue 44 part 5; spec/method.md §7.14):
 // where the options leave the representation open and the blends did not already rule the fields
 // out, the encoder codes the chosen keyframes both ways (hl+t and xyz, each rounded to the same
-// target error), and where --grid auto's worst region alone allowed a coarser N, both ways at that
-// N too; it measures each one's geometry bytes as the file would hold them and its held-out error on
+// target error), and where --grid auto's worst region alone allowed a coarser N, the cheaper of the
+// two at that N too (coarser_candidates); it measures each one's geometry bytes as the file would hold them and its held-out error on
 // a few decoded frames against their captured meshes, and keeps the one with the lowest
 // bytes · error^k (a coarser N only where its error stays within the tolerance).
 #pragma once
