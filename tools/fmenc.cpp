@@ -643,7 +643,9 @@ void print_keyframes(const Summary& s) {
                 r.candidates.front().frames, kRateErrorExponent, 100 * r.tolerance);
     for (size_t i = 0; i < r.candidates.size(); ++i) {
       const RateCandidate& c = r.candidates[i];
-      std::printf("%s %s N = %d %llu B at %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid,
+      char step[32] = "";
+      if (c.step_scale != 1) std::snprintf(step, sizeof step, " field step x%g", c.step_scale);
+      std::printf("%s %s N = %d%s %llu B at %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid, step,
                   static_cast<unsigned long long>(c.bytes), 100 * c.held_rms, i == r.chosen ? " (kept)" : "");
     }
     std::printf("; %.1f s\n", r.seconds);

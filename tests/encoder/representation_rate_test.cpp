@@ -72,6 +72,34 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
 }
 
+// The kept candidate is tried once more at a coarser field step (coarser_step_candidate): the same
+// representation and N, twice the target, nothing measured yet; kept by the same rule, and like a
+// coarser N only within the tolerance.
+TEST(RepresentationRate, TheKeptCandidateIsTriedAtACoarserFieldStep) {
+  using enum Representation;
+  const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
+                                            candidate(kXYZ, 15674, 0.002259, 129, true)};
+  const RateCandidate again = coarser_step_candidate(ict2k, 0.005);
+  EXPECT_EQ(again.representation, kXYZ);
+  EXPECT_EQ(again.grid, 129);
+  EXPECT_TRUE(again.coarser);
+  EXPECT_DOUBLE_EQ(again.step_scale, kCoarserStepScale);
+  EXPECT_EQ(again.frames, 0);
+  EXPECT_TRUE(std::isinf(rate_cost(again)));  // not measured: never kept as it is
+  // A tolerance the coarser N does not meet: the step is tried at the planned N's winner.
+  EXPECT_EQ(coarser_step_candidate(ict2k, 0.002).grid, 257);
+  // Measured as fmbench's xyz row was (12,649 B at 0.2400%): bytes x RMS^2 729 against 800, kept.
+  std::vector<RateCandidate> measured = ict2k;
+  measured.push_back(candidate(kXYZ, 12649, 0.002400, 129, true));
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005), 3u);
+  // The same bytes for an error the exchange rate does not pay for: the step's target kept.
+  measured.back().held_rms = 0.0026;
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005), 2u);
+  // Cheaper, but over the tolerance: not kept.
+  measured.back().held_rms = 0.0024;
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.0023), 2u);
+}
+
 // The coarser N is tried in N's winner alone: xyz on ict2k24, hl+t on fmsynth's 30° turning head
 // (both as measured, §7.14); none where no N is coarser.
 TEST(RepresentationRate, TheCoarserGridIsTriedInTheWinnerAtN) {

@@ -40,6 +40,16 @@ size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, dou
   return best;
 }
 
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance) {
+  RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance));
+  again.coarser = true;
+  again.step_scale = kCoarserStepScale;
+  again.bytes = 0;
+  again.held_rms = 0;
+  again.frames = 0;
+  return again;
+}
+
 int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid) {
   int coarsest = 0;
   for (const auto& [n, p99] : floor_p99s) {

@@ -29,10 +29,11 @@ class StoredSequence;
 struct RateCandidate {
   Representation representation = Representation::kHLT;
   int grid = 0;         // N
-  bool coarser = false;  // N coarser than --grid auto's: kept only within the tolerance
+  bool coarser = false;  // N coarser than --grid auto's, or a coarser field step: kept only within the tolerance
   uint64_t bytes = 0;
   double held_rms = 0;
-  int frames = 0;  // trial frames measured
+  int frames = 0;          // trial frames measured
+  double step_scale = 1;  // the field rounding's target error as a multiple of field_precision_options'
 };
 
 // What the comparison measured, for the report (measured false: no comparison ran).
@@ -50,6 +51,9 @@ struct RepresentationRate {
 // 1.7–2.3, a finer N 1.7–2.9; spec/method.md §7.14): the other candidate is valued as if the file
 // had been moved along those levers to its error.
 inline constexpr double kRateErrorExponent = 2.0;
+// The field-step candidate's target error, a multiple of the one every other candidate is rounded to
+// (coarser_step_candidate; spec/method.md §7.14).
+inline constexpr double kCoarserStepScale = 2.0;
 // At most this many frames between keyframes are decoded and measured for each candidate, spread
 // evenly over them.
 inline constexpr int kRateTrials = 8;
@@ -94,5 +98,10 @@ double held_out_rms(const Capture& capture, const StoredSequence& stored, const 
 // (§7.6's whole head: 0.48% resampled, 3.79% decoded); else positions, which decode as sampled.
 std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
                                                                const std::function<double()>& coarser_fields_p99, double worst_target);
+
+// The candidate tried once more with its fields rounded to kCoarserStepScale times the target: the
+// one `cheapest_at_equal_error` keeps of those measured (its representation and N; step_scale set).
+// Kept in turn only by the same rule, within `tolerance` (a lossier rounding, as a coarser N is).
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance);
 
 }  // namespace facemorph

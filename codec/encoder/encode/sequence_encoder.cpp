@@ -362,7 +362,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     }
     return coarser_fields->p99;
   };
-  const auto try_candidate = [&](Representation representation, int n) {
+  const auto try_candidate = [&](Representation representation, int n, double step_scale = 1) {
     report_ = planned;
     adopt_representation(representation, planned.blend);
     if (measure && representation == Representation::kHLT)
@@ -370,13 +370,16 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     std::unique_ptr<StoredSequence> sequence;
     try {
       sequence = build(settings.build, chosen.keyframes, n, nullptr);
-      if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
+      FieldPrecisionOptions scaled = precision;
+      scaled.target_error *= step_scale;
+      if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kNotConverged) throw;
       return;  // fields that do not reconstruct at this N: not a candidate
     }
     const double rms = held_out_rms(capture_, *sequence, trials, *captured, settings.threads);
-    rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms, frames});
+    rate.candidates.push_back(
+        {representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), rms, frames, step_scale});
     if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
       report_.grid = n;
       best = {std::move(sequence), report_};
@@ -386,6 +389,13 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
   for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser, coarser_fields_p99, report_.grid_worst_target))
     try_candidate(representation, n);
+  // Then the kept one with its fields rounded to a coarser target (coarser_step_candidate): bytes the
+  // rounding spends under the spline's error between keyframes buy little of the held-out error.
+  // Rounded where the fields are (settings.predicted_fields), so the rounding's worst-region bound holds for it too.
+  if (settings.predicted_fields) {
+    const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance);
+    try_candidate(again.representation, again.grid, kCoarserStepScale);
+  }
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
