@@ -170,7 +170,7 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   EXPECT_EQ(positions.representation, Representation::kXYZ);
   EXPECT_EQ(fields.grid, positions.grid);
   for (const RateCandidate& c : rate.candidates) {
-    EXPECT_EQ(c.coarser, c.grid != fields.grid) << "a coarser N is held to the tolerance";
+    EXPECT_EQ(c.coarser, c.grid != fields.grid || c.step_scale != 1) << "a coarser N or field step is held to the tolerance";
     EXPECT_GT(c.bytes, 500u);
     EXPECT_GT(c.held_rms, 0);
     EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
@@ -185,7 +185,7 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   // A coarser N: the fields there were decoded once and tried only within the worst region's share;
   // kept, the rounding's p99 budget is what their decoded floor left of the 1%.
   for (const RateCandidate& c : rate.candidates) {
-    if (!c.coarser) continue;
+    if (c.grid == fields.grid) continue;
     const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
                                     [&](const EncodeReport::DecodedFloor& d) { return d.n == c.grid; });
     ASSERT_NE(floor, report.grid_decoded_floors.end()) << "N = " << c.grid;
@@ -199,6 +199,19 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
       const double target = kWorstRegionTarget * std::max(1.0, report.grid_worst_target / kGridWorstTarget);
       EXPECT_NEAR(report.field_precision.rounding_p99_budget, target - std::max(resampled, floor->p99), 1e-12);
     }
+  }
+  // The last candidate: the one kept of the others, at twice the rounding's target; kept or not, the
+  // stored rounding's p99s are within the worst region's budget.
+  const RateCandidate& step = rate.candidates.back();
+  EXPECT_DOUBLE_EQ(step.step_scale, kCoarserStepScale);
+  const std::vector<RateCandidate> before(rate.candidates.begin(), rate.candidates.end() - 1);
+  const RateCandidate& kept_before = before[cheapest_at_equal_error(before, rate.tolerance)];
+  EXPECT_EQ(step.representation, kept_before.representation);
+  EXPECT_EQ(step.grid, kept_before.grid);
+  EXPECT_LT(step.bytes, kept_before.bytes) << "rounded coarser: fewer bytes";
+  for (const RateCandidate& c : before) EXPECT_DOUBLE_EQ(c.step_scale, 1);
+  if (report.field_precision.rounding_p99_budget > 0) {
+    for (const double q : report.field_precision.keyframe_p99s) EXPECT_LE(q, report.field_precision.rounding_p99_budget);
   }
   // The rounded keyframes as either representation asked for alone: the same bytes.
   for (const Representation r : {Representation::kHLT, Representation::kXYZ}) {
@@ -221,13 +234,15 @@ TEST(SequenceEncoder, TheFieldsAtACoarserGridAreHeldToTheirDecodedFloor) {
   encode_capture(capture, untextured(), &report);
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
-  const auto coarser = std::find_if(rate.candidates.begin(), rate.candidates.end(), [](const RateCandidate& c) { return c.coarser; });
+  const int grid = rate.candidates[0].grid;
+  const auto coarser =
+      std::find_if(rate.candidates.begin(), rate.candidates.end(), [&](const RateCandidate& c) { return c.grid != grid; });
   ASSERT_NE(coarser, rate.candidates.end()) << "no coarser N on this capture";
   const auto floor = std::find_if(report.grid_decoded_floors.begin(), report.grid_decoded_floors.end(),
                                   [&](const EncodeReport::DecodedFloor& d) { return d.n == coarser->grid; });
   ASSERT_NE(floor, report.grid_decoded_floors.end());
   const bool fields_tried = std::any_of(rate.candidates.begin(), rate.candidates.end(), [&](const RateCandidate& c) {
-    return c.coarser && c.representation == Representation::kHLT;
+    return c.grid != grid && c.representation == Representation::kHLT;
   });
   EXPECT_EQ(fields_tried, floor->p99 <= report.grid_worst_target);
 }
@@ -258,7 +273,7 @@ TEST(SequenceEncoder, TheKeptCandidateIsTheOneStored) {
   ASSERT_GE(rate.candidates.size(), 2u);
   ASSERT_NE(rate.chosen, 0u) << "a capture where the planned hl+t is not the cheapest: the test needs another pick";
   const RateCandidate& kept = rate.candidates[rate.chosen];
-  for (const RateCandidate& c : rate.candidates) EXPECT_EQ(c.coarser, c.grid != rate.candidates[0].grid);
+  for (const RateCandidate& c : rate.candidates) EXPECT_EQ(c.coarser, c.grid != rate.candidates[0].grid || c.step_scale != 1);
   if (kept.coarser) {
     EXPECT_LE(kept.held_rms, rate.tolerance);
   }
