@@ -29,7 +29,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <optional>
 #include <sstream>
 #include <utility>
 

@@ -100,10 +100,7 @@ json measure_geometry_only(const CaptureBenchOptions& options, const std::string
       f.converged = decoded.converged;
       const TriangleMesh captured = read_mesh(capture.mesh_path(static_cast<size_t>(i)), {.allow_missing_texture = true});
       const SurfaceDistance d = surface_distance(captured, decoded.mesh);
-      f.rms = d.rms / d.diagonal;
-      f.max = d.max / d.diagonal;
-      f.p99 = d.p99 / d.diagonal;
-      directional_p99s(captured, decoded.mesh, d.diagonal, f);
+      record_distance(d, f);
       if (other_decoder) {
         const std::vector<Vec3>& p = decoded.grid_positions;
         const std::vector<Vec3> q = other_decoder->decode(f.time, decode).grid_positions;

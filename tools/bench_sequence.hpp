@@ -8,6 +8,7 @@
 #include "codec/decoder/sequence/sequence_decoder.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
 #include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <nlohmann/json.hpp>
@@ -48,7 +49,7 @@ Sequence file_round_trip(const Sequence& sequence, const std::vector<int>& textu
 struct FrameError {
   double rms = 0, max = 0;  // symmetric point-to-surface, relative to the captured frame's diagonal
   double p99 = 0;           // its 99th percentile (the worst region), relative to the same diagonal
-  // The same percentile of each direction apart (directional_p99s): every decoded vertex to the
+  // The same percentile of each direction apart (record_distance): every decoded vertex to the
   // captured surface (the decoded frame's own error: issue 44's measure), and every captured vertex
   // to the decoded surface (what the decoded frame misses, a sheet the repair dropped included).
   double p99_decoded = 0, p99_captured = 0;
@@ -72,9 +73,8 @@ struct Summary {
   double p99_decoded_worst = 0, p99_captured_worst = 0;  // each direction's (FrameError)
 };
 
-// f.p99_decoded and f.p99_captured for a decoded frame against its captured mesh, over `diagonal`
-// (the captured frame's, as surface_distance's).
-void directional_p99s(const TriangleMesh& captured, const TriangleMesh& decoded, double diagonal, FrameError& f);
+// f's distances from surface_distance(captured frame, decoded mesh), over the captured frame's diagonal.
+void record_distance(const SurfaceDistance& d, FrameError& f);
 
 // Means and worsts over keyframes and held-out frames (texture PSNR over held-out frames).
 Summary summarise(const Evaluation& e);

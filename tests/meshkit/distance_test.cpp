@@ -298,5 +298,19 @@ TEST(Distance, The99thPercentileIgnoresOneStrayVertexButNotOnePercentOfThem) {
   EXPECT_NEAR(strip.p99, 0.02, 1e-12);
 }
 
+// Each direction's percentile apart: the test mesh covers the left half of the reference's square,
+// so its vertices lie on the reference (0) while the reference's right half misses it by up to 0.5
+// (the top 21 of its 441 distances, past the 99th percentile's rank 437), as a sheet a repair dropped.
+TEST(Distance, EachDirectionsPercentileIsMeasuredApart) {
+  const TriangleMesh reference = testing::grid_mesh(20, [](double x, double y) { return Vec3(x, y, 0); });
+  const TriangleMesh half = testing::grid_mesh(10, [](double x, double y) { return Vec3(0.5 * x, y, 0); });
+  const SurfaceDistance d = surface_distance(reference, half);
+  EXPECT_NEAR(d.p99_test_to_reference, 0.0, 1e-12);
+  EXPECT_NEAR(d.p99_reference_to_test, 0.5, 1e-12);
+  const SurfaceDistance swapped = surface_distance(half, reference);
+  EXPECT_NEAR(swapped.p99_test_to_reference, 0.5, 1e-12);
+  EXPECT_NEAR(swapped.p99_reference_to_test, 0.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace facemorph

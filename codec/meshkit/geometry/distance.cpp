@@ -256,9 +256,14 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
     }
   };
   accumulate(test.positions, to_reference, test);
+  const auto from_reference = static_cast<std::ptrdiff_t>(distances.size());
   accumulate(reference.positions, to_test, reference);
   const size_t count = distances.size();
   d.rms = count ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
+  std::vector<double> one_way(distances.begin(), distances.begin() + from_reference);
+  d.p99_test_to_reference = nearest_rank_p99(one_way);
+  one_way.assign(distances.begin() + from_reference, distances.end());
+  d.p99_reference_to_test = nearest_rank_p99(one_way);
   d.p99 = nearest_rank_p99(distances);
   return d;
 }

@@ -85,6 +85,10 @@ struct SurfaceDistance {
   // 99th percentile of the same distances (nearest rank: the smallest distance that at least 99% of
   // them do not exceed): the worst region's error, which one stray vertex cannot set as it sets max.
   double p99 = 0;
+  // The same percentile of each direction apart: the test mesh's vertices to the reference surface,
+  // and the reference's to the test surface (one side's points can decide the union's).
+  double p99_test_to_reference = 0;
+  double p99_reference_to_test = 0;
   double diagonal = 0;  // bounding-box diagonal of the reference
 };
 
