@@ -638,15 +638,18 @@ void print_keyframes(const Summary& s) {
   }
   if (s.report.representation_rate.measured) {
     const RepresentationRate& r = s.report.representation_rate;
-    std::printf("  representation and N by bytes at equal error (keyframes' bytes; held-out RMS of the diagonal on %d frames; bytes x RMS^%g "
-                "the lowest, a coarser N within %.2g%%):",
-                r.candidates.front().frames, kRateErrorExponent, 100 * r.tolerance);
+    std::printf("  representation and N by bytes at equal error (keyframes' bytes; held-out RMS / worst 99th percentile of the diagonal on %d "
+                "frames; bytes x RMS^%g the lowest, a coarser N within %.2g%%, the worst 99th percentile within %.2g%% or %gx the first's):",
+                r.candidates.front().frames, kRateErrorExponent, 100 * r.tolerance, 100 * r.worst_bound, r.worst_bound > 0 ? kWorstRegionRise : 1.0);
     for (size_t i = 0; i < r.candidates.size(); ++i) {
       const RateCandidate& c = r.candidates[i];
       char step[32] = "";
       if (c.step_scale != 1) std::snprintf(step, sizeof step, " field step x%g", c.step_scale);
-      std::printf("%s %s N = %d%s %llu B at %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid, step,
-                  static_cast<unsigned long long>(c.bytes), 100 * c.held_rms, i == r.chosen ? " (kept)" : "");
+      const char* mark = i == r.chosen                                                         ? " (kept)"
+                         : !admitted_worst_region(c, r.candidates.front(), r.worst_bound) ? " (worst region refused)"
+                                                                                              : "";
+      std::printf("%s %s N = %d%s %llu B at %.4f / %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid, step,
+                  static_cast<unsigned long long>(c.bytes), 100 * c.held_rms, 100 * c.worst_p99, mark);
     }
     std::printf("; %.1f s\n", r.seconds);
   }

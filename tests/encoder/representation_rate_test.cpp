@@ -26,6 +26,9 @@ RateCandidate candidate(Representation r, uint64_t bytes, double rms, int grid =
   return {r, grid, coarser, bytes, rms, 8};
 }
 
+// The frame patches' default bound (EncodeOptions::patch_bound): the worst trial p99 any candidate may reach.
+constexpr double kPatchBound = 0.01;
+
 // Where one candidate is clearly smaller at the same error it is kept, whichever it is; an error
 // lower by more than the exchange rate pays for more bytes; nothing measured keeps the fields.
 TEST(RepresentationRate, TheSmallerAtEqualErrorIsKept) {
@@ -57,15 +60,15 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   using enum Representation;
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
                                             candidate(kHLT, 18923, 0.003061, 129, true), candidate(kXYZ, 14666, 0.003061, 129, true)};
-  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005), 3u);  // ict2k24 as measured: xyz at N = 129
-  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003), 1u);  // a tolerance under N = 129's error: xyz at 257
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005, kPatchBound), 3u);  // ict2k24 as measured: xyz at N = 129
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003, kPatchBound), 1u);  // a tolerance under N = 129's error: xyz at 257
   std::vector<RateCandidate> far = ict2k;
   far[3].held_rms = 0.0045;  // within the tolerance, but 2.2x the error for 3.4x fewer bytes
   far[2].held_rms = 0.0045;
-  EXPECT_EQ(cheapest_at_equal_error(far, 0.005), 1u);
+  EXPECT_EQ(cheapest_at_equal_error(far, 0.005, kPatchBound), 1u);
   // Two at the planned N: the rule of two.
-  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005), 1u);
-  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005), 0u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005, kPatchBound), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005, kPatchBound), 0u);
 
   EXPECT_EQ(worst_region_grid({{97, 0.00966}, {129, 0.00602}, {193, 0.0014}, {257, 0.00053}}, 0.0075, 257), 129);
   EXPECT_EQ(worst_region_grid({{129, 0.0195}, {193, 0.00809}, {257, 0.0005}}, 0.0075, 257), 0);  // ict24: none coarser
@@ -79,7 +82,7 @@ TEST(RepresentationRate, TheKeptCandidateIsTriedAtACoarserFieldStep) {
   using enum Representation;
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
                                             candidate(kXYZ, 15674, 0.002259, 129, true)};
-  const RateCandidate again = coarser_step_candidate(ict2k, 0.005);
+  const RateCandidate again = coarser_step_candidate(ict2k, 0.005, kPatchBound);
   EXPECT_EQ(again.representation, kXYZ);
   EXPECT_EQ(again.grid, 129);
   EXPECT_TRUE(again.coarser);
@@ -87,17 +90,60 @@ TEST(RepresentationRate, TheKeptCandidateIsTriedAtACoarserFieldStep) {
   EXPECT_EQ(again.frames, 0);
   EXPECT_TRUE(std::isinf(rate_cost(again)));  // not measured: never kept as it is
   // A tolerance the coarser N does not meet: the step is tried at the planned N's winner.
-  EXPECT_EQ(coarser_step_candidate(ict2k, 0.002).grid, 257);
+  EXPECT_EQ(coarser_step_candidate(ict2k, 0.002, kPatchBound).grid, 257);
   // Measured as fmbench's xyz row was (12,649 B at 0.2400%): bytes x RMS^2 729 against 800, kept.
   std::vector<RateCandidate> measured = ict2k;
   measured.push_back(candidate(kXYZ, 12649, 0.002400, 129, true));
-  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005), 3u);
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005, kPatchBound), 3u);
   // The same bytes for an error the exchange rate does not pay for: the step's target kept.
   measured.back().held_rms = 0.0026;
-  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005), 2u);
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.005, kPatchBound), 2u);
   // Cheaper, but over the tolerance: not kept.
   measured.back().held_rms = 0.0024;
-  EXPECT_EQ(cheapest_at_equal_error(measured, 0.0023), 2u);
+  EXPECT_EQ(cheapest_at_equal_error(measured, 0.0023, kPatchBound), 2u);
+}
+
+// Bytes x RMS^2 weigh the mean; the worst region is held apart: a candidate other than the first is
+// admitted only where its worst trial p99 is within the patches' bound, or within kWorstRegionRise
+// times the first's (no worse than it with the patches off: admitted_worst_region). Here the coarser
+// step is the cheapest by bytes x RMS^2 and is refused.
+TEST(RepresentationRate, ACandidateWorseInTheWorstRegionIsRefused) {
+  using enum Representation;
+  const auto with_p99 = [](RateCandidate c, double p99) {
+    c.worst_p99 = p99;
+    return c;
+  };
+  // The first under the bound: another may rise to the bound, or to 1.25 times the first's 0.80%.
+  std::vector<RateCandidate> under = {with_p99(candidate(kHLT, 53370, 0.002064), 0.0080), with_p99(candidate(kXYZ, 50244, 0.002080), 0.0095),
+                                      with_p99(candidate(kXYZ, 15674, 0.002259, 129, true), 0.0100)};
+  EXPECT_EQ(cheapest_at_equal_error(under, 0.005, kPatchBound), 2u);  // at the bound exactly: admitted
+  RateCandidate step = with_p99(candidate(kXYZ, 12649, 0.002400, 129, true), 0.0104);
+  step.step_scale = kCoarserStepScale;
+  under.push_back(step);
+  EXPECT_LT(rate_cost(under[3]), rate_cost(under[2]));               // the cheaper by bytes x RMS^2 ...
+  EXPECT_EQ(cheapest_at_equal_error(under, 0.005, kPatchBound), 2u);  // ... refused: past the bound and 1.3x the first's
+  EXPECT_FALSE(admitted_worst_region(under[3], under[0], kPatchBound));
+  under[3].worst_p99 = 0.0099;
+  EXPECT_EQ(cheapest_at_equal_error(under, 0.005, kPatchBound), 3u);  // within the bound: kept
+  // The first over the bound (the patches bring its frames under): another within 1.25 times it.
+  std::vector<RateCandidate> over = {with_p99(candidate(kHLT, 10000, 0.0020), 0.0130), with_p99(candidate(kXYZ, 8000, 0.0020), 0.0160)};
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, kPatchBound), 1u);  // 1.23x: admitted
+  over[1].worst_p99 = 0.0165;
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, kPatchBound), 0u);  // 1.27x: refused
+  // The patches off (bound 0): nothing worse than the first, however far under 1%.
+  over[0].worst_p99 = 0.004;
+  over[1].worst_p99 = 0.0041;
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, 0), 0u);
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, kPatchBound), 1u);
+  over[1].worst_p99 = 0.004;
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, 0), 1u);  // no worse: admitted
+  over[1].worst_p99 = std::nan("");  // not measured: not admitted
+  EXPECT_EQ(cheapest_at_equal_error(over, 0.005, kPatchBound), 0u);
+  // The step is tried on the admitted candidate, not the cheapest refused one.
+  under.pop_back();
+  under[2].worst_p99 = 0.0110;
+  EXPECT_EQ(coarser_step_candidate(under, 0.005, kPatchBound).grid, 257);
+  EXPECT_EQ(coarser_step_candidate(under, 0.005, kPatchBound).representation, kXYZ);
 }
 
 // The coarser N is tried in N's winner alone: xyz on ict2k24, hl+t on fmsynth's 30° turning head
@@ -108,12 +154,12 @@ TEST(RepresentationRate, TheCoarserGridIsTriedInTheWinnerAtN) {
   int decoded = 0;
   const auto met = [&] { ++decoded; return 0.0061; };
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080)};
-  EXPECT_EQ(coarser_candidates(ict2k, 0.005, 129, met, 0.0075), (Tried{{kXYZ, 129}}));
+  EXPECT_EQ(coarser_candidates(ict2k, 0.005, kPatchBound, 129, met, 0.0075), (Tried{{kXYZ, 129}}));
   EXPECT_EQ(decoded, 0);  // positions won at N: the fields' floor is not decoded
   const std::vector<RateCandidate> rot30 = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
-  EXPECT_EQ(coarser_candidates(rot30, 0.005, 33, met, 0.0075), (Tried{{kHLT, 33}}));
-  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, 129, met, 0.0075), (Tried{{kHLT, 129}}));  // xyz did not converge at N
-  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, 0, met, 0.0075).empty());
+  EXPECT_EQ(coarser_candidates(rot30, 0.005, kPatchBound, 33, met, 0.0075), (Tried{{kHLT, 33}}));
+  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, kPatchBound, 129, met, 0.0075), (Tried{{kHLT, 129}}));  // xyz did not converge at N
+  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, kPatchBound, 0, met, 0.0075).empty());
 }
 
 // The fields at the coarser N are a candidate only where the reference rebuilt from them meets the
@@ -124,13 +170,13 @@ TEST(RepresentationRate, TheFieldsAtACoarserGridAreTriedOnlyWhereTheirDecodedFlo
   using Tried = std::vector<std::pair<Representation, int>>;
   const std::vector<RateCandidate> fields_won = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
   const auto floor = [](double p99) { return [p99] { return p99; }; };
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0061), 0.0075), (Tried{{kHLT, 129}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0075), 0.0075), (Tried{{kHLT, 129}}));  // met exactly
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0379), 0.0075), (Tried{{kXYZ, 33}}));  // the whole head's decoded floor
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0076), 0.0075), (Tried{{kXYZ, 33}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::numeric_limits<double>::infinity()), 0.0075), (Tried{{kXYZ, 33}}));  // not rebuilt
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::nan("")), 0.0075), (Tried{{kXYZ, 33}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.012), 0.0125), (Tried{{kHLT, 33}}));  // a noisy capture's raised share
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 129, floor(0.0061), 0.0075), (Tried{{kHLT, 129}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 129, floor(0.0075), 0.0075), (Tried{{kHLT, 129}}));  // met exactly
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 33, floor(0.0379), 0.0075), (Tried{{kXYZ, 33}}));  // the whole head's decoded floor
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 33, floor(0.0076), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 33, floor(std::numeric_limits<double>::infinity()), 0.0075), (Tried{{kXYZ, 33}}));  // not rebuilt
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 33, floor(std::nan("")), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, kPatchBound, 33, floor(0.012), 0.0125), (Tried{{kHLT, 33}}));  // a noisy capture's raised share
 }
 
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
@@ -176,8 +222,15 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
     EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
     EXPECT_GE(c.frames, 1);
   }
-  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance));
+  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound));
   const RateCandidate& kept = rate.candidates[rate.chosen];
+  // Each candidate's worst region measured on the trial frames, and the kept one admitted for it.
+  EXPECT_DOUBLE_EQ(rate.worst_bound, options.patch_bound);
+  for (const RateCandidate& c : rate.candidates) {
+    EXPECT_GT(c.worst_p99, 0);
+    EXPECT_LT(c.worst_p99, 0.05);
+  }
+  EXPECT_TRUE(admitted_worst_region(kept, fields, rate.worst_bound));
   EXPECT_EQ(report.representation, kept.representation);
   EXPECT_EQ(chosen.representation, kept.representation);
   EXPECT_EQ(chosen.grid_n, kept.grid);
@@ -205,7 +258,7 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
   const RateCandidate& step = rate.candidates.back();
   EXPECT_DOUBLE_EQ(step.step_scale, kCoarserStepScale);
   const std::vector<RateCandidate> before(rate.candidates.begin(), rate.candidates.end() - 1);
-  const RateCandidate& kept_before = before[cheapest_at_equal_error(before, rate.tolerance)];
+  const RateCandidate& kept_before = before[cheapest_at_equal_error(before, rate.tolerance, rate.worst_bound)];
   EXPECT_EQ(step.representation, kept_before.representation);
   EXPECT_EQ(step.grid, kept_before.grid);
   EXPECT_LT(step.bytes, kept_before.bytes) << "rounded coarser: fewer bytes";

@@ -235,7 +235,7 @@ cmp -s "$work/a.fmv" "$work/before.fmv" || fail "an interrupted encode changed t
 "$tools/fmsynth" -o "$work/blink" --frames 24 --expression blink --vertices 3000 --remesh --seed 4 --texture-size 64 --quiet || fail "fmsynth blink"
 "$tools/fmenc" "$work/blink" -o "$work/blink.fmv" --no-texture --threads 2 > "$work/blink.txt" 2>&1 || fail "fmenc blink: $(tail -1 "$work/blink.txt")"
 planned=$(grep -o 'RMS^2 the lowest[^:]*: hl+t N = [0-9]*' "$work/blink.txt" | grep -o '[0-9]*$')
-kept=$(grep -o 'N = [0-9]*\( field step x[0-9.]*\)\? [0-9]* B at [0-9.]*% (kept)' "$work/blink.txt" | grep -o '^N = [0-9]*' | grep -o '[0-9]*$')
+kept=$(grep -o 'N = [0-9]*\( field step x[0-9.]*\)\? [0-9]* B at [0-9.]* / [0-9.]*% (kept)' "$work/blink.txt" | grep -o '^N = [0-9]*' | grep -o '[0-9]*$')
 [[ -n "$planned" && -n "$kept" ]] || fail "fmenc's summary shows no choice by bytes at equal error"
 [[ "$kept" != "$planned" ]] || echo "note: the blinking face kept N = $planned; the coarser N's line not exercised" >&2
 grep -q "grid auto: N = $planned, the smallest within" "$work/blink.txt" || fail "the summary's N 'the smallest within' is not --grid auto's ($planned)"

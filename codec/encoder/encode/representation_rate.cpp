@@ -30,23 +30,30 @@ Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCan
   return rate_cost(positions) < rate_cost(fields) ? Representation::kXYZ : Representation::kHLT;
 }
 
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance) {
+bool admitted_worst_region(const RateCandidate& candidate, const RateCandidate& first, double worst_bound) {
+  const double rise = worst_bound > 0 ? kWorstRegionRise : 1;
+  return candidate.worst_p99 <= worst_bound || candidate.worst_p99 <= first.worst_p99 * rise;
+}
+
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound) {
   size_t best = 0;
   for (size_t i = 1; i < candidates.size(); ++i) {
     const RateCandidate& c = candidates[i];
     if (c.coarser && !(c.held_rms <= tolerance)) continue;
+    if (!admitted_worst_region(c, candidates.front(), worst_bound)) continue;
     if (rate_cost(c) < rate_cost(candidates[best])) best = i;
   }
   return best;
 }
 
-RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance) {
-  RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance));
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound) {
+  RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance, worst_bound));
   again.coarser = true;
   again.step_scale = kCoarserStepScale;
   again.bytes = 0;
   again.held_rms = 0;
   again.frames = 0;
+  again.worst_p99 = 0;
   return again;
 }
 
@@ -103,29 +110,33 @@ std::optional<std::vector<TriangleMesh>> trial_meshes(const Capture& capture, co
   return meshes;
 }
 
-double held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
-                    const std::vector<TriangleMesh>& captured, int threads) {
+HeldOutError held_out_error(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
+                            const std::vector<TriangleMesh>& captured, int threads) {
   if (frames.empty() || captured.size() != frames.size())
-    throw Error(ErrorCode::kInvalidArgument, "held_out_rms: one captured mesh for each trial frame");
+    throw Error(ErrorCode::kInvalidArgument, "held_out_error: one captured mesh for each trial frame");
   const std::shared_ptr<const KeyframeSource> source(std::shared_ptr<void>(), &stored);  // not owned
   DecoderTeam team(source, threads, frames.size());
   const DiskGrid& grid = team.first().geometry().grid();
   const DecodeOptions options = shown_decode();
-  std::vector<double> rms(frames.size(), 0);
+  std::vector<double> rms(frames.size(), 0), p99(frames.size(), 0);
   team.for_each(frames.size(), [&](SequenceDecoder& decoder, size_t j) {
     const DecodedFrame decoded = decoder.decode(capture.frames[static_cast<size_t>(frames[j])].time, options);
     const SurfaceDistance d = surface_distance(captured[j], shown_mesh(grid, decoded.grid_positions, decoded.hole_level));
     rms[j] = d.diagonal > 0 ? d.rms / d.diagonal : 0;
+    p99[j] = d.diagonal > 0 ? d.p99 / d.diagonal : 0;
   });
-  double sum = 0;
-  for (const double r : rms) sum += r;
-  return sum / static_cast<double>(rms.size());
+  HeldOutError error;
+  for (const double r : rms) error.rms += r;
+  error.rms /= static_cast<double>(rms.size());
+  error.worst_p99 = *std::max_element(p99.begin(), p99.end());
+  return error;
 }
 
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance,
+                                                               double worst_bound, int coarser,
                                                                const std::function<double()>& coarser_fields_p99, double worst_target) {
   if (coarser <= 0 || at_grid.empty()) return {};
-  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance)].representation;
+  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance, worst_bound)].representation;
   if (winner == Representation::kHLT && !(coarser_fields_p99() <= worst_target)) return {{Representation::kXYZ, coarser}};
   return {{winner, coarser}};
 }

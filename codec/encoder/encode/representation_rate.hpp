@@ -4,7 +4,9 @@
 // target error), and where --grid auto's worst region alone allowed a coarser N, the cheaper of the
 // two at that N too (coarser_candidates); it measures each one's geometry bytes as the file would hold them and its held-out error on
 // a few decoded frames against their captured meshes, and keeps the one with the lowest
-// bytes · error^k (a coarser N only where its error stays within the tolerance).
+// bytes · error^k (a coarser N only where its error stays within the tolerance; any candidate but
+// the first only where its worst trial frame's 99th percentile is within the frame patches' bound
+// or not much worse than the first's: admitted_worst_region).
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
@@ -34,6 +36,10 @@ struct RateCandidate {
   double held_rms = 0;
   int frames = 0;          // trial frames measured
   double step_scale = 1;  // the field rounding's target error as a multiple of field_precision_options'
+  // The largest over the trial frames of the symmetric 99th-percentile point error (fmbench's: both
+  // meshes' vertices to the other surface, one percentile of the union), of the captured mesh's
+  // diagonal: the worst region as the file shows it before residual frames and patches.
+  double worst_p99 = 0;
 };
 
 // What the comparison measured, for the report (measured false: no comparison ran).
@@ -42,6 +48,7 @@ struct RepresentationRate {
   std::vector<RateCandidate> candidates;  // hl+t and xyz at --grid auto's N, then at the coarser N where tried
   size_t chosen = 0;
   double tolerance = 0;  // the held-out RMS a coarser N must stay within (fraction of the diagonal)
+  double worst_bound = 0;  // the worst trial p99 any candidate may reach whatever the first's (the patches' bound)
   double seconds = 0;    // the other candidates' builds and roundings, and every measure
 };
 
@@ -63,10 +70,25 @@ double rate_cost(const RateCandidate& candidate);
 // The candidate the rule keeps: xyz only where its cost is strictly lower than hl+t's (a tie keeps
 // the fields, which turn with a rotating head rather than cutting its chords: spec/method.md §5.2).
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions);
+// How much further than the first candidate another may take the worst trial frame's p99 where the
+// frame patches bring frames over their bound under it (spec/method.md §7.14): the candidates share
+// their keyframes, so between them the p99 is mostly the blend's, which the patches remove either
+// way. The largest rise measured where the kept candidate's file then had every frame brought under
+// was 14.4% (ict2k24: xyz N = 129 13.8%, its coarser step 14.4% over hl+t at 257), the patches'
+// bytes moving by at most a sixth of the keyframes' saving. Without patches nothing brings a frame
+// back: no rise at all.
+inline constexpr double kWorstRegionRise = 1.25;
+
+// Whether `candidate` may replace `first` for its worst region: its worst trial p99 within
+// `worst_bound` (the frame patches' bound, spec/method.md §7.19: a frame under it is given no
+// patch), or within kWorstRegionRise times the first's (with patches, worst_bound > 0; else no
+// worse than the first's). Bytes · RMS² weigh the mean; a candidate that sends the worst frame far
+// further over the bound leaves the patches more to bring under, in bytes the choice does not count.
+bool admitted_worst_region(const RateCandidate& candidate, const RateCandidate& first, double worst_bound);
 // Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
-// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`; ties keep the
-// earlier.
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance);
+// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`, any but the
+// first only where admitted_worst_region; ties keep the earlier.
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound);
 
 // The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
 // `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
@@ -83,10 +105,15 @@ uint64_t geometry_bytes(const StoredSequence& stored, const FieldCoding& coding)
 // readers; nullopt where one is not at hand (a staged encode's parts) or no frame is given.
 std::optional<std::vector<TriangleMesh>> trial_meshes(const Capture& capture, const std::vector<int>& frames, int threads);
 
-// The mean held-out RMS of `stored` decoded at `frames`' times against `captured` (trial_meshes'),
-// of each mesh's diagonal. `threads` decoders at most.
-double held_out_rms(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
-                    const std::vector<TriangleMesh>& captured, int threads);
+// What held_out_error measures: the mean RMS and the worst 99th percentile (RateCandidate's).
+struct HeldOutError {
+  double rms = 0;
+  double worst_p99 = 0;
+};
+// The held-out error of `stored` decoded at `frames`' times against `captured` (trial_meshes'), of
+// each mesh's diagonal: the mean RMS and the largest p99 over the frames. `threads` decoders at most.
+HeldOutError held_out_error(const Capture& capture, const StoredSequence& stored, const std::vector<int>& frames,
+                            const std::vector<TriangleMesh>& captured, int threads);
 
 // The coarser N's candidate (--grid auto's worst region, worst_region_grid): the representation
 // `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where both were
@@ -96,12 +123,14 @@ double held_out_rms(const Capture& capture, const StoredSequence& stored, const 
 // rebuilt from them at that N (`coarser_fields_p99`, called only then: decoded_fields_floor) meets
 // `worst_target`, as the resampled floor that allowed the N does not show what a decoder rebuilds
 // (§7.6's whole head: 0.48% resampled, 3.79% decoded); else positions, which decode as sampled.
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance,
+                                                               double worst_bound, int coarser,
                                                                const std::function<double()>& coarser_fields_p99, double worst_target);
 
 // The candidate tried once more with its fields rounded to kCoarserStepScale times the target: the
 // one `cheapest_at_equal_error` keeps of those measured (its representation and N; step_scale set).
-// Kept in turn only by the same rule, within `tolerance` (a lossier rounding, as a coarser N is).
-RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance);
+// Kept in turn only by the same rule, within `tolerance` (a lossier rounding, as a coarser N is) and
+// admitted for its worst region.
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound);
 
 }  // namespace facemorph

@@ -326,7 +326,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const auto start = std::chrono::steady_clock::now();
   const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
   if (!captured) return fields;
-  const double fields_rms = held_out_rms(capture_, *fields, trials, *captured, settings.threads);
+  const HeldOutError fields_error = held_out_error(capture_, *fields, trials, *captured, settings.threads);
   const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
@@ -335,7 +335,12 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   // the default 0.5% stands, or an explicit --keyframes 10% would keep no coarser N where the default
   // does (spec/method.md §7.14).
   rate.tolerance = unpredicted_error_bound(settings.plan.selection);
-  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_rms, frames});
+  // The worst trial p99 any candidate may reach, whatever the first's: the frame patches' bound,
+  // under which a frame is given no patch (0 with the patches off: no candidate worse than the first;
+  // admitted_worst_region).
+  rate.worst_bound = settings.patch_bound;
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_error.rms, frames, 1,
+                             fields_error.worst_p99});
   // The others on the same keyframes, each rounded to the same target: xyz at this N, then N's
   // winner at the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
   // its report (its stages' figures are the file's).
@@ -377,26 +382,27 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
       if (e.code() != ErrorCode::kNotConverged) throw;
       return;  // fields that do not reconstruct at this N: not a candidate
     }
-    const double rms = held_out_rms(capture_, *sequence, trials, *captured, settings.threads);
-    rate.candidates.push_back(
-        {representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), rms, frames, step_scale});
-    if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
+    const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
+    rate.candidates.push_back({representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
+                               frames, step_scale, error.worst_p99});
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound) == rate.candidates.size() - 1) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
-  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser, coarser_fields_p99, report_.grid_worst_target))
+  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, rate.worst_bound, coarser, coarser_fields_p99,
+                                                                  report_.grid_worst_target))
     try_candidate(representation, n);
   // Then the kept one with its fields rounded to a coarser target (coarser_step_candidate): bytes the
   // rounding spends under the spline's error between keyframes buy little of the held-out error.
   // Rounded where the fields are (settings.predicted_fields), so the rounding's worst-region bound holds for it too.
   if (settings.predicted_fields) {
-    const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance);
+    const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance, rate.worst_bound);
     try_candidate(again.representation, again.grid, kCoarserStepScale);
   }
-  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
   // The report says what was measured whichever is kept (coarser N first, as the grid stage's order).
