@@ -75,7 +75,7 @@ Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCan
 // their keyframes, so between them the p99 is mostly the blend's, which the patches remove either
 // way. The largest rise measured where the kept candidate's file then had every frame brought under
 // was 14.4% (ict2k24: xyz N = 129 13.8%, its coarser step 14.4% over hl+t at 257), the patches'
-// bytes moving by at most a sixth of the keyframes' saving. Without patches nothing brings a frame
+// bytes moving by at most 14% of the keyframes' saving. Without patches nothing brings a frame
 // back: no rise at all.
 inline constexpr double kWorstRegionRise = 1.25;
 
