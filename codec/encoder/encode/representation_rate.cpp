@@ -52,10 +52,14 @@ std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {
   std::vector<int> between;
   for (size_t k = 0; k + 1 < keyframes.size(); ++k)
     for (int i = keyframes[k] + 1; i < keyframes[k + 1]; ++i) between.push_back(i);
-  if (between.size() <= static_cast<size_t>(kRateTrials)) return between;
+  // No frame between keyframes (one frame, or every frame a keyframe): the keyframes themselves,
+  // each decoded against its captured frame (fmbench's keyframe RMS), so that such a capture is
+  // chosen for by the same rule rather than left hl+t (spec/method.md §7.14).
+  const std::vector<int>& frames = between.empty() ? keyframes : between;
+  if (frames.size() <= static_cast<size_t>(kRateTrials)) return frames;
   std::vector<int> spread;
   for (int t = 0; t < kRateTrials; ++t)
-    spread.push_back(between[static_cast<size_t>(t) * (between.size() - 1) / static_cast<size_t>(kRateTrials - 1)]);
+    spread.push_back(frames[static_cast<size_t>(t) * (frames.size() - 1) / static_cast<size_t>(kRateTrials - 1)]);
   return spread;
 }
 

@@ -3,7 +3,8 @@
 // out, the encoder codes the chosen keyframes both ways (hl+t and xyz, each rounded to the same
 // target error), and where --grid auto's worst region alone allowed a coarser N, the cheaper of the
 // two at that N too (coarser_candidates); it measures each one's geometry bytes as the file would hold them and its held-out error on
-// a few decoded frames against their captured meshes, and keeps the one with the lowest
+// a few decoded frames against their captured meshes (the keyframes themselves where no frame lies
+// between them: rate_trial_frames), and keeps the one with the lowest
 // bytes · error^k (a coarser N only where its error stays within the tolerance).
 #pragma once
 
@@ -25,7 +26,8 @@ class StoredSequence;
 // One candidate as measured: its keyframes' bytes (the file without textures, residuals or patches:
 // what differs between the representations) and the mean over the trial frames of the symmetric RMS
 // point error of the decoded frame against its captured mesh, of that mesh's bounding-box diagonal
-// (fmbench's held-out RMS, on a sample of the frames between keyframes).
+// (fmbench's held-out RMS, on a sample of the frames between keyframes; where none lies between them,
+// its keyframe RMS on the keyframes: rate_trial_frames).
 struct RateCandidate {
   Representation representation = Representation::kHLT;
   int grid = 0;         // N
@@ -40,6 +42,7 @@ struct RepresentationRate {
   bool measured = false;
   std::vector<RateCandidate> candidates;  // hl+t and xyz at --grid auto's N, then at the coarser N where tried
   size_t chosen = 0;
+  bool on_keyframes = false;  // measured on the keyframes themselves: no frame lies between them (rate_trial_frames)
   double tolerance = 0;  // the held-out RMS a coarser N must stay within (fraction of the diagonal)
   double seconds = 0;    // the other candidates' builds and roundings, and every measure
 };
@@ -69,7 +72,9 @@ size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, dou
 int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid);
 
 // The frames (capture indices) strictly between the first and last keyframes that are not keyframes,
-// at most kRateTrials of them spread evenly (the first and the last kept).
+// at most kRateTrials of them spread evenly (the first and the last kept); where there are none (a
+// one-frame capture, or every frame a keyframe), the keyframes themselves, spread the same way: each
+// candidate's error is then its decoded keyframes' against their captured frames.
 std::vector<int> rate_trial_frames(const std::vector<int>& keyframes);
 
 // The geometry bytes of `stored` as a file with `coding` would hold them (textures left out).

@@ -330,6 +330,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
+  // Frames between keyframes are never keyframes: trials among the keyframes are the keyframes themselves.
+  rate.on_keyframes = std::includes(chosen.keyframes.begin(), chosen.keyframes.end(), trials.begin(), trials.end());
   // The bound the selection holds the frames to (--max-error, else the error bound), read as the
   // grid and the field rounding read it: a budget given (fmenc --keyframes) sets the bound to 0, and
   // the default 0.5% stands, or an explicit --keyframes 10% would keep no coarser N where the default
