@@ -58,19 +58,46 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   using enum Representation;
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080),
                                             candidate(kHLT, 18923, 0.003061, 129, true), candidate(kXYZ, 14666, 0.003061, 129, true)};
-  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005), 3u);  // ict2k24 as measured: xyz at N = 129
-  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003), 1u);  // a tolerance under N = 129's error: xyz at 257
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005, false), 3u);  // ict2k24 as measured: xyz at N = 129
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.003, false), 1u);  // a tolerance under N = 129's error: xyz at 257
   std::vector<RateCandidate> far = ict2k;
   far[3].held_rms = 0.0045;  // within the tolerance, but 2.2x the error for 3.4x fewer bytes
   far[2].held_rms = 0.0045;
-  EXPECT_EQ(cheapest_at_equal_error(far, 0.005), 1u);
+  EXPECT_EQ(cheapest_at_equal_error(far, 0.005, false), 1u);
   // Two at the planned N: the rule of two.
-  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005), 1u);
-  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005), 0u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005, false), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0]}, 0.005, false), 0u);
 
   EXPECT_EQ(worst_region_grid({{97, 0.00966}, {129, 0.00602}, {193, 0.0014}, {257, 0.00053}}, 0.0075, 257), 129);
   EXPECT_EQ(worst_region_grid({{129, 0.0195}, {193, 0.00809}, {257, 0.0005}}, 0.0075, 257), 0);  // ict24: none coarser
   EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
+}
+
+// On the keyframes alone (nothing predicted) every candidate was built to the same targets, so one
+// that costs more bytes than the first buys only error below the user's tolerance: not kept, though
+// the exchange rate alone keeps it (ICT's single frame as measured: xyz +51% bytes for -21% RMS).
+// The same candidates between keyframes keep it; fewer or equal bytes on the keyframes still compete.
+TEST(RepresentationRate, OnTheKeyframesAloneNoCandidateCostsMoreBytesThanTheFirst) {
+  using enum Representation;
+  const std::vector<RateCandidate> ict = {candidate(kHLT, 16937, 0.002144), candidate(kXYZ, 25510, 0.001686)};
+  ASSERT_LT(rate_cost(ict[1]), rate_cost(ict[0]));  // the exchange rate alone keeps xyz
+  EXPECT_EQ(cheapest_at_equal_error(ict, 0.005, false), 1u);
+  EXPECT_EQ(cheapest_at_equal_error(ict, 0.005, true), 0u);
+  EXPECT_TRUE(buys_only_error_below_the_target(ict[1], ict[0], true));
+  EXPECT_FALSE(buys_only_error_below_the_target(ict[1], ict[0], false));
+  // N's winner on the keyframes is then the fields, and the coarser N is tried in them.
+  const auto met = [] { return 0.0061; };
+  EXPECT_EQ(coarser_candidates(ict, 0.005, true, 129, met, 0.0075), (std::vector<std::pair<Representation, int>>{{kHLT, 129}}));
+  EXPECT_EQ(coarser_candidates(ict, 0.005, false, 129, met, 0.0075), (std::vector<std::pair<Representation, int>>{{kXYZ, 129}}));
+  // Fewer bytes at a lower error (the sample's frame 0), or the same bytes: still chosen by the rate.
+  EXPECT_EQ(cheapest_at_equal_error({candidate(kHLT, 1132, 0.002393), candidate(kXYZ, 1050, 0.002324)}, 0.005, true), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({candidate(kHLT, 1000, 0.0024), candidate(kXYZ, 1000, 0.0020)}, 0.005, true), 1u);
+  EXPECT_EQ(cheapest_at_equal_error({candidate(kHLT, 1000, 0.0024), candidate(kXYZ, 1001, 0.0020)}, 0.005, true), 0u);
+  // A coarser N with fewer bytes (ict2k24's 129 after xyz refused at 257) is kept on the keyframes.
+  const std::vector<RateCandidate> ict2k = {candidate(kHLT, 8644, 0.002283), candidate(kXYZ, 9500, 0.002100),
+                                            candidate(kXYZ, 7908, 0.002310, 129, true)};
+  EXPECT_EQ(cheapest_at_equal_error(ict2k, 0.005, true), 2u);
+  EXPECT_EQ(cheapest_at_equal_error({ict2k[0], ict2k[1]}, 0.005, true), 0u);
 }
 
 // The coarser N is tried in N's winner alone: xyz on ict2k24, hl+t on fmsynth's 30° turning head
@@ -81,12 +108,12 @@ TEST(RepresentationRate, TheCoarserGridIsTriedInTheWinnerAtN) {
   int decoded = 0;
   const auto met = [&] { ++decoded; return 0.0061; };
   const std::vector<RateCandidate> ict2k = {candidate(kHLT, 53370, 0.002064), candidate(kXYZ, 50244, 0.002080)};
-  EXPECT_EQ(coarser_candidates(ict2k, 0.005, 129, met, 0.0075), (Tried{{kXYZ, 129}}));
+  EXPECT_EQ(coarser_candidates(ict2k, 0.005, false, 129, met, 0.0075), (Tried{{kXYZ, 129}}));
   EXPECT_EQ(decoded, 0);  // positions won at N: the fields' floor is not decoded
   const std::vector<RateCandidate> rot30 = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
-  EXPECT_EQ(coarser_candidates(rot30, 0.005, 33, met, 0.0075), (Tried{{kHLT, 33}}));
-  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, 129, met, 0.0075), (Tried{{kHLT, 129}}));  // xyz did not converge at N
-  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, 0, met, 0.0075).empty());
+  EXPECT_EQ(coarser_candidates(rot30, 0.005, false, 33, met, 0.0075), (Tried{{kHLT, 33}}));
+  EXPECT_EQ(coarser_candidates({ict2k[0]}, 0.005, false, 129, met, 0.0075), (Tried{{kHLT, 129}}));  // xyz did not converge at N
+  EXPECT_TRUE(coarser_candidates(ict2k, 0.005, false, 0, met, 0.0075).empty());
 }
 
 // The fields at the coarser N are a candidate only where the reference rebuilt from them meets the
@@ -97,13 +124,13 @@ TEST(RepresentationRate, TheFieldsAtACoarserGridAreTriedOnlyWhereTheirDecodedFlo
   using Tried = std::vector<std::pair<Representation, int>>;
   const std::vector<RateCandidate> fields_won = {candidate(kHLT, 4151, 0.002582), candidate(kXYZ, 5010, 0.002434)};
   const auto floor = [](double p99) { return [p99] { return p99; }; };
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0061), 0.0075), (Tried{{kHLT, 129}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 129, floor(0.0075), 0.0075), (Tried{{kHLT, 129}}));  // met exactly
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0379), 0.0075), (Tried{{kXYZ, 33}}));  // the whole head's decoded floor
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.0076), 0.0075), (Tried{{kXYZ, 33}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::numeric_limits<double>::infinity()), 0.0075), (Tried{{kXYZ, 33}}));  // not rebuilt
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(std::nan("")), 0.0075), (Tried{{kXYZ, 33}}));
-  EXPECT_EQ(coarser_candidates(fields_won, 0.005, 33, floor(0.012), 0.0125), (Tried{{kHLT, 33}}));  // a noisy capture's raised share
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 129, floor(0.0061), 0.0075), (Tried{{kHLT, 129}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 129, floor(0.0075), 0.0075), (Tried{{kHLT, 129}}));  // met exactly
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 33, floor(0.0379), 0.0075), (Tried{{kXYZ, 33}}));  // the whole head's decoded floor
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 33, floor(0.0076), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 33, floor(std::numeric_limits<double>::infinity()), 0.0075), (Tried{{kXYZ, 33}}));  // not rebuilt
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 33, floor(std::nan("")), 0.0075), (Tried{{kXYZ, 33}}));
+  EXPECT_EQ(coarser_candidates(fields_won, 0.005, false, 33, floor(0.012), 0.0125), (Tried{{kHLT, 33}}));  // a noisy capture's raised share
 }
 
 TEST(RepresentationRate, TrialFramesAreSpreadBetweenTheKeyframes) {
@@ -156,7 +183,7 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
     EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
     EXPECT_GE(c.frames, 1);
   }
-  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance));
+  EXPECT_EQ(rate.chosen, cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.on_keyframes));
   const RateCandidate& kept = rate.candidates[rate.chosen];
   EXPECT_EQ(report.representation, kept.representation);
   EXPECT_EQ(chosen.representation, kept.representation);

@@ -30,11 +30,16 @@ Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCan
   return rate_cost(positions) < rate_cost(fields) ? Representation::kXYZ : Representation::kHLT;
 }
 
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance) {
+bool buys_only_error_below_the_target(const RateCandidate& candidate, const RateCandidate& first, bool on_keyframes) {
+  return on_keyframes && candidate.bytes > first.bytes;
+}
+
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, bool on_keyframes) {
   size_t best = 0;
   for (size_t i = 1; i < candidates.size(); ++i) {
     const RateCandidate& c = candidates[i];
     if (c.coarser && !(c.held_rms <= tolerance)) continue;
+    if (buys_only_error_below_the_target(c, candidates.front(), on_keyframes)) continue;
     if (rate_cost(c) < rate_cost(candidates[best])) best = i;
   }
   return best;
@@ -116,10 +121,11 @@ double held_out_rms(const Capture& capture, const StoredSequence& stored, const 
   return sum / static_cast<double>(rms.size());
 }
 
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
-                                                               const std::function<double()>& coarser_fields_p99, double worst_target) {
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, bool on_keyframes,
+                                                               int coarser, const std::function<double()>& coarser_fields_p99,
+                                                               double worst_target) {
   if (coarser <= 0 || at_grid.empty()) return {};
-  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance)].representation;
+  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance, on_keyframes)].representation;
   if (winner == Representation::kHLT && !(coarser_fields_p99() <= worst_target)) return {{Representation::kXYZ, coarser}};
   return {{winner, coarser}};
 }

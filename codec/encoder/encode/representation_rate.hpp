@@ -62,10 +62,16 @@ double rate_cost(const RateCandidate& candidate);
 // The candidate the rule keeps: xyz only where its cost is strictly lower than hl+t's (a tie keeps
 // the fields, which turn with a rotating head rather than cutting its chords: spec/method.md §5.2).
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions);
+// Where the error is measured on the keyframes alone (`on_keyframes`: nothing predicted), every
+// candidate was built to the same targets (the grid's 1/2 B, the rounding's two fifths of B, the
+// p99 bound), so bytes beyond the first candidate's (the smallest file at the target) buy only
+// error below what the user's tolerance set: such a candidate is not kept, whatever its cost
+// (spec/method.md §7.14). Between keyframes the error is the prediction's, which no target bounds.
+bool buys_only_error_below_the_target(const RateCandidate& candidate, const RateCandidate& first, bool on_keyframes);
 // Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
-// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`; ties keep the
-// earlier.
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance);
+// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`, none that
+// buys_only_error_below_the_target; ties keep the earlier.
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, bool on_keyframes);
 
 // The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
 // `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
@@ -90,14 +96,15 @@ double held_out_rms(const Capture& capture, const StoredSequence& stored, const 
                     const std::vector<TriangleMesh>& captured, int threads);
 
 // The coarser N's candidate (--grid auto's worst region, worst_region_grid): the representation
-// `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where both were
+// `cheapest_at_equal_error` kept at --grid auto's N (`on_keyframes` as there), not both. On every capture where both were
 // measured at a coarser N (ict2k24, the sample, fmsynth's 30° turning head), the coarser N's winner
 // was the same representation as N's (spec/method.md §7.14), so the other one's build, rounding and
 // measure changed nothing and cost a quarter of the choice. The fields there only where the reference
 // rebuilt from them at that N (`coarser_fields_p99`, called only then: decoded_fields_floor) meets
 // `worst_target`, as the resampled floor that allowed the N does not show what a decoder rebuilds
 // (§7.6's whole head: 0.48% resampled, 3.79% decoded); else positions, which decode as sampled.
-std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, int coarser,
-                                                               const std::function<double()>& coarser_fields_p99, double worst_target);
+std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance, bool on_keyframes,
+                                                               int coarser, const std::function<double()>& coarser_fields_p99,
+                                                               double worst_target);
 
 }  // namespace facemorph

@@ -379,16 +379,16 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     }
     const double rms = held_out_rms(capture_, *sequence, trials, *captured, settings.threads);
     rate.candidates.push_back({representation, n, n != grid, geometry_bytes(*sequence, report_.field_coding), rms, frames});
-    if (cheapest_at_equal_error(rate.candidates, rate.tolerance) == rate.candidates.size() - 1) {
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.on_keyframes) == rate.candidates.size() - 1) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
-  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, coarser, coarser_fields_p99, report_.grid_worst_target))
+  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, rate.on_keyframes, coarser, coarser_fields_p99, report_.grid_worst_target))
     try_candidate(representation, n);
-  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance);
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.on_keyframes);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
   // The report says what was measured whichever is kept (coarser N first, as the grid stage's order).
