@@ -639,9 +639,10 @@ void print_keyframes(const Summary& s) {
   if (s.report.representation_rate.measured) {
     const RepresentationRate& r = s.report.representation_rate;
     std::printf("  representation and N by bytes at equal error (keyframes' bytes; %s RMS of the diagonal on %d %s; bytes x RMS^%g "
-                "the lowest, a coarser N within %.2g%%):",
+                "the lowest%s, a coarser N within %.2g%%):",
                 r.on_keyframes ? "decoded keyframes'" : "held-out", r.candidates.front().frames,
-                r.on_keyframes ? "keyframes (no frame between them)" : "frames", kRateErrorExponent, 100 * r.tolerance);
+                r.on_keyframes ? "keyframes (no frame between them)" : "frames", kRateErrorExponent,
+                r.on_keyframes ? ", none with more bytes than the first (all built to the same targets)" : "", 100 * r.tolerance);
     for (size_t i = 0; i < r.candidates.size(); ++i) {
       const RateCandidate& c = r.candidates[i];
       std::printf("%s %s N = %d %llu B at %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid,
