@@ -35,19 +35,24 @@ bool admitted_worst_region(const RateCandidate& candidate, const RateCandidate& 
   return candidate.worst_p99 <= worst_bound || candidate.worst_p99 <= first.worst_p99 * rise;
 }
 
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound) {
+bool buys_only_error_below_the_target(const RateCandidate& candidate, const RateCandidate& first, bool on_keyframes) {
+  return on_keyframes && candidate.bytes > first.bytes;
+}
+
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes) {
   size_t best = 0;
   for (size_t i = 1; i < candidates.size(); ++i) {
     const RateCandidate& c = candidates[i];
     if (c.coarser && !(c.held_rms <= tolerance)) continue;
     if (!admitted_worst_region(c, candidates.front(), worst_bound)) continue;
+    if (buys_only_error_below_the_target(c, candidates.front(), on_keyframes)) continue;
     if (rate_cost(c) < rate_cost(candidates[best])) best = i;
   }
   return best;
 }
 
-RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound) {
-  RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance, worst_bound));
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes) {
+  RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance, worst_bound, on_keyframes));
   again.coarser = true;
   again.step_scale = kCoarserStepScale;
   again.bytes = 0;
@@ -69,10 +74,14 @@ std::vector<int> rate_trial_frames(const std::vector<int>& keyframes) {
   std::vector<int> between;
   for (size_t k = 0; k + 1 < keyframes.size(); ++k)
     for (int i = keyframes[k] + 1; i < keyframes[k + 1]; ++i) between.push_back(i);
-  if (between.size() <= static_cast<size_t>(kRateTrials)) return between;
+  // No frame between keyframes (one frame, or every frame a keyframe): the keyframes themselves,
+  // each decoded against its captured frame (fmbench's keyframe RMS), so that such a capture is
+  // chosen for by the same rule rather than left hl+t (spec/method.md §7.14).
+  const std::vector<int>& frames = between.empty() ? keyframes : between;
+  if (frames.size() <= static_cast<size_t>(kRateTrials)) return frames;
   std::vector<int> spread;
   for (int t = 0; t < kRateTrials; ++t)
-    spread.push_back(between[static_cast<size_t>(t) * (between.size() - 1) / static_cast<size_t>(kRateTrials - 1)]);
+    spread.push_back(frames[static_cast<size_t>(t) * (frames.size() - 1) / static_cast<size_t>(kRateTrials - 1)]);
   return spread;
 }
 
@@ -133,10 +142,10 @@ HeldOutError held_out_error(const Capture& capture, const StoredSequence& stored
 }
 
 std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance,
-                                                               double worst_bound, int coarser,
+                                                               double worst_bound, bool on_keyframes, int coarser,
                                                                const std::function<double()>& coarser_fields_p99, double worst_target) {
   if (coarser <= 0 || at_grid.empty()) return {};
-  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance, worst_bound)].representation;
+  const Representation winner = at_grid[cheapest_at_equal_error(at_grid, tolerance, worst_bound, on_keyframes)].representation;
   if (winner == Representation::kHLT && !(coarser_fields_p99() <= worst_target)) return {{Representation::kXYZ, coarser}};
   return {{winner, coarser}};
 }

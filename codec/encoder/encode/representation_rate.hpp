@@ -3,10 +3,12 @@
 // out, the encoder codes the chosen keyframes both ways (hl+t and xyz, each rounded to the same
 // target error), and where --grid auto's worst region alone allowed a coarser N, the cheaper of the
 // two at that N too (coarser_candidates); it measures each one's geometry bytes as the file would hold them and its held-out error on
-// a few decoded frames against their captured meshes, and keeps the one with the lowest
+// a few decoded frames against their captured meshes (the keyframes themselves where no frame lies
+// between them: rate_trial_frames), and keeps the one with the lowest
 // bytes · error^k (a coarser N only where its error stays within the tolerance; any candidate but
 // the first only where its worst trial frame's 99th percentile is within the frame patches' bound
-// or not much worse than the first's: admitted_worst_region).
+// or not much worse than the first's: admitted_worst_region; on the keyframes alone, none with
+// more bytes than the first: buys_only_error_below_the_target).
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
@@ -27,7 +29,8 @@ class StoredSequence;
 // One candidate as measured: its keyframes' bytes (the file without textures, residuals or patches:
 // what differs between the representations) and the mean over the trial frames of the symmetric RMS
 // point error of the decoded frame against its captured mesh, of that mesh's bounding-box diagonal
-// (fmbench's held-out RMS, on a sample of the frames between keyframes).
+// (fmbench's held-out RMS, on a sample of the frames between keyframes; where none lies between them,
+// its keyframe RMS on the keyframes: rate_trial_frames).
 struct RateCandidate {
   Representation representation = Representation::kHLT;
   int grid = 0;         // N
@@ -47,6 +50,7 @@ struct RepresentationRate {
   bool measured = false;
   std::vector<RateCandidate> candidates;  // hl+t and xyz at --grid auto's N, then at the coarser N where tried
   size_t chosen = 0;
+  bool on_keyframes = false;  // measured on the keyframes themselves: no frame lies between them (rate_trial_frames)
   double tolerance = 0;  // the held-out RMS a coarser N must stay within (fraction of the diagonal)
   double worst_bound = 0;  // the worst trial p99 any candidate may reach whatever the first's (the patches' bound)
   double seconds = 0;    // the other candidates' builds and roundings, and every measure
@@ -85,17 +89,26 @@ inline constexpr double kWorstRegionRise = 1.25;
 // worse than the first's). Bytes · RMS² weigh the mean; a candidate that sends the worst frame far
 // further over the bound leaves the patches more to bring under, in bytes the choice does not count.
 bool admitted_worst_region(const RateCandidate& candidate, const RateCandidate& first, double worst_bound);
+// Where the error is measured on the keyframes alone (`on_keyframes`: nothing predicted), every
+// candidate was built to the same targets (the grid's 1/2 B, the rounding's two fifths of B, the
+// p99 bound), so bytes beyond the first candidate's (the smallest file at the target) buy only
+// error below what the user's tolerance set: such a candidate is not kept, whatever its cost
+// (spec/method.md §7.14). Between keyframes the error is the prediction's, which no target bounds.
+bool buys_only_error_below_the_target(const RateCandidate& candidate, const RateCandidate& first, bool on_keyframes);
 // Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
 // of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`, any but the
-// first only where admitted_worst_region; ties keep the earlier.
-size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound);
+// first only where admitted_worst_region, none that buys_only_error_below_the_target; ties keep the
+// earlier.
+size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes);
 
 // The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
 // `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.
 int worst_region_grid(const std::vector<std::pair<int, double>>& floor_p99s, double worst_target, int grid);
 
 // The frames (capture indices) strictly between the first and last keyframes that are not keyframes,
-// at most kRateTrials of them spread evenly (the first and the last kept).
+// at most kRateTrials of them spread evenly (the first and the last kept); where there are none (a
+// one-frame capture, or every frame a keyframe), the keyframes themselves, spread the same way: each
+// candidate's error is then its decoded keyframes' against their captured frames.
 std::vector<int> rate_trial_frames(const std::vector<int>& keyframes);
 
 // The geometry bytes of `stored` as a file with `coding` would hold them (textures left out).
@@ -116,7 +129,7 @@ HeldOutError held_out_error(const Capture& capture, const StoredSequence& stored
                             const std::vector<TriangleMesh>& captured, int threads);
 
 // The coarser N's candidate (--grid auto's worst region, worst_region_grid): the representation
-// `cheapest_at_equal_error` kept at --grid auto's N, not both. On every capture where both were
+// `cheapest_at_equal_error` kept at --grid auto's N (`on_keyframes` as there), not both. On every capture where both were
 // measured at a coarser N (ict2k24, the sample, fmsynth's 30° turning head), the coarser N's winner
 // was the same representation as N's (spec/method.md §7.14), so the other one's build, rounding and
 // measure changed nothing and cost a quarter of the choice. The fields there only where the reference
@@ -124,13 +137,13 @@ HeldOutError held_out_error(const Capture& capture, const StoredSequence& stored
 // `worst_target`, as the resampled floor that allowed the N does not show what a decoder rebuilds
 // (§7.6's whole head: 0.48% resampled, 3.79% decoded); else positions, which decode as sampled.
 std::vector<std::pair<Representation, int>> coarser_candidates(const std::vector<RateCandidate>& at_grid, double tolerance,
-                                                               double worst_bound, int coarser,
+                                                               double worst_bound, bool on_keyframes, int coarser,
                                                                const std::function<double()>& coarser_fields_p99, double worst_target);
 
 // The candidate tried once more with its fields rounded to kCoarserStepScale times the target: the
 // one `cheapest_at_equal_error` keeps of those measured (its representation and N; step_scale set).
 // Kept in turn only by the same rule, within `tolerance` (a lossier rounding, as a coarser N is) and
 // admitted for its worst region.
-RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound);
+RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes);
 
 }  // namespace facemorph

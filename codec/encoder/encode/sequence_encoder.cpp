@@ -330,6 +330,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
+  // Frames between keyframes are never keyframes: trials among the keyframes are the keyframes themselves.
+  rate.on_keyframes = std::includes(chosen.keyframes.begin(), chosen.keyframes.end(), trials.begin(), trials.end());
   // The bound the selection holds the frames to (--max-error, else the error bound), read as the
   // grid and the field rounding read it: a budget given (fmenc --keyframes) sets the bound to 0, and
   // the default 0.5% stands, or an explicit --keyframes 10% would keep no coarser N where the default
@@ -385,24 +387,24 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
     rate.candidates.push_back({representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
                                frames, step_scale, error.worst_p99});
-    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound) == rate.candidates.size() - 1) {
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes) == rate.candidates.size() - 1) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
-  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, rate.worst_bound, coarser, coarser_fields_p99,
+  for (const auto& [representation, n] : coarser_candidates(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes, coarser, coarser_fields_p99,
                                                                   report_.grid_worst_target))
     try_candidate(representation, n);
   // Then the kept one with its fields rounded to a coarser target (coarser_step_candidate): bytes the
   // rounding spends under the spline's error between keyframes buy little of the held-out error.
   // Rounded where the fields are (settings.predicted_fields), so the rounding's worst-region bound holds for it too.
   if (settings.predicted_fields) {
-    const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance, rate.worst_bound);
+    const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
     try_candidate(again.representation, again.grid, kCoarserStepScale);
   }
-  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound);
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
   rate.seconds = seconds_since(start);
   report_ = std::move(best.report);
   // The report says what was measured whichever is kept (coarser N first, as the grid stage's order).
