@@ -24,6 +24,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 namespace facemorph {
@@ -40,7 +41,8 @@ struct Encode {
   EncodeOptions options;
   std::vector<fs::path> parts;
 
-  Encode() {
+  // `representation`: the one asked for (none: the encoder's choice).
+  explicit Encode(std::optional<Representation> representation = std::nullopt) {
     SynthOptions synth;
     synth.frames = 16;
     synth.vertices = 1200;
@@ -58,6 +60,7 @@ struct Encode {
     // Segments carry no residual frames (spec/method.md §7.18): the one-process encode they are
     // measured against takes none either.
     options.residual_frames = false;
+    options.representation = representation;
     for (const FrameRange& range : std::vector<FrameRange>{{0, 7}, {7, 16}}) {
       parts.push_back(dir.path() / ("part_" + std::to_string(range.first) + ".fms"));
       encode_part(capture, options, range, parts.back());
@@ -130,8 +133,11 @@ nlohmann::json settings_of(const fs::path& path) {
   return nlohmann::json::parse(info.metadata.settings);
 }
 
+// A segment takes the plan's representation and never the choice by bytes (spec/method.md §7.14),
+// which the one-process encode makes: the fields asked for, both store them (left to choose, the
+// one-process encode of this capture keeps positions, rounded each to its nearest step).
 TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode) {
-  const Encode e;
+  const Encode e(Representation::kHLT);
   const fs::path one = e.dir.path() / "one.fmv";
   e.write_one(one);
   const std::vector<SegmentMeasure> measures = e.measures(3);
@@ -195,7 +201,7 @@ TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode
 }
 
 TEST(SegmentedEncode, OneSegmentIsTheWholeEncodeWithItsOwnSteps) {
-  const Encode e;
+  const Encode e(Representation::kHLT);  // as above: no choice by bytes in a segment
   const std::vector<SegmentMeasure> measures = e.measures(1);
   const fs::path joined = e.dir.path() / "joined.fmv";
   join_segment_files({e.segment_file(0, measures)}, joined);
