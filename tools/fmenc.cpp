@@ -342,7 +342,10 @@ void declare_options(CLI::App& app, Arguments& a) {
                  "predicted error between keyframes (of the error bound where none is predicted: one frame, every frame a keyframe; "
                  "0.5% by default, or --max-error), within [0.005%, 0.2%]; re-coding a .fmv, auto keeps its steps; 0: 16-bit precision, no search")
       ->capture_default_str();
-  app.add_option("--field-rounding", a.field_rounding, "shaped (error diffusion, the default) | nearest")->capture_default_str();
+  app.add_option("--field-rounding", a.field_rounding,
+                 "shaped (the default: error diffusion on the fields the decoder integrates, hl and hl+t's; positions, xyz, each to "
+                 "its nearest step, as diffusion only adds to their error) | nearest (every value to its nearest step)")
+      ->capture_default_str();
   app.add_option("--inter-dead-zone", a.inter_dead_zone,
                  "Steps a value of a predicted keyframe must move before its code leaves the previous keyframe's (0.5: plain rounding; "
                  "below 1), or auto (the one of " +

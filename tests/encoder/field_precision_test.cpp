@@ -35,16 +35,17 @@ namespace {
 // target of the field precision tests), without textures. The representation is given: left open,
 // the encoder's choice by bytes at equal error (representation_rate.hpp) may store these keyframes
 // as positions, and then the tests below would round no fields at all.
-Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double keyframe_fraction, int grid) {
+Sequence unrounded_keyframes(const testing::TempDir& dir, double noise, double keyframe_fraction, int grid,
+                             Representation representation = Representation::kHLT) {
   const Capture capture = testing::small_remeshed_capture(dir, 0, noise);
   EncodeOptions options;
   options.keyframe_fraction = keyframe_fraction;
   options.grid = grid;
   options.texture = false;
   options.predicted_fields = false;
-  options.representation = Representation::kHLT;  // the fields' rounding, not the choice by bytes (§7.14)
+  options.representation = representation;  // the fields' rounding, not the choice by bytes (§7.14)
   Sequence sequence = encode_capture(capture, options);
-  if (sequence.representation != Representation::kHLT) ADD_FAILURE() << "the fixture's keyframes are not fields";
+  if (sequence.representation != representation) ADD_FAILURE() << "the fixture's keyframes are not in the representation asked";
   return sequence;
 }
 
@@ -195,6 +196,51 @@ double kept_codes(const Sequence& sequence, const FieldCoding& coding, size_t k)
     }
   }
   return static_cast<double>(kept) / static_cast<double>(total);
+}
+
+// Positions decode as stored, so error diffusion would only add its neighbours' error to each
+// node's (spec/method.md §5.3): with noise shaping on, an xyz keyframe's positions are each rounded
+// to the nearest step, while hl+t's per-node fields still diffuse their rounding.
+TEST(FieldPrecision, PositionsAreRoundedEachOnItsOwnWhileFieldsDiffuse) {
+  testing::TempDir dir;
+  // The fraction of an array's values rounded to another multiple of `step` than the nearest.
+  const auto moved = [](const std::vector<double>& exact, const std::vector<double>& rounded, double step) {
+    size_t count = 0;
+    for (size_t n = 0; n < exact.size(); ++n) count += rounded[n] != step * std::nearbyint(exact[n] / step);
+    return static_cast<double>(count) / static_cast<double>(exact.size());
+  };
+  // Steps a sixtieth of each array's spread: coarse enough that diffusion moves many codes.
+  const auto coding_for = [](const Sequence& sequence) {
+    FieldCoding coding;
+    coding.intra_period = 1;  // every keyframe intra: no dead zone
+    set_default_pose_steps(coding, sequence.units);
+    const std::vector<std::vector<double>> arrays = scalar_arrays(sequence.keyframes[0].fields);
+    for (size_t a = 0; a < kKeyframeArrayCount; ++a) {
+      double lo = 0, hi = 1;
+      if (a < arrays.size() && !arrays[a].empty()) {
+        const auto [lowest, highest] = std::ranges::minmax_element(arrays[a]);
+        lo = *lowest, hi = *highest;
+      }
+      coding.steps.push_back((hi - lo) / 60);
+    }
+    return coding;
+  };
+  constexpr size_t kPositionX = 7, kH = 0;
+  for (const Representation representation : {Representation::kXYZ, Representation::kHLT}) {
+    const Sequence exact = unrounded_keyframes(dir, 0, 0.25, 49, representation);
+    const FieldCoding coding = coding_for(exact);
+    Sequence rounded = exact;
+    round_keyframes(rounded, coding, {1e-4, 1, true, 0.5});
+    for (size_t k = 0; k < exact.keyframes.size(); ++k) {
+      const auto before = scalar_arrays(exact.keyframes[k].fields), after = scalar_arrays(rounded.keyframes[k].fields);
+      if (representation == Representation::kXYZ) {
+        for (size_t a = kPositionX; a < kPositionX + 3; ++a)
+          EXPECT_EQ(moved(before[a], after[a], coding.steps[a]), 0.0) << "keyframe " << k;
+      } else {
+        EXPECT_GT(moved(before[kH], after[kH], coding.steps[kH]), 0.1) << "keyframe " << k;  // diffused
+      }
+    }
+  }
 }
 
 // A predicted keyframe rounds its change from the previous one. Without a dead zone (0.5 steps) that

@@ -133,8 +133,11 @@ nlohmann::json settings_of(const fs::path& path) {
   return nlohmann::json::parse(info.metadata.settings);
 }
 
+// A segment takes the plan's representation and never the choice by bytes (spec/method.md §7.14),
+// which the one-process encode makes: the fields asked for, both store them (left to choose, the
+// one-process encode of this capture keeps positions, rounded each to its nearest step).
 TEST(SegmentedEncode, SegmentsJoinIntoAFileThatDecodesCloseToTheOneProcessEncode) {
-  const Encode e;
+  const Encode e(Representation::kHLT);
   const fs::path one = e.dir.path() / "one.fmv";
   e.write_one(one);
   const std::vector<SegmentMeasure> measures = e.measures(3);

@@ -400,7 +400,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   // Then the kept one with its fields rounded to a coarser target (coarser_step_candidate): bytes the
   // rounding spends under the spline's error between keyframes buy little of the held-out error.
   // Rounded where the fields are (settings.predicted_fields), so the rounding's worst-region bound holds for it too.
-  if (settings.predicted_fields) {
+  // Not on the keyframes alone: nothing is predicted there, and the rounding's target is the error the
+  // user's tolerance set (buys_only_error_below_the_target), not a share of a prediction's.
+  if (settings.predicted_fields && !rate.on_keyframes) {
     const RateCandidate again = coarser_step_candidate(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
     try_candidate(again.representation, again.grid, kCoarserStepScale);
   }
