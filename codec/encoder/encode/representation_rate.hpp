@@ -33,6 +33,7 @@ struct RateCandidate {
   uint64_t bytes = 0;
   double held_rms = 0;
   int frames = 0;  // trial frames measured
+  double density_equalising = 0;  // positions through the density-equalised disk of this strength (density_candidate.hpp); 0: conformal
 };
 
 // What the comparison measured, for the report (measured false: no comparison ran).
