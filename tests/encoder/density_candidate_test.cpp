@@ -92,7 +92,12 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
   const Capture capture = read_capture(dir.path());
   const EncodeOptions options = density_test_options();
   EncodeReport report;
-  const std::unique_ptr<StoredSequence> stored = encode_capture_stored(capture, options, &report);
+  SequenceEncoder encoder(capture, options);
+  map_frames(encoder);
+  register_frames(encoder);
+  sample_frames(encoder);
+  const std::unique_ptr<StoredSequence> stored = encoder.encode_sampled(&report);
+  EXPECT_FALSE(encoder.reparametrisation().identity()) << "the stages after the choice sample through D";
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
   const auto equalised = std::count_if(rate.candidates.begin(), rate.candidates.end(),
@@ -139,7 +144,12 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsNotKeptWhereItDoesNotPay) {
   const Capture capture = testing::small_remeshed_capture(dir, 30);
   const EncodeOptions options = density_test_options();
   EncodeReport report;
-  const std::unique_ptr<StoredSequence> stored = encode_capture_stored(capture, options, &report);
+  SequenceEncoder encoder(capture, options);
+  map_frames(encoder);
+  register_frames(encoder);
+  sample_frames(encoder);
+  const std::unique_ptr<StoredSequence> stored = encoder.encode_sampled(&report);
+  EXPECT_TRUE(encoder.reparametrisation().identity()) << "not kept, the conformal disk is back for the stages after the choice";
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
   EXPECT_EQ(report.density_candidate.strength, kCandidateDensityStrength);
