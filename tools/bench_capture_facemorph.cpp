@@ -58,6 +58,13 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
     const json settings = json::parse(given_info.metadata.settings.empty() ? "{}" : given_info.metadata.settings, nullptr, false);
     if (settings.is_object() && settings.contains("registration"))
       encode.registration.method = parse_registration_method(settings["registration"]);
+    // The disk the file was sampled on (spec/method.md §7.11): asked (--density-equalising) or chosen
+    // by bytes at equal error (density_equalising_chosen); the frames' reference texels are sampled
+    // through it as the file's were, or the texture PSNR compares two parametrisations (fast24: 21.4 dB).
+    if (settings.is_object()) {
+      const double chosen = settings.value("density_equalising_chosen", 0.0);
+      encode.density_equalising.strength = chosen > 0 ? chosen : settings.value("density_equalising", encode.density_equalising.strength);
+    }
     encode.representation = given->representation;
   }
   SequenceEncoder encoder(c.capture, encode);

@@ -654,10 +654,18 @@ void print_keyframes(const Summary& s) {
       const char* mark = i == r.chosen                                                         ? " (kept)"
                          : !admitted_worst_region(c, r.candidates.front(), r.worst_bound) ? " (worst region refused)"
                                                                                               : "";
-      std::printf("%s %s N = %d%s %llu B at %.4f / %.4f%%%s", i ? ";" : "", representation_name(c.representation), c.grid, step,
+      std::printf("%s %s%s N = %d%s %llu B at %.4f / %.4f%%%s", i ? ";" : "", representation_name(c.representation),
+                  c.density_equalising > 0 ? " on the density-equalised disk" : "", c.grid, step,
                   static_cast<unsigned long long>(c.bytes), 100 * c.held_rms, 100 * c.worst_p99, mark);
     }
     std::printf("; %.1f s\n", r.seconds);
+    const EncodeReport::DensityCandidate& d = s.report.density_candidate;
+    if (d.strength > 0) {
+      std::printf("  density-equalised disk (strength %g) %s; its resampled floor's 99th percentile", d.strength,
+                  d.kept ? "kept: every frame sampled through it" : "not kept");
+      for (const auto& [n, p99] : d.floor_p99s) std::printf(" %d: %.3f%%", n, 100 * p99);
+      std::printf("\n");
+    }
   }
   if (!s.report.sparse && s.report.keyframe_budget > 0 &&
       static_cast<int>(s.sequence->shape().keyframes.size()) > s.report.keyframe_budget) {

@@ -115,6 +115,14 @@ struct EncodeReport {
   int registration_fallbacks = 0;
   DensityEqualisingReport density_equalising;
   double radial_equalising = 0;         // the radial reparametrisation's strength used (0: none; spec/method.md §7.11)
+  // The density-equalised disk tried by bytes at equal error (density_candidate.hpp): its strength
+  // (0: not tried), its resampled floor's 99th percentile at the Ns measured (coarsest first), kept or not.
+  struct DensityCandidate {
+    double strength = 0;
+    std::vector<std::pair<int, double>> floor_p99s;
+    bool kept = false;
+  };
+  DensityCandidate density_candidate;
   std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending
   FieldCoding field_coding;             // what the file must store (SequenceFileMetadata::field_coding)
   FieldPrecisionReport field_precision;

@@ -136,6 +136,8 @@ std::string encode_settings_json(const EncodeOptions& options, const EncodeRepor
   Json settings = settings_json(options, report);
   // Only where it happened: every other file's settings stay as they were, byte for byte.
   if (!report.representation_fallback.empty()) settings["representation_fallback"] = report.representation_fallback;
+  // The density-equalised disk kept by bytes at equal error (density_candidate.hpp): its strength.
+  if (report.density_candidate.kept) settings["density_equalising_chosen"] = report.density_candidate.strength;
   return settings.dump();
 }
 

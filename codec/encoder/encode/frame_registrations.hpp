@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -33,6 +34,10 @@ class FrameRegistrations {
   // reparametrised, its geodesic frame (null but for method kFrame).
   void set_reference(DiskReparametrisation reparametrisation, std::shared_ptr<const GeodesicFrame> geodesic_frame);
   const DiskReparametrisation& reparametrisation() const { return reparametrisation_; }
+  // The reference's disk reparametrised otherwise, its geodesic frame kept: the registrations map the
+  // conformal disks, so a map of the reference's disk onto itself can be swapped after them
+  // (the density-equalised disk chosen by bytes, density_candidate.hpp).
+  void set_reparametrisation(DiskReparametrisation reparametrisation) { reparametrisation_ = std::move(reparametrisation); }
   const GeodesicFrame* geodesic_frame() const { return geodesic_frame_.get(); }
   // The partition the registrations through the geodesic frame share (null without one).
   std::shared_ptr<const PartitionMesh> partition() const { return geodesic_frame_ ? geodesic_frame_->partition : nullptr; }

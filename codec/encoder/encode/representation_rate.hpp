@@ -43,6 +43,7 @@ struct RateCandidate {
   // meshes' vertices to the other surface, one percentile of the union), of the captured mesh's
   // diagonal: the worst region as the file shows it before residual frames and patches.
   double worst_p99 = 0;
+  double density_equalising = 0;  // positions through the density-equalised disk of this strength (density_candidate.hpp); 0: conformal
 };
 
 // What the comparison measured, for the report (measured false: no comparison ran).

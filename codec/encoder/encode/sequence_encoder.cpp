@@ -425,6 +425,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& setti
         if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
       });
   sequence = choose_by_bytes(settings, chosen, grid, std::move(sequence));
+  sequence = choose_density_equalised(settings, chosen, std::move(sequence));
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
   if (settings.residual_frames && residuals_pay(chosen)) {

@@ -232,6 +232,11 @@ class SequenceEncoder {
   // elsewhere `fields` as given.
   std::unique_ptr<StoredSequence> choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
                                                   std::unique_ptr<StoredSequence> fields);
+  // After choose_by_bytes: the density-equalised disk's candidates (density_candidate.hpp) measured
+  // against the one it kept, added to report().representation_rate; where one is kept, the
+  // registrations sample through its map from here on. Elsewhere `kept` as given.
+  std::unique_ptr<StoredSequence> choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
+                                                           std::unique_ptr<StoredSequence> kept);
   // Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
   // reconstruct, and how far it got): the representation adopted, report().representation_fallback
   // set (a file's settings say it). A segment's assemble takes the fallback a measure made so

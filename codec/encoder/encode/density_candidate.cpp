@@ -1,0 +1,134 @@
+// The density-equalised disk as a candidate of the choice by bytes at equal error
+// (density_candidate.hpp, spec/method.md §7.11, §7.14).
+#include "codec/encoder/encode/density_candidate.hpp"
+
+#include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/reconstruct/reconstructor.hpp"
+#include "codec/core/util/elapsed.hpp"
+#include "codec/encoder/encode/representation_rate.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/meshkit/geometry/distance.hpp"
+
+#include <algorithm>
+#include <functional>
+
+namespace facemorph {
+
+bool density_candidate_open(const EncodeOptions& options, const EncodeReport& report) {
+  return !options.representation && options.grid == 0 && options.density_equalising.strength == 0 &&
+         options.density_equalising.radial == kAutoRadial && report.radial_equalising == 0 && report.representation_rate.measured;
+}
+
+int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
+                    std::vector<std::pair<int, double>>* measured) {
+  std::sort(ns.begin(), ns.end(), std::greater<int>());
+  int coarsest = 0;
+  for (const int n : ns) {
+    if (n >= below) continue;
+    const double p99 = floor_p99(n);
+    if (measured) measured->emplace(measured->begin(), n, p99);
+    if (!(p99 <= worst_target)) break;
+    coarsest = n;
+  }
+  return coarsest;
+}
+
+std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
+                                                                          std::unique_ptr<StoredSequence> kept) {
+  report_.density_candidate = {};
+  if (!density_candidate_open(options_, report_)) return kept;
+  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
+  const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
+  if (!captured) return kept;
+  const auto start = std::chrono::steady_clock::now();
+  RepresentationRate rate = report_.representation_rate;
+  const EncodeReport before = report_;
+  const int planned_n = rate.candidates.front().grid;
+  const int kept_n = rate.candidates[rate.chosen].grid;
+
+  // D as set_reference_geometry builds it for --density-equalising S, swapped in after the
+  // registrations (they map the frames' conformal disks; D maps the reference's onto itself).
+  const std::shared_ptr<const MappedFrame> reference = maps_.frame(options_.reference_frame);
+  DensityEqualisingOptions equalising;
+  equalising.strength = kCandidateDensityStrength;
+  equalising.radial = 0;
+  DiskReparametrisation conformal = registrations_.reparametrisation();
+  DiskReparametrisation equalised(reference->map, equalising);
+  const DensityEqualisingReport equalised_report = equalised.report();
+  registrations_.set_reparametrisation(std::move(equalised));
+
+  // The resampled floor through D (the reference against G's surface sampled from it, as --grid
+  // auto measures it on the conformal disk): the rounding's worst-region bound reads it at each N.
+  EncodeReport::DensityCandidate candidate;
+  candidate.strength = kCandidateDensityStrength;
+  const FrameSampler sampler(maps_, registrations_);
+  const auto floor_p99 = [&](int n) {
+    for (const auto& [m, p99] : candidate.floor_p99s) {
+      if (m == n) return p99;
+    }
+    const DiskGrid grid = make_disk_grid(n);
+    const SurfaceDistance d =
+        surface_distance(reference->map.surface, grid_mesh(grid, sampler.sample_surface(*reference, options_.reference_frame, grid.nodes)));
+    return d.p99 / d.diagonal;
+  };
+  std::vector<int> ns;
+  for (const auto& [n, p99] : before.grid_floor_p99s) ns.push_back(n);
+  const int coarser = coarsest_within(ns, kept_n, before.grid_worst_target, floor_p99, &candidate.floor_p99s);
+  candidate.floor_p99s.emplace_back(kept_n, floor_p99(kept_n));
+
+  struct Kept {
+    std::unique_ptr<StoredSequence> sequence;
+    EncodeReport report;
+  };
+  Kept best{std::move(kept), before};
+  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  const auto frames = static_cast<int>(trials.size());
+  const auto try_candidate = [&](int n, double step_scale) {
+    report_ = before;
+    adopt_representation(Representation::kXYZ, before.blend);
+    // The rounding's worst region bounded by D's floor at n (positions decode as sampled), the
+    // plan's conformal floors restored for the report.
+    report_.grid_floor_p99s = {{n, floor_p99(n)}};
+    report_.grid_decoded_floors.clear();
+    std::unique_ptr<StoredSequence> sequence = build(settings.build, chosen.keyframes, n, nullptr);
+    FieldPrecisionOptions scaled = precision;
+    scaled.target_error *= step_scale;
+    if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
+    report_.grid_floor_p99s = before.grid_floor_p99s;
+    report_.grid_decoded_floors = before.grid_decoded_floors;
+    const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
+    rate.candidates.push_back({Representation::kXYZ, n, n != planned_n || step_scale != 1, geometry_bytes(*sequence, report_.field_coding),
+                               error.rms, frames, step_scale, error.worst_p99, kCandidateDensityStrength});
+    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes) == rate.candidates.size() - 1) {
+      report_.grid = n;
+      best = {std::move(sequence), report_};
+    }
+  };
+  for (const int n : {kept_n, coarser}) {
+    if (n != 0) try_candidate(n, 1);
+  }
+  // D's best once more at the coarser field step, as choose_by_bytes tries the conformal disk's
+  // (coarser_step_candidate), where a prediction's error is what the step is measured against.
+  const RateCandidate& so_far = rate.candidates[cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes)];
+  if (settings.predicted_fields && !rate.on_keyframes && so_far.density_equalising > 0 && so_far.step_scale == 1)
+    try_candidate(so_far.grid, kCoarserStepScale);
+  rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
+  report_ = std::move(best.report);
+  candidate.kept = rate.candidates[rate.chosen].density_equalising > 0;
+  if (candidate.kept) {
+    const double half = report_.density_equalising.half_area_radius_before;
+    report_.density_equalising = equalised_report;
+    report_.density_equalising.half_area_radius_before = half;
+  } else {
+    registrations_.set_reparametrisation(std::move(conformal));
+  }
+  adopt_representation(rate.candidates[rate.chosen].representation, before.blend);
+  const double seconds = seconds_since(start);
+  rate.seconds += seconds;
+  report_.representation_rate = std::move(rate);
+  report_.seconds_representation = before.seconds_representation + seconds;
+  report_.density_candidate = std::move(candidate);
+  return std::move(best.sequence);
+}
+
+}  // namespace facemorph

@@ -1,0 +1,36 @@
+// The density-equalised disk as a candidate of the choice by bytes at equal error (issue 44 part 2;
+// spec/method.md §7.11, §7.14). Once choose_by_bytes kept a candidate, the same keyframes are built
+// as positions through the density-equalising map D of the reference's disk (strength
+// kCandidateDensityStrength, built as set_reference_geometry builds it): at the kept candidate's N,
+// and at the coarsest N below it whose resampled floor through D meets the worst region's share.
+// Each is rounded like the others and measured the same way; the rule (bytes · RMS², a coarser N
+// within the tolerance) keeps one. Kept, D stays the registrations' reparametrisation for every
+// later stage (residuals, patches, holes, texture); the decoder never sees D.
+#pragma once
+
+#include "codec/encoder/encode/encode_options.hpp"
+#include "codec/encoder/encode/encode_report.hpp"
+
+#include <functional>
+#include <utility>
+#include <vector>
+
+namespace facemorph {
+
+// The strength tried (spec/method.md §7.11's table: 0.5 against 0.25, 0.75 and 1 on ict24 and ict2k24).
+inline constexpr double kCandidateDensityStrength = 0.5;
+
+// Whether the candidate is tried: the representation and N are the encoder's to choose (neither
+// --representation nor --grid given), no reparametrisation was asked for (--density-equalising,
+// --radial-equalising) and none is on (the radial map of a whole head), and the choice by bytes
+// measured its candidates.
+bool density_candidate_open(const EncodeOptions& options, const EncodeReport& report);
+
+// The coarsest of `ns` strictly below `below` whose floor p99 (`floor_p99(n)`) is within
+// `worst_target`, going down from the finest and stopping at the first that is not (the floor grows
+// as N shrinks: on ict24 through D 193 met the 0.75% and 129 did not, two measures rather than
+// eight); 0 where none is. What was measured goes to `measured`, coarsest first.
+int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
+                    std::vector<std::pair<int, double>>* measured);
+
+}  // namespace facemorph
