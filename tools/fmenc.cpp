@@ -792,6 +792,20 @@ void print_rate_and_fields(const Summary& s) {
                   100 * *std::max_element(p.keyframe_p99s.begin(), p.keyframe_p99s.end()),
                   p.worst_region_refusals > 0 ? ("it refused " + std::to_string(p.worst_region_refusals) + " coarser steps").c_str()
                                               : "it did not bind");
+      // Keyframes whose own floor is larger than the reference's: held to what it leaves of the 1%,
+      // or, at or over it, not bounded (no rounding can help).
+      const std::vector<int>& frames = s.report.keyframes;
+      for (size_t k = 0; k < p.keyframe_budgets.size() && k < p.keyframe_floors.size(); ++k) {
+        if (p.keyframe_budgets[k] == p.rounding_p99_budget) continue;
+        const int frame = k < frames.size() ? frames[k] : -1;
+        if (p.keyframe_budgets[k] > 0) {
+          std::printf("    keyframe %zu (frame %d): its own floor %.3f%%, its rounding within %.3f%%, at %.3f%%\n", k, frame,
+                      100 * p.keyframe_floors[k], 100 * p.keyframe_budgets[k], 100 * p.keyframe_p99s[k]);
+        } else {
+          std::printf("    keyframe %zu (frame %d): its own floor %.3f%% is at or over the 1%%: no rounding can bring it under (not bounded)\n",
+                      k, frame, 100 * p.keyframe_floors[k]);
+        }
+      }
     }
   }
 }

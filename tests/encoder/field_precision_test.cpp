@@ -123,6 +123,67 @@ std::vector<double> rounding_p99s(const Sequence& exact, const Sequence& rounded
   return p99s;
 }
 
+// Each keyframe's own floor (spec/method.md §5.3): a keyframe farther from its captured frame than
+// the reference is held to what its own floor leaves of the 1%, not the reference's budget; one whose
+// floor is at or over the target is not bounded (and does not fail the encode); floors no larger than
+// the reference's change nothing, byte for byte.
+TEST(FieldPrecision, AKeyframeWhoseOwnFloorIsLargerIsHeldToItsOwnSmallerBudget) {
+  testing::TempDir dir;
+  const Sequence exact = unrounded_keyframes(dir, 0, 0.25, 49);
+  ASSERT_GE(exact.keyframes.size(), 2u);
+  const FieldPrecisionOptions options{.target_error = 1e-3, .intra_period = 1, .inter_dead_zone = 0.5};
+  auto round = [&](const FieldPrecisionOptions& o, FieldPrecisionReport& report) {
+    Sequence rounded = exact;
+    SequenceFileMetadata metadata;
+    metadata.field_coding = choose_field_coding(rounded, o, &report);
+    return std::pair{rounded, encode_sequence_file(rounded, metadata)};
+  };
+  FieldPrecisionReport free_report;
+  const auto [free, free_file] = round(options, free_report);
+  const std::vector<double> free_p99s = rounding_p99s(exact, free);
+  const auto worst = static_cast<size_t>(std::max_element(free_p99s.begin(), free_p99s.end()) - free_p99s.begin());
+  ASSERT_GT(free_p99s[worst], 1e-4) << "a rounding the bound can refine";
+
+  // The reference's floor leaves twice the worst keyframe's free p99; floors under it change nothing.
+  FieldPrecisionOptions bounded = options;
+  const double reference_budget = 2 * free_p99s[worst];
+  bounded.worst_floor = bounded.worst_target - reference_budget;
+  FieldPrecisionReport reference_report;
+  const auto [reference, reference_file] = round(bounded, reference_report);
+  ASSERT_GT(rounding_p99s(exact, reference)[worst], 0.5 * free_p99s[worst]) << "the reference's budget leaves it over its own";
+  bounded.keyframe_floors.assign(exact.keyframes.size(), 0.5 * *bounded.worst_floor);
+  FieldPrecisionReport same_report;
+  EXPECT_EQ(round(bounded, same_report).second, reference_file) << "floors under the reference's: its budget, byte for byte";
+  EXPECT_TRUE(same_report.keyframe_budgets.empty());
+
+  // The worst keyframe's own floor leaves it half its free p99; another's is over the target.
+  const size_t over = worst == 0 ? 1 : 0;
+  const double own_budget = 0.5 * free_p99s[worst];
+  bounded.keyframe_floors[worst] = bounded.worst_target - own_budget;
+  bounded.keyframe_floors[over] = 1.5 * bounded.worst_target;
+  FieldPrecisionReport report;
+  const auto [held, file] = round(bounded, report);
+  EXPECT_NEAR(report.rounding_p99_budget, reference_budget, 1e-12);
+  ASSERT_EQ(report.keyframe_budgets.size(), exact.keyframes.size());
+  EXPECT_NEAR(report.keyframe_budgets[worst], own_budget, 1e-12);
+  EXPECT_EQ(report.keyframe_budgets[over], 0.0) << "not bounded";
+  EXPECT_EQ(report.keyframe_floors, bounded.keyframe_floors);
+  EXPECT_GT(report.worst_region_refusals, 0);
+  const std::vector<double> p99s = rounding_p99s(exact, held);
+  EXPECT_LE(p99s[worst], own_budget) << "held to its own budget, not the reference's " << reference_budget;
+  for (size_t k = 0; k < p99s.size(); ++k) {
+    if (k != over) {
+      EXPECT_LE(p99s[k], report.keyframe_budgets[k]) << "keyframe " << k;
+    }
+  }
+  EXPECT_GT(file.size(), reference_file.size());
+
+  // A keyframe floor for each keyframe or none.
+  bounded.keyframe_floors.pop_back();
+  Sequence wrong = exact;
+  testing::expect_error(ErrorCode::kInvalidArgument, "keyframe floors", [&] { choose_field_coding(wrong, bounded); });
+}
+
 // The worst region's bound (spec/method.md §5.3): where the decoded floor leaves the rounding less
 // of the 1% than the RMS target's steps take, the steps are refined until every keyframe's rounding
 // p99 is within what is left (target − floor), and the file grows; where it leaves more, or nothing

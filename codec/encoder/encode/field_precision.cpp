@@ -326,15 +326,16 @@ struct ExactSurfaces {
 // rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
 // that no more rounded fields than threads are held.
 // With a finite `p99_budget`, each keyframe's rounding p99 too (rounded_error); else those are 0.
+// `p99_budgets`: each keyframe's (empty: none bounded).
 std::vector<RoundedError> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder,
-                                         const ExactSurfaces& exact, ReconstructorPool& pool,
-                                         double p99_budget = std::numeric_limits<double>::infinity()) {
+                                         const ExactSurfaces& exact, ReconstructorPool& pool, const std::vector<double>& p99_budgets = {}) {
   std::vector<RoundedError> errors(keys.size());
   std::vector<std::pair<size_t, GridFields>> batch;
   const auto decode_batch = [&] {
     pool.run(batch.size(), [&](Reconstructor& reconstructor, size_t i) {
       const auto& [k, rounded] = batch[i];
-      errors[k] = rounded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k], p99_budget);
+      const double budget = p99_budgets.empty() ? std::numeric_limits<double>::infinity() : p99_budgets[k];
+      errors[k] = rounded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k], budget);
     });
     batch.clear();
   };
@@ -482,12 +483,28 @@ double rounding_p99_budget(const FieldPrecisionOptions& options) {
   return options.worst_target - *options.worst_floor;
 }
 
+// Each of `count` keyframes' budget: the reference's (`budget`) where its own floor is no larger,
+// what the target leaves its own floor where that is larger, infinite (not bounded) where its own
+// floor is at or over the target. All `budget` without keyframe floors or without a bound.
+std::vector<double> keyframe_p99_budgets(const FieldPrecisionOptions& options, double budget, size_t count) {
+  std::vector<double> budgets(count, budget);
+  if (!std::isfinite(budget) || options.keyframe_floors.empty()) return budgets;
+  for (size_t k = 0; k < count; ++k) {
+    const double floor = options.keyframe_floors[k];
+    if (floor <= *options.worst_floor) continue;
+    budgets[k] = floor < options.worst_target ? options.worst_target - floor : std::numeric_limits<double>::infinity();
+  }
+  return budgets;
+}
+
 // choose_field_coding's steps for one dead zone (the rounder's), from the calibration's steps, for
 // the exact fields of `keys` (not changed: the caller rounds them), to meet `target_error` with
 // keyframes intra every `intra_period` (resolved: not kAutoIntraPeriod), every keyframe's rounding
-// p99 within `p99_budget` (infinite: not bounded).
-StepChoice choose_steps(const StoredSequence& keys, double target_error, double p99_budget, int intra_period, const FieldRounder& rounder,
-                        const Calibration& calibration, const ExactSurfaces& exact, ReconstructorPool& pool) {
+// p99 within its own of `budgets` (keyframe_p99_budgets: `p99_budget`, the reference's, or smaller;
+// infinite: not bounded).
+StepChoice choose_steps(const StoredSequence& keys, double target_error, double p99_budget, const std::vector<double>& budgets,
+                        int intra_period, const FieldRounder& rounder, const Calibration& calibration, const ExactSurfaces& exact,
+                        ReconstructorPool& pool) {
   const Sequence& sequence = keys.shape();
   FieldCoding coding;
   coding.intra_period = intra_period;
@@ -512,22 +529,34 @@ StepChoice choose_steps(const StoredSequence& keys, double target_error, double 
   // rounding p99 passes it misses, the next scale aims at 0.95 of it, and once it has refused a
   // scale, a scale that meets both within 0.8 of the budget is done (coarser ones would pass it).
   // Where it never refuses a scale, the search is the RMS target's alone, step for step.
+  // A keyframe with a smaller budget of its own is read in the reference's budget's units (its p99
+  // times p99_budget / its budget: exactly its p99 where the budgets are equal, so that the search is
+  // the one every keyframe held to the reference's floor made), and one not bounded is measured as
+  // the others, its p99 reported, but read as 0.
   const bool bounded = std::isfinite(p99_budget);
   const double aim = 0.95 * target_error, p99_aim = 0.95 * p99_budget;
+  std::vector<double> measured_budgets(budgets.size()), weights(budgets.size());
+  for (size_t k = 0; k < budgets.size(); ++k) {
+    measured_budgets[k] = std::isfinite(budgets[k]) ? budgets[k] : p99_budget;
+    weights[k] = !std::isfinite(budgets[k]) ? 0.0 : budgets[k] == p99_budget ? 1.0 : p99_budget / budgets[k];
+  }
   double scale = 1, best_scale = 0, missed_scale = std::numeric_limits<double>::infinity();
   double last_scale = 0, last_worst = 0, last_p99 = 0;
   std::vector<double> best_errors, best_p99s;
   int refinements = 0, refusals = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<RoundedError> measured = rounded_errors(keys, coding, rounder, exact, pool, p99_budget);
+    const std::vector<RoundedError> measured = rounded_errors(keys, coding, rounder, exact, pool, bounded ? measured_budgets : std::vector<double>{});
     std::vector<double> errors, p99s;
-    for (const RoundedError& e : measured) {
-      errors.push_back(e.rms);
-      if (bounded) p99s.push_back(e.p99);
+    double worst_p99 = bounded ? 1e-300 : 0.0;
+    for (size_t k = 0; k < measured.size(); ++k) {
+      errors.push_back(measured[k].rms);
+      if (bounded) {
+        p99s.push_back(measured[k].p99);
+        worst_p99 = std::max(worst_p99, weights[k] == 1.0 ? measured[k].p99 : measured[k].p99 * weights[k]);
+      }
     }
     const double worst = std::max(*std::max_element(errors.begin(), errors.end()), 1e-300);
-    const double worst_p99 = bounded ? std::max(*std::max_element(p99s.begin(), p99s.end()), 1e-300) : 0.0;
     const bool p99_met = !bounded || worst_p99 <= p99_budget;
     if (!p99_met) ++refusals;
     const bool met = worst <= kTolerance * target_error && p99_met;
@@ -630,6 +659,9 @@ void check_options(const FieldPrecisionOptions& options) {
       (options.worst_floor && (!(*options.worst_floor >= 0) || !std::isfinite(*options.worst_floor)))) {
     throw Error(ErrorCode::kInvalidArgument, "field precision: the worst region's target must be finite and positive, its floor finite and not negative");
   }
+  for (const double floor : options.keyframe_floors) {
+    if (!(floor >= 0)) throw Error(ErrorCode::kInvalidArgument, "field precision: a keyframe's floor is negative or not a number");
+  }
 }
 
 }  // namespace
@@ -653,6 +685,10 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   const ExactSurfaces exact(keys, pool, spill);
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
   const double p99_budget = rounding_p99_budget(options);
+  if (!options.keyframe_floors.empty() && options.keyframe_floors.size() != keys.size())
+    throw Error(ErrorCode::kInvalidArgument, "field precision: " + std::to_string(options.keyframe_floors.size()) + " keyframe floors for " +
+                                                 std::to_string(keys.size()) + " keyframes");
+  const std::vector<double> budgets = keyframe_p99_budgets(options, p99_budget, keys.size());
   double dead_zone = options.inter_dead_zone;
   std::optional<StepChoice> choice;
   if (options.inter_dead_zone == kAutoDeadZone) {
@@ -665,7 +701,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
       const FieldRounder rounder(pool.grid(), options.noise_shaping, kDeadZoneCandidates[c]);
       std::optional<StepChoice> steps;
       try {
-        steps = choose_steps(keys, options.target_error, p99_budget, period, rounder, calibration, exact, pool);
+        steps = choose_steps(keys, options.target_error, p99_budget, budgets, period, rounder, calibration, exact, pool);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
@@ -681,7 +717,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     }
   }
   const FieldRounder rounder(pool.grid(), options.noise_shaping, dead_zone);
-  if (!choice) choice = choose_steps(keys, options.target_error, p99_budget, period, rounder, calibration, exact, pool);
+  if (!choice) choice = choose_steps(keys, options.target_error, p99_budget, budgets, period, rounder, calibration, exact, pool);
   put_rounded(keys, rounder, choice->coding);
   spill.bytes += exact.store.spilled_bytes();
   if (report) {
@@ -692,6 +728,12 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     report->refinements = choice->refinements;
     report->rounding_p99_budget = std::isfinite(p99_budget) ? p99_budget : 0.0;
     report->keyframe_p99s = choice->p99s;
+    report->keyframe_budgets.clear();
+    report->keyframe_floors.clear();
+    if (std::any_of(budgets.begin(), budgets.end(), [&](double b) { return b != p99_budget; })) {
+      for (const double b : budgets) report->keyframe_budgets.push_back(std::isfinite(b) ? b : 0.0);
+      report->keyframe_floors = options.keyframe_floors;
+    }
     report->worst_region_refusals = choice->worst_region_refusals;
     report->inter_dead_zone = dead_zone;
     report->peak_keyframes_in_memory = spill.count->peak.load();

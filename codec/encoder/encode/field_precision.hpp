@@ -68,6 +68,12 @@ struct FieldPrecisionOptions {
   // could meet it): only the RMS target binds.
   std::optional<double> worst_floor = std::nullopt;
   double worst_target = kWorstRegionTarget;
+  // Each keyframe's own floor (its sampled surface on G against its captured frame, the resampled
+  // 99th percentile; empty: worst_floor for every keyframe). With worst_floor set, keyframe k's
+  // rounding is held to worst_target - max(worst_floor, keyframe_floors[k]): a keyframe farther from
+  // its frame than the reference (another expression, a turned head) keeps less of the 1%; one at or
+  // over the target is not bounded (no rounding could meet it; spec/method.md §5.3).
+  std::vector<double> keyframe_floors = {};
 };
 
 struct FieldPrecisionReport {
@@ -80,6 +86,10 @@ struct FieldPrecisionReport {
   // that is within the budget; empty: not bounded), and the scales the bound refused (0: it never bound).
   double rounding_p99_budget = 0;
   std::vector<double> keyframe_p99s;
+  // Each keyframe's own budget where its own floor made it smaller (0: that keyframe's floor is at
+  // or over the target, not bounded); empty: every keyframe had rounding_p99_budget.
+  std::vector<double> keyframe_budgets;
+  std::vector<double> keyframe_floors;  // each keyframe's own floor, where keyframe_budgets is not empty
   int worst_region_refusals = 0;
   double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
   int peak_keyframes_in_memory = 0;     // the most decoded surfaces in memory at once (KeyframeStore)

@@ -50,6 +50,11 @@ int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeRe
 // its resampled floor alone (SequenceEncoder::choose_by_bytes). Infinite where the fields do not
 // reconstruct (such a candidate is not stored as positions: it is not a candidate).
 EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, const PlanFrames& frames, int n);
+// Each of `keyframes`' (frame indices) own resampled floor on G of size `n`: its sampled surface
+// against its captured frame, the 99th percentile / diagonal, as choose_grid measures the reference's.
+// The rounding's worst-region bound holds a keyframe whose floor is larger to what it leaves of the
+// target (round_fields.cpp; spec/method.md §5.3). One sampling and one surface distance a keyframe.
+std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n);
 // 5½ What the keyframes store where settings.representation leaves it open: where most frames
 // were registered without interior landmarks, the hl+t fields and the positions of `chosen`'s
 // keyframes blended at the frames midway between up to kBlendTrials pairs of them, on G of `grid`

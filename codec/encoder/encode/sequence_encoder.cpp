@@ -352,7 +352,6 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   };
   Kept best{std::move(fields), report_};
   const EncodeReport planned = report_;
-  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   // The fields at the coarser N as a decoder rebuilds them (the grid stage measures them from where
   // its RMS terms are done, most often finer): measured there once, only where the fields are the
   // coarser N's candidate, and read by the rounding's worst-region bound (round_fields.cpp).
@@ -377,7 +376,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     std::unique_ptr<StoredSequence> sequence;
     try {
       sequence = build(settings.build, chosen.keyframes, n, nullptr);
-      FieldPrecisionOptions scaled = precision;
+      FieldPrecisionOptions scaled = keyframe_precision(settings, chosen, n);
       scaled.target_error *= step_scale;
       if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
     } catch (const Error& e) {
@@ -418,8 +417,17 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   return std::move(best.sequence);
 }
 
+FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
+  FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  if (settings.plan.grid > 0 || !settings.predicted_fields) return precision;  // not bounded (round_fields.cpp): nothing measured
+  auto floors = keyframe_floors_.find(grid);
+  if (floors == keyframe_floors_.end()) floors = keyframe_floors_.emplace(grid, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, grid)).first;
+  precision.keyframe_floors = floors->second;
+  return precision;
+}
+
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
-  const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  const FieldPrecisionOptions precision = keyframe_precision(settings, chosen, grid);
   std::unique_ptr<StoredSequence> sequence =
       build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
         if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);

@@ -225,6 +225,11 @@ class SequenceEncoder {
   // written with the report's field coding and texture qualities holds. The bench runs it for each
   // keyframe set and representation it measures, so that it measures what fmenc writes.
   std::unique_ptr<StoredSequence> code(const StageSettings& settings, const KeyframeSelection& chosen, int grid);
+  // The field precision options for `chosen`'s keyframes on G of size `grid`: with --grid auto (the
+  // worst region bounded), each keyframe's own floor there (keyframe_floor_p99s, measured once per
+  // size), so that round_fields holds a keyframe farther from its frame than the reference to what
+  // its own floor leaves of the 1% (spec/method.md §5.3).
+  FieldPrecisionOptions keyframe_precision(const StageSettings& settings, const KeyframeSelection& chosen, int grid);
   // code's choice of the representation by bytes at equal error (representation_rate.hpp), given
   // the keyframes built and rounded as hl+t: where the options leave the representation open and the
   // fields were kept so far, the same keyframes built and rounded as xyz too, and the one of lower
@@ -253,6 +258,7 @@ class SequenceEncoder {
   void finish_sampled_frames();
 
   bool vertical_hint_set_ = false;
+  std::map<int, std::vector<double>> keyframe_floors_;  // keyframe_precision's, by G's size
   std::optional<Vec3> vertical_hint_;
   // Per frame of the capture as given, the landmarks ignored on it; and the summaries of frames
   // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.

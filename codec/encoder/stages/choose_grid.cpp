@@ -204,6 +204,16 @@ EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, co
   return {n, floor.rms, floor.p99, floor.reconstructed};
 }
 
+std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n) {
+  const std::shared_ptr<const GridGeometry> geometry = std::make_shared<const GridGeometry>(make_disk_grid(n));
+  std::vector<double> floors;
+  for (const int i : keyframes) {
+    const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);
+    floors.push_back(floor_of(frame->map.surface, geometry->grid(), frames.sampler.sample_surface(*frame, i, geometry->grid().nodes)).p99);
+  }
+  return floors;
+}
+
 int choose_grid(const PlanSettings& settings, const PlanFrames& frames, EncodeReport& report, const KeyframeSelection* chosen) {
   if (settings.grid > 0) return settings.grid;
   const auto start = std::chrono::steady_clock::now();

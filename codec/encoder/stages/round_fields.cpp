@@ -21,9 +21,10 @@ namespace {
 
 // The worst region's bound on the rounding (spec/method.md §5.3): the grid's floor at the keyframes'
 // N, the larger of the resampled and the decoded 99th percentile as --grid auto read them, on the
-// reference frame (the floor every keyframe is held to: the others' are not measured), and the 1%
-// target, raised as the grid's share of it was for a noisy capture. With --grid N given nothing was
-// measured, and only the RMS target binds.
+// reference frame (every keyframe's budget at most 1% less it; a keyframe whose own resampled floor
+// is larger, precision.keyframe_floors from the encoder, gets less), and the 1% target, raised as the
+// grid's share of it was for a noisy capture. With --grid N given nothing was measured, and only the
+// RMS target binds.
 FieldPrecisionOptions with_worst_region(FieldPrecisionOptions precision, const EncodeReport& report, int grid_n) {
   std::optional<double> floor;
   for (const auto& [n, p99] : report.grid_floor_p99s) {
