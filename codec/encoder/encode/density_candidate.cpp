@@ -5,6 +5,7 @@
 #include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/util/elapsed.hpp"
+#include "codec/encoder/encode/plan_keyframes.hpp"
 #include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
@@ -93,6 +94,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     std::unique_ptr<StoredSequence> sequence = build(settings.build, chosen.keyframes, n, nullptr);
     FieldPrecisionOptions scaled = precision;
     scaled.target_error *= step_scale;
+    // Each keyframe's own floor through D (keyframe_precision's are the conformal disk's, kept by N).
+    if (settings.plan.grid == 0 && settings.predicted_fields)
+      scaled.keyframe_floors = keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n);
     if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
     report_.grid_floor_p99s = before.grid_floor_p99s;
     report_.grid_decoded_floors = before.grid_decoded_floors;
