@@ -288,11 +288,15 @@ TEST(SequenceEncoder, TheRepresentationIsChosenByBytesAtEqualError) {
       EXPECT_NEAR(report.field_precision.rounding_p99_budget, target - std::max(resampled, floor->p99), 1e-12);
     }
   }
-  // The last candidate: the one kept of the others, at twice the rounding's target; kept or not, the
-  // stored rounding's p99s are within the worst region's budget.
-  const RateCandidate& step = rate.candidates.back();
+  // The conformal disk's last candidate: the one kept of those before it, at twice the rounding's
+  // target (the density-equalised disk's come after it); kept or not, the stored rounding's p99s are
+  // within the worst region's budget.
+  const auto step_at = std::find_if(rate.candidates.begin(), rate.candidates.end(),
+                                    [](const RateCandidate& c) { return c.step_scale != 1 && c.density_equalising == 0; });
+  ASSERT_NE(step_at, rate.candidates.end()) << "the coarser field step is tried on the conformal disk";
+  const RateCandidate& step = *step_at;
   EXPECT_DOUBLE_EQ(step.step_scale, kCoarserStepScale);
-  const std::vector<RateCandidate> before(rate.candidates.begin(), rate.candidates.end() - 1);
+  const std::vector<RateCandidate> before(rate.candidates.begin(), step_at);
   const RateCandidate& kept_before = before[cheapest_at_equal_error(before, rate.tolerance, rate.worst_bound, rate.on_keyframes)];
   EXPECT_EQ(step.representation, kept_before.representation);
   EXPECT_EQ(step.grid, kept_before.grid);

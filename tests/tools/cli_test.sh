@@ -10,7 +10,7 @@ trap 'rm -rf "$work"' EXIT
 source "$(dirname "${BASH_SOURCE[0]}")/expect.sh"
 
 "$tools/fmsynth" -o "$work/cap" --frames 8 --fps 20 --vertices 2000 --remesh --noise 0 --texture-size 64 --quiet || fail "fmsynth"
-"$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --texture 64 --keyframes 30% --quiet || fail "fmenc"
+"$tools/fmenc" "$work/cap" -o "$work/a.fmv" --grid 33 --representation hl+t --texture 64 --keyframes 30% --quiet || fail "fmenc"
 [[ -s "$work/a.fmv" ]] || fail "fmenc wrote nothing"
 "$tools/fminfo" "$work/a.fmv" >"$work/info" || fail "fminfo"
 grep -q "format 2.1" "$work/info" || fail "fminfo does not name the format"
