@@ -112,10 +112,15 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     if (n != 0) try_candidate(n, 1);
   }
   // D's best once more at the coarser field step, as choose_by_bytes tries the conformal disk's
-  // (coarser_step_candidate), where a prediction's error is what the step is measured against.
-  const RateCandidate& so_far = rate.candidates[cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes)];
-  if (settings.predicted_fields && !rate.on_keyframes && so_far.density_equalising > 0 && so_far.step_scale == 1)
-    try_candidate(so_far.grid, kCoarserStepScale);
+  // (coarser_step_candidate), where a prediction's error is what the step is measured against: the
+  // conformal disk's best has had its step tried, so D's is compared at the same step too (ict24: D at
+  // N = 193 lost to the conformal disk's coarser step at 257 only for the step it had not tried).
+  std::vector<RateCandidate> on_d = {rate.candidates.front()};
+  for (const RateCandidate& c : rate.candidates) {
+    if (c.density_equalising > 0) on_d.push_back(c);
+  }
+  const size_t d_best = cheapest_at_equal_error(on_d, rate.tolerance, rate.worst_bound, rate.on_keyframes);
+  if (settings.predicted_fields && !rate.on_keyframes && d_best > 0) try_candidate(on_d[d_best].grid, kCoarserStepScale);
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
   report_ = std::move(best.report);
   candidate.kept = rate.candidates[rate.chosen].density_equalising > 0;
