@@ -76,6 +76,32 @@ TEST(RepresentationRate, ACoarserGridIsKeptOnlyWithinTheTolerance) {
   EXPECT_EQ(worst_region_grid({{33, 0.002}, {41, 0.001}}, 0.0075, 33), 0);  // nothing coarser than N
 }
 
+// Where the capture's own error puts every candidate over the tolerance (its noise), a coarser one
+// that adds none competes: within the tolerance, or no larger than the lowest held-out RMS at N.
+TEST(RepresentationRate, ACoarserCandidateThatAddsNoErrorCompetesOverTheTolerance) {
+  using enum Representation;
+  // fmsynth --noise 0.002 --frames 12 as measured (N = 49; the field step x2 of xyz at N).
+  std::vector<RateCandidate> noisy = {candidate(kHLT, 27955, 0.008379, 49), candidate(kXYZ, 11065, 0.006611, 49),
+                                      candidate(kXYZ, 7024, 0.006594, 49, true)};
+  EXPECT_TRUE(coarser_within_tolerance(noisy, 2, 0.005));
+  EXPECT_EQ(cheapest_at_equal_error(noisy, 0.005, kPatchBound, false), 2u);
+  // A candidate at N measured after it with a lower error (the density-equalised disk's, 11,151 B at
+  // 0.6590%) does not take the admission back: the file stored is the one the report keeps.
+  std::vector<RateCandidate> later = noisy;
+  later.push_back(candidate(kXYZ, 11151, 0.006590, 49));
+  EXPECT_TRUE(coarser_within_tolerance(later, 2, 0.005));
+  EXPECT_EQ(cheapest_at_equal_error(later, 0.005, kPatchBound, false), 2u);
+  // More error than xyz at N (though less than hl+t's, the first): over the tolerance, refused.
+  noisy[2].held_rms = 0.0067;
+  EXPECT_FALSE(coarser_within_tolerance(noisy, 2, 0.005));
+  EXPECT_EQ(cheapest_at_equal_error(noisy, 0.005, kPatchBound, false), 1u);
+  // Within the tolerance: competes whatever the others' error, as before.
+  noisy[2].held_rms = 0.0049;
+  EXPECT_TRUE(coarser_within_tolerance(noisy, 2, 0.005));
+  // Not coarser: always competes.
+  EXPECT_TRUE(coarser_within_tolerance(noisy, 0, 0.005));
+}
+
 // The kept candidate is tried once more at a coarser field step (coarser_step_candidate): the same
 // representation and N, twice the target, nothing measured yet; kept by the same rule, and like a
 // coarser N only within the tolerance.

@@ -39,11 +39,21 @@ bool buys_only_error_below_the_target(const RateCandidate& candidate, const Rate
   return on_keyframes && candidate.bytes > first.bytes;
 }
 
+bool coarser_within_tolerance(const std::vector<RateCandidate>& candidates, size_t i, double tolerance) {
+  const RateCandidate& candidate = candidates.at(i);
+  if (!candidate.coarser || candidate.held_rms <= tolerance) return true;
+  double lowest_at_n = std::numeric_limits<double>::infinity();
+  for (size_t j = 0; j < i; ++j) {
+    if (!candidates[j].coarser) lowest_at_n = std::min(lowest_at_n, candidates[j].held_rms);
+  }
+  return candidate.held_rms <= lowest_at_n;
+}
+
 size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes) {
   size_t best = 0;
   for (size_t i = 1; i < candidates.size(); ++i) {
     const RateCandidate& c = candidates[i];
-    if (c.coarser && !(c.held_rms <= tolerance)) continue;
+    if (!coarser_within_tolerance(candidates, i, tolerance)) continue;
     if (!admitted_worst_region(c, candidates.front(), worst_bound)) continue;
     if (buys_only_error_below_the_target(c, candidates.front(), on_keyframes)) continue;
     if (rate_cost(c) < rate_cost(candidates[best])) best = i;

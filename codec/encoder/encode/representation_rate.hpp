@@ -96,8 +96,17 @@ bool admitted_worst_region(const RateCandidate& candidate, const RateCandidate& 
 // error below what the user's tolerance set: such a candidate is not kept, whatever its cost
 // (spec/method.md §7.14). Between keyframes the error is the prediction's, which no target bounds.
 bool buys_only_error_below_the_target(const RateCandidate& candidate, const RateCandidate& first, bool on_keyframes);
+// Whether candidates[i], where coarser (a coarser N or field step), may compete: its held-out RMS
+// within `tolerance`, or no larger than the lowest of the candidates before it at --grid auto's N
+// and step. The tolerance bounds the error coarsening adds; where the capture's own error (its
+// noise) puts every candidate over it, a coarser one that adds none is not refused (fmsynth --noise
+// 0.002: xyz at the field step x2, 7,024 B at 0.6594% against 11,065 B at 0.6611% at N, tolerance
+// 0.5%). Only those before it: a candidate measured later never takes back an admission, so the
+// one kept is the last kept or the newest (the encoders keep the sequence of the newest only where
+// it becomes the cheapest). Not coarser: always true.
+bool coarser_within_tolerance(const std::vector<RateCandidate>& candidates, size_t i, double tolerance);
 // Of several (the first hl+t at --grid auto's N, the one kept where no other is cheaper): the index
-// of the lowest cost, a coarser N's only where its held-out RMS is within `tolerance`, any but the
+// of the lowest cost, a coarser N's only where coarser_within_tolerance, any but the
 // first only where admitted_worst_region, none that buys_only_error_below_the_target; ties keep the
 // earlier.
 size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes);

@@ -420,8 +420,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
 FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
   FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   if (settings.plan.grid > 0 || !settings.predicted_fields) return precision;  // not bounded (round_fields.cpp): nothing measured
-  auto floors = keyframe_floors_.find(grid);
-  if (floors == keyframe_floors_.end()) floors = keyframe_floors_.emplace(grid, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, grid)).first;
+  const std::pair<int, std::vector<int>> key(grid, chosen.keyframes);
+  auto floors = keyframe_floors_.find(key);
+  if (floors == keyframe_floors_.end()) floors = keyframe_floors_.emplace(key, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, grid)).first;
   precision.keyframe_floors = floors->second;
   return precision;
 }

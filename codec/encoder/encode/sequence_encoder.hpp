@@ -43,6 +43,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -258,7 +259,8 @@ class SequenceEncoder {
   void finish_sampled_frames();
 
   bool vertical_hint_set_ = false;
-  std::map<int, std::vector<double>> keyframe_floors_;  // keyframe_precision's, by G's size
+  // keyframe_precision's, by G's size and the keyframes (fmbench's budgets code several sets with one encoder)
+  std::map<std::pair<int, std::vector<int>>, std::vector<double>> keyframe_floors_;
   std::optional<Vec3> vertical_hint_;
   // Per frame of the capture as given, the landmarks ignored on it; and the summaries of frames
   // mapped and dropped at registration: what for_each_sampled_frame hands on of dropped frames.
