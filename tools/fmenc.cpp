@@ -786,9 +786,9 @@ void print_rate_and_fields(const Summary& s) {
         100 * *std::max_element(e.begin(), e.end()), s.report.field_coding.intra_period, s.report.field_precision.inter_dead_zone);
     const FieldPrecisionReport& p = s.report.field_precision;
     if (p.rounding_p99_budget > 0 && !p.keyframe_p99s.empty()) {
-      std::printf("  worst region: the rounding's 99th percentile within %.3f%% (1%% less the decoded floor), worst "
+      std::printf("  worst region: the rounding's 99th percentile within %.3f%% (%.3g%% less the floor), worst "
                   "keyframe %s%.3f%%; %s\n",
-                  100 * p.rounding_p99_budget, p.worst_region_refusals > 0 ? "" : "at most ",
+                  100 * p.rounding_p99_budget, 100 * p.worst_target, p.worst_region_refusals > 0 ? "" : "at most ",
                   100 * *std::max_element(p.keyframe_p99s.begin(), p.keyframe_p99s.end()),
                   p.worst_region_refusals > 0 ? ("it refused " + std::to_string(p.worst_region_refusals) + " coarser steps").c_str()
                                               : "it did not bind");
@@ -802,8 +802,8 @@ void print_rate_and_fields(const Summary& s) {
           std::printf("    keyframe %zu (frame %d): its own floor %.3f%%, its rounding within %.3f%%, at %.3f%%\n", k, frame,
                       100 * p.keyframe_floors[k], 100 * p.keyframe_budgets[k], 100 * p.keyframe_p99s[k]);
         } else {
-          std::printf("    keyframe %zu (frame %d): its own floor %.3f%% is at or over the 1%%: no rounding can bring it under (not bounded)\n",
-                      k, frame, 100 * p.keyframe_floors[k]);
+          std::printf("    keyframe %zu (frame %d): its own floor %.3f%% is at or over the %.3g%%: no rounding can bring it under (not bounded)\n",
+                      k, frame, 100 * p.keyframe_floors[k], 100 * p.worst_target);
         }
       }
     }

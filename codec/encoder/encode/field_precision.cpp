@@ -727,6 +727,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     report->keyframe_errors = choice->errors;
     report->refinements = choice->refinements;
     report->rounding_p99_budget = std::isfinite(p99_budget) ? p99_budget : 0.0;
+    report->worst_target = options.worst_target;
     report->keyframe_p99s = choice->p99s;
     report->keyframe_budgets.clear();
     report->keyframe_floors.clear();

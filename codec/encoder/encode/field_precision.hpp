@@ -85,6 +85,7 @@ struct FieldPrecisionReport {
   // each keyframe's rounding p99 at the chosen steps (an upper bound, its nodes' displacement, where
   // that is within the budget; empty: not bounded), and the scales the bound refused (0: it never bound).
   double rounding_p99_budget = 0;
+  double worst_target = 0;  // the worst region's target the budget is left of (1%, raised where the capture's noise is above it)
   std::vector<double> keyframe_p99s;
   // Each keyframe's own budget where its own floor made it smaller (0: that keyframe's floor is at
   // or over the target, not bounded); empty: every keyframe had rounding_p99_budget.
