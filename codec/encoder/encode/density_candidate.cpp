@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <map>
 
 namespace facemorph {
 
@@ -84,6 +85,13 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   Kept best{std::move(kept), before};
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   const auto frames = static_cast<int>(trials.size());
+  // Each keyframe's own floor through D, once an N (D's best is tried again at its N, at the coarser step).
+  std::map<int, std::vector<double>> keyframe_floors;
+  const auto floors_at = [&](int n) -> const std::vector<double>& {
+    auto at = keyframe_floors.find(n);
+    if (at == keyframe_floors.end()) at = keyframe_floors.emplace(n, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n)).first;
+    return at->second;
+  };
   const auto try_candidate = [&](int n, double step_scale) {
     report_ = before;
     adopt_representation(Representation::kXYZ, before.blend);
@@ -96,7 +104,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     scaled.target_error *= step_scale;
     // Each keyframe's own floor through D (keyframe_precision's are the conformal disk's, kept by N).
     if (settings.plan.grid == 0 && settings.predicted_fields)
-      scaled.keyframe_floors = keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n);
+      scaled.keyframe_floors = floors_at(n);
     if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
     report_.grid_floor_p99s = before.grid_floor_p99s;
     report_.grid_decoded_floors = before.grid_decoded_floors;
