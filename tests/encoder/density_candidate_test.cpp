@@ -77,6 +77,14 @@ EncodeOptions density_test_options() {
   return options;
 }
 
+// The encode stage by stage, so that the test can ask the encoder which disk its later stages sample.
+std::unique_ptr<StoredSequence> encode_by_stages(SequenceEncoder& encoder, EncodeReport* report) {
+  map_frames(encoder);
+  register_frames(encoder);
+  sample_frames(encoder);
+  return encoder.encode_sampled(report);
+}
+
 // A head-and-shoulders scan (fmsynth --surround, 12 frames of 3,000 vertices): the face is crowded
 // in the conformal disk's middle (the resampled p99 at N = 41 1.72%; 0.60% through D on the
 // reviewer's machine). The density-equalised disk's positions are kept at a coarser N than the
@@ -93,10 +101,7 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
   const EncodeOptions options = density_test_options();
   EncodeReport report;
   SequenceEncoder encoder(capture, options);
-  map_frames(encoder);
-  register_frames(encoder);
-  sample_frames(encoder);
-  const std::unique_ptr<StoredSequence> stored = encoder.encode_sampled(&report);
+  const std::unique_ptr<StoredSequence> stored = encode_by_stages(encoder, &report);
   EXPECT_FALSE(encoder.reparametrisation().identity()) << "the stages after the choice sample through D";
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
@@ -152,10 +157,7 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsNotKeptWhereItDoesNotPay) {
   const EncodeOptions options = density_test_options();
   EncodeReport report;
   SequenceEncoder encoder(capture, options);
-  map_frames(encoder);
-  register_frames(encoder);
-  sample_frames(encoder);
-  const std::unique_ptr<StoredSequence> stored = encoder.encode_sampled(&report);
+  const std::unique_ptr<StoredSequence> stored = encode_by_stages(encoder, &report);
   EXPECT_TRUE(encoder.reparametrisation().identity()) << "not kept, the conformal disk is back for the stages after the choice";
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
