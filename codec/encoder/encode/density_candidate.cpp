@@ -109,9 +109,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     report_.grid_floor_p99s = before.grid_floor_p99s;
     report_.grid_decoded_floors = before.grid_decoded_floors;
     const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
-    rate.candidates.push_back({Representation::kXYZ, n, n != planned_n || step_scale != 1, geometry_bytes(*sequence, report_.field_coding),
-                               error.rms, frames, step_scale, error.worst_p99, kCandidateDensityStrength});
-    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes) == rate.candidates.size() - 1) {
+    if (add_candidate(rate, {Representation::kXYZ, n, n != planned_n || step_scale != 1, geometry_bytes(*sequence, report_.field_coding),
+                             error.rms, frames, step_scale, error.worst_p99, kCandidateDensityStrength})) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }

@@ -61,6 +61,11 @@ size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, dou
   return best;
 }
 
+bool add_candidate(RepresentationRate& rate, const RateCandidate& candidate) {
+  rate.candidates.push_back(candidate);
+  return cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes) == rate.candidates.size() - 1;
+}
+
 RateCandidate coarser_step_candidate(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes) {
   RateCandidate again = candidates.at(cheapest_at_equal_error(candidates, tolerance, worst_bound, on_keyframes));
   again.coarser = true;

@@ -110,6 +110,9 @@ bool coarser_within_tolerance(const std::vector<RateCandidate>& candidates, size
 // first only where admitted_worst_region, none that buys_only_error_below_the_target; ties keep the
 // earlier.
 size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, double tolerance, double worst_bound, bool on_keyframes);
+// Adds a measured candidate to `rate` and says whether the rule (cheapest_at_equal_error, with rate's
+// tolerance, worst bound and on_keyframes) now keeps it: both disks' candidates are added so.
+bool add_candidate(RepresentationRate& rate, const RateCandidate& candidate);
 
 // The coarsest N of --grid auto's floors (N, the resampled floor's 99th percentile) whose floor meets
 // `worst_target` (the worst region's share), where it is coarser than `grid`; 0 where none is.

@@ -384,9 +384,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
       return;  // fields that do not reconstruct at this N: not a candidate
     }
     const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
-    rate.candidates.push_back({representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
-                               frames, step_scale, error.worst_p99});
-    if (cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes) == rate.candidates.size() - 1) {
+    if (add_candidate(rate, {representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
+                             frames, step_scale, error.worst_p99})) {
       report_.grid = n;
       best = {std::move(sequence), report_};
     }
