@@ -638,5 +638,38 @@ TEST(SequenceEncoder, AFrameNothingIsPredictedForIsCodedToTheErrorBound) {
   EXPECT_LE(decoded.p99 / decoded.diagonal, kWorstRegionTarget) << "N = " << coded.grid_n;
 }
 
+// The keyframes' own floors are measured once per N and keyframe set (SequenceEncoder::keyframe_precision):
+// fmbench's budget curve codes several keyframe sets with one encoder, and each set is held to its own
+// frames' floors, as a fresh encoder would hold it, whether it has more keyframes or as many others.
+TEST(SequenceEncoder, EachKeyframeSetIsHeldToItsOwnFramesFloors) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 0);
+  EncodeOptions options;
+  options.texture = false;
+  options.threads = 2;
+  SequenceEncoder encoder(capture, options);
+  testing::run_to_selection(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
+  const int frames = static_cast<int>(capture.frames.size());
+  ASSERT_GE(frames, 6);
+  KeyframeSelection first = chosen, more = chosen, others = chosen;
+  first.keyframes = {0, frames / 3, frames - 1};
+  more.keyframes = {0, frames / 3, 2 * frames / 3, frames - 1};
+  others.keyframes = {0, frames / 2, frames - 1};
+  const StageSettings settings = stage_settings(encoder.options());
+  const int n = 41;
+  ASSERT_EQ(settings.plan.grid, 0) << "the floors are read where N is the encoder's to choose";
+  ASSERT_TRUE(settings.predicted_fields);
+  for (const KeyframeSelection* set : {&first, &more, &others}) {
+    SCOPED_TRACE(::testing::Message() << set->keyframes.size() << " keyframes from frame " << set->keyframes[1]);
+    const std::vector<double> own = keyframe_floor_p99s(plan_frames(encoder), set->keyframes, n);
+    ASSERT_EQ(own.size(), set->keyframes.size());
+    EXPECT_EQ(encoder.keyframe_precision(settings, *set, n).keyframe_floors, own);
+  }
+  ASSERT_NE(keyframe_floor_p99s(plan_frames(encoder), others.keyframes, n),
+            keyframe_floor_p99s(plan_frames(encoder), first.keyframes, n))
+      << "sets of as many keyframes whose floors differ: what a cache by N alone would confuse";
+}
+
 }  // namespace
 }  // namespace facemorph
