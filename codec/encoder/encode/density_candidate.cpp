@@ -36,12 +36,11 @@ int coarsest_within(std::vector<int> ns, int below, double worst_target, const s
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
-                                                                          std::unique_ptr<StoredSequence> kept) {
+                                                                          std::unique_ptr<StoredSequence> kept,
+                                                                          const std::optional<std::vector<TriangleMesh>>& captured) {
   report_.density_candidate = {};
-  if (!density_candidate_open(options_, report_)) return kept;
+  if (!density_candidate_open(options_, report_) || !captured) return kept;
   const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
-  const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
-  if (!captured) return kept;
   const auto start = std::chrono::steady_clock::now();
   RepresentationRate rate = report_.representation_rate;
   const EncodeReport before = report_;
@@ -84,6 +83,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   };
   Kept best{std::move(kept), before};
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
+  // D's builds, once an N (candidate_builds.hpp): its best is tried again at the coarser step.
+  CandidateBuilds builds(settings.build.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory, settings.threads);
   const auto frames = static_cast<int>(trials.size());
   // Each keyframe's own floor through D, once an N (D's best is tried again at its N, at the coarser step).
   std::map<int, std::vector<double>> keyframe_floors;
@@ -99,7 +100,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     // plan's conformal floors restored for the report.
     report_.grid_floor_p99s = {{n, floor_p99(n)}};
     report_.grid_decoded_floors.clear();
-    std::unique_ptr<StoredSequence> sequence = build(settings.build, chosen.keyframes, n, nullptr);
+    std::unique_ptr<StoredSequence> sequence = builds.get(
+        Representation::kXYZ, n, [&](KeyframeSurfaces* surfaces) { return build(settings.build, chosen.keyframes, n, nullptr, surfaces); }, report_);
     FieldPrecisionOptions scaled = precision;
     scaled.target_error *= step_scale;
     // Each keyframe's own floor through D (keyframe_precision's are the conformal disk's, kept by N).
