@@ -326,7 +326,6 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
   const auto start = std::chrono::steady_clock::now();
   const HeldOutError fields_error = held_out_error(capture_, *fields, trials, *captured, settings.threads);
-  const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
   // Frames between keyframes are never keyframes: trials among the keyframes are the keyframes themselves.
@@ -340,8 +339,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   // under which a frame is given no patch (0 with the patches off: no candidate worse than the first;
   // admitted_worst_region).
   rate.worst_bound = settings.patch_bound;
-  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_error.rms, frames, 1,
-                             fields_error.worst_p99});
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_error.rms,
+                             static_cast<int>(trials.size()), 1, fields_error.worst_p99});
   // The others on the same keyframes, each rounded to the same target: xyz at this N, then N's
   // winner at the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
   // its report (its stages' figures are the file's).
@@ -372,23 +371,15 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     adopt_representation(representation, planned.blend);
     if (measure && representation == Representation::kHLT)
       report_.grid_decoded_floors.insert(report_.grid_decoded_floors.begin(), *coarser_fields);
-    std::unique_ptr<StoredSequence> sequence;
-    try {
-      sequence = builds.get(representation, n, [&](KeyframeSurfaces* surfaces) { return build(settings.build, chosen.keyframes, n, nullptr, surfaces); },
-                            report_);
-      FieldPrecisionOptions scaled = keyframe_precision(settings, chosen, n);
-      scaled.target_error *= step_scale;
-      if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
-    } catch (const Error& e) {
-      if (e.code() != ErrorCode::kNotConverged) throw;
-      return;  // fields that do not reconstruct at this N: not a candidate
-    }
-    const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
-    if (add_candidate(rate, {representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
-                             frames, step_scale, error.worst_p99})) {
-      report_.grid = n;
+    FieldPrecisionOptions precision = keyframe_precision(settings, chosen, n);
+    precision.target_error *= step_scale;
+    RateCandidate candidate;
+    candidate.representation = representation;
+    candidate.grid = n;
+    candidate.coarser = n != grid || step_scale != 1;
+    candidate.step_scale = step_scale;
+    if (std::unique_ptr<StoredSequence> sequence = measure_candidate(settings, chosen, builds, precision, candidate, *captured, rate))
       best = {std::move(sequence), report_};
-    }
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
@@ -414,6 +405,32 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   report_.representation_rate = std::move(rate);
   report_.seconds_representation += report_.representation_rate.seconds;
   return std::move(best.sequence);
+}
+
+std::unique_ptr<StoredSequence> SequenceEncoder::measure_candidate(const StageSettings& settings, const KeyframeSelection& chosen,
+                                                                   CandidateBuilds& builds, const FieldPrecisionOptions& precision,
+                                                                   RateCandidate candidate, const std::vector<TriangleMesh>& captured,
+                                                                   RepresentationRate& rate, const std::function<void()>& after_rounding) {
+  const int n = candidate.grid;
+  std::unique_ptr<StoredSequence> sequence;
+  try {
+    sequence = builds.get(candidate.representation, n,
+                          [&](KeyframeSurfaces* surfaces) { return build(settings.build, chosen.keyframes, n, nullptr, surfaces); }, report_);
+    if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kNotConverged) throw;
+    return nullptr;  // fields that do not reconstruct at this N: not a candidate
+  }
+  if (after_rounding) after_rounding();
+  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
+  const HeldOutError error = held_out_error(capture_, *sequence, trials, captured, settings.threads);
+  candidate.bytes = geometry_bytes(*sequence, report_.field_coding);
+  candidate.held_rms = error.rms;
+  candidate.frames = static_cast<int>(trials.size());
+  candidate.worst_p99 = error.worst_p99;
+  if (!add_candidate(rate, candidate)) return nullptr;
+  report_.grid = n;
+  return sequence;
 }
 
 FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {

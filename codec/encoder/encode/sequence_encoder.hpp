@@ -252,6 +252,17 @@ class SequenceEncoder {
   std::unique_ptr<StoredSequence> choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
                                                            std::unique_ptr<StoredSequence> kept,
                                                            const std::optional<std::vector<TriangleMesh>>& captured);
+  // One candidate of the choice by bytes at equal error (choose_by_bytes' and
+  // choose_density_equalised's): `candidate`'s representation at its N from `builds`, its fields
+  // rounded to `precision` (settings.predicted_fields) under the report as the caller set it, then
+  // `after_rounding`; its bytes and held-out error on `chosen`'s trial frames (rate_trial_frames,
+  // `captured` their meshes) measured into it, and it added to `rate`. Its keyframes, with
+  // report().grid its N, where the rule now keeps it; null where not, or where its fields do not
+  // reconstruct (kNotConverged: not a candidate, nothing added).
+  std::unique_ptr<StoredSequence> measure_candidate(const StageSettings& settings, const KeyframeSelection& chosen, CandidateBuilds& builds,
+                                                    const FieldPrecisionOptions& precision, RateCandidate candidate,
+                                                    const std::vector<TriangleMesh>& captured, RepresentationRate& rate,
+                                                    const std::function<void()>& after_rounding = {});
   // Whether choose_by_bytes compares candidates: the representation is the encoder's to choose and
   // the fields are still in the running (the blends or a radial disk did not already choose
   // positions, the fields converged).
