@@ -55,14 +55,24 @@ struct BuildFrames {
   Vec3 pose_centre = Vec3::Zero();          // the face's centroid in the face frame
 };
 
+// A build's surfaces before their fields: each keyframe's registered (and fitted) surface on G in
+// the face frame, and the fixed nodes its fields were made with. What another representation's
+// fields are made from without sampling every frame again (candidate_builds.hpp).
+struct KeyframeSurfaces {
+  std::shared_ptr<const SurfaceStore> surfaces;  // item k: keyframe k's
+  std::vector<int32_t> fixed;
+};
+
 // 6. The keyframes on G of size `grid`: fields (in frames.representation), poses, holes, textures,
 // each array put in the store as it is made (settings.spill_keyframes); with settings.keyframe_fit,
 // fitted to every frame. With `segment`: only its keyframes, fitted over its fit range of
 // `keyframes` (spec/method.md §7.17), with its fixed nodes where given. Fills report.texture_size,
 // keyframe_folds and seconds_keyframes. kInvalidArgument for no keyframes or a segment outside
-// them; kMissingTexture where some keyframes have colour and another has not.
+// them; kMissingTexture where some keyframes have colour and another has not. With `kept` (no
+// segment): the surfaces the fields were made from, kept there.
 std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, const BuildFrames& frames, const std::vector<int>& keyframes,
-                                                int grid, const KeyframeSegment* segment, EncodeReport& report);
+                                                int grid, const KeyframeSegment* segment, EncodeReport& report,
+                                                KeyframeSurfaces* kept = nullptr);
 
 // The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
 // distance to the nearest hole outline inside a filled hole, plus it outside capped at

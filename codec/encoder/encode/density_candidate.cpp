@@ -36,12 +36,10 @@ int coarsest_within(std::vector<int> ns, int below, double worst_target, const s
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
-                                                                          std::unique_ptr<StoredSequence> kept) {
+                                                                          std::unique_ptr<StoredSequence> kept,
+                                                                          const std::optional<std::vector<TriangleMesh>>& captured) {
   report_.density_candidate = {};
-  if (!density_candidate_open(options_, report_)) return kept;
-  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
-  const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
-  if (!captured) return kept;
+  if (!density_candidate_open(options_, report_) || !captured) return kept;
   const auto start = std::chrono::steady_clock::now();
   RepresentationRate rate = report_.representation_rate;
   const EncodeReport before = report_;
@@ -84,7 +82,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   };
   Kept best{std::move(kept), before};
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
-  const auto frames = static_cast<int>(trials.size());
+  // D's builds, once an N (candidate_builds.hpp): its best is tried again at the coarser step.
+  CandidateBuilds builds(settings.build.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory, settings.threads);
   // Each keyframe's own floor through D, once an N (D's best is tried again at its N, at the coarser step).
   std::map<int, std::vector<double>> keyframe_floors;
   const auto floors_at = [&](int n) -> const std::vector<double>& {
@@ -96,24 +95,25 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     report_ = before;
     adopt_representation(Representation::kXYZ, before.blend);
     // The rounding's worst region bounded by D's floor at n (positions decode as sampled), the
-    // plan's conformal floors restored for the report.
+    // plan's conformal floors restored for the report once rounded.
     report_.grid_floor_p99s = {{n, floor_p99(n)}};
     report_.grid_decoded_floors.clear();
-    std::unique_ptr<StoredSequence> sequence = build(settings.build, chosen.keyframes, n, nullptr);
     FieldPrecisionOptions scaled = precision;
     scaled.target_error *= step_scale;
     // Each keyframe's own floor through D (keyframe_precision's are the conformal disk's, kept by N).
-    if (settings.plan.grid == 0 && settings.predicted_fields)
-      scaled.keyframe_floors = floors_at(n);
-    if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
-    report_.grid_floor_p99s = before.grid_floor_p99s;
-    report_.grid_decoded_floors = before.grid_decoded_floors;
-    const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
-    if (add_candidate(rate, {Representation::kXYZ, n, n != planned_n || step_scale != 1, geometry_bytes(*sequence, report_.field_coding),
-                             error.rms, frames, step_scale, error.worst_p99, kCandidateDensityStrength})) {
-      report_.grid = n;
+    if (settings.plan.grid == 0 && settings.predicted_fields) scaled.keyframe_floors = floors_at(n);
+    RateCandidate tried;
+    tried.representation = Representation::kXYZ;
+    tried.grid = n;
+    tried.coarser = n != planned_n || step_scale != 1;
+    tried.step_scale = step_scale;
+    tried.density_equalising = kCandidateDensityStrength;
+    const auto restore_floors = [&] {
+      report_.grid_floor_p99s = before.grid_floor_p99s;
+      report_.grid_decoded_floors = before.grid_decoded_floors;
+    };
+    if (std::unique_ptr<StoredSequence> sequence = measure_candidate(settings, chosen, builds, scaled, tried, *captured, rate, restore_floors))
       best = {std::move(sequence), report_};
-    }
   };
   for (const int n : {kept_n, coarser}) {
     if (n != 0) try_candidate(n, 1);

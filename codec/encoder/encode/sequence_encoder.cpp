@@ -241,11 +241,11 @@ void SequenceEncoder::adopt_plan(const KeyframeSelection& chosen, int grid, Repr
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
-                                                       const KeyframeSegment* segment) {
+                                                       const KeyframeSegment* segment, KeyframeSurfaces* kept) {
   const Representation representation = options_.representation.value_or(auto_representation_);
   const Vec3 pose_centre = selection_.centre(options_.reference_frame);  // the face's centroid in the face frame
   const BuildFrames frames{capture_, selection_, maps_, registrations_, representation, first_time_, last_time_, pose_centre};
-  return build_keyframes(settings, frames, keyframes, grid, segment, report_);
+  return build_keyframes(settings, frames, keyframes, grid, segment, report_, kept);
 }
 
 Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid) {
@@ -297,8 +297,9 @@ void warn_stored_as_positions(EncodeReport& report) {
 
 std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const BuildSettings& settings, const std::vector<int>& keyframes,
                                                                        int grid, const KeyframeSegment* segment,
-                                                                       const std::function<void(StoredSequence&)>& measure_fields) {
-  std::unique_ptr<StoredSequence> sequence = build(settings, keyframes, grid, segment);
+                                                                       const std::function<void(StoredSequence&)>& measure_fields,
+                                                                       KeyframeSurfaces* kept) {
+  std::unique_ptr<StoredSequence> sequence = build(settings, keyframes, grid, segment, kept);
   try {
     measure_fields(*sequence);
   } catch (const Error& e) {
@@ -309,7 +310,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
     // encode still fails: the positions were not asked for.
     if (e.code() != ErrorCode::kNotConverged || options_.representation || auto_representation_ == Representation::kXYZ) throw;
     store_as_positions(e.what());
-    sequence = build(settings, keyframes, grid, segment);
+    sequence = build(settings, keyframes, grid, segment, kept);
     measure_fields(*sequence);
     warn_stored_as_positions(report_);
   }
@@ -317,17 +318,14 @@ std::unique_ptr<StoredSequence> SequenceEncoder::build_reconstructable(const Bui
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
-                                                                 std::unique_ptr<StoredSequence> fields) {
-  // Only where the representation is the encoder's to choose and the fields are still in the
-  // running (the blends or a radial disk did not already choose positions, the fields converged).
+                                                                 std::unique_ptr<StoredSequence> fields,
+                                                                 const std::optional<std::vector<TriangleMesh>>& captured,
+                                                                 CandidateBuilds& builds) {
   report_.representation_rate = {};
-  if (settings.plan.representation || auto_representation_ != Representation::kHLT) return fields;
+  if (!choosing_by_bytes(settings) || !captured) return fields;
   const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
   const auto start = std::chrono::steady_clock::now();
-  const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture_, trials, settings.threads);
-  if (!captured) return fields;
   const HeldOutError fields_error = held_out_error(capture_, *fields, trials, *captured, settings.threads);
-  const auto frames = static_cast<int>(trials.size());
   RepresentationRate rate;
   rate.measured = true;
   // Frames between keyframes are never keyframes: trials among the keyframes are the keyframes themselves.
@@ -341,8 +339,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   // under which a frame is given no patch (0 with the patches off: no candidate worse than the first;
   // admitted_worst_region).
   rate.worst_bound = settings.patch_bound;
-  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_error.rms, frames, 1,
-                             fields_error.worst_p99});
+  rate.candidates.push_back({Representation::kHLT, grid, false, geometry_bytes(*fields, report_.field_coding), fields_error.rms,
+                             static_cast<int>(trials.size()), 1, fields_error.worst_p99});
   // The others on the same keyframes, each rounded to the same target: xyz at this N, then N's
   // winner at the coarser N the worst region alone allows (--grid auto only). The best so far is kept with
   // its report (its stages' figures are the file's).
@@ -373,22 +371,15 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
     adopt_representation(representation, planned.blend);
     if (measure && representation == Representation::kHLT)
       report_.grid_decoded_floors.insert(report_.grid_decoded_floors.begin(), *coarser_fields);
-    std::unique_ptr<StoredSequence> sequence;
-    try {
-      sequence = build(settings.build, chosen.keyframes, n, nullptr);
-      FieldPrecisionOptions scaled = keyframe_precision(settings, chosen, n);
-      scaled.target_error *= step_scale;
-      if (settings.predicted_fields) report_.field_coding = round_fields(scaled, *sequence, report_);
-    } catch (const Error& e) {
-      if (e.code() != ErrorCode::kNotConverged) throw;
-      return;  // fields that do not reconstruct at this N: not a candidate
-    }
-    const HeldOutError error = held_out_error(capture_, *sequence, trials, *captured, settings.threads);
-    if (add_candidate(rate, {representation, n, n != grid || step_scale != 1, geometry_bytes(*sequence, report_.field_coding), error.rms,
-                             frames, step_scale, error.worst_p99})) {
-      report_.grid = n;
+    FieldPrecisionOptions precision = keyframe_precision(settings, chosen, n);
+    precision.target_error *= step_scale;
+    RateCandidate candidate;
+    candidate.representation = representation;
+    candidate.grid = n;
+    candidate.coarser = n != grid || step_scale != 1;
+    candidate.step_scale = step_scale;
+    if (std::unique_ptr<StoredSequence> sequence = measure_candidate(settings, chosen, builds, precision, candidate, *captured, rate))
       best = {std::move(sequence), report_};
-    }
   };
   try_candidate(Representation::kXYZ, grid);
   // Then the coarser N the worst region alone allows (--grid auto only), in N's winner alone.
@@ -416,6 +407,32 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_by_bytes(const StageSett
   return std::move(best.sequence);
 }
 
+std::unique_ptr<StoredSequence> SequenceEncoder::measure_candidate(const StageSettings& settings, const KeyframeSelection& chosen,
+                                                                   CandidateBuilds& builds, const FieldPrecisionOptions& precision,
+                                                                   RateCandidate candidate, const std::vector<TriangleMesh>& captured,
+                                                                   RepresentationRate& rate, const std::function<void()>& after_rounding) {
+  const int n = candidate.grid;
+  std::unique_ptr<StoredSequence> sequence;
+  try {
+    sequence = builds.get(candidate.representation, n,
+                          [&](KeyframeSurfaces* surfaces) { return build(settings.build, chosen.keyframes, n, nullptr, surfaces); }, report_);
+    if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kNotConverged) throw;
+    return nullptr;  // fields that do not reconstruct at this N: not a candidate
+  }
+  if (after_rounding) after_rounding();
+  const std::vector<int> trials = rate_trial_frames(chosen.keyframes);
+  const HeldOutError error = held_out_error(capture_, *sequence, trials, captured, settings.threads);
+  candidate.bytes = geometry_bytes(*sequence, report_.field_coding);
+  candidate.held_rms = error.rms;
+  candidate.frames = static_cast<int>(trials.size());
+  candidate.worst_p99 = error.worst_p99;
+  if (!add_candidate(rate, candidate)) return nullptr;
+  report_.grid = n;
+  return sequence;
+}
+
 FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
   FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   if (settings.plan.grid > 0 || !settings.predicted_fields) return precision;  // not bounded (round_fields.cpp): nothing measured
@@ -426,14 +443,31 @@ FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& s
   return precision;
 }
 
+bool SequenceEncoder::choosing_by_bytes(const StageSettings& settings) const {
+  return !settings.plan.representation && auto_representation_ == Representation::kHLT;
+}
+
 std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& settings, const KeyframeSelection& chosen, int grid) {
   const FieldPrecisionOptions precision = keyframe_precision(settings, chosen, grid);
-  std::unique_ptr<StoredSequence> sequence =
-      build_reconstructable(settings.build, chosen.keyframes, grid, nullptr, [&](StoredSequence& keyframes) {
-        if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
-      });
-  sequence = choose_by_bytes(settings, chosen, grid, std::move(sequence));
-  sequence = choose_density_equalised(settings, chosen, std::move(sequence));
+  // The keyframes built here are the choice by bytes' first candidate: kept unrounded with their
+  // surfaces for its others at this N (candidate_builds.hpp), where it will run.
+  std::unique_ptr<StoredSequence> sequence;
+  // The trial frames' captured meshes, read once for both disks' candidates.
+  std::optional<std::vector<TriangleMesh>> captured;
+  {
+    CandidateBuilds builds(settings.build.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory, settings.threads);
+    KeyframeSurfaces surfaces;
+    sequence = build_reconstructable(
+        settings.build, chosen.keyframes, grid, nullptr,
+        [&](StoredSequence& keyframes) {
+          if (choosing_by_bytes(settings)) builds.keep(keyframes, surfaces, report_);
+          if (settings.predicted_fields) report_.field_coding = round_fields(precision, keyframes, report_);
+        },
+        &surfaces);
+    if (choosing_by_bytes(settings)) captured = trial_meshes(capture_, rate_trial_frames(chosen.keyframes), settings.threads);
+    sequence = choose_by_bytes(settings, chosen, grid, std::move(sequence), captured, builds);
+  }  // the conformal disk's builds let go before D's are made
+  sequence = choose_density_equalised(settings, chosen, std::move(sequence), captured);
   // Residual frames fitted to the keyframes as the file holds them (residual_fit.hpp), where the
   // selection took fewer keyframes for them (residuals_pay): elsewhere they are bytes added.
   if (settings.residual_frames && residuals_pay(chosen)) {

@@ -14,6 +14,7 @@
 #include "codec/encoder/conformal/conformal.hpp"
 #include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/build_stage.hpp"
+#include "codec/encoder/encode/candidate_builds.hpp"
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
@@ -205,9 +206,10 @@ class SequenceEncoder {
   // kInvalidArgument where `chosen` is not a selection of this encoder's frames (keyframes
   // increasing from the first frame to the last, a predicted error a frame).
   void adopt_plan(const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
-  // The build stage (build_keyframes) on this encoder's frames, in representation().
+  // The build stage (build_keyframes) on this encoder's frames, in representation(); with `kept`
+  // (no segment), the surfaces the fields were made from kept there.
   std::unique_ptr<StoredSequence> build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
-                                        const KeyframeSegment* segment = nullptr);
+                                        const KeyframeSegment* segment = nullptr, KeyframeSurfaces* kept = nullptr);
   // The keyframes built (build: all of `keyframes`, or `segment`'s) and `measure_fields` run on
   // them (the field precision: round_fields, or a segment's measure); where the representation is
   // the encoder's own choice (options().representation unset) and not already xyz, and measuring
@@ -216,9 +218,11 @@ class SequenceEncoder {
   // staged, a segment's measure) builds its keyframes through: a capture never fails for a keyframe
   // that does not reconstruct. Anything else measuring throws, and kNotConverged where hl+t was asked
   // for, is thrown.
+  // With `kept` (no segment): the surfaces of the keyframes measured last (build's).
   std::unique_ptr<StoredSequence> build_reconstructable(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
                                                         const KeyframeSegment* segment,
-                                                        const std::function<void(StoredSequence&)>& measure_fields);
+                                                        const std::function<void(StoredSequence&)>& measure_fields,
+                                                        KeyframeSurfaces* kept = nullptr);
   // encode_sampled's middle, once the plan is made: `chosen`'s keyframes built on G of `grid`,
   // their fields rounded (settings.predicted_fields; report().field_coding, else left uncoded), the
   // residual frames fitted to them as stored (settings.residual_frames, fit_decoded_residuals;
@@ -235,14 +239,34 @@ class SequenceEncoder {
   // the keyframes built and rounded as hl+t: where the options leave the representation open and the
   // fields were kept so far, the same keyframes built and rounded as xyz too, and the one of lower
   // bytes · held-out RMS² kept and adopted (report().representation_rate says what was measured);
-  // elsewhere `fields` as given.
+  // elsewhere `fields` as given. `captured`: the trial frames' captured meshes (rate_trial_frames,
+  // trial_meshes; none: no comparison); `builds`: the conformal disk's builds, where code kept
+  // `fields` unrounded (candidate_builds.hpp), so that no candidate at an N built before is built again.
   std::unique_ptr<StoredSequence> choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
-                                                  std::unique_ptr<StoredSequence> fields);
+                                                  std::unique_ptr<StoredSequence> fields,
+                                                  const std::optional<std::vector<TriangleMesh>>& captured, CandidateBuilds& builds);
   // After choose_by_bytes: the density-equalised disk's candidates (density_candidate.hpp) measured
-  // against the one it kept, added to report().representation_rate; where one is kept, the
-  // registrations sample through its map from here on. Elsewhere `kept` as given.
+  // against the one it kept, on the same trial frames (`captured`), added to
+  // report().representation_rate; where one is kept, the registrations sample through its map from
+  // here on. Elsewhere `kept` as given.
   std::unique_ptr<StoredSequence> choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
-                                                           std::unique_ptr<StoredSequence> kept);
+                                                           std::unique_ptr<StoredSequence> kept,
+                                                           const std::optional<std::vector<TriangleMesh>>& captured);
+  // One candidate of the choice by bytes at equal error (choose_by_bytes' and
+  // choose_density_equalised's): `candidate`'s representation at its N from `builds`, its fields
+  // rounded to `precision` (settings.predicted_fields) under the report as the caller set it, then
+  // `after_rounding`; its bytes and held-out error on `chosen`'s trial frames (rate_trial_frames,
+  // `captured` their meshes) measured into it, and it added to `rate`. Its keyframes, with
+  // report().grid its N, where the rule now keeps it; null where not, or where its fields do not
+  // reconstruct (kNotConverged: not a candidate, nothing added).
+  std::unique_ptr<StoredSequence> measure_candidate(const StageSettings& settings, const KeyframeSelection& chosen, CandidateBuilds& builds,
+                                                    const FieldPrecisionOptions& precision, RateCandidate candidate,
+                                                    const std::vector<TriangleMesh>& captured, RepresentationRate& rate,
+                                                    const std::function<void()>& after_rounding = {});
+  // Whether choose_by_bytes compares candidates: the representation is the encoder's to choose and
+  // the fields are still in the running (the blends or a radial disk did not already choose
+  // positions, the fields converged).
+  bool choosing_by_bytes(const StageSettings& settings) const;
   // Every keyframe stored as positions (xyz) from here on, because `why` (which keyframe did not
   // reconstruct, and how far it got): the representation adopted, report().representation_fallback
   // set (a file's settings say it). A segment's assemble takes the fallback a measure made so

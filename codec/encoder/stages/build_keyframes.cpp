@@ -100,7 +100,9 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
 }
 
 std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, const BuildFrames& frames, const std::vector<int>& keyframes,
-                                                int grid_n, const KeyframeSegment* segment, EncodeReport& report) {
+                                                int grid_n, const KeyframeSegment* segment, EncodeReport& report,
+                                                KeyframeSurfaces* kept) {
+  if (kept && segment) throw Error(ErrorCode::kInvalidArgument, "build: a segment's surfaces are not kept");
   const auto start = std::chrono::steady_clock::now();
   const Capture& capture = frames.capture;
   const FrameMaps& maps = frames.maps;
@@ -152,7 +154,8 @@ std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, c
   // The registered surfaces in the face frame first: the fixed-frame nodes are the union of the
   // keyframes' folds, since the keyframes are blended together. Each goes to the store as it is
   // made (1.25 MB at N = 257, and a long capture has hundreds) and is read back for each later use.
-  SurfaceStore local(settings.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
+  const auto surfaces = std::make_shared<SurfaceStore>(settings.spill_keyframes ? SurfaceStore::Mode::kSpill : SurfaceStore::Mode::kMemory);
+  SurfaceStore& local = *surfaces;
   local.reset(fit_keys);
   std::vector<std::vector<int32_t>> folds(keys);
   Sequence shape;
@@ -227,6 +230,7 @@ std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, c
   report.peak_keyframes_in_memory = std::max(report.peak_keyframes_in_memory, local.peak_held());
   report.keyframes_spilled_bytes += local.spilled_bytes();
   report.seconds_keyframes = seconds_since(start);
+  if (kept) *kept = {surfaces, fixed};
   return stored;
 }
 

@@ -1,0 +1,79 @@
+// The choice by bytes' builds kept once per N (candidate_builds.hpp): a candidate made from a kept
+// build holds exactly the arrays a new build of it holds, in its own representation, and rounding a
+// candidate handed out leaves the kept build as it was.
+#include "codec/encoder/encode/candidate_builds.hpp"
+#include "codec/encoder/encode/field_precision.hpp"
+#include "codec/encoder/encode/sequence_encoder.hpp"
+#include "codec/encoder/encode/stage_settings.hpp"
+
+#include "tests/encoder/encoder_stages.hpp"
+#include "tests/test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace facemorph {
+namespace {
+
+// Every array of every keyframe the same, to the bit: fields, hole levels, textures and poses.
+void expect_same_keyframes(const StoredSequence& a, const StoredSequence& b, const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  EXPECT_EQ(a.shape().representation, b.shape().representation) << what;
+  EXPECT_EQ(a.shape().grid_n, b.shape().grid_n) << what;
+  for (size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(scalar_arrays(*a.fields(k)), scalar_arrays(*b.fields(k))) << what << ", keyframe " << k << "'s fields";
+    EXPECT_EQ(a.fields(k)->fixed_nodes, b.fields(k)->fixed_nodes) << what << ", keyframe " << k;
+    EXPECT_EQ(*a.hole_level(k), *b.hole_level(k)) << what << ", keyframe " << k << "'s holes";
+    EXPECT_EQ(a.texture(k)->pixels, b.texture(k)->pixels) << what << ", keyframe " << k << "'s texture";
+    EXPECT_EQ(a.shape().keyframes[k].pose.rotation, b.shape().keyframes[k].pose.rotation) << what;
+    EXPECT_EQ(a.shape().keyframes[k].pose.translation, b.shape().keyframes[k].pose.translation) << what;
+  }
+}
+
+TEST(CandidateBuilds, ACandidateFromAKeptBuildIsItsOwnBuild) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 10);
+  EncodeOptions options;
+  options.threads = 2;
+  SequenceEncoder encoder(capture, options);
+  testing::run_to_selection(encoder);
+  const BuildSettings settings = build_settings(options);
+  const std::vector<int> keyframes = {0, 5, 11};
+  constexpr int kN = 33;
+  CandidateBuilds builds(SpillMode::kSpill, 2);
+  EncodeReport report;
+  int built = 0;
+  const auto build = [&](KeyframeSurfaces* surfaces) {
+    ++built;
+    return encoder.build(settings, keyframes, kN, nullptr, surfaces);
+  };
+  encoder.adopt_representation(Representation::kHLT, encoder.report().blend);
+  std::unique_ptr<StoredSequence> fields = builds.get(Representation::kHLT, kN, build, report);
+  EXPECT_EQ(built, 1);
+  EXPECT_TRUE(builds.kept(kN));
+  EXPECT_FALSE(builds.kept(65));
+  // Rounded in place, as the choice rounds each candidate: the kept build is not.
+  FieldPrecisionOptions precision;
+  precision.target_error = 0.002;
+  precision.threads = 2;
+  round_fields(precision, *fields, report);
+
+  // Positions at the same N from the kept surfaces: no build, and what a build of positions holds.
+  encoder.adopt_representation(Representation::kXYZ, encoder.report().blend);
+  const std::unique_ptr<StoredSequence> positions = builds.get(Representation::kXYZ, kN, build, report);
+  EXPECT_EQ(built, 1) << "made from the kept build";
+  expect_same_keyframes(*positions, *encoder.build(settings, keyframes, kN), "xyz from the kept hl+t build");
+  EXPECT_EQ(report.keyframe_folds, encoder.report().keyframe_folds);
+
+  // The fields again (the coarser step's candidate): unrounded, as built.
+  encoder.adopt_representation(Representation::kHLT, encoder.report().blend);
+  const std::unique_ptr<StoredSequence> again = builds.get(Representation::kHLT, kN, build, report);
+  EXPECT_EQ(built, 1);
+  expect_same_keyframes(*again, *encoder.build(settings, keyframes, kN), "hl+t again");
+}
+
+}  // namespace
+}  // namespace facemorph
