@@ -41,6 +41,21 @@ TEST(DensityCandidate, TheCoarsestNWithinTheShareIsTaken) {
   EXPECT_EQ(coarsest_within({}, 65, 0.0075, floor, nullptr), 0);
 }
 
+// Where the coarsest N lost on bytes x RMS², the rung between it and the kept N nearest the middle
+// in nodes (the geometric mean of the two N), among those measured within the share.
+TEST(DensityCandidate, TheRungBetweenIsTheMiddleInNodesWithinTheShare) {
+  // ict60 through D: 193 met the share and lost to 257; 225 lies between (√(193·257) = 222.7).
+  const std::vector<std::pair<int, double>> ict60 = {{161, 0.011}, {193, 0.0047}, {225, 0.002}};
+  EXPECT_EQ(rung_between(ict60, 193, 257, 0.0075), 225);
+  // Two between: 193 nearer √(161·257) = 203.4 than 225.
+  const std::vector<std::pair<int, double>> two = {{161, 0.007}, {193, 0.0047}, {225, 0.002}};
+  EXPECT_EQ(rung_between(two, 161, 257, 0.0075), 193);
+  // None measured between, one outside the share, or no coarser N: none.
+  EXPECT_EQ(rung_between(ict60, 225, 257, 0.0075), 0);
+  EXPECT_EQ(rung_between({{193, 0.009}, {225, 0.008}}, 161, 257, 0.0075), 0);
+  EXPECT_EQ(rung_between(ict60, 0, 257, 0.0075), 0);
+}
+
 // Only where the representation, N and the disk are the encoder's to choose, and the choice by
 // bytes measured its candidates.
 TEST(DensityCandidate, OnlyWhereTheDiskIsTheEncodersToChoose) {

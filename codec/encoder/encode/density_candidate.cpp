@@ -11,6 +11,7 @@
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <map>
 
@@ -33,6 +34,17 @@ int coarsest_within(std::vector<int> ns, int below, double worst_target, const s
     coarsest = n;
   }
   return coarsest;
+}
+
+int rung_between(const std::vector<std::pair<int, double>>& measured, int coarser, int finer, double worst_target) {
+  if (coarser <= 0) return 0;
+  const double middle = std::sqrt(double(coarser) * double(finer));
+  int between = 0;
+  for (const auto& [n, p99] : measured) {
+    if (n <= coarser || n >= finer || !(p99 <= worst_target)) continue;
+    if (between == 0 || std::abs(n - middle) < std::abs(between - middle)) between = n;
+  }
+  return between;
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
@@ -92,7 +104,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     if (at == keyframe_floors.end()) at = keyframe_floors.emplace(n, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n)).first;
     return at->second;
   };
-  const auto try_candidate = [&](int n, double step_scale) {
+  const auto try_candidate = [&](int n, double step_scale) -> bool {
     report_ = before;
     adopt_representation(Representation::kXYZ, before.blend);
     // The rounding's worst region bounded by D's floor at n (positions decode as sampled), the
@@ -113,10 +125,17 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
                              error.rms, frames, step_scale, error.worst_p99, kCandidateDensityStrength})) {
       report_.grid = n;
       best = {std::move(sequence), report_};
+      return true;
     }
+    return false;
   };
-  for (const int n : {kept_n, coarser}) {
-    if (n != 0) try_candidate(n, 1);
+  try_candidate(kept_n, 1);
+  // The coarsest N within the worst region's share, and where it lost on bytes x RMS² (its RMS grew
+  // more than its bytes fell) the rung between it and the kept N, which a measured floor alone cannot
+  // place on that trade (ict60: D at 193 lost to 257; one more encode, not one a rung).
+  if (coarser != 0 && !try_candidate(coarser, 1)) {
+    const int between = rung_between(candidate.floor_p99s, coarser, kept_n, before.grid_worst_target);
+    if (between != 0) try_candidate(between, 1);
   }
   // D's best once more at the coarser field step, as choose_by_bytes tries the conformal disk's
   // (coarser_step_candidate), where a prediction's error is what the step is measured against: the

@@ -33,4 +33,9 @@ bool density_candidate_open(const EncodeOptions& options, const EncodeReport& re
 int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
                     std::vector<std::pair<int, double>>* measured);
 
+// Among the `measured` (N, floor p99) strictly between `coarser` and `finer`, the one within
+// `worst_target` nearest the geometric mean of the two (the middle in nodes, ~N²); 0 where none is
+// or `coarser` is 0 (none within the target: nothing between either).
+int rung_between(const std::vector<std::pair<int, double>>& measured, int coarser, int finer, double worst_target);
+
 }  // namespace facemorph
