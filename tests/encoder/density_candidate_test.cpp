@@ -41,6 +41,53 @@ TEST(DensityCandidate, TheCoarsestNWithinTheShareIsTaken) {
   EXPECT_EQ(coarsest_within({}, 65, 0.0075, floor, nullptr), 0);
 }
 
+// Where the coarsest N lost on bytes x RMS², the rung between it and the kept N nearest the middle
+// in nodes (the geometric mean of the two N), among those measured within the share.
+TEST(DensityCandidate, TheRungBetweenIsTheMiddleInNodesWithinTheShare) {
+  // ict60 through D: 193 met the share and lost to 257; 225 lies between (√(193·257) = 222.7).
+  const std::vector<std::pair<int, double>> ict60 = {{161, 0.011}, {193, 0.0047}, {225, 0.002}};
+  EXPECT_EQ(rung_between(ict60, 193, 257, 0.0075), 225);
+  // Two between: 193 nearer √(161·257) = 203.4 than 225.
+  const std::vector<std::pair<int, double>> two = {{161, 0.007}, {193, 0.0047}, {225, 0.002}};
+  EXPECT_EQ(rung_between(two, 161, 257, 0.0075), 193);
+  // None measured between, one outside the share, or no coarser N: none.
+  EXPECT_EQ(rung_between(ict60, 225, 257, 0.0075), 0);
+  EXPECT_EQ(rung_between({{193, 0.009}, {225, 0.008}}, 161, 257, 0.0075), 0);
+  EXPECT_EQ(rung_between(ict60, 0, 257, 0.0075), 0);
+}
+
+// The rung between is tried only where D at the coarsest N lost to D at the kept N (the trial
+// figures of ict60 before the rungs), not where the coarsest won among D's (ict24's) or D never beat
+// the first.
+TEST(DensityCandidate, TheRungBetweenIsTriedWhereTheCoarsestLostToTheKeptN) {
+  const auto rate_of = [](std::vector<RateCandidate> candidates) {
+    RepresentationRate rate;
+    rate.measured = true;
+    rate.tolerance = 0.005;
+    rate.worst_bound = 0.01;
+    rate.candidates = std::move(candidates);
+    return rate;
+  };
+  const auto d_at = [](int n, uint64_t bytes, double rms) {
+    return RateCandidate{Representation::kXYZ, n, n != 257, bytes, rms, 8, 1, 0.013, kCandidateDensityStrength};
+  };
+  const RateCandidate first{Representation::kHLT, 257, false, 102318, 0.002002, 8, 1, 0.0124};
+  const std::vector<std::pair<int, double>> floors = {{161, 0.011}, {193, 0.0047}, {225, 0.0018}, {257, 0.0011}};
+  // ict60: D 257 78,155 B at 0.1609% (bytes x RMS² 2,023), D 193 46,771 B at 0.2110% (2,082).
+  const RepresentationRate ict60 = rate_of({first, d_at(257, 78155, 0.001609), d_at(193, 46771, 0.002110)});
+  ASSERT_TRUE(best_density_equalised(ict60));
+  EXPECT_EQ(best_density_equalised(ict60)->grid, 257);
+  EXPECT_EQ(rung_to_try_between(ict60, floors, 193, 257, 0.0075), 225);
+  // ict24: D 193 21,662 B at 0.3069% (2,040) beats D 257 35,185 B at 0.2530% (2,252): nothing between.
+  const RepresentationRate ict24 = rate_of({first, d_at(257, 35185, 0.002530), d_at(193, 21662, 0.003069)});
+  EXPECT_EQ(best_density_equalised(ict24)->grid, 193);
+  EXPECT_EQ(rung_to_try_between(ict24, floors, 193, 257, 0.0075), 0);
+  // The first beats every D candidate: none is D's best, nothing between.
+  const RepresentationRate conformal = rate_of({first, d_at(257, 150000, 0.0021), d_at(193, 120000, 0.0025)});
+  EXPECT_FALSE(best_density_equalised(conformal));
+  EXPECT_EQ(rung_to_try_between(conformal, floors, 193, 257, 0.0075), 0);
+}
+
 // Only where the representation, N and the disk are the encoder's to choose, and the choice by
 // bytes measured its candidates.
 TEST(DensityCandidate, OnlyWhereTheDiskIsTheEncodersToChoose) {

@@ -10,8 +10,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <vector>
 
 namespace facemorph {
@@ -57,6 +60,36 @@ TEST(GridChoice, TheWorstRegionRaisesTheGridWhereTheFloorsNinetyNinthPercentileI
   EXPECT_EQ(capped.term, "worst region");
 }
 
+// The rungs between the old ladder's wide steps (97 → 129 → 193 → 257: 1.8-2.2x the nodes) are
+// each taken where the worst region's floor meets its 0.75% share there and not at the rung below.
+TEST(GridChoice, EachNewRungIsTakenWhereItsFloorMeetsTheShareAndTheNextCoarserDoesNot) {
+  const std::span<const int> ladder = grid_ladder();
+  for (const int rung : {113, 161, 225}) {
+    SCOPED_TRACE(rung);
+    const auto at = std::find(ladder.begin(), ladder.end(), rung);
+    ASSERT_NE(at, ladder.end());
+    ASSERT_NE(at, ladder.begin());
+    const int below = *(at - 1);
+    // A p99 falling as 1/N² that is 0.75% just past the geometric middle of `below` and `rung`
+    // (so it misses the share at `below` and meets it at `rung`), with the RMS met at N = 33.
+    const double crossing = std::sqrt(double(below) * double(rung)) + 0.5;
+    const double p99_at_33 = kGridWorstTarget * crossing * crossing / (33.0 * 33.0);
+    const GridChoice choice = choose_grid_size(grid_input_falling_from(5e-4, p99_at_33, 1e-3, 0));
+    EXPECT_EQ(choice.n, rung);
+    EXPECT_EQ(choice.term, "worst region");
+    ASSERT_GE(choice.floor_p99s.size(), 2u);
+    EXPECT_GT(choice.floor_p99s.end()[-2].second, kGridWorstTarget);
+    EXPECT_EQ(choice.floor_p99s.end()[-2].first, below);
+    EXPECT_LE(choice.floor_p99s.back().second, kGridWorstTarget);
+  }
+  // No step between neighbours above 1.25 in N past 65 (at most ~1.6x the nodes).
+  for (size_t i = 1; i < ladder.size(); ++i) {
+    if (ladder[i - 1] >= 65) {
+      EXPECT_LE(double(ladder[i]) / ladder[i - 1], 1.25) << ladder[i];
+    }
+  }
+}
+
 TEST(GridChoice, TheWorstRegionIsReadThroughTheReconstruction) {
   // A resampling floor that meets both targets at N = 33 (RMS 0.05%, p99 0.4%), and a reference that
   // decodes far from it below N = 65 (p99 4%, as a second solution of the equations would) and
@@ -78,7 +111,7 @@ TEST(GridChoice, TheWorstRegionIsReadThroughTheReconstruction) {
   EXPECT_DOUBLE_EQ(choice.decoded.back().second.p99, 3e-3);
   // The decoded floor is measured only from where the RMS terms are done: here the 0.1% noise, met
   // where 0.8% (33/N)² <= 0.1%, N >= 93.3: 97, whose resampled p99 (4% (33/97)² = 0.46%) is within
-  // 0.75% and whose decoded one (0.9%) is not; 129 decodes within it.
+  // 0.75% and whose decoded one (0.9%) is not, nor is 113's; 129 decodes within it.
   GridChoiceInput late = grid_input_falling_from(8e-3, 4e-2, 1e-3, 0);
   decoded_at.clear();
   late.decoded = [&](int n) {
@@ -88,7 +121,7 @@ TEST(GridChoice, TheWorstRegionIsReadThroughTheReconstruction) {
   const GridChoice raised = choose_grid_size(late);
   EXPECT_EQ(raised.n, 129);
   EXPECT_EQ(raised.term, "worst region");
-  EXPECT_EQ(decoded_at, (std::vector<int>{97, 129}));
+  EXPECT_EQ(decoded_at, (std::vector<int>{97, 113, 129}));
   // Decoded within the bound while the resampled p99 is not: the resampled one still holds N up
   // (a keyframe stored as positions decodes as sampled). 4% (33/N)² <= 0.75%: N >= 76.2, 81.
   GridChoiceInput sampled = grid_input_falling_from(5e-4, 4e-2, 1e-3, 0);
@@ -138,8 +171,7 @@ TEST(GridChoice, TheDensityCapFollowsTheVertexArea) {
       EXPECT_LE(grid_nodes_in_vertex_area(area, cap), 3.0);
     }
     // The next candidate would put more than 3 nodes in a vertex's area.
-    const std::vector<int> candidates = {33, 41, 49, 57, 65, 81, 97, 129, 193, 257};
-    for (int n : candidates) {
+    for (int n : grid_ladder()) {
       if (n > cap) {
         EXPECT_GT(grid_nodes_in_vertex_area(area, n), 3.0) << n;
         break;

@@ -104,6 +104,48 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
   }
 }
 
+// The sizes --grid auto gained between the old ladder's wide steps (113, 161, 225; spec/method.md
+// §7.6): a file at each decodes every captured frame as the sequence in memory does, closer to the
+// capture than the coarser neighbour's floor allows (the reconstruction's multigrid on a lattice of
+// N − 1 = 112, 160, 224: 16·7, 32·5, 32·7).
+TEST(SequenceEncoder, AFileAtEachNewLadderSizeDecodesEveryFrame) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 2;
+  synth.vertices = 6000;
+  synth.texture_size = 64;
+  write_synthetic_capture(dir.path(), synth);
+  const Capture capture = read_capture(dir.path());
+  for (const int n : {113, 161, 225}) {
+    SCOPED_TRACE(n);
+    EncodeOptions options;
+    options.grid = n;
+    options.texture = false;
+    options.threads = 2;
+    EncodeReport report;
+    const Sequence sequence = encode_capture(capture, options, &report);
+    SequenceFileMetadata metadata;
+    metadata.field_coding = report.field_coding;
+    const auto path = dir.path() / "ladder.fmv";
+    write_sequence_file(path, sequence, metadata);
+    const Sequence back = read_sequence_file(path);
+    ASSERT_EQ(back.grid_n, n);
+    SequenceDecoder memory(std::make_shared<const Sequence>(sequence));
+    SequenceDecoder file(std::make_shared<const Sequence>(back));
+    for (size_t i = 0; i < capture.frames.size(); ++i) {
+      const DecodedFrame a = memory.decode(capture.frames[i].time);
+      const DecodedFrame b = file.decode(capture.frames[i].time);
+      EXPECT_TRUE(b.converged) << "frame " << i;
+      ASSERT_EQ(a.grid_positions.size(), b.grid_positions.size());
+      double worst = 0;
+      for (size_t v = 0; v < a.grid_positions.size(); ++v) worst = std::max(worst, (a.grid_positions[v] - b.grid_positions[v]).norm());
+      const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), b.mesh);
+      EXPECT_LT(worst, 1e-6 * d.diagonal) << "frame " << i;
+      EXPECT_LT(d.rms / d.diagonal, 0.003) << "frame " << i;
+    }
+  }
+}
+
 // --texture auto: as sharp as the captured texture and no sharper. The small capture's 128² images
 // hold the face on part of their area; a 1024² disk would store mostly interpolated texels.
 TEST(SequenceEncoder, AutomaticTextureSizeFollowsTheCapturedTexture) {

@@ -11,8 +11,10 @@
 #include "codec/meshkit/geometry/distance.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <map>
+#include <optional>
 
 namespace facemorph {
 
@@ -33,6 +35,33 @@ int coarsest_within(std::vector<int> ns, int below, double worst_target, const s
     coarsest = n;
   }
   return coarsest;
+}
+
+int rung_between(const std::vector<std::pair<int, double>>& measured, int coarser, int finer, double worst_target) {
+  if (coarser <= 0) return 0;
+  const double middle = std::sqrt(double(coarser) * double(finer));
+  int between = 0;
+  for (const auto& [n, p99] : measured) {
+    if (n <= coarser || n >= finer || !(p99 <= worst_target)) continue;
+    if (between == 0 || std::abs(n - middle) < std::abs(between - middle)) between = n;
+  }
+  return between;
+}
+
+std::optional<RateCandidate> best_density_equalised(const RepresentationRate& rate) {
+  std::vector<RateCandidate> on_d = {rate.candidates.front()};
+  for (const RateCandidate& c : rate.candidates) {
+    if (c.density_equalising > 0) on_d.push_back(c);
+  }
+  const size_t best = cheapest_at_equal_error(on_d, rate.tolerance, rate.worst_bound, rate.on_keyframes);
+  return best > 0 ? std::optional<RateCandidate>(on_d[best]) : std::nullopt;
+}
+
+int rung_to_try_between(const RepresentationRate& rate, const std::vector<std::pair<int, double>>& measured, int coarser, int kept,
+                        double worst_target) {
+  const std::optional<RateCandidate> d = best_density_equalised(rate);
+  if (!d || d->grid != kept) return 0;
+  return rung_between(measured, coarser, kept, worst_target);
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
@@ -115,19 +144,22 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     if (std::unique_ptr<StoredSequence> sequence = measure_candidate(settings, chosen, builds, scaled, tried, *captured, rate, restore_floors))
       best = {std::move(sequence), report_};
   };
-  for (const int n : {kept_n, coarser}) {
-    if (n != 0) try_candidate(n, 1);
+  try_candidate(kept_n, 1);
+  // The coarsest N within the worst region's share, and where it lost to D at the kept N on bytes x
+  // RMS² (its RMS grew more than its bytes fell) the rung between the two, which a measured floor
+  // alone cannot place on that trade (ict60 before the rungs: D at 193 lost to 257; one encode more,
+  // not one a rung).
+  if (coarser != 0) {
+    try_candidate(coarser, 1);
+    const int between = rung_to_try_between(rate, candidate.floor_p99s, coarser, kept_n, before.grid_worst_target);
+    if (between != 0) try_candidate(between, 1);
   }
   // D's best once more at the coarser field step, as choose_by_bytes tries the conformal disk's
   // (coarser_step_candidate), where a prediction's error is what the step is measured against: the
   // conformal disk's best has had its step tried, so D's is compared at the same step too (ict24: D at
   // N = 193 lost to the conformal disk's coarser step at 257 only for the step it had not tried).
-  std::vector<RateCandidate> on_d = {rate.candidates.front()};
-  for (const RateCandidate& c : rate.candidates) {
-    if (c.density_equalising > 0) on_d.push_back(c);
-  }
-  const size_t d_best = cheapest_at_equal_error(on_d, rate.tolerance, rate.worst_bound, rate.on_keyframes);
-  if (settings.predicted_fields && !rate.on_keyframes && d_best > 0) try_candidate(on_d[d_best].grid, kCoarserStepScale);
+  const std::optional<RateCandidate> d_best = best_density_equalised(rate);
+  if (settings.predicted_fields && !rate.on_keyframes && d_best) try_candidate(d_best->grid, kCoarserStepScale);
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
   report_ = std::move(best.report);
   candidate.kept = rate.candidates[rate.chosen].density_equalising > 0;

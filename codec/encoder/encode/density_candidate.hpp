@@ -10,8 +10,10 @@
 
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
+#include "codec/encoder/encode/representation_rate.hpp"
 
 #include <functional>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -32,5 +34,22 @@ bool density_candidate_open(const EncodeOptions& options, const EncodeReport& re
 // eight); 0 where none is. What was measured goes to `measured`, coarsest first.
 int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
                     std::vector<std::pair<int, double>>* measured);
+
+// Among the `measured` (N, floor p99) strictly between `coarser` and `finer`, the one within
+// `worst_target` nearest the geometric mean of the two (the middle in nodes, ~N²); 0 where none is
+// or `coarser` is 0 (none within the target: nothing between either).
+int rung_between(const std::vector<std::pair<int, double>>& measured, int coarser, int finer, double worst_target);
+
+// D's best candidate so far, compared with the first (the conformal disk's fields at its N) and D's
+// alone: not with the conformal disk's coarser step, which D has not been given yet; none where the
+// first beats every D candidate.
+std::optional<RateCandidate> best_density_equalised(const RepresentationRate& rate);
+
+// The rung between `coarser` and `kept` (rung_between) where D at the coarsest N lost to D at the
+// kept N on bytes x RMS² (its RMS grew more than its bytes fell: the middle may win, which a measured
+// floor alone cannot tell; ict60 before the rungs, D 193 lost to 257); 0 where D's best is another
+// (the coarsest won: ict24, D 193) or none is between.
+int rung_to_try_between(const RepresentationRate& rate, const std::vector<std::pair<int, double>>& measured, int coarser, int kept,
+                        double worst_target);
 
 }  // namespace facemorph

@@ -8,6 +8,7 @@
 #include "codec/core/geometry/mesh.hpp"
 
 #include <functional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -33,6 +34,10 @@ struct GridFloor {
   // the keyframes would then be stored as positions)
   bool reconstructed = true;
 };
+
+// The sizes --grid auto tries, coarsest first (spec/method.md §7.6); the choice by bytes and the
+// density-equalised candidate pick their coarser N among those it measured.
+std::span<const int> grid_ladder();
 
 // The largest N the RMS terms may ask for on a capture whose vertices of the denser quarter hold
 // `vertex_disk_area` of the unit disk each (quartile_vertex_disk_area): the largest candidate with
