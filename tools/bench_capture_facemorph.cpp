@@ -107,6 +107,8 @@ FacemorphPoints measure_facemorph(const Context& context, const CapturedFrames& 
       const Image source = read_image(c.textures[static_cast<size_t>(i)]);
       const DiskTexels texels = disk_texels(encoder, i, source, decoded.texture.width);
       out.psnr[i] = psnr_of_disk(texels, decoded.texture);
+      out.pixel_psnr[i] = pixel_psnr_of_disk(texels, decoded.texture);
+      if (out.pixel_psnr.size() == 1) out.density = texel_density(texels, encoder.frame(i)->map.surface, source.width, source.height);
       if (also) also(i, texels, decoded);
     });
     for (const auto& [i, db] : out.psnr) out.evaluation.frames[static_cast<size_t>(i)].psnr = db;  // frames_to_decode is every frame

@@ -82,11 +82,26 @@ struct DiskTexels {
   std::vector<int> texel;      // y * size + x
   std::vector<Vec2> uv;        // in the captured texture
   std::vector<uint8_t> truth;  // RGB of the captured texture there
+  // Captured pixels each texel shows (the captured texture's area over the texel): weighting the
+  // error by it gives a PSNR over the captured image, the same whatever disk the file was sampled
+  // on (the conformal disk and the density-equalised one spread the face's texels differently).
+  std::vector<double> pixels;
 };
 
 DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& captured, int size);
 // A disk texture (facemorph's decode) against the captured texture.
 double psnr_of_disk(const DiskTexels& t, const Image& disk);
+// The same, each texel's error weighted by the captured pixels it shows (DiskTexels::pixels).
+double pixel_psnr_of_disk(const DiskTexels& t, const Image& disk);
+// Of the captured pixels the disk shows, the share shown by fewer than one texel each (detail the
+// disk texture cannot hold), and the median texels per captured pixel; the captured pixels the
+// texels show in all, and those the face's UV triangles cover (`surface`, the frame's mapped
+// surface, in an image of width x height): the disk shows the face once, so the two agree.
+struct TexelDensity {
+  double undersampled = 0, median_texels_per_pixel = 0;
+  double shown_pixels = 0, face_pixels = 0;
+};
+TexelDensity texel_density(const DiskTexels& t, const TriangleMesh& surface, int width, int height);
 // A coded copy of the captured texture (JPEG, an H.264 frame) against it, through the same map.
 double psnr_of_copy(const DiskTexels& t, const Image& copy);
 
@@ -177,10 +192,14 @@ struct Encoded {
   uint64_t bytes = 0, texture_bytes = 0;
   SequenceFileInfo info;
   Evaluation evaluation;
-  std::map<int, double> psnr;  // texture PSNR by frame, where measured
-  double held_psnr() const {
+  std::map<int, double> psnr;        // texture PSNR by frame, where measured
+  std::map<int, double> pixel_psnr;  // the same per captured pixel (pixel_psnr_of_disk)
+  TexelDensity density;              // the first measured frame's
+  double held_psnr() const { return held_mean(psnr); }
+  double held_pixel_psnr() const { return held_mean(pixel_psnr); }
+  double held_mean(const std::map<int, double>& by_frame) const {
     std::vector<double> v;
-    for (const auto& [i, db] : psnr) {
+    for (const auto& [i, db] : by_frame) {
       if (!std::binary_search(keyframes.begin(), keyframes.end(), i)) v.push_back(db);
     }
     return v.empty() ? -1 : mean(v);

@@ -124,6 +124,11 @@ void print_figures(const CaptureFigures& f) {
       "%.2f dB; texture PSNR held-out %.2f dB, keyframes %.2f dB\n",
       100 * f.target_rms, 100 * summary.held_rms_worst, 100 * summary.held_max_worst, 100 * summary.key_rms_mean, 100 * summary.p99_worst,
       d1_psnr(relative_rms(fm.main.evaluation, false)), f.target_psnr, fm.main.key_psnr());
+  if (!fm.main.pixel_psnr.empty()) {
+    // Per captured pixel: the same on whichever disk the file was sampled (spec/method.md §7.11).
+    std::printf("  texture per captured pixel: PSNR held-out %.2f dB; %.1f%% of the pixels on under a texel each, median %.2f texels a pixel\n",
+                fm.main.held_pixel_psnr(), 100 * fm.main.density.undersampled, fm.main.density.median_texels_per_pixel);
+  }
   std::printf("  %-16s %12s %12s %12s %10s %10s %10s %9s %9s %9s  %s\n", "", "geometry B", "texture B", "total B", "rms mn%", "rms wst%",
               "p99 wst%", "tex dB", "geo x", "total x", "setting");
   for (const FigureRow& r : f.rows) {
@@ -322,6 +327,10 @@ json capture_json(const std::string& input, const fs::path& folder, const Plan& 
             {"evaluation", evaluation_json(fm.main.evaluation)},
             {"held_out_texture_psnr", f.target_psnr},
             {"keyframe_texture_psnr", fm.main.key_psnr()},
+            {"held_out_texture_psnr_per_captured_pixel", fm.main.held_pixel_psnr()},
+            {"captured_pixels_under_a_texel", fm.main.density.undersampled},
+            {"captured_pixels_shown", fm.main.density.shown_pixels},
+            {"captured_pixels_of_the_face", fm.main.density.face_pixels},
             {"held_out_d1_psnr", d1_psnr(relative_rms(fm.main.evaluation, false))},
             {"keyframe_d1_psnr", d1_psnr(relative_rms(fm.main.evaluation, true))}}},
           {"baselines", baselines},

@@ -3,6 +3,7 @@
 #include "tools/bench_capture_parts.hpp"
 
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/geometry/elementary.hpp"
 #include "codec/core/util/parallel.hpp"
 #include "codec/encoder/capture/capture.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
@@ -47,18 +48,47 @@ std::array<uint8_t, 3> rounded(const std::array<double, 3>& rgb) {
   return out;
 }
 
-template <typename Colour>
-double texel_psnr(const DiskTexels& t, Colour&& colour) {
-  double sum = 0;
+// `weight(k)`: texel k's share of the mean (1 each: over the disk).
+template <typename Colour, typename Weight>
+double texel_psnr(const DiskTexels& t, Colour&& colour, Weight&& weight) {
+  double sum = 0, total = 0;
   for (size_t k = 0; k < t.texel.size(); ++k) {
     const std::array<uint8_t, 3> c = colour(k);
+    const double w = weight(k);
     for (size_t j = 0; j < 3; ++j) {
       const double d = double(c[j]) - double(t.truth[3 * k + j]);
-      sum += d * d;
+      sum += w * d * d;
     }
+    total += 3 * w;
   }
-  const double mse = sum / std::max<double>(3.0 * static_cast<double>(t.texel.size()), 1);
+  const double mse = total > 0 ? sum / total : 0.0;
   return psnr_of_mse(std::max(mse, 1e-12));
+}
+
+constexpr auto kEachTexel = [](size_t) { return 1.0; };
+
+// Each texel's captured pixels: |det| of the uv's derivatives across the texel (differences to the
+// next texel in x and in y, or the previous one at the disk's edge) times the image's pixels.
+std::vector<double> captured_pixels(const DiskTexels& t, int width, int height) {
+  std::vector<int> at(static_cast<size_t>(t.size) * static_cast<size_t>(t.size), -1);
+  for (size_t k = 0; k < t.texel.size(); ++k) at[static_cast<size_t>(t.texel[k])] = static_cast<int>(k);
+  const auto difference = [&](int x, int y, int dx, int dy) -> std::optional<Vec2> {
+    const int k = at[static_cast<size_t>(y * t.size + x)];
+    for (const int s : {1, -1}) {
+      const int nx = x + s * dx, ny = y + s * dy;
+      if (nx < 0 || ny < 0 || nx >= t.size || ny >= t.size) continue;
+      const int n = at[static_cast<size_t>(ny * t.size + nx)];
+      if (n >= 0) return s * (t.uv[static_cast<size_t>(n)] - t.uv[static_cast<size_t>(k)]);
+    }
+    return std::nullopt;
+  };
+  std::vector<double> pixels(t.texel.size(), 0.0);
+  for (size_t k = 0; k < t.texel.size(); ++k) {
+    const int x = t.texel[k] % t.size, y = t.texel[k] / t.size;
+    const std::optional<Vec2> du = difference(x, y, 1, 0), dv = difference(x, y, 0, 1);
+    if (du && dv) pixels[k] = std::abs(du->x() * dv->y() - du->y() * dv->x()) * width * height;
+  }
+  return pixels;
 }
 
 }  // namespace
@@ -87,6 +117,7 @@ DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& c
       t.truth.insert(t.truth.end(), rgb.begin(), rgb.end());
     }
   }
+  t.pixels = captured_pixels(t, captured.width, captured.height);
   return t;
 }
 
@@ -96,12 +127,47 @@ double psnr_of_disk(const DiskTexels& t, const Image& disk) {
   return texel_psnr(t, [&](size_t k) {
     const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
     return std::array<uint8_t, 3>{p[0], p[1], p[2]};
-  });
+  }, kEachTexel);
+}
+
+double pixel_psnr_of_disk(const DiskTexels& t, const Image& disk) {
+  if (disk.width != t.size) throw Error(ErrorCode::kInternal, "decoded texture size differs from the measured one");
+  return texel_psnr(
+      t,
+      [&](size_t k) {
+        const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
+        return std::array<uint8_t, 3>{p[0], p[1], p[2]};
+      },
+      [&](size_t k) { return t.pixels[k]; });
+}
+
+TexelDensity texel_density(const DiskTexels& t, const TriangleMesh& surface, int width, int height) {
+  // Texels per captured pixel, each weighted by the pixels it stands for.
+  std::vector<std::pair<double, double>> density;
+  double total = 0;
+  for (const double p : t.pixels) {
+    if (p > 0) density.emplace_back(1 / p, p), total += p;
+  }
+  TexelDensity out;
+  out.shown_pixels = total;
+  for (const Face& f : surface.uv_faces) {
+    const auto uv = [&](int j) { return surface.uvs[static_cast<size_t>(f[static_cast<size_t>(j)])]; };
+    out.face_pixels += std::abs(signed_area(uv(0), uv(1), uv(2))) * width * height;
+  }
+  if (density.empty()) return out;
+  std::sort(density.begin(), density.end());
+  double below = 0;
+  for (const auto& [texels, pixels] : density) {
+    if (texels < 1) out.undersampled += pixels / total;
+    if (below < total / 2) out.median_texels_per_pixel = texels;
+    below += pixels;
+  }
+  return out;
 }
 
 // A coded copy of the captured texture (JPEG, an H.264 frame) against it, through the same map.
 double psnr_of_copy(const DiskTexels& t, const Image& copy) {
-  return texel_psnr(t, [&](size_t k) { return rounded(sample_bilinear(copy, t.uv[k].x(), t.uv[k].y())); });
+  return texel_psnr(t, [&](size_t k) { return rounded(sample_bilinear(copy, t.uv[k].x(), t.uv[k].y())); }, kEachTexel);
 }
 
 }  // namespace facemorph::tools::capture_bench

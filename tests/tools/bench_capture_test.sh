@@ -26,6 +26,12 @@ assert r["frames"] == 20 and fm["bytes"] > 0 and 0 < fm["bits_per_vertex_frame_g
 ev = fm["evaluation"]
 assert len(ev["frames"]) == 20 and 0 < ev["held_out_rms_mean"] < 0.02, ev["held_out_rms_mean"]
 assert 15 < fm["held_out_texture_psnr"] < 60 and fm["held_out_d1_psnr"] > 30, fm
+# Per captured pixel (each disk texel weighted by the captured pixels it shows): the same frames'
+# error, weighted otherwise, so near the disk's figure; and a share of the pixels in [0, 1].
+assert abs(fm["held_out_texture_psnr_per_captured_pixel"] - fm["held_out_texture_psnr"]) < 3, fm
+assert 0 <= fm["captured_pixels_under_a_texel"] <= 1, fm
+# The disk shows the face once: the captured pixels its texels show are those the face's UVs cover.
+assert abs(fm["captured_pixels_shown"] / fm["captured_pixels_of_the_face"] - 1) < 0.05, fm
 names = {b["name"]: b for b in r["baselines"]}
 assert set(names) == {"facemorph", "raw capture", "draco", "draco + jpeg", "draco + h264", "facemorph xyz"}, names.keys()
 for name in ("draco", "draco + jpeg", "draco + h264"):
@@ -44,6 +50,7 @@ for f in report.md synth_rd_geometry.png synth_rd_texture.png synth_frames.png s
   [[ -s "$work/report/$f" ]] || fail "report: $f missing"
 done
 grep -q "geometry vs Draco" "$work/stdout" || fail "stdout lacks the targets"
+grep -q "texture per captured pixel: PSNR held-out" "$work/stdout" || fail "stdout lacks the texture per captured pixel"
 grep -q "| draco + h264 |" "$work/report/report.md" || fail "the report lacks the baselines table"
 
 # --geometry-only: a file fmenc wrote, measured against its capture without mapping or baselines;
