@@ -11,6 +11,7 @@
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 
+#include <cstdint>
 #include <functional>
 #include <utility>
 #include <vector>
@@ -32,5 +33,11 @@ bool density_candidate_open(const EncodeOptions& options, const EncodeReport& re
 // eight); 0 where none is. What was measured goes to `measured`, coarsest first.
 int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
                     std::vector<std::pair<int, double>>* measured);
+
+// Whether D, which won on geometry, is kept once the textures count: its file (geometry + texture
+// bytes, each disk's texture at the texture stage's own qualities) is no larger than the conformal
+// candidate's. D's texture costs 3-12% more bytes at the same per-pixel PSNR (spec/method.md §7.11),
+// which on fast24 and the sample outweighed what D saved on geometry.
+bool equalised_file_kept(uint64_t conformal_geometry, uint64_t conformal_texture, uint64_t equalised_geometry, uint64_t equalised_texture);
 
 }  // namespace facemorph
