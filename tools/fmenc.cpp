@@ -664,6 +664,12 @@ void print_keyframes(const Summary& s) {
       std::printf("  density-equalised disk (strength %g) %s; its resampled floor's 99th percentile", d.strength,
                   d.kept ? "kept: every frame sampled through it" : "not kept");
       for (const auto& [n, p99] : d.floor_p99s) std::printf(" %d: %.3f%%", n, 100 * p99);
+      // Where D won on geometry and the capture is textured, what decided: each disk's file.
+      if (d.textures_coded) {
+        std::printf("; the file with texture: D %llu + %llu B against the conformal disk's %llu + %llu B (geometry + texture)",
+                    static_cast<unsigned long long>(d.equalised_geometry_bytes), static_cast<unsigned long long>(d.equalised_texture_bytes),
+                    static_cast<unsigned long long>(d.conformal_geometry_bytes), static_cast<unsigned long long>(d.conformal_texture_bytes));
+      }
       std::printf("\n");
     }
   }

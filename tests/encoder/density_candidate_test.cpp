@@ -6,6 +6,7 @@
 #include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/encoder/synth/synth.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include "tests/encoder/encoder_stages.hpp"
 #include "tests/test_util.hpp"
@@ -114,6 +115,18 @@ TEST(DensityCandidate, OnlyWhereTheDiskIsTheEncodersToChoose) {
   EXPECT_FALSE(density_candidate_open(open, unmeasured));
 }
 
+// D is kept once the textures count only where its file (geometry + texture) is no larger than the
+// conformal candidate's: fast24's (main 9173995: D 4,043 B against 3,818 B conformal) is refused though
+// D's geometry is the smaller; Medusa's (geometry -4,033 B, texture +1,078 B) is kept.
+TEST(DensityCandidate, TheFileWithItsTextureDecides) {
+  EXPECT_FALSE(equalised_file_kept(1000, 2818, 900, 3143));  // geometry -100 B, texture +325 B
+  EXPECT_TRUE(equalised_file_kept(20000, 30000, 15967, 31078));
+  EXPECT_TRUE(equalised_file_kept(1000, 2000, 900, 2100));    // the same file: D, as on geometry alone at equal bytes
+  EXPECT_FALSE(equalised_file_kept(1000, 2000, 900, 2101));
+  EXPECT_TRUE(equalised_file_kept(1000, 2000, 1000, 1999));   // texture alone smaller
+  EXPECT_FALSE(equalised_file_kept(1000, 0, 1001, 0));        // untextured: geometry alone
+}
+
 // Without textures, on two threads, the stored keyframes alone (as the candidates' bytes count them).
 EncodeOptions density_test_options() {
   EncodeOptions options;
@@ -194,6 +207,42 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
   ASSERT_TRUE(meshes);
   EXPECT_NEAR(held_out_error(capture, *stored, trials, *meshes, 2).rms, kept.held_rms, 1e-9);
   EXPECT_NE(encode_settings_json(options, report).find("\"density_equalising_chosen\":0.5"), std::string::npos);
+}
+
+// The crowded head-and-shoulders scan textured: D wins on geometry, so the texture stage codes each
+// disk's keyframes and the file with its texture decides; the file holds the disk kept, its texture
+// bytes the ones compared, and the texture stage is not run again (its qualities are the compared ones).
+TEST(SequenceEncoder, TheDensityEqualisedDiskIsComparedWithItsTexture) {
+  testing::TempDir dir;
+  SynthOptions synth;
+  synth.frames = 12;
+  synth.vertices = 3000;
+  synth.texture_size = 128;
+  synth.surround = true;
+  write_synthetic_capture(dir.path(), synth);
+  const Capture capture = read_capture(dir.path());
+  EncodeOptions options = density_test_options();
+  options.texture = true;
+  EncodeReport report;
+  SequenceEncoder encoder(capture, options);
+  const std::unique_ptr<StoredSequence> stored = encode_by_stages(encoder, &report);
+  const EncodeReport::DensityCandidate& d = report.density_candidate;
+  ASSERT_TRUE(d.textures_coded) << "D won on geometry (TheDensityEqualisedDiskIsKeptWhereItPays) and the capture is textured";
+  EXPECT_GT(d.conformal_texture_bytes, 0u);
+  EXPECT_GT(d.equalised_texture_bytes, 0u);
+  EXPECT_LT(d.equalised_geometry_bytes, d.conformal_geometry_bytes);
+  EXPECT_EQ(d.kept, equalised_file_kept(d.conformal_geometry_bytes, d.conformal_texture_bytes, d.equalised_geometry_bytes,
+                                        d.equalised_texture_bytes));
+  EXPECT_EQ(!encoder.reparametrisation().identity(), d.kept) << "the later stages sample through the disk kept";
+  const RateCandidate& kept = report.representation_rate.candidates[report.representation_rate.chosen];
+  EXPECT_EQ(kept.density_equalising > 0, d.kept);
+  EXPECT_EQ(geometry_bytes(*stored, report.field_coding), kept.bytes);
+  ASSERT_EQ(report.texture_qualities.size(), stored->size());
+  SequenceFileMetadata metadata;
+  metadata.field_coding = report.field_coding;
+  metadata.keyframe_texture_qualities = report.texture_qualities;
+  metadata.texture_codec = options.texture_codec;
+  EXPECT_EQ(sequence_file_size(*stored, metadata) - kept.bytes, d.kept ? d.equalised_texture_bytes : d.conformal_texture_bytes);
 }
 
 // fmsynth's turning face (30°, 12 frames): the disk is not crowded, D's positions cost more than the

@@ -9,6 +9,7 @@
 #include "codec/encoder/encode/representation_rate.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
 #include "codec/meshkit/geometry/distance.hpp"
+#include "codec/writer/container/sequence_file_writer.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -64,6 +65,26 @@ int rung_to_try_between(const RepresentationRate& rate, const std::vector<std::p
   return rung_between(measured, coarser, kept, worst_target);
 }
 
+bool equalised_file_kept(uint64_t conformal_geometry, uint64_t conformal_texture, uint64_t equalised_geometry, uint64_t equalised_texture) {
+  return equalised_geometry + equalised_texture <= conformal_geometry + conformal_texture;
+}
+
+namespace {
+
+// The texture stage run on `stored` (its qualities and sharing, as code() runs it: the file's
+// textures), and the bytes the textures add to the file fmenc writes (its default texture coding).
+uint64_t coded_texture_bytes(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
+                             const std::vector<int>& keyframes, EncodeReport& report) {
+  code_textures(settings, source, stored, keyframes, report);
+  SequenceFileMetadata metadata;
+  metadata.field_coding = report.field_coding;
+  metadata.keyframe_texture_qualities = report.texture_qualities;
+  metadata.texture_codec = settings.codec;
+  return sequence_file_size(stored, metadata) - geometry_bytes(stored, report.field_coding);
+}
+
+}  // namespace
+
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
                                                                           std::unique_ptr<StoredSequence> kept,
                                                                           const std::optional<std::vector<TriangleMesh>>& captured) {
@@ -109,7 +130,9 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     std::unique_ptr<StoredSequence> sequence;
     EncodeReport report;
   };
-  Kept best{std::move(kept), before};
+  // The conformal candidate choose_by_bytes kept, and D's best once one wins.
+  std::unique_ptr<StoredSequence> conformal_kept = std::move(kept);
+  Kept best{nullptr, before};
   const FieldPrecisionOptions precision = field_precision_options(settings, chosen);
   // D's builds, once an N (candidate_builds.hpp): its best is tried again at the coarser step.
   CandidateBuilds builds(settings.build.spill_keyframes ? SpillMode::kSpill : SpillMode::kMemory, settings.threads);
@@ -161,13 +184,37 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   const std::optional<RateCandidate> d_best = best_density_equalised(rate);
   if (settings.predicted_fields && !rate.on_keyframes && d_best) try_candidate(d_best->grid, kCoarserStepScale);
   rate.chosen = cheapest_at_equal_error(rate.candidates, rate.tolerance, rate.worst_bound, rate.on_keyframes);
-  report_ = std::move(best.report);
   candidate.kept = rate.candidates[rate.chosen].density_equalising > 0;
+  std::unique_ptr<StoredSequence> sequence = std::move(conformal_kept);
+  report_ = before;
+  if (candidate.kept && best.sequence->size() > 0 && !best.sequence->texture(0)->empty()) {
+    // D won on geometry; the texture on each disk, as the texture stage codes it, decides (D's costs
+    // more bytes at the same per-pixel PSNR: spec/method.md §7.11). Each disk's texture is sampled
+    // through its own reparametrisation.
+    const TextureFrameSource d_textures{capture_.frames, maps_, FrameSampler(maps_, registrations_)};
+    candidate.equalised_geometry_bytes = rate.candidates[rate.chosen].bytes;
+    candidate.equalised_texture_bytes = coded_texture_bytes(settings.texture, d_textures, *best.sequence, chosen.keyframes, best.report);
+    DiskReparametrisation d_map = registrations_.reparametrisation();
+    registrations_.set_reparametrisation(std::move(conformal));
+    const TextureFrameSource conformal_textures{capture_.frames, maps_, FrameSampler(maps_, registrations_)};
+    candidate.conformal_geometry_bytes = rate.candidates[before.representation_rate.chosen].bytes;
+    candidate.conformal_texture_bytes = coded_texture_bytes(settings.texture, conformal_textures, *sequence, chosen.keyframes, report_);
+    candidate.textures_coded = true;
+    candidate.kept = equalised_file_kept(candidate.conformal_geometry_bytes, candidate.conformal_texture_bytes,
+                                         candidate.equalised_geometry_bytes, candidate.equalised_texture_bytes);
+    if (candidate.kept) {
+      registrations_.set_reparametrisation(std::move(d_map));
+    } else {
+      rate.chosen = before.representation_rate.chosen;  // the registrations are on the conformal disk already
+    }
+  }
   if (candidate.kept) {
+    sequence = std::move(best.sequence);
+    report_ = std::move(best.report);
     const double half = report_.density_equalising.half_area_radius_before;
     report_.density_equalising = equalised_report;
     report_.density_equalising.half_area_radius_before = half;
-  } else {
+  } else if (!candidate.textures_coded) {
     registrations_.set_reparametrisation(std::move(conformal));
   }
   adopt_representation(rate.candidates[rate.chosen].representation, before.blend);
@@ -176,7 +223,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   report_.representation_rate = std::move(rate);
   report_.seconds_representation = before.seconds_representation + seconds;
   report_.density_candidate = std::move(candidate);
-  return std::move(best.sequence);
+  return sequence;
 }
 
 }  // namespace facemorph

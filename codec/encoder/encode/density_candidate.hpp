@@ -12,6 +12,7 @@
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/representation_rate.hpp"
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <utility>
@@ -51,5 +52,11 @@ std::optional<RateCandidate> best_density_equalised(const RepresentationRate& ra
 // (the coarsest won: ict24, D 193) or none is between.
 int rung_to_try_between(const RepresentationRate& rate, const std::vector<std::pair<int, double>>& measured, int coarser, int kept,
                         double worst_target);
+
+// Whether D, which won on geometry, is kept once the textures count: its file (geometry + texture
+// bytes, each disk's texture at the texture stage's own qualities) is no larger than the conformal
+// candidate's. D's texture costs 3-12% more bytes at the same per-pixel PSNR (spec/method.md §7.11),
+// which on fast24 and the sample outweighed what D saved on geometry.
+bool equalised_file_kept(uint64_t conformal_geometry, uint64_t conformal_texture, uint64_t equalised_geometry, uint64_t equalised_texture);
 
 }  // namespace facemorph

@@ -121,6 +121,12 @@ struct EncodeReport {
     double strength = 0;
     std::vector<std::pair<int, double>> floor_p99s;
     bool kept = false;
+    // Where D won on geometry and the capture is textured: each disk's file as fmenc stores it,
+    // geometry (the choice's bytes) and texture (the texture stage's qualities and sharing), compared
+    // (equalised_file_kept); the texture stage then ran and is not run again (textures_coded).
+    bool textures_coded = false;
+    uint64_t conformal_geometry_bytes = 0, conformal_texture_bytes = 0;
+    uint64_t equalised_geometry_bytes = 0, equalised_texture_bytes = 0;
   };
   DensityCandidate density_candidate;
   std::vector<int32_t> keyframe_folds;  // the nodes where the keyframes built (a segment's own) fold: G's interior, ascending

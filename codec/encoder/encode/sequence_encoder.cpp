@@ -480,8 +480,11 @@ std::unique_ptr<StoredSequence> SequenceEncoder::code(const StageSettings& setti
   if (settings.patch_bound > 0)
     sequence->set_patches(
         fit_frame_patches(capture_, *sequence, chosen.keyframes, settings.patch_bound, &report_.patch_fit, settings.threads));
-  code_textures(settings.texture, TextureFrameSource{capture_.frames, maps_, FrameSampler(maps_, registrations_)}, *sequence,
-                chosen.keyframes, report_);
+  // The density-equalised candidate's comparison coded the kept disk's textures already (its qualities
+  // read the keyframes' textures and spline, which residuals and patches leave as they are).
+  if (!report_.density_candidate.textures_coded)
+    code_textures(settings.texture, TextureFrameSource{capture_.frames, maps_, FrameSampler(maps_, registrations_)}, *sequence,
+                  chosen.keyframes, report_);
   return sequence;
 }
 
