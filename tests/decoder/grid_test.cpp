@@ -126,10 +126,11 @@ TEST(DiskGrid, GoldenHashesPinTheRule) {
 }
 
 // The table a header's hash is checked against (codec/grid/disk_grid_hashes.inc) is the rule's own:
-// every N to 129, and a sample of the larger ones. (The whole table takes 40 s.)
+// every N to 129, --grid auto's rungs past it (161, 193, 225: files are written at them), and a
+// sample of the larger ones. (The whole table takes 40 s.)
 TEST(DiskGrid, KnownHashesAreTheGridsOwn) {
   for (int n = kMinGridSize; n <= 129; ++n) EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
-  for (int n : {160, 200, 256, 257, 321, 513, 1024, kKnownGridHashes})
+  for (int n : {160, 161, 193, 200, 225, 256, 257, 321, 513, 1024, kKnownGridHashes})
     EXPECT_EQ(known_disk_grid_hash(n), make_disk_grid(n).hash) << "N = " << n;
   EXPECT_EQ(known_disk_grid_hash(kKnownGridHashes + 1), 0u);
   EXPECT_EQ(known_disk_grid_hash(kMinGridSize - 1), 0u);

@@ -75,5 +75,66 @@ TEST(CandidateBuilds, ACandidateFromAKeptBuildIsItsOwnBuild) {
   expect_same_keyframes(*again, *encoder.build(settings, keyframes, kN), "hl+t again");
 }
 
+// The same where the arrays stay in memory (EncodeOptions::spill_keyframes false, an API caller's
+// setting: the copies then share nothing with the kept build through a file) and on a capture with
+// holes and textures, whose hole levels and texels the copies carry over: each candidate holds what
+// a new build of it holds.
+TEST(CandidateBuilds, InMemoryAndWithHolesACandidateIsItsOwnBuild) {
+  for (const bool spill : {false, true}) {
+    SCOPED_TRACE(spill ? "spilled" : "in memory");
+    testing::TempDir dir;
+    SynthOptions synth;
+    synth.frames = 12;
+    synth.vertices = 3000;
+    synth.texture_size = 64;
+    synth.holes = true;
+    write_synthetic_capture(dir.path(), synth);
+    const Capture capture = read_capture(dir.path());
+    EncodeOptions options;
+    options.threads = 2;
+    options.spill_keyframes = spill;
+    SequenceEncoder encoder(capture, options);
+    testing::run_to_selection(encoder);
+    const BuildSettings settings = build_settings(options);
+    ASSERT_EQ(settings.spill_keyframes, spill);
+    const std::vector<int> keyframes = {0, 6, 11};
+    constexpr int kN = 41;
+    CandidateBuilds builds(spill ? SpillMode::kSpill : SpillMode::kMemory, 2);
+    EncodeReport report;
+    int built = 0;
+    // A build fills the report it is handed (as SequenceEncoder::measure_candidate's fills report_).
+    const auto build = [&](KeyframeSurfaces* surfaces) {
+      ++built;
+      std::unique_ptr<StoredSequence> made = encoder.build(settings, keyframes, kN, nullptr, surfaces);
+      report = encoder.report();
+      return made;
+    };
+    encoder.adopt_representation(Representation::kHLT, encoder.report().blend);
+    std::unique_ptr<StoredSequence> fields = builds.get(Representation::kHLT, kN, build, report);
+    ASSERT_EQ(built, 1);
+    ASSERT_GT(report.texture_size, 0);
+    // What this test is for: the holes and textures are there to be carried over.
+    ASSERT_FALSE(fields->hole_level(0)->empty()) << "the capture's holes are stored";
+    ASSERT_FALSE(fields->texture(0)->pixels.empty()) << "the capture's textures are stored";
+    FieldPrecisionOptions precision;
+    precision.target_error = 0.002;
+    precision.threads = 2;
+    precision.spill = spill;
+    round_fields(precision, *fields, report);
+
+    encoder.adopt_representation(Representation::kXYZ, encoder.report().blend);
+    const std::unique_ptr<StoredSequence> positions = builds.get(Representation::kXYZ, kN, build, report);
+    EXPECT_EQ(built, 1) << "made from the kept build";
+    expect_same_keyframes(*positions, *encoder.build(settings, keyframes, kN), "xyz from the kept hl+t build");
+    EXPECT_EQ(report.keyframe_folds, encoder.report().keyframe_folds);
+    EXPECT_EQ(report.texture_size, encoder.report().texture_size) << "the copy's report as the build's";
+
+    encoder.adopt_representation(Representation::kHLT, encoder.report().blend);
+    const std::unique_ptr<StoredSequence> again = builds.get(Representation::kHLT, kN, build, report);
+    EXPECT_EQ(built, 1);
+    expect_same_keyframes(*again, *encoder.build(settings, keyframes, kN), "hl+t again, unrounded");
+  }
+}
+
 }  // namespace
 }  // namespace facemorph
