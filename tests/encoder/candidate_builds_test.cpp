@@ -66,7 +66,6 @@ TEST(CandidateBuilds, ACandidateFromAKeptBuildIsItsOwnBuild) {
   const std::unique_ptr<StoredSequence> positions = builds.get(Representation::kXYZ, kN, build, report);
   EXPECT_EQ(built, 1) << "made from the kept build";
   expect_same_keyframes(*positions, *encoder.build(settings, keyframes, kN), "xyz from the kept hl+t build");
-  EXPECT_EQ(report.keyframe_folds, encoder.report().keyframe_folds);
 
   // The fields again (the coarser step's candidate): unrounded, as built.
   encoder.adopt_representation(Representation::kHLT, encoder.report().blend);
