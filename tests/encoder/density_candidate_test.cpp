@@ -145,19 +145,24 @@ std::unique_ptr<StoredSequence> encode_by_stages(SequenceEncoder& encoder, Encod
   return encoder.encode_sampled(report);
 }
 
-// A head-and-shoulders scan (fmsynth --surround, 12 frames of 3,000 vertices): the face is crowded
-// in the conformal disk's middle (the resampled p99 at N = 41 1.72%; 0.60% through D on the
-// reviewer's machine). The density-equalised disk's positions are kept at a coarser N than the
-// conformal disk allowed, the file holds them, and it decodes at the error measured.
-TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
-  testing::TempDir dir;
+// fmsynth --surround: 12 frames of 3,000 vertices of a head and shoulders, a 128² texture.
+Capture surround_capture(const testing::TempDir& dir) {
   SynthOptions synth;
   synth.frames = 12;
   synth.vertices = 3000;
   synth.texture_size = 128;
   synth.surround = true;
   write_synthetic_capture(dir.path(), synth);
-  const Capture capture = read_capture(dir.path());
+  return read_capture(dir.path());
+}
+
+// A head-and-shoulders scan (fmsynth --surround, 12 frames of 3,000 vertices): the face is crowded
+// in the conformal disk's middle (the resampled p99 at N = 41 1.72%; 0.60% through D on the
+// reviewer's machine). The density-equalised disk's positions are kept at a coarser N than the
+// conformal disk allowed, the file holds them, and it decodes at the error measured.
+TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
+  testing::TempDir dir;
+  const Capture capture = surround_capture(dir);
   const EncodeOptions options = density_test_options();
   EncodeReport report;
   SequenceEncoder encoder(capture, options);
@@ -214,13 +219,7 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
 // bytes the ones compared, and the texture stage is not run again (its qualities are the compared ones).
 TEST(SequenceEncoder, TheDensityEqualisedDiskIsComparedWithItsTexture) {
   testing::TempDir dir;
-  SynthOptions synth;
-  synth.frames = 12;
-  synth.vertices = 3000;
-  synth.texture_size = 128;
-  synth.surround = true;
-  write_synthetic_capture(dir.path(), synth);
-  const Capture capture = read_capture(dir.path());
+  const Capture capture = surround_capture(dir);
   EncodeOptions options = density_test_options();
   options.texture = true;
   EncodeReport report;
