@@ -31,6 +31,13 @@
 namespace facemorph {
 namespace {
 
+// The farthest any node of G lies apart in two decodes of the same frame (same size asserted by the caller).
+double largest_node_difference(const DecodedFrame& a, const DecodedFrame& b) {
+  double worst = 0;
+  for (size_t n = 0; n < a.grid_positions.size(); ++n) worst = std::max(worst, (a.grid_positions[n] - b.grid_positions[n]).norm());
+  return worst;
+}
+
 TEST(SequenceEncoder, EncodesASyntheticCaptureThatDecodesCloseToEveryFrame) {
   testing::TempDir dir;
   const Capture capture = testing::small_remeshed_capture(dir, 20);
@@ -91,8 +98,7 @@ TEST(SequenceEncoder, TheFileDecodesEveryFrameAsTheSequenceInMemory) {
     const DecodedFrame a = memory.decode(capture.frames[i].time);
     const DecodedFrame b = file.decode(capture.frames[i].time);
     ASSERT_EQ(a.grid_positions.size(), b.grid_positions.size());
-    double worst = 0;
-    for (size_t n = 0; n < a.grid_positions.size(); ++n) worst = std::max(worst, (a.grid_positions[n] - b.grid_positions[n]).norm());
+    const double worst = largest_node_difference(a, b);
     const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), b.mesh);
     EXPECT_LT(worst, 1e-6 * d.diagonal) << "frame " << i;
     EXPECT_LT(d.rms / d.diagonal, 0.006) << "frame " << i;
@@ -137,8 +143,7 @@ TEST(SequenceEncoder, AFileAtEachNewLadderSizeDecodesEveryFrame) {
       const DecodedFrame b = file.decode(capture.frames[i].time);
       EXPECT_TRUE(b.converged) << "frame " << i;
       ASSERT_EQ(a.grid_positions.size(), b.grid_positions.size());
-      double worst = 0;
-      for (size_t v = 0; v < a.grid_positions.size(); ++v) worst = std::max(worst, (a.grid_positions[v] - b.grid_positions[v]).norm());
+      const double worst = largest_node_difference(a, b);
       const SurfaceDistance d = surface_distance(read_mesh(capture.mesh_path(i)), b.mesh);
       EXPECT_LT(worst, 1e-6 * d.diagonal) << "frame " << i;
       EXPECT_LT(d.rms / d.diagonal, 0.003) << "frame " << i;
