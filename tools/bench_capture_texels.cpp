@@ -121,16 +121,11 @@ DiskTexels disk_texels(const SequenceEncoder& encoder, int frame, const Image& c
   return t;
 }
 
-// A disk texture (facemorph's decode) against the captured texture.
-double psnr_of_disk(const DiskTexels& t, const Image& disk) {
-  if (disk.width != t.size) throw Error(ErrorCode::kInternal, "decoded texture size differs from the measured one");
-  return texel_psnr(t, [&](size_t k) {
-    const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
-    return std::array<uint8_t, 3>{p[0], p[1], p[2]};
-  }, kEachTexel);
-}
+namespace {
 
-double pixel_psnr_of_disk(const DiskTexels& t, const Image& disk) {
+// A disk texture (facemorph's decode) against the captured texture, each texel's error weighted by `weight`.
+template <typename Weight>
+double disk_psnr(const DiskTexels& t, const Image& disk, Weight&& weight) {
   if (disk.width != t.size) throw Error(ErrorCode::kInternal, "decoded texture size differs from the measured one");
   return texel_psnr(
       t,
@@ -138,7 +133,15 @@ double pixel_psnr_of_disk(const DiskTexels& t, const Image& disk) {
         const uint8_t* p = disk.at(t.texel[k] % t.size, t.texel[k] / t.size);
         return std::array<uint8_t, 3>{p[0], p[1], p[2]};
       },
-      [&](size_t k) { return t.pixels[k]; });
+      weight);
+}
+
+}  // namespace
+
+double psnr_of_disk(const DiskTexels& t, const Image& disk) { return disk_psnr(t, disk, kEachTexel); }
+
+double pixel_psnr_of_disk(const DiskTexels& t, const Image& disk) {
+  return disk_psnr(t, disk, [&](size_t k) { return t.pixels[k]; });
 }
 
 TexelDensity texel_density(const DiskTexels& t, const TriangleMesh& surface, int width, int height) {
