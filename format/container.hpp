@@ -19,9 +19,10 @@ class SpillFile;
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'F', 'M', 'V', '\r', '\n', 0x1A, '\n'};
 inline constexpr uint16_t kMajorVersion = 2;  // a reader refuses another major version
-inline constexpr uint16_t kMinorVersion = 5;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared
+inline constexpr uint16_t kMinorVersion = 6;  // later minors only append fields, chunk types and codings (2.1: texture groups; 2.2: shared
                                               // textures; 2.3: residual frames; 2.4: frame patches; 2.5: linear along the rim,
-                                              // range-coded patches, the header dictionary)
+                                              // range-coded patches, the header dictionary;
+                                              // 2.6: the levels predictor, KGLV)
 inline constexpr size_t kPreambleBytes = 16;
 inline constexpr size_t kChunkHeaderBytes = 24;
 inline constexpr size_t kChunkTrailerBytes = 4;

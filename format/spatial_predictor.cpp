@@ -42,6 +42,7 @@ int64_t predict(size_t i, SpatialPredictor predictor, const LatticeNeighbours* l
       if (u >= 0) return code(static_cast<size_t>(u));
       return previous();
     }
+    case SpatialPredictor::kLevels: break;  // another order of the elements: level_predictor.hpp
   }
   throw Error(ErrorCode::kInvalidArgument, "unknown spatial predictor");
 }

@@ -24,6 +24,7 @@ enum class SpatialPredictor : uint8_t {
   kGradient = 2,  // left + up − up-left on the lattice; with one of left or up only, that one; else as kPrevious
   kMedian = 3,    // LOCO-I's median edge detector over left, up, up-left; fallbacks as kGradient
   kLinear = 4,    // 2 × the previous − the one before it, along the array (for the second: the first; for the first: 0)
+  kLevels = 5,    // coarse to fine on the lattice (level_predictor.hpp; format 2.6): id 3 and one more decision, in a KGLV chunk
 };
 inline constexpr uint8_t kSpatialPredictorCount = 4;  // the lattice's ids 0–3 (kLinear is a sequence's id 2)
 

@@ -12,6 +12,9 @@
 #   FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_4 --speech-rate 3
 # 2.5: the same as 2.4 (its header against the dictionary, its patches range-coded, its rim linear):
 #   FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_5 --speech-rate 3
+# 2.6: the same at N = 129 (GOLDEN_GRID, 33 unless set), where the writer chooses the levels
+# predictor (KGLV chunks) for some group (at N = 33 it does not):
+#   GOLDEN_GRID=129 FMENC_OPTIONS="--patch-bound 0.4%" tests/data/make_golden.sh build 2_6 --speech-rate 3
 set -euo pipefail
 build=${1:?usage: make_golden.sh BUILD_DIR VERSION}
 version=${2:?usage: make_golden.sh BUILD_DIR VERSION (e.g. 2_0)}
@@ -22,5 +25,5 @@ trap 'rm -rf "$work"' EXIT
 "$build/tools/fmsynth" -o "$work/capture" --frames 12 --fps 30 --expression mixed --vertices 3000 --remesh --noise 0 \
   --texture-size 128 --head-motion 10 --quiet "$@"
 # Intra period 2: two groups of keyframes, one coded from the other within it.
-"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid 33 --texture 64 --quality 80 --intra-period 2 --quiet ${FMENC_OPTIONS:---no-residual-frames}
+"$build/tools/fmenc" "$work/capture" -o "$here/golden_v$version.fmv" --keyframes 25% --grid "${GOLDEN_GRID:-33}" --texture 64 --quality 80 --intra-period 2 --quiet ${FMENC_OPTIONS:---no-residual-frames}
 FACEMORPH_WRITE_GOLDEN="$here/golden_v$version.csv" "$build/tests/facemorph_decoder_tests" --gtest_filter="GoldenFile.Version${version}*"

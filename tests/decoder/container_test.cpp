@@ -767,6 +767,20 @@ TEST(Container, TheFuzzSeedsAreFilesOfThisVersion) {
   SequenceFileMetadata worded = predicted_metadata();
   worded.settings = R"({"field_rounding":"shaped","grid":"auto","keyframe_fit":true,"registration":"gmf","spline":"catmull-rom"})";
   seeds.emplace_back("n9_header_dictionary.fmv", encode_sequence_file(small_sequence(9, 8), worded));
+  // The levels predictor (format 2.6) on H and log λ in a KGLV chunk, the same codes as written.
+  const std::shared_ptr<const file_layout::GridFacts> grid17 = file_layout::grid_facts(17);
+  seeds.emplace_back("n17_levels.fmv", crafted::with_first_group_by_hand(
+                                           encode_sequence_file(small_sequence(17, 8), predicted_metadata()), false,
+                                           [&](crafted::HandCodedKeyframe& key) {
+                                             for (size_t a : {0, 1}) {
+                                               const std::vector<int32_t> codes(key.residuals[a].begin(), key.residuals[a].end());
+                                               key.ids[a] = 3;
+                                               key.levels[a] = 1;
+                                               const std::vector<int64_t> r = format::level_residuals(codes, grid17->interior_levels);
+                                               key.residuals[a].assign(r.begin(), r.end());
+                                             }
+                                           },
+                                           true));
   const std::filesystem::path folder = std::filesystem::path(FACEMORPH_TEST_DATA) / ".." / "fuzz" / "seeds" / "fmv";
   if (const char* out = std::getenv("FACEMORPH_WRITE_FUZZ_SEEDS")) {
     for (const auto& [name, bytes] : seeds) format::write_file_atomically(std::filesystem::path(out) / name, bytes);

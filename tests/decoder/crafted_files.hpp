@@ -146,7 +146,7 @@ std::vector<uint8_t> rebuild(const std::vector<uint8_t>& bytes, Edit&& edit, boo
     std::string type = c.type;
     edit(type, payload);
     // The index's layout is the file's as written: by the chunks' types before the edit.
-    groups += c.type == "KGOP" ? 1 : 0;
+    groups += c.type == "KGOP" || c.type == "KGLV" ? 1 : 0;
     texture_groups += c.type == "TGOP" ? 1 : 0;
     textured = textured || c.type == "TEXR";
     if (c.type == "KIDX") index_payload = payload;
@@ -275,11 +275,12 @@ inline std::vector<uint8_t> restamped(std::vector<uint8_t> bytes, uint16_t minor
 }
 
 // The file with its preamble's minor version set to `minor` (and the preamble's CRC made again).
-// Below 2.5 its groups of keyframes are coded again without 2.5's linear predictor along a sequence
-// (spec/container.md §7.2), the same codes, and its header without the header dictionary (§3.4), as a
-// writer of that version would have written them; every other byte is left as it is.
+// Below 2.6 its groups of keyframes are coded again without 2.6's levels predictor (KGLV chunks
+// become KGOP), below 2.5 also without 2.5's linear predictor along a sequence (spec/container.md
+// §7.2), the same codes, and below 2.5 its header without the header dictionary (§3.4), as a writer
+// of that version would have written them; every other byte is left as it is.
 inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint16_t minor) {
-  if (minor < file_layout::kLinearSequenceMinorVersion) {
+  if (minor < file_layout::kLevelsMinorVersion) {
     // The keyframes as the file holds them; its patches skipped (a chunk type no decoder knows, not
     // critical), as a test may have put an older version's PTCH coding in already.
     const std::vector<uint8_t> keyframes_only = rebuild(bytes, [](std::string& type, std::vector<uint8_t>&) {
@@ -289,14 +290,15 @@ inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint1
     const Sequence s = decode_sequence_file(keyframes_only, "older.fmv", &info);
     const FieldCoding& coding = info.metadata.field_coding;
     const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(s.grid_n);
-    bytes = rebuild(bytes, [&](const std::string& type, std::vector<uint8_t>& payload) {
-      if (type != "KGOP") return;
-      format::ByteReader r(payload, "KGOP");
+    bytes = rebuild(bytes, [&](std::string& type, std::vector<uint8_t>& payload) {
+      if (type != "KGOP" && type != "KGLV") return;
+      format::ByteReader r(payload, type);
       const uint32_t first = r.read<uint32_t>("first");
       file_layout::KeyframeGroupWriter group(first, coding, *grid, minor);
       const size_t end = std::min(s.keyframes.size(), first + static_cast<size_t>(coding.intra_period));
       for (size_t k = first; k < end; ++k) group.add(s.keyframes[k]);
       payload = group.finish();
+      type = std::string(group.chunk_type());
     });
   }
   return restamped(std::move(bytes), minor);
@@ -304,12 +306,15 @@ inline std::vector<uint8_t> with_minor_version(std::vector<uint8_t> bytes, uint1
 
 // A keyframe's residuals as a crafted group writes them: `codes`, under predictor 0, the integer
 // codes of its arrays (or their change since the previous keyframe's, where it is coded from it);
-// an edit may change any array's residuals and its predictor id in `ids`.
+// an edit may change any array's residuals and its predictor id in `ids`, and in a KGLV group
+// (format 2.6) set `levels[a]` on an interior array of id 3: the levels decision, 1, follows the id
+// and its residuals are in the levels predictor's coding order.
 struct HandCodedKeyframe {
   size_t k = 0;
   bool from_previous = false;
   std::vector<uint8_t> ids;
   std::vector<std::vector<int64_t>> residuals;
+  std::vector<uint8_t> levels = std::vector<uint8_t>(file_layout::kKeyframeArrays, 0);
 };
 
 // The file with its first group of keyframes (0 … the intra period − 1) written again by hand
@@ -318,7 +323,7 @@ struct HandCodedKeyframe {
 // keyframe's before it is written. Reaches §7.2's checks with any predictor id and any residuals
 // past every CRC; the file's bytes besides that group are as they were.
 template <typename Edit>
-std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit) {
+std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit, bool levels_chunk = false) {
   SequenceFileInfo info;
   const Sequence s = decode_sequence_file(bytes, "crafted.fmv", &info);
   const FieldCoding& coding = info.metadata.field_coding;
@@ -331,10 +336,11 @@ std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes,
     }
     return codes;
   };
-  return rebuild(bytes, [&](const std::string& type, std::vector<uint8_t>& payload) {
-    if (type != "KGOP") return;
-    format::ByteReader r(payload, "KGOP");
+  return rebuild(bytes, [&](std::string& type, std::vector<uint8_t>& payload) {
+    if (type != "KGOP" && type != "KGLV") return;
+    format::ByteReader r(payload, type);
     if (r.read<uint32_t>("first") != 0) return;
+    type = levels_chunk ? "KGLV" : "KGOP";
     format::RangedStreamWriter stream;
     file_layout::GroupModels models;
     const size_t count = std::min(s.keyframes.size(), static_cast<size_t>(coding.intra_period));
@@ -352,9 +358,13 @@ std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes,
         if (key.residuals[a].empty()) continue;
         stream.decision(models.predictor[a][0], (key.ids[a] >> 1) != 0);
         stream.decision(models.predictor[a][1 + (key.ids[a] >> 1)], (key.ids[a] & 1) != 0);
+        if (levels_chunk && key.ids[a] == 3 && file_layout::levels_allowed(file_layout::lattice_of(a, key.residuals[a].size(), *grid), *grid))
+          stream.decision(models.levels[a], key.levels[a] != 0);
       }
-      const std::vector<const format::LatticeNeighbours*> lattices =
-          file_layout::lattices_of(file_layout::lengths_of(key.residuals), *grid);
+      std::vector<const format::LatticeNeighbours*> lattices = file_layout::lattices_of(file_layout::lengths_of(key.residuals), *grid);
+      for (size_t a = 0; a < lattices.size(); ++a) {
+        if (key.levels[a]) lattices[a] = &grid->interior_levels.context;
+      }
       stream.residual_arrays(key.residuals, lattices, file_layout::kRangeModelSets, models.residuals);
     }
     format::ByteWriter w;

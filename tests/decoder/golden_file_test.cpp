@@ -22,7 +22,7 @@
 namespace facemorph {
 namespace {
 
-constexpr int kNodeStride = 7;  // every 7th node of G is compared
+constexpr int kNodeStride = 7;  // every 7th node of G is compared (2.6's file, at N = 129, every 61st)
 
 std::vector<double> sample_times(const Sequence& s) {
   std::vector<double> times;
@@ -40,7 +40,8 @@ std::vector<double> sample_times(const Sequence& s) {
 // Decodes tests/data/golden_v<version>.fmv at its sample times and compares with the positions it
 // decoded to when it was written (golden_v<version>.csv). Every later decoder must keep decoding
 // every earlier file identically.
-void expect_golden(const std::string& version, uint16_t major_version, uint16_t minor_version, const std::string& encoder) {
+void expect_golden(const std::string& version, uint16_t major_version, uint16_t minor_version, const std::string& encoder,
+                   size_t node_stride = kNodeStride) {
   const std::filesystem::path data = FACEMORPH_TEST_DATA;
   SequenceFileInfo info;
   const auto sequence = std::make_shared<const Sequence>(read_sequence_file(data / ("golden_v" + version + ".fmv"), &info));
@@ -56,7 +57,7 @@ void expect_golden(const std::string& version, uint16_t major_version, uint16_t 
   for (double t : sample_times(*sequence)) {
     const DecodedFrame frame = decoder.decode(t, options);
     EXPECT_TRUE(frame.converged) << "t = " << t;
-    for (size_t n = 0; n < frame.grid_positions.size(); n += kNodeStride) {
+    for (size_t n = 0; n < frame.grid_positions.size(); n += node_stride) {
       const Vec3& p = frame.grid_positions[n];
       fresh << t << "," << n << "," << p.x() << "," << p.y() << "," << p.z() << "\n";
       rows.push_back({t, static_cast<double>(n), p.x(), p.y(), p.z()});
@@ -90,8 +91,9 @@ void expect_golden(const std::string& version, uint16_t major_version, uint16_t 
 
 // A golden file of format 2.y decodes as it did, and reads as written: AVIF textures of 64² in the
 // given coding, groups of two keyframes (make_golden.sh). Returns the file's description.
-SequenceFileInfo expect_golden_2(const std::string& version, uint16_t minor_version, TextureCoding coding) {
-  expect_golden(version, 2, minor_version, "facemorph 0.8.0");
+SequenceFileInfo expect_golden_2(const std::string& version, uint16_t minor_version, TextureCoding coding,
+                                 size_t node_stride = kNodeStride) {
+  expect_golden(version, 2, minor_version, "facemorph 0.8.0", node_stride);
   SequenceFileInfo info;
   const Sequence s = read_sequence_file(std::filesystem::path(FACEMORPH_TEST_DATA) / ("golden_v" + version + ".fmv"), &info);
   EXPECT_EQ(info.metadata.texture_codec, TextureCodec::kAvif);
@@ -166,6 +168,15 @@ TEST(GoldenFile, Version2_5DecodesAsItDidWhenWritten) {
   size_t moving_nodes = 0;
   for (const FramePatch& patch : s.patches) moving_nodes += patch.nodes.size();
   EXPECT_GT(moving_nodes, 0u) << "every patch is a pin: the golden file would not test the range-coded displacement";
+}
+
+// Format 2.6: 2.5 with the levels predictor on G's lattice in KGLV chunks (make_golden.sh's 2.5
+// capture and options at N = 129, where the writer finds it cheapest for some array; every 61st node
+// sampled, about as many as 2.5's every 7th at N = 33).
+TEST(GoldenFile, Version2_6DecodesAsItDidWhenWritten) {
+  const SequenceFileInfo info = expect_golden_2("2_6", 6, TextureCoding::kSequence, 61);
+  EXPECT_GT(chunk_count(info, "KGLV"), 0) << "no group uses the levels predictor: the golden file would not test it";
+  EXPECT_EQ(info.chunks.front().type, "HEAD");
 }
 
 // Format 1.x is refused by name, with what to do about it, from its preamble alone.

@@ -99,7 +99,7 @@ Bytes relaid(const Bytes& bytes, std::optional<format::PreparedChunk> head, cons
   size_t groups = 0, texture_groups = 0;
   bool textured = false;
   for (const format::ChunkView& c : old) {
-    groups += c.type == "KGOP";
+    groups += c.type == "KGOP" || c.type == "KGLV";
     texture_groups += c.type == "TGOP";
     textured = textured || c.type == "TEXR";
   }
@@ -258,8 +258,12 @@ Bytes keyframes_repeated(int n, uint32_t count, SplineKind spline) {
   const format::ContainerReader reader(base, "base");
   Bytes head = reader.payload(reader.chunks()[0]);
   std::vector<Bytes> groups;
+  std::vector<std::string> group_types;  // KGOP, or KGLV where the writer chose the levels predictor (format 2.6)
   for (const format::ChunkView& c : reader.chunks()) {
-    if (c.type == "KGOP") groups.push_back(reader.payload(c));
+    if (c.type == "KGOP" || c.type == "KGLV") {
+      groups.push_back(reader.payload(c));
+      group_types.push_back(c.type);
+    }
   }
   const auto put = [&head](size_t at, auto value) { std::memcpy(head.data() + at, &value, sizeof value); };
   put(17, static_cast<uint8_t>(spline));
@@ -270,7 +274,7 @@ Bytes keyframes_repeated(int n, uint32_t count, SplineKind spline) {
   for (uint32_t k = 0; k < count; ++k) {
     Bytes payload = groups[k % groups.size()];
     std::memcpy(payload.data(), &k, sizeof k);
-    chunks.push_back(format::prepare_chunk("KGOP", std::move(payload), true));
+    chunks.push_back(format::prepare_chunk(group_types[k % groups.size()], std::move(payload), true));
   }
   format::ByteWriter index;
   index.write(count);
@@ -653,6 +657,35 @@ void write_set(Corpus& corpus) {
   corpus.add("n_linear_rim_in_2_4.fmv", crafted::restamped(rim_by_hand(2, {}), 4), three, "predictor 2 on the rim in a file stamped 2.4",
              "array 10 has predictor 2");
   corpus.add("n_predictor_3_on_rim.fmv", rim_by_hand(3, {}), three, "predictor 3 on the rim (format 2.5)", "array 10 has predictor 3");
+  // Format 2.6's levels predictor (spec/container.md §7.2) on H, in a KGLV chunk written by hand: codes
+  // zigzagging between ±(2^30 - 1) from node to node (valid: decodes exactly), residuals 2^31 - 1
+  // then 2^34 that lead the second coarse node's code past 32 bits through its prediction, and a
+  // valid KGLV group in a file stamped 2.5.
+  const std::shared_ptr<const file_layout::GridFacts> small_grid = file_layout::grid_facts(small.grid_n);
+  const auto levels_by_hand = [&](const std::function<void(std::vector<int64_t>&)>& residuals) {
+    return crafted::with_first_group_by_hand(
+        predicted, false,
+        [&](crafted::HandCodedKeyframe& key) {
+          key.ids[0] = 3;
+          key.levels[0] = 1;
+          residuals(key.residuals[0]);
+        },
+        true);
+  };
+  corpus.add("n_levels_widest_swing.fmv", levels_by_hand([&](std::vector<int64_t>& r) {
+               std::vector<int32_t> codes(r.size());
+               for (size_t e = 0; e < codes.size(); ++e) codes[e] = e % 2 ? (1 << 30) - 1 : 1 - (1 << 30);
+               r = format::level_residuals(codes, small_grid->interior_levels);
+             }),
+             three, "levels predictor on H, codes zigzag ±(2^30-1) from node to node (format 2.6)");
+  corpus.add("n_levels_past_32_bits.fmv", levels_by_hand([&](std::vector<int64_t>& r) {
+               std::fill(r.begin(), r.end(), int64_t{1} << 34);
+               r[0] = top;
+             }),
+             three, "levels predictor on H, residuals 2^31-1 then 2^34: the second coarse node past 32 bits (format 2.6)",
+             "outside 32 bits (levels predictor");
+  corpus.add("n_levels_in_2_5.fmv", crafted::restamped(levels_by_hand([](std::vector<int64_t>&) {}), 5), three,
+             "a KGLV group (the levels predictor on H) in a file stamped 2.5", "the levels predictor's group chunk is 2.6's");
   corpus.add("k_intra_period_0.fmv",
              rebuild(predicted,
                      [](const std::string& t, Bytes& p) {

@@ -64,7 +64,7 @@ TEST(LinearRim, TheWriterChoosesItForASmoothRimWhichRoundTripsExactly) {
   const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
   SequenceFileInfo info;
   const Sequence back = decode_sequence_file(bytes, "linear.fmv", &info);
-  EXPECT_EQ(info.minor_version, 5);
+  EXPECT_EQ(info.minor_version, 6);
   ASSERT_EQ(back.keyframes.size(), s.keyframes.size());
   for (size_t k = 0; k < s.keyframes.size(); ++k) {
     const std::vector<std::vector<double>> written = file_layout::keyframe_arrays(s.keyframes[k]);

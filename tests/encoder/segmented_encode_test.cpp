@@ -376,7 +376,7 @@ TEST(SegmentJoin, SegmentsThatDoNotMakeUpOneEncodeAreRefusedByName) {
       format::ContainerWriter writer(crafted);
       for (const format::ChunkView& chunk : reader.chunks()) {
         format::PreparedChunk copy{chunk.type, chunk.flags, chunk.raw_size, std::vector<uint8_t>(chunk.stored.begin(), chunk.stored.end())};
-        if (chunk.type == "KGOP") copy.stored[copy.stored.size() / 2] ^= 0x5a;
+        if (chunk.type == "KGOP" || chunk.type == "KGLV") copy.stored[copy.stored.size() / 2] ^= 0x5a;
         writer.add(copy);
       }
       writer.finish();

@@ -15,6 +15,7 @@
 #include "format/byte_writer.hpp"
 #include "format/container.hpp"
 #include "format/error.hpp"
+#include "format/level_predictor.hpp"
 #include "format/spatial_predictor.hpp"
 
 #include <array>
@@ -30,8 +31,12 @@
 
 namespace facemorph::file_layout {
 
-inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kTextureChunk = "TEXR",
-                                  kTextureGroupChunk = "TGOP", kResidualChunk = "RSDW", kPatchChunk = "PTCH";
+// KGLV (format 2.6): a group of keyframes as KGOP, whose lattice arrays may also have the levels
+// predictor (spec/container.md §7.2); a chunk type of its own so that a 2.5 decoder refuses it by name.
+inline constexpr std::string_view kHeaderChunk = "HEAD", kIndexChunk = "KIDX", kKeyframeGroupChunk = "KGOP", kLevelsGroupChunk = "KGLV",
+                                  kTextureChunk = "TEXR", kTextureGroupChunk = "TGOP", kResidualChunk = "RSDW", kPatchChunk = "PTCH";
+
+inline constexpr uint16_t kLevelsMinorVersion = 6;  // the first with KGLV
 
 // The header's flags. kTextureGroups (format 2.1): the textures are one TGOP chunk per group of
 // keyframes, not one TEXR per keyframe. kSharedTextures (format 2.2): one TEXR per keyframe, but
@@ -192,6 +197,7 @@ struct GridFacts {
   int n = 0;
   uint64_t hash = 0;
   format::LatticeNeighbours interior, all_nodes;
+  format::LevelOrder interior_levels;  // the levels predictor's order of the interior nodes (format 2.6)
 };
 // Built once per N; one N kept (a player opens files of one grid, an encoder writes one), so memory
 // never grows with the grids a process has seen. The caller holds what it uses.

@@ -35,6 +35,7 @@ std::shared_ptr<const GridFacts> grid_facts(int n) {
   facts->interior.left.assign(l.left.begin(), l.left.begin() + interior);
   facts->interior.up.assign(l.up.begin(), l.up.begin() + interior);
   facts->interior.up_left.assign(l.up_left.begin(), l.up_left.begin() + interior);
+  facts->interior_levels = format::level_order(grid.cell, grid.node_at, grid.n);
   std::lock_guard<std::mutex> lock(mutex);
   cached = std::move(facts);
   return cached;

@@ -28,6 +28,7 @@ inline const format::LatticeNeighbours* lattice_of(size_t array, size_t length, 
 // corrupt, as 3 always is there.
 inline constexpr uint16_t kLinearSequenceMinorVersion = 5;
 inline uint8_t predictor_id(format::SpatialPredictor predictor) {
+  if (predictor == format::SpatialPredictor::kLevels) return 3;  // then the levels decision (KGLV)
   return predictor == format::SpatialPredictor::kLinear ? uint8_t{2} : static_cast<uint8_t>(predictor);
 }
 
@@ -44,6 +45,17 @@ inline std::span<const format::SpatialPredictor> allowed_predictors(const format
                                                                   SpatialPredictor::kLinear};
   if (lattice != nullptr) return kOnLattice;
   return std::span<const SpatialPredictor>(kOnSequence).first(minor_version >= kLinearSequenceMinorVersion ? 3 : 2);
+}
+
+// The levels predictor (format 2.6) on the arrays of the interior lattice (not the hole level, whose
+// rim nodes lie on no lattice), only in a KGLV chunk: there, id 3 on such an array is followed by one
+// decision under GroupModels::levels, 1 for levels, 0 for median.
+inline bool levels_allowed(const format::LatticeNeighbours* lattice, const GridFacts& grid) { return lattice == &grid.interior; }
+
+// The table the residuals' contexts read (§7.3): the lattice's, or in the levels predictor's coding order its own.
+inline const format::LatticeNeighbours* context_lattice(format::SpatialPredictor predictor, const format::LatticeNeighbours* lattice,
+                                                        const GridFacts& grid) {
+  return predictor == format::SpatialPredictor::kLevels ? &grid.interior_levels.context : lattice;
 }
 
 // lattice_of for every array of a keyframe, given their lengths.
@@ -69,6 +81,7 @@ struct GroupModels {
   format::BitModel reference;                                              // 1: from the previous keyframe
   std::array<std::array<format::BitModel, 3>, kKeyframeArrays> predictor;  // the high bit's, then the low bit's under each high bit
   std::vector<format::ResidualModels> residuals;
+  std::array<format::BitModel, kKeyframeArrays> levels;  // KGLV: after id 3 on an interior array, 1 for levels
 };
 
 }  // namespace facemorph::file_layout

@@ -69,10 +69,11 @@ std::vector<FramePatch> read_patches(std::span<const uint8_t> payload, const std
 // time, in order, so that a caller may stop between two (a decode call's work limit, §10.3) and go
 // on later with the same reader: it holds the payload, the stream's place and models, and the last
 // keyframe's codes. `h` must outlive it. `minor_version`: the file's (2.5 added a predictor, §7.2).
+// `levels_chunk`: the payload is a KGLV chunk's (2.6: the levels predictor may follow id 3).
 class KeyframeGroupReader {
  public:
   KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first, uint32_t count,
-                      uint16_t minor_version);
+                      uint16_t minor_version, bool levels_chunk = false);
   ~KeyframeGroupReader();
   KeyframeGroupReader(const KeyframeGroupReader&) = delete;
   KeyframeGroupReader& operator=(const KeyframeGroupReader&) = delete;

@@ -41,7 +41,9 @@ std::vector<std::vector<double>> arrays_from_residuals(const std::vector<std::ve
   std::vector<std::vector<double>> arrays(kKeyframeArrays);
   std::vector<std::vector<int32_t>> these(kKeyframeArrays);
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    these[a] = format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
+    these[a] = predictors[a] == format::SpatialPredictor::kLevels
+                   ? format::codes_from_level_residuals(residuals[a], grid.interior_levels, where)
+                   : format::codes_from_residuals(residuals[a], predictors[a], lattice_of(a, residuals[a].size(), grid), where);
     for (size_t i = 0; i < these[a].size(); ++i) {
       const int64_t code = from_previous ? int64_t{these[a][i]} + codes[a][i] : int64_t{these[a][i]};
       if (code <= -kMaxFieldCode || code >= kMaxFieldCode) corrupt(where, "a field code beyond 2^30");
@@ -65,6 +67,7 @@ struct KeyframeGroupReader::State {
   const FileHeader& h;
   uint32_t first = 0, count = 0, next = 0;
   uint16_t minor_version = 0;  // the file's: which predictor ids a sequence may have
+  bool levels_chunk = false;   // KGLV (2.6): id 3 on an interior array is followed by the levels decision
   size_t stream_start = 0;
   std::optional<format::RangedStreamReader> stream;
   std::vector<size_t> expected;
@@ -76,9 +79,10 @@ struct KeyframeGroupReader::State {
 };
 
 KeyframeGroupReader::KeyframeGroupReader(std::vector<uint8_t> payload, std::string where, const FileHeader& h, uint32_t first,
-                                         uint32_t count, uint16_t minor_version)
+                                         uint32_t count, uint16_t minor_version, bool levels_chunk)
     : state_(std::make_unique<State>(std::move(payload), std::move(where), h, first, count, minor_version)) {
   State& s = *state_;
+  s.levels_chunk = levels_chunk;
   ByteReader r(s.payload, s.where);
   if (r.read<uint32_t>("the first keyframe number") != first) corrupt(s.where, "holds another group of keyframes than the index says");
   s.stream_start = s.payload.size() - r.remaining();
@@ -114,8 +118,12 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
     const bool high = stream.decision(s.models.predictor[a][0]);
     const bool low = stream.decision(s.models.predictor[a][high ? 2 : 1]);
     predictors[a] = checked_predictor(a, static_cast<uint8_t>(2 * high + low), s.expected[a], grid, s.minor_version, keyframe_where);
+    if (s.levels_chunk && high && low && levels_allowed(s.lattices[a], grid) && stream.decision(s.models.levels[a]))
+      predictors[a] = format::SpatialPredictor::kLevels;
   }
-  const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, s.lattices, kRangeModelSets, s.models.residuals);
+  std::vector<const format::LatticeNeighbours*> contexts;
+  for (size_t a = 0; a < kKeyframeArrays; ++a) contexts.push_back(context_lattice(predictors[a], s.lattices[a], grid));
+  const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, contexts, kRangeModelSets, s.models.residuals);
   Keyframe key;
   assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, s.codes, s.h, grid, keyframe_where),
                          s.h.shape.representation, s.h.shape.grid_n, s.h.fixed_nodes);

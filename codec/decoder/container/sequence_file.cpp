@@ -77,7 +77,7 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
     corrupt(s.source, "the file does not start with its header and index chunks");
   }
   for (const format::ChunkView& chunk : chunks) {
-    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk ||
+    const bool known = chunk.type == kHeaderChunk || chunk.type == kIndexChunk || chunk.type == kKeyframeGroupChunk || chunk.type == kLevelsGroupChunk ||
                        chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk || chunk.type == kResidualChunk ||
                        chunk.type == kPatchChunk;
     if (!known && chunk.critical()) {
@@ -128,7 +128,10 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   for (size_t k = 0; k < s.index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(s.index[k].group_offset, name + "'s index entry");
-    if (chunk.type != kKeyframeGroupChunk)
+    if (chunk.type == kLevelsGroupChunk && reader.minor_version() < kLevelsMinorVersion)
+      corrupt(s.source, reader.describe(chunk) + " in a file stamped 2." + std::to_string(reader.minor_version()) +
+                            " (the levels predictor's group chunk is 2.6's)");
+    if (chunk.type != kKeyframeGroupChunk && chunk.type != kLevelsGroupChunk)
       corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
     // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
     if (chunk.compressed()) corrupt(s.source, reader.describe(chunk) + " is compressed; a group's chunk never is");
@@ -212,7 +215,7 @@ uint64_t OpenedFile::header_bytes() const {
 uint64_t OpenedFile::largest_payload() const {
   uint64_t largest = 0;
   for (const format::ChunkView& chunk : state_->reader.chunks()) {
-    if (chunk.type == kKeyframeGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk)
+    if (chunk.type == kKeyframeGroupChunk || chunk.type == kLevelsGroupChunk || chunk.type == kTextureChunk || chunk.type == kTextureGroupChunk)
       largest = std::max(largest, chunk.raw_size);
   }
   return largest;
@@ -237,7 +240,7 @@ std::unique_ptr<OpenedFile::RunReader<Keyframe>> OpenedFile::read_fields(size_t 
           count_(count),
           framing_(chunk.total_size() - chunk.raw_size),
           group_(s.reader.payload(chunk, s.limits.max_memory_bytes), s.source + ": " + s.reader.describe(chunk), *s.header,
-                 static_cast<uint32_t>(first), static_cast<uint32_t>(count), s.reader.minor_version()) {}
+                 static_cast<uint32_t>(first), static_cast<uint32_t>(count), s.reader.minor_version(), chunk.type == kLevelsGroupChunk) {}
     size_t next() const override { return first_ + group_.next(); }
     size_t end() const override { return first_ + count_; }
     std::optional<Keyframe> read(WorkMeter* work, bool, uint64_t& bytes) override {

@@ -238,7 +238,7 @@ JoinReport join_segment_files(const std::vector<std::filesystem::path>& paths, c
     const auto& index = s.file->index();
     std::map<uint64_t, size_t> placed_at;  // a chunk's offset in the segment -> placed
     for (const format::ChunkView& chunk : s.file->container().chunks()) {
-      if (chunk.type != kKeyframeGroupChunk && chunk.type != kTextureChunk && chunk.type != kTextureGroupChunk) continue;
+      if (chunk.type != kKeyframeGroupChunk && chunk.type != kLevelsGroupChunk && chunk.type != kTextureChunk && chunk.type != kTextureGroupChunk) continue;
       placed_at[chunk.offset] = placed.size();
       placed.push_back({chunk.total_size(), {}, {}});
       sources.push_back({&s, &chunk, UINT32_MAX});

@@ -84,6 +84,8 @@ class KeyframeGroupWriter {
   KeyframeGroupWriter& operator=(const KeyframeGroupWriter&) = delete;
   void add(const Keyframe& key);
   std::vector<uint8_t> finish();
+  // After finish: KGOP, or KGLV where the group uses the levels predictor (format 2.6) and is smaller so.
+  std::string_view chunk_type() const;
 
  private:
   struct State;

@@ -24,8 +24,13 @@ struct CodedArray {
 
 // The spatial predictor that leaves the fewest bits under the range coder's own cost (fresh models)
 // among those the file's `minor_version` allows the array (allowed_predictors, §7.2), the first of
-// equal cost.
-CodedArray best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice, uint16_t minor_version) {
+// equal cost. `levels`: the levels predictor's order where a KGLV chunk may use it on this array,
+// else null; it is tried last, and its residuals are in its coding order.
+struct ArrayChoice {
+  CodedArray plain, best;  // best of the KGOP predictors; best with levels too (plain where levels is not allowed or costs more)
+};
+ArrayChoice best_prediction(std::span<const int32_t> codes, const format::LatticeNeighbours* lattice, uint16_t minor_version,
+                            const format::LevelOrder* levels) {
   CodedArray best;
   best.bits = std::numeric_limits<double>::infinity();
   for (const format::SpatialPredictor predictor : allowed_predictors(lattice, minor_version)) {
@@ -33,7 +38,12 @@ CodedArray best_prediction(std::span<const int32_t> codes, const format::Lattice
     const double bits = format::ranged_residual_bits(residuals, lattice);
     if (bits < best.bits) best = {predictor, std::move(residuals), bits};
   }
-  return best;
+  if (levels != nullptr && !codes.empty()) {
+    std::vector<int64_t> residuals = format::level_residuals(codes, *levels);
+    const double bits = format::ranged_residual_bits(residuals, &levels->context);
+    if (bits < best.bits) return {best, {format::SpatialPredictor::kLevels, std::move(residuals), bits}};
+  }
+  return {best, best};
 }
 
 // A keyframe's arrays as integer multiples of the coding's steps.
@@ -56,17 +66,22 @@ struct Prediction {
 // `codes`: this keyframe's integer codes, array by array; `previous`: the previous keyframe's, or
 // null where this keyframe is the group's first. Intra and predicted alike: each array's codes, or
 // their change since the previous keyframe, under the spatial predictor that leaves the fewest
-// bits among those a file of `minor_version` has. The reference that costs less wins.
-Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous,
-                             const GridFacts& grid, uint16_t minor_version) {
+// bits among those a file of `minor_version` has. The reference that costs less wins. Two answers:
+// [0] for a KGOP chunk, [1] for a KGLV chunk (the levels predictor allowed too, from 2.6 on).
+std::array<Prediction, 2> choose_prediction(const std::vector<std::vector<int32_t>>& codes, const std::vector<std::vector<int32_t>>* previous,
+                                            const GridFacts& grid, uint16_t minor_version) {
   auto code_all = [&](bool from_previous) {
-    std::vector<CodedArray> out;
+    std::array<std::vector<CodedArray>, 2> out;
     for (size_t a = 0; a < kKeyframeArrays; ++a) {
       std::vector<int32_t> values = codes[a];
       if (from_previous) {
         for (size_t i = 0; i < values.size(); ++i) values[i] -= (*previous)[a][i];  // |codes| < 2^30: no overflow
       }
-      out.push_back(best_prediction(values, lattice_of(a, values.size(), grid), minor_version));
+      const format::LatticeNeighbours* lattice = lattice_of(a, values.size(), grid);
+      const bool levels = minor_version >= kLevelsMinorVersion && levels_allowed(lattice, grid);
+      ArrayChoice choice = best_prediction(values, lattice, minor_version, levels ? &grid.interior_levels : nullptr);
+      out[0].push_back(std::move(choice.plain));
+      out[1].push_back(std::move(choice.best));
     }
     return out;
   };
@@ -75,13 +90,44 @@ Prediction choose_prediction(const std::vector<std::vector<int32_t>>& codes, con
     for (const CodedArray& a : arrays) bits += a.bits;
     return bits;
   };
-  Prediction chosen{false, code_all(false)};
+  std::array<std::vector<CodedArray>, 2> intra = code_all(false);
+  std::array<Prediction, 2> chosen{Prediction{false, std::move(intra[0])}, Prediction{false, std::move(intra[1])}};
   if (previous) {
-    std::vector<CodedArray> predicted = code_all(true);
-    if (total_bits(predicted) < total_bits(chosen.arrays)) chosen = {true, std::move(predicted)};
+    std::array<std::vector<CodedArray>, 2> predicted = code_all(true);
+    for (size_t c = 0; c < 2; ++c) {
+      if (total_bits(predicted[c]) < total_bits(chosen[c].arrays)) chosen[c] = {true, std::move(predicted[c])};
+    }
   }
   return chosen;
 }
+
+// One of the two streams a group writer keeps (KGOP's coding, and KGLV's with the levels predictor).
+struct GroupStream {
+  format::RangedStreamWriter stream;
+  GroupModels models;
+  bool uses_levels = false;
+
+  void add(const Prediction& prediction, bool levels_chunk, const std::vector<const format::LatticeNeighbours*>& lattices,
+           const GridFacts& grid, bool first) {
+    if (!first) stream.decision(models.reference, prediction.from_previous);
+    std::vector<std::vector<int64_t>> residuals;
+    std::vector<const format::LatticeNeighbours*> contexts;
+    for (size_t a = 0; a < kKeyframeArrays; ++a) {
+      const CodedArray& coded = prediction.arrays[a];
+      if (!coded.residuals.empty()) {
+        const unsigned p = predictor_id(coded.predictor);
+        stream.decision(models.predictor[a][0], (p >> 1) != 0);
+        stream.decision(models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
+        if (levels_chunk && p == 3 && levels_allowed(lattices[a], grid))
+          stream.decision(models.levels[a], coded.predictor == format::SpatialPredictor::kLevels);
+      }
+      uses_levels = uses_levels || coded.predictor == format::SpatialPredictor::kLevels;
+      residuals.push_back(coded.residuals);
+      contexts.push_back(context_lattice(coded.predictor, lattices[a], grid));
+    }
+    stream.residual_arrays(residuals, contexts, kRangeModelSets, models.residuals);
+  }
+};
 
 }  // namespace
 
@@ -90,7 +136,7 @@ std::vector<double> keyframe_array_bits(const Keyframe& key, const Keyframe* pre
   const std::vector<std::vector<int32_t>> codes = field_codes(key, coding);
   std::vector<std::vector<int32_t>> before;
   if (previous) before = field_codes(*previous, coding);
-  const Prediction prediction = choose_prediction(codes, previous ? &before : nullptr, grid, minor_version);
+  const Prediction prediction = choose_prediction(codes, previous ? &before : nullptr, grid, minor_version)[1];
   std::vector<double> bits;
   for (const CodedArray& a : prediction.arrays) bits.push_back(a.residuals.empty() ? 0.0 : a.bits);
   return bits;
@@ -101,15 +147,17 @@ struct KeyframeGroupWriter::State {
   const GridFacts& grid;
   uint16_t minor_version;
   ByteWriter w;
-  format::RangedStreamWriter stream;
-  GroupModels models;
+  // Both codings side by side, so the group's chunk is known only at its end without holding its
+  // keyframes: KGOP's (every decoder of 2.x reads it) and, from 2.6 on, KGLV's.
+  std::array<GroupStream, 2> streams;
   std::vector<std::vector<int32_t>> previous;              // the last keyframe's codes
   std::vector<const format::LatticeNeighbours*> lattices;  // the same for every keyframe (checked by the caller)
   size_t added = 0;
+  std::string_view chunk_type = kKeyframeGroupChunk;
 };
 
 KeyframeGroupWriter::KeyframeGroupWriter(size_t first, const FieldCoding& coding, const GridFacts& grid, uint16_t minor_version)
-    : state_(std::make_unique<State>(State{coding, grid, minor_version, {}, {}, {}, {}, {}, 0})) {
+    : state_(std::make_unique<State>(State{coding, grid, minor_version, {}, {}, {}, {}, 0, kKeyframeGroupChunk})) {
   state_->w.write(static_cast<uint32_t>(first));
 }
 
@@ -119,26 +167,28 @@ void KeyframeGroupWriter::add(const Keyframe& key) {
   State& s = *state_;
   std::vector<std::vector<int32_t>> codes = field_codes(key, s.coding);
   if (s.added == 0) s.lattices = lattices_of(lengths_of(codes), s.grid);
-  Prediction prediction = choose_prediction(codes, s.added > 0 ? &s.previous : nullptr, s.grid, s.minor_version);
-  if (s.added > 0) s.stream.decision(s.models.reference, prediction.from_previous);
-  std::vector<std::vector<int64_t>> residuals;
-  for (size_t a = 0; a < kKeyframeArrays; ++a) {
-    if (!codes[a].empty()) {
-      const unsigned p = predictor_id(prediction.arrays[a].predictor);
-      s.stream.decision(s.models.predictor[a][0], (p >> 1) != 0);
-      s.stream.decision(s.models.predictor[a][1 + (p >> 1)], (p & 1) != 0);
-    }
-    residuals.push_back(std::move(prediction.arrays[a].residuals));
-  }
-  s.stream.residual_arrays(residuals, s.lattices, kRangeModelSets, s.models.residuals);
+  const std::array<Prediction, 2> prediction = choose_prediction(codes, s.added > 0 ? &s.previous : nullptr, s.grid, s.minor_version);
+  s.streams[0].add(prediction[0], false, s.lattices, s.grid, s.added == 0);
+  if (s.minor_version >= kLevelsMinorVersion) s.streams[1].add(prediction[1], true, s.lattices, s.grid, s.added == 0);
   s.previous = std::move(codes);
   ++s.added;
 }
 
 std::vector<uint8_t> KeyframeGroupWriter::finish() {
   State& s = *state_;
-  s.w.bytes(s.stream.finish());
+  std::vector<uint8_t> plain = s.streams[0].stream.finish();
+  if (s.minor_version >= kLevelsMinorVersion && s.streams[1].uses_levels) {
+    // KGLV only where it is smaller: a group that gains nothing stays readable by a 2.5 decoder.
+    std::vector<uint8_t> levels = s.streams[1].stream.finish();
+    if (levels.size() < plain.size()) {
+      s.chunk_type = kLevelsGroupChunk;
+      plain = std::move(levels);
+    }
+  }
+  s.w.bytes(plain);
   return s.w.take();
 }
+
+std::string_view KeyframeGroupWriter::chunk_type() const { return state_->chunk_type; }
 
 }  // namespace facemorph::file_layout

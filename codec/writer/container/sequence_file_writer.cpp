@@ -220,8 +220,10 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     entries[k].pose = pose_codes(key->pose, coding);
     if (k % group == 0) group_writer.emplace(k, coding, *grid);
     group_writer->add(*key);
-    if (k % group == group - 1 || k + 1 == count)
-      groups.push_back(spool.add(format::prepare_chunk(kKeyframeGroupChunk, group_writer->finish(), true)));
+    if (k % group == group - 1 || k + 1 == count) {
+      std::vector<uint8_t> payload = group_writer->finish();
+      groups.push_back(spool.add(format::prepare_chunk(group_writer->chunk_type(), std::move(payload), true)));
+    }
   }
   // Where each chunk goes: the residual frames first (format 2.3: a player reads them at open, with
   // the header and index), then a group's KGOP, then its TGOP, or after each keyframe's fields the
