@@ -245,8 +245,10 @@ void print_encoder_notes(const nlohmann::json& settings) {
 // predictor (linear along the rim, §7.2) lies inside the keyframes' streams, where a description
 // that decodes nothing cannot see it, and its writer takes it for nearly every rim coded from
 // nothing: a file stated 2.5 or later is taken to need 2.5 (its header against the dictionary and
-// its patches range-coded, which only a 2.5 file may hold, included).
+// its patches range-coded, which only a 2.5 file may hold, included). 2.6's levels predictor is in
+// KGLV chunks, which the chunk table shows: a file with one needs 2.6, one without 2.5.
 int minor_version_needed(const SequenceFileInfo& info, size_t keyframes) {
+  if (std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "KGLV"; })) return 6;
   if (info.minor_version >= 5) return 5;
   const bool texture_groups = std::any_of(info.chunks.begin(), info.chunks.end(), [](const auto& c) { return c.type == "TGOP"; });
   if (info.frame_patches > 0) return 4;

@@ -142,6 +142,10 @@ TEST(Fminfo, AFileWithPatchesNeedsTheVersionOfItsPatchCoding) {
   const FminfoRun golden = fminfo(dir, std::string(FACEMORPH_TEST_DATA) + "/golden_v2_4.fmv", true);
   ASSERT_EQ(golden.status, 0) << golden.err;
   EXPECT_EQ(described(golden)["format_version_needed"], "2.4");
+  // A KGLV chunk (the levels predictor, 2.6) needs 2.6; the patched file above, all KGOP, 2.5.
+  const FminfoRun levels = fminfo(dir, std::string(FACEMORPH_TEST_DATA) + "/golden_v2_6.fmv", true);
+  ASSERT_EQ(levels.status, 0) << levels.err;
+  EXPECT_EQ(described(levels)["format_version_needed"], "2.6");
 }
 
 // fminfo --field-bytes costs each keyframe as the file's writer did, among its version's predictors
@@ -184,8 +188,8 @@ TEST(Fminfo, FieldBytesCostsAFileUnderItsOwnVersionsPredictors) {
   EXPECT_LT(as_2_5.rim, 0.7 * as_2_4.rim) << "stamped 2.5, the rim is costed with linear: " << as_2_5.rim << " B against " << as_2_4.rim;
 }
 
-// A file whose rim is coded with format 2.5's linear predictor needs 2.5: fminfo, which decodes no
-// keyframe, must not say it needs an older version (a 2.4 reader refuses its groups, shown here by
+// A file whose rim is coded with format 2.5's linear predictor needs 2.5 (stamped 2.6 by this writer,
+// it needs no more without a KGLV chunk): fminfo, which decodes no keyframe, must not say it needs an older version (a 2.4 reader refuses its groups, shown here by
 // the same bytes stamped 2.4).
 TEST(Fminfo, AFileCodedWithLinearAlongTheRimIsNotSaidToNeedAnOlderVersion) {
   TempDir dir;
@@ -193,7 +197,7 @@ TEST(Fminfo, AFileCodedWithLinearAlongTheRimIsNotSaidToNeedAnOlderVersion) {
   facemorph::write_sequence_file(file, facemorph::crafted::small_sequence(), facemorph::crafted::small_metadata());
   const FminfoRun run = fminfo(dir, file, false);
   ASSERT_EQ(run.status, 0) << run.err;
-  EXPECT_NE(run.out.find(", format 2.5, written by"), std::string::npos) << run.out.substr(0, 400);
+  EXPECT_NE(run.out.find(", format 2.6 (needs 2.5), written by"), std::string::npos) << run.out.substr(0, 400);  // no KGLV at N = 17
   const std::string bytes = slurp(file);
   const std::filesystem::path old = dir / "stamped_2_4.fmv";
   const std::vector<uint8_t> as_2_4 = facemorph::crafted::restamped(std::vector<uint8_t>(bytes.begin(), bytes.end()), 4);
