@@ -105,10 +105,10 @@ export async function openLayout(source, allocate, firstRequest = FIRST_REQUEST)
       throw new Error(`not a facemorph file, or a damaged one: chunk at ${offset}`);
     }
     const chunk = { type, offset, payload: offset + HEADER, stored, end: offset + HEADER + stored + TRAILER };
-    // A keyframe group's chunks (KGOP, TGOP, TEXR) are fetched when a frame needs them: of these, the
+    // A keyframe group's chunks (KGOP, or 2.6's KGLV; TGOP, TEXR) are fetched when a frame needs them: of these, the
     // framing and first numbers now. Every other chunk whole, as the open reads it: the header, the
     // index, 2.3's residual frames (RSDW, read at open), the end, and chunks of later minors.
-    const inGroup = type === 'KGOP' || type === 'TGOP' || type === 'TEXR';
+    const inGroup = type === 'KGOP' || type === 'KGLV' || type === 'TGOP' || type === 'TEXR';
     if (!inGroup) await source.ensure(offset, chunk.end, allocate);
     else await source.ensure(chunk.end - TRAILER, chunk.end + HEADER + 8, allocate);
     if (stored >= 8 && inGroup) {
@@ -121,7 +121,7 @@ export async function openLayout(source, allocate, firstRequest = FIRST_REQUEST)
   }
   const groups = [];
   for (const chunk of chunks) {
-    if (chunk.type === 'KGOP') groups.push({ first: chunk.first, kgop: chunk, textures: [] });
+    if (chunk.type === 'KGOP' || chunk.type === 'KGLV') groups.push({ first: chunk.first, kgop: chunk, textures: [] });
     else if ((chunk.type === 'TGOP' || chunk.type === 'TEXR') && groups.length) groups[groups.length - 1].textures.push(chunk);
   }
   return { chunks, groups };
