@@ -17,7 +17,9 @@ module calls:
    and its colours are the texture's (chromaticity within 0.03 of the preview's on average);
 4. File > Export: the followed golden face encoded again (facemorph.encode) and decoded by fmdec
    is the same surface within the codec's error, in the same place, with the same colours;
-5. holes.fmv (eyes and mouth cut per frame, counts changing between frames): followed, each frame's
+5. golden_v2_6.fmv (format 2.6: positions under the levels predictor, in a KGLV chunk) followed at
+   three frames as in 2., its texture fmdec's;
+6. holes.fmv (eyes and mouth cut per frame, counts changing between frames): followed, each frame's
    vertices and triangles equal fmdec's, and its export is refused by a report; baked to shape keys, each baked frame shows fmdec's
    --keep-holes-filled frame.
 """
@@ -39,6 +41,7 @@ from mathutils import Matrix, Vector
 
 ADDON_ZIP, PACKAGE_DIR, FMDEC, DATA_DIR, WORK = sys.argv[sys.argv.index("--") + 1:]
 GOLDEN = os.path.join(DATA_DIR, "golden_v2_1.fmv")
+GOLDEN_2_6 = os.path.join(DATA_DIR, "golden_v2_6.fmv")  # positions under the levels predictor (KGLV)
 HOLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "holes.fmv")
 POSITION_TOLERANCE = 1e-5  # of the bounding-box diagonal
 IOU_BOUND = 0.98
@@ -350,6 +353,15 @@ def main():
     check_texture(made[0], 11, "golden_again")
     check(made[0].facemorph.image != obj_image, f"its own image ({made[0].facemorph.image.name}), not the deleted object's")
     bpy.data.objects.remove(made[0])
+
+    # Format 2.6: a group whose positions the levels predictor codes (a KGLV chunk) plays as fmdec
+    # decodes it, mesh and texture.
+    result, made = import_fmv(GOLDEN_2_6)
+    check(result == {"FINISHED"} and len(made) == 1, f"golden_v2_6.fmv (KGLV) imported: {result}, {len(made)} object")
+    if made:
+        check_follows_time(made[0], GOLDEN_2_6, [5, 11, 0], fps, "golden_v2_6")
+        check_texture(made[0], 0, "golden_v2_6")
+        bpy.data.objects.remove(made[0])
 
     result, made = import_fmv(HOLES)
     check(result == {"FINISHED"} and len(made) == 1, "holes.fmv imported to follow time")

@@ -12,7 +12,9 @@ DATA = os.environ["FACEMORPH_TEST_DATA"]          # tests/data: the golden files
 WORK = os.environ["FACEMORPH_TEST_WORK"]          # a folder of this test's own
 C_FRAMES = os.environ.get("FACEMORPH_C_FRAMES")   # tests/python/c_frames.c, built against the shared library
 TOOLS = os.environ.get("FACEMORPH_TOOLS")         # build/tools (fmsynth, fmenc), where built
-GOLDEN = [os.path.join(DATA, name) for name in ("golden_v2_0.fmv", "golden_v2_1.fmv", "golden_v2_2.fmv")]
+# 2.6 (N = 129, its positions in a KGLV: the levels predictor) beside the first three layouts.
+GOLDEN = [os.path.join(DATA, name) for name in ("golden_v2_0.fmv", "golden_v2_1.fmv", "golden_v2_2.fmv",
+                                                "golden_v2_6.fmv")]
 
 
 def tool(name):

@@ -70,6 +70,14 @@ class DecodeEqualsTheCApi(unittest.TestCase):
             info["settings"]["keyframes"] = "changed"  # a copy: the file's stays
             self.assertNotEqual(f.info["settings"]["keyframes"], "changed")
 
+    def test_format_2_6_opens_as_2_6(self):
+        # golden_v2_6's positions are under the levels predictor (a KGLV chunk, spec/container.md
+        # §7.2): the package's decoder reads 2.6, and the bit-for-bit test above decodes it.
+        with facemorph.open(support.GOLDEN[3]) as f:
+            self.assertEqual(f.info["format_version"], "2.6")
+            self.assertEqual(f.info["grid_n"], 129)
+            self.assertEqual(f.info["keyframe_count"], 2)
+
     def test_outputs_and_flags(self):
         with facemorph.open(support.GOLDEN[0]) as f:
             t = f.info["keyframe_times"][1] * 0.7
