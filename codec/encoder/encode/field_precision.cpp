@@ -258,7 +258,7 @@ class FieldRounder {
 // so which reconstructor takes a keyframe changes nothing.
 class ReconstructorPool {
  public:
-  ReconstructorPool(int grid_n, int threads) : geometry_(std::make_shared<const GridGeometry>(make_disk_grid(grid_n))) {
+  ReconstructorPool(int grid_n, int threads) : geometry_(shared_grid_geometry(grid_n)) {
     const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
     for (int t = 0; t < count; ++t) free_.push_back(std::make_unique<Reconstructor>(geometry_));
     size_ = free_.size();
