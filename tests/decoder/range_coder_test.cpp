@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 namespace facemorph {
 namespace {
@@ -123,6 +124,21 @@ TEST(RangedResiduals, RoundTripExactlyAtTheirEstimatedCost) {
   double estimate = 0;
   for (size_t a = 0; a < r.arrays.size(); ++a) estimate += format::ranged_residual_bits(r.arrays[a], r.lattices[a]);
   EXPECT_NEAR(8.0 * static_cast<double>(bytes.size()), estimate, 0.05 * estimate + 64);
+}
+
+// The estimate the writer chooses predictors by, and the encoder its dead zone and candidates (files
+// depend on it to the bit): each decision's cost −log2 p, read from a table of BitModel's
+// probabilities rather than a log2 a decision. Pinned to what a log2 a decision gave (main 1b7911e),
+// so that a table off by one probability, or with a 0's and a 1's costs swapped, fails here.
+TEST(RangedResiduals, TheEstimateIsEachDecisionsLogToTheBit) {
+  const int w = 37;
+  const format::LatticeNeighbours lattice = testing::square_lattice(w);
+  const ResidualArrays r = keyframe_like_residuals(lattice, w);
+  const std::vector<double> pinned = {0x1.0a9dd3d71f774p+12, 0x1.07d4f1b4c6777p+12, 0x1.08d52d5569bd5p+12, 0x1.9d94b73e56eedp+7, 0};
+  ASSERT_EQ(r.arrays.size(), pinned.size());
+  for (size_t a = 0; a < r.arrays.size(); ++a) {
+    EXPECT_EQ(format::ranged_residual_bits(r.arrays[a], r.lattices[a]), pinned[a]) << "array " << a;
+  }
 }
 
 // Field coding 3: a second keyframe's stream continues the models where the first's left them. It

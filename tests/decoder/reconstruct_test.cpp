@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <functional>
+#include <memory>
 #include <numbers>
 
 namespace facemorph {
@@ -27,6 +28,29 @@ double max_error(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
   double e = 0;
   for (size_t i = 0; i < a.size(); ++i) e = std::max(e, (a[i] - b[i]).norm());
   return e;
+}
+
+// shared_grid_geometry (the encoder's candidates at one N, spec/method.md §7.14): one geometry an N
+// while anything holds it, of that N (a cache that ignored N would hand a decoder another grid),
+// none kept past its last holder, and a new one the same to the bit as the one before it.
+TEST(GridGeometry, OneSharedGeometryAnNWhileHeldAndNoneKeptPastItsHolders) {
+  const std::shared_ptr<const GridGeometry> a = shared_grid_geometry(33), b = shared_grid_geometry(33);
+  EXPECT_EQ(a.get(), b.get());
+  std::shared_ptr<const GridGeometry> c = shared_grid_geometry(49);
+  ASSERT_NE(c.get(), a.get());
+  EXPECT_EQ(a->grid().n, 33);
+  EXPECT_EQ(c->grid().n, 49);
+  const std::vector<Vec2> nodes = c->grid().nodes;
+  const SparseMatrix stiffness = c->stiffness();
+  const Eigen::VectorXd mass = c->mass();
+  const std::weak_ptr<const GridGeometry> held = c;
+  c.reset();
+  EXPECT_TRUE(held.expired()) << "the cache kept a geometry nobody holds";
+  const std::shared_ptr<const GridGeometry> again = shared_grid_geometry(49);
+  EXPECT_EQ(again->grid().nodes, nodes);
+  EXPECT_EQ((again->stiffness() - stiffness).norm(), 0.0);
+  EXPECT_EQ(again->mass(), mass);
+  EXPECT_EQ(again.get(), shared_grid_geometry(49).get());
 }
 
 TEST(Reconstruct, AFlatDiskHasZeroCurvatureAndReconstructsThePlane) {

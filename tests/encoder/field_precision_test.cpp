@@ -373,6 +373,9 @@ TEST(FieldPrecision, AutoDeadZoneKeepsTheSmallestOfItsCandidates) {
   const std::vector<uint8_t> chosen = file_of(kAutoDeadZone, 8, &report);
   EXPECT_EQ(report.inter_dead_zone, best);
   EXPECT_EQ(chosen, file_of(best, 8, nullptr));
+  // The bytes it compared the zones by, reported (the choice by bytes reads them, spec/method.md
+  // §7.14): the kept file's, this fixture having no texture.
+  EXPECT_EQ(report.geometry_bytes, chosen.size());
   for (double e : report.keyframe_errors) EXPECT_LE(e, 1.25 * kTarget);
   // The keyframes decoded on one thread rather than one per core (the above): the same file.
   Sequence one_thread = exact;
@@ -385,6 +388,7 @@ TEST(FieldPrecision, AutoDeadZoneKeepsTheSmallestOfItsCandidates) {
   FieldPrecisionReport intra;
   EXPECT_EQ(file_of(kAutoDeadZone, 1, &intra), file_of(0.5, 1, nullptr));
   EXPECT_EQ(intra.inter_dead_zone, 0.5);
+  EXPECT_EQ(intra.geometry_bytes, 0u) << "no zone was compared: nothing measured";
   Sequence copy = exact;
   FieldCoding coding;
   coding.steps.assign(kKeyframeArrayCount, 1e-3);

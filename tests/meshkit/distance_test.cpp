@@ -4,8 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 namespace facemorph {
 namespace {
@@ -310,6 +313,45 @@ TEST(Distance, EachDirectionsPercentileIsMeasuredApart) {
   const SurfaceDistance swapped = surface_distance(half, reference);
   EXPECT_NEAR(swapped.p99_test_to_reference, 0.5, 1e-12);
   EXPECT_NEAR(swapped.p99_reference_to_test, 0.0, 1e-12);
+}
+
+// surface_distance starts each vertex's search from the previous vertex's nearest face (a hint): every
+// figure is still, to the bit, what a search from no hint gives, where the hint is near (a sphere's
+// vertices in order), far (the same vertices shuffled) or ties (every face twice). Taking the hint's
+// distance as a bound, or its face as the answer, fails here.
+TEST(Distance, SurfaceDistanceIsTheUnhintedSearchsToTheBit) {
+  const auto [sphere, doubled] = sphere_and_doubled();
+  std::mt19937 rng(17);
+  std::normal_distribution<double> jitter(0, 0.02);
+  TriangleMesh bumpy = testing::icosphere(1.05, 2);
+  for (Vec3& p : bumpy.positions) p += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  TriangleMesh shuffled = bumpy;  // the same surface, its vertices in a random order
+  std::vector<int32_t> order(bumpy.positions.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int32_t>(i);
+  std::shuffle(order.begin(), order.end(), rng);
+  for (size_t i = 0; i < order.size(); ++i) shuffled.positions[static_cast<size_t>(order[i])] = bumpy.positions[i];
+  for (Face& f : shuffled.faces)
+    for (int32_t& v : f) v = order[static_cast<size_t>(v)];
+  for (const TriangleMesh* reference : {&sphere, &doubled}) {
+    for (const TriangleMesh* test : {&bumpy, &shuffled}) {
+      // Each direction's distances as PointToMesh::distance gives them (no hint), in surface_distance's order.
+      std::vector<double> to_reference, to_test;
+      const PointToMesh reference_query(*reference), test_query(*test);
+      for (const Vec3& p : test->positions) to_reference.push_back(reference_query.distance(p));
+      for (const Vec3& p : reference->positions) to_test.push_back(test_query.distance(p));
+      double sum = 0, max = 0;
+      std::vector<double> all = to_reference;
+      all.insert(all.end(), to_test.begin(), to_test.end());
+      for (const double e : all) sum += e * e, max = std::max(max, e);
+      const SurfaceDistance d = surface_distance(*reference, *test);
+      EXPECT_EQ(d.rms, std::sqrt(sum / static_cast<double>(all.size())));
+      EXPECT_EQ(d.max, max);
+      EXPECT_EQ(d.p99, nearest_rank_p99(all));
+      EXPECT_EQ(d.p99_test_to_reference, nearest_rank_p99(to_reference));
+      EXPECT_EQ(d.p99_reference_to_test, nearest_rank_p99(to_test));
+      EXPECT_GT(d.max, 0.0);
+    }
+  }
 }
 
 }  // namespace

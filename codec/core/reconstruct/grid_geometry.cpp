@@ -6,6 +6,8 @@
 #include "format/error.hpp"
 
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <numbers>
 
 namespace facemorph {
@@ -136,6 +138,23 @@ TriangleMesh grid_mesh(const DiskGrid& grid, const std::vector<Vec3>& positions)
   for (const Vec2& w : grid.nodes) mesh.uvs.push_back(0.5 * (w + Vec2(1, 1)));
   mesh.uv_faces = grid.faces;
   return mesh;
+}
+
+std::shared_ptr<const GridGeometry> shared_grid_geometry(int n) {
+  static std::mutex mutex;
+  static std::map<int, std::weak_ptr<const GridGeometry>> alive;
+  {
+    std::lock_guard lock(mutex);
+    const auto at = alive.find(n);
+    if (at != alive.end())
+      if (std::shared_ptr<const GridGeometry> held = at->second.lock()) return held;
+  }
+  // Made outside the lock (a grid of N = 257 takes tens of milliseconds): two threads asking at
+  // once may each make one, equal to the bit, and the later one is the one handed on.
+  auto made = std::make_shared<const GridGeometry>(make_disk_grid(n));
+  std::lock_guard lock(mutex);
+  alive[n] = made;
+  return made;
 }
 
 }  // namespace facemorph

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 namespace facemorph {
@@ -65,6 +66,14 @@ class GridGeometry {
   std::vector<StencilEntry> stencil_;
   void build_jacobian_stencils();
 };
+
+// G's geometry at N (make_disk_grid(n)), the one still held somewhere for that N if there is one,
+// else made anew. A GridGeometry is a function of N alone and never changes once made, so a shared
+// one reads to the bit as a new one would; the encoder's candidates at one N (the choice by bytes,
+// spec/method.md §7.14: the field precision's reconstructors, the held-out decoders, the fields of
+// another representation) each made their own, 3.7% of ict24's encode. Only weak references are
+// kept: nothing outlives its last holder. Thread-safe.
+std::shared_ptr<const GridGeometry> shared_grid_geometry(int n);
 
 [[gnu::always_inline]] inline void GridGeometry::frame(size_t v, const Vec3* S, Vec3& tu, Vec3& tv, Vec3& n) const {
   Vec3 su, sv;

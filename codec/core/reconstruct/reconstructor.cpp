@@ -170,7 +170,7 @@ struct Reconstructor::Impl {
   }
 };
 
-Reconstructor::Reconstructor(int grid_n) : Reconstructor(std::make_shared<const GridGeometry>(make_disk_grid(grid_n))) {}
+Reconstructor::Reconstructor(int grid_n) : Reconstructor(shared_grid_geometry(grid_n)) {}
 
 Reconstructor::Reconstructor(std::shared_ptr<const GridGeometry> geometry)
     : geometry_(geometry ? std::move(geometry) : throw Error(ErrorCode::kInvalidArgument, "reconstructor: no grid geometry")),

@@ -85,7 +85,7 @@ void validate_keyframe(const SequenceOutline& outline, const std::vector<int32_t
 
 std::shared_ptr<const GridGeometry> KeyframeSource::grid_geometry() const {
   // A throw (no memory) leaves the flag unset: the next call tries again.
-  std::call_once(grid_built_, [this] { grid_ = std::make_shared<const GridGeometry>(make_disk_grid(outline().grid_n)); });
+  std::call_once(grid_built_, [this] { grid_ = shared_grid_geometry(outline().grid_n); });
   return grid_;
 }
 

@@ -18,8 +18,8 @@ std::unique_ptr<StoredSequence> CandidateBuilds::copy(const StoredSequence& from
   const bool same = shape.representation == representation;
   shape.representation = representation;
   // G's geometry only where the fields are made anew (as build_keyframes makes them).
-  std::optional<GridGeometry> geometry;
-  if (!same) geometry.emplace(make_disk_grid(shape.grid_n));
+  std::shared_ptr<const GridGeometry> geometry;
+  if (!same) geometry = shared_grid_geometry(shape.grid_n);
   auto out = std::make_unique<StoredSequence>(std::move(shape), mode_);
   parallel_for(static_cast<int>(from.size()), threads_, [&](int i) {
     const auto k = static_cast<size_t>(i);

@@ -3,6 +3,7 @@
 #include "codec/encoder/encode/density_candidate.hpp"
 
 #include "codec/core/grid/disk_grid.hpp"
+#include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/util/elapsed.hpp"
 #include "codec/encoder/encode/plan_keyframes.hpp"
@@ -144,6 +145,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     return at->second;
   };
   const auto try_candidate = [&](int n, double step_scale) {
+    const std::shared_ptr<const GridGeometry> held = shared_grid_geometry(n);  // one G for its floors, build, rounding and decoders
     report_ = before;
     adopt_representation(Representation::kXYZ, before.blend);
     // The rounding's worst region bounded by D's floor at n (positions decode as sampled), the

@@ -258,7 +258,7 @@ class FieldRounder {
 // so which reconstructor takes a keyframe changes nothing.
 class ReconstructorPool {
  public:
-  ReconstructorPool(int grid_n, int threads) : geometry_(std::make_shared<const GridGeometry>(make_disk_grid(grid_n))) {
+  ReconstructorPool(int grid_n, int threads) : geometry_(shared_grid_geometry(grid_n)) {
     const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
     for (int t = 0; t < count; ++t) free_.push_back(std::make_unique<Reconstructor>(geometry_));
     size_ = free_.size();
@@ -691,12 +691,12 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   const std::vector<double> budgets = keyframe_p99_budgets(options, p99_budget, keys.size());
   double dead_zone = options.inter_dead_zone;
   std::optional<StepChoice> choice;
+  uint64_t fewest = 0;  // the chosen zone's bytes (0: no zone compared)
   if (options.inter_dead_zone == kAutoDeadZone) {
     // Each candidate meets the same target; the one whose keyframes take the fewest bytes wins, and
     // its steps are the result (the search is deterministic: run again, it would find them again).
     dead_zone = kDeadZoneCandidates.front();
     const bool predicts = period > 1 && shape.keyframes.size() > 1;
-    uint64_t fewest = std::numeric_limits<uint64_t>::max();
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       const FieldRounder rounder(pool.grid(), options.noise_shaping, kDeadZoneCandidates[c]);
       std::optional<StepChoice> steps;
@@ -709,7 +709,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
       SequenceFileMetadata metadata;
       metadata.field_coding = steps->coding;
       const uint64_t bytes = sequence_file_size(RoundedKeyframes(keys, rounder, steps->coding), metadata);
-      if (bytes < fewest) {
+      if (!choice || bytes < fewest) {
         fewest = bytes;
         dead_zone = kDeadZoneCandidates[c];
         choice = std::move(steps);
@@ -737,6 +737,7 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     }
     report->worst_region_refusals = choice->worst_region_refusals;
     report->inter_dead_zone = dead_zone;
+    report->geometry_bytes = fewest;
     report->peak_keyframes_in_memory = spill.count->peak.load();
     report->spilled_bytes = spill.bytes;
   }

@@ -93,6 +93,12 @@ struct FieldPrecisionReport {
   std::vector<double> keyframe_floors;  // each keyframe's own floor, where keyframe_budgets is not empty
   int worst_region_refusals = 0;
   double inter_dead_zone = 0;           // the dead zone the keyframes were rounded with (auto's choice)
+  // The rounded keyframes' bytes in the file without textures (sequence_file_size with this coding
+  // alone: representation_rate.hpp's geometry_bytes of the keyframes as rounded), where the auto
+  // dead zone's choice measured them to compare its candidates; 0 where nothing was compared (a
+  // dead zone given, or no predicted keyframe). The choice by bytes reads it rather than laying the
+  // same file out again (spec/method.md §7.14).
+  uint64_t geometry_bytes = 0;
   int peak_keyframes_in_memory = 0;     // the most decoded surfaces in memory at once (KeyframeStore)
   uint64_t spilled_bytes = 0;           // written to the temporary file (0 without options.spill)
 };

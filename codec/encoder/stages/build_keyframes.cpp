@@ -109,7 +109,8 @@ std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, c
   const FrameSampler sampler(maps, frames.registrations);
   const std::vector<SelectionFrame>& selection = frames.selection.frames();
   if (keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "no keyframes to build");
-  const GridGeometry geometry(make_disk_grid(grid_n));
+  const std::shared_ptr<const GridGeometry> held_geometry = shared_grid_geometry(grid_n);
+  const GridGeometry& geometry = *held_geometry;
   const DiskGrid& grid = geometry.grid();
   // The keyframes this build codes (`own`, of `keyframes`) and those its fit solves over (`fit`):
   // all of them, or a segment's and its margins.

@@ -189,7 +189,7 @@ class ReferenceOnGrid {
  private:
   void at(int n) {
     if (geometry_ && geometry_->grid().n == n) return;
-    geometry_ = std::make_shared<const GridGeometry>(make_disk_grid(n));
+    geometry_ = shared_grid_geometry(n);
     sampled_ = frames_.sampler.sample_surface(reference_, index_, geometry_->grid().nodes);
   }
 
@@ -210,7 +210,7 @@ EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, co
 }
 
 std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n) {
-  const std::shared_ptr<const GridGeometry> geometry = std::make_shared<const GridGeometry>(make_disk_grid(n));
+  const std::shared_ptr<const GridGeometry> geometry = shared_grid_geometry(n);
   std::vector<double> floors;
   for (const int i : keyframes) {
     const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);

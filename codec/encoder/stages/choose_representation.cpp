@@ -62,7 +62,7 @@ RepresentationDecision choose_representation(const PlanSettings& settings, const
       if (needed[k]) needed_keys.push_back(static_cast<int>(k));
     }
     if (!pairs.empty()) {
-      const auto geometry = std::make_shared<const GridGeometry>(make_disk_grid(grid));
+      const auto geometry = shared_grid_geometry(grid);
       // A frame's registered surface on G in the face frame (as build_keyframes samples a keyframe).
       auto local_surface = [&](int i) {
         std::vector<Vec3> surface = plan.sampler.sample_surface(i, geometry->grid().nodes);
