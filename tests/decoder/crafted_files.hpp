@@ -323,7 +323,9 @@ struct HandCodedKeyframe {
 // keyframe's before it is written. Reaches §7.2's checks with any predictor id and any residuals
 // past every CRC; the file's bytes besides that group are as they were.
 template <typename Edit>
-std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit, bool levels_chunk = false) {
+// `decision_everywhere`: the levels decision after id 3 on every array, those where the format has none too (a hostile file).
+std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes, bool from_previous, Edit&& edit, bool levels_chunk = false,
+                                              bool decision_everywhere = false) {
   SequenceFileInfo info;
   const Sequence s = decode_sequence_file(bytes, "crafted.fmv", &info);
   const FieldCoding& coding = info.metadata.field_coding;
@@ -358,7 +360,8 @@ std::vector<uint8_t> with_first_group_by_hand(const std::vector<uint8_t>& bytes,
         if (key.residuals[a].empty()) continue;
         stream.decision(models.predictor[a][0], (key.ids[a] >> 1) != 0);
         stream.decision(models.predictor[a][1 + (key.ids[a] >> 1)], (key.ids[a] & 1) != 0);
-        if (levels_chunk && key.ids[a] == 3 && file_layout::levels_allowed(file_layout::lattice_of(a, key.residuals[a].size(), *grid), *grid))
+        if (levels_chunk && key.ids[a] == 3 &&
+            (decision_everywhere || file_layout::levels_allowed(file_layout::lattice_of(a, key.residuals[a].size(), *grid), *grid)))
           stream.decision(models.levels[a], key.levels[a] != 0);
       }
       std::vector<const format::LatticeNeighbours*> lattices = file_layout::lattices_of(file_layout::lengths_of(key.residuals), *grid);

@@ -265,5 +265,111 @@ TEST(LevelsPredictor, AHandWrittenKglvGroupDecodesToTheCodesItsResidualsSay) {
   EXPECT_NE(x_codes(median.keyframes[0]), d);
 }
 
+
+// The lattice's edge and its holes (review, helper-rev65): a neighbour off the table or missing is
+// absent, never another row's node; a coarse node without its up-left neighbour is predicted by L,
+// one without L by U; a node with none of its neighbours by the node coded just before it.
+TEST(LevelsPredictor, TheEdgeAndHolesLeaveOnlyTheNeighboursThatExist) {
+  const Square sq(9);
+  const format::LevelOrder order = format::level_order(sq.cells, sq.index_at, 9);
+  const auto at = [](int i, int j) { return j * 9 + i; };
+  EXPECT_EQ(order.from[7], (std::array<int32_t, 4>{at(4, 4), -1, at(8, 0), at(8, 8)}));  // (8, 4): nothing right of column 8
+  EXPECT_EQ(order.from[8], (std::array<int32_t, 4>{at(0, 8), at(8, 8), at(4, 4), -1}));  // (4, 8): nothing below row 8
+  // A sparse lattice of width 9: (8, 0), (0, 8), (8, 8) coarse; (3, 3) fine with no diagonal neighbour.
+  std::vector<std::array<int32_t, 2>> cells = {{8, 0}, {0, 8}, {3, 3}, {8, 8}};
+  std::vector<int32_t> index_at(81, -1);
+  for (size_t e = 0; e < cells.size(); ++e) index_at[static_cast<size_t>(cells[e][1] * 9 + cells[e][0])] = static_cast<int32_t>(e);
+  const format::LevelOrder sparse = format::level_order(cells, index_at, 9);
+  EXPECT_EQ(sparse.element, (std::vector<int32_t>{0, 1, 3, 2}));  // the coarse ones in array order, then (3, 3)
+  const std::vector<int32_t> codes = {5, -7, 11, 40};
+  // (8, 0): nothing coded before it: 0. (0, 8): no L, no U: the node before it, (8, 0). (8, 8): L and
+  // U but no UL: L = (0, 8). (3, 3): no diagonal: the node before it in the coding order, (8, 8).
+  EXPECT_EQ(format::level_residuals(codes, sparse), (std::vector<int64_t>{5, -7 - 5, 40 - (-7), 11 - 40}));
+  EXPECT_EQ(format::codes_from_level_residuals(format::level_residuals(codes, sparse), sparse, "t"), codes);
+  EXPECT_EQ(sparse.context.left[2], 1);  // (8, 8)'s left at 8 is (0, 8)
+  EXPECT_EQ(sparse.context.up[2], 0);    // its up at 8 is (8, 0)
+  EXPECT_EQ(sparse.context.left[3], -1);
+}
+
+// On G at N = 17 (its disk's edge: nodes with 1-3 of their four neighbours), a code at every coding
+// position reaches int32's bounds exactly and is refused one past them, naming that element: the
+// check is neither off by one nor skipped for any class of node.
+TEST(LevelsPredictor, EveryCodingPositionIsRefusedOnePast32BitsAndNotBefore) {
+  const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(17);
+  const format::LevelOrder& order = grid->interior_levels;
+  constexpr int64_t kTop = std::numeric_limits<int32_t>::max(), kBottom = std::numeric_limits<int32_t>::min();
+  for (size_t k = 0; k < order.size(); ++k) {
+    std::vector<int64_t> r(order.size(), 0);
+    for (const int64_t edge : {kTop, kBottom}) {
+      r[k] = edge;
+      const std::vector<int32_t> codes = format::codes_from_level_residuals(r, order, "t");
+      ASSERT_EQ(codes[static_cast<size_t>(order.element[k])], edge) << k;
+      r[k] = edge + (edge > 0 ? 1 : -1);
+      testing::expect_error(ErrorCode::kCorrupt, "(levels predictor, element " + std::to_string(order.element[k]) + ")",
+                            [&] { format::codes_from_level_residuals(r, order, "t"); });
+    }
+  }
+}
+
+
+// `bytes` with `extra` appended after its last chunk (the index's offsets stay right), stamped 2.`minor`.
+std::vector<uint8_t> with_chunk_appended(const std::vector<uint8_t>& bytes, const format::PreparedChunk& extra, uint16_t minor) {
+  const format::ContainerReader reader(bytes, "in");
+  format::ContainerWriter writer;
+  for (const format::ChunkView& c : reader.chunks()) {
+    writer.add(format::prepare_chunk(c.type, reader.payload(c), c.critical(), c.compressed() ? 19 : 0,
+                                     c.against_dictionary() ? format::Dictionary::kHeader : format::Dictionary::kNone));
+  }
+  writer.add(extra);
+  return crafted::restamped(writer.finish(), minor);
+}
+
+// A KGLV in a file stamped 2.5 is corrupt at open wherever it lies (spec/container.md §7), also one
+// no index entry names: a 2.5 decoder refuses that file (critical, unknown), so a 2.6 decoder must
+// not take it as a valid 2.5 file.
+TEST(LevelsPredictor, AKglvChunkNoIndexEntryNamesInAFileStamped25IsCorrupt) {
+  const std::vector<uint8_t> levels = encode_sequence_file(warped_xyz_sequence(129), xyz_metadata());
+  const std::vector<uint8_t> older = crafted::with_minor_version(levels, 5);
+  SequenceFileInfo info;
+  decode_sequence_file(older, "older.fmv", &info);
+  ASSERT_EQ(testing::chunk_count(info, "KGLV"), 0);
+  const format::PreparedChunk stray = format::prepare_chunk("KGLV", crafted::chunk_payload(levels, "KGLV"), true);
+  testing::expect_error(ErrorCode::kCorrupt, "in a file stamped 2.5 (the levels predictor's group chunk is 2.6's)",
+                        [&] { decode_sequence_file(with_chunk_appended(older, stray, 5), "stray.fmv"); });
+  // The same chunk in a file stamped 2.6 is no fault of the version (a chunk the index does not name, as a stray KGOP is).
+  EXPECT_NO_THROW(decode_sequence_file(with_chunk_appended(older, stray, 6), "stray.fmv"));
+}
+
+// A KGLV's stream one byte short or one byte long, and a levels decision written after id 3 on the
+// hole level (an array of G's nodes where the format has no such decision): corrupt, naming the
+// chunk and the keyframe, never a crash or a decoded frame.
+TEST(LevelsPredictor, ATruncatedOrOverlongKglvOrADecisionWhereNoneIsIsCorrupt) {
+  const std::vector<uint8_t> bytes = encode_sequence_file(warped_xyz_sequence(129), xyz_metadata());
+  for (const int change : {-1, 1}) {
+    const std::vector<uint8_t> edited = crafted::with_chunk_payload(bytes, "KGLV", [&](std::vector<uint8_t>& payload) {
+      if (change < 0) payload.pop_back();
+      else payload.push_back(0);
+    });
+    testing::expect_error(ErrorCode::kCorrupt, "KGLV", [&] { decode_sequence_file(edited, "cut.fmv"); });
+  }
+  // small_sequence has holes: array 13, the hole level on every node, may have id 3 (median).
+  const std::vector<uint8_t> holes = encode_sequence_file(crafted::small_sequence(17), crafted::predicted_metadata());
+  const auto hand = [&](bool everywhere) {
+    return crafted::with_first_group_by_hand(
+        holes, false,
+        [&](crafted::HandCodedKeyframe& key) {
+          ASSERT_FALSE(key.residuals[kScalarArrayCount].empty());
+          key.ids[kScalarArrayCount] = 3;  // median; `everywhere`: followed by a decision 0
+          key.ids[0] = 3;
+          key.levels[0] = 1;
+          key.residuals[0] = format::level_residuals(std::vector<int32_t>(key.residuals[0].begin(), key.residuals[0].end()),
+                                                     file_layout::grid_facts(17)->interior_levels);
+        },
+        true, everywhere);
+  };
+  EXPECT_NO_THROW(decode_sequence_file(hand(false), "levels_on_h.fmv"));
+  testing::expect_error(ErrorCode::kCorrupt, "KGLV", [&] { decode_sequence_file(hand(true), "decision_on_hole_level.fmv"); });
+}
+
 }  // namespace
 }  // namespace facemorph

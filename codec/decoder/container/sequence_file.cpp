@@ -84,6 +84,10 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
       throw Error(ErrorCode::kUnsupported,
                   s.source + ": " + reader.describe(chunk) + " is critical and unknown to this decoder (a newer format?)");
     }
+    // Every KGLV, whether an index entry names it or not: a 2.5 decoder refuses the file for any.
+    if (chunk.type == kLevelsGroupChunk && reader.minor_version() < kLevelsMinorVersion)
+      corrupt(s.source, reader.describe(chunk) + " in a file stamped 2." + std::to_string(reader.minor_version()) +
+                            " (the levels predictor's group chunk is 2.6's)");
   }
   // The header and the index decompress to no more than the format lets them hold (§10.2 steps 2
   // and 5): a chunk stating more is corrupt before a byte is decompressed, whatever the budget.
@@ -128,9 +132,6 @@ OpenedFile::OpenedFile(std::span<const uint8_t> bytes, std::string source, const
   for (size_t k = 0; k < s.index.size(); ++k) {
     const std::string name = "keyframe " + std::to_string(k);
     const format::ChunkView& chunk = reader.chunk_at(s.index[k].group_offset, name + "'s index entry");
-    if (chunk.type == kLevelsGroupChunk && reader.minor_version() < kLevelsMinorVersion)
-      corrupt(s.source, reader.describe(chunk) + " in a file stamped 2." + std::to_string(reader.minor_version()) +
-                            " (the levels predictor's group chunk is 2.6's)");
     if (chunk.type != kKeyframeGroupChunk && chunk.type != kLevelsGroupChunk)
       corrupt(s.source, name + "'s index entry points at a " + chunk.type + " chunk, not " + std::string(kKeyframeGroupChunk));
     // Stored as it is: its stream is the compression (and the bytes fminfo divides among keyframes).
