@@ -33,12 +33,12 @@ assert all('fields_bytes' not in k for k in d['keyframes']), 'fields bytes witho
 assert d['field_groups'] == v['field_groups'] and d['field_groups'], 'groups'
 for g in v['field_groups']:
     assert sum(k['fields_bytes'] for k in v['keyframes'][g['first']:g['first'] + g['count']]) == g['bytes'], g
-assert sum(g['bytes'] for g in d['field_groups']) == sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP'), 'KGOP'" \
+assert sum(g['bytes'] for g in d['field_groups']) == sum(c['bytes'] for c in d['chunks'] if c['type'] in ('KGOP', 'KGLV')), 'KGOP'" \
   "$work/info.json" "$work/verified.json" || fail "fminfo --verify's bytes per keyframe do not add up to its groups'"
 
-# Re-coding (spec/method.md §5.3): --field-error auto keeps the file's steps, so its fields' bytes
+# Re-coding (spec/method.md §5.3; a group is a KGOP or, where the levels predictor pays, format 2.6's KGLV): --field-error auto keeps the file's steps, so its fields' bytes
 # stay; a given target rounds them again. fminfo --field-bytes estimates those bytes array by array.
-kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sys.stdin)['chunks'] if c['type'] == 'KGOP'))"; }
+kgop() { python3 -c "import json,sys; print(sum(c['bytes'] for c in json.load(sys.stdin)['chunks'] if c['type'] in ('KGOP', 'KGLV')))"; }
 "$tools/fmenc" "$work/a.fmv" -o "$work/kept.fmv" --quiet || fail "fmenc re-coding a file"
 "$tools/fmenc" "$work/a.fmv" -o "$work/coarser.fmv" --field-error 0.3% --quiet || fail "fmenc re-coding a file at 0.3%"
 a_bytes=$("$tools/fminfo" "$work/a.fmv" --json | kgop)
@@ -58,7 +58,7 @@ read -r regrouped keyframes < <("$tools/fminfo" "$work/regrouped.fmv" --json | g
 [[ $("$tools/fminfo" "$work/a16-kept.fmv" --json | kgop) == $("$tools/fminfo" "$work/a16.fmv" --json | kgop) ]] ||
   fail "re-coding a 16-bit file at auto changed its fields' bytes"
 "$tools/fminfo" "$work/a.fmv" --json --field-bytes | python3 -c "import json,sys
-d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'] == 'KGOP')
+d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'] in ('KGOP', 'KGLV'))
 parts = {g['arrays']: g['bytes'] for g in d['field_bytes_by_array']}
 assert parts['H'] > 0 and parts['log lambda'] > 0 and parts['positions'] == 0, parts
 assert abs(sum(parts.values()) / kgop - 1) < 0.1, (sum(parts.values()), kgop)" || fail "fminfo --field-bytes does not add up to the KGOP chunks"
