@@ -88,10 +88,12 @@ int RangeDecoder::decode(BitModel& model) {
   }
   model.update(bit);
   normalize();
+  ++decisions_;
   return bit;
 }
 
 uint32_t RangeDecoder::decode_direct(int count) {
+  if (count > 0) decisions_ += static_cast<uint64_t>(count);
   uint32_t value = 0;
   for (int i = 0; i < count; ++i) {
     range_ >>= 1;

@@ -74,6 +74,10 @@ class RangeDecoder {
   void expect_end() const;
   // Bytes of the stream read so far (the first five on construction).
   size_t position() const { return pos_; }
+  // Decisions and direct bits read so far: what decoding the stream has cost, which grows with the
+  // magnitudes it holds (a residual near 2^30 is about 69 of them, a zero 1), so that a decoder
+  // charges its work by them (spec/container.md §10.3) and not by the values alone.
+  uint64_t decisions() const { return decisions_; }
 
  private:
   void normalize();
@@ -83,6 +87,7 @@ class RangeDecoder {
   size_t pos_ = 0;
   uint32_t range_ = 0xFFFFFFFFu;
   uint32_t code_ = 0;
+  uint64_t decisions_ = 0;
 };
 
 }  // namespace facemorph::format

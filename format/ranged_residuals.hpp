@@ -69,6 +69,8 @@ class RangedStreamReader {
                                                     std::span<const uint8_t> model_sets, std::vector<ResidualModels>& models);
   // Bytes read so far: what a part of the stream cost, to within the coder's few bytes of lag.
   size_t position() const { return coder_.position(); }
+  // Decisions and direct bits read so far (RangeDecoder::decisions): the decoding's work.
+  uint64_t decisions() const { return coder_.decisions(); }
   // kCorrupt unless the stream ends exactly here.
   void expect_end() const { coder_.expect_end(); }
 

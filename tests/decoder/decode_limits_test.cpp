@@ -332,6 +332,37 @@ TEST(DecodeLimits, ARunCostingMoreThanOneCallDecodesOverSeveral) {
   testing::expect_error(ErrorCode::kCorrupt, "g.fmv", [&] { damaged->keyframe(2); });
 }
 
+TEST(DecodeLimits, LargeResidualsAreChargedByTheDecisionsTheyTake) {
+  // A group of two keyframes whose array 0 zigzags between codes ±(2^30 - 1) under predictor 0 (a
+  // hostile file's residuals, valid: it decodes). Each such residual takes 69 decisions and direct
+  // bits (zero, sign, 8 unary, 30 escape prefix, 29 suffix; every other value at least 1), where
+  // a value's own unit pays for 2 (spec/container.md §10.3): the call is charged for the rest, a
+  // unit per kDecisionsPerUnit.
+  const std::vector<uint8_t> plain = encode_sequence_file(small_sequence(), crafted::predicted_metadata());
+  const std::vector<uint8_t> bytes = crafted::with_first_group_by_hand(plain, false, [](crafted::HandCodedKeyframe& key) {
+    for (size_t i = 0; i < key.residuals[0].size(); ++i) key.residuals[0][i] = (i % 2 ? 1 : -1) * (int64_t{1} << 30) + (i % 2 ? -1 : 1);
+  });
+  const Sequence decoded = decode_sequence_file(bytes, "w.fmv");
+  uint64_t values = 0;
+  for (const std::vector<double>& array : file_layout::keyframe_arrays(decoded.keyframes[0])) values += array.size();
+  const uint64_t large = file_layout::keyframe_arrays(decoded.keyframes[0])[0].size();
+  ASSERT_GT(large, 0u);
+  EXPECT_NEAR(std::abs(file_layout::keyframe_arrays(decoded.keyframes[1])[0][1]) / 1e-4, (1 << 30) - 1, 1e-3);  // decoded as written
+
+  WorkMeter counted(0);
+  open_sequence_source(bytes, "w.fmv")->keyframe(1, counted);  // the group's two keyframes
+  const uint64_t decisions_at_least = 69 * large + (values - large);
+  const uint64_t charged_at_least =
+      values * WorkMeter::kPerValue + (decisions_at_least - WorkMeter::kDecisionsInValue * values) / WorkMeter::kDecisionsPerUnit;
+  EXPECT_GE(counted.spent(), 2 * charged_at_least);
+
+  // The decisions are learnt as the keyframe is decoded: they are counted after it, and the call
+  // stops before its next step: a limit of two keyframes' values decodes keyframe 0, then stops
+  // (one unit a value would decode both in one call).
+  const auto source = open_sequence_source(bytes, "w.fmv");
+  EXPECT_EQ(fetch_in_calls([&](WorkMeter& meter) { source->keyframe(1, meter); }, 2 * values), 2);
+}
+
 TEST(DecodeLimits, AFrameOfALongGroupDecodesOverSeveralCallsToTheSameBits) {
   // The decoder's view: a frame whose keyframes lie late in a group that costs more than a call.
   SequenceFileMetadata grouped = crafted::grouped_texture_metadata();

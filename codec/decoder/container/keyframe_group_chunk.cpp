@@ -111,6 +111,7 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
   // the reader (a fault of the file fails the whole group).
   const GridFacts& grid = *s.grid;
   format::RangedStreamReader& stream = *s.stream;
+  const uint64_t decisions_before = stream.decisions();
   const bool from_previous = j > 0 && stream.decision(s.models.reference);
   std::vector<format::SpatialPredictor> predictors(kKeyframeArrays, format::SpatialPredictor::kNone);
   for (size_t a = 0; a < kKeyframeArrays; ++a) {
@@ -124,6 +125,9 @@ Keyframe KeyframeGroupReader::read(WorkMeter* work, uint64_t& end) {
   std::vector<const format::LatticeNeighbours*> contexts;
   for (size_t a = 0; a < kKeyframeArrays; ++a) contexts.push_back(context_lattice(predictors[a], s.lattices[a], grid));
   const std::vector<std::vector<int64_t>> residuals = stream.residual_arrays(s.expected, contexts, kRangeModelSets, s.models.residuals);
+  // The values' unit, charged before, covers small residuals; large ones read many more decisions,
+  // known only now (spec/container.md §10.3): counted, so the call stops before its next step.
+  if (work != nullptr) work->spend(WorkMeter::decision_units(stream.decisions() - decisions_before, s.values));
   Keyframe key;
   assign_keyframe_arrays(key, arrays_from_residuals(residuals, predictors, from_previous, s.codes, s.h, grid, keyframe_where),
                          s.h.shape.representation, s.h.shape.grid_n, s.h.fixed_nodes);
