@@ -30,7 +30,8 @@ inline constexpr DecoderLimits kDefaultDecoderLimits{};
 // The work of one decode call, counted as it is done (spec/container.md §10.3). A unit is about
 // 75 ns on one core of the reference machine: a node of G in one reconstruction iteration (a
 // multigrid V-cycle and the frames of the right-hand side, 0.25-0.4 µs) is 4, a keyframe's value
-// decoded from its group's stream (about 27 ns) 1, a texture pixel decoded 1 from AVIF (about
+// decoded from its group's stream (15-24 ns) 1 and 20 of its decisions beyond 2 a value 1
+// (decision_units: residuals near 2^30 take 69), a texture pixel decoded 1 from AVIF (about
 // 90 ns, in sequences of 1024²) and 3 from WebP (lossless: about 300 ns). A call that would pass its limit stops before
 // the step that would, with kLimit naming max_work; what it finished (keyframes decoded, surfaces
 // reconstructed, an interrupted reconstruction's iterate) is kept, so the next call goes on from there.
@@ -44,7 +45,7 @@ class WorkMeter {
   // residual of |r| <= 1 takes 1-3; an encoder's files stay within 2 a value on average); beyond
   // them, a unit per kDecisionsPerUnit (2.2-3 ns each measured: 20 are 45-60 ns of the unit's 75).
   // A residual near 2^30 takes 69 (charged 4.35 units, measured 2.1-3.1), one near 2^34 at most 79
-  // (4.85 units: a keyframe of 3.3M values at N = 1025 is 16.0M, the default limit).
+  // (4.85 units; charged after the keyframe, so a call passes its limit by at most that).
   static constexpr uint64_t kDecisionsInValue = 2, kDecisionsPerUnit = 20;
   // The units of decoding `values` values that took `decisions` decisions and direct bits
   // (RangeDecoder::decisions) beyond the values' own kPerValue: the one rule for a stream's work.
