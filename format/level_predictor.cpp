@@ -1,6 +1,7 @@
 #include "format/level_predictor.hpp"
 
 #include "format/error.hpp"
+#include "format/lattice_prediction.hpp"
 
 #include <limits>
 
@@ -15,20 +16,17 @@ int64_t floor_divide(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b -
 template <typename Code>
 int64_t level_prediction(const LevelOrder& order, size_t k, Code code) {
   const std::array<int32_t, 4>& from = order.from[k];
+  // Nothing around it: the node coded before.
+  const auto coded_before = [&] { return k == 0 ? int64_t{0} : code(static_cast<size_t>(order.element[k - 1])); };
   if (order.gradient[k]) {
-    const int32_t l = from[0], u = from[1], ul = from[2];
-    if (l >= 0 && u >= 0 && ul >= 0) return code(l) + code(u) - code(ul);
-    if (l >= 0) return code(l);
-    if (u >= 0) return code(u);
-  } else {
-    int64_t sum = 0, m = 0;
-    for (const int32_t e : from) {
-      if (e >= 0) sum += code(e), ++m;
-    }
-    // The mean rounded half up, exactly: ⌊(2 sum + m) / 2m⌋.
-    if (m > 0) return floor_divide(2 * sum + m, 2 * m);
+    return lattice_prediction(from[0], from[1], from[2], code, [](int64_t a, int64_t b, int64_t c) { return a + b - c; }, coded_before);
   }
-  return k == 0 ? int64_t{0} : code(order.element[k - 1]);  // nothing around it: the node coded before
+  int64_t sum = 0, m = 0;
+  for (const int32_t e : from) {
+    if (e >= 0) sum += code(static_cast<size_t>(e)), ++m;
+  }
+  // The mean rounded half up, exactly: ⌊(2 sum + m) / 2m⌋.
+  return m > 0 ? floor_divide(2 * sum + m, 2 * m) : coded_before();
 }
 
 }  // namespace
@@ -95,7 +93,7 @@ std::vector<int64_t> level_residuals(std::span<const int32_t> codes, const Level
   if (codes.size() != order.size()) throw Error(ErrorCode::kInvalidArgument, "a level order of another array's size");
   std::vector<int64_t> out(codes.size());
   for (size_t k = 0; k < order.size(); ++k) {
-    out[k] = codes[static_cast<size_t>(order.element[k])] - level_prediction(order, k, [&](int32_t e) { return int64_t{codes[static_cast<size_t>(e)]}; });
+    out[k] = codes[static_cast<size_t>(order.element[k])] - level_prediction(order, k, [&](size_t e) { return int64_t{codes[e]}; });
   }
   return out;
 }
@@ -105,7 +103,7 @@ std::vector<int32_t> codes_from_level_residuals(std::span<const int64_t> residua
   std::vector<int32_t> codes(residuals.size());
   for (size_t k = 0; k < order.size(); ++k) {
     // Predictions of int32 codes are below 2^33 and residuals at most 2^34 (§7.3): no overflow in 64 bits.
-    const int64_t code = level_prediction(order, k, [&](int32_t e) { return int64_t{codes[static_cast<size_t>(e)]}; }) + residuals[k];
+    const int64_t code = level_prediction(order, k, [&](size_t e) { return int64_t{codes[e]}; }) + residuals[k];
     if (code < std::numeric_limits<int32_t>::min() || code > std::numeric_limits<int32_t>::max()) {
       throw Error(ErrorCode::kCorrupt, source + ": a field code outside 32 bits (levels predictor, element " +
                                            std::to_string(order.element[k]) + ")");

@@ -1,6 +1,7 @@
 #include "format/spatial_predictor.hpp"
 
 #include "format/error.hpp"
+#include "format/lattice_prediction.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -29,18 +30,14 @@ int64_t predict(size_t i, SpatialPredictor predictor, const LatticeNeighbours* l
     case SpatialPredictor::kLinear: return i < 2 ? previous() : 2 * code(i - 1) - code(i - 2);
     case SpatialPredictor::kGradient:
     case SpatialPredictor::kMedian: {
-      const int32_t l = lattice->left[i], u = lattice->up[i], ul = lattice->up_left[i];
-      if (l >= 0 && u >= 0 && ul >= 0) {
-        const int64_t a = code(static_cast<size_t>(l)), b = code(static_cast<size_t>(u)), c = code(static_cast<size_t>(ul));
+      const auto combine = [&](int64_t a, int64_t b, int64_t c) -> int64_t {
         if (predictor == SpatialPredictor::kGradient) return a + b - c;
         // LOCO-I: an edge above or to the left picks the other neighbour; else the plane.
         if (c >= std::max(a, b)) return std::min(a, b);
         if (c <= std::min(a, b)) return std::max(a, b);
         return a + b - c;
-      }
-      if (l >= 0) return code(static_cast<size_t>(l));
-      if (u >= 0) return code(static_cast<size_t>(u));
-      return previous();
+      };
+      return lattice_prediction(lattice->left[i], lattice->up[i], lattice->up_left[i], code, combine, previous);
     }
     case SpatialPredictor::kLevels: break;  // another order of the elements: level_predictor.hpp
   }
