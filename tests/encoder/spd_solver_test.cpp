@@ -11,9 +11,9 @@
 namespace facemorph {
 namespace {
 
-// The 5-point Laplacian of an n x n grid plus shift·I: SPD, and at n = 150 (22,500 unknowns, as a
-// 10k-vertex frame's double cover) its supernodes are large enough for CHOLMOD 3 to open its
-// OpenMP teams (num_threads(4)) in the numeric factorisation.
+// The 5-point Laplacian of an n x n grid plus shift·I: SPD, and at n = 215 (46,225 unknowns, as a
+// 46k-vertex frame's) it is factored by CHOLMOD's supernodal method, whose supernodes are then
+// large enough for CHOLMOD 3 to open its OpenMP teams (num_threads(4)).
 SparseMatrix shifted_grid_laplacian(int n, double shift) {
   std::vector<Eigen::Triplet<double>> entries;
   const auto at = [n](int i, int j) { return i * n + j; };
@@ -47,8 +47,13 @@ int omp_max_active_levels() {
   return get ? get() : -1;
 }
 
-TEST(SpdSolver, SolvesAShiftedGridLaplacianToRounding) {
-  const SparseMatrix A = shifted_grid_laplacian(60, 0.01);
+// Below 45,000 unknowns the solver factors by CHOLMOD's simplicial method, from them by its
+// supernodal one (spd_solver.cpp): both sides of the switch solve and both report an indefinite
+// matrix. n = 60 is 3,600 unknowns; n = 215 is 46,225.
+class SpdSolverOnEachMethod : public ::testing::TestWithParam<int> {};
+
+TEST_P(SpdSolverOnEachMethod, SolvesAShiftedGridLaplacianToRounding) {
+  const SparseMatrix A = shifted_grid_laplacian(GetParam(), 0.01);
   std::mt19937 rng(7);
   std::normal_distribution<double> normal;
   Eigen::MatrixXd x(A.rows(), 2);
@@ -62,13 +67,15 @@ TEST(SpdSolver, SolvesAShiftedGridLaplacianToRounding) {
   EXPECT_LT((solved - x).norm() / x.norm(), 1e-8);  // condition number ~ 8 / 0.01
 }
 
-TEST(SpdSolver, AnIndefiniteMatrixIsReportedNotFactored) {
-  SparseMatrix A = shifted_grid_laplacian(20, 0.01);
+TEST_P(SpdSolverOnEachMethod, AnIndefiniteMatrixIsReportedNotFactored) {
+  SparseMatrix A = shifted_grid_laplacian(GetParam(), 0.01);
   A.coeffRef(37, 37) = -5;
   SpdSolver solver;
   solver.analyze(A);
   EXPECT_FALSE(solver.factorize(A));
 }
+
+INSTANTIATE_TEST_SUITE_P(SimplicialAndSupernodal, SpdSolverOnEachMethod, ::testing::Values(60, 215));
 
 // The encoder runs one frame per thread, so the factorisation must run in the calling thread alone:
 // CHOLMOD 3 asks for teams of four (num_threads(4)), which started three OpenMP workers beside every
@@ -79,7 +86,7 @@ TEST(SpdSolver, FactorsInTheCallingThreadAloneAndLeavesItsOpenMpSetting) {
   const int before = thread_count();
   if (before < 0) GTEST_SKIP() << "no /proc/self/task to count threads";
   const int levels = omp_max_active_levels();
-  const SparseMatrix A = shifted_grid_laplacian(150, 0.01);
+  const SparseMatrix A = shifted_grid_laplacian(215, 0.01);
   SpdSolver solver;
   solver.analyze(A);
   ASSERT_TRUE(solver.factorize(A));

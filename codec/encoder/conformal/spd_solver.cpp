@@ -12,11 +12,22 @@ namespace facemorph {
 
 #ifdef FACEMORPH_HAVE_CHOLMOD
 struct SpdSolver::Impl {
-  Eigen::CholmodSupernodalLLT<SparseMatrix> solver;
+  Eigen::CholmodDecomposition<SparseMatrix> solver;
 };
-const char* SpdSolver::backend() { return "cholmod-supernodal"; }
+const char* SpdSolver::backend() { return "cholmod"; }
 
 namespace {
+
+// CHOLMOD's simplicial LLᵀ below this many unknowns, its supernodal LLᵀ from it. The supernodal
+// factorisation is the faster one on large systems (dense BLAS on its supernodes), but CHOLMOD 3
+// opens OpenMP regions per supernode, and each, even as a team of one (below), ends on a futex
+// wake: a system call per region, which this machine's virtualised kernel makes dear (perf on
+// ICT 9.4k's encode: 8% of the samples in libgomp and 13% in the kernel). The map's whole time,
+// one thread (`fmbench conformal synth:V --method qiem`), simplicial against supernodal: 5k
+// vertices 0.11 against 0.19 s, 10k 0.29 / 0.37, 20k 0.71 / 0.84-0.88, 30k 1.21 / 1.27,
+// 40k 1.48 / 1.66, 50k 2.39 / 2.24-2.29, 60k 3.62 / 2.97, 100k 6.8 / 4.8-5.2 s. The QIEM
+// systems have one unknown a vertex (spec/method.md §3.3).
+constexpr Eigen::Index kSimplicialBelowUnknowns = 45000;
 
 // One solver thread in each thread that factors. The encoder gives its cores to frames (one frame
 // per thread); CHOLMOD's supernodal factorisation opens an OpenMP team per supernode (225k teams for
@@ -93,6 +104,9 @@ SpdSolver::~SpdSolver() = default;
 
 void SpdSolver::analyze(const SparseMatrix& A) {
   const OpenMpTeamsOfOne teams;
+#ifdef FACEMORPH_HAVE_CHOLMOD
+  impl_->solver.setMode(A.rows() < kSimplicialBelowUnknowns ? Eigen::CholmodSimplicialLLt : Eigen::CholmodSupernodalLLt);
+#endif
   impl_->solver.analyzePattern(A);
 }
 

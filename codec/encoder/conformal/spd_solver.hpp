@@ -1,7 +1,8 @@
-// Sparse symmetric positive-definite factorisation for the encoder's large systems (the QIEM step
-// on the double cover: 2x the frame's vertices). CHOLMOD's supernodal Cholesky (SuiteSparse, with
-// the system's BLAS) when facemorph is built with it — about 10x faster than a simplicial
-// factorisation at 200k unknowns with OpenBLAS — else Eigen's simplicial LDLᵀ. Each call runs
+// Sparse symmetric positive-definite factorisation for the encoder's large systems (the QIEM step,
+// the linear map, the density-equalising diffusion). CHOLMOD's Cholesky (SuiteSparse, with the
+// system's BLAS) when facemorph is built with it — simplicial below 45,000 unknowns, supernodal from
+// them, where its dense blocks pay for its OpenMP regions (spd_solver.cpp) — else Eigen's
+// simplicial LDLᵀ. Each call runs
 // CHOLMOD's OpenMP regions as teams of one thread (the calling thread's setting, put back after
 // the call), and OpenBLAS runs with one thread (process-wide): the encoder parallelises over frames
 // (spd_solver.cpp says what that saved).
