@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -229,7 +230,16 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsComparedWithItsTexture) {
   ASSERT_TRUE(d.textures_coded) << "D won on geometry (TheDensityEqualisedDiskIsKeptWhereItPays) and the capture is textured";
   EXPECT_GT(d.conformal_texture_bytes, 0u);
   EXPECT_GT(d.equalised_texture_bytes, 0u);
-  EXPECT_LT(d.equalised_geometry_bytes, d.conformal_geometry_bytes);
+  // D won on geometry by the choice's rule, the fewer bytes x RMS² (spec/method.md §7.14), which
+  // need not be fewer bytes: D's at a lower error may be the larger.
+  const RepresentationRate& rate = report.representation_rate;
+  const auto cost_of = [&rate](uint64_t bytes, bool on_d) {
+    for (const RateCandidate& c : rate.candidates) {
+      if (c.bytes == bytes && (c.density_equalising > 0) == on_d) return rate_cost(c);
+    }
+    return std::numeric_limits<double>::infinity();
+  };
+  EXPECT_LT(cost_of(d.equalised_geometry_bytes, true), cost_of(d.conformal_geometry_bytes, false));
   EXPECT_EQ(d.kept, d.equalised_geometry_bytes + d.equalised_texture_bytes <= d.conformal_geometry_bytes + d.conformal_texture_bytes)
       << "D kept only where its file is no larger";
   EXPECT_EQ(!encoder.reparametrisation().identity(), d.kept) << "the later stages sample through the disk kept";
