@@ -88,6 +88,9 @@ struct SelectionOptions {
   // without (mean and worst).
   bool residuals = false;
   double residual_step = 1.0 / 128;  // the corrections' quantum (spec/container.md §7.4)
+  // Threads the refinement measures a keyframe's trial positions on (0: one per hardware thread);
+  // the keyframes chosen are the same for any count.
+  int threads = 1;
 };
 
 // A residual is kept only where it lowers its frame's predicted error by this fraction (a residual

@@ -71,6 +71,7 @@ void sample_frames(SequenceEncoder& encoder) {
 KeyframeSelection select_keyframes(const PlanSettings& settings, const SelectionSamples& selection) {
   SelectionOptions options = settings.selection;
   options.pose_centre = selection.centre(settings.reference_frame);
+  options.threads = settings.threads;
   return select_keyframes(selection.samples(), selection.weights(), options);
 }
 
