@@ -417,6 +417,57 @@ TEST(KeyframeSelection, TheWorstRegionGetsKeyframesWhereTheRmsBoundsHold) {
   EXPECT_EQ(select_keyframes(frames, weights, options).keyframes.size(), 4u);
 }
 
+// The refinement measures a keyframe's trial positions on SelectionOptions::threads threads and weighs
+// them in order: the keyframes, their predicted errors (bit for bit) and the residuals are the same
+// for any count, with the moves weighed on the RMS alone (a budget), against a p99 bound (the worst
+// region's keyframes), against a tolerance, and with residual frames.
+TEST(KeyframeSelection, TheKeyframesDoNotDependOnTheThreads) {
+  std::vector<double> amplitudes;
+  for (int k = 0; k < 60; ++k) amplitudes.push_back(k < 30 ? 0.0 : 0.02 * std::sin((k - 30) * 0.5));
+  const std::vector<SelectionFrame> moving = bump_frames(amplitudes);
+  const std::vector<SelectionFrame> narrow = narrow_bump_frames();
+  const std::vector<SelectionFrame> fast = fast_bump_frames();
+  struct Case {
+    const std::vector<SelectionFrame>* frames;
+    SelectionOptions options;
+  };
+  std::vector<Case> cases(5);
+  cases[0] = {&moving, {}};
+  cases[0].options.fraction = 0.15;
+  cases[1] = {&moving, cases[0].options};
+  cases[1].options.spline = SplineKind::kLinear;
+  cases[2] = {&narrow, {}};
+  cases[2].options.error_bound = 0.005;
+  cases[2].options.p99_bound = 0.0075;
+  cases[3] = {&moving, {}};
+  cases[3].options.max_error = 0.002;
+  cases[4] = {&fast, {}};
+  cases[4].options.error_bound = 0.005;
+  cases[4].options.residuals = true;
+  for (size_t c = 0; c < cases.size(); ++c) {
+    const std::vector<SelectionFrame>& frames = *cases[c].frames;
+    const std::vector<double> weights(frames.front().local.size(), 1.0);
+    SelectionOptions options = cases[c].options;
+    const KeyframeSelection one = select_keyframes(frames, weights, options);
+    for (int threads : {2, 3}) {
+      options.threads = threads;
+      const KeyframeSelection more = select_keyframes(frames, weights, options);
+      EXPECT_EQ(more.keyframes, one.keyframes) << "case " << c << ", " << threads << " threads";
+      EXPECT_EQ(more.predicted_error, one.predicted_error) << "case " << c << ", " << threads << " threads";
+      EXPECT_EQ(more.predicted_p99, one.predicted_p99) << "case " << c << ", " << threads << " threads";
+      EXPECT_EQ(more.residual_frames, one.residual_frames) << "case " << c << ", " << threads << " threads";
+      ASSERT_EQ(more.residuals.size(), one.residuals.size()) << "case " << c;
+      for (size_t r = 0; r < one.residuals.size(); ++r) EXPECT_EQ(more.residuals[r].delta, one.residuals[r].delta) << "case " << c;
+    }
+    if (c == 2) {
+      EXPECT_GT(one.keyframes.size(), 4u) << "the p99 bound must add keyframes for its refinement to run";
+    }
+    if (c == 4) {
+      EXPECT_FALSE(one.residuals.empty()) << "the fast motion must take residual frames";
+    }
+  }
+}
+
 // Fast motion a spline cannot follow, but every frame another blend of its keyframes (one bump
 // shape at amplitudes drawn at random): with residual frames (format 2.3) each frame between
 // keyframes is served by a correction of the blend, so the selection meets the bound with far

@@ -64,6 +64,16 @@ double weighted_p99(const std::vector<double>& offsets, const std::vector<double
   return points.back().first;
 }
 
+// Some frames' capture-frame positions, frame `first` onwards (Predictor::worlds).
+struct FrameWorlds {
+  int first = 0;
+  std::vector<std::vector<Vec3>> frames;
+  const Vec3* at(int j) const {
+    const int f = j - first;
+    return f >= 0 && f < static_cast<int>(frames.size()) ? frames[static_cast<size_t>(f)].data() : nullptr;
+  }
+};
+
 // Predicts frames from a set of keyframes as the decoder would, and measures the error.
 class Predictor {
  public:
@@ -85,8 +95,29 @@ class Predictor {
   // The RMS errors alone, each frame's 99th percentile set to 0: for a search that weighs only the
   // RMS (refine without a p99 limit). The percentile's partial sort costs about half as much as
   // the prediction itself (profiled on Medusa), and the RMS is the same either way.
-  void rms_errors(const std::vector<int>& keys, int first, int last, FrameErrors& out) const {
-    measure(keys, first, last, out, nullptr, nullptr, false);
+  void rms_errors(const std::vector<int>& keys, int first, int last, FrameErrors& out, const FrameWorlds* worlds = nullptr) const {
+    measure(keys, first, last, out, nullptr, nullptr, false, worlds);
+  }
+
+  // As errors() without residuals, each frame's capture-frame positions read from `worlds`.
+  void errors_with(const std::vector<int>& keys, int first, int last, FrameErrors& out, const FrameWorlds& worlds) const {
+    measure(keys, first, last, out, nullptr, nullptr, true, &worlds);
+  }
+
+  // Frames [first, last]'s capture-frame positions (SelectionFrame::world_at, each node's), which
+  // every trial position of one keyframe predicts again (refine).
+  FrameWorlds worlds(int first, int last, int threads) const {
+    FrameWorlds held;
+    held.first = std::max(first, 0);
+    const int hi = std::min(last, static_cast<int>(frames_.size()) - 1);
+    held.frames.resize(static_cast<size_t>(std::max(hi - held.first + 1, 0)));
+    parallel_for(static_cast<int>(held.frames.size()), threads, [&](int f) {
+      const std::shared_ptr<const SelectionFrame> frame = frames_.sampled(static_cast<size_t>(held.first + f));
+      std::vector<Vec3>& world = held.frames[static_cast<size_t>(f)];
+      world.resize(frame->local.size());
+      for (size_t v = 0; v < world.size(); ++v) world[v] = frame->world_at(v);
+    });
+    return held;
   }
 
   // Whether affected() is exact: every frame outside it predicted the same whatever keyframe i's
@@ -107,7 +138,7 @@ class Predictor {
 
  private:
   void measure(const std::vector<int>& keys, int first, int last, FrameErrors& out, std::vector<ResidualFrame>* residuals,
-               std::vector<int>* at, bool with_p99) const {
+               std::vector<int>* at, bool with_p99, const FrameWorlds* worlds = nullptr) const {
     std::vector<double> times;
     std::vector<RigidPose> poses;
     for (int k : keys) {
@@ -125,7 +156,7 @@ class Predictor {
         continue;
       }
       Prediction& p = predicted[static_cast<size_t>(j - lo)];
-      p = predict(j, keys, spline, poses, rotations, with_p99);
+      p = predict(j, keys, spline, poses, rotations, with_p99, worlds ? worlds->at(j) : nullptr);
       out.set(static_cast<size_t>(j), p.kept() ? p.fitted : p.spline, p.kept() ? p.fitted_p99 : p.spline_p99);
     }
     if (!residuals) return;
@@ -162,19 +193,25 @@ class Predictor {
   };
 
   Prediction predict(int j, const std::vector<int>& keys, const KeyframeSpline& spline, const std::vector<RigidPose>& poses,
-                     const std::vector<Vec3>& rotations, bool with_p99) const {
+                     const std::vector<Vec3>& rotations, bool with_p99, const Vec3* world) const {
     const std::shared_ptr<const SelectionFrame> held = frames_.sampled(static_cast<size_t>(j));
     const SelectionFrame& frame = *held;
     const SplineWeights w = spline.weights(frame.time);
     const RigidPose pose = blend_poses(poses, rotations, w, centre_);
     std::vector<std::shared_ptr<const SelectionFrame>> blended;  // the keyframes the spline blends at t_j
     for (int32_t key : w.keys) blended.push_back(frames_.sampled(static_cast<size_t>(keys[static_cast<size_t>(key)])));
+    // The blended keys' arrays read through plain pointers, and the frame's capture-frame positions
+    // from `world` where given: the same arithmetic, without reloading each key's vector every node.
+    std::vector<const Eigen::Vector3f*> key_local;
+    for (const auto& key : blended) key_local.push_back(key->local.data());
+    const size_t key_count = key_local.size();
+    const double* key_weight = w.weights.data();
     std::vector<double> offsets(weights_.size());
     double sum = 0;
     for (size_t v = 0; v < weights_.size(); ++v) {
       Vec3 local = Vec3::Zero();
-      for (size_t i = 0; i < w.keys.size(); ++i) local += w.weights[i] * blended[i]->local_at(v);
-      offsets[v] = (pose.apply(local) - frame.world_at(v)).dot(frame.normal_at(v));
+      for (size_t i = 0; i < key_count; ++i) local += key_weight[i] * key_local[i][v].cast<double>();
+      offsets[v] = (pose.apply(local) - (world ? world[v] : frame.world_at(v))).dot(frame.normal_at(v));
       sum += weights_[v] * offsets[v] * offsets[v];
     }
     Prediction p;
@@ -277,15 +314,17 @@ void refine(const Predictor& predictor, std::vector<int>& keys, FrameErrors& err
       }
       std::vector<FrameErrors> trial_errors(positions.size(), errors);
       std::vector<Objective> trial_objectives(positions.size());
+      const auto [window_first, window_last] = predictor.affected(keys, i);  // the neighbours' keys bound it, not key i
+      const FrameWorlds worlds = predictor.worlds(window_first, window_last, threads);
       parallel_for(static_cast<int>(positions.size()), threads, [&](int t) {
         std::vector<int> trial = keys;
         trial[i] = positions[static_cast<size_t>(t)];
         const auto [first, last] = predictor.affected(trial, i);
         FrameErrors& e = trial_errors[static_cast<size_t>(t)];
         if (rms_only) {
-          predictor.rms_errors(trial, first, last, e);
+          predictor.rms_errors(trial, first, last, e, &worlds);
         } else {
-          predictor.errors(trial, first, last, e);
+          predictor.errors_with(trial, first, last, e, worlds);
         }
         trial_objectives[static_cast<size_t>(t)] = objective(e, trial);
       });
