@@ -194,7 +194,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     // through its own reparametrisation.
     // D's file is laid out (its AV1 sequences coded, one thread a group) on a thread of its own while
     // the conformal disk's texture stage runs: the same bytes, measured on Medusa 1.4 s of wall saved
-    // (spec/method.md §7.14). One thread (--threads 1): in turn.
+    // (spec/method.md §3.3, *The encode's serial stretches*). One thread (--threads 1): in turn.
     const TextureFrameSource d_textures{capture_.frames, maps_, FrameSampler(maps_, registrations_)};
     candidate.equalised_geometry_bytes = rate.candidates[rate.chosen].bytes;
     code_textures(settings.texture, d_textures, *best.sequence, chosen.keyframes, best.report);
