@@ -399,6 +399,7 @@ int run(const Arguments& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tools::reuse_freed_memory();
   CLI::App app("Decode a facemorph file (.fmv): a frame at a time t, a range of frames, or the stored fields.", "fmdec");
   Arguments a;
   declare_options(app, a);

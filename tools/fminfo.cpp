@@ -482,6 +482,7 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
 }  // namespace
 
 int main(int argc, char** argv) {
+  tools::reuse_freed_memory();
   CLI::App app("Describe a capture (validating every frame as the encoder will) or a facemorph file.", "fminfo");
   std::string input, landmarks, prepared;
   double fps = 0;

@@ -6,6 +6,7 @@
 
 #include "format/file_io.hpp"
 
+#include <malloc.h>
 #include <unistd.h>
 
 namespace facemorph::tools {
@@ -131,6 +132,13 @@ int frame_count(double begin, double end, double fps, double slack) {
     throw Error(ErrorCode::kInvalidArgument, text);
   }
   return static_cast<int>(frames) + 1;
+}
+
+void reuse_freed_memory() {
+#ifdef __GLIBC__
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);   // glibc's largest; the dynamic threshold stops with it
+  mallopt(M_TRIM_THRESHOLD, 128 << 20);
+#endif
 }
 
 }  // namespace facemorph::tools
