@@ -274,15 +274,20 @@ struct FieldBytes {
   std::vector<ArrayGroup> groups;
   SequenceFileInfo checked;  // inspect_sequence_file's description: --verify's, from the same decode
 };
-// `coding`: the file's (its header's, as describe_sequence_file reads it); `grid_n`: its N;
-// `minor_version`: its version's, whose predictors its writer had (2.5 added one).
-FieldBytes field_bytes_by_group(const fs::path& path, const FieldCoding& coding, int grid_n, uint16_t minor_version,
-                                const DecoderLimits& limits) {
+// Each keyframe coded as the file's writer coded it: its header's field coding, N (`grid_n`) and
+// minor version, whose predictors that writer had (2.5 added one), all read from the same open.
+FieldBytes field_bytes_by_group(const fs::path& path, int grid_n, const DecoderLimits& limits) {
   std::vector<ArrayGroup> groups = {{"H", 0, 1},    {"log lambda", 1, 2}, {"a", 2, 3},   {"b", 3, 4},
                                     {"band", 4, 7}, {"positions", 7, 10}, {"rim", 10, 13}, {"hole level", 13, 14}};
   const std::shared_ptr<const file_layout::GridFacts> grid = file_layout::grid_facts(grid_n);
+  FieldCoding coding;
+  uint16_t minor_version = 0;
   std::optional<Keyframe> previous;
-  SequenceFileInfo checked = inspect_sequence_file(path, limits, [&](size_t k, const Keyframe& key) {
+  const auto opened = [&](const SequenceFileInfo& file) {
+    coding = file.metadata.field_coding;
+    minor_version = file.minor_version;
+  };
+  SequenceFileInfo checked = inspect_sequence_file(path, limits, opened, [&](size_t k, const Keyframe& key) {
     const std::vector<double> bits =
         file_layout::keyframe_array_bits(key, coding.intra(k) ? nullptr : &*previous, coding, *grid, minor_version);
     const std::vector<std::vector<double>> arrays = file_layout::keyframe_arrays(key);
@@ -310,13 +315,13 @@ int describe_container(const fs::path& path, bool json_out, bool verify, bool fi
     sequence = player.info();
     times = player.keyframe_times();
   }
-  // --field-bytes decodes every keyframe anyway: with --verify too, that one decode serves both.
-  SequenceFileInfo info = verify && !field_bytes ? inspect_sequence_file(path, limits) : describe_sequence_file(path, limits);
+  // --field-bytes decodes every keyframe anyway, and verifies every checksum: that one open serves
+  // --verify and the plain description too (each keyframe's fields bytes are shown with --verify only).
   FieldBytes by_array;
-  if (field_bytes) {
-    by_array = field_bytes_by_group(path, info.metadata.field_coding, static_cast<int>(sequence.grid_n), info.minor_version, limits);
-    if (verify) info = std::move(by_array.checked);
-  }
+  if (field_bytes) by_array = field_bytes_by_group(path, static_cast<int>(sequence.grid_n), limits);
+  const SequenceFileInfo info = field_bytes ? std::move(by_array.checked)
+                                : verify    ? inspect_sequence_file(path, limits)
+                                            : describe_sequence_file(path, limits);
   const std::vector<ArrayGroup>& array_groups = by_array.groups;
   const DiskGridShape shape = disk_grid_shape(static_cast<int>(sequence.grid_n));
   const double duration = sequence.last_time - sequence.first_time + 1.0 / sequence.fps;  // frames last 1/fps each

@@ -62,6 +62,15 @@ d = json.load(sys.stdin); kgop = sum(c['bytes'] for c in d['chunks'] if c['type'
 parts = {g['arrays']: g['bytes'] for g in d['field_bytes_by_array']}
 assert parts['H'] > 0 and parts['log lambda'] > 0 and parts['positions'] == 0, parts
 assert abs(sum(parts.values()) / kgop - 1) < 0.1, (sum(parts.values()), kgop)" || fail "fminfo --field-bytes does not add up to the KGOP chunks"
+# --field-bytes opens the file once for both its estimate and the description (spec/container.md
+# §10.5): with and without --verify, the rest of what it prints is what fminfo prints without it.
+for verify in "" --verify; do
+  "$tools/fminfo" "$work/a.fmv" --json $verify >"$work/plain.json" && "$tools/fminfo" "$work/a.fmv" --json --field-bytes $verify >"$work/costed.json" &&
+    python3 -c "import json,sys
+plain, costed = (json.load(open(p)) for p in sys.argv[1:3])
+assert costed.pop('field_bytes_by_array') and costed == plain, (plain, costed)" "$work/plain.json" "$work/costed.json" ||
+    fail "fminfo --field-bytes $verify: its description is not fminfo $verify's"
+done
 # Each group holds its arrays' values (H, log lambda, a, b: one a node of G's interior; the band
 # three a fixed node; the rim three a rim node), and a keyframe is costed from the one before only
 # inside a group: the same codes, each keyframe its own group (regrouped.fmv, above), cost more.

@@ -54,9 +54,16 @@ struct ItemTime {
   double time = 0;
   int interval = 0;
 };
-ItemTime read_item_time(format::ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
+// An item's name in an error ("frame patch 1234"), spelt out only when there is one: a chunk holds
+// up to millions of items, and a string per item was a heap allocation each (spec/container.md §10.5).
+struct ItemName {
+  const char* kind;  // "frame patch"
+  uint64_t index;
+  std::string str() const { return std::string(kind) + " " + std::to_string(index); }
+};
+ItemTime read_item_time(format::ByteReader& r, const char* change_name, ItemName name, const Sequence& shape,
                         const std::vector<double>& key_times, int64_t& q);
-ItemTime item_time(int64_t change, const std::string& source, const std::string& name, const Sequence& shape,
+ItemTime item_time(int64_t change, const std::string& source, ItemName name, const Sequence& shape,
                    const std::vector<double>& key_times, int64_t& q);
 
 // Reads and checks a PTCH payload against the header (first time, fps) and the keyframes' times:

@@ -26,16 +26,18 @@ class PatchBudget {
  public:
   PatchBudget(const std::string& source, uint32_t count, uint64_t max_memory_bytes)
       : source_(source), memory_(uint64_t{count} * kPatchMemoryBytes), max_(max_memory_bytes) {
-    charge(0, std::to_string(count) + " frame patches");
+    if (memory_ > max_) refuse(std::to_string(count) + " frame patches");
   }
-  void charge(uint64_t bytes, const std::string& what) {
+  // `what`: a literal, made a string only for the error (this runs once a patch).
+  void charge(uint64_t bytes, const char* what) {
     memory_ += bytes;
-    if (memory_ > max_) {
-      over_limit(source_, what + " need " + std::to_string(memory_) + " bytes, more than max_memory_bytes (" + std::to_string(max_) + ")");
-    }
+    if (memory_ > max_) refuse(what);
   }
 
  private:
+  [[noreturn]] void refuse(const std::string& what) const {
+    over_limit(source_, what + " need " + std::to_string(memory_) + " bytes, more than max_memory_bytes (" + std::to_string(max_) + ")");
+  }
   const std::string& source_;
   uint64_t memory_, max_;
 };
@@ -53,9 +55,9 @@ int read_step_exponent(ByteReader& r) {
 // larger), and |code| within the coding's own bound.
 double max_code_for(int e, double coding_bound) { return std::min(coding_bound, std::floor(std::ldexp(kMaxCoordinate, -e))); }
 
-void check_lattice(int64_t lattice, const std::string& source, const std::string& name) {
+void check_lattice(int64_t lattice, const std::string& source, ItemName name) {
   if (lattice < kMinPatchLattice || lattice > kMaxPatchLattice) {
-    corrupt(source, name + ": lattice " + std::to_string(lattice) + " outside " + std::to_string(kMinPatchLattice) + ".." +
+    corrupt(source, name.str() + ": lattice " + std::to_string(lattice) + " outside " + std::to_string(kMinPatchLattice) + ".." +
                         std::to_string(kMaxPatchLattice));
   }
 }
@@ -71,7 +73,7 @@ std::vector<FramePatch> read_varint_patches(ByteReader& r, const Sequence& shape
   std::vector<FramePatch> patches(count);
   int64_t q = 0;
   for (uint32_t p = 0; p < count; ++p) {
-    const std::string name = "frame patch " + std::to_string(p);
+    const ItemName name{"frame patch", p};
     FramePatch& f = patches[p];
     f.time = read_item_time(r, "a patch time's change", name, shape, key_times, q).time;
     const int64_t lattice = read_varint(r, "a patch's lattice size");
@@ -81,7 +83,7 @@ std::vector<FramePatch> read_varint_patches(ByteReader& r, const Sequence& shape
     const int64_t nodes = read_varint(r, "a patch's node count");
     // Each node takes at least four bytes (its gap and three components).
     if (nodes < 0 || nodes > lattice_nodes || static_cast<uint64_t>(nodes) > r.remaining() / 4) {
-      corrupt(r.source(), name + ": states " + std::to_string(nodes) + " nodes; its lattice has " + std::to_string(lattice_nodes) +
+      corrupt(r.source(), name.str() + ": states " + std::to_string(nodes) + " nodes; its lattice has " + std::to_string(lattice_nodes) +
                               " and the chunk's " + std::to_string(r.remaining()) + " bytes left hold " +
                               std::to_string(r.remaining() / 4));
     }
@@ -92,13 +94,13 @@ std::vector<FramePatch> read_varint_patches(ByteReader& r, const Sequence& shape
     for (int64_t n = 0; n < nodes; ++n) {
       const int64_t gap = read_varint(r, "a patch node's gap");
       if (gap < 0 || gap >= lattice_nodes - node - 1)
-        corrupt(r.source(), name + ": node gap " + std::to_string(gap) + " leaves its lattice of " + std::to_string(lattice_nodes));
+        corrupt(r.source(), name.str() + ": node gap " + std::to_string(gap) + " leaves its lattice of " + std::to_string(lattice_nodes));
       node += gap + 1;
       f.nodes[static_cast<size_t>(n)] = static_cast<int32_t>(node);
       for (int c = 0; c < 3; ++c) {
         const int64_t code = read_varint(r, "a patch displacement");
         if (std::abs(static_cast<double>(code)) > max_code)
-          corrupt(r.source(), name + ": a displacement code " + std::to_string(code) + " beyond ±" + std::to_string(max_code));
+          corrupt(r.source(), name.str() + ": a displacement code " + std::to_string(code) + " beyond ±" + std::to_string(max_code));
         f.displacements[static_cast<size_t>(n)][c] = std::ldexp(static_cast<double>(code), e);
       }
     }
@@ -129,7 +131,7 @@ std::vector<FramePatch> read_ranged_patches(ByteReader& r, const Sequence& shape
   std::vector<FramePatch> patches(count);
   int64_t q = 0;
   for (uint32_t p = 0; p < count; ++p) {
-    const std::string name = "frame patch " + std::to_string(p);
+    const ItemName name{"frame patch", p};
     FramePatch& f = patches[p];
     f.time = item_time(stream.time_change(), r.source(), name, shape, key_times, q).time;
     f.lattice = stream.lattice();  // 2 … 129, checked by the stream
@@ -142,7 +144,7 @@ std::vector<FramePatch> read_ranged_patches(ByteReader& r, const Sequence& shape
     for (size_t n = 0; n < nodes; ++n) {
       for (int c = 0; c < 3; ++c) {
         if (std::abs(static_cast<double>(codes[n][c])) > max_code)
-          corrupt(r.source(), name + ": a displacement code " + std::to_string(codes[n][c]) + " beyond ±" + std::to_string(max_code));
+          corrupt(r.source(), name.str() + ": a displacement code " + std::to_string(codes[n][c]) + " beyond ±" + std::to_string(max_code));
         f.displacements[n][c] = std::ldexp(static_cast<double>(codes[n][c]), e);
       }
     }

@@ -29,7 +29,7 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
   std::vector<ResidualFrame> residuals(count);
   int64_t q = 0;
   for (uint32_t n = 0; n < count; ++n) {
-    const std::string name = "residual frame " + std::to_string(n);
+    const ItemName name{"residual frame", n};
     const ItemTime time = read_item_time(r, "a residual time's change", name, shape, key_times, q);
     ResidualFrame& f = residuals[n];
     f.time = time.time;
@@ -38,12 +38,12 @@ std::vector<ResidualFrame> read_residuals(std::span<const uint8_t> payload, cons
     int64_t sum = 0;
     for (int m = 0; m + 1 < window.count; ++m) {
       const int64_t code = read_varint(r, "a residual correction");
-      if (code < -bound || code > bound) corrupt(r.source(), name + ": a correction beyond ±" + std::to_string(kMaxResidualDelta));
+      if (code < -bound || code > bound) corrupt(r.source(), name.str() + ": a correction beyond ±" + std::to_string(kMaxResidualDelta));
       sum += code;
       f.delta[static_cast<size_t>(m)] = std::ldexp(static_cast<double>(code), -e);
     }
     if (sum < -bound || sum > bound)
-      corrupt(r.source(), name + ": its last correction (minus the others' sum) beyond ±" + std::to_string(kMaxResidualDelta));
+      corrupt(r.source(), name.str() + ": its last correction (minus the others' sum) beyond ±" + std::to_string(kMaxResidualDelta));
     f.delta.back() = std::ldexp(static_cast<double>(-sum), -e);
   }
   // Later minor versions may append here; this reader skips them (a bounded number of bytes).
@@ -65,20 +65,20 @@ uint32_t read_item_count(ByteReader& r, const char* count_name, const char* item
   return count;
 }
 
-ItemTime read_item_time(ByteReader& r, const char* change_name, const std::string& name, const Sequence& shape,
+ItemTime read_item_time(ByteReader& r, const char* change_name, ItemName name, const Sequence& shape,
                         const std::vector<double>& key_times, int64_t& q) {
   return item_time(read_varint(r, change_name), r.source(), name, shape, key_times, q);
 }
 
-ItemTime item_time(int64_t change, const std::string& source, const std::string& name, const Sequence& shape,
+ItemTime item_time(int64_t change, const std::string& source, ItemName name, const Sequence& shape,
                    const std::vector<double>& key_times, int64_t& q) {
   if (change < 1 || change >= kMaxTimeCode - q)
-    corrupt(source, name + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
+    corrupt(source, name.str() + ": its time does not come after the previous one's (change " + std::to_string(change) + ")");
   q += change;
   ItemTime t;
   t.time = residual_time(q, shape.first_time, shape.fps);
   t.interval = residual_interval(key_times, t.time);
-  if (t.interval < 0) corrupt(source, name + ": its time " + std::to_string(t.time) + " s is not strictly between two keyframes");
+  if (t.interval < 0) corrupt(source, name.str() + ": its time " + std::to_string(t.time) + " s is not strictly between two keyframes");
   return t;
 }
 

@@ -515,16 +515,18 @@ Sequence decode_sequence_file(std::span<const uint8_t> bytes, const std::string&
 }
 
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits) {
-  return inspect_sequence_file(path, limits, {});
+  return inspect_sequence_file(path, limits, {}, {});
 }
 
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits,
+                                       const std::function<void(const SequenceFileInfo&)>& opened,
                                        const std::function<void(size_t, const Keyframe&)>& each) {
   check_decoder_limits(limits);
   format::MappedFile mapped(path);
   // One keyframe at a time: what a decoder on demand holds for the frame's keyframes, no more.
   const OpenedFile file(mapped.bytes(), path.string(), limits,
                         [](uint32_t keyframes, SplineKind) { return std::min<uint64_t>(keyframes, 1); });
+  if (opened) opened(file.describe());
   SequenceFileInfo info;
   file.check_every_keyframe(&info, each);
   return info;

@@ -56,9 +56,13 @@ std::shared_ptr<const KeyframeSource> open_borrowed_sequence_source(std::span<co
 // a time). Returns the file's description with every keyframe's bytes (fminfo). Throws as
 // decode_sequence_file.
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits = kDefaultDecoderLimits);
-// The same, handing `each` every keyframe (its texture left empty) as it is decoded, in order: what
-// a caller keeps of them is its own (fminfo --field-bytes keeps the one before).
+// The same, handing `opened` the file's description as describe_sequence_file gives it (checksums
+// not yet verified) once it is open, then `each` every keyframe (its texture left empty) as it is
+// decoded, in order: what a caller keeps of them is its own (fminfo --field-bytes keeps the one
+// before, and codes it as the header's field coding says). One open serves both: opening a file of
+// millions of frame patches is most of what reading it costs (spec/container.md §10.5).
 SequenceFileInfo inspect_sequence_file(const std::filesystem::path& path, const DecoderLimits& limits,
+                                       const std::function<void(const SequenceFileInfo&)>& opened,
                                        const std::function<void(size_t, const Keyframe&)>& each);
 // Describes a file from what opening it reads (header and index, checked as §10.2 steps 1-5) and
 // verifies every chunk's checksum; decodes no keyframe. Each keyframe's fields bytes are 0 (a
