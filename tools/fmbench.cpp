@@ -7,6 +7,7 @@
 #include "tools/tool_support.hpp"
 
 int main(int argc, char** argv) {
+  facemorph::tools::start_with_huge_pages(argv);  // before anything is allocated: the process may start again
   using namespace facemorph::tools;
   CLI::App app("facemorph benchmarks: quality, size and speed, printed as a table and as JSON.", "fmbench");
   app.require_subcommand(0, 1);

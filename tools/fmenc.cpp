@@ -987,6 +987,7 @@ void print_summary(const Summary& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tools::start_with_huge_pages(argv);  // before anything is allocated: the process may start again
   CLI::App app("Encode a face capture into a facemorph file (.fmv).", "fmenc");
   Arguments a;
   declare_options(app, a);

@@ -2,6 +2,9 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
 #include <stdexcept>
 
 #include "format/file_io.hpp"
@@ -138,6 +141,31 @@ void reuse_freed_memory() {
 #ifdef __GLIBC__
   mallopt(M_MMAP_THRESHOLD, 32 << 20);   // glibc's largest; the dynamic threshold stops with it
   mallopt(M_TRIM_THRESHOLD, 128 << 20);
+#endif
+}
+
+void start_with_huge_pages(char** argv) {
+#if defined(__linux__) && defined(__GLIBC__)
+  constexpr const char* kSetting = "glibc.malloc.hugetlb";
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  if (tunables != nullptr && std::strstr(tunables, kSetting) != nullptr) return;
+  const char* choice = std::getenv("FACEMORPH_HUGE_PAGES");
+  if (choice != nullptr && std::strcmp(choice, "0") == 0) return;
+  std::ifstream policy("/sys/kernel/mm/transparent_hugepage/enabled");
+  std::string modes;
+  if (!std::getline(policy, modes) || modes.find("[madvise]") == std::string::npos) return;
+  const std::string previous = tunables != nullptr ? tunables : "";
+  const std::string value = (previous.empty() ? "" : previous + ":") + kSetting + "=1";
+  if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
+  ::execv("/proc/self/exe", argv);
+  // Not started again: go on as started, the environment as it was.
+  if (tunables != nullptr) {
+    ::setenv("GLIBC_TUNABLES", previous.c_str(), 1);
+  } else {
+    ::unsetenv("GLIBC_TUNABLES");
+  }
+#else
+  (void)argv;
 #endif
 }
 
