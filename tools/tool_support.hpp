@@ -68,7 +68,8 @@ void reuse_freed_memory();
 // (spec/method.md §3.3, *Huge pages*). Returns (doing nothing) where GLIBC_TUNABLES already names the
 // setting (this process was started so, or the user chose), FACEMORPH_HUGE_PAGES=0 is set, the
 // kernel says otherwise, or the exec fails. Called first thing by the encoding tools (fmenc,
-// fmbench); a library must not start its caller again.
+// fmbench); a library must not start its caller again. (Under valgrind, which runs an exec'd
+// process outside itself, set FACEMORPH_HUGE_PAGES=0.)
 void start_with_huge_pages(char** argv);
 
 // "0x" and 16 hex digits.
