@@ -154,6 +154,14 @@ void start_with_huge_pages(char** argv) {
   std::ifstream policy("/sys/kernel/mm/transparent_hugepage/enabled");
   std::string modes;
   if (!std::getline(policy, modes) || modes.find("[madvise]") == std::string::npos) return;
+  // Started through the dynamic loader (ld-linux-x86-64.so.2 ./fmenc ...), /proc/self/exe is the
+  // loader, which would take the first argument for the program: not started again.
+  char exe[4096];
+  const ssize_t length = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
+  if (length <= 0) return;
+  exe[length] = '\0';
+  const char* slash = std::strrchr(exe, '/');
+  if (std::strncmp(slash != nullptr ? slash + 1 : exe, "ld-", 3) == 0) return;
   const std::string previous = tunables != nullptr ? tunables : "";
   const std::string value = (previous.empty() ? "" : previous + ":") + kSetting + "=1";
   if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;

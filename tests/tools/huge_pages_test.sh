@@ -4,7 +4,8 @@
 # AnonHugePages in kB). Where the kernel gives transparent huge pages on request ("madvise"): by
 # default the process runs again with glibc.malloc.hugetlb=1 and its 64 MiB are in huge pages; a
 # tunable the user set is kept, the setting added after it; FACEMORPH_HUGE_PAGES=0, or the user's own
-# glibc.malloc.hugetlb, leaves the process as started (no huge pages). Exits 77 (skipped) where the
+# glibc.malloc.hugetlb, or a start through the dynamic loader, leaves the process as started (no
+# huge pages). Exits 77 (skipped) where the
 # kernel's policy is not "madvise" or /proc/self/smaps_rollup is absent, naming which.
 #   huge_pages_test.sh PROBE
 set -uo pipefail
@@ -29,6 +30,13 @@ read -r tunables huge < <(run FACEMORPH_HUGE_PAGES=0)
 read -r tunables huge < <(run GLIBC_TUNABLES=glibc.malloc.hugetlb=0)
 [[ $tunables == glibc.malloc.hugetlb=0 ]] || fail "the user's glibc.malloc.hugetlb=0: GLIBC_TUNABLES is '$tunables'"
 ((huge == 0)) || fail "the user's glibc.malloc.hugetlb=0: $huge kB in huge pages"
+# Started through the dynamic loader, /proc/self/exe is the loader: not started again (the loader
+# would take the probe's first argument for the program).
+loader=$(ls /lib64/ld-linux-*.so.* /lib/ld-linux-*.so.* 2>/dev/null | head -1)
+if [[ -n $loader ]]; then
+  read -r tunables huge < <(env -u GLIBC_TUNABLES -u FACEMORPH_HUGE_PAGES "$loader" "$probe" | cut -d' ' -f1,2)
+  [[ $tunables == - ]] || fail "through $loader: GLIBC_TUNABLES is '$tunables', not left alone"
+fi
 if ((failures > 0)); then
   echo "$failures failures" >&2
   exit 1
