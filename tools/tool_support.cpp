@@ -151,9 +151,12 @@ void start_with_huge_pages(char** argv) {
   if (tunables != nullptr && std::strstr(tunables, kSetting) != nullptr) return;
   const char* choice = std::getenv("FACEMORPH_HUGE_PAGES");
   if (choice != nullptr && std::strcmp(choice, "0") == 0) return;
-  std::ifstream policy("/sys/kernel/mm/transparent_hugepage/enabled");
   std::string modes;
-  if (!std::getline(policy, modes) || modes.find("[madvise]") == std::string::npos) return;
+  {
+    std::ifstream policy("/sys/kernel/mm/transparent_hugepage/enabled");  // closed before the exec
+    if (!std::getline(policy, modes)) return;
+  }
+  if (modes.find("[madvise]") == std::string::npos) return;
   // Started through the dynamic loader (ld-linux-x86-64.so.2 ./fmenc ...), /proc/self/exe is the
   // loader, which would take the first argument for the program: not started again.
   char exe[4096];
