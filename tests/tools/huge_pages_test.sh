@@ -15,7 +15,7 @@ policy=/sys/kernel/mm/transparent_hugepage/enabled
 grep -q '\[madvise\]' "$policy" 2>/dev/null || { echo "SKIPPED: $policy is not [madvise]: $(cat "$policy" 2>/dev/null)"; exit 77; }
 [[ -r /proc/self/smaps_rollup ]] || { echo "SKIPPED: no /proc/self/smaps_rollup"; exit 77; }
 
-run() {  # run [VAR=VALUE...]: the probe's "TUNABLES HUGE_KB" under env -u GLIBC_TUNABLES and those
+run() {  # run [VAR=VALUE...] [LOADER]: the probe's "TUNABLES HUGE_KB" under env -u GLIBC_TUNABLES and those
   env -u GLIBC_TUNABLES -u FACEMORPH_HUGE_PAGES "$@" "$probe" | cut -d' ' -f1,2
 }
 read -r tunables huge < <(run)
@@ -34,7 +34,7 @@ read -r tunables huge < <(run GLIBC_TUNABLES=glibc.malloc.hugetlb=0)
 # would take the probe's first argument for the program).
 loader=$(ls /lib64/ld-linux-*.so.* /lib/ld-linux-*.so.* 2>/dev/null | head -1)
 if [[ -n $loader ]]; then
-  read -r tunables huge < <(env -u GLIBC_TUNABLES -u FACEMORPH_HUGE_PAGES "$loader" "$probe" | cut -d' ' -f1,2)
+  read -r tunables huge < <(run "$loader")
   [[ $tunables == - ]] || fail "through $loader: GLIBC_TUNABLES is '$tunables', not left alone"
 fi
 if ((failures > 0)); then
