@@ -1,5 +1,7 @@
 #include "codec/encoder/imageio/image_io.hpp"
 
+#include "codec/encoder/imageio/opencv_codecs.hpp"
+
 #include "format/error.hpp"
 #include "format/file_io.hpp"
 
@@ -13,10 +15,11 @@ namespace facemorph {
 namespace fs = std::filesystem;
 
 Image decode_image(std::span<const uint8_t> bytes, const std::string& source) {
+  const OpenCvImageCodecs& codecs = opencv_image_codecs(source);
   const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<uint8_t*>(bytes.data()));
   cv::Mat decoded;
   try {
-    decoded = cv::imdecode(raw, cv::IMREAD_COLOR);
+    decoded = codecs.imdecode(raw, cv::IMREAD_COLOR);
   } catch (const cv::Exception&) {
     decoded.release();
   }
@@ -48,6 +51,7 @@ std::vector<uint8_t> encode_image(const Image& image, const std::string& extensi
   if (image.empty() || (image.channels != 3 && image.channels != 4)) {
     throw Error(ErrorCode::kInvalidArgument, "cannot encode an empty image or one with " + std::to_string(image.channels) + " channels");
   }
+  const OpenCvImageCodecs& codecs = opencv_image_codecs("encoding an image to " + ext);
   const cv::Mat view(image.height, image.width, image.channels == 3 ? CV_8UC3 : CV_8UC4, const_cast<uint8_t*>(image.pixels.data()));
   cv::Mat bgr;
   cv::cvtColor(view, bgr, image.channels == 3 ? cv::COLOR_RGB2BGR : cv::COLOR_RGBA2BGRA);
@@ -55,7 +59,7 @@ std::vector<uint8_t> encode_image(const Image& image, const std::string& extensi
   if (ext == ".jpg") params = {cv::IMWRITE_JPEG_QUALITY, std::clamp(quality, 1, 100)};
   if (ext == ".webp") params = {cv::IMWRITE_WEBP_QUALITY, std::clamp(quality, 1, 100)};
   std::vector<uint8_t> bytes;
-  if (!cv::imencode(ext, bgr, bytes, params)) throw Error(ErrorCode::kIo, "image encoding to " + ext + " failed");
+  if (!codecs.imencode(ext, bgr, bytes, params)) throw Error(ErrorCode::kIo, "image encoding to " + ext + " failed");
   return bytes;
 }
 

@@ -1,5 +1,5 @@
-// Image files (PNG, JPEG, WebP) through OpenCV. Lives in its own library so the decoder core
-// never depends on OpenCV.
+// Image files (PNG, JPEG, WebP to write; whatever OpenCV's imgcodecs reads) through OpenCV,
+// loaded on first use (opencv_codecs.hpp). In the encoder so the decoder core never depends on OpenCV.
 #pragma once
 
 #include "codec/core/image/image.hpp"

@@ -9,6 +9,8 @@
 
 #include "format/file_io.hpp"
 
+#include "codec/encoder/imageio/opencv_codecs.hpp"
+
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
@@ -68,8 +70,9 @@ class TexturePainter {
 constexpr const char* kSharedTextureName = "texture.jpg";
 
 void write_texture(const fs::path& path, const TexturePainter& painter, double time) {
+  const OpenCvImageCodecs& codecs = opencv_image_codecs(path.string());
   std::vector<uint8_t> jpeg;
-  if (!cv::imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}))
+  if (!codecs.imencode(".jpg", painter.render(time), jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}))
     throw Error(ErrorCode::kIo, path.string() + ": JPEG encoding failed");
   format::write_file_atomically(path, jpeg);
 }
