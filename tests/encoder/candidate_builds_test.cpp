@@ -77,7 +77,8 @@ TEST(CandidateBuilds, ACandidateFromAKeptBuildIsItsOwnBuild) {
 // The same where the arrays stay in memory (EncodeOptions::spill_keyframes false, an API caller's
 // setting: the copies then share nothing with the kept build through a file) and on a capture with
 // holes and textures, whose hole levels and texels the copies carry over: each candidate holds what
-// a new build of it holds.
+// a new build of it holds; a build at another N takes the kept build's textures, as its own sampling
+// makes them.
 TEST(CandidateBuilds, InMemoryAndWithHolesACandidateIsItsOwnBuild) {
   for (const bool spill : {false, true}) {
     SCOPED_TRACE(spill ? "spilled" : "in memory");
@@ -132,6 +133,23 @@ TEST(CandidateBuilds, InMemoryAndWithHolesACandidateIsItsOwnBuild) {
     const std::unique_ptr<StoredSequence> again = builds.get(Representation::kHLT, kN, build, report);
     EXPECT_EQ(built, 1);
     expect_same_keyframes(*again, *encoder.build(settings, keyframes, kN), "hl+t again, unrounded");
+
+    // Another N: a build of its own, its textures copied from a kept build of the same keyframes on
+    // the same disk (any_kept), not sampled again: what a build that samples them holds.
+    encoder.adopt_representation(Representation::kXYZ, encoder.report().blend);
+    constexpr int kCoarser = 33;
+    const auto build_coarser = [&](KeyframeSurfaces* surfaces) {
+      ++built;
+      return encoder.build(settings, keyframes, kCoarser, nullptr, surfaces, builds.any_kept());
+    };
+    ASSERT_NE(builds.any_kept(), nullptr);
+    const std::unique_ptr<StoredSequence> coarser = builds.get(Representation::kXYZ, kCoarser, build_coarser, report);
+    EXPECT_EQ(built, 2) << "a new N is built";
+    expect_same_keyframes(*coarser, *encoder.build(settings, keyframes, kCoarser), "xyz at a coarser N, textures from the kept build");
+    // Other keyframes: the kept build's textures are not theirs, and are not taken.
+    const std::vector<int> others = {0, 5, 11};
+    expect_same_keyframes(*encoder.build(settings, others, kCoarser, nullptr, nullptr, builds.any_kept()),
+                          *encoder.build(settings, others, kCoarser), "other keyframes, given the kept build's textures");
   }
 }
 

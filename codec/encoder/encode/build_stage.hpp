@@ -69,10 +69,13 @@ struct KeyframeSurfaces {
 // `keyframes` (spec/method.md §7.17), with its fixed nodes where given. Fills report.texture_size,
 // keyframe_folds and seconds_keyframes. kInvalidArgument for no keyframes or a segment outside
 // them; kMissingTexture where some keyframes have colour and another has not. With `kept` (no
-// segment): the surfaces the fields were made from, kept there.
+// segment): the surfaces the fields were made from, kept there. With `textures_from` (no segment):
+// the textures of the same keyframes sampled through the same disk at another N, copied rather
+// than sampled again (a texture does not depend on N; candidate_builds.hpp); ignored where its
+// keyframes are not these (their number or times differ).
 std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, const BuildFrames& frames, const std::vector<int>& keyframes,
                                                 int grid, const KeyframeSegment* segment, EncodeReport& report,
-                                                KeyframeSurfaces* kept = nullptr);
+                                                KeyframeSurfaces* kept = nullptr, const StoredSequence* textures_from = nullptr);
 
 // The holes of a prepared, mapped frame as a level set at disk points (the frame's disk): minus the
 // distance to the nearest hole outline inside a filled hole, plus it outside capped at

@@ -242,11 +242,12 @@ void SequenceEncoder::adopt_plan(const KeyframeSelection& chosen, int grid, Repr
 }
 
 std::unique_ptr<StoredSequence> SequenceEncoder::build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
-                                                       const KeyframeSegment* segment, KeyframeSurfaces* kept) {
+                                                       const KeyframeSegment* segment, KeyframeSurfaces* kept,
+                                                       const StoredSequence* textures_from) {
   const Representation representation = options_.representation.value_or(auto_representation_);
   const Vec3 pose_centre = selection_.centre(options_.reference_frame);  // the face's centroid in the face frame
   const BuildFrames frames{capture_, selection_, maps_, registrations_, representation, first_time_, last_time_, pose_centre};
-  return build_keyframes(settings, frames, keyframes, grid, segment, report_, kept);
+  return build_keyframes(settings, frames, keyframes, grid, segment, report_, kept, textures_from);
 }
 
 Sequence build_sequence(SequenceEncoder& encoder, const std::vector<int>& keyframes, int grid) {
@@ -430,7 +431,10 @@ std::unique_ptr<StoredSequence> SequenceEncoder::measure_candidate(const StageSe
   std::unique_ptr<StoredSequence> sequence;
   try {
     sequence = builds.get(candidate.representation, n,
-                          [&](KeyframeSurfaces* surfaces) { return build(settings.build, chosen.keyframes, n, nullptr, surfaces); }, report_);
+                          [&](KeyframeSurfaces* surfaces) {
+                            return build(settings.build, chosen.keyframes, n, nullptr, surfaces, builds.any_kept());
+                          },
+                          report_);
     if (settings.predicted_fields) report_.field_coding = round_fields(precision, *sequence, report_);
   } catch (const Error& e) {
     if (e.code() != ErrorCode::kNotConverged) throw;

@@ -207,9 +207,11 @@ class SequenceEncoder {
   // increasing from the first frame to the last, a predicted error a frame).
   void adopt_plan(const KeyframeSelection& chosen, int grid, Representation representation, const BlendComparison& blend);
   // The build stage (build_keyframes) on this encoder's frames, in representation(); with `kept`
-  // (no segment), the surfaces the fields were made from kept there.
+  // (no segment), the surfaces the fields were made from kept there; with `textures_from`, another
+  // N's build of the same keyframes on the current disk, whose textures are copied.
   std::unique_ptr<StoredSequence> build(const BuildSettings& settings, const std::vector<int>& keyframes, int grid,
-                                        const KeyframeSegment* segment = nullptr, KeyframeSurfaces* kept = nullptr);
+                                        const KeyframeSegment* segment = nullptr, KeyframeSurfaces* kept = nullptr,
+                                        const StoredSequence* textures_from = nullptr);
   // The keyframes built (build: all of `keyframes`, or `segment`'s) and `measure_fields` run on
   // them (the field precision: round_fields, or a segment's measure); where the representation is
   // the encoder's own choice (options().representation unset) and not already xyz, and measuring

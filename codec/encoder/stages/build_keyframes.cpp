@@ -101,7 +101,7 @@ std::vector<double> hole_level(const PreparedFrame& prepared, const DiskMap& map
 
 std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, const BuildFrames& frames, const std::vector<int>& keyframes,
                                                 int grid_n, const KeyframeSegment* segment, EncodeReport& report,
-                                                KeyframeSurfaces* kept) {
+                                                KeyframeSurfaces* kept, const StoredSequence* textures_from) {
   if (kept && segment) throw Error(ErrorCode::kInvalidArgument, "build: a segment's surfaces are not kept");
   const auto start = std::chrono::steady_clock::now();
   const Capture& capture = frames.capture;
@@ -139,8 +139,17 @@ std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, c
       store_texture = false;
     }
   }
+  // Another N's build of the same keyframes on the same disk: its textures are these.
+  if (textures_from) {
+    const std::vector<Keyframe>& theirs = textures_from->shape().keyframes;
+    bool same = !segment && theirs.size() == keyframes.size() && textures_from->size() > 0 && store_texture == !textures_from->texture(0)->empty();
+    for (size_t k = 0; same && k < keyframes.size(); ++k) same = theirs[k].time == capture.frames[static_cast<size_t>(keyframes[k])].time;
+    if (!same) textures_from = nullptr;
+  }
   int texture_size = settings.texture_size;
-  if (store_texture && texture_size == 0) {
+  if (store_texture && textures_from) {
+    texture_size = textures_from->texture(0)->width;
+  } else if (store_texture && texture_size == 0) {
     const int first = keyframes.front();
     const FrameSummary& summary = maps.summaries[static_cast<size_t>(first)];
     const std::filesystem::path& texture = maps.textures[static_cast<size_t>(first)];
@@ -192,7 +201,13 @@ std::unique_ptr<StoredSequence> build_keyframes(const BuildSettings& settings, c
         const auto own = static_cast<size_t>(k) - own_offset;  // wraps past keys for a margin's keyframe
         if (own >= keys) return;
         stored->put_hole_level(own, store_holes ? hole_level(f.prepared, f.map, points) : std::vector<double>());
-        stored->put_texture(own, store_texture ? sampler.frame_texture(f, static_cast<int>(index), texture_size) : Image());
+        if (!store_texture) {
+          stored->put_texture(own, Image());
+        } else if (textures_from) {
+          stored->put_texture(own, Image(*textures_from->texture(own)));
+        } else {
+          stored->put_texture(own, sampler.frame_texture(f, static_cast<int>(index), texture_size));
+        }
       },
       [&](int done, int total) {
         if (settings.progress) settings.progress("keyframes", done, total);
