@@ -169,6 +169,14 @@ TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
   SequenceEncoder encoder(capture, options);
   const std::unique_ptr<StoredSequence> stored = encode_by_stages(encoder, &report);
   EXPECT_FALSE(encoder.reparametrisation().identity()) << "the stages after the choice sample through D";
+  // On two threads D was made ahead, beside the conformal disk's candidates: it is the candidate's
+  // disk of the reference frame's map, as made in place (strength 0.5, the same flow to the bit).
+  ASSERT_EQ(options.threads, 2);
+  const DiskReparametrisation in_place = candidate_disk(encoder.frame(encoder.options().reference_frame)->map);
+  EXPECT_EQ(encoder.reparametrisation().report().steps, in_place.report().steps);
+  EXPECT_EQ(encoder.reparametrisation().report().variation_after, in_place.report().variation_after);
+  for (const Vec2& g : {Vec2(0, 0), Vec2(0.3, -0.2), Vec2(-0.55, 0.61), Vec2(0.97, 0.1), Vec2(0, -1)})
+    EXPECT_EQ(encoder.reparametrisation()(g), in_place(g)) << g.transpose();
   const RepresentationRate& rate = report.representation_rate;
   ASSERT_TRUE(rate.measured);
   const auto equalised = std::count_if(rate.candidates.begin(), rate.candidates.end(),

@@ -21,9 +21,20 @@
 
 namespace facemorph {
 
-bool density_candidate_open(const EncodeOptions& options, const EncodeReport& report) {
+bool density_candidate_possible(const EncodeOptions& options, const EncodeReport& report) {
   return !options.representation && options.grid == 0 && options.density_equalising.strength == 0 &&
-         options.density_equalising.radial == kAutoRadial && report.radial_equalising == 0 && report.representation_rate.measured;
+         options.density_equalising.radial == kAutoRadial && report.radial_equalising == 0;
+}
+
+bool density_candidate_open(const EncodeOptions& options, const EncodeReport& report) {
+  return density_candidate_possible(options, report) && report.representation_rate.measured;
+}
+
+DiskReparametrisation candidate_disk(const DiskMap& reference) {
+  DensityEqualisingOptions equalising;
+  equalising.strength = kCandidateDensityStrength;
+  equalising.radial = 0;
+  return DiskReparametrisation(reference, equalising);
 }
 
 int coarsest_within(std::vector<int> ns, int below, double worst_target, const std::function<double(int)>& floor_p99,
@@ -87,7 +98,8 @@ uint64_t texture_file_bytes(const TextureSettings& settings, const StoredSequenc
 
 std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
                                                                           std::unique_ptr<StoredSequence> kept,
-                                                                          const std::optional<std::vector<TriangleMesh>>& captured) {
+                                                                          const std::optional<std::vector<TriangleMesh>>& captured,
+                                                                          std::future<DiskReparametrisation>* made_ahead) {
   report_.density_candidate = {};
   if (!density_candidate_open(options_, report_) || !captured) return kept;
   const auto start = std::chrono::steady_clock::now();
@@ -99,11 +111,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   // D as set_reference_geometry builds it for --density-equalising S, swapped in after the
   // registrations (they map the frames' conformal disks; D maps the reference's onto itself).
   const std::shared_ptr<const MappedFrame> reference = maps_.frame(options_.reference_frame);
-  DensityEqualisingOptions equalising;
-  equalising.strength = kCandidateDensityStrength;
-  equalising.radial = 0;
   DiskReparametrisation conformal = registrations_.reparametrisation();
-  DiskReparametrisation equalised(reference->map, equalising);
+  DiskReparametrisation equalised = made_ahead && made_ahead->valid() ? made_ahead->get() : candidate_disk(reference->map);
   const DensityEqualisingReport equalised_report = equalised.report();
   registrations_.set_reparametrisation(std::move(equalised));
 

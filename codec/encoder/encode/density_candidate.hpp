@@ -8,6 +8,7 @@
 // later stage (residuals, patches, holes, texture); the decoder never sees D.
 #pragma once
 
+#include "codec/encoder/density/density_equalising.hpp"
 #include "codec/encoder/encode/encode_options.hpp"
 #include "codec/encoder/encode/encode_report.hpp"
 #include "codec/encoder/encode/representation_rate.hpp"
@@ -28,6 +29,14 @@ inline constexpr double kCandidateDensityStrength = 0.5;
 // --radial-equalising) and none is on (the radial map of a whole head), and the choice by bytes
 // measured its candidates.
 bool density_candidate_open(const EncodeOptions& options, const EncodeReport& report);
+// The same but for the last: whether the candidate will be tried once the choice by bytes has
+// measured its candidates (SequenceEncoder::code makes D ahead where it may be).
+bool density_candidate_possible(const EncodeOptions& options, const EncodeReport& report);
+
+// The candidate's disk D: the reference frame's disk map density-equalised at
+// kCandidateDensityStrength (as set_reference_geometry builds it for --density-equalising 0.5). It
+// depends on that map alone.
+DiskReparametrisation candidate_disk(const DiskMap& reference);
 
 // The coarsest of `ns` strictly below `below` whose floor p99 (`floor_p99(n)`) is within
 // `worst_target`, going down from the finest and stopping at the first that is not (the floor grows

@@ -39,6 +39,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -250,10 +251,12 @@ class SequenceEncoder {
   // After choose_by_bytes: the density-equalised disk's candidates (density_candidate.hpp) measured
   // against the one it kept, on the same trial frames (`captured`), added to
   // report().representation_rate; where one is kept, the registrations sample through its map from
-  // here on. Elsewhere `kept` as given.
+  // here on. Elsewhere `kept` as given. D is `made_ahead`'s where that holds it (candidate_disk of
+  // the reference frame's map), else made here.
   std::unique_ptr<StoredSequence> choose_density_equalised(const StageSettings& settings, const KeyframeSelection& chosen,
                                                            std::unique_ptr<StoredSequence> kept,
-                                                           const std::optional<std::vector<TriangleMesh>>& captured);
+                                                           const std::optional<std::vector<TriangleMesh>>& captured,
+                                                           std::future<DiskReparametrisation>* made_ahead = nullptr);
   // One candidate of the choice by bytes at equal error (choose_by_bytes' and
   // choose_density_equalised's): `candidate`'s representation at its N from `builds`, its fields
   // rounded to `precision` (settings.predicted_fields) under the report as the caller set it, then
