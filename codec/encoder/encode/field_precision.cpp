@@ -421,9 +421,13 @@ struct Calibration {
   std::vector<double> group_steps;  // per group (0: absent)
 };
 
-Calibration calibrate(const GridFields& probe_fields, double target_error, bool noise_shaping, Reconstructor& reconstructor) {
-  const FieldRounder rounder(reconstructor.geometry().grid(), noise_shaping, 0.5);
-  const Decoded probe_exact = decode_exact(reconstructor, probe_fields);
+// The groups are calibrated each on a reconstructor of `pool` (their probes are independent: each
+// rounds its own group and decodes from the exact surface, so any reconstructor gives the same
+// readings), the exact surface decoded once first.
+Calibration calibrate(const GridFields& probe_fields, double target_error, bool noise_shaping, ReconstructorPool& pool) {
+  const FieldRounder rounder(pool.grid(), noise_shaping, 0.5);
+  Decoded probe_exact;
+  pool.run(1, [&](Reconstructor& reconstructor, size_t) { probe_exact = decode_exact(reconstructor, probe_fields); });
   const std::vector<std::vector<double>> arrays = scalar_arrays(probe_fields);
   Calibration calibration;
   std::vector<size_t>& present = calibration.present;
@@ -446,11 +450,12 @@ Calibration calibrate(const GridFields& probe_fields, double target_error, bool 
   }
   std::vector<double>& group_steps = calibration.group_steps;
   group_steps.assign(kGroups.size(), 0.0);
-  auto probe_error = [&](size_t g, double step) {
+  auto probe_error = [&](Reconstructor& reconstructor, size_t g, double step) {
     return decoded_error(reconstructor, rounder.rounded(probe_fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, step)),
                          probe_exact.exact, probe_exact.diagonal);
   };
-  for (size_t g : present) {
+  pool.run(present.size(), [&](Reconstructor& reconstructor, size_t i) {
+    const size_t g = present[i];
     const double share = target_error * std::sqrt(static_cast<double>(group_values[g]) / static_cast<double>(values));
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (size_t a : kGroups[g]) {
@@ -460,8 +465,8 @@ Calibration calibrate(const GridFields& probe_fields, double target_error, bool 
       }
     }
     const double spread = std::max(hi - lo, 1e-300);
-    group_steps[g] = calibrated_step([&](double step) { return probe_error(g, step); }, share, spread);
-  }
+    group_steps[g] = calibrated_step([&](double step) { return probe_error(reconstructor, g, step); }, share, spread);
+  });
   return calibration;
 }
 
@@ -675,13 +680,11 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
   // applies to it) and every keyframe's exact surface.
   Calibration calibration;
-  pool.run(1, [&](Reconstructor& reconstructor, size_t) {
-    try {
-      calibration = calibrate(*keys.fields(0), options.target_error, options.noise_shaping, reconstructor);
-    } catch (const Error& e) {
-      throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
-    }
-  });
+  try {
+    calibration = calibrate(*keys.fields(0), options.target_error, options.noise_shaping, pool);
+  } catch (const Error& e) {
+    throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
+  }
   const ExactSurfaces exact(keys, pool, spill);
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
   const double p99_budget = rounding_p99_budget(options);
