@@ -77,6 +77,65 @@ TEST(TextureQuality, QualityIsTheLowestThatMeetsTheTargetInEitherCodec) {
   }
 }
 
+// A search started from a hint ends on a boundary of the error curve (a quality that meets the
+// target, the one below it not), the one the search from the whole range finds where the curve has
+// one; where the hint is that answer, in two codings (the hint met, the one below not).
+TEST(TextureQuality, AHintedSearchFindsTheSameBoundaryInFewerCodings) {
+  const Image texture = detailed_texture(96, 11);
+  for (TextureCodec codec : {TextureCodec::kAvif, TextureCodec::kWebp}) {
+    SCOPED_TRACE(texture_codec_name(codec));
+    std::vector<double> error(101);
+    for (int quality = 0; quality <= 100; ++quality)
+      error[static_cast<size_t>(quality)] =
+          disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "test"));
+    const double target = error[37];
+    const auto boundary = [&](int quality) {
+      return error[static_cast<size_t>(quality)] <= target && (quality == 0 || error[static_cast<size_t>(quality) - 1] > target);
+    };
+    int boundaries = 0;
+    for (int quality = 0; quality <= 100; ++quality) boundaries += boundary(quality);
+    // AVIF's error falls with the quality on this texture (one boundary); WebP's rises again here
+    // and there (several): the hinted search may end on another of them.
+    if (codec == TextureCodec::kAvif) {
+      EXPECT_EQ(boundaries, 1);
+    }
+    QualityCurve whole;
+    const int answer = texture_quality_for(codec, texture, target, -1, &whole);
+    ASSERT_TRUE(boundary(answer));
+    ASSERT_GT(answer, 2);
+    // Each curve holds 100's error (the floor) beside the qualities coded.
+    const size_t floor_entries = 1;
+    for (int hint : {1, answer - 3, answer - 1, answer, answer + 1, answer + 2, answer + 9, 99}) {
+      SCOPED_TRACE(hint);
+      QualityCurve hinted;
+      const int found = texture_quality_for(codec, texture, target, hint, &hinted);
+      EXPECT_TRUE(boundary(found)) << found;
+      if (boundaries == 1) {
+        EXPECT_EQ(found, answer);
+      }
+      if (hint == answer) {
+        EXPECT_LE(hinted.size(), floor_entries + 2);
+      }
+    }
+    EXPECT_GT(whole.size(), floor_entries + 2);  // the whole range's search: more than a right hint's two
+    // The whole range's curve, read as another texture's, hints this one's answer within a quality
+    // (log interpolation between its last failure and first success).
+    EXPECT_NEAR(quality_hint(whole, target), answer, 1);
+  }
+}
+
+TEST(TextureQuality, HintsMeetTheTargetWhereTheCurveInterpolatedInLogErrorDoes) {
+  const QualityCurve curve{{10, 100.0}, {30, 10.0}, {100, 1.0}};
+  EXPECT_EQ(quality_hint(curve, std::sqrt(1000.0)), 20);  // halfway in log error between 10 and 30
+  EXPECT_EQ(quality_hint(curve, 50.0), 10 + static_cast<int>(std::ceil(20 * std::log(2.0) / std::log(10.0))));
+  EXPECT_EQ(quality_hint(curve, 10.0), 30);                   // met exactly: that quality
+  EXPECT_EQ(quality_hint(curve, 500.0), 10);                  // met at the first measured: that one
+  EXPECT_EQ(quality_hint(curve, 0.5), 99);                    // met nowhere: within [1, 99]
+  EXPECT_EQ(quality_hint({{0, 300.0}, {5, 200.0}}, 1.0), 6);  // failed everywhere: above the last failure
+  EXPECT_EQ(quality_hint({{0, 30.0}}, 100.0), 1);             // a hint is never 0: within [1, 99]
+  EXPECT_EQ(quality_hint({}, 1.0), -1);
+}
+
 TEST(TextureQuality, TargetsAreAShareOfTheSmallerNeighbouringIntervalWithinTheBounds) {
   TextureQualityOptions options;
   options.interpolation_share = 0.25;

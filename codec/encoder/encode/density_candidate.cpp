@@ -174,7 +174,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
       report_.grid_floor_p99s = before.grid_floor_p99s;
       report_.grid_decoded_floors = before.grid_decoded_floors;
     };
-    if (std::unique_ptr<StoredSequence> sequence = measure_candidate(settings, chosen, builds, scaled, tried, *captured, rate, restore_floors))
+    if (std::unique_ptr<StoredSequence> sequence =
+            measure_candidate(settings, chosen, builds, scaled, tried, *captured, rate, restore_floors))
       best = {std::move(sequence), report_};
   };
   try_candidate(kept_n, 1);
@@ -206,7 +207,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     // (spec/method.md §3.3, *The encode's serial stretches*). One thread (--threads 1): in turn.
     const TextureFrameSource d_textures{capture_.frames, maps_, FrameSampler(maps_, registrations_)};
     candidate.equalised_geometry_bytes = rate.candidates[rate.chosen].bytes;
-    code_textures(settings.texture, d_textures, *best.sequence, chosen.keyframes, best.report);
+    std::vector<QualityCurve> d_curves;
+    code_textures(settings.texture, d_textures, *best.sequence, chosen.keyframes, best.report, {}, &d_curves);
     const auto d_texture_bytes = [&] { return texture_file_bytes(settings.texture, *best.sequence, best.report); };
     std::future<uint64_t> d_bytes;
     if (settings.threads != 1) {
@@ -218,7 +220,8 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
     registrations_.set_reparametrisation(std::move(conformal));
     const TextureFrameSource conformal_textures{capture_.frames, maps_, FrameSampler(maps_, registrations_)};
     candidate.conformal_geometry_bytes = rate.candidates[before.representation_rate.chosen].bytes;
-    code_textures(settings.texture, conformal_textures, *sequence, chosen.keyframes, report_);
+    // Each keyframe's quality search starts where its errors on D meet its target here: the same skin.
+    code_textures(settings.texture, conformal_textures, *sequence, chosen.keyframes, report_, d_curves);
     candidate.conformal_texture_bytes = texture_file_bytes(settings.texture, *sequence, report_);
     if (d_bytes.valid()) candidate.equalised_texture_bytes = d_bytes.get();
     candidate.textures_coded = true;

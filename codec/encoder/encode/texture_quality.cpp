@@ -38,7 +38,23 @@ double psnr_of_mse(double mse) { return mse > 0 ? 10 * std::log10(255.0 * 255.0 
 
 double mse_of_psnr(double psnr) { return 255.0 * 255.0 * std::pow(10.0, -psnr / 10); }
 
-int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse) {
+int quality_hint(const QualityCurve& curve, double target_mse) {
+  int failed = -1;
+  double failed_error = 0;
+  for (const auto& [quality, error] : curve) {
+    if (error <= target_mse) {
+      if (failed < 0 || !(failed_error > error) || !(error > 0)) return std::clamp(quality, 1, 99);
+      // Between the last quality that failed and this one, where log(error) meets the target.
+      const double t = std::log(failed_error / target_mse) / std::log(failed_error / error);
+      return std::clamp(failed + static_cast<int>(std::ceil(t * (quality - failed))), std::max(failed + 1, 1), std::min(quality, 99));
+    }
+    failed = quality;
+    failed_error = error;
+  }
+  return failed < 0 ? -1 : std::clamp(failed + 1, 1, 99);
+}
+
+int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse, int hint, QualityCurve* measured) {
   constexpr double kFloorMargin = 1.25;
   // Each quality's error, coded once (AVIF's 101 qualities fall on 64 quantisers: qualities of one
   // quantiser are the same bytes, coded once too).
@@ -49,6 +65,7 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
     if (found != coded.end()) return found->second;
     const double error = disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "texture_quality_for"));
     coded.emplace(key, error);
+    if (measured) measured->emplace(quality, error);
     return error;
   };
   // A lossy codec cannot go below its floor (chroma rounding, the finest quantiser): a target near
@@ -56,6 +73,7 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   // AVIF's floor is its colour conversion alone (quality 100 is lossless AV1), found without the
   // lossless encode, which costs as much as four lossy ones.
   const double floor = codec == TextureCodec::kAvif ? disk_texture_mse(texture, avif_colour_round_trip(texture)) : error_at(100);
+  if (measured) measured->emplace(100, floor);
   target_mse = std::max(target_mse, kFloorMargin * floor);
   // The lowest quality that meets the target within [lo, hi]: lo fails (or is 0), hi meets (100
   // meets: the target is above the floor). The error falls about exponentially with the quality,
@@ -64,8 +82,7 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   // quality and the next, met. The same boundary bisection finds where the error falls with the
   // quality, in 3-4 codings instead of 8.
   int lo = 0, hi = 100;
-  double lo_error = error_at(lo), hi_error = floor;
-  if (lo_error <= target_mse) return 0;
+  double lo_error = 0, hi_error = floor;
   // Probes `quality`: it becomes the bracket's end on its side. Returns whether it met the target.
   const auto probe = [&](int quality) {
     const double error = error_at(quality);
@@ -74,6 +91,29 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
     (met ? hi_error : lo_error) = error;
     return met;
   };
+  if (hint > 0 && hint < 100) {
+    // A hint (quality_hint: where a similar texture's errors met this target): the bracket closed
+    // around it by probes stepping away from it, one quality, one more, then two, four..., until one
+    // lands on the other side. Where the hint is right, two codings find the answer (the hint met,
+    // the one below it not) where the search from [0, 100] takes four or five, and three where it is
+    // off by one (Medusa's hints: 2.4 codings a keyframe); the error falling with the quality, the
+    // boundary found is the same either way.
+    const auto step = [](int n) { return n < 2 ? 1 : 1 << (n - 1); };
+    if (probe(hint)) {
+      for (int n = 0;; ++n) {
+        const int quality = std::max(hi - step(n), 0);
+        if (!probe(quality)) break;  // lo: the coarser end, measured
+        if (quality == 0) return 0;
+      }
+    } else {
+      for (int n = 0; lo + step(n) < hi; ++n) {
+        if (probe(lo + step(n))) break;  // hi: the finer end (100, the floor, meets unmeasured)
+      }
+    }
+  } else {
+    lo_error = error_at(lo);
+    if (lo_error <= target_mse) return 0;
+  }
   while (hi - lo > 1) {
     int quality = (lo + hi) / 2;
     if (lo_error > 0 && hi_error > 0 && lo_error > hi_error) {

@@ -9,6 +9,7 @@
 #include "codec/core/image/image.hpp"
 #include "codec/core/image/texture_codec.hpp"
 
+#include <map>
 #include <vector>
 
 namespace facemorph {
@@ -25,6 +26,9 @@ struct TextureQualityOptions {
   int fallback_quality = 90;
 };
 
+// A texture's coding error (MSE, disk_texture_mse) by quality, as a quality search measured it.
+using QualityCurve = std::map<int, double>;
+
 // Mean squared error per channel (0..255 scale) of two RGB images of one size over the texels whose
 // centres lie in the unit disk the image covers (spec/container.md §8): what a disk texture shows.
 // Throws kInvalidArgument for images of other sizes or channel counts.
@@ -38,8 +42,16 @@ double mse_of_psnr(double psnr);
 // `target_mse` of it over the disk (probes interpolated in log error, bracketing: the error falls as
 // the quality rises, to a few percent). A target under 1.25 times the error at quality 100 (the
 // lossy codec's floor: chroma rounding, its finest quantiser) is raised to that: closer to the
-// floor costs bytes and shows nothing.
-int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse);
+// floor costs bytes and shows nothing. `hint` in [1, 99] (quality_hint): the search starts there,
+// two codings where the hint is the answer, and finds the same answer wherever the error falls with
+// the quality. `measured`: each quality's error as coded, and 100's, the floor.
+int texture_quality_for(TextureCodec codec, const Image& texture, double target_mse, int hint = -1, QualityCurve* measured = nullptr);
+
+// Where `curve` (a similar texture's errors by quality, as texture_quality_for measured them: a
+// neighbouring keyframe's, or the same keyframe's on another disk) meets `target_mse`: the quality
+// interpolated in log(error) between the last it failed at and the first it met, in [1, 99]; -1 for
+// an empty curve.
+int quality_hint(const QualityCurve& curve, double target_mse);
 
 // Per keyframe, the MSE its coding may add: options.interpolation_share times the smaller of the
 // interpolation errors of the intervals beside it (`interval_mse[k]`: between keyframes k and k + 1,

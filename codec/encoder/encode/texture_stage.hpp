@@ -28,13 +28,17 @@ struct FrameTextures {
 struct TextureQualities {
   std::vector<int> qualities;              // per keyframe; empty for a sequence without texture
   std::vector<double> interpolation_psnr;  // auto quality: per interval, the blend's PSNR at the frame midway (0: none between)
+  std::vector<QualityCurve> curves;        // auto quality: per keyframe, the errors its search measured (empty: none)
 };
 
 // Each keyframe of `stored` (frames `keyframes`) coded at `quality` of `codec`, or with
 // kAutoTextureQuality at the quality that keeps its coding error within `coding`'s share of the
-// interpolation error measured beside it. kInvalidArgument where `keyframes` are not the sequence's.
+// interpolation error measured beside it. `hints`, one a keyframe (the curves the same keyframes'
+// searches measured on another disk): each search starts where its hint meets its target
+// (quality_hint). kInvalidArgument where `keyframes` are not the sequence's.
 TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const std::vector<int>& keyframes, const FrameTextures& frames,
-                                            int quality, TextureCodec codec, const TextureQualityOptions& coding, int threads);
+                                            int quality, TextureCodec codec, const TextureQualityOptions& coding, int threads,
+                                            const std::vector<QualityCurve>& hints = {});
 
 struct TextureSharing {
   std::vector<int> shared_with;  // per keyframe: the earlier keyframe whose texture it shows, or -1
@@ -68,9 +72,11 @@ struct TextureFrameSource {
 // 8. Each keyframe's texture quality (settings.quality, or auto: the texture blend's error at the
 // frame midway to each neighbouring keyframe, measured, and texture_quality.hpp's rule): what a
 // file's SequenceFileMetadata::keyframe_texture_qualities holds. `keyframes` as given to build.
-// Fills report.texture_qualities; empty for a sequence without texture.
+// Fills report.texture_qualities; empty for a sequence without texture. `hints`: as
+// keyframe_texture_qualities reads them; `curves`: the curves its searches measured.
 std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const StoredSequence& stored,
-                                          const std::vector<int>& keyframes, EncodeReport& report);
+                                          const std::vector<int>& keyframes, EncodeReport& report,
+                                          const std::vector<QualityCurve>& hints = {}, std::vector<QualityCurve>* curves = nullptr);
 std::vector<int> choose_texture_qualities(const TextureSettings& settings, const TextureFrameSource& source, const Sequence& sequence,
                                           const std::vector<int>& keyframes, EncodeReport& report);
 // 9. Keyframes whose textures are painted from one captured image (the same file, or the same
@@ -78,12 +84,13 @@ std::vector<int> choose_texture_qualities(const TextureSettings& settings, const
 // keyframe's texture where the two are within `min_psnr` (TextureSettings::coding.min_psnr) of each
 // other over the disk (spec/method.md §7.16). A file stores a shared texture once (format 2.2).
 // Fills report.texture_shared_with and texture_share_psnr.
-void share_textures(bool share, double min_psnr, const TextureFrameSource& source, StoredSequence& stored, const std::vector<int>& keyframes,
-                    EncodeReport& report);
+void share_textures(bool share, double min_psnr, const TextureFrameSource& source, StoredSequence& stored,
+                    const std::vector<int>& keyframes, EncodeReport& report);
 void share_textures(bool share, double min_psnr, const TextureFrameSource& source, Sequence& sequence, const std::vector<int>& keyframes,
                     EncodeReport& report);
 // 8 and 9: the texture stage as every encode runs it (one process, staged, a segment's).
 void code_textures(const TextureSettings& settings, const TextureFrameSource& source, StoredSequence& stored,
-                   const std::vector<int>& keyframes, EncodeReport& report);
+                   const std::vector<int>& keyframes, EncodeReport& report, const std::vector<QualityCurve>& quality_hints = {},
+                   std::vector<QualityCurve>* quality_curves = nullptr);
 
 }  // namespace facemorph
