@@ -579,7 +579,7 @@ double write_output(const Arguments& a, const EncodeOptions& options, const Enco
   if (e.placement) {
     write_segment_file(a.output, *e.sequence, metadata, *e.placement);
   } else {
-    write_sequence_file(a.output, *e.sequence, metadata);
+    write_sequence_file(a.output, *e.sequence, metadata, &e.sequence->coded_texture_groups());
   }
   return tools::seconds_since(write_start);
 }

@@ -511,6 +511,38 @@ TEST(Container, TextureGroupsRoundTripWithinTheirQuality) {
   }
 }
 
+// The texture groups a measure of the file coded (sequence_file_size's cache) are what the write
+// stores, not coded again; a texture changed since is coded anew (the cache is keyed by its pixels).
+TEST(Container, TextureGroupsMeasuredAreWrittenAsCoded) {
+  testing::TempDir dir;
+  const std::filesystem::path path = dir.path() / "cached.fmv";
+  Sequence s = ramp_sequence(5, 64);  // groups of 2, 2 and 1 keyframes
+  const SequenceFileMetadata m = grouped_texture_metadata();
+  const std::vector<uint8_t> bytes = encode_sequence_file(s, m);
+  TextureGroupCache cache;
+  const auto source = memory_source(std::make_shared<const Sequence>(s));
+  EXPECT_EQ(sequence_file_size(*source, m, &cache), bytes.size());
+  EXPECT_EQ(cache.size(), 3u);
+  write_sequence_file(path, *source, m, &cache);
+  EXPECT_TRUE(format::read_file(path) == bytes);
+  EXPECT_EQ(cache.size(), 3u);  // every group found, none coded again
+  // The write takes the payload kept: a marker in group 0's place is what the file holds.
+  const TextureGroupCache::Key group0{
+      0, m.texture_quality, {image_content_hash(s.keyframes[0].texture), image_content_hash(s.keyframes[1].texture)}};
+  ASSERT_TRUE(cache.find(group0).has_value());
+  const std::vector<uint8_t> marker = {'c', 'a', 'c', 'h', 'e', 'd', ' ', 'g', 'r', 'o', 'u', 'p', ' ', '0'};
+  cache.keep(group0, marker);
+  write_sequence_file(path, *source, m, &cache);
+  const std::vector<uint8_t> marked = format::read_file(path);
+  EXPECT_NE(std::search(marked.begin(), marked.end(), marker.begin(), marker.end()), marked.end());
+  // Keyframe 1's texture changed: its group is coded from the new pixels, as without a cache.
+  s.keyframes[1].texture.pixels[100] ^= 0x40;
+  const auto changed = memory_source(std::make_shared<const Sequence>(s));
+  write_sequence_file(path, *changed, m, &cache);
+  EXPECT_TRUE(format::read_file(path) == encode_sequence_file(s, m));
+  EXPECT_EQ(cache.size(), 4u);
+}
+
 // A file written as 2.0 wrote it (stills, the preamble's minor version 0) reads as it did.
 TEST(Container, AFileOfFormat2_0StillReads) {
   SequenceFileMetadata m = grouped_texture_metadata();
@@ -529,7 +561,6 @@ TEST(Container, AFileOfFormat2_0StillReads) {
   testing::expect_error(ErrorCode::kCorrupt, "texture groups (flag bit 2) in a format 2.0 file",
                         [&] { decode_sequence_file(grouped, "g.fmv"); });
 }
-
 
 // Format 2.2: keyframes whose textures are the same pixels store one TEXR, which each of them
 // names; the decoder holds it once, and each keyframe decodes to it.

@@ -85,13 +85,14 @@ bool equalised_file_kept(uint64_t conformal_geometry, uint64_t conformal_texture
 namespace {
 
 // The bytes the textures add to the file fmenc writes (its default texture coding), once the
-// texture stage has run on `stored` (its qualities in `report`).
+// texture stage has run on `stored` (its qualities in `report`). Its texture groups' AV1 sequences
+// are kept with it: the kept disk's file takes them as coded here.
 uint64_t texture_file_bytes(const TextureSettings& settings, const StoredSequence& stored, const EncodeReport& report) {
   SequenceFileMetadata metadata;
   metadata.field_coding = report.field_coding;
   metadata.keyframe_texture_qualities = report.texture_qualities;
   metadata.texture_codec = settings.codec;
-  return sequence_file_size(stored, metadata) - geometry_bytes(stored, report.field_coding);
+  return sequence_file_size(stored, metadata, &stored.coded_texture_groups()) - geometry_bytes(stored, report.field_coding);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/sequence.hpp"
 #include "codec/encoder/encode/keyframe_store.hpp"
+#include "codec/writer/container/texture_group_cache.hpp"
 
 #include <memory>
 #include <type_traits>
@@ -58,6 +59,10 @@ class StoredSequence final : public KeyframeSource {
   // The residual frames (validate_residuals against the keyframes' times: kInvalidArgument), the
   // shape's and the outline's.
   void set_residuals(std::vector<ResidualFrame> residuals);
+  // The texture groups a measure of this sequence's file coded (sequence_file_size's `coded`), for
+  // the file's write to take (write_sequence_file's): keyed by the textures' pixels, so a texture
+  // put since is coded anew.
+  TextureGroupCache& coded_texture_groups() const { return *coded_texture_groups_; }
   // The frame patches (validate_patches against the keyframes' times: kInvalidArgument), the
   // shape's and the outline's.
   void set_patches(std::vector<FramePatch> patches);
@@ -86,6 +91,7 @@ class StoredSequence final : public KeyframeSource {
   HoleLevelStore holes_;
   TextureStore textures_;
   SequenceOutline outline_;
+  std::unique_ptr<TextureGroupCache> coded_texture_groups_ = std::make_unique<TextureGroupCache>();
 };
 
 }  // namespace facemorph

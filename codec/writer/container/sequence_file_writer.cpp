@@ -105,7 +105,8 @@ struct LaidOutFile {
 
 // encode_sequence_file's work, up to the bytes: every keyframe and texture read and its chunk
 // prepared into `spool` (in memory, spilled, or only its size), and the index laid out.
-LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given, format::ChunkSpool& spool) {
+LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& given, format::ChunkSpool& spool,
+                                  TextureGroupCache* coded = nullptr) {
   const SequenceOutline& outline = source.outline();
   validate_outline(outline);
   if (given.landmark_names.size() > kMaxLandmarks) throw Error(ErrorCode::kInvalidArgument, "too many landmark names");
@@ -185,9 +186,19 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
       int quality = metadata.texture_quality;
       if (!qualities.empty())
         quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
-      TextureGroupWriter group_textures(k, quality);
-      for (size_t j = k; j < k + n; ++j) group_textures.add(*source.texture(j));
-      texture_groups.push_back(spool.add(format::prepare_chunk(kTextureGroupChunk, group_textures.finish(), true)));
+      TextureGroupCache::Key key{k, quality, {}};
+      std::optional<std::vector<uint8_t>> payload;
+      if (coded) {
+        for (size_t j = k; j < k + n; ++j) key.images.push_back(image_content_hash(*source.texture(j)));
+        payload = coded->find(key);
+      }
+      if (!payload) {
+        TextureGroupWriter group_textures(k, quality);
+        for (size_t j = k; j < k + n; ++j) group_textures.add(*source.texture(j));
+        payload = group_textures.finish();
+        if (coded) coded->keep(std::move(key), *payload);
+      }
+      texture_groups.push_back(spool.add(format::prepare_chunk(kTextureGroupChunk, std::move(*payload), true)));
     }
   }
   const auto total = [&](const std::vector<size_t>& chunks) {
@@ -200,9 +211,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
     texture_layout = TextureLayout::kGroups;
   const bool grouped_textures = texture_layout == TextureLayout::kGroups;
   const std::vector<size_t>& textures = grouped_textures ? texture_groups : stills;
-  const format::PreparedChunk header =
-      format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout), true, 19,
-                            format::Dictionary::kHeader);
+  const format::PreparedChunk header = format::prepare_chunk(kHeaderChunk, write_header(outline, fixed_nodes, metadata, texture_layout),
+                                                             true, 19, format::Dictionary::kHeader);
   FileHeader layout;  // what the index's layout depends on
   layout.keyframe_count = static_cast<uint32_t>(count);
   layout.flags = static_cast<uint8_t>((has_texture ? kHasTexture : 0) | (grouped_textures ? kTextureGroups : 0));
@@ -291,16 +301,17 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
   return write_laid_out_file(file, spool, writer);
 }
 
-uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata) {
+uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata, TextureGroupCache* coded) {
   format::ChunkSpool spool(format::ChunkSpool::Keep::kSizes);
-  return lay_out_sequence_file(source, metadata, spool).size;
+  return lay_out_sequence_file(source, metadata, spool, coded).size;
 }
 
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata) {
   write_sequence_file(path, *borrowed_source(sequence), metadata);
 }
 
-void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata) {
+void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata,
+                         TextureGroupCache* coded) {
   // Streamed: the chunks wait in the spool's temporary file until the index is laid out; only then
   // is the file opened under its temporary name, the chunks copied to it one at a time, and the
   // file renamed when whole. Memory holds a keyframe and a chunk; an encode killed while the
@@ -314,7 +325,7 @@ void write_sequence_file(const std::filesystem::path& path, const KeyframeSource
   };
   format::ChunkSpool spool(format::ChunkSpool::Keep::kSpill);
   LaidOutFile file;
-  naming_the_file([&] { file = lay_out_sequence_file(source, metadata, spool); });
+  naming_the_file([&] { file = lay_out_sequence_file(source, metadata, spool, coded); });
   format::write_file_atomically(path, [&](std::ostream& out) {
     naming_the_file([&] {
       format::ContainerWriter writer(out);

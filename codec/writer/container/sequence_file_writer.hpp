@@ -5,6 +5,7 @@
 #include "codec/core/container/file_metadata.hpp"
 #include "codec/core/sequence/keyframe_source.hpp"
 #include "codec/core/sequence/sequence.hpp"
+#include "codec/writer/container/texture_group_cache.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -25,8 +26,10 @@ std::vector<uint8_t> encode_sequence_file(const Sequence& sequence, const Sequen
 // validate_sequence checks it (kInvalidArgument naming it), and must carry the outline's time.
 std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const SequenceFileMetadata& metadata);
 // The size of the file encode_sequence_file would make, from its chunks' sizes: no chunk is kept,
-// so memory holds one keyframe and one chunk whatever the sequence's length.
-uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata);
+// so memory holds one keyframe and one chunk whatever the sequence's length. `coded`: the texture
+// groups' payloads are taken from it where it holds them, and kept in it where coded here, for the
+// write that follows (write_sequence_file's `coded`): the same bytes, coded once.
+uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata, TextureGroupCache* coded = nullptr);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
 // leaves any previous file untouched. The file is streamed: the chunks wait in a temporary file
@@ -34,6 +37,7 @@ uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMeta
 // so memory holds one keyframe and one chunk, not the file. Errors name `path` (kIo for a full
 // disk or a missing TMPDIR).
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
-void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata);
+void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata,
+                         TextureGroupCache* coded = nullptr);
 
 }  // namespace facemorph
