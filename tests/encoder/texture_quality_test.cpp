@@ -187,6 +187,45 @@ TEST(TextureQuality, AKeyframeWithUnmeasuredNeighboursTakesTheNearestMeasuredInt
   EXPECT_LT(single[0], 0);
 }
 
+// The texture stage's searches in levels (most from a neighbour's errors) choose what each
+// keyframe's search from the whole range chooses (AVIF: the error falls with the quality), in fewer
+// codings; searches hinted by the same keyframes' curves (another disk's) in fewer still.
+TEST(TextureQuality, KeyframesSearchedFromTheirNeighboursTakeTheQualitiesOfWholeSearches) {
+  testing::TempDir dir;
+  write_synthetic_capture(dir.path(), {.frames = 30, .expression = Expression::kTalk, .vertices = 2000, .noise = 0, .texture_size = 128});
+  EncodeOptions options;
+  options.keyframe_fraction = 0.4;
+  options.residual_frames = false;  // the budget's keyframes, not fewer for residuals
+  options.grid = 33;
+  options.texture_size = 64;
+  options.predicted_fields = false;
+  SequenceEncoder encoder(read_capture(dir.path()), options);
+  testing::run_to_selection(encoder);
+  const KeyframeSelection chosen = select_keyframes(plan_settings(encoder.options()), encoder.selection());
+  ASSERT_GE(chosen.keyframes.size(), 9u);  // three levels: every fourth searched whole
+  const std::unique_ptr<StoredSequence> stored =
+      StoredSequence::of(build_sequence(encoder, chosen.keyframes, options.grid), SpillMode::kMemory);
+  const TextureSettings settings = texture_settings(encoder.options());
+  const auto codings = [](const std::vector<QualityCurve>& curves) {
+    size_t n = 0;
+    for (const QualityCurve& c : curves) n += c.size() - 1;  // each curve holds the floor beside its codings
+    return n;
+  };
+  // Hints that hint nothing (empty curves): every keyframe searched from the whole range.
+  std::vector<QualityCurve> whole_curves, level_curves, hinted_curves;
+  const std::vector<QualityCurve> none(chosen.keyframes.size());
+  const std::vector<int> whole =
+      choose_texture_qualities(settings, texture_frames(encoder), *stored, chosen.keyframes, encoder.report(), none, &whole_curves);
+  const std::vector<int> levels =
+      choose_texture_qualities(settings, texture_frames(encoder), *stored, chosen.keyframes, encoder.report(), {}, &level_curves);
+  const std::vector<int> hinted = choose_texture_qualities(settings, texture_frames(encoder), *stored, chosen.keyframes, encoder.report(),
+                                                           whole_curves, &hinted_curves);
+  EXPECT_EQ(levels, whole);
+  EXPECT_EQ(hinted, whole);
+  EXPECT_LT(codings(level_curves), codings(whole_curves));
+  EXPECT_LE(codings(hinted_curves), 3 * chosen.keyframes.size());
+}
+
 // End to end: with auto quality the keyframes' textures take fewer bytes than at quality 90, and the
 // frames between keyframes — what the blend shows — lose little against their own textures.
 TEST(TextureQuality, AutoQualityCostsHeldOutFramesLittleForFewerBytes) {
