@@ -17,6 +17,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -32,7 +33,7 @@ constexpr size_t kFirstPosition = 7;  // scalar_arrays' order: H, log λ, a, b, 
 constexpr double kHoleStepPerCell = 1.0 / 16.0;
 constexpr double kTolerance = 1.25;  // a keyframe may exceed the target by this factor before steps shrink
 constexpr int kMaxRefinements = 8;
-constexpr int kCalibrationProbes = 5;  // a group's probes of keyframe 0 at most (choose_steps)
+constexpr int kCalibrationProbes = 5;   // a group's probes of keyframe 0 at most (choose_steps)
 constexpr double kFitContradicted = 4;  // a fit this far under a step that met its share is not kept (calibrated_step)
 
 ReconstructOptions tight() {
@@ -322,26 +323,47 @@ struct ExactSurfaces {
   std::vector<double> diagonals;
 };
 
+// The intra keyframes' decoded errors by the steps' scale, within one choose_field_coding: no dead
+// zone applies to an intra keyframe (its rounding has no previous keyframe), so every dead zone's
+// search measures the same errors at the scales they share (the first, 1, at least), decoded once.
+struct IntraErrors {
+  size_t intra_period = 1;
+  std::map<std::pair<size_t, double>, RoundedError> by_keyframe_and_scale;
+};
+
 // Each keyframe's decoded error with `coding`: rounded in order on this thread (a keyframe's
 // rounding carries the previous one's codes), then decoded a batch of the pool's size at a time, so
 // that no more rounded fields than threads are held.
 // With a finite `p99_budget`, each keyframe's rounding p99 too (rounded_error); else those are 0.
-// `p99_budgets`: each keyframe's (empty: none bounded).
+// `p99_budgets`: each keyframe's (empty: none bounded). `intra` (with the steps' `scale`): the
+// intra keyframes' errors taken from it where measured at that scale, and kept in it.
 std::vector<RoundedError> rounded_errors(const StoredSequence& keys, const FieldCoding& coding, const FieldRounder& rounder,
-                                         const ExactSurfaces& exact, ReconstructorPool& pool, const std::vector<double>& p99_budgets = {}) {
+                                         const ExactSurfaces& exact, ReconstructorPool& pool, const std::vector<double>& p99_budgets = {},
+                                         IntraErrors* intra = nullptr, double scale = 0) {
   std::vector<RoundedError> errors(keys.size());
   std::vector<std::pair<size_t, GridFields>> batch;
+  const auto is_intra = [&](size_t k) { return intra && k % intra->intra_period == 0; };
   const auto decode_batch = [&] {
     pool.run(batch.size(), [&](Reconstructor& reconstructor, size_t i) {
       const auto& [k, rounded] = batch[i];
       const double budget = p99_budgets.empty() ? std::numeric_limits<double>::infinity() : p99_budgets[k];
       errors[k] = rounded_error(reconstructor, rounded, *exact.store.get(k), exact.diagonals[k], budget);
     });
+    for (const auto& [k, rounded] : batch) {
+      if (is_intra(k)) intra->by_keyframe_and_scale.emplace(std::pair(k, scale), errors[k]);
+    }
     batch.clear();
   };
   rounder.for_each_rounded(
       keys.size(), [&](size_t k) { return keys.fields(k); }, coding,
       [&](size_t k, GridFields&& rounded) {
+        if (is_intra(k)) {
+          const auto measured = intra->by_keyframe_and_scale.find(std::pair(k, scale));
+          if (measured != intra->by_keyframe_and_scale.end()) {
+            errors[k] = measured->second;
+            return;
+          }
+        }
         batch.emplace_back(k, std::move(rounded));
         if (batch.size() == pool.size()) decode_batch();
       });
@@ -509,7 +531,7 @@ std::vector<double> keyframe_p99_budgets(const FieldPrecisionOptions& options, d
 // infinite: not bounded).
 StepChoice choose_steps(const StoredSequence& keys, double target_error, double p99_budget, const std::vector<double>& budgets,
                         int intra_period, const FieldRounder& rounder, const Calibration& calibration, const ExactSurfaces& exact,
-                        ReconstructorPool& pool) {
+                        ReconstructorPool& pool, IntraErrors* intra = nullptr) {
   const Sequence& sequence = keys.shape();
   FieldCoding coding;
   coding.intra_period = intra_period;
@@ -551,7 +573,8 @@ StepChoice choose_steps(const StoredSequence& keys, double target_error, double 
   int refinements = 0, refusals = 0;
   for (;; ++refinements) {
     apply(scale);
-    const std::vector<RoundedError> measured = rounded_errors(keys, coding, rounder, exact, pool, bounded ? measured_budgets : std::vector<double>{});
+    const std::vector<RoundedError> measured =
+        rounded_errors(keys, coding, rounder, exact, pool, bounded ? measured_budgets : std::vector<double>{}, intra, scale);
     std::vector<double> errors, p99s;
     double worst_p99 = bounded ? 1e-300 : 0.0;
     for (size_t k = 0; k < measured.size(); ++k) {
@@ -662,7 +685,8 @@ void check_options(const FieldPrecisionOptions& options) {
   if (options.threads < 0) throw Error(ErrorCode::kInvalidArgument, "field precision: a negative thread count");
   if (!(options.worst_target > 0) || !std::isfinite(options.worst_target) ||
       (options.worst_floor && (!(*options.worst_floor >= 0) || !std::isfinite(*options.worst_floor)))) {
-    throw Error(ErrorCode::kInvalidArgument, "field precision: the worst region's target must be finite and positive, its floor finite and not negative");
+    throw Error(ErrorCode::kInvalidArgument,
+                "field precision: the worst region's target must be finite and positive, its floor finite and not negative");
   }
   for (const double floor : options.keyframe_floors) {
     if (!(floor >= 0)) throw Error(ErrorCode::kInvalidArgument, "field precision: a keyframe's floor is negative or not a number");
@@ -689,8 +713,8 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
   const double p99_budget = rounding_p99_budget(options);
   if (!options.keyframe_floors.empty() && options.keyframe_floors.size() != keys.size())
-    throw Error(ErrorCode::kInvalidArgument, "field precision: " + std::to_string(options.keyframe_floors.size()) + " keyframe floors for " +
-                                                 std::to_string(keys.size()) + " keyframes");
+    throw Error(ErrorCode::kInvalidArgument, "field precision: " + std::to_string(options.keyframe_floors.size()) +
+                                                 " keyframe floors for " + std::to_string(keys.size()) + " keyframes");
   const std::vector<double> budgets = keyframe_p99_budgets(options, p99_budget, keys.size());
   double dead_zone = options.inter_dead_zone;
   std::optional<StepChoice> choice;
@@ -700,11 +724,12 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
     // its steps are the result (the search is deterministic: run again, it would find them again).
     dead_zone = kDeadZoneCandidates.front();
     const bool predicts = period > 1 && shape.keyframes.size() > 1;
+    IntraErrors intra{static_cast<size_t>(period), {}};
     for (size_t c = 0; predicts && c < kDeadZoneCandidates.size(); ++c) {
       const FieldRounder rounder(pool.grid(), options.noise_shaping, kDeadZoneCandidates[c]);
       std::optional<StepChoice> steps;
       try {
-        steps = choose_steps(keys, options.target_error, p99_budget, budgets, period, rounder, calibration, exact, pool);
+        steps = choose_steps(keys, options.target_error, p99_budget, budgets, period, rounder, calibration, exact, pool, &intra);
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNotConverged) throw;
         continue;  // this zone met no steps; another may
