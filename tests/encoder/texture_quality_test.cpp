@@ -133,6 +133,7 @@ TEST(TextureQuality, HintsMeetTheTargetWhereTheCurveInterpolatedInLogErrorDoes) 
   EXPECT_EQ(quality_hint(curve, 0.5), 99);                    // met nowhere: within [1, 99]
   EXPECT_EQ(quality_hint({{0, 300.0}, {5, 200.0}}, 1.0), 6);  // failed everywhere: above the last failure
   EXPECT_EQ(quality_hint({{0, 30.0}}, 100.0), 1);             // a hint is never 0: within [1, 99]
+  EXPECT_EQ(quality_hint({{99, 2.0}, {100, 1.0}}, 1.5), 99);  // met first at 100 (the floor): 99, a hint's highest
   EXPECT_EQ(quality_hint({}, 1.0), -1);
 }
 
@@ -222,6 +223,10 @@ TEST(TextureQuality, KeyframesSearchedFromTheirNeighboursTakeTheQualitiesOfWhole
                                                            whole_curves, &hinted_curves);
   EXPECT_EQ(levels, whole);
   EXPECT_EQ(hinted, whole);
+  // On one thread, the levels' searches in turn: the same qualities (no level reads its own).
+  TextureSettings one_thread = settings;
+  one_thread.threads = 1;
+  EXPECT_EQ(choose_texture_qualities(one_thread, texture_frames(encoder), *stored, chosen.keyframes, encoder.report()), levels);
   EXPECT_LT(codings(level_curves), codings(whole_curves));
   EXPECT_LE(codings(hinted_curves), 3 * chosen.keyframes.size());
 }

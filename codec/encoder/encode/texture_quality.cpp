@@ -46,7 +46,8 @@ int quality_hint(const QualityCurve& curve, double target_mse) {
       if (failed < 0 || !(failed_error > error) || !(error > 0)) return std::clamp(quality, 1, 99);
       // Between the last quality that failed and this one, where log(error) meets the target.
       const double t = std::log(failed_error / target_mse) / std::log(failed_error / error);
-      return std::clamp(failed + static_cast<int>(std::ceil(t * (quality - failed))), std::max(failed + 1, 1), std::min(quality, 99));
+      const int between = std::clamp(failed + static_cast<int>(std::ceil(t * (quality - failed))), failed + 1, quality);
+      return std::clamp(between, 1, 99);  // 100 (the floor, met) after 99 failed: 99, the hint nearest
     }
     failed = quality;
     failed_error = error;
@@ -95,9 +96,9 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
     // A hint (quality_hint: where a similar texture's errors met this target): the bracket closed
     // around it by probes stepping away from it, one quality, one more, then two, four..., until one
     // lands on the other side. Where the hint is right, two codings find the answer (the hint met,
-    // the one below it not) where the search from [0, 100] takes four or five, and three where it is
-    // off by one (Medusa's hints: 2.4 codings a keyframe); the error falling with the quality, the
-    // boundary found is the same either way.
+    // the one below it not) where the search from [0, 100] takes four or five; one too low, two
+    // (the hint failed, the next met); one too high, three (Medusa's hints: 2.4 codings a keyframe).
+    // The error falling with the quality, the boundary found is the same either way.
     const auto step = [](int n) { return n < 2 ? 1 : 1 << (n - 1); };
     if (probe(hint)) {
       for (int n = 0;; ++n) {

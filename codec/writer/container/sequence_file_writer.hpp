@@ -28,14 +28,16 @@ std::vector<uint8_t> encode_sequence_file(const KeyframeSource& source, const Se
 // The size of the file encode_sequence_file would make, from its chunks' sizes: no chunk is kept,
 // so memory holds one keyframe and one chunk whatever the sequence's length. `coded`: the texture
 // groups' payloads are taken from it where it holds them, and kept in it where coded here, for the
-// write that follows (write_sequence_file's `coded`): the same bytes, coded once.
+// write that follows (write_sequence_file's `coded`): the same bytes, coded once. The cache holds
+// every group's payload (the AV1 bytes, kilobytes a group) for as long as its owner keeps it.
 uint64_t sequence_file_size(const KeyframeSource& source, const SequenceFileMetadata& metadata, TextureGroupCache* coded = nullptr);
 
 // The same through files: the write is atomic (a temporary name, then a rename), so a failed write
 // leaves any previous file untouched. The file is streamed: the chunks wait in a temporary file
 // (TMPDIR) until the index is laid out, and only then is the destination's temporary name opened,
-// so memory holds one keyframe and one chunk, not the file. Errors name `path` (kIo for a full
-// disk or a missing TMPDIR).
+// so memory holds one keyframe and one chunk, not the file (and with `coded`, the payloads it
+// holds and keeps, as sequence_file_size's). Errors name `path` (kIo for a full disk or a missing
+// TMPDIR).
 void write_sequence_file(const std::filesystem::path& path, const Sequence& sequence, const SequenceFileMetadata& metadata);
 void write_sequence_file(const std::filesystem::path& path, const KeyframeSource& source, const SequenceFileMetadata& metadata,
                          TextureGroupCache* coded = nullptr);
