@@ -46,15 +46,18 @@ TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const 
     });
     const std::vector<double> targets = texture_error_targets(interval_mse, coding);
     chosen.curves.resize(keys);
-    const auto search = [&](size_t k, int hint) {
-      qualities[k] =
-          targets[k] < 0 ? coding.fallback_quality : texture_quality_for(codec, *stored.texture(k), targets[k], hint, &chosen.curves[k]);
+    // Keyframe k's quality: the fallback where nothing was measured beside it, else its search,
+    // started where `from` (a similar texture's curve; none: the whole range) meets its target.
+    const auto search = [&](size_t k, const QualityCurve* from) {
+      if (targets[k] < 0) {
+        qualities[k] = coding.fallback_quality;
+        return;
+      }
+      const int hint = from ? quality_hint(*from, targets[k]) : -1;
+      qualities[k] = texture_quality_for(codec, *stored.texture(k), targets[k], hint, &chosen.curves[k]);
     };
     if (hints.size() == keys) {
-      parallel_for(static_cast<int>(keys), threads, [&](int k) {
-        search(static_cast<size_t>(k),
-               targets[static_cast<size_t>(k)] < 0 ? -1 : quality_hint(hints[static_cast<size_t>(k)], targets[static_cast<size_t>(k)]));
-      });
+      parallel_for(static_cast<int>(keys), threads, [&](int k) { search(static_cast<size_t>(k), &hints[static_cast<size_t>(k)]); });
     } else {
       // Keyframes in levels: every fourth searched from the whole range (every other where there
       // are under nine), then at each level those halfway between two searched, each from where the
@@ -68,10 +71,10 @@ TextureQualities keyframe_texture_qualities(const StoredSequence& stored, const 
         for (size_t k = stride == top ? 0 : stride; k < keys; k += stride == top ? top : 2 * stride) level.push_back(k);
         parallel_for(static_cast<int>(level.size()), threads, [&](int i) {
           const size_t k = level[static_cast<size_t>(i)];
-          if (stride == top || targets[k] < 0) return search(k, -1);
+          if (stride == top || targets[k] < 0) return search(k, nullptr);  // (a negative target: no distance to weigh)
           const auto distance = [&](size_t n) { return targets[n] < 0 ? HUGE_VAL : std::abs(std::log(targets[n] / targets[k])); };
           const size_t nearer = k + stride < keys && distance(k + stride) < distance(k - stride) ? k + stride : k - stride;
-          search(k, quality_hint(chosen.curves[nearer], targets[k]));
+          search(k, &chosen.curves[nearer]);
         });
       }
     }

@@ -46,15 +46,16 @@ FieldCoding fixed_point_coding(const KeyframeSource& source, FieldCoding coding)
 
 // For each keyframe, the first keyframe whose texture is the same pixels (itself where none before
 // is): those keyframes store one TEXR. Compared by a hash, then pixel by pixel (the earlier texture
-// read again: one or two are held at a time).
-std::vector<size_t> texture_owners(const KeyframeSource& source) {
+// read again: one or two are held at a time). `hashes`: each keyframe's texture's hash, as computed.
+std::vector<size_t> texture_owners(const KeyframeSource& source, std::vector<uint64_t>& hashes) {
   const size_t count = source.outline().keyframe_count();
   std::vector<size_t> owners(count);
+  hashes.resize(count);
   std::unordered_multimap<uint64_t, size_t> seen;
   for (size_t k = 0; k < count; ++k) {
     owners[k] = k;
     const std::shared_ptr<const Image> image = source.texture(k);
-    const uint64_t hash = image_content_hash(*image);
+    const uint64_t hash = hashes[k] = image_content_hash(*image);
     const auto [first, last] = seen.equal_range(hash);
     const auto same = std::find_if(first, last, [&](const auto& entry) {
       const std::shared_ptr<const Image> other = source.texture(entry.second);
@@ -154,7 +155,8 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
   }
   std::vector<size_t> owners(count);
   for (size_t k = 0; k < count; ++k) owners[k] = k;
-  if (has_texture) owners = texture_owners(source);
+  std::vector<uint64_t> texture_hashes;  // each keyframe's texture's (image_content_hash)
+  if (has_texture) owners = texture_owners(source, texture_hashes);
   const bool any_shared = std::any_of(owners.begin(), owners.end(), [k = size_t{0}](size_t owner) mutable { return owner != k++; });
   const bool groups_possible = uses_texture_groups(has_texture, metadata);
   const auto quality_of = [&](size_t k) { return qualities.empty() ? metadata.texture_quality : qualities[k]; };
@@ -186,12 +188,12 @@ LaidOutFile lay_out_sequence_file(const KeyframeSource& source, const SequenceFi
       int quality = metadata.texture_quality;
       if (!qualities.empty())
         quality = *std::max_element(qualities.begin() + static_cast<long>(k), qualities.begin() + static_cast<long>(k + n));
-      TextureGroupCache::Key key{k, quality, {}};
+      // The group's key from the hashes texture_owners computed: a cached group's textures are
+      // not read again.
+      TextureGroupCache::Key key{
+          k, quality, {texture_hashes.begin() + static_cast<long>(k), texture_hashes.begin() + static_cast<long>(k + n)}};
       std::optional<std::vector<uint8_t>> payload;
-      if (coded) {
-        for (size_t j = k; j < k + n; ++j) key.images.push_back(image_content_hash(*source.texture(j)));
-        payload = coded->find(key);
-      }
+      if (coded) payload = coded->find(key);
       if (!payload) {
         TextureGroupWriter group_textures(k, quality);
         for (size_t j = k; j < k + n; ++j) group_textures.add(*source.texture(j));
