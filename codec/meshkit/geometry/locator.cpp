@@ -6,6 +6,15 @@
 
 namespace facemorph {
 
+namespace {
+
+// A depth (the least barycentric) far above the rounding of barycentric() (a few 1e-16 where the
+// face is not near-degenerate): a face found this deep holds p, and a face outside p's box, whose
+// true depth is below 0, would need a rounding error of 1e-12 to be computed deeper.
+constexpr double kSureDepth = 1e-12;
+
+}  // namespace
+
 TriangleLocator::TriangleLocator(std::span<const Vec2> points, std::span<const Face> faces, double faces_per_bucket)
     : points_(points), faces_(faces) {
   Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -47,14 +56,36 @@ TriangleLocator::TriangleLocator(std::span<const Vec2> points, std::span<const F
   }
   for (size_t i = 1; i < bucket_start_.size(); ++i) bucket_start_[i] += bucket_start_[i - 1];
   bucket_faces_.resize(static_cast<size_t>(bucket_start_.back()));
+  bucket_boxes_.resize(bucket_faces_.size());
   std::vector<int> fill(bucket_start_.begin(), bucket_start_.end() - 1);
   for (size_t f = 0; f < faces.size(); ++f) {
     int x0, x1, y0, y1;
     span_of(faces[f], x0, x1, y0, y1);
+    const Box box = outward_box(points, faces[f]);
     for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) bucket_faces_[static_cast<size_t>(fill[static_cast<size_t>(y * nx_ + x)]++)] = static_cast<int>(f);
+      for (int x = x0; x <= x1; ++x) {
+        const auto slot = static_cast<size_t>(fill[static_cast<size_t>(y * nx_ + x)]++);
+        bucket_faces_[slot] = static_cast<int>(f);
+        bucket_boxes_[slot] = box;
+      }
     }
   }
+}
+
+TriangleLocator::Box TriangleLocator::outward_box(std::span<const Vec2> points, const Face& face) {
+  Vec2 lo = points[static_cast<size_t>(face[0])], hi = lo;
+  for (int32_t v : face) {
+    lo = lo.cwiseMin(points[static_cast<size_t>(v)]);
+    hi = hi.cwiseMax(points[static_cast<size_t>(v)]);
+  }
+  // A double rounds to the nearest float, either side: one float step further out holds it (and
+  // past the float range, the infinities; a NaN box holds nothing, and its face is measured only
+  // by the scan of every face).
+  constexpr float kInf = std::numeric_limits<float>::infinity(), kMax = std::numeric_limits<float>::max();
+  const auto to_float = [&](double x) { return x > kMax ? kInf : x < -kMax ? -kInf : static_cast<float>(x); };
+  const auto down = [&](double x) { return std::nextafter(to_float(x), -kInf); };
+  const auto up = [&](double x) { return std::nextafter(to_float(x), kInf); };
+  return {down(lo.x()), down(lo.y()), up(hi.x()), up(hi.y())};
 }
 
 Vec3 TriangleLocator::barycentric(int face, const Vec2& p) const {
@@ -82,14 +113,27 @@ std::optional<SurfacePoint> TriangleLocator::locate(const Vec2& p, double tolera
   const size_t bucket = static_cast<size_t>(y * nx_ + x);
   SurfacePoint best;
   double best_depth = -std::numeric_limits<double>::infinity();
-  for (int i = bucket_start_[bucket]; i < bucket_start_[bucket + 1]; ++i) {
-    const int f = bucket_faces_[static_cast<size_t>(i)];
-    const Vec3 bary = barycentric(f, p);
-    const double depth = bary.minCoeff();
-    if (depth > best_depth) {
-      best_depth = depth;
-      best = {f, bary};
+  // The faces whose boxes hold p first. p lies strictly outside a face whose box does not hold it
+  // (the face's depth is below 0), so where one of these holds p inside by more than rounding, it is the deepest of the
+  // whole bucket, as the scan of every face below would find it (ties: the earlier face, both ways).
+  const auto scan = [&](bool boxed) {
+    for (int i = bucket_start_[bucket]; i < bucket_start_[bucket + 1]; ++i) {
+      if (boxed && !bucket_boxes_[static_cast<size_t>(i)].holds(p)) continue;
+      const int f = bucket_faces_[static_cast<size_t>(i)];
+      const Vec3 bary = barycentric(f, p);
+      const double depth = bary.minCoeff();
+      if (depth > best_depth) {
+        best_depth = depth;
+        best = {f, bary};
+      }
     }
+  };
+  scan(true);
+  if (!(best_depth > kSureDepth)) {
+    // On an edge, outside every face, or within rounding of it: every face of the bucket measured.
+    best = {};
+    best_depth = -std::numeric_limits<double>::infinity();
+    scan(false);
   }
   if (best.face < 0 || best_depth < -tolerance) return std::nullopt;
   if (best_depth < 0) {

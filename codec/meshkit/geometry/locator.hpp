@@ -36,6 +36,15 @@ class TriangleLocator {
   int nx_ = 1, ny_ = 1;
   std::vector<int> bucket_start_;
   std::vector<int> bucket_faces_;
+  // Each bucket entry's face box, in floats rounded outwards (a box that holds the face's own): a
+  // point outside it is outside the face, which locate() skips without its barycentrics (their
+  // divisions were a fifth of a texture's resampling onto the disk, profiled on Medusa).
+  struct Box {
+    float lo_x, lo_y, hi_x, hi_y;
+    bool holds(const Vec2& p) const { return p.x() >= lo_x && p.x() <= hi_x && p.y() >= lo_y && p.y() <= hi_y; }
+  };
+  std::vector<Box> bucket_boxes_;
+  static Box outward_box(std::span<const Vec2> points, const Face& face);
 };
 
 }  // namespace facemorph
