@@ -123,6 +123,22 @@ TEST(ImageCodec, TextureCodecsDispatchAndLosslessIsWebp) {
   testing::expect_error(ErrorCode::kInvalidArgument, "'jpeg'", [] { parse_texture_codec("jpeg"); });
 }
 
+TEST(ImageCodec, AStillCodedAtManyQualitiesGivesEachCodingsOwnBytes) {
+  // One conversion to YUV serves every quality: the bytes and the floor are the one-off codings',
+  // whatever order the qualities come in, an RGBA image and WebP's qualities (and lossless) too.
+  for (const Image& image : {test_picture(96, 64, 3), test_picture(64, 48, 4)}) {
+    for (const TextureCodec codec : {TextureCodec::kAvif, TextureCodec::kWebp}) {
+      const TextureStill still(codec, image);
+      for (const int quality : {40, 5, 90, 40, 101}) EXPECT_EQ(still.encode(quality), encode_texture(codec, image, quality)) << quality;
+      EXPECT_EQ(still.colour_round_trip().pixels, avif_colour_round_trip(image).pixels);
+    }
+  }
+  testing::expect_error(ErrorCode::kInvalidArgument, "cannot encode", [] {
+    const Image empty;
+    TextureStill(TextureCodec::kAvif, empty).encode(50);
+  });
+}
+
 TEST(ImageCodec, DamagedAvifBytesAreNamedErrors) {
   const Image image = test_picture(64, 64, 3);
   const std::vector<uint8_t> avif = encode_avif(image, 60), png = encode_png(image);

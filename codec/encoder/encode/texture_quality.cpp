@@ -60,11 +60,12 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   // Each quality's error, coded once (AVIF's 101 qualities fall on 64 quantisers: qualities of one
   // quantiser are the same bytes, coded once too).
   std::map<int, double> coded;
+  const TextureStill still(codec, texture);
   auto error_at = [&](int quality) {
     const int key = codec == TextureCodec::kAvif ? avif_quantizer(quality) : quality;
     const auto found = coded.find(key);
     if (found != coded.end()) return found->second;
-    const double error = disk_texture_mse(texture, decode_texture(codec, encode_texture(codec, texture, quality), "texture_quality_for"));
+    const double error = disk_texture_mse(texture, decode_texture(codec, still.encode(quality), "texture_quality_for"));
     coded.emplace(key, error);
     if (measured) measured->emplace(quality, error);
     return error;
@@ -73,7 +74,7 @@ int texture_quality_for(TextureCodec codec, const Image& texture, double target_
   // or under it would buy bytes and no quality, so the target is at least a quarter above the floor.
   // AVIF's floor is its colour conversion alone (quality 100 is lossless AV1), found without the
   // lossless encode, which costs as much as four lossy ones.
-  const double floor = codec == TextureCodec::kAvif ? disk_texture_mse(texture, avif_colour_round_trip(texture)) : error_at(100);
+  const double floor = codec == TextureCodec::kAvif ? disk_texture_mse(texture, still.colour_round_trip()) : error_at(100);
   if (measured) measured->emplace(100, floor);
   target_mse = std::max(target_mse, kFloorMargin * floor);
   // The lowest quality that meets the target within [lo, hi]: lo fails (or is 0), hi meets (100

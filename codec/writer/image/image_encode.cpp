@@ -109,17 +109,23 @@ std::unique_ptr<avifEncoder, AvifEncoderFree> avif_encoder(int quality) {
 
 }  // namespace
 
-std::vector<uint8_t> encode_avif(const Image& image, int quality) {
-  const auto yuv = yuv_of(image);
+namespace {
+
+// The still encode of an image already converted (yuv_of).
+std::vector<uint8_t> encode_avif_yuv(const avifImage* yuv, int quality) {
   const auto encoder = avif_encoder(quality);
   AvifBytes bytes;
-  const avifResult result = avifEncoderWrite(encoder.get(), yuv.get(), &bytes.data);
+  const avifResult result = avifEncoderWrite(encoder.get(), yuv, &bytes.data);
   if (result != AVIF_RESULT_OK) {
-    throw Error(ErrorCode::kInvalidArgument, "AVIF encoding of " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+    throw Error(ErrorCode::kInvalidArgument, "AVIF encoding of " + std::to_string(yuv->width) + " x " + std::to_string(yuv->height) +
                                                  " pixels failed: " + avifResultToString(result));
   }
   return std::vector<uint8_t>(bytes.data.data, bytes.data.data + bytes.data.size);
 }
+
+}  // namespace
+
+std::vector<uint8_t> encode_avif(const Image& image, int quality) { return encode_avif_yuv(yuv_of(image).get(), quality); }
 
 namespace {
 
@@ -234,6 +240,25 @@ int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std
 std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality) {
   return stored_texture_codec(codec, quality) == TextureCodec::kAvif ? encode_avif(image, quality) : encode_webp(image, quality);
 }
+
+struct TextureStill::Yuv {
+  std::unique_ptr<avifImage, AvifImageFree> image;
+};
+
+TextureStill::TextureStill(TextureCodec codec, const Image& image) : codec_(codec), image_(image) {}
+TextureStill::~TextureStill() = default;
+
+const TextureStill::Yuv& TextureStill::yuv() const {
+  if (!yuv_) yuv_ = std::make_unique<Yuv>(Yuv{yuv_of(image_)});
+  return *yuv_;
+}
+
+std::vector<uint8_t> TextureStill::encode(int quality) const {
+  if (stored_texture_codec(codec_, quality) != TextureCodec::kAvif) return encode_webp(image_, quality);
+  return encode_avif_yuv(yuv().image.get(), quality);
+}
+
+Image TextureStill::colour_round_trip() const { return rgb_of(yuv().image.get(), 3, "avif_colour_round_trip"); }
 
 void write_png(const std::filesystem::path& path, const Image& image) { format::write_file_atomically(path, encode_png(image)); }
 

@@ -55,6 +55,26 @@ class AvifSequenceWriter {
 };
 // encode_avif or encode_webp, as stored_texture_codec says.
 std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality);
+// One texture coded at several qualities (a quality search): encode_texture's bytes and
+// avif_colour_round_trip's pixels, byte for byte, with the image converted to AVIF's YUV once
+// rather than at every AVIF coding (the conversion was a twentieth of a textured encode's CPU).
+// Keeps a reference to the image, which must outlive it; one thread's at a time.
+class TextureStill {
+ public:
+  TextureStill(TextureCodec codec, const Image& image);
+  ~TextureStill();
+  TextureStill(const TextureStill&) = delete;
+  TextureStill& operator=(const TextureStill&) = delete;
+  std::vector<uint8_t> encode(int quality) const;  // encode_texture(codec, image, quality)
+  Image colour_round_trip() const;                 // avif_colour_round_trip(image)
+
+ private:
+  struct Yuv;
+  const Yuv& yuv() const;  // converted on first use
+  TextureCodec codec_;
+  const Image& image_;
+  mutable std::unique_ptr<Yuv> yuv_;
+};
 // PNG, 8 bits per channel, RGB or RGBA (1-channel grey is written as grey).
 std::vector<uint8_t> encode_png(const Image& image);
 // Writes a PNG atomically (temporary name, then rename). Throws kIo naming the file.
