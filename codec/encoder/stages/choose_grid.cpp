@@ -19,6 +19,7 @@
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace facemorph {
@@ -157,7 +158,7 @@ class ReferenceOnGrid {
   // Its surface against G's surface sampled from it.
   GridFloor resampled(int n) {
     at(n);
-    return floor_of(reference_.map.surface, geometry_->grid(), sampled_);
+    return floor_of(reference_.map.surface, *grid_, sampled_);
   }
 
   // Its surface against G's surface rebuilt from the fields of the sampled one: computed as the
@@ -170,10 +171,11 @@ class ReferenceOnGrid {
   // fails.
   GridFloor decoded(int n, Representation representation, bool positions_fallback) {
     at(n);
-    const GridFields fields = keyframe_fields(*geometry_, sampled_, representation, folded_nodes(*geometry_, sampled_));
-    Reconstructor reconstructor(geometry_);
+    const std::shared_ptr<const GridGeometry> geometry = shared_grid_geometry(n);
+    const GridFields fields = keyframe_fields(*geometry, sampled_, representation, folded_nodes(*geometry, sampled_));
+    Reconstructor reconstructor(geometry);
     try {
-      return floor_of(reference_.map.surface, geometry_->grid(), decode_keyframe_exactly(reconstructor, fields));
+      return floor_of(reference_.map.surface, geometry->grid(), decode_keyframe_exactly(reconstructor, fields));
     } catch (const Error& e) {
       if (e.code() != ErrorCode::kNotConverged && e.code() != ErrorCode::kNumerical) throw;
       constexpr double kNever = std::numeric_limits<double>::infinity();
@@ -187,16 +189,18 @@ class ReferenceOnGrid {
   }
 
  private:
+  // G's nodes and faces alone: the resampled floors (13 sizes on ICT) need no stiffness matrix,
+  // which shared_grid_geometry builds (3% of a 2k-vertex ICT encode), only the decoded ones do.
   void at(int n) {
-    if (geometry_ && geometry_->grid().n == n) return;
-    geometry_ = shared_grid_geometry(n);
-    sampled_ = frames_.sampler.sample_surface(reference_, index_, geometry_->grid().nodes);
+    if (grid_ && grid_->n == n) return;
+    grid_ = make_disk_grid(n);
+    sampled_ = frames_.sampler.sample_surface(reference_, index_, grid_->nodes);
   }
 
   const PlanFrames& frames_;
   const MappedFrame& reference_;
   int index_;
-  std::shared_ptr<const GridGeometry> geometry_;
+  std::optional<DiskGrid> grid_;
   std::vector<Vec3> sampled_;
 };
 
@@ -210,11 +214,11 @@ EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, co
 }
 
 std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n) {
-  const std::shared_ptr<const GridGeometry> geometry = shared_grid_geometry(n);
+  const DiskGrid grid = make_disk_grid(n);  // nodes and faces alone (ReferenceOnGrid::at)
   std::vector<double> floors;
   for (const int i : keyframes) {
     const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);
-    floors.push_back(floor_of(frame->map.surface, geometry->grid(), frames.sampler.sample_surface(*frame, i, geometry->grid().nodes)).p99);
+    floors.push_back(floor_of(frame->map.surface, grid, frames.sampler.sample_surface(*frame, i, grid.nodes)).p99);
   }
   return floors;
 }
