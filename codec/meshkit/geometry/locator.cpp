@@ -114,8 +114,9 @@ std::optional<SurfacePoint> TriangleLocator::locate(const Vec2& p, double tolera
   SurfacePoint best;
   double best_depth = -std::numeric_limits<double>::infinity();
   // The faces whose boxes hold p first. p lies strictly outside a face whose box does not hold it
-  // (the face's depth is below 0), so where one of these holds p inside by more than rounding, it is the deepest of the
-  // whole bucket, as the scan of every face below would find it (ties: the earlier face, both ways).
+  // (the face's depth is below 0), so where one of these holds p inside by more than rounding, it
+  // is the deepest of the whole bucket, as the scan of every face below would find it (ties: the
+  // earlier face, both ways; every face with p inside or on it has p in its box).
   const auto scan = [&](bool boxed) {
     for (int i = bucket_start_[bucket]; i < bucket_start_[bucket + 1]; ++i) {
       if (boxed && !bucket_boxes_[static_cast<size_t>(i)].holds(p)) continue;
