@@ -82,9 +82,10 @@ TEST(Locator, FindsTheFaceEveryFaceScannedFindsInsideOnEdgesAndAtVertices) {
 }
 
 TEST(Locator, APointJustOutsideTheRimIsClampedIntoItsFaceAndOneFartherIsNone) {
-  // Outside every face but within the tolerance (a caller's 1e-6 on a rim edge, here larger): no
-  // face's box holds most such points, so they are found only by measuring every face of their
-  // bucket (the boxes' shortcut must give way there), and the face found is still the nearest.
+  // Outside every face but within the tolerance (a caller's 1e-6 on a rim edge, here larger):
+  // points 1e-12 out lie within the faces' boxes (one float step of slack), points 1e-3 out past
+  // them, found only by measuring every face of their bucket (the boxes' shortcut must give way
+  // there; without it this test fails), and the face found is still the nearest.
   const CrowdedDisk disk = crowded_disk();
   const TriangleLocator locator(disk.points, disk.faces);
   const size_t rim_first = disk.points.size() - 40;  // the outer ring's vertices

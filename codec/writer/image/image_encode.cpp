@@ -212,7 +212,7 @@ std::vector<uint8_t> encode_avif_sequence(std::span<const Image* const> frames, 
   return writer.finish();
 }
 
-Image avif_colour_round_trip(const Image& image) { return rgb_of(yuv_of(image).get(), 3, "avif_colour_round_trip"); }
+Image avif_colour_round_trip(const Image& image) { return TextureStill(TextureCodec::kAvif, image).colour_round_trip(); }
 
 std::vector<uint8_t> encode_png(const Image& image) {
   require_codable(image, true);
@@ -237,9 +237,7 @@ std::vector<uint8_t> encode_png(const Image& image) {
 
 int avif_quantizer(int quality) { return static_cast<int>(std::lround((100 - std::clamp(quality, 0, 100)) * 63 / 100.0)); }
 
-std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality) {
-  return stored_texture_codec(codec, quality) == TextureCodec::kAvif ? encode_avif(image, quality) : encode_webp(image, quality);
-}
+std::vector<uint8_t> encode_texture(TextureCodec codec, const Image& image, int quality) { return TextureStill(codec, image).encode(quality); }
 
 struct TextureStill::Yuv {
   std::unique_ptr<avifImage, AvifImageFree> image;
