@@ -125,7 +125,7 @@ for c in captures:
         wall_ratio = [runs[(r, c)][label][1] / runs[(r, c)][baseline][1] for r in rounds]
         peak = max(runs[(r, c)][label][2] for r in rounds)
         size, mean, worst, p99 = measured.get((c, label), (0, float("nan"), float("nan"), float("nan")))
-        span = lambda v: f"{min(v):.2f}" if len(v) == 1 else f"{min(v):.2f}-{max(v):.2f}"
+        span = lambda v: f"{min(v):.2f}" if f"{min(v):.2f}" == f"{max(v):.2f}" else f"{min(v):.2f}-{max(v):.2f}"
         print(f"| {c} | {label} | {', '.join(f'{x:.2f}' for x in cpu)} | {span(cpu_ratio)} | {span(wall_ratio)} | {peak} | "
               f"{size:,} | {mean:.4f} / {worst:.4f} | {p99:.4f} |")
 EOF

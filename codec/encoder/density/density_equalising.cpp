@@ -171,14 +171,15 @@ DiskReparametrisation::DiskReparametrisation(const DiskMap& reference, const Den
     for (size_t v = 0; v < n; ++v) lifted[v] = Vec3(points[v].x(), points[v].y(), 0);
     const SparseMatrix K = cotangent_laplacian(lifted, faces);
     const Eigen::VectorXd M = barycentric_areas(lifted, faces);
-    const SparseMatrix A = SparseMatrix(M.asDiagonal()) + step * K;
-    if (iteration == 0) solver.analyze(A);
-    if (!solver.factorize(A)) throw Error(ErrorCode::kNumerical, "density-equalising: the diffusion system is not positive definite");
     const Eigen::VectorXd rho = vertex_density(population, areas, faces, n);
     // Converged when the density seen at the vertices is uniform; what remains in the faces is
     // triangle-scale (the sampling of the reference's own triangles), which no smooth map removes.
+    // Tested before the step's factorisation, which a converged flow does not use.
     const double mean = M.dot(rho) / M.sum();
     if (std::sqrt(M.dot((rho.array() - mean).square().matrix()) / M.sum()) / mean < options.tolerance) break;
+    const SparseMatrix A = SparseMatrix(M.asDiagonal()) + step * K;
+    if (iteration == 0) solver.analyze(A);
+    if (!solver.factorize(A)) throw Error(ErrorCode::kNumerical, "density-equalising: the diffusion system is not positive definite");
     const Eigen::VectorXd smooth = solver.solve(M.cwiseProduct(rho)).col(0);
     const std::vector<Vec2> gradient = vertex_gradients(points, faces, areas, smooth);
     std::vector<Vec2> velocity(n);
