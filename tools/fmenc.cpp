@@ -323,7 +323,8 @@ void declare_options(CLI::App& app, Arguments& a) {
                  "given, none tracked), the keyframes are blended both ways at up to 12 frames between them and xyz is stored where the "
                  "fields come out more than 1.1x farther than the positions; otherwise hl+t and xyz are coded at N, then the one with "
                  "the lower bytes x held-out RMS^2 (on up to 8 frames between keyframes) also at the coarsest N whose worst region is "
-                 "within 0.75% (--grid auto), and the lowest kept, a coarser N only within the error bound")
+                 "within 0.75% (--grid auto), and the lowest kept, a coarser N only within the error bound. A representation named "
+                 "is stored without that choice: xyz is the faster encode, for larger files (README, Encoding your own capture)")
       ->capture_default_str();
   app.add_option("--density-equalising", a.density_equalising,
                  "How far the disk grid spreads over the face by area rather than conformally, 0 to 1 (0: the conformal disk)")
