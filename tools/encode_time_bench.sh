@@ -97,7 +97,8 @@ errors="$cache/errors.tsv"
 : > "$errors"
 while IFS=$'\t' read -r round c label _ _ _ _ bytes file; do
   [[ $round == "$rounds" ]] || continue
-  line=$("$build/tools/fmbench" --capture "$(capture_path "$c")" --fmv "$file" --geometry-only --quiet | grep 'held-out')
+  line=$("$build/tools/fmbench" --capture "$(capture_path "$c")" --fmv "$file" --geometry-only --quiet | grep 'held-out') ||
+    { echo "encode_time_bench: fmbench could not measure $file" >&2; exit 1; }
   printf '%s\t%s\t%s\t%s\n' "$c" "$label" "$bytes" "$line" >> "$errors"
 done < "$results"
 
