@@ -2,7 +2,8 @@
 # Encode time against an earlier commit (issue 44: "the encode is no slower than today"), with each
 # file's bytes and errors beside it. A benchmark, not a test: each round encodes every capture once
 # with the baseline's fmenc and once per variant of this tree's, interleaved capture by capture, so
-# that a machine that slows down in the middle slows both; the ratios are of the same round.
+# that a machine that slows down in the middle slows both; the ratios are of the same round. Each
+# encode runs with --threads 2 (the CI machine's cores, as issue 44's figures were read).
 # Then every file of the last round is measured by this tree's `fmbench --geometry-only`.
 #
 #   tools/encode_time_bench.sh [BASELINE=3a7ec5d] [ROUNDS=2] [BUILD=build] [DATA=../shared/data]
@@ -114,11 +115,11 @@ for line in open(errors):
     c, label, size, text = line.rstrip("\n").split("\t")
     m = re.search(r"held-out RMS ([\d.]+)% mean, ([\d.]+)% worst.*99th percentile ([\d.]+)% worst frame", text)
     measured[(c, label)] = (int(size),) + (tuple(float(x) for x in m.groups()) if m else (float("nan"),) * 3)
-print(f"| capture | encoder | CPU s (each round) | CPU ratio | wall ratio | peak MB | bytes | held-out RMS mean / worst % | worst p99 % |")
+print("| capture | encoder | CPU s (each round) | CPU ratio | wall ratio | peak MB | bytes | held-out RMS mean / worst % | worst p99 % |")
 print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
 captures = list(dict.fromkeys(c for _, c in runs))
 for c in captures:
-    rounds = sorted(r for r, cc in runs if cc == c)
+    rounds = sorted((r for r, cc in runs if cc == c), key=int)  # round 10 after round 9
     labels = list(runs[(rounds[0], c)])
     for label in labels:
         cpu = [runs[(r, c)][label][0] for r in rounds]
