@@ -22,7 +22,12 @@ class DecoderTeam {
     const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
     const size_t wanted = threads > 0 ? static_cast<size_t>(threads) : hardware;
     const size_t size = std::max<size_t>(1, std::min(wanted, items));
-    for (size_t r = 0; r < size; ++r) decoders_.push_back(std::make_unique<SequenceDecoder>(source));
+    // Each made on a thread of its own: a decoder's reconstructor builds its multigrid (tens of
+    // milliseconds at N = 257), and one after another they were a serial stretch of every candidate
+    // the choice by bytes measures (held_out_error). The source is read from any thread.
+    decoders_.resize(size);
+    parallel_for(static_cast<int>(size), static_cast<int>(size),
+                 [&](int r) { decoders_[static_cast<size_t>(r)] = std::make_unique<SequenceDecoder>(source); });
   }
   SequenceDecoder& first() { return *decoders_.front(); }
   // body(decoder, i) for i in [0, count), items of one run on one decoder and thread. The caller

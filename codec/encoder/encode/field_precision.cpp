@@ -261,7 +261,10 @@ class ReconstructorPool {
  public:
   ReconstructorPool(int grid_n, int threads) : geometry_(shared_grid_geometry(grid_n)) {
     const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    for (int t = 0; t < count; ++t) free_.push_back(std::make_unique<Reconstructor>(geometry_));
+    // Made side by side (each builds its multigrid): one after another they were a serial stretch
+    // of every candidate's rounding in the choice by bytes.
+    free_.resize(static_cast<size_t>(count));
+    parallel_for(count, count, [&](int t) { free_[static_cast<size_t>(t)] = std::make_unique<Reconstructor>(geometry_); });
     size_ = free_.size();
   }
   size_t size() const { return size_; }
@@ -445,11 +448,10 @@ struct Calibration {
 
 // The groups are calibrated each on a reconstructor of `pool` (their probes are independent: each
 // rounds its own group and decodes from the exact surface, so any reconstructor gives the same
-// readings), the exact surface decoded once first.
-Calibration calibrate(const GridFields& probe_fields, double target_error, bool noise_shaping, ReconstructorPool& pool) {
+// readings), from the probe's exact surface as ExactSurfaces decoded it (with its diagonal).
+Calibration calibrate(const GridFields& probe_fields, const std::vector<Vec3>& probe_exact, double probe_diagonal, double target_error,
+                      bool noise_shaping, ReconstructorPool& pool) {
   const FieldRounder rounder(pool.grid(), noise_shaping, 0.5);
-  Decoded probe_exact;
-  pool.run(1, [&](Reconstructor& reconstructor, size_t) { probe_exact = decode_exact(reconstructor, probe_fields); });
   const std::vector<std::vector<double>> arrays = scalar_arrays(probe_fields);
   Calibration calibration;
   std::vector<size_t>& present = calibration.present;
@@ -474,7 +476,7 @@ Calibration calibrate(const GridFields& probe_fields, double target_error, bool 
   group_steps.assign(kGroups.size(), 0.0);
   auto probe_error = [&](Reconstructor& reconstructor, size_t g, double step) {
     return decoded_error(reconstructor, rounder.rounded(probe_fields, kGroups[g], std::vector<double>(kKeyframeArrayCount, step)),
-                         probe_exact.exact, probe_exact.diagonal);
+                         probe_exact, probe_diagonal);
   };
   pool.run(present.size(), [&](Reconstructor& reconstructor, size_t i) {
     const size_t g = present[i];
@@ -701,15 +703,16 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   if (shape.keyframes.empty()) throw Error(ErrorCode::kInvalidArgument, "sequence: no keyframes");
   Spill spill(options.spill);
   ReconstructorPool pool(shape.grid_n, options.threads);
-  // What no trial changes, made once: the calibration's steps (keyframe 0 is intra: no dead zone
-  // applies to it) and every keyframe's exact surface.
+  // What no trial changes, made once: every keyframe's exact surface (decoded side by side), and
+  // from keyframe 0's the calibration's steps (keyframe 0 is intra: no dead zone applies to it).
+  // Keyframe 0's exact surface was decoded twice before, for the calibration on one thread first.
+  const ExactSurfaces exact(keys, pool, spill);
   Calibration calibration;
   try {
-    calibration = calibrate(*keys.fields(0), options.target_error, options.noise_shaping, pool);
+    calibration = calibrate(*keys.fields(0), *exact.store.get(0), exact.diagonals[0], options.target_error, options.noise_shaping, pool);
   } catch (const Error& e) {
-    throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // its exact decode is the calibration's probe
+    throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // the calibration's probes round keyframe 0
   }
-  const ExactSurfaces exact(keys, pool, spill);
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
   const double p99_budget = rounding_p99_budget(options);
   if (!options.keyframe_floors.empty() && options.keyframe_floors.size() != keys.size())
