@@ -150,7 +150,7 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
   std::map<int, std::vector<double>> keyframe_floors;
   const auto floors_at = [&](int n) -> const std::vector<double>& {
     auto at = keyframe_floors.find(n);
-    if (at == keyframe_floors.end()) at = keyframe_floors.emplace(n, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n)).first;
+    if (at == keyframe_floors.end()) at = keyframe_floors.emplace(n, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, n, settings.threads)).first;
     return at->second;
   };
   const auto try_candidate = [&](int n, double step_scale) {

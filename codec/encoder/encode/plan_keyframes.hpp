@@ -53,8 +53,9 @@ EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, co
 // Each of `keyframes`' (frame indices) own resampled floor on G of size `n`: its sampled surface
 // against its captured frame, the 99th percentile / diagonal, as choose_grid measures the reference's.
 // The rounding's worst-region bound holds a keyframe whose floor is larger to what it leaves of the
-// target (round_fields.cpp; spec/method.md §5.3). One sampling and one surface distance a keyframe.
-std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n);
+// target (round_fields.cpp; spec/method.md §5.3). One sampling and one surface distance a keyframe,
+// the keyframes on up to `threads` threads (0: one per hardware thread).
+std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n, int threads);
 // 5½ What the keyframes store where settings.representation leaves it open: where most frames
 // were registered without interior landmarks, the hl+t fields and the positions of `chosen`'s
 // keyframes blended at the frames midway between up to kBlendTrials pairs of them, on G of `grid`

@@ -460,7 +460,7 @@ FieldPrecisionOptions SequenceEncoder::keyframe_precision(const StageSettings& s
   if (settings.plan.grid > 0 || !settings.predicted_fields) return precision;  // not bounded (round_fields.cpp): nothing measured
   const std::pair<int, std::vector<int>> key(grid, chosen.keyframes);
   auto floors = keyframe_floors_.find(key);
-  if (floors == keyframe_floors_.end()) floors = keyframe_floors_.emplace(key, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, grid)).first;
+  if (floors == keyframe_floors_.end()) floors = keyframe_floors_.emplace(key, keyframe_floor_p99s(plan_frames(*this), chosen.keyframes, grid, settings.threads)).first;
   precision.keyframe_floors = floors->second;
   return precision;
 }

@@ -8,6 +8,7 @@
 #include "codec/core/reconstruct/grid_geometry.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/util/elapsed.hpp"
+#include "codec/core/util/parallel.hpp"
 #include "codec/encoder/encode/field_precision.hpp"
 #include "codec/encoder/encode/frame_pipeline.hpp"
 #include "codec/encoder/encode/plan_keyframes.hpp"
@@ -213,13 +214,16 @@ EncodeReport::DecodedFloor decoded_fields_floor(const PlanSettings& settings, co
   return {n, floor.rms, floor.p99, floor.reconstructed};
 }
 
-std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n) {
+std::vector<double> keyframe_floor_p99s(const PlanFrames& frames, const std::vector<int>& keyframes, int n, int threads) {
   const DiskGrid grid = make_disk_grid(n);  // nodes and faces alone (ReferenceOnGrid::at)
-  std::vector<double> floors;
-  for (const int i : keyframes) {
+  // Each keyframe on a thread: one after another they were a serial stretch of every N and disk
+  // the choice by bytes tries (0.7 s of ict24's encode, the other thread idle).
+  std::vector<double> floors(keyframes.size());
+  parallel_for(static_cast<int>(keyframes.size()), threads, [&](int k) {
+    const int i = keyframes[static_cast<size_t>(k)];
     const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);
-    floors.push_back(floor_of(frame->map.surface, grid, frames.sampler.sample_surface(*frame, i, grid.nodes)).p99);
-  }
+    floors[static_cast<size_t>(k)] = floor_of(frame->map.surface, grid, frames.sampler.sample_surface(*frame, i, grid.nodes)).p99;
+  });
   return floors;
 }
 
