@@ -1,6 +1,7 @@
 // The encoder's first stages, frame by frame: map (landmarks on the disk, found landmarks, frames
 // that cannot be mapped dropped and named, the reference moved) and register (frames dropped there,
 // tracked frames).
+#include "codec/core/grid/disk_grid.hpp"
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/decoder/container/sequence_file.hpp"
 #include "codec/encoder/encode/sequence_encoder.hpp"
@@ -339,6 +340,26 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
 
 // The reference frame dropped: the nearest frame kept takes its place, and the report says so.
 // Every frame dropped: an error naming the first.
+// A frame sampled at G's nodes on several threads (runs of nodes side by side, as the grid choice
+// samples the reference) is, to the bit, the frame sampled on one: each point is a function of its
+// node alone. A run that skips or repeats a node, or maps one twice, fails here.
+TEST(SequenceEncoder, AFrameSampledOnAnyThreadsIsTheSame) {
+  testing::TempDir dir;
+  const Capture capture = testing::small_remeshed_capture(dir, 0);
+  EncodeOptions options;
+  options.texture = false;
+  SequenceEncoder encoder(capture, options);
+  testing::run_to_selection(encoder);
+  const PlanFrames frames = plan_frames(encoder);
+  const DiskGrid grid = make_disk_grid(41);
+  for (const int i : {0, static_cast<int>(capture.frames.size()) - 1}) {
+    const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);
+    const std::vector<Vec3> one = frames.sampler.sample_surface(*frame, i, grid.nodes, 1);
+    ASSERT_EQ(one.size(), grid.nodes.size());
+    for (const int threads : {2, 3, 7}) EXPECT_EQ(frames.sampler.sample_surface(*frame, i, grid.nodes, threads), one) << "frame " << i << ", " << threads << " threads";
+  }
+}
+
 TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {
   testing::TempDir dir;
   Capture capture = testing::small_remeshed_capture(dir, 0);

@@ -318,7 +318,7 @@ TEST(Distance, EachDirectionsPercentileIsMeasuredApart) {
 // surface_distance starts each vertex's search from the previous vertex's nearest face (a hint): every
 // figure is still, to the bit, what a search from no hint gives, where the hint is near (a sphere's
 // vertices in order), far (the same vertices shuffled) or ties (every face twice). Taking the hint's
-// distance as a bound, or its face as the answer, fails here.
+// distance as a bound, or its face as the answer, fails here. So on any number of threads.
 TEST(Distance, SurfaceDistanceIsTheUnhintedSearchsToTheBit) {
   const auto [sphere, doubled] = sphere_and_doubled();
   std::mt19937 rng(17);
@@ -343,13 +343,18 @@ TEST(Distance, SurfaceDistanceIsTheUnhintedSearchsToTheBit) {
       std::vector<double> all = to_reference;
       all.insert(all.end(), to_test.begin(), to_test.end());
       for (const double e : all) sum += e * e, max = std::max(max, e);
-      const SurfaceDistance d = surface_distance(*reference, *test);
-      EXPECT_EQ(d.rms, std::sqrt(sum / static_cast<double>(all.size())));
-      EXPECT_EQ(d.max, max);
-      EXPECT_EQ(d.p99, nearest_rank_p99(all));
-      EXPECT_EQ(d.p99_test_to_reference, nearest_rank_p99(to_reference));
-      EXPECT_EQ(d.p99_reference_to_test, nearest_rank_p99(to_test));
-      EXPECT_GT(d.max, 0.0);
+      // On any number of threads (runs of consecutive vertices, each with its own hints), the same
+      // figures: summing each run apart, or a run that skips or repeats a vertex, fails here.
+      for (const int threads : {1, 2, 3, 7}) {
+        SCOPED_TRACE(::testing::Message() << threads << " threads");
+        const SurfaceDistance d = surface_distance(*reference, *test, threads);
+        EXPECT_EQ(d.rms, std::sqrt(sum / static_cast<double>(all.size())));
+        EXPECT_EQ(d.max, max);
+        EXPECT_EQ(d.p99, nearest_rank_p99(all));
+        EXPECT_EQ(d.p99_test_to_reference, nearest_rank_p99(to_reference));
+        EXPECT_EQ(d.p99_reference_to_test, nearest_rank_p99(to_test));
+        EXPECT_GT(d.max, 0.0);
+      }
     }
   }
 }

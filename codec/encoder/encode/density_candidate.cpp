@@ -127,8 +127,10 @@ std::unique_ptr<StoredSequence> SequenceEncoder::choose_density_equalised(const 
       if (m == n) return p99;
     }
     const DiskGrid grid = make_disk_grid(n);
-    const SurfaceDistance d =
-        surface_distance(reference->map.surface, grid_mesh(grid, sampler.sample_surface(*reference, options_.reference_frame, grid.nodes)));
+    // One N after another (coarsest_within reads each before the next): each on every thread.
+    const SurfaceDistance d = surface_distance(
+        reference->map.surface, grid_mesh(grid, sampler.sample_surface(*reference, options_.reference_frame, grid.nodes, settings.threads)),
+        settings.threads);
     return d.p99 / d.diagonal;
   };
   std::vector<int> ns;

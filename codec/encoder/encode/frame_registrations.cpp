@@ -2,7 +2,11 @@
 // (frame_registrations.hpp).
 #include "codec/encoder/encode/frame_registrations.hpp"
 
+#include "codec/core/util/parallel.hpp"
 #include "format/error.hpp"
+
+#include <algorithm>
+#include <thread>
 
 namespace facemorph {
 
@@ -16,10 +20,16 @@ std::shared_ptr<const DiskRegistration> FrameRegistrations::registration(int i) 
   return store_->get(static_cast<size_t>(i));
 }
 
-std::vector<Vec2> FrameRegistrations::sample_points(int i, std::span<const Vec2> nodes) const {
+std::vector<Vec2> FrameRegistrations::sample_points(int i, std::span<const Vec2> nodes, int threads) const {
   std::vector<Vec2> points = reparametrisation_(nodes);
   const std::shared_ptr<const DiskRegistration> f = registration(i);
-  for (Vec2& p : points) p = (*f)(p);
+  const int runs = std::max(1, std::min(threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())),
+                                        static_cast<int>(points.size())));
+  parallel_for(runs, runs, [&](int r) {
+    const size_t count = points.size();
+    for (size_t k = static_cast<size_t>(r) * count / static_cast<size_t>(runs); k < (static_cast<size_t>(r) + 1) * count / static_cast<size_t>(runs); ++k)
+      points[k] = (*f)(points[k]);
+  });
   return points;
 }
 

@@ -28,8 +28,9 @@ class FrameRegistrations {
   // kInternal before start ("the frames are not registered yet").
   std::shared_ptr<const DiskRegistration> registration(int i) const;
   // Where frame i is sampled for disk points of G: the reference's reparametrisation, then the
-  // frame's registration.
-  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes) const;
+  // frame's registration, the points on up to `threads` threads (0: one per hardware thread; the
+  // same points on any number, each a function of its node alone).
+  std::vector<Vec2> sample_points(int i, std::span<const Vec2> nodes, int threads = 1) const;
   // The reference's geometry every frame is registered and sampled through: its disk
   // reparametrised, its geodesic frame (null but for method kFrame).
   void set_reference(DiskReparametrisation reparametrisation, std::shared_ptr<const GeodesicFrame> geodesic_frame);

@@ -12,8 +12,8 @@ std::vector<Vec3> FrameSampler::sample_surface(int i, std::span<const Vec2> node
   return sample_surface(*maps_.frame(i), i, nodes);
 }
 
-std::vector<Vec3> FrameSampler::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const {
-  return resample_positions(InverseDiskMap(frame.map), registrations_.sample_points(i, nodes));
+std::vector<Vec3> FrameSampler::sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes, int threads) const {
+  return resample_positions(InverseDiskMap(frame.map), registrations_.sample_points(i, nodes, threads));
 }
 
 Image FrameSampler::frame_texture(int i, int size) const { return frame_texture(*maps_.frame(i), i, size); }

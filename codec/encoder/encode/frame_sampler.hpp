@@ -35,8 +35,9 @@ class FrameSampler {
   }
   // Frame i's surface at the disk points `nodes` (capture frame): what G, the selection grid and the
   // fit sample; the second from frame i's map as the caller loaded it (once, for several uses).
+  // `threads`: as FrameRegistrations::sample_points's.
   std::vector<Vec3> sample_surface(int i, std::span<const Vec2> nodes) const;
-  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes) const;
+  std::vector<Vec3> sample_surface(const MappedFrame& frame, int i, std::span<const Vec2> nodes, int threads = 1) const;
   // Frame i's own colour on the size x size disk texture, sampled through its registration as a
   // keyframe's is: the image resampled, or the vertex colours painted. What texture PSNR is
   // measured against. Throws kMissingTexture when the frame has no colour. The second from frame

@@ -1,9 +1,13 @@
 #include "codec/meshkit/geometry/distance.hpp"
 
+#include "codec/core/util/parallel.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <thread>
 
 namespace facemorph {
 
@@ -236,10 +240,13 @@ double bounding_box_diagonal(std::span<const Vec3> points) {
   return (hi - lo).norm();
 }
 
-SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test) {
+SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test, int threads) {
   SurfaceDistance d;
   d.diagonal = bounding_box_diagonal(reference.positions);
-  const PointToMesh to_reference(reference), to_test(test);
+  const int chunks = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  // The two locators built side by side (each a pass over its mesh's faces).
+  std::optional<PointToMesh> to_reference, to_test;
+  parallel_for(2, chunks, [&](int k) { k == 0 ? to_reference.emplace(reference) : to_test.emplace(test); });
   double sum = 0;
   std::vector<double> distances;
   auto accumulate = [&](const std::vector<Vec3>& points, const PointToMesh& other, const TriangleMesh& owner) {
@@ -247,22 +254,30 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
     for (const Face& f : owner.faces) {
       for (int32_t v : f) used[static_cast<size_t>(v)] = 1;
     }
-    // Each search started from the previous vertex's nearest face (closest_from: the same distance to
-    // the bit, whatever the hint): neighbours in a mesh's vertex order are mostly neighbours on the
-    // surface, so the first bound is near the nearest and most boxes are skipped unmeasured.
-    int hint = -1;
-    for (size_t i = 0; i < points.size(); ++i) {
-      if (!used[i]) continue;
-      double e = 0;
-      hint = other.closest_from(points[i], hint, &e).face;
-      sum += e * e;
-      d.max = std::max(d.max, e);
-      distances.push_back(e);
+    std::vector<size_t> queried;
+    for (size_t i = 0; i < points.size(); ++i)
+      if (used[i]) queried.push_back(i);
+    // The points in `chunks` runs of consecutive ones, side by side. In each run every search starts
+    // from the previous vertex's nearest face (closest_from: the same distance to the bit, whatever
+    // the hint): neighbours in a mesh's vertex order are mostly neighbours on the surface, so the
+    // first bound is near the nearest and most boxes are skipped unmeasured. The distances are then
+    // summed in the points' order, so that any number of runs gives the same figures to the bit.
+    std::vector<double> e(queried.size());
+    const size_t runs = std::min<size_t>(static_cast<size_t>(chunks), std::max<size_t>(1, queried.size()));
+    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
+      int hint = -1;
+      for (size_t q = static_cast<size_t>(r) * queried.size() / runs; q < (static_cast<size_t>(r) + 1) * queried.size() / runs; ++q)
+        hint = other.closest_from(points[queried[q]], hint, &e[q]).face;
+    });
+    for (const double distance : e) {
+      sum += distance * distance;
+      d.max = std::max(d.max, distance);
+      distances.push_back(distance);
     }
   };
-  accumulate(test.positions, to_reference, test);
+  accumulate(test.positions, *to_reference, test);
   const auto from_reference = static_cast<std::ptrdiff_t>(distances.size());
-  accumulate(reference.positions, to_test, reference);
+  accumulate(reference.positions, *to_test, reference);
   const size_t count = distances.size();
   d.rms = count ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
   std::vector<double> one_way(distances.begin(), distances.begin() + from_reference);
