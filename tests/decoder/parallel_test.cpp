@@ -42,5 +42,27 @@ TEST(ParallelFor, TheFirstFailureIsRethrownAfterAllThreadsStop) {
   parallel_for(0, 2, [](int) { FAIL(); });
 }
 
+// Item 4 fails at once and item 3 a while later: the error that comes back is item 3's, as a loop
+// over the items in order would throw, not the first in time (which named a different frame from
+// run to run). Rethrowing the first failure in time fails here.
+TEST(ParallelFor, TheLowestFailingItemsErrorIsRethrownWhicheverFailsFirst) {
+  for (const int threads : {1, 2, 3, 8}) {
+    SCOPED_TRACE(::testing::Message() << threads << " threads");
+    try {
+      parallel_for(50, threads, [&](int i) {
+        if (i == 3) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(30));
+          throw Error(ErrorCode::kIo, "frame 3 failed");
+        }
+        if (i == 4) throw Error(ErrorCode::kNumerical, "frame 4 failed");
+      });
+      ADD_FAILURE() << "nothing thrown";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kIo);
+      EXPECT_STREQ(e.what(), "frame 3 failed");
+    }
+  }
+}
+
 }  // namespace
 }  // namespace facemorph

@@ -14,14 +14,21 @@ void parallel_for(int count, int threads, const std::function<void(int)>& body, 
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = std::min(threads, count);
   std::atomic<int> next{0}, done{0};
+  // The failure of the lowest item, not the first in time: items are handed out in order, so every
+  // item below a failing one was handed out before it and runs to its end, and the lowest failure
+  // kept is the one a loop over the items in order would have met first, on any thread count.
   std::exception_ptr failure;
+  int failed_item = count;
   std::mutex failure_mutex;
   auto run = [&](int i) {
     try {
       body(i);
     } catch (...) {
       std::lock_guard lock(failure_mutex);
-      if (!failure) failure = std::current_exception();
+      if (i < failed_item) {
+        failure = std::current_exception();
+        failed_item = i;
+      }
       next = count;  // stop handing out work
     }
     ++done;

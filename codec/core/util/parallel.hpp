@@ -7,7 +7,8 @@ namespace facemorph {
 
 // Runs body(i) for every i in [0, count) on up to `threads` threads (0: one per hardware thread).
 // The calling thread takes part and, between its items, calls progress(done, count). The first
-// exception stops handing out items; it is rethrown once every thread has finished.
+// exception stops handing out items; once every thread has finished, the exception of the lowest
+// item that threw is rethrown: the one a loop over the items in order would throw, on any threads.
 void parallel_for(int count, int threads, const std::function<void(int)>& body, const std::function<void(int, int)>& progress = {});
 
 }  // namespace facemorph
