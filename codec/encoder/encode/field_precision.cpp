@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <exception>
 #include <functional>
 #include <limits>
 #include <map>
@@ -310,20 +311,30 @@ struct ExactSurfaces {
   ExactSurfaces(const StoredSequence& keys, ReconstructorPool& pool, Spill& spill) : store(spill.mode, spill.count) {
     store.reset(keys.size());
     diagonals.assign(keys.size(), 0.0);
+    failures.assign(keys.size(), nullptr);
     pool.run(keys.size(), [&](Reconstructor& reconstructor, size_t k) {
       Decoded d;
       try {
         d = decode_exact(reconstructor, *keys.fields(k));
       } catch (const Error& e) {
-        // Named, so that the encoder can say which keyframe did not reconstruct (encode_sampled).
-        throw Error(e.code(), "keyframe " + std::to_string(k) + ": " + e.what());
+        // Named, so that the encoder can say which keyframe did not reconstruct (encode_sampled);
+        // kept for rethrow_failures, which throws them in the order the encode meets them.
+        failures[k] = std::make_exception_ptr(Error(e.code(), "keyframe " + std::to_string(k) + ": " + e.what()));
+        return;
       }
       diagonals[k] = d.diagonal;
       store.put(k, std::move(d.exact));
     });
   }
+  // Rethrows the failure of the lowest keyframe in [first, last) that did not decode, if any.
+  void rethrow_failures(size_t first, size_t last) const {
+    for (size_t k = first; k < last && k < failures.size(); ++k) {
+      if (failures[k]) std::rethrow_exception(failures[k]);
+    }
+  }
   SurfaceStore store;
   std::vector<double> diagonals;
+  std::vector<std::exception_ptr> failures;  // per keyframe: why its exact decode failed (null: it did not)
 };
 
 // The intra keyframes' decoded errors by the steps' scale, within one choose_field_coding: no dead
@@ -706,13 +717,18 @@ FieldCoding choose_field_coding(StoredSequence& keys, const FieldPrecisionOption
   // What no trial changes, made once: every keyframe's exact surface (decoded side by side), and
   // from keyframe 0's the calibration's steps (keyframe 0 is intra: no dead zone applies to it).
   // Keyframe 0's exact surface was decoded twice before, for the calibration on one thread first.
+  // The failures come in the order they always have: keyframe 0's decode, then the calibration's
+  // probes, then the lowest other keyframe that does not decode (the error, and with it whether the
+  // encode falls back to positions and what its file says, never depends on the threads).
   const ExactSurfaces exact(keys, pool, spill);
+  exact.rethrow_failures(0, 1);
   Calibration calibration;
   try {
     calibration = calibrate(*keys.fields(0), *exact.store.get(0), exact.diagonals[0], options.target_error, options.noise_shaping, pool);
   } catch (const Error& e) {
     throw Error(e.code(), "keyframe 0: " + std::string(e.what()));  // the calibration's probes round keyframe 0
   }
+  exact.rethrow_failures(1, keys.size());
   const int period = options.intra_period == kAutoIntraPeriod ? auto_intra_period(shape) : options.intra_period;
   const double p99_budget = rounding_p99_budget(options);
   if (!options.keyframe_floors.empty() && options.keyframe_floors.size() != keys.size())
