@@ -672,6 +672,8 @@ TEST(SequenceEncoder, EachKeyframeSetIsHeldToItsOwnFramesFloors) {
     const std::vector<double> own = keyframe_floor_p99s(plan_frames(encoder), set->keyframes, n, 2);
     ASSERT_EQ(own.size(), set->keyframes.size());
     EXPECT_EQ(keyframe_floor_p99s(plan_frames(encoder), set->keyframes, n, 1), own) << "each keyframe's floor in its place, on any threads";
+    for (size_t k = 0; k < own.size(); ++k)
+      EXPECT_EQ(keyframe_floor_p99s(plan_frames(encoder), {set->keyframes[k]}, n, 1).front(), own[k]) << "keyframe " << k << " alone";
     EXPECT_EQ(encoder.keyframe_precision(settings, *set, n).keyframe_floors, own);
   }
   ASSERT_NE(keyframe_floor_p99s(plan_frames(encoder), others.keyframes, n, 2),

@@ -338,8 +338,6 @@ TEST(SequenceEncoder, TrackedFramesTakeASmoothingSpline) {
   }
 }
 
-// The reference frame dropped: the nearest frame kept takes its place, and the report says so.
-// Every frame dropped: an error naming the first.
 // A frame sampled at G's nodes on several threads (runs of nodes side by side, as the grid choice
 // samples the reference) is, to the bit, the frame sampled on one: each point is a function of its
 // node alone. A run that skips or repeats a node, or maps one twice, fails here.
@@ -352,7 +350,8 @@ TEST(SequenceEncoder, AFrameSampledOnAnyThreadsIsTheSame) {
   testing::run_to_selection(encoder);
   const PlanFrames frames = plan_frames(encoder);
   const DiskGrid grid = make_disk_grid(41);
-  for (const int i : {0, static_cast<int>(capture.frames.size()) - 1}) {
+  // Frames away from the reference (whose registration is nearest the identity).
+  for (const int i : {static_cast<int>(capture.frames.size()) / 2, static_cast<int>(capture.frames.size()) - 1}) {
     const std::shared_ptr<const MappedFrame> frame = frames.maps.frame(i);
     const std::vector<Vec3> one = frames.sampler.sample_surface(*frame, i, grid.nodes, 1);
     ASSERT_EQ(one.size(), grid.nodes.size());
@@ -360,6 +359,8 @@ TEST(SequenceEncoder, AFrameSampledOnAnyThreadsIsTheSame) {
   }
 }
 
+// The reference frame dropped: the nearest frame kept takes its place, and the report says so.
+// Every frame dropped: an error naming the first.
 TEST(SequenceEncoder, ADroppedReferenceMovesToTheNearestFrame) {
   testing::TempDir dir;
   Capture capture = testing::small_remeshed_capture(dir, 0);

@@ -332,13 +332,26 @@ TEST(Distance, SurfaceDistanceIsTheUnhintedSearchsToTheBit) {
   for (size_t i = 0; i < order.size(); ++i) shuffled.positions[static_cast<size_t>(order[i])] = bumpy.positions[i];
   for (Face& f : shuffled.faces)
     for (int32_t& v : f) v = order[static_cast<size_t>(v)];
+  // A vertex no face uses (as a hole's cut leaves them): measured from neither side.
+  shuffled.positions.insert(shuffled.positions.begin() + 5, Vec3(9, 9, 9));
+  for (Face& f : shuffled.faces)
+    for (int32_t& v : f) v += v >= 5;
   for (const TriangleMesh* reference : {&sphere, &doubled}) {
     for (const TriangleMesh* test : {&bumpy, &shuffled}) {
       // Each direction's distances as PointToMesh::distance gives them (no hint), in surface_distance's order.
       std::vector<double> to_reference, to_test;
       const PointToMesh reference_query(*reference), test_query(*test);
-      for (const Vec3& p : test->positions) to_reference.push_back(reference_query.distance(p));
-      for (const Vec3& p : reference->positions) to_test.push_back(test_query.distance(p));
+      const auto used = [](const TriangleMesh& mesh) {
+        std::vector<char> in_a_face(mesh.positions.size(), 0);
+        for (const Face& f : mesh.faces)
+          for (const int32_t v : f) in_a_face[static_cast<size_t>(v)] = 1;
+        return in_a_face;
+      };
+      const std::vector<char> test_used = used(*test), reference_used = used(*reference);
+      for (size_t i = 0; i < test->positions.size(); ++i)
+        if (test_used[i]) to_reference.push_back(reference_query.distance(test->positions[i]));
+      for (size_t i = 0; i < reference->positions.size(); ++i)
+        if (reference_used[i]) to_test.push_back(test_query.distance(reference->positions[i]));
       double sum = 0, max = 0;
       std::vector<double> all = to_reference;
       all.insert(all.end(), to_test.begin(), to_test.end());
