@@ -3,9 +3,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace facemorph {
@@ -40,6 +42,34 @@ TEST(ParallelFor, TheFirstFailureIsRethrownAfterAllThreadsStop) {
                Error);
   EXPECT_LT(ran.load(), 100);  // the hand-out stopped early
   parallel_for(0, 2, [](int) { FAIL(); });
+}
+
+// The runs cover [0, count) once, in order (run r ends where run r + 1 starts), none empty, at
+// most `threads` of them and as many as that where the items allow; none for no items.
+TEST(ParallelRuns, CutTheItemsIntoConsecutiveRunsOnePerThread) {
+  for (const size_t count : {size_t{1}, size_t{2}, size_t{7}, size_t{1000}}) {
+    for (const int threads : {1, 2, 3, 8}) {
+      SCOPED_TRACE(::testing::Message() << count << " items, " << threads << " threads");
+      std::vector<std::pair<size_t, size_t>> runs(static_cast<size_t>(threads), {0, 0});
+      std::vector<std::atomic<int>> hits(count);
+      std::atomic<int> called{0};
+      parallel_runs(count, threads, [&](size_t run, size_t first, size_t last) {
+        ++called;
+        ASSERT_LT(run, runs.size());
+        runs[run] = {first, last};
+        for (size_t i = first; i < last; ++i) ++hits[i];
+      });
+      const size_t expected = std::min(count, static_cast<size_t>(threads));
+      ASSERT_EQ(called.load(), static_cast<int>(expected));
+      for (size_t r = 0; r < expected; ++r) {
+        EXPECT_LT(runs[r].first, runs[r].second) << "run " << r << " is empty";
+        EXPECT_EQ(runs[r].first, r == 0 ? 0 : runs[r - 1].second) << "run " << r;
+      }
+      EXPECT_EQ(runs[expected - 1].second, count);
+      for (const auto& h : hits) EXPECT_EQ(h.load(), 1);
+    }
+  }
+  parallel_runs(0, 2, [](size_t, size_t, size_t) { FAIL(); });
 }
 
 // Item 4 fails at once and item 3 a while later: the error that comes back is item 3's, as a loop

@@ -48,4 +48,14 @@ void parallel_for(int count, int threads, const std::function<void(int)>& body, 
   if (progress) progress(count, count);
 }
 
+void parallel_runs(size_t count, int threads, const std::function<void(size_t, size_t, size_t)>& body) {
+  if (count == 0) return;
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const size_t runs = std::min(static_cast<size_t>(threads), count);
+  parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
+    const auto run = static_cast<size_t>(r);
+    body(run, run * count / runs, (run + 1) * count / runs);
+  });
+}
+
 }  // namespace facemorph

@@ -11,4 +11,10 @@ namespace facemorph {
 // item that threw is rethrown: the one a loop over the items in order would throw, on any threads.
 void parallel_for(int count, int threads, const std::function<void(int)>& body, const std::function<void(int, int)>& progress = {});
 
+// [0, count) cut into up to `threads` runs of consecutive items (0: one per hardware thread), none
+// empty, run r before run r + 1, and body(r, first, last) for each run side by side: for work that
+// is cheapest done in order within a run (a search that starts where the previous item's ended, a
+// decoder that moves forward in time). Failures as parallel_for's (the lowest run's).
+void parallel_runs(size_t count, int threads, const std::function<void(size_t, size_t, size_t)>& body);
+
 }  // namespace facemorph

@@ -34,10 +34,8 @@ class DecoderTeam {
   // decodes each frame as a function of t alone (DecodeOptions::continue_correction off), so the
   // runs' split changes no result.
   void for_each(size_t count, const std::function<void(SequenceDecoder&, size_t)>& body) {
-    const size_t runs = decoders_.size();
-    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
-      const auto run = static_cast<size_t>(r);
-      for (size_t i = run * count / runs; i < (run + 1) * count / runs; ++i) body(*decoders_[run], i);
+    parallel_runs(count, static_cast<int>(decoders_.size()), [&](size_t run, size_t first, size_t last) {
+      for (size_t i = first; i < last; ++i) body(*decoders_[run], i);
     });
   }
 

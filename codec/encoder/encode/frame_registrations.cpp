@@ -5,9 +5,6 @@
 #include "codec/core/util/parallel.hpp"
 #include "format/error.hpp"
 
-#include <algorithm>
-#include <thread>
-
 namespace facemorph {
 
 void FrameRegistrations::start(size_t count, SpillMode mode) {
@@ -23,12 +20,8 @@ std::shared_ptr<const DiskRegistration> FrameRegistrations::registration(int i) 
 std::vector<Vec2> FrameRegistrations::sample_points(int i, std::span<const Vec2> nodes, int threads) const {
   std::vector<Vec2> points = reparametrisation_(nodes);
   const std::shared_ptr<const DiskRegistration> f = registration(i);
-  const int runs = std::max(1, std::min(threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())),
-                                        static_cast<int>(points.size())));
-  parallel_for(runs, runs, [&](int r) {
-    const size_t count = points.size();
-    for (size_t k = static_cast<size_t>(r) * count / static_cast<size_t>(runs); k < (static_cast<size_t>(r) + 1) * count / static_cast<size_t>(runs); ++k)
-      points[k] = (*f)(points[k]);
+  parallel_runs(points.size(), threads, [&](size_t, size_t first, size_t last) {
+    for (size_t k = first; k < last; ++k) points[k] = (*f)(points[k]);
   });
   return points;
 }

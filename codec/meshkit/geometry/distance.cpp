@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <optional>
-#include <thread>
 
 namespace facemorph {
 
@@ -243,10 +242,9 @@ double bounding_box_diagonal(std::span<const Vec3> points) {
 SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMesh& test, int threads) {
   SurfaceDistance d;
   d.diagonal = bounding_box_diagonal(reference.positions);
-  const int chunks = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   // The two locators built side by side (each a pass over its mesh's faces).
   std::optional<PointToMesh> to_reference, to_test;
-  parallel_for(2, chunks, [&](int k) { k == 0 ? to_reference.emplace(reference) : to_test.emplace(test); });
+  parallel_for(2, threads, [&](int k) { k == 0 ? to_reference.emplace(reference) : to_test.emplace(test); });
   double sum = 0;
   std::vector<double> distances;
   auto accumulate = [&](const std::vector<Vec3>& points, const PointToMesh& other, const TriangleMesh& owner) {
@@ -257,17 +255,15 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
     std::vector<size_t> queried;
     for (size_t i = 0; i < points.size(); ++i)
       if (used[i]) queried.push_back(i);
-    // The points in `chunks` runs of consecutive ones, side by side. In each run every search starts
+    // The points in up to `threads` runs of consecutive ones, side by side. In each run every search starts
     // from the previous vertex's nearest face (closest_from: the same distance to the bit, whatever
     // the hint): neighbours in a mesh's vertex order are mostly neighbours on the surface, so the
     // first bound is near the nearest and most boxes are skipped unmeasured. The distances are then
     // summed in the points' order, so that any number of runs gives the same figures to the bit.
     std::vector<double> e(queried.size());
-    const size_t runs = std::min<size_t>(static_cast<size_t>(chunks), std::max<size_t>(1, queried.size()));
-    parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
+    parallel_runs(queried.size(), threads, [&](size_t, size_t first, size_t last) {
       int hint = -1;
-      for (size_t q = static_cast<size_t>(r) * queried.size() / runs; q < (static_cast<size_t>(r) + 1) * queried.size() / runs; ++q)
-        hint = other.closest_from(points[queried[q]], hint, &e[q]).face;
+      for (size_t q = first; q < last; ++q) hint = other.closest_from(points[queried[q]], hint, &e[q]).face;
     });
     for (const double distance : e) {
       sum += distance * distance;
