@@ -44,6 +44,15 @@ TEST(ParallelFor, TheFirstFailureIsRethrownAfterAllThreadsStop) {
   parallel_for(0, 2, [](int) { FAIL(); });
 }
 
+// A count asked for is kept; 0 or less is one per hardware thread, never none.
+TEST(ParallelFor, ResolvedThreadsKeepsACountAndMakesZeroOnePerHardwareThread) {
+  EXPECT_EQ(resolved_threads(1), 1);
+  EXPECT_EQ(resolved_threads(7), 7);
+  const int hardware = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  EXPECT_EQ(resolved_threads(0), hardware);
+  EXPECT_EQ(resolved_threads(-2), hardware);
+}
+
 // The runs cover [0, count) once, in order (run r ends where run r + 1 starts), none empty, at
 // most `threads` of them and as many as that where the items allow; none for no items.
 TEST(ParallelRuns, CutTheItemsIntoConsecutiveRunsOnePerThread) {

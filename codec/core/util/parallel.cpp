@@ -9,10 +9,13 @@
 
 namespace facemorph {
 
+int resolved_threads(int threads) {
+  return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 void parallel_for(int count, int threads, const std::function<void(int)>& body, const std::function<void(int, int)>& progress) {
   if (count <= 0) return;
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::min(threads, count);
+  threads = std::min(resolved_threads(threads), count);
   std::atomic<int> next{0}, done{0};
   // The failure of the lowest item, not the first in time: items are handed out in order, so every
   // item below a failing one was handed out before it and runs to its end, and the lowest failure
@@ -50,8 +53,7 @@ void parallel_for(int count, int threads, const std::function<void(int)>& body, 
 
 void parallel_runs(size_t count, int threads, const std::function<void(size_t, size_t, size_t)>& body) {
   if (count == 0) return;
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const size_t runs = std::min(static_cast<size_t>(threads), count);
+  const size_t runs = std::min(static_cast<size_t>(resolved_threads(threads)), count);
   parallel_for(static_cast<int>(runs), static_cast<int>(runs), [&](int r) {
     const auto run = static_cast<size_t>(r);
     body(run, run * count / runs, (run + 1) * count / runs);

@@ -5,6 +5,9 @@
 
 namespace facemorph {
 
+// `threads` as every facemorph option reads it: that many, or for 0 (or less) one per hardware thread.
+int resolved_threads(int threads);
+
 // Runs body(i) for every i in [0, count) on up to `threads` threads (0: one per hardware thread).
 // The calling thread takes part and, between its items, calls progress(done, count). The first
 // exception stops handing out items; once every thread has finished, the exception of the lowest

@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <functional>
 #include <memory>
-#include <thread>
 #include <vector>
 
 namespace facemorph {
@@ -19,9 +18,7 @@ class DecoderTeam {
  public:
   // Up to `threads` decoders (0: one per core), no more than `items`.
   DecoderTeam(const std::shared_ptr<const KeyframeSource>& source, int threads, size_t items) {
-    const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
-    const size_t wanted = threads > 0 ? static_cast<size_t>(threads) : hardware;
-    const size_t size = std::max<size_t>(1, std::min(wanted, items));
+    const size_t size = std::max<size_t>(1, std::min(static_cast<size_t>(resolved_threads(threads)), items));
     // Each made on a thread of its own: a decoder's reconstructor builds its multigrid (tens of
     // milliseconds at N = 257), and one after another they were a serial stretch of every candidate
     // the choice by bytes measures (held_out_error). The source is read from any thread.

@@ -6,10 +6,8 @@
 #include "codec/core/reconstruct/reconstructor.hpp"
 #include "codec/core/util/parallel.hpp"
 
-#include <algorithm>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 namespace facemorph {
@@ -20,7 +18,7 @@ namespace facemorph {
 class ReconstructorPool {
  public:
   ReconstructorPool(int grid_n, int threads) : geometry_(shared_grid_geometry(grid_n)) {
-    const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    const int count = resolved_threads(threads);
     // Made side by side (each builds its multigrid): one after another they were a serial stretch
     // of every candidate's rounding in the choice by bytes.
     free_.resize(static_cast<size_t>(count));

@@ -255,11 +255,11 @@ SurfaceDistance surface_distance(const TriangleMesh& reference, const TriangleMe
     std::vector<size_t> queried;
     for (size_t i = 0; i < points.size(); ++i)
       if (used[i]) queried.push_back(i);
-    // The points in up to `threads` runs of consecutive ones, side by side. In each run every search starts
-    // from the previous vertex's nearest face (closest_from: the same distance to the bit, whatever
-    // the hint): neighbours in a mesh's vertex order are mostly neighbours on the surface, so the
-    // first bound is near the nearest and most boxes are skipped unmeasured. The distances are then
-    // summed in the points' order, so that any number of runs gives the same figures to the bit.
+    // The points in up to `threads` runs of consecutive ones, side by side. In each run every search
+    // starts from the previous vertex's nearest face (closest_from: the same distance to the bit,
+    // whatever the hint): neighbours in a mesh's vertex order are mostly neighbours on the surface,
+    // so the first bound is near the nearest and most boxes are skipped unmeasured. The distances are
+    // then summed in the points' order, so that any number of runs gives the same figures to the bit.
     std::vector<double> e(queried.size());
     parallel_runs(queried.size(), threads, [&](size_t, size_t first, size_t last) {
       int hint = -1;
