@@ -20,9 +20,8 @@ std::shared_ptr<const DiskRegistration> FrameRegistrations::registration(int i) 
 std::vector<Vec2> FrameRegistrations::sample_points(int i, std::span<const Vec2> nodes, int threads) const {
   std::vector<Vec2> points = reparametrisation_(nodes);
   const std::shared_ptr<const DiskRegistration> f = registration(i);
-  parallel_runs(points.size(), threads, [&](size_t, size_t first, size_t last) {
-    for (size_t k = first; k < last; ++k) points[k] = (*f)(points[k]);
-  });
+  parallel_runs(points.size(), threads,
+                [&](size_t, size_t first, size_t last) { f->map_points(std::span<Vec2>(points).subspan(first, last - first), nullptr); });
   return points;
 }
 

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -81,6 +82,10 @@ struct ThinPlateDisplacement {
   Eigen::Matrix2d linear = Eigen::Matrix2d::Zero();
 
   Vec2 operator()(const Vec2& x) const;
+  // x_p += d(x_p) for every point p = (x[p], y[p]): the same bits as operator(), many points at once.
+  void displace(std::span<double> x, std::span<double> y) const;
+  // displace(), and jacobians[p] carried through the step by the chain rule: J ← (I + ∇d(x_p)) J.
+  void displace_with_jacobians(std::span<double> x, std::span<double> y, std::span<Eigen::Matrix2d> jacobians) const;
   Eigen::Matrix2d gradient(const Vec2& x) const;                            // ∂d_k/∂x_l in row k, column l
   Vec2 value_and_gradient(const Vec2& x, Eigen::Matrix2d& gradient) const;  // both in one pass
 };
@@ -180,6 +185,9 @@ struct DiskRegistration {
   // 1 - 1e-12 and, with `clamped`, counted. Throws kInvalidArgument for |w| > 1 + 1e-9 or NaN.
   Vec2 operator()(const Vec2& w) const { return map(w, nullptr); }
   Vec2 map(const Vec2& w, int* clamped) const;
+  // map() of every point, in place: the same bits, the GMF's kernels vectorised over the points.
+  // Throws before changing any point if one is outside the disk.
+  void map_points(std::span<Vec2> points, int* clamped) const;
   // Df(w) of the smooth map (before the projection and the clamp): what λ's area correction uses,
   // λ̃² = λ_b²(f(w)) |det Df(w)| (notes §6). Any finite w. For Φ: the constant Jacobian of w's
   // partition triangle, or between the partition's boundary polygon and the circle the derivative of
@@ -191,6 +199,9 @@ struct DiskRegistration {
   // The composition (id + d_k) ∘ ... ∘ m itself, whatever the method: for Φ the f̄ it interpolates;
   // otherwise the same as smooth(). Any finite w.
   Vec2 smooth_base(const Vec2& w, Eigen::Matrix2d* jacobian = nullptr) const;
+  // smooth() of every point of `w` into `images`, and with `jacobians` (empty: none) Df: the same
+  // bits, the GMF's kernels vectorised over the points (ThinPlateDisplacement::displace).
+  void smooth_points(std::span<const Vec2> w, std::span<Vec2> images, std::span<Eigen::Matrix2d> jacobians) const;
 };
 
 // Registers the frame's disk to the reference disk: f with f(p_j) ≈ q_j (method-notes §4-5). The

@@ -2,19 +2,91 @@
 // part, and the paper's n×n grid of r² log r centres fitted as a displacement.
 #include "codec/encoder/registration/registration.hpp"
 
+#include "codec/encoder/registration/thin_plate_kernel.hpp"
 #include "format/error.hpp"
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 namespace facemorph {
 namespace {
 
-// G(r) = r² log r = ½ r² log r², and ∇ₓG(|x - c|) = (log r² + 1)(x - c). Both tend to 0 at r = 0,
-// where the formulas give 0·(-inf) = NaN: guard (notes §5, point 4).
-double kernel(double r2) { return r2 < 1e-300 ? 0.0 : 0.5 * r2 * std::log(r2); }
+// G(r) = r² log r = ½ r² log r² is thin_plate_kernel (thin_plate_kernel.hpp), and ∇ₓG(|x - c|) =
+// (log r² + 1)(x - c). Both tend to 0 at r = 0, where the formulas give 0·(-inf) = NaN: masked
+// there (zero_at_centre; notes §5, point 4).
+//
+// d and ∇d are evaluated a block of points at a time, centre by centre over the points, which the
+// compiler vectorises: with AVX2 where the CPU has it, chosen at load time (target_clones), four
+// points a step. Each point's sums still run over the centres in order, and neither clone contracts
+// to FMA, so every point gets the same bits in any block, alone or not, on any CPU. One point
+// (operator(), value_and_gradient) is a block of one. Measured: a kernel 2.1 ns with AVX2 against
+// 5.4 ns by std::log, one call a value, on this machine's EPYC.
+
+// d(x_p) into (dx, dy).
+__attribute__((target_clones("avx2", "default"))) void thin_plate_values(const ThinPlateDisplacement& d, const double* x, const double* y,
+                                                                         double* dx, double* dy, size_t n) {
+  for (size_t p = 0; p < n; ++p) {
+    dx[p] = d.offset.x() + (d.linear(0, 0) * x[p] + d.linear(0, 1) * y[p]);
+    dy[p] = d.offset.y() + (d.linear(1, 0) * x[p] + d.linear(1, 1) * y[p]);
+  }
+  for (size_t i = 0; i < d.centres.size(); ++i) {
+    const double cx = d.centres[i].x(), cy = d.centres[i].y();
+    const double wx = d.weights(static_cast<Eigen::Index>(i), 0), wy = d.weights(static_cast<Eigen::Index>(i), 1);
+    for (size_t p = 0; p < n; ++p) {
+      const double ex = x[p] - cx, ey = y[p] - cy;
+      const double g = thin_plate_kernel(ex * ex + ey * ey);
+      dx[p] += g * wx;
+      dy[p] += g * wy;
+    }
+  }
+}
+
+// ∇d(x_p) row by row: gradient[2k + l][p] = ∂d_k/∂x_l.
+struct GradientBlock {
+  double* entry[4];
+};
+
+// d(x_p) into (dx, dy), as thin_plate_values gives it, and ∇d(x_p) into `gradient`.
+__attribute__((target_clones("avx2", "default"))) void thin_plate_values_and_gradients(const ThinPlateDisplacement& d, const double* x,
+                                                                                       const double* y, double* dx, double* dy,
+                                                                                       GradientBlock gradient, size_t n) {
+  double* const g00 = gradient.entry[0];
+  double* const g01 = gradient.entry[1];
+  double* const g10 = gradient.entry[2];
+  double* const g11 = gradient.entry[3];
+  for (size_t p = 0; p < n; ++p) {
+    dx[p] = d.offset.x() + (d.linear(0, 0) * x[p] + d.linear(0, 1) * y[p]);
+    dy[p] = d.offset.y() + (d.linear(1, 0) * x[p] + d.linear(1, 1) * y[p]);
+    g00[p] = d.linear(0, 0);
+    g01[p] = d.linear(0, 1);
+    g10[p] = d.linear(1, 0);
+    g11[p] = d.linear(1, 1);
+  }
+  for (size_t i = 0; i < d.centres.size(); ++i) {
+    const double cx = d.centres[i].x(), cy = d.centres[i].y();
+    const double wx = d.weights(static_cast<Eigen::Index>(i), 0), wy = d.weights(static_cast<Eigen::Index>(i), 1);
+    for (size_t p = 0; p < n; ++p) {
+      const double ex = x[p] - cx, ey = y[p] - cy;
+      const double r2 = ex * ex + ey * ey;
+      // One logarithm serves both: G = ½ r² log r², ∇G = (log r² + 1)(x - c).
+      const double log_r2 = thin_plate_log(r2);
+      const double g = zero_at_centre(0.5 * r2 * log_r2, r2);
+      const double slope = zero_at_centre(log_r2 + 1, r2);
+      dx[p] += g * wx;
+      dy[p] += g * wy;
+      const double ax = slope * wx, ay = slope * wy;
+      g00[p] += ax * ex;
+      g01[p] += ax * ey;
+      g10[p] += ay * ex;
+      g11[p] += ay * ey;
+    }
+  }
+}
+
+constexpr size_t kThinPlateBlock = 256;  // a block's displacements and gradients stay in L1
 
 void check_points(const std::vector<Vec2>& points, const std::vector<Vec2>& displacements, const char* what) {
   if (points.size() != displacements.size()) {
@@ -31,27 +103,50 @@ void check_points(const std::vector<Vec2>& points, const std::vector<Vec2>& disp
 }  // namespace
 
 Vec2 ThinPlateDisplacement::operator()(const Vec2& x) const {
-  Vec2 d = offset + linear * x;
-  for (size_t i = 0; i < centres.size(); ++i) {
-    d += kernel((x - centres[i]).squaredNorm()) * weights.row(static_cast<Eigen::Index>(i)).transpose();
-  }
+  Vec2 d;
+  thin_plate_values(*this, &x.x(), &x.y(), &d.x(), &d.y(), 1);
   return d;
 }
 
-Vec2 ThinPlateDisplacement::value_and_gradient(const Vec2& x, Eigen::Matrix2d& gradient) const {
-  Vec2 d = offset + linear * x;
-  gradient = linear;
-  for (size_t i = 0; i < centres.size(); ++i) {
-    const Vec2 diff = x - centres[i];
-    const double r2 = diff.squaredNorm();
-    if (r2 < 1e-300) continue;  // G and its gradient vanish at the centre
-    // One logarithm serves both: G = ½ r² log r², ∇G = (log r² + 1)(x - c). (Eigen's vectorised
-    // log is slower than std::log without AVX: measured 10.8 against 7.1 ns.)
-    const double log_r2 = std::log(r2);
-    const Vec2 w = weights.row(static_cast<Eigen::Index>(i)).transpose();
-    d += (0.5 * r2 * log_r2) * w;
-    gradient += ((log_r2 + 1) * w) * diff.transpose();
+void ThinPlateDisplacement::displace(std::span<double> x, std::span<double> y) const {
+  if (x.size() != y.size()) throw Error(ErrorCode::kInternal, "thin-plate displacement: unequal coordinate blocks");
+  double dx[kThinPlateBlock], dy[kThinPlateBlock];
+  for (size_t first = 0; first < x.size(); first += kThinPlateBlock) {
+    const size_t n = std::min(kThinPlateBlock, x.size() - first);
+    thin_plate_values(*this, x.data() + first, y.data() + first, dx, dy, n);
+    for (size_t p = 0; p < n; ++p) {
+      x[first + p] += dx[p];
+      y[first + p] += dy[p];
+    }
   }
+}
+
+void ThinPlateDisplacement::displace_with_jacobians(std::span<double> x, std::span<double> y, std::span<Eigen::Matrix2d> jacobians) const {
+  if (x.size() != y.size() || x.size() != jacobians.size()) {
+    throw Error(ErrorCode::kInternal, "thin-plate displacement: unequal coordinate and Jacobian blocks");
+  }
+  double dx[kThinPlateBlock], dy[kThinPlateBlock], g[4][kThinPlateBlock];
+  for (size_t first = 0; first < x.size(); first += kThinPlateBlock) {
+    const size_t n = std::min(kThinPlateBlock, x.size() - first);
+    thin_plate_values_and_gradients(*this, x.data() + first, y.data() + first, dx, dy, {g[0], g[1], g[2], g[3]}, n);
+    for (size_t p = 0; p < n; ++p) {
+      // The chain rule through the step, D[(id + d) ∘ h] = (I + ∇d(h)) Dh, entry by entry.
+      Eigen::Matrix2d& J = jacobians[first + p];
+      const double a00 = 1 + g[0][p], a01 = g[1][p], a10 = g[2][p], a11 = 1 + g[3][p];
+      J = (Eigen::Matrix2d() << a00 * J(0, 0) + a01 * J(1, 0), a00 * J(0, 1) + a01 * J(1, 1),  //
+           a10 * J(0, 0) + a11 * J(1, 0), a10 * J(0, 1) + a11 * J(1, 1))
+              .finished();
+      x[first + p] += dx[p];
+      y[first + p] += dy[p];
+    }
+  }
+}
+
+Vec2 ThinPlateDisplacement::value_and_gradient(const Vec2& x, Eigen::Matrix2d& gradient) const {
+  Vec2 d;
+  double g[4];
+  thin_plate_values_and_gradients(*this, &x.x(), &x.y(), &d.x(), &d.y(), {&g[0], &g[1], &g[2], &g[3]}, 1);
+  gradient << g[0], g[1], g[2], g[3];
   return d;
 }
 
@@ -75,7 +170,7 @@ ThinPlateDisplacement fit_thin_plate(const std::vector<Vec2>& centres, const std
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n + 3, 2);
   for (Eigen::Index i = 0; i < n; ++i) {
     const Vec2& y = centres[static_cast<size_t>(i)];
-    for (Eigen::Index j = 0; j < i; ++j) A(i, j) = A(j, i) = kernel((y - centres[static_cast<size_t>(j)]).squaredNorm());
+    for (Eigen::Index j = 0; j < i; ++j) A(i, j) = A(j, i) = thin_plate_kernel((y - centres[static_cast<size_t>(j)]).squaredNorm());
     if (!smoothing.empty()) {
       const double s = smoothing[static_cast<size_t>(i)];
       if (!std::isfinite(s) || s < 0) throw Error(ErrorCode::kInvalidArgument, "thin-plate spline: smoothing must be finite and >= 0");
@@ -126,7 +221,7 @@ ThinPlateDisplacement fit_paper_grid(const std::vector<Vec2>& points, const std:
     // Row weights sqrt(ω) make the least squares the paper's weighted E_D.
     const double s = std::sqrt(w);
     for (Eigen::Index j = 0; j < columns; ++j)
-      S(i, j) = s * kernel((points[static_cast<size_t>(i)] - out.centres[static_cast<size_t>(j)]).squaredNorm());
+      S(i, j) = s * thin_plate_kernel((points[static_cast<size_t>(i)] - out.centres[static_cast<size_t>(j)]).squaredNorm());
     d.row(i) = s * displacements[static_cast<size_t>(i)].transpose();
   }
   if (epsilon_scale == 0 && columns <= rows) {
