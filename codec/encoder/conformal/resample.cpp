@@ -111,9 +111,10 @@ Image resample_texture(const InverseDiskMap& inverse, const TextureSource& sourc
     for (int i = 0; i < lattice; ++i) {
       Vec2 w = texel_disk(std::min(i * stride, size - 1), std::min(j * stride, size - 1));
       if (w.norm() > 1) w.normalize();  // outside the disk a texel repeats the rim along its ray
-      warped[static_cast<size_t>(j) * lattice + i] = warp(w);
+      warped[static_cast<size_t>(j) * lattice + i] = w;
     }
   }
+  warp(warped);
   Image out(size, size, 3);
   for (int y = 0; y < size; ++y) {
     const int j = std::min(y / stride, lattice - 2);

@@ -44,8 +44,10 @@ class TextureSource {
 // which must outlive the result), else its vertex colours; nullopt when it has neither.
 std::optional<TextureSource> frame_texture_source(const DiskMap& map, const std::filesystem::path& texture, Image& image);
 
-// A map of the disk onto itself: where a point of the reference disk lies on a frame's disk.
-using DiskWarp = std::function<Vec2(const Vec2&)>;
+// A map of the disk onto itself, applied to points in place: where each point of the reference
+// disk lies on a frame's disk. Many points a call, so that a registration evaluates them together
+// (DiskRegistration::map_points).
+using DiskWarp = std::function<void(std::span<Vec2>)>;
 
 // The frame's texture as seen on the disk: texel (x, y) of the size x size result covers the
 // disk point w = (2 (x + 0.5) / size - 1, 1 - 2 (y + 0.5) / size) (row 0 at the top, so the image

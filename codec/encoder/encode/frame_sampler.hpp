@@ -20,6 +20,11 @@ class RegistrationSampler {
   RegistrationSampler(const DiskReparametrisation& reparametrisation, std::shared_ptr<const DiskRegistration> registration)
       : reparametrisation_(reparametrisation), registration_(std::move(registration)) {}
   Vec2 operator()(const Vec2& node) const { return (*registration_)(reparametrisation_(node)); }
+  // Every node in place, the registration's kernels vectorised over them (a DiskWarp).
+  void operator()(std::span<Vec2> nodes) const {
+    for (Vec2& w : nodes) w = reparametrisation_(w);
+    registration_->map_points(nodes, nullptr);
+  }
 
  private:
   const DiskReparametrisation& reparametrisation_;

@@ -26,8 +26,9 @@ namespace {
 // 5.4 ns by std::log, one call a value, on this machine's EPYC.
 
 // d(x_p) into (dx, dy).
-__attribute__((target_clones("avx2", "default"))) void thin_plate_values(const ThinPlateDisplacement& d, const double* x, const double* y,
-                                                                         double* dx, double* dy, size_t n) {
+__attribute__((target_clones("avx2", "default"))) void thin_plate_values(const ThinPlateDisplacement& d, const double* __restrict x,
+                                                                         const double* __restrict y, double* __restrict dx,
+                                                                         double* __restrict dy, size_t n) {
   for (size_t p = 0; p < n; ++p) {
     dx[p] = d.offset.x() + (d.linear(0, 0) * x[p] + d.linear(0, 1) * y[p]);
     dy[p] = d.offset.y() + (d.linear(1, 0) * x[p] + d.linear(1, 1) * y[p]);
@@ -49,14 +50,19 @@ struct GradientBlock {
   double* entry[4];
 };
 
-// d(x_p) into (dx, dy), as thin_plate_values gives it, and ∇d(x_p) into `gradient`.
-__attribute__((target_clones("avx2", "default"))) void thin_plate_values_and_gradients(const ThinPlateDisplacement& d, const double* x,
-                                                                                       const double* y, double* dx, double* dy,
-                                                                                       GradientBlock gradient, size_t n) {
-  double* const g00 = gradient.entry[0];
-  double* const g01 = gradient.entry[1];
-  double* const g10 = gradient.entry[2];
-  double* const g11 = gradient.entry[3];
+// d(x_p) into (dx, dy), as thin_plate_values gives it, and ∇d(x_p) into `gradient`. Every array
+// __restrict: with eight of them the compiler would need more overlap checks than it makes before
+// it vectorises, and without them stays scalar (measured: the bijection check 25% of Medusa's CPU
+// scalar, 7% vectorised).
+__attribute__((target_clones("avx2", "default"))) void thin_plate_values_and_gradients(const ThinPlateDisplacement& d,
+                                                                                       const double* __restrict x,
+                                                                                       const double* __restrict y, double* __restrict dx,
+                                                                                       double* __restrict dy, GradientBlock gradient,
+                                                                                       size_t n) {
+  double* __restrict const g00 = gradient.entry[0];
+  double* __restrict const g01 = gradient.entry[1];
+  double* __restrict const g10 = gradient.entry[2];
+  double* __restrict const g11 = gradient.entry[3];
   for (size_t p = 0; p < n; ++p) {
     dx[p] = d.offset.x() + (d.linear(0, 0) * x[p] + d.linear(0, 1) * y[p]);
     dy[p] = d.offset.y() + (d.linear(1, 0) * x[p] + d.linear(1, 1) * y[p]);
