@@ -1,6 +1,7 @@
 // fmbench: facemorph's benchmarks. Figures in a table on stdout, and as JSON with --json.
 #include "tools/bench_capture.hpp"
 #include "tools/bench_conformal.hpp"
+#include "tools/bench_kernels.hpp"
 #include "tools/bench_reconstruct.hpp"
 #include "tools/bench_temporal.hpp"
 #include "tools/bench_tracking.hpp"
@@ -21,14 +22,17 @@ int main(int argc, char** argv) {
   add_temporal_command(app, temporal);
   TrackingBenchOptions tracking;
   add_tracking_command(app, tracking);
+  KernelBenchOptions kernels;
+  add_kernel_command(app, kernels);
   return guarded_main(app, argc, argv, [&] {
     if (app.got_subcommand("conformal")) return run_conformal_bench(conformal);
     if (app.got_subcommand("reconstruct")) return run_reconstruct_bench(reconstruct);
     if (app.got_subcommand("temporal")) return run_temporal_bench(temporal);
     if (app.got_subcommand("tracking")) return run_tracking_bench(tracking);
+    if (app.got_subcommand("kernels")) return run_kernel_bench(kernels);
     if (!capture.captures.empty()) return run_capture_bench(capture);
     throw facemorph::Error(
         facemorph::ErrorCode::kInvalidArgument,
-        "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal, tracking); --help lists them");
+        "nothing to do: give --capture DIR or a command (conformal, reconstruct, temporal, tracking, kernels); --help lists them");
   });
 }
