@@ -23,6 +23,27 @@ Eigen::Matrix2d moebius_jacobian(const DiskMoebius& m, const Vec2& w) {
   return J;
 }
 
+void check_in_disk(const Vec2& w) {
+  if (!(w.norm() <= 1 + 1e-9)) {
+    throw Error(ErrorCode::kInvalidArgument, "registration: point (" + std::to_string(w.x()) + ", " + std::to_string(w.y()) +
+                                                 ") is outside the unit disk or not finite");
+  }
+}
+
+// f(w) from the smooth map's image y (map's contract).
+Vec2 onto_closed_disk(const Vec2& w, Vec2 y, int* clamped) {
+  const double s = y.norm();
+  // The circle's correspondence is a homeomorphism of the circle (check_bijection); the radial
+  // projection keeps it and makes f(circle) exactly the circle, as the rim of the grid G needs.
+  if (w.norm() >= 1 - 1e-12) return s > 0 ? Vec2(y / s) : y;
+  // Between boundary samples the spline may bulge a little past the circle.
+  if (s > 1 - 1e-12) {
+    if (clamped) ++*clamped;
+    y *= (1 - 1e-12) / s;
+  }
+  return y;
+}
+
 }  // namespace
 
 Vec2 DiskRegistration::smooth(const Vec2& w, Eigen::Matrix2d* jacobian) const {
@@ -79,31 +100,6 @@ Eigen::Matrix2d DiskRegistration::jacobian(const Vec2& w) const {
   smooth(w, &J);
   return J;
 }
-
-namespace {
-
-void check_in_disk(const Vec2& w) {
-  if (!(w.norm() <= 1 + 1e-9)) {
-    throw Error(ErrorCode::kInvalidArgument, "registration: point (" + std::to_string(w.x()) + ", " + std::to_string(w.y()) +
-                                                 ") is outside the unit disk or not finite");
-  }
-}
-
-// f(w) from the smooth map's image y (map's contract).
-Vec2 onto_closed_disk(const Vec2& w, Vec2 y, int* clamped) {
-  const double s = y.norm();
-  // The circle's correspondence is a homeomorphism of the circle (check_bijection); the radial
-  // projection keeps it and makes f(circle) exactly the circle, as the rim of the grid G needs.
-  if (w.norm() >= 1 - 1e-12) return s > 0 ? Vec2(y / s) : y;
-  // Between boundary samples the spline may bulge a little past the circle.
-  if (s > 1 - 1e-12) {
-    if (clamped) ++*clamped;
-    y *= (1 - 1e-12) / s;
-  }
-  return y;
-}
-
-}  // namespace
 
 Vec2 DiskRegistration::map(const Vec2& w, int* clamped) const {
   check_in_disk(w);
