@@ -37,7 +37,7 @@ struct ConformalReport {
   ConformalMethod method = ConformalMethod::kQiem;  // the method that produced the map
   std::string fallback_reason;                      // non-empty when the method asked for failed and `method` took over
   int iterations = 0;                               // QIEM steps taken
-  int factorizations = 0;                           // numeric factorizations (one per step unless a step is redone)
+  int factorizations = 0;                           // numeric factorisations of its two symmetric systems together
   double energy = 0;                                // final harmonic energy of the spherical map (4π when conformal)
   double energy_excess = 0;                         // energy - area of the image (≥ 0; 0 when conformal)
   int intrinsic_flips = 0;                          // edge flips to reach the intrinsic Delaunay triangulation

@@ -4,7 +4,7 @@
 #include "format/error.hpp"
 
 #include "codec/encoder/conformal/moebius_centring.hpp"
-#include "codec/encoder/conformal/spd_solver.hpp"
+#include "codec/encoder/conformal/lagged_cholesky.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -18,7 +18,9 @@ namespace {
 // A = I + δt(K - D) commutes with the mirror, so A φ = b splits exactly into the Galerkin systems
 // Pᵀ A P x = Pᵀ b for the even prolongation P_e (disk vertices) and the odd one P_o (interior
 // vertices). Two systems of the disk's size instead of one of twice it: cheaper to factor, and the
-// symmetry (boundary exactly on the equator) holds by construction.
+// symmetry (boundary exactly on the equator) holds by construction. Each system is solved by a
+// LaggedCholesky: from one step to the next only δt and D change, so an earlier step's factor
+// preconditions CG well, and most steps factor nothing.
 class SymmetricSystems {
  public:
   SymmetricSystems(const SparseMatrix& K, const DoubleCover& cover) : cover_(cover), n_(cover.disk_vertices) {
@@ -49,7 +51,8 @@ class SymmetricSystems {
     odd_solver_.analyze(A_odd_);
   }
 
-  // One step: solves [I + δt(K - D)] φ⁺ = φ for symmetric φ. False when a factorisation fails.
+  // One step: solves [I + δt(K - D)] φ⁺ = φ for symmetric φ. False when a system is not positive
+  // definite (its factorisation failed).
   bool step(const Eigen::MatrixXd& phi, const Eigen::VectorXd& D, double dt, Eigen::MatrixXd& next) {
     A_even_ = K_even_ * dt;
     for (int i = 0; i < n_; ++i) A_even_.coeffRef(i, i) += even_mass_[i] * (1.0 - dt * D[i]);
@@ -61,11 +64,10 @@ class SymmetricSystems {
       A_odd_.coeffRef(o, o) += odd_mass_[o] * (1.0 - dt * D[i]);
       rhs_odd[o] = odd_mass_[o] * phi(i, 2);
     }
-    if (!even_solver_.factorize(A_even_) || !odd_solver_.factorize(A_odd_)) return false;
     Eigen::MatrixXd rhs_even(n_, 2);
     for (int i = 0; i < n_; ++i) rhs_even.row(i) = even_mass_[i] * phi.row(i).head<2>();
-    const Eigen::MatrixXd xy = even_solver_.solve(rhs_even);
-    const Eigen::MatrixXd z = odd_solver_.solve(rhs_odd);
+    Eigen::MatrixXd xy, z;
+    if (!even_solver_.solve(A_even_, rhs_even, xy) || !odd_solver_.solve(A_odd_, rhs_odd, z)) return false;
     next.resize(phi.rows(), 3);
     for (int i = 0; i < n_; ++i) {
       const int o = odd_index_[static_cast<size_t>(i)];
@@ -75,6 +77,8 @@ class SymmetricSystems {
     }
     return next.allFinite();
   }
+  // Numeric factorisations so far, both systems together.
+  int factorizations() const { return even_solver_.factorizations() + odd_solver_.factorizations(); }
 
  private:
   int fold(int v) const { return v < n_ ? v : cover_.mirror[static_cast<size_t>(v)]; }
@@ -86,7 +90,7 @@ class SymmetricSystems {
   std::vector<int> odd_index_;
   Eigen::VectorXd even_mass_, odd_mass_;  // Pᵀ P: 2 for vertices with two copies, 1 on the boundary
   SparseMatrix K_even_, K_odd_, A_even_, A_odd_;
-  SpdSolver even_solver_, odd_solver_;
+  LaggedCholesky even_solver_, odd_solver_;
 };
 
 }  // namespace
@@ -122,7 +126,6 @@ FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, c
     bool accepted = false, rejected = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
       const double dt = growth * 0.9 / max_d;
-      ++result.factorizations;
       if (systems.step(phi, D, dt, next)) {
         project(next);
         next_energy = energy_of(next);
@@ -140,6 +143,7 @@ FlowResult spherical_flow(const SparseMatrix& K, const Eigen::VectorXd& areas, c
     energy = next_energy;
     result.iterations = step + 1;
     if (change < options.energy_tolerance) {
+      result.factorizations = systems.factorizations();
       result.phi = std::move(phi);
       result.energy = energy;
       return result;

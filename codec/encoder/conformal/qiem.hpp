@@ -16,7 +16,7 @@ namespace facemorph {
 struct FlowResult {
   Eigen::MatrixXd phi;  // one unit vector per double-cover vertex
   int iterations = 0;
-  int factorizations = 0;
+  int factorizations = 0;  // of the two symmetric systems together (LaggedCholesky)
   double energy = 0;
 };
 

@@ -1,0 +1,48 @@
+// Solves a run of SPD systems on one sparsity pattern whose matrices change a little from one to
+// the next (QIEM's steps, qiem.cpp): conjugate gradients preconditioned by the Cholesky factor of an
+// earlier matrix of the run, and a fresh factorisation only when that no longer converges quickly.
+// A factorisation costs as much as tens of solves with its factor (spec/method.md §3.3 measures
+// it), and QIEM's matrices change by a few percent a step once the flow has settled.
+#pragma once
+
+#include "codec/core/geometry/differential.hpp"
+#include "codec/encoder/conformal/spd_solver.hpp"
+
+#include <Eigen/Core>
+
+namespace facemorph {
+
+class LaggedCholesky {
+ public:
+  // CG stops when every column's residual is below this fraction of its right-hand side's norm
+  // plus ‖A‖∞ times its solution's: the backward error of a factorisation's solve, a little
+  // above rounding.
+  static constexpr double kBackwardErrorTolerance = 1e-13;
+  // CG gives up after this many iterations and the matrix is factored afresh.
+  static constexpr int kMaxIterations = 12;
+  // A solve that needed more iterations than this factors the next matrix afresh: the matrices
+  // drift away from the factor's, so the next would need more still. QIEM's flows, the solves'
+  // time (fmbench conformal, ICT 9.4k, ICT 2k, synth 5k-40k): 4 to 8 about alike, 6 the least.
+  static constexpr int kRefactorAfter = 6;
+
+  void analyze(const SparseMatrix& A);
+  // X = A⁻¹ B. False when A is not positive definite: its factorisation failed (a direction of
+  // non-positive curvature in CG sends the matrix to the factorisation, which decides).
+  bool solve(const SparseMatrix& A, const Eigen::MatrixXd& B, Eigen::MatrixXd& X);
+  int factorizations() const { return factorizations_; }
+  int cg_iterations() const { return cg_iterations_; }
+
+ double tcg=0, tf=0, ts=0;
+ private:
+  enum class Cg { kConverged, kTooSlow, kNotPositive };
+  Cg conjugate_gradients(const SparseMatrix& A, const Eigen::MatrixXd& B, Eigen::MatrixXd& X);
+
+  SpdSolver factor_;
+  bool have_factor_ = false;
+  bool refactor_next_ = false;
+  bool refresh_ = false;
+  int factorizations_ = 0;
+  int cg_iterations_ = 0;
+};
+
+}  // namespace facemorph
