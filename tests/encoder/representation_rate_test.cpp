@@ -419,8 +419,11 @@ TEST(SequenceEncoder, TheKeptCandidateIsTheOneStored) {
 
 // A one-frame capture (fmsynth's face, 5,000 vertices with the scanner's noise): no frame lies
 // between keyframes, so each candidate is measured on the keyframe itself, decoded against its
-// captured frame. There the positions take fewer bytes at a lower error (979 B at 0.217% against
-// the fields' 1,131 B at 0.247% when written), and the file keeps them, where before it kept hl+t.
+// captured frame, and the file keeps the one the rule keeps (where before it kept hl+t unmeasured).
+// Which one that is is a close race on this face: when written the positions won (979 B at 0.217%
+// against the fields' 1,131 B at 0.247%); at caad362 xyz through the density-equalised disk, 876 B
+// at 0.2095% against hl+t's 939 B at 0.2251%; since the QIEM steps' lagged factor (stop 78) hl+t,
+// 875 B at 0.2161%. So the test holds the file to the rule and to hl+t asked for, not to a winner.
 TEST(SequenceEncoder, AOneFrameCaptureIsChosenForOnItsKeyframe) {
   testing::TempDir dir;
   SynthOptions synth;
@@ -441,10 +444,11 @@ TEST(SequenceEncoder, AOneFrameCaptureIsChosenForOnItsKeyframe) {
     EXPECT_GT(c.held_rms, 0);
     EXPECT_LT(c.held_rms, 0.01);  // a decoded face, not a failed one
   }
-  EXPECT_EQ(report.representation, Representation::kXYZ);
-  EXPECT_EQ(stored->shape().representation, Representation::kXYZ);
-  // Against hl+t asked for (what this capture was stored as before): fewer bytes, an error not
-  // higher, each the keyframe's own as fmbench measures it.
+  const RateCandidate& kept = rate.candidates[rate.chosen];
+  EXPECT_EQ(report.representation, kept.representation);
+  EXPECT_EQ(stored->shape().representation, kept.representation);
+  // Against hl+t asked for (what this capture was stored as before): no more bytes, and no higher a
+  // cost bytes · RMS^k (the rule's weighing), each the keyframe's own as fmbench measures it.
   const std::vector<int> frame{0};
   const std::optional<std::vector<TriangleMesh>> captured = trial_meshes(capture, frame, options.threads);
   ASSERT_TRUE(captured);
@@ -454,9 +458,12 @@ TEST(SequenceEncoder, AOneFrameCaptureIsChosenForOnItsKeyframe) {
   const std::unique_ptr<StoredSequence> fields = encode_capture_stored(capture, forced, &forced_report);
   const uint64_t kept_bytes = geometry_bytes(*stored, report.field_coding);
   EXPECT_EQ(kept_bytes, rate.candidates[rate.chosen].bytes);
-  EXPECT_LT(kept_bytes, geometry_bytes(*fields, forced_report.field_coding));
-  EXPECT_LE(held_out_error(capture, *stored, frame, *captured, options.threads).rms,
-            held_out_error(capture, *fields, frame, *captured, options.threads).rms);
+  const uint64_t forced_bytes = geometry_bytes(*fields, forced_report.field_coding);
+  EXPECT_LE(kept_bytes, forced_bytes);
+  const double kept_rms = held_out_error(capture, *stored, frame, *captured, options.threads).rms;
+  const double forced_rms = held_out_error(capture, *fields, frame, *captured, options.threads).rms;
+  EXPECT_LE(double(kept_bytes) * std::pow(kept_rms, kRateErrorExponent),
+            double(forced_bytes) * std::pow(forced_rms, kRateErrorExponent) * (1 + 1e-12));
 }
 
 }  // namespace
