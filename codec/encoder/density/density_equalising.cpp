@@ -13,7 +13,7 @@
 #include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/elementary.hpp"
 #include "codec/core/grid/disk_grid.hpp"
-#include "codec/encoder/conformal/spd_solver.hpp"
+#include "codec/encoder/conformal/lagged_cholesky.hpp"
 #include "codec/meshkit/geometry/surface_measures.hpp"
 #include "format/error.hpp"
 
@@ -164,7 +164,9 @@ DiskReparametrisation::DiskReparametrisation(const DiskMap& reference, const Den
   report_.variation_before = variation(population, areas);
   report_.variation_after = report_.variation_before;
 
-  SpdSolver solver;
+  // The vertices move a little each step, so an earlier step's factor preconditions this one's
+  // system well (LaggedCholesky).
+  LaggedCholesky solver;
   std::vector<Vec3> lifted(n);
   double step = options.step;
   for (int iteration = 0; iteration < options.max_steps; ++iteration) {
@@ -179,8 +181,10 @@ DiskReparametrisation::DiskReparametrisation(const DiskMap& reference, const Den
     if (std::sqrt(M.dot((rho.array() - mean).square().matrix()) / M.sum()) / mean < options.tolerance) break;
     const SparseMatrix A = SparseMatrix(M.asDiagonal()) + step * K;
     if (iteration == 0) solver.analyze(A);
-    if (!solver.factorize(A)) throw Error(ErrorCode::kNumerical, "density-equalising: the diffusion system is not positive definite");
-    const Eigen::VectorXd smooth = solver.solve(M.cwiseProduct(rho)).col(0);
+    Eigen::MatrixXd solved;
+    if (!solver.solve(A, M.cwiseProduct(rho), solved))
+      throw Error(ErrorCode::kNumerical, "density-equalising: the diffusion system is not positive definite");
+    const Eigen::VectorXd smooth = solved.col(0);
     const std::vector<Vec2> gradient = vertex_gradients(points, faces, areas, smooth);
     std::vector<Vec2> velocity(n);
     for (size_t v = 0; v < n; ++v) {
