@@ -4,6 +4,7 @@
 
 #include "codec/core/util/parallel.hpp"
 #include "codec/encoder/keyframes/blend_correction.hpp"
+#include "codec/encoder/keyframes/normal_offsets.hpp"
 #include "format/error.hpp"
 
 #include <algorithm>
@@ -206,14 +207,17 @@ class Predictor {
     for (const auto& key : blended) key_local.push_back(key->local.data());
     const size_t key_count = key_local.size();
     const double* key_weight = w.weights.data();
-    std::vector<double> offsets(weights_.size());
-    double sum = 0;
-    for (size_t v = 0; v < weights_.size(); ++v) {
-      Vec3 local = Vec3::Zero();
-      for (size_t i = 0; i < key_count; ++i) local += key_weight[i] * key_local[i][v].cast<double>();
-      offsets[v] = (pose.apply(local) - (world ? world[v] : frame.world_at(v))).dot(frame.normal_at(v));
-      sum += weights_[v] * offsets[v] * offsets[v];
+    std::vector<Vec3> own_world;
+    if (!world) {
+      own_world.resize(weights_.size());
+      for (size_t v = 0; v < own_world.size(); ++v) own_world[v] = frame.world_at(v);
+      world = own_world.data();
     }
+    std::vector<double> offsets(weights_.size());
+    predicted_normal_offsets({key_local.data(), key_count}, {key_weight, key_count}, pose, world, frame.normal.data(), offsets.size(),
+                             offsets.data());
+    double sum = 0;
+    for (size_t v = 0; v < weights_.size(); ++v) sum += weights_[v] * offsets[v] * offsets[v];
     Prediction p;
     p.spline = std::sqrt(sum / std::max(total_weight_, 1e-300)) / frame.diagonal;
     if (with_p99) p.spline_p99 = weighted_p99(offsets, weights_, total_weight_) / frame.diagonal;
