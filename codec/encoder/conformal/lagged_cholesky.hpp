@@ -26,13 +26,14 @@ class LaggedCholesky {
   static constexpr int kRefactorAfter = 6;
 
   void analyze(const SparseMatrix& A);
-  // X = A⁻¹ B. False when A is not positive definite: its factorisation failed (a direction of
-  // non-positive curvature in CG sends the matrix to the factorisation, which decides).
+  // X = A⁻¹ B. False when A's factorisation failed: A is not positive definite. CG hands A to
+  // the factorisation when it meets a direction of non-positive curvature; it can also converge on
+  // an indefinite A without meeting one, and that solve is returned (QIEM weighs every step by its
+  // energy, which decides).
   bool solve(const SparseMatrix& A, const Eigen::MatrixXd& B, Eigen::MatrixXd& X);
   int factorizations() const { return factorizations_; }
   int cg_iterations() const { return cg_iterations_; }
 
- double tcg=0, tf=0, ts=0;
  private:
   enum class Cg { kConverged, kTooSlow, kNotPositive };
   Cg conjugate_gradients(const SparseMatrix& A, const Eigen::MatrixXd& B, Eigen::MatrixXd& X);
@@ -40,7 +41,6 @@ class LaggedCholesky {
   SpdSolver factor_;
   bool have_factor_ = false;
   bool refactor_next_ = false;
-  bool refresh_ = false;
   int factorizations_ = 0;
   int cg_iterations_ = 0;
 };

@@ -3,8 +3,8 @@
 
 #include "format/error.hpp"
 
-#include "codec/encoder/conformal/moebius_centring.hpp"
 #include "codec/encoder/conformal/lagged_cholesky.hpp"
+#include "codec/encoder/conformal/moebius_centring.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -51,8 +51,8 @@ class SymmetricSystems {
     odd_solver_.analyze(A_odd_);
   }
 
-  // One step: solves [I + δt(K - D)] φ⁺ = φ for symmetric φ. False when a system is not positive
-  // definite (its factorisation failed).
+  // One step: solves [I + δt(K - D)] φ⁺ = φ for symmetric φ. False when a system's factorisation
+  // failed (it is not positive definite: the step is too long).
   bool step(const Eigen::MatrixXd& phi, const Eigen::VectorXd& D, double dt, Eigen::MatrixXd& next) {
     A_even_ = K_even_ * dt;
     for (int i = 0; i < n_; ++i) A_even_.coeffRef(i, i) += even_mass_[i] * (1.0 - dt * D[i]);

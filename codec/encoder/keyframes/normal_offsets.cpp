@@ -11,16 +11,16 @@ constexpr size_t kOffsetBlock = 256;
 
 // sum[j] += w · values[j] for j < n: the keys' coordinates as one flat run of floats.
 __attribute__((target_clones("avx2", "default"))) void add_scaled_floats(double* __restrict sum, const float* __restrict values, double w,
-                                                                  size_t n) {
+                                                                         size_t n) {
   for (size_t j = 0; j < n; ++j) sum[j] += w * static_cast<double>(values[j]);
 }
 
 // The rotation's rows 0 and 1 as Eigen's packets compute them, ((x r0 + y r1) + z r2); row 2, the
 // one left over, as its unrolled sum splits it, x r0 + (y r1 + z r2). The dot product likewise:
 // (dx nx + dy ny) + dz nz.
-__attribute__((target_clones("avx2", "default"))) void normal_offsets_of_block(const double* __restrict local, const double* __restrict rotation,
-                                                                  const double* __restrict translation, const double* __restrict world,
-                                                                  const float* __restrict normals, size_t n, double* __restrict offsets) {
+__attribute__((target_clones("avx2", "default"))) void normal_offsets_of_block(
+    const double* __restrict local, const double* __restrict rotation, const double* __restrict translation, const double* __restrict world,
+    const float* __restrict normals, size_t n, double* __restrict offsets) {
   const double r00 = rotation[0], r10 = rotation[1], r20 = rotation[2];  // column-major
   const double r01 = rotation[3], r11 = rotation[4], r21 = rotation[5];
   const double r02 = rotation[6], r12 = rotation[7], r22 = rotation[8];
@@ -45,7 +45,8 @@ void predicted_normal_offsets(std::span<const Eigen::Vector3f* const> keys, std:
     const size_t n = std::min(kOffsetBlock, count - first);
     std::fill(local, local + 3 * n, 0.0);
     for (size_t i = 0; i < keys.size(); ++i) add_scaled_floats(local, keys[i][first].data(), weights[i], 3 * n);
-    normal_offsets_of_block(local, pose.rotation.data(), pose.translation.data(), world[first].data(), normals[first].data(), n, offsets + first);
+    normal_offsets_of_block(local, pose.rotation.data(), pose.translation.data(), world[first].data(), normals[first].data(), n,
+                            offsets + first);
   }
 }
 
