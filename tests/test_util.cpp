@@ -4,6 +4,25 @@
 
 namespace facemorph::testing {
 
+SparseMatrix shifted_grid_laplacian(int n, double shift) {
+  std::vector<Eigen::Triplet<double>> entries;
+  const auto at = [n](int i, int j) { return i * n + j; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      double degree = 0;
+      for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int k = i + di, l = j + dj;
+        if (k < 0 || k >= n || l < 0 || l >= n) continue;
+        entries.emplace_back(at(i, j), at(k, l), -1.0);
+        degree += 1;
+      }
+      entries.emplace_back(at(i, j), at(i, j), degree + shift);
+    }
+  SparseMatrix A(n * n, n * n);
+  A.setFromTriplets(entries.begin(), entries.end());
+  return A;
+}
+
 TriangleMesh icosphere(double radius, int subdivisions) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
   TriangleMesh m;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
+#include "codec/core/geometry/differential.hpp"
 #include "codec/core/geometry/mesh.hpp"
 #include "codec/core/image/image.hpp"
 #include "format/error.hpp"
@@ -285,6 +286,10 @@ void survive_mutations(const std::vector<uint8_t>& seed, unsigned rng_seed, Pars
 
 // Icosphere of radius r with `subdivisions` loop-style midpoint splits, outward-facing.
 TriangleMesh icosphere(double radius, int subdivisions);
+
+// The 5-point Laplacian of an n x n grid plus shift·I (SPD for shift > 0; semidefinite at 0): the
+// sparse solvers' tests.
+SparseMatrix shifted_grid_laplacian(int n, double shift);
 
 // A w x w square lattice in row-major order, with its neighbour table (the residual coders' tests).
 inline format::LatticeNeighbours square_lattice(int w) {

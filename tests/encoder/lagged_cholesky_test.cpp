@@ -1,4 +1,5 @@
 #include "codec/encoder/conformal/lagged_cholesky.hpp"
+#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,25 +10,7 @@
 namespace facemorph {
 namespace {
 
-// The 5-point Laplacian L of an n x n grid.
-SparseMatrix grid_laplacian(int n) {
-  std::vector<Eigen::Triplet<double>> entries;
-  const auto at = [n](int i, int j) { return i * n + j; };
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      double degree = 0;
-      for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
-        const int k = i + di, l = j + dj;
-        if (k < 0 || k >= n || l < 0 || l >= n) continue;
-        entries.emplace_back(at(i, j), at(k, l), -1.0);
-        degree += 1;
-      }
-      entries.emplace_back(at(i, j), at(i, j), degree);
-    }
-  SparseMatrix L(n * n, n * n);
-  L.setFromTriplets(entries.begin(), entries.end());
-  return L;
-}
+using testing::shifted_grid_laplacian;
 
 // QIEM's matrices in small: M + δt (L - M D) with a mass M of 1 and 2, δt growing by 1.25 a step
 // and D drifting a little, as the flow's do once it has settled.
@@ -49,12 +32,23 @@ Eigen::MatrixXd random_columns(Eigen::Index rows, Eigen::Index columns, unsigned
   return x;
 }
 
+// Readies `lagged` for L's step matrices: the first (δt = 1) analysed, factored and solved with.
+void prime(LaggedCholesky& lagged, const SparseMatrix& L, unsigned seed) {
+  const SparseMatrix first = step_matrix(L, 1.0, 0);
+  lagged.analyze(first);
+  Eigen::MatrixXd X;
+  ASSERT_TRUE(lagged.solve(first, random_columns(L.rows(), 2, seed), X));
+}
+
+// ‖A‖∞, the largest absolute row sum.
+double infinity_norm(const SparseMatrix& A) { return (A.cwiseAbs() * Eigen::VectorXd::Ones(A.cols())).maxCoeff(); }
+
 // Every solve of a drifting run is as good as a factorisation's (backward error to the solver's
 // tolerance, the solution to the direct solve's within the condition number's reach), and most of
 // them factor nothing: a CG that does not converge, or a preconditioner that is not applied, sends
 // every step to the factorisation and fails the count.
 TEST(LaggedCholesky, ADriftingRunSolvesToRoundingWithFewFactorisations) {
-  const SparseMatrix L = grid_laplacian(40);
+  const SparseMatrix L = shifted_grid_laplacian(40, 0.0);
   LaggedCholesky lagged;
   lagged.analyze(step_matrix(L, 1.0, 0));
   const int steps = 12;
@@ -70,14 +64,8 @@ TEST(LaggedCholesky, ADriftingRunSolvesToRoundingWithFewFactorisations) {
     const Eigen::MatrixXd exact = direct.solve(B);
     for (int j = 0; j < 2; ++j) {
       const double residual = (B.col(j) - A * X.col(j)).lpNorm<Eigen::Infinity>();
-      double norm_a = 0;
-      for (int c = 0; c < A.outerSize(); ++c) {
-        double sum = 0;
-        for (SparseMatrix::InnerIterator it(A, c); it; ++it) sum += std::abs(it.value());
-        norm_a = std::max(norm_a, sum);
-      }
       EXPECT_LE(residual, LaggedCholesky::kBackwardErrorTolerance *
-                              (B.col(j).lpNorm<Eigen::Infinity>() + norm_a * X.col(j).lpNorm<Eigen::Infinity>()))
+                              (B.col(j).lpNorm<Eigen::Infinity>() + infinity_norm(A) * X.col(j).lpNorm<Eigen::Infinity>()))
           << "step " << step << " column " << j;
       EXPECT_LT((X.col(j) - exact.col(j)).norm() / exact.col(j).norm(), 1e-9) << "step " << step << " column " << j;
     }
@@ -88,11 +76,10 @@ TEST(LaggedCholesky, ADriftingRunSolvesToRoundingWithFewFactorisations) {
 
 // A column of zeros is solved by zeros beside a column that needs CG's iterations.
 TEST(LaggedCholesky, AZeroColumnStaysZeroBesideAnother) {
-  const SparseMatrix L = grid_laplacian(30);
+  const SparseMatrix L = shifted_grid_laplacian(30, 0.0);
   LaggedCholesky lagged;
-  lagged.analyze(step_matrix(L, 1.0, 0));
+  ASSERT_NO_FATAL_FAILURE(prime(lagged, L, 3));
   Eigen::MatrixXd X;
-  ASSERT_TRUE(lagged.solve(step_matrix(L, 1.0, 0), random_columns(L.rows(), 1, 3), X));
   Eigen::MatrixXd B = random_columns(L.rows(), 2, 4);
   B.col(1).setZero();
   const SparseMatrix A = step_matrix(L, 1.25, 0.05);
@@ -106,11 +93,10 @@ TEST(LaggedCholesky, AZeroColumnStaysZeroBesideAnother) {
 // earlier factor is there to precondition CG (CG meets its negative curvature, or gives up, and
 // the factorisation decides). A step too long for QIEM makes such a matrix.
 TEST(LaggedCholesky, AnIndefiniteMatrixIsReportedWithAnEarlierFactorAtHand) {
-  const SparseMatrix L = grid_laplacian(30);
+  const SparseMatrix L = shifted_grid_laplacian(30, 0.0);
   LaggedCholesky lagged;
-  lagged.analyze(step_matrix(L, 1.0, 0));
+  ASSERT_NO_FATAL_FAILURE(prime(lagged, L, 5));
   Eigen::MatrixXd X;
-  ASSERT_TRUE(lagged.solve(step_matrix(L, 1.0, 0), random_columns(L.rows(), 2, 5), X));
   SparseMatrix indefinite = step_matrix(L, 1.25, 0);
   for (int i : {37, 400, 611}) indefinite.coeffRef(i, i) = -50;
   EXPECT_FALSE(lagged.solve(indefinite, random_columns(L.rows(), 2, 6), X));
@@ -124,11 +110,10 @@ TEST(LaggedCholesky, AnIndefiniteMatrixIsReportedWithAnEarlierFactorAtHand) {
 // A matrix far from the factor's (δt a hundred times shorter) is still solved to rounding: CG gives
 // up or converges, and either way the answer is right.
 TEST(LaggedCholesky, AMatrixFarFromTheFactorsIsStillSolved) {
-  const SparseMatrix L = grid_laplacian(30);
+  const SparseMatrix L = shifted_grid_laplacian(30, 0.0);
   LaggedCholesky lagged;
-  lagged.analyze(step_matrix(L, 1.0, 0));
+  ASSERT_NO_FATAL_FAILURE(prime(lagged, L, 8));
   Eigen::MatrixXd X;
-  ASSERT_TRUE(lagged.solve(step_matrix(L, 1.0, 0), random_columns(L.rows(), 2, 8), X));
   const SparseMatrix A = step_matrix(L, 0.01, 0);
   const Eigen::MatrixXd B = random_columns(L.rows(), 2, 9);
   ASSERT_TRUE(lagged.solve(A, B, X));

@@ -1,4 +1,5 @@
 #include "codec/encoder/conformal/spd_solver.hpp"
+#include "tests/test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,27 +12,7 @@
 namespace facemorph {
 namespace {
 
-// The 5-point Laplacian of an n x n grid plus shift·I: SPD, and at n = 215 (46,225 unknowns, as a
-// 46k-vertex frame's) it is factored by CHOLMOD's supernodal method, whose supernodes are then
-// large enough for CHOLMOD 3 to open its OpenMP teams (num_threads(4)).
-SparseMatrix shifted_grid_laplacian(int n, double shift) {
-  std::vector<Eigen::Triplet<double>> entries;
-  const auto at = [n](int i, int j) { return i * n + j; };
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      double degree = 0;
-      for (const auto& [di, dj] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
-        const int k = i + di, l = j + dj;
-        if (k < 0 || k >= n || l < 0 || l >= n) continue;
-        entries.emplace_back(at(i, j), at(k, l), -1.0);
-        degree += 1;
-      }
-      entries.emplace_back(at(i, j), at(i, j), degree + shift);
-    }
-  SparseMatrix A(n * n, n * n);
-  A.setFromTriplets(entries.begin(), entries.end());
-  return A;
-}
+using testing::shifted_grid_laplacian;
 
 // Threads of this process now (Linux); -1 where /proc does not say.
 int thread_count() {
