@@ -65,6 +65,13 @@ double weighted_p99(const std::vector<double>& offsets, const std::vector<double
   return points.back().first;
 }
 
+// A frame's capture-frame positions, every node's (SelectionFrame::world_at).
+std::vector<Vec3> capture_frame_positions(const SelectionFrame& frame) {
+  std::vector<Vec3> world(frame.local.size());
+  for (size_t v = 0; v < world.size(); ++v) world[v] = frame.world_at(v);
+  return world;
+}
+
 // Some frames' capture-frame positions, frame `first` onwards (Predictor::worlds).
 struct FrameWorlds {
   int first = 0;
@@ -113,10 +120,7 @@ class Predictor {
     const int hi = std::min(last, static_cast<int>(frames_.size()) - 1);
     held.frames.resize(static_cast<size_t>(std::max(hi - held.first + 1, 0)));
     parallel_for(static_cast<int>(held.frames.size()), threads, [&](int f) {
-      const std::shared_ptr<const SelectionFrame> frame = frames_.sampled(static_cast<size_t>(held.first + f));
-      std::vector<Vec3>& world = held.frames[static_cast<size_t>(f)];
-      world.resize(frame->local.size());
-      for (size_t v = 0; v < world.size(); ++v) world[v] = frame->world_at(v);
+      held.frames[static_cast<size_t>(f)] = capture_frame_positions(*frames_.sampled(static_cast<size_t>(held.first + f)));
     });
     return held;
   }
@@ -209,8 +213,7 @@ class Predictor {
     const double* key_weight = w.weights.data();
     std::vector<Vec3> own_world;
     if (!world) {
-      own_world.resize(weights_.size());
-      for (size_t v = 0; v < own_world.size(); ++v) own_world[v] = frame.world_at(v);
+      own_world = capture_frame_positions(frame);
       world = own_world.data();
     }
     std::vector<double> offsets(weights_.size());
