@@ -7,6 +7,7 @@
 #include <cmath>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace facemorph {
 
@@ -26,7 +27,7 @@ constexpr int kUnrolledTerms = 8;
 // Calls `body` with std::integral_constant<int, terms> where terms <= kUnrolledTerms, with
 // kAnyTerms otherwise.
 template <int Terms = 0, class Body>
-double dispatch_on_terms(int terms, Body&& body) {
+decltype(auto) dispatch_on_terms(int terms, Body&& body) {
   if constexpr (Terms > kUnrolledTerms) {
     return body(std::integral_constant<int, kAnyTerms>{});
   } else {
@@ -78,13 +79,14 @@ double first_pass(const FirstPass& p, int terms, double* cross, double* project)
   return residual2;
 }
 
-// g -= Σ_i γ_i dG_i, the sum over i in order from 0 at every node.
+// g -= Σ_i γ_i dG_i over `terms` differences (Terms where known at compile time), the sum over i in
+// order from 0 at every node.
 template <int Terms>
-void combine(double* __restrict g, size_t size, const double* const* dG, const double* gamma, int terms) {
+void combine(double* __restrict g, size_t size, const std::vector<Eigen::VectorXd>& dG, const double* gamma, int terms) {
   const int count = Terms == kAnyTerms ? terms : Terms;
   const double* rows[AndersonMixer::kMaxDepth];
   double weights[AndersonMixer::kMaxDepth];
-  for (int i = 0; i < count; ++i) rows[i] = dG[i], weights[i] = gamma[i];
+  for (int i = 0; i < count; ++i) rows[i] = dG[static_cast<size_t>(i)].data(), weights[i] = gamma[i];
   for (size_t e = 0; e < size; ++e) {
     double sum = 0;
     for (int i = 0; i < count; ++i) sum += weights[i] * rows[i][e];
@@ -152,12 +154,7 @@ void AndersonMixer::step(const Vector& x, Vector g) {
   A.diagonal().array() += 1e-12 * A.diagonal().maxCoeff();
   const Eigen::VectorXd gamma = A.ldlt().solve(b);
   if (!gamma.allFinite()) return;
-  const double* dG[kMaxDepth];
-  for (int i = 0; i < m; ++i) dG[i] = dG_[static_cast<size_t>(i)].data();
-  dispatch_on_terms(m, [&](auto count) {
-    combine<decltype(count)::value>(g.data(), pass.size, dG, gamma.data(), m);
-    return 0.0;
-  });
+  dispatch_on_terms(m, [&](auto count) { combine<decltype(count)::value>(g.data(), pass.size, dG_, gamma.data(), m); });
 }
 
 }  // namespace facemorph
