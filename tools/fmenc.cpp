@@ -642,12 +642,13 @@ void print_keyframes(const Summary& s) {
   }
   if (s.report.representation_rate.measured) {
     const RepresentationRate& r = s.report.representation_rate;
-    std::printf("  representation and N by bytes at equal error (keyframes' bytes; %s RMS / worst 99th percentile of the diagonal on %d %s; "
-                "bytes x RMS^%g the lowest%s, a coarser N within %.2g%%, the worst 99th percentile within %.2g%% or %gx the first's):",
-                r.on_keyframes ? "decoded keyframes'" : "held-out", r.candidates.front().frames,
-                r.on_keyframes ? "keyframes (no frame between them)" : "frames", kRateErrorExponent,
-                r.on_keyframes ? ", none with more bytes than the first (all built to the same targets)" : "", 100 * r.tolerance,
-                100 * r.worst_bound, r.worst_bound > 0 ? kWorstRegionRise : 1.0);
+    std::printf(
+        "  representation and N by bytes at equal error (keyframes' bytes; %s RMS / worst 99th percentile of the diagonal on %d %s; "
+        "bytes x max(RMS, %.2g%%)^%g the lowest%s, a coarser N within %.2g%%, the worst 99th percentile within %.2g%% or %gx the first's):",
+        r.on_keyframes ? "decoded keyframes'" : "held-out", r.candidates.front().frames,
+        r.on_keyframes ? "keyframes (no frame between them)" : "frames", 100 * kUnboughtErrorShare * r.tolerance, kRateErrorExponent,
+        r.on_keyframes ? ", none with more bytes than the first (all built to the same targets)" : "", 100 * r.tolerance,
+        100 * r.worst_bound, r.worst_bound > 0 ? kWorstRegionRise : 1.0);
     for (size_t i = 0; i < r.candidates.size(); ++i) {
       const RateCandidate& c = r.candidates[i];
       char step[32] = "";

@@ -21,9 +21,10 @@
 
 namespace facemorph {
 
-double rate_cost(const RateCandidate& candidate) {
+double rate_cost(const RateCandidate& candidate, double tolerance) {
   if (candidate.frames <= 0 || !(candidate.held_rms > 0) || candidate.bytes == 0) return std::numeric_limits<double>::infinity();
-  return static_cast<double>(candidate.bytes) * std::pow(candidate.held_rms, kRateErrorExponent);
+  const double error = std::max(candidate.held_rms, kUnboughtErrorShare * tolerance);
+  return static_cast<double>(candidate.bytes) * std::pow(error, kRateErrorExponent);
 }
 
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions) {
@@ -56,7 +57,7 @@ size_t cheapest_at_equal_error(const std::vector<RateCandidate>& candidates, dou
     if (!coarser_within_tolerance(candidates, i, tolerance)) continue;
     if (!admitted_worst_region(c, candidates.front(), worst_bound)) continue;
     if (buys_only_error_below_the_target(c, candidates.front(), on_keyframes)) continue;
-    if (rate_cost(c) < rate_cost(candidates[best])) best = i;
+    if (rate_cost(c, tolerance) < rate_cost(candidates[best], tolerance)) best = i;
   }
   return best;
 }

@@ -70,8 +70,21 @@ inline constexpr double kCoarserStepScale = 2.0;
 // evenly over them.
 inline constexpr int kRateTrials = 8;
 
-// bytes · held_rms^kRateErrorExponent (infinite when nothing was measured).
-double rate_cost(const RateCandidate& candidate);
+// Held-out error under this share of the tolerance is not bought: the rule reads a candidate's RMS
+// as at least kUnboughtErrorShare × the tolerance (rate_cost). The exchange rate above holds where
+// the spline's error between keyframes dominates, which a finer N or step barely moves; where the
+// keyframes leave almost nothing to predict (a face nearly still, its keyframe budget the 10%), G's
+// floor dominates and falls as 1/N² while the bytes grow as N², so bytes · RMS² fell at every finer
+// N and kept N = 257 at a twentieth of the tolerance: ICT from 10.0 s decimated to 2k vertices
+// 61,743 B at 0.078% held-out RMS, six times the bytes a second of its speech at 0.2% costs
+// (spec/method.md §7.14, "An error the tolerance does not ask for"). Two fifths, the share of the
+// tolerance a frame nothing is predicted for is rounded to (§5.3): under it, no candidate is credited
+// with an error the defaults would not hold a keyframe to.
+inline constexpr double kUnboughtErrorShare = 0.4;
+
+// bytes · max(held_rms, kUnboughtErrorShare × tolerance)^kRateErrorExponent (infinite when nothing
+// was measured); a tolerance of 0 reads the RMS as measured.
+double rate_cost(const RateCandidate& candidate, double tolerance = 0);
 // The candidate the rule keeps: xyz only where its cost is strictly lower than hl+t's (a tie keeps
 // the fields, which turn with a rotating head rather than cutting its chords: spec/method.md §5.2).
 Representation cheaper_at_equal_error(const RateCandidate& fields, const RateCandidate& positions);
