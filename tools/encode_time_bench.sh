@@ -42,8 +42,8 @@ make_capture() {
     ict60) python3 "$data/ict-facekit/tools/make_capture.py" "$dir" --start-seconds 58.0 --seconds 2.0 --fps 30 > /dev/null ;;
     ict10) python3 "$data/ict-facekit/tools/make_capture.py" "$dir" --start-seconds 10.0 --seconds 1.0 --fps 30 > /dev/null ;;
     ict2k24 | ict10_2k)
-      local full=${name%2k*}${name#*2k}  # the full capture: ict2k24 -> ict24, ict10_2k -> ict10
-      full=${full%_}
+      local full=ict24  # the capture decimated
+      [[ $name == ict10_2k ]] && full=ict10
       make_capture "$full"
       blender -b -P tools/decimate_capture.py -- "$cache/$full" "$dir" 0.221 > "$cache/decimate.log" 2>&1
       cp "$cache/$full/landmarks.csv" "$dir/" ;;

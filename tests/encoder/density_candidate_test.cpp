@@ -158,10 +158,6 @@ Capture surround_capture(const testing::TempDir& dir) {
   return read_capture(dir.path());
 }
 
-// A head-and-shoulders scan (fmsynth --surround, 12 frames of 3,000 vertices): the face is crowded
-// in the conformal disk's middle (the resampled p99 at N = 41 1.72%; 0.60% through D on the
-// reviewer's machine). The density-equalised disk's positions are kept at a coarser N than the
-// conformal disk allowed, the file holds them, and it decodes at the error measured.
 // The frame patches at their default bound: with them off, no candidate may pass the first's worst
 // p99, D's coarser N are refused, and D at N = 97 (0.113% held-out RMS) against the conformal disk's
 // (0.128%) buys only error under the two fifths of the tolerance no candidate is credited below.
@@ -171,6 +167,10 @@ EncodeOptions surround_options() {
   return options;
 }
 
+// A head-and-shoulders scan (fmsynth --surround, 12 frames of 3,000 vertices): the face is crowded
+// in the conformal disk's middle (the resampled p99 at N = 41 1.72%; 0.60% through D on the
+// reviewer's machine). The density-equalised disk's positions are kept at a coarser N than the
+// conformal disk allowed, the file holds them, and it decodes at the error measured.
 TEST(SequenceEncoder, TheDensityEqualisedDiskIsKeptWhereItPays) {
   testing::TempDir dir;
   const Capture capture = surround_capture(dir);

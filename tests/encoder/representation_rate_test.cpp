@@ -23,8 +23,8 @@
 namespace facemorph {
 namespace {
 
-RateCandidate candidate(Representation r, uint64_t bytes, double rms, int grid = 257, bool coarser = false) {
-  return {r, grid, coarser, bytes, rms, 8};
+RateCandidate candidate(Representation r, uint64_t bytes, double rms, int grid = 257, bool coarser = false, int frames = 8) {
+  return {r, grid, coarser, bytes, rms, frames};
 }
 
 // The frame patches' default bound (EncodeOptions::patch_bound): the worst trial p99 any candidate may reach.
@@ -495,9 +495,9 @@ TEST(SequenceEncoder, AOneFrameCaptureIsChosenForOnItsKeyframe) {
   EXPECT_LE(kept_bytes, forced_bytes);
   const double kept_rms = held_out_error(capture, *stored, frame, *captured, options.threads).rms;
   const double forced_rms = held_out_error(capture, *fields, frame, *captured, options.threads).rms;
-  const double unbought = kUnboughtErrorShare * rate.tolerance;  // an error under it is read as it
-  EXPECT_LE(double(kept_bytes) * std::pow(std::max(kept_rms, unbought), kRateErrorExponent),
-            double(forced_bytes) * std::pow(std::max(forced_rms, unbought), kRateErrorExponent) * (1 + 1e-12));
+  const auto measured = [](uint64_t bytes, double rms) { return candidate(Representation::kHLT, bytes, rms, 257, false, 1); };
+  EXPECT_LE(rate_cost(measured(kept_bytes, kept_rms), rate.tolerance),
+            rate_cost(measured(forced_bytes, forced_rms), rate.tolerance) * (1 + 1e-12));
 }
 
 }  // namespace
