@@ -211,15 +211,16 @@ TEST(RepresentationRate, OnTheKeyframesAloneNoCandidateCostsMoreBytesThanTheFirs
   using enum Representation;
   const std::vector<RateCandidate> ict = {candidate(kHLT, 16937, 0.002144), candidate(kXYZ, 25510, 0.001686)};
   ASSERT_LT(rate_cost(ict[1]), rate_cost(ict[0]));  // the exchange rate alone keeps xyz
-  // (Between keyframes at a tolerance of 0.4%, whose two fifths, 0.16%, are under xyz's 0.1686%;
-  // at 0.5% xyz's error would be under the 0.2% no candidate is credited below.)
+  // (At a tolerance of 0.4%, whose two fifths, 0.16%, are under xyz's 0.1686%: at 0.5% xyz's error
+  // would read as the 0.2% no candidate is credited below, and the floor alone would refuse it.)
   EXPECT_EQ(cheapest_at_equal_error(ict, 0.004, kPatchBound, false), 1u);
-  EXPECT_EQ(cheapest_at_equal_error(ict, 0.005, kPatchBound, true), 0u);
+  EXPECT_EQ(cheapest_at_equal_error(ict, 0.004, kPatchBound, true), 0u);
   EXPECT_TRUE(buys_only_error_below_the_target(ict[1], ict[0], true));
   EXPECT_FALSE(buys_only_error_below_the_target(ict[1], ict[0], false));
   // N's winner on the keyframes is then the fields, and the coarser N is tried in them.
   const auto met = [] { return 0.0061; };
-  EXPECT_EQ(coarser_candidates(ict, 0.005, kPatchBound, true, 129, met, 0.0075), (std::vector<std::pair<Representation, int>>{{kHLT, 129}}));
+  EXPECT_EQ(coarser_candidates(ict, 0.004, kPatchBound, true, 129, met, 0.0075),
+            (std::vector<std::pair<Representation, int>>{{kHLT, 129}}));
   EXPECT_EQ(coarser_candidates(ict, 0.004, kPatchBound, false, 129, met, 0.0075),
             (std::vector<std::pair<Representation, int>>{{kXYZ, 129}}));
   // Fewer bytes at a lower error (the sample's frame 0), or the same bytes: still chosen by the rate.

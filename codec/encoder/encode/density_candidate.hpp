@@ -3,9 +3,9 @@
 // as positions through the density-equalising map D of the reference's disk (strength
 // kCandidateDensityStrength, built as set_reference_geometry builds it): at the kept candidate's N,
 // and at the coarsest N below it whose resampled floor through D meets the worst region's share.
-// Each is rounded like the others and measured the same way; the rule (bytes · RMS², a coarser N
-// within the tolerance) keeps one. Kept, D stays the registrations' reparametrisation for every
-// later stage (residuals, patches, holes, texture); the decoder never sees D.
+// Each is rounded like the others and measured the same way; the rule (bytes · RMS², an RMS under two
+// fifths of the tolerance read as that, a coarser N within the tolerance) keeps one. Kept, D stays the registrations' reparametrisation for
+// every later stage (residuals, patches, holes, texture); the decoder never sees D.
 #pragma once
 
 #include "codec/encoder/density/density_equalising.hpp"
@@ -56,7 +56,7 @@ int rung_between(const std::vector<std::pair<int, double>>& measured, int coarse
 std::optional<RateCandidate> best_density_equalised(const RepresentationRate& rate);
 
 // The rung between `coarser` and `kept` (rung_between) where D at the coarsest N lost to D at the
-// kept N on bytes x RMS² (its RMS grew more than its bytes fell: the middle may win, which a measured
+// kept N on bytes x RMS² as the rule weighs it (its RMS grew more than its bytes fell: the middle may win, which a measured
 // floor alone cannot tell; ict60 before the rungs, D 193 lost to 257); 0 where D's best is another
 // (the coarsest won: ict24, D 193) or none is between.
 int rung_to_try_between(const RepresentationRate& rate, const std::vector<std::pair<int, double>>& measured, int coarser, int kept,

@@ -51,8 +51,8 @@ struct EncodeOptions {
   // blended positions (by more than kFieldsBlendMargin): the fields of features that the normalised
   // maps leave apart do not blend into one surface; positions do. choose_representation
   // (sequence_encoder.hpp) decides that. Elsewhere the keyframes are coded as hl+t and as xyz, at N
-  // and at a coarser N the worst region allows, and the lowest bytes x RMS^2 is kept
-  // (choose_by_bytes, representation_rate.hpp; spec/method.md §7.14).
+  // and at a coarser N the worst region allows, and the lowest bytes x RMS^2 is kept, an RMS under
+  // two fifths of the tolerance read as that (choose_by_bytes, representation_rate.hpp; spec/method.md §7.14).
   std::optional<Representation> representation;
   RegistrationOptions registration;
   SplineKind spline = SplineKind::kCatmullRom;

@@ -5,10 +5,9 @@
 // two at that N too (coarser_candidates); it measures each one's geometry bytes as the file would hold them and its held-out error on
 // a few decoded frames against their captured meshes (the keyframes themselves where no frame lies
 // between them: rate_trial_frames), and keeps the one with the lowest
-// bytes · error^k (a coarser N only where its error stays within the tolerance; any candidate but
-// the first only where its worst trial frame's 99th percentile is within the frame patches' bound
-// or not much worse than the first's: admitted_worst_region; on the keyframes alone, none with
-// more bytes than the first: buys_only_error_below_the_target).
+// bytes · error^k, an error under two fifths of the tolerance read as that (a coarser N only where its error stays within the tolerance;
+// any candidate but the first only where its worst trial frame's 99th percentile is within the frame patches' bound or not much worse than
+// the first's: admitted_worst_region; on the keyframes alone, none with more bytes than the first: buys_only_error_below_the_target).
 #pragma once
 
 #include "codec/core/container/file_metadata.hpp"
@@ -75,11 +74,12 @@ inline constexpr int kRateTrials = 8;
 // the spline's error between keyframes dominates, which a finer N or step barely moves; where the
 // keyframes leave almost nothing to predict (a face nearly still, its keyframe budget the 10%), G's
 // floor dominates and falls as 1/N² while the bytes grow as N², so bytes · RMS² fell at every finer
-// N and kept N = 257 at a twentieth of the tolerance: ICT from 10.0 s decimated to 2k vertices
+// N and kept N = 257 at a sixth of the tolerance: ICT from 10.0 s decimated to 2k vertices
 // 61,743 B at 0.078% held-out RMS, six times the bytes a second of its speech at 0.2% costs
 // (spec/method.md §7.14, "An error the tolerance does not ask for"). Two fifths, the share of the
-// tolerance a frame nothing is predicted for is rounded to (§5.3): under it, no candidate is credited
-// with an error the defaults would not hold a keyframe to.
+// tolerance a frame nothing is predicted for is rounded to (§5.3; that rounding is capped at 0.2%,
+// so past a 0.5% tolerance the floor is the larger): under it, no candidate is credited with an error
+// the defaults would not hold a lone keyframe to.
 inline constexpr double kUnboughtErrorShare = 0.4;
 
 // bytes · max(held_rms, kUnboughtErrorShare × tolerance)^kRateErrorExponent (infinite when nothing

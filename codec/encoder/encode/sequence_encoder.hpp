@@ -241,10 +241,10 @@ class SequenceEncoder {
   // code's choice of the representation by bytes at equal error (representation_rate.hpp), given
   // the keyframes built and rounded as hl+t: where the options leave the representation open and the
   // fields were kept so far, the same keyframes built and rounded as xyz too, and the one of lower
-  // bytes · held-out RMS² kept and adopted (report().representation_rate says what was measured);
-  // elsewhere `fields` as given. `captured`: the trial frames' captured meshes (rate_trial_frames,
-  // trial_meshes; none: no comparison); `builds`: the conformal disk's builds, where code kept
-  // `fields` unrounded (candidate_builds.hpp), so that no candidate at an N built before is built again.
+  // bytes · held-out RMS² kept (an RMS under two fifths of the tolerance read as that) and adopted (report().representation_rate says what
+  // was measured); elsewhere `fields` as given. `captured`: the trial frames' captured meshes (rate_trial_frames, trial_meshes; none: no
+  // comparison); `builds`: the conformal disk's builds, where code kept `fields` unrounded (candidate_builds.hpp), so that no candidate at
+  // an N built before is built again.
   std::unique_ptr<StoredSequence> choose_by_bytes(const StageSettings& settings, const KeyframeSelection& chosen, int grid,
                                                   std::unique_ptr<StoredSequence> fields,
                                                   const std::optional<std::vector<TriangleMesh>>& captured, CandidateBuilds& builds);
